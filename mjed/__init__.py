@@ -1,0 +1,17 @@
+"""mjed: Multiplicative Jacobian Energy Decomposition for P1 tetrahedra, in NumPy.
+
+    >>> import mjed
+    >>> mesh = mjed.TetMesh(points, cells)
+    >>> field = mjed.HyperelasticForceField(mesh, mjed.materials.NeoHookean(mu=1e3, lam=1e4))
+    >>> f, K = field.force_and_stiffness(x)
+
+This package depends on NumPy and SciPy only; it never imports dolfinx, UFL or PETSc.
+"""
+
+from mjed import materials
+from mjed.errors import InvertedElementError, MeshError, MeshWarning
+from mjed.forcefield import HyperelasticForceField
+from mjed.mesh import TetMesh
+
+__all__ = ["TetMesh", "HyperelasticForceField", "MeshError", "MeshWarning", "InvertedElementError", "materials"]
+__version__ = "0.1.0"

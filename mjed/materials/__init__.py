@@ -1,0 +1,30 @@
+"""Hyperelastic materials, each declared as its MJED terms.
+
+Every material is a frozen dataclass of its parameters, validated on construction, with a
+``decomposition()`` method returning its term groups (see :mod:`mjed.terms`). The strain
+energies are those of the project conventions (zero at rest):
+
+    StVenantKirchhoff   lam/2 (tr E)^2 + mu tr(E^2)
+    NeoHookean          mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2
+    MooneyRivlin        c1 (I1b - 3) + c2 (I2b - 3) + k0/2 (ln J)^2
+    VerondaWestmann     c1 (exp(c2 (I1b - 3)) - 1) - c1 c2/2 (I2b - 3) + k0/2 (ln J)^2
+    ArrudaBoyce         mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2
+"""
+
+from mjed.materials.isotropic import (
+    ArrudaBoyce,
+    MooneyRivlin,
+    NeoHookean,
+    StVenantKirchhoff,
+    VerondaWestmann,
+)
+from mjed.materials.base import Material
+
+__all__ = [
+    "Material",
+    "StVenantKirchhoff",
+    "NeoHookean",
+    "MooneyRivlin",
+    "VerondaWestmann",
+    "ArrudaBoyce",
+]

@@ -1,0 +1,217 @@
+"""The vocabulary of MJED terms (paper, eq. 2).
+
+A strain energy density is written as
+
+    W = sum_groups c_w * sum_{k in w} f_k(J) g_k(C)          (plain group)
+      + sum_groups c_w * exp(sum_{k in w} f_k(J) g_k(C))     (exponential group)
+
+A :class:`Term` pairs a function of J (:class:`JFunction`, which gives f, f', f'') with a
+function of C (:class:`InvariantFunction`, which gives g, S = 2 dg/dC and dS/dC). The
+derivative of S is declared as a list of :class:`TangentPair`:
+
+    dS/dC : H = sum_first beta (A : H) A + sum_second gamma B H B,
+
+with the matrices A, B known when the material is built (so the engine can precompute their
+products with the shape vectors) and the scalars beta, gamma evaluated at each state.
+Adding a material means composing these pieces; the engine never changes.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Literal, Sequence, Tuple, Union
+
+import numpy as np
+
+from mjed.kinematics import Kinematics
+
+__all__ = [
+    "IDENTITY",
+    "JFunction",
+    "JPower",
+    "LogPolynomial",
+    "InvariantFunction",
+    "TangentPair",
+    "Unity",
+    "I1Power",
+    "LinearI2",
+    "GreenLagrangeQuadratic",
+    "Term",
+    "TermGroup",
+]
+
+IDENTITY = np.eye(3)
+IDENTITY.setflags(write=False)
+
+Scalar = Union[float, np.ndarray]
+
+
+# --------------------------------------------------------------------------- functions of J
+class JFunction(ABC):
+    """A scalar function of the volume ratio and its first two derivatives."""
+
+    @abstractmethod
+    def __call__(self, J: np.ndarray) -> Tuple[Scalar, Scalar, Scalar]:
+        """Return f(J), f'(J), f''(J), each (m,) or a float."""
+
+
+@dataclass(frozen=True)
+class JPower(JFunction):
+    """f = J^p; p = 0 is the constant 1 (terms without a J factor)."""
+
+    p: float
+
+    def __call__(self, J):
+        p = self.p
+        if p == 0.0:
+            return 1.0, 0.0, 0.0
+        Jp2 = J ** (p - 2.0)
+        return Jp2 * J * J, p * Jp2 * J, p * (p - 1.0) * Jp2
+
+
+@dataclass(frozen=True)
+class LogPolynomial(JFunction):
+    """f = a2 (ln J)^2 + a1 ln J + a0: the volumetric terms of the ln J family."""
+
+    a2: float
+    a1: float = 0.0
+    a0: float = 0.0
+
+    def __call__(self, J):
+        L = np.log(J)
+        f = (self.a2 * L + self.a1) * L + self.a0
+        df = (2.0 * self.a2 * L + self.a1) / J
+        d2f = (2.0 * self.a2 * (1.0 - L) - self.a1) / (J * J)
+        return f, df, d2f
+
+
+# --------------------------------------------------------------------- functions of C
+@dataclass(frozen=True, eq=False)
+class TangentPair:
+    """One piece of dS/dC : H.
+
+    kind "first": beta (A : H) A.  kind "second": gamma B H B.
+    matrix: symmetric (3, 3) constant, or (m, 3, 3) with one constant matrix per cell.
+    """
+
+    kind: Literal["first", "second"]
+    matrix: np.ndarray = field(default_factory=lambda: IDENTITY)
+
+
+class InvariantFunction(ABC):
+    """g(C) with S = 2 dg/dC and dS/dC in MJED's (beta, A) / (gamma, B) form."""
+
+    #: the (kind, matrix) of each tangent pair; the coefficients come from tangent_coefficients.
+    tangent: Tuple[TangentPair, ...] = ()
+
+    @abstractmethod
+    def value(self, kin: Kinematics) -> Scalar:
+        """g, (m,) or a float."""
+
+    def stress(self, kin: Kinematics) -> Union[np.ndarray, None]:
+        """S = 2 dg/dC, (m, 3, 3); None when g does not depend on C."""
+        return None
+
+    def tangent_coefficients(self, kin: Kinematics) -> Sequence[Scalar]:
+        """beta or gamma for each entry of ``tangent``, each (m,) or a float."""
+        return ()
+
+
+class Unity(InvariantFunction):
+    """g = 1: the term is a pure function of J (volumetric terms)."""
+
+    def value(self, kin):
+        return 1.0
+
+    def __eq__(self, other):
+        return isinstance(other, Unity)
+
+    def __hash__(self):
+        return hash(Unity)
+
+
+def _scaled_identity(s: np.ndarray, m: int) -> np.ndarray:
+    out = np.zeros((m, 3, 3))
+    out[:, [0, 1, 2], [0, 1, 2]] = np.broadcast_to(np.asarray(s, dtype=float)[..., None], (m, 3))
+    return out
+
+
+@dataclass(frozen=True)
+class I1Power(InvariantFunction):
+    """g = c I1^n (n >= 1): S = 2 c n I1^(n-1) Id; dS/dC : H = 2 c n (n-1) I1^(n-2) tr(H) Id."""
+
+    c: float
+    n: int = 1
+
+    def __post_init__(self):
+        object.__setattr__(self, "tangent", (TangentPair("first"),) if self.n >= 2 else ())
+
+    def value(self, kin):
+        return self.c * kin.I1**self.n
+
+    def stress(self, kin):
+        return _scaled_identity(2.0 * self.c * self.n * kin.I1 ** (self.n - 1), len(kin.F))
+
+    def tangent_coefficients(self, kin):
+        if self.n < 2:
+            return ()
+        return (2.0 * self.c * self.n * (self.n - 1) * kin.I1 ** (self.n - 2),)
+
+
+@dataclass(frozen=True)
+class LinearI2(InvariantFunction):
+    """g = c I2: S = 2c (I1 Id - C); dS/dC : H = 2c tr(H) Id - 2c H."""
+
+    c: float
+    tangent = (TangentPair("first"), TangentPair("second"))
+
+    def value(self, kin):
+        return self.c * kin.I2
+
+    def stress(self, kin):
+        S = _scaled_identity(kin.I1, len(kin.F)) - kin.C
+        return 2.0 * self.c * S
+
+    def tangent_coefficients(self, kin):
+        return (2.0 * self.c, -2.0 * self.c)
+
+
+@dataclass(frozen=True)
+class GreenLagrangeQuadratic(InvariantFunction):
+    """g = lam/2 (tr E)^2 + mu tr(E^2): S = lam tr(E) Id + 2 mu E; dS/dC : H = lam/2 tr(H) Id + mu H."""
+
+    mu: float
+    lam: float
+    tangent = (TangentPair("first"), TangentPair("second"))
+
+    def value(self, kin):
+        E = kin.E
+        trE = np.einsum("mii->m", E)
+        return 0.5 * self.lam * trE**2 + self.mu * np.einsum("mij,mij->m", E, E)
+
+    def stress(self, kin):
+        E = kin.E
+        trE = np.einsum("mii->m", E)
+        return _scaled_identity(self.lam * trE, len(E)) + 2.0 * self.mu * E
+
+    def tangent_coefficients(self, kin):
+        return (0.5 * self.lam, self.mu)
+
+
+# ----------------------------------------------------------------------------- terms
+@dataclass(frozen=True)
+class Term:
+    """f(J) g(C)."""
+
+    f: JFunction
+    g: InvariantFunction
+
+
+@dataclass(frozen=True)
+class TermGroup:
+    """Terms whose products are summed; an exponential group contributes c exp(sum)."""
+
+    terms: Tuple[Term, ...]
+    exponential: bool = False
+    coefficient: float = 1.0
