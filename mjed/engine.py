@@ -103,17 +103,21 @@ class MJEDEngine:
         self._DxD = np.cross(D[:, _EA], D[:, _EB])
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True) -> Evaluation:
+    def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True, check_J=None) -> Evaluation:
         """Energy, gradient and (optionally) edge stiffness blocks of every cell.
 
         Args:
             x_cells: (m, 4, 3) current positions of each cell's nodes.
             stiffness: also compute the edge blocks.
+            check_J: called with J (m,) before any material function is evaluated, so a
+                caller can refuse inverted cells before ln J or J^p produce NaN.
         """
         D = self.D
         m = len(D)
         kin = Kinematics(deformation_gradient(x_cells, D))
         F, J = kin.F, kin.J
+        if check_J is not None:
+            check_J(J)
         dJ = np.einsum("mij,maj->mai", kin.cof, D)  # (m, 4, 3)
 
         energy = np.zeros(m)

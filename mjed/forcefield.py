@@ -80,12 +80,11 @@ class HyperelasticForceField:
     # ---------------------------------------------------------------- internals
     def _evaluate(self, x, *, stiffness: bool) -> Evaluation:
         x = self._check_positions(x)
-        ev = self.engine.evaluate(x[self.mesh.cells], stiffness=stiffness)
-        if not self.allow_inverted:
-            bad = np.flatnonzero(~(ev.J > 0))
-            if len(bad):
-                raise InvertedElementError(bad, ev.J[bad], context="at the given positions")
-        return ev
+        if self.allow_inverted:
+            # ln J and J^p are NaN for J <= 0: that is the documented answer, not a surprise.
+            with np.errstate(invalid="ignore", divide="ignore"):
+                return self.engine.evaluate(x[self.mesh.cells], stiffness=stiffness)
+        return self.engine.evaluate(x[self.mesh.cells], stiffness=stiffness, check_J=_refuse_inverted)
 
     def _check_positions(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
@@ -96,3 +95,9 @@ class HyperelasticForceField:
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(f"{int(bad.sum())} node(s) with non-finite positions; first is node {i}: {x[i].tolist()}")
         return x
+
+
+def _refuse_inverted(J: np.ndarray) -> None:
+    bad = np.flatnonzero(~(J > 0))
+    if len(bad):
+        raise InvertedElementError(bad, J[bad], context="at the given positions")

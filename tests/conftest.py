@@ -1,0 +1,68 @@
+"""Shared fixtures: small NumPy-built meshes (no gmsh needed) and the material set."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mjed import materials as M
+
+# One parameter set per material, chosen so that every term of each energy matters.
+MATERIALS = {
+    "StVenantKirchhoff": M.StVenantKirchhoff(mu=1.3, lam=2.1),
+    "NeoHookean": M.NeoHookean(mu=1.3, lam=2.1),
+    "MooneyRivlin": M.MooneyRivlin(c1=0.7, c2=0.4, k0=5.0),
+    "VerondaWestmann": M.VerondaWestmann(c1=0.8, c2=1.2, k0=5.0),
+    "ArrudaBoyce": M.ArrudaBoyce(mu=1.0, k0=5.0),
+}
+
+
+def box_mesh(n: int = 2, *, jitter: float = 0.0, seed: int = 0):
+    """Unit cube split into n^3 sub-cubes of 6 tetrahedra each, nodes optionally jittered.
+
+    Returns points (n_nodes, 3) and positively oriented cells (m, 4).
+    """
+    g = np.linspace(0.0, 1.0, n + 1)
+    X, Y, Z = np.meshgrid(g, g, g, indexing="ij")
+    points = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    if jitter:
+        rng = np.random.default_rng(seed)
+        interior = np.all((points > 0) & (points < 1), axis=1)
+        points[interior] += jitter / n * rng.uniform(-1, 1, size=(interior.sum(), 3))
+    idx = np.arange((n + 1) ** 3).reshape(n + 1, n + 1, n + 1)
+    corners = np.stack(
+        [idx[i : n + i, j : n + j, k : n + k].ravel() for i, j, k in
+         [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]],
+        axis=1,
+    )
+    split = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
+    cells = np.concatenate([corners[:, list(t)] for t in split])
+    e = points[cells[:, 1:]] - points[cells[:, :1]]
+    neg = np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) < 0
+    cells[neg, 2], cells[neg, 3] = cells[neg, 3], cells[neg, 2].copy()
+    return points, cells
+
+
+def random_tetrahedron(rng):
+    """A random, reasonably shaped, positively oriented single tetrahedron."""
+    while True:
+        P = rng.uniform(-1, 1, size=(4, 3))
+        e = P[1:] - P[0]
+        vol = np.linalg.det(e.T) / 6
+        if abs(vol) > 0.05:
+            cells = np.array([[0, 1, 2, 3]]) if vol > 0 else np.array([[0, 2, 1, 3]])
+            return P, cells
+
+
+def perturbed(points, rng, scale=0.08):
+    return points + scale * rng.standard_normal(points.shape)
+
+
+@pytest.fixture(params=sorted(MATERIALS))
+def material(request):
+    return MATERIALS[request.param]
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)
