@@ -59,6 +59,9 @@ class _Slot:
     def __init__(self, kind: str, matrix: np.ndarray, D: np.ndarray):
         self.kind = kind
         self.matrix = matrix
+        if kind == "spectral":  # eigenprojectors of C: nothing to precompute
+            self.identity = False
+            return
         self.identity = matrix is IDENTITY or (matrix.shape == (3, 3) and np.array_equal(matrix, IDENTITY))
         if self.identity:
             self.MD = D
@@ -71,6 +74,8 @@ class _Slot:
 
 
 def _slot_key(pair: TangentPair) -> Tuple[str, object]:
+    if pair.kind == "spectral":
+        return pair.kind, None
     m = pair.matrix
     if m.ndim == 2:
         return pair.kind, m.tobytes()
@@ -125,7 +130,7 @@ class MJEDEngine:
         S_hat = np.zeros((m, 3, 3))
         h = np.zeros(m)
         g2 = np.zeros(m)
-        weights = {key: np.zeros(m) for key in self._slots}
+        weights = {key: 0.0 for key in self._slots}  # (m,) arrays, (m, 3, 3) for "spectral"
         rank_one: List[Tuple[np.ndarray, np.ndarray]] = []
 
         for group in self.groups:
@@ -145,7 +150,7 @@ class MJEDEngine:
             h += scale * agg.h
             g2 += scale * agg.g2
             for key, w in agg.pair_weights.items():
-                weights[key] += scale * w
+                weights[key] = weights[key] + _scale(scale, w)
 
         V0 = self.volumes
         FSD = np.einsum("mij,mjk,mak->mai", F, S, D)
@@ -169,7 +174,10 @@ class MJEDEngine:
 
         # material: the declared tangent pairs
         for key, slot in self._slots.items():
-            w = weights[key]
+            w = np.broadcast_to(weights[key], (m,) if slot.kind != "spectral" else (m, 3, 3))
+            if slot.kind == "spectral":
+                K += _spectral_blocks(w, kin, D)
+                continue
             FMD = np.einsum("mij,maj->mai", F, slot.MD)  # (m, 4, 3)
             Ga, Gb = FMD[:, _EA], FMD[:, _EB]
             if slot.kind == "first":
@@ -227,13 +235,33 @@ class _GroupAggregates:
             self.S_hat += _scale(df, Sk)
         for pair, coef in zip(term.g.tangent, term.g.tangent_coefficients(kin)):
             key = _slot_key(pair)
-            self.pair_weights[key] = self.pair_weights.get(key, 0.0) + f * coef
+            self.pair_weights[key] = self.pair_weights.get(key, 0.0) + _scale(f, coef)
 
 
-def _scale(s, A: np.ndarray) -> np.ndarray:
-    if np.ndim(s) == 0:
+def _spectral_blocks(theta: np.ndarray, kin: Kinematics, D: np.ndarray) -> np.ndarray:
+    """Edge blocks of sum_{n,l} theta_nl P_n H P_l, P_n = v_n v_n^T (eigenprojectors of C).
+
+    With w_n = F v_n and c_na = v_n . D_a, block (a, b) is
+    sum_{n,l} theta_nl [c_nb c_la w_n (x) w_l + c_lb c_la w_n (x) w_n].
+
+    theta: (m, 3, 3). Returns (m, 6, 3, 3).
+    """
+    V = kin.eig[1]  # (m, 3, 3), columns v_n
+    w = np.einsum("mij,mjn->mni", kin.F, V)  # (m, 3, 3): w[:, n] = F v_n
+    c = np.einsum("mjn,maj->mna", V, D)  # (m, 3, 4)
+    ca, cb = c[:, :, _EA], c[:, :, _EB]  # (m, 3, 6)
+    cross = np.einsum("mnl,mne,mle->menl", theta, cb, ca)
+    K = np.einsum("menl,mni,mlj->meij", cross, w, w)
+    diag = np.einsum("mnl,mle,mle->men", theta, cb, ca)
+    K += np.einsum("men,mni,mnj->meij", diag, w, w)
+    return K
+
+
+def _scale(s, A):
+    """s * A with s per cell, (m,) or scalar, and A (m, ...) or scalar."""
+    if np.ndim(s) == 0 or np.ndim(A) <= 1:
         return s * A
-    return s[:, None, None] * A
+    return np.reshape(s, np.shape(s) + (1,) * (np.ndim(A) - 1)) * A
 
 
 def _cellwise(matrix: np.ndarray, m: int) -> np.ndarray:

@@ -79,3 +79,8 @@ class Kinematics:
         E = 0.5 * self.C
         E[:, [0, 1, 2], [0, 1, 2]] -= 0.5
         return E
+
+    @cached_property
+    def eig(self) -> "tuple[np.ndarray, np.ndarray]":
+        """Eigenvalues (m, 3), ascending, and eigenvectors (m, 3, 3) (columns) of C."""
+        return np.linalg.eigh(self.C)

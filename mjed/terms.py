@@ -31,6 +31,7 @@ __all__ = [
     "JFunction",
     "JPower",
     "LogPolynomial",
+    "JLogJ",
     "InvariantFunction",
     "TangentPair",
     "Unity",
@@ -86,6 +87,18 @@ class LogPolynomial(JFunction):
         return f, df, d2f
 
 
+@dataclass(frozen=True)
+class JLogJ(JFunction):
+    """f = k (J ln J - J + 1) + c: Costa's volumetric term."""
+
+    k: float
+    c: float = 0.0
+
+    def __call__(self, J):
+        L = np.log(J)
+        return self.k * (J * L - J + 1.0) + self.c, self.k * L, self.k / J
+
+
 # --------------------------------------------------------------------- functions of C
 @dataclass(frozen=True, eq=False)
 class TangentPair:
@@ -93,9 +106,13 @@ class TangentPair:
 
     kind "first": beta (A : H) A.  kind "second": gamma B H B.
     matrix: symmetric (3, 3) constant, or (m, 3, 3) with one constant matrix per cell.
+
+    kind "spectral": sum_{n,l} theta_nl P_n H P_l with P_n = v_n v_n^T the eigenprojectors of
+    C (from Kinematics.eig); its coefficient is theta, (m, 3, 3) and symmetric. This is the
+    form of the exact derivative of a matrix power C^p, which no constant A or B can give.
     """
 
-    kind: Literal["first", "second"]
+    kind: Literal["first", "second", "spectral"]
     matrix: np.ndarray = field(default_factory=lambda: IDENTITY)
 
 

@@ -9,6 +9,8 @@ energies are those of the project conventions (zero at rest):
     MooneyRivlin        c1 (I1b - 3) + c2 (I2b - 3) + k0/2 (ln J)^2
     VerondaWestmann     c1 (exp(c2 (I1b - 3)) - 1) - c1 c2/2 (I2b - 3) + k0/2 (ln J)^2
     ArrudaBoyce         mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2
+    Costa               a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum B_ij (R^T E R)_ij^2
+    Ogden               mu/alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2
 """
 
 from mjed.materials.isotropic import (
@@ -17,7 +19,9 @@ from mjed.materials.isotropic import (
     NeoHookean,
     StVenantKirchhoff,
     VerondaWestmann,
+    Ogden,
 )
+from mjed.materials.anisotropic import Costa
 from mjed.materials.base import Material
 
 __all__ = [
@@ -27,4 +31,6 @@ __all__ = [
     "MooneyRivlin",
     "VerondaWestmann",
     "ArrudaBoyce",
+    "Costa",
+    "Ogden",
 ]

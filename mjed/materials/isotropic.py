@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from mjed.materials.base import Material, require_finite, require_positive
 from mjed.terms import GreenLagrangeQuadratic, I1Power, JPower, LinearI2, LogPolynomial, Term, TermGroup, Unity
 
-__all__ = ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann", "ArrudaBoyce"]
+__all__ = ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann", "ArrudaBoyce", "Ogden"]
 
 # Isochoric invariants: I1b = J^(-2/3) I1 and I2b = J^(-4/3) I2.
 _ISO1 = JPower(-2.0 / 3.0)
@@ -140,3 +140,40 @@ class ArrudaBoyce(Material):
         rest = sum(a * 3.0**i for i, a in enumerate(coeffs, start=1))
         volumetric = Term(LogPolynomial(0.5 * self.k0, 0.0, -rest), Unity())
         return (TermGroup(deviatoric + (volumetric,)),)
+
+
+@dataclass(frozen=True)
+class Ogden(Material):
+    """Order-1 Ogden: W = mu/alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2.
+
+    lambda_i are the eigenvalues of C. tangent="exact" (default) differentiates the
+    eigenvalues exactly; tangent="sofa" is SOFA's MJED coaxial approximation, which is not the
+    Hessian of W (for teaching and comparison only).
+    """
+
+    mu: float
+    alpha: float
+    k0: float
+    tangent: str = "exact"
+
+    def __post_init__(self):
+        require_positive(self, "mu", "k0")
+        require_finite(self, "alpha")
+        if self.alpha == 0:
+            raise ValueError("Ogden: parameter alpha must be non-zero")
+        if self.tangent not in ("exact", "sofa"):
+            raise ValueError(f"Ogden: parameter tangent must be 'exact' or 'sofa', got {self.tangent!r}")
+
+    def decomposition(self):
+        from mjed.spectral import EigenPowerSum
+
+        mu, alpha = self.mu, self.alpha
+        c = mu / alpha**2
+        return (
+            TermGroup(
+                (
+                    Term(JPower(-alpha / 3.0), EigenPowerSum(c, 0.5 * alpha, self.tangent)),
+                    Term(LogPolynomial(0.5 * self.k0, 0.0, -3.0 * c), Unity()),
+                )
+            ),
+        )

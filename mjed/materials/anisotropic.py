@@ -1,0 +1,72 @@
+"""Costa's orthotropic exponential law as MJED terms."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from mjed.materials.base import Material, require_finite, require_positive
+from mjed.terms import JLogJ, JPower, Term, TermGroup, Unity
+
+__all__ = ["Costa"]
+
+
+@dataclass(frozen=True, eq=False)
+class Costa(Material):
+    """W = a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum_ij B_ij (R^T E R)_ij^2.
+
+    B = [[b_ff, b_fs, b_fn], [b_fs, b_ss, b_sn], [b_fn, b_sn, b_nn]]. frame R (columns fibre,
+    sheet, normal): None for the global axes (SOFA's choice), one (3, 3) rotation, or one per
+    cell (m, 3, 3). split: how B is written as a signed sum of rank-one terms for the tangent,
+    "ldl" (SOFA's signed Cholesky, refuses a zero pivot) or "eigen" (always exists).
+    """
+
+    a: float
+    k0: float
+    b_ff: float
+    b_fs: float
+    b_ss: float
+    b_fn: float
+    b_sn: float
+    b_nn: float
+    frame: Optional[np.ndarray] = None
+    split: str = "ldl"
+
+    def __post_init__(self):
+        require_positive(self, "a", "k0")
+        require_finite(self, "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+        if self.frame is not None:
+            R = np.array(self.frame, dtype=float)
+            if R.shape[-2:] != (3, 3) or R.ndim not in (2, 3):
+                raise ValueError(f"Costa: parameter frame must have shape (3, 3) or (m, 3, 3), got {R.shape}")
+            if not np.isfinite(R).all():
+                raise ValueError("Costa: parameter frame has non-finite entries")
+            err = np.abs(np.einsum("...ki,...kj->...ij", R, R) - np.eye(3)).reshape(-1, 9).max(axis=1)
+            if (err > 1e-8).any():
+                k = int(np.argmax(err))
+                where = f" (cell {k})" if R.ndim == 3 else ""
+                raise ValueError(f"Costa: parameter frame is not orthonormal{where}: |R^T R - I| = {err[k]:.2e}")
+            R.setflags(write=False)
+            object.__setattr__(self, "frame", R)
+        # Fail now, not at the first evaluation, if the split cannot be made.
+        from mjed.fibre import signed_split
+
+        signed_split(self.B, self.split)
+
+    @property
+    def B(self) -> np.ndarray:
+        return np.array(
+            [[self.b_ff, self.b_fs, self.b_fn], [self.b_fs, self.b_ss, self.b_sn], [self.b_fn, self.b_sn, self.b_nn]]
+        )
+
+    def decomposition(self):
+        from mjed.fibre import FibreQuadratic
+
+        R = np.eye(3) if self.frame is None else self.frame
+        half_a = 0.5 * self.a
+        return (
+            TermGroup((Term(JPower(-4.0 / 3.0), FibreQuadratic(self.B, R, self.split)),), exponential=True, coefficient=half_a),
+            TermGroup((Term(JLogJ(self.k0, -half_a), Unity()),)),
+        )
