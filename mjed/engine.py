@@ -41,13 +41,16 @@ class Evaluation:
     """Per-cell results at one state, all per cell (multiplied by the rest volume).
 
     energy: (m,); gradient: (m, 4, 3) dW/dx_a; edge_blocks: (m, 6, 3, 3) d2W/dx_a dx_b for
-    the edges of EDGES (None if not requested); J: (m,).
+    the edges of EDGES (None if not requested); J: (m,); F: (m, 3, 3); pk2: (m, 3, 3) second
+    Piola-Kirchhoff stress 2 dW/dC per unit rest volume (None if not requested).
     """
 
     energy: np.ndarray
     gradient: np.ndarray
     edge_blocks: "np.ndarray | None"
     J: np.ndarray
+    F: "np.ndarray | None" = None
+    pk2: "np.ndarray | None" = None
 
 
 class _Slot:
@@ -108,7 +111,7 @@ class MJEDEngine:
         self._DxD = np.cross(D[:, _EA], D[:, _EB])
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True, check_J=None) -> Evaluation:
+    def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True, check_J=None, pk2: bool = False) -> Evaluation:
         """Energy, gradient and (optionally) edge stiffness blocks of every cell.
 
         Args:
@@ -116,6 +119,7 @@ class MJEDEngine:
             stiffness: also compute the edge blocks.
             check_J: called with J (m,) before any material function is evaluated, so a
                 caller can refuse inverted cells before ln J or J^p produce NaN.
+            pk2: also return S = 2 dW/dC = sum c f_k S_k + h J C^-1 (for viscous models).
         """
         D = self.D
         m = len(D)
@@ -159,7 +163,11 @@ class MJEDEngine:
         if stiffness:
             blocks = self._edge_blocks(kin, dJ, S, S_hat, h, g2, weights, rank_one)
             blocks *= V0[:, None, None, None]
-        return Evaluation(energy * V0, gradient, blocks, J)
+        S_total = None
+        if pk2:
+            # dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof / J.
+            S_total = S + (h / J)[:, None, None] * np.einsum("mki,mkj->mij", kin.cof, kin.cof)
+        return Evaluation(energy * V0, gradient, blocks, J, F, S_total)
 
     def _edge_blocks(self, kin, dJ, S, S_hat, h, g2, weights, rank_one) -> np.ndarray:
         F, J, D = kin.F, kin.J, self.D
