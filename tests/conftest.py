@@ -14,6 +14,10 @@ MATERIALS = {
     "MooneyRivlin": M.MooneyRivlin(c1=0.7, c2=0.4, k0=5.0),
     "VerondaWestmann": M.VerondaWestmann(c1=0.8, c2=1.2, k0=5.0),
     "ArrudaBoyce": M.ArrudaBoyce(mu=1.0, k0=5.0),
+    "Costa": M.Costa(a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5),
+    "CostaIndefinite": M.Costa(a=0.9, k0=3.0, b_ff=1.0, b_fs=0.9, b_ss=0.5, b_fn=0.2, b_sn=0.1, b_nn=0.5),
+    "Ogden": M.Ogden(mu=1.0, alpha=3.0, k0=5.0),
+    "OgdenNegative": M.Ogden(mu=1.0, alpha=-2.0, k0=5.0),
 }
 
 

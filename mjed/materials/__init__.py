@@ -22,6 +22,7 @@ from mjed.materials.isotropic import (
     Ogden,
 )
 from mjed.materials.anisotropic import Costa
+from mjed.materials.sofa import from_sofa
 from mjed.materials.base import Material
 
 __all__ = [
@@ -33,4 +34,5 @@ __all__ = [
     "ArrudaBoyce",
     "Costa",
     "Ogden",
+    "from_sofa",
 ]
