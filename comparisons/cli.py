@@ -41,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="all",
         help=f"'all' ({', '.join(DEFAULT_MESHES)}), a built-in mesh name, a mesh file (.msh, .vtk, .vtu), or a comma-separated list",
     )
-    eq.add_argument("--states", default="all", help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, random")
+    eq.add_argument("--states", default="all", help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, random")
     eq.add_argument("--json", metavar="PATH", help="write the results as JSON")
     eq.add_argument("--quiet", action="store_true", help="print only the summary line")
     return parser
@@ -72,7 +72,7 @@ def _resolve_states(spec: str) -> List[str]:
 
 def _equivalence(args) -> int:
     from comparisons.cases import parse_materials
-    from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL, format_table, run_cases
+    from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL, format_table, run_cases, skipped_cases
 
     import mjed
 
@@ -93,6 +93,9 @@ def _equivalence(args) -> int:
         print("mjed-verify: the UFL oracle needs dolfinx (Debian: apt install python3-dolfinx); run `make demo`.", file=sys.stderr)
         return 3
 
+    import logging
+
+    logging.disable(logging.INFO)  # FFCx's JIT logs every compilation at INFO
     t0 = time.perf_counter()
     progress = None if args.quiet else (lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True))
     results = list(run_cases(mesh_list, materials, states, progress=progress))
@@ -106,8 +109,11 @@ def _equivalence(args) -> int:
         f"{len(results) - n_fail}/{len(results)} cases passed (tolerances: force {FORCE_TOL:g}, stiffness {STIFFNESS_TOL:g}); "
         f"worst force error {worst_f:.2e}, worst stiffness error {worst_k:.2e}; {elapsed:.1f} s"
     )
+    skipped = skipped_cases(materials, states)
+    for s in skipped:
+        print(f"skipped: {s['material']} / {s['state']}: {s['reason']}")
     if args.json:
-        payload = {"cases": [r.to_dict() for r in results]}
+        payload = {"cases": [r.to_dict() for r in results], "skipped": skipped}
         with open(args.json, "w") as fh:
             json.dump(payload, fh, indent=1)
     return 0 if n_fail == 0 else 1

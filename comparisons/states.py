@@ -10,7 +10,11 @@ from typing import Callable, Dict, Tuple
 
 import numpy as np
 
-__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio"]
+__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio", "REPEATED_STRETCHES"]
+
+#: Homogeneous states with two equal principal stretches. The UFL Ogden oracle's closed-form
+#: eigenvalues are singular there (acos at +-1), so Ogden is not compared on them.
+REPEATED_STRETCHES = frozenset({"uniaxial", "compression"})
 
 
 def _affine(A: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -74,6 +78,7 @@ STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = 
     "uniaxial": ("stretch 1.3 along x (J = 1.3)", _affine(np.diag([1.3, 1.0, 1.0]))),
     "compression": ("compression 0.8 along x (J = 0.8)", _affine(np.diag([0.8, 1.0, 1.0]))),
     "shear": ("simple shear, amount 0.4 (x += 0.4 y)", _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]]))),
+    "triaxial": ("stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9", _affine(np.diag([1.25, 0.9, 0.8]))),
     "random": ("seeded smooth random field with a rotation, J > 0.2", lambda X, cells: smooth_random(X, cells)),
 }
 
