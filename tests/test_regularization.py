@@ -40,7 +40,12 @@ def test_regularisation_changes_only_the_stiffness_where_compressed():
 
 
 def test_half_height_cube_study():
-    points, cells = box_mesh(3)
+    # On the unstructured cube-small mesh the unregularised solve breaks down (on a structured
+    # 3x3x3 box it happens to succeed: the outcome depends on the mesh, the report says which).
+    pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
+    import meshes
+
+    points, cells = meshes.load("cube-small")
     out = run_study(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"])
     assert out.negative_eigenvalues_off > 0
     assert out.negative_eigenvalues_on == 0
