@@ -45,8 +45,10 @@ def test_half_height_cube_study():
     pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
     import meshes
 
+    from comparisons.cases import DEFAULT_MATERIALS
+
     points, cells = meshes.load("cube-small")
-    out = run_study(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"])
+    out = run_study(mjed.TetMesh(points, cells), DEFAULT_MATERIALS["NeoHookean"])
     assert out.negative_eigenvalues_off > 0
     assert out.negative_eigenvalues_on == 0
     assert not out.solve_off.converged and "negative_curvature" in out.solve_off.message
