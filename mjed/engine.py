@@ -127,7 +127,7 @@ class MJEDEngine:
         F, J = kin.F, kin.J
         if check_J is not None:
             check_J(J)
-        dJ = np.einsum("mij,maj->mai", kin.cof, D)  # (m, 4, 3)
+        dJ = D @ np.swapaxes(kin.cof, 1, 2)  # (m, 4, 3): d_a = cof D_a
 
         energy = np.zeros(m)
         S = np.zeros((m, 3, 3))  # sum over groups of c * S-bar
@@ -144,7 +144,7 @@ class MJEDEngine:
             if group.exponential:
                 scale = group.coefficient * np.exp(agg.u)
                 energy += scale
-                du = np.einsum("mij,mjk,mak->mai", F, agg.S, D) + agg.h[:, None, None] * dJ
+                du = D @ np.swapaxes(F @ agg.S, 1, 2) + agg.h[:, None, None] * dJ
                 rank_one.append((scale, du))
             else:
                 scale = group.coefficient
@@ -157,7 +157,7 @@ class MJEDEngine:
                 weights[key] = weights[key] + _scale(scale, w)
 
         V0 = self.volumes
-        FSD = np.einsum("mij,mjk,mak->mai", F, S, D)
+        FSD = D @ np.swapaxes(F @ S, 1, 2)  # (m, 4, 3): F S D_a
         gradient = (FSD + h[:, None, None] * dJ) * V0[:, None, None]
         blocks = None
         if stiffness:
@@ -177,7 +177,8 @@ class MJEDEngine:
         da, db = dJ[:, _EA], dJ[:, _EB]
 
         # geometric: (D_a . S D_b) Id
-        geo = np.einsum("mei,mij,mej->me", Da, S, Db)
+        SD = D @ S  # S symmetric: rows are (S D_a)^T
+        geo = np.einsum("mei,mei->me", Da, SD[:, _EB])
         K[:, :, _DIAG[0], _DIAG[1]] += geo[:, :, None]
 
         # material: the declared tangent pairs
@@ -186,20 +187,18 @@ class MJEDEngine:
             if slot.kind == "spectral":
                 K += _spectral_blocks(w, kin, D)
                 continue
-            FMD = np.einsum("mij,maj->mai", F, slot.MD)  # (m, 4, 3)
+            FMD = slot.MD @ np.swapaxes(F, 1, 2)  # (m, 4, 3): F M D_a
             Ga, Gb = FMD[:, _EA], FMD[:, _EB]
             if slot.kind == "first":
                 K += (2.0 * w)[:, None, None, None] * Ga[:, :, :, None] * Gb[:, :, None, :]
             else:
-                FMF = np.einsum("mij,mjk,mlk->mil", F, _cellwise(slot.matrix, m), F) if not slot.identity else np.einsum(
-                    "mij,mkj->mik", F, F
-                )
+                FMF = F @ np.swapaxes(F, 1, 2) if slot.identity else F @ _cellwise(slot.matrix, m) @ np.swapaxes(F, 1, 2)
                 K += w[:, None, None, None] * (
                     Gb[:, :, :, None] * Ga[:, :, None, :] + slot.DMD[:, :, None, None] * FMF[:, None, :, :]
                 )
 
         # volumetric coupling: d_a (x) F S-hat D_b + F S-hat D_a (x) d_b
-        FSD = np.einsum("mij,mjk,mak->mai", F, S_hat, D)
+        FSD = D @ np.swapaxes(F @ S_hat, 1, 2)
         K += da[:, :, :, None] * FSD[:, _EB][:, :, None, :] + FSD[:, _EA][:, :, :, None] * db[:, :, None, :]
 
         # outer products of J gradients (and of exponential-group gradients), regularised
@@ -209,7 +208,7 @@ class MJEDEngine:
             K += _regularised_outer(scale, du[:, _EA], du[:, _EB], b)
 
         # h d2J/dx_a dx_b, a skew matrix
-        v = np.einsum("mij,mej->mei", F, self._DxD) * h[:, None, None]
+        v = (self._DxD @ np.swapaxes(F, 1, 2)) * h[:, None, None]
         K[:, :, 0, 1] += v[:, :, 2]
         K[:, :, 1, 0] -= v[:, :, 2]
         K[:, :, 0, 2] -= v[:, :, 1]

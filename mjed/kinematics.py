@@ -22,7 +22,7 @@ def deformation_gradient(x_cells: np.ndarray, D: np.ndarray) -> np.ndarray:
     Returns:
         (m, 3, 3) deformation gradients.
     """
-    return np.einsum("mai,maj->mij", x_cells, D)
+    return np.swapaxes(x_cells, 1, 2) @ D
 
 
 def cofactor(F: np.ndarray) -> np.ndarray:
@@ -61,7 +61,7 @@ class Kinematics:
     @cached_property
     def C(self) -> np.ndarray:
         """(m, 3, 3) right Cauchy-Green tensor F^T F."""
-        return np.einsum("mki,mkj->mij", self.F, self.F)
+        return np.swapaxes(self.F, 1, 2) @ self.F
 
     @cached_property
     def I1(self) -> np.ndarray:
