@@ -160,3 +160,12 @@ def test_from_sofa_errors():
         M.from_sofa("NeoHookean", "1 abc")
     with pytest.raises(ValueError, match="parameter mu"):
         M.from_sofa("NeoHookean", "-1 2")
+
+
+def test_sofa_tangent_error_report():
+    from comparisons.ogden_tangent import sofa_tangent_errors
+
+    points, cells = box_mesh(2, jitter=0.2)
+    errs = sofa_tangent_errors(mjed.TetMesh(points, cells), M.Ogden(1.0, 3.0, 5.0), ["rest", "triaxial", "random"])
+    assert errs["rest"] < 1e-14
+    assert 1e-6 < errs["triaxial"] < 0.1 and 1e-6 < errs["random"] < 0.1
