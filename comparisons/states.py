@@ -10,11 +10,7 @@ from typing import Callable, Dict, Tuple
 
 import numpy as np
 
-__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio", "REPEATED_STRETCHES"]
-
-#: Homogeneous states with two equal principal stretches. The UFL Ogden oracle's closed-form
-#: eigenvalues are singular there (acos at +-1), so Ogden is not compared on them.
-REPEATED_STRETCHES = frozenset({"uniaxial", "compression"})
+__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio"]
 
 
 def _affine(A: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:

@@ -9,15 +9,14 @@ object with the right name and fields works (the tests use stand-ins).
 Each function follows the same layout: parameters, kinematics from F, then psi. ``F`` is a
 UFL 3x3 expression (F = I + grad u); the result is a scalar UFL expression, per unit rest
 volume. Parameters enter as plain numbers by default, or through a ``constant`` factory
-(the oracle uses entries of one dolfinx Constant, see :mod:`reference_fem.parameters`): then
-the compiled forms do not depend on the parameter values and FFCx compiles each material
-type once, not once per parameter set.
+(the oracle makes dolfinx Constants): then the compiled forms do not depend on the parameter
+values and FFCx compiles each material type once, not once per parameter set.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Dict, Optional
+from typing import Any, Callable, Dict, NamedTuple, Optional
 
 import numpy as np
 import ufl
@@ -59,52 +58,61 @@ class _Params:
         return self.wrap(self.value(name))
 
 
-def _kinematics(F: ufl.core.expr.Expr) -> Dict[str, ufl.core.expr.Expr]:
-    """The invariants every formula is written in (CONVENTIONS.md, "Kinematics")."""
-    I = ufl.Identity(3)
+class _Kinematics(NamedTuple):
+    """The quantities every formula is written in (CONVENTIONS.md, "Kinematics")."""
+
+    C: Any  # right Cauchy-Green tensor F^T F
+    E: Any  # Green-Lagrange strain (C - I) / 2
+    I1: Any
+    I2: Any
+    J: Any
+    lnJ: Any
+    I1b: Any  # J^(-2/3) I1
+    I2b: Any  # J^(-4/3) I2
+
+
+def _kinematics(F: ufl.core.expr.Expr) -> _Kinematics:
     C = F.T * F
-    E = 0.5 * (C - I)
     I1 = ufl.tr(C)
-    I2 = 0.5 * (I1**2 - ufl.tr(C * C))
     J = ufl.det(F)
-    return {
-        "C": C,
-        "E": E,
-        "I1": I1,
-        "I2": I2,
-        "J": J,
-        "lnJ": ufl.ln(J),
-        "I1b": J ** (-2.0 / 3.0) * I1,
-        "I2b": J ** (-4.0 / 3.0) * I2,
-    }
+    I2 = 0.5 * (I1**2 - ufl.tr(C * C))
+    return _Kinematics(
+        C=C,
+        E=0.5 * (C - ufl.Identity(3)),
+        I1=I1,
+        I2=I2,
+        J=J,
+        lnJ=ufl.ln(J),
+        I1b=J ** (-2.0 / 3.0) * I1,
+        I2b=J ** (-4.0 / 3.0) * I2,
+    )
 
 
 def _stvk(p: _Params, F, frame) -> ufl.core.expr.Expr:
     mu, lam = p("mu"), p("lam")
-    k = _kinematics(F)
-    E = k["E"]
+    E = _kinematics(F).E
     return 0.5 * lam * ufl.tr(E) ** 2 + mu * ufl.tr(E * E)
 
 
 def _neo_hookean(p: _Params, F, frame) -> ufl.core.expr.Expr:
     mu, lam = p("mu"), p("lam")
     k = _kinematics(F)
-    return 0.5 * mu * (k["I1"] - 3.0) - mu * k["lnJ"] + 0.5 * lam * k["lnJ"] ** 2
+    return 0.5 * mu * (k.I1 - 3.0) - mu * k.lnJ + 0.5 * lam * k.lnJ ** 2
 
 
 def _mooney_rivlin(p: _Params, F, frame) -> ufl.core.expr.Expr:
     c1, c2, k0 = p("c1"), p("c2"), p("k0")
     k = _kinematics(F)
-    return c1 * (k["I1b"] - 3.0) + c2 * (k["I2b"] - 3.0) + 0.5 * k0 * k["lnJ"] ** 2
+    return c1 * (k.I1b - 3.0) + c2 * (k.I2b - 3.0) + 0.5 * k0 * k.lnJ ** 2
 
 
 def _veronda_westmann(p: _Params, F, frame) -> ufl.core.expr.Expr:
     c1, c2, k0 = p("c1"), p("c2"), p("k0")
     k = _kinematics(F)
     return (
-        c1 * (ufl.exp(c2 * (k["I1b"] - 3.0)) - 1.0)
-        - 0.5 * c1 * c2 * (k["I2b"] - 3.0)
-        + 0.5 * k0 * k["lnJ"] ** 2
+        c1 * (ufl.exp(c2 * (k.I1b - 3.0)) - 1.0)
+        - 0.5 * c1 * c2 * (k.I2b - 3.0)
+        + 0.5 * k0 * k.lnJ ** 2
     )
 
 
@@ -113,10 +121,10 @@ def _arruda_boyce(p: _Params, F, frame) -> ufl.core.expr.Expr:
     N = p("N") if hasattr(p.material, "N") else p.wrap(8.0)
     k = _kinematics(F)
     series = sum(
-        c * N ** (1 - i) * (k["I1b"] ** i - 3.0**i)
+        c * N ** (1 - i) * (k.I1b ** i - 3.0**i)
         for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)
     )
-    return mu * series + 0.5 * k0 * k["lnJ"] ** 2
+    return mu * series + 0.5 * k0 * k.lnJ ** 2
 
 
 def _costa_frame(p: _Params, frame) -> ufl.core.expr.Expr:
@@ -146,10 +154,9 @@ def _costa(p: _Params, F, frame) -> ufl.core.expr.Expr:
     ]
     k = _kinematics(F)
     R = _costa_frame(p, frame)
-    Ef = R.T * k["E"] * R  # strain in the fibre frame
+    Ef = R.T * k.E * R  # strain in the fibre frame
     Q = sum(B[i][j] * Ef[i, j] ** 2 for i in range(3) for j in range(3))
-    J = k["J"]
-    return 0.5 * a * (ufl.exp(J ** (-4.0 / 3.0) * Q) - 1.0) + k0 * (J * k["lnJ"] - J + 1.0)
+    return 0.5 * a * (ufl.exp(k.J ** (-4.0 / 3.0) * Q) - 1.0) + k0 * (k.J * k.lnJ - k.J + 1.0)
 
 
 def _ogden(p: _Params, F, frame) -> ufl.core.expr.Expr:
@@ -158,8 +165,8 @@ def _ogden(p: _Params, F, frame) -> ufl.core.expr.Expr:
     mu, alpha, k0 = p("mu"), p("alpha"), p("k0")
     k = _kinematics(F)
     # sum_i lambda_i^(alpha/2) over the eigenvalues lambda_i of C (= principal stretches^alpha).
-    stretch_sum = sum_of_eigenvalue_powers(k["C"], 0.5 * alpha)
-    return mu / alpha**2 * (k["J"] ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k["lnJ"] ** 2
+    stretch_sum = sum_of_eigenvalue_powers(k.C, 0.5 * alpha)
+    return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k.lnJ ** 2
 
 
 _DISPATCH: Dict[str, Callable[[_Params, Any, Any], ufl.core.expr.Expr]] = {

@@ -20,7 +20,6 @@ import ufl
 
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
-from reference_fem.parameters import packed_parameters
 from reference_fem.sparse_map import CSRRenumbering
 from reference_fem.validation import check_cells, check_frame, check_points, check_positions, signed_volumes
 
@@ -38,7 +37,7 @@ class UFLOracle:
         cells: (m, 4) node indices of positively oriented P1 tetrahedra (input numbering).
         material: object whose class name and attributes give the energy (see
             :func:`reference_fem.strain_energy_density`); a Costa ``frame`` may be None,
-            (3, 3) or one rotation per input cell (m, 3, 3).
+            an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
 
     The forms are compiled and the numbering maps built once, here; each evaluation only
     sets u = x - X and assembles. Serial only.
@@ -59,13 +58,9 @@ class UFLOracle:
         # Kinematics and energy, then let UFL differentiate.
         self._u = fem.Function(self._V, name="u")
         F = ufl.Identity(3) + ufl.grad(self._u)
-        # Parameters in one vector Constant: the generated code is then the same for every
+        # Parameters as dolfinx Constants: the generated code is then the same for every
         # parameter set of a material type, so FFCx's cache is hit after the first build.
-        frame = self._cellwise_frame()
-        W, self._parameters = packed_parameters(
-            lambda constant: strain_energy_density(material, F, frame=frame, constant=constant),
-            lambda values: fem.Constant(self._mesh, values),
-        )
+        W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
@@ -144,6 +139,10 @@ class UFLOracle:
         return self._assemble_force(x), self._assemble_stiffness(x)
 
     # -- internals ------------------------------------------------------------------------
+    def _constant(self, value) -> fem.Constant:
+        """A material parameter (float or (3, 3) array) as a dolfinx Constant."""
+        return fem.Constant(self._mesh, np.asarray(value, dtype=np.float64))
+
     def _cellwise_frame(self):
         """Costa with one rotation per cell: a DG0 tensor Function holding them; else None
         (a constant frame is read from the material by the energy itself)."""
@@ -187,14 +186,11 @@ class UFLOracle:
     def _require_finite(self, values: np.ndarray, what: str, x) -> None:
         if np.all(np.isfinite(values)):
             return
-        # Explain the usual causes: inverted cells (ln J), or Ogden's eigenvalue formula.
+        # Explain the usual cause: inverted or flattened cells (ln J, J^(-2/3), ...).
         vol = signed_volumes(np.asarray(x, dtype=np.float64), self._cells)
         J = vol / signed_volumes(self._X, self._cells)
         bad = np.flatnonzero(J <= 0)
         hint = ""
         if bad.size:
             hint = f"; {bad.size} cell(s) have J <= 0 (first: cell {bad[0]}, J = {J[bad[0]]:.3g})"
-        name = type(self._material).__name__
-        if name == "Ogden":
-            hint += "; Ogden's closed-form eigenvalues also fail where C has exactly two equal eigenvalues"
-        raise ValueError(f"UFL oracle: non-finite {what} for {name}{hint}")
+        raise ValueError(f"UFL oracle: non-finite {what} for {type(self._material).__name__}{hint}")

@@ -361,20 +361,30 @@ def test_ogden_matches_invariant_forms(mesh, alpha):
     P, T = mesh
     o = UFLOracle(P, T, Ogden(mu=1.7, alpha=alpha, k0=4.0))
     W = ogden_invariant_form(alpha, 1.7, 4.0)
-    # Large strains (trigonometric eigenvalues, all distinct), a small strain that uses
-    # the near-isotropic series, and the rest state.
-    small = P + 1e-5 * np.random.default_rng(2).standard_normal(P.shape)
-    for x, tol in ((deformed(P, amp=0.05), 1e-12), (small, 1e-9)):
+    Q = random_rotations(np.random.default_rng(8), 1)[0]
+    stretched = lambda *lam: P @ (Q @ np.diag(lam) @ Q.T).T  # noqa: E731
+    states = {
+        # all eigenvalues distinct: the trigonometric formula
+        "large": (deformed(P, amp=0.05), 1e-12),
+        # |dev C| < 1e-3 tr C / 3: the isotropic series (forces ~1e-5, so a looser bound)
+        "small": (P + 1e-5 * np.random.default_rng(2).standard_normal(P.shape), 1e-9),
+        # two equal eigenvalues (r = +1 and r = -1), and nearly equal: the pair series
+        "uniaxial": (stretched(1.3, 1.0, 1.0), 1e-12),
+        "equibiaxial": (stretched(1.2, 1.2, 0.9), 1e-12),
+        "near-uniaxial": (stretched(1.3, 1.0 + 1e-9, 1.0), 1e-12),
+    }
+    for name, (x, tol) in states.items():
         e_ref, f_ref, K_ref = assemble_custom(o, W, x)
         f, K = o.force_and_stiffness(x)
-        assert abs(o.energy(x) - e_ref) <= 1e-12 * max(abs(e_ref), 1e-3)
-        assert rel(f, f_ref) <= tol
-        assert rel(K, K_ref) <= 1e-12
+        assert abs(o.energy(x) - e_ref) <= 1e-12 * max(abs(e_ref), 1e-3), name
+        assert rel(f, f_ref) <= tol, name
+        assert rel(K, K_ref) <= 1e-12, name
     _, _, K_ref = assemble_custom(o, W, P)
     assert rel(o.stiffness(P), K_ref) <= 1e-13
 
 
-def test_ogden_general_alpha_homogeneous():
+@pytest.mark.parametrize("stretches", [(1.2, 0.9, 1.05), (1.3, 1.0, 1.0)], ids=["distinct", "uniaxial"])
+def test_ogden_general_alpha_homogeneous(stretches):
     """alpha = 3 (no invariant form): NumPy eigenvalues and central differences."""
     X, T, V0, D = one_tet()
     mu, alpha, k0 = 1.3, 3.0, 4.0
@@ -385,7 +395,8 @@ def test_ogden_general_alpha_homogeneous():
         iso = mu / alpha**2 * (J ** (-alpha / 3) * np.sum(lam ** (alpha / 2)) - 3)
         return iso + 0.5 * k0 * np.log(J) ** 2
 
-    A = np.array([[1.2, 0.1, -0.05], [0.03, 0.9, 0.2], [0.1, -0.1, 1.05]])
+    Q = random_rotations(np.random.default_rng(4), 1)[0]
+    A = Q @ np.diag(stretches) @ Q.T @ np.array([[1.0, 0.0, 0.0], [0.0, 0.8, 0.6], [0.0, -0.6, 0.8]])
     h = 1e-6
     P = np.zeros((3, 3))
     for i in range(3):
