@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from typing import List, Optional
@@ -56,6 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _write_json(path: str, payload: dict) -> None:
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as fh:
+        json.dump(payload, fh, indent=1)
+
+
 def _regularization(args) -> int:
     from comparisons.cases import parse_materials
     from comparisons.regularization import run_study
@@ -78,8 +85,7 @@ def _regularization(args) -> int:
             verdict = f"solved ({solve.newton_iterations} Newton, {solve.cg_iterations} CG iterations)" if solve.converged else f"FAILED: {solve.message}"
             print(f"  {m.name:18s} regularize {tag}: {neg:4d} negative eigenvalues; {verdict}")
     if args.json:
-        with open(args.json, "w") as fh:
-            json.dump({"mesh": label, "results": rows}, fh, indent=1)
+        _write_json(args.json, {"mesh": label, "results": rows})
     return 0
 
 
@@ -157,8 +163,7 @@ def _equivalence(args) -> int:
                   + ", ".join(f"{s} {e:.1e}" for s, e in errs.items()) + " (relative Frobenius; not a pass/fail check)")
     if args.json:
         payload = {"cases": [r.to_dict() for r in results], "ogden_sofa_tangent_error": tangent_errors}
-        with open(args.json, "w") as fh:
-            json.dump(payload, fh, indent=1)
+        _write_json(args.json, payload)
     return 0 if n_fail == 0 else 1
 
 
