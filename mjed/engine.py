@@ -104,6 +104,11 @@ class MJEDEngine:
         for group in groups:
             for term in group.terms:
                 for pair in term.g.tangent:
+                    if pair.kind != "spectral" and pair.matrix.ndim == 3 and len(pair.matrix) != len(D):
+                        raise ValueError(
+                            f"the material holds per-cell data (e.g. a Costa frame) for {len(pair.matrix)} cells, "
+                            f"but the mesh has {len(D)} cells"
+                        )
                     key = _slot_key(pair)
                     if key not in self._slots:
                         self._slots[key] = _Slot(pair.kind, pair.matrix, D)

@@ -49,6 +49,9 @@ def test_costa_frame_validation():
         M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=R)
     with pytest.raises(ValueError, match="shape"):
         M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=np.eye(4))
+    points, cells = box_mesh(1)
+    with pytest.raises(ValueError, match="per-cell data .* for 5 cells, but the mesh has 6 cells"):
+        mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=np.repeat(np.eye(3)[None], 5, axis=0)))
 
 
 COSTA_B = dict(b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5)
