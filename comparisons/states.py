@@ -10,6 +10,8 @@ from typing import Callable, Dict, Tuple
 
 import numpy as np
 
+from meshes import signed_volumes
+
 __all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio"]
 
 
@@ -23,12 +25,7 @@ def _affine(A: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
 
 def min_volume_ratio(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
     """Smallest J = (current signed volume) / (rest signed volume) over the cells."""
-
-    def vol(P):
-        e = P[cells[:, 1:]] - P[cells[:, :1]]
-        return np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2]))
-
-    return float((vol(x) / vol(X)).min())
+    return float((signed_volumes(x, cells) / signed_volumes(X, cells)).min())
 
 
 def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2) -> np.ndarray:
