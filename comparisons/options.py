@@ -1,0 +1,112 @@
+"""Options and input checks shared by every mjed-verify subcommand.
+
+Every subcommand spells --material, --mesh, --states, --json and --out the same way, and
+refuses bad input before any work starts by raising :class:`InputError`; the CLI turns it into
+one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from typing import List, Sequence, Tuple
+
+import numpy as np
+
+__all__ = [
+    "InputError",
+    "DEFAULT_MESHES",
+    "add_material_option",
+    "add_mesh_option",
+    "add_states_option",
+    "add_json_option",
+    "add_out_option",
+    "resolve_materials",
+    "resolve_meshes",
+    "resolve_states",
+    "write_json",
+]
+
+#: The built-in meshes that 'all' stands for in the equivalence study.
+DEFAULT_MESHES = ("single-tet", "cube-small", "cube-paper")
+
+
+class InputError(ValueError):
+    """Bad user input, found before any work started."""
+
+
+def add_material_option(parser: argparse.ArgumentParser, default: str = "all") -> None:
+    parser.add_argument("--material", default=default,
+                        help=f"'all', a material name, or a comma-separated list (default: {default})")
+
+
+def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: bool = True) -> None:
+    what = "a built-in mesh name, a mesh file (.msh, .vtk, .vtu)"
+    if several:
+        what = f"'all' ({', '.join(DEFAULT_MESHES)}), {what}, or a comma-separated list"
+    parser.add_argument("--mesh", default=default, help=f"{what} (default: {default})")
+
+
+def add_states_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--states", default="all",
+                        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, random")
+
+
+def add_json_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", metavar="PATH", help="write the results as JSON to PATH")
+
+
+def add_out_option(parser: argparse.ArgumentParser, default: str) -> None:
+    parser.add_argument("--out", metavar="DIR", default=default, help=f"directory for figures and tables (default: {default})")
+
+
+def resolve_materials(spec: str):
+    from comparisons.cases import parse_materials
+
+    try:
+        return parse_materials(spec)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+
+
+def resolve_meshes(spec: str, *, several: bool = True) -> List[Tuple[str, np.ndarray, np.ndarray]]:
+    """Mesh names or paths -> [(label, points, cells)], each checked by mjed.TetMesh."""
+    import meshes
+    import mjed
+
+    text = spec.strip()
+    if several and text.lower() == "all":
+        names: Sequence[str] = DEFAULT_MESHES
+    else:
+        names = [s.strip() for s in text.split(",") if s.strip()] if several else [text]
+    if not names:
+        raise InputError("no mesh given")
+    out = []
+    for name in names:
+        try:
+            points, cells, label = meshes.resolve(name)
+            mjed.TetMesh(points, cells)  # raises MeshError naming the problem
+        except (ValueError, OSError) as exc:
+            raise InputError(str(exc)) from None
+        out.append((label, points, cells))
+    return out
+
+
+def resolve_states(spec: str) -> List[str]:
+    from comparisons.states import state_names
+
+    if spec.strip().lower() == "all":
+        return list(state_names())
+    names = [s.strip() for s in spec.split(",") if s.strip()]
+    unknown = [n for n in names if n not in state_names()]
+    if unknown or not names:
+        raise InputError(f"unknown state(s) {unknown}; known states: {', '.join(state_names())}")
+    return names
+
+
+def write_json(path: str, payload: dict) -> None:
+    """Write JSON, creating the directory (reports/ is not in a fresh clone)."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as fh:
+        json.dump(payload, fh, indent=1)
