@@ -63,6 +63,32 @@ def run(args) -> int:
             tangent_errors[label] = errs
             print(f"Ogden, SOFA's coaxial tangent vs the exact one on {label}: "
                   + ", ".join(f"{s} {e:.1e}" for s, e in errs.items()) + " (relative Frobenius; not a pass/fail check)")
+    uniaxial = _uniaxial_closed_form(materials, mesh_list)
+    n_fail += sum(not row["passed"] for row in uniaxial)
     if args.json:
-        opt.write_json(args.json, {"cases": [r.to_dict() for r in results], "ogden_sofa_tangent_error": tangent_errors})
+        opt.write_json(args.json, {"cases": [r.to_dict() for r in results], "uniaxial_closed_form": uniaxial,
+                                   "ogden_sofa_tangent_error": tangent_errors})
     return 0 if n_fail == 0 else 1
+
+
+def _uniaxial_closed_form(materials, mesh_list) -> list:
+    """The face-reaction check on the selected cube meshes (cube-small if none was selected)."""
+    from comparisons.closed_form import ISOTROPIC, uniaxial_reaction_check
+    from comparisons.equivalence import FORCE_TOL
+
+    isotropic = [m for m in materials if type(m).__name__ in ISOTROPIC]
+    if not isotropic:
+        return []
+    cubes = [entry for entry in mesh_list if entry[0].startswith("cube")] or opt.resolve_meshes("cube-small")
+    rows = []
+    for label, points, cells in cubes:
+        for m in isotropic:
+            for stretch in (1.3, 0.8):
+                r = uniaxial_reaction_check(m, points, cells, stretch).to_dict()
+                r.update(mesh=label, passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL))
+                rows.append(r)
+    worst = max(rows, key=lambda r: r["rel_err"])
+    print(f"uniaxial stress closed form (face reaction / current area vs analytic Cauchy sigma_11, stretch 1.3 and 0.8) on "
+          f"{', '.join(c[0] for c in cubes)}: {sum(r['passed'] for r in rows)}/{len(rows)} passed; worst {worst['rel_err']:.1e} "
+          f"({worst['material']}), worst lateral reaction {max(r['lateral_reaction_rel'] for r in rows):.1e}")
+    return rows

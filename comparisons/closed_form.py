@@ -1,0 +1,175 @@
+"""Closed-form homogeneous uniaxial stress, and the reaction MJED gives on a cube.
+
+The analytic side is written in principal stretches, by hand, for the compressible energies of
+CONVENTIONS.md (nothing here calls mjed's terms). For a decoupled energy
+W = W_iso(I1b, I2b) + U(J) the principal Cauchy stresses are
+
+    sigma_i = (2/J) [(W1 + I1b W2) b_i - W2 b_i^2 - (W1 I1b + 2 W2 I2b)/3] + U'(J),
+
+with b_i = J^(-2/3) lambda_i^2 the principal values of the isochoric left Cauchy-Green tensor
+and W1, W2 the derivatives of W_iso. Neo-Hookean, St Venant-Kirchhoff and Ogden are not of
+that form and get their own lines. Uniaxial stress means sigma_2 = sigma_3 = 0: the lateral
+stretch is the root of sigma_2(lambda, t, t) = 0.
+
+The discrete side prescribes x = F X on every node of a cube mesh. For a homogeneous F the
+nodal forces of interior nodes vanish and the forces on the face X = max add up to the first
+Piola-Kirchhoff traction times the rest area, so the loaded face's reaction divided by the
+current area must equal sigma_11, and the lateral faces must carry no normal reaction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Callable, Dict, Tuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+__all__ = [
+    "ISOTROPIC",
+    "principal_cauchy",
+    "uniaxial_lateral_stretch",
+    "uniaxial_cauchy",
+    "UniaxialResult",
+    "uniaxial_reaction_check",
+]
+
+#: Arruda-Boyce series coefficients (CONVENTIONS.md).
+_AB_C = (1 / 2, 1 / 20, 11 / 1050, 19 / 7000, 519 / 673750)
+
+Stretches = Tuple[float, float, float]
+
+
+def _decoupled(W1: float, W2: float, Up: float, stretches: Stretches) -> np.ndarray:
+    lam = np.asarray(stretches, dtype=float)
+    J = float(np.prod(lam))
+    b = J ** (-2.0 / 3.0) * lam**2
+    I1b = b.sum()
+    I2b = b[0] * b[1] + b[1] * b[2] + b[0] * b[2]
+    return 2.0 / J * ((W1 + I1b * W2) * b - W2 * b**2 - (W1 * I1b + 2.0 * W2 * I2b) / 3.0) + Up
+
+
+def _isochoric_I1(stretches: Stretches) -> float:
+    lam = np.asarray(stretches, dtype=float)
+    return float(np.prod(lam) ** (-2.0 / 3.0) * (lam**2).sum())
+
+
+def _stvk(m, s: Stretches) -> np.ndarray:
+    lam = np.asarray(s, dtype=float)
+    E = (lam**2 - 1.0) / 2.0
+    S = m.lam * E.sum() + 2.0 * m.mu * E
+    return lam**2 * S / np.prod(lam)
+
+
+def _neo_hookean(m, s: Stretches) -> np.ndarray:
+    lam = np.asarray(s, dtype=float)
+    J = np.prod(lam)
+    return (m.mu * (lam**2 - 1.0) + m.lam * np.log(J)) / J
+
+
+def _mooney_rivlin(m, s: Stretches) -> np.ndarray:
+    J = float(np.prod(s))
+    return _decoupled(m.c1, m.c2, m.k0 * np.log(J) / J, s)
+
+
+def _veronda_westmann(m, s: Stretches) -> np.ndarray:
+    J = float(np.prod(s))
+    W1 = m.c1 * m.c2 * np.exp(m.c2 * (_isochoric_I1(s) - 3.0))
+    return _decoupled(W1, -m.c1 * m.c2 / 2.0, m.k0 * np.log(J) / J, s)
+
+
+def _arruda_boyce(m, s: Stretches) -> np.ndarray:
+    J = float(np.prod(s))
+    I1b = _isochoric_I1(s)
+    W1 = m.mu * sum(i * c * m.N ** (1 - i) * I1b ** (i - 1) for i, c in enumerate(_AB_C, start=1))
+    return _decoupled(W1, 0.0, m.k0 * np.log(J) / J, s)
+
+
+def _ogden(m, s: Stretches) -> np.ndarray:
+    # W = mu/alpha^2 (sum lb_i^alpha - 3) + k0/2 ln^2 J with lb_i = J^(-1/3) lambda_i;
+    # sigma_i = (lambda_i / J) dW/dlambda_i.
+    lam = np.asarray(s, dtype=float)
+    J = np.prod(lam)
+    p = (J ** (-1.0 / 3.0) * lam) ** m.alpha
+    return (m.mu / m.alpha * (p - p.mean()) + m.k0 * np.log(J)) / J
+
+
+#: The isotropic materials with a closed form, by class name.
+ISOTROPIC: Dict[str, Callable] = {
+    "StVenantKirchhoff": _stvk,
+    "NeoHookean": _neo_hookean,
+    "MooneyRivlin": _mooney_rivlin,
+    "VerondaWestmann": _veronda_westmann,
+    "ArrudaBoyce": _arruda_boyce,
+    "Ogden": _ogden,
+}
+
+
+def principal_cauchy(material, stretches: Stretches) -> np.ndarray:
+    """Principal Cauchy stresses (3,) of an isotropic material under F = diag(stretches)."""
+    name = type(material).__name__
+    if name not in ISOTROPIC:
+        raise ValueError(f"no closed form for {name}; isotropic materials with one: {', '.join(ISOTROPIC)}")
+    if not all(np.isfinite(stretches)) or min(stretches) <= 0:
+        raise ValueError(f"stretches must be finite and positive, got {tuple(stretches)}")
+    return ISOTROPIC[name](material, tuple(float(v) for v in stretches))
+
+
+def uniaxial_lateral_stretch(material, stretch: float) -> float:
+    """The lateral stretch t making sigma_2 = sigma_3 = 0 under F = diag(stretch, t, t)."""
+    lateral = lambda t: principal_cauchy(material, (stretch, t, t))[1]
+    lo, hi = 0.2, 3.0
+    if not lateral(lo) < 0.0 < lateral(hi):
+        raise ValueError(f"{type(material).__name__}: no lateral stretch in ({lo}, {hi}) frees the sides at stretch {stretch}")
+    return float(brentq(lateral, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
+
+
+def uniaxial_cauchy(material, stretch: float) -> Tuple[float, float]:
+    """(sigma_11, lateral stretch) in homogeneous uniaxial stress."""
+    t = uniaxial_lateral_stretch(material, stretch)
+    return float(principal_cauchy(material, (stretch, t, t))[0]), t
+
+
+@dataclass
+class UniaxialResult:
+    material: str
+    stretch: float
+    lateral_stretch: float
+    sigma_analytic: float
+    sigma_mjed: float
+    rel_err: float
+    lateral_reaction_rel: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def uniaxial_reaction_check(material, points: np.ndarray, cells: np.ndarray, stretch: float) -> UniaxialResult:
+    """Cube stretched along x in uniaxial stress: MJED's face reaction against sigma_11.
+
+    points (n, 3) of an axis-aligned box mesh; cells (m, 4).
+    """
+    import mjed
+
+    sigma, t = uniaxial_cauchy(material, stretch)
+    points = np.asarray(points, dtype=float)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = hi - lo
+    x = lo + (points - lo) * np.array([stretch, t, t])
+    force = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), material).force(x)
+    tol = 1e-9 * size.max()
+    # The force a support must apply to hold each face is +dW/dx = -f.
+    reaction = [(-force[np.abs(points[:, k] - hi[k]) < tol, k]).sum() for k in range(3)]
+    current_area = lambda k: np.prod(np.delete(size * np.array([stretch, t, t]), k))
+    sigma_mjed = reaction[0] / current_area(0)
+    scale = max(abs(sigma), 1e-300)
+    lateral = max(abs(reaction[1]) / current_area(1), abs(reaction[2]) / current_area(2)) / scale
+    return UniaxialResult(
+        material=type(material).__name__,
+        stretch=float(stretch),
+        lateral_stretch=t,
+        sigma_analytic=sigma,
+        sigma_mjed=float(sigma_mjed),
+        rel_err=float(abs(sigma_mjed - sigma) / scale),
+        lateral_reaction_rel=float(lateral),
+    )
