@@ -1,0 +1,143 @@
+"""UFL oracle of the porous liver model: Hencky volumetric energy with tangent substitution,
+optionally on top of a hyperelastic material, and the work of a fixed fluid pressure field.
+
+Written from the formulas of the paper's section 3.2 (nothing here imports mjed):
+
+    J* = (f_w + J - 1) / f_w,   sigma(J) = K0 f_w ln J*   (volumetric Cauchy stress),
+    sigma replaced below J0 by its tangent line at J0,
+    J0 = 1 - f_w + K0 / K_lim ("paper") or 1 - f_w + f_w K0 / K_lim ("slope").
+
+A volumetric energy U(J) per rest volume has Cauchy stress dU/dJ, so U is the integral of
+sigma from 1 to J:
+
+    U = K0 f_w^2 (J* ln J* - J* + 1)                                   J > J0
+    U = U(J0) + sigma(J0) (J - J0) + sigma'(J0) (J - J0)^2 / 2          J <= J0
+
+A fluid pressure P (a P1 field held fixed) adds the Cauchy stress -P Id, i.e. the energy
+density -P J: its first variation is the virtual work of -P Id on the current configuration.
+
+The oracle assembles Pi = int (W_base + U + (-P J)) dX and lets UFL differentiate it, with
+the base material's W from :mod:`reference_fem.energies` ("replace" means the base's bulk
+term is dropped: its k0 is set to zero).
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+from typing import Any, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+import dolfinx.fem as fem
+import dolfinx.fem.petsc as fem_petsc
+import ufl
+
+from reference_fem.diffusion_oracle import scalar_input_node_of_dof
+from reference_fem.energies import strain_energy_density
+from reference_fem.numbering import build_mesh, compute_numbering
+from reference_fem.sparse_map import CSRRenumbering
+from reference_fem.validation import check_cells, check_points, check_positions
+
+__all__ = ["substitution_point", "porous_energy_density", "PorousOracle"]
+
+
+def substitution_point(f_w: float, K0: float, K_lim: float, tangent: str = "paper") -> float:
+    """J0 of the tangent substitution."""
+    if tangent == "paper":
+        return 1.0 - f_w + K0 / K_lim
+    if tangent == "slope":
+        return 1.0 - f_w + f_w * K0 / K_lim
+    raise ValueError(f"tangent must be 'paper' or 'slope', got {tangent!r}")
+
+
+def porous_energy_density(J, f_w: float, K0: float, K_lim: float, tangent: str = "paper"):
+    """U(J) as a UFL expression (J a UFL scalar)."""
+    J0 = substitution_point(f_w, K0, K_lim, tangent)
+    # Numbers at J0, from the formula (plain floats).
+    Js0 = (f_w + J0 - 1.0) / f_w
+    U0 = K0 * f_w**2 * (Js0 * math.log(Js0) - Js0 + 1.0)
+    s0 = K0 * f_w * math.log(Js0)
+    k0 = K0 * f_w / (f_w + J0 - 1.0)
+    # The log branch sees max(J, J0), so it stays finite where the linear branch is chosen.
+    Js = (f_w + ufl.max_value(J, J0) - 1.0) / f_w
+    U_log = K0 * f_w**2 * (Js * ufl.ln(Js) - Js + 1.0)
+    U_lin = U0 + s0 * (J - J0) + 0.5 * k0 * (J - J0) ** 2
+    return ufl.conditional(ufl.gt(J, J0), U_log, U_lin)
+
+
+def _without_bulk(material: Any) -> Any:
+    """A stand-in with the same class name and parameters, but k0 = 0."""
+    if not hasattr(material, "k0"):
+        raise ValueError(f"replace mode needs a material with a bulk modulus k0, not {type(material).__name__}")
+    params = {k: getattr(material, k) for k in vars(material) if not k.startswith("_")}
+    params["k0"] = 0.0
+    return type(type(material).__name__, (SimpleNamespace,), {})(**params)
+
+
+class PorousOracle:
+    """Energy, force (-dPi/dx) and stiffness of the porous model, in input numbering.
+
+    Args:
+        points, cells: the rest mesh (positively oriented P1 tetrahedra).
+        f_w, K0, K_lim, tangent: the porous law.
+        base: a material understood by :func:`reference_fem.strain_energy_density`, or None
+            for the porous energy alone.
+        mode: "add" or "replace" (base's k0 dropped).
+        with_pressure: include the -P J term; set P with :meth:`set_pressure`.
+    """
+
+    def __init__(self, points, cells, *, f_w, K0, K_lim, tangent="paper", base=None, mode="add", with_pressure=False):
+        self._X = check_points(points)
+        self._cells = check_cells(cells, self._X)
+        n = len(self._X)
+        self._mesh = build_mesh(self._X, self._cells)
+        self._V = fem.VectorFunctionSpace(self._mesh, ("Lagrange", 1))
+        self._numbering = compute_numbering(self._mesh, self._V, self._X, self._cells)
+        self._u = fem.Function(self._V)
+        F = ufl.Identity(3) + ufl.grad(self._u)
+        J = ufl.det(F)
+        W = porous_energy_density(J, float(f_w), float(K0), float(K_lim), tangent)
+        if base is not None:
+            W = W + strain_energy_density(base if mode == "add" else _without_bulk(base), F)
+        self._P = None
+        if with_pressure:
+            Q = fem.FunctionSpace(self._mesh, ("Lagrange", 1))
+            self._P = fem.Function(Q)
+            self._p_node = scalar_input_node_of_dof(self._mesh, Q, self._X)
+            W = W - self._P * J
+        dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": 1})  # integrand linear per cell: exact
+        Pi = W * dx
+        R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
+        K = ufl.derivative(R, self._u, ufl.TrialFunction(self._V))
+        self._Pi, self._R, self._K = fem.form(Pi), fem.form(R), fem.form(K)
+        self._renumber = CSRRenumbering(self._numbering.input_dof_of_dof, 3 * n)
+
+    def set_pressure(self, P) -> None:
+        """Nodal pressure (n,) in input order."""
+        if self._P is None:
+            raise ValueError("this oracle was built without the pressure term (with_pressure=False)")
+        P = np.asarray(P, dtype=float)
+        if P.shape != (len(self._X),):
+            raise ValueError(f"pressure must have shape ({len(self._X)},), got {P.shape}")
+        self._P.x.array[:] = P[self._p_node]
+        self._P.x.scatter_forward()
+
+    def _set(self, x) -> None:
+        xx = check_positions(x, len(self._X))
+        self._u.x.array[:] = self._numbering.to_dof_order(xx - self._X)
+        self._u.x.scatter_forward()
+
+    def energy(self, x) -> float:
+        self._set(x)
+        return float(fem.assemble_scalar(self._Pi))
+
+    def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
+        """(f (n, 3), K CSR (3n, 3n)) with f = -dPi/dx and K = d2Pi/dx2."""
+        self._set(x)
+        b = fem_petsc.assemble_vector(self._R)
+        f = -self._numbering.to_input_order(b.array_r.copy())
+        A = fem_petsc.assemble_matrix(self._K)
+        A.assemble()
+        return f, self._renumber(*A.getValuesCSR())
