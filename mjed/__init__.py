@@ -9,9 +9,11 @@ This package depends on NumPy and SciPy only; it never imports dolfinx, UFL or P
 """
 
 from mjed import materials
-from mjed.errors import InvertedElementError, MeshError, MeshWarning
+from mjed.errors import IntegrationError, InvertedElementError, MeshError, MeshWarning
 from mjed.forcefield import HyperelasticForceField
+from mjed.integrator import ImplicitEuler, Prescribed, StepReport
 from mjed.mesh import TetMesh
 
-__all__ = ["TetMesh", "HyperelasticForceField", "MeshError", "MeshWarning", "InvertedElementError", "materials"]
+__all__ = ["TetMesh", "HyperelasticForceField", "MeshError", "MeshWarning", "InvertedElementError", "materials",
+           "ImplicitEuler", "Prescribed", "StepReport", "IntegrationError"]
 __version__ = "0.1.0"

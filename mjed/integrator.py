@@ -1,0 +1,391 @@
+"""Implicit (backward) Euler time integration with Jacobi-preconditioned conjugate gradients.
+
+The scheme is SOFA's EulerImplicitSolver. With M the mass, D = r_M M + r_K K the Rayleigh
+damping, f the internal forces (f = -dW/dx, summed over the force models), K = -df/dx their
+stiffness and f_ext the external forces (gravity, optional loads), backward Euler is
+
+    M (v1 - v0) = dt (f(x1) + f_ext - D v1),    x1 = x0 + dt v1.
+
+Linearising f(x1) ~ f(x0) - K (x1 - x0) around the start of the step gives one linear solve
+for the velocity increment dv = v1 - v0:
+
+    A dv = dt (f(x0) + f_ext - D v0 - dt K v0),    A = M + dt D + dt^2 K
+                                                     = (1 + dt r_M) M + (dt^2 + dt r_K) K.
+
+That is the default (``newton_iterations=1``, SOFA's one linearised solve per step). With
+``newton_iterations > 1`` the same system is re-linearised at the new positions
+x = x0 + dt v until the residual
+
+    r(v) = dt (f(x0 + dt v) + f_ext - D v) - M (v - v0)
+
+falls below ``newton_tol`` times the first right-hand side; the first Newton iterate is exactly
+the SOFA step. Both are written as one update: at a linearisation point x_e = x0 + u_e with
+reference velocity v_ref, A dv = dt (f_e + f_ext - D v_ref - K (dt v_ref - u_e)) - M (v_ref - v0).
+
+Constraints are applied by projection: fixed nodes keep v = 0, prescribed nodes get the
+velocity that brings them to their prescribed positions at the end of the step, and their dofs
+are removed from the CG system. ``density=0`` drops inertia altogether (quasi-static stepping,
+A = dt^2 K); the constraints must then hold the body.
+
+Force models are any objects with ``force_and_stiffness(x) -> (f (n, 3), K CSR (3n, 3n))``
+and, optionally, ``prepare_step(dt)`` (called once before the solves of each step) and
+``accept_step(x, dt)`` (called once the step is accepted, with the new positions: viscous
+history, pore pressure...). ``HyperelasticForceField`` and ``ViscoHyperelasticForceField``
+both qualify.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Protocol, Sequence, Tuple, Union, runtime_checkable
+
+import numpy as np
+import scipy.sparse as sp
+
+from mjed.errors import IntegrationError, InvertedElementError
+from mjed.mass import MASS_KINDS, mass_matrix
+from mjed.mesh import TetMesh
+from mjed.solvers import conjugate_gradient
+
+__all__ = ["ForceModel", "Prescribed", "StepReport", "IntegratorState", "ImplicitEuler"]
+
+#: Newton stops with "newton_diverged" when the residual grows beyond this factor of the first.
+_DIVERGENCE_FACTOR = 1e8
+
+
+@runtime_checkable
+class ForceModel(Protocol):
+    """What ImplicitEuler needs from a force model (prepare_step/accept_step are optional)."""
+
+    def force_and_stiffness(self, x: np.ndarray) -> Tuple[np.ndarray, sp.csr_matrix]:
+        """Forces (n, 3) and stiffness CSR (3n, 3n) at positions x (n, 3)."""
+
+
+@dataclass(frozen=True)
+class Prescribed:
+    """Prescribed displacements of some nodes: x[nodes] = X[nodes] + displacement(t).
+
+    nodes: (k,) node indices; displacement: callable t -> (k, 3) displacement from the rest
+    positions at time t.
+    """
+
+    nodes: np.ndarray
+    displacement: Callable[[float], np.ndarray]
+
+    def __post_init__(self):
+        nodes = np.unique(np.asarray(self.nodes, dtype=np.int64).ravel())
+        if nodes.size == 0:
+            raise ValueError("Prescribed.nodes is empty")
+        if not callable(self.displacement):
+            raise ValueError(f"Prescribed.displacement must be callable t -> (k, 3), got {self.displacement!r}")
+        object.__setattr__(self, "nodes", nodes)
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """What one accepted step did.
+
+    step: its number (1 for the first); time: t at its end; newton_iterations: linear solves
+    done; cg_iterations: CG iterations summed over them; cg_residual: the last CG relative
+    residual; newton_residual: ||r|| / ||r_0|| at the end (None with one linearised solve);
+    reaction: (n, 3) forces the constraints exert on the constrained nodes (zero elsewhere),
+    from the balance of the last linear system.
+    """
+
+    step: int
+    time: float
+    newton_iterations: int
+    cg_iterations: int
+    cg_residual: float
+    newton_residual: Optional[float]
+    reaction: np.ndarray
+
+
+@dataclass(frozen=True)
+class IntegratorState:
+    """A copy of the integrator's state: positions x (n, 3), velocities v (n, 3), time t, steps."""
+
+    x: np.ndarray
+    v: np.ndarray
+    t: float
+    steps: int
+
+
+class ImplicitEuler:
+    """Backward Euler on a tetrahedral mesh; see the module docstring for the equations.
+
+    Args:
+        mesh: the rest mesh (for the mass, the rest positions and the inversion check).
+        models: one force model or a sequence of them; forces and stiffnesses are summed.
+        density: kg/m^3, scalar or per cell (m,); 0 gives quasi-static stepping.
+        dt: time step (s), > 0.
+        mass: "lumped" (SOFA's default) or "consistent".
+        gravity: acceleration (3,) in m/s^2, or None.
+        external_force: optional callable t -> (n, 3) extra load at time t.
+        fixed_nodes: node indices held at their current positions.
+        prescribed: a Prescribed (or a tuple (nodes, displacement)).
+        rayleigh_mass, rayleigh_stiffness: r_M (1/s) and r_K (s), >= 0.
+        newton_iterations: linear solves per step at most (1: SOFA's linearised step).
+        newton_tol: relative residual that ends the Newton iterations (used when > 1).
+        cg_tol, cg_max_iterations: the CG's relative residual and iteration cap.
+        x0, v0, t0: initial state (default: the rest positions, at rest, t = 0).
+    """
+
+    def __init__(
+        self,
+        mesh: TetMesh,
+        models: Union[ForceModel, Sequence[ForceModel]],
+        density,
+        *,
+        dt: float,
+        mass: str = "lumped",
+        gravity: Optional[Sequence[float]] = (0.0, 0.0, -9.81),
+        external_force: Optional[Callable[[float], np.ndarray]] = None,
+        fixed_nodes=None,
+        prescribed: Union[Prescribed, Tuple, None] = None,
+        rayleigh_mass: float = 0.0,
+        rayleigh_stiffness: float = 0.0,
+        newton_iterations: int = 1,
+        newton_tol: float = 1e-8,
+        cg_tol: float = 1e-8,
+        cg_max_iterations: int = 1000,
+        x0=None,
+        v0=None,
+        t0: float = 0.0,
+    ):
+        if not isinstance(mesh, TetMesh):
+            raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
+        self.mesh = mesh
+        self.models = _as_models(models)
+        self.dt = _positive("dt", dt)
+        if mass not in MASS_KINDS:
+            raise ValueError(f"mass must be one of {MASS_KINDS}, got {mass!r}")
+        self.M = mass_matrix(mesh, density, mass)
+        self.rayleigh_mass = _non_negative("rayleigh_mass", rayleigh_mass)
+        self.rayleigh_stiffness = _non_negative("rayleigh_stiffness", rayleigh_stiffness)
+        if int(newton_iterations) != newton_iterations or newton_iterations < 1:
+            raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
+        self.newton_iterations = int(newton_iterations)
+        self.newton_tol = _positive("newton_tol", newton_tol)
+        self.cg_tol = _positive("cg_tol", cg_tol)
+        if int(cg_max_iterations) != cg_max_iterations or cg_max_iterations < 1:
+            raise ValueError(f"cg_max_iterations must be an integer >= 1, got {cg_max_iterations!r}")
+        self.cg_max_iterations = int(cg_max_iterations)
+        self.external_force = external_force
+        n = mesh.n_nodes
+
+        # Gravity as a body force: M g is exact for P1 with a constant g, lumped or consistent.
+        self._f_gravity = np.zeros((n, 3))
+        if gravity is not None:
+            g = np.asarray(gravity, dtype=np.float64)
+            if g.shape != (3,) or not np.isfinite(g).all():
+                raise ValueError(f"gravity must be 3 finite numbers or None, got {gravity!r}")
+            self._f_gravity = (self.M @ np.tile(g, n)).reshape(n, 3)
+
+        self.fixed_nodes = _node_set("fixed_nodes", fixed_nodes, n)
+        if isinstance(prescribed, tuple):
+            prescribed = Prescribed(*prescribed)
+        if prescribed is not None and not isinstance(prescribed, Prescribed):
+            raise ValueError(f"prescribed must be a Prescribed or (nodes, displacement), got {type(prescribed).__name__}")
+        self.prescribed = prescribed
+        prescribed_nodes = np.empty(0, dtype=np.int64)
+        if prescribed is not None:
+            prescribed_nodes = _node_set("prescribed.nodes", prescribed.nodes, n)
+            both = np.intersect1d(prescribed_nodes, self.fixed_nodes)
+            if both.size:
+                raise ValueError(f"node(s) {both[:5].tolist()} are both fixed and prescribed")
+        self._prescribed_nodes = prescribed_nodes
+        constrained = np.zeros((n, 3), dtype=bool)
+        constrained[self.fixed_nodes] = True
+        constrained[prescribed_nodes] = True
+        self._constrained = constrained.ravel()  # (3n,)
+        self._free = np.flatnonzero(~self._constrained)
+        if self._free.size == 0:
+            raise ValueError("every node is constrained: nothing to integrate")
+
+        self.x = _initial("x0", mesh.points if x0 is None else x0, n)
+        self.v = _initial("v0", np.zeros((n, 3)) if v0 is None else v0, n)
+        self.t = float(t0)
+        self.steps = 0
+        self._warm = None  # last dv on the free dofs: the CG's first guess
+
+    # ---------------------------------------------------------------- state
+    @property
+    def state(self) -> IntegratorState:
+        return IntegratorState(self.x.copy(), self.v.copy(), self.t, self.steps)
+
+    def kinetic_energy(self) -> float:
+        """1/2 v^T M v."""
+        v = self.v.ravel()
+        return 0.5 * float(v @ (self.M @ v))
+
+    # ---------------------------------------------------------------- stepping
+    def run(self, n_steps: int, callback: Optional[Callable[["ImplicitEuler", StepReport], None]] = None) -> list:
+        """Take n_steps steps; callback(integrator, report) after each. Returns the reports."""
+        reports = []
+        for _ in range(int(n_steps)):
+            report = self.step()
+            reports.append(report)
+            if callback is not None:
+                callback(self, report)
+        return reports
+
+    def step(self) -> StepReport:
+        """One backward Euler step; on failure raises IntegrationError and keeps the state."""
+        dt, step, t1 = self.dt, self.steps + 1, self.t + self.dt
+        for model in self.models:
+            if hasattr(model, "prepare_step"):
+                model.prepare_step(dt)
+        n3 = 3 * self.mesh.n_nodes
+        x0, v0 = self.x.ravel(), self.v.ravel()
+        f_ext = self._f_gravity.ravel().copy()
+        if self.external_force is not None:
+            f_ext += _finite_load(self.external_force(t1), self.mesh.n_nodes, step, t1)
+
+        # Velocity of the constrained dofs over the step: zero for fixed nodes, whatever reaches
+        # the prescribed positions at t1 for the others (measured from the actual positions, so
+        # that no drift accumulates).
+        v_ref = v0.copy()
+        v_ref[self._constrained] = 0.0
+        if self.prescribed is not None:
+            target = self.mesh.points[self._prescribed_nodes] + np.asarray(self.prescribed.displacement(t1), dtype=float)
+            if target.shape != (len(self._prescribed_nodes), 3) or not np.isfinite(target).all():
+                raise IntegrationError(step, t1, "non_finite", f"prescribed displacement at t={t1:g} is not a finite ({len(self._prescribed_nodes)}, 3) array")
+            v_ref.reshape(-1, 3)[self._prescribed_nodes] = (target - self.x[self._prescribed_nodes]) / dt
+        u_e = np.zeros(n3)  # the first linearisation point is x0
+
+        free = self._free
+        cg_total, r0_norm, newton_res, solves = 0, 0.0, None, 0
+        for it in range(1, self.newton_iterations + 2):
+            f, K = self._evaluate(x0 + u_e, step, t1)
+            damp = self.rayleigh_mass * (self.M @ v_ref) + self.rayleigh_stiffness * (K @ v_ref)
+            rhs = dt * (f + f_ext - damp - K @ (dt * v_ref - u_e)) - self.M @ (v_ref - v0)
+            r_norm = float(np.linalg.norm(rhs[free]))
+            if it == 1:
+                r0_norm = r_norm
+            else:
+                # Here u_e = dt v_ref, so rhs is the nonlinear residual r(v_ref).
+                newton_res = r_norm / r0_norm if r0_norm > 0 else 0.0
+                if not np.isfinite(r_norm) or newton_res > _DIVERGENCE_FACTOR:
+                    raise IntegrationError(step, t1, "newton_diverged", f"Newton residual grew to {newton_res:.3g} times the first")
+                if newton_res <= self.newton_tol:
+                    reaction = np.where(self._constrained, -rhs / dt, 0.0)
+                    break
+                if it > self.newton_iterations:
+                    raise IntegrationError(step, t1, "newton_max_iterations",
+                                           f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
+                                           f"after {self.newton_iterations} linear solves")
+            A = (1.0 + dt * self.rayleigh_mass) * self.M + (dt * dt + dt * self.rayleigh_stiffness) * K
+            # CG returns its first guess untouched for a zero right-hand side: only warm-start otherwise.
+            warm = self._warm if (it == 1 and r_norm > 0) else None
+            res = conjugate_gradient(A[free][:, free], rhs[free], tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm)
+            cg_total += res.iterations
+            solves += 1
+            if not res.converged:
+                raise IntegrationError(step, t1, f"cg_{res.reason}",
+                                       f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
+                                       f"(relative residual {res.residual:.3g}, tolerance {self.cg_tol:g})")
+            dv = np.zeros(n3)
+            dv[free] = res.x
+            # Reaction: what the constraints must add for the constrained rows to balance too.
+            reaction = np.where(self._constrained, (A @ dv - rhs) / dt, 0.0)
+            v_ref = v_ref + dv
+            u_e = dt * v_ref
+            if it == 1:
+                self._warm = res.x.copy()
+            if self.newton_iterations == 1:
+                break  # SOFA's step: one linearised solve, no residual check
+
+        x1 = x0 + dt * v_ref
+        if not (np.isfinite(x1).all() and np.isfinite(v_ref).all()):
+            raise IntegrationError(step, t1, "non_finite", "the new positions or velocities are not finite")
+        self._refuse_inverted(x1.reshape(-1, 3), step, t1)
+        x1 = x1.reshape(-1, 3)
+        for model in self.models:
+            if hasattr(model, "accept_step"):
+                model.accept_step(x1, dt)
+        self.x, self.v, self.t, self.steps = x1, v_ref.reshape(-1, 3), t1, step
+        return StepReport(step, t1, solves, cg_total, res.residual, newton_res, reaction.reshape(-1, 3))
+
+    # ---------------------------------------------------------------- internals
+    def _evaluate(self, x: np.ndarray, step: int, t1: float):
+        """Summed forces (3n,) and stiffness (3n, 3n) of all models at x (3n,)."""
+        xs = x.reshape(-1, 3)
+        if not np.isfinite(xs).all():
+            raise IntegrationError(step, t1, "non_finite", "a Newton iterate has non-finite positions")
+        f_total, K_total = None, None
+        for model in self.models:
+            try:
+                f, K = model.force_and_stiffness(xs)
+            except InvertedElementError as exc:
+                raise IntegrationError(step, t1, "inverted", str(exc), cells=exc.cells) from exc
+            f_total = f.ravel() if f_total is None else f_total + f.ravel()
+            K_total = K if K_total is None else K_total + K
+        if not np.isfinite(f_total).all():
+            raise IntegrationError(step, t1, "non_finite", "the internal forces are not finite")
+        return f_total, sp.csr_matrix(K_total)
+
+    def _refuse_inverted(self, x: np.ndarray, step: int, t1: float) -> None:
+        """The step is refused if it inverts a cell (J <= 0), even if no model evaluated there."""
+        F = np.einsum("mai,maj->mij", x[self.mesh.cells], self.mesh.D)  # (m, 3, 3)
+        J = np.linalg.det(F)
+        bad = np.flatnonzero(~(J > 0))
+        if bad.size:
+            shown = ", ".join(f"cell {c} (J={J[c]:.3g})" for c in bad[:5])
+            raise IntegrationError(step, t1, "inverted", f"{bad.size} cell(s) inverted at the new positions: {shown}",
+                                   cells=bad)
+
+
+def _as_models(models) -> tuple:
+    if hasattr(models, "force_and_stiffness"):
+        models = (models,)
+    models = tuple(models)
+    if not models:
+        raise ValueError("models is empty: give at least one force model")
+    for m in models:
+        if not callable(getattr(m, "force_and_stiffness", None)):
+            raise TypeError(f"force model {type(m).__name__} has no force_and_stiffness(x) method")
+    return models
+
+
+def _positive(name: str, value) -> float:
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return value
+
+
+def _non_negative(name: str, value) -> float:
+    value = float(value)
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+    return value
+
+
+def _node_set(name: str, nodes, n: int) -> np.ndarray:
+    if nodes is None:
+        return np.empty(0, dtype=np.int64)
+    arr = np.asarray(nodes)
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"{name} must be integer node indices, got dtype {arr.dtype}")
+    arr = np.unique(arr.astype(np.int64).ravel())
+    if arr.size and (arr[0] < 0 or arr[-1] >= n):
+        bad = arr[(arr < 0) | (arr >= n)]
+        raise ValueError(f"{name} has indices out of range [0, {n}): {bad[:5].tolist()}")
+    return arr
+
+
+def _initial(name: str, value, n: int) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64)
+    if arr.shape != (n, 3):
+        raise ValueError(f"{name} must have shape ({n}, 3), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} has non-finite entries")
+    return arr
+
+
+def _finite_load(load, n: int, step: int, t1: float) -> np.ndarray:
+    load = np.asarray(load, dtype=np.float64)
+    if load.shape != (n, 3) or not np.isfinite(load).all():
+        raise IntegrationError(step, t1, "non_finite", f"external_force(t={t1:g}) is not a finite ({n}, 3) array")
+    return load.ravel()
