@@ -1,0 +1,160 @@
+"""Property-based robustness of the public API (hypothesis).
+
+Valid meshes, materials and states give finite, symmetric results; invalid ones raise our
+errors (ValueError subclasses whose message names the problem), never a raw IndexError,
+LinAlgError or a silent NaN.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+import mjed
+from conftest import box_mesh
+from mjed import materials as M
+from mjed.errors import InvertedElementError, MeshError
+
+SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+pos = st.floats(0.05, 20.0)
+materials = st.one_of(
+    st.builds(M.StVenantKirchhoff, mu=pos, lam=pos),
+    st.builds(M.NeoHookean, mu=pos, lam=pos),
+    st.builds(M.MooneyRivlin, c1=pos, c2=st.floats(0.0, 5.0), k0=pos),
+    st.builds(M.VerondaWestmann, c1=pos, c2=st.floats(0.05, 2.0), k0=pos),
+    st.builds(M.ArrudaBoyce, mu=pos, k0=pos, N=st.floats(2.0, 20.0)),
+    st.builds(M.Costa, a=pos, k0=pos, b_ff=st.floats(0.5, 5.0), b_fs=st.floats(0.0, 0.5), b_ss=st.floats(0.5, 5.0),
+              b_fn=st.floats(0.0, 0.5), b_sn=st.floats(0.0, 0.5), b_nn=st.floats(0.5, 5.0)),
+    st.builds(M.Ogden, mu=pos, alpha=st.sampled_from([-4.0, -2.0, 1.5, 2.0, 3.0, 5.0]), k0=pos),
+)
+
+
+@st.composite
+def meshes_and_states(draw):
+    n = draw(st.integers(1, 2))
+    points, cells = box_mesh(n, jitter=draw(st.floats(0.0, 0.3)), seed=draw(st.integers(0, 10_000)))
+    G = np.array(draw(st.lists(st.floats(-0.3, 0.3), min_size=9, max_size=9))).reshape(3, 3)
+    rng = np.random.default_rng(draw(st.integers(0, 10_000)))
+    x = points @ (np.eye(3) + G).T + 0.02 / n * rng.standard_normal(points.shape)
+    return points, cells, x
+
+
+@SETTINGS
+@given(meshes_and_states(), materials)
+def test_valid_input_gives_finite_symmetric_results(case, material):
+    points, cells, x = case
+    mesh = mjed.TetMesh(points, cells)
+    field = mjed.HyperelasticForceField(mesh, material)
+    try:
+        f, K = field.force_and_stiffness(x)
+    except InvertedElementError as exc:  # a legitimate answer for a folded state: it names the cells
+        assert len(exc.cells) > 0 and "J" in str(exc)
+        assume(False)
+    assert f.shape == (mesh.n_nodes, 3) and np.isfinite(f).all()
+    assert np.isfinite(K.data).all()
+    scale = abs(K).max()
+    assert abs(K - K.T).max() <= 1e-11 * scale
+    # Translation invariance: the forces are in equilibrium.
+    assert np.abs(f.sum(axis=0)).max() <= 1e-9 * max(np.abs(f).max(), 1.0)
+
+
+def _corrupt(points, cells, how, rng):
+    points, cells = points.copy(), cells.copy()
+    i = int(rng.integers(len(cells)))
+    if how == "nan point":
+        points[cells[i, 0], int(rng.integers(3))] = np.nan
+    elif how == "inf point":
+        points[cells[i, 1], 0] = np.inf
+    elif how == "index too large":
+        cells[i, int(rng.integers(4))] = len(points) + int(rng.integers(0, 5))
+    elif how == "negative index":
+        cells[i, int(rng.integers(4))] = -1 - int(rng.integers(0, 3))
+    elif how == "repeated node":
+        cells[i, 1] = cells[i, 0]
+    elif how == "flat cell":
+        a, b, c, _ = points[cells[i]]
+        points[cells[i, 3]] = a + rng.uniform(0, 1) * (b - a) + rng.uniform(0, 1) * (c - a)
+    elif how == "three-node cells":
+        cells = cells[:, :3]
+    elif how == "float cells":
+        cells = cells.astype(float) + 0.5
+    elif how == "no cells":
+        cells = cells[:0]
+    elif how == "2-d points":
+        points = points[:, :2]
+    return points, cells
+
+
+@SETTINGS
+@given(st.sampled_from(["nan point", "inf point", "index too large", "negative index", "repeated node", "flat cell",
+                        "three-node cells", "float cells", "no cells", "2-d points"]),
+       st.integers(0, 10_000), st.integers(1, 2))
+def test_invalid_meshes_raise_mesh_errors(how, seed, n):
+    points, cells = box_mesh(n, jitter=0.2, seed=seed)
+    points, cells = _corrupt(points, cells, how, np.random.default_rng(seed))
+    with pytest.raises(MeshError) as info:
+        mjed.TetMesh(points, cells)
+    assert len(str(info.value)) > 10
+
+
+bad_numbers = st.sampled_from([0.0, -1.0, -1e-9, float("nan"), float("inf"), -float("inf")])
+PARAMS = {
+    M.StVenantKirchhoff: dict(mu=1.0, lam=1.0),
+    M.NeoHookean: dict(mu=1.0, lam=1.0),
+    M.MooneyRivlin: dict(c1=1.0, c2=1.0, k0=1.0),
+    M.VerondaWestmann: dict(c1=1.0, c2=1.0, k0=1.0),
+    M.ArrudaBoyce: dict(mu=1.0, k0=1.0, N=8.0),
+    M.Costa: dict(a=1.0, k0=1.0, b_ff=1.0, b_fs=0.1, b_ss=1.0, b_fn=0.1, b_sn=0.1, b_nn=1.0),
+    M.Ogden: dict(mu=1.0, alpha=2.0, k0=1.0),
+}
+# Parameters that may be zero or negative: lambda of the Lame pair, Mooney-Rivlin's c1 and c2,
+# Costa's B entries (an indefinite B is handled by the signed split) and Ogden's alpha (not 0).
+SIGNED = {"lam", "c1", "c2", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn", "alpha"}
+
+
+@SETTINGS
+@given(st.sampled_from(sorted(PARAMS, key=lambda c: c.__name__)), st.data())
+def test_invalid_parameters_name_the_parameter(cls, data):
+    params = dict(PARAMS[cls])
+    name = data.draw(st.sampled_from(sorted(params)))
+    value = data.draw(bad_numbers)
+    finite = np.isfinite(value)
+    signed = name in SIGNED and not (cls is M.VerondaWestmann and name in ("c1", "c2"))
+    assume(not (finite and signed and not (cls is M.Ogden and value == 0.0)))
+    assume(not (cls is M.Ogden and name == "alpha" and finite and value != 0.0))
+    params[name] = value
+    with pytest.raises(ValueError) as info:
+        cls(**params)
+    assert name in str(info.value)
+
+
+@SETTINGS
+@given(st.sampled_from(["nan", "shape", "inf"]), st.integers(0, 100))
+def test_invalid_positions_are_refused(kind, seed):
+    points, cells = box_mesh(1)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.NeoHookean(mu=1.0, lam=1.0))
+    x = points.copy()
+    if kind == "nan":
+        x[seed % len(x), seed % 3] = np.nan
+    elif kind == "inf":
+        x[seed % len(x), 0] = -np.inf
+    else:
+        x = x[: seed % len(x)]
+    with pytest.raises(ValueError, match="positions"):
+        field.force_and_stiffness(x)
+
+
+@pytest.mark.oracle
+@settings(max_examples=15, deadline=None)
+@given(st.sampled_from(["nan point", "index too large", "negative index", "repeated node", "flat cell",
+                        "three-node cells", "no cells", "2-d points"]), st.integers(0, 10_000))
+def test_the_oracle_refuses_invalid_meshes_with_our_errors(how, seed):
+    pytest.importorskip("dolfinx")
+    from reference_fem import UFLOracle
+
+    points, cells = box_mesh(1, jitter=0.2, seed=seed)
+    points, cells = _corrupt(points, cells, how, np.random.default_rng(seed))
+    with pytest.raises(ValueError) as info:
+        UFLOracle(points, cells, M.NeoHookean(mu=1.0, lam=1.0))
+    assert len(str(info.value)) > 10
