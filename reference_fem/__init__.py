@@ -20,7 +20,9 @@ def dolfinx_available() -> bool:
     global _available
     if _available is None:
         try:
-            import dolfinx.fem.petsc  # noqa: F401
+            from reference_fem.compat import import_dolfinx
+
+            import_dolfinx()  # dolfinx with its PETSc layer, whatever the release
             import ufl  # noqa: F401
         except Exception:  # ImportError, or a broken MPI/PETSc install failing on import
             _available = False

@@ -2,15 +2,17 @@
 
 dolfinx renumbers both: ``create_mesh`` reorders the cells (graph reordering for locality)
 and the geometry nodes, and the P1 function space numbers its dofs in yet another order.
-The map is recovered from the cell-wise lists, which refer to the same cell in both:
+With several MPI ranks each rank holds a share of the cells, its owned dof nodes first and
+then the ghost ones. The map is recovered from the cell-wise lists, which refer to the same
+cell in both:
 
-    V dof node      V.dofmap.list[c, i]
-    geometry node   mesh.geometry.dofmap[c, i]    (same local vertex i: both are P1)
-    input node      mesh.geometry.input_global_indices[geometry node]
-    input cell      mesh.topology.original_cell_index[c]
+    V dof node      cell_dofs(V)[c, i]
+    geometry node   geometry_dofmap(mesh)[c, i]    (same local vertex i: both are P1)
+    input node      input_global_indices(mesh)[geometry node]
+    input cell      original_cell_index(mesh)[c]
 
 and then checked against the coordinates, so that an error in this reasoning cannot pass
-silently. Serial only (one process owns all cells and nodes).
+silently. Release differences in these accessors live in :mod:`reference_fem.compat`.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from reference_fem import compat
 
 __all__ = ["Numbering", "build_mesh", "compute_numbering", "NumberingError"]
 
@@ -32,34 +36,40 @@ def build_mesh(points: np.ndarray, cells: np.ndarray, comm=None):
     Args:
         points: (n, 3) float64 rest positions.
         cells: (m, 4) int64 node indices.
-        comm: MPI communicator, MPI.COMM_SELF by default (only serial is supported).
+        comm: MPI communicator, MPI.COMM_SELF by default. With several ranks the whole
+            input is handed to dolfinx on rank 0 (the other ranks' arrays are ignored) and
+            dolfinx's partitioner distributes the cells; input indices are then global.
     """
-    import ufl
-    from dolfinx.mesh import create_mesh
-    from mpi4py import MPI
-
-    comm = MPI.COMM_SELF if comm is None else comm
-    if comm.size != 1:
-        raise NotImplementedError("the oracle's numbering is serial only (comm.size == 1)")
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 1))
-    return create_mesh(comm, cells, points, domain)
+    comm = compat.comm_self() if comm is None else comm
+    if comm.rank != 0:
+        points, cells = np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int64)
+    return compat.create_tet_mesh(comm, cells, points)
 
 
 @dataclass(frozen=True)
 class Numbering:
-    """Index maps between input numbering and dolfinx's, for one mesh and P1 space.
+    """Index maps between input numbering and dolfinx's on this rank, for one mesh and P1 space.
 
     Attributes:
         n_input_nodes: n, number of input points (some may be unused by the cells).
-        input_node_of_dof_node: (n_dof_nodes,) input node of each V dof node (block).
-        input_cell_of_cell: (m,) input cell of each dolfinx cell.
+        input_node_of_dof_node: (n_dof_nodes,) input node of each V dof node (block) on
+            this rank: the owned ones first, then the ghosts.
+        input_cell_of_cell: (m_rank,) input cell of each cell owned by this rank.
         input_dof_of_dof: (3 n_dof_nodes,) scalar index map, 3*node + component.
+        n_owned_dof_nodes: how many of the dof nodes this rank owns (all of them in serial).
+        owned_offset: global index of this rank's first owned dof node (0 in serial).
     """
 
     n_input_nodes: int
     input_node_of_dof_node: np.ndarray
     input_cell_of_cell: np.ndarray
     input_dof_of_dof: np.ndarray
+    n_owned_dof_nodes: int = -1
+    owned_offset: int = 0
+
+    def __post_init__(self):
+        if self.n_owned_dof_nodes < 0:  # serial default: this rank owns every dof node
+            object.__setattr__(self, "n_owned_dof_nodes", int(self.input_node_of_dof_node.size))
 
     def to_dof_order(self, values: np.ndarray) -> np.ndarray:
         """(n, 3) nodal values in input order -> flat (3 n_dof_nodes,) in V's dof order."""
@@ -76,15 +86,31 @@ class Numbering:
 
 
 def _cell_lists(mesh, V) -> tuple:
-    """Per-cell lists (m, 4) of geometry nodes and V dof nodes (local cells only)."""
-    m = mesh.topology.index_map(mesh.topology.dim).size_local
-    geo = mesh.geometry.dofmap.array.reshape(-1, 4)[:m]
-    dofs = V.dofmap.list.array.reshape(-1, 4)[:m]
+    """Per-cell lists (m_rank, 4) of geometry nodes and V dof nodes (owned cells only)."""
+    m = compat.num_owned_cells(mesh)
+    geo = compat.geometry_dofmap(mesh)[:m]
+    dofs = compat.cell_dofs(V, 4)[:m]
     return geo, dofs
+
+
+def _check_cell_permutation(comm, input_cell_of_cell: np.ndarray, m: int) -> None:
+    """The owned cells of all ranks are the input cells, each exactly once."""
+    if comm.size == 1:
+        every = input_cell_of_cell
+    else:  # m int64 per rank at most: small next to the mesh itself
+        every = np.concatenate(comm.allgather(input_cell_of_cell))
+    if every.shape != (m,) or not np.array_equal(np.sort(every), np.arange(m)):
+        raise NumberingError(
+            f"original cell indices are not a permutation of the {m} input cells "
+            f"(dolfinx holds {every.size} cells)"
+        )
 
 
 def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numbering:
     """Build and verify the input <-> dolfinx maps for ``mesh`` and its P1 vector space ``V``.
+
+    Collective over ``mesh.comm``; every rank needs the whole input ``points`` (n, 3) and
+    ``cells`` (m, 4), against which its share is checked.
 
     Raises:
         NumberingError: if the maps are inconsistent, the mesh geometry does not equal the
@@ -95,22 +121,26 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
         raise NumberingError("expected a P1 vector space with block size 3")
     n, m = points.shape[0], cells.shape[0]
     geo, dofs = _cell_lists(mesh, V)
-    if geo.shape[0] != m:
-        raise NumberingError(f"dolfinx mesh has {geo.shape[0]} cells, input has {m}")
-    input_of_geo = np.asarray(mesh.geometry.input_global_indices, dtype=np.int64)
-    n_dof_nodes = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    input_of_geo = compat.input_global_indices(mesh)
+    index_map = V.dofmap.index_map
+    start, stop = compat.owned_range(index_map)
+    n_owned = stop - start
+    n_dof_nodes = n_owned + compat.num_ghosts(index_map)
+
+    input_cell_of_cell = compat.original_cell_index(mesh)[: geo.shape[0]]
+    _check_cell_permutation(mesh.comm, input_cell_of_cell, m)
 
     input_node_of_dof_node = np.full(n_dof_nodes, -1, dtype=np.int64)
     input_node_of_dof_node[dofs] = input_of_geo[geo]
-    # Every cell must agree (a dof node shared by cells maps to one input node).
+    # Every cell must agree (a dof node shared by cells maps to one input node), and with
+    # ghost mode none every dof node on a rank belongs to one of its cells.
     if np.any(input_node_of_dof_node < 0) or np.any(input_node_of_dof_node[dofs] != input_of_geo[geo]):
         raise NumberingError("V dof nodes and geometry nodes do not correspond one to one")
     if np.unique(input_node_of_dof_node).size != n_dof_nodes:
         raise NumberingError("two V dof nodes map to the same input node")
+    if input_node_of_dof_node.max(initial=-1) >= n:
+        raise NumberingError("a dof node maps to an input node beyond the input points")
 
-    input_cell_of_cell = np.asarray(mesh.topology.original_cell_index, dtype=np.int64)
-    if input_cell_of_cell.shape != (m,) or np.unique(input_cell_of_cell).size != m:
-        raise NumberingError("original_cell_index is not a permutation of the input cells")
     mapped = np.sort(input_node_of_dof_node[dofs], axis=1)
     if not np.array_equal(mapped, np.sort(cells[input_cell_of_cell], axis=1)):
         raise NumberingError("cells mapped back through the numbering differ from the input cells")
@@ -120,10 +150,11 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
         raise NumberingError("mesh geometry does not match the input points through input_global_indices")
     # Dof coordinates are recomputed by pushing the reference vertices forward (sums with
     # 0/1 weights in some order), so they may differ from the points by an ulp or two.
-    dof_xyz = V.tabulate_dof_coordinates()[:n_dof_nodes]
-    err = np.abs(dof_xyz - points[input_node_of_dof_node]).max()
-    if not err <= 16 * np.finfo(np.float64).eps * max(1.0, np.abs(points).max()):
-        raise NumberingError(f"dof coordinates differ from the input points (max |diff| = {err:.3g})")
+    dof_xyz = compat.dof_coordinates(V)[:n_dof_nodes]
+    if n_dof_nodes:
+        err = np.abs(dof_xyz - points[input_node_of_dof_node]).max()
+        if not err <= 16 * np.finfo(np.float64).eps * max(1.0, np.abs(points).max()):
+            raise NumberingError(f"dof coordinates differ from the input points (max |diff| = {err:.3g})")
 
     input_dof_of_dof = (3 * input_node_of_dof_node[:, None] + np.arange(3)).ravel()
-    return Numbering(n, input_node_of_dof_node, input_cell_of_cell, input_dof_of_dof)
+    return Numbering(n, input_node_of_dof_node, input_cell_of_cell, input_dof_of_dof, n_owned, start)

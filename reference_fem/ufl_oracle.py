@@ -9,15 +9,15 @@ force = -R and stiffness = K (the Hessian of the total energy).
 
 from __future__ import annotations
 
-from typing import Any, Tuple
+from typing import Any, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
-import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import ufl
 
+from reference_fem import compat
+from reference_fem.distributed import ROOT, all_finite, collective, gather_csr, gather_rows, on_root
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
@@ -29,6 +29,11 @@ __all__ = ["UFLOracle", "QUADRATURE_DEGREE"]
 QUADRATURE_DEGREE = 1
 
 
+def _checked_mesh(points, cells) -> Tuple[np.ndarray, np.ndarray]:
+    X = check_points(points)
+    return X, check_cells(cells, X)
+
+
 class UFLOracle:
     """Reference energy, force and stiffness for ``material`` on the mesh (points, cells).
 
@@ -38,25 +43,32 @@ class UFLOracle:
         material: object whose class name and attributes give the energy (see
             :func:`reference_fem.strain_energy_density`); a Costa ``frame`` may be None,
             an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
+        comm: MPI communicator; None for a serial oracle (MPI.COMM_SELF). With several
+            ranks every rank constructs the oracle with the same material; the input and
+            the positions passed to the methods are read on rank 0 only (the other ranks
+            may pass None) and broadcast; dolfinx partitions the cells and each rank
+            assembles its share. Force and stiffness are gathered on rank 0 in input order;
+            the other ranks get None. The energy is returned on every rank.
 
     The forms are compiled and the numbering maps built once, here; each evaluation only
-    sets u = x - X and assembles. Serial only.
+    sets u = x - X and assembles. Every method is collective over ``comm``.
     """
 
-    def __init__(self, points, cells, material: Any):
-        self._X = check_points(points)
-        self._cells = check_cells(cells, self._X)
+    def __init__(self, points, cells, material: Any, comm=None):
+        self._comm = compat.comm_self() if comm is None else comm
+        comm = self._comm
+        self._X, self._cells = on_root(comm, _checked_mesh, points, cells)
         self._X.setflags(write=False)
         self._cells.setflags(write=False)
         self._material = material
         n = self._X.shape[0]
 
-        self._mesh = build_mesh(self._X, self._cells)
-        self._V = fem.VectorFunctionSpace(self._mesh, ("Lagrange", 1))
-        self._numbering = compute_numbering(self._mesh, self._V, self._X, self._cells)
+        self._mesh = build_mesh(self._X, self._cells, comm)
+        self._V = compat.vector_p1_space(self._mesh)
+        self._numbering = collective(comm, compute_numbering, self._mesh, self._V, self._X, self._cells)
 
         # Kinematics and energy, then let UFL differentiate.
-        self._u = fem.Function(self._V, name="u")
+        self._u = compat.function(self._V, "u")
         F = ufl.Identity(3) + ufl.grad(self._u)
         # Parameters as dolfinx Constants: the generated code is then the same for every
         # parameter set of a material type, so FFCx's cache is hit after the first build.
@@ -70,12 +82,17 @@ class UFLOracle:
         # otherwise depend on whether Pi was a cache hit, and FFCx would compile R and K anew.
         for f in (Pi, R, K):
             f.signature()  # cached on the form object
-        self._Pi, self._R, self._K = fem.form(Pi), fem.form(R), fem.form(K)
+        self._Pi, self._R, self._K = (compat.compile_form(f) for f in (Pi, R, K))
 
         # PETSc objects reused by every call (zeroed before each assembly).
-        self._b = fem_petsc.create_vector(self._R)
-        self._A = fem_petsc.create_matrix(self._K)
-        self._renumber = CSRRenumbering(self._numbering.input_dof_of_dof, 3 * n)
+        self._b = compat.create_vector(self._R)
+        self._A = compat.create_matrix(self._K)
+        # Input dof of each global dof (owned blocks of ranks 0, 1, ... in order), on rank 0.
+        n_owned = self._numbering.n_owned_dof_nodes
+        self._input_dof_of_global = gather_rows(comm, self._numbering.input_dof_of_dof[: 3 * n_owned])
+        self._renumber = None
+        if self.is_root:
+            self._renumber = CSRRenumbering(self._input_dof_of_global, 3 * n)
 
     # -- properties ---------------------------------------------------------------------
     @property
@@ -101,8 +118,18 @@ class UFLOracle:
         return self._cells.shape[0]
 
     @property
+    def comm(self):
+        """The MPI communicator the oracle is distributed over."""
+        return self._comm
+
+    @property
+    def is_root(self) -> bool:
+        """True on the rank that receives force and stiffness (rank 0)."""
+        return self._comm.rank == ROOT
+
+    @property
     def mesh(self):
-        """The dolfinx mesh (dolfinx numbering)."""
+        """The dolfinx mesh (dolfinx numbering; this rank's share)."""
         return self._mesh
 
     @property
@@ -112,36 +139,39 @@ class UFLOracle:
 
     @property
     def numbering(self) -> Numbering:
-        """Maps between input numbering and V's dofs."""
+        """Maps between input numbering and V's dofs on this rank."""
         return self._numbering
 
     # -- evaluations ----------------------------------------------------------------------
     def energy(self, x) -> float:
         """Total strain energy sum_cells V0 W(F) at current positions ``x`` (n, 3)."""
-        self._set_state(x)
-        value = float(fem.assemble_scalar(self._Pi))
-        self._require_finite(np.array([value]), "energy", x)
+        xx = self._set_state(x)
+        value = compat.assemble_scalar_local(self._Pi)
+        if self._comm.size > 1:
+            value = float(self._comm.allreduce(value))
+        self._require_finite(np.array([value]), "energy", xx)
         return value
 
-    def force(self, x) -> np.ndarray:
-        """Nodal forces f = -dPi/dx, shape (n, 3), input numbering."""
-        self._set_state(x)
-        return self._assemble_force(x)
+    def force(self, x) -> Optional[np.ndarray]:
+        """Nodal forces f = -dPi/dx, shape (n, 3), input numbering (None off rank 0)."""
+        xx = self._set_state(x)
+        return self._assemble_force(xx)
 
-    def stiffness(self, x) -> sp.csr_matrix:
-        """Stiffness K = d2Pi/dx2 as scipy CSR (3n, 3n), dof index 3*node + component."""
-        self._set_state(x)
-        return self._assemble_stiffness(x)
+    def stiffness(self, x) -> Optional[sp.csr_matrix]:
+        """Stiffness K = d2Pi/dx2 as scipy CSR (3n, 3n), dof index 3*node + component
+        (None off rank 0)."""
+        xx = self._set_state(x)
+        return self._assemble_stiffness(xx)
 
-    def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
+    def force_and_stiffness(self, x) -> Tuple[Optional[np.ndarray], Optional[sp.csr_matrix]]:
         """``(force(x), stiffness(x))`` with one state update."""
-        self._set_state(x)
-        return self._assemble_force(x), self._assemble_stiffness(x)
+        xx = self._set_state(x)
+        return self._assemble_force(xx), self._assemble_stiffness(xx)
 
     # -- internals ------------------------------------------------------------------------
-    def _constant(self, value) -> fem.Constant:
+    def _constant(self, value):
         """A material parameter (float or (3, 3) array) as a dolfinx Constant."""
-        return fem.Constant(self._mesh, np.asarray(value, dtype=np.float64))
+        return compat.constant(self._mesh, value)
 
     def _cellwise_frame(self):
         """Costa with one rotation per cell: a DG0 tensor Function holding them; else None
@@ -153,38 +183,47 @@ class UFLOracle:
             check_frame(frame, self.n_cells)
             return None
         R = check_frame(frame, self.n_cells)  # (m, 3, 3), input cell order
-        Q = fem.TensorFunctionSpace(self._mesh, ("DG", 0))
-        Rf = fem.Function(Q, name="frame")
-        block = Q.dofmap.list.array.reshape(self.n_cells, 1)[:, 0]
+        Q = compat.tensor_dg0_space(self._mesh)
+        Rf = compat.function(Q, "frame")
+        m_rank = self._numbering.input_cell_of_cell.size
+        block = compat.cell_dofs(Q, 1)[:m_rank, 0]
         # Row-major 3x3 per cell block (UFL's flattening of a rank-2 tensor element).
         Rf.x.array.reshape(-1, 9)[block] = R[self._numbering.input_cell_of_cell].reshape(-1, 9)
-        Rf.x.scatter_forward()
+        compat.scatter_forward(Rf)
         self._frame_function = Rf  # keep alive with the forms
         return Rf
 
-    def _set_state(self, x) -> None:
-        xx = check_positions(x, self.n_nodes)
+    def _set_state(self, x) -> np.ndarray:
+        """Validate x on rank 0, share it, set u = x - X on this rank's dofs; returns x."""
+        xx = on_root(self._comm, check_positions, x, self.n_nodes)
         self._u.x.array[:] = self._numbering.to_dof_order(xx - self._X)
-        self._u.x.scatter_forward()
+        compat.scatter_forward(self._u)
+        return xx
 
-    def _assemble_force(self, x) -> np.ndarray:
-        with self._b.localForm() as local:
-            local.set(0.0)
-        fem_petsc.assemble_vector(self._b, self._R)
-        residual = self._b.array_r.copy()
-        self._require_finite(residual, "force", x)
-        return -self._numbering.to_input_order(residual)
+    def _assemble_force(self, x: np.ndarray) -> Optional[np.ndarray]:
+        compat.assemble_vector_into(self._b, self._R)
+        compat.accumulate_ghosts(self._b)
+        owned = self._b.array_r[: 3 * self._numbering.n_owned_dof_nodes].copy()
+        self._require_finite(owned, "force", x)
+        residual = gather_rows(self._comm, owned)  # global dof order, rank 0 only
+        if residual is None:
+            return None
+        out = np.zeros(3 * self.n_nodes)
+        out[self._input_dof_of_global] = residual
+        return -out.reshape(-1, 3)
 
-    def _assemble_stiffness(self, x) -> sp.csr_matrix:
-        self._A.zeroEntries()
-        fem_petsc.assemble_matrix(self._A, self._K)
-        self._A.assemble()
-        indptr, indices, data = self._A.getValuesCSR()
+    def _assemble_stiffness(self, x: np.ndarray) -> Optional[sp.csr_matrix]:
+        compat.assemble_matrix_into(self._A, self._K)
+        indptr, indices, data = self._A.getValuesCSR()  # owned rows, global columns
         self._require_finite(data, "stiffness", x)
-        return self._renumber(indptr, indices, data)
+        rows = gather_csr(self._comm, indptr, indices, data)
+        if rows is None:
+            return None
+        return self._renumber(*rows)
 
-    def _require_finite(self, values: np.ndarray, what: str, x) -> None:
-        if np.all(np.isfinite(values)):
+    def _require_finite(self, values: np.ndarray, what: str, x: np.ndarray) -> None:
+        # Collective: every rank raises if any rank saw a non-finite value.
+        if all_finite(self._comm, values):
             return
         # Explain the usual cause: inverted or flattened cells (ln J, J^(-2/3), ...).
         vol = signed_volumes(np.asarray(x, dtype=np.float64), self._cells)
