@@ -81,14 +81,15 @@ class PorousOracle:
 
     Args:
         points, cells: the rest mesh (positively oriented P1 tetrahedra).
-        f_w, K0, K_lim, tangent: the porous law.
+        porous: an object with attributes f_w, K0, K_lim and optionally tangent ("paper" by
+            default), read by name (mjed's PorousVolume works), or None for no porous term.
         base: a material understood by :func:`reference_fem.strain_energy_density`, or None
             for the porous energy alone.
         mode: "add" or "replace" (base's k0 dropped).
         with_pressure: include the -P J term; set P with :meth:`set_pressure`.
     """
 
-    def __init__(self, points, cells, *, f_w, K0, K_lim, tangent="paper", base=None, mode="add", with_pressure=False):
+    def __init__(self, points, cells, *, porous: Any = None, base: Any = None, mode: str = "add", with_pressure: bool = False):
         self._X = check_points(points)
         self._cells = check_cells(cells, self._X)
         n = len(self._X)
@@ -98,15 +99,20 @@ class PorousOracle:
         self._u = fem.Function(self._V)
         F = ufl.Identity(3) + ufl.grad(self._u)
         J = ufl.det(F)
-        W = porous_energy_density(J, float(f_w), float(K0), float(K_lim), tangent)
+        W = 0.0
+        if porous is not None:
+            law = [float(getattr(porous, k)) for k in ("f_w", "K0", "K_lim")]
+            W = porous_energy_density(J, *law, getattr(porous, "tangent", "paper"))
         if base is not None:
             W = W + strain_energy_density(base if mode == "add" else _without_bulk(base), F)
+        if porous is None and base is None and not with_pressure:
+            raise ValueError("PorousOracle: nothing to assemble (no porous law, base material or pressure)")
         self._P = None
         if with_pressure:
             Q = fem.FunctionSpace(self._mesh, ("Lagrange", 1))
             self._P = fem.Function(Q)
             self._p_node = scalar_input_node_of_dof(self._mesh, Q, self._X)
-            W = W - self._P * J
+            W = W - self._P * J  # the work of the Cauchy stress -P Id
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": 1})  # integrand linear per cell: exact
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))

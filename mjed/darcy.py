@@ -1,0 +1,254 @@
+"""The fluid phase of the porous liver model (paper, section 3.2, eq. 6).
+
+A nodal (P1) fluid pressure P on the rest mesh obeys the linear Darcy law
+
+    (1/K_lim) dP/dt = kappa laplacian P - (dJ/dt) / J,
+
+so compressing the tissue (dJ/dt < 0) raises P, which then diffuses. The fluid adds the
+volumetric Cauchy stress -P Id to the solid's: sigma_p = sigma - P.
+
+Discretisation (total Lagrangian: kappa and the Laplacian live on the rest mesh, so both
+matrices are built once, as the paper keeps kappa constant "to decrease the computational
+cost"). Galerkin P1 in space, semi-implicit in time: implicit diffusion, explicit source
+from the change of each cell's J over the accepted step,
+
+    (M / K_lim + dt kappa L) P^{n+1} = (M / K_lim) P^n - s,    s_i = sum_c (V_c / 4) ln(J_c^{n+1} / J_c^n),
+
+with M the P1 mass matrix (consistent, or lumped), L the P1 stiffness (Laplacian) matrix and
+ln(J^{n+1}/J^n) the exact integral over the step of dJ/dt / J; the cellwise source lands on
+its four nodes with weight V_c/4, which is its exact P1 load vector.
+
+Boundary conditions: zero flux (grad P . n = 0, the natural condition) everywhere by default,
+i.e. a sealed capsule; P = 0 on ``drained_nodes`` (e.g. where blood leaves through the vena
+cava, or the free top of a Terzaghi column).
+
+Coupling force. At fixed P, the pressure's contribution to the energy is -sum_c V_c Pbar_c J_c
+(Pbar_c the mean of the cell's four nodal pressures, the exact cell integral of the P1 field),
+whose Cauchy stress is -P Id. Its force is f_a = sum_c V_c Pbar_c dJ_c/dx_a and its stiffness
+-sum_c V_c Pbar_c d2J_c/dx_a dx_b; :class:`FluidPressureForce` is an integrator model that
+gives both and advances P when a step is accepted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Dict, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from mjed.kinematics import deformation_gradient
+from mjed.mesh import TetMesh
+from mjed.sparse import CSRPattern
+
+__all__ = [
+    "DarcyParameters",
+    "p1_mass_matrix",
+    "p1_stiffness_matrix",
+    "cell_source",
+    "PressureSolver",
+    "FluidPressureForce",
+    "cell_jacobians",
+]
+
+_PAIRS_A, _PAIRS_B = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+
+
+@dataclass(frozen=True)
+class DarcyParameters:
+    """K_lim: the fluid's bulk modulus (Pa, > 0); kappa: permeability (m^4 / (N s), >= 0,
+    0 is undrained: no diffusion)."""
+
+    K_lim: float
+    kappa: float
+
+    def __post_init__(self):
+        for name, lower, strict in (("K_lim", 0.0, True), ("kappa", 0.0, False)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+                raise ValueError(f"DarcyParameters: parameter {name} must be a finite real number, got {v!r}")
+            if v < lower or (strict and v == lower):
+                raise ValueError(f"DarcyParameters: parameter {name} must be {'>' if strict else '>='} 0, got {v!r}")
+
+
+# ------------------------------------------------------------------------- P1 matrices
+def _scalar_assemble(cells: np.ndarray, n: int, element: np.ndarray) -> sp.csr_matrix:
+    """Sum (m, 4, 4) element matrices into CSR (n, n)."""
+    rows = np.broadcast_to(cells[:, :, None], element.shape).ravel()
+    cols = np.broadcast_to(cells[:, None, :], element.shape).ravel()
+    A = sp.coo_matrix((element.ravel(), (rows, cols)), shape=(n, n)).tocsr()
+    A.sum_duplicates()
+    return A
+
+
+def p1_mass_matrix(mesh: TetMesh, *, lumped: bool = False) -> sp.csr_matrix:
+    """M_ij = int N_i N_j dX on the rest mesh, CSR (n, n).
+
+    Exact P1 element mass: V/20 (1 + delta_ab). ``lumped``: row sums on the diagonal (V/4 per
+    cell and node).
+    """
+    V = mesh.volumes
+    if lumped:
+        diag = np.bincount(mesh.cells.ravel(), weights=np.repeat(V / 4.0, 4), minlength=mesh.n_nodes)
+        return sp.diags(diag, format="csr")
+    local = (np.ones((4, 4)) + np.eye(4)) / 20.0
+    return _scalar_assemble(mesh.cells, mesh.n_nodes, V[:, None, None] * local)
+
+
+def p1_stiffness_matrix(mesh: TetMesh) -> sp.csr_matrix:
+    """L_ij = int grad N_i . grad N_j dX on the rest mesh, CSR (n, n): V D_a . D_b per cell."""
+    element = mesh.volumes[:, None, None] * np.einsum("mai,mbi->mab", mesh.D, mesh.D)
+    return _scalar_assemble(mesh.cells, mesh.n_nodes, element)
+
+
+def cell_jacobians(mesh: TetMesh, x: np.ndarray) -> np.ndarray:
+    """J per cell at positions x (n, 3), (m,)."""
+    return np.linalg.det(deformation_gradient(np.asarray(x, dtype=float)[mesh.cells], mesh.D))
+
+
+def cell_source(mesh: TetMesh, J_old: np.ndarray, J_new: np.ndarray) -> np.ndarray:
+    """s_i = sum_c (V_c / 4) ln(J_new / J_old) over the cells of node i, (n,).
+
+    Raises:
+        ValueError: a non-finite or non-positive J (an inverted cell has no volume ratio).
+    """
+    for name, J in (("J_old", J_old), ("J_new", J_new)):
+        J = np.asarray(J)
+        if J.shape != (mesh.n_cells,):
+            raise ValueError(f"{name} must have shape ({mesh.n_cells},), got {J.shape}")
+        bad = np.flatnonzero(~(np.isfinite(J) & (J > 0)))
+        if len(bad):
+            raise ValueError(f"{name}: {len(bad)} cell(s) with J <= 0 or non-finite; first is cell {bad[0]} (J = {J[bad[0]]!r})")
+    r = np.log(np.asarray(J_new) / np.asarray(J_old)) * (mesh.volumes / 4.0)
+    return np.bincount(mesh.cells.ravel(), weights=np.repeat(r, 4), minlength=mesh.n_nodes)
+
+
+# ------------------------------------------------------------------------- the solver
+class PressureSolver:
+    """The semi-implicit Darcy step on one mesh (see the module docstring).
+
+    Args:
+        mesh: the rest mesh.
+        params: K_lim and kappa.
+        drained_nodes: node indices where P = 0 (Dirichlet); None or empty: zero flux everywhere.
+        lumped_mass: lump the mass matrix (diagonal) instead of the consistent P1 mass.
+
+    Attributes:
+        M, L: the P1 mass and stiffness (Laplacian) matrices, CSR (n, n).
+    """
+
+    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, drained_nodes=None, lumped_mass: bool = False):
+        if not isinstance(params, DarcyParameters):
+            raise TypeError(f"params must be DarcyParameters, got {type(params).__name__}")
+        self.mesh = mesh
+        self.params = params
+        n = mesh.n_nodes
+        drained = np.unique(np.asarray([] if drained_nodes is None else drained_nodes, dtype=np.int64).ravel())
+        if len(drained) and (drained.min() < 0 or drained.max() >= n):
+            raise ValueError(f"drained_nodes must lie in [0, {n}), got range [{drained.min()}, {drained.max()}]")
+        self.drained = drained
+        free = np.ones(n, dtype=bool)
+        free[drained] = False
+        self._free = np.flatnonzero(free)
+        self.M = p1_mass_matrix(mesh, lumped=lumped_mass)
+        self.L = p1_stiffness_matrix(mesh)
+        self._Mf = self.M[self._free][:, self._free].tocsc()
+        self._Lf = self.L[self._free][:, self._free].tocsc()
+        self._solvers: Dict[float, Callable[[np.ndarray], np.ndarray]] = {}
+
+    def _solve_with(self, dt: float) -> Callable[[np.ndarray], np.ndarray]:
+        # One factorisation per time step size, kept: the integrator's dt rarely changes.
+        if dt not in self._solvers:
+            A = self._Mf / self.params.K_lim + (dt * self.params.kappa) * self._Lf
+            self._solvers[dt] = spla.factorized(A.tocsc())
+        return self._solvers[dt]
+
+    def step(self, P: np.ndarray, J_old: np.ndarray, J_new: np.ndarray, dt: float) -> np.ndarray:
+        """P^{n+1} from P^n (n,) and the cells' J before and after the step (m,). Pure.
+
+        Raises:
+            ValueError: dt not finite and > 0, P of the wrong shape or not finite, invalid J.
+        """
+        if not (np.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt must be finite and > 0, got {dt!r}")
+        P = np.asarray(P, dtype=float)
+        if P.shape != (self.mesh.n_nodes,) or not np.all(np.isfinite(P)):
+            raise ValueError(f"P must be a finite array of shape ({self.mesh.n_nodes},)")
+        s = cell_source(self.mesh, J_old, J_new)
+        out = np.zeros_like(P)
+        f = self._free
+        rhs = self._Mf @ P[f] / self.params.K_lim - s[f]
+        if len(f):
+            out[f] = self._solve_with(float(dt))(rhs)
+        return out
+
+
+# ------------------------------------------------------------------------- the coupling force
+def _skew_blocks(w: np.ndarray) -> np.ndarray:
+    """[w]_ij = eps_ijq w_q for w (..., 3): (..., 3, 3)."""
+    S = np.zeros(w.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 1, 0] = w[..., 2], -w[..., 2]
+    S[..., 0, 2], S[..., 2, 0] = -w[..., 1], w[..., 1]
+    S[..., 1, 2], S[..., 2, 1] = w[..., 0], -w[..., 0]
+    return S
+
+
+def pressure_force_and_stiffness(mesh: TetMesh, x: np.ndarray, P: np.ndarray, pattern: CSRPattern) -> Tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+    """Force (n, 3), cell J (m,) and stiffness CSR (3n, 3n) of the energy -sum_c V_c Pbar_c J_c.
+
+    dJ/dx_a = cof(F) D_a and [d2J/dx_a dx_b]_ij = eps_ijq (F (D_a x D_b))_q.
+    """
+    D, V = mesh.D, mesh.volumes
+    F = deformation_gradient(x[mesh.cells], D)
+    J = np.linalg.det(F)
+    cof = np.linalg.inv(F).transpose(0, 2, 1) * J[:, None, None]
+    w = V * P[mesh.cells].mean(axis=1)  # (m,): V_c Pbar_c
+    grad = D @ np.swapaxes(cof, 1, 2)  # (m, 4, 3): cof D_a
+    f = pattern.assemble_vector(w[:, None, None] * grad)
+    DxD = np.cross(D[:, _PAIRS_A], D[:, _PAIRS_B])  # (m, 4, 4, 3)
+    FDxD = np.einsum("mij,mabj->mabi", F, DxD)
+    Ke = -w[:, None, None, None, None] * _skew_blocks(FDxD)  # (m, 4, 4, 3, 3)
+    K = pattern.assemble_matrix(Ke.transpose(0, 1, 3, 2, 4).reshape(len(D), 12, 12))
+    return f, J, K
+
+
+class FluidPressureForce:
+    """The fluid phase as an integrator model: the force of a fixed nodal pressure P, and the
+    Darcy update of P each time a step is accepted.
+
+    Args:
+        mesh: the rest mesh.
+        params: K_lim and kappa.
+        drained_nodes: P = 0 there (see :class:`PressureSolver`); default zero flux everywhere.
+        x0: positions at which P = 0 initially (the rest state by default); its J is the
+            reference of the first step's source.
+        lumped_mass: lumped instead of consistent mass in the pressure step.
+
+    Attributes:
+        P: (n,) current nodal pressure (Pa).
+        solver: the :class:`PressureSolver`.
+    """
+
+    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, drained_nodes=None, x0: Optional[np.ndarray] = None, lumped_mass: bool = False):
+        self.mesh = mesh
+        self.solver = PressureSolver(mesh, params, drained_nodes=drained_nodes, lumped_mass=lumped_mass)
+        self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
+        self.P = np.zeros(mesh.n_nodes)
+        self._J = cell_jacobians(mesh, mesh.points if x0 is None else x0)
+
+    @property
+    def J_accepted(self) -> np.ndarray:
+        """(m,) cell J at the last accepted state."""
+        return self._J
+
+    def force_and_stiffness(self, x: np.ndarray) -> Tuple[np.ndarray, sp.csr_matrix]:
+        """Force (n, 3) of the current pressure at positions x, and its stiffness at fixed P."""
+        f, _, K = pressure_force_and_stiffness(self.mesh, np.asarray(x, dtype=float), self.P, self.pattern)
+        return f, K
+
+    def accept_step(self, x: np.ndarray, dt: float) -> None:
+        """Advance P over the accepted step that ended at positions x."""
+        J = cell_jacobians(self.mesh, x)
+        self.P = self.solver.step(self.P, self._J, J, dt)
+        self._J = J
