@@ -32,7 +32,7 @@ def assert_valid_tet_mesh(points: np.ndarray, cells: np.ndarray, volume: float) 
 
 
 def test_names_and_describe():
-    assert meshes.names() == ("single-tet", "cube-small", "cube-medium", "cube-paper")
+    assert meshes.names() == ("single-tet", "cube-small", "cube-medium", "cube-paper", "liver", "liver-coarse")
     with pytest.raises(ValueError, match="cube-paper"):
         meshes.describe("cube-huge")
 
