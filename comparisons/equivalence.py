@@ -14,6 +14,7 @@ element-sized displacement.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import partial
 from typing import Callable, Iterable, Iterator, List, Optional, Sequence
 
 import numpy as np
@@ -74,6 +75,7 @@ def run_cases(
     *,
     oracle_factory: Optional[Callable] = None,
     progress: Optional[Callable[[str], None]] = None,
+    comm=None,
 ) -> Iterator[CaseResult]:
     """Yield one CaseResult per (mesh, material, state).
 
@@ -82,23 +84,32 @@ def run_cases(
         materials: material instances.
         states: names from comparisons.states.
         oracle_factory: (points, cells, material) -> object with force(x), stiffness(x);
-            defaults to reference_fem.UFLOracle.
+            defaults to reference_fem.UFLOracle (distributed over ``comm`` if given).
+        comm: MPI communicator for an oracle distributed over several ranks. Every rank
+            must call this with the same arguments (the oracle calls are collective); MJED
+            and the comparison run on rank 0, which alone yields results.
     """
+    root = comm is None or comm.rank == 0
     if oracle_factory is None:
-        from reference_fem import UFLOracle as oracle_factory
+        from reference_fem import UFLOracle
+
+        oracle_factory = UFLOracle if comm is None else partial(UFLOracle, comm=comm)
     for label, points, cells in meshes:
         mesh = mjed.TetMesh(points, cells)
         h = _mean_edge(mesh.points, mesh.cells)
-        xs = {s: apply_state(s, mesh.points, mesh.cells) for s in states}
+        # Off rank 0 the oracle reads no positions (it receives rank 0's).
+        xs = {s: apply_state(s, mesh.points, mesh.cells) if root else None for s in states}
         for material in materials:
-            if progress:
+            if progress and root:
                 progress(f"{label}: {material.name}")
-            field = mjed.HyperelasticForceField(mesh, material)
+            field = mjed.HyperelasticForceField(mesh, material) if root else None
             oracle = oracle_factory(mesh.points, mesh.cells, material)
             for state in states:
                 x = xs[state]
-                f_m, K_m = field.force_and_stiffness(x)
                 f_o, K_o = oracle.force(x), oracle.stiffness(x)
+                if not root:
+                    continue
+                f_m, K_m = field.force_and_stiffness(x)
                 fe, ke, se = compare_arrays(f_m, K_m, f_o, K_o, h)
                 passed = fe <= FORCE_TOL and ke <= STIFFNESS_TOL and se <= SYMMETRY_TOL
                 yield CaseResult(material.name, label, state, mesh.n_cells, mesh.n_nodes, fe, ke, se, bool(passed))

@@ -54,7 +54,8 @@ class Numbering:
         n_input_nodes: n, number of input points (some may be unused by the cells).
         input_node_of_dof_node: (n_dof_nodes,) input node of each V dof node (block) on
             this rank: the owned ones first, then the ghosts.
-        input_cell_of_cell: (m_rank,) input cell of each cell owned by this rank.
+        input_cell_of_cell: (m_rank,) input cell of each cell owned by this rank (the
+            first m_rank local cells).
         input_dof_of_dof: (3 n_dof_nodes,) scalar index map, 3*node + component.
         n_owned_dof_nodes: how many of the dof nodes this rank owns (all of them in serial).
         owned_offset: global index of this rank's first owned dof node (0 in serial).
@@ -86,10 +87,16 @@ class Numbering:
 
 
 def _cell_lists(mesh, V) -> tuple:
-    """Per-cell lists (m_rank, 4) of geometry nodes and V dof nodes (owned cells only)."""
-    m = compat.num_owned_cells(mesh)
-    geo = compat.geometry_dofmap(mesh)[:m]
-    dofs = compat.cell_dofs(V, 4)[:m]
+    """Per-cell lists (cells on this rank, 4) of geometry nodes and V dof nodes.
+
+    All local cells, owned and ghost: depending on the release's default ghost mode a rank
+    may hold ghost cells, whose nodes are among its ghost dof nodes. Assembly integrates
+    over owned cells only, so ghost cells are never counted twice.
+    """
+    geo = compat.geometry_dofmap(mesh)
+    dofs = compat.cell_dofs(V, 4)
+    if geo.shape != dofs.shape:
+        raise NumberingError(f"geometry dofmap {geo.shape} and V dofmap {dofs.shape} differ in shape")
     return geo, dofs
 
 
@@ -127,7 +134,10 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
     n_owned = stop - start
     n_dof_nodes = n_owned + compat.num_ghosts(index_map)
 
-    input_cell_of_cell = compat.original_cell_index(mesh)[: geo.shape[0]]
+    all_cells = compat.original_cell_index(mesh)
+    if all_cells.shape != (geo.shape[0],):
+        raise NumberingError(f"{all_cells.size} original cell indices for {geo.shape[0]} local cells")
+    input_cell_of_cell = all_cells[: compat.num_owned_cells(mesh)]  # owned cells come first
     _check_cell_permutation(mesh.comm, input_cell_of_cell, m)
 
     input_node_of_dof_node = np.full(n_dof_nodes, -1, dtype=np.int64)
@@ -142,7 +152,7 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
         raise NumberingError("a dof node maps to an input node beyond the input points")
 
     mapped = np.sort(input_node_of_dof_node[dofs], axis=1)
-    if not np.array_equal(mapped, np.sort(cells[input_cell_of_cell], axis=1)):
+    if not np.array_equal(mapped, np.sort(cells[all_cells], axis=1)):
         raise NumberingError("cells mapped back through the numbering differ from the input cells")
 
     # The decisive check: positions seen by dolfinx are exactly the input points.

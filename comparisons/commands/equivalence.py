@@ -15,6 +15,7 @@ EXAMPLES = """examples:
   mjed-verify equivalence --material NeoHookean --mesh cube-small
   mjed-verify equivalence --material all --mesh cube-paper --json eq.json
   mjed-verify equivalence --mesh path/to/organ.msh --states rest,random
+  mpirun -n 2 mjed-verify equivalence --mesh cube-paper   # oracle distributed over 2 ranks
 """
 
 
@@ -37,13 +38,34 @@ def run(args) -> int:
         print("mjed-verify: the UFL oracle needs dolfinx (Debian: apt install python3-dolfinx); run `make demo`.", file=sys.stderr)
         return 3
 
+    # Under mpirun the oracle is distributed over all ranks; rank 0 runs MJED, compares,
+    # prints and writes the JSON, and every rank exits with rank 0's code.
+    from reference_fem.compat import comm_world
+
+    comm = comm_world()
+    if comm.size == 1:
+        return _run(args, materials, states, mesh_list, None)
+    code = None
+    try:
+        code = _run(args, materials, states, mesh_list, comm)
+    finally:
+        # Reached on every rank in the same order (the oracle raises collectively).
+        code = comm.bcast(code, root=0)
+    return code
+
+
+def _run(args, materials, states, mesh_list, comm) -> int:
     import mjed
     from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL, format_table, run_cases
 
+    root = comm is None or comm.rank == 0
     t0 = time.perf_counter()
     progress = None if args.quiet else (lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True))
-    results = list(run_cases(mesh_list, materials, states, progress=progress))
+    results = list(run_cases(mesh_list, materials, states, progress=progress, comm=comm))
+    if not root:
+        return 0  # the exit code is rank 0's (broadcast by the caller)
     elapsed = time.perf_counter() - t0
+    ranks = "" if comm is None else f" (oracle on {comm.size} MPI ranks)"
     n_fail = sum(not r.passed for r in results)
     if not args.quiet:
         print(format_table(results))
@@ -51,7 +73,7 @@ def run(args) -> int:
     worst_k = max(r.stiffness_rel_err for r in results)
     print(
         f"{len(results) - n_fail}/{len(results)} cases passed (tolerances: force {FORCE_TOL:g}, stiffness {STIFFNESS_TOL:g}); "
-        f"worst force error {worst_f:.2e}, worst stiffness error {worst_k:.2e}; {elapsed:.1f} s"
+        f"worst force error {worst_f:.2e}, worst stiffness error {worst_k:.2e}; {elapsed:.1f} s{ranks}"
     )
     tangent_errors = {}
     ogden = [m for m in materials if m.name == "Ogden"]
@@ -66,8 +88,11 @@ def run(args) -> int:
     uniaxial = _uniaxial_closed_form(materials, mesh_list)
     n_fail += sum(not row["passed"] for row in uniaxial)
     if args.json:
-        opt.write_json(args.json, {"cases": [r.to_dict() for r in results], "uniaxial_closed_form": uniaxial,
-                                   "ogden_sofa_tangent_error": tangent_errors})
+        payload = {"cases": [r.to_dict() for r in results], "uniaxial_closed_form": uniaxial,
+                   "ogden_sofa_tangent_error": tangent_errors}
+        if comm is not None:
+            payload["mpi_ranks"] = comm.size
+        opt.write_json(args.json, payload)
     return 0 if n_fail == 0 else 1
 
 
