@@ -16,6 +16,13 @@ c e^u du (x) du. Everything but that rank-one term is linear in the group's aggr
 all groups are folded into one set of aggregates (weighted by c or c e^u) before the 3x3
 algebra. Only the six edge blocks (a < b) are formed: K_ba = K_ab^T and, because the energy
 is invariant under translation, K_aa = -sum_{b != a} K_ab.
+
+Layout (why it is fast): the 3x3 algebra runs on "component-major" arrays whose cell axis is
+last and contiguous, vectors per node (3, 4, m), per edge (3, 6, m), matrices (3, 3, m) and
+edge blocks (3, 3, 6, m). Every NumPy operation then streams long contiguous rows instead of
+broadcasting over tiny 3x3 trailing axes (about 15x faster for the outer products), and each
+of the nine block components is summed in a cache-sized (6, m) slab. The public Evaluation
+exposes the same arrays as (m, 4, 3) and (m, 6, 3, 3) views.
 """
 
 from __future__ import annotations
@@ -25,15 +32,13 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
-from mjed.kinematics import Kinematics, deformation_gradient
+from mjed.kinematics import Kinematics
+from mjed.sparse import EDGES
 from mjed.terms import IDENTITY, TangentPair, TermGroup
 
 __all__ = ["EDGES", "MJEDEngine", "Evaluation", "edge_blocks_to_element_matrices"]
 
-#: The six edges (a, b), a < b, of a tetrahedron, in the order of the edge axis.
-EDGES = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)])
 _EA, _EB = EDGES[:, 0], EDGES[:, 1]
-_DIAG = (np.arange(3), np.arange(3))
 
 
 @dataclass
@@ -53,13 +58,78 @@ class Evaluation:
     pk2: "np.ndarray | None" = None
 
 
+@dataclass
+class SoAEvaluation:
+    """The engine's native result: the same quantities in component-major layout.
+
+    energy: (m,); gradient: (3, 4, m) with [k, a] = dW/dx_a,k; blocks: (3, 3, 6, m) with
+    [r, c, e] = (d2W/dx_a dx_b)_rc for edge e = (a, b), or None; J: (m,); F: (m, 3, 3);
+    pk2: (m, 3, 3) or None. All per cell, multiplied by the rest volume where it applies.
+    """
+
+    energy: np.ndarray
+    gradient: np.ndarray
+    blocks: "np.ndarray | None"
+    J: np.ndarray
+    F: np.ndarray
+    pk2: "np.ndarray | None" = None
+
+    def public(self) -> Evaluation:
+        """The (m, ...) views of the public Evaluation (no copy)."""
+        blocks = None if self.blocks is None else self.blocks.transpose(3, 2, 0, 1)
+        return Evaluation(self.energy, self.gradient.transpose(2, 1, 0), blocks, self.J, self.F, self.pk2)
+
+
+def _soa(A: np.ndarray) -> np.ndarray:
+    """(m, ...) -> (..., m), contiguous."""
+    return np.ascontiguousarray(np.moveaxis(A, 0, -1))
+
+
+def _apply(A: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """A V per cell: A (3, 3, m), V (3, k, m) -> (3, k, m), out[i] = sum_j A[i, j] V[j]."""
+    out = np.empty((3,) + V.shape[1:])
+    tmp = np.empty(V.shape[1:])
+    for i in range(3):
+        np.multiply(A[i, 0], V[0], out=out[i])
+        for j in (1, 2):
+            np.multiply(A[i, j], V[j], out=tmp)
+            out[i] += tmp
+    return out
+
+
+def _at(V: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """V (3, 4, m) at the first or second node of each edge -> (3, 6, m), contiguous
+    (fancy indexing in the middle axis would give a slow, transposed layout)."""
+    return np.take(V, nodes, axis=1)
+
+
+def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Per-edge dot products of (3, 6, m) vectors -> (6, m)."""
+    out = u[0] * v[0]
+    out += u[1] * v[1]
+    out += u[2] * v[2]
+    return out
+
+
+def _is_zero(x) -> bool:
+    return np.ndim(x) == 0 and x == 0
+
+
+def _add(acc, value):
+    """acc + value where None stands for zero (so absent terms cost nothing)."""
+    if value is None:
+        return acc
+    return value if acc is None else acc + value
+
+
 class _Slot:
     """A (kind, matrix) tangent slot shared by all pairs with the same constant matrix.
 
-    Precomputed once per mesh: M D_a (m, 4, 3) and, for the second kind, D_a . M D_b (m, 6).
+    Precomputed once per mesh, component-major: M D_a (3, 4, m) and, for the second kind,
+    D_a . M D_b (6, m).
     """
 
-    def __init__(self, kind: str, matrix: np.ndarray, D: np.ndarray):
+    def __init__(self, kind: str, matrix: np.ndarray, D: np.ndarray, Dt: np.ndarray):
         self.kind = kind
         self.matrix = matrix
         if kind == "spectral":  # eigenprojectors of C: nothing to precompute
@@ -67,13 +137,13 @@ class _Slot:
             return
         self.identity = matrix is IDENTITY or (matrix.shape == (3, 3) and np.array_equal(matrix, IDENTITY))
         if self.identity:
-            self.MD = D
+            self.MD = Dt
         elif matrix.ndim == 2:
-            self.MD = np.einsum("ij,maj->mai", matrix, D)
+            self.MD = np.einsum("ij,jam->iam", matrix, Dt)
         else:
-            self.MD = np.einsum("mij,maj->mai", matrix, D)
+            self.MD = _apply(_soa(matrix), Dt)
         if kind == "second":
-            self.DMD = np.einsum("mei,mei->me", D[:, _EA], self.MD[:, _EB])
+            self.DMD = _dot(_at(Dt, _EA), _at(self.MD, _EB))
 
 
 def _slot_key(pair: TangentPair) -> Tuple[str, object]:
@@ -100,6 +170,9 @@ class MJEDEngine:
         self.volumes = volumes
         self.groups = groups
         self.regularize = regularize
+        # Per-mesh constants, component-major: D (3, 4, m) and D_a x D_b (3, 6, m).
+        self._Dt = np.ascontiguousarray(D.transpose(2, 1, 0))
+        self._DxD = _soa(np.cross(D[:, _EA], D[:, _EB]).transpose(0, 2, 1))
         self._slots: Dict[Tuple[str, object], _Slot] = {}
         for group in groups:
             for term in group.terms:
@@ -111,9 +184,7 @@ class MJEDEngine:
                         )
                     key = _slot_key(pair)
                     if key not in self._slots:
-                        self._slots[key] = _Slot(pair.kind, pair.matrix, D)
-        # D_a x D_b per edge, for the second derivative of J.
-        self._DxD = np.cross(D[:, _EA], D[:, _EB])
+                        self._slots[key] = _Slot(pair.kind, pair.matrix, D, self._Dt)
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True, check_J=None, pk2: bool = False) -> Evaluation:
@@ -125,23 +196,35 @@ class MJEDEngine:
             check_J: called with J (m,) before any material function is evaluated, so a
                 caller can refuse inverted cells before ln J or J^p produce NaN.
             pk2: also return S = 2 dW/dC = sum c f_k S_k + h J C^-1 (for viscous models).
+
+        The gradient and edge blocks are views of component-major arrays (see the module
+        docstring); use :meth:`evaluate_soa` for those arrays themselves.
         """
-        D = self.D
+        x_t = np.ascontiguousarray(np.asarray(x_cells, dtype=np.float64).transpose(2, 1, 0))
+        return self.evaluate_soa(x_t, stiffness=stiffness, check_J=check_J, pk2=pk2).public()
+
+    def evaluate_soa(self, x_t: np.ndarray, *, stiffness: bool = True, check_J=None, pk2: bool = False,
+                     out: "np.ndarray | None" = None) -> SoAEvaluation:
+        """As :meth:`evaluate`, in component-major layout.
+
+        x_t: (3, 4, m) current positions, [k, a] = x_a,k of each cell (contiguous).
+        out: optional (3, 3, 6, m) float64 array the edge blocks are written to (a caller
+            that consumes the blocks at once can reuse one buffer between calls).
+        """
+        D, Dt = self.D, self._Dt
         m = len(D)
-        kin = Kinematics(deformation_gradient(x_cells, D))
+        # F_ij = sum_a x_a,i D_a,j, formed component-major and copied once to (m, 3, 3).
+        Ft = np.einsum("iam,jam->ijm", x_t, Dt)
+        kin = Kinematics(np.ascontiguousarray(np.moveaxis(Ft, -1, 0)), Ft=Ft)
         F, J = kin.F, kin.J
         if check_J is not None:
             check_J(J)
-        dJ = D @ np.swapaxes(kin.cof, 1, 2)  # (m, 4, 3): d_a = cof D_a
+        dJ = _apply(kin.cof_t, Dt)  # (3, 4, m): d_a = cof D_a
 
         energy = np.zeros(m)
-        S = np.zeros((m, 3, 3))  # sum over groups of c * S-bar
-        S_hat = np.zeros((m, 3, 3))
-        h = np.zeros(m)
-        g2 = np.zeros(m)
-        weights = {key: 0.0 for key in self._slots}  # (m,) arrays, (m, 3, 3) for "spectral"
-        rank_one: List[Tuple[np.ndarray, np.ndarray]] = []
-
+        S = S_hat = h = g2 = None  # sums over groups (weighted by c or c e^u); None is zero
+        weights: Dict[Tuple[str, object], object] = {}
+        rank_one: List[Tuple[np.ndarray, np.ndarray]] = []  # (c e^u (m,), du (3, 4, m))
         for group in self.groups:
             agg = _GroupAggregates(m)
             for term in group.terms:
@@ -149,124 +232,243 @@ class MJEDEngine:
             if group.exponential:
                 scale = group.coefficient * np.exp(agg.u)
                 energy += scale
-                du = D @ np.swapaxes(F @ agg.S, 1, 2) + agg.h[:, None, None] * dJ
-                rank_one.append((scale, du))
+                if stiffness:
+                    rank_one.append((scale, _vector_field(F, agg.S, agg.h, dJ, Dt)))
             else:
                 scale = group.coefficient
                 energy += scale * agg.u
-            S += _scale(scale, agg.S)
-            S_hat += _scale(scale, agg.S_hat)
-            h += scale * agg.h
-            g2 += scale * agg.g2
+            S = _add(S, _scale_opt(scale, agg.S))
+            S_hat = _add(S_hat, _scale_opt(scale, agg.S_hat))
+            h = _add(h, None if agg.h is None else scale * agg.h)
+            g2 = _add(g2, None if agg.g2 is None else scale * agg.g2)
             for key, w in agg.pair_weights.items():
-                weights[key] = weights[key] + _scale(scale, w)
+                weights[key] = _add(weights.get(key), _scale(scale, w))
 
         V0 = self.volumes
-        FSD = D @ np.swapaxes(F @ S, 1, 2)  # (m, 4, 3): F S D_a
-        gradient = (FSD + h[:, None, None] * dJ) * V0[:, None, None]
+        gradient = _vector_field(F, S, h, dJ, Dt)
+        gradient *= V0
         blocks = None
         if stiffness:
-            blocks = self._edge_blocks(kin, dJ, S, S_hat, h, g2, weights, rank_one)
-            blocks *= V0[:, None, None, None]
+            blocks = self._edge_blocks(Ft, kin, dJ, S, S_hat, h, g2, weights, rank_one, out)
         S_total = None
         if pk2:
             # dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof / J.
-            S_total = S + (h / J)[:, None, None] * np.einsum("mki,mkj->mij", kin.cof, kin.cof)
-        return Evaluation(energy * V0, gradient, blocks, J, F, S_total)
+            S_total = np.zeros((m, 3, 3)) if S is None else np.array(np.broadcast_to(S, (m, 3, 3)))
+            if h is not None:
+                S_total += (h / J)[:, None, None] * np.moveaxis(np.einsum("kim,kjm->ijm", kin.cof_t, kin.cof_t), -1, 0)
+        return SoAEvaluation(energy * V0, gradient, blocks, J, F, S_total)
 
-    def _edge_blocks(self, kin, dJ, S, S_hat, h, g2, weights, rank_one) -> np.ndarray:
-        F, J, D = kin.F, kin.J, self.D
-        m = len(D)
-        K = np.zeros((m, 6, 3, 3))
-        Da, Db = D[:, _EA], D[:, _EB]
-        da, db = dJ[:, _EA], dJ[:, _EB]
+    def _edge_blocks(self, Ft, kin, dJ, S, S_hat, h, g2, weights, rank_one, out) -> np.ndarray:
+        """The (3, 3, 6, m) edge blocks, multiplied by the rest volumes.
+
+        Every contribution is gathered as one of: an outer product u_a (x) v_b (u, v given
+        per node (3, 4, m), per edge (3, 6, m) or per cell (3, m)), a per-edge scalar times a
+        per-cell matrix, a per-edge scalar times Id, or the skew term of d2J; the 54 rows
+        (r, c, edge) of the result are then summed one at a time, reading node vectors in
+        place (no per-edge copies).
+        """
+        Dt = self._Dt
+        m = Dt.shape[-1]
+        F = kin.F
+        outers: List[Tuple[np.ndarray, str, np.ndarray, str]] = []
+        scaled: List[Tuple[np.ndarray, np.ndarray]] = []  # s (6, m), M (3, 3, m)
+        diag = None  # (6, m) coefficient of Id
 
         # geometric: (D_a . S D_b) Id
-        SD = D @ S  # S symmetric: rows are (S D_a)^T
-        geo = np.einsum("mei,mei->me", Da, SD[:, _EB])
-        K[:, :, _DIAG[0], _DIAG[1]] += geo[:, :, None]
+        if S is not None:
+            diag = _edge_dot(Dt, _apply(_soa(np.broadcast_to(S, (m, 3, 3))), Dt))
 
         # material: the declared tangent pairs
         for key, slot in self._slots.items():
-            w = np.broadcast_to(weights[key], (m,) if slot.kind != "spectral" else (m, 3, 3))
-            if slot.kind == "spectral":
-                K += _spectral_blocks(w, kin, D)
+            w = weights.get(key)
+            if w is None or _is_zero(w):
                 continue
-            FMD = slot.MD @ np.swapaxes(F, 1, 2)  # (m, 4, 3): F M D_a
-            Ga, Gb = FMD[:, _EA], FMD[:, _EB]
+            if slot.kind == "spectral":
+                for wn, yn in _spectral_outers(np.broadcast_to(w, (m, 3, 3)), kin, Dt):
+                    outers.append((wn, "cell", yn, "edge"))
+                continue
+            G = _apply(Ft, slot.MD)  # (3, 4, m): F M D_a
             if slot.kind == "first":
-                K += (2.0 * w)[:, None, None, None] * Ga[:, :, :, None] * Gb[:, :, None, :]
+                outers.append(((2.0 * w) * G, "a", G, "b"))
             else:
-                FMF = F @ np.swapaxes(F, 1, 2) if slot.identity else F @ _cellwise(slot.matrix, m) @ np.swapaxes(F, 1, 2)
-                K += w[:, None, None, None] * (
-                    Gb[:, :, :, None] * Ga[:, :, None, :] + slot.DMD[:, :, None, None] * FMF[:, None, :, :]
-                )
+                outers.append((w * G, "b", G, "a"))
+                if slot.identity:
+                    FMF = np.einsum("ikm,jkm->ijm", Ft, Ft)
+                else:
+                    FMF = _soa(F @ slot.matrix @ np.swapaxes(F, 1, 2))
+                scaled.append((w * slot.DMD, FMF))
 
-        # volumetric coupling: d_a (x) F S-hat D_b + F S-hat D_a (x) d_b
-        FSD = D @ np.swapaxes(F @ S_hat, 1, 2)
-        K += da[:, :, :, None] * FSD[:, _EB][:, :, None, :] + FSD[:, _EA][:, :, :, None] * db[:, :, None, :]
+        # regularisation (section 2.3): c v_a (x) v_b -> c [(1 - b) v_a (x) v_b + b (v_a . v_b) Id]
+        b = np.clip(1.0 - kin.J, 0.0, 1.0) if self.regularize else None
+        keep = None if b is None else 1.0 - b
 
-        # outer products of J gradients (and of exponential-group gradients), regularised
-        b = np.clip(1.0 - J, 0.0, 1.0) if self.regularize else None
-        K += _regularised_outer(g2, da, db, b)
+        # g2 d_a (x) d_b, folded into the volumetric coupling d_a (x) F S-hat D_b when present
+        g2_vec = None
+        if g2 is not None:
+            g2_vec = (g2 if keep is None else g2 * keep) * dJ
+            if b is not None:
+                diag = _add(diag, (g2 * b) * _edge_dot(dJ, dJ))
+        if S_hat is not None:
+            FSD = _vector_field(F, S_hat, None, None, Dt)
+            outers.append((dJ, "a", _add(FSD, g2_vec), "b"))
+            outers.append((FSD, "a", dJ, "b"))
+        elif g2_vec is not None:
+            outers.append((dJ, "a", g2_vec, "b"))
+
+        # exponential groups: c e^u du (x) du, regularised like g2
         for scale, du in rank_one:
-            K += _regularised_outer(scale, du[:, _EA], du[:, _EB], b)
+            outers.append(((scale if keep is None else scale * keep) * du, "a", du, "b"))
+            if b is not None:
+                diag = _add(diag, (scale * b) * _edge_dot(du, du))
 
-        # h d2J/dx_a dx_b, a skew matrix
-        v = (self._DxD @ np.swapaxes(F, 1, 2)) * h[:, None, None]
-        K[:, :, 0, 1] += v[:, :, 2]
-        K[:, :, 1, 0] -= v[:, :, 2]
-        K[:, :, 0, 2] -= v[:, :, 1]
-        K[:, :, 2, 0] += v[:, :, 1]
-        K[:, :, 1, 2] += v[:, :, 0]
-        K[:, :, 2, 1] -= v[:, :, 0]
-        return K
+        # h d2J/dx_a dx_b = h eps_rcq (F (D_a x D_b))_q, a skew matrix
+        skew = None if h is None else _apply(Ft, self._DxD) * h
+
+        return _sum_components(outers, scaled, diag, skew, self.volumes, out)
+
+
+def _edge_dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """u_a . v_b for every edge (a, b) of node vectors u, v (3, 4, m) -> (6, m)."""
+    out = np.empty((6, u.shape[-1]))
+    tmp = np.empty(u.shape[-1])
+    for e, (a, b) in enumerate(EDGES):
+        np.multiply(u[0, a], v[0, b], out=out[e])
+        for k in (1, 2):
+            np.multiply(u[k, a], v[k, b], out=tmp)
+            out[e] += tmp
+    return out
+
+
+def _vector_field(F, S, h, dJ, Dt) -> np.ndarray:
+    """F S D_a + h d_a, (3, 4, m); S (m, 3, 3) or None, h (m,) or None."""
+    m = Dt.shape[-1]
+    if S is None:
+        out = np.zeros((3, 4, m))
+    else:
+        out = _apply(_soa(F @ np.broadcast_to(S, (m, 3, 3))), Dt)
+    if h is not None:
+        out += h * dJ
+    return out
+
+
+# Skew part: component (r, c) gets sign * v[q].
+_SKEW = {(0, 1): (2, 1.0), (1, 0): (2, -1.0), (0, 2): (1, -1.0), (2, 0): (1, 1.0), (1, 2): (0, 1.0), (2, 1): (0, -1.0)}
+
+
+def _row(x: np.ndarray, where: str, k: int, e: int) -> np.ndarray:
+    """Component k of a vector field at edge e: per node at its first ("a") or second ("b")
+    node, per edge, or per cell."""
+    if where == "a":
+        return x[k, EDGES[e, 0]]
+    if where == "b":
+        return x[k, EDGES[e, 1]]
+    if where == "edge":
+        return x[k, e]
+    return x[k]
+
+
+def _sum_components(outers, scaled, diag, skew, V0, out) -> np.ndarray:
+    """K[r, c, e] = sum u[r] v[c] + sum s M[r, c] + [r == c] diag + skew, times V0, (3, 3, 6, m).
+
+    One (m,) row at a time, so the running sum and its scratch stay in cache and no
+    per-edge copy of a node vector is ever made.
+    """
+    m = len(V0)
+    K = np.empty((3, 3, 6, m)) if out is None else out
+    tmp = np.empty(m)
+    for r in range(3):
+        for c in range(3):
+            for e in range(6):
+                row = K[r, c, e]
+                started = False
+                for u, uw, v, vw in outers:
+                    dst = tmp if started else row
+                    np.multiply(_row(u, uw, r, e), _row(v, vw, c, e), out=dst)
+                    if started:
+                        row += tmp
+                    started = True
+                for s, M in scaled:
+                    dst = tmp if started else row
+                    np.multiply(s[e], M[r, c], out=dst)
+                    if started:
+                        row += tmp
+                    started = True
+                if not started:
+                    row.fill(0.0)
+                if r == c and diag is not None:
+                    row += diag[e]
+                if skew is not None and (r, c) in _SKEW:
+                    q, sign = _SKEW[(r, c)]
+                    if sign > 0:
+                        row += skew[q, e]
+                    else:
+                        row -= skew[q, e]
+                row *= V0
+    return K
 
 
 class _GroupAggregates:
-    """Running sums of one group's terms: u, S-bar, S-hat, h, g2 and the tangent weights."""
+    """Running sums of one group's terms: u, S-bar, S-hat, h, g2 and the tangent weights.
+
+    Sums that no term feeds stay None, so e.g. St Venant-Kirchhoff (f = 1) never builds the
+    volumetric coupling.
+    """
 
     def __init__(self, m: int):
         self.m = m
         self.u = np.zeros(m)
-        self.S = np.zeros((m, 3, 3))
-        self.S_hat = np.zeros((m, 3, 3))
-        self.h = np.zeros(m)
-        self.g2 = np.zeros(m)
-        self.pair_weights: Dict[Tuple[str, object], np.ndarray] = {}
+        self.S = None
+        self.S_hat = None
+        self.h = None
+        self.g2 = None
+        self.pair_weights: Dict[Tuple[str, object], object] = {}
 
     def add(self, term, kin, J) -> None:
         f, df, d2f = term.f(J)
         g = term.g.value(kin)
         self.u += f * g
-        self.h += df * g
-        self.g2 += d2f * g
+        if not _is_zero(df) and not _is_zero(g):
+            self.h = _add(self.h, df * g)
+        if not _is_zero(d2f) and not _is_zero(g):
+            self.g2 = _add(self.g2, d2f * g)
         Sk = term.g.stress(kin)
         if Sk is not None:
-            self.S += _scale(f, Sk)
-            self.S_hat += _scale(df, Sk)
+            if not _is_zero(f):
+                self.S = _add(self.S, _scale(f, Sk))
+            if not _is_zero(df):
+                self.S_hat = _add(self.S_hat, _scale(df, Sk))
         for pair, coef in zip(term.g.tangent, term.g.tangent_coefficients(kin)):
             key = _slot_key(pair)
-            self.pair_weights[key] = self.pair_weights.get(key, 0.0) + _scale(f, coef)
+            self.pair_weights[key] = _add(self.pair_weights.get(key), _scale(f, coef))
 
 
-def _spectral_blocks(theta: np.ndarray, kin: Kinematics, D: np.ndarray) -> np.ndarray:
-    """Edge blocks of sum_{n,l} theta_nl P_n H P_l, P_n = v_n v_n^T (eigenprojectors of C).
+def _spectral_outers(theta: np.ndarray, kin: Kinematics, Dt: np.ndarray) -> List[Tuple[np.ndarray, np.ndarray]]:
+    """Edge blocks of sum_{n,l} theta_nl P_n H P_l, P_n = v_n v_n^T (eigenprojectors of C),
+    as three outer products w_n (x) y_n.
 
     With w_n = F v_n and c_na = v_n . D_a, block (a, b) is
-    sum_{n,l} theta_nl [c_nb c_la w_n (x) w_l + c_lb c_la w_n (x) w_n].
+    sum_{n,l} theta_nl [c_nb c_la w_n (x) w_l + c_lb c_la w_n (x) w_n]
+    = sum_n w_n (x) y_n,  y_n = c_nb sum_l theta_nl c_la w_l + (sum_l theta_nl c_lb c_la) w_n.
 
-    theta: (m, 3, 3). Returns (m, 6, 3, 3).
+    theta: (m, 3, 3). Returns [(w_n (3, m), y_n (3, 6, m))] for n = 0, 1, 2.
     """
     V = kin.eig[1]  # (m, 3, 3), columns v_n
-    w = np.einsum("mij,mjn->mni", kin.F, V)  # (m, 3, 3): w[:, n] = F v_n
-    c = np.einsum("mjn,maj->mna", V, D)  # (m, 3, 4)
-    ca, cb = c[:, :, _EA], c[:, :, _EB]  # (m, 3, 6)
-    cross = np.einsum("mnl,mne,mle->menl", theta, cb, ca)
-    K = np.einsum("menl,mni,mlj->meij", cross, w, w)
-    diag = np.einsum("mnl,mle,mle->men", theta, cb, ca)
-    K += np.einsum("men,mni,mnj->meij", diag, w, w)
-    return K
+    w = _soa(np.swapaxes(kin.F @ V, 1, 2))  # (3 n, 3 i, m): w[n] = F v_n
+    c = np.einsum("jnm,jam->nam", _soa(V), Dt)  # (3 n, 4 a, m)
+    ca, cb = _at(c, _EA), _at(c, _EB)  # (3, 6, m)
+    T = _soa(theta)  # (3, 3, m)
+    result = []
+    for n in range(3):
+        q = np.zeros((3, 6, len(T[0, 0, :])))
+        r = np.zeros(ca.shape[1:])
+        for l in range(3):
+            tc = T[n, l] * ca[l]  # (6, m)
+            q += w[l][:, None, :] * tc
+            r += tc * cb[l]
+        y = cb[n] * q
+        y += w[n][:, None, :] * r
+        result.append((w[n], y))
+    return result
 
 
 def _scale(s, A):
@@ -276,38 +478,25 @@ def _scale(s, A):
     return np.reshape(s, np.shape(s) + (1,) * (np.ndim(A) - 1)) * A
 
 
-def _cellwise(matrix: np.ndarray, m: int) -> np.ndarray:
-    return np.broadcast_to(matrix, (m, 3, 3)) if matrix.ndim == 2 else matrix
-
-
-def _regularised_outer(scale, va: np.ndarray, vb: np.ndarray, b) -> np.ndarray:
-    """scale [(1 - b) va (x) vb + b (va . vb) Id] per edge; b None means b = 0.
-
-    va, vb: (m, 6, 3); scale, b: (m,) or scalars. Returns (m, 6, 3, 3).
-    """
-    s = np.broadcast_to(np.asarray(scale, dtype=float), (va.shape[0],))
-    outer = va[:, :, :, None] * vb[:, :, None, :]
-    if b is None:
-        return s[:, None, None, None] * outer
-    out = (s * (1.0 - b))[:, None, None, None] * outer
-    dot = np.einsum("mei,mei->me", va, vb) * (s * b)[:, None]
-    out[:, :, _DIAG[0], _DIAG[1]] += dot[:, :, None]
-    return out
+def _scale_opt(s, A):
+    return None if A is None else _scale(s, A)
 
 
 def edge_blocks_to_element_matrices(blocks: np.ndarray) -> np.ndarray:
     """Full element matrices from the six edge blocks.
 
     Args:
-        blocks: (m, 6, 3, 3) d2W/dx_a dx_b for the edges of EDGES.
+        blocks: (m, 6, 3, 3) d2W/dx_a dx_b for the edges of EDGES (any memory layout).
 
     Returns:
         (m, 12, 12), dof order (node 0: x, y, z, node 1: ...).
     """
     m = len(blocks)
-    K = np.zeros((m, 4, 4, 3, 3))
-    K[:, _EA, _EB] = blocks
-    K[:, _EB, _EA] = np.swapaxes(blocks, 2, 3)
-    for a in range(4):
-        K[:, a, a] = -K[:, a].sum(axis=1)
-    return K.transpose(0, 1, 3, 2, 4).reshape(m, 12, 12)
+    K = np.zeros((m, 4, 3, 4, 3))
+    for e, (a, b) in enumerate(EDGES):
+        Kab = blocks[:, e]
+        K[:, a, :, b, :] = Kab
+        K[:, b, :, a, :] = np.swapaxes(Kab, 1, 2)
+        K[:, a, :, a, :] -= Kab
+        K[:, b, :, b, :] -= np.swapaxes(Kab, 1, 2)
+    return K.reshape(m, 12, 12)

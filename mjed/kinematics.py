@@ -43,35 +43,67 @@ class Kinematics:
 
     Invariant functions of the materials read what they need from here, so a quantity used
     by several terms (C, I1, I2, ...) is computed once per evaluation.
+
+    Besides the (m, 3, 3) arrays, ``Ft``, ``cof_t`` and ``C_t`` hold F, cof F and C
+    component-major, (3, 3, m): batched 3x3 products are much faster in that layout (long
+    contiguous rows instead of tiny trailing axes), so C and cof are computed there.
     """
 
-    def __init__(self, F: np.ndarray):
+    def __init__(self, F: np.ndarray, *, Ft: "np.ndarray | None" = None):
         self.F = F
+        if Ft is not None:
+            self.Ft = Ft
+
+    @cached_property
+    def Ft(self) -> np.ndarray:
+        """(3, 3, m) F, component-major."""
+        return np.ascontiguousarray(np.moveaxis(self.F, 0, -1))
+
+    @cached_property
+    def cof_t(self) -> np.ndarray:
+        """(3, 3, m) cof F, component-major: cof_ij = F_(i+1)(j+1) F_(i+2)(j+2) - F_(i+1)(j+2) F_(i+2)(j+1)."""
+        A = self.Ft
+        out = np.empty_like(A)
+        for i in range(3):
+            i1, i2 = (i + 1) % 3, (i + 2) % 3
+            for j in range(3):
+                j1, j2 = (j + 1) % 3, (j + 2) % 3
+                np.multiply(A[i1, j1], A[i2, j2], out=out[i, j])
+                out[i, j] -= A[i1, j2] * A[i2, j1]
+        return out
 
     @cached_property
     def cof(self) -> np.ndarray:
         """(m, 3, 3) cofactor matrix J F^-T."""
-        return cofactor(self.F)
+        return np.ascontiguousarray(np.moveaxis(self.cof_t, -1, 0))
 
     @cached_property
     def J(self) -> np.ndarray:
         """(m,) det F."""
-        return np.einsum("mi,mi->m", self.F[:, :, 0], self.cof[:, :, 0])
+        A, B = self.Ft, self.cof_t
+        return A[0, 0] * B[0, 0] + A[1, 0] * B[1, 0] + A[2, 0] * B[2, 0]
+
+    @cached_property
+    def C_t(self) -> np.ndarray:
+        """(3, 3, m) C = F^T F, component-major."""
+        return np.einsum("kim,kjm->ijm", self.Ft, self.Ft)
 
     @cached_property
     def C(self) -> np.ndarray:
         """(m, 3, 3) right Cauchy-Green tensor F^T F."""
-        return np.swapaxes(self.F, 1, 2) @ self.F
+        return np.ascontiguousarray(np.moveaxis(self.C_t, -1, 0))
 
     @cached_property
     def I1(self) -> np.ndarray:
         """(m,) tr C."""
-        return np.einsum("mii->m", self.C)
+        C = self.C_t
+        return C[0, 0] + C[1, 1] + C[2, 2]
 
     @cached_property
     def I2(self) -> np.ndarray:
         """(m,) (I1^2 - tr C^2) / 2."""
-        return 0.5 * (self.I1**2 - np.einsum("mij,mij->m", self.C, self.C))
+        C = self.C_t.reshape(9, -1)
+        return 0.5 * (self.I1**2 - np.einsum("km,km->m", C, C))
 
     @cached_property
     def E(self) -> np.ndarray:
