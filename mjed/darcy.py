@@ -50,6 +50,7 @@ __all__ = [
     "PressureSolver",
     "FluidPressureForce",
     "cell_jacobians",
+    "volumetric_force_and_stiffness",
 ]
 
 _PAIRS_A, _PAIRS_B = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
@@ -185,32 +186,49 @@ class PressureSolver:
 
 
 # ------------------------------------------------------------------------- the coupling force
-def _skew_blocks(w: np.ndarray) -> np.ndarray:
-    """[w]_ij = eps_ijq w_q for w (..., 3): (..., 3, 3)."""
-    S = np.zeros(w.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 1, 0] = w[..., 2], -w[..., 2]
-    S[..., 0, 2], S[..., 2, 0] = -w[..., 1], w[..., 1]
-    S[..., 1, 2], S[..., 2, 1] = w[..., 0], -w[..., 0]
-    return S
+def _cofactor(F: np.ndarray) -> np.ndarray:
+    """cof F = J F^-T, (m, 3, 3): its columns are cross products of the columns of F."""
+    c0, c1, c2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
+    return np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+
+
+def volumetric_force_and_stiffness(mesh: TetMesh, x: np.ndarray, law: Callable, pattern: CSRPattern, DxD: np.ndarray):
+    """Force, cell J and stiffness of sum_c V_c Phi_c(J_c) for a per-cell function of J.
+
+    Args:
+        x: (n, 3) positions.
+        law: J (m,) -> (Phi'(J), Phi''(J)), each (m,): the Cauchy pressure dPhi/dJ and its slope.
+        DxD: (m, 4, 4, 3) the rest products D_a x D_b (precomputed once per mesh).
+
+    f_a = -V Phi' dJ/dx_a;  K_ab = V (Phi'' dJ/dx_a (x) dJ/dx_b + Phi' d2J/dx_a dx_b), with
+    dJ/dx_a = cof(F) D_a and [d2J/dx_a dx_b]_ij = eps_ijq (F (D_a x D_b))_q.
+
+    Returns:
+        f (n, 3), J (m,), K CSR (3n, 3n).
+    """
+    D, V = mesh.D, mesh.volumes
+    m = len(D)
+    F = deformation_gradient(x[mesh.cells], D)
+    cof = _cofactor(F)
+    J = np.einsum("mi,mi->m", F[:, :, 0], cof[:, :, 0])
+    sigma, slope = law(J)
+    grad = D @ np.swapaxes(cof, 1, 2)  # (m, 4, 3): dJ/dx_a
+    f = pattern.assemble_vector((-V * sigma)[:, None, None] * grad)
+    w = (DxD.reshape(m, 16, 3) @ np.swapaxes(F, 1, 2)).reshape(m, 4, 4, 3)  # F (D_a x D_b)
+    w *= (V * sigma)[:, None, None, None]
+    # Element matrices straight in the (node a, component i, node b, component j) layout.
+    Ke = (V * slope)[:, None, None, None, None] * grad[:, :, :, None, None] * grad[:, None, None, :, :]
+    for i, j, q, sign in ((0, 1, 2, 1.0), (1, 0, 2, -1.0), (0, 2, 1, -1.0), (2, 0, 1, 1.0), (1, 2, 0, 1.0), (2, 1, 0, -1.0)):
+        Ke[:, :, i, :, j] += sign * w[..., q]  # eps_ijq w_q
+    K = pattern.assemble_matrix(Ke.reshape(m, 12, 12))
+    return f, J, K
 
 
 def pressure_force_and_stiffness(mesh: TetMesh, x: np.ndarray, P: np.ndarray, pattern: CSRPattern) -> Tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
-    """Force (n, 3), cell J (m,) and stiffness CSR (3n, 3n) of the energy -sum_c V_c Pbar_c J_c.
-
-    dJ/dx_a = cof(F) D_a and [d2J/dx_a dx_b]_ij = eps_ijq (F (D_a x D_b))_q.
-    """
-    D, V = mesh.D, mesh.volumes
-    F = deformation_gradient(x[mesh.cells], D)
-    J = np.linalg.det(F)
-    cof = np.linalg.inv(F).transpose(0, 2, 1) * J[:, None, None]
-    w = V * P[mesh.cells].mean(axis=1)  # (m,): V_c Pbar_c
-    grad = D @ np.swapaxes(cof, 1, 2)  # (m, 4, 3): cof D_a
-    f = pattern.assemble_vector(w[:, None, None] * grad)
-    DxD = np.cross(D[:, _PAIRS_A], D[:, _PAIRS_B])  # (m, 4, 4, 3)
-    FDxD = np.einsum("mij,mabj->mabi", F, DxD)
-    Ke = -w[:, None, None, None, None] * _skew_blocks(FDxD)  # (m, 4, 4, 3, 3)
-    K = pattern.assemble_matrix(Ke.transpose(0, 1, 3, 2, 4).reshape(len(D), 12, 12))
-    return f, J, K
+    """Force (n, 3), cell J (m,) and stiffness CSR (3n, 3n) of the energy -sum_c V_c Pbar_c J_c."""
+    Pbar = P[mesh.cells].mean(axis=1)
+    DxD = np.cross(mesh.D[:, _PAIRS_A], mesh.D[:, _PAIRS_B])
+    return volumetric_force_and_stiffness(mesh, np.asarray(x, dtype=float), lambda J: (-Pbar, 0.0 * J), pattern, DxD)
 
 
 class FluidPressureForce:
@@ -220,6 +238,10 @@ class FluidPressureForce:
     Args:
         mesh: the rest mesh.
         params: K_lim and kappa.
+        solid: optionally the porous solid's volumetric energy U(J) (a
+            :class:`mjed.porous.PorousVolume`, or any function of J returning U, U', U''),
+            evaluated in the same pass: the model's energy is then sum_c V_c (U(J_c) - Pbar_c J_c),
+            the whole volumetric stress sigma_p = sigma - P of the paper.
         drained_nodes: P = 0 there (see :class:`PressureSolver`); default zero flux everywhere.
         x0: positions at which P = 0 initially (the rest state by default); its J is the
             reference of the first step's source.
@@ -230,21 +252,31 @@ class FluidPressureForce:
         solver: the :class:`PressureSolver`.
     """
 
-    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, drained_nodes=None, x0: Optional[np.ndarray] = None, lumped_mass: bool = False):
+    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, solid=None, drained_nodes=None,
+                 x0: Optional[np.ndarray] = None, lumped_mass: bool = False):
         self.mesh = mesh
+        self.solid = solid
         self.solver = PressureSolver(mesh, params, drained_nodes=drained_nodes, lumped_mass=lumped_mass)
         self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
         self.P = np.zeros(mesh.n_nodes)
         self._J = cell_jacobians(mesh, mesh.points if x0 is None else x0)
+        self._DxD = np.cross(mesh.D[:, _PAIRS_A], mesh.D[:, _PAIRS_B])  # (m, 4, 4, 3), rest only
 
     @property
     def J_accepted(self) -> np.ndarray:
         """(m,) cell J at the last accepted state."""
         return self._J
 
+    def _law(self, J: np.ndarray):
+        Pbar = self.P[self.mesh.cells].mean(axis=1)
+        if self.solid is None:
+            return -Pbar, np.zeros_like(J)
+        _, sigma, slope = self.solid(J)
+        return sigma - Pbar, slope
+
     def force_and_stiffness(self, x: np.ndarray) -> Tuple[np.ndarray, sp.csr_matrix]:
-        """Force (n, 3) of the current pressure at positions x, and its stiffness at fixed P."""
-        f, _, K = pressure_force_and_stiffness(self.mesh, np.asarray(x, dtype=float), self.P, self.pattern)
+        """Force (n, 3) at positions x and the stiffness, at the current (fixed) pressure."""
+        f, _, K = volumetric_force_and_stiffness(self.mesh, np.asarray(x, dtype=float), self._law, self.pattern, self._DxD)
         return f, K
 
     def accept_step(self, x: np.ndarray, dt: float) -> None:

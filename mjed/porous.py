@@ -41,7 +41,7 @@ import numpy as np
 from mjed.materials.base import Material, require_positive
 from mjed.terms import JFunction, Term, TermGroup, Unity
 
-__all__ = ["PorousVolume", "PorousMaterial", "with_porous_volume"]
+__all__ = ["PorousVolume", "PorousMaterial", "PorousSolid", "with_porous_volume"]
 
 
 @dataclass(frozen=True)
@@ -159,6 +159,22 @@ class PorousMaterial(Material):
         if self.mode == "replace":
             groups = tuple(_without_volumetric(g, self.base.name) for g in groups)
         return groups + (TermGroup((Term(self.porous, Unity()),)),)
+
+
+@dataclass(frozen=True)
+class PorousSolid(Material):
+    """The porous volumetric energy U(J) alone, as a material: the porous network of Kerdok's
+    parallel networks, to be given its own force field next to the hyperelastic (or
+    visco-hyperelastic) one, so that a Prony series on the latter does not relax it."""
+
+    porous: PorousVolume
+
+    def __post_init__(self):
+        if not isinstance(self.porous, PorousVolume):
+            raise ValueError(f"PorousSolid: parameter porous must be a PorousVolume, got {type(self.porous).__name__}")
+
+    def decomposition(self) -> Tuple[TermGroup, ...]:
+        return (TermGroup((Term(self.porous, Unity()),)),)
 
 
 @dataclass(frozen=True)

@@ -142,3 +142,25 @@ def test_terzaghi_consolidation_within_one_percent():
     assert max(errors) <= 1e-2, errors
     fine = run_terzaghi(n_layers=20, dt=0.002, times=(0.05,))
     assert fine["times"][0]["relative_l2_error"] < 0.7 * errors[0]
+
+
+@pytest.mark.oracle
+def test_porous_solid_plus_pressure_in_one_pass_matches_the_ufl_oracle(mesh):
+    """sigma_p = sigma(J) - P: the porous solid and the fluid pressure in one model."""
+    pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx")
+    from mjed.porous import PorousVolume
+    from reference_fem.porous_energy import PorousOracle
+
+    law = PorousVolume(0.5, 400.0, 2200.0)
+    fluid = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=law)
+    fluid.P = np.random.default_rng(4).uniform(-100, 300, mesh.n_nodes)
+    oracle = PorousOracle(mesh.points, mesh.cells, porous=law, with_pressure=True)
+    oracle.set_pressure(fluid.P)
+    x = mesh.points.copy()
+    x[:, 0] *= 0.55 + 0.6 * mesh.points[:, 1]  # cells on both sides of J0
+    J = cell_jacobians(mesh, x)
+    assert (J < law.J0).any() and (J > law.J0).any()
+    f, K = fluid.force_and_stiffness(x)
+    f_o, K_o = oracle.force_and_stiffness(x)
+    assert np.linalg.norm(f - f_o) <= 1e-10 * np.linalg.norm(f_o)
+    assert np.linalg.norm((K - K_o).toarray()) <= 1e-10 * np.linalg.norm(K_o.toarray())
