@@ -10,8 +10,8 @@ own weight, integrated by implicit Euler with CG, for three models:
 
 Recorded: the maximum nodal displacement over time (Fig. 4), frames per second of each run
 (one step = one frame; only the integrator steps are timed), the fluid pressure field
-(Fig. 1 right), and a ParaView time series per run (XDMF, displacement and pressure on the
-nodes, J on the cells).
+(Fig. 1 right), and a ParaView time series per run (.pvd + .vtu, displacement and pressure
+on the nodes, J on the cells).
 
 Parameters (``LiverParameters``; SI units). Shear: Arruda-Boyce mu = 2 kPa (N = 8, as SOFA),
 about E = 6 kPa. The paper's DMA G0 = 770 Pa (and Mattei's E = 2.65 kPa) is softer, but with
@@ -186,21 +186,36 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
     return out
 
 
-def _series_writer(path: str, mesh):
-    """A ParaView XDMF time series (meshio) and the function that appends one step to it."""
-    import meshio
+class _SeriesWriter:
+    """A ParaView time series: one .vtu per step (meshio) under ``<stem>/`` and a .pvd index.
 
-    writer = meshio.xdmf.TimeSeriesWriter(path)
-    writer.__enter__()
-    writer.write_points_cells(mesh.points, [("tetra", mesh.cells)])
+    (meshio 5.0's XDMF writer puts its .h5 file in the working directory, not beside the
+    .xdmf, so the portable .pvd + .vtu form is used.)
+    """
 
-    def write(t, x, J, P):
-        point_data = {"displacement": x - mesh.points}
+    def __init__(self, path: str, mesh):
+        self.path = path
+        self.mesh = mesh
+        self.folder = os.path.splitext(path)[0]
+        os.makedirs(self.folder, exist_ok=True)
+        self.entries: List[tuple] = []
+
+    def __call__(self, t: float, x: np.ndarray, J: np.ndarray, P) -> None:
+        import meshio
+
+        point_data = {"displacement": x - self.mesh.points}
         if P is not None:
-            point_data["pressure"] = P
-        writer.write_data(t, point_data=point_data, cell_data={"J": [J]})
+            point_data["pressure"] = np.asarray(P, dtype=float)
+        name = f"step_{len(self.entries):05d}.vtu"
+        meshio.write(os.path.join(self.folder, name),
+                     meshio.Mesh(self.mesh.points, [("tetra", self.mesh.cells)], point_data=point_data, cell_data={"J": [J]}))
+        self.entries.append((t, f"{os.path.basename(self.folder)}/{name}"))
 
-    return writer, write
+    def close(self) -> None:
+        rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries)
+        with open(self.path, "w") as fh:
+            fh.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+                     f"{rows}\n  </Collection>\n</VTKFile>\n")
 
 
 def run_liver(
@@ -223,7 +238,7 @@ def run_liver(
         fixed: region specs (see comparisons.regions); default vena cava + ligament.
         steps: steps of the 0.3 s runs (default 30, quick 6); the porous run covers the same
             simulated time at its own step.
-        out: output directory (figures, XDMF series).
+        out: output directory (figures, .pvd + .vtu series).
         quick: the coarse mesh (when ``mesh`` is the default) and few steps.
         models: which of MODELS to run.
         series: write the ParaView time series.
@@ -249,16 +264,15 @@ def run_liver(
 
     runs, figures, series_paths = [], [], []
     for kind in models:
-        writer = write = None
+        writer = None
         if series:
-            path = os.path.join(out, f"liver_{kind}.xdmf")
-            writer, write = _series_writer(path, tet_mesh)
-            series_paths.append(path)
+            writer = _SeriesWriter(os.path.join(out, f"liver_{kind}.pvd"), tet_mesh)
+            series_paths.append(writer.path)
         try:
-            runs.append(_simulate(kind, tet_mesh, params, fixed_nodes, duration, write, progress))
+            runs.append(_simulate(kind, tet_mesh, params, fixed_nodes, duration, writer, progress))
         finally:
             if writer is not None:
-                writer.__exit__(None, None, None)
+                writer.close()
 
     from comparisons.liver_figures import plot_amplitudes, plot_porous_stress, plot_pressure
 

@@ -1,0 +1,107 @@
+"""The liver scenario: a few steps on the coarse mesh, its outputs, and input errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from comparisons.cli import main
+from comparisons.liver import MODELS, default_fixed_specs, run_liver
+from comparisons.options import InputError
+from comparisons.regions import parse_region, select_nodes
+
+pytest.importorskip("meshio", reason="the ParaView series is written with meshio")
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("liver")
+    return run_liver(quick=True, steps=3, out=str(out), json_path=str(out / "liver.json")), out
+
+
+def test_three_models_run_and_write_their_outputs(quick_run):
+    result, out = quick_run
+    assert result["mesh"] == "liver-coarse" and [r["model"] for r in result["runs"]] == list(MODELS)
+    hyper, visco, poro = result["runs"]
+    assert hyper["dt"] == 0.3 and poro["dt"] == 0.15 and poro["steps"] == 2 * hyper["steps"]
+    for r in result["runs"]:
+        amp = np.asarray(r["max_displacement"])
+        assert amp[0] == 0.0 and np.all(np.isfinite(amp)) and amp[-1] > 1e-3  # it sags under gravity
+        assert r["fps"] > 0
+    # The Prony series softens the response: the visco liver sags further than the elastic one.
+    assert visco["final_max_displacement"] > hyper["final_max_displacement"]
+    assert max(abs(p) for p in poro["max_abs_pressure"]) > 0  # the fluid responds
+    for path in result["figures"] + result["series"]:
+        assert (out / path.split("/")[-1]).is_file()
+    assert len(result["figures"]) == 3 and len(result["series"]) == 3
+    assert json.loads((out / "liver.json").read_text())["n_fixed"] == result["n_fixed"]
+
+
+def test_series_holds_displacement_J_and_pressure(quick_run):
+    import re
+
+    import meshio
+
+    result, out = quick_run
+    pvd = out / "liver_visco-poro-hyperelastic.pvd"
+    files = re.findall(r'file="([^"]+)"', pvd.read_text())
+    assert len(files) == result["runs"][2]["steps"] + 1
+    last = meshio.read(out / files[-1])
+    assert set(last.point_data) == {"displacement", "pressure"} and "J" in last.cell_data
+    assert last.point_data["displacement"].shape == last.points.shape
+    assert np.all(last.cell_data["J"][0] > 0)
+    amplitude = np.linalg.norm(last.point_data["displacement"], axis=1).max()
+    assert amplitude == pytest.approx(result["runs"][2]["final_max_displacement"], rel=1e-12)
+
+
+def test_default_fixed_region_is_not_empty_on_both_liver_meshes():
+    import meshes
+
+    for name in ("liver", "liver-coarse"):
+        points, _ = meshes.load(name)
+        nodes = select_nodes(default_fixed_specs(points), points)
+        assert 0.05 < len(nodes) / len(points) < 0.3
+
+
+def test_region_specs(tmp_path):
+    points = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])
+    assert parse_region("box:-0.1,-0.1,-0.1,0.5,0.5,0.5", points).tolist() == [0]
+    assert parse_region("sphere:1,1,1,0.1", points).tolist() == [4]
+    f = tmp_path / "nodes.txt"
+    f.write_text("# ligament\n3, 1\n1\n")
+    assert parse_region(f"nodes:{f}", points).tolist() == [1, 3]
+    assert select_nodes(["sphere:1,1,1,0.1", f"nodes:{f}"], points).tolist() == [1, 3, 4]
+    for spec, match in [
+        ("box:1,2,3", "6"),
+        ("box:1,1,1,0,0,0", "minimum"),
+        ("sphere:0,0,0,-1", "radius"),
+        ("cube:1", "unknown kind"),
+        ("box", "expected"),
+        (f"nodes:{tmp_path / 'missing.txt'}", "no such file"),
+    ]:
+        with pytest.raises(InputError, match=match):
+            parse_region(spec, points)
+    f.write_text("7\n")
+    with pytest.raises(InputError, match="outside"):
+        parse_region(f"nodes:{f}", points)
+    with pytest.raises(InputError, match="select no node"):
+        select_nodes(["box:5,5,5,6,6,6"], points)
+
+
+def test_mesh_without_volume_cells_and_bad_input_are_refused(tmp_path, capsys):
+    import meshio
+
+    surface = tmp_path / "surface.vtu"
+    meshio.write(str(surface), meshio.Mesh(np.eye(3), [("triangle", np.array([[0, 1, 2]]))]))
+    with pytest.raises(InputError, match="no linear tetrahedra"):
+        run_liver(str(surface), out=str(tmp_path))
+    with pytest.raises(InputError, match="select no node"):
+        run_liver("liver-coarse", fixed=["box:5,5,5,6,6,6"], out=str(tmp_path))
+    with pytest.raises(InputError, match="unknown liver model"):
+        run_liver("liver-coarse", models=["elastic"], out=str(tmp_path))
+    # The CLI turns them into exit code 2 with the message.
+    assert main(["liver", "--quick", "--fixed", "sphere:0,0,0,-1", "--out", str(tmp_path)]) == 2
+    assert "radius" in capsys.readouterr().err
+    assert main(["liver", "--mesh", str(surface), "--out", str(tmp_path)]) == 2
