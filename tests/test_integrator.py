@@ -1,0 +1,288 @@
+"""Implicit Euler: the documented linear system, free fall, a decaying oscillation, Newton,
+quasi-static prescribed motion with reactions, mass matrices, and every failure mode."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import mjed
+from conftest import MATERIALS, box_mesh, perturbed
+from mjed.integrator import ImplicitEuler, Prescribed
+from mjed.mass import consistent_mass, lumped_mass, nodal_masses
+
+G = np.array([0.0, 0.0, -9.81])
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return mjed.TetMesh(*box_mesh(2, jitter=0.2))
+
+
+def _field(mesh, name="NeoHookean"):
+    return mjed.HyperelasticForceField(mesh, MATERIALS[name])
+
+
+def _bottom(mesh):
+    return np.flatnonzero(mesh.points[:, 2] == 0.0)
+
+
+# ---------------------------------------------------------------- mass
+@pytest.mark.parametrize("kind", ["lumped", "consistent"])
+def test_mass_matrices_carry_the_body_mass(cube, kind):
+    M = (lumped_mass if kind == "lumped" else consistent_mass)(cube, 3.0)
+    total = 3.0 * cube.volumes.sum()
+    for c in range(3):
+        e = np.zeros((cube.n_nodes, 3))
+        e[:, c] = 1.0
+        assert e.ravel() @ (M @ e.ravel()) == pytest.approx(total, rel=1e-13)
+    assert abs(M - M.T).max() <= 1e-15 * abs(M).max()
+    assert np.linalg.eigvalsh(M.toarray()).min() > 0
+    np.testing.assert_allclose(np.asarray(consistent_mass(cube, 3.0).sum(axis=1)).ravel(),
+                               np.repeat(nodal_masses(cube, 3.0), 3), rtol=1e-13)
+
+
+def test_mass_refuses_bad_densities(cube):
+    with pytest.raises(ValueError, match="density"):
+        lumped_mass(cube, -1.0)
+    with pytest.raises(ValueError, match="cell 2"):
+        consistent_mass(cube, np.r_[1.0, 1.0, np.nan, np.ones(cube.n_cells - 3)])
+    with pytest.raises(ValueError, match="shape"):
+        lumped_mass(cube, np.ones(3))
+
+
+# ---------------------------------------------------------------- the scheme itself
+def test_one_step_solves_the_documented_linear_system(cube):
+    """A dv = dt (f + f_ext - D v0 - dt K v0), A = (1 + dt rM) M + (dt^2 + dt rK) K, on the free dofs."""
+    rng = np.random.default_rng(0)
+    field = _field(cube)
+    x0 = perturbed(cube.points, rng, 0.05)
+    v0 = 0.3 * rng.standard_normal(x0.shape)
+    fixed = _bottom(cube)
+    v0[fixed] = 0.0
+    dt, rM, rK, rho = 0.02, 0.7, 0.01, 2.0
+    integ = ImplicitEuler(cube, field, rho, dt=dt, mass="consistent", fixed_nodes=fixed, rayleigh_mass=rM,
+                          rayleigh_stiffness=rK, x0=x0, v0=v0, cg_tol=1e-14)
+    report = integ.step()
+
+    f, K = field.force_and_stiffness(x0)
+    M = consistent_mass(cube, rho)
+    f_ext = M @ np.tile(G, cube.n_nodes)
+    D = rM * M + rK * K
+    A = (1 + dt * rM) * M + (dt**2 + dt * rK) * K
+    rhs = dt * (f.ravel() + f_ext - D @ v0.ravel() - dt * (K @ v0.ravel()))
+    free = np.setdiff1d(np.arange(3 * cube.n_nodes), (3 * fixed[:, None] + np.arange(3)).ravel())
+    dv = np.zeros(3 * cube.n_nodes)
+    dv[free] = spla.spsolve(sp.csc_matrix(A[free][:, free]), rhs[free])
+    v1 = v0.ravel() + dv
+    np.testing.assert_allclose(integ.v.ravel(), v1, rtol=0, atol=1e-11 * np.abs(v1).max())
+    np.testing.assert_allclose(integ.x.ravel(), x0.ravel() + dt * v1, rtol=0, atol=1e-13)
+    # The reaction closes the balance on the fixed rows: M dv = dt (f_lin + f_ext - D v1 + R).
+    R = ((A @ dv - rhs) / dt).reshape(-1, 3)
+    np.testing.assert_allclose(report.reaction[fixed], R[fixed], atol=1e-9 * np.abs(R).max())
+    assert np.all(report.reaction[np.setdiff1d(np.arange(cube.n_nodes), fixed)] == 0.0)
+    assert report.step == 1 and integ.t == pytest.approx(dt) and report.newton_iterations == 1
+
+
+@pytest.mark.parametrize("mass", ["lumped", "consistent"])
+def test_free_fall_without_supports_has_acceleration_g(cube, mass):
+    integ = ImplicitEuler(cube, _field(cube), 1000.0, dt=0.01, mass=mass, cg_tol=1e-14)
+    n = 25
+    integ.run(n)
+    np.testing.assert_allclose(integ.v, np.tile(n * 0.01 * G, (cube.n_nodes, 1)), rtol=0, atol=1e-10)
+    # Backward Euler positions: x_n = X + dt^2 g n (n + 1) / 2; the body stays undeformed.
+    np.testing.assert_allclose(integ.x - cube.points, np.tile(0.01**2 * G * n * (n + 1) / 2, (cube.n_nodes, 1)),
+                               rtol=0, atol=1e-12)
+    assert np.abs(_field(cube).force(integ.x)).max() < 1e-9
+
+
+def test_a_damped_oscillation_decays(cube):
+    field = _field(cube)
+    v0 = np.zeros_like(cube.points)
+    v0[:, 0] = 0.5 * cube.points[:, 2]  # swing the top sideways, bottom clamped
+    integ = ImplicitEuler(cube, field, 1.0, dt=0.02, gravity=None, fixed_nodes=_bottom(cube), v0=v0,
+                          rayleigh_mass=1.0, newton_iterations=8, newton_tol=1e-10, cg_tol=1e-12)
+    energy = [integ.kinetic_energy() + field.energy(integ.x)]
+    top_velocity = []
+    for _ in range(250):
+        integ.step()
+        energy.append(integ.kinetic_energy() + field.energy(integ.x))
+        top_velocity.append(integ.v[cube.points[:, 2] == 1.0, 0].mean())
+    energy = np.array(energy)
+    assert np.all(np.diff(energy) <= 1e-12 * energy[0])  # backward Euler and damping only dissipate
+    assert energy[-1] < 0.05 * energy[0]
+    # ... and it did oscillate: the top's sideways velocity changes sign more than once.
+    assert np.count_nonzero(np.diff(np.sign(top_velocity))) >= 2
+
+
+def test_newton_solves_the_nonlinear_backward_euler_equation(cube):
+    field = _field(cube)
+    integ = ImplicitEuler(cube, field, 1.0, dt=0.05, fixed_nodes=_bottom(cube), rayleigh_stiffness=0.01,
+                          newton_iterations=10, newton_tol=1e-11, cg_tol=1e-13, gravity=(0.0, 0.0, -30.0))
+    report = integ.step()
+    assert report.newton_iterations >= 2 and report.newton_residual <= 1e-11
+    f, K = field.force_and_stiffness(integ.x)
+    M = lumped_mass(cube, 1.0)
+    v1 = integ.v.ravel()
+    r = 0.05 * (f.ravel() + M @ np.tile([0, 0, -30.0], cube.n_nodes) - 0.01 * (K @ v1)) - M @ v1
+    free = np.setdiff1d(np.arange(cube.n_nodes), _bottom(cube))
+    first = 0.05 * np.linalg.norm((M @ np.tile([0, 0, -30.0], cube.n_nodes)).reshape(-1, 3)[free])
+    assert np.linalg.norm(r.reshape(-1, 3)[free]) <= 1e-10 * first
+    # The one-solve (SOFA) step is a different, linearised answer.
+    sofa = ImplicitEuler(cube, field, 1.0, dt=0.05, fixed_nodes=_bottom(cube), rayleigh_stiffness=0.01,
+                         cg_tol=1e-13, gravity=(0.0, 0.0, -30.0))
+    sofa.step()
+    assert np.abs(sofa.x - integ.x).max() > 1e-8
+
+
+def test_quasi_static_prescribed_motion_and_balanced_reactions(cube):
+    bottom = _bottom(cube)
+    top = np.flatnonzero(cube.points[:, 2] == 1.0)
+    lift = Prescribed(top, lambda t: np.tile([0.0, 0.05 * t, 0.1 * t], (len(top), 1)))
+    field = _field(cube)
+    integ = ImplicitEuler(cube, field, 0.0, dt=0.5, gravity=None, fixed_nodes=bottom, prescribed=lift,
+                          newton_iterations=20, newton_tol=1e-10, cg_tol=1e-13)
+    reports = integ.run(2)
+    np.testing.assert_allclose(integ.x[top], cube.points[top] + [0.0, 0.05, 0.1], rtol=0, atol=1e-14)
+    np.testing.assert_array_equal(integ.x[bottom], cube.points[bottom])
+    R = reports[-1].reaction
+    f = field.force(integ.x)
+    free = np.setdiff1d(np.arange(cube.n_nodes), np.r_[bottom, top])
+    assert np.abs(f[free]).max() <= 1e-8 * np.abs(f).max()  # static equilibrium inside
+    np.testing.assert_allclose(R[np.r_[bottom, top]], -f[np.r_[bottom, top]], atol=1e-8 * np.abs(f).max())
+    assert np.abs(R.sum(axis=0)).max() <= 1e-8 * np.abs(R).max()  # no external load: reactions balance
+    assert R[top, 2].sum() > 0  # the upper plate pulls the stretched block up
+
+
+def test_models_are_summed_and_told_about_steps(cube):
+    calls = []
+
+    class Spy:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def force_and_stiffness(self, x):
+            return self.inner.force_and_stiffness(x)
+
+        def prepare_step(self, dt):
+            calls.append(("prepare", dt))
+
+        def accept_step(self, x, dt):
+            calls.append(("accept", dt))
+
+    field = _field(cube)
+    one = ImplicitEuler(cube, [Spy(field), Spy(field)], 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-13)
+    one.step()
+    assert calls == [("prepare", 0.01), ("prepare", 0.01), ("accept", 0.01), ("accept", 0.01)]
+    doubled = mjed.HyperelasticForceField(cube, type(MATERIALS["NeoHookean"])(mu=2 * 1.3, lam=2 * 2.1))
+    two = ImplicitEuler(cube, doubled, 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-13)
+    two.step()
+    np.testing.assert_allclose(one.x, two.x, rtol=0, atol=1e-12)
+
+
+def test_a_viscous_model_commits_its_history_through_the_integrator(cube):
+    from mjed.viscous import Prony, ViscoHyperelasticForceField
+
+    vf = ViscoHyperelasticForceField(cube, MATERIALS["NeoHookean"], prony=Prony((0.3,), (0.1,)))
+    integ = ImplicitEuler(cube, vf, 1.0, dt=0.02, fixed_nodes=_bottom(cube), cg_tol=1e-12)
+    integ.run(3)
+    assert vf.steps == 3 and vf.dt == 0.02 and np.abs(vf.gammas).max() > 0
+
+
+# ---------------------------------------------------------------- failures
+class _Broken:
+    """A force model that misbehaves on demand from a given call on."""
+
+    def __init__(self, inner, *, after: int, what: str):
+        self.inner, self.after, self.what, self.calls = inner, after, what, 0
+
+    def force_and_stiffness(self, x):
+        self.calls += 1
+        f, K = self.inner.force_and_stiffness(x)
+        if self.calls <= self.after:
+            return f, K
+        if self.what == "nan":
+            return np.full_like(f, np.nan), K
+        if self.what == "indefinite":
+            return f, -1e6 * K
+        if self.what == "inverted":
+            raise mjed.InvertedElementError(np.array([7]), np.array([-0.5]))
+        raise AssertionError(self.what)
+
+
+@pytest.mark.parametrize("what, reason", [("nan", "non_finite"), ("indefinite", "cg_negative_curvature"),
+                                          ("inverted", "inverted")])
+def test_failures_name_the_step_and_keep_the_last_good_state(cube, what, reason):
+    model = _Broken(_field(cube), after=3, what=what)
+    integ = ImplicitEuler(cube, model, 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-12)
+    integ.run(3)
+    good = integ.state
+    with pytest.raises(mjed.IntegrationError, match="time step 4") as info:
+        integ.step()
+    assert info.value.reason == reason and info.value.step == 4
+    if what == "inverted":
+        assert info.value.cells.tolist() == [7] and "cell 7" in str(info.value)
+    np.testing.assert_array_equal(integ.x, good.x)
+    np.testing.assert_array_equal(integ.v, good.v)
+    assert integ.t == good.t and integ.steps == 3
+
+
+def test_cg_that_does_not_converge_ends_the_run(cube):
+    integ = ImplicitEuler(cube, _field(cube), 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-14, cg_max_iterations=2)
+    with pytest.raises(mjed.IntegrationError, match="max iterations after 2 iterations") as info:
+        integ.step()
+    assert info.value.reason == "cg_max_iterations" and integ.steps == 0
+    np.testing.assert_array_equal(integ.x, cube.points)
+
+
+def test_a_step_that_inverts_a_cell_is_refused(cube):
+    v0 = np.zeros_like(cube.points)
+    v0[:, 2] = -50.0 * cube.points[:, 2]  # crush the block into its base in one step
+    history = []
+
+    class Recorder:
+        def force_and_stiffness(self, x):
+            return _field(cube).force_and_stiffness(x)
+
+        def accept_step(self, x, dt):
+            history.append(dt)
+
+    integ = ImplicitEuler(cube, Recorder(), 1.0, dt=0.1, gravity=None, fixed_nodes=_bottom(cube), v0=v0)
+    with pytest.raises(mjed.IntegrationError, match=r"time step 1 .*inverted at the new positions") as info:
+        integ.step()
+    assert info.value.reason == "inverted" and len(info.value.cells) > 0
+    assert history == []  # nothing was committed
+    np.testing.assert_array_equal(integ.v, v0)
+
+
+def test_newton_that_does_not_converge_ends_the_run(cube):
+    integ = ImplicitEuler(cube, _field(cube), 1.0, dt=0.05, fixed_nodes=_bottom(cube), gravity=(0, 0, -30.0),
+                          newton_iterations=2, newton_tol=1e-15, cg_tol=1e-13)
+    with pytest.raises(mjed.IntegrationError, match="after 2 linear solves") as info:
+        integ.step()
+    assert info.value.reason == "newton_max_iterations"
+
+
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        (dict(dt=0.0), "dt"),
+        (dict(dt=0.1, mass="diagonal"), "mass"),
+        (dict(dt=0.1, rayleigh_mass=-1.0), "rayleigh_mass"),
+        (dict(dt=0.1, newton_iterations=0), "newton_iterations"),
+        (dict(dt=0.1, cg_max_iterations=0), "cg_max_iterations"),
+        (dict(dt=0.1, gravity=(0.0, 9.81)), "gravity"),
+        (dict(dt=0.1, fixed_nodes=[0, 10**6]), "fixed_nodes"),
+        (dict(dt=0.1, fixed_nodes=[0], prescribed=([0], lambda t: np.zeros((1, 3)))), "both fixed and prescribed"),
+        (dict(dt=0.1, fixed_nodes=np.arange(27)), "every node"),
+        (dict(dt=0.1, v0=np.zeros((2, 3))), "v0"),
+    ],
+)
+def test_bad_parameters_are_refused_by_name(kwargs, word):
+    mesh = mjed.TetMesh(*box_mesh(2))
+    with pytest.raises(ValueError, match=word):
+        ImplicitEuler(mesh, _field(mesh), 1.0, **kwargs)
+    with pytest.raises(ValueError, match="empty"):
+        ImplicitEuler(mesh, [], 1.0, dt=0.1)
