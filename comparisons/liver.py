@@ -178,6 +178,7 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
         "cg_iterations_mean": float(np.mean(cg)),
         "stepping_seconds": stepping,
         "fps": n_steps / stepping if stepping > 0 else float("inf"),
+        "realtime_factor": n_steps * dt / stepping if stepping > 0 else float("inf"),  # simulated s per wall s
         "paper_fps": PAPER_FPS[kind],
     }
     if fluid is not None:
