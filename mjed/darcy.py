@@ -224,13 +224,6 @@ def volumetric_force_and_stiffness(mesh: TetMesh, x: np.ndarray, law: Callable, 
     return f, J, K
 
 
-def pressure_force_and_stiffness(mesh: TetMesh, x: np.ndarray, P: np.ndarray, pattern: CSRPattern) -> Tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
-    """Force (n, 3), cell J (m,) and stiffness CSR (3n, 3n) of the energy -sum_c V_c Pbar_c J_c."""
-    Pbar = P[mesh.cells].mean(axis=1)
-    DxD = np.cross(mesh.D[:, _PAIRS_A], mesh.D[:, _PAIRS_B])
-    return volumetric_force_and_stiffness(mesh, np.asarray(x, dtype=float), lambda J: (-Pbar, 0.0 * J), pattern, DxD)
-
-
 class FluidPressureForce:
     """The fluid phase as an integrator model: the force of a fixed nodal pressure P, and the
     Darcy update of P each time a step is accepted.

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from types import SimpleNamespace
-from typing import Any, Optional, Tuple
+from typing import Any, Tuple
 
 import numpy as np
 import scipy.sparse as sp

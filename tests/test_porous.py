@@ -134,3 +134,19 @@ def test_porous_force_and_stiffness_match_the_ufl_oracle(mode, tangent):
     # Not vacuous: a 1e-6 change of K0 is visible at this tolerance.
     shifted = PorousOracle(X, T, porous=PorousVolume(0.5, 400.0 * (1 + 1e-6), 2200.0, tangent=tangent), base=base, mode=mode)
     assert np.linalg.norm(f - shifted.force_and_stiffness(x)[0]) > 1e-10 * np.linalg.norm(f_o)
+
+
+def test_porous_solid_through_the_engine_equals_the_direct_volumetric_model():
+    """Two implementations of U: MJED's engine (PorousSolid) and mjed.darcy's volumetric pass."""
+    from mjed.darcy import DarcyParameters, FluidPressureForce
+    from mjed.porous import PorousSolid
+
+    X, T = box_mesh(2, jitter=0.2)
+    mesh = mjed.TetMesh(X, T)
+    x = _graded_state(X)
+    f, K = mjed.HyperelasticForceField(mesh, PorousSolid(LIVER)).force_and_stiffness(x)
+    f_d, K_d = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=LIVER).force_and_stiffness(x)
+    assert np.linalg.norm(f - f_d) <= 1e-12 * np.linalg.norm(f)
+    assert abs(K - K_d).max() <= 1e-12 * abs(K).max()
+    with pytest.raises(ValueError, match="porous"):
+        PorousSolid(0.5)
