@@ -1,0 +1,76 @@
+"""Figures of the timing study: the Fig. 2-style bar chart and the scaling plot (PNG, Agg)."""
+
+from __future__ import annotations
+
+from typing import Any, Dict
+
+import numpy as np
+
+__all__ = ["plot_fig2", "plot_scaling"]
+
+_COLOURS = {"mjed": "#1f77b4", "classical": "#ff7f0e", "dolfinx": "#2ca02c"}
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_fig2(result: Dict[str, Any], path: str) -> str:
+    """Grouped bars per material: median force+stiffness time of each method (min-max as
+    error bars), log scale so that a 5x gap and a 50x gap both read. Returns ``path``."""
+    plt = _pyplot()
+    methods = result["settings"]["methods"]
+    mats = list(dict.fromkeys(r["material"] for r in result["results"]))
+    res = {(r["material"], r["method"]): r for r in result["results"] if r["what"] == "force+stiffness"}
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.3 * len(mats) + 2), 4.2))
+    width = 0.8 / len(methods)
+    xs = np.arange(len(mats))
+    for k, method in enumerate(methods):
+        med = np.array([res[(m, method)]["median_s"] * 1e3 for m in mats])
+        lo = med - np.array([res[(m, method)]["min_s"] * 1e3 for m in mats])
+        hi = np.array([res[(m, method)]["max_s"] * 1e3 for m in mats]) - med
+        pos = xs + (k - (len(methods) - 1) / 2) * width
+        ax.bar(pos, med, width, label=method, color=_COLOURS.get(method), yerr=[lo, hi], capsize=2)
+        for p, v in zip(pos, med):
+            ax.text(p, v * 1.08, f"{v:.0f}" if v >= 10 else f"{v:.1f}", ha="center", va="bottom", fontsize=6)
+    ax.set_yscale("log")
+    ax.set_xticks(xs)
+    ax.set_xticklabels([m.replace("VenantKirchhoff", "VK") for m in mats], rotation=20, ha="right")
+    ax.set_ylabel("force + stiffness per call (ms, log)")
+    mesh = result["mesh"]
+    ax.set_title(f"Assembly time on {mesh['name']} ({mesh['n_cells']:,} tets, {mesh['n_nodes']:,} nodes)", fontsize=10)
+    ax.legend(fontsize=8)
+    ax.grid(axis="y", which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def plot_scaling(result: Dict[str, Any], path: str) -> str:
+    """Time per cell and peak memory per cell against the cell count, log-log."""
+    plt = _pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    methods = list(dict.fromkeys(r["method"] for r in result["rows"]))
+    for method in methods:
+        rows = [r for r in result["rows"] if r["method"] == method]
+        n = [r["n_cells"] for r in rows]
+        a1.loglog(n, [r["seconds_per_cell"] * 1e6 for r in rows], "o-", label=method, color=_COLOURS.get(method))
+        a2.loglog(n, [r["peak_bytes_per_cell"] for r in rows], "o-", label=method, color=_COLOURS.get(method))
+    a1.set_xlabel("cells")
+    a1.set_ylabel("force + stiffness time per cell (us)")
+    a2.set_xlabel("cells")
+    a2.set_ylabel("peak memory per cell (bytes)")
+    for a in (a1, a2):
+        a.grid(which="both", alpha=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle(f"Scaling, {result['material']}, structured cube", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
