@@ -297,20 +297,7 @@ def run_timing(
         "figures": [],
         "tables": [],
     }
-    if out_dir:
-        from comparisons.figures_timing import plot_fig2
-
-        os.makedirs(out_dir, exist_ok=True)
-        md = os.path.join(out_dir, "timing.md")
-        with open(md, "w") as fh:
-            fh.write(format_markdown(result) + "\n")
-        result["tables"].append(md)
-        result["figures"].append(plot_fig2(result, os.path.join(out_dir, "timing_fig2.png")))
-    if json_path:
-        from comparisons.options import write_json
-
-        write_json(json_path, result)
-    return result
+    return _write_outputs(result, out_dir, json_path, "timing", format_markdown, "plot_fig2")
 
 
 def _check_methods(methods: "str | Sequence[str]") -> Tuple[str, ...]:
@@ -409,15 +396,22 @@ def run_scaling(
         "figures": [],
         "tables": [],
     }
+    return _write_outputs(result, out_dir, json_path, "scaling", format_scaling_markdown, "plot_scaling")
+
+
+def _write_outputs(result: dict, out_dir: Optional[str], json_path: Optional[str], stem: str,
+                   table: Callable[[dict], str], plot: str) -> dict:
+    """Write <out_dir>/<stem>.md and the figure (listed in the result), then the JSON."""
     if out_dir:
-        from comparisons.figures_timing import plot_scaling
+        from comparisons import figures_timing
 
         os.makedirs(out_dir, exist_ok=True)
-        md = os.path.join(out_dir, "scaling.md")
+        md = os.path.join(out_dir, f"{stem}.md")
         with open(md, "w") as fh:
-            fh.write(format_scaling_markdown(result) + "\n")
+            fh.write(table(result) + "\n")
         result["tables"].append(md)
-        result["figures"].append(plot_scaling(result, os.path.join(out_dir, "timing_scaling.png")))
+        png = "timing_fig2.png" if stem == "timing" else "timing_scaling.png"
+        result["figures"].append(getattr(figures_timing, plot)(result, os.path.join(out_dir, png)))
     if json_path:
         from comparisons.options import write_json
 
