@@ -197,12 +197,12 @@ class ViscoHyperelasticForceField:
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Consistent tangent at fixed history, CSR (3n, 3n)."""
-        return self.field.pattern.assemble_matrix(self.element_stiffness(x))
+        return self.field.pattern.assemble_edge_blocks(self._gradient_and_blocks(x, stiffness=True)[1])
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         grad, blocks = self._gradient_and_blocks(x, stiffness=True)
         pattern = self.field.pattern
-        return -pattern.assemble_vector(grad), pattern.assemble_matrix(edge_blocks_to_element_matrices(blocks))
+        return -pattern.assemble_vector(grad), pattern.assemble_edge_blocks(blocks)
 
     def element_forces(self, x) -> np.ndarray:
         """Per-cell nodal forces, (m, 4, 3)."""
