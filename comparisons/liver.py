@@ -140,6 +140,7 @@ def _models(kind: str, mesh, params: LiverParameters, fixed: np.ndarray):
 
 def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -> Dict:
     from mjed.darcy import cell_jacobians
+    from mjed.errors import IntegrationError
     from mjed.integrator import ImplicitEuler
 
     models, dt, fluid = _models(kind, mesh, params, fixed)
@@ -151,9 +152,14 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
     best_P = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture
     if writer is not None:
         writer(0.0, integ.x, np.ones(mesh.n_cells), None if fluid is None else fluid.P)
+    error = None
     for _ in range(n_steps):
         t0 = time.perf_counter()
-        report = integ.step()
+        try:
+            report = integ.step()
+        except IntegrationError as exc:  # recorded, and the run stops here (the CLI exits with 1)
+            error = str(exc)
+            break
         stepping += time.perf_counter() - t0
         u = integ.x - mesh.points
         times.append(integ.t)
@@ -167,18 +173,21 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
             writer(integ.t, integ.x, cell_jacobians(mesh, integ.x), None if fluid is None else fluid.P)
         if progress is not None:
             progress(f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * amplitude[-1]:.1f} mm, {report.cg_iterations} CG")
+    done = len(cg)
     out = {
         "model": kind,
         "dt": dt,
-        "steps": n_steps,
+        "steps": done,
+        "steps_planned": n_steps,
+        "error": error,
         "time": times,
         "max_displacement": amplitude,
         "final_max_displacement": amplitude[-1],
         "peak_max_displacement": max(amplitude),
-        "cg_iterations_mean": float(np.mean(cg)),
+        "cg_iterations_mean": float(np.mean(cg)) if cg else None,
         "stepping_seconds": stepping,
-        "fps": n_steps / stepping if stepping > 0 else float("inf"),
-        "realtime_factor": n_steps * dt / stepping if stepping > 0 else float("inf"),  # simulated s per wall s
+        "fps": done / stepping if stepping > 0 else None,
+        "realtime_factor": done * dt / stepping if stepping > 0 else None,  # simulated s per wall s
         "paper_fps": PAPER_FPS[kind],
     }
     if fluid is not None:
@@ -247,6 +256,9 @@ def run_liver(
     Raises:
         InputError: unknown mesh, a mesh without volume cells, a bad region spec, an empty
             fixed set, bad step count.
+
+    A run that fails (an IntegrationError: CG negative curvature, inverted cells...) stops
+    there; its "error" holds the message and "passed" is False.
     """
     if quick and mesh == "liver":
         mesh = "liver-coarse"
@@ -294,7 +306,9 @@ def run_liver(
         "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(params).items()},
         "runs": runs,
         "fps_table": [{"model": r["model"], "dt": r["dt"], "fps": r["fps"], "paper_fps": r["paper_fps"],
-                       "target_fps": TARGET_FPS, "meets_target": bool(r["fps"] >= TARGET_FPS)} for r in runs],
+                       "target_fps": TARGET_FPS, "meets_target": bool(r["fps"] is not None and r["fps"] >= TARGET_FPS)}
+                      for r in runs],
+        "passed": all(r["error"] is None for r in runs),
         "figures": figures,
         "series": series_paths,
     }

@@ -62,7 +62,8 @@ def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
     fig, axes = plt.subplots(1, len(runs), figsize=(4 * len(runs), 3.4), sharey=True, squeeze=False)
     for ax, r in zip(axes[0], runs):
         ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), "-o", ms=2)
-        ax.set_title(f"{r['model']}\n dt = {r['dt']:g} s, {r['fps']:.0f} FPS (paper {r['paper_fps']:g})", fontsize=9)
+        rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS (paper {r['paper_fps']:g})"
+        ax.set_title(f"{r['model']}\n dt = {r['dt']:g} s, {rate}", fontsize=9)
         ax.set_xlabel("time (s)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("max displacement (mm)")

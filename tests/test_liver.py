@@ -105,3 +105,16 @@ def test_mesh_without_volume_cells_and_bad_input_are_refused(tmp_path, capsys):
     assert main(["liver", "--quick", "--fixed", "sphere:0,0,0,-1", "--out", str(tmp_path)]) == 2
     assert "radius" in capsys.readouterr().err
     assert main(["liver", "--mesh", str(surface), "--out", str(tmp_path)]) == 2
+
+
+def test_a_failing_run_is_reported_not_hidden(tmp_path):
+    """A far too soft organ (mu = 50 Pa) makes the implicit step fail: the run records the
+    integrator's message and the study does not pass."""
+    from comparisons.liver import LiverParameters
+
+    result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
+                       params=LiverParameters(mu=50.0, k0=500.0))
+    (run,) = result["runs"]
+    assert not result["passed"] and run["error"] and run["steps"] < run["steps_planned"]
+    assert "time step" in run["error"]
+    assert main(["liver", "--quick", "--models", "hyperelastic", "--no-series", "--out", str(tmp_path)]) == 0

@@ -59,9 +59,12 @@ def run(args) -> int:
           f"{result['n_fixed']} fixed), {result['duration']:g} s simulated")
     print(f"  {'model':26s} {'dt (s)':>6s} {'steps':>5s} {'final max |u| (mm)':>18s} {'CG/step':>8s} {'FPS':>6s} {'paper':>6s}")
     for r in result["runs"]:
+        if r["error"]:
+            print(f"  {r['model']:26s} {r['dt']:6.2f} FAILED after {r['steps']} steps: {r['error']}")
+            continue
         print(f"  {r['model']:26s} {r['dt']:6.2f} {r['steps']:5d} {1e3 * r['final_max_displacement']:18.2f} "
               f"{r['cg_iterations_mean']:8.1f} {r['fps']:6.1f} {r['paper_fps']:6.1f}")
     print(f"  target {25:g} FPS: " + ", ".join(f"{t['model']} {'met' if t['meets_target'] else 'missed'}" for t in result["fps_table"]))
     for path in result["figures"] + result["series"]:
         print(f"  wrote {path}")
-    return 0
+    return 0 if result["passed"] else 1
