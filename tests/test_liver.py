@@ -35,7 +35,8 @@ def test_three_models_run_and_write_their_outputs(quick_run):
     assert max(abs(p) for p in poro["max_abs_pressure"]) > 0  # the fluid responds
     for path in result["figures"] + result["series"]:
         assert (out / path.split("/")[-1]).is_file()
-    assert len(result["figures"]) == 3 and len(result["series"]) == 3
+    assert len(result["figures"]) == 4 and len(result["series"]) == 3
+    assert result["passed"] and max(t["relative_l2_error"] for t in result["terzaghi"]["times"]) <= 1e-2
     assert json.loads((out / "liver.json").read_text())["n_fixed"] == result["n_fixed"]
 
 

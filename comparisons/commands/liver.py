@@ -65,6 +65,9 @@ def run(args) -> int:
         print(f"  {r['model']:26s} {r['dt']:6.2f} {r['steps']:5d} {1e3 * r['final_max_displacement']:18.2f} "
               f"{r['cg_iterations_mean']:8.1f} {r['fps']:6.1f} {r['paper_fps']:6.1f}")
     print(f"  target {25:g} FPS: " + ", ".join(f"{t['model']} {'met' if t['meets_target'] else 'missed'}" for t in result["fps_table"]))
+    tz = result["terzaghi"]
+    print("  Terzaghi check of the pressure step (relative L2 error of P, tolerance 1 %): "
+          + ", ".join(f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in tz["times"]))
     for path in result["figures"] + result["series"]:
         print(f"  wrote {path}")
     return 0 if result["passed"] else 1
