@@ -15,15 +15,24 @@ from typing import Tuple
 import numpy as np
 import scipy.sparse as sp
 
-import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
-import ufl
-
+from reference_fem import compat
 from reference_fem.numbering import NumberingError, build_mesh
 from reference_fem.sparse_map import CSRRenumbering
 from reference_fem.validation import check_cells, check_points
 
-__all__ = ["scalar_input_node_of_dof", "diffusion_matrices"]
+__all__ = ["scalar_p1_space", "scalar_input_node_of_dof", "diffusion_matrices"]
+
+
+def scalar_p1_space(mesh):
+    """The continuous scalar P1 space on ``mesh``.
+
+    Feature detection rather than a version test: ``fem.functionspace`` exists from dolfinx
+    0.7, ``fem.FunctionSpace`` builds the space from (family, degree) up to 0.6.
+    """
+    from dolfinx import fem
+
+    make = getattr(fem, "functionspace", None) or fem.FunctionSpace
+    return make(mesh, ("Lagrange", 1))
 
 
 def scalar_input_node_of_dof(mesh, Q, points: np.ndarray) -> np.ndarray:
@@ -35,24 +44,25 @@ def scalar_input_node_of_dof(mesh, Q, points: np.ndarray) -> np.ndarray:
     Returns:
         (n_dofs,) int64.
     """
-    m = mesh.topology.index_map(mesh.topology.dim).size_local
-    geo = mesh.geometry.dofmap.array.reshape(-1, 4)[:m]
-    dofs = Q.dofmap.list.array.reshape(-1, 4)[:m]
-    input_of_geo = np.asarray(mesh.geometry.input_global_indices, dtype=np.int64)
-    n_dofs = Q.dofmap.index_map.size_local + Q.dofmap.index_map.num_ghosts
+    m = compat.num_owned_cells(mesh)
+    geo = compat.geometry_dofmap(mesh)[:m]
+    dofs = compat.cell_dofs(Q, 4)[:m]
+    input_of_geo = compat.input_global_indices(mesh)
+    n_dofs = Q.dofmap.index_map.size_local + compat.num_ghosts(Q.dofmap.index_map)
     node = np.full(n_dofs, -1, dtype=np.int64)
     node[dofs] = input_of_geo[geo]
     if np.any(node < 0) or np.any(node[dofs] != input_of_geo[geo]) or np.unique(node).size != n_dofs:
         raise NumberingError("scalar P1 dofs and geometry nodes do not correspond one to one")
-    err = np.abs(Q.tabulate_dof_coordinates()[:n_dofs] - points[node]).max()
+    err = np.abs(compat.dof_coordinates(Q)[:n_dofs] - points[node]).max()
     if not err <= 16 * np.finfo(np.float64).eps * max(1.0, np.abs(points).max()):
         raise NumberingError(f"scalar dof coordinates differ from the input points (max |diff| = {err:.3g})")
     return node
 
 
 def _assemble(form, renumber: CSRRenumbering) -> sp.csr_matrix:
-    A = fem_petsc.assemble_matrix(fem.form(form))
-    A.assemble()
+    compiled = compat.compile_form(form)
+    A = compat.create_matrix(compiled)
+    compat.assemble_matrix_into(A, compiled)
     indptr, indices, data = A.getValuesCSR()
     return renumber(indptr, indices, data)
 
@@ -60,12 +70,14 @@ def _assemble(form, renumber: CSRRenumbering) -> sp.csr_matrix:
 def diffusion_matrices(points, cells) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
     """P1 mass M and stiffness L on the rest mesh, CSR (n, n) in input node order.
 
-    Input nodes used by no cell get empty rows and columns.
+    Input nodes used by no cell get empty rows and columns. Serial only.
     """
     X = check_points(points)
     T = check_cells(cells, X)
+    import ufl
+
     mesh = build_mesh(X, T)
-    Q = fem.FunctionSpace(mesh, ("Lagrange", 1))
+    Q = scalar_p1_space(mesh)
     renumber = CSRRenumbering(scalar_input_node_of_dof(mesh, Q, X), len(X))
     p, q = ufl.TrialFunction(Q), ufl.TestFunction(Q)
     dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})

@@ -30,11 +30,10 @@ from typing import Any, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import ufl
 
-from reference_fem.diffusion_oracle import scalar_input_node_of_dof
+from reference_fem import compat
+from reference_fem.diffusion_oracle import scalar_input_node_of_dof, scalar_p1_space
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
@@ -94,9 +93,9 @@ class PorousOracle:
         self._cells = check_cells(cells, self._X)
         n = len(self._X)
         self._mesh = build_mesh(self._X, self._cells)
-        self._V = fem.VectorFunctionSpace(self._mesh, ("Lagrange", 1))
+        self._V = compat.vector_p1_space(self._mesh)
         self._numbering = compute_numbering(self._mesh, self._V, self._X, self._cells)
-        self._u = fem.Function(self._V)
+        self._u = compat.function(self._V, "u")
         F = ufl.Identity(3) + ufl.grad(self._u)
         J = ufl.det(F)
         W = 0.0
@@ -109,15 +108,17 @@ class PorousOracle:
             raise ValueError("PorousOracle: nothing to assemble (no porous law, base material or pressure)")
         self._P = None
         if with_pressure:
-            Q = fem.FunctionSpace(self._mesh, ("Lagrange", 1))
-            self._P = fem.Function(Q)
+            Q = scalar_p1_space(self._mesh)
+            self._P = compat.function(Q, "P")
             self._p_node = scalar_input_node_of_dof(self._mesh, Q, self._X)
             W = W - self._P * J  # the work of the Cauchy stress -P Id
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": 1})  # integrand linear per cell: exact
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
         K = ufl.derivative(R, self._u, ufl.TrialFunction(self._V))
-        self._Pi, self._R, self._K = fem.form(Pi), fem.form(R), fem.form(K)
+        self._Pi, self._R, self._K = (compat.compile_form(f) for f in (Pi, R, K))
+        self._b = compat.create_vector(self._R)
+        self._A = compat.create_matrix(self._K)
         self._renumber = CSRRenumbering(self._numbering.input_dof_of_dof, 3 * n)
 
     def set_pressure(self, P) -> None:
@@ -128,22 +129,22 @@ class PorousOracle:
         if P.shape != (len(self._X),):
             raise ValueError(f"pressure must have shape ({len(self._X)},), got {P.shape}")
         self._P.x.array[:] = P[self._p_node]
-        self._P.x.scatter_forward()
+        compat.scatter_forward(self._P)
 
     def _set(self, x) -> None:
         xx = check_positions(x, len(self._X))
         self._u.x.array[:] = self._numbering.to_dof_order(xx - self._X)
-        self._u.x.scatter_forward()
+        compat.scatter_forward(self._u)
 
     def energy(self, x) -> float:
         self._set(x)
-        return float(fem.assemble_scalar(self._Pi))
+        return compat.assemble_scalar_local(self._Pi)  # serial: the local part is the total
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         """(f (n, 3), K CSR (3n, 3n)) with f = -dPi/dx and K = d2Pi/dx2."""
         self._set(x)
-        b = fem_petsc.assemble_vector(self._R)
-        f = -self._numbering.to_input_order(b.array_r.copy())
-        A = fem_petsc.assemble_matrix(self._K)
-        A.assemble()
-        return f, self._renumber(*A.getValuesCSR())
+        compat.assemble_vector_into(self._b, self._R)
+        compat.accumulate_ghosts(self._b)
+        f = -self._numbering.to_input_order(self._b.array_r.copy())
+        compat.assemble_matrix_into(self._A, self._K)
+        return f, self._renumber(*self._A.getValuesCSR())
