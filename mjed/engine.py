@@ -80,34 +80,45 @@ class SoAEvaluation:
         return Evaluation(self.energy, self.gradient.transpose(2, 1, 0), blocks, self.J, self.F, self.pk2)
 
 
-def _soa(A: np.ndarray) -> np.ndarray:
-    """(m, ...) -> (..., m), contiguous."""
-    return np.ascontiguousarray(np.moveaxis(A, 0, -1))
+class _Scratch:
+    """Named work arrays kept from one evaluation to the next.
+
+    Fresh NumPy temporaries of a few MB cost page faults on every call (the allocator hands
+    large blocks back to the OS when they are freed), which on a 20k-cell mesh was about as
+    expensive as the arithmetic. Intermediates are therefore written into these buffers,
+    allocated on the first call and reused; what an evaluation returns is never one of them.
+    One arena per engine: an engine must not evaluate from two threads at once.
+    """
+
+    def __init__(self):
+        self._arrays: Dict[str, np.ndarray] = {}
+
+    def __call__(self, name: str, shape: Tuple[int, ...]) -> np.ndarray:
+        a = self._arrays.get(name)
+        if a is None or a.shape != shape:
+            a = self._arrays[name] = np.empty(shape)
+        return a
 
 
-def _apply(A: np.ndarray, V: np.ndarray) -> np.ndarray:
+def _soa(A: np.ndarray, out: "np.ndarray | None" = None) -> np.ndarray:
+    """(m, ...) -> (..., m), contiguous (into ``out`` if given)."""
+    if out is None:
+        return np.ascontiguousarray(np.moveaxis(A, 0, -1))
+    np.copyto(out, np.moveaxis(A, 0, -1))
+    return out
+
+
+def _apply(A: np.ndarray, V: np.ndarray, out: "np.ndarray | None" = None, tmp: "np.ndarray | None" = None) -> np.ndarray:
     """A V per cell: A (3, 3, m), V (3, k, m) -> (3, k, m), out[i] = sum_j A[i, j] V[j]."""
-    out = np.empty((3,) + V.shape[1:])
-    tmp = np.empty(V.shape[1:])
+    if out is None:
+        out = np.empty((3,) + V.shape[1:])
+    if tmp is None:
+        tmp = np.empty(V.shape[1:])
     for i in range(3):
         np.multiply(A[i, 0], V[0], out=out[i])
         for j in (1, 2):
             np.multiply(A[i, j], V[j], out=tmp)
             out[i] += tmp
-    return out
-
-
-def _at(V: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """V (3, 4, m) at the first or second node of each edge -> (3, 6, m), contiguous
-    (fancy indexing in the middle axis would give a slow, transposed layout)."""
-    return np.take(V, nodes, axis=1)
-
-
-def _dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Per-edge dot products of (3, 6, m) vectors -> (6, m)."""
-    out = u[0] * v[0]
-    out += u[1] * v[1]
-    out += u[2] * v[2]
     return out
 
 
@@ -125,25 +136,38 @@ def _add(acc, value):
 class _Slot:
     """A (kind, matrix) tangent slot shared by all pairs with the same constant matrix.
 
-    Precomputed once per mesh, component-major: M D_a (3, 4, m) and, for the second kind,
-    D_a . M D_b (6, m).
+    Precomputed once per mesh, component-major: M D_a (3, 4, m), the matrix itself per cell
+    (3, 3, m) when it varies, and, for the second kind, D_a . M D_b (6, m).
     """
 
-    def __init__(self, kind: str, matrix: np.ndarray, D: np.ndarray, Dt: np.ndarray):
+    def __init__(self, kind: str, matrix: np.ndarray, D: np.ndarray, Dt: np.ndarray, index: int):
         self.kind = kind
         self.matrix = matrix
+        self.name = f"slot{index}"
         if kind == "spectral":  # eigenprojectors of C: nothing to precompute
             self.identity = False
             return
         self.identity = matrix is IDENTITY or (matrix.shape == (3, 3) and np.array_equal(matrix, IDENTITY))
+        self.M_t = None if matrix.ndim == 2 else _soa(matrix)
         if self.identity:
             self.MD = Dt
         elif matrix.ndim == 2:
             self.MD = np.einsum("ij,jam->iam", matrix, Dt)
         else:
-            self.MD = _apply(_soa(matrix), Dt)
+            self.MD = _apply(self.M_t, Dt)
         if kind == "second":
-            self.DMD = _dot(_at(Dt, _EA), _at(self.MD, _EB))
+            self.DMD = _edge_dot(Dt, self.MD)
+
+    def FMFt(self, Ft: np.ndarray, ws: _Scratch) -> np.ndarray:
+        """F M F^T, (3, 3, m)."""
+        m = Ft.shape[-1]
+        if self.identity:
+            return np.einsum("ikm,jkm->ijm", Ft, Ft, out=ws(self.name + "FMF", (3, 3, m)))
+        if self.M_t is None:
+            FM = np.einsum("ikm,kj->ijm", Ft, self.matrix, out=ws("FM", (3, 3, m)))
+        else:
+            FM = np.einsum("ikm,kjm->ijm", Ft, self.M_t, out=ws("FM", (3, 3, m)))
+        return np.einsum("ikm,jkm->ijm", FM, Ft, out=ws(self.name + "FMF", (3, 3, m)))
 
 
 def _slot_key(pair: TangentPair) -> Tuple[str, object]:
@@ -163,6 +187,9 @@ class MJEDEngine:
         volumes: (m,) rest volumes.
         groups: the material's term groups.
         regularize: apply the compressed-element regularisation of the paper's section 2.3.
+
+    Work arrays are kept between calls (see _Scratch): do not evaluate one engine from two
+    threads at once.
     """
 
     def __init__(self, D: np.ndarray, volumes: np.ndarray, groups: Tuple[TermGroup, ...], *, regularize: bool = False):
@@ -173,6 +200,7 @@ class MJEDEngine:
         # Per-mesh constants, component-major: D (3, 4, m) and D_a x D_b (3, 6, m).
         self._Dt = np.ascontiguousarray(D.transpose(2, 1, 0))
         self._DxD = _soa(np.cross(D[:, _EA], D[:, _EB]).transpose(0, 2, 1))
+        self._ws = _Scratch()
         self._slots: Dict[Tuple[str, object], _Slot] = {}
         for group in groups:
             for term in group.terms:
@@ -184,7 +212,7 @@ class MJEDEngine:
                         )
                     key = _slot_key(pair)
                     if key not in self._slots:
-                        self._slots[key] = _Slot(pair.kind, pair.matrix, D, self._Dt)
+                        self._slots[key] = _Slot(pair.kind, pair.matrix, D, self._Dt, len(self._slots))
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, x_cells: np.ndarray, *, stiffness: bool = True, check_J=None, pk2: bool = False) -> Evaluation:
@@ -211,15 +239,17 @@ class MJEDEngine:
         out: optional (3, 3, 6, m) float64 array the edge blocks are written to (a caller
             that consumes the blocks at once can reuse one buffer between calls).
         """
-        D, Dt = self.D, self._Dt
+        D, Dt, ws = self.D, self._Dt, self._ws
         m = len(D)
         # F_ij = sum_a x_a,i D_a,j, formed component-major and copied once to (m, 3, 3).
-        Ft = np.einsum("iam,jam->ijm", x_t, Dt)
-        kin = Kinematics(np.ascontiguousarray(np.moveaxis(Ft, -1, 0)), Ft=Ft)
+        Ft = np.einsum("iam,jam->ijm", x_t, Dt, out=ws("Ft", (3, 3, m)))
+        kin = Kinematics(np.ascontiguousarray(np.moveaxis(Ft, -1, 0)), Ft=Ft,
+                         cof_out=ws("cof_t", (3, 3, m)), C_out=ws("C_t", (3, 3, m)))
         F, J = kin.F, kin.J
         if check_J is not None:
             check_J(J)
-        dJ = _apply(kin.cof_t, Dt)  # (3, 4, m): d_a = cof D_a
+        tmp4 = ws("tmp4", (4, m))
+        dJ = _apply(kin.cof_t, Dt, out=ws("dJ", (3, 4, m)), tmp=tmp4)  # d_a = cof D_a
 
         energy = np.zeros(m)
         S = S_hat = h = g2 = None  # sums over groups (weighted by c or c e^u); None is zero
@@ -233,7 +263,8 @@ class MJEDEngine:
                 scale = group.coefficient * np.exp(agg.u)
                 energy += scale
                 if stiffness:
-                    rank_one.append((scale, _vector_field(F, agg.S, agg.h, dJ, Dt)))
+                    du = self._vector_field(Ft, agg.S, agg.h, dJ, ws(f"du{len(rank_one)}", (3, 4, m)))
+                    rank_one.append((scale, du))
             else:
                 scale = group.coefficient
                 energy += scale * agg.u
@@ -245,7 +276,7 @@ class MJEDEngine:
                 weights[key] = _add(weights.get(key), _scale(scale, w))
 
         V0 = self.volumes
-        gradient = _vector_field(F, S, h, dJ, Dt)
+        gradient = self._vector_field(Ft, S, h, dJ, np.empty((3, 4, m)))
         gradient *= V0
         blocks = None
         if stiffness:
@@ -258,6 +289,22 @@ class MJEDEngine:
                 S_total += (h / J)[:, None, None] * np.moveaxis(np.einsum("kim,kjm->ijm", kin.cof_t, kin.cof_t), -1, 0)
         return SoAEvaluation(energy * V0, gradient, blocks, J, F, S_total)
 
+    def _vector_field(self, Ft, S, h, dJ, out) -> np.ndarray:
+        """F S D_a + h d_a into ``out`` (3, 4, m); S (m, 3, 3) or None, h (m,) or None."""
+        ws, Dt = self._ws, self._Dt
+        m = Dt.shape[-1]
+        if S is None:
+            out.fill(0.0)
+        else:
+            S_t = _soa(np.broadcast_to(S, (m, 3, 3)), out=ws("S_t", (3, 3, m)))
+            FS = np.einsum("ikm,kjm->ijm", Ft, S_t, out=ws("FS", (3, 3, m)))
+            _apply(FS, Dt, out=out, tmp=ws("tmp4", (4, m)))
+        if h is not None:
+            tmp = ws("tmp34", (3, 4, m))
+            np.multiply(dJ, h, out=tmp)
+            out += tmp
+        return out
+
     def _edge_blocks(self, Ft, kin, dJ, S, S_hat, h, g2, weights, rank_one, out) -> np.ndarray:
         """The (3, 3, 6, m) edge blocks, multiplied by the rest volumes.
 
@@ -267,16 +314,19 @@ class MJEDEngine:
         (r, c, edge) of the result are then summed one at a time, reading node vectors in
         place (no per-edge copies).
         """
-        Dt = self._Dt
+        Dt, ws = self._Dt, self._ws
         m = Dt.shape[-1]
-        F = kin.F
+        tmp4 = ws("tmp4", (4, m))
         outers: List[Tuple[np.ndarray, str, np.ndarray, str]] = []
         scaled: List[Tuple[np.ndarray, np.ndarray]] = []  # s (6, m), M (3, 3, m)
-        diag = None  # (6, m) coefficient of Id
+        diag = ws("diag", (6, m))  # coefficient of Id
+        diag.fill(0.0)
+        edge_tmp = ws("edge_tmp", (6, m))
 
         # geometric: (D_a . S D_b) Id
         if S is not None:
-            diag = _edge_dot(Dt, _apply(_soa(np.broadcast_to(S, (m, 3, 3))), Dt))
+            S_t = _soa(np.broadcast_to(S, (m, 3, 3)), out=ws("S_t", (3, 3, m)))
+            diag += _edge_dot(Dt, _apply(S_t, Dt, out=ws("SD", (3, 4, m)), tmp=tmp4), out=edge_tmp)
 
         # material: the declared tangent pairs
         for key, slot in self._slots.items():
@@ -284,19 +334,18 @@ class MJEDEngine:
             if w is None or _is_zero(w):
                 continue
             if slot.kind == "spectral":
-                for wn, yn in _spectral_outers(np.broadcast_to(w, (m, 3, 3)), kin, Dt):
+                for wn, yn in _spectral_outers(np.broadcast_to(w, (m, 3, 3)), kin, Dt, ws):
                     outers.append((wn, "cell", yn, "edge"))
                 continue
-            G = _apply(Ft, slot.MD)  # (3, 4, m): F M D_a
+            G = _apply(Ft, slot.MD, out=ws(slot.name + "G", (3, 4, m)), tmp=tmp4)  # F M D_a
+            Gw = ws(slot.name + "Gw", (3, 4, m))
             if slot.kind == "first":
-                outers.append(((2.0 * w) * G, "a", G, "b"))
+                np.multiply(G, 2.0 * w, out=Gw)
+                outers.append((Gw, "a", G, "b"))
             else:
-                outers.append((w * G, "b", G, "a"))
-                if slot.identity:
-                    FMF = np.einsum("ikm,jkm->ijm", Ft, Ft)
-                else:
-                    FMF = _soa(F @ slot.matrix @ np.swapaxes(F, 1, 2))
-                scaled.append((w * slot.DMD, FMF))
+                np.multiply(G, w, out=Gw)
+                outers.append((Gw, "b", G, "a"))
+                scaled.append((np.multiply(slot.DMD, w, out=ws(slot.name + "s", (6, m))), slot.FMFt(Ft, ws)))
 
         # regularisation (section 2.3): c v_a (x) v_b -> c [(1 - b) v_a (x) v_b + b (v_a . v_b) Id]
         b = np.clip(1.0 - kin.J, 0.0, 1.0) if self.regularize else None
@@ -305,32 +354,42 @@ class MJEDEngine:
         # g2 d_a (x) d_b, folded into the volumetric coupling d_a (x) F S-hat D_b when present
         g2_vec = None
         if g2 is not None:
-            g2_vec = (g2 if keep is None else g2 * keep) * dJ
+            g2_vec = np.multiply(dJ, g2 if keep is None else g2 * keep, out=ws("g2_vec", (3, 4, m)))
             if b is not None:
-                diag = _add(diag, (g2 * b) * _edge_dot(dJ, dJ))
+                edge_tmp = _edge_dot(dJ, dJ, out=edge_tmp)
+                edge_tmp *= g2 * b
+                diag += edge_tmp
         if S_hat is not None:
-            FSD = _vector_field(F, S_hat, None, None, Dt)
-            outers.append((dJ, "a", _add(FSD, g2_vec), "b"))
+            FSD = self._vector_field(Ft, S_hat, None, None, ws("FSD", (3, 4, m)))
+            v = FSD if g2_vec is None else np.add(FSD, g2_vec, out=ws("FSD_g2", (3, 4, m)))
+            outers.append((dJ, "a", v, "b"))
             outers.append((FSD, "a", dJ, "b"))
         elif g2_vec is not None:
             outers.append((dJ, "a", g2_vec, "b"))
 
         # exponential groups: c e^u du (x) du, regularised like g2
-        for scale, du in rank_one:
-            outers.append(((scale if keep is None else scale * keep) * du, "a", du, "b"))
+        for k, (scale, du) in enumerate(rank_one):
+            outers.append((np.multiply(du, scale if keep is None else scale * keep, out=ws(f"du_s{k}", (3, 4, m))),
+                           "a", du, "b"))
             if b is not None:
-                diag = _add(diag, (scale * b) * _edge_dot(du, du))
+                edge_tmp = _edge_dot(du, du, out=edge_tmp)
+                edge_tmp *= scale * b
+                diag += edge_tmp
 
         # h d2J/dx_a dx_b = h eps_rcq (F (D_a x D_b))_q, a skew matrix
-        skew = None if h is None else _apply(Ft, self._DxD) * h
+        skew = None
+        if h is not None:
+            skew = _apply(Ft, self._DxD, out=ws("skew", (3, 6, m)), tmp=ws("tmp6", (6, m)))
+            skew *= h
 
-        return _sum_components(outers, scaled, diag, skew, self.volumes, out)
+        return _sum_components(outers, scaled, diag, skew, self.volumes, out, ws("tmp_3m", (3, m)))
 
 
-def _edge_dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def _edge_dot(u: np.ndarray, v: np.ndarray, out: "np.ndarray | None" = None) -> np.ndarray:
     """u_a . v_b for every edge (a, b) of node vectors u, v (3, 4, m) -> (6, m)."""
-    out = np.empty((6, u.shape[-1]))
-    tmp = np.empty(u.shape[-1])
+    m = u.shape[-1]
+    out = np.empty((6, m)) if out is None else out
+    tmp = np.empty(m)
     for e, (a, b) in enumerate(EDGES):
         np.multiply(u[0, a], v[0, b], out=out[e])
         for k in (1, 2):
@@ -339,70 +398,62 @@ def _edge_dot(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _vector_field(F, S, h, dJ, Dt) -> np.ndarray:
-    """F S D_a + h d_a, (3, 4, m); S (m, 3, 3) or None, h (m,) or None."""
-    m = Dt.shape[-1]
-    if S is None:
-        out = np.zeros((3, 4, m))
-    else:
-        out = _apply(_soa(F @ np.broadcast_to(S, (m, 3, 3))), Dt)
-    if h is not None:
-        out += h * dJ
-    return out
-
-
 # Skew part: component (r, c) gets sign * v[q].
 _SKEW = {(0, 1): (2, 1.0), (1, 0): (2, -1.0), (0, 2): (1, -1.0), (2, 0): (1, 1.0), (1, 2): (0, 1.0), (2, 1): (0, -1.0)}
 
 
-def _row(x: np.ndarray, where: str, k: int, e: int) -> np.ndarray:
-    """Component k of a vector field at edge e: per node at its first ("a") or second ("b")
-    node, per edge, or per cell."""
+# The edges grouped by their first node a: edges e0..e1 are (a, a+1), ..., (a, 3).
+_SEGMENTS = ((0, 0, 3), (1, 3, 5), (2, 5, 6))
+
+
+def _part(x: np.ndarray, where: str, k: int, a: int, e0: int, e1: int) -> np.ndarray:
+    """Component k of a vector field on the edges e0..e1 that start at node a, (n, m) or
+    broadcastable to it: per node at the edge's first ("a") or second ("b") node, per edge,
+    or per cell."""
     if where == "a":
-        return x[k, EDGES[e, 0]]
+        return x[k, a][None]
     if where == "b":
-        return x[k, EDGES[e, 1]]
+        return x[k, a + 1:]
     if where == "edge":
-        return x[k, e]
-    return x[k]
+        return x[k, e0:e1]
+    return x[k][None]
 
 
-def _sum_components(outers, scaled, diag, skew, V0, out) -> np.ndarray:
+def _sum_components(outers, scaled, diag, skew, V0, out, tmp) -> np.ndarray:
     """K[r, c, e] = sum u[r] v[c] + sum s M[r, c] + [r == c] diag + skew, times V0, (3, 3, 6, m).
 
-    One (m,) row at a time, so the running sum and its scratch stay in cache and no
-    per-edge copy of a node vector is ever made.
+    Block component (r, c) is built for the edges sharing their first node at once (3, 2
+    and 1 edges), reading node vectors in place (no per-edge copies), so the running sum
+    and its scratch stay in cache.
     """
     m = len(V0)
     K = np.empty((3, 3, 6, m)) if out is None else out
-    tmp = np.empty(m)
     for r in range(3):
         for c in range(3):
-            for e in range(6):
-                row = K[r, c, e]
+            for a, e0, e1 in _SEGMENTS:
+                row = K[r, c, e0:e1]
+                t = tmp[: e1 - e0]
                 started = False
                 for u, uw, v, vw in outers:
-                    dst = tmp if started else row
-                    np.multiply(_row(u, uw, r, e), _row(v, vw, c, e), out=dst)
+                    np.multiply(_part(u, uw, r, a, e0, e1), _part(v, vw, c, a, e0, e1), out=t if started else row)
                     if started:
-                        row += tmp
+                        row += t
                     started = True
-                for s, M in scaled:
-                    dst = tmp if started else row
-                    np.multiply(s[e], M[r, c], out=dst)
+                for s_, M in scaled:
+                    np.multiply(s_[e0:e1], M[r, c], out=t if started else row)
                     if started:
-                        row += tmp
+                        row += t
                     started = True
                 if not started:
                     row.fill(0.0)
-                if r == c and diag is not None:
-                    row += diag[e]
+                if r == c:
+                    row += diag[e0:e1]
                 if skew is not None and (r, c) in _SKEW:
                     q, sign = _SKEW[(r, c)]
                     if sign > 0:
-                        row += skew[q, e]
+                        row += skew[q, e0:e1]
                     else:
-                        row -= skew[q, e]
+                        row -= skew[q, e0:e1]
                 row *= V0
     return K
 
@@ -442,7 +493,7 @@ class _GroupAggregates:
             self.pair_weights[key] = _add(self.pair_weights.get(key), _scale(f, coef))
 
 
-def _spectral_outers(theta: np.ndarray, kin: Kinematics, Dt: np.ndarray) -> List[Tuple[np.ndarray, np.ndarray]]:
+def _spectral_outers(theta: np.ndarray, kin: Kinematics, Dt: np.ndarray, ws: _Scratch) -> List[Tuple[np.ndarray, np.ndarray]]:
     """Edge blocks of sum_{n,l} theta_nl P_n H P_l, P_n = v_n v_n^T (eigenprojectors of C),
     as three outer products w_n (x) y_n.
 
@@ -452,21 +503,32 @@ def _spectral_outers(theta: np.ndarray, kin: Kinematics, Dt: np.ndarray) -> List
 
     theta: (m, 3, 3). Returns [(w_n (3, m), y_n (3, 6, m))] for n = 0, 1, 2.
     """
-    V = kin.eig[1]  # (m, 3, 3), columns v_n
-    w = _soa(np.swapaxes(kin.F @ V, 1, 2))  # (3 n, 3 i, m): w[n] = F v_n
-    c = np.einsum("jnm,jam->nam", _soa(V), Dt)  # (3 n, 4 a, m)
-    ca, cb = _at(c, _EA), _at(c, _EB)  # (3, 6, m)
-    T = _soa(theta)  # (3, 3, m)
+    m = Dt.shape[-1]
+    V_t = _soa(kin.eig[1], out=ws("V_t", (3, 3, m)))  # [j, n] = (v_n)_j
+    # w[n, i] = (F v_n)_i and c[n, a] = v_n . D_a
+    w = np.einsum("ikm,knm->nim", kin.Ft, V_t, out=ws("spec_w", (3, 3, m)))
+    c = np.einsum("jnm,jam->nam", V_t, Dt, out=ws("spec_c", (3, 4, m)))
+    ca, cb = np.take(c, _EA, axis=1), np.take(c, _EB, axis=1)  # (3, 6, m)
+    T = _soa(theta, out=ws("spec_T", (3, 3, m)))
+    tc = ws("spec_tc", (6, m))
+    tmp = ws("spec_tmp", (6, m))
+    r = ws("spec_r", (6, m))
     result = []
     for n in range(3):
-        q = np.zeros((3, 6, len(T[0, 0, :])))
-        r = np.zeros(ca.shape[1:])
+        y = ws(f"spec_y{n}", (3, 6, m))
+        y.fill(0.0)
+        r.fill(0.0)
         for l in range(3):
-            tc = T[n, l] * ca[l]  # (6, m)
-            q += w[l][:, None, :] * tc
-            r += tc * cb[l]
-        y = cb[n] * q
-        y += w[n][:, None, :] * r
+            np.multiply(T[n, l], ca[l], out=tc)
+            for i in range(3):
+                np.multiply(tc, w[l, i], out=tmp)
+                y[i] += tmp
+            np.multiply(tc, cb[l], out=tmp)
+            r += tmp
+        y *= cb[n]
+        for i in range(3):
+            np.multiply(r, w[n, i], out=tmp)
+            y[i] += tmp
         result.append((w[n], y))
     return result
 

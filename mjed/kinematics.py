@@ -49,10 +49,13 @@ class Kinematics:
     contiguous rows instead of tiny trailing axes), so C and cof are computed there.
     """
 
-    def __init__(self, F: np.ndarray, *, Ft: "np.ndarray | None" = None):
+    def __init__(self, F: np.ndarray, *, Ft: "np.ndarray | None" = None, cof_out: "np.ndarray | None" = None,
+                 C_out: "np.ndarray | None" = None):
         self.F = F
         if Ft is not None:
             self.Ft = Ft
+        # Optional (3, 3, m) buffers for cof_t and C_t (the engine reuses them between calls).
+        self._cof_out, self._C_out = cof_out, C_out
 
     @cached_property
     def Ft(self) -> np.ndarray:
@@ -63,7 +66,7 @@ class Kinematics:
     def cof_t(self) -> np.ndarray:
         """(3, 3, m) cof F, component-major: cof_ij = F_(i+1)(j+1) F_(i+2)(j+2) - F_(i+1)(j+2) F_(i+2)(j+1)."""
         A = self.Ft
-        out = np.empty_like(A)
+        out = np.empty_like(A) if self._cof_out is None else self._cof_out
         for i in range(3):
             i1, i2 = (i + 1) % 3, (i + 2) % 3
             for j in range(3):
@@ -86,7 +89,7 @@ class Kinematics:
     @cached_property
     def C_t(self) -> np.ndarray:
         """(3, 3, m) C = F^T F, component-major."""
-        return np.einsum("kim,kjm->ijm", self.Ft, self.Ft)
+        return np.einsum("kim,kjm->ijm", self.Ft, self.Ft, out=self._C_out)
 
     @cached_property
     def C(self) -> np.ndarray:
