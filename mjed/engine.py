@@ -329,6 +329,7 @@ class MJEDEngine:
             diag += _edge_dot(Dt, _apply(S_t, Dt, out=ws("SD", (3, 4, m)), tmp=tmp4), out=edge_tmp)
 
         # material: the declared tangent pairs
+        G_of: Dict[int, np.ndarray] = {}
         for key, slot in self._slots.items():
             w = weights.get(key)
             if w is None or _is_zero(w):
@@ -337,7 +338,9 @@ class MJEDEngine:
                 for wn, yn in _spectral_outers(np.broadcast_to(w, (m, 3, 3)), kin, Dt, ws):
                     outers.append((wn, "cell", yn, "edge"))
                 continue
-            G = _apply(Ft, slot.MD, out=ws(slot.name + "G", (3, 4, m)), tmp=tmp4)  # F M D_a
+            G = G_of.get(id(slot.MD))  # slots of both kinds with the same M share F M D_a
+            if G is None:
+                G = G_of[id(slot.MD)] = _apply(Ft, slot.MD, out=ws(slot.name + "G", (3, 4, m)), tmp=tmp4)
             Gw = ws(slot.name + "Gw", (3, 4, m))
             if slot.kind == "first":
                 np.multiply(G, 2.0 * w, out=Gw)
