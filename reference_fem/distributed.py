@@ -13,17 +13,38 @@ oracle is a reference for meshes of tens of thousands of cells, not a production
 
 from __future__ import annotations
 
-from typing import Any, Callable, Optional, Tuple
+import sys
+import traceback
+from contextlib import contextmanager
+from typing import Any, Callable, Iterator, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["RankError", "on_root", "collective", "all_finite", "gather_rows", "gather_csr"]
+__all__ = ["RankError", "abort_on_error", "on_root", "collective", "all_finite", "gather_rows", "gather_csr"]
 
 ROOT = 0
 
 
 class RankError(RuntimeError):
     """Raised on every rank when a collective step failed on some rank."""
+
+
+@contextmanager
+def abort_on_error(comm) -> Iterator[None]:
+    """With several ranks, an exception escaping the block aborts the whole MPI job.
+
+    The oracle's own checks raise on every rank together, but a failure in code that runs
+    on rank 0 only (MJED, the comparison, writing files) would leave the other ranks
+    waiting in their next collective call forever. In serial the exception propagates.
+    """
+    try:
+        yield
+    except BaseException as exc:
+        if comm.size == 1 or isinstance(exc, SystemExit) and not exc.code:
+            raise
+        traceback.print_exc()
+        print(f"rank {comm.rank}: aborting the MPI job", file=sys.stderr, flush=True)
+        comm.Abort(1)
 
 
 def on_root(comm, fn: Callable[..., Any], *args) -> Any:

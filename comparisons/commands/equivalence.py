@@ -45,13 +45,11 @@ def run(args) -> int:
     comm = comm_world()
     if comm.size == 1:
         return _run(args, materials, states, mesh_list, None)
-    code = None
-    try:
+    from reference_fem.distributed import abort_on_error
+
+    with abort_on_error(comm):  # an error on one rank must not leave the others waiting
         code = _run(args, materials, states, mesh_list, comm)
-    finally:
-        # Reached on every rank in the same order (the oracle raises collectively).
-        code = comm.bcast(code, root=0)
-    return code
+        return comm.bcast(code, root=0)
 
 
 def _run(args, materials, states, mesh_list, comm) -> int:

@@ -1,0 +1,322 @@
+"""Does the UFL oracle give the same numbers on every dolfinx release and process count?
+
+A *snapshot* is the oracle's energy, force and stiffness for a fixed set of cases (materials
+on ``cube-small`` in deformed states, including a Costa material with one fibre frame per
+cell, which exercises the cell-wise data across ranks), computed by one interpreter on a given
+number of MPI ranks. The *check* takes snapshots on several stacks (Debian's dolfinx 0.5.2 in
+``.venv``, the PyPI wheel in ``.venv-modern``), each serial and on 2 ranks, and compares
+every one with the first:
+
+    energy:    |E_a - E_b| / |E_a|
+    force:     ||f_a - f_b||_2 / ||f_a||_2
+    stiffness: ||K_a - K_b||_F / ||K_a||_F
+
+all in the input numbering; they must be <= 1e-12 (the oracles differ only by summation
+order, so about 1e-15 is expected). A stack whose interpreter is absent is listed under
+``missing`` with the reason, never silently dropped.
+
+Command line (also run by ``.ci/run``)::
+
+    python -m comparisons.cross_release check [--quick] [--json PATH]
+    mpirun -n 2 python -m comparisons.cross_release snapshot --out PATH [--quick]
+    python -m comparisons.cross_release compare A.npz B.npz
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
+
+__all__ = [
+    "TOLERANCE",
+    "snapshot_cases",
+    "take_snapshot",
+    "save_snapshot",
+    "load_snapshot",
+    "compare_snapshots",
+    "mpirun_command",
+    "default_stacks",
+    "cross_release_check",
+]
+
+TOLERANCE = 1e-12
+REPO = Path(__file__).resolve().parents[1]
+MESH = "cube-small"
+
+
+def snapshot_cases(quick: bool) -> List[Tuple[str, object, str]]:
+    """(case name, material, state) triples; ``quick`` keeps three materials and one state."""
+    from comparisons.cases import DEFAULT_MATERIALS
+    from mjed import materials as M
+
+    names = ["NeoHookean", "Ogden"] if quick else list(DEFAULT_MATERIALS)
+    states = ["random"] if quick else ["random", "triaxial"]
+    mats = [(n, DEFAULT_MATERIALS[n]) for n in names]
+    # Costa with a seeded rotation per cell: the per-cell data must follow the partition.
+    costa = DEFAULT_MATERIALS["Costa"]
+    mats.append(("CostaCellFrames", M.Costa(**{**_fields(costa), "frame": _cell_frames()})))
+    return [(f"{n}/{s}", mat, s) for n, mat in mats for s in states]
+
+
+def _fields(material) -> dict:
+    import dataclasses
+
+    return {f.name: getattr(material, f.name) for f in dataclasses.fields(material) if f.init}
+
+
+def _cell_frames() -> np.ndarray:
+    """(m, 3, 3) seeded random rotations, one per cell of the snapshot mesh."""
+    import meshes
+
+    _, cells = meshes.load(MESH)
+    q = np.random.default_rng(7).standard_normal((cells.shape[0], 3, 3))
+    Q, R = np.linalg.qr(q)
+    return Q * np.sign(np.diagonal(R, axis1=1, axis2=2))[:, None, :]
+
+
+def take_snapshot(*, quick: bool = True, comm=None) -> Optional[dict]:
+    """The oracle's results for :func:`snapshot_cases` on ``comm`` (collective).
+
+    Returns, on rank 0: {"meta": {versions, mpi_ranks, cells_per_rank, mesh, quick},
+    "cases": {name: {"energy": float, "force": (n, 3), "stiffness": CSR (3n, 3n)}}};
+    None on the other ranks.
+    """
+    import meshes
+    from comparisons.states import apply_state
+    from reference_fem import UFLOracle, compat
+
+    comm = compat.comm_world() if comm is None else comm
+    root = comm.rank == 0
+    points, cells = meshes.load(MESH)
+    out: Dict[str, dict] = {}
+    cells_per_rank = None
+    for i, (name, material, state) in enumerate(snapshot_cases(quick)):
+        oracle = UFLOracle(points, cells, material, comm=comm)
+        if i == 0:  # the partition is the same for every case
+            cells_per_rank = comm.gather(int(oracle.numbering.input_cell_of_cell.size), root=0)
+        x = apply_state(state, points, cells) if root else None
+        energy = oracle.energy(x)
+        force, K = oracle.force_and_stiffness(x)
+        if root:
+            out[name] = {"energy": energy, "force": force, "stiffness": K}
+    if not root:
+        return None
+    meta = {
+        "versions": compat.stack_versions(),
+        "mpi_ranks": comm.size,
+        "cells_per_rank": cells_per_rank,
+        "mesh": MESH,
+        "quick": quick,
+    }
+    return {"meta": meta, "cases": out}
+
+
+def save_snapshot(path: str, snap: dict) -> None:
+    """Write a snapshot as .npz (the metadata as a JSON string)."""
+    arrays = {"meta": np.array(json.dumps(snap["meta"]))}
+    for i, (name, case) in enumerate(snap["cases"].items()):
+        K = sp.csr_matrix(case["stiffness"])
+        arrays.update({
+            f"c{i}_name": np.array(name), f"c{i}_energy": np.array(case["energy"]), f"c{i}_force": case["force"],
+            f"c{i}_K_data": K.data, f"c{i}_K_indices": K.indices, f"c{i}_K_indptr": K.indptr,
+            f"c{i}_K_shape": np.array(K.shape),
+        })
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    np.savez(path, **arrays)
+
+
+def load_snapshot(path: str) -> dict:
+    """Inverse of :func:`save_snapshot`."""
+    with np.load(path) as z:
+        meta = json.loads(str(z["meta"]))
+        cases = {}
+        i = 0
+        while f"c{i}_name" in z:
+            K = sp.csr_matrix((z[f"c{i}_K_data"], z[f"c{i}_K_indices"], z[f"c{i}_K_indptr"]),
+                              shape=tuple(z[f"c{i}_K_shape"]))
+            cases[str(z[f"c{i}_name"])] = {"energy": float(z[f"c{i}_energy"]), "force": z[f"c{i}_force"], "stiffness": K}
+            i += 1
+    return {"meta": meta, "cases": cases}
+
+
+def _rel(diff: float, ref: float) -> float:
+    return diff / ref if ref > 0 else diff
+
+
+def compare_snapshots(a: dict, b: dict, tol: float = TOLERANCE) -> dict:
+    """Worst relative differences of snapshot ``b`` from the reference ``a``, per quantity.
+
+    Raises:
+        ValueError: if the two snapshots do not hold the same cases.
+    """
+    if set(a["cases"]) != set(b["cases"]):
+        raise ValueError(f"snapshots hold different cases: {sorted(a['cases'])} vs {sorted(b['cases'])}")
+    worst = {"energy": 0.0, "force": 0.0, "stiffness": 0.0}
+    for name, ca in a["cases"].items():
+        cb = b["cases"][name]
+        worst["energy"] = max(worst["energy"], _rel(abs(ca["energy"] - cb["energy"]), abs(ca["energy"])))
+        worst["force"] = max(worst["force"], _rel(float(np.linalg.norm(ca["force"] - cb["force"])),
+                                                  float(np.linalg.norm(ca["force"]))))
+        dK = sp.linalg.norm(ca["stiffness"] - cb["stiffness"])
+        worst["stiffness"] = max(worst["stiffness"], _rel(float(dK), float(sp.linalg.norm(ca["stiffness"]))))
+    return {"n_cases": len(a["cases"]), **{f"{k}_rel_diff": v for k, v in worst.items()},
+            "passed": bool(max(worst.values()) <= tol)}
+
+
+# -- running snapshots on other interpreters and under mpirun ------------------------------
+def mpirun_command(python: str, ranks: int) -> Tuple[List[str], Dict[str, str]]:
+    """The launcher (argv prefix, extra environment) for ``ranks`` processes of ``python``.
+
+    An interpreter whose directory holds its own ``mpirun`` (the PyPI wheel's MPICH in
+    ``.venv-modern``) must use that one: its mpi4py speaks MPICH's launch protocol. Other
+    interpreters use the ``mpirun`` on PATH (Debian: Open MPI), which refuses to run as root
+    and to start more processes than it counts slots unless told so.
+
+    Raises:
+        FileNotFoundError: if no mpirun is found.
+    """
+    own = Path(python).parent / "mpirun"
+    launcher = str(own) if own.exists() else shutil.which("mpirun")
+    if launcher is None:
+        raise FileNotFoundError("no mpirun on PATH (Debian: apt install openmpi-bin)")
+    argv, env = [launcher, "-n", str(ranks)], {}
+    version = subprocess.run([launcher, "--version"], capture_output=True, text=True).stdout
+    if "Open MPI" in version or "OpenRTE" in version:
+        argv.append("--oversubscribe")
+        if hasattr(os, "geteuid") and os.geteuid() == 0:
+            env = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+    return argv, env
+
+
+def default_stacks() -> List[Tuple[str, str, int]]:
+    """(label, interpreter, ranks): each venv of this checkout, serial and on 2 ranks."""
+    stacks = []
+    for label, venv in (("debian", ".venv"), ("modern", ".venv-modern")):
+        python = str(REPO / venv / "bin" / "python")
+        stacks += [(f"{label}-serial", python, 1), (f"{label}-mpi2", python, 2)]
+    return stacks
+
+
+def _run_snapshot(python: str, ranks: int, out: str, quick: bool, timeout: float) -> None:
+    argv = [python, "-m", "comparisons.cross_release", "snapshot", "--out", out] + (["--quick"] if quick else [])
+    env = dict(os.environ)
+    if ranks > 1:
+        prefix, extra = mpirun_command(python, ranks)
+        argv = prefix + argv
+        env.update(extra)
+    proc = subprocess.run(argv, cwd=str(REPO), env=env, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        tail = "\n".join((proc.stderr or proc.stdout).strip().splitlines()[-8:])
+        raise RuntimeError(f"snapshot failed (exit {proc.returncode}): {' '.join(argv)}\n{tail}")
+
+
+def cross_release_check(stacks: Optional[Sequence[Tuple[str, str, int]]] = None, *, quick: bool = True,
+                        timeout: float = 900.0) -> dict:
+    """Snapshots on every available stack, each compared with the first that ran.
+
+    Returns a JSON-serialisable dict: {"tolerance", "reference", "stacks": [{label, python,
+    ranks, versions, cells_per_rank, seconds}], "comparisons": [{label, energy_rel_diff,
+    force_rel_diff, stiffness_rel_diff, passed}], "missing": [{label, reason}], "passed",
+    "figures": []}. ``passed`` is False if any comparison fails, if a stack that exists
+    fails to run, or if fewer than two snapshots could be taken.
+    """
+    stacks = list(default_stacks() if stacks is None else stacks)
+    result = {"tolerance": TOLERANCE, "reference": None, "stacks": [], "comparisons": [], "missing": [],
+              "errors": [], "figures": []}
+    snaps = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i, (label, python, ranks) in enumerate(stacks):
+            if not Path(python).exists():
+                result["missing"].append({"label": label, "reason": f"{python} does not exist"})
+                continue
+            out = os.path.join(tmp, f"{i}.npz")
+            t0 = time.perf_counter()
+            try:
+                _run_snapshot(python, ranks, out, quick, timeout)
+            except (RuntimeError, FileNotFoundError, subprocess.TimeoutExpired) as exc:
+                result["errors"].append({"label": label, "error": str(exc)})
+                continue
+            snap = load_snapshot(out)
+            meta = snap["meta"]
+            result["stacks"].append({"label": label, "python": python, "ranks": ranks, "versions": meta["versions"],
+                                     "cells_per_rank": meta["cells_per_rank"],
+                                     "seconds": round(time.perf_counter() - t0, 1)})
+            snaps.append((label, snap))
+    if snaps:
+        ref_label, ref = snaps[0]
+        result["reference"] = ref_label
+        for label, snap in snaps[1:]:
+            result["comparisons"].append({"label": label, **compare_snapshots(ref, snap)})
+    result["passed"] = bool(len(snaps) >= 2 and not result["errors"]
+                            and all(c["passed"] for c in result["comparisons"]))
+    return result
+
+
+def format_check(result: dict) -> str:
+    """A few lines of text for the check's result."""
+    lines = []
+    for s in result["stacks"]:
+        v = s["versions"]
+        lines.append(f"  {s['label']:<14} dolfinx {v['dolfinx']:<13} ufl {v['ufl']:<10} petsc {v['petsc']:<7} "
+                     f"numpy {v['numpy']:<7} cells per rank {s['cells_per_rank']} ({s['seconds']} s)")
+    for c in result["comparisons"]:
+        lines.append(f"  {c['label']} vs {result['reference']}: energy {c['energy_rel_diff']:.1e}, "
+                     f"force {c['force_rel_diff']:.1e}, stiffness {c['stiffness_rel_diff']:.1e} "
+                     f"({'pass' if c['passed'] else 'FAIL'}, tolerance {result['tolerance']:g})")
+    for m in result["missing"]:
+        lines.append(f"  NOT RUN: {m['label']}: {m['reason']}")
+    for e in result["errors"]:
+        lines.append(f"  ERROR: {e['label']}: {e['error']}")
+    return "\n".join(lines)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m comparisons.cross_release", description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("snapshot", help="oracle results of the fixed cases on this interpreter (mpirun-aware)")
+    p.add_argument("--out", required=True)
+    p.add_argument("--quick", action="store_true")
+    p = sub.add_parser("compare", help="compare two snapshots")
+    p.add_argument("reference")
+    p.add_argument("other")
+    p = sub.add_parser("check", help="snapshots on every stack of this checkout, serial and on 2 ranks")
+    p.add_argument("--quick", action="store_true")
+    p.add_argument("--json")
+    args = parser.parse_args(argv)
+
+    if args.command == "snapshot":
+        from reference_fem.compat import comm_world
+        from reference_fem.distributed import abort_on_error
+
+        with abort_on_error(comm_world()):
+            snap = take_snapshot(quick=args.quick)
+            if snap is not None:
+                save_snapshot(args.out, snap)
+        return 0
+    if args.command == "compare":
+        print(json.dumps(compare_snapshots(load_snapshot(args.reference), load_snapshot(args.other)), indent=1))
+        return 0
+    result = cross_release_check(quick=args.quick)
+    print(format_check(result))
+    if args.json:
+        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
+        with open(args.json, "w") as fh:
+            json.dump(result, fh, indent=1)
+    print(f"cross-release check: {'passed' if result['passed'] else 'FAILED'}")
+    return 0 if result["passed"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
