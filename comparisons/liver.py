@@ -71,6 +71,9 @@ class LiverParameters:
     rayleigh_mass: float = 0.1
     rayleigh_stiffness: float = 0.1
     cg_tol: float = 1e-5
+    linear_solver: str = "cg"
+    preconditioner: str = "factorized"
+    refactor_iterations: int = 20
     gravity: tuple = (0.0, 0.0, -9.81)
     regularize: bool = True
 
@@ -83,6 +86,15 @@ class LiverParameters:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
                 raise ValueError(f"LiverParameters: parameter {name} must be finite and >= 0, got {v!r}")
+        from mjed.integrator import LINEAR_SOLVERS, PRECONDITIONERS
+
+        if self.linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"LiverParameters: parameter linear_solver must be one of {LINEAR_SOLVERS}, got {self.linear_solver!r}")
+        if self.preconditioner not in PRECONDITIONERS:
+            raise ValueError(f"LiverParameters: parameter preconditioner must be one of {PRECONDITIONERS}, got {self.preconditioner!r}")
+        r = self.refactor_iterations
+        if isinstance(r, bool) or not isinstance(r, int) or r < 1:
+            raise ValueError(f"LiverParameters: parameter refactor_iterations must be an integer >= 1, got {r!r}")
 
 
 def default_fixed_specs(points: np.ndarray) -> List[str]:
@@ -148,7 +160,9 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
     models, dt, fluid = _models(kind, mesh, params, fixed)
     n_steps = max(1, int(round(duration / dt)))
     integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity, fixed_nodes=fixed,
-                          rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness, cg_tol=params.cg_tol)
+                          rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness, cg_tol=params.cg_tol,
+                          linear_solver=params.linear_solver, preconditioner=params.preconditioner,
+                          refactor_iterations=params.refactor_iterations)
     times, amplitude, cg, p_max = [0.0], [0.0], [], [0.0]
     stepping = 0.0
     best_P = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture

@@ -22,6 +22,24 @@ falls below ``newton_tol`` times the first right-hand side; the first Newton ite
 the SOFA step. Both are written as one update: at a linearisation point x_e = x0 + u_e with
 reference velocity v_ref, A dv = dt (f_e + f_ext - D v_ref - K (dt v_ref - u_e)) - M (v_ref - v0).
 
+Linear solver (``linear_solver``, ``preconditioner``): CG to the relative residual ``cg_tol``,
+preconditioned by
+
+- ``"jacobi"`` (the default): 1 / diag(A);
+- ``"block-jacobi"``: the inverse of A's 3x3 node blocks;
+- ``"factorized"``: a sparse factorisation of A taken at some step and kept as the
+  preconditioner of the following steps (A changes slowly from step to step), renewed at the
+  next step once a solve needs more than ``refactor_iterations`` CG iterations, and at once
+  (the solve repeated) if CG fails with a stale factor. Each factorisation certifies that the
+  A it factors is positive definite (see :class:`mjed.solvers.SPDFactor`); between them CG's
+  own curvature check p^T A p > 0 applies as with Jacobi. The tolerance, the convergence test
+  and the errors are the CG's, whatever the preconditioner.
+
+``linear_solver="direct"`` factorises A at every step instead (no CG: a comparison point;
+``cg_iterations`` is then 0 and ``cg_residual`` the residual of the direct solve). The
+factorisations of both options raise ``IntegrationError(reason="not_positive_definite")`` on a
+non-positive pivot.
+
 Constraints are applied by projection: fixed nodes keep v = 0, prescribed nodes get the
 velocity that brings them to their prescribed positions at the end of the step, and their dofs
 are removed from the CG system. ``density=0`` drops inertia altogether (quasi-static stepping,
@@ -45,9 +63,15 @@ import scipy.sparse as sp
 from mjed.errors import IntegrationError, InvertedElementError
 from mjed.mass import MASS_KINDS, mass_matrix
 from mjed.mesh import TetMesh
-from mjed.solvers import conjugate_gradient
+from mjed.linear_system import FreeBlock, sum_same_pattern
+from mjed.solvers import CGResult, NotPositiveDefiniteError, SPDFactor, block_jacobi_preconditioner, conjugate_gradient
 
-__all__ = ["ForceModel", "Prescribed", "StepReport", "IntegratorState", "ImplicitEuler"]
+#: Linear solvers and CG preconditioners of ImplicitEuler (see the module docstring).
+LINEAR_SOLVERS = ("cg", "direct")
+PRECONDITIONERS = ("jacobi", "block-jacobi", "factorized")
+
+__all__ = ["ForceModel", "Prescribed", "StepReport", "IntegratorState", "ImplicitEuler", "LINEAR_SOLVERS",
+           "PRECONDITIONERS"]
 
 #: Newton stops with "newton_diverged" when the residual grows beyond this factor of the first.
 _DIVERGENCE_FACTOR = 1e8
@@ -89,7 +113,8 @@ class StepReport:
     done; cg_iterations: CG iterations summed over them; cg_residual: the last CG relative
     residual; newton_residual: ||r|| / ||r_0|| at the end (None with one linearised solve);
     reaction: (n, 3) forces the constraints exert on the constrained nodes (zero elsewhere),
-    from the balance of the last linear system.
+    from the balance of the last linear system; factorizations: sparse factorisations done in
+    the step (the "factorized" preconditioner or the direct solver; 0 with Jacobi).
     """
 
     step: int
@@ -99,6 +124,7 @@ class StepReport:
     cg_residual: float
     newton_residual: Optional[float]
     reaction: np.ndarray
+    factorizations: int = 0
 
 
 @dataclass(frozen=True)
@@ -128,6 +154,10 @@ class ImplicitEuler:
         newton_iterations: linear solves per step at most (1: SOFA's linearised step).
         newton_tol: relative residual that ends the Newton iterations (used when > 1).
         cg_tol, cg_max_iterations: the CG's relative residual and iteration cap.
+        linear_solver: "cg" (default) or "direct" (a sparse factorisation each step).
+        preconditioner: "jacobi" (default), "block-jacobi" or "factorized" (CG only).
+        refactor_iterations: with "factorized", a solve taking more CG iterations than this
+            renews the factorisation at the next step.
         x0, v0, t0: initial state (default: the rest positions, at rest, t = 0).
     """
 
@@ -149,6 +179,9 @@ class ImplicitEuler:
         newton_tol: float = 1e-8,
         cg_tol: float = 1e-8,
         cg_max_iterations: int = 1000,
+        linear_solver: str = "cg",
+        preconditioner: str = "jacobi",
+        refactor_iterations: int = 20,
         x0=None,
         v0=None,
         t0: float = 0.0,
@@ -171,6 +204,16 @@ class ImplicitEuler:
         if int(cg_max_iterations) != cg_max_iterations or cg_max_iterations < 1:
             raise ValueError(f"cg_max_iterations must be an integer >= 1, got {cg_max_iterations!r}")
         self.cg_max_iterations = int(cg_max_iterations)
+        if linear_solver not in LINEAR_SOLVERS:
+            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
+        if preconditioner not in PRECONDITIONERS:
+            raise ValueError(f"preconditioner must be one of {PRECONDITIONERS}, got {preconditioner!r}")
+        if isinstance(refactor_iterations, bool) or int(refactor_iterations) != refactor_iterations or refactor_iterations < 1:
+            raise ValueError(f"refactor_iterations must be an integer >= 1, got {refactor_iterations!r}")
+        self.linear_solver = linear_solver
+        self.preconditioner = preconditioner
+        self.refactor_iterations = int(refactor_iterations)
+        self._factor: Optional[SPDFactor] = None  # the kept factorisation ("factorized")
         self.external_force = external_force
         n = mesh.n_nodes
 
@@ -208,6 +251,7 @@ class ImplicitEuler:
         self.t = float(t0)
         self.steps = 0
         self._warm = None  # last dv on the free dofs: the CG's first guess
+        self._system = FreeBlock(self.M, self._free)  # A[free][:, free] without re-slicing K
 
     # ---------------------------------------------------------------- state
     @property
@@ -255,7 +299,8 @@ class ImplicitEuler:
         u_e = np.zeros(n3)  # the first linearisation point is x0
 
         free = self._free
-        cg_total, r0_norm, newton_res, solves = 0, 0.0, None, 0
+        a_M, b_K = 1.0 + dt * self.rayleigh_mass, dt * dt + dt * self.rayleigh_stiffness  # A = a_M M + b_K K
+        cg_total, r0_norm, newton_res, solves, factorizations = 0, 0.0, None, 0, 0
         for it in range(1, self.newton_iterations + 2):
             f, K = self._evaluate(x0 + u_e, step, t1)
             damp = self.rayleigh_mass * (self.M @ v_ref) + self.rayleigh_stiffness * (K @ v_ref)
@@ -275,20 +320,17 @@ class ImplicitEuler:
                     raise IntegrationError(step, t1, "newton_max_iterations",
                                            f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
                                            f"after {self.newton_iterations} linear solves")
-            A = (1.0 + dt * self.rayleigh_mass) * self.M + (dt * dt + dt * self.rayleigh_stiffness) * K
+            A_ff = self._system(a_M, K, b_K)
             # CG returns its first guess untouched for a zero right-hand side: only warm-start otherwise.
             warm = self._warm if (it == 1 and r_norm > 0) else None
-            res = conjugate_gradient(A[free][:, free], rhs[free], tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm)
+            res, done = self._solve(A_ff, rhs[free], warm, step, t1)
             cg_total += res.iterations
+            factorizations += done
             solves += 1
-            if not res.converged:
-                raise IntegrationError(step, t1, f"cg_{res.reason}",
-                                       f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
-                                       f"(relative residual {res.residual:.3g}, tolerance {self.cg_tol:g})")
             dv = np.zeros(n3)
             dv[free] = res.x
             # Reaction: what the constraints must add for the constrained rows to balance too.
-            reaction = np.where(self._constrained, (A @ dv - rhs) / dt, 0.0)
+            reaction = np.where(self._constrained, (a_M * (self.M @ dv) + b_K * (K @ dv) - rhs) / dt, 0.0)
             v_ref = v_ref + dv
             u_e = dt * v_ref
             if it == 1:
@@ -305,9 +347,55 @@ class ImplicitEuler:
             if hasattr(model, "accept_step"):
                 model.accept_step(x1, dt)
         self.x, self.v, self.t, self.steps = x1, v_ref.reshape(-1, 3), t1, step
-        return StepReport(step, t1, solves, cg_total, res.residual, newton_res, reaction.reshape(-1, 3))
+        return StepReport(step, t1, solves, cg_total, res.residual, newton_res, reaction.reshape(-1, 3), factorizations)
 
     # ---------------------------------------------------------------- internals
+    def _solve(self, A: sp.csr_matrix, b: np.ndarray, warm, step: int, t1: float):
+        """Solve A x = b on the free dofs; returns (CGResult, factorisations done).
+
+        Raises IntegrationError when CG fails (after one retry with a fresh factorisation when
+        the kept one was stale) or a factorisation finds A not positive definite.
+        """
+        if self.linear_solver == "direct":
+            x = self._factorize(A, step, t1)(b)
+            nb = float(np.linalg.norm(b))
+            residual = float(np.linalg.norm(b - A @ x)) / nb if nb > 0 else 0.0
+            return CGResult(x, 0, True, "direct", residual), 1
+        done = 0
+        if self.preconditioner == "jacobi":
+            apply = None
+        elif self.preconditioner == "block-jacobi":
+            apply = block_jacobi_preconditioner(A)
+        else:
+            if self._factor is None:
+                self._factor = self._factorize(A, step, t1)
+                done = 1
+            apply = self._factor
+        res = conjugate_gradient(A, b, tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm, preconditioner=apply)
+        if self.preconditioner == "factorized":
+            if not res.converged and done == 0 and res.reason != "negative_curvature":
+                # A stale factorisation (an earlier step's A) may simply be too far off now.
+                spent = res.iterations
+                self._factor = self._factorize(A, step, t1)
+                done += 1
+                res = conjugate_gradient(A, b, tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm,
+                                         preconditioner=self._factor)
+                res = CGResult(res.x, res.iterations + spent, res.converged, res.reason, res.residual)
+            if res.iterations > self.refactor_iterations:
+                self._factor = None  # renewed at the next solve
+        if not res.converged:
+            raise IntegrationError(step, t1, f"cg_{res.reason}",
+                                   f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
+                                   f"(relative residual {res.residual:.3g}, tolerance {self.cg_tol:g}, "
+                                   f"{self.preconditioner} preconditioner)")
+        return res, done
+
+    def _factorize(self, A: sp.csr_matrix, step: int, t1: float) -> SPDFactor:
+        try:
+            return SPDFactor(A)
+        except NotPositiveDefiniteError as exc:
+            raise IntegrationError(step, t1, "not_positive_definite", f"the step matrix A: {exc}") from None
+
     def _evaluate(self, x: np.ndarray, step: int, t1: float):
         """Summed forces (3n,) and stiffness (3n, 3n) of all models at x (3n,)."""
         xs = x.reshape(-1, 3)
@@ -320,15 +408,17 @@ class ImplicitEuler:
             except InvertedElementError as exc:
                 raise IntegrationError(step, t1, "inverted", str(exc), cells=exc.cells) from exc
             f_total = f.ravel() if f_total is None else f_total + f.ravel()
-            K_total = K if K_total is None else K_total + K
+            K_total = sp.csr_matrix(K) if K_total is None else sum_same_pattern(K_total, K)
         if not np.isfinite(f_total).all():
             raise IntegrationError(step, t1, "non_finite", "the internal forces are not finite")
-        return f_total, sp.csr_matrix(K_total)
+        return f_total, K_total
 
     def _refuse_inverted(self, x: np.ndarray, step: int, t1: float) -> None:
         """The step is refused if it inverts a cell (J <= 0), even if no model evaluated there."""
-        F = np.einsum("mai,maj->mij", x[self.mesh.cells], self.mesh.D)  # (m, 3, 3)
-        J = np.linalg.det(F)
+        # J = det F = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
+        xc = x[self.mesh.cells]  # (m, 4, 3)
+        e = xc[:, 1:] - xc[:, :1]  # (m, 3, 3) edges from node 0
+        J = np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
         bad = np.flatnonzero(~(J > 0))
         if bad.size:
             shown = ", ".join(f"cell {c} (J={J[c]:.3g})" for c in bad[:5])
