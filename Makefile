@@ -2,7 +2,12 @@
 PY := .venv/bin/python
 VERIFY := .venv/bin/mjed-verify
 
-.PHONY: demo test bootstrap
+# The oracle on a current dolfinx (PyPI wheel, .venv-modern; scripts/bootstrap-modern.sh).
+# -p dolfinx_solver loads the wheel's MPI before any test module imports dolfinx.
+MODERN_PY := .venv-modern/bin/python
+MODERN_TESTS := tests/test_compat.py tests/test_oracle_mapping.py tests/test_equivalence_oracle.py tests/test_mpi.py
+
+.PHONY: demo test bootstrap bootstrap-modern test-modern cross-release
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -14,3 +19,14 @@ demo: bootstrap
 # The test suite, oracle tests included (dolfinx comes from Debian).
 test: bootstrap
 	$(PY) -m pytest -q
+
+bootstrap-modern:
+	@bash scripts/bootstrap-modern.sh
+
+# The oracle's tests (compat layer, numbering, equivalence with MJED, 2 MPI ranks) on dolfinx 0.11.
+test-modern: bootstrap-modern
+	$(MODERN_PY) -m pytest -p dolfinx_solver -q $(MODERN_TESTS)
+
+# The same oracle cases on both stacks, serial and on 2 ranks, compared to 1e-12.
+cross-release: bootstrap bootstrap-modern
+	$(PY) -m comparisons.cross_release check --json reports/cross_release.json
