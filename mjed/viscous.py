@@ -35,7 +35,7 @@ from typing import Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from mjed.engine import EDGES, Evaluation, edge_blocks_to_element_matrices
+from mjed.engine import EDGES, SoAEvaluation, edge_blocks_to_element_matrices
 from mjed.errors import InvertedElementError
 from mjed.forcefield import HyperelasticForceField
 from mjed.materials.base import Material
@@ -146,7 +146,11 @@ class ViscoHyperelasticForceField:
         self.gammas = np.zeros((len(prony.alphas), self.mesh.n_cells, 3, 3))
         self.steps = 0
         self._saved: Optional[ViscousHistory] = None
-        self._cache: Optional[Tuple[np.ndarray, Evaluation]] = None  # (x, evaluation) of the last accepted state
+        self._cache: Optional[Tuple[np.ndarray, SoAEvaluation]] = None  # (x, evaluation) of the last accepted state
+        # Component-major copies for the engine's native layout (see mjed.engine): rest shape
+        # vectors (3, 4, m) and the cells transposed (4, m) for gathering positions.
+        self._Dt = np.ascontiguousarray(self.mesh.D.transpose(2, 1, 0))
+        self._cells_t = np.ascontiguousarray(self.mesh.cells.T)
         self.dt: Optional[float] = None
         self._a = self._b = None
         if dt is not None:
@@ -193,24 +197,26 @@ class ViscoHyperelasticForceField:
     # ---------------------------------------------------------------- forces
     def force(self, x) -> np.ndarray:
         """Nodal forces of S_v at fixed history, (n, 3)."""
-        return self.field.pattern.assemble_vector(self.element_forces(x))
+        f = self.field.pattern.assemble_vector_layout(self._gradient_and_blocks(x, stiffness=False)[0], "kam")
+        return np.negative(f, out=f)
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Consistent tangent at fixed history, CSR (3n, 3n)."""
-        return self.field.pattern.assemble_edge_blocks(self._gradient_and_blocks(x, stiffness=True)[1])
+        return self.field.pattern.assemble_edge_blocks(self._gradient_and_blocks(x, stiffness=True)[1], "rcem")
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         grad, blocks = self._gradient_and_blocks(x, stiffness=True)
         pattern = self.field.pattern
-        return -pattern.assemble_vector(grad), pattern.assemble_edge_blocks(blocks)
+        f = pattern.assemble_vector_layout(grad, "kam")
+        return np.negative(f, out=f), pattern.assemble_edge_blocks(blocks, "rcem")
 
     def element_forces(self, x) -> np.ndarray:
         """Per-cell nodal forces, (m, 4, 3)."""
-        return -self._gradient_and_blocks(x, stiffness=False)[0]
+        return -np.ascontiguousarray(self._gradient_and_blocks(x, stiffness=False)[0].transpose(2, 1, 0))
 
     def element_stiffness(self, x) -> np.ndarray:
         """Per-cell tangents at fixed history, (m, 12, 12)."""
-        return edge_blocks_to_element_matrices(self._gradient_and_blocks(x, stiffness=True)[1])
+        return edge_blocks_to_element_matrices(self._gradient_and_blocks(x, stiffness=True)[1].transpose(3, 2, 0, 1))
 
     def stress(self, x) -> np.ndarray:
         """S_v at x with the current history, per cell (m, 3, 3)."""
@@ -219,33 +225,42 @@ class ViscoHyperelasticForceField:
 
     # ---------------------------------------------------------------- internals
     def _gradient_and_blocks(self, x, *, stiffness: bool):
-        """dW_v/dx per cell (m, 4, 3) and the edge blocks (m, 6, 3, 3) (None if not asked)."""
+        """dW_v/dx per cell (3, 4, m) and the edge blocks (3, 3, 6, m) (None if not asked), in
+        the engine's component-major layout ([k, a, cell] and [r, c, edge, cell])."""
         a, _ = self._coefficients()
         c = 1.0 - a.sum()
         x = self._check_positions(x)
         ev = self._hyperelastic(x, stiffness=stiffness)
         Q = self.viscous_stress()  # (m, 3, 3)
-        D, V = self.mesh.D, self.mesh.volumes
-        FQ = ev.F @ Q  # (m, 3, 3)
-        grad = c * ev.gradient - V[:, None, None] * np.einsum("mij,maj->mai", FQ, D)
+        Dt, V = self._Dt, self.mesh.volumes
+        FQ_t = np.moveaxis(ev.F @ Q, 0, -1)  # (3, 3, m)
+        # F Q D_a: [i, a] = sum_j (F Q)_ij D_a,j, summed over j with whole (4, m) slabs.
+        FQD = FQ_t[:, 0, None] * Dt[0] + FQ_t[:, 1, None] * Dt[1] + FQ_t[:, 2, None] * Dt[2]  # (3, 4, m)
+        grad = c * ev.gradient
+        grad -= V * FQD
         if not stiffness:
             return grad, None
         # Geometric stiffness of the constant stress -Q: -V (D_a . Q D_b) I on each edge (a, b).
-        DQD = np.einsum("mei,mij,mej->me", D[:, EDGES[:, 0]], Q, D[:, EDGES[:, 1]])  # (m, 6)
-        blocks = c * ev.edge_blocks
-        blocks[:, :, [0, 1, 2], [0, 1, 2]] -= (V[:, None] * DQD)[:, :, None]
+        Q_t = np.moveaxis(Q, 0, -1)  # (3, 3, m)
+        QD = Q_t[:, 0, None] * Dt[0] + Q_t[:, 1, None] * Dt[1] + Q_t[:, 2, None] * Dt[2]  # (3, 4, m)
+        DQD = np.einsum("iem,iem->em", Dt[:, EDGES[:, 0]], QD[:, EDGES[:, 1]])  # (6, m)
+        DQD *= V
+        blocks = c * ev.blocks  # (3, 3, 6, m)
+        for r in range(3):
+            blocks[r, r] -= DQD
         return grad, blocks
 
-    def _hyperelastic(self, x: np.ndarray, stiffness: bool = True) -> Evaluation:
+    def _hyperelastic(self, x: np.ndarray, stiffness: bool = True) -> SoAEvaluation:
         if self._cache is not None and np.array_equal(self._cache[0], x):
             ev = self._cache[1]
-            if ev.edge_blocks is not None or not stiffness:
+            if ev.blocks is not None or not stiffness:
                 return ev
         field = self.field
         check = None if field.allow_inverted else _refuse_inverted
+        x_t = np.take(np.ascontiguousarray(x.T), self._cells_t, axis=1)  # (3, 4, m)
         # ln J and J^p are NaN for J <= 0: with allow_inverted that is the documented answer.
         with np.errstate(invalid="ignore", divide="ignore") if field.allow_inverted else nullcontext():
-            return field.engine.evaluate(x[self.mesh.cells], stiffness=stiffness, check_J=check, pk2=True)
+            return field.engine.evaluate_soa(x_t, stiffness=stiffness, check_J=check, pk2=True)
 
     def _coefficients(self):
         if self._a is None:
