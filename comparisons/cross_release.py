@@ -49,6 +49,8 @@ __all__ = [
     "mpirun_command",
     "default_stacks",
     "cross_release_check",
+    "format_check",
+    "provenance_summary",
 ]
 
 TOLERANCE = 1e-12
@@ -280,6 +282,31 @@ def format_check(result: dict) -> str:
     for e in result["errors"]:
         lines.append(f"  ERROR: {e['label']}: {e['error']}")
     return "\n".join(lines)
+
+
+def provenance_summary(path: Optional[str] = None) -> Optional[dict]:
+    """The last check's verdict and stack versions, compact, for a report's provenance section.
+
+    Reads the JSON that ``.ci/run`` and ``make cross-release`` write (default
+    ``reports/cross_release.json``); None if there is none (the check was not run here).
+    """
+    path = str(REPO / "reports" / "cross_release.json") if path is None else path
+    if not os.path.exists(path):
+        return None
+    with open(path) as fh:
+        result = json.load(fh)
+    keys = ("dolfinx", "ufl", "petsc", "numpy", "python", "mpi")
+    worst = {c["label"]: max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"])
+             for c in result["comparisons"]}
+    return {
+        "passed": result["passed"],
+        "tolerance": result["tolerance"],
+        "reference": result["reference"],
+        "stacks": [{"label": s["label"], "ranks": s["ranks"], **{k: s["versions"].get(k) for k in keys}}
+                   for s in result["stacks"]],
+        "worst_rel_diff": worst,
+        "not_run": [m["label"] for m in result["missing"]] + [e["label"] for e in result["errors"]],
+    }
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
