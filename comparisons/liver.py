@@ -340,7 +340,9 @@ def run_liver(
         "parameters": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(params).items()},
         "runs": runs,
         "fps_table": [{"model": r["model"], "dt": r["dt"], "fps": r["fps"], "paper_fps": r["paper_fps"],
-                       "target_fps": TARGET_FPS, "meets_target": bool(r["fps"] is not None and r["fps"] >= TARGET_FPS)}
+                       "target_fps": TARGET_FPS, "meets_target": bool(r["fps"] is not None and r["fps"] >= TARGET_FPS),
+                       "solver": r["solver"], "cg_iterations_mean": r["cg_iterations_mean"],
+                       "factorizations": r["factorizations"]}
                       for r in runs],
         "terzaghi": terzaghi,
         "passed": all(r["error"] is None for r in runs) and max(t["relative_l2_error"] for t in terzaghi["times"]) <= TERZAGHI_TOL,

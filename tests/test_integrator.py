@@ -286,3 +286,76 @@ def test_bad_parameters_are_refused_by_name(kwargs, word):
         ImplicitEuler(mesh, _field(mesh), 1.0, **kwargs)
     with pytest.raises(ValueError, match="empty"):
         ImplicitEuler(mesh, [], 1.0, dt=0.1)
+
+
+# ---------------------------------------------------------------- linear solvers
+_SOLVERS = [dict(preconditioner="jacobi"), dict(preconditioner="block-jacobi"), dict(preconditioner="factorized"),
+            dict(linear_solver="direct")]
+
+
+@pytest.mark.parametrize("solver", _SOLVERS, ids=lambda s: "-".join(s.values()))
+@pytest.mark.parametrize("mass", ["lumped", "consistent"])
+def test_every_linear_solver_takes_the_same_steps(cube, solver, mass):
+    """Ten steps of a hanging, damped block agree with the Jacobi CG run to the CG tolerance."""
+    fixed = _bottom(cube)
+    common = dict(dt=0.05, mass=mass, fixed_nodes=fixed, rayleigh_mass=0.1, rayleigh_stiffness=0.01,
+                  gravity=(3.0, 0.0, -3.0), cg_tol=1e-12)
+    ref = ImplicitEuler(cube, _field(cube), 1.0, **common)
+    ref.run(10)
+    integ = ImplicitEuler(cube, _field(cube), 1.0, **common, **solver)
+    reports = integ.run(10)
+    np.testing.assert_allclose(integ.x, ref.x, rtol=0, atol=1e-10 * np.abs(ref.x - cube.points).max())
+    np.testing.assert_allclose(integ.v, ref.v, rtol=0, atol=1e-9 * np.abs(ref.v).max())
+    factorizations = [r.factorizations for r in reports]
+    if solver.get("linear_solver") == "direct":
+        assert factorizations == [1] * 10 and all(r.cg_iterations == 0 and r.cg_residual < 1e-12 for r in reports)
+    elif solver["preconditioner"] == "factorized":
+        assert factorizations[0] == 1 and sum(factorizations) < 10  # kept over several steps
+        assert reports[0].cg_iterations == 1  # the exact factor of the first matrix
+    else:
+        assert sum(factorizations) == 0
+
+
+def test_the_kept_factorisation_is_renewed_when_cg_slows_down(cube):
+    fixed = _bottom(cube)
+    common = dict(dt=0.05, fixed_nodes=fixed, gravity=(3.0, 0.0, -3.0), cg_tol=1e-12, preconditioner="factorized")
+    # refactor_iterations=1: any solve that needs more than one iteration renews the factor.
+    eager = ImplicitEuler(cube, _field(cube), 1.0, refactor_iterations=1, **common).run(4)
+    lazy = ImplicitEuler(cube, _field(cube), 1.0, refactor_iterations=1000, **common).run(4)
+    assert [r.factorizations for r in lazy] == [1, 0, 0, 0]
+    assert sum(r.factorizations for r in eager) == 1 + sum(r.cg_iterations > 1 for r in eager[:-1])
+    assert sum(r.factorizations for r in eager) > 1
+    # A stale factor whose CG fails (here: a cap of one iteration) is renewed and the solve repeated.
+    capped = ImplicitEuler(cube, _field(cube), 1.0, cg_max_iterations=1, **common)
+    reports = capped.run(3)
+    assert [r.factorizations for r in reports] == [1, 1, 1] and capped.steps == 3
+
+
+@pytest.mark.parametrize("solver, reason", [
+    (dict(linear_solver="direct"), "not_positive_definite"),
+    (dict(preconditioner="factorized", refactor_iterations=1), "not_positive_definite"),  # renewed at step 3
+    (dict(preconditioner="factorized", refactor_iterations=1000), "cg_negative_curvature"),  # kept: CG's check
+])
+def test_an_indefinite_step_matrix_is_refused_with_every_solver(cube, solver, reason):
+    model = _Broken(_field(cube), after=2, what="indefinite")
+    integ = ImplicitEuler(cube, model, 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-12, **solver)
+    integ.run(2)
+    good = integ.state
+    with pytest.raises(mjed.IntegrationError, match="not positive definite|negative curvature") as info:
+        integ.step()
+    assert info.value.reason == reason and info.value.step == 3
+    np.testing.assert_array_equal(integ.x, good.x)
+
+
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        (dict(linear_solver="lu"), "linear_solver"),
+        (dict(preconditioner="ilu"), "preconditioner"),
+        (dict(refactor_iterations=0), "refactor_iterations"),
+        (dict(refactor_iterations=2.5), "refactor_iterations"),
+    ],
+)
+def test_bad_solver_options_are_refused_by_name(cube, kwargs, word):
+    with pytest.raises(ValueError, match=word):
+        ImplicitEuler(cube, _field(cube), 1.0, dt=0.1, **kwargs)

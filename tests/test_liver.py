@@ -119,3 +119,35 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
     assert not result["passed"] and run["error"] and run["steps"] < run["steps_planned"]
     assert "time step" in run["error"]
     assert main(["liver", "--quick", "--models", "hyperelastic", "--no-series", "--out", str(tmp_path)]) == 0
+
+
+def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
+    """Jacobi CG, the kept-factorisation preconditioner (the default) and the direct solve give
+    the same amplitudes to the CG tolerance; the FPS table says which solver ran."""
+    from comparisons.liver import LiverParameters
+
+    runs = {}
+    for name, params in (("factorized", LiverParameters()), ("jacobi", LiverParameters(preconditioner="jacobi")),
+                         ("direct", LiverParameters(linear_solver="direct"))):
+        result = run_liver(quick=True, steps=3, out=str(tmp_path / name), params=params,
+                           models=["visco-poro-hyperelastic"], series=False)
+        runs[name] = result
+        assert result["passed"] and result["fps_table"][0]["solver"] == result["runs"][0]["solver"]
+    amp = {k: np.asarray(r["runs"][0]["max_displacement"]) for k, r in runs.items()}
+    scale = amp["direct"].max()
+    for k in ("factorized", "jacobi"):
+        np.testing.assert_allclose(amp[k], amp["direct"], rtol=0, atol=2e-6 * scale)  # CG rtol 1e-5
+    fact, jac = runs["factorized"]["runs"][0], runs["jacobi"]["runs"][0]
+    assert "kept sparse LU" in fact["solver"] and "jacobi" in jac["solver"] and "direct" in runs["direct"]["runs"][0]["solver"]
+    assert fact["factorizations"] >= 1 and jac["factorizations"] == 0
+    assert fact["cg_iterations_mean"] < jac["cg_iterations_mean"] / 5
+
+
+@pytest.mark.parametrize("kwargs, word", [(dict(preconditioner="ilu"), "preconditioner"),
+                                          (dict(linear_solver="lu"), "linear_solver"),
+                                          (dict(refactor_iterations=0), "refactor_iterations")])
+def test_bad_solver_parameters_are_refused_by_name(kwargs, word):
+    from comparisons.liver import LiverParameters
+
+    with pytest.raises(ValueError, match=word):
+        LiverParameters(**kwargs)
