@@ -36,6 +36,7 @@ __all__ = [
     "comm_self",
     "create_tet_mesh",
     "vector_p1_space",
+    "scalar_p1_space",
     "tensor_dg0_space",
     "function",
     "constant",
@@ -206,6 +207,15 @@ def vector_p1_space(mesh):
     if _at_least(_BASIX_ELEMENTS):
         return fem.functionspace(mesh, ("Lagrange", 1, (3,)))
     return fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
+
+
+def scalar_p1_space(mesh):
+    """The continuous scalar P1 function space on ``mesh``."""
+    from dolfinx import fem
+
+    if _at_least(_BASIX_ELEMENTS):
+        return fem.functionspace(mesh, ("Lagrange", 1))
+    return fem.FunctionSpace(mesh, ("Lagrange", 1))
 
 
 def tensor_dg0_space(mesh):

@@ -120,6 +120,8 @@ def test_accessors_on_the_installed_release():
     assert np.array_equal(np.sort(igi[geo], axis=1), np.sort(cells[oci], axis=1))
     assert compat.owned_range(V.dofmap.index_map) == (0, n) and compat.num_ghosts(V.dofmap.index_map) == 0
     assert compat.dof_coordinates(V).shape == (n, 3)
+    S = compat.scalar_p1_space(mesh)
+    assert S.dofmap.index_map_bs == S.dofmap.bs == 1 and compat.cell_dofs(S, 4).shape == (m, 4)
     Q = compat.tensor_dg0_space(mesh)
     assert Q.dofmap.index_map_bs * Q.dofmap.bs in (9, 81)  # 9 values per cell, blocked either way
     assert compat.cell_dofs(Q, 1).shape == (m, 1)
