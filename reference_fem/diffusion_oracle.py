@@ -20,19 +20,7 @@ from reference_fem.numbering import NumberingError, build_mesh
 from reference_fem.sparse_map import CSRRenumbering
 from reference_fem.validation import check_cells, check_points
 
-__all__ = ["scalar_p1_space", "scalar_input_node_of_dof", "diffusion_matrices"]
-
-
-def scalar_p1_space(mesh):
-    """The continuous scalar P1 space on ``mesh``.
-
-    Feature detection rather than a version test: ``fem.functionspace`` exists from dolfinx
-    0.7, ``fem.FunctionSpace`` builds the space from (family, degree) up to 0.6.
-    """
-    from dolfinx import fem
-
-    make = getattr(fem, "functionspace", None) or fem.FunctionSpace
-    return make(mesh, ("Lagrange", 1))
+__all__ = ["scalar_input_node_of_dof", "diffusion_matrices"]
 
 
 def scalar_input_node_of_dof(mesh, Q, points: np.ndarray) -> np.ndarray:
@@ -48,7 +36,8 @@ def scalar_input_node_of_dof(mesh, Q, points: np.ndarray) -> np.ndarray:
     geo = compat.geometry_dofmap(mesh)[:m]
     dofs = compat.cell_dofs(Q, 4)[:m]
     input_of_geo = compat.input_global_indices(mesh)
-    n_dofs = Q.dofmap.index_map.size_local + compat.num_ghosts(Q.dofmap.index_map)
+    lo, hi = compat.owned_range(Q.dofmap.index_map)
+    n_dofs = (hi - lo) + compat.num_ghosts(Q.dofmap.index_map)
     node = np.full(n_dofs, -1, dtype=np.int64)
     node[dofs] = input_of_geo[geo]
     if np.any(node < 0) or np.any(node[dofs] != input_of_geo[geo]) or np.unique(node).size != n_dofs:
@@ -77,7 +66,7 @@ def diffusion_matrices(points, cells) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
     import ufl
 
     mesh = build_mesh(X, T)
-    Q = scalar_p1_space(mesh)
+    Q = compat.scalar_p1_space(mesh)
     renumber = CSRRenumbering(scalar_input_node_of_dof(mesh, Q, X), len(X))
     p, q = ufl.TrialFunction(Q), ufl.TestFunction(Q)
     dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})

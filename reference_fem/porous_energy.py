@@ -33,7 +33,7 @@ import scipy.sparse as sp
 import ufl
 
 from reference_fem import compat
-from reference_fem.diffusion_oracle import scalar_input_node_of_dof, scalar_p1_space
+from reference_fem.diffusion_oracle import scalar_input_node_of_dof
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
@@ -108,7 +108,7 @@ class PorousOracle:
             raise ValueError("PorousOracle: nothing to assemble (no porous law, base material or pressure)")
         self._P = None
         if with_pressure:
-            Q = scalar_p1_space(self._mesh)
+            Q = compat.scalar_p1_space(self._mesh)
             self._P = compat.function(Q, "P")
             self._p_node = scalar_input_node_of_dof(self._mesh, Q, self._X)
             W = W - self._P * J  # the work of the Cauchy stress -P Id

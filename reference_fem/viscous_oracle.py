@@ -20,10 +20,9 @@ from typing import Any, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-import dolfinx.fem as fem
-import dolfinx.fem.petsc as fem_petsc
 import ufl
 
+from reference_fem import compat
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
@@ -52,16 +51,17 @@ class ViscousUFLOracle:
         self._material = material
         self.n_nodes, self.n_cells = len(self._X), len(self._cells)
 
+        compat.import_dolfinx()
         self._mesh = build_mesh(self._X, self._cells)
-        V = fem.VectorFunctionSpace(self._mesh, ("Lagrange", 1))
+        V = compat.vector_p1_space(self._mesh)
         self._numbering = compute_numbering(self._mesh, V, self._X, self._cells)
-        T = fem.TensorFunctionSpace(self._mesh, ("DG", 0))
+        T = compat.tensor_dg0_space(self._mesh)
         # Row-major 3x3 block of each dolfinx cell in a DG0 tensor function's array.
-        self._cell_block = T.dofmap.list.array.reshape(self.n_cells, 1)[:, 0]
+        self._cell_block = compat.cell_dofs(T, 1)[:, 0]
 
-        self._u = fem.Function(V, name="u")
-        self._history = [fem.Function(T, name=f"gamma_{i}") for i in range(self._alphas.size)]
-        self._dt = fem.Constant(self._mesh, 1.0)
+        self._u = compat.function(V, "u")
+        self._history = [compat.function(T, f"gamma_{i}") for i in range(self._alphas.size)]
+        self._dt = compat.constant(self._mesh, 1.0)
 
         F = ufl.variable(ufl.Identity(3) + ufl.grad(self._u))
         # Parameters as Constants: the compiled forms then serve every parameter set (FFCx cache).
@@ -77,11 +77,12 @@ class ViscousUFLOracle:
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": 1})
         R = ufl.inner(F * S_v, ufl.grad(ufl.TestFunction(V))) * dx
         K = ufl.derivative(R, self._u, ufl.TrialFunction(V))
-        self._R, self._K = fem.form(R), fem.form(K)
+        self._R, self._K = compat.compile_form(R), compat.compile_form(K)
+        self._b, self._A = compat.create_vector(self._R), compat.create_matrix(self._K)
         self._renumber = CSRRenumbering(self._numbering.input_dof_of_dof, 3 * self.n_nodes)
 
-    def _constant(self, value) -> fem.Constant:
-        return fem.Constant(self._mesh, np.asarray(value, dtype=np.float64))
+    def _constant(self, value):
+        return compat.constant(self._mesh, np.asarray(value, dtype=np.float64))
 
     def force_and_stiffness(self, x, history, dt: float) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Force (n, 3) and stiffness CSR (3n, 3n) at positions x (n, 3).
@@ -97,20 +98,17 @@ class ViscousUFLOracle:
             raise ValueError(f"dt must be finite and > 0, got {dt!r}")
         x = check_positions(x, self.n_nodes)
         self._u.x.array[:] = self._numbering.to_dof_order(x - self._X)
-        self._u.x.scatter_forward()
+        compat.scatter_forward(self._u)
         for field, gamma in zip(self._history, history):
             field.x.array.reshape(-1, 9)[self._cell_block] = gamma[self._numbering.input_cell_of_cell].reshape(-1, 9)
-            field.x.scatter_forward()
+            compat.scatter_forward(field)
         self._dt.value = float(dt)
 
-        b = fem_petsc.assemble_vector(self._R)
-        residual = b.array_r.copy()
-        b.destroy()
-        A = fem_petsc.assemble_matrix(self._K)
-        A.assemble()
-        indptr, indices, data = A.getValuesCSR()
-        K = self._renumber(indptr, indices, data)
-        A.destroy()
+        compat.assemble_vector_into(self._b, self._R)
+        compat.accumulate_ghosts(self._b)
+        residual = self._b.array_r.copy()
+        compat.assemble_matrix_into(self._A, self._K)
+        K = self._renumber(*self._A.getValuesCSR())
         if not (np.isfinite(residual).all() and np.isfinite(K.data).all()):
             raise ValueError(f"viscous UFL oracle: non-finite force or stiffness for {type(self._material).__name__}")
         return -self._numbering.to_input_order(residual), K

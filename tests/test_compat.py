@@ -41,7 +41,8 @@ _RELEASE_SPECIFIC = [
     r"VectorElement", r"basix\.ufl", r"geometry\.dofmap", r"dofmap\.list", r"\.input_global_indices\b(?!\()",
     r"\.original_cell_index\b(?!\()", r"create_mesh\(", r"fem\.petsc", r"import dolfinx", r"from dolfinx",
 ]
-_LAYERED = ["ufl_oracle.py", "numbering.py", "sparse_map.py", "validation.py", "distributed.py", "energies.py", "ogden_eigen.py"]
+# Every module of reference_fem but the layer itself.
+_LAYERED = sorted(p.name for p in (REPO / "reference_fem").glob("*.py") if p.name != "compat.py")
 
 
 @pytest.mark.parametrize("name", _LAYERED)
