@@ -165,12 +165,51 @@ def _run_liver(ctx: StudyContext) -> StudyResult:
 
 
 # ----------------------------------------------------------------------------- provenance
-def _run_provenance(ctx: StudyContext) -> StudyResult:
-    from comparisons.provenance import collect
+def _run_cross_release(ctx: StudyContext) -> StudyResult:
+    import os
 
-    info = collect()
-    rows = [(k, v if isinstance(v, (str, int, float)) else str(v)) for k, v in info.items()]
-    return StudyResult(info, [Table(("item", "value"), rows)])
+    from comparisons.cross_release import REPO, cross_release_check, format_check
+
+    modern = REPO / ".venv-modern" / "bin" / "python"
+    res = cross_release_check(quick=True)
+    rows = [(s["label"], s["ranks"], s["versions"].get("dolfinx"), s["versions"].get("ufl"), s["versions"].get("petsc"),
+             s["versions"].get("numpy"), s["versions"].get("python"), s["seconds"]) for s in res["stacks"]]
+    blocks = [Table(("stack", "ranks", "dolfinx", "ufl", "petsc", "numpy", "python", "seconds"), rows),
+              Table(("against " + str(res["reference"]), "energy", "force", "stiffness", "verdict"),
+                    [(c["label"], c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"], c["passed"])
+                     for c in res["comparisons"]],
+                    caption=f"Relative differences of the oracle's results (tolerance {res['tolerance']:g})"),
+              Preformatted(format_check(res))]
+    if not os.path.exists(modern):
+        return StudyResult(res, blocks, passed=res["passed"], message="the modern dolfinx stack is not installed here "
+                           "(make test-modern installs it); only the Debian stack, serial against 2 ranks, was compared")
+    return StudyResult(res, blocks, passed=res["passed"], message="" if res["passed"] else "the stacks disagree or one failed")
+
+
+def _run_provenance(ctx: StudyContext) -> StudyResult:
+    from comparisons.provenance import provenance
+
+    info = provenance()
+    try:
+        from reference_fem import compat
+
+        info["oracle_stack"] = compat.stack_versions()
+    except Exception as exc:  # dolfinx missing: say so, the rest of the record stands
+        info["oracle_stack"] = f"unavailable: {type(exc).__name__}: {exc}"
+    return StudyResult(info, [Table(("item", "value"), _flat_rows(info))])
+
+
+def _flat_rows(info: dict, prefix: str = "") -> list:
+    """Nested records as (dotted key, readable value) rows; booleans as yes/no, not pass/FAIL."""
+    rows = []
+    for k, v in info.items():
+        if isinstance(v, dict):
+            rows += _flat_rows(v, f"{prefix}{k}.")
+        elif isinstance(v, bool):
+            rows.append((prefix + k, "yes" if v else "no"))
+        else:
+            rows.append((prefix + k, "not available" if v is None else str(v).replace("\x00", "").strip()))
+    return rows
 
 
 def all_studies(quick: bool) -> List[Study]:
@@ -198,6 +237,10 @@ def all_studies(quick: bool) -> List[Study]:
               "and CG as hyperelastic, visco-hyperelastic and visco-poro-hyperelastic; displacement over time, the fluid "
               "pressure, frame rates against the paper's, and the pressure solver's Terzaghi check.",
               f"mjed-verify liver{q} --json liver.json", _run_liver),
+        Study("cross_release", "The oracle across dolfinx releases and MPI ranks",
+              "The same oracle cases (all seven materials on cube-small) on Debian's dolfinx and a current dolfinx, "
+              "serially and on 2 MPI ranks, compared with the first stack.",
+              "make cross-release", _run_cross_release),
         Study("provenance", "Provenance",
               "The machine, the versions and the commit the numbers above were measured with.",
               f"mjed-verify all{q}", _run_provenance),
