@@ -36,7 +36,8 @@ preconditioned by
   and the errors are the CG's, whatever the preconditioner.
 
 ``linear_solver="direct"`` factorises A at every step instead (no CG: a comparison point;
-``cg_iterations`` is then 0 and ``cg_residual`` the residual of the direct solve). The
+``cg_iterations`` is then 0 and ``cg_residual`` the residual of the direct solve, which must
+not exceed ``cg_tol``: reason "direct_residual" otherwise). The
 factorisations of both options raise ``IntegrationError(reason="not_positive_definite")`` on a
 non-positive pivot.
 
@@ -360,6 +361,9 @@ class ImplicitEuler:
             x = self._factorize(A, step, t1)(b)
             nb = float(np.linalg.norm(b))
             residual = float(np.linalg.norm(b - A @ x)) / nb if nb > 0 else 0.0
+            if not residual <= self.cg_tol:  # held to the CG's tolerance (an ill-conditioned A)
+                raise IntegrationError(step, t1, "direct_residual",
+                                       f"the direct solve left a relative residual {residual:.3g} above cg_tol={self.cg_tol:g}")
             return CGResult(x, 0, True, "direct", residual), 1
         done = 0
         if self.preconditioner == "jacobi":

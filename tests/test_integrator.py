@@ -359,3 +359,11 @@ def test_an_indefinite_step_matrix_is_refused_with_every_solver(cube, solver, re
 def test_bad_solver_options_are_refused_by_name(cube, kwargs, word):
     with pytest.raises(ValueError, match=word):
         ImplicitEuler(cube, _field(cube), 1.0, dt=0.1, **kwargs)
+
+
+def test_a_direct_solve_is_held_to_the_cg_tolerance(cube):
+    """A residual above cg_tol (here an unreachable tolerance) is an error, not a silent answer."""
+    integ = ImplicitEuler(cube, _field(cube), 1.0, dt=0.01, fixed_nodes=_bottom(cube), cg_tol=1e-30, linear_solver="direct")
+    with pytest.raises(mjed.IntegrationError, match="relative residual") as info:
+        integ.step()
+    assert info.value.reason == "direct_residual" and integ.steps == 0
