@@ -84,6 +84,7 @@ class LiverParameters:
     linear_solver: str = "cg"
     preconditioner: str = "factorized"
     refactor_iterations: int = 20
+    factor_precision: str = "single"
     gravity: tuple = (0.0, 0.0, -9.81)
     regularize: bool = True
 
@@ -96,12 +97,15 @@ class LiverParameters:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and np.isfinite(v) and v >= 0):
                 raise ValueError(f"LiverParameters: parameter {name} must be finite and >= 0, got {v!r}")
-        from mjed.integrator import LINEAR_SOLVERS, PRECONDITIONERS
+        from mjed.integrator import FACTOR_PRECISIONS, LINEAR_SOLVERS, PRECONDITIONERS
 
         if self.linear_solver not in LINEAR_SOLVERS:
             raise ValueError(f"LiverParameters: parameter linear_solver must be one of {LINEAR_SOLVERS}, got {self.linear_solver!r}")
         if self.preconditioner not in PRECONDITIONERS:
             raise ValueError(f"LiverParameters: parameter preconditioner must be one of {PRECONDITIONERS}, got {self.preconditioner!r}")
+        if self.factor_precision not in FACTOR_PRECISIONS:
+            raise ValueError(f"LiverParameters: parameter factor_precision must be one of {FACTOR_PRECISIONS}, "
+                             f"got {self.factor_precision!r}")
         r = self.refactor_iterations
         if isinstance(r, bool) or not isinstance(r, int) or r < 1:
             raise ValueError(f"LiverParameters: parameter refactor_iterations must be an integer >= 1, got {r!r}")
@@ -112,7 +116,8 @@ def solver_label(params: LiverParameters) -> str:
     if params.linear_solver == "direct":
         return "direct sparse LU (SuperLU), every step"
     if params.preconditioner == "factorized":
-        return f"CG, kept sparse LU preconditioner (renewed after > {params.refactor_iterations} iterations), rtol {params.cg_tol:g}"
+        return (f"CG, kept {params.factor_precision}-precision sparse LU preconditioner (renewed after "
+                f"> {params.refactor_iterations} iterations), rtol {params.cg_tol:g}")
     return f"CG, {params.preconditioner} preconditioner, rtol {params.cg_tol:g}"
 
 
@@ -181,7 +186,7 @@ def _simulate(kind, mesh, params, fixed, duration, writer=None, progress=None) -
     integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity, fixed_nodes=fixed,
                           rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness, cg_tol=params.cg_tol,
                           linear_solver=params.linear_solver, preconditioner=params.preconditioner,
-                          refactor_iterations=params.refactor_iterations)
+                          refactor_iterations=params.refactor_iterations, factor_precision=params.factor_precision)
     times, amplitude, cg, factorizations, p_max = [0.0], [0.0], [], 0, [0.0]
     stepping = cpu = 0.0  # wall-clock and CPU seconds spent in the integrator's steps
     best_P = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture

@@ -108,15 +108,21 @@ class SPDFactor:
 
     Args:
         A: (N, N) sparse symmetric matrix.
+        single: factorise in single precision (about half the time; a preconditioner needs no
+            more, since it only has to approximate A^-1: CG's own arithmetic stays double). The
+            pivot signs are then those of the rounded matrix: for an ill-conditioned A, retry
+            in double precision before concluding that A is not positive definite.
 
     Raises:
         NotPositiveDefiniteError: a pivot <= 0 (or SuperLU found A singular).
 
-    Calling the object solves A x = b for b (N,); it serves as a CG preconditioner.
+    Calling the object solves A x = b for b (N,) (in the factor's precision, returning float64);
+    it serves as a CG preconditioner.
     """
 
-    def __init__(self, A):
-        A = sp.csc_matrix(A)
+    def __init__(self, A, *, single: bool = False):
+        self.dtype = np.float32 if single else np.float64
+        A = sp.csc_matrix(A, dtype=self.dtype)
         n = A.shape[0]
         self.n = n
         try:
@@ -135,7 +141,9 @@ class SPDFactor:
         self.fill = int(lu.L.nnz + lu.U.nnz)
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
-        return self._lu.solve(b)
+        if self.dtype is np.float64:
+            return self._lu.solve(b)
+        return self._lu.solve(np.asarray(b, dtype=self.dtype)).astype(np.float64)
 
 
 def conjugate_gradient(A, b: np.ndarray, *, tol: float = 1e-10, max_iterations: int = 1000, x0=None,

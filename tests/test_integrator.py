@@ -367,3 +367,32 @@ def test_a_direct_solve_is_held_to_the_cg_tolerance(cube):
     with pytest.raises(mjed.IntegrationError, match="relative residual") as info:
         integ.step()
     assert info.value.reason == "direct_residual" and integ.steps == 0
+
+
+def test_single_precision_factors_fall_back_to_double_before_refusing(cube, monkeypatch):
+    import mjed.integrator as integrator_module
+    from mjed.solvers import NotPositiveDefiniteError, SPDFactor
+
+    common = dict(dt=0.05, fixed_nodes=_bottom(cube), gravity=(3.0, 0.0, -3.0), cg_tol=1e-12, preconditioner="factorized")
+    ref = ImplicitEuler(cube, _field(cube), 1.0, **common)
+    ref.run(5)
+    single = ImplicitEuler(cube, _field(cube), 1.0, factor_precision="single", **common)
+    single.run(5)
+    np.testing.assert_allclose(single.x, ref.x, rtol=0, atol=1e-10 * np.abs(ref.x - cube.points).max())
+    assert single._factor.dtype is np.float32
+
+    made = []
+
+    def no_single(A, single=False):  # as if rounding to single precision lost definiteness
+        made.append(single)
+        if single:
+            raise NotPositiveDefiniteError(1, A.shape[0])
+        return SPDFactor(A)
+
+    monkeypatch.setattr(integrator_module, "SPDFactor", no_single)
+    fallback = ImplicitEuler(cube, _field(cube), 1.0, factor_precision="single", **common)
+    fallback.run(5)
+    assert made[:2] == [True, False] and fallback.steps == 5
+    np.testing.assert_allclose(fallback.x, ref.x, rtol=0, atol=1e-10 * np.abs(ref.x - cube.points).max())
+    with pytest.raises(ValueError, match="factor_precision"):
+        ImplicitEuler(cube, _field(cube), 1.0, dt=0.1, factor_precision="half")

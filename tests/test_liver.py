@@ -138,7 +138,7 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     for k in ("factorized", "jacobi"):
         np.testing.assert_allclose(amp[k], amp["direct"], rtol=0, atol=2e-6 * scale)  # CG rtol 1e-5
     fact, jac = runs["factorized"]["runs"][0], runs["jacobi"]["runs"][0]
-    assert "kept sparse LU" in fact["solver"] and "jacobi" in jac["solver"] and "direct" in runs["direct"]["runs"][0]["solver"]
+    assert "kept single-precision sparse LU" in fact["solver"] and "jacobi" in jac["solver"] and "direct" in runs["direct"]["runs"][0]["solver"]
     assert fact["factorizations"] >= 1 and jac["factorizations"] == 0
     assert fact["cg_iterations_mean"] < jac["cg_iterations_mean"] / 5
 

@@ -129,3 +129,19 @@ def test_summing_stiffnesses_of_one_pattern_adds_their_data(system):
     assert same_pattern(K, K2) and not same_pattern(K, M)
     for other in (K2, M, M.tocoo()):
         assert abs(sum_same_pattern(K, other) - (K + other)).max() == 0.0
+
+
+def test_a_single_precision_factor_preconditions_but_its_pivots_see_the_rounded_matrix(system):
+    A = _spd(system)
+    b = np.random.default_rng(7).standard_normal(A.shape[0])
+    single = SPDFactor(A, single=True)
+    exact = spla.spsolve(A.tocsc(), b)
+    np.testing.assert_allclose(single(b), exact, rtol=0, atol=1e-4 * np.abs(exact).max())
+    assert single(b).dtype == np.float64
+    res = conjugate_gradient(A, b, tol=1e-12, preconditioner=single)  # CG in double reaches any tolerance
+    assert res.converged and res.iterations <= 4
+    # SPD in double precision, singular once rounded to single: why the integrator retries in double.
+    close = sp.csr_matrix(np.array([[1.0, 1.0 - 1e-10], [1.0 - 1e-10, 1.0]]))
+    SPDFactor(close)
+    with pytest.raises(NotPositiveDefiniteError):
+        SPDFactor(close, single=True)
