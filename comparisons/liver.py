@@ -30,12 +30,13 @@ regularisation (paper, section 2.3) on.
 
 Linear solver. CG to a relative residual of 1e-5 (one linearised step: its own error, O(dt^2)
 in the positions, is far larger; the final amplitudes agree with a 1e-8 solve to about 1e-8 m),
-preconditioned by a sparse LU factorisation of the step matrix that is kept over the
-following steps and renewed after a solve that needs more than 20 iterations
-(``preconditioner="factorized"``, see mjed.integrator): about 7 CG iterations per step instead
-of 200-250 with Jacobi, with 2-3 factorisations per 30-step run (each one also certifies that
-the step matrix is positive definite). CG still raises on non-convergence and on negative
-curvature. ``preconditioner="jacobi"`` is the paper's / SOFA's plain choice;
+preconditioned by a single-precision sparse LU factorisation of the step matrix that is kept
+over the following steps and renewed after a solve that needs more than 20 iterations
+(``preconditioner="factorized"``, ``factor_precision="single"``, see mjed.integrator): about 7
+CG iterations per step instead of 200-250 with Jacobi, with 2-3 factorisations per 30-step run
+(each one also certifies that the step matrix is positive definite, redone in double precision
+before a step is refused). CG itself runs in double precision and still raises on
+non-convergence and on negative curvature. ``preconditioner="jacobi"`` is the paper's / SOFA's plain choice;
 ``linear_solver="direct"`` (a factorisation every step) is a comparison point. The FPS table
 names the solver of each run.
 """
