@@ -233,16 +233,18 @@ class ViscoHyperelasticForceField:
         ev = self._hyperelastic(x, stiffness=stiffness)
         Q = self.viscous_stress()  # (m, 3, 3)
         Dt, V = self._Dt, self.mesh.volumes
-        FQ_t = np.moveaxis(ev.F @ Q, 0, -1)  # (3, 3, m)
-        # F Q D_a: [i, a] = sum_j (F Q)_ij D_a,j, summed over j with whole (4, m) slabs.
-        FQD = FQ_t[:, 0, None] * Dt[0] + FQ_t[:, 1, None] * Dt[1] + FQ_t[:, 2, None] * Dt[2]  # (3, 4, m)
+        # Everything component-major (contiguous (3, 3, m) and (3, 4, m)): the cell axis is the
+        # inner loop of each product, several times faster than small (m, 3, 3) matrices.
+        Q_t = np.ascontiguousarray(np.moveaxis(Q, 0, -1))
+        F_t = np.ascontiguousarray(np.moveaxis(ev.F, 0, -1))
+        FQ_t = np.einsum("ikm,kjm->ijm", F_t, Q_t)
+        FQD = np.einsum("ijm,jam->iam", FQ_t, Dt)  # F Q D_a, (3, 4, m)
         grad = c * ev.gradient
         grad -= V * FQD
         if not stiffness:
             return grad, None
         # Geometric stiffness of the constant stress -Q: -V (D_a . Q D_b) I on each edge (a, b).
-        Q_t = np.moveaxis(Q, 0, -1)  # (3, 3, m)
-        QD = Q_t[:, 0, None] * Dt[0] + Q_t[:, 1, None] * Dt[1] + Q_t[:, 2, None] * Dt[2]  # (3, 4, m)
+        QD = np.einsum("ijm,jam->iam", Q_t, Dt)  # (3, 4, m)
         DQD = np.einsum("iem,iem->em", Dt[:, EDGES[:, 0]], QD[:, EDGES[:, 1]])  # (6, m)
         DQD *= V
         blocks = c * ev.blocks  # (3, 3, 6, m)
