@@ -83,6 +83,9 @@ class FreeBlock:
         block.sort_indices()
         self._gather = block.data.astype(np.int64) - 1
         self._indptr, self._indices = block.indptr, block.indices
+        # Shared by every block returned from now on: read-only, so no consumer can corrupt them.
+        self._indptr.setflags(write=False)
+        self._indices.setflags(write=False)
         Mc = self.M.tocoo()
         pos = np.asarray(where[Mc.row, Mc.col]).ravel().astype(np.int64) - 1 if Mc.nnz else np.empty(0, np.int64)
         if (pos < 0).any():
