@@ -56,7 +56,7 @@ FLATNESS_RANGE = (1e4, 1.5e6)
 
 #: Default scaling sizes (target cell counts of the structured cube; 6 n^3 cells).
 SCALING_SIZES = (1_000, 10_000, 30_000, 100_000, 300_000, 1_000_000)
-QUICK_SCALING_SIZES = (1_000, 6_000, 20_000)
+QUICK_SCALING_SIZES = (1_000, 6_000)
 
 
 # ------------------------------------------------------------------------- the methods

@@ -249,7 +249,13 @@ class MJEDEngine:
         if check_J is not None:
             check_J(J)
         tmp4 = ws("tmp4", (4, m))
-        dJ = _apply(kin.cof_t, Dt, out=ws("dJ", (3, 4, m)), tmp=tmp4)  # d_a = cof D_a
+        cache: Dict[str, np.ndarray] = {}
+
+        def dJ_of() -> np.ndarray:
+            """d_a = cof D_a, (3, 4, m), formed on first use (St Venant-Kirchhoff never needs it)."""
+            if "dJ" not in cache:
+                cache["dJ"] = _apply(kin.cof_t, Dt, out=ws("dJ", (3, 4, m)), tmp=tmp4)
+            return cache["dJ"]
 
         energy = np.zeros(m)
         S = S_hat = h = g2 = None  # sums over groups (weighted by c or c e^u); None is zero
@@ -263,7 +269,7 @@ class MJEDEngine:
                 scale = group.coefficient * np.exp(agg.u)
                 energy += scale
                 if stiffness:
-                    du = self._vector_field(Ft, agg.S, agg.h, dJ, ws(f"du{len(rank_one)}", (3, 4, m)))
+                    du = self._vector_field(Ft, agg.S, agg.h, dJ_of, ws(f"du{len(rank_one)}", (3, 4, m)))
                     rank_one.append((scale, du))
             else:
                 scale = group.coefficient
@@ -276,11 +282,11 @@ class MJEDEngine:
                 weights[key] = _add(weights.get(key), _scale(scale, w))
 
         V0 = self.volumes
-        gradient = self._vector_field(Ft, S, h, dJ, np.empty((3, 4, m)))
+        gradient = self._vector_field(Ft, S, h, dJ_of, np.empty((3, 4, m)))
         gradient *= V0
         blocks = None
         if stiffness:
-            blocks = self._edge_blocks(Ft, kin, dJ, S, S_hat, h, g2, weights, rank_one, out)
+            blocks = self._edge_blocks(Ft, kin, dJ_of, S, S_hat, h, g2, weights, rank_one, out)
         S_total = None
         if pk2:
             # dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof / J.
@@ -289,8 +295,9 @@ class MJEDEngine:
                 S_total += (h / J)[:, None, None] * np.moveaxis(np.einsum("kim,kjm->ijm", kin.cof_t, kin.cof_t), -1, 0)
         return SoAEvaluation(energy * V0, gradient, blocks, J, F, S_total)
 
-    def _vector_field(self, Ft, S, h, dJ, out) -> np.ndarray:
-        """F S D_a + h d_a into ``out`` (3, 4, m); S (m, 3, 3) or None, h (m,) or None."""
+    def _vector_field(self, Ft, S, h, dJ_of, out) -> np.ndarray:
+        """F S D_a + h d_a into ``out`` (3, 4, m); S (m, 3, 3) or None, h (m,) or None,
+        dJ_of a callable giving d_a (3, 4, m)."""
         ws, Dt = self._ws, self._Dt
         m = Dt.shape[-1]
         if S is None:
@@ -301,12 +308,13 @@ class MJEDEngine:
             _apply(FS, Dt, out=out, tmp=ws("tmp4", (4, m)))
         if h is not None:
             tmp = ws("tmp34", (3, 4, m))
-            np.multiply(dJ, h, out=tmp)
+            np.multiply(dJ_of(), h, out=tmp)
             out += tmp
         return out
 
-    def _edge_blocks(self, Ft, kin, dJ, S, S_hat, h, g2, weights, rank_one, out) -> np.ndarray:
-        """The (3, 3, 6, m) edge blocks, multiplied by the rest volumes.
+    def _edge_blocks(self, Ft, kin, dJ_of, S, S_hat, h, g2, weights, rank_one, out) -> np.ndarray:
+        """The (3, 3, 6, m) edge blocks, multiplied by the rest volumes (dJ_of: a callable
+        giving d_a, see evaluate_soa).
 
         Every contribution is gathered as one of: an outer product u_a (x) v_b (u, v given
         per node (3, 4, m), per edge (3, 6, m) or per cell (3, m)), a per-edge scalar times a
@@ -355,6 +363,7 @@ class MJEDEngine:
         keep = None if b is None else 1.0 - b
 
         # g2 d_a (x) d_b, folded into the volumetric coupling d_a (x) F S-hat D_b when present
+        dJ = dJ_of() if (g2 is not None or S_hat is not None) else None
         g2_vec = None
         if g2 is not None:
             g2_vec = np.multiply(dJ, g2 if keep is None else g2 * keep, out=ws("g2_vec", (3, 4, m)))

@@ -85,15 +85,14 @@ class CSRPattern:
         nnz = 9 * len(node_rows)
         itype = np.int32 if max(nnz, 3 * n) < 2**31 else np.int64
         # Row 3 i + r holds, for each neighbour k (sorted), the three columns 3 k + c.
-        row_len = 3 * deg
         indptr = np.zeros(3 * n + 1, dtype=np.int64)
-        np.cumsum(np.repeat(row_len, 3), out=indptr[1:])
+        np.cumsum(np.repeat(3 * deg, 3), out=indptr[1:])
         self.indptr = indptr.astype(itype)
-        self.indices = self._expand_columns(node_cols, deg).astype(itype)
+        self.indices = self._expand_columns(node_cols).astype(itype)
         self.indptr.setflags(write=False)
         self.indices.setflags(write=False)
         self.force_scatter = element_dofs(cells).ravel()
-        self._maps: Dict[Tuple[str, ...], np.ndarray] = {}
+        self._maps: Dict[object, np.ndarray] = {}  # index maps, keyed by layout
         self._gather: "np.ndarray | None" = None
         self._diag_index: "np.ndarray | None" = None
         self._scatter: "np.ndarray | None" = None
@@ -114,14 +113,14 @@ class CSRPattern:
         row_len = 3 * deg[rows]
         return pos0[:, None, None] + np.arange(3)[None, :, None] * row_len[:, None, None] + np.arange(3)[None, None, :]
 
-    def _expand_columns(self, node_cols: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    def _expand_columns(self, node_cols: np.ndarray) -> np.ndarray:
         """CSR column indices of the 3x3-block expansion of the node pattern."""
         pos = self._entry_positions()
         cols = np.empty(9 * len(node_cols), dtype=np.int64)
         cols[pos] = 3 * node_cols[:, None, None] + np.arange(3)[None, None, :]
         return cols
 
-    def _block_positions(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    def _block_positions(self, rows: np.ndarray, cols: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Position in the CSR data array of entry (0, 0) of node block (rows, cols) and the
         row length; entry (r, c) is at pos + r * row_len + c."""
         p = np.searchsorted(self._node_keys, rows * self.n_nodes + cols)

@@ -32,17 +32,20 @@ from reference_fem.classical_materials import VI, VJ, ClassicalLaw, classical_la
 __all__ = ["ClassicalGalerkin", "strain_displacement"]
 
 
-def strain_displacement(F: np.ndarray, D: np.ndarray) -> np.ndarray:
+def strain_displacement(F: np.ndarray, D: np.ndarray, out: "np.ndarray | None" = None) -> np.ndarray:
     """The Total Lagrangian B matrices of all nodes, stacked as (m, 6, 12).
 
     Column 3 a + k of cell m is B_a[:, k]: dE_eng = B @ dx_e with dx_e the (12,) element
     displacement increment (node-major) and E_eng = (Exx, Eyy, Ezz, 2Exy, 2Eyz, 2Exz).
+    out: optional (m, 6, 12) array to write into.
     """
     m = len(F)
     # F[:, :, VI] is (m, 3, 6) with [k, I] = F_k,i(I); D[:, :, VJ] is (m, 4, 6) with [a, I] = D_a,j(I).
     Fi, Fj = np.swapaxes(F[:, :, VI], 1, 2), np.swapaxes(F[:, :, VJ], 1, 2)  # (m, 6, 3)
     Di, Dj = np.swapaxes(D[:, :, VI], 1, 2), np.swapaxes(D[:, :, VJ], 1, 2)  # (m, 6, 4)
-    B = Dj[:, :, :, None] * Fi[:, :, None, :] + Di[:, :, :, None] * Fj[:, :, None, :]  # (m, 6, 4, 3)
+    B = (np.empty((m, 6, 12)) if out is None else out).reshape(m, 6, 4, 3)
+    np.multiply(Dj[:, :, :, None], Fi[:, :, None, :], out=B)
+    B += Di[:, :, :, None] * Fj[:, :, None, :]
     B[:, :3] *= 0.5
     return B.reshape(m, 6, 12)
 
@@ -76,6 +79,9 @@ class ClassicalGalerkin:
             raise ValueError(f"Costa frame has {len(frame)} rotations for {self.mesh.n_cells} cells")
         self.law: ClassicalLaw = classical_law(material)
         self._pattern: "CSRPattern | None" = None
+        # Work arrays of force_and_stiffness / stiffness, kept between calls: the same memory
+        # reuse as mjed's engine, so that neither pays page faults for fresh temporaries.
+        self._work: dict = {}
 
     @property
     def pattern(self) -> CSRPattern:
@@ -111,11 +117,11 @@ class ClassicalGalerkin:
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Tangent stiffness d2W/dx2, CSR (3n, 3n)."""
-        return self.pattern.assemble_matrix(self.element_stiffness(x))
+        return self.pattern.assemble_matrix(self._element_force_and_stiffness(x, reuse=True)[1])
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Both from one evaluation of the kinematics and the material."""
-        fe, Ke = self._element_force_and_stiffness(x)
+        fe, Ke = self._element_force_and_stiffness(x, reuse=True)
         return self.pattern.assemble_vector(fe), self.pattern.assemble_matrix(Ke)
 
     # ---------------------------------------------------------------- internals
@@ -139,13 +145,24 @@ class ClassicalGalerkin:
         # f_a,k = -V0 sum_ij F_ki S_ij D_a,j: rows of D (F S)^T.
         return -self.mesh.volumes[:, None, None] * (self.mesh.D @ np.swapaxes(F @ S, 1, 2))
 
-    def _element_force_and_stiffness(self, x):
+    def _buffer(self, name: str, shape: tuple, reuse: bool):
+        if not reuse:
+            return None
+        a = self._work.get(name)
+        if a is None or a.shape != shape:
+            a = self._work[name] = np.empty(shape)
+        return a
+
+    def _element_force_and_stiffness(self, x, reuse: bool = False):
+        """reuse: write B, CC B and K_e into kept work arrays (K_e is then only valid until
+        the next call: for callers that assemble it at once)."""
         F, J = self._kinematics(x)
         S, CC = self.law.stress_and_tangent(np.swapaxes(F, 1, 2) @ F, J)
         D, V0 = self.mesh.D, self.mesh.volumes
         m = len(F)
-        B = strain_displacement(F, D)  # (m, 6, 12)
-        K = np.swapaxes(B, 1, 2) @ (CC @ B)  # material part, (m, 12, 12)
+        B = strain_displacement(F, D, out=self._buffer("B", (m, 6, 12), reuse))  # (m, 6, 12)
+        CB = np.matmul(CC, B, out=self._buffer("CB", (m, 6, 12), reuse))
+        K = np.matmul(np.swapaxes(B, 1, 2), CB, out=self._buffer("K", (m, 12, 12), reuse))  # material part
         G = D @ S @ np.swapaxes(D, 1, 2)  # (m, 4, 4): D_a . S D_b
         K4 = K.reshape(m, 4, 3, 4, 3)
         for k in range(3):
