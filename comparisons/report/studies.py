@@ -53,6 +53,74 @@ def _run_equivalence(ctx: StudyContext) -> StudyResult:
                        message="" if n_fail == 0 else f"{n_fail} check(s) failed")
 
 
+# ----------------------------------------------------------------------------- timing
+def _targets_table(targets: list) -> Table:
+    return Table(("target", "material", "measured", "required", "verdict"),
+                 [(t["target"], t.get("material", ""), t["measured"], t["required"], _target_verdict(t)) for t in targets],
+                 caption="The speed targets of the timing study (ratios are medians of per-repeat ratios)")
+
+
+def _target_verdict(t: dict) -> str:
+    if t["measured"] is None:
+        return "not measured (this run's sizes do not span the range)"
+    return "met" if t["met"] else "MISSED"
+
+
+def _missed(targets: list) -> list:
+    return [t for t in targets if t["measured"] is not None and not t["met"]]
+
+
+def _run_timing(ctx: StudyContext) -> StudyResult:
+    from comparisons.timing import run_timing
+
+    names = [m.name for m in ctx.materials]
+    res = run_timing(names, "cube-small" if ctx.quick else "cube-paper", out_dir=ctx.figure_path("timing"), quick=ctx.quick)
+    med = {(r["material"], r["method"], r["what"]): r["median_s"] for r in res["results"]}
+    ratio = {(r["material"], r["ratio"], r["what"]): r for r in res["ratios"]}
+    methods = res["settings"]["methods"]
+    rows = []
+    for name in names:
+        for what in ("force+stiffness", "force", "stiffness"):
+            row = [name, what] + [1e3 * med[(name, m, what)] if (name, m, what) in med else None for m in methods]
+            for other in ("classical", "dolfinx"):
+                r = ratio.get((name, f"{other}/mjed", what))
+                row.append(f"{r['median']:.2f} ({r['min']:.2f}-{r['max']:.2f})" if r else "")
+            rows.append(row)
+    mesh = res["mesh"]
+    blocks = [Figure(ctx.relative(p), "Force + stiffness assembly time per material and method, in the style of the paper's Fig. 2")
+              for p in res["figures"]]
+    blocks.append(Paragraph(
+        f"Mesh {mesh['name']}: {mesh['n_cells']} cells, {mesh['n_nodes']} nodes; each time is the mean of "
+        f"{res['settings']['iterations']} calls, median over {res['settings']['repeats']} interleaved repeats; ratios are "
+        "formed per repeat (median, then the range). Measured on the machine of the provenance section."))
+    blocks.append(Table(("material", "what", *[f"{m} (ms)" for m in methods], "classical/mjed", "dolfinx/mjed"), rows))
+    if res.get("targets"):
+        blocks.append(_targets_table(res["targets"]))
+    if res.get("memory"):
+        blocks.append(Table(("material", "method", "peak memory (MiB)"),
+                            [(m["material"], m["method"], (m.get("peak_bytes") or 0) / 2**20 if not m.get("error") else m["error"])
+                             for m in res["memory"]], caption=res.get("memory_note", "")))
+    missed = _missed(res.get("targets", []))
+    note = f"{len(missed)} speed target(s) missed (see the table)" if missed else ""
+    return StudyResult(res, blocks, passed=True, message=note)
+
+
+def _run_scaling(ctx: StudyContext) -> StudyResult:
+    from comparisons.timing import run_scaling
+
+    res = run_scaling(quick=ctx.quick, out_dir=ctx.figure_path("scaling"))
+    blocks = [Figure(ctx.relative(p), "Time and peak memory per cell against mesh size (log axes)") for p in res["figures"]]
+    blocks.append(Table(("method", "cells", "nodes", "f+K (s)", "us per cell", "peak MiB", "bytes per cell"),
+                        [(r["method"], r["n_cells"], r["n_nodes"], r["seconds"], 1e6 * r["seconds_per_cell"],
+                          r["peak_bytes"] / 2**20, r["peak_bytes_per_cell"]) for r in res["rows"]],
+                        caption=f"{res['material']} on {res['settings']['mesh']}"))
+    blocks.append(Table(("method", "how far it went"), sorted(res["stopped"].items())))
+    if res.get("targets"):
+        blocks.append(_targets_table(res["targets"]))
+    missed = _missed(res.get("targets", []))
+    return StudyResult(res, blocks, passed=True, message=f"{len(missed)} flatness target(s) missed" if missed else "")
+
+
 # ----------------------------------------------------------------------------- regularisation
 def _run_regularization(ctx: StudyContext) -> StudyResult:
     import meshes
@@ -220,6 +288,13 @@ def all_studies(quick: bool) -> List[Study]:
               "Every material on every mesh and deformation state: nodal forces and tangent stiffness of MJED against "
               "the UFL Galerkin oracle, plus the uniaxial closed form.",
               "mjed-verify equivalence --material all --mesh all --json eq.json", _run_equivalence),
+        Study("timing", "Timing: MJED, classical FEM and dolfinx (paper Fig. 2)",
+              "Force and stiffness assembly time per material for MJED, the classical Galerkin comparator (S and the "
+              "elasticity tensor, the paper's standard FEM) and dolfinx's compiled assembly, with the ratios and targets.",
+              f"mjed-verify timing{q} --json timing.json", _run_timing),
+        Study("scaling", "Scaling from 1e3 to 1e6 cells",
+              "Force + stiffness time and peak memory per cell on structured cubes of growing size, for the three methods.",
+              f"mjed-verify timing --scaling{q}", _run_scaling),
         Study("regularization", "Compressed-element regularisation (paper section 2.3)",
               "Negative eigenvalues of K with the cube at half its height, and whether a static Newton + CG solve "
               "succeeds, with and without the regularisation.",
