@@ -36,9 +36,15 @@ def plot_fig2(result: Dict[str, Any], path: str) -> str:
         hi = np.array([res[(m, method)]["max_s"] * 1e3 for m in mats]) - med
         pos = xs + (k - (len(methods) - 1) / 2) * width
         ax.bar(pos, med, width, label=method, color=_COLOURS.get(method), yerr=[lo, hi], capsize=2)
-        for p, v in zip(pos, med):
-            ax.text(p, v * 1.08, f"{v:.0f}" if v >= 10 else f"{v:.1f}", ha="center", va="bottom", fontsize=6)
+        for p, v, top in zip(pos, med, med + hi):
+            ax.text(p, top * 1.05, f"{v:.0f}" if v >= 10 else f"{v:.1f}", ha="center", va="bottom", fontsize=6)
     ax.set_yscale("log")
+    # Plain numbers on the log axis (a decade or two rarely shows more than one power of 10).
+    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
+
+    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_xticks(xs)
     ax.set_xticklabels([m.replace("VenantKirchhoff", "VK") for m in mats], rotation=20, ha="right")
     ax.set_ylabel("force + stiffness per call (ms, log)")
