@@ -52,5 +52,6 @@ class Section:
     reproduce: str
     status: str = "ok"
     message: str = ""
+    headline: str = ""
     blocks: List[Block] = field(default_factory=list)
     seconds: float = 0.0

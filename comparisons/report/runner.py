@@ -54,6 +54,7 @@ class StudyResult:
     blocks: list
     passed: bool = True
     message: str = ""
+    headline: str = ""  # the one line the summary verdict shows for this study
 
 
 @dataclass(frozen=True)
@@ -125,12 +126,12 @@ def _verdict_section(sections: Sequence[Section], results: Dict[str, dict]) -> S
     verdict = "every check passed" if not bad else "NOT every check passed: " + "; ".join(
         f"{s.title} ({s.status}{': ' + s.message if s.message else ''})" for s in bad)
     rows = [(s.title, {"ok": "passed"}.get(s.status, s.status.upper() if s.status != "skipped" else "skipped"),
-             s.message or "", f"{s.seconds:.1f}") for s in sections]
+             "; ".join(t for t in (s.message, s.headline) if t), f"{s.seconds:.1f}") for s in sections]
     return Section(
         key="verdict", title="Summary verdict", status="ok" if not bad else "failed",
         summary=f"Verdict: {verdict}.", reproduce="mjed-verify all",
         blocks=[*(Preformatted(l) for l in lines),
-                Table(("section", "status", "note", "seconds"), rows)],
+                Table(("section", "status", "what it found", "seconds"), rows)],
         message="" if not bad else f"{len(bad)} section(s) did not pass",
     )
 
@@ -171,6 +172,7 @@ def run_report(
             sec.blocks = list(res.blocks)
             sec.status = "ok" if res.passed else "failed"
             sec.message = res.message
+            sec.headline = res.headline
         except KeyboardInterrupt:
             interrupted = True
             sec.status, sec.message = "interrupted", "interrupted by the user during this study"

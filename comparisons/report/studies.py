@@ -49,8 +49,26 @@ def _run_equivalence(ctx: StudyContext) -> StudyResult:
                             [(u["material"], u["stretch"], u["lateral_stretch"], u["sigma_analytic"], u["sigma_mjed"], u["rel_err"],
                               u["lateral_reaction_rel"], u["passed"]) for u in uniaxial]))
     n_fail = sum(not c["passed"] for c in cases) + sum(not u["passed"] for u in uniaxial)
+    blocks.insert(0, _equivalence_digest(cases))
+    headline = (f"{sum(c['passed'] for c in cases)}/{len(cases)} cases pass; worst force error "
+                f"{max(c['force_rel_err'] for c in cases):.1e}, stiffness {max(c['stiffness_rel_err'] for c in cases):.1e}")
+    if uniaxial:
+        headline += (f"; uniaxial closed form {sum(u['passed'] for u in uniaxial)}/{len(uniaxial)}, "
+                     f"worst {max(u['rel_err'] for u in uniaxial):.1e}")
     return StudyResult({"cases": cases, "uniaxial_closed_form": uniaxial}, blocks, passed=n_fail == 0,
-                       message="" if n_fail == 0 else f"{n_fail} check(s) failed")
+                       message="" if n_fail == 0 else f"{n_fail} check(s) failed", headline=headline)
+
+
+def _equivalence_digest(cases: list) -> Table:
+    """Worst errors per material and mesh: the full table follows."""
+    keys = list(dict.fromkeys((c["material"], c["mesh"]) for c in cases))
+    rows = []
+    for material, mesh in keys:
+        cs = [c for c in cases if c["material"] == material and c["mesh"] == mesh]
+        rows.append((material, mesh, cs[0]["n_cells"], len(cs), max(c["force_rel_err"] for c in cs),
+                     max(c["stiffness_rel_err"] for c in cs), all(c["passed"] for c in cs)))
+    return Table(("material", "mesh", "cells", "states", "worst force error", "worst stiffness error", "verdict"), rows,
+                 caption="Worst relative errors over the states, per material and mesh")
 
 
 # ----------------------------------------------------------------------------- timing
@@ -102,7 +120,14 @@ def _run_timing(ctx: StudyContext) -> StudyResult:
                              for m in res["memory"]], caption=res.get("memory_note", "")))
     missed = _missed(res.get("targets", []))
     note = f"{len(missed)} speed target(s) missed (see the table)" if missed else ""
-    return StudyResult(res, blocks, passed=True, message=note)
+    fk = [r for r in res["ratios"] if r["what"] == "force+stiffness"]
+    parts = []
+    for other in ("classical", "dolfinx"):
+        vals = [r["median"] for r in fk if r["ratio"] == f"{other}/mjed"]
+        if vals:
+            parts.append(f"{other}/mjed {min(vals):.2f} to {max(vals):.2f}")
+    headline = f"force+stiffness on {mesh['name']}: " + ", ".join(parts) if parts else ""
+    return StudyResult(res, blocks, passed=True, message=note, headline=headline)
 
 
 def _run_scaling(ctx: StudyContext) -> StudyResult:
@@ -118,7 +143,11 @@ def _run_scaling(ctx: StudyContext) -> StudyResult:
     if res.get("targets"):
         blocks.append(_targets_table(res["targets"]))
     missed = _missed(res.get("targets", []))
-    return StudyResult(res, blocks, passed=True, message=f"{len(missed)} flatness target(s) missed" if missed else "")
+    per = [1e6 * r["seconds_per_cell"] for r in res["rows"] if r["method"] == "mjed"]
+    top = max((r["n_cells"] for r in res["rows"]), default=0)
+    headline = f"mjed {min(per):.2f} to {max(per):.2f} us per cell up to {top:,} cells" if per else ""
+    return StudyResult(res, blocks, passed=True, message=f"{len(missed)} flatness target(s) missed" if missed else "",
+                       headline=headline)
 
 
 # ----------------------------------------------------------------------------- regularisation
@@ -137,7 +166,12 @@ def _run_regularization(ctx: StudyContext) -> StudyResult:
                          solve.cg_iterations, solve.message if not solve.converged else ""))
     blocks = [Table(("material", "regularise", "negative eigenvalues", "static solve", "Newton its", "CG its", "why it failed"), rows,
                     caption=f"{label}, compressed to half its height")]
-    return StudyResult({"mesh": label, "results": [o.to_dict() for o in out]}, blocks)
+    cleared = sum(o.negative_eigenvalues_off > 0 and o.negative_eigenvalues_on == 0 for o in out)
+    solved_on = sum(o.solve_on.converged for o in out)
+    solved_off = sum(o.solve_off.converged for o in out)
+    headline = (f"negative eigenvalues removed for {cleared}/{len(out)} materials; static solve succeeds for "
+                f"{solved_on}/{len(out)} with it, {solved_off}/{len(out)} without")
+    return StudyResult({"mesh": label, "results": [o.to_dict() for o in out]}, blocks, headline=headline)
 
 
 # ----------------------------------------------------------------------------- Ogden tangent
@@ -161,7 +195,8 @@ def _run_ogden_tangent(ctx: StudyContext) -> StudyResult:
               Paragraph("Forces are identical; only the stiffness differs. Zero at rest, where C = I commutes with every "
                         "perturbation; a few 1e-4 in the deformed states. Enough to slow Newton's convergence from quadratic "
                         "to linear, not enough to change a converged answer.")]
-    return StudyResult(payload, blocks)
+    worst = max(max(e.values()) for e in payload.values())
+    return StudyResult(payload, blocks, headline=f"largest relative stiffness difference {worst:.1e}")
 
 
 # ----------------------------------------------------------------------------- rheometer
@@ -189,7 +224,9 @@ def _run_rheometer(ctx: StudyContext) -> StudyResult:
                "error vs discrete"), rows),
     ]
     ok = e["discrete"]["max"] <= DISCRETE_TOL
-    return StudyResult(res, blocks, passed=ok, message="" if ok else
+    headline = (f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max {100 * e['continuous']['max']:.1f} %; "
+                f"against the exact discrete response max {e['discrete']['max']:.1e}")
+    return StudyResult(res, blocks, passed=ok, headline=headline, message="" if ok else
                        f"max error against the discrete response {e['discrete']['max']:.1e} > {DISCRETE_TOL:g}")
 
 
@@ -229,7 +266,11 @@ def _run_liver(ctx: StudyContext) -> StudyResult:
                                 + ", ".join(ctx.relative(p) for p in res["series"])))
     failed = [r for r in res["runs"] if r["error"]]
     message = "; ".join(f"{r['model']}: {r['error']}" for r in failed)
-    return StudyResult(res, blocks, passed=bool(res["passed"]), message=message if not res["passed"] else "")
+    fps = ", ".join(f"{t['model']} {t['fps']:.0f}" for t in res["fps_table"] if t["fps"] is not None)
+    headline = (f"FPS on {res['mesh']}: {fps} (paper 7.5 / 7 / 6; target {res['fps_table'][0]['target_fps']:g})"
+                if res["fps_table"] else "")
+    return StudyResult(res, blocks, passed=bool(res["passed"]), message=message if not res["passed"] else "",
+                       headline=headline)
 
 
 # ----------------------------------------------------------------------------- provenance
@@ -251,7 +292,11 @@ def _run_cross_release(ctx: StudyContext) -> StudyResult:
     if not os.path.exists(modern):
         return StudyResult(res, blocks, passed=res["passed"], message="the modern dolfinx stack is not installed here "
                            "(make test-modern installs it); only the Debian stack, serial against 2 ranks, was compared")
-    return StudyResult(res, blocks, passed=res["passed"], message="" if res["passed"] else "the stacks disagree or one failed")
+    worst = max((max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"]) for c in res["comparisons"]),
+                default=float("nan"))
+    headline = f"{len(res['stacks'])} stacks; largest relative difference {worst:.1e}"
+    return StudyResult(res, blocks, passed=res["passed"], headline=headline,
+                       message="" if res["passed"] else "the stacks disagree or one failed")
 
 
 def _run_provenance(ctx: StudyContext) -> StudyResult:
@@ -264,7 +309,8 @@ def _run_provenance(ctx: StudyContext) -> StudyResult:
         info["oracle_stack"] = compat.stack_versions()
     except Exception as exc:  # dolfinx missing: say so, the rest of the record stands
         info["oracle_stack"] = f"unavailable: {type(exc).__name__}: {exc}"
-    return StudyResult(info, [Table(("item", "value"), _flat_rows(info))])
+    return StudyResult(info, [Table(("item", "value"), _flat_rows(info))],
+                       headline=f"{info.get('cpu')}, {info.get('usable_cores')} cores; commit {str(info.get('git_commit'))[:10]}")
 
 
 def _flat_rows(info: dict, prefix: str = "") -> list:
