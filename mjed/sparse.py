@@ -45,7 +45,8 @@ class CSRPattern:
     millions of cells.
 
     Attributes:
-        indptr, indices: the CSR structure (sorted column indices), read-only.
+        indptr, indices: the CSR structure (sorted column indices), read-only; every node
+            has its diagonal block (explicit zeros for nodes no cell uses).
         edges: (E, 2) unique mesh edges (i < j).
         cell_edges: (m, 6) edge index of each cell edge (EDGES order).
         cell_flip: (m, 6) True where the cell edge (a, b) runs from j to i.
@@ -232,8 +233,8 @@ class CSRPattern:
         return out.reshape(-1, 3)
 
     def _csr(self, data: np.ndarray) -> sp.csr_matrix:
-        # The index arrays are shared between matrices (read-only, so no caller can corrupt
-        # the pattern); the data array is fresh each time.
-        K = sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape, copy=False)
+        # Each matrix gets its own copy of the index arrays (50 us on cube-paper), so a caller
+        # may change it in place (eliminate_zeros, boundary rows) without touching the pattern.
+        K = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=self.shape, copy=False)
         K.has_sorted_indices = True
         return K
