@@ -20,6 +20,16 @@ def _pyplot():
     return plt
 
 
+def _plain_log_ticks(axis) -> None:
+    """Ticks at 1, 2, 5 x 10^k labelled as plain numbers: a log axis spanning a decade or two
+    would otherwise show a single labelled power of ten."""
+    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
+
+    axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(ScalarFormatter())
+    axis.set_minor_formatter(NullFormatter())
+
+
 def plot_fig2(result: Dict[str, Any], path: str) -> str:
     """Grouped bars per material: median force+stiffness time of each method (min-max as
     error bars), log scale so that a 5x gap and a 50x gap both read. Returns ``path``."""
@@ -39,12 +49,7 @@ def plot_fig2(result: Dict[str, Any], path: str) -> str:
         for p, v, top in zip(pos, med, med + hi):
             ax.text(p, top * 1.05, f"{v:.0f}" if v >= 10 else f"{v:.1f}", ha="center", va="bottom", fontsize=6)
     ax.set_yscale("log")
-    # Plain numbers on the log axis (a decade or two rarely shows more than one power of 10).
-    from matplotlib.ticker import LogLocator, NullFormatter, ScalarFormatter
-
-    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-    ax.yaxis.set_major_formatter(ScalarFormatter())
-    ax.yaxis.set_minor_formatter(NullFormatter())
+    _plain_log_ticks(ax.yaxis)
     ax.set_xticks(xs)
     ax.set_xticklabels([m.replace("VenantKirchhoff", "VK") for m in mats], rotation=20, ha="right")
     ax.set_ylabel("force + stiffness per call (ms, log)")
@@ -72,6 +77,7 @@ def plot_scaling(result: Dict[str, Any], path: str) -> str:
     a1.set_ylabel("force + stiffness time per cell (us)")
     a2.set_xlabel("cells")
     a2.set_ylabel("peak memory per cell (bytes)")
+    _plain_log_ticks(a1.yaxis)
     for a in (a1, a2):
         a.grid(which="both", alpha=0.3)
         a.legend(fontsize=8)
