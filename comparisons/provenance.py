@@ -80,7 +80,12 @@ def provenance(*, with_dolfinx: bool = True) -> Dict[str, Any]:
                     out["memory_kib"] = int(line.split()[1])
                     break
     if with_dolfinx:
-        out["dolfinx"] = _version("dolfinx")
+        try:  # through the compat layer: the PyPI wheel needs its MPI loaded first
+            from reference_fem import compat
+
+            out["dolfinx"] = compat.import_dolfinx().__version__
+        except Exception:
+            out["dolfinx"] = None
         out["petsc4py"] = _version("petsc4py")
         try:
             from petsc4py import PETSc
