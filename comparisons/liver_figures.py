@@ -57,17 +57,18 @@ def plot_porous_stress(path: str, params) -> str:
 
 
 def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
-    """Fig. 4: the maximum nodal displacement over time, one panel per model."""
+    """Fig. 4: the maximum nodal displacement over time, the models on one axes as in the paper."""
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(runs), figsize=(4 * len(runs), 3.4), sharey=True, squeeze=False)
-    for ax, r in zip(axes[0], runs):
-        ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), "-o", ms=2)
-        rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS (paper {r['paper_fps']:g})"
-        ax.set_title(f"{r['model']}\n dt = {r['dt']:g} s, {rate}", fontsize=9)
-        ax.set_xlabel("time (s)")
-        ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("max displacement (mm)")
-    fig.suptitle(f"Liver under gravity ({label})", fontsize=10)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for r, marker in zip(runs, "osd^v"):
+        rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS, paper {r['paper_fps']:g}"
+        ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), f"-{marker}", ms=3,
+                label=f"{r['model']} (dt = {r['dt']:g} s; {rate})")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("max displacement amplitude (mm)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title(f"Liver under gravity ({label})", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
