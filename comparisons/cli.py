@@ -17,7 +17,7 @@ from types import ModuleType
 from typing import Dict, List, Optional
 
 from comparisons import commands
-from comparisons.options import InputError
+from comparisons.options import InputError, check_writable_destination
 
 __all__ = ["main", "build_parser", "command_modules"]
 
@@ -48,6 +48,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = parser.parse_args(argv)
     logging.disable(logging.INFO)  # FFCx's JIT logs every compilation at INFO
     try:
+        for attr, is_dir in (("json", False), ("out", True)):
+            if getattr(args, attr, None):
+                check_writable_destination(getattr(args, attr), is_dir=is_dir)
         return int(command_modules()[args.command].run(args))
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)

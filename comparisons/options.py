@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import tempfile
 from typing import List, Sequence, Tuple
 
 import numpy as np
@@ -26,6 +27,7 @@ __all__ = [
     "resolve_meshes",
     "resolve_states",
     "write_json",
+    "check_writable_destination",
 ]
 
 #: The built-in meshes that 'all' stands for in the equivalence study.
@@ -103,6 +105,26 @@ def resolve_states(spec: str) -> List[str]:
     if unknown or not names:
         raise InputError(f"unknown state(s) {unknown}; known states: {', '.join(state_names())}")
     return names
+
+
+def check_writable_destination(path: str, *, is_dir: bool) -> None:
+    """Refuse, before any work, a --json file or --out directory that cannot be written."""
+    target = os.path.abspath(path)
+    folder = target if is_dir else os.path.dirname(target)
+    if not is_dir and os.path.isdir(target):
+        raise InputError(f"{path}: is a directory, expected a file name for the JSON")
+    probe = folder
+    while not os.path.exists(probe):  # the nearest existing ancestor decides
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    try:  # a real write, not os.access: root passes access checks on read-only mounts
+        if not os.path.isdir(probe):
+            raise OSError("not a directory")
+        tempfile.TemporaryFile(dir=probe).close()
+    except OSError:
+        raise InputError(f"{path}: cannot write there ({probe} is not a writable directory)") from None
 
 
 def write_json(path: str, payload: dict) -> None:

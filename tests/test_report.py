@@ -134,3 +134,11 @@ def test_all_quick_equivalence_section_end_to_end(tmp_path):
     cases = results["results"]["equivalence"]["cases"]
     assert len(cases) == 12 and all(c["passed"] for c in cases)
     assert "Ogden: SOFA" in (tmp_path / "latest" / "index.html").read_text()
+
+
+@pytest.mark.parametrize("argv", [["all", "--out", "/proc/1/nowhere"], ["regularization", "--json", "/proc/x/r.json"],
+                                  ["equivalence", "--json", "."]])
+def test_unwritable_destinations_are_refused_before_any_work(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "cannot write there" in err or "is a directory" in err
