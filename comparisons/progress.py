@@ -6,7 +6,7 @@ import sys
 import time
 from typing import Iterable, Iterator, Optional, TextIO, TypeVar
 
-__all__ = ["Progress", "progress"]
+__all__ = ["Progress", "StatusLine", "progress"]
 
 T = TypeVar("T")
 
@@ -49,3 +49,30 @@ def progress(items: Iterable[T], label: str, total: Optional[int] = None, **kwar
             bar.advance()
     finally:
         bar.close()
+
+
+class StatusLine:
+    """One rewritten line of status for steps whose length is not known in advance.
+
+    Call it with a message; silent unless the stream is a terminal (or forced).
+    """
+
+    def __init__(self, label: str, *, stream: Optional[TextIO] = None, enabled: Optional[bool] = None):
+        self.label = label
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self._t0 = time.perf_counter()
+        self._width = 0
+
+    def __call__(self, message: str) -> None:
+        if not self.enabled:
+            return
+        line = f"{self.label} {time.perf_counter() - self._t0:6.1f}s  {message}"[:110]
+        self.stream.write("\r" + line.ljust(self._width))
+        self.stream.flush()
+        self._width = len(line)
+
+    def close(self) -> None:
+        if self.enabled and self._width:
+            self.stream.write("\r" + " " * self._width + "\r")
+            self.stream.flush()

@@ -142,3 +142,20 @@ def test_unwritable_destinations_are_refused_before_any_work(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "cannot write there" in err or "is a directory" in err
+
+
+def test_progress_is_drawn_only_when_enabled():
+    import io
+
+    from comparisons.progress import Progress, StatusLine
+
+    quiet, loud = io.StringIO(), io.StringIO()
+    for stream, enabled in ((quiet, None), (loud, True)):  # StringIO is not a terminal
+        bar = Progress(2, "work", stream=stream, enabled=enabled)
+        bar.advance("one")
+        bar.close()
+        line = StatusLine("study", stream=stream, enabled=enabled)
+        line("step 1")
+        line.close()
+    assert quiet.getvalue() == ""
+    assert "work [" in loud.getvalue() and "1/2" in loud.getvalue() and "step 1" in loud.getvalue()

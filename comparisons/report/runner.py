@@ -47,6 +47,12 @@ class StudyContext:
     def relative(self, path: str) -> str:
         return os.path.relpath(path, self.run_dir)
 
+    def status(self, label: str):
+        """A status-line callback for a study's progress (silent off a terminal)."""
+        from comparisons.progress import StatusLine
+
+        return StatusLine(f"  {label}", enabled=None if self.show_progress else False)
+
 
 @dataclass(frozen=True)
 class StudyResult:
