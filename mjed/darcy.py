@@ -25,22 +25,26 @@ cava, or the free top of a Terzaghi column).
 Coupling force. At fixed P, the pressure's contribution to the energy is -sum_c V_c Pbar_c J_c
 (Pbar_c the mean of the cell's four nodal pressures, the exact cell integral of the P1 field),
 whose Cauchy stress is -P Id. Its force is f_a = sum_c V_c Pbar_c dJ_c/dx_a and its stiffness
--sum_c V_c Pbar_c d2J_c/dx_a dx_b; :class:`FluidPressureForce` is an integrator model that
-gives both and advances P when a step is accepted.
+-sum_c V_c Pbar_c d2J_c/dx_a dx_b. It is declared as the MJED term -Pbar_c (J - 1)
+(:class:`LinearJ` with a per-cell coefficient) and evaluated by the generic engine;
+:class:`FluidPressureForce` is an integrator model that gives both and advances P when a
+step is accepted.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Dict, Optional, Tuple
+from typing import Callable, Dict, Optional, Tuple, Union
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from mjed.forcefield import HyperelasticForceField
 from mjed.kinematics import deformation_gradient
+from mjed.materials.base import Material
 from mjed.mesh import TetMesh
-from mjed.sparse import CSRPattern
+from mjed.terms import JFunction, Term, TermGroup, Unity
 
 __all__ = [
     "DarcyParameters",
@@ -50,10 +54,8 @@ __all__ = [
     "PressureSolver",
     "FluidPressureForce",
     "cell_jacobians",
-    "volumetric_force_and_stiffness",
+    "LinearJ",
 ]
-
-_PAIRS_A, _PAIRS_B = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
 
 
 @dataclass(frozen=True)
@@ -186,47 +188,56 @@ class PressureSolver:
 
 
 # ------------------------------------------------------------------------- the coupling force
-def _cofactor(F: np.ndarray) -> np.ndarray:
-    """cof F = J F^-T, (m, 3, 3): its columns are cross products of the columns of F."""
-    c0, c1, c2 = F[:, :, 0], F[:, :, 1], F[:, :, 2]
-    return np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
-
-
-def volumetric_force_and_stiffness(mesh: TetMesh, x: np.ndarray, law: Callable, pattern: CSRPattern, DxD: np.ndarray):
-    """Force, cell J and stiffness of sum_c V_c Phi_c(J_c) for a per-cell function of J.
+@dataclass(frozen=True, eq=False)
+class LinearJ(JFunction):
+    """f = c (J - 1): a volumetric term linear in J, zero at rest, of Cauchy pressure c.
 
     Args:
-        x: (n, 3) positions.
-        law: J (m,) -> (Phi'(J), Phi''(J)), each (m,): the Cauchy pressure dPhi/dJ and its slope.
-        DxD: (m, 4, 4, 3) the rest products D_a x D_b (precomputed once per mesh).
-
-    f_a = -V Phi' dJ/dx_a;  K_ab = V (Phi'' dJ/dx_a (x) dJ/dx_b + Phi' d2J/dx_a dx_b), with
-    dJ/dx_a = cof(F) D_a and [d2J/dx_a dx_b]_ij = eps_ijq (F (D_a x D_b))_q.
-
-    Returns:
-        f (n, 3), J (m,), K CSR (3n, 3n).
+        coefficient: c, a float or a per-cell (m,) array. An array is held by reference, not
+            copied: whoever owns it may rewrite it in place between evaluations (how
+            :class:`FluidPressureForce` makes the term follow the pressure without rebuilding
+            the engine).
     """
-    D, V = mesh.D, mesh.volumes
-    m = len(D)
-    F = deformation_gradient(x[mesh.cells], D)
-    cof = _cofactor(F)
-    J = np.einsum("mi,mi->m", F[:, :, 0], cof[:, :, 0])
-    sigma, slope = law(J)
-    grad = D @ np.swapaxes(cof, 1, 2)  # (m, 4, 3): dJ/dx_a
-    f = pattern.assemble_vector((-V * sigma)[:, None, None] * grad)
-    w = (DxD.reshape(m, 16, 3) @ np.swapaxes(F, 1, 2)).reshape(m, 4, 4, 3)  # F (D_a x D_b)
-    w *= (V * sigma)[:, None, None, None]
-    # Element matrices straight in the (node a, component i, node b, component j) layout.
-    Ke = (V * slope)[:, None, None, None, None] * grad[:, :, :, None, None] * grad[:, None, None, :, :]
-    for i, j, q, sign in ((0, 1, 2, 1.0), (1, 0, 2, -1.0), (0, 2, 1, -1.0), (2, 0, 1, 1.0), (1, 2, 0, 1.0), (2, 1, 0, -1.0)):
-        Ke[:, :, i, :, j] += sign * w[..., q]  # eps_ijq w_q
-    K = pattern.assemble_matrix(Ke.reshape(m, 12, 12))
-    return f, J, K
+
+    coefficient: Union[float, np.ndarray]
+
+    def __call__(self, J):
+        c = self.coefficient
+        return c * (J - 1.0), c, 0.0  # f'' is the scalar 0: the engine then skips d_a (x) d_b
+
+
+@dataclass(frozen=True, eq=False)
+class _CallableJ(JFunction):
+    """Any callable J -> (U, U', U'') as a JFunction (the ``solid`` argument's protocol)."""
+
+    function: Callable
+
+    def __call__(self, J):
+        return self.function(J)
+
+
+@dataclass(frozen=True, eq=False)
+class _PressureCoupling(Material):
+    """sum of V_c (-Pbar_c (J_c - 1) + U(J_c)): the fluid's energy at fixed P, plus the porous
+    solid's U when given, as one term group (one engine pass)."""
+
+    pressure: LinearJ
+    solid: Optional[JFunction] = None
+
+    def decomposition(self) -> Tuple[TermGroup, ...]:
+        terms = (Term(self.pressure, Unity()),)
+        if self.solid is not None:
+            terms += (Term(self.solid, Unity()),)
+        return (TermGroup(terms),)
 
 
 class FluidPressureForce:
     """The fluid phase as an integrator model: the force of a fixed nodal pressure P, and the
     Darcy update of P each time a step is accepted.
+
+    Force and stiffness come from the MJED engine (:class:`mjed.HyperelasticForceField`) with
+    the per-cell term -Pbar_c (J - 1) (:class:`LinearJ`, its coefficient rewritten whenever P
+    is set), so the pressure is a declared term like any other, not a separate assembler.
 
     Args:
         mesh: the rest mesh.
@@ -241,36 +252,50 @@ class FluidPressureForce:
         lumped_mass: lumped instead of consistent mass in the pressure step.
 
     Attributes:
-        P: (n,) current nodal pressure (Pa).
+        P: (n,) current nodal pressure (Pa); read-only array, assign a new one to change it.
         solver: the :class:`PressureSolver`.
+        field: the :class:`mjed.HyperelasticForceField` of the coupling term (and U).
     """
 
     def __init__(self, mesh: TetMesh, params: DarcyParameters, *, solid=None, drained_nodes=None,
                  x0: Optional[np.ndarray] = None, lumped_mass: bool = False):
+        if solid is not None and not isinstance(solid, JFunction):
+            if not callable(solid):
+                raise TypeError(f"solid must be a function of J returning (U, U', U''), got {type(solid).__name__}")
+            solid = _CallableJ(solid)
         self.mesh = mesh
         self.solid = solid
         self.solver = PressureSolver(mesh, params, drained_nodes=drained_nodes, lumped_mass=lumped_mass)
-        self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
+        self._coefficient = np.zeros(mesh.n_cells)  # -Pbar_c, the LinearJ's array (rewritten in place)
+        # J <= 0 is evaluated, not refused, as the fluid's terms stay finite there; the solid
+        # force field of the same integrator is the one that refuses inverted cells.
+        self.field = HyperelasticForceField(mesh, _PressureCoupling(LinearJ(self._coefficient), solid), allow_inverted=True)
         self.P = np.zeros(mesh.n_nodes)
         self._J = cell_jacobians(mesh, mesh.points if x0 is None else x0)
-        self._DxD = np.cross(mesh.D[:, _PAIRS_A], mesh.D[:, _PAIRS_B])  # (m, 4, 4, 3), rest only
+
+    @property
+    def P(self) -> np.ndarray:
+        """(n,) current nodal pressure (Pa), read-only."""
+        return self._P
+
+    @P.setter
+    def P(self, value) -> None:
+        P = np.array(value, dtype=float)
+        if P.shape != (self.mesh.n_nodes,) or not np.all(np.isfinite(P)):
+            raise ValueError(f"P must be a finite array of shape ({self.mesh.n_nodes},), got shape {P.shape}")
+        P.setflags(write=False)  # an in-place edit would bypass the coefficient update below
+        self._P = P
+        # Pbar_c, the mean of the cell's nodal pressures, is the exact cell integral of P1 P.
+        np.negative(P[self.mesh.cells].mean(axis=1), out=self._coefficient)
 
     @property
     def J_accepted(self) -> np.ndarray:
         """(m,) cell J at the last accepted state."""
         return self._J
 
-    def _law(self, J: np.ndarray):
-        Pbar = self.P[self.mesh.cells].mean(axis=1)
-        if self.solid is None:
-            return -Pbar, np.zeros_like(J)
-        _, sigma, slope = self.solid(J)
-        return sigma - Pbar, slope
-
     def force_and_stiffness(self, x: np.ndarray) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Force (n, 3) at positions x and the stiffness, at the current (fixed) pressure."""
-        f, _, K = volumetric_force_and_stiffness(self.mesh, np.asarray(x, dtype=float), self._law, self.pattern, self._DxD)
-        return f, K
+        return self.field.force_and_stiffness(x)
 
     def accept_step(self, x: np.ndarray, dt: float) -> None:
         """Advance P over the accepted step that ended at positions x."""

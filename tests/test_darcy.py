@@ -164,3 +164,38 @@ def test_porous_solid_plus_pressure_in_one_pass_matches_the_ufl_oracle(mesh):
     f_o, K_o = oracle.force_and_stiffness(x)
     assert np.linalg.norm(f - f_o) <= 1e-10 * np.linalg.norm(f_o)
     assert np.linalg.norm((K - K_o).toarray()) <= 1e-10 * np.linalg.norm(K_o.toarray())
+
+
+def test_linear_j_term_and_pressure_follow_assignment(mesh):
+    """The pressure is the engine term -Pbar (J - 1): its derivatives, and the coefficient
+    rewritten when P is set (and only then: P is read-only in place)."""
+    from mjed.darcy import LinearJ
+
+    c = np.array([2.0, -3.0])
+    f, df, d2f = LinearJ(c)(np.array([1.5, 0.5]))
+    assert np.allclose(f, [1.0, 1.5]) and np.array_equal(df, c) and d2f == 0.0
+    fluid = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3))
+    x = _state(mesh)
+    assert np.abs(fluid.force_and_stiffness(x)[0]).max() == 0.0  # P = 0: no force
+    fluid.P = np.full(mesh.n_nodes, 100.0)
+    f100 = fluid.force_and_stiffness(x)[0]
+    fluid.P = np.full(mesh.n_nodes, 200.0)
+    assert np.allclose(fluid.force_and_stiffness(x)[0], 2.0 * f100, rtol=1e-13) and np.abs(f100).max() > 0
+    with pytest.raises(ValueError):
+        fluid.P[0] = 1.0
+    with pytest.raises(ValueError, match="P must be"):
+        fluid.P = np.zeros(mesh.n_nodes + 1)
+    with pytest.raises(ValueError, match="P must be"):
+        fluid.P = np.full(mesh.n_nodes, np.nan)
+
+
+def test_solid_may_be_any_function_of_j(mesh):
+    from mjed.porous import PorousVolume
+
+    law = PorousVolume(0.5, 400.0, 2200.0)
+    x = _state(mesh)
+    f, K = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=law).force_and_stiffness(x)
+    f2, K2 = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=lambda J: law(J)).force_and_stiffness(x)
+    assert np.array_equal(f, f2) and abs(K - K2).max() == 0.0
+    with pytest.raises(TypeError, match="solid"):
+        FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=1.0)
