@@ -136,8 +136,9 @@ def test_porous_force_and_stiffness_match_the_ufl_oracle(mode, tangent):
     assert np.linalg.norm(f - shifted.force_and_stiffness(x)[0]) > 1e-10 * np.linalg.norm(f_o)
 
 
-def test_porous_solid_through_the_engine_equals_the_direct_volumetric_model():
-    """Two implementations of U: MJED's engine (PorousSolid) and mjed.darcy's volumetric pass."""
+def test_pressure_model_at_zero_pressure_carries_exactly_the_porous_solid():
+    """FluidPressureForce(solid=...) at P = 0 is the porous solid alone: the coupling keeps the
+    solid's term and adds nothing else (the independent check of both is the UFL oracle)."""
     from mjed.darcy import DarcyParameters, FluidPressureForce
     from mjed.porous import PorousSolid
 
