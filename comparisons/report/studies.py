@@ -15,6 +15,15 @@ from comparisons.report.runner import Study, StudyContext, StudyResult
 __all__ = ["all_studies"]
 
 
+def _with_status(ctx: StudyContext, label: str, study, *args, **kwargs):
+    """Run ``study(*args, progress=..., **kwargs)`` with a status line (terminal only)."""
+    status = ctx.status(label)
+    try:
+        return study(*args, progress=status, **kwargs)
+    finally:
+        status.close()
+
+
 # ----------------------------------------------------------------------------- equivalence
 def _run_equivalence(ctx: StudyContext) -> StudyResult:
     from comparisons.closed_form import ISOTROPIC, uniaxial_reaction_check
@@ -92,12 +101,8 @@ def _run_timing(ctx: StudyContext) -> StudyResult:
     from comparisons.timing import run_timing
 
     names = [m.name for m in ctx.materials]
-    status = ctx.status("timing")
-    try:
-        res = run_timing(names, "cube-small" if ctx.quick else "cube-paper", out_dir=ctx.figure_path("timing"),
-                         quick=ctx.quick, progress=status)
-    finally:
-        status.close()
+    res = _with_status(ctx, "timing", run_timing, names, "cube-small" if ctx.quick else "cube-paper",
+                       out_dir=ctx.figure_path("timing"), quick=ctx.quick)
     med = {(r["material"], r["method"], r["what"]): r["median_s"] for r in res["results"]}
     ratio = {(r["material"], r["ratio"], r["what"]): r for r in res["ratios"]}
     methods = res["settings"]["methods"]
@@ -138,11 +143,7 @@ def _run_timing(ctx: StudyContext) -> StudyResult:
 def _run_scaling(ctx: StudyContext) -> StudyResult:
     from comparisons.timing import run_scaling
 
-    status = ctx.status("scaling")
-    try:
-        res = run_scaling(quick=ctx.quick, out_dir=ctx.figure_path("scaling"), progress=status)
-    finally:
-        status.close()
+    res = _with_status(ctx, "scaling", run_scaling, quick=ctx.quick, out_dir=ctx.figure_path("scaling"))
     blocks = [Figure(ctx.relative(p), "Time and peak memory per cell against mesh size (log axes)") for p in res["figures"]]
     blocks.append(Table(("method", "cells", "nodes", "f+K (s)", "us per cell", "peak MiB", "bytes per cell"),
                         [(r["method"], r["n_cells"], r["n_nodes"], r["seconds"], 1e6 * r["seconds_per_cell"],
@@ -213,11 +214,7 @@ def _run_rheometer(ctx: StudyContext) -> StudyResult:
     from comparisons.commands.dma import DISCRETE_TOL
     from comparisons.rheometer import run_rheometer
 
-    status = ctx.status("rheometer")
-    try:
-        res = run_rheometer(quick=ctx.quick, out=ctx.figure_path("rheometer"), progress=status)
-    finally:
-        status.close()
+    res = _with_status(ctx, "rheometer", run_rheometer, quick=ctx.quick, out=ctx.figure_path("rheometer"))
     spec, e = res["spec"], res["errors"]
     rows = [(f["frequency_hz"], f["omega"], f["G_storage"], f["continuous"][0], f["discrete"][0], f["G_loss"],
              f["continuous"][1], f["discrete"][1], max(f["rel_err_discrete"])) for f in res["frequencies"]]
@@ -257,11 +254,7 @@ def _run_liver(ctx: StudyContext) -> StudyResult:
 
     from comparisons.liver import run_liver
 
-    status = ctx.status("liver")
-    try:
-        res = run_liver(quick=ctx.quick, out=ctx.figure_path("liver"), series=not ctx.quick, progress=status)
-    finally:
-        status.close()
+    res = _with_status(ctx, "liver", run_liver, quick=ctx.quick, out=ctx.figure_path("liver"), series=not ctx.quick)
     blocks: List = []
     for path in res["figures"]:
         stem = os.path.splitext(os.path.basename(path))[0]
