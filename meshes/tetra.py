@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["signed_volumes", "orient_positively", "remove_unreferenced"]
+from mjed.mesh import flat_cells
 
-# A cell is called flat when |6 V| <= _FLAT_TOL * (longest edge)^3. A regular tetrahedron
-# has |6 V| / l^3 = 0.118; mesher output stays many orders of magnitude above this.
-_FLAT_TOL = 1e-10
+__all__ = ["signed_volumes", "orient_positively", "remove_unreferenced"]
 
 
 def signed_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -47,10 +45,7 @@ def orient_positively(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray
     pts = np.asarray(points, dtype=np.float64)
     out = np.array(cells, dtype=np.int64, copy=True)
     vol = signed_volumes(pts, out)
-    x = pts[out]
-    i, j = np.triu_indices(4, k=1)
-    longest = np.linalg.norm(x[:, i] - x[:, j], axis=2).max(axis=1)
-    flat = np.abs(6.0 * vol) <= _FLAT_TOL * longest**3
+    flat = flat_cells(pts, out, vol)  # the same test TetMesh applies
     if flat.any():
         k = int(np.flatnonzero(flat)[0])
         raise ValueError(

@@ -13,7 +13,7 @@ import numpy as np
 
 from mjed.errors import MeshError, MeshWarning
 
-__all__ = ["TetMesh", "shape_vectors"]
+__all__ = ["TetMesh", "shape_vectors", "flat_cells"]
 
 # Relative threshold under which a cell counts as flat: |6 V| <= tol * (longest edge)^3.
 # A regular tet has |6 V| / l^3 = 0.118, a sliver from a good mesher rarely drops below 1e-4.
@@ -69,8 +69,7 @@ class TetMesh:
         cells = _as_cells(cells, len(points))
         signed, D = shape_vectors(points, cells)
 
-        longest = _longest_edge(points, cells)
-        flat = np.abs(6.0 * signed) <= _DEGENERATE_TOL * longest**3
+        flat = flat_cells(points, cells, signed)
         if flat.any():
             c = int(np.flatnonzero(flat)[0])
             raise MeshError(
@@ -162,7 +161,13 @@ def _as_cells(cells, n_points: int) -> np.ndarray:
     return c
 
 
-def _longest_edge(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+def flat_cells(points: np.ndarray, cells: np.ndarray, volumes: np.ndarray) -> np.ndarray:
+    """(m,) bool: cells with |6 V| <= tol * (longest edge)^3, which no reordering can fix.
+
+    points (n, 3); cells (m, 4); volumes (m,) signed or not. Relative to the cell's own
+    size, so the test means the same at any length scale.
+    """
     X = points[cells]
     i, j = np.triu_indices(4, k=1)
-    return np.linalg.norm(X[:, i] - X[:, j], axis=2).max(axis=1)
+    longest = np.linalg.norm(X[:, i] - X[:, j], axis=2).max(axis=1)
+    return np.abs(6.0 * volumes) <= _DEGENERATE_TOL * longest**3
