@@ -103,20 +103,25 @@ class HyperelasticForceField:
             # ln J and J^p are NaN for J <= 0: that is the documented answer, not a surprise.
             with np.errstate(invalid="ignore", divide="ignore"):
                 return self.engine.evaluate_soa(x_t, stiffness=stiffness, out=out)
-        return self.engine.evaluate_soa(x_t, stiffness=stiffness, check_J=_refuse_inverted, out=out)
+        return self.engine.evaluate_soa(x_t, stiffness=stiffness, check_J=refuse_inverted, out=out)
 
     def _check_positions(self, x) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
-        if x.shape != (self.mesh.n_nodes, 3):
-            raise ValueError(f"positions must have shape ({self.mesh.n_nodes}, 3), got {x.shape}")
-        bad = ~np.isfinite(x).all(axis=1)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"{int(bad.sum())} node(s) with non-finite positions; first is node {i}: {x[i].tolist()}")
-        return x
+        return checked_positions(x, self.mesh.n_nodes)
 
 
-def _refuse_inverted(J: np.ndarray) -> None:
+def checked_positions(x, n_nodes: int) -> np.ndarray:
+    """x as float64 (n_nodes, 3), or ValueError naming the shape or the first non-finite node."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (n_nodes, 3):
+        raise ValueError(f"positions must have shape ({n_nodes}, 3), got {x.shape}")
+    bad = ~np.isfinite(x).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{int(bad.sum())} node(s) with non-finite positions; first is node {i}: {x[i].tolist()}")
+    return x
+
+
+def refuse_inverted(J: np.ndarray) -> None:
     bad = np.flatnonzero(~(J > 0))
     if len(bad):
         raise InvertedElementError(bad, J[bad], context="at the given positions")

@@ -36,8 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from mjed.engine import EDGES, SoAEvaluation, edge_blocks_to_element_matrices
-from mjed.errors import InvertedElementError
-from mjed.forcefield import HyperelasticForceField
+from mjed.forcefield import HyperelasticForceField, refuse_inverted, checked_positions
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 
@@ -258,7 +257,7 @@ class ViscoHyperelasticForceField:
             if ev.blocks is not None or not stiffness:
                 return ev
         field = self.field
-        check = None if field.allow_inverted else _refuse_inverted
+        check = None if field.allow_inverted else refuse_inverted
         x_t = np.take(np.ascontiguousarray(x.T), self._cells_t, axis=1)  # (3, 4, m)
         # ln J and J^p are NaN for J <= 0: with allow_inverted that is the documented answer.
         with np.errstate(invalid="ignore", divide="ignore") if field.allow_inverted else nullcontext():
@@ -270,17 +269,4 @@ class ViscoHyperelasticForceField:
         return self._a, self._b
 
     def _check_positions(self, x) -> np.ndarray:
-        x = np.asarray(x, dtype=np.float64)
-        n = self.mesh.n_nodes
-        if x.shape != (n, 3):
-            raise ValueError(f"positions must have shape ({n}, 3), got {x.shape}")
-        if not np.isfinite(x).all():
-            i = int(np.flatnonzero(~np.isfinite(x).all(axis=1))[0])
-            raise ValueError(f"non-finite positions; first at node {i}: {x[i].tolist()}")
-        return x
-
-
-def _refuse_inverted(J: np.ndarray) -> None:
-    bad = np.flatnonzero(~(J > 0))
-    if len(bad):
-        raise InvertedElementError(bad, J[bad], context="at the given positions")
+        return checked_positions(x, self.mesh.n_nodes)
