@@ -32,7 +32,12 @@ __all__ = [
     "uniaxial_cauchy",
     "UniaxialResult",
     "uniaxial_reaction_check",
+    "UNIAXIAL_STRETCHES",
+    "uniaxial_checks",
 ]
+
+#: The stretches of the uniaxial check: one in tension, one in compression.
+UNIAXIAL_STRETCHES = (1.3, 0.8)
 
 #: Arruda-Boyce series coefficients (CONVENTIONS.md).
 _AB_C = (1 / 2, 1 / 20, 11 / 1050, 19 / 7000, 519 / 673750)
@@ -173,3 +178,23 @@ def uniaxial_reaction_check(material, points: np.ndarray, cells: np.ndarray, str
         rel_err=float(abs(sigma_mjed - sigma) / scale),
         lateral_reaction_rel=float(lateral),
     )
+
+
+def uniaxial_checks(materials, label: str, points: np.ndarray, cells: np.ndarray) -> list:
+    """The face-reaction check of every isotropic material at UNIAXIAL_STRETCHES on one box mesh.
+
+    Returns one dict per (material, stretch): UniaxialResult's fields plus ``mesh`` and
+    ``passed`` (both errors within the equivalence suite's force tolerance). Materials
+    without a closed form (Costa) are skipped.
+    """
+    from comparisons.equivalence import FORCE_TOL
+
+    rows = []
+    for m in materials:
+        if type(m).__name__ not in ISOTROPIC:
+            continue
+        for stretch in UNIAXIAL_STRETCHES:
+            r = uniaxial_reaction_check(m, points, cells, stretch).to_dict()
+            r.update(mesh=label, passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL))
+            rows.append(r)
+    return rows
