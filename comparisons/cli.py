@@ -30,13 +30,13 @@ def command_modules() -> Dict[str, ModuleType]:
     return {m.NAME: m for m in sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(modules: Optional[Dict[str, ModuleType]] = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mjed-verify",
         description="Verify a NumPy MJED implementation force by force and stiffness by stiffness against a UFL Galerkin oracle.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name, mod in command_modules().items():
+    for name, mod in (command_modules() if modules is None else modules).items():
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, epilog=getattr(mod, "EXAMPLES", None),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.configure(p)
@@ -44,14 +44,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    modules = command_modules()
+    args = build_parser(modules).parse_args(argv)
     logging.disable(logging.INFO)  # FFCx's JIT logs every compilation at INFO
     try:
         for attr, is_dir in (("json", False), ("out", True)):
             if getattr(args, attr, None):
                 check_writable_destination(getattr(args, attr), is_dir=is_dir)
-        return int(command_modules()[args.command].run(args))
+        return int(modules[args.command].run(args))
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)
         return 2
