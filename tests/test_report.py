@@ -7,7 +7,7 @@ import re
 import pytest
 
 from comparisons.cli import main
-from comparisons.report.blocks import Figure, Paragraph, Table
+from comparisons.blocks import Figure, Paragraph, Table
 from comparisons.report.runner import Study, StudyResult, publish_latest, run_report
 
 

@@ -7,7 +7,7 @@ import html
 import os
 from typing import List, Sequence
 
-from comparisons.report.blocks import Figure, Paragraph, Preformatted, Section, Table
+from comparisons.blocks import Figure, Paragraph, Preformatted, Section, Table
 
 __all__ = ["to_markdown", "to_html", "format_cell"]
 

@@ -22,7 +22,7 @@ import traceback
 from dataclasses import asdict, dataclass, field, is_dataclass
 from typing import Callable, Dict, List, Optional, Sequence
 
-from comparisons.report.blocks import Preformatted, Section, Table
+from comparisons.blocks import Preformatted, Section, Table
 from comparisons.report.render import to_html, to_markdown
 
 __all__ = ["StudyContext", "Study", "RunOutcome", "run_report", "publish_latest"]

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import List
 
-from comparisons.report.blocks import Figure, Paragraph, Preformatted, Table
+from comparisons.blocks import Figure, Paragraph, Preformatted, Table
 from comparisons.report.runner import Study, StudyContext, StudyResult
 
 __all__ = ["all_studies"]
