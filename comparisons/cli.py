@@ -18,6 +18,7 @@ from typing import Dict, List, Optional
 
 from comparisons import commands
 from comparisons.options import InputError, check_writable_destination
+from comparisons.verdict import EXIT_POLICY
 
 __all__ = ["main", "build_parser", "command_modules"]
 
@@ -37,7 +38,8 @@ def build_parser(modules: Optional[Dict[str, ModuleType]] = None) -> argparse.Ar
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, mod in (command_modules() if modules is None else modules).items():
-        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, epilog=getattr(mod, "EXAMPLES", None),
+        epilog = "\n".join(t for t in (getattr(mod, "EXAMPLES", ""), EXIT_POLICY) if t)
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, epilog=epilog,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.configure(p)
     return parser

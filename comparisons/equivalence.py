@@ -25,7 +25,11 @@ import mjed
 from comparisons.states import apply_state
 from mjed.materials.base import Material
 
-__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "CaseResult", "compare_arrays", "run_cases", "format_table"]
+__all__ = ["KEY", "TITLE", "FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "CaseResult", "compare_arrays", "run_cases",
+           "equivalence_command", "equivalence_study"]
+
+KEY = "equivalence"
+TITLE = "Equivalence: MJED against the UFL oracle"
 
 FORCE_TOL = 1e-10
 STIFFNESS_TOL = 1e-10
@@ -115,18 +119,176 @@ def run_cases(
                 yield CaseResult(material.name, label, state, mesh.n_cells, mesh.n_nodes, fe, ke, se, bool(passed))
 
 
-def format_table(results: Iterable[CaseResult]) -> str:
-    """A fixed-width text table of the results."""
-    rows = [("material", "mesh", "state", "cells", "nodes", "force err", "stiff err", "sym err", "")]
-    for r in results:
-        rows.append(
-            (
-                r.material, r.mesh, r.state, str(r.n_cells), str(r.n_nodes),
-                f"{r.force_rel_err:.2e}", f"{r.stiffness_rel_err:.2e}", f"{r.symmetry_err:.2e}",
-                "pass" if r.passed else "FAIL",
-            )
-        )
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.ljust(w) if i < 3 else c.rjust(w) for i, (c, w) in enumerate(zip(row, widths))) for row in rows]
-    lines.insert(1, "-" * len(lines[0]))
-    return "\n".join(lines)
+def equivalence_command(labels: Sequence[str], materials: Sequence[Material], states: Sequence[str], *,
+                        mpi_ranks: int = 1) -> str:
+    """The command line that re-runs this selection (under mpirun when the oracle was distributed)."""
+    from comparisons.reproduce import command, material_option, mesh_option, states_option
+
+    material, comment = material_option(materials)
+    prefix = ("mpirun", "-n", str(mpi_ranks)) if mpi_ranks > 1 else ()
+    return command("equivalence", prefix=prefix, comment=comment, material=material, mesh=mesh_option(labels),
+                   states=states_option(states))
+
+
+def _worst(values: Sequence[float]) -> Optional[float]:
+    """The largest value, NaN if any is NaN (a NaN must fail, whatever its place), None if empty."""
+    values = [float(v) for v in values]
+    if not values:
+        return None
+    return float("nan") if any(v != v for v in values) else max(values)
+
+
+def _box_meshes(meshes: Sequence[tuple]) -> List[tuple]:
+    """The built-in cubes among the selected meshes (axis-aligned boxes); cube-small if none."""
+    import meshes as catalog
+
+    cubes = [m for m in meshes if m[0] in catalog.names() and m[0].startswith("cube")]
+    if cubes:
+        return cubes
+    points, cells, label = catalog.resolve("cube-small")
+    return [(label, points, cells)]
+
+
+def _ogden_tangent(meshes: Sequence[tuple], materials: Sequence[Material], states: Sequence[str]) -> dict:
+    """{mesh label: {state: ||K_sofa - K_exact||_F / ||K_exact||_F}} for the first Ogden selected."""
+    from comparisons.ogden_tangent import sofa_tangent_errors
+
+    ogden = next((m for m in materials if isinstance(m, mjed.materials.Ogden)), None)
+    if ogden is None:
+        return {}
+    return {label: sofa_tangent_errors(mjed.TetMesh(points, cells), ogden, states) for label, points, cells in meshes}
+
+
+def equivalence_study(
+    meshes: Sequence[tuple],
+    materials: Sequence[Material],
+    states: Sequence[str],
+    *,
+    quick: bool = False,
+    progress: Optional[Callable[[str], None]] = None,
+    comm=None,
+    oracle_factory: Optional[Callable] = None,
+):
+    """The equivalence study: every case against the oracle, the uniaxial closed form, and
+    SOFA's approximate Ogden tangent against the exact one.
+
+    Args:
+        meshes, materials, states: as for :func:`run_cases`; mesh labels are names or paths
+            as the user gave them (they go into the reproduce line).
+        quick: the meshes are the quick set; the result says cube-paper was left out.
+        comm: MPI communicator distributing the oracle (collective on every rank).
+
+    Returns:
+        A :class:`comparisons.result.StudyResult` on rank 0 (None on the other ranks); NOT_RUN
+        when dolfinx is missing. Checks: the worst force, stiffness and symmetry errors over
+        all cases and the worst uniaxial closed-form errors, each against its tolerance.
+        ``data`` holds ``cases``, ``uniaxial_closed_form`` and ``ogden_sofa_tangent_error``.
+    """
+    import time
+
+    from comparisons.blocks import Paragraph, Table
+    from comparisons.closed_form import UNIAXIAL_STRETCHES, uniaxial_checks
+    from comparisons.result import Check, StudyResult
+
+    labels = [m[0] for m in meshes]
+    cmd = equivalence_command(labels, materials, states, mpi_ranks=1 if comm is None else comm.size)
+    if oracle_factory is None:
+        from reference_fem import dolfinx_available
+
+        if not dolfinx_available():
+            return StudyResult.not_run(KEY, TITLE, "the UFL oracle needs dolfinx, which is not installed "
+                                       "(Debian: apt install python3-dolfinx; or make bootstrap)", cmd)
+    t0 = time.perf_counter()
+    cases = list(run_cases(meshes, materials, states, oracle_factory=oracle_factory, progress=progress, comm=comm))
+    if comm is not None and comm.rank != 0:
+        return None
+    if progress:
+        progress("uniaxial closed form")
+    boxes = _box_meshes(meshes)
+    uniaxial = [row for label, points, cells in boxes for row in uniaxial_checks(materials, label, points, cells)]
+    if progress:
+        progress("Ogden: SOFA's tangent against the exact one")
+    tangent = _ogden_tangent(meshes, materials, states)
+
+    n = len(cases)
+    where = lambda c: f"{c.material} on {c.mesh}, {c.state}"  # noqa: E731
+    checks = []
+    for attr, tol, what in (("force_rel_err", FORCE_TOL, "force"), ("stiffness_rel_err", STIFFNESS_TOL, "stiffness"),
+                            ("symmetry_err", SYMMETRY_TOL, "symmetry of K")):
+        worst = max(cases, key=lambda c: (getattr(c, attr) != getattr(c, attr), getattr(c, attr)), default=None)
+        checks.append(Check(f"{what} relative error, worst of {n} cases" + (f" ({where(worst)})" if worst else ""),
+                            _worst([getattr(c, attr) for c in cases]), tol,
+                            note="" if cases else "no case ran"))
+    for key, what in (("rel_err", "sigma_11 relative error"), ("lateral_reaction_rel", "side reaction / sigma_11")):
+        checks.append(Check(f"uniaxial closed form: {what}, worst of {len(uniaxial)}", _worst([u[key] for u in uniaxial]),
+                            FORCE_TOL, note="" if uniaxial else "no selected material has a closed form"))
+
+    bad_cases = [c for c in cases if not c.passed]
+    bad_uniaxial = [u for u in uniaxial if not u["passed"]]
+    reason = ""
+    if bad_cases or bad_uniaxial:
+        reason = "; ".join(part for part in (
+            f"{len(bad_cases)} of {n} cases outside the tolerances (first: {where(bad_cases[0])})" if bad_cases else "",
+            f"{len(bad_uniaxial)} of {len(uniaxial)} uniaxial checks off (first: {bad_uniaxial[0]['material']} at "
+            f"stretch {bad_uniaxial[0]['stretch']:g} on {bad_uniaxial[0]['mesh']})" if bad_uniaxial else "") if part)
+    not_covered = []
+    if quick and "cube-paper" not in labels:
+        not_covered.append(f"quick: {', '.join(labels)} instead of the paper's cube (cube-paper, about 20,700 cells)")
+
+    headline = f"{n - len(bad_cases)}/{n} cases pass"
+    if cases:
+        headline += (f"; worst force error {_worst([c.force_rel_err for c in cases]):.1e}, stiffness "
+                     f"{_worst([c.stiffness_rel_err for c in cases]):.1e}")
+    if uniaxial:
+        headline += (f"; uniaxial closed form {len(uniaxial) - len(bad_uniaxial)}/{len(uniaxial)}, worst "
+                     f"{_worst([u['rel_err'] for u in uniaxial]):.1e}")
+
+    blocks = [
+        Paragraph("Every material on every mesh and deformation state: nodal forces and tangent stiffness of MJED against "
+                  "the UFL Galerkin oracle (relative errors; tolerances 1e-10 for force and stiffness, 1e-12 for the "
+                  "symmetry of MJED's K), then the uniaxial closed form and SOFA's approximate Ogden tangent."),
+        _digest(cases),
+        Table(("material", "mesh", "state", "cells", "force error", "stiffness error", "symmetry", "verdict"),
+              [(c.material, c.mesh, c.state, c.n_cells, c.force_rel_err, c.stiffness_rel_err, c.symmetry_err, c.passed)
+               for c in cases], caption="Every case"),
+    ]
+    if uniaxial:
+        blocks += [
+            Paragraph(f"Uniaxial stress closed form on {', '.join(b[0] for b in boxes)} at stretches "
+                      f"{', '.join(f'{s:g}' for s in UNIAXIAL_STRETCHES)}: the cube is given the homogeneous stretch that "
+                      "frees its sides (lateral stretch from the analytic principal Cauchy stresses of our compressible "
+                      "energies); MJED's reaction on the loaded face over the current area must equal the analytic "
+                      "sigma_11 to 1e-10, with no reaction on the sides. Materials without a closed form (Costa, "
+                      "anisotropic) are not in this table."),
+            Table(("material", "mesh", "stretch", "lateral stretch", "sigma analytic (Pa)", "sigma MJED (Pa)", "rel. error",
+                   "side reaction", "verdict"),
+                  [(u["material"], u["mesh"], u["stretch"], u["lateral_stretch"], u["sigma_analytic"], u["sigma_mjed"],
+                    u["rel_err"], u["lateral_reaction_rel"], u["passed"]) for u in uniaxial]),
+        ]
+    if tangent:
+        blocks += [
+            Table(("mesh", *states), [(label, *(errs[s] for s in states)) for label, errs in tangent.items()],
+                  caption="Ogden: ||K_sofa - K_exact||_F / ||K_exact||_F, SOFA's coaxial tangent against the exact Hessian"),
+            Paragraph("Not a pass/fail check: SOFA's MJED Ogden approximates the tangent; forces are identical. Zero at "
+                      "rest, where C = I commutes with every perturbation; about 1e-4 in the deformed states, enough to "
+                      "slow Newton from quadratic to linear convergence, not to change a converged answer."),
+        ]
+    data = {"cases": [c.to_dict() for c in cases], "uniaxial_closed_form": uniaxial, "ogden_sofa_tangent_error": tangent}
+    if comm is not None:
+        data["mpi_ranks"] = comm.size
+    return StudyResult.from_checks(KEY, TITLE, checks, headline=headline, command=cmd, reason=reason,
+                                   not_covered=tuple(not_covered), data=data, blocks=tuple(blocks),
+                                   seconds=time.perf_counter() - t0)
+
+
+def _digest(cases: Sequence[CaseResult]):
+    """Worst errors per material and mesh, over the states (the full table follows it)."""
+    from comparisons.blocks import Table
+
+    rows = []
+    for material, mesh in dict.fromkeys((c.material, c.mesh) for c in cases):
+        cs = [c for c in cases if c.material == material and c.mesh == mesh]
+        rows.append((material, mesh, cs[0].n_cells, len(cs), _worst([c.force_rel_err for c in cs]),
+                     _worst([c.stiffness_rel_err for c in cs]), all(c.passed for c in cs)))
+    return Table(("material", "mesh", "cells", "states", "worst force error", "worst stiffness error", "verdict"), rows,
+                 caption="Worst relative errors over the states, per material and mesh")

@@ -28,6 +28,7 @@ __all__ = [
     "resolve_states",
     "write_json",
     "check_writable_destination",
+    "add_allow_incomplete_option",
 ]
 
 #: The built-in meshes that 'all' stands for in the equivalence study.
@@ -131,4 +132,17 @@ def write_json(path: str, payload: dict) -> None:
     """Write JSON, creating the directory (reports/ is not in a fresh clone)."""
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as fh:
-        json.dump(payload, fh, indent=1)
+        json.dump(payload, fh, indent=1, default=_jsonable)
+
+
+def _jsonable(obj):
+    """NumPy scalars and arrays as plain numbers and lists; anything else as its text."""
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    return str(obj)
+
+
+def add_allow_incomplete_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--allow-incomplete", action="store_true",
+                        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run was "
+                             "partial (a failed check still exits with 1)")

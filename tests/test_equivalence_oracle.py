@@ -76,12 +76,14 @@ def test_cli_equivalence_writes_json_and_exits_zero(tmp_path, capsys):
     out = tmp_path / "eq.json"
     code = main(["equivalence", "--material", "NeoHookean,Ogden", "--mesh", "single-tet", "--json", str(out)])
     assert code == 0
-    data = json.loads(out.read_text())
+    written = json.loads(out.read_text())
+    assert written["status"] == "passed" and written["key"] == "equivalence"
+    data = written["data"]
     keys = {"material", "mesh", "state", "n_cells", "n_nodes", "force_rel_err", "stiffness_rel_err", "passed"}
     assert data["cases"] and all(keys <= set(c) for c in data["cases"])
     assert all(c["passed"] for c in data["cases"])
     assert len(data["cases"]) == 2 * 6 and set(data["ogden_sofa_tangent_error"]) == {"single-tet"}
-    assert "cases passed" in capsys.readouterr().out
+    assert "12/12 cases pass" in capsys.readouterr().out
 
 
 def test_cli_refuses_bad_input_before_work(tmp_path, capsys):
