@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -51,7 +52,11 @@ __all__ = [
     "cross_release_check",
     "format_check",
     "provenance_summary",
+    "cross_release_study",
 ]
+
+KEY = "cross_release"
+TITLE = "The oracle across dolfinx releases and MPI ranks"
 
 TOLERANCE = 1e-12
 REPO = Path(__file__).resolve().parents[1]
@@ -307,6 +312,60 @@ def provenance_summary(path: Optional[str] = None) -> Optional[dict]:
         "worst_rel_diff": worst,
         "not_run": [m["label"] for m in result["missing"]] + [e["label"] for e in result["errors"]],
     }
+
+
+def cross_release_study(*, quick: bool = False, stacks: Optional[Sequence[Tuple[str, str, int]]] = None,
+                        progress=None):
+    """The check as a typed result.
+
+    Every comparison contributes its energy, force and stiffness differences as tolerance
+    checks (TOLERANCE), and a stack that exists but fails to run is a failed check. A stack
+    that is not installed here is listed under not_covered (a partial run); with fewer than two
+    snapshots nothing is compared and the study is NOT RUN. ``quick`` keeps three cases; the
+    result says so. ``data`` is the dict of :func:`cross_release_check`.
+    """
+    from comparisons.blocks import Paragraph, Preformatted, Table
+    from comparisons.reproduce import command
+    from comparisons.result import Check, StudyResult
+
+    t0 = time.perf_counter()
+    if progress:
+        progress("snapshots on every stack (subprocesses)")
+    res = cross_release_check(stacks, quick=quick)
+    cmd = command("cross-release", quick=quick)
+    not_covered = [f"{m['label']}: not installed here ({m['reason']}; make bootstrap-modern installs the modern stack)"
+                   for m in res["missing"]]
+    if quick:
+        n_quick, n_full = len(snapshot_cases(True)), len(snapshot_cases(False))
+        not_covered.append(f"quick: {n_quick} oracle cases instead of {n_full} (all materials, two states)")
+    rows = [(s["label"], s["ranks"], s["versions"].get("dolfinx"), s["versions"].get("ufl"), s["versions"].get("petsc"),
+             s["versions"].get("numpy"), s["versions"].get("python"), s["seconds"]) for s in res["stacks"]]
+    blocks = (Paragraph(f"The same oracle cases ({MESH}, deformed states, including Costa with one fibre frame per cell) "
+                        "on Debian's dolfinx and a current dolfinx, serially and on 2 MPI ranks, compared with the first "
+                        "stack that ran."),
+              Table(("stack", "ranks", "dolfinx", "ufl", "petsc", "numpy", "python", "seconds"), rows),
+              Table((f"against {res['reference']}", "energy", "force", "stiffness", "verdict"),
+                    [(c["label"], c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"], c["passed"])
+                     for c in res["comparisons"]],
+                    caption=f"Relative differences of the oracle's results (tolerance {res['tolerance']:g})"),
+              Preformatted(format_check(res)))
+    seconds = time.perf_counter() - t0
+    if len(res["stacks"]) < 2 and not res["errors"]:
+        ran = ", ".join(s["label"] for s in res["stacks"]) or "none"
+        missing = "; ".join(not_covered[:len(res["missing"])]) or "no stack given"
+        return replace(StudyResult.not_run(KEY, TITLE, f"fewer than two stacks ran (ran: {ran}), nothing was compared; "
+                                           f"{missing}", cmd), data=res, blocks=blocks, seconds=seconds)
+    checks = [Check("stacks that exist but failed to run", float(len(res["errors"])), 0.0,
+                    note="; ".join(e["label"] for e in res["errors"]))]
+    for c in res["comparisons"]:
+        checks += [Check(f"{c['label']} against {res['reference']}: {q} relative difference", c[f"{q}_rel_diff"],
+                         res["tolerance"]) for q in ("energy", "force", "stiffness")]
+    worst = max((max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"]) for c in res["comparisons"]),
+                default=float("nan"))
+    headline = (f"{len(res['stacks'])} stacks ran ({', '.join(s['label'] for s in res['stacks'])}); largest relative "
+                f"difference {worst:.1e} (tolerance {res['tolerance']:g})")
+    return StudyResult.from_checks(KEY, TITLE, checks, headline=headline, command=cmd, not_covered=tuple(not_covered),
+                                   data=res, blocks=blocks, seconds=seconds)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -1,7 +1,8 @@
 """Where a measurement was made: machine, software versions and source revision.
 
 Every timing record carries this block, so that a number can be traced to the CPU, the
-library versions and the commit that produced it.
+library versions and the commit that produced it. ``python -m comparisons.provenance`` prints
+the record as JSON.
 """
 
 from __future__ import annotations
@@ -14,7 +15,12 @@ import sys
 from pathlib import Path
 from typing import Any, Dict, Optional
 
-__all__ = ["cpu_model", "git_commit", "provenance"]
+from comparisons.result import Status
+
+__all__ = ["KEY", "TITLE", "cpu_model", "git_commit", "provenance", "provenance_study"]
+
+KEY = "provenance"
+TITLE = "Provenance"
 
 _REPO = Path(__file__).resolve().parent.parent
 
@@ -95,3 +101,46 @@ def provenance(*, with_dolfinx: bool = True) -> Dict[str, Any]:
             pass
     out.update({"git_" + k: v for k, v in git_commit().items()})
     return out
+
+
+def provenance_study():
+    """The record as a report section. It checks nothing, so it holds no check; a piece of the
+    stack that is not installed is recorded as 'not available', which is a fact, not a gap."""
+    import json
+
+    from comparisons.blocks import Paragraph, Table
+    from comparisons.result import StudyResult
+
+    info = provenance()
+    try:
+        from reference_fem import compat
+
+        info["oracle_stack"] = compat.stack_versions()
+    except Exception as exc:  # dolfinx missing: say so, the rest of the record stands
+        info["oracle_stack"] = f"unavailable: {type(exc).__name__}: {exc}"
+    json.dumps(info)  # the record must serialise as it is
+    commit = str(info.get("git_commit"))[:10] + (" (with uncommitted changes)" if info.get("git_dirty") else "")
+    return StudyResult(
+        key=KEY, title=TITLE, status=Status.PASSED, command="python -m comparisons.provenance",
+        headline=f"{info.get('cpu')}, {info.get('usable_cores')} usable cores; commit {commit}",
+        data=info, blocks=(Paragraph("The machine, the versions and the commit the numbers above were measured with."),
+                           Table(("item", "value"), _flat_rows(info))))
+
+
+def _flat_rows(info: dict, prefix: str = "") -> list:
+    """Nested records as (dotted key, readable value) rows; booleans as yes/no, not pass/FAIL."""
+    rows = []
+    for k, v in info.items():
+        if isinstance(v, dict):
+            rows += _flat_rows(v, f"{prefix}{k}.")
+        elif isinstance(v, bool):
+            rows.append((prefix + k, "yes" if v else "no"))
+        else:
+            rows.append((prefix + k, "not available" if v is None else str(v).replace("\x00", "").strip()))
+    return rows
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(provenance_study().data, indent=1))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from comparisons.result import EXIT_PASSED, Status, StudyResult, exit_code
+from comparisons.result import EXIT_FAILED, EXIT_PASSED, Status, StudyResult, exit_code
 
 __all__ = ["EXIT_POLICY", "status_label", "verdict_sentence", "not_covered_lines"]
 
@@ -58,7 +58,7 @@ def verdict_sentence(results: Sequence[StudyResult]) -> str:
             parts.append(f"{n} {'study' if n == 1 else 'studies'} {what}")
     partial = sum(r.status is Status.PASSED and r.partial for r in results)
     if partial:
-        parts.append(f"{partial} passed only partially (something left out, listed below)")
+        parts.append(f"{partial} passed only partially (see what was not covered)")
     passed = sum(r.complete_pass for r in results)
-    return (f"Verdict: NOT every check passed: {'; '.join(parts)}; {passed} of {len(results)} studies "
-            "passed completely.")
+    word = "FAILED" if exit_code(results) == EXIT_FAILED else "INCOMPLETE"
+    return f"Verdict: {word}: {'; '.join(parts)}; {passed} of {len(results)} studies passed completely."

@@ -1,14 +1,20 @@
-"""The report runner: sections survive failures, runs never overwrite each other, latest moves last."""
+"""The report: one generic renderer for study results, a summary that says no more than was
+checked, the exit-code policy, and the runner's safety rules (runs never overwrite each other,
+latest moves last, a raising study becomes ERROR and the others still run)."""
 
 import json
 import os
 import re
+import shlex
 
 import pytest
 
-from comparisons.cli import main
 from comparisons.blocks import Figure, Paragraph, Table
-from comparisons.report.runner import Study, StudyResult, publish_latest, run_report
+from comparisons.cli import build_parser, main
+from comparisons.report.runner import ReportStudy, publish_latest, run_report
+from comparisons.result import Check, Status, StudyResult
+
+EVERY = "every check passed"
 
 
 def _figure_study(ctx):
@@ -22,8 +28,15 @@ def _figure_study(ctx):
     ax.plot([0, 1], [0, 1])
     fig.savefig(path)
     plt.close(fig)
-    return StudyResult({"value": 1.5}, [Paragraph("a line"), Figure(ctx.relative(path), "a line"),
-                                        Table(("a", "b"), [(1, 2.5e-12)])])
+    return StudyResult.from_checks("figure", "A figure", [Check("error", 1e-16, 1e-10)], headline="a line",
+                                   command="mjed-verify figure", data={"value": 1.5},
+                                   blocks=[Paragraph("a line"), Figure(ctx.relative(path), "a line"),
+                                           Table(("a", "b"), [(1, 2.5e-12)])])
+
+
+def _passing(key):
+    return lambda ctx: StudyResult.from_checks(key, key.title(), [Check("x", 0.5, 1.0)], headline="fine",
+                                               command=f"mjed-verify {key}")
 
 
 def _boom(ctx):
@@ -31,51 +44,108 @@ def _boom(ctx):
 
 
 def _failing_check(ctx):
-    return StudyResult({"cases": []}, [Paragraph("one case off")], passed=False, message="1 case failed")
+    return StudyResult.from_checks("check", "A failing check", [Check("force error", 1e-6, 1e-10)],
+                                   headline="one case off", command="mjed-verify check")
+
+
+def _missed_target(ctx):
+    return StudyResult.from_checks("speed", "Speed", [Check("classical/mjed", 0.8, 1.0, ">=", "target")],
+                                   headline="slower", command="mjed-verify speed")
 
 
 def _interrupt(ctx):
     raise KeyboardInterrupt
 
 
-STUDIES = [Study("figure", "A figure", "Shows a line.", "mjed-verify figure", _figure_study),
-           Study("boom", "A study that raises", "Never finishes.", "mjed-verify boom", _boom),
-           Study("check", "A failing check", "One case off.", "mjed-verify check", _failing_check)]
+STUDIES = [ReportStudy("figure", "A figure", _figure_study), ReportStudy("boom", "A study that raises", _boom),
+           ReportStudy("check", "A failing check", _failing_check)]
 CTX = {"materials": (), "meshes": (), "states": (), "show_progress": False}
+QUIET = dict(quick=True, stream=open(os.devnull, "w"))
 
 
-def test_a_failed_study_leaves_the_other_sections_and_says_why(tmp_path):
-    out = run_report(str(tmp_path), STUDIES, CTX, quick=True, command_line=["mjed-verify", "all"], stream=open(os.devnull, "w"))
-    assert out.complete and not out.all_passed
-    status = {s.key: (s.status, s.message) for s in out.sections}
-    assert status["figure"] == ("ok", "")
-    assert status["boom"] == ("error", "RuntimeError: the rheometer exploded")
-    assert status["check"] == ("failed", "1 case failed")
-    assert status["verdict"][0] == "failed"
-    page = (tmp_path / "latest" / "index.html").read_text()
-    assert "the rheometer exploded" in page and "1 case failed" in page
+def _read(run_dir):
+    return ({name: open(os.path.join(run_dir, name)).read() for name in ("index.html", "report.md")},
+            json.load(open(os.path.join(run_dir, "results.json"))))
+
+
+def test_a_raising_study_is_an_error_the_others_run_and_the_exit_code_is_1(tmp_path):
+    out = run_report(str(tmp_path), STUDIES, CTX, command_line=["mjed-verify", "all"], **QUIET)
+    assert out.complete and not out.all_passed and out.exit_code() == 1
+    status = {r.key: r for r in out.results}
+    assert status["figure"].status is Status.PASSED and status["figure"].complete_pass
+    assert status["boom"].status is Status.ERROR and status["boom"].reason == "RuntimeError: the rheometer exploded"
+    assert "--only boom" in status["boom"].command  # re-runs just that study
+    assert status["check"].status is Status.FAILED and "force error" in status["check"].reason
+    pages, results = _read(tmp_path / "latest")
+    for text in pages.values():
+        assert "the rheometer exploded" in text and "force error" in text and EVERY not in text
+        assert "ERROR" in text and "FAILED" in text
     # Self-contained: the figure is embedded, nothing is fetched from elsewhere.
-    assert "data:image/png;base64," in page
-    assert not re.search(r"""src=["'](?!data:)""", page)
-    results = json.loads((tmp_path / "latest" / "results.json").read_text())
-    assert results["complete"] and results["results"]["figure"] == {"value": 1.5}
-    assert (tmp_path / "latest" / "report.md").read_text().startswith("# MJED verification report")
+    assert "data:image/png;base64," in pages["index.html"]
+    assert not re.search(r"""src=["'](?!data:)""", pages["index.html"])
+    assert results["complete"] and results["exit_code"] == 1 and EVERY not in results["verdict"]
+    by_key = {s["key"]: s for s in results["studies"]}
+    assert by_key["figure"]["data"] == {"value": 1.5} and by_key["boom"]["status"] == "error"
+    assert pages["report.md"].startswith("# MJED verification report")
+
+
+def test_every_check_passed_only_when_every_study_ran_and_passed_completely(tmp_path):
+    studies = [ReportStudy("a", "A", _passing("a")), ReportStudy("b", "B", _passing("b"))]
+    out = run_report(str(tmp_path / "full"), studies, CTX, **QUIET)
+    pages, results = _read(out.run_dir)
+    assert out.exit_code() == 0 and results["exit_code"] == 0
+    assert EVERY in results["verdict"] and all(EVERY in t for t in pages.values())
+
+
+@pytest.mark.parametrize("case", ["target", "only", "partial", "not_run"])
+def test_an_incomplete_run_never_says_every_check_passed_and_exits_3(tmp_path, case):
+    studies = [ReportStudy("a", "A", _passing("a"))]
+    only = None
+    if case == "target":
+        studies.append(ReportStudy("speed", "Speed", _missed_target))
+    elif case == "only":
+        studies.append(ReportStudy("b", "B", _passing("b")))
+        only = ["a"]
+    elif case == "partial":
+        studies.append(ReportStudy("q", "Q", lambda ctx: StudyResult.from_checks(
+            "q", "Q", [Check("x", 0.5, 1.0)], headline="h", command="c", not_covered=("quick: cube-small instead of cube-paper",))))
+    else:
+        studies.append(ReportStudy("x", "X", lambda ctx: StudyResult.not_run("x", "X", "the modern stack is not installed", "c")))
+    out = run_report(str(tmp_path), studies, CTX, only=only, **QUIET)
+    pages, results = _read(out.run_dir)
+    assert out.exit_code() == 3 and results["exit_code"] == 3
+    assert out.exit_code(allow_incomplete=True) == 0
+    assert EVERY not in results["verdict"] and all(EVERY not in t for t in pages.values())
+    expected = {"target": "TARGET MISSED", "only": "NOT RUN", "partial": "passed (partial)", "not_run": "NOT RUN"}[case]
+    toc = pages["report.md"].split("## Summary")[0]
+    assert expected in toc and expected in pages["index.html"].split("<h2")[0]  # the table of contents
+    if case == "only":
+        assert results["studies"][1]["status"] == "not run" and "not selected: --only a" in results["studies"][1]["reason"]
+    if case == "partial":
+        assert any("quick: cube-small instead of cube-paper" in line for line in results["not_covered"])
+        assert "quick: cube-small instead of cube-paper" in pages["report.md"]
+
+
+def test_a_study_returning_something_else_is_an_error(tmp_path):
+    out = run_report(str(tmp_path), [ReportStudy("dict", "Old style", lambda ctx: {"passed": True})], CTX, **QUIET)
+    assert out.results[0].status is Status.ERROR and "not a StudyResult" in out.results[0].reason
 
 
 def test_a_new_run_never_destroys_the_previous_one(tmp_path):
-    first = run_report(str(tmp_path), STUDIES[:1], CTX, quick=True, stream=open(os.devnull, "w"))
-    second = run_report(str(tmp_path), STUDIES[:1], CTX, quick=True, stream=open(os.devnull, "w"))
+    first = run_report(str(tmp_path), STUDIES[:1], CTX, **QUIET)
+    second = run_report(str(tmp_path), STUDIES[:1], CTX, **QUIET)
     assert first.run_dir != second.run_dir
     assert os.path.isfile(os.path.join(first.run_dir, "index.html"))
     assert os.path.realpath(tmp_path / "latest") == os.path.realpath(second.run_dir)
 
 
 def test_an_interrupted_run_keeps_what_it_has_and_leaves_latest_alone(tmp_path):
-    done = run_report(str(tmp_path), STUDIES[:1], CTX, quick=True, stream=open(os.devnull, "w"))
-    studies = [STUDIES[0], Study("stop", "Interrupted", "", "", _interrupt), STUDIES[2]]
-    cut = run_report(str(tmp_path), studies, CTX, quick=True, stream=open(os.devnull, "w"))
-    assert not cut.complete and cut.run_dir.endswith("-interrupted")
-    assert [s.status for s in cut.sections[1:]] == ["ok", "interrupted", "interrupted"]
+    done = run_report(str(tmp_path), STUDIES[:1], CTX, **QUIET)
+    studies = [STUDIES[0], ReportStudy("stop", "Interrupted", _interrupt), STUDIES[2]]
+    cut = run_report(str(tmp_path), studies, CTX, **QUIET)
+    assert not cut.complete and cut.run_dir.endswith("-interrupted") and cut.exit_code() == 130
+    assert [r.status for r in cut.results] == [Status.PASSED, Status.NOT_RUN, Status.NOT_RUN]
+    assert "interrupted" in cut.results[1].reason and "interrupted" in cut.results[2].reason
     assert os.path.isfile(os.path.join(cut.run_dir, "index.html"))
     assert os.path.realpath(tmp_path / "latest") == os.path.realpath(done.run_dir)
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".partial")]
@@ -87,6 +157,77 @@ def test_latest_that_is_a_real_directory_is_not_replaced(tmp_path):
     with pytest.raises(OSError, match="real directory"):
         publish_latest(str(tmp_path), "run")
     assert (tmp_path / "latest").is_dir()
+
+
+# ----------------------------------------------------------------------------- the command
+@pytest.fixture
+def fake_registry(monkeypatch):
+    """`mjed-verify all` on a registry of cheap studies, the outcome of each chosen by the test."""
+    from comparisons.report import studies
+
+    registry = {}
+    monkeypatch.setattr(studies, "report_studies", lambda: tuple(registry.values()))
+    return registry
+
+
+@pytest.mark.parametrize("make, code, allowed", [(_passing, 0, 0), (lambda k: _failing_check, 1, 1),
+                                                 (lambda k: _boom, 1, 1), (lambda k: _missed_target, 3, 0)])
+def test_all_exits_by_the_written_policy(tmp_path, capsys, fake_registry, make, code, allowed):
+    fake_registry["a"] = ReportStudy("a", "A", _passing("a"))
+    fake_registry["b"] = ReportStudy("b", "B", make("b"))
+    argv = ["all", "--mesh", "single-tet", "--out", str(tmp_path), "--no-progress"]
+    assert main(argv) == code
+    assert (EVERY in capsys.readouterr().out) == (code == 0)
+    assert main(argv + ["--allow-incomplete"]) == allowed
+
+
+def test_all_only_lists_the_others_as_not_run_and_exits_3(tmp_path, capsys, fake_registry):
+    fake_registry["a"] = ReportStudy("a", "A", _passing("a"))
+    fake_registry["b"] = ReportStudy("b", "B", _passing("b"))
+    assert main(["all", "--only", "a", "--mesh", "single-tet", "--out", str(tmp_path), "--no-progress"]) == 3
+    out = capsys.readouterr().out
+    assert "B: NOT RUN: not selected: --only a" in out and EVERY not in out
+
+
+def _parsed(line):
+    """The options a reproduce line sets, parsed by the real CLI parser."""
+    words = shlex.split(line, comments=True)
+    assert words[0] == "mjed-verify"
+    return vars(build_parser().parse_args(words[1:]))
+
+
+def test_the_reproduce_lines_of_a_report_parse_back_to_what_ran(tmp_path, fake_registry):
+    import meshes
+
+    from comparisons.report.runner import report_command
+
+    points, cells = meshes.load("single-tet")
+    mesh_file = tmp_path / "my organ.vtu"
+    meshes.write_mesh(str(mesh_file), points, cells)
+    fake_registry["a"] = ReportStudy("a", "A", lambda ctx: StudyResult.from_checks(
+        "a", "A", [Check("x", 0.5, 1.0)], headline="h", command=report_command(ctx)))
+    fake_registry["b"] = ReportStudy("b", "B", _passing("b"))
+    argv = ["all", "--quick", "--material", "Ogden,NeoHookean", "--mesh", f"single-tet,{mesh_file}",
+            "--states", "rest,shear", "--only", "a", "--out", str(tmp_path / "r"), "--no-progress"]
+    assert main(argv) == 3
+    results = json.loads((tmp_path / "r" / "latest" / "results.json").read_text())
+    ran, skipped = results["studies"]
+    for line, only in ((ran["command"], None), (skipped["command"], "b")):
+        args = _parsed(line)
+        assert args["command"] == "all" and args["quick"] is True
+        assert args["material"] == "Ogden,NeoHookean" and args["mesh"] == f"single-tet,{mesh_file}"
+        assert args["states"] == "rest,shear" and args["only"] == only
+
+
+def test_every_subcommand_has_examples_and_the_exit_policy_in_its_help(capsys):
+    from comparisons.cli import command_modules
+
+    for name in command_modules():
+        with pytest.raises(SystemExit):
+            main([name, "--help"])
+        text = capsys.readouterr().out
+        assert "examples:" in text and f"mjed-verify {name}" in text, name
+        assert "exit codes:" in text and "3  incomplete" in text, name
 
 
 @pytest.mark.parametrize(
@@ -114,26 +255,21 @@ def test_all_refuses_a_non_tetrahedral_mesh(tmp_path, capsys):
     assert "tetra" in capsys.readouterr().err.lower()
 
 
-def test_every_subcommand_has_examples_in_its_help(capsys):
-    from comparisons.cli import command_modules
-
-    for name in command_modules():
-        with pytest.raises(SystemExit):
-            main([name, "--help"])
-        text = capsys.readouterr().out
-        assert "examples:" in text and f"mjed-verify {name}" in text, name
-
-
 @pytest.mark.oracle
 def test_all_quick_equivalence_section_end_to_end(tmp_path):
     pytest.importorskip("dolfinx")
-    code = main(["all", "--quick", "--only", "equivalence,ogden_tangent", "--material", "NeoHookean,Ogden",
+    code = main(["all", "--quick", "--only", "equivalence", "--material", "NeoHookean,Ogden",
                  "--mesh", "single-tet", "--out", str(tmp_path), "--no-progress"])
-    assert code == 0
+    assert code == 3  # quick, and the other studies were not selected
     results = json.loads((tmp_path / "latest" / "results.json").read_text())
-    cases = results["results"]["equivalence"]["cases"]
+    eq = results["studies"][0]
+    assert eq["key"] == "equivalence" and eq["status"] == "passed" and eq["partial"]
+    cases = eq["data"]["cases"]
     assert len(cases) == 12 and all(c["passed"] for c in cases)
-    assert "Ogden: SOFA" in (tmp_path / "latest" / "index.html").read_text()
+    args = _parsed(eq["command"])
+    assert (args["command"], args["material"], args["mesh"], args["states"]) == ("equivalence", "NeoHookean,Ogden",
+                                                                                  "single-tet", "all")
+    assert "coaxial tangent against the exact Hessian" in (tmp_path / "latest" / "index.html").read_text()
 
 
 @pytest.mark.parametrize("argv", [["all", "--out", "/proc/1/nowhere"], ["regularization", "--json", "/proc/x/r.json"],

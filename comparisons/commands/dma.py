@@ -15,10 +15,6 @@ EXAMPLES = """examples:
   mjed-verify dma --samples-per-period 256          # closer to the continuous moduli (BE error ~ omega dt)
 """
 
-#: The sweep must reproduce the exact backward-Euler transfer function to this relative error
-#: (what is left is O(amplitude^2) geometric nonlinearity and round-off, about 1e-10).
-DISCRETE_TOL = 1e-7
-
 
 def configure(parser) -> None:
     parser.add_argument("--quick", action="store_true", help="a complete but small run (5 frequencies, ~300 cells)")
@@ -28,36 +24,17 @@ def configure(parser) -> None:
     parser.add_argument("--amplitude", type=float, help="rotation amplitude of the upper plate in rad (default 1e-6)")
     opt.add_json_option(parser)
     opt.add_out_option(parser, "reports/dma")
+    opt.add_allow_incomplete_option(parser)
 
 
 def run(args) -> int:
-    from dataclasses import replace
+    from comparisons.rheometer import SPEC_OPTIONS, rheometer_spec, rheometer_study
+    from comparisons.terminal import finish
 
-    from comparisons.rheometer import QUICK_SPEC, RheometerSpec
-
-    spec = QUICK_SPEC if args.quick else RheometerSpec()
-    changes = {"target_cells": args.cells, "n_frequencies": args.frequencies,
-               "samples_per_period": args.samples_per_period, "amplitude": args.amplitude}
+    overrides = {k: getattr(args, k) for k in SPEC_OPTIONS}
     try:
-        spec = replace(spec, **{k: v for k, v in changes.items() if v is not None})
+        rheometer_spec(args.quick, **overrides)  # refuse a bad value before any work
     except ValueError as exc:
         raise opt.InputError(str(exc)) from None
-
-    from comparisons.rheometer import format_table, run_rheometer
-
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
-    result = run_rheometer(spec=spec, out=args.out, json_path=args.json, progress=progress)
-    m = result["mesh"]
-    print(f"cylinder {2e3 * spec.radius:g} mm x {1e3 * spec.height:g} mm, {m['n_cells']} cells, {m['n_nodes']} nodes; "
-          f"StVK G0 = {spec.G0:g} Pa, alphas {spec.alphas}, taus {spec.taus} s; theta0 = {spec.amplitude:g} rad, "
-          f"{spec.samples_per_period} steps per period, quasi-static implicit Euler")
-    print(format_table(result))
-    e = result["errors"]
-    print(f"relative error vs continuous generalised Maxwell: mean {e['continuous']['mean']:.2e}, max {e['continuous']['max']:.2e}"
-          f" (backward Euler's own O(omega dt) error)")
-    print(f"relative error vs exact backward-Euler response:  mean {e['discrete']['mean']:.2e}, max {e['discrete']['max']:.2e}"
-          f" (tolerance {DISCRETE_TOL:g})")
-    for path in result["figures"]:
-        print(f"figure: {path}")
-    print(f"{result['elapsed_s']:.1f} s")
-    return 0 if e["discrete"]["max"] <= DISCRETE_TOL else 1
+    return finish(rheometer_study(quick=args.quick, out_dir=args.out, progress=progress, **overrides), args)

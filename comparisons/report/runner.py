@@ -5,9 +5,13 @@ Safety rules, in order of importance:
   whatever happens to this one;
 - the run is assembled in ``<reports>/.partial-<name>`` and renamed when its report is written;
   only then does ``latest`` move (an atomic symlink replace);
-- a study that raises becomes an "error" section saying what failed and why; the others run;
+- a study that raises becomes an ERROR result saying what failed and why; the others run;
 - an interrupted run (Ctrl-C) still writes what it has, as ``<name>-interrupted``, and leaves
-  ``latest`` where it was.
+  ``latest`` where it was;
+- a study left out by ``--only`` is listed as NOT RUN with that reason, never silently dropped.
+
+The runner decides no verdict: each study returns its :class:`comparisons.result.StudyResult`,
+and the summary words them (:mod:`comparisons.verdict`).
 """
 
 from __future__ import annotations
@@ -19,13 +23,15 @@ import shlex
 import sys
 import time
 import traceback
-from dataclasses import asdict, dataclass, field, is_dataclass
-from typing import Callable, Dict, List, Optional, Sequence
+from dataclasses import dataclass
+from typing import Callable, List, Optional, Sequence
 
-from comparisons.blocks import Preformatted, Section, Table
+from comparisons.blocks import Preformatted
 from comparisons.report.render import to_html, to_markdown
+from comparisons.result import StudyResult, exit_code
+from comparisons.verdict import not_covered_lines, status_label, verdict_sentence
 
-__all__ = ["StudyContext", "Study", "RunOutcome", "run_report", "publish_latest"]
+__all__ = ["StudyContext", "ReportStudy", "RunOutcome", "run_report", "publish_latest", "report_command"]
 
 
 @dataclass(frozen=True)
@@ -35,7 +41,7 @@ class StudyContext:
     run_dir: str
     quick: bool
     materials: Sequence  # material instances
-    meshes: Sequence  # (label, points, cells) for the equivalence study
+    meshes: Sequence  # (label, points, cells) for the equivalence study; labels as the user gave them
     states: Sequence[str]
     show_progress: bool = True
 
@@ -55,20 +61,11 @@ class StudyContext:
 
 
 @dataclass(frozen=True)
-class StudyResult:
-    payload: dict
-    blocks: list
-    passed: bool = True
-    message: str = ""
-    headline: str = ""  # the one line the summary verdict shows for this study
+class ReportStudy:
+    """One entry of the report's registry: the study's key and title, and how to run it in a report."""
 
-
-@dataclass(frozen=True)
-class Study:
     key: str
     title: str
-    summary: str
-    reproduce: str
     run: Callable[[StudyContext], StudyResult]
 
 
@@ -76,22 +73,25 @@ class Study:
 class RunOutcome:
     run_dir: str
     complete: bool
-    sections: List[Section]
-    results: Dict[str, dict] = field(default_factory=dict)
+    results: List[StudyResult]
+
+    def exit_code(self, *, allow_incomplete: bool = False) -> int:
+        """The written policy (comparisons.verdict.EXIT_POLICY); 130 for an interrupted run."""
+        return exit_code(self.results, allow_incomplete=allow_incomplete) if self.complete else 130
 
     @property
     def all_passed(self) -> bool:
-        return self.complete and all(s.status in ("ok", "skipped") for s in self.sections)
+        return self.complete and exit_code(self.results) == 0
 
 
-def _jsonable(obj):
-    if is_dataclass(obj) and not isinstance(obj, type):
-        return asdict(obj)
-    if hasattr(obj, "tolist"):
-        return obj.tolist()
-    if isinstance(obj, float) and obj != obj:
-        return None
-    return str(obj)
+def report_command(ctx: StudyContext, only: Optional[Sequence[str]] = None) -> str:
+    """``mjed-verify all ...`` with this run's selections (and ``--only`` if given)."""
+    from comparisons.reproduce import command, material_option, mesh_option, only_option, states_option
+
+    material, comment = material_option(ctx.materials)
+    return command("all", comment=comment, quick=ctx.quick, material=material,
+                   mesh=mesh_option(m[0] for m in ctx.meshes), states=states_option(ctx.states),
+                   only=only_option(only))
 
 
 def _new_run_name(reports_dir: str, quick: bool) -> str:
@@ -116,44 +116,35 @@ def publish_latest(reports_dir: str, run_name: str) -> str:
     return link
 
 
-def _verdict_section(sections: Sequence[Section], results: Dict[str, dict]) -> Section:
-    bad = [s for s in sections if s.status not in ("ok", "skipped")]
-    eq = results.get("equivalence", {})
-    cases = eq.get("cases", [])
-    lines = []
-    if cases:
-        n_pass = sum(c["passed"] for c in cases)
-        wf = max(c["force_rel_err"] for c in cases)
-        wk = max(c["stiffness_rel_err"] for c in cases)
-        lines.append(f"Equivalence: {n_pass}/{len(cases)} cases passed; worst force error {wf:.1e}, "
-                     f"worst stiffness error {wk:.1e} (tolerance 1e-10).")
-    elif "equivalence" in results or any(s.key == "equivalence" for s in sections):
-        lines.append("Equivalence: no case ran.")
-    verdict = "every check passed" if not bad else "NOT every check passed: " + "; ".join(
-        f"{s.title} ({s.status}{': ' + s.message if s.message else ''})" for s in bad)
-    rows = [(s.title, {"ok": "passed"}.get(s.status, s.status.upper() if s.status != "skipped" else "skipped"),
-             "; ".join(t for t in (s.message, s.headline) if t), f"{s.seconds:.1f}") for s in sections]
-    return Section(
-        key="verdict", title="Summary verdict", status="ok" if not bad else "failed",
-        summary=f"Verdict: {verdict}.", reproduce="mjed-verify all",
-        blocks=[*(Preformatted(l) for l in lines),
-                Table(("section", "status", "what it found", "seconds"), rows)],
-        message="" if not bad else f"{len(bad)} section(s) did not pass",
-    )
+def _run_one(study: ReportStudy, ctx: StudyContext) -> StudyResult:
+    """The study's result, or an ERROR result naming the exception and its last frames."""
+    try:
+        result = study.run(ctx)
+        if not isinstance(result, StudyResult):
+            raise TypeError(f"study {study.key!r} returned {type(result).__name__}, not a StudyResult")
+        return result
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # a failed study must not take the report down with it
+        frames = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-6:])
+        return StudyResult.error(study.key, study.title, f"{type(exc).__name__}: {exc}",
+                                 report_command(ctx, only=[study.key]), blocks=[Preformatted(frames)])
 
 
 def run_report(
     reports_dir: str,
-    studies: Sequence[Study],
+    studies: Sequence[ReportStudy],
     context_args: dict,
     *,
     quick: bool,
+    only: Optional[Sequence[str]] = None,
     command_line: Optional[Sequence[str]] = None,
     stream=None,
 ) -> RunOutcome:
-    """Run every study, write index.html, report.md and results.json, publish latest.
+    """Run the selected studies, write index.html, report.md and results.json, publish latest.
 
     context_args: materials, meshes, states, show_progress (see StudyContext).
+    only: the keys to run (None: all); the others are NOT RUN results saying so.
     """
     stream = stream if stream is not None else sys.stderr
     os.makedirs(reports_dir, exist_ok=True)
@@ -161,55 +152,51 @@ def run_report(
     partial = os.path.join(reports_dir, f".partial-{name}")
     os.makedirs(partial)
     ctx = StudyContext(run_dir=partial, quick=quick, **context_args)
-    sections: List[Section] = []
-    results: Dict[str, dict] = {}
+    results: List[StudyResult] = []
     interrupted = False
-    for i, study in enumerate(studies):
-        sec = Section(key=study.key, title=study.title, summary=study.summary, reproduce=study.reproduce)
-        if interrupted:
-            sec.status, sec.message = "interrupted", "not run: the run was interrupted before this study"
-            sections.append(sec)
+    selected = [s for s in studies if only is None or s.key in only]
+    for study in studies:
+        again = report_command(ctx, only=[study.key])
+        if only is not None and study.key not in only:
+            results.append(StudyResult.not_run(study.key, study.title, f"not selected: --only {','.join(only)}", again))
             continue
-        print(f"[{i + 1}/{len(studies)}] {study.title} ...", file=stream, flush=True)
+        if interrupted:
+            results.append(StudyResult.not_run(study.key, study.title, "the run was interrupted before this study", again))
+            continue
+        print(f"[{selected.index(study) + 1}/{len(selected)}] {study.title} ...", file=stream, flush=True)
         t0 = time.perf_counter()
         try:
-            res = study.run(ctx)
-            results[study.key] = res.payload
-            sec.blocks = list(res.blocks)
-            sec.status = "ok" if res.passed else "failed"
-            sec.message = res.message
-            sec.headline = res.headline
+            result = _run_one(study, ctx)
         except KeyboardInterrupt:
             interrupted = True
-            sec.status, sec.message = "interrupted", "interrupted by the user during this study"
-        except Exception as exc:  # a failed study must not take the report down with it
-            sec.status = "error"
-            sec.message = f"{type(exc).__name__}: {exc}"
-            sec.blocks = [Preformatted("".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-6:]))]
-            results[study.key] = {"error": sec.message}
-        sec.seconds = time.perf_counter() - t0
-        print(f"      {sec.status}{': ' + sec.message if sec.message else ''} ({sec.seconds:.1f} s)", file=stream, flush=True)
-        sections.append(sec)
+            result = StudyResult.not_run(study.key, study.title, "interrupted by the user during this study", again)
+        result = result.with_seconds(time.perf_counter() - t0)
+        why = f": {result.reason}" if result.reason else ""
+        print(f"      {status_label(result)}{why} ({result.seconds:.1f} s)", file=stream, flush=True)
+        results.append(result)
 
-    sections.insert(0, _verdict_section(sections, results))
     cmd = " ".join(shlex.quote(a) for a in (command_line if command_line is not None else sys.argv))
     title = "MJED verification report" + (" (quick)" if quick else "")
     preamble = [f"Run {name} on {platform.node() or 'this machine'}, {time.strftime('%Y-%m-%d %H:%M:%S %Z')}; command: {cmd}.",
                 "MJED (Marchesseau et al., MICCAI 2010) checked force by force and stiffness by stiffness against a "
-                "UFL Galerkin oracle, with timings, the rheometer study and the liver under gravity."]
+                "UFL Galerkin oracle, with timings, the rheometer study and the liver under gravity. How to read this "
+                "report (statuses, exit codes, Reproduce lines): docs/report.md.",
+                f"Selection: materials {', '.join(m.name for m in ctx.materials)}; meshes "
+                f"{', '.join(m[0] for m in ctx.meshes)} (equivalence); states {', '.join(ctx.states)}."]
     payload = {"run": name, "quick": quick, "command": cmd, "complete": not interrupted,
-               "sections": [{"key": s.key, "title": s.title, "status": s.status, "message": s.message,
-                             "seconds": s.seconds} for s in sections],
-               "results": results}
-    with open(os.path.join(partial, "results.json"), "w") as fh:
-        json.dump(payload, fh, indent=1, default=_jsonable)
+               "exit_code": exit_code(results) if not interrupted else 130,
+               "verdict": verdict_sentence(results), "not_covered": not_covered_lines(results),
+               "studies": [r.to_dict() for r in results]}
+    from comparisons.options import write_json
+
+    write_json(os.path.join(partial, "results.json"), payload)
     with open(os.path.join(partial, "report.md"), "w") as fh:
-        fh.write(to_markdown(title, preamble, sections))
+        fh.write(to_markdown(title, preamble, results))
     with open(os.path.join(partial, "index.html"), "w") as fh:
-        fh.write(to_html(title, preamble, sections, partial))
+        fh.write(to_html(title, preamble, results, partial))
 
     final = os.path.join(reports_dir, name + ("-interrupted" if interrupted else ""))
     os.rename(partial, final)
     if not interrupted:
         publish_latest(reports_dir, os.path.basename(final))
-    return RunOutcome(run_dir=final, complete=not interrupted, sections=sections, results=results)
+    return RunOutcome(run_dir=final, complete=not interrupted, results=results)
