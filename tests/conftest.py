@@ -70,3 +70,14 @@ def material(request):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def parse_reproduce(line: str) -> dict:
+    """The options a result's reproduce line sets, parsed back by the real mjed-verify parser."""
+    import shlex
+
+    from comparisons.cli import build_parser
+
+    words = shlex.split(line, comments=True)
+    assert words[0] == "mjed-verify", line
+    return vars(build_parser().parse_args(words[1:]))

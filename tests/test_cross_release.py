@@ -75,3 +75,51 @@ def test_provenance_summary(tmp_path):
     summary = provenance_summary(str(path))
     assert summary["worst_rel_diff"] == {"b": 2e-15} and summary["not_run"] == ["c"]
     assert summary["stacks"][1]["ranks"] == 2 and summary["stacks"][0]["dolfinx"] == "0.5.2"
+
+
+# ----------------------------------------------------------------------------- the typed result
+def _check_result(*, comparisons=(1e-15,), missing=("modern-serial",), errors=()):
+    versions = {"dolfinx": "0.5.2", "ufl": "2022.2.0", "petsc": "3.18", "numpy": "1.24", "python": "3.11"}
+    labels = ["debian-serial"] + [f"debian-mpi{i + 2}" for i in range(len(comparisons))]
+    return {"tolerance": TOLERANCE, "reference": labels[0], "figures": [],
+            "stacks": [{"label": s, "python": "p", "ranks": 1, "versions": versions, "cells_per_rank": [1], "seconds": 1.0}
+                       for s in labels],
+            "comparisons": [{"label": s, "n_cases": 3, "energy_rel_diff": d, "force_rel_diff": d, "stiffness_rel_diff": d,
+                             "passed": d <= TOLERANCE} for s, d in zip(labels[1:], comparisons)],
+            "missing": [{"label": m, "reason": "/x/.venv-modern/bin/python does not exist"} for m in missing],
+            "errors": [{"label": e, "error": "snapshot failed"} for e in errors],
+            "passed": not errors and all(d <= TOLERANCE for d in comparisons) and len(comparisons) > 0}
+
+
+@pytest.mark.parametrize("kwargs, status, code", [
+    (dict(), "passed", 3),  # the modern stack is not installed: partial
+    (dict(missing=()), "passed", 0),
+    (dict(comparisons=(1e-9,)), "failed", 1),
+    (dict(errors=("modern-serial",)), "failed", 1),
+    (dict(comparisons=()), "not run", 3),  # one stack only: nothing compared
+])
+def test_study_result_follows_the_policy(monkeypatch, kwargs, status, code):
+    from comparisons import cross_release
+    from comparisons.result import exit_code
+
+    monkeypatch.setattr(cross_release, "cross_release_check", lambda stacks, quick: _check_result(**kwargs))
+    r = cross_release.cross_release_study(quick=False)
+    assert r.status.value == status and exit_code([r]) == code
+    if kwargs.get("missing", ("modern-serial",)):
+        assert any("modern-serial: not installed here" in s for s in r.not_covered) or "modern-serial" in r.reason
+
+
+def test_a_stack_that_is_not_installed_makes_the_command_exit_3(monkeypatch, tmp_path, capsys):
+    from comparisons import cross_release
+    from comparisons.cli import main
+    from conftest import parse_reproduce
+
+    missing = str(tmp_path / "no-venv" / "bin" / "python")
+    monkeypatch.setattr(cross_release, "default_stacks", lambda: [("modern-serial", missing, 1)])
+    out = tmp_path / "xr.json"
+    assert main(["cross-release", "--quick", "--json", str(out)]) == 3
+    written = json.loads(out.read_text())
+    assert written["status"] == "not run" and "nothing was compared" in written["reason"]
+    assert "does not exist" in written["reason"] and written["data"]["missing"][0]["label"] == "modern-serial"
+    assert parse_reproduce(written["command"])["quick"] is True
+    assert "every check passed" not in capsys.readouterr().out

@@ -72,3 +72,33 @@ def test_cg_reports_negative_curvature_and_converges_on_spd():
     assert res.converged and np.allclose(S @ res.x, b, atol=1e-10)
     res = conjugate_gradient(S, b, tol=1e-14, max_iterations=2)
     assert not res.converged and res.reason == "max_iterations"
+
+
+# ----------------------------------------------------------------------------- the typed result
+def test_study_result_holds_the_invariants_and_reproduces(tmp_path):
+    pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
+    import json
+
+    from comparisons.cli import main
+    from conftest import parse_reproduce
+
+    out = tmp_path / "reg.json"
+    assert main(["regularization", "--material", "NeoHookean,StVenantKirchhoff", "--json", str(out)]) == 0
+    written = json.loads(out.read_text())
+    assert written["status"] == "passed" and not written["partial"]
+    assert [c["measured"] for c in written["checks"]][0] == 0.0  # forces untouched, to the bit
+    assert written["data"]["mesh"] == "cube-small" and len(written["data"]["results"]) == 2
+    args = parse_reproduce(written["command"])
+    assert (args["command"], args["material"], args["mesh"]) == ("regularization", "NeoHookean,StVenantKirchhoff",
+                                                                 "cube-small")
+
+
+def test_a_force_changed_by_the_regularisation_fails_the_study(monkeypatch):
+    from dataclasses import replace
+
+    from comparisons import regularization
+    from comparisons.cli import main
+
+    real = regularization.run_study
+    monkeypatch.setattr(regularization, "run_study", lambda mesh, m: replace(real(mesh, m), force_change=1e-9))
+    assert main(["regularization", "--material", "NeoHookean", "--mesh", "single-tet"]) == 1

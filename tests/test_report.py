@@ -5,14 +5,14 @@ latest moves last, a raising study becomes ERROR and the others still run)."""
 import json
 import os
 import re
-import shlex
 
 import pytest
 
 from comparisons.blocks import Figure, Paragraph, Table
-from comparisons.cli import build_parser, main
+from comparisons.cli import main
 from comparisons.report.runner import ReportStudy, publish_latest, run_report
 from comparisons.result import Check, Status, StudyResult
+from conftest import parse_reproduce
 
 EVERY = "every check passed"
 
@@ -189,13 +189,6 @@ def test_all_only_lists_the_others_as_not_run_and_exits_3(tmp_path, capsys, fake
     assert "B: NOT RUN: not selected: --only a" in out and EVERY not in out
 
 
-def _parsed(line):
-    """The options a reproduce line sets, parsed by the real CLI parser."""
-    words = shlex.split(line, comments=True)
-    assert words[0] == "mjed-verify"
-    return vars(build_parser().parse_args(words[1:]))
-
-
 def test_the_reproduce_lines_of_a_report_parse_back_to_what_ran(tmp_path, fake_registry):
     import meshes
 
@@ -213,7 +206,7 @@ def test_the_reproduce_lines_of_a_report_parse_back_to_what_ran(tmp_path, fake_r
     results = json.loads((tmp_path / "r" / "latest" / "results.json").read_text())
     ran, skipped = results["studies"]
     for line, only in ((ran["command"], None), (skipped["command"], "b")):
-        args = _parsed(line)
+        args = parse_reproduce(line)
         assert args["command"] == "all" and args["quick"] is True
         assert args["material"] == "Ogden,NeoHookean" and args["mesh"] == f"single-tet,{mesh_file}"
         assert args["states"] == "rest,shear" and args["only"] == only
@@ -266,7 +259,7 @@ def test_all_quick_equivalence_section_end_to_end(tmp_path):
     assert eq["key"] == "equivalence" and eq["status"] == "passed" and eq["partial"]
     cases = eq["data"]["cases"]
     assert len(cases) == 12 and all(c["passed"] for c in cases)
-    args = _parsed(eq["command"])
+    args = parse_reproduce(eq["command"])
     assert (args["command"], args["material"], args["mesh"], args["states"]) == ("equivalence", "NeoHookean,Ogden",
                                                                                   "single-tet", "all")
     assert "coaxial tangent against the exact Hessian" in (tmp_path / "latest" / "index.html").read_text()
