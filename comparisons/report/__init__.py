@@ -1,9 +1,14 @@
-"""The verification report: studies run into sections, written as HTML, Markdown and JSON.
+"""The verification report: study results rendered as HTML, Markdown and JSON.
+
+The studies own their results (:class:`comparisons.result.StudyResult`); this package only
+runs the registry (:mod:`comparisons.report.studies`) safely and renders what comes back:
 
     from comparisons.report import run_report
-    outcome = run_report("reports", quick=True)
+    from comparisons.report.studies import report_studies
+    outcome = run_report("reports", report_studies(), {"materials": ..., "meshes": ..., "states": ...}, quick=True)
+    outcome.exit_code()  # the written policy: 0, 1 or 3 (130 if interrupted)
 """
 
-from comparisons.report.runner import RunOutcome, run_report
+from comparisons.report.runner import ReportStudy, RunOutcome, run_report
 
-__all__ = ["run_report", "RunOutcome"]
+__all__ = ["run_report", "RunOutcome", "ReportStudy"]
