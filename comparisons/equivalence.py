@@ -239,6 +239,8 @@ def equivalence_study(
     if cases:
         headline += (f"; worst force error {_worst([c.force_rel_err for c in cases]):.1e}, stiffness "
                      f"{_worst([c.stiffness_rel_err for c in cases]):.1e}")
+    if comm is not None:
+        headline += f" (oracle on {comm.size} MPI ranks)"
     if uniaxial:
         headline += (f"; uniaxial closed form {len(uniaxial) - len(bad_uniaxial)}/{len(uniaxial)}, worst "
                      f"{_worst([u['rel_err'] for u in uniaxial]):.1e}")

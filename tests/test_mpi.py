@@ -75,14 +75,16 @@ def test_mpirun_equivalence_reports_what_a_serial_run_reports(tmp_path):
     out = tmp_path / "mpi.json"
     proc = _mpirun(_verify_command() + args + ["--json", str(out)])
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert proc.stdout.count("cases passed") == 1  # only rank 0 prints
+    assert proc.stdout.count("4/4 cases pass") == 1  # only rank 0 prints
     assert "oracle on 2 MPI ranks" in proc.stdout
-    parallel = json.loads(out.read_text())
+    written = json.loads(out.read_text())
+    assert written["command"].startswith(f"mpirun -n {RANKS} mjed-verify equivalence")  # reproduces the run
+    parallel = written["data"]
     assert parallel["mpi_ranks"] == RANKS
 
     serial_out = tmp_path / "serial.json"
     assert main(args + ["--quiet", "--json", str(serial_out)]) == 0
-    serial = json.loads(serial_out.read_text())
+    serial = json.loads(serial_out.read_text())["data"]
     key = lambda c: (c["material"], c["mesh"], c["state"], c["n_cells"], c["n_nodes"])  # noqa: E731
     assert [key(c) for c in parallel["cases"]] == [key(c) for c in serial["cases"]]
     assert len(parallel["cases"]) == 4 and all(c["passed"] for c in parallel["cases"])
