@@ -394,14 +394,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.command == "compare":
         print(json.dumps(compare_snapshots(load_snapshot(args.reference), load_snapshot(args.other)), indent=1))
         return 0
-    result = cross_release_check(quick=args.quick)
-    print(format_check(result))
+    # The same verdict as `mjed-verify cross-release` (exit 3 when a stack is missing); the
+    # JSON keeps the raw check, which provenance_summary reads.
+    from comparisons.result import exit_code
+    from comparisons.terminal import format_result
+
+    study = cross_release_study(quick=args.quick)
+    print(format_result(study, details=False))
     if args.json:
-        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-        with open(args.json, "w") as fh:
-            json.dump(result, fh, indent=1)
-    print(f"cross-release check: {'passed' if result['passed'] else 'FAILED'}")
-    return 0 if result["passed"] else 1
+        from comparisons.options import write_json
+
+        write_json(args.json, dict(study.data))
+    return exit_code([study])
 
 
 if __name__ == "__main__":

@@ -331,7 +331,7 @@ def rheometer_study(*, quick: bool = False, out_dir: Optional[str] = None, figur
     Args:
         quick: the small spec (QUICK_SPEC); the result lists what that leaves out.
         out_dir: where the figure goes (None: no figure).
-        figure_root: figure paths in the blocks are made relative to it (the report's run dir).
+        figure_root: figure paths (blocks and data) are made relative to it (the report's run dir).
         overrides: cells, frequencies, samples_per_period, amplitude (as ``mjed-verify dma``).
 
     Returns:
@@ -356,10 +356,11 @@ def rheometer_study(*, quick: bool = False, out_dir: Optional[str] = None, figur
                            f"{full.measured_periods}")
     check = Check("G', G'' against the exact backward-Euler response: largest relative error", e["discrete"]["max"],
                   DISCRETE_TOL)
-    rel = (lambda p: os.path.relpath(p, figure_root)) if figure_root else (lambda p: p)
+    if figure_root:  # the report's run directory is renamed when done: keep paths relative to it
+        res["figures"] = [os.path.relpath(p, figure_root) for p in res["figures"]]
     rows = [(f["frequency_hz"], f["omega"], f["G_storage"], f["continuous"][0], f["discrete"][0], f["G_loss"],
              f["continuous"][1], f["discrete"][1], max(f["rel_err_discrete"])) for f in res["frequencies"]]
-    blocks = [Figure(rel(p), "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
+    blocks = [Figure(p, "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
                      "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's Fig. 3")
               for p in res["figures"]]
     blocks += [
