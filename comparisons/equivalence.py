@@ -1,6 +1,6 @@
 """The equivalence harness: MJED against the UFL Galerkin oracle, case by case.
 
-A case is one material on one mesh in one deformation state. Errors follow CONVENTIONS.md:
+A case is one material on one mesh in one deformation state. The errors are
 
     force_rel_err     = ||f_mjed - f_oracle||_2 / ||f_oracle||_2
     stiffness_rel_err = ||K_mjed - K_oracle||_F / ||K_oracle||_F
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from functools import partial
-from typing import Callable, Iterable, Iterator, List, Optional, Sequence
+from typing import Callable, Iterator, List, Optional, Sequence
 
 import numpy as np
 import scipy.sparse as sp

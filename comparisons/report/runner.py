@@ -16,7 +16,6 @@ and the summary words them (:mod:`comparisons.verdict`).
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import shlex
