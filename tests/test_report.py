@@ -30,7 +30,7 @@ def _figure_study(ctx):
     plt.close(fig)
     return StudyResult.from_checks("figure", "A figure", [Check("error", 1e-16, 1e-10)], headline="a line",
                                    command="mjed-verify figure", data={"value": 1.5},
-                                   blocks=[Paragraph("a line"), Figure(ctx.relative(path), "a line"),
+                                   blocks=[Paragraph("a line"), Figure(path, "a line"),  # absolute: made relative
                                            Table(("a", "b"), [(1, 2.5e-12)])])
 
 
@@ -87,6 +87,7 @@ def test_a_raising_study_is_an_error_the_others_run_and_the_exit_code_is_1(tmp_p
     by_key = {s["key"]: s for s in results["studies"]}
     assert by_key["figure"]["data"] == {"value": 1.5} and by_key["boom"]["status"] == "error"
     assert pages["report.md"].startswith("# MJED verification report")
+    assert "![a line](figures/line.png)" in pages["report.md"]  # still valid once the run dir is renamed
 
 
 def test_every_check_passed_only_when_every_study_ran_and_passed_completely(tmp_path):

@@ -22,10 +22,10 @@ import shlex
 import sys
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, List, Optional, Sequence
 
-from comparisons.blocks import Preformatted
+from comparisons.blocks import Figure, Preformatted
 from comparisons.report.render import to_html, to_markdown
 from comparisons.result import StudyResult, exit_code
 from comparisons.verdict import not_covered_lines, status_label, verdict_sentence
@@ -115,13 +115,21 @@ def publish_latest(reports_dir: str, run_name: str) -> str:
     return link
 
 
+def _relative_figures(result: StudyResult, run_dir: str) -> StudyResult:
+    """Figure paths relative to the run directory: it is renamed when the report is written,
+    so an absolute path into it would point nowhere in report.md afterwards."""
+    blocks = tuple(Figure(os.path.relpath(b.path, run_dir), b.caption) if isinstance(b, Figure) and os.path.isabs(b.path)
+                   else b for b in result.blocks)
+    return replace(result, blocks=blocks)
+
+
 def _run_one(study: ReportStudy, ctx: StudyContext) -> StudyResult:
     """The study's result, or an ERROR result naming the exception and its last frames."""
     try:
         result = study.run(ctx)
         if not isinstance(result, StudyResult):
             raise TypeError(f"study {study.key!r} returned {type(result).__name__}, not a StudyResult")
-        return result
+        return _relative_figures(result, ctx.run_dir)
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # a failed study must not take the report down with it
