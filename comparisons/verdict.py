@@ -23,6 +23,7 @@ EXIT_POLICY = """exit codes:
   3  incomplete: a target missed, a study not run (not selected by --only, a stack not
      installed) or a partial run (quick sizes, a check that could not be measured);
      --allow-incomplete turns 3 into 0 (1 and 2 stay)
+  130  interrupted (Ctrl-C); `all` keeps the partial report and leaves reports/latest alone
 """
 
 
