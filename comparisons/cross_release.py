@@ -229,6 +229,22 @@ def _run_snapshot(python: str, ranks: int, out: str, quick: bool, timeout: float
         raise RuntimeError(f"snapshot failed (exit {proc.returncode}): {' '.join(argv)}\n{tail}")
 
 
+def _why_missing(python: str, timeout: float) -> Optional[str]:
+    """Why the stack of ``python`` is not installed here, or None if it is (interpreter and dolfinx).
+
+    A stack without dolfinx is not installed, not broken: it is listed as missing, like an
+    absent interpreter. Any other failure is left to the snapshot, which reports it as an error.
+    """
+    if not Path(python).exists():
+        return f"{python} does not exist"
+    probe = "import sys; from reference_fem import dolfinx_available; sys.exit(0 if dolfinx_available() else 3)"
+    try:
+        rc = subprocess.run([python, "-c", probe], cwd=str(REPO), capture_output=True, timeout=timeout).returncode
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return f"dolfinx cannot be imported by {python}" if rc == 3 else None
+
+
 def cross_release_check(stacks: Optional[Sequence[Tuple[str, str, int]]] = None, *, quick: bool = True,
                         timeout: float = 900.0) -> dict:
     """Snapshots on every available stack, each compared with the first that ran.
@@ -237,16 +253,20 @@ def cross_release_check(stacks: Optional[Sequence[Tuple[str, str, int]]] = None,
     ranks, versions, cells_per_rank, seconds}], "comparisons": [{label, energy_rel_diff,
     force_rel_diff, stiffness_rel_diff, passed}], "missing": [{label, reason}], "passed",
     "figures": []}. ``passed`` is False if any comparison fails, if a stack that exists
-    fails to run, or if fewer than two snapshots could be taken.
+    fails to run, or if fewer than two snapshots could be taken. A stack whose interpreter is
+    absent or cannot import dolfinx is listed under "missing" (not installed), not as an error.
     """
     stacks = list(default_stacks() if stacks is None else stacks)
     result = {"tolerance": TOLERANCE, "reference": None, "stacks": [], "comparisons": [], "missing": [],
               "errors": [], "figures": []}
     snaps = []
     with tempfile.TemporaryDirectory() as tmp:
+        missing: Dict[str, Optional[str]] = {}
         for i, (label, python, ranks) in enumerate(stacks):
-            if not Path(python).exists():
-                result["missing"].append({"label": label, "reason": f"{python} does not exist"})
+            if python not in missing:
+                missing[python] = _why_missing(python, timeout)
+            if missing[python]:
+                result["missing"].append({"label": label, "reason": missing[python]})
                 continue
             out = os.path.join(tmp, f"{i}.npz")
             t0 = time.perf_counter()

@@ -123,3 +123,12 @@ def test_a_stack_that_is_not_installed_makes_the_command_exit_3(monkeypatch, tmp
     assert "does not exist" in written["reason"] and written["data"]["missing"][0]["label"] == "modern-serial"
     assert parse_reproduce(written["command"])["quick"] is True
     assert "every check passed" not in capsys.readouterr().out
+
+
+def test_an_interpreter_without_dolfinx_is_a_missing_stack_not_an_error(tmp_path):
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\nexit 3\n")  # what the dolfinx probe returns when dolfinx cannot be imported
+    fake.chmod(0o755)
+    result = cross_release_check([("nodolfinx-serial", str(fake), 1), ("nodolfinx-mpi2", str(fake), 2)])
+    assert [m["label"] for m in result["missing"]] == ["nodolfinx-serial", "nodolfinx-mpi2"]
+    assert "dolfinx cannot be imported" in result["missing"][0]["reason"] and not result["errors"]
