@@ -130,6 +130,10 @@ def _embed(run_dir: str, rel: str) -> str:
     return f'<img src="data:{mime};base64,{data}" alt="{html.escape(rel)}">'
 
 
+#: Table cells shown in red: a verdict that is not a pass.
+_ALERT = frozenset(("FAIL", "ERROR", "MISSED", "FAILED", "TARGET MISSED", "NOT RUN"))
+
+
 def _html_table(t: Table) -> str:
     head = "".join(f"<th>{html.escape(str(h))}</th>" for h in t.headers)
     body = []
@@ -137,7 +141,7 @@ def _html_table(t: Table) -> str:
         cells = []
         for c in row:
             text = html.escape(format_cell(c))
-            cls = ' class="fail-cell"' if text in ("FAIL", "ERROR", "MISSED", "FAILED") else ""
+            cls = ' class="fail-cell"' if text in _ALERT else ""
             cells.append(f"<td{cls}>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     cap = f"<caption>{html.escape(t.caption)}</caption>" if t.caption else ""
