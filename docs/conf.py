@@ -35,7 +35,15 @@ napoleon_numpy_docstring = False
 # MathJax 2 from Debian's libjs-mathjax, copied into _static/mathjax by site_generation:
 # a relative path is resolved against _static, so no page loads anything from the network.
 mathjax_path = "mathjax/MathJax.js?config=TeX-AMS_CHTML"
-mathjax2_config = {"CommonHTML": {"linebreaks": {"automatic": True}}, "messageStyle": "none"}
+# Only Sphinx's math elements are typeset (not code that happens to contain "\\("); MyST's
+# own MathJax settings are for MathJax 3 and would mark every section "ignore" for MathJax 2.
+mathjax2_config = {
+    "tex2jax": {"inlineMath": [["\\(", "\\)"]], "displayMath": [["\\[", "\\]"]], "processEscapes": True,
+                "ignoreClass": "document", "processClass": "math"},
+    "CommonHTML": {"linebreaks": {"automatic": True}},
+    "messageStyle": "none",
+}
+myst_update_mathjax = False
 
 html_theme = "sphinx_rtd_theme"
 html_title = "mjed-verify"

@@ -202,7 +202,15 @@ def copy_mathjax(app, exception) -> None:
             shutil.copy2(src, dst)
 
 
+# ---------------------------------------------------------------------------- docstrings
+def escape_bars(app, what, name, obj, options, lines) -> None:
+    """The code's docstrings are plain text where |x| is an absolute value or ||A|| a norm;
+    reST would read them as substitution references (and emit links to nowhere)."""
+    lines[:] = [line.replace("|", "\\|") for line in lines]
+
+
 def setup(app):
     app.connect("builder-inited", generate)
+    app.connect("autodoc-process-docstring", escape_bars)
     app.connect("build-finished", copy_mathjax)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
