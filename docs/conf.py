@@ -31,6 +31,7 @@ autodoc_typehints = "description"
 autodoc_mock_imports = []
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
+napoleon_use_ivar = True  # "Attributes:" as fields, so a property is not described twice
 
 # MathJax 2 from Debian's libjs-mathjax, copied into _static/mathjax by site_generation:
 # a relative path is resolved against _static, so no page loads anything from the network.

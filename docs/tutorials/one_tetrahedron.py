@@ -70,13 +70,15 @@ assert np.allclose(D.sum(axis=0), 0.0, atol=1e-14)
 #
 # with constant matrices $A$, $B$ (known when the material is built, so the engine
 # precomputes their products with the shape vectors) and scalars $\beta$, $\gamma$
-# evaluated at each state. The invariant functions read $C$, $I_1$, $I_2$ from a
-# `mjed.kinematics.Kinematics` of the cell.
+# evaluated at each state. An invariant function reads what it needs ($C$, $I_1$, $I_2$, $E$,
+# ...) from a kinematics object holding arrays over cells (here one cell); inside the engine
+# that object computes each quantity on first use, here we hand over the ones computed above.
 
 # %%
-from mjed.kinematics import Kinematics
+from types import SimpleNamespace
 
-kin = Kinematics(F[None])
+kin = SimpleNamespace(F=F[None], J=np.array([J]), C=C[None], I1=np.array([I1]), I2=np.array([I2]),
+                      E=0.5 * (C - np.eye(3))[None])
 terms = []
 for group in material.decomposition():
     assert not group.exponential, "Mooney-Rivlin has plain groups only"
