@@ -94,6 +94,8 @@ for group in material.decomposition():
 
 for t in terms:
     print(f"{t['name']}: f = {t['f']:.6g}, f' = {t['df']:.6g}, f'' = {t['d2f']:.6g}, g = {t['g']:.6g}")
+    if t["S_g"].any():
+        print("    S_g = 2 dg/dC (Pa) =", np.array2string(t["S_g"], precision=5, prefix="    S_g = 2 dg/dC (Pa) ="))
     for kind, coef, M in t["pairs"]:
         label = "beta" if kind == "first" else "gamma"
         print(f"    {kind} pair: {label} = {coef:.6g}, matrix = identity: {np.allclose(M, np.eye(3))}")
