@@ -58,14 +58,19 @@ def _option_rows(parser: argparse.ArgumentParser) -> List[Tuple[str, str, str]]:
             continue
         names = ", ".join(action.option_strings) or action.dest
         default = "" if action.default in (None, argparse.SUPPRESS, False) else repr(action.default)
-        text = (action.help or "").replace("|", "\\|").replace("\n", " ")
+        text = (action.help or "").replace("\n", " ")
         if "%(" in text:
             try:
                 text = text % {"default": action.default, "prog": parser.prog}
             except (KeyError, TypeError, ValueError):
                 pass
-        rows.append((names, default, text))
+        rows.append((names, default, _md_text(text)))
     return rows
+
+
+def _md_text(text: str) -> str:
+    """Help text as Markdown prose: a table cell's bars and angle brackets are literal."""
+    return text.replace("\\", "\\\\").replace("|", "\\|").replace("<", "\\<").replace(">", "\\>")
 
 
 def cli_page() -> str:
@@ -81,7 +86,7 @@ def cli_page() -> str:
            "code 2 and exits with 1 when a check fails (see {doc}`../getting_started`).", "",
            "```text", parser.format_help().rstrip(), "```", ""]
     for name, sub in _subparsers(parser).items():
-        out += [f"## `mjed-verify {name}`", "", (sub.description or "").strip(), "",
+        out += [f"## `mjed-verify {name}`", "", _md_text((sub.description or "").strip()), "",
                 "| option | default | meaning |", "|---|---|---|"]
         out += [f"| `{n}` | {'`' + d + '`' if d else ''} | {t} |" for n, d, t in _option_rows(sub)]
         out += ["", "```text", sub.format_help().rstrip(), "```", ""]
