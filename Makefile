@@ -8,7 +8,7 @@ MODERN_PY := .venv-modern/bin/python
 MODERN_TESTS := tests/test_compat.py tests/test_oracle_mapping.py tests/test_equivalence_oracle.py tests/test_mpi.py \
 	tests/test_viscous.py tests/test_darcy.py tests/test_porous.py
 
-.PHONY: demo test test-debian bootstrap bootstrap-modern test-modern cross-release
+.PHONY: demo test test-debian bootstrap bootstrap-modern test-modern cross-release docs
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -38,3 +38,9 @@ test-modern: bootstrap-modern
 # The same oracle cases on both stacks, serial and on 2 ranks, compared to 1e-12.
 cross-release: bootstrap bootstrap-modern
 	$(PY) -m comparisons.cross_release check --json reports/cross_release.json
+
+# The documentation site (Sphinx + MyST, offline): docs/_build/html/index.html. The tutorials
+# are executed during the build and kept in docs/_build/tutorials until their sources change.
+docs: bootstrap
+	$(PY) -m sphinx -b html -q docs docs/_build/html -d docs/_build/doctrees
+	@echo "site: docs/_build/html/index.html"
