@@ -117,6 +117,8 @@ class LiverParameters:
     solver: the integrator's LinearSolverOptions. max_halvings: a failed step is retried in
     halves down to dt / 2^max_halvings. allow_inverted: accept inverted cells (counted), only
     for a material whose energy is finite at J <= 0, with the regularisation on.
+    max_volume_change: a step changing a cell's volume by more than this factor is retried in
+    substeps (None: no limit); see mjed.integrator.
     """
 
     material: Material = ArrudaBoyce(mu=2000.0, k0=20000.0, N=8.0)
@@ -136,6 +138,7 @@ class LiverParameters:
     solver: LinearSolverOptions = LIVER_SOLVER
     max_halvings: int = 4
     allow_inverted: bool = False
+    max_volume_change: Optional[float] = 1.5
 
     def __post_init__(self):
         if not isinstance(self.material, Material):
@@ -152,6 +155,10 @@ class LiverParameters:
         object.__setattr__(self, "gravity", tuple(float(c) for c in g))
         if not isinstance(self.solver, LinearSolverOptions):
             raise ValueError(f"LiverParameters: parameter solver must be a LinearSolverOptions, got {self.solver!r}")
+        if self.max_volume_change is not None and not (isinstance(self.max_volume_change, (int, float))
+                                                       and math.isfinite(self.max_volume_change) and self.max_volume_change > 1):
+            raise ValueError(f"LiverParameters: parameter max_volume_change must be a factor > 1 or None, "
+                             f"got {self.max_volume_change!r}")
         m = self.max_halvings
         if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m <= 10:
             raise ValueError(f"LiverParameters: parameter max_halvings must be an integer in [0, 10], got {m!r}")
@@ -253,7 +260,8 @@ def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, durati
     n_steps = max(1, int(round(duration / dt)))
     integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity, fixed_nodes=fixed,
                           rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness,
-                          solver=params.solver, max_halvings=params.max_halvings, allow_inverted=params.allow_inverted)
+                          solver=params.solver, max_halvings=params.max_halvings, allow_inverted=params.allow_inverted,
+                          max_volume_change=params.max_volume_change)
     times, amplitude, cg, substeps, retries, inverted, p_max = [0.0], [0.0], [], [], [], [], [0.0]
     factorizations, stepping, cpu = 0, 0.0, 0.0  # wall-clock and CPU seconds spent in the integrator's steps
     phases = np.zeros(len(PHASES))
@@ -543,7 +551,8 @@ def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixe
             elif v is not None and not isinstance(v, str):
                 python_only.append(f"material {f}")
     flags = {"dt": "--dt", "dt_porous": "--dt-porous", "density": "--density", "rayleigh_mass": "--rayleigh-mass",
-             "rayleigh_stiffness": "--rayleigh-stiffness", "kappa": "--kappa", "max_halvings": "--max-halvings"}
+             "rayleigh_stiffness": "--rayleigh-stiffness", "kappa": "--kappa", "max_halvings": "--max-halvings",
+             "max_volume_change": "--max-volume-change"}
     for name, flag in flags.items():
         if getattr(params, name) != getattr(base, name):
             parts += [flag, repr(getattr(params, name))]

@@ -9,7 +9,6 @@ import numpy as np
 __all__ = ["plot_porous_stress", "plot_amplitudes", "plot_pressure", "boundary_faces", "plot_step_split",
            "plot_oscillations", "plot_decay"]
 
-_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])  # outward for positive cells
 
 
 def _pyplot():
@@ -23,10 +22,9 @@ def _pyplot():
 
 def boundary_faces(cells: np.ndarray) -> np.ndarray:
     """Triangles (k, 3) that belong to exactly one cell, oriented outwards."""
-    faces = cells[:, _FACES].reshape(-1, 3)
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
+    from meshes.tetra import boundary_triangles
+
+    return boundary_triangles(cells)
 
 
 def plot_porous_stress(path: str, params) -> str:

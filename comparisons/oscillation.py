@@ -38,26 +38,33 @@ __all__ = ["OSCILLATION_DTS", "oscillation_metrics", "euler_decay_rate", "run_os
 OSCILLATION_DTS = (0.3, 0.1, 0.03, 0.01)
 
 
-def oscillation_metrics(t: Sequence[float], a: Sequence[float]) -> Dict:
-    """Extrema, period, decay rate and overshoot of one max-displacement curve a(t) (m, s)."""
+def oscillation_metrics(t: Sequence[float], a: Sequence[float], *, significant: float = 5e-3) -> Dict:
+    """Extrema, period, decay rate and overshoot of one max-displacement curve a(t) (m, s).
+
+    A swing between successive extrema counts only when it exceeds ``significant`` times the
+    final value (round-off and solver wiggles are not oscillations); the decay rate needs at
+    least two such swings.
+    """
     t, a = np.asarray(t, dtype=float), np.asarray(a, dtype=float)
     d = np.diff(a)
     ext = np.flatnonzero(d[:-1] * d[1:] < 0) + 1  # strict changes of direction
-    out = {"extrema": int(len(ext)), "first_peak": None, "period": None, "decay_rate": None,
+    out = {"extrema": 0, "first_peak": None, "period": None, "decay_rate": None,
            "overshoot": None, "final": float(a[-1]), "peak": float(a.max())}
+    if len(ext) < 2:
+        return out
+    swings = np.abs(np.diff(a[ext]))
+    keep = swings > significant * abs(a[-1])
+    if not keep.any():
+        return out
+    out["extrema"] = int(keep.sum() + 1)
     maxima = [k for k in ext if d[k - 1] > 0]
-    if maxima:
-        out["first_peak"] = float(a[maxima[0]])
-        out["overshoot"] = float(a[maxima[0]] / a[-1]) if a[-1] > 0 else None
-    if len(ext) >= 2:
-        out["period"] = float(2.0 * np.mean(np.diff(t[ext])))
-    if len(ext) >= 3:
-        swings = np.abs(np.diff(a[ext]))
-        mids = 0.5 * (t[ext][1:] + t[ext][:-1])
-        keep = swings > 0
-        if keep.sum() >= 2:
-            slope = np.polyfit(mids[keep], np.log(swings[keep]), 1)[0]
-            out["decay_rate"] = float(-slope)
+    out["first_peak"] = float(a[maxima[0]])
+    out["overshoot"] = float(a[maxima[0]] / a[-1]) if a[-1] > 0 else None
+    mids = 0.5 * (t[ext][1:] + t[ext][:-1])
+    out["period"] = float(2.0 * np.mean(np.diff(t[ext])[keep]))
+    if keep.sum() >= 2:
+        slope = np.polyfit(mids[keep], np.log(swings[keep]), 1)[0]
+        out["decay_rate"] = float(-slope)
     return out
 
 

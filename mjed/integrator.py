@@ -57,6 +57,13 @@ hooks cannot be rolled back, so its steps are not retried. ``max_halvings=0`` tu
 Each :class:`StepReport` gives ``substeps`` (1 for a step taken whole) and ``retries`` (the
 reasons that made it split).
 
+A step can also be required to stay close to its starting point: with ``max_volume_change=c``
+a step that changes the volume of some cell by more than a factor c fails (reason
+"volume_jump") and is retried in substeps like the others. One linearised step (SOFA's) from a
+state far from equilibrium can overshoot into a badly distorted state that no later step
+recovers from (an organ hung from a few nodes, at 0.3 s); limiting the change per step is the
+usual safeguard, and every step it splits is reported.
+
 Inverted cells. By default a step whose new positions give J <= 0 in some cell is refused (and
 retried). ``allow_inverted=True`` accepts such positions, as the paper's section 2.3 allows when
 the strain energy stays finite at J <= 0 (see :mod:`mjed.inversion` for which materials
@@ -107,7 +114,7 @@ _DIVERGENCE_FACTOR = 1e8
 #: (A non-finite external load or prescribed displacement is the user's input: never retried.)
 RETRIED_REASONS = frozenset({
     "inverted", "cg_negative_curvature", "cg_max_iterations", "cg_non_finite", "cg_preconditioner_indefinite",
-    "not_positive_definite", "direct_residual", "non_finite", "newton_diverged", "newton_max_iterations",
+    "not_positive_definite", "direct_residual", "non_finite", "newton_diverged", "newton_max_iterations", "volume_jump",
 })
 
 
@@ -242,6 +249,10 @@ class ImplicitEuler:
             retry); see the module docstring.
         allow_inverted: accept steps that leave cells with J <= 0 (counted in each report)
             instead of refusing them.
+        max_volume_change: if given (a factor c > 1), a step that changes the volume of some
+            cell by more than c (J1 / J0 outside [1/c, c]) fails with reason "volume_jump" and is
+            retried in substeps: one linearised step that far from its starting point is not
+            to be trusted (see the module docstring). None (default): no such limit.
         x0, v0, t0: initial state (default: the rest positions, at rest, t = 0).
 
     Nodes that no cell uses (``mesh.unreferenced_nodes``: a mesh read with its numbering kept)
@@ -268,6 +279,7 @@ class ImplicitEuler:
         solver: LinearSolverOptions = LinearSolverOptions(),
         max_halvings: int = 3,
         allow_inverted: bool = False,
+        max_volume_change: Optional[float] = None,
         x0=None,
         v0=None,
         t0: float = 0.0,
@@ -293,6 +305,9 @@ class ImplicitEuler:
             raise ValueError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
         self.max_halvings = int(max_halvings)
         self.allow_inverted = bool(allow_inverted)
+        if max_volume_change is not None and not (np.isfinite(max_volume_change) and max_volume_change > 1):
+            raise ValueError(f"max_volume_change must be a factor > 1 or None, got {max_volume_change!r}")
+        self.max_volume_change = None if max_volume_change is None else float(max_volume_change)
         self._factor: Optional[SPDFactor] = None  # the kept factorisation ("factorized")
         self.external_force = external_force
         n = mesh.n_nodes
@@ -332,6 +347,7 @@ class ImplicitEuler:
         self.v = _initial("v0", np.zeros((n, 3)) if v0 is None else v0, n)
         self.t = float(t0)
         self.steps = 0
+        self._J = self._jacobians(self.x)  # (m,) J of the current (accepted) state
         self._warm = None  # last dv on the free dofs: the CG's first guess
         self._system = FreeBlock(self.M, self._free)  # A[free][:, free] without re-slicing K
         # Models whose accepted steps change them; a retry needs to roll each of them back.
@@ -482,14 +498,16 @@ class ImplicitEuler:
         x1 = x0 + dt * v_ref
         if not (np.isfinite(x1).all() and np.isfinite(v_ref).all()):
             raise IntegrationError(step, t1, "non_finite", "the new positions or velocities are not finite")
-        inverted = self._inverted_cells(x1.reshape(-1, 3), step, t1)
         x1 = x1.reshape(-1, 3)
+        J1 = self._jacobians(x1)
+        inverted = self._inverted_cells(J1, step, t1)
+        self._check_volume_change(J1, step, t1)
         for k, model in enumerate(self.models):
             if hasattr(model, "accept_step"):
                 clock = time.perf_counter()
                 model.accept_step(x1, dt)
                 tally.model_seconds[k] += time.perf_counter() - clock
-        self.x, self.v, self.t = x1, v_ref.reshape(-1, 3), t1
+        self.x, self.v, self.t, self._J = x1, v_ref.reshape(-1, 3), t1, J1
         tally.substeps += 1
         tally.solves += solves
         tally.cg += cg_total
@@ -576,18 +594,36 @@ class ImplicitEuler:
             raise IntegrationError(step, t1, "non_finite", "the internal forces are not finite")
         return f_total, K_total
 
-    def _inverted_cells(self, x: np.ndarray, step: int, t1: float) -> int:
-        """Cells with J <= 0 at x: refused (IntegrationError) unless allow_inverted; returns their count."""
-        # J = det F = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
+    def _jacobians(self, x: np.ndarray) -> np.ndarray:
+        """(m,) J = det F of every cell at positions x (n, 3)."""
+        # J = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
         xc = x[self.mesh.cells]  # (m, 4, 3)
         e = xc[:, 1:] - xc[:, :1]  # (m, 3, 3) edges from node 0
-        J = np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
+        return np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
+
+    def _inverted_cells(self, J: np.ndarray, step: int, t1: float) -> int:
+        """Cells with J <= 0: refused (IntegrationError) unless allow_inverted; returns their count."""
         bad = np.flatnonzero(~(J > 0))
         if bad.size and not self.allow_inverted:
             shown = ", ".join(f"cell {c} (J={J[c]:.3g})" for c in bad[:5])
             raise IntegrationError(step, t1, "inverted", f"{bad.size} cell(s) inverted at the new positions: {shown}",
                                    cells=bad)
         return int(bad.size)
+
+    def _check_volume_change(self, J1: np.ndarray, step: int, t1: float) -> None:
+        """A step changing some cell's volume by more than max_volume_change fails ("volume_jump")."""
+        c = self.max_volume_change
+        if c is None:
+            return
+        both = (self._J > 0) & (J1 > 0)  # inverted cells are counted (or refused) elsewhere
+        ratio = np.ones_like(J1)
+        ratio[both] = J1[both] / self._J[both]
+        bad = np.flatnonzero((ratio > c) | (ratio < 1.0 / c))
+        if bad.size:
+            worst = bad[np.argmax(np.abs(np.log(ratio[bad])))]
+            raise IntegrationError(step, t1, "volume_jump",
+                                   f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step "
+                                   f"(cell {worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})", cells=bad)
 
 
 def _detail(exc: IntegrationError) -> str:

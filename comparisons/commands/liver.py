@@ -73,6 +73,8 @@ def configure(parser) -> None:
                         help="linear solver: CG preconditioned by a kept sparse LU (default), by Jacobi or by 3x3 "
                              "node blocks, or a direct sparse LU every step (comparison point)")
     parser.add_argument("--max-halvings", type=int, help="a failed step is retried in halves down to dt/2^N (default 4)")
+    parser.add_argument("--max-volume-change", type=float,
+                        help="a step changing a cell's volume by more than this factor is retried in substeps (default 1.5)")
     parser.add_argument("--allow-inverted", action="store_true",
                         help="accept inverted cells (counted) for a material finite at J <= 0 (regularisation on)")
     parser.add_argument("--quick", action="store_true", help="coarse liver mesh, 6 steps, a short oscillation study")
@@ -160,7 +162,8 @@ def liver_options(args) -> dict:
         changes["material"] = material
     if args.gravity is not None:
         changes["gravity"] = _gravity(args.gravity)
-    for name in ("dt", "dt_porous", "density", "rayleigh_mass", "rayleigh_stiffness", "kappa", "max_halvings"):
+    for name in ("dt", "dt_porous", "density", "rayleigh_mass", "rayleigh_stiffness", "kappa", "max_halvings",
+                 "max_volume_change"):
         value = getattr(args, name)
         if value is not None:
             changes[name] = value
@@ -214,7 +217,8 @@ def run(args) -> int:
           + ", ".join(f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in tz["times"]))
     for path in data["figures"] + data["series"]:
         print(f"  wrote {path}")
-    partial = f" (partial: {'; '.join(result.not_covered)})" if result.partial else ""
+    left_out = list(result.not_covered) + [f"not measured: {c.name}" for c in result.unmeasured]
+    partial = f" (partial: {'; '.join(left_out)})" if result.partial else ""
     print(f"status: {result.status.value}{partial}: {result.reason or result.headline}")
     print(f"reproduce: {result.command}")
     if args.json:
