@@ -531,3 +531,22 @@ def test_which_materials_may_continue_through_inverted_cells(name):
     with np.errstate(all="ignore"):
         f, K = field.force_and_stiffness(x)
     assert np.isfinite(f).all() == np.isfinite(K.data).all() == (name == "StVenantKirchhoff")
+
+
+def test_the_fluid_pressure_is_rolled_back_with_the_step(cube):
+    """A step that fails after a committed substep leaves the Darcy pressure as it was."""
+    from mjed.darcy import DarcyParameters, FluidPressureForce
+
+    fluid = FluidPressureForce(cube, DarcyParameters(K_lim=2200.0, kappa=1e-3), drained_nodes=_bottom(cube))
+    model = _FailsAbove(fluid, limit=0.025, accepts=2)
+    integ = ImplicitEuler(cube, [_field(cube), model], 1.0, dt=0.02, fixed_nodes=_bottom(cube),
+                          gravity=(0.0, 0.0, -30.0), solver=S(cg_tol=1e-12))
+    integ.step()
+    P, J = fluid.P.copy(), fluid.J_accepted.copy()
+    assert np.abs(P).max() > 0
+    integ.dt = 0.04
+    with pytest.raises(mjed.IntegrationError, match="retried in substeps"):
+        integ.step()
+    assert model.accepted == 2  # one substep was committed, then undone
+    np.testing.assert_array_equal(fluid.P, P)
+    np.testing.assert_array_equal(fluid.J_accepted, J)

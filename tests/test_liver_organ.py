@@ -157,3 +157,30 @@ def test_backward_euler_decay_rate_matches_the_scheme_on_an_oscillator():
     A = np.linalg.inv(np.array([[1.0, -dt], [dt * w * w, 1.0]]))  # (x, v)_{k+1} = A (x, v)_k
     rate = -np.log(np.abs(np.linalg.eigvals(np.linalg.matrix_power(A, n)))[0]) / (n * dt)
     assert euler_decay_rate(w, dt) == pytest.approx(rate, rel=1e-10)
+
+
+@pytest.mark.parametrize("full, quick, mesh, expected", [
+    (False, False, "liver", ("liver-coarse", (0.3, 0.1, 0.03, 0.01), 3.0)),
+    (True, False, "liver", ("liver", (0.3, 0.1, 0.03, 0.01, 0.003), 5.0)),
+    (True, True, "liver", ("liver-coarse", (0.3, 0.1, 0.03), 1.5)),  # quick wins over full
+])
+def test_the_oscillation_study_sizes(monkeypatch, tmp_path, full, quick, mesh, expected):
+    """Which organ, steps and duration the oscillation study uses (the runs themselves stubbed)."""
+    import comparisons.liver as liver_module
+    import comparisons.oscillation as oscillation_module
+
+    seen = {}
+
+    def fake(organ, fixed, params, *, dts, duration, **kw):
+        seen.update(label=organ.label, dts=tuple(dts), duration=duration)
+        return {"mesh": organ.label, "dts": list(dts), "duration": duration, "table": [], "amplitude_ordering": [],
+                "amplitude_ordering_dt": min(dts), "figures": [], "curves": []}
+
+    monkeypatch.setattr(oscillation_module, "run_oscillations", fake)
+    monkeypatch.setattr(liver_module, "run_liver", lambda **kw: {
+        "runs": [], "terzaghi": {"times": [{"relative_l2_error": 0.0}]}, "figures": [], "step_split": [],
+        "fps_table": [], "mesh_description": "", "n_fixed": 0, "fixed_regions": [], "duration": 0.0, "mesh": "m",
+        "series": []})
+    result = liver_study(quick=quick, out_dir=str(tmp_path), full_oscillation=full, mesh=mesh)
+    assert (seen["label"], seen["dts"], seen["duration"]) == expected
+    assert ("the full version" in result.protocol) == (full and not quick)
