@@ -718,15 +718,19 @@ def oscillation_findings(osc: Dict) -> str:
     parts = []
     for model in dict.fromkeys(r["model"] for r in rows):
         mine = sorted((r for r in rows if r["model"] == model), key=lambda r: r["dt"])
-        osc_dts = [f"{r['dt']:g}" for r in mine if r["decay_rate"] is not None]
-        still = [f"{r['dt']:g}" for r in mine if r["completed"] and r["decay_rate"] is None]
+        done = [r for r in mine if r["completed"]]
+        rates = ", ".join(f"{r['decay_rate']:.2g}/s at {r['dt']:g} s" for r in done if r["decay_rate"] is not None)
+        once = [f"{r['dt']:g}" for r in done if r["decay_rate"] is None and r["extrema"] > 0]
+        none = [f"{r['dt']:g}" for r in done if r["extrema"] == 0]
         failed = [f"{r['dt']:g}" for r in mine if not r["completed"]]
-        rates = ", ".join(f"{r['decay_rate']:.2g}/s at {r['dt']:g} s" for r in mine if r["decay_rate"] is not None)
-        text = f"{model}: oscillates at dt {', '.join(osc_dts) or 'none'} s"
+        peaks = ", ".join(f"{1e3 * r['peak']:.0f} mm at {r['dt']:g} s" for r in done)
+        text = f"{model}: peak {peaks}"
         if rates:
-            text += f" (decay {rates})"
-        if still:
-            text += f"; no oscillation (overdamped) at dt {', '.join(still)} s"
+            text += f"; oscillation decay {rates}"
+        if once:
+            text += f"; overshoots but too few swings to measure a decay at dt {', '.join(once)} s"
+        if none:
+            text += f"; no oscillation (overdamped) at dt {', '.join(none)} s"
         if failed:
             text += f"; refused at dt {', '.join(failed)} s even in substeps"
         parts.append(text)
