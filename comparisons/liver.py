@@ -410,6 +410,11 @@ def run_liver(
     if organ is None:
         organ = load_organ(mesh, scale=scale, fix_orientation=fix_orientation)
     tet_mesh, label = organ.mesh, organ.label
+    if not fixed:
+        g = np.asarray(params.gravity)
+        if not (g[0] == 0 and g[1] == 0 and g[2] < 0):
+            raise InputError(f"the default fixed regions (vena cava, ligament) assume a z-up organ; with gravity "
+                             f"{list(params.gravity)} give the supports with --fixed (box:, sphere:, nodes:FILE)")
     specs = list(fixed) if fixed else default_fixed_specs(organ.file_points)
     fixed_nodes_ = fixed_nodes(organ, specs)
     if steps is None:
