@@ -61,7 +61,7 @@ def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
     fig, ax = plt.subplots(figsize=(7, 4))
     for r, marker in zip(runs, "osd^v"):
         rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS, paper {r['paper_fps']:g}"
-        split = f"; {r['steps_split']} steps in substeps" if r.get("steps_split") else ""
+        split = f"; {r['steps_split']} step(s) in substeps" if r.get("steps_split") else ""
         line, = ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), f"-{marker}", ms=3,
                         label=f"{r['model']} (dt = {r['dt']:g} s; {rate}{split})")
         split_at = [k + 1 for k, n in enumerate(r.get("substeps", [])) if n > 1]
