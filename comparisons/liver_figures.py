@@ -6,9 +6,9 @@ from typing import Dict, Sequence
 
 import numpy as np
 
-__all__ = ["plot_porous_stress", "plot_amplitudes", "plot_pressure", "boundary_faces"]
+__all__ = ["plot_porous_stress", "plot_amplitudes", "plot_pressure", "boundary_faces", "plot_step_split",
+           "plot_oscillations", "plot_decay"]
 
-_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])  # outward for positive cells
 
 
 def _pyplot():
@@ -22,10 +22,9 @@ def _pyplot():
 
 def boundary_faces(cells: np.ndarray) -> np.ndarray:
     """Triangles (k, 3) that belong to exactly one cell, oriented outwards."""
-    faces = cells[:, _FACES].reshape(-1, 3)
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return faces[counts[inverse.ravel()] == 1]
+    from meshes.tetra import boundary_triangles
+
+    return boundary_triangles(cells)
 
 
 def plot_porous_stress(path: str, params) -> str:
@@ -62,8 +61,13 @@ def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
     fig, ax = plt.subplots(figsize=(7, 4))
     for r, marker in zip(runs, "osd^v"):
         rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS, paper {r['paper_fps']:g}"
-        ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), f"-{marker}", ms=3,
-                label=f"{r['model']} (dt = {r['dt']:g} s; {rate})")
+        split = f"; {r['steps_split']} step(s) in substeps" if r.get("steps_split") else ""
+        line, = ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), f"-{marker}", ms=3,
+                        label=f"{r['model']} (dt = {r['dt']:g} s; {rate}{split})")
+        split_at = [k + 1 for k, n in enumerate(r.get("substeps", [])) if n > 1]
+        if split_at:  # steps the integrator had to take in substeps: ringed
+            ax.plot(np.asarray(r["time"])[split_at], 1e3 * np.asarray(r["max_displacement"])[split_at], "o",
+                    ms=8, mfc="none", color=line.get_color())
     ax.set_xlabel("time (s)")
     ax.set_ylabel("max displacement amplitude (mm)")
     ax.grid(alpha=0.3)
@@ -98,6 +102,84 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.12, label="fluid pressure (Pa)")
     ax.legend(loc="upper left", fontsize=8)
     ax.set_title("Fluid pressure under gravity (largest |P| reached)", fontsize=10)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str:
+    """Where a step's time goes, per model (stacked shares), beside the paper's hyperelastic share."""
+    plt = _pyplot()
+    phases = list(split[0]["shares"])
+    fig, ax = plt.subplots(figsize=(8, 1.2 + 0.7 * len(split)))
+    colours = plt.get_cmap("tab10").colors
+    for row, r in enumerate(split):
+        left = 0.0
+        for k, phase in enumerate(phases):
+            share = r["shares"][phase]
+            ax.barh(row, 100 * share, left=100 * left, color=colours[k], label=phase if row == 0 else None)
+            if share >= 0.06:
+                ax.text(100 * (left + share / 2), row, f"{100 * share:.0f} %", ha="center", va="center", fontsize=8)
+            left += share
+    ax.axvline(100 * paper_share, color="k", ls="--", lw=1)
+    ax.text(100 * paper_share, -0.55, f" paper: hyperelastic about {100 * paper_share:.0f} %", fontsize=8, va="bottom")
+    ax.set_yticks(range(len(split)))
+    ax.set_yticklabels([f"{r['model']}\n{r['ms_per_step']:.1f} ms/step" for r in split], fontsize=8)
+    ax.set_xlim(0, 100)
+    ax.set_ylim(len(split) - 0.5, -0.8)  # first model on top, room above it for the paper's mark
+    ax.set_xlabel("share of the step's wall-clock time (%)")
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2))
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
+    """Fig. 4 as the paper describes it: max displacement over time, one panel per model,
+    one curve per time step (little damping: the oscillations show, and fade faster with dt)."""
+    plt = _pyplot()
+    models = list(dict.fromkeys(c["model"] for c in curves))
+    fig, axes = plt.subplots(1, len(models), figsize=(4.2 * len(models), 3.6), sharey=True, squeeze=False)
+    dts = sorted({c["dt"] for c in curves}, reverse=True)
+    cmap = plt.get_cmap("viridis")
+    for ax, model in zip(axes[0], models):
+        for c in curves:
+            if c["model"] != model:
+                continue
+            colour = cmap(dts.index(c["dt"]) / max(1, len(dts) - 1))
+            tag = " (failed)" if c["error"] else ""
+            ax.plot(c["time"], 1e3 * np.asarray(c["max_displacement"]), "-", color=colour, lw=1.2,
+                    marker="o" if c["dt"] >= 0.1 else None, ms=3, label=f"dt = {c['dt']:g} s{tag}")
+        ax.set_title(model, fontsize=10)
+        ax.set_xlabel("time (s)")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("max displacement (mm)")
+    axes[0][-1].legend(fontsize=8, loc="lower right")
+    fig.suptitle(f"Liver under gravity with little damping ({label})", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_decay(path: str, rows: Sequence[Dict]) -> str:
+    """Measured decay rate of the oscillation against dt, with backward Euler's prediction."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    models = list(dict.fromkeys(r["model"] for r in rows))
+    for model, marker in zip(models, "osd"):
+        pts = [(r["dt"], r["decay_rate"]) for r in rows if r["model"] == model and r["decay_rate"] is not None]
+        if pts:
+            ax.loglog(*zip(*pts), f"-{marker}", label=f"{model}: measured")
+    theory = [(r["dt"], r["euler_decay_rate"]) for r in rows if r["model"] == models[0] and r["euler_decay_rate"]]
+    if theory:
+        ax.loglog(*zip(*theory), "k--", label="backward Euler on the measured frequency: ln(1 + (w dt)^2) / (2 dt)")
+    ax.set_xlabel("time step dt (s)")
+    ax.set_ylabel("decay rate of the oscillation (1/s)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path

@@ -1,11 +1,17 @@
 """Node selection by region, for boundary conditions given on the command line.
 
-Specs (coordinates in the mesh's units):
+Specs (coordinates in the mesh file's own units, before any --units/--scale):
 
     box:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX     nodes inside the axis-aligned box (bounds included)
     sphere:CX,CY,CZ,R                     nodes within distance R of the centre
-    nodes:FILE                            0-based node indices in a text file (whitespace or
-                                          comma separated, '#' starts a comment)
+    nodes:FILE                            node ids in the mesh's own numbering, as the file
+                                          that defines the mesh writes them: gmsh node
+                                          numbers, Abaqus labels, Medit's 1-based order, VTK's
+                                          0-based order; for the built-in meshes, 0-based
+    index:FILE                            0-based positions in the order the nodes are read,
+                                          whatever the format
+
+FILE holds integers separated by whitespace or commas; '#' starts a comment.
 
 Several specs select the union. Every error raises :class:`comparisons.options.InputError`
 naming the spec.
@@ -14,7 +20,7 @@ naming the spec.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Optional
 
 import numpy as np
 
@@ -33,12 +39,17 @@ def _numbers(spec: str, body: str, count: int) -> np.ndarray:
     return values
 
 
-def parse_region(spec: str, points: np.ndarray) -> np.ndarray:
-    """Indices (k,) of the nodes of ``points`` (n, 3) that one spec selects (may be empty)."""
+def parse_region(spec: str, points: np.ndarray, node_ids: Optional[np.ndarray] = None,
+                 numbering: str = "0-based positions") -> np.ndarray:
+    """Positions (k,) of the nodes of ``points`` (n, 3) that one spec selects (may be empty).
+
+    node_ids: (n,) the id of each node in the mesh's own numbering (default 0..n-1), which
+    ``nodes:FILE`` refers to; numbering: what those ids are, for messages.
+    """
     kind, sep, body = spec.partition(":")
     kind = kind.strip().lower()
     if not sep or not body.strip():
-        raise InputError(f"region {spec!r}: expected box:..., sphere:... or nodes:FILE")
+        raise InputError(f"region {spec!r}: expected box:..., sphere:..., nodes:FILE or index:FILE")
     if kind == "box":
         b = _numbers(spec, body, 6)
         lo, hi = b[:3], b[3:]
@@ -50,29 +61,42 @@ def parse_region(spec: str, points: np.ndarray) -> np.ndarray:
         if c[3] <= 0:
             raise InputError(f"region {spec!r}: the radius must be > 0")
         return np.flatnonzero(np.linalg.norm(points - c[:3], axis=1) <= c[3])
-    if kind == "nodes":
-        path = Path(body.strip())
-        if not path.is_file():
-            raise InputError(f"region {spec!r}: no such file {path}")
-        text = " ".join(line.split("#", 1)[0] for line in path.read_text().splitlines())
-        tokens = text.replace(",", " ").split()
-        try:
-            idx = np.array([int(t) for t in tokens], dtype=np.int64)
-        except ValueError:
-            raise InputError(f"region {spec!r}: {path} must hold integer node indices") from None
-        bad = idx[(idx < 0) | (idx >= len(points))]
-        if bad.size:
-            raise InputError(f"region {spec!r}: node index {int(bad[0])} outside [0, {len(points)})")
-        return np.unique(idx)
-    raise InputError(f"region {spec!r}: unknown kind {kind!r}; use box, sphere or nodes")
+    if kind in ("nodes", "index"):
+        idx = _integers(spec, Path(body.strip()))
+        if kind == "index" or node_ids is None:
+            bad = idx[(idx < 0) | (idx >= len(points))]
+            if bad.size:
+                raise InputError(f"region {spec!r}: node index {int(bad[0])} outside [0, {len(points)}) "
+                                 "(index:FILE takes 0-based positions)")
+            return np.unique(idx)
+        ids = np.asarray(node_ids, dtype=np.int64)
+        order = np.argsort(ids, kind="stable")
+        at = np.clip(np.searchsorted(ids[order], idx), 0, len(ids) - 1)
+        missing = ids[order][at] != idx
+        if missing.any():
+            raise InputError(f"region {spec!r}: node id {int(idx[missing][0])} is not in the mesh "
+                             f"({numbering}: {int(ids.min())} to {int(ids.max())}; index:FILE takes 0-based positions)")
+        return np.unique(order[at])
+    raise InputError(f"region {spec!r}: unknown kind {kind!r}; use box, sphere, nodes or index")
 
 
-def select_nodes(specs: Iterable[str], points: np.ndarray, *, what: str = "fixed") -> np.ndarray:
-    """The union of the nodes the specs select, sorted; InputError if it is empty."""
+def _integers(spec: str, path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise InputError(f"region {spec!r}: no such file {path}")
+    text = " ".join(line.split("#", 1)[0] for line in path.read_text().splitlines())
+    try:
+        return np.array([int(t) for t in text.replace(",", " ").split()], dtype=np.int64)
+    except ValueError:
+        raise InputError(f"region {spec!r}: {path} must hold integer node numbers") from None
+
+
+def select_nodes(specs: Iterable[str], points: np.ndarray, *, what: str = "fixed", node_ids: Optional[np.ndarray] = None,
+                 numbering: str = "0-based positions") -> np.ndarray:
+    """The union of the nodes the specs select (positions, sorted); InputError if it is empty."""
     specs = list(specs)
     if not specs:
         raise InputError(f"no {what} region given")
-    chosen = np.unique(np.concatenate([parse_region(s, points) for s in specs]))
+    chosen = np.unique(np.concatenate([parse_region(s, points, node_ids, numbering) for s in specs]))
     if chosen.size == 0:
         lo, hi = points.min(axis=0), points.max(axis=0)
         raise InputError(

@@ -48,6 +48,7 @@ import numpy as np
 
 import mjed
 from mjed.integrator import ImplicitEuler, Prescribed
+from mjed.solvers import LinearSolverOptions
 from mjed.materials import StVenantKirchhoff
 from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients
 
@@ -155,7 +156,7 @@ class TorsionSample:
                              prescribed=Prescribed(self.top, lambda t: self.rotation(theta(t))), **options)
 
 
-_SOLVER = dict(cg_tol=1e-13, cg_max_iterations=20000)
+_SOLVER = dict(solver=LinearSolverOptions(cg_tol=1e-13, max_iterations=20000))
 
 
 def elastic_torque(sample: TorsionSample, material, amplitude: float) -> float:

@@ -9,7 +9,9 @@ import numpy as np
 
 from mjed.mesh import flat_cells
 
-__all__ = ["signed_volumes", "orient_positively", "remove_unreferenced"]
+__all__ = ["signed_volumes", "orient_positively", "remove_unreferenced", "boundary_triangles"]
+
+_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])  # outward for positively oriented cells
 
 
 def signed_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -76,3 +78,10 @@ def remove_unreferenced(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarr
     used[c.ravel()] = True
     new_index = np.cumsum(used) - 1  # position of each used node among the used ones
     return pts[used].copy(), new_index[c].astype(np.int64), int(len(pts) - used.sum())
+
+
+def boundary_triangles(cells: np.ndarray) -> np.ndarray:
+    """Faces (k, 3) that belong to exactly one cell, oriented outwards for positive cells."""
+    faces = np.asarray(cells)[:, _FACES].reshape(-1, 3)
+    _, inverse, counts = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
+    return faces[counts[inverse.ravel()] == 1]

@@ -297,6 +297,17 @@ class FluidPressureForce:
         """Force (n, 3) at positions x and the stiffness, at the current (fixed) pressure."""
         return self.field.force_and_stiffness(x)
 
+    def save_history(self):
+        """A copy of what accepted steps change (P and the accepted J), for restore_history:
+        the integrator rolls the fluid back when a step it split into substeps still fails."""
+        return (self._P.copy(), self._J.copy())
+
+    def restore_history(self, saved) -> None:
+        """Go back to a state returned by save_history()."""
+        P, J = saved
+        self.P = P
+        self._J = np.array(J, dtype=float)
+
     def accept_step(self, x: np.ndarray, dt: float) -> None:
         """Advance P over the accepted step that ended at positions x."""
         J = cell_jacobians(self.mesh, x)

@@ -22,8 +22,8 @@ falls below ``newton_tol`` times the first right-hand side; the first Newton ite
 the SOFA step. Both are written as one update: at a linearisation point x_e = x0 + u_e with
 reference velocity v_ref, A dv = dt (f_e + f_ext - D v_ref - K (dt v_ref - u_e)) - M (v_ref - v0).
 
-Linear solver (``linear_solver``, ``preconditioner``): CG to the relative residual ``cg_tol``,
-preconditioned by
+Linear solver: one frozen :class:`mjed.solvers.LinearSolverOptions` (``solver=``) holds every
+setting. CG to the relative residual ``cg_tol``, preconditioned by
 
 - ``"jacobi"`` (the default): 1 / diag(A);
 - ``"block-jacobi"``: the inverse of A's 3x3 node blocks;
@@ -38,11 +38,43 @@ preconditioned by
   a single-precision factorisation that meets a non-positive pivot is redone in double
   precision before the step is refused.
 
-``linear_solver="direct"`` factorises A at every step instead (no CG: a comparison point;
+``solver="direct"`` factorises A at every step instead (no CG: a comparison point;
 ``cg_iterations`` is then 0 and ``cg_residual`` the residual of the direct solve, which must
 not exceed ``cg_tol``: reason "direct_residual" otherwise). The
 factorisations of both options raise ``IntegrationError(reason="not_positive_definite")`` on a
 non-positive pivot.
+
+Steps that fail are retried in substeps. When a step fails (an inverted cell, CG stopping on
+negative curvature or its iteration cap, a non-positive-definite factorisation, non-finite
+forces, Newton not converging), it is taken again as two steps of dt/2, each of which may split
+again, down to dt / 2^``max_halvings`` (default 3: at most 8 substeps in any part of the step).
+Nothing of a failed attempt is kept: models are told to accept only a substep that succeeded,
+and if the step still fails the positions, velocities, time and every model's history (through
+its ``save_history()`` / ``restore_history(saved)`` hooks, e.g. the viscous history or the
+fluid pressure) go back to the start of the step before the IntegrationError is raised, naming
+the step, the reason and the substeps tried. A model with ``accept_step`` but without these
+hooks cannot be rolled back, so its steps are not retried. ``max_halvings=0`` turns retries off.
+Each :class:`StepReport` gives ``substeps`` (1 for a step taken whole) and ``retries`` (the
+reasons that made it split).
+
+A step can also be required to stay close to its starting point: with ``max_volume_change=c``
+a step that changes the volume of some cell by more than a factor c fails (reason
+"volume_jump") and is retried in substeps like the others. One linearised step (SOFA's) from a
+state far from equilibrium can overshoot into a badly distorted state that no later step
+recovers from (an organ hung from a few nodes, at 0.3 s); limiting the change per step is the
+usual safeguard, and every step it splits is reported.
+
+Inverted cells. By default a step whose new positions give J <= 0 in some cell is refused (and
+retried). ``allow_inverted=True`` accepts such positions, as the paper's section 2.3 allows when
+the strain energy stays finite at J <= 0 (see :mod:`mjed.inversion` for which materials
+qualify; the force fields must then be built with ``allow_inverted=True`` too): each
+StepReport counts the cells inverted at the end of the step (``inverted_cells``); nothing is
+hidden.
+
+Where the time goes: each StepReport has ``times`` (:class:`StepTimes`): the seconds spent in
+each force model (its force and stiffness, and its ``accept_step``), building the system (the
+right-hand side and the free block of A), the linear solve (factorisations included) and the
+rest of the step.
 
 Constraints are applied by projection: fixed nodes keep v = 0, prescribed nodes get the
 velocity that brings them to their prescribed positions at the end of the step, and their dofs
@@ -58,8 +90,9 @@ both qualify.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable, Optional, Protocol, Sequence, Tuple, Union, runtime_checkable
+import time
+from dataclasses import dataclass, field
+from typing import Callable, List, Optional, Protocol, Sequence, Tuple, Union, runtime_checkable
 
 import numpy as np
 import scipy.sparse as sp
@@ -68,18 +101,21 @@ from mjed.errors import IntegrationError, InvertedElementError
 from mjed.mass import MASS_KINDS, mass_matrix
 from mjed.mesh import TetMesh
 from mjed.linear_system import FreeBlock, sum_same_pattern
-from mjed.solvers import CGResult, NotPositiveDefiniteError, SPDFactor, block_jacobi_preconditioner, conjugate_gradient
+from mjed.solvers import (FACTOR_PRECISIONS, LINEAR_SOLVERS, PRECONDITIONERS, CGResult, LinearSolverOptions,
+                          NotPositiveDefiniteError, SPDFactor, block_jacobi_preconditioner, conjugate_gradient)
 
-#: Linear solvers and CG preconditioners of ImplicitEuler (see the module docstring).
-LINEAR_SOLVERS = ("cg", "direct")
-PRECONDITIONERS = ("jacobi", "block-jacobi", "factorized")
-FACTOR_PRECISIONS = ("double", "single")
-
-__all__ = ["ForceModel", "Prescribed", "StepReport", "IntegratorState", "ImplicitEuler", "LINEAR_SOLVERS",
-           "PRECONDITIONERS", "FACTOR_PRECISIONS"]
+__all__ = ["ForceModel", "Prescribed", "StepReport", "StepTimes", "IntegratorState", "ImplicitEuler",
+           "LinearSolverOptions", "LINEAR_SOLVERS", "PRECONDITIONERS", "FACTOR_PRECISIONS", "RETRIED_REASONS"]
 
 #: Newton stops with "newton_diverged" when the residual grows beyond this factor of the first.
 _DIVERGENCE_FACTOR = 1e8
+
+#: IntegrationError reasons that a smaller step may cure, so the step is retried in substeps.
+#: (A non-finite external load or prescribed displacement is the user's input: never retried.)
+RETRIED_REASONS = frozenset({
+    "inverted", "cg_negative_curvature", "cg_max_iterations", "cg_non_finite", "cg_preconditioner_indefinite",
+    "not_positive_definite", "direct_residual", "non_finite", "newton_diverged", "newton_max_iterations", "volume_jump",
+})
 
 
 @runtime_checkable
@@ -111,6 +147,26 @@ class Prescribed:
 
 
 @dataclass(frozen=True)
+class StepTimes:
+    """Wall-clock seconds of one step by phase (summed over its substeps and failed attempts).
+
+    models: per force model, in the order given to the integrator: its force_and_stiffness
+    calls and its accept_step. system: the right-hand side and the free block of A.
+    solve: the linear solves, factorisations included. total: the whole step.
+    """
+
+    models: Tuple[float, ...]
+    system: float
+    solve: float
+    total: float
+
+    @property
+    def rest(self) -> float:
+        """What no phase above accounts for: constraints, gravity, checks, bookkeeping."""
+        return max(0.0, self.total - sum(self.models) - self.system - self.solve)
+
+
+@dataclass(frozen=True)
 class StepReport:
     """What one accepted step did.
 
@@ -119,7 +175,10 @@ class StepReport:
     residual; newton_residual: ||r|| / ||r_0|| at the end (None with one linearised solve);
     reaction: (n, 3) forces the constraints exert on the constrained nodes (zero elsewhere),
     from the balance of the last linear system; factorizations: sparse factorisations done in
-    the step (the "factorized" preconditioner or the direct solver; 0 with Jacobi).
+    the step (the "factorized" preconditioner or the direct solver; 0 with Jacobi);
+    substeps: the substeps that made up the step (1: taken whole); retries: the reason of each
+    failed attempt that made it split, in order; inverted_cells: cells with J <= 0 at the end
+    of the step (always 0 unless allow_inverted); times: where the step's time went.
     """
 
     step: int
@@ -130,6 +189,10 @@ class StepReport:
     newton_residual: Optional[float]
     reaction: np.ndarray
     factorizations: int = 0
+    substeps: int = 1
+    retries: Tuple[str, ...] = ()
+    inverted_cells: int = 0
+    times: Optional[StepTimes] = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +203,28 @@ class IntegratorState:
     v: np.ndarray
     t: float
     steps: int
+
+
+@dataclass
+class _Tally:
+    """What the substeps of one step add up to (mutable, private to a step)."""
+
+    n_models: int
+    substeps: int = 0
+    solves: int = 0
+    cg: int = 0
+    factorizations: int = 0
+    residual: float = 0.0
+    newton_residual: Optional[float] = None
+    reaction: Optional[np.ndarray] = None
+    retries: List[str] = field(default_factory=list)
+    inverted: int = 0
+    model_seconds: Optional[np.ndarray] = None
+    system_seconds: float = 0.0
+    solve_seconds: float = 0.0
+
+    def __post_init__(self):
+        self.model_seconds = np.zeros(self.n_models)
 
 
 class ImplicitEuler:
@@ -158,14 +243,21 @@ class ImplicitEuler:
         rayleigh_mass, rayleigh_stiffness: r_M (1/s) and r_K (s), >= 0.
         newton_iterations: linear solves per step at most (1: SOFA's linearised step).
         newton_tol: relative residual that ends the Newton iterations (used when > 1).
-        cg_tol, cg_max_iterations: the CG's relative residual and iteration cap.
-        linear_solver: "cg" (default) or "direct" (a sparse factorisation each step).
-        preconditioner: "jacobi" (default), "block-jacobi" or "factorized" (CG only).
-        refactor_iterations: with "factorized", a solve taking more CG iterations than this
-            renews the factorisation at the next step.
-        factor_precision: "double" (default) or "single": precision of the "factorized"
-            preconditioner's factorisation (the direct solver always factorises in double).
+        solver: a :class:`mjed.solvers.LinearSolverOptions` (default: CG, Jacobi, rtol 1e-8,
+            1000 iterations).
+        max_halvings: a failed step is retried in halves, down to dt / 2^max_halvings (0: no
+            retry); see the module docstring.
+        allow_inverted: accept steps that leave cells with J <= 0 (counted in each report)
+            instead of refusing them.
+        max_volume_change: if given (a factor c > 1), a step that changes the volume of some
+            cell by more than c (J1 / J0 outside [1/c, c]) fails with reason "volume_jump" and is
+            retried in substeps: one linearised step that far from its starting point is not
+            to be trusted (see the module docstring). None (default): no such limit.
         x0, v0, t0: initial state (default: the rest positions, at rest, t = 0).
+
+    Nodes that no cell uses (``mesh.unreferenced_nodes``: a mesh read with its numbering kept)
+    carry no mass and no force, so their motion is undefined: they are held where they are,
+    like fixed nodes, and listed in ``idle_nodes``.
     """
 
     def __init__(
@@ -184,18 +276,18 @@ class ImplicitEuler:
         rayleigh_stiffness: float = 0.0,
         newton_iterations: int = 1,
         newton_tol: float = 1e-8,
-        cg_tol: float = 1e-8,
-        cg_max_iterations: int = 1000,
-        linear_solver: str = "cg",
-        preconditioner: str = "jacobi",
-        refactor_iterations: int = 20,
-        factor_precision: str = "double",
+        solver: LinearSolverOptions = LinearSolverOptions(),
+        max_halvings: int = 3,
+        allow_inverted: bool = False,
+        max_volume_change: Optional[float] = None,
         x0=None,
         v0=None,
         t0: float = 0.0,
     ):
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
+        if not isinstance(solver, LinearSolverOptions):
+            raise TypeError(f"solver must be an mjed.solvers.LinearSolverOptions, got {type(solver).__name__}")
         self.mesh = mesh
         self.models = _as_models(models)
         self.dt = _positive("dt", dt)
@@ -208,22 +300,14 @@ class ImplicitEuler:
             raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
         self.newton_iterations = int(newton_iterations)
         self.newton_tol = _positive("newton_tol", newton_tol)
-        self.cg_tol = _positive("cg_tol", cg_tol)
-        if int(cg_max_iterations) != cg_max_iterations or cg_max_iterations < 1:
-            raise ValueError(f"cg_max_iterations must be an integer >= 1, got {cg_max_iterations!r}")
-        self.cg_max_iterations = int(cg_max_iterations)
-        if linear_solver not in LINEAR_SOLVERS:
-            raise ValueError(f"linear_solver must be one of {LINEAR_SOLVERS}, got {linear_solver!r}")
-        if preconditioner not in PRECONDITIONERS:
-            raise ValueError(f"preconditioner must be one of {PRECONDITIONERS}, got {preconditioner!r}")
-        if isinstance(refactor_iterations, bool) or int(refactor_iterations) != refactor_iterations or refactor_iterations < 1:
-            raise ValueError(f"refactor_iterations must be an integer >= 1, got {refactor_iterations!r}")
-        self.linear_solver = linear_solver
-        self.preconditioner = preconditioner
-        self.refactor_iterations = int(refactor_iterations)
-        if factor_precision not in FACTOR_PRECISIONS:
-            raise ValueError(f"factor_precision must be one of {FACTOR_PRECISIONS}, got {factor_precision!r}")
-        self.factor_precision = factor_precision
+        self.solver = solver
+        if isinstance(max_halvings, bool) or int(max_halvings) != max_halvings or not 0 <= max_halvings <= 20:
+            raise ValueError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
+        self.max_halvings = int(max_halvings)
+        self.allow_inverted = bool(allow_inverted)
+        if max_volume_change is not None and not (np.isfinite(max_volume_change) and max_volume_change > 1):
+            raise ValueError(f"max_volume_change must be a factor > 1 or None, got {max_volume_change!r}")
+        self.max_volume_change = None if max_volume_change is None else float(max_volume_change)
         self._factor: Optional[SPDFactor] = None  # the kept factorisation ("factorized")
         self.external_force = external_force
         n = mesh.n_nodes
@@ -237,6 +321,7 @@ class ImplicitEuler:
             self._f_gravity = (self.M @ np.tile(g, n)).reshape(n, 3)
 
         self.fixed_nodes = _node_set("fixed_nodes", fixed_nodes, n)
+        self.idle_nodes = np.asarray(mesh.unreferenced_nodes, dtype=np.int64)
         if isinstance(prescribed, tuple):
             prescribed = Prescribed(*prescribed)
         if prescribed is not None and not isinstance(prescribed, Prescribed):
@@ -251,6 +336,7 @@ class ImplicitEuler:
         self._prescribed_nodes = prescribed_nodes
         constrained = np.zeros((n, 3), dtype=bool)
         constrained[self.fixed_nodes] = True
+        constrained[self.idle_nodes] = True
         constrained[prescribed_nodes] = True
         self._constrained = constrained.ravel()  # (3n,)
         self._free = np.flatnonzero(~self._constrained)
@@ -261,8 +347,13 @@ class ImplicitEuler:
         self.v = _initial("v0", np.zeros((n, 3)) if v0 is None else v0, n)
         self.t = float(t0)
         self.steps = 0
+        self._J = self._jacobians(self.x)  # (m,) J of the current (accepted) state
         self._warm = None  # last dv on the free dofs: the CG's first guess
         self._system = FreeBlock(self.M, self._free)  # A[free][:, free] without re-slicing K
+        # Models whose accepted steps change them; a retry needs to roll each of them back.
+        self._stateful = [m for m in self.models if hasattr(m, "accept_step")]
+        self._rollback = all(callable(getattr(m, "save_history", None)) and callable(getattr(m, "restore_history", None))
+                             for m in self._stateful)
 
     # ---------------------------------------------------------------- state
     @property
@@ -286,8 +377,54 @@ class ImplicitEuler:
         return reports
 
     def step(self) -> StepReport:
-        """One backward Euler step; on failure raises IntegrationError and keeps the state."""
-        dt, step, t1 = self.dt, self.steps + 1, self.t + self.dt
+        """One backward Euler step of size dt, split into substeps if it fails whole.
+
+        On failure raises IntegrationError and keeps the state of the last accepted step.
+        """
+        clock = time.perf_counter()
+        step, t_end = self.steps + 1, self.t + self.dt
+        start = (self.x, self.v, self.t)
+        tally = _Tally(len(self.models))
+        saved: list = []  # the models' histories, saved at the first failure (nothing committed yet)
+        try:
+            self._advance(self.dt, 0, step, tally, saved)
+        except IntegrationError as exc:
+            self.x, self.v, self.t = start
+            for model, history in saved:
+                model.restore_history(history)
+            if not tally.retries:
+                raise
+            smallest = self.dt / 2 ** self.max_halvings
+            raise IntegrationError(
+                step, t_end, exc.reason,
+                f"{_detail(exc)}; retried in substeps down to dt/{2 ** self.max_halvings} = {smallest:.3g} s "
+                f"({len(tally.retries)} failed attempt(s): {', '.join(sorted(set(tally.retries)))})",
+                cells=exc.cells) from exc
+        self.t, self.steps = t_end, step  # the substeps' times add up to t_end up to rounding
+        times = StepTimes(tuple(float(s) for s in tally.model_seconds), tally.system_seconds, tally.solve_seconds,
+                          time.perf_counter() - clock)
+        return StepReport(step, t_end, tally.solves, tally.cg, tally.residual, tally.newton_residual,
+                          tally.reaction.reshape(-1, 3), tally.factorizations, tally.substeps, tuple(tally.retries),
+                          tally.inverted, times)
+
+    def _advance(self, dt: float, depth: int, step: int, tally: _Tally, saved: list) -> None:
+        """Take dt from the current state, in halves (recursively) if it fails whole."""
+        try:
+            self._single(dt, step, tally)
+        except IntegrationError as exc:
+            retry = exc.reason in RETRIED_REASONS and getattr(exc, "retryable", True)
+            if not (retry and self._rollback and depth < self.max_halvings):
+                raise
+            if not tally.retries and not tally.substeps:  # first failure: nothing committed yet
+                saved.extend((m, m.save_history()) for m in self._stateful)
+            tally.retries.append(exc.reason)
+            self._factor = None  # a factor of the failed matrix is no guide for a smaller step
+            for _ in range(2):
+                self._advance(0.5 * dt, depth + 1, step, tally, saved)
+
+    def _single(self, dt: float, step: int, tally: _Tally) -> None:
+        """One backward Euler step of size dt from the current state; commits it on success."""
+        t1 = self.t + dt
         for model in self.models:
             if hasattr(model, "prepare_step"):
                 model.prepare_step(dt)
@@ -305,7 +442,8 @@ class ImplicitEuler:
         if self.prescribed is not None:
             target = self.mesh.points[self._prescribed_nodes] + np.asarray(self.prescribed.displacement(t1), dtype=float)
             if target.shape != (len(self._prescribed_nodes), 3) or not np.isfinite(target).all():
-                raise IntegrationError(step, t1, "non_finite", f"prescribed displacement at t={t1:g} is not a finite ({len(self._prescribed_nodes)}, 3) array")
+                raise _input_error(step, t1, f"prescribed displacement at t={t1:g} is not a finite "
+                                             f"({len(self._prescribed_nodes)}, 3) array")
             v_ref.reshape(-1, 3)[self._prescribed_nodes] = (target - self.x[self._prescribed_nodes]) / dt
         u_e = np.zeros(n3)  # the first linearisation point is x0
 
@@ -313,10 +451,12 @@ class ImplicitEuler:
         a_M, b_K = 1.0 + dt * self.rayleigh_mass, dt * dt + dt * self.rayleigh_stiffness  # A = a_M M + b_K K
         cg_total, r0_norm, newton_res, solves, factorizations = 0, 0.0, None, 0, 0
         for it in range(1, self.newton_iterations + 2):
-            f, K = self._evaluate(x0 + u_e, step, t1)
+            f, K = self._evaluate(x0 + u_e, step, t1, tally)
+            clock = time.perf_counter()
             damp = self.rayleigh_mass * (self.M @ v_ref) + self.rayleigh_stiffness * (K @ v_ref)
             rhs = dt * (f + f_ext - damp - K @ (dt * v_ref - u_e)) - self.M @ (v_ref - v0)
             r_norm = float(np.linalg.norm(rhs[free]))
+            tally.system_seconds += time.perf_counter() - clock
             if it == 1:
                 r0_norm = r_norm
             else:
@@ -331,10 +471,16 @@ class ImplicitEuler:
                     raise IntegrationError(step, t1, "newton_max_iterations",
                                            f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
                                            f"after {self.newton_iterations} linear solves")
+            clock = time.perf_counter()
             A_ff = self._system(a_M, K, b_K)
+            tally.system_seconds += time.perf_counter() - clock
             # CG returns its first guess untouched for a zero right-hand side: only warm-start otherwise.
             warm = self._warm if (it == 1 and r_norm > 0) else None
-            res, done = self._solve(A_ff, rhs[free], warm, step, t1)
+            clock = time.perf_counter()
+            try:
+                res, done = self._solve(A_ff, rhs[free], warm, step, t1)
+            finally:
+                tally.solve_seconds += time.perf_counter() - clock
             cg_total += res.iterations
             factorizations += done
             solves += 1
@@ -352,13 +498,24 @@ class ImplicitEuler:
         x1 = x0 + dt * v_ref
         if not (np.isfinite(x1).all() and np.isfinite(v_ref).all()):
             raise IntegrationError(step, t1, "non_finite", "the new positions or velocities are not finite")
-        self._refuse_inverted(x1.reshape(-1, 3), step, t1)
         x1 = x1.reshape(-1, 3)
-        for model in self.models:
+        J1 = self._jacobians(x1)
+        inverted = self._inverted_cells(J1, step, t1)
+        self._check_volume_change(J1, step, t1)
+        for k, model in enumerate(self.models):
             if hasattr(model, "accept_step"):
+                clock = time.perf_counter()
                 model.accept_step(x1, dt)
-        self.x, self.v, self.t, self.steps = x1, v_ref.reshape(-1, 3), t1, step
-        return StepReport(step, t1, solves, cg_total, res.residual, newton_res, reaction.reshape(-1, 3), factorizations)
+                tally.model_seconds[k] += time.perf_counter() - clock
+        self.x, self.v, self.t, self._J = x1, v_ref.reshape(-1, 3), t1, J1
+        tally.substeps += 1
+        tally.solves += solves
+        tally.cg += cg_total
+        tally.factorizations += factorizations
+        tally.residual = res.residual
+        tally.newton_residual = newton_res
+        tally.reaction = reaction
+        tally.inverted = inverted
 
     # ---------------------------------------------------------------- internals
     def _solve(self, A: sp.csr_matrix, b: np.ndarray, warm, step: int, t1: float):
@@ -367,41 +524,43 @@ class ImplicitEuler:
         Raises IntegrationError when CG fails (after one retry with a fresh factorisation when
         the kept one was stale) or a factorisation finds A not positive definite.
         """
-        if self.linear_solver == "direct":
+        opts = self.solver
+        if opts.solver == "direct":
             x = self._factorize(A, step, t1)(b)
             nb = float(np.linalg.norm(b))
             residual = float(np.linalg.norm(b - A @ x)) / nb if nb > 0 else 0.0
-            if not residual <= self.cg_tol:  # held to the CG's tolerance (an ill-conditioned A)
+            if not residual <= opts.cg_tol:  # held to the CG's tolerance (an ill-conditioned A)
                 raise IntegrationError(step, t1, "direct_residual",
-                                       f"the direct solve left a relative residual {residual:.3g} above cg_tol={self.cg_tol:g}")
+                                       f"the direct solve left a relative residual {residual:.3g} above cg_tol={opts.cg_tol:g}")
             return CGResult(x, 0, True, "direct", residual), 1
         done = 0
-        if self.preconditioner == "jacobi":
+        single = opts.factor_precision == "single"
+        if opts.preconditioner == "jacobi":
             apply = None
-        elif self.preconditioner == "block-jacobi":
+        elif opts.preconditioner == "block-jacobi":
             apply = block_jacobi_preconditioner(A)
         else:
             if self._factor is None:
-                self._factor = self._factorize(A, step, t1, single=self.factor_precision == "single")
+                self._factor = self._factorize(A, step, t1, single=single)
                 done = 1
             apply = self._factor
-        res = conjugate_gradient(A, b, tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm, preconditioner=apply)
-        if self.preconditioner == "factorized":
+        res = conjugate_gradient(A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm, preconditioner=apply)
+        if opts.preconditioner == "factorized":
             if not res.converged and done == 0 and res.reason != "negative_curvature":
                 # A stale factorisation (an earlier step's A) may simply be too far off now.
                 spent = res.iterations
-                self._factor = self._factorize(A, step, t1, single=self.factor_precision == "single")
+                self._factor = self._factorize(A, step, t1, single=single)
                 done += 1
-                res = conjugate_gradient(A, b, tol=self.cg_tol, max_iterations=self.cg_max_iterations, x0=warm,
+                res = conjugate_gradient(A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm,
                                          preconditioner=self._factor)
                 res = CGResult(res.x, res.iterations + spent, res.converged, res.reason, res.residual)
-            if res.iterations > self.refactor_iterations:
+            if res.iterations > opts.refactor_iterations:
                 self._factor = None  # renewed at the next solve
         if not res.converged:
             raise IntegrationError(step, t1, f"cg_{res.reason}",
                                    f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
-                                   f"(relative residual {res.residual:.3g}, tolerance {self.cg_tol:g}, "
-                                   f"{self.preconditioner} preconditioner)")
+                                   f"(relative residual {res.residual:.3g}, tolerance {opts.cg_tol:g}, "
+                                   f"{opts.preconditioner} preconditioner)")
         return res, done
 
     def _factorize(self, A: sp.csr_matrix, step: int, t1: float, single: bool = False) -> SPDFactor:
@@ -415,34 +574,70 @@ class ImplicitEuler:
         except NotPositiveDefiniteError as exc:
             raise IntegrationError(step, t1, "not_positive_definite", f"the step matrix A: {exc}") from None
 
-    def _evaluate(self, x: np.ndarray, step: int, t1: float):
+    def _evaluate(self, x: np.ndarray, step: int, t1: float, tally: _Tally):
         """Summed forces (3n,) and stiffness (3n, 3n) of all models at x (3n,)."""
         xs = x.reshape(-1, 3)
         if not np.isfinite(xs).all():
             raise IntegrationError(step, t1, "non_finite", "a Newton iterate has non-finite positions")
         f_total, K_total = None, None
-        for model in self.models:
+        for k, model in enumerate(self.models):
+            clock = time.perf_counter()
             try:
                 f, K = model.force_and_stiffness(xs)
             except InvertedElementError as exc:
                 raise IntegrationError(step, t1, "inverted", str(exc), cells=exc.cells) from exc
+            finally:
+                tally.model_seconds[k] += time.perf_counter() - clock
             f_total = f.ravel() if f_total is None else f_total + f.ravel()
             K_total = sp.csr_matrix(K) if K_total is None else sum_same_pattern(K_total, K)
         if not np.isfinite(f_total).all():
             raise IntegrationError(step, t1, "non_finite", "the internal forces are not finite")
         return f_total, K_total
 
-    def _refuse_inverted(self, x: np.ndarray, step: int, t1: float) -> None:
-        """The step is refused if it inverts a cell (J <= 0), even if no model evaluated there."""
-        # J = det F = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
+    def _jacobians(self, x: np.ndarray) -> np.ndarray:
+        """(m,) J = det F of every cell at positions x (n, 3)."""
+        # J = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
         xc = x[self.mesh.cells]  # (m, 4, 3)
         e = xc[:, 1:] - xc[:, :1]  # (m, 3, 3) edges from node 0
-        J = np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
+        return np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
+
+    def _inverted_cells(self, J: np.ndarray, step: int, t1: float) -> int:
+        """Cells with J <= 0: refused (IntegrationError) unless allow_inverted; returns their count."""
         bad = np.flatnonzero(~(J > 0))
-        if bad.size:
+        if bad.size and not self.allow_inverted:
             shown = ", ".join(f"cell {c} (J={J[c]:.3g})" for c in bad[:5])
             raise IntegrationError(step, t1, "inverted", f"{bad.size} cell(s) inverted at the new positions: {shown}",
                                    cells=bad)
+        return int(bad.size)
+
+    def _check_volume_change(self, J1: np.ndarray, step: int, t1: float) -> None:
+        """A step changing some cell's volume by more than max_volume_change fails ("volume_jump")."""
+        c = self.max_volume_change
+        if c is None:
+            return
+        both = (self._J > 0) & (J1 > 0)  # inverted cells are counted (or refused) elsewhere
+        ratio = np.ones_like(J1)
+        ratio[both] = J1[both] / self._J[both]
+        bad = np.flatnonzero((ratio > c) | (ratio < 1.0 / c))
+        if bad.size:
+            worst = bad[np.argmax(np.abs(np.log(ratio[bad])))]
+            raise IntegrationError(step, t1, "volume_jump",
+                                   f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step "
+                                   f"(cell {worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})", cells=bad)
+
+
+def _detail(exc: IntegrationError) -> str:
+    """The failure itself, without the "time step ... failed:" frame and the closing clause."""
+    text = str(exc)
+    head, _, rest = text.partition(" failed: ")
+    return rest.rsplit("; the integrator kept", 1)[0] if rest else text
+
+
+def _input_error(step: int, t1: float, detail: str) -> IntegrationError:
+    """A failure caused by the user's input (loads, prescribed motion): no smaller step cures it."""
+    exc = IntegrationError(step, t1, "non_finite", detail)
+    exc.retryable = False
+    return exc
 
 
 def _as_models(models) -> tuple:
@@ -496,5 +691,5 @@ def _initial(name: str, value, n: int) -> np.ndarray:
 def _finite_load(load, n: int, step: int, t1: float) -> np.ndarray:
     load = np.asarray(load, dtype=np.float64)
     if load.shape != (n, 3) or not np.isfinite(load).all():
-        raise IntegrationError(step, t1, "non_finite", f"external_force(t={t1:g}) is not a finite ({n}, 3) array")
+        raise _input_error(step, t1, f"external_force(t={t1:g}) is not a finite ({n}, 3) array")
     return load.ravel()

@@ -29,6 +29,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 __all__ = [
+    "LinearSolverOptions",
+    "LINEAR_SOLVERS",
+    "PRECONDITIONERS",
+    "FACTOR_PRECISIONS",
     "CGResult",
     "NotPositiveDefiniteError",
     "SPDFactor",
@@ -38,6 +42,62 @@ __all__ = [
 ]
 
 Preconditioner = Callable[[np.ndarray], np.ndarray]
+
+#: Linear solvers, CG preconditioners and factorisation precisions of LinearSolverOptions.
+LINEAR_SOLVERS = ("cg", "direct")
+PRECONDITIONERS = ("jacobi", "block-jacobi", "factorized")
+FACTOR_PRECISIONS = ("double", "single")
+
+
+@dataclass(frozen=True)
+class LinearSolverOptions:
+    """How an implicit scheme solves its linear system each step (validated on construction).
+
+    solver: "cg" (preconditioned conjugate gradients) or "direct" (a sparse factorisation of
+        every system; its residual is still held to ``cg_tol``).
+    cg_tol: relative residual ||b - A x|| / ||b|| to reach, > 0.
+    max_iterations: CG's iteration cap, an integer >= 1.
+    preconditioner: "jacobi", "block-jacobi" or "factorized" (a kept sparse factorisation of
+        an earlier system, see mjed.integrator), for "cg" only.
+    refactor_iterations: with "factorized", a solve needing more CG iterations than this
+        renews the factorisation at the next solve.
+    factor_precision: "double" or "single" precision of the "factorized" preconditioner's
+        factorisation (the direct solver always factorises in double precision).
+
+    Raises:
+        ValueError: naming the field and the accepted values.
+    """
+
+    solver: str = "cg"
+    cg_tol: float = 1e-8
+    max_iterations: int = 1000
+    preconditioner: str = "jacobi"
+    refactor_iterations: int = 20
+    factor_precision: str = "double"
+
+    def __post_init__(self) -> None:
+        for name, allowed in (("solver", LINEAR_SOLVERS), ("preconditioner", PRECONDITIONERS),
+                              ("factor_precision", FACTOR_PRECISIONS)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"LinearSolverOptions.{name} must be one of {allowed}, got {getattr(self, name)!r}")
+        tol = self.cg_tol
+        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (math.isfinite(tol) and tol > 0):
+            raise ValueError(f"LinearSolverOptions.cg_tol must be finite and > 0, got {tol!r}")
+        object.__setattr__(self, "cg_tol", float(tol))
+        for name in ("max_iterations", "refactor_iterations"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"LinearSolverOptions.{name} must be an integer >= 1, got {v!r}")
+            object.__setattr__(self, name, int(v))
+
+    def label(self) -> str:
+        """One line for tables: how each system was solved."""
+        if self.solver == "direct":
+            return f"direct sparse LU (SuperLU) every solve, residual <= {self.cg_tol:g}"
+        if self.preconditioner == "factorized":
+            return (f"CG, kept {self.factor_precision}-precision sparse LU preconditioner (renewed after "
+                    f"> {self.refactor_iterations} iterations), rtol {self.cg_tol:g}")
+        return f"CG, {self.preconditioner} preconditioner, rtol {self.cg_tol:g}"
 
 
 @dataclass(frozen=True)

@@ -35,8 +35,15 @@ def test_three_models_run_and_write_their_outputs(quick_run):
     assert max(abs(p) for p in poro["max_abs_pressure"]) > 0  # the fluid responds
     for path in result["figures"] + result["series"]:
         assert (out / path.split("/")[-1]).is_file()
-    assert len(result["figures"]) == 4 and len(result["series"]) == 3
+    assert len(result["figures"]) == 5 and len(result["series"]) == 3
     assert result["passed"] and max(t["relative_l2_error"] for t in result["terzaghi"]["times"]) <= 1e-2
+    for r in result["runs"]:  # substeps and where the time went, per step and per run
+        assert len(r["substeps"]) == r["steps"] and r["substeps_total"] >= r["steps"]
+        assert set(r["phase_seconds"]) == {"hyperelastic force + stiffness", "other forces", "building the system",
+                                           "linear solve", "rest"}
+    split = {s["model"]: s["shares"] for s in result["step_split"]}
+    assert set(split) == set(MODELS) and all(abs(sum(v.values()) - 1) < 1e-12 for v in split.values())
+    assert split["hyperelastic"]["other forces"] == 0 and split["visco-poro-hyperelastic"]["other forces"] > 0
     assert json.loads((out / "liver.json").read_text())["n_fixed"] == result["n_fixed"]
 
 
@@ -109,16 +116,42 @@ def test_mesh_without_volume_cells_and_bad_input_are_refused(tmp_path, capsys):
 
 
 def test_a_failing_run_is_reported_not_hidden(tmp_path):
-    """A far too soft organ (mu = 50 Pa) makes the implicit step fail: the run records the
-    integrator's message and the study does not pass."""
-    from comparisons.liver import LiverParameters
+    """A force field whose stiffness is indefinite at every state (forced: K negated) fails at
+    every substep: the run records the integrator's clear message and the study does not pass."""
+    from comparisons.liver import numpy_force_field
+
+    class Indefinite:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def force_and_stiffness(self, x):
+            f, K = self.inner.force_and_stiffness(x)
+            return f, -K
+
+    def broken(mesh, material, **kw):
+        return Indefinite(numpy_force_field(mesh, material, **kw))
 
     result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
-                       params=LiverParameters(mu=50.0, k0=500.0))
+                       force_field=broken)
     (run,) = result["runs"]
-    assert not result["passed"] and run["error"] and run["steps"] < run["steps_planned"]
-    assert "time step" in run["error"]
-    assert main(["liver", "--quick", "--models", "hyperelastic", "--no-series", "--out", str(tmp_path)]) == 0
+    assert not result["passed"] and run["steps"] == 0 < run["steps_planned"]
+    assert run["error"].startswith("time step 1 (t = 0.3 s) failed:")
+    assert "retried in substeps down to dt/16 = 0.0187 s" in run["error"] and "kept the state" in run["error"]
+    assert main(["liver", "--quick", "--models", "hyperelastic", "--no-series", "--no-oscillation",
+                 "--out", str(tmp_path)]) == 3  # passed, but partial (quick, one model)
+
+
+def test_a_soft_organ_survives_in_substeps(tmp_path):
+    """mu = 50 Pa: the 0.3 s linearised step is refused whole and taken in substeps, reported."""
+    from comparisons.liver import LiverParameters
+    from mjed.materials import ArrudaBoyce
+
+    result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
+                       params=LiverParameters(material=ArrudaBoyce(mu=50.0, k0=500.0)))
+    (run,) = result["runs"]
+    assert run["error"] is None and run["steps"] == 3 and run["steps_split"] >= 1
+    assert run["substeps_total"] > 3 and any(run["retries"])
+    assert result["fps_table"][0]["steps_split"] == run["steps_split"]
 
 
 def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
@@ -127,8 +160,13 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     from comparisons.liver import LiverParameters
 
     runs = {}
-    for name, params in (("factorized", LiverParameters()), ("jacobi", LiverParameters(preconditioner="jacobi")),
-                         ("direct", LiverParameters(linear_solver="direct"))):
+    import dataclasses
+
+    from comparisons.liver import LIVER_SOLVER
+
+    for name, params in (("factorized", LiverParameters()),
+                         ("jacobi", LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, preconditioner="jacobi"))),
+                         ("direct", LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, solver="direct")))):
         result = run_liver(quick=True, steps=3, out=str(tmp_path / name), params=params,
                            models=["visco-poro-hyperelastic"], series=False)
         runs[name] = result
@@ -143,10 +181,11 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     assert fact["cg_iterations_mean"] < jac["cg_iterations_mean"] / 5
 
 
-@pytest.mark.parametrize("kwargs, word", [(dict(preconditioner="ilu"), "preconditioner"),
-                                          (dict(linear_solver="lu"), "linear_solver"),
-                                          (dict(refactor_iterations=0), "refactor_iterations")])
-def test_bad_solver_parameters_are_refused_by_name(kwargs, word):
+@pytest.mark.parametrize("kwargs, word", [(dict(solver="cg"), "solver"), (dict(dt=0.0), "dt"),
+                                          (dict(gravity=(0.0, 9.81)), "gravity"), (dict(max_halvings=-1), "max_halvings"),
+                                          (dict(max_volume_change=1.0), "max_volume_change"),
+                                          (dict(allow_inverted=True), "ArrudaBoyce does not qualify")])
+def test_bad_liver_parameters_are_refused_by_name(kwargs, word):
     from comparisons.liver import LiverParameters
 
     with pytest.raises(ValueError, match=word):

@@ -145,3 +145,21 @@ def test_a_single_precision_factor_preconditions_but_its_pivots_see_the_rounded_
     SPDFactor(close)
     with pytest.raises(NotPositiveDefiniteError):
         SPDFactor(close, single=True)
+
+
+def test_linear_solver_options_are_one_validated_frozen_object():
+    import dataclasses
+
+    from mjed.solvers import LinearSolverOptions
+
+    opts = LinearSolverOptions(cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single")
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.cg_tol = 1.0
+    assert opts == LinearSolverOptions(cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single")
+    assert "kept single-precision sparse LU" in opts.label() and "rtol 1e-06" in opts.label()
+    assert "direct" in LinearSolverOptions(solver="direct").label()
+    for bad, word in [(dict(cg_tol=0.0), "cg_tol"), (dict(cg_tol=float("nan")), "cg_tol"), (dict(cg_tol=True), "cg_tol"),
+                      (dict(max_iterations=0), "max_iterations"), (dict(max_iterations=2.5), "max_iterations"),
+                      (dict(preconditioner="ilu"), "preconditioner"), (dict(solver="gmres"), "solver")]:
+        with pytest.raises(ValueError, match=f"LinearSolverOptions.{word}"):
+            LinearSolverOptions(**bad)
