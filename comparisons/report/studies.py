@@ -61,6 +61,13 @@ def _cross_release(ctx: StudyContext) -> StudyResult:
     return _with_status(ctx, "cross-release", cross_release_study, quick=ctx.quick)
 
 
+def _liver(ctx: StudyContext) -> StudyResult:
+    from comparisons.liver import liver_study
+
+    return _with_status(ctx, "liver", liver_study, quick=ctx.quick, out_dir=ctx.figure_path("liver"),
+                        series=not ctx.quick, relative_to=ctx.run_dir)
+
+
 def _provenance(ctx: StudyContext) -> StudyResult:
     from comparisons.provenance import provenance_study
 
@@ -104,24 +111,6 @@ def _scaling(ctx: StudyContext) -> StudyResult:
         data=s, blocks=res.blocks)
 
 
-def _liver(ctx: StudyContext) -> StudyResult:
-    res = _run_liver_dict(ctx)
-    from comparisons.liver import TARGET_FPS, TERZAGHI_TOL
-    from comparisons.reproduce import command
-
-    s = res.data
-    checks = [Check("runs that stopped with an error", float(sum(bool(r["error"]) for r in s["runs"])), 0.0,
-                    note="; ".join(f"{r['model']}: {r['error']}" for r in s["runs"] if r["error"])),
-              Check("Terzaghi consolidation: relative L2 pressure error, worst time",
-                    max(t["relative_l2_error"] for t in s["terzaghi"]["times"]), TERZAGHI_TOL)]
-    checks += [Check(f"{t['model']}: frames per second", t["fps"], TARGET_FPS, ">=", "target",
-                     note="" if t["fps"] is not None else "the run stopped") for t in s["fps_table"]]
-    return StudyResult.from_checks(
-        "liver", LIVER_TITLE, checks, headline=res.headline, command=command("liver", quick=ctx.quick),
-        not_covered=("quick: the coarse liver and 6 steps instead of the paper-size liver and 30",) if ctx.quick else (),
-        data=s, blocks=res.blocks)
-
-
 class _Dict:
     """What the old dict-based composition below returns (TEMPORARY, see above)."""
 
@@ -131,7 +120,6 @@ class _Dict:
 
 TIMING_TITLE = "Timing: MJED, classical FEM and dolfinx (paper Fig. 2)"
 SCALING_TITLE = "Scaling with mesh size"
-LIVER_TITLE = "The liver under gravity (paper Fig. 1 and Fig. 4)"
 
 
 # ----------------------------------------------------------------------------- timing
@@ -190,50 +178,10 @@ def _run_scaling_dict(ctx: StudyContext) -> _Dict:
     return _Dict(res, blocks, headline)
 
 
-# ----------------------------------------------------------------------------- liver
-_LIVER_CAPTIONS = {
-    "fig1_left_porous_stress": "Fig. 1 left: porous volumetric stress sigma(J) before and after the tangent substitution below J0",
-    "fig1_right_pressure": "Fig. 1 right: fluid pressure in the liver at the time of its largest magnitude",
-    "fig4_max_displacement": "Fig. 4: maximum displacement amplitude over time for the three models",
-    "terzaghi": "Terzaghi consolidation: the pressure solver against the series solution",
-}
-
-
-def _run_liver_dict(ctx: StudyContext) -> _Dict:
-    import os
-
-    from comparisons.liver import run_liver
-
-    res = _with_status(ctx, "liver", run_liver, quick=ctx.quick, out=ctx.figure_path("liver"), series=not ctx.quick)
-    blocks: List = []
-    for path in res["figures"]:
-        stem = os.path.splitext(os.path.basename(path))[0]
-        blocks.append(Figure(ctx.relative(path), _LIVER_CAPTIONS.get(stem, stem)))
-    blocks.append(Paragraph(
-        f"Mesh {res['mesh']} ({res['n_nodes']} nodes, {res['n_cells']} tetrahedra), {res['n_fixed']} fixed nodes "
-        f"({'; '.join(res['fixed_regions'])}), gravity, {res['duration']:g} s simulated. Frames per second are time steps "
-        "per wall-clock second of stepping (assembly + CG), on this machine."))
-    blocks.append(Table(("model", "dt (s)", "steps", "mean CG its", "final max |u| (m)", "FPS", "paper FPS", "target", "error"),
-                        [(r["model"], r["dt"], r["steps"], r["cg_iterations_mean"], r["final_max_displacement"], r["fps"],
-                          r["paper_fps"], "met" if t["meets_target"] else "missed", r["error"] or "")
-                         for r, t in zip(res["runs"], res["fps_table"])],
-                        caption=f"Target: {res['fps_table'][0]['target_fps']} FPS (interactive rate)" if res["fps_table"] else ""))
-    tz = res["terzaghi"]
-    blocks.append(Table(("Terzaghi time factor", "relative L2 pressure error"),
-                        [(t["T_v"], t["relative_l2_error"]) for t in tz["times"]]))
-    if res.get("series"):
-        blocks.append(Paragraph("ParaView time series (displacement, J, pressure): "
-                                + ", ".join(ctx.relative(p) for p in res["series"])))
-    fps = ", ".join(f"{t['model']} {t['fps']:.0f}" for t in res["fps_table"] if t["fps"] is not None)
-    headline = (f"FPS on {res['mesh']}: {fps} (paper 7.5 / 7 / 6; target {res['fps_table'][0]['target_fps']:g})"
-                if res["fps_table"] else "")
-    return _Dict(res, blocks, headline)
-
-
 # ----------------------------------------------------------------------------- the registry
 def report_studies() -> Tuple[ReportStudy, ...]:
     """The report's studies in order; the summary comes first and is written by the runner."""
-    from comparisons import cross_release, equivalence, provenance, regularization, rheometer
+    from comparisons import cross_release, equivalence, liver, provenance, regularization, rheometer
 
     return (
         ReportStudy(equivalence.KEY, equivalence.TITLE, _equivalence),
@@ -241,7 +189,7 @@ def report_studies() -> Tuple[ReportStudy, ...]:
         ReportStudy("scaling", SCALING_TITLE, _scaling),  # TEMPORARY wrapper (scaling_study at merge)
         ReportStudy(regularization.KEY, regularization.TITLE, _regularization),
         ReportStudy(rheometer.KEY, rheometer.TITLE, _rheometer),
-        ReportStudy("liver", LIVER_TITLE, _liver),  # TEMPORARY wrapper (liver_study at merge)
+        ReportStudy(liver.KEY, liver.TITLE, _liver),
         ReportStudy(cross_release.KEY, cross_release.TITLE, _cross_release),
         ReportStudy(provenance.KEY, provenance.TITLE, _provenance),
     )
