@@ -1,0 +1,100 @@
+"""FElupe (conformance/adapters/felupe.py) against the UFL oracle with matched energies, on
+single-tet and cube-small in every state of comparisons/states.py.
+
+What the check finds (FElupe 11.3.0): its hand-written stresses and tangents of
+NeoHookeCompressible and of the isochoric NeoHooke with a (J - 1)^2 bulk term equal UFL's
+derivatives of the stated energies to round-off (relative errors below 1e-14). Its
+NeoHookeCompressible energy is the project's NeoHookean plus the constant 3 mu / 2: the
+total energy differs by exactly 3 mu / 2 times the mesh volume, and the test asserts that
+measured offset (it does not pass the energy as equal).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from adapter_cases import ADAPTER_MESHES, errors_in_every_state, load_mesh, mesh_volume
+from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+
+felupe = pytest.importorskip("felupe", reason="FElupe is not installed (scripts/bootstrap.sh installs felupe==11.3.0)")
+pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
+pytestmark = pytest.mark.oracle
+
+from comparisons.cases import DEFAULT_MATERIALS  # noqa: E402
+from conformance.adapters import Unsupported  # noqa: E402
+from conformance.adapters.felupe import CHECKED_VERSION, FElupeAdapter, library_energy, supports  # noqa: E402
+from reference_fem import UFLOracle  # noqa: E402
+from reference_fem.user_energy import UserEnergy  # noqa: E402
+
+NH = DEFAULT_MATERIALS["NeoHookean"]
+
+
+def test_the_installed_felupe_is_the_checked_release():
+    assert felupe.__version__ == CHECKED_VERSION, "the energies in conformance/adapters/felupe.py were read from this release"
+
+
+@pytest.mark.parametrize("mesh", ADAPTER_MESHES)
+def test_neo_hooke_compressible_against_the_builtin_neohookean(mesh):
+    points, cells = load_mesh(mesh)
+    adapter = FElupeAdapter(points, cells, NH)
+    oracle = UFLOracle(points, cells, NH)
+    offset = 1.5 * NH.mu * mesh_volume(points, cells)  # FElupe's W - ours = 3 mu / 2
+    for state, err in errors_in_every_state(adapter, oracle, points, cells):
+        assert err["force"] <= FORCE_TOL, (state, err)
+        assert err["stiffness"] <= STIFFNESS_TOL, (state, err)
+        # The documented discrepancy: not equal energies, equal up to this constant.
+        assert abs(err["energy_difference"] - offset) <= 1e-10 * offset, (state, err, offset)
+
+
+@pytest.mark.parametrize("mesh", ADAPTER_MESHES)
+@pytest.mark.parametrize(
+    "umat",
+    [
+        pytest.param(lambda: felupe.NeoHooke(mu=1200.0, bulk=3.0e4), id="NeoHooke"),
+        pytest.param(lambda: felupe.NeoHookeCompressible(mu=3448.2759, lmbda=31034.483), id="NeoHookeCompressible"),
+        pytest.param(lambda: felupe.LinearElasticLargeStrain(E=1.0e4, nu=0.3), id="LinearElasticLargeStrain"),
+    ],
+)
+def test_felupe_materials_against_the_oracle_of_their_stated_energy(mesh, umat):
+    points, cells = load_mesh(mesh)
+    adapter = FElupeAdapter(points, cells, umat())
+    oracle = UFLOracle(points, cells, adapter.library_energy)
+    errs = dict(errors_in_every_state(adapter, oracle, points, cells))
+    energy_scale = max(abs(e["oracle_energy"]) for e in errs.values())  # the rest state has W = 0
+    for state, err in errs.items():
+        assert err["force"] <= FORCE_TOL, (state, err)
+        assert err["stiffness"] <= STIFFNESS_TOL, (state, err)
+        assert abs(err["energy_difference"]) <= 1e-12 * energy_scale, (state, err)
+
+
+def test_a_user_energy_written_as_felupe_writes_it_runs_felupe():
+    e = UserEnergy("mu/2*(I1b-3) + bulk/2*(J-1)**2", {"mu": 1200.0, "bulk": 3.0e4})
+    ok, why = supports(e)
+    assert ok and "NeoHooke" in why
+    points, cells = load_mesh("single-tet")
+    x = points @ np.diag([1.1, 0.95, 1.0]).T
+    adapter = FElupeAdapter(points, cells, e)
+    assert isinstance(adapter.library_material, felupe.NeoHooke) and adapter.library_material.bulk == 3.0e4
+    assert np.isclose(adapter.energy(x), e.cell_energies(points, cells, x).sum(), rtol=1e-13)
+
+
+def test_unsupported_models_are_refused_with_the_reason():
+    ok, why = supports(DEFAULT_MATERIALS["MooneyRivlin"])
+    assert not ok and "MooneyRivlin" in why
+    ok, why = supports(UserEnergy("mu/2*(I1b-3) + K/2*(J-1)**2", {"mu": 1.0, "K": 2.0}))
+    assert not ok and "not one of FElupe's" in why  # parameter K, not FElupe's bulk
+    points, cells = load_mesh("single-tet")
+    with pytest.raises(Unsupported, match="MooneyRivlin"):
+        FElupeAdapter(points, cells, DEFAULT_MATERIALS["MooneyRivlin"])
+    assert library_energy(NH).expression == "mu*(I1/2 - ln(J)) + lmbda/2*ln(J)**2"
+
+
+def test_the_check_is_not_vacuous():
+    """A 1e-6 change of FElupe's mu is far above the tolerance (so round-off agreement above
+    is a finding, not an artefact of a loose comparison)."""
+    points, cells = load_mesh("cube-small")
+    oracle = UFLOracle(points, cells, NH)
+    shifted = FElupeAdapter(points, cells, felupe.NeoHookeCompressible(mu=NH.mu * (1 + 1e-6), lmbda=NH.lam))
+    errs = dict(errors_in_every_state(shifted, oracle, points, cells))
+    assert errs["random"]["force"] > 100 * FORCE_TOL and errs["random"]["stiffness"] > 100 * STIFFNESS_TOL
