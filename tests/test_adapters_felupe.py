@@ -98,3 +98,14 @@ def test_the_check_is_not_vacuous():
     shifted = FElupeAdapter(points, cells, felupe.NeoHookeCompressible(mu=NH.mu * (1 + 1e-6), lmbda=NH.lam))
     errs = dict(errors_in_every_state(shifted, oracle, points, cells))
     assert errs["random"]["force"] > 100 * FORCE_TOL and errs["random"]["stiffness"] > 100 * STIFFNESS_TOL
+
+
+def test_felupe_through_the_python_protocol():
+    """The adapter as an implementation of conformance/protocol.py, on FElupe's NeoHooke
+    written as a user energy (energy, force and stiffness all compared)."""
+    protocol = pytest.importorskip("conformance.protocol", reason="the Python protocol (conformance/protocol.py) is not here")
+    from conformance.adapters import LibraryImplementation
+
+    energy = UserEnergy("mu/2*(I1b - 3) + bulk/2*(J - 1)**2", {"mu": 1200.0, "bulk": 3.0e4})
+    run = protocol.check_implementation(LibraryImplementation(FElupeAdapter), energy=energy, mesh="single-tet")
+    assert run.exit_code == 0, run.summary()

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 
 from reference_fem.validation import check_cells, check_points, check_positions
 
-__all__ = ["Unsupported", "MeshAdapter"]
+__all__ = ["Unsupported", "MeshAdapter", "LibraryImplementation"]
 
 
 class Unsupported(ValueError):
@@ -95,3 +95,30 @@ class MeshAdapter(abc.ABC):
     @abc.abstractmethod
     def _evaluate(self, u: np.ndarray, want_force: bool, want_stiffness: bool):
         """(f or None, K or None) in the project's conventions for displacement u (n, 3)."""
+
+
+class LibraryImplementation:
+    """An adapter class as an implementation of conformance/protocol.py: ``impl(case)`` with a
+    case carrying ``points``, ``cells``, ``positions`` and ``model`` returns
+    ``(force, stiffness, energy or None)``. One adapter is built per (mesh, model) and reused
+    for every state of it (the library's set-up is the slow part)."""
+
+    def __init__(self, adapter_class):
+        self.adapter_class = adapter_class
+        self._built: dict = {}
+
+    def adapter(self, points, cells, model) -> MeshAdapter:
+        try:
+            key = (np.asarray(points).tobytes(), np.asarray(cells).tobytes(), model)
+            hash(key)
+        except TypeError:  # an unhashable model (e.g. with an array field): build afresh
+            return self.adapter_class(points, cells, model)
+        if key not in self._built:
+            self._built[key] = self.adapter_class(points, cells, model)
+        return self._built[key]
+
+    def __call__(self, case):
+        adapter = self.adapter(case.points, case.cells, case.model)
+        f, K = adapter.force_and_stiffness(case.positions)
+        energy = getattr(adapter, "energy", None)
+        return f, K, None if energy is None else energy(case.positions)
