@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import functools
 import re
-from typing import Any, Dict, Optional, Tuple
+from typing import Any, Dict, Tuple
 
 import numpy as np
 

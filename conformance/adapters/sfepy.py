@@ -31,6 +31,7 @@ SfePy computes no total energy for these terms, so the adapter has no ``energy``
 from __future__ import annotations
 
 import itertools
+import re
 from dataclasses import dataclass
 from typing import Dict, Mapping, Tuple
 
@@ -121,8 +122,6 @@ class SfePyTerms:
 
 
 def _rename(text: str, old: str, new: str) -> str:
-    import re
-
     return re.sub(rf"\b{re.escape(old)}\b", new, text)
 
 
