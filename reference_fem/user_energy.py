@@ -513,6 +513,25 @@ class UserEnergy:
         """The kinematic variables the expression uses."""
         return tuple(sorted(_used_names(self._tree) & set(VARIABLES)))
 
+    def evaluate(self, variable: Callable[[str], Any], ln: Callable, exp: Callable, sqrt: Callable,
+                 constant: Optional[Callable[[float], Any]] = None):
+        """W on any array or symbolic backend (how another library can run this energy).
+
+        Args:
+            variable: name in :data:`VARIABLES` -> its value on the backend (called once per
+                name the expression uses; I4/I5 with :attr:`unit_fibre`).
+            ln, exp, sqrt: the backend's functions (``log`` is ``ln``; ``pow`` is ``**``).
+            constant: turns each parameter value into what enters the result (default: the float).
+        """
+        wrap = (lambda v: v) if constant is None else constant
+        # Parameters first; a variable is computed on its first use only (the result holds
+        # only what W uses).
+        env = _LazyKinematics(variable, {k: wrap(v) for k, v in self.params.items()})
+        try:
+            return _evaluate(self._tree, env, _Backend(ln=ln, exp=exp, sqrt=sqrt))
+        except (OverflowError, ZeroDivisionError) as e:  # Python floats: constant sub-expressions
+            raise ValueError(f"user energy {self.expression!r}: arithmetic error ({e})") from None
+
     def density(self, F: np.ndarray) -> np.ndarray:
         """W per unit rest volume for each F of ``F`` (m, 3, 3), real or complex; shape (m,).
 
@@ -520,13 +539,9 @@ class UserEnergy:
         F = np.asarray(F)
         if F.ndim != 3 or F.shape[1:] != (3, 3):
             raise ValueError(f"user energy: F must have shape (m, 3, 3), got {F.shape}")
-        cache: Dict[str, Any] = {}
+        internal: Dict[str, Any] = {}  # C and C a, shared by the variables
         a = self.unit_fibre
-        env = _LazyKinematics(lambda n: _numpy_variable(n, F, a, cache), self.params)
-        try:
-            W = _evaluate(self._tree, env, _NUMPY)
-        except (OverflowError, ZeroDivisionError) as e:  # Python floats: constant sub-expressions
-            raise ValueError(f"user energy {self.expression!r}: arithmetic error ({e})") from None
+        W = self.evaluate(lambda n: _numpy_variable(n, F, a, internal), np.log, np.exp, np.sqrt)
         return np.broadcast_to(W, F.shape[:1]).copy()
 
     def first_piola(self, F: np.ndarray, h: float = 1e-30) -> np.ndarray:
@@ -557,23 +572,15 @@ class UserEnergy:
         Constants, so one compiled form serves every parameter set of one expression)."""
         import ufl
 
-        wrap = (lambda v: v) if constant is None else constant
         a = None if self.fibre is None else ufl.as_vector([float(v) for v in self.unit_fibre])
-        # Kinematic quantities live in their own cache: a parameter may be named like an
-        # internal quantity (C, Ca) without shadowing it.
-        cache: Dict[str, Any] = {}
+        internal: Dict[str, Any] = {}  # C and C a, shared by the variables
 
         def get(n: str):
-            if n not in cache:
-                cache[n] = _ufl_variable(n, F, a, get)
-            return cache[n]
+            if n not in internal:
+                internal[n] = _ufl_variable(n, F, a, get)
+            return internal[n]
 
-        env = _LazyKinematics(get, {k: wrap(v) for k, v in self.params.items()})
-        backend = _Backend(ln=ufl.ln, exp=ufl.exp, sqrt=ufl.sqrt)
-        try:
-            return _evaluate(self._tree, env, backend)
-        except (OverflowError, ZeroDivisionError) as e:  # UFL folds constant sub-expressions
-            raise ValueError(f"user energy {self.expression!r}: arithmetic error ({e})") from None
+        return self.evaluate(get, ufl.ln, ufl.exp, ufl.sqrt, constant)
 
 
 def parse_user_energy(

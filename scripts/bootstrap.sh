@@ -54,14 +54,15 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
 fi
 
 # FElupe, a third-party FE library the conformance adapters check (conformance/adapters/felupe.py;
-# its energies were read from this release). Pure Python on NumPy/SciPy: --no-deps keeps
-# Debian's NumPy and SciPy. Optional: without PyPI the FElupe tests skip, saying why.
-FELUPE_PIN="felupe==11.3.0"
+# its energies were read from this release), with tensortrax for FElupe's automatic
+# differentiation (Hyperelastic). Both pure Python on NumPy/SciPy: --no-deps keeps Debian's
+# NumPy and SciPy. Optional: without PyPI the FElupe tests skip, saying why.
+FELUPE_PINS=("felupe==11.3.0" "tensortrax==0.29.0")
 felupe_stamp=.venv/.felupe-installed
-if [ ! -f "$felupe_stamp" ] || [ "$(cat "$felupe_stamp")" != "$FELUPE_PIN" ]; then
-  if .venv/bin/python -m pip install --quiet --no-deps "$FELUPE_PIN" >&2; then
-    echo "$FELUPE_PIN" > "$felupe_stamp"
+if [ ! -f "$felupe_stamp" ] || [ "$(cat "$felupe_stamp")" != "${FELUPE_PINS[*]}" ]; then
+  if .venv/bin/python -m pip install --quiet --no-deps "${FELUPE_PINS[@]}" >&2; then
+    echo "${FELUPE_PINS[*]}" > "$felupe_stamp"
   else
-    echo "bootstrap: could not install $FELUPE_PIN from PyPI (offline?); the FElupe adapter tests will skip." >&2
+    echo "bootstrap: could not install ${FELUPE_PINS[*]} from PyPI (offline?); the FElupe adapter tests will skip." >&2
   fi
 fi

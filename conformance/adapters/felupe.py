@@ -13,9 +13,24 @@ What FElupe computes, from its source (``felupe/constitution/hyperelasticity``):
   (E, nu); pass it as a FElupe object.
 
 FElupe's stresses and tangents for these are hand-written closed forms (not automatic
-differentiation); the check compares them with UFL's derivative of the stated energy. The
-user-function route (``felupe.Hyperelastic``) needs the optional ``tensortrax`` package and
-is not covered here.
+differentiation); the check compares them with UFL's derivative of the stated energy.
+
+With the optional ``tensortrax`` package (scripts/bootstrap.sh installs 0.29.0), FElupe's
+automatic-differentiation route ``Hyperelastic(fun)`` (fun a strain energy of C; stress and
+tangent by tensortrax, with C treated as symmetric) covers more models:
+
+* ``StVenantKirchhoff`` -> FElupe's ``saint_venant_kirchhoff(C, mu, lmbda=lam)``, the same W;
+* ``MooneyRivlin``, ``ArrudaBoyce``, ``Ogden`` -> FElupe's isochoric ``mooney_rivlin(C10=c1,
+  C01=c2)``, ``arruda_boyce(C1=mu, limit=sqrt(N))``, ``ogden(mu=[mu/2], alpha=[alpha])``
+  (its 2 mu_i / alpha_i^2 convention), plus the project's k0/2 (ln J)^2 written here in
+  tensortrax (FElupe has no ln J volumetric model): the same W as the built-in;
+* any other :class:`~reference_fem.user_energy.UserEnergy`: the expression itself, translated
+  to tensortrax operations on C (I1 = tr C, J = sqrt(det C), ...), so FElupe's automatic
+  differentiation is checked on the user's own energy.
+
+What the check finds is in tests/test_adapters_felupe.py: everything to round-off except the
+energy constant of NeoHookeCompressible and the Ogden route, whose eigenvalues tensortrax
+computes from C perturbed by about 1.5e-8 relative (errors of 1e-10 to 2e-9).
 
 The discretisation: ``RegionTetra`` (P1 tetrahedra, VTK node order, the same as this
 project's positively oriented cells) with ``TetrahedronQuadrature(order=1)`` (exact for P1),
@@ -33,13 +48,16 @@ from typing import Any, Dict, Tuple
 import numpy as np
 
 from conformance.adapters import MeshAdapter, Unsupported
-from mjed.materials import NeoHookean
+from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff
 from reference_fem.user_energy import UserEnergy
 
-__all__ = ["FElupeAdapter", "available", "supports", "library_energy", "FELUPE_ENERGIES", "CHECKED_VERSION"]
+__all__ = ["FElupeAdapter", "available", "autodiff_available", "supports", "library_energy", "FELUPE_ENERGIES",
+           "CHECKED_VERSION", "CHECKED_TENSORTRAX"]
 
 #: The FElupe release whose source these energies were read from (scripts/bootstrap.sh pins it).
 CHECKED_VERSION = "11.3.0"
+#: The tensortrax release used for FElupe's automatic-differentiation route.
+CHECKED_TENSORTRAX = "0.29.0"
 
 #: FElupe model -> its energy as this project's expression syntax, parameter names as FElupe's.
 FELUPE_ENERGIES: Dict[str, Dict[Tuple[str, ...], str]] = {
@@ -71,6 +89,79 @@ def _felupe():
     import felupe
 
     return felupe
+
+
+def autodiff_available() -> Tuple[bool, str]:
+    """(True, version) if FElupe's Hyperelastic (tensortrax) can be used, else (False, why)."""
+    ok, why = available()
+    if not ok:
+        return ok, why
+    try:
+        import tensortrax
+    except Exception as e:
+        return False, (f"tensortrax is not installed ({e}); scripts/bootstrap.sh installs "
+                       f"tensortrax=={CHECKED_TENSORTRAX} for FElupe's automatic differentiation")
+    return True, tensortrax.__version__
+
+
+def _tensortrax():
+    ok, why = autodiff_available()
+    if not ok:
+        raise Unsupported(why)
+    import tensortrax.math as tm
+
+    return tm
+
+
+def _ln_j_bulk(k0: float):
+    """The project's volumetric term k0/2 (ln J)^2 as a function of C (ln J = ln(det C) / 2)."""
+    tm = _tensortrax()
+    return lambda C: 0.5 * k0 * (0.5 * tm.log(tm.linalg.det(C))) ** 2
+
+
+def _hyperelastic(fun, why: str, model) -> Tuple[Any, Any, str]:
+    fe = _felupe()
+    return fe.Hyperelastic(fun), model, why
+
+
+def _tensortrax_variable(C, a, tm):
+    """Variable name -> its tensortrax value for C (3, 3, ...) (see user_energy.VARIABLES)."""
+    def variable(name: str):
+        if name[0] in "CE" and len(name) == 3:
+            i, j = int(name[1]) - 1, int(name[2]) - 1
+            return C[i, j] if name[0] == "C" else 0.5 * (C[i, j] - (1.0 if i == j else 0.0))
+        I3 = tm.linalg.det(C)
+        I1 = tm.trace(C)
+        if name == "I1":
+            return I1
+        if name == "I3":
+            return I3
+        if name == "J":
+            return tm.sqrt(I3)
+        if name == "I1b":
+            return I3 ** (-1.0 / 3.0) * I1
+        if name in ("I2", "I2b"):
+            I2 = 0.5 * (I1**2 - tm.trace(C @ C))
+            return I2 if name == "I2" else I3 ** (-2.0 / 3.0) * I2
+        Ca = tm.einsum("ij...,j->i...", C, a)
+        if name == "I4":
+            return tm.einsum("i,i...->...", a, Ca)
+        if name == "I5":
+            return tm.einsum("i...,i...->...", Ca, Ca)
+        raise AssertionError(name)
+
+    return variable
+
+
+def _user_energy_function(energy: UserEnergy):
+    """W(C) of a user energy in tensortrax operations, for FElupe's Hyperelastic."""
+    tm = _tensortrax()
+    a = energy.unit_fibre
+
+    def fun(C):
+        return energy.evaluate(_tensortrax_variable(C, a, tm), tm.log, tm.exp, tm.sqrt)
+
+    return fun
 
 
 def _squash(expression: str) -> str:
@@ -128,7 +219,12 @@ def _(model):
             umat = fe.NeoHookeCompressible(**p) if kind == "NeoHookeCompressible" else fe.NeoHooke(**p)
             return umat, model, f"FElupe's {kind}: W = {variants[names]} (the same expression)"
     listed = "; ".join(f"{e} (parameters {', '.join(k)})" for v in FELUPE_ENERGIES.values() for k, e in v.items())
-    raise Unsupported(f"FElupe: the energy {model.expression!r} is not one of FElupe's: {listed}")
+    ok, why = autodiff_available()
+    if not ok:
+        raise Unsupported(f"FElupe: the energy {model.expression!r} is not one of FElupe's closed forms ({listed}), "
+                          f"and the automatic-differentiation route is unavailable: {why}")
+    return _hyperelastic(_user_energy_function(model), "FElupe's Hyperelastic (tensortrax automatic differentiation) "
+                         f"of the expression {model.expression}", model)
 
 
 @_match.register(NeoHookean)
@@ -144,6 +240,46 @@ def _(model):
     )
 
 
+@_match.register(StVenantKirchhoff)
+def _(model):
+    from felupe.constitution.tensortrax.models.hyperelastic import saint_venant_kirchhoff
+
+    _tensortrax()
+    return _hyperelastic(lambda C: saint_venant_kirchhoff(C, mu=model.mu, lmbda=model.lam),
+                         "FElupe's Hyperelastic(saint_venant_kirchhoff, mu, lmbda=lam): the same W", model)
+
+
+@_match.register(MooneyRivlin)
+def _(model):
+    from felupe.constitution.tensortrax.models.hyperelastic import mooney_rivlin
+
+    bulk = _ln_j_bulk(model.k0)
+    return _hyperelastic(lambda C: mooney_rivlin(C, C10=model.c1, C01=model.c2) + bulk(C),
+                         "FElupe's Hyperelastic(mooney_rivlin, C10=c1, C01=c2) + k0/2 (ln J)^2 in tensortrax: the same W",
+                         model)
+
+
+@_match.register(ArrudaBoyce)
+def _(model):
+    from felupe.constitution.tensortrax.models.hyperelastic import arruda_boyce
+
+    bulk = _ln_j_bulk(model.k0)
+    limit = float(np.sqrt(model.N))  # FElupe's beta = 1 / limit^2 is the project's 1 / N
+    return _hyperelastic(lambda C: arruda_boyce(C, C1=model.mu, limit=limit) + bulk(C),
+                         "FElupe's Hyperelastic(arruda_boyce, C1=mu, limit=sqrt(N)) + k0/2 (ln J)^2 in tensortrax: "
+                         "the same W", model)
+
+
+@_match.register(Ogden)
+def _(model):
+    from felupe.constitution.tensortrax.models.hyperelastic import ogden
+
+    bulk = _ln_j_bulk(model.k0)
+    return _hyperelastic(lambda C: ogden(C, mu=[0.5 * model.mu], alpha=[model.alpha]) + bulk(C),
+                         "FElupe's Hyperelastic(ogden, mu=[mu/2], alpha=[alpha]) (2 mu_i/alpha_i^2 convention) "
+                         "+ k0/2 (ln J)^2 in tensortrax: the same W", model)
+
+
 def supports(model) -> Tuple[bool, str]:
     """(True, how FElupe's energy relates to ``model``) or (False, why not)."""
     try:
@@ -152,8 +288,9 @@ def supports(model) -> Tuple[bool, str]:
         return False, str(e)
 
 
-def library_energy(model) -> UserEnergy:
-    """The energy FElupe computes for ``model``, as a UserEnergy (raises Unsupported)."""
+def library_energy(model):
+    """The energy FElupe computes for ``model``, as a model the UFL oracle accepts: a
+    UserEnergy, or the built-in material itself when FElupe's W equals it (raises Unsupported)."""
     return _match(model)[1]
 
 
@@ -183,6 +320,17 @@ class FElupeAdapter(MeshAdapter):
         self._solid = fe.SolidBody(self.library_material, self._field)
         self.version = fe.__version__
 
+    def _density(self, F: np.ndarray) -> np.ndarray:
+        """W at each quadrature point of each cell, (q, m), as FElupe evaluates it."""
+        umat = self.library_material
+        hyperelastic = getattr(_felupe(), "Hyperelastic", None)  # only with tensortrax
+        if hyperelastic is not None and isinstance(umat, hyperelastic):
+            import tensortrax as tr
+
+            C = np.einsum("ki...,kj...->ij...", F, F)
+            return tr.function(umat.fun, wrt=0, ntrax=2)(C)
+        return umat.function([F, None])[0]
+
     def _set(self, u: np.ndarray) -> None:
         self._field[0].values[:] = u
 
@@ -200,7 +348,7 @@ class FElupeAdapter(MeshAdapter):
         """FElupe's total energy sum over quadrature points of W(F) dV (its own ``function``)."""
         self._set(self._displacement(x))
         F = self._field.extract()[0]  # (3, 3, quadrature points, cells)
-        W = self.library_material.function([F, None])[0]
+        W = self._density(F)
         value = float(np.sum(W * self._region.dV))
         self._require_finite(np.array([value]), "energy")
         return value

@@ -26,6 +26,10 @@ boundary conditions. ``Evaluator.eval_residual`` gives dW/du and
 ``eval_tangent_matrix`` d2W/du2 in SfePy's field numbering, node-major (3*node +
 component); the adapter maps field nodes to our nodes by SfePy's ``vertex_remap``.
 SfePy computes no total energy for these terms, so the adapter has no ``energy``.
+
+What the check finds is in tests/test_adapters_sfepy.py: the invariant terms to round-off;
+``dw_tl_he_ogden``'s stress is J^((alpha-2)/3) times that of its documented energy, and its
+tangent is not the derivative of its stress when J != 1.
 """
 
 from __future__ import annotations
