@@ -44,7 +44,8 @@ _VOLUMETRIC: Dict[type, Callable[[Any, Any, Callable[[str], Any]], Any]] = {}
 
 
 def register_volumetric(cls: type):
-    """Decorator: ``fn(material, J, p) -> UFL`` gives the J-only terms of ``cls``'s energy."""
+    """Decorator: ``fn(material, F, p) -> UFL`` gives the J-only terms of ``cls``'s energy (None if none);
+    ``p(name)`` is a parameter as it enters the form (a dolfinx Constant)."""
 
     def deco(fn):
         _VOLUMETRIC[cls] = fn
@@ -59,25 +60,77 @@ def _register_builtin() -> None:
     from mjed import materials as M
 
     @register_volumetric(M.StVenantKirchhoff)
-    def _svk(m, J, p):
+    def _svk(m, F, p):
         return None  # every term depends on E; nothing is a function of J alone
 
     @register_volumetric(M.NeoHookean)
-    def _nh(m, J, p):
+    def _nh(m, F, p):
+        J = ufl.det(F)
         return -p("mu") * ufl.ln(J) + 0.5 * p("lam") * ufl.ln(J) ** 2
 
-    def _log_squared(m, J, p):
-        return 0.5 * p("k0") * ufl.ln(J) ** 2
+    def _log_squared(m, F, p):
+        return 0.5 * p("k0") * ufl.ln(ufl.det(F)) ** 2
 
     for cls in (M.MooneyRivlin, M.VerondaWestmann, M.ArrudaBoyce, M.Ogden):
         register_volumetric(cls)(_log_squared)
 
     @register_volumetric(M.Costa)
-    def _costa(m, J, p):
+    def _costa(m, F, p):
+        J = ufl.det(F)
         return p("k0") * (J * ufl.ln(J) - J + 1.0)
 
+    try:
+        from reference_fem.user_energy import UserEnergy
+    except ImportError:  # user energies not installed: built-in materials only
+        return
 
-def volumetric_energy(model: Any, J, p: Callable[[str], Any]):
+    @register_volumetric(UserEnergy)
+    def _user(m, F, p):
+        vol = volumetric_user_energy(m)
+        return None if vol is None else vol.ufl_density(F, constant=p.constant)
+
+
+_J_ONLY = frozenset({"J", "I3"})
+
+
+def _additive_terms(node, sign: int = 1):
+    """Top-level terms of a sum, with their signs: a - (b + c) -> (+a), (-b), (-c)."""
+    import ast
+
+    if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub)):
+        yield from _additive_terms(node.left, sign)
+        yield from _additive_terms(node.right, sign if isinstance(node.op, ast.Add) else -sign)
+    elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        yield from _additive_terms(node.operand, -sign)
+    else:
+        yield sign, node
+
+
+def volumetric_user_energy(energy):
+    """The J-only top-level terms of a user energy as a UserEnergy of their own (None if none).
+
+    A term is J-only when the only kinematic variables it uses are J and I3 = J^2.
+    """
+    import ast
+    import warnings
+
+    from reference_fem.user_energy import VARIABLES, UserEnergy
+
+    tree = ast.parse(energy.expression, mode="eval").body
+    kept, params = [], set()
+    for sign, term in _additive_terms(tree):
+        names = {n.id for n in ast.walk(term) if isinstance(n, ast.Name)}
+        if names & set(VARIABLES) <= _J_ONLY and names & set(VARIABLES):
+            kept.append(("-" if sign < 0 else "+") + "(" + ast.unparse(term) + ")")
+            params |= names & set(energy.params)
+    if not kept:
+        return None
+    with warnings.catch_warnings():  # e.g. -mu ln J alone is pre-stressed at rest; that is expected here
+        warnings.simplefilter("ignore")
+        return UserEnergy(" ".join(kept), {k: energy.params[k] for k in sorted(params)}, None, energy.name + " (J-only)")
+
+
+def volumetric_energy(model: Any, F, p: Callable[[str], Any]):
     """The J-only part of ``model``'s energy as UFL (None when it has none).
 
     Raises:
@@ -87,10 +140,7 @@ def volumetric_energy(model: Any, J, p: Callable[[str], Any]):
         _register_builtin()
     for cls in type(model).__mro__:
         if cls in _VOLUMETRIC:
-            return _VOLUMETRIC[cls](model, J, p)
-    split = getattr(model, "volumetric_part", None)  # user energies expose their J-only terms
-    if callable(split):
-        return split(J)
+            return _VOLUMETRIC[cls](model, F, p)
     raise KeyError(f"no volumetric split known for {type(model).__name__}")
 
 
@@ -170,8 +220,7 @@ class PartsOracle:
         c = ufl.variable(_voigt(F.T * F))
         U = _cholesky_factor(c)
         W = energy(model, U, frame, const)
-        Jc = ufl.det(U)
-        W_vol = volumetric_energy_or_none(model, Jc, const)
+        W_vol = volumetric_energy_or_none(model, U, const)
 
         Gv, Gu = ufl.grad(v), ufl.grad(du)
         dc_v = _voigt(F.T * Gv + Gv.T * F)
@@ -214,13 +263,20 @@ class PartsOracle:
         return StiffnessParts(out)
 
 
-def volumetric_energy_or_none(model: Any, J, constant: Callable[[Any], Any]):
-    """:func:`volumetric_energy` with parameters as constants; None if no split is known."""
-    def p(name: str):
-        return constant(float(getattr(model, name)))
+class _Constants:
+    """p(name): the model's parameter as a dolfinx Constant; p.constant: the factory itself."""
 
+    def __init__(self, model: Any, constant: Callable[[Any], Any]):
+        self.model, self.constant = model, constant
+
+    def __call__(self, name: str):
+        return self.constant(float(getattr(self.model, name)))
+
+
+def volumetric_energy_or_none(model: Any, F, constant: Callable[[Any], Any]):
+    """:func:`volumetric_energy` with parameters as constants; None if no split is known."""
     try:
-        return volumetric_energy(model, J, p)
+        return volumetric_energy(model, F, _Constants(model, constant))
     except KeyError:
         return None
 

@@ -208,3 +208,35 @@ def test_stiffness_parts_sum_to_the_oracle(name):
     assert norm(parts.total() - K) <= 1e-13 * norm(K)
     if name != "StVenantKirchhoff":
         assert parts["geometric_volumetric"] is not None and norm(parts["material_volumetric"]) > 0
+
+
+def test_user_energy_tangent_split_names_the_volumetric_part():
+    """The J-only terms of a user energy are found in its expression; a doubled volumetric tangent is named."""
+    from scipy.sparse.linalg import norm
+
+    import meshes
+    from comparisons.states import apply_state
+    from conformance.oracle import OracleCache
+    from conformance.parts import volumetric_user_energy
+    from conformance.protocol import check_implementation
+    from conformance.spec import CaseInput
+    from reference_fem.user_energy import UserEnergy
+
+    energy = UserEnergy("mu/2*(I1b-3) + K/2*(J-1)**2", {"mu": 1e3, "K": 1e4})
+    assert volumetric_user_energy(energy).expression == "+(K / 2 * (J - 1) ** 2)"
+    pts, cells, _ = meshes.resolve("cube-small")
+    cache = OracleCache()
+    x = apply_state("random", pts, cells)
+    ref = cache.reference(CaseInput("x", pts, cells, x, energy))
+    vol = UserEnergy("K/2*(J-1)**2", {"K": 1e4})
+
+    def doubled_volumetric(case):
+        K_vol = cache.reference(CaseInput("v", case.points, case.cells, case.positions, vol)).stiffness
+        r = cache.reference(case)
+        return r.force, r.stiffness + K_vol
+
+    run = check_implementation(doubled_volumetric, energy=energy, mesh="cube-small", states=("random",), probes=False)
+    cause = run.outcomes[0].diagnosis.causes[0]
+    assert cause.code == "tangent-part" and cause.figures["parts"] == ["volumetric tangent (J-only terms)"], cause.text()
+    parts = cache.parts(CaseInput("x", pts, cells, x, energy))
+    assert norm(parts.total() - ref.stiffness) <= 1e-13 * norm(ref.stiffness)
