@@ -104,13 +104,13 @@ def common_factor_name(ratio: float, mean_volume: float, uniform_volume: bool) -
     named = {2.0: "factor 2 (e.g. energy counted twice, or C - I used for E = (C - I)/2)",
              0.5: "factor 1/2 (e.g. a missing 2 in S = 2 dW/dC)",
              6.0: "factor 6 (the 1/6 of the tetrahedron volume missing)", 1.0 / 6.0: "factor 1/6"}
-    for value, name in named.items():
-        if abs(ratio / value - 1.0) < 1e-6:
-            return name
+    words = [name for value, name in named.items() if abs(ratio / value - 1.0) < 1e-6]
     if uniform_volume and abs(ratio * mean_volume - 1.0) < 1e-6:
-        return f"volume weighting missing (engine = oracle / V0, V0 = {mean_volume:.3e} m^3)"
+        words.append(f"volume weighting missing (engine = oracle / V0, V0 = {mean_volume:.3e} m^3)")
     if uniform_volume and abs(ratio / mean_volume - 1.0) < 1e-6:
-        return f"volume applied twice (engine = oracle x V0, V0 = {mean_volume:.3e} m^3)"
+        words.append(f"volume applied twice (engine = oracle x V0, V0 = {mean_volume:.3e} m^3)")
+    if words:  # on a mesh where two explanations give the same number, both are said
+        return " or ".join(words)
     return f"factor {ratio:.6g}"
 
 

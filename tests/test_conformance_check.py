@@ -240,3 +240,47 @@ def test_user_energy_tangent_split_names_the_volumetric_part():
     assert cause.code == "tangent-part" and cause.figures["parts"] == ["volumetric tangent (J-only terms)"], cause.text()
     parts = cache.parts(CaseInput("x", pts, cells, x, energy))
     assert norm(parts.total() - ref.stiffness) <= 1e-13 * norm(ref.stiffness)
+
+
+def test_kit_run_through_a_command_leaves_the_kit_untouched(tmp_path):
+    kit = tmp_path / "kit"
+    assert main(["export", str(kit), "--material", "VerondaWestmann", "--states", "compression"]) == 0
+    before = sorted(p for p in kit.rglob("*"))
+    assert main(["check", str(kit), "--command", f"{sys.executable} {ENGINE} {{input}} {{output}}",
+                 "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    assert sorted(p for p in kit.rglob("*")) == before  # outputs went to the report directory
+    folder, _ = _report(tmp_path / "r")
+    assert os.path.isfile(os.path.join(folder, "outputs", "VerondaWestmann.single-tet.compression", "force.f64"))
+
+
+def test_costa_with_a_frame_per_cell():
+    from conformance import assert_matches_oracle
+    from mjed.materials import Costa
+
+    import meshes
+
+    pts, cells, _ = meshes.resolve("cube-small")
+    rng = np.random.default_rng(4)
+    Q = np.linalg.qr(rng.standard_normal((len(cells), 3, 3)))[0]
+    Q *= np.sign(np.linalg.det(Q))[:, None, None]
+    costa = Costa(a=800.0, k0=3.0e4, b_ff=18.5, b_fs=2.8, b_ss=3.6, b_fn=2.0, b_sn=1.6, b_nn=3.6, frame=Q)
+    assert_matches_oracle(mjed_impl, material=costa, mesh="cube-small", states=("triaxial", "random"))
+
+
+def test_volume_weighting_missing_is_named():
+    from conformance.protocol import check_implementation
+
+    def per_volume(case):
+        f, K, W = mjed_impl(case)
+        V0 = abs(np.linalg.det(case.points[case.cells[0, 1:]] - case.points[case.cells[0, 0]])) / 6
+        return f / V0, K / V0
+
+    import meshes
+
+    pts, cells, _ = meshes.resolve("single-tet")  # the unit tetrahedron: V0 = 1/6, so 1/V0 = 6
+    run = check_implementation(per_volume, material="ArrudaBoyce", mesh=(pts, cells), states=("shear",), probes=False)
+    title = run.outcomes[0].diagnosis.causes[0].title
+    assert "factor 6 (the 1/6 of the tetrahedron volume missing) or volume weighting missing" in title
+    run = check_implementation(per_volume, material="ArrudaBoyce", mesh=(2 * pts, cells), states=("shear",), probes=False)
+    cause = run.outcomes[0].diagnosis.causes[0]
+    assert cause.code == "scale" and "volume weighting missing (engine = oracle / V0, V0 = 1.333e+00" in cause.title
