@@ -200,6 +200,12 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
         if full:
             return full, partial
 
+    # A localised error cannot be a global convention or a part of the tangent everywhere: test it
+    # first (it is cheap; the fits below are not on large meshes).
+    _locality_findings(f, K, f_o, K_o, s, cells, field_, full, partial)
+    if full:
+        return full, partial
+
     if parts is not None and err.force <= FORCE_TOL:
         _tangent_findings(K, K_o, parts(), err, full, partial)
         if full:
@@ -212,7 +218,6 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
             if full:
                 return full, partial
 
-    _locality_findings(f, K, f_o, K_o, s, cells, field_, full, partial)
     return full, partial
 
 

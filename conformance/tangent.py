@@ -21,7 +21,7 @@ from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import norm as sparse_norm
+from scipy.sparse.linalg import lsqr, norm as sparse_norm
 
 from mjed.mesh import shape_vectors
 
@@ -173,11 +173,13 @@ def fit_volumetric(points: np.ndarray, cells: np.ndarray, x: np.ndarray, df: np.
     b[:N] = df.ravel() / force_scale
     np.add.at(b, N + pos[inside], Dc.data[inside] / stiffness_scale)
     outside = float(np.linalg.norm(Dc.data[~inside])) / stiffness_scale  # error where no cell couples: unfittable
-    AtA = (A.T @ A).tocsc()
-    try:
-        c = sp.linalg.spsolve(AtA + 1e-14 * sp.identity(2 * m, format="csc") * AtA.diagonal().max(), A.T @ b)
-    except Exception:  # singular normal equations: the hypothesis cannot be tested here
-        return None
+    # Least squares by LSQR on unit-norm columns (a direct factorisation of the normal equations
+    # fills in badly on large meshes). Stopping far below the tolerance keeps the residual honest.
+    norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
+    norms[norms == 0] = 1.0
+    As = A @ sp.diags(1.0 / norms)
+    sol = lsqr(As, b, atol=1e-15, btol=1e-15, iter_lim=20 * 2 * m)
+    c = sol[0] / norms
     r = A @ c - b
     fres = float(np.linalg.norm(r[:N]))
     kres = float(np.hypot(np.linalg.norm(r[N:]), outside))
