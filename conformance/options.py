@@ -61,7 +61,8 @@ def reproduce(name: str, args, positional: str = "") -> str:
     for key, flag in (("material", "--material"), ("energy", "--energy"), ("fibre", "--fibre"), ("mesh", "--mesh"),
                       ("states", "--states"), ("engine_command", "--command"), ("timeout", "--timeout")):
         value = getattr(args, key, None)
-        if value is not None and not (key == "timeout" and getattr(args, "engine_command", None) is None):
+        from_kit = name == "check" and positional and key in ("mesh", "states")  # the kit's manifest decides
+        if value is not None and not from_kit and not (key == "timeout" and getattr(args, "engine_command", None) is None):
             words += [flag, str(value)]
     for p in getattr(args, "param", []) or []:
         words += ["--param", p]

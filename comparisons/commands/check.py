@@ -53,6 +53,7 @@ def run(args) -> int:
         from conformance.kit import read_kit
 
         given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (["param"] if args.param else [])
+        given += [k for k, default in (("mesh", "single-tet"), ("states", "all")) if getattr(args, k) != default]
         if given:
             raise InputError(f"--{given[0]} is not used with a kit: the kit's manifest says what to compute")
         try:
