@@ -30,6 +30,8 @@ from conformance.hypotheses import common_factor_name, convention_corrections, s
 
 __all__ = ["Diagnosis", "diagnose", "node_error_field"]
 
+SIGN_CODES = ("force-sign", "stiffness-sign", "both-signs")
+
 
 @dataclass(frozen=True)
 class Diagnosis:
@@ -188,6 +190,18 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
                 if err.symmetry <= 1e-12:
                     continue  # a symmetric K: the correction is the identity
             judge(c.code, c.title, e, extra)
+    if full:
+        return full, partial
+    # Two convention mistakes at once: a sign flip on top of a reordering (each pair is one more
+    # correction, named only if together they bring the error within tolerance).
+    signs = [c for c in convention_corrections(f_o, K_o, f, K) if c.code in SIGN_CODES]
+    for sign in signs:
+        f1, K1, W1 = sign.apply(f, K, W)
+        for c in convention_corrections(f_o, K_o, f1, K1):
+            if c.code in SIGN_CODES or c.code == "unsymmetric":
+                continue
+            out = c.apply(f1, K1, W1)
+            judge(f"{c.code}+{sign.code}", f"{c.title}, and {sign.title}", errors(*out[:2], None, f_o, K_o, W_o, s))
     if full:
         return full, partial
 
