@@ -24,11 +24,19 @@ from typing import List, Optional, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["PROBE_TOL", "Consistency", "consistency"]
+__all__ = ["PROBE_TOL", "ENERGY_PROBE_TOL", "Consistency", "consistency"]
 
 #: Relative inconsistency above which K is called "not the derivative of the force". The cubic
-#: fit leaves O(t^3) of the remainder, about (1e-3)^3 relative with eps_0 = 1e-3 h.
+#: fit leaves the t^4 term, about (1e-4)^3 relative with eps_0 = 1e-4 h times the growth of the
+#: energy's higher derivatives: 3e-10 for Costa (b_ff = 18.5) on cube-small, the worst of the
+#: seven materials; round-off stays below 1e-9.
 PROBE_TOL = 1e-6
+
+#: The same for the force against the energy. Energy differences over a step of 1e-4 h cancel
+#: about four digits of the total energy, summed over every cell: a correct engine shows up to
+#: 1e-7 on the 20,599-cell cube (NeoHookean, compression), so the limit is looser. A force that is
+#: not the derivative of the energy (a factor, a missing term) is off by far more.
+ENERGY_PROBE_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -49,7 +57,7 @@ class Consistency:
 
     @property
     def force_consistent(self) -> Optional[bool]:
-        return None if self.energy_force is None else self.energy_force <= PROBE_TOL
+        return None if self.energy_force is None else self.energy_force <= ENERGY_PROBE_TOL
 
     def to_dict(self) -> dict:
         return {"force_stiffness": self.force_stiffness, "energy_force": self.energy_force,

@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.compare import ENERGY_TOL, FORCE_TOL, STIFFNESS_TOL, Errors, Scales, errors
-from conformance.consistency import PROBE_TOL, Consistency
+from conformance.consistency import ENERGY_PROBE_TOL, PROBE_TOL, Consistency
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.hypotheses import common_factor_name, convention_corrections, scale_corrections
 
@@ -156,9 +156,9 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
             out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force", OBSERVED,
                                f"relative inconsistency {c.force_stiffness:.1e} (limit {PROBE_TOL:g}); Taylor rates {rates}",
                                {"inconsistency": c.force_stiffness}))
-    if c.energy_force is not None and c.energy_force > PROBE_TOL:
+    if c.energy_force is not None and c.energy_force > ENERGY_PROBE_TOL:
         out.append(Finding("inconsistent-force", "force is not minus the derivative of the engine's own energy", OBSERVED,
-                           f"relative inconsistency {c.energy_force:.1e} (limit {PROBE_TOL:g}); Taylor rates "
+                           f"relative inconsistency {c.energy_force:.1e} (limit {ENERGY_PROBE_TOL:g}); Taylor rates "
                            + ", ".join(f"{r:.2f}" for r in c.rates_energy), {"inconsistency": c.energy_force}))
     return out
 

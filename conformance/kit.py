@@ -7,7 +7,7 @@ Layout of a kit directory (docs/conventions.md, "Exchange format")::
     cases/<case id>/output/            where the engine writes (force.f64, stiffness..., energy.f64)
 
 Each primary case has PROBES probe cases: the same model and mesh at x + eps_k d with
-eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-3 of the mean edge length. The check
+eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-4 of the mean edge length. The check
 uses them for a Taylor test of the engine's stiffness against its own forces (and of its forces
 against its own energy), which needs no oracle.
 
@@ -36,7 +36,7 @@ from conformance.spec import CaseInput, model_label
 __all__ = ["KitCase", "PROBES", "PROBE_STEP", "build_cases", "write_kit", "read_kit", "KitManifest", "case_id"]
 
 PROBES = 4
-PROBE_STEP = 1e-3  # eps_0 as a fraction of the mean edge length
+PROBE_STEP = 1e-4  # eps_0 as a fraction of the mean edge length
 
 
 @dataclass(frozen=True)
