@@ -284,3 +284,18 @@ def test_volume_weighting_missing_is_named():
     run = check_implementation(per_volume, material="ArrudaBoyce", mesh=(2 * pts, cells), states=("shear",), probes=False)
     cause = run.outcomes[0].diagnosis.causes[0]
     assert cause.code == "scale" and "volume weighting missing (engine = oracle / V0, V0 = 1.333e+00" in cause.title
+
+
+def test_energy_offset_is_reported_as_a_density():
+    """W without its '- 3': force and stiffness match, the energy is off by 3 mu/2 per unit volume."""
+    from conformance.protocol import check_implementation
+
+    def no_minus_three(case):
+        f, K, W = mjed_impl(case)
+        V = abs(np.linalg.det(case.points[case.cells[:, 1:]] - case.points[case.cells[:, :1]])).sum() / 6
+        return f, K, W + 1.5 * case.model.mu * V
+
+    run = check_implementation(no_minus_three, material="NeoHookean", states=("uniaxial",), probes=False)
+    d = run.outcomes[0].diagnosis
+    assert d.verdict == "failed" and d.findings[0].code == "energy"
+    assert d.findings[0].figures["offset_density"] == pytest.approx(1.5 * 3448.2759, rel=1e-9)
