@@ -92,7 +92,8 @@ def write_report(folder: str, run: CheckRun, *, command: str, fields: Dict[str, 
                                     "force_error, force_oracle on the current positions)."))
         sections.append(Section(key=f"case-{len(sections)}", title=o.case_id,
                                 summary=f"{o.model} on {o.mesh}, state {o.state}", reproduce=command,
-                                status="failed" if o.status == "failed" else "error", message=o.status,
+                                status="failed" if o.status == "failed" else "error",
+                                message="" if o.status == "failed" else o.status,
                                 blocks=blocks, seconds=o.seconds))
     for cid, msg in run.input_errors.items():
         sections.append(Section(key=f"case-{len(sections)}", title=cid, summary="could not be read", reproduce=command,
