@@ -87,3 +87,22 @@ def test_an_unexplained_error_is_called_so():
     run = check_implementation(noisy, material=MATERIAL, mesh="cube-small", states=("random",), probes=False)
     d = run.outcomes[0].diagnosis
     assert not d.causes and d.findings[0].code == "unexplained", d.text()
+
+
+@pytest.mark.parametrize("material", ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann",
+                                      "ArrudaBoyce", "Costa", "Ogden"])
+@pytest.mark.parametrize("mutation, part, coefficient", [
+    ("Voigt shear doubled", "shear-shear block of the material tangent (Voigt)", 1.0),
+    ("geometric stiffness missing", "geometric stiffness", -1.0),
+])
+def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
+    from comparisons.cases import DEFAULT_MATERIALS
+    from conformance.protocol import check_implementation
+    from conformance_mutations import broken_engine
+
+    run = check_implementation(broken_engine(mutation), material=DEFAULT_MATERIALS[material], mesh="cube-small",
+                               states=("random",), probes=False)
+    d = run.outcomes[0].diagnosis
+    assert d.causes and d.causes[0].code == "tangent-part", d.text()
+    assert d.causes[0].figures["parts"] == [part]
+    assert d.causes[0].figures["coefficients"][0] == pytest.approx(coefficient, abs=1e-9)
