@@ -126,7 +126,12 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
                 probe_errors.append(str(exc))
         cons = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results) if not probe_errors \
             else Consistency(None, None, note="; ".join(probe_errors))
-        ref = cache.reference(ci)
+        try:
+            ref = cache.reference(ci)
+        except ValueError as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
+            run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
+                                            f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
+            continue
         s = scales(_mean_edge(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
                         W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,

@@ -299,3 +299,22 @@ def test_energy_offset_is_reported_as_a_density():
     d = run.outcomes[0].diagnosis
     assert d.verdict == "failed" and d.findings[0].code == "energy"
     assert d.findings[0].figures["offset_density"] == pytest.approx(1.5 * 3448.2759, rel=1e-9)
+
+
+def test_oracle_refusal_is_reported_for_that_case():
+    """A user energy that is not finite in one state: that case is bad input, named; the other still runs."""
+    from conformance.protocol import check_implementation
+    from reference_fem.user_energy import PrestressWarning, UserEnergy
+
+    with pytest.warns(PrestressWarning):  # sqrt(1.25 - J) has a slope at rest; NaN for J > 1.25
+        energy = UserEnergy("mu/2*(I1-3) - mu*ln(J) + k*sqrt(1.25-J)", {"mu": 1e3, "k": 1.0}, None, "sqrt")
+
+    def engine(case):
+        n = len(case.points)
+        return np.zeros((n, 3)), np.zeros((3 * n, 3 * n))
+
+    run = check_implementation(engine, energy=energy, mesh="single-tet", states=("rest", "uniaxial"), probes=False)
+    rest, uniaxial = run.outcomes
+    assert rest.status == "failed" and rest.diagnosis is not None
+    assert uniaxial.status == "bad input" and run.exit_code == 2
+    assert uniaxial.message.startswith("case sqrt.single-tet.uniaxial: the oracle cannot evaluate this case: UFL oracle: non-finite")
