@@ -17,7 +17,7 @@
 # checks it against the energy it really implements.
 #
 # Everything the engine must agree on (signs, degree-of-freedom order, energies, the file
-# format) is in [the conventions](../conventions.md).
+# format) is in {doc}`the conventions </conventions>` (`docs/conventions.md`).
 
 # %%
 import logging
@@ -118,6 +118,41 @@ lam = DEFAULT_MATERIALS["NeoHookean"].lam
 assert f"k = {lam:.6g} Pa" in random_cause.evidence  # the fitted coefficient is the engine's lam
 assert random_cause.figures["residual"] <= 1e-10  # the correction explains the error to round-off
 print(random_cause.text())
+
+# %% [markdown]
+# Why the `shear` state could not see it and the `random` state could: the two bulk terms
+# have the same value, slope and curvature at `J = 1`, and part ways as `J` moves away from 1.
+# The histogram shows the values of `J` the `random` state puts in the cells.
+
+# %%
+import matplotlib.pyplot as plt
+
+import meshes
+from comparisons.states import apply_state
+
+X, cells, _ = meshes.resolve("cube-small")
+x = apply_state("random", X, cells)
+J_cell = (np.linalg.det(np.swapaxes(x[cells[:, 1:]] - x[cells[:, :1]], 1, 2))
+          / np.linalg.det(np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)))
+J = np.linspace(0.35, 2.4, 300)
+fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 3.8))
+ax0.plot(J, 0.5 * lam * (J - 1) ** 2, label="lam/2 (J-1)^2 (the engine)")
+ax0.plot(J, 0.5 * lam * np.log(J) ** 2, label="lam/2 (ln J)^2 (the conventions)")
+ax0.set_xlabel("J")
+ax0.set_ylabel("U(J) (Pa)")
+ax0.legend()
+ax1.hist(J_cell, bins=40)
+ax1.set_xlabel("J in the cells, random state")
+ax1.set_ylabel("cells")
+fig.tight_layout()
+plt.show()
+# Same value, slope and curvature at J = 1: they differ at third order only ...
+h = 1e-2
+near = np.abs(0.5 * lam * (h**2 - np.log1p(h) ** 2))
+assert near < 1e-5 * lam
+# ... while the random state spans J far from 1 (the shear state has J = 1 in every cell).
+assert J_cell.min() < 0.6 and J_cell.max() > 1.5
+print(f"J in the random state: {J_cell.min():.2f} to {J_cell.max():.2f}")
 
 # %% [markdown]
 # The engine's stiffness is the derivative of its own force (the probes say so): the engine
