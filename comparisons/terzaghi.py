@@ -1,5 +1,5 @@
 """Terzaghi's 1-D consolidation: the Darcy pressure solver coupled to the solid, against the
-series solution (verification.md, section 5.1).
+series solution p(z, t) = sum_k (4 p0 / ((2k+1) pi)) sin((2k+1) pi z / 2h) exp(-((2k+1) pi / 2)^2 T_v).
 
 A column of height h on lateral rollers with a fixed base, loaded at t = 0 by a pressure p0 on
 its top, drained at the top (P = 0) and sealed elsewhere (zero flux). The solid is a
