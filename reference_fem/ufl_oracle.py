@@ -18,7 +18,7 @@ import ufl
 
 from reference_fem import compat
 from reference_fem.distributed import ROOT, all_finite, collective, gather_csr, gather_rows, on_root
-from reference_fem.energies import strain_energy_density
+from reference_fem.energies import energy_formula, strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
 from reference_fem.validation import check_cells, check_frame, check_points, check_positions, signed_volumes
@@ -40,8 +40,8 @@ class UFLOracle:
     Args:
         points: (n, 3) rest positions X.
         cells: (m, 4) node indices of positively oriented P1 tetrahedra (input numbering).
-        material: object whose class name and attributes give the energy (see
-            :func:`reference_fem.strain_energy_density`); a Costa ``frame`` may be None,
+        material: an object whose type has a registered UFL energy and whose attributes are
+            its parameters (see :func:`reference_fem.energies.register_energy`); a Costa ``frame`` may be None,
             an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
         comm: MPI communicator; None for a serial oracle (MPI.COMM_SELF). With several
             ranks every rank constructs the oracle with the same material; the input and
@@ -174,9 +174,9 @@ class UFLOracle:
         return compat.constant(self._mesh, value)
 
     def _cellwise_frame(self):
-        """Costa with one rotation per cell: a DG0 tensor Function holding them; else None
-        (a constant frame is read from the material by the energy itself)."""
-        if type(self._material).__name__ != "Costa":
+        """A fibre-frame material (Costa) with one rotation per cell: a DG0 tensor Function
+        holding them; else None (a constant frame is read from the material by the energy)."""
+        if not energy_formula(type(self._material)).takes_frame:
             return None
         frame = getattr(self._material, "frame", None)
         if frame is None or np.asarray(frame).shape == (3, 3):

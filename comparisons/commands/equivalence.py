@@ -96,9 +96,9 @@ def _run(args, materials, states, mesh_list, comm) -> int:
 
 def _uniaxial_closed_form(materials, mesh_list) -> list:
     """The face-reaction check on the selected cube meshes (cube-small if none was selected)."""
-    from comparisons.closed_form import ISOTROPIC, uniaxial_checks
+    from comparisons.closed_form import has_closed_form, uniaxial_checks
 
-    if not any(type(m).__name__ in ISOTROPIC for m in materials):
+    if not any(has_closed_form(m) for m in materials):
         return []
     cubes = [entry for entry in mesh_list if entry[0].startswith("cube")] or opt.resolve_meshes("cube-small")
     rows = [r for label, points, cells in cubes for r in uniaxial_checks(materials, label, points, cells)]
