@@ -11,11 +11,10 @@ from typing import Optional
 import numpy as np
 
 from mjed.kinematics import Kinematics
-from mjed.layout import to_component_major
 from mjed.sparse import EDGES
 from mjed.workspace import Workspace
 
-__all__ = ["apply_matrix", "edge_dot", "is_zero", "CellState", "stress_node_vectors"]
+__all__ = ["apply_matrix", "edge_dot", "is_zero", "CellState", "stress_node_vectors", "first_piola", "cell_gradient"]
 
 
 def apply_matrix(A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None,
@@ -69,10 +68,9 @@ class CellState:
     def __init__(self, x_t: np.ndarray, Dt: np.ndarray, ws: Workspace):
         m = Dt.shape[-1]
         self.Dt, self.ws, self.m = Dt, ws, m
-        # F_ij = sum_a x_a,i D_a,j, formed component-major and copied once to (m, 3, 3).
+        # F_ij = sum_a x_a,i D_a,j, formed component-major (the (m, 3, 3) copy only on demand).
         self.Ft = np.einsum("iam,jam->ijm", x_t, Dt, out=ws("Ft", (3, 3, m)))
-        self.kin = Kinematics(np.ascontiguousarray(np.moveaxis(self.Ft, -1, 0)), Ft=self.Ft,
-                              cof_out=ws("cof_t", (3, 3, m)), C_out=ws("C_t", (3, 3, m)))
+        self.kin = Kinematics(Ft=self.Ft, cof_out=ws("cof_t", (3, 3, m)), C_out=ws("C_t", (3, 3, m)))
         self.J = self.kin.J
         self._dJ: Optional[np.ndarray] = None
 
@@ -93,18 +91,46 @@ class CellState:
 def stress_node_vectors(state: CellState, S, h, out: np.ndarray) -> np.ndarray:
     """F S D_a + h d_a for every node a of every cell, written into ``out`` (3, 4, m).
 
-    S: (m, 3, 3), or a (3, 3) constant, or None for zero; h: (m,) or None for zero. This is
-    dW/dx_a of a group's aggregates (paper, eqs. 3-4) before the rest volume.
+    S: component-major (3, 3, m), a (3, 3) constant, or None for zero; h: (m,) or None for
+    zero. This is dW/dx_a of a group's aggregates (paper, eqs. 3-4) before the rest volume.
     """
     ws, Dt, m = state.ws, state.Dt, state.m
     if S is None:
         out.fill(0.0)
     else:
-        S_t = to_component_major(np.broadcast_to(S, (m, 3, 3)), out=ws("S_t", (3, 3, m)))
-        FS = np.einsum("ikm,kjm->ijm", state.Ft, S_t, out=ws("FS", (3, 3, m)))
+        FS = first_piola(state, S, None, ws("FS", (3, 3, m)))
         apply_matrix(FS, Dt, out=out, tmp=ws("tmp4", (4, m)))
     if h is not None:
         tmp = ws("tmp34", (3, 4, m))
         np.multiply(state.dJ(), h, out=tmp)
         out += tmp
     return out
+
+
+def first_piola(state: CellState, S, h, out: np.ndarray) -> np.ndarray:
+    """P = F S + h cof(F) per cell (the first Piola-Kirchhoff stress of the folded groups:
+    dW/dx_a = P D_a since d_a = cof(F) D_a), written into ``out`` (3, 3, m).
+
+    S: component-major (3, 3, m), a (3, 3) constant, or None for zero; h: (m,) or None.
+    """
+    ws, m = state.ws, state.m
+    if S is None:
+        out.fill(0.0)
+    elif np.ndim(S) == 2:  # the same S in every cell: P[i] = S^T F[i] is a (3, 3) x (3, m) product
+        np.matmul(np.transpose(S), state.Ft, out=out)
+    else:
+        np.einsum("ikm,kjm->ijm", state.Ft, S, out=out)
+    if h is not None:
+        tmp = ws("tmp33", (3, 3, m))
+        np.multiply(state.kin.cof_t, h, out=tmp)
+        out += tmp
+    return out
+
+
+def cell_gradient(state: CellState, S, h, DtV: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """V0 dW/dx_a = P (V0 D_a) for every node of every cell, written into ``out`` (3, 4, m);
+    P from :func:`first_piola`, DtV (3, 4, m) the rest shape vectors times the rest volumes.
+    One 3x3 product per node, the least work for the force alone."""
+    m = state.m
+    P = first_piola(state, S, h, state.ws("P", (3, 3, m)))
+    return apply_matrix(P, DtV, out=out, tmp=state.ws("tmp4", (4, m)))

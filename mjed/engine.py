@@ -21,7 +21,7 @@ from typing import Callable, Optional, Tuple
 import numpy as np
 
 from mjed.aggregates import fold_groups
-from mjed.cellwise import CellState, stress_node_vectors
+from mjed.cellwise import CellState, cell_gradient, stress_node_vectors
 from mjed.edge_blocks import MeshConstants, edge_blocks, edge_blocks_to_element_matrices, tangent_slots
 from mjed.evaluation import CellEvaluation, Evaluation, Want
 from mjed.layout import to_component_major
@@ -56,7 +56,7 @@ class MJEDEngine:
         # Per-mesh constants, component-major: D (3, 4, m) and D_a x D_b (3, 6, m).
         Dt = np.ascontiguousarray(D.transpose(2, 1, 0))
         DxD = to_component_major(np.cross(D[:, EDGES[:, 0]], D[:, EDGES[:, 1]]).transpose(0, 2, 1))
-        self.constants = MeshConstants(Dt, DxD, volumes, tangent_slots(groups, Dt))
+        self.constants = MeshConstants(Dt, DxD, volumes, tangent_slots(groups, Dt), Dt * volumes)
         self.workspace = Workspace()
 
     @property
@@ -95,13 +95,12 @@ class MJEDEngine:
         du_of = None
         if stiffness:
             du_of = lambda S, h, k: stress_node_vectors(state, S, h, ws(f"du{k}", (3, 4, m)))  # noqa: E731
-        agg = fold_groups(self.groups, state.kin, state.J, du_of)
+        agg = fold_groups(self.groups, state.kin, state.J, du_of, energy=bool(want & Want.ENERGY))
 
         V0 = self.volumes
         gradient = None
         if want & Want.GRADIENT:
-            gradient = stress_node_vectors(state, agg.S, agg.h, np.empty((3, 4, m)))
-            gradient *= V0
+            gradient = cell_gradient(state, agg.S, agg.h, const.DtV, np.empty((3, 4, m)))
         blocks = None
         if stiffness:
             blocks = edge_blocks(const, state, agg, regularize=self.regularize, ws=ws, out=out)
@@ -113,7 +112,12 @@ class MJEDEngine:
     def _pk2(state: CellState, agg) -> np.ndarray:
         """S = sum c f_k S_k + h J C^-1, (m, 3, 3); dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof / J."""
         m = state.m
-        S = np.zeros((m, 3, 3)) if agg.S is None else np.array(np.broadcast_to(agg.S, (m, 3, 3)))
+        if agg.S is None:
+            S = np.zeros((m, 3, 3))
+        elif np.ndim(agg.S) == 2:
+            S = np.array(np.broadcast_to(agg.S, (m, 3, 3)))
+        else:
+            S = np.ascontiguousarray(np.moveaxis(agg.S, -1, 0))
         if agg.h is not None:
             cof_t = state.kin.cof_t
             S += (agg.h / state.J)[:, None, None] * np.moveaxis(np.einsum("kim,kjm->ijm", cof_t, cof_t), -1, 0)

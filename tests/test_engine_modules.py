@@ -172,3 +172,66 @@ def test_seam_checks_its_input(body):
     flipped[c[0]] = face + 0.5 * (face - x[c[0]])
     with pytest.raises(mjed.InvertedElementError):
         field.evaluate(flipped, want=Want.GRADIENT)
+
+
+# ------------------------------------------------------------------ the force-only path
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_force_alone_is_the_force_of_force_and_stiffness(body, name):
+    # The force path skips the energy, S-hat, g2 and every tangent coefficient, but the
+    # gradient is formed by the same operations: the same numbers, bit for bit.
+    mesh, x = body
+    field = mjed.HyperelasticForceField(mesh, MATERIALS[name])
+    f, _ = field.force_and_stiffness(x)
+    assert np.array_equal(field.force(x), f)
+    assert field.evaluate(x, want=Want.GRADIENT).energy is None
+
+
+def test_force_alone_still_refuses_bad_input(body):
+    mesh, x = body
+    field = mjed.HyperelasticForceField(mesh, MATERIALS["StVenantKirchhoff"])  # no ln J to trip on
+    flipped = x.copy()
+    c = mesh.cells[2]
+    face = x[c[1:]].mean(axis=0)
+    flipped[c[0]] = face + 0.5 * (face - x[c[0]])
+    with pytest.raises(mjed.InvertedElementError):
+        field.force(flipped)
+    with pytest.raises(ValueError, match="non-finite"):
+        field.force(np.where(x == x[0, 0], np.nan, x))
+
+
+def test_determinant_without_the_full_cofactor_is_the_same(body):
+    from mjed.kinematics import Kinematics
+
+    mesh, x = body
+    Ft = np.ascontiguousarray(_state(mesh, x).Ft)
+    alone = Kinematics(Ft=Ft.copy()).J  # cof_t never formed
+    k = Kinematics(Ft=Ft.copy())
+    k.cof_t
+    assert np.array_equal(alone, k.J)
+
+
+def test_invariant_functions_may_give_either_stress_layout(body):
+    from mjed.terms import InvariantFunction, JPower, Term, TermGroup
+
+    class CellMajor(InvariantFunction):  # g = tr C, written with stress() only
+        def value(self, kin):
+            return kin.I1
+
+        def stress(self, kin):
+            return np.broadcast_to(2.0 * np.eye(3), (kin.m, 3, 3)).copy()
+
+    class ComponentMajor(InvariantFunction):  # the same g, written with stress_t() only
+        def value(self, kin):
+            return kin.I1
+
+        def stress_t(self, kin):
+            return np.broadcast_to((2.0 * np.eye(3))[:, :, None], (3, 3, kin.m)).copy()
+
+    mesh, x = body
+    st = _state(mesh, x)
+    assert np.array_equal(CellMajor().stress_t(st.kin), ComponentMajor().stress_t(st.kin))
+    assert np.array_equal(CellMajor().stress(st.kin), ComponentMajor().stress(st.kin))
+    groups = lambda g: (TermGroup((Term(JPower(-2.0 / 3.0), g),)),)  # noqa: E731
+    a = fold_groups(groups(CellMajor()), st.kin, st.J)
+    b = fold_groups(groups(ComponentMajor()), st.kin, st.J)
+    assert np.array_equal(a.S, b.S) and np.array_equal(a.h, b.h)
