@@ -9,6 +9,8 @@ from functools import cached_property
 
 import numpy as np
 
+from mjed.eigen3 import symmetric_eigh
+
 __all__ = ["deformation_gradient", "cofactor", "Kinematics"]
 
 
@@ -167,5 +169,7 @@ class Kinematics:
 
     @cached_property
     def eig(self) -> "tuple[np.ndarray, np.ndarray]":
-        """Eigenvalues (m, 3), ascending, and eigenvectors (m, 3, 3) (columns) of C."""
-        return np.linalg.eigh(self.C)
+        """Eigenvalues (m, 3), ascending, and eigenvectors (m, 3, 3) (columns) of C, by the
+        vectorised Jacobi method of mjed.eigen3 (as exact as LAPACK, several times faster
+        for many 3x3 matrices)."""
+        return symmetric_eigh(self.C_t)
