@@ -14,7 +14,7 @@ from mjed.kinematics import Kinematics
 from mjed.sparse import EDGES
 from mjed.workspace import Workspace
 
-__all__ = ["apply_matrix", "edge_dot", "is_zero", "CellState", "stress_node_vectors", "first_piola", "cell_gradient"]
+__all__ = ["apply_matrix", "product", "edge_dot", "is_zero", "CellState", "stress_node_vectors", "first_piola", "cell_gradient"]
 
 
 def apply_matrix(A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None,
@@ -31,6 +31,20 @@ def apply_matrix(A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None,
         for j in (1, 2):
             np.multiply(A[i, j], V[j], out=tmp)
             out[i] += tmp
+    return out
+
+
+def product(A: np.ndarray, B: np.ndarray, out: np.ndarray, tmp: Optional[np.ndarray] = None) -> np.ndarray:
+    """A B per cell: A, B (3, 3, m) -> out (3, 3, m), entry by entry (faster than einsum here)."""
+    if tmp is None:
+        tmp = np.empty(A.shape[-1])
+    for i in range(3):
+        for j in range(3):
+            o = out[i, j]
+            np.multiply(A[i, 0], B[0, j], out=o)
+            for k in (1, 2):
+                np.multiply(A[i, k], B[k, j], out=tmp)
+                o += tmp
     return out
 
 
@@ -119,7 +133,7 @@ def first_piola(state: CellState, S, h, out: np.ndarray) -> np.ndarray:
     elif np.ndim(S) == 2:  # the same S in every cell: P[i] = S^T F[i] is a (3, 3) x (3, m) product
         np.matmul(np.transpose(S), state.Ft, out=out)
     else:
-        np.einsum("ikm,kjm->ijm", state.Ft, S, out=out)
+        product(state.Ft, S, out=out, tmp=ws("tmp_m", (m,)))
     if h is not None:
         tmp = ws("tmp33", (3, 3, m))
         np.multiply(state.kin.cof_t, h, out=tmp)
@@ -133,4 +147,11 @@ def cell_gradient(state: CellState, S, h, DtV: np.ndarray, out: np.ndarray) -> n
     One 3x3 product per node, the least work for the force alone."""
     m = state.m
     P = first_piola(state, S, h, state.ws("P", (3, 3, m)))
-    return apply_matrix(P, DtV, out=out, tmp=state.ws("tmp4", (4, m)))
+    # Nodes 1..3 by the product; node 0 as minus their sum, since sum_a D_a = 0 (a P1 cell's
+    # shape gradients sum to zero): a quarter fewer products, and each cell's forces balance
+    # exactly (translation invariance holds cell by cell, not only to round-off).
+    apply_matrix(P, DtV[:, 1:], out=out[:, 1:], tmp=state.ws("tmp3", (3, m)))
+    np.add(out[:, 1], out[:, 2], out=out[:, 0])
+    out[:, 0] += out[:, 3]
+    np.negative(out[:, 0], out=out[:, 0])
+    return out

@@ -137,6 +137,8 @@ def checked_positions(x, n_nodes: int) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (n_nodes, 3):
         raise ValueError(f"positions must have shape ({n_nodes}, 3), got {x.shape}")
+    if np.isfinite(x.sum()):  # every entry finite (a NaN or inf would make the sum so): the common case
+        return x
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])

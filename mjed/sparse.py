@@ -133,7 +133,8 @@ class CSRPattern:
     def edge_block_map(self, layout: str = "merc") -> np.ndarray:
         """Index of every edge-block entry in the (3, 3, E) edge sums, for blocks stored with
         axes in ``layout`` order (m cell, e edge, r row, c column), e.g. "merc" for
-        (m, 6, 3, 3) or "rcem" for (3, 3, 6, m). Cached per layout."""
+        (m, 6, 3, 3) or "rcem" for (3, 3, 6, m) (named in mjed.layout.BlockLayout). Cached
+        per layout."""
         if layout not in self._maps:
             if sorted(layout) != sorted("merc"):
                 raise ValueError(f"layout must be a permutation of 'merc', got {layout!r}")
@@ -217,7 +218,8 @@ class CSRPattern:
 
     def vector_map(self, layout: str = "mak") -> np.ndarray:
         """Global dof of each entry of element vectors stored with axes in ``layout`` order
-        (m cell, a node, k component), e.g. "kam" for (3, 4, m). Cached."""
+        (m cell, a node, k component), e.g. "kam" for (3, 4, m) (named in
+        mjed.layout.VectorLayout). Cached."""
         key = ("vec", layout)
         if key not in self._maps:
             if sorted(layout) != sorted("mak"):
