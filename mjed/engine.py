@@ -104,9 +104,11 @@ class MJEDEngine:
         blocks = None
         if stiffness:
             blocks = edge_blocks(const, state, agg, regularize=self.regularize, ws=ws, out=out)
-        pk2 = self._pk2(state, agg) if want & Want.STRESS else None
+        pk2 = F = None
+        if want & Want.STRESS:
+            pk2, F = self._pk2(state, agg), state.F
         energy = agg.energy * V0 if want & Want.ENERGY else None
-        return CellEvaluation(energy, gradient, blocks, state.J, state.F, pk2)
+        return CellEvaluation(energy, gradient, blocks, state.J, F, pk2)
 
     @staticmethod
     def _pk2(state: CellState, agg) -> np.ndarray:

@@ -15,8 +15,9 @@ class Want(enum.Flag):
     """The per-cell quantities an evaluation computes (combine with ``|``).
 
     ENERGY: V0 W. GRADIENT: V0 dW/dx_a (the force is its negated assembly). STIFFNESS: the
-    edge blocks V0 d2W/dx_a dx_b. STRESS: S = 2 dW/dC (not multiplied by V0).
-    J and F are always returned: they are formed first and checked for inverted cells.
+    edge blocks V0 d2W/dx_a dx_b. STRESS: S = 2 dW/dC (not multiplied by V0) and F, what a
+    stress-based model (the viscous history) needs. J is always returned: it is formed first
+    and checked for inverted cells.
     """
 
     ENERGY = enum.auto()
@@ -31,15 +32,16 @@ class CellEvaluation:
 
     energy: (m,) V0 W, or None if not asked. gradient: (3, 4, m), [k, a] = V0 dW/dx_a,k, or
     None. blocks: (3, 3, 6, m), [r, c, e] = V0 (d2W/dx_a dx_b)_rc for edge e = (a, b) of
-    mjed.sparse.EDGES, or None. J: (m,). F: (m, 3, 3). pk2: (m, 3, 3) second Piola-Kirchhoff
-    stress 2 dW/dC per unit rest volume, or None. (See mjed.layout for the layout names.)
+    mjed.sparse.EDGES, or None. J: (m,). F: (m, 3, 3), with the stress. pk2: (m, 3, 3) second
+    Piola-Kirchhoff stress 2 dW/dC per unit rest volume, or None. (See mjed.layout for the
+    layout names.)
     """
 
     energy: Optional[np.ndarray]
     gradient: Optional[np.ndarray]
     blocks: Optional[np.ndarray]
     J: np.ndarray
-    F: np.ndarray
+    F: Optional[np.ndarray] = None
     pk2: Optional[np.ndarray] = None
 
     def public(self) -> "Evaluation":

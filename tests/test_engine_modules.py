@@ -134,11 +134,12 @@ def test_evaluate_returns_what_is_asked_and_nothing_else(body):
     field = mjed.HyperelasticForceField(mesh, MATERIALS["MooneyRivlin"])
     ev = field.evaluate(x, want=Want.GRADIENT)
     assert isinstance(ev, CellEvaluation)
-    assert ev.energy is None and ev.blocks is None and ev.pk2 is None
+    assert ev.energy is None and ev.blocks is None and ev.pk2 is None and ev.F is None
     assert ev.gradient.shape == (3, 4, mesh.n_cells) and ev.J.shape == (mesh.n_cells,)
     full = field.evaluate(x, want=Want.ENERGY | Want.GRADIENT | Want.STIFFNESS | Want.STRESS)
     assert full.energy.sum() == pytest.approx(field.energy(x), rel=1e-14)
     assert full.blocks.shape == (3, 3, 6, mesh.n_cells) and full.pk2.shape == (mesh.n_cells, 3, 3)
+    assert np.allclose(full.F, np.einsum("mai,maj->mij", x[mesh.cells], mesh.D), rtol=1e-14, atol=1e-14)
     pub = full.public()
     assert np.shares_memory(pub.gradient, full.gradient) and pub.gradient.shape == (mesh.n_cells, 4, 3)
 
