@@ -19,14 +19,19 @@ current area must equal sigma_11, and the lateral faces must carry no normal rea
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass
-from typing import Callable, Dict, Tuple
+from typing import Tuple
 
 import numpy as np
 from scipy.optimize import brentq
 
+from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
+
 __all__ = [
     "ISOTROPIC",
+    "has_closed_form",
     "principal_cauchy",
     "uniaxial_lateral_stretch",
     "uniaxial_cauchy",
@@ -38,9 +43,6 @@ __all__ = [
 
 #: The stretches of the uniaxial check: one in tension, one in compression.
 UNIAXIAL_STRETCHES = (1.3, 0.8)
-
-#: Arruda-Boyce series coefficients (CONVENTIONS.md).
-_AB_C = (1 / 2, 1 / 20, 11 / 1050, 19 / 7000, 519 / 673750)
 
 Stretches = Tuple[float, float, float]
 
@@ -59,38 +61,52 @@ def _isochoric_I1(stretches: Stretches) -> float:
     return float(np.prod(lam) ** (-2.0 / 3.0) * (lam**2).sum())
 
 
-def _stvk(m, s: Stretches) -> np.ndarray:
+@functools.singledispatch
+def _principal(material, s: Stretches) -> np.ndarray:
+    """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type."""
+    cls = type(material)
+    raise ValueError(f"no closed form for {cls.__qualname__}; isotropic materials with one: "
+                     f"{', '.join(t.__qualname__ for t in ISOTROPIC)}")
+
+
+@_principal.register
+def _stvk(m: StVenantKirchhoff, s: Stretches) -> np.ndarray:
     lam = np.asarray(s, dtype=float)
     E = (lam**2 - 1.0) / 2.0
     S = m.lam * E.sum() + 2.0 * m.mu * E
     return lam**2 * S / np.prod(lam)
 
 
-def _neo_hookean(m, s: Stretches) -> np.ndarray:
+@_principal.register
+def _neo_hookean(m: NeoHookean, s: Stretches) -> np.ndarray:
     lam = np.asarray(s, dtype=float)
     J = np.prod(lam)
     return (m.mu * (lam**2 - 1.0) + m.lam * np.log(J)) / J
 
 
-def _mooney_rivlin(m, s: Stretches) -> np.ndarray:
+@_principal.register
+def _mooney_rivlin(m: MooneyRivlin, s: Stretches) -> np.ndarray:
     J = float(np.prod(s))
     return _decoupled(m.c1, m.c2, m.k0 * np.log(J) / J, s)
 
 
-def _veronda_westmann(m, s: Stretches) -> np.ndarray:
+@_principal.register
+def _veronda_westmann(m: VerondaWestmann, s: Stretches) -> np.ndarray:
     J = float(np.prod(s))
     W1 = m.c1 * m.c2 * np.exp(m.c2 * (_isochoric_I1(s) - 3.0))
     return _decoupled(W1, -m.c1 * m.c2 / 2.0, m.k0 * np.log(J) / J, s)
 
 
-def _arruda_boyce(m, s: Stretches) -> np.ndarray:
+@_principal.register
+def _arruda_boyce(m: ArrudaBoyce, s: Stretches) -> np.ndarray:
     J = float(np.prod(s))
     I1b = _isochoric_I1(s)
-    W1 = m.mu * sum(i * c * m.N ** (1 - i) * I1b ** (i - 1) for i, c in enumerate(_AB_C, start=1))
+    W1 = m.mu * sum(i * c * m.N ** (1 - i) * I1b ** (i - 1) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1))
     return _decoupled(W1, 0.0, m.k0 * np.log(J) / J, s)
 
 
-def _ogden(m, s: Stretches) -> np.ndarray:
+@_principal.register
+def _ogden(m: Ogden, s: Stretches) -> np.ndarray:
     # W = mu/alpha^2 (sum lb_i^alpha - 3) + k0/2 ln^2 J with lb_i = J^(-1/3) lambda_i;
     # sigma_i = (lambda_i / J) dW/dlambda_i.
     lam = np.asarray(s, dtype=float)
@@ -99,25 +115,20 @@ def _ogden(m, s: Stretches) -> np.ndarray:
     return (m.mu / m.alpha * (p - p.mean()) + m.k0 * np.log(J)) / J
 
 
-#: The isotropic materials with a closed form, by class name.
-ISOTROPIC: Dict[str, Callable] = {
-    "StVenantKirchhoff": _stvk,
-    "NeoHookean": _neo_hookean,
-    "MooneyRivlin": _mooney_rivlin,
-    "VerondaWestmann": _veronda_westmann,
-    "ArrudaBoyce": _arruda_boyce,
-    "Ogden": _ogden,
-}
+#: The isotropic material types with a closed form.
+ISOTROPIC: Tuple[type, ...] = tuple(t for t in _principal.registry if t is not object)
+
+
+def has_closed_form(material) -> bool:
+    """True when the material's type (or a base of it) has a closed form here."""
+    return _principal.dispatch(type(material)) is not _principal.dispatch(object)
 
 
 def principal_cauchy(material, stretches: Stretches) -> np.ndarray:
     """Principal Cauchy stresses (3,) of an isotropic material under F = diag(stretches)."""
-    name = type(material).__name__
-    if name not in ISOTROPIC:
-        raise ValueError(f"no closed form for {name}; isotropic materials with one: {', '.join(ISOTROPIC)}")
     if not all(np.isfinite(stretches)) or min(stretches) <= 0:
         raise ValueError(f"stretches must be finite and positive, got {tuple(stretches)}")
-    return ISOTROPIC[name](material, tuple(float(v) for v in stretches))
+    return _principal(material, tuple(float(v) for v in stretches))
 
 
 def uniaxial_lateral_stretch(material, stretch: float) -> float:
@@ -170,7 +181,7 @@ def uniaxial_reaction_check(material, points: np.ndarray, cells: np.ndarray, str
     scale = max(abs(sigma), 1e-300)
     lateral = max(abs(reaction[1]) / current_area(1), abs(reaction[2]) / current_area(2)) / scale
     return UniaxialResult(
-        material=type(material).__name__,
+        material=material.name,
         stretch=float(stretch),
         lateral_stretch=t,
         sigma_analytic=sigma,
@@ -191,7 +202,7 @@ def uniaxial_checks(materials, label: str, points: np.ndarray, cells: np.ndarray
 
     rows = []
     for m in materials:
-        if type(m).__name__ not in ISOTROPIC:
+        if not has_closed_form(m):
             continue
         for stretch in UNIAXIAL_STRETCHES:
             r = uniaxial_reaction_check(m, points, cells, stretch).to_dict()

@@ -54,6 +54,31 @@ def signed_split(B: np.ndarray, method: str = "ldl") -> Tuple[np.ndarray, np.nda
     return np.sign(pivots[keep]), (np.sqrt(np.abs(pivots[keep])) * L[:, keep]).T
 
 
+def _frame_product(R: np.ndarray) -> "np.ndarray | None":
+    """K (9, 9) with vec(R^T X R) = vec(X) K for a constant frame R (3, 3), K[ij, pq] = R_ip R_jq;
+    None for the identity frame (nothing to rotate)."""
+    if np.array_equal(R, np.eye(3)):
+        return None
+    return np.einsum("ip,jq->ijpq", R, R).reshape(9, 9)
+
+
+def _to_frame(X: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """R^T X R for X (m, 3, 3): one (m, 9) x (9, 9) product for a constant R (a batched 3x3
+    matmul would loop per cell and dominate Costa's cost), a batched product per cell frame."""
+    if R.ndim == 3:
+        return np.swapaxes(R, -1, -2) @ X @ R
+    K = _frame_product(R)
+    return X if K is None else (X.reshape(-1, 9) @ K).reshape(-1, 3, 3)
+
+
+def _from_frame(X: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """R X R^T for X (m, 3, 3), the inverse of :func:`_to_frame`."""
+    if R.ndim == 3:
+        return R @ X @ np.swapaxes(R, -1, -2)
+    K = _frame_product(R)
+    return X if K is None else (X.reshape(-1, 9) @ K.T).reshape(-1, 3, 3)
+
+
 @dataclass(frozen=True, eq=False)
 class FibreQuadratic(InvariantFunction):
     """g = sum_ij B_ij (R^T E R)_ij^2 for a constant symmetric B and frame R.
@@ -77,19 +102,15 @@ class FibreQuadratic(InvariantFunction):
         object.__setattr__(self, "signs", s)
 
     def _Ef(self, kin) -> np.ndarray:
-        # R^T E R as batched matmuls: a three-operand einsum would loop over all 81 index
-        # combinations per cell and dominate Costa's cost.
-        R = self.R
-        return np.swapaxes(R, -1, -2) @ kin.E @ R
+        """R^T E R, (m, 3, 3), computed once per state (value and stress both need it)."""
+        return kin.memo(("fibre strain", id(self)), lambda: _to_frame(kin.E, self.R))
 
     def value(self, kin):
         Ef = self._Ef(kin)
         return np.einsum("ij,mij->m", self.B, Ef * Ef)
 
     def stress(self, kin):
-        BEf = self.B * self._Ef(kin)
-        R = self.R
-        return 2.0 * (R @ BEf @ np.swapaxes(R, -1, -2))
+        return 2.0 * _from_frame(self.B * self._Ef(kin), self.R)
 
     def tangent_coefficients(self, kin):
         return tuple(float(s) for s in self.signs)

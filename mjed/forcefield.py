@@ -7,20 +7,28 @@ from typing import Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from mjed.engine import MJEDEngine, SoAEvaluation, edge_blocks_to_element_matrices
+from mjed.edge_blocks import edge_blocks_to_element_matrices
+from mjed.engine import MJEDEngine
 from mjed.errors import InvertedElementError
+from mjed.evaluation import CellEvaluation, Want
+from mjed.layout import BlockLayout, VectorLayout
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 
-__all__ = ["HyperelasticForceField"]
+__all__ = ["HyperelasticForceField", "Want", "checked_positions", "refuse_inverted"]
 
 
 class HyperelasticForceField:
     """Nodal forces and tangent stiffness of a hyperelastic body by MJED.
 
-    Conventions (CONVENTIONS.md): force f = -dW/dx, shape (n, 3); stiffness K = d2W/dx2,
-    symmetric, CSR (3n, 3n) with dof = 3 * node + component.
+    Conventions: force f = -dW/dx, shape (n, 3); stiffness K = d2W/dx2, symmetric, CSR
+    (3n, 3n) with dof = 3 * node + component.
+
+    Besides force, stiffness and energy, the field offers a seam for models built on it (a
+    viscous history, a compiled backend): :meth:`evaluate` gives the per-cell quantities
+    (component-major :class:`mjed.evaluation.CellEvaluation`), which such a model may
+    change before :meth:`assemble_force` and :meth:`assemble_stiffness` sum them.
 
     Args:
         mesh: the rest mesh.
@@ -45,7 +53,8 @@ class HyperelasticForceField:
         # Scratch for the edge blocks of force_and_stiffness/stiffness, which consume them
         # at once: reusing it saves a fresh 432 bytes per cell (and its page faults) per call.
         self._blocks_buffer: "np.ndarray | None" = None
-        self._cells_t: "np.ndarray | None" = None
+        # Cells transposed (4, m), to gather positions straight into the engine's layout.
+        self._cells_t = np.ascontiguousarray(mesh.cells.T)
 
     @property
     def pattern(self) -> CSRPattern:
@@ -57,56 +66,70 @@ class HyperelasticForceField:
     # ---------------------------------------------------------------- public API
     def energy(self, x) -> float:
         """Total strain energy sum_cells V0 W at current positions x (n, 3)."""
-        return float(self._evaluate(x, stiffness=False).energy.sum())
+        return float(self.evaluate(x, want=Want.ENERGY).energy.sum())
 
     def force(self, x) -> np.ndarray:
         """Nodal forces -dW/dx, (n, 3)."""
-        return self._assemble_force(self._evaluate(x, stiffness=False))
+        return self.assemble_force(self.evaluate(x, want=Want.GRADIENT).gradient)
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Tangent stiffness d2W/dx2, CSR (3n, 3n)."""
-        return self._assemble_stiffness(self._evaluate(x, stiffness=True, reuse=True))
+        return self.assemble_stiffness(self.evaluate(x, want=Want.STIFFNESS, out=self._reused_blocks()).blocks)
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Both at once, from a single evaluation of the kinematics."""
-        ev = self._evaluate(x, stiffness=True, reuse=True)
-        return self._assemble_force(ev), self._assemble_stiffness(ev)
+        ev = self.evaluate(x, want=Want.GRADIENT | Want.STIFFNESS, out=self._reused_blocks())
+        return self.assemble_force(ev.gradient), self.assemble_stiffness(ev.blocks)
 
     def element_stiffness(self, x) -> np.ndarray:
         """Element stiffness matrices, (m, 12, 12), dof order (node 0: x, y, z, node 1: ...)."""
-        return edge_blocks_to_element_matrices(self._evaluate(x, stiffness=True).public().edge_blocks)
+        return edge_blocks_to_element_matrices(self.evaluate(x, want=Want.STIFFNESS).public().edge_blocks)
 
     def element_forces(self, x) -> np.ndarray:
         """Per-cell nodal forces -dW_e/dx_a, (m, 4, 3)."""
-        return -np.ascontiguousarray(self._evaluate(x, stiffness=False).public().gradient)
+        return -np.ascontiguousarray(self.evaluate(x, want=Want.GRADIENT).public().gradient)
 
-    # ---------------------------------------------------------------- internals
-    def _assemble_force(self, ev: SoAEvaluation) -> np.ndarray:
-        f = self.pattern.assemble_vector_layout(ev.gradient, "kam")
-        return np.negative(f, out=f)
+    # ---------------------------------------------------------------- the seam
+    def evaluate(self, x, *, want: Want = Want.ENERGY | Want.GRADIENT,
+                 out: "np.ndarray | None" = None) -> CellEvaluation:
+        """The per-cell quantities ``want`` names at positions x, component-major.
 
-    def _assemble_stiffness(self, ev: SoAEvaluation) -> sp.csr_matrix:
-        # Edge blocks only: the node blocks follow from translation invariance (sparse.py).
-        return self.pattern.assemble_edge_blocks(ev.blocks, "rcem")
+        Args:
+            x: (n, 3) current positions; refused (ValueError) if of the wrong shape or not
+                finite.
+            want: a combination of :class:`mjed.evaluation.Want` flags.
+            out: optional (3, 3, 6, m) float64 array for the edge blocks; without it every
+                returned array is fresh (a caller may keep the evaluation).
 
-    def _evaluate(self, x, *, stiffness: bool, reuse: bool = False) -> SoAEvaluation:
-        x = self._check_positions(x)
-        out = None
-        if stiffness and reuse:
-            if self._blocks_buffer is None:
-                self._blocks_buffer = np.empty((3, 3, 6, self.mesh.n_cells))
-            out = self._blocks_buffer
-        if self._cells_t is None:
-            self._cells_t = np.ascontiguousarray(self.mesh.cells.T)
+        Raises:
+            InvertedElementError: a cell has J <= 0 (unless the field allows inverted cells;
+                energies containing ln J are then NaN there).
+        """
+        x = checked_positions(x, self.mesh.n_nodes)
         x_t = np.take(np.ascontiguousarray(x.T), self._cells_t, axis=1)  # (3, 4, m)
         if self.allow_inverted:
             # ln J and J^p are NaN for J <= 0: that is the documented answer, not a surprise.
             with np.errstate(invalid="ignore", divide="ignore"):
-                return self.engine.evaluate_soa(x_t, stiffness=stiffness, out=out)
-        return self.engine.evaluate_soa(x_t, stiffness=stiffness, check_J=refuse_inverted, out=out)
+                return self.engine.evaluate_soa(x_t, want=want, out=out)
+        return self.engine.evaluate_soa(x_t, want=want, check_J=refuse_inverted, out=out)
 
-    def _check_positions(self, x) -> np.ndarray:
-        return checked_positions(x, self.mesh.n_nodes)
+    def assemble_force(self, gradient: np.ndarray) -> np.ndarray:
+        """Nodal forces f = -sum_cells gradient, (n, 3), from a (3, 4, m) per-cell gradient
+        ([k, a, cell] = dW_cell/dx_a,k, the layout of CellEvaluation.gradient)."""
+        f = self.pattern.assemble_vector_layout(gradient, VectorLayout.COMPONENT_MAJOR)
+        return np.negative(f, out=f)
+
+    def assemble_stiffness(self, blocks: np.ndarray) -> sp.csr_matrix:
+        """CSR (3n, 3n) sum of (3, 3, 6, m) per-cell edge blocks (the layout of
+        CellEvaluation.blocks); the node blocks follow from translation invariance."""
+        return self.pattern.assemble_edge_blocks(blocks, BlockLayout.COMPONENT_MAJOR)
+
+    # ---------------------------------------------------------------- internals
+    def _reused_blocks(self) -> np.ndarray:
+        """The edge-block buffer of the calls that assemble the blocks at once."""
+        if self._blocks_buffer is None:
+            self._blocks_buffer = np.empty((3, 3, 6, self.mesh.n_cells))
+        return self._blocks_buffer
 
 
 def checked_positions(x, n_nodes: int) -> np.ndarray:
@@ -114,6 +137,8 @@ def checked_positions(x, n_nodes: int) -> np.ndarray:
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (n_nodes, 3):
         raise ValueError(f"positions must have shape ({n_nodes}, 3), got {x.shape}")
+    if np.isfinite(x.sum()):  # every entry finite (a NaN or inf would make the sum so): the common case
+        return x
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -122,6 +147,7 @@ def checked_positions(x, n_nodes: int) -> np.ndarray:
 
 
 def refuse_inverted(J: np.ndarray) -> None:
+    """Raise InvertedElementError listing the cells with J <= 0 (or NaN)."""
     bad = np.flatnonzero(~(J > 0))
     if len(bad):
         raise InvertedElementError(bad, J[bad], context="at the given positions")

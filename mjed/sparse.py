@@ -93,7 +93,7 @@ class CSRPattern:
         self.indptr.setflags(write=False)
         self.indices.setflags(write=False)
         self.force_scatter = element_dofs(cells).ravel()
-        self._maps: Dict[object, np.ndarray] = {}  # index maps, keyed by layout
+        self._maps: Dict[object, object] = {}  # index maps and scatter matrices, keyed by layout
         self._gather: "np.ndarray | None" = None
         self._diag_index: "np.ndarray | None" = None
         self._scatter: "np.ndarray | None" = None
@@ -133,7 +133,8 @@ class CSRPattern:
     def edge_block_map(self, layout: str = "merc") -> np.ndarray:
         """Index of every edge-block entry in the (3, 3, E) edge sums, for blocks stored with
         axes in ``layout`` order (m cell, e edge, r row, c column), e.g. "merc" for
-        (m, 6, 3, 3) or "rcem" for (3, 3, 6, m). Cached per layout."""
+        (m, 6, 3, 3) or "rcem" for (3, 3, 6, m) (named in mjed.layout.BlockLayout). Cached
+        per layout."""
         if layout not in self._maps:
             if sorted(layout) != sorted("merc"):
                 raise ValueError(f"layout must be a permutation of 'merc', got {layout!r}")
@@ -217,7 +218,8 @@ class CSRPattern:
 
     def vector_map(self, layout: str = "mak") -> np.ndarray:
         """Global dof of each entry of element vectors stored with axes in ``layout`` order
-        (m cell, a node, k component), e.g. "kam" for (3, 4, m). Cached."""
+        (m cell, a node, k component), e.g. "kam" for (3, 4, m) (named in
+        mjed.layout.VectorLayout). Cached."""
         key = ("vec", layout)
         if key not in self._maps:
             if sorted(layout) != sorted("mak"):
@@ -227,10 +229,23 @@ class CSRPattern:
             self._maps[key] = np.ascontiguousarray(np.transpose(dofs, axes)).ravel().astype(np.intp)
         return self._maps[key]
 
+    def vector_scatter(self, layout: str = "mak") -> sp.csr_matrix:
+        """The (3n, 12m) 0/1 matrix summing element vectors stored in ``layout`` order into
+        nodal dofs. A sparse matrix-vector product with it is about twice as fast as a
+        weighted bincount (it reads each row's entries contiguously). Cached per layout."""
+        key = ("scatter", layout)
+        if key not in self._maps:
+            dofs = self.vector_map(layout)
+            self._maps[key] = sp.csr_matrix((np.ones(len(dofs)), (dofs, np.arange(len(dofs)))),
+                                            shape=(self.n_dofs, len(dofs)))
+        return self._maps[key]
+
     def assemble_vector_layout(self, element_vectors: np.ndarray, layout: str) -> np.ndarray:
         """Like assemble_vector, for element vectors stored with axes in ``layout`` order."""
-        out = np.bincount(self.vector_map(layout), weights=element_vectors.reshape(-1), minlength=self.n_dofs)
-        return out.reshape(-1, 3)
+        if element_vectors.size != 12 * len(self.cells):
+            raise ValueError(f"element vectors must hold 12 values per cell ({12 * len(self.cells)}), "
+                             f"got shape {element_vectors.shape}")
+        return (self.vector_scatter(layout) @ element_vectors.reshape(-1)).reshape(-1, 3)
 
     def _csr(self, data: np.ndarray) -> sp.csr_matrix:
         # Each matrix gets its own copy of the index arrays (50 us on cube-paper), so a caller

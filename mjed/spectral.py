@@ -56,13 +56,19 @@ class EigenPowerSum(InvariantFunction):
         if self.tangent_mode not in ("exact", "sofa"):
             raise ValueError(f"tangent must be 'exact' or 'sofa', got {self.tangent_mode!r}")
 
-    def value(self, kin):
-        lam = kin.eig[0]
-        return self.c * (lam**self.q).sum(axis=1)
+    def _power(self, kin) -> np.ndarray:
+        """lambda_n^(q-1), (m, 3), once per state (the value and the stress both need it)."""
+        return kin.memo(("eigen power", self.q), lambda: kin.eig[0] ** (self.q - 1.0))
 
-    def stress(self, kin):
-        lam, V = kin.eig
-        return 2.0 * self.c * self.q * np.einsum("min,mn,mjn->mij", V, lam ** (self.q - 1.0), V)
+    def value(self, kin):
+        return self.c * (self._power(kin) * kin.eig[0]).sum(axis=1)
+
+    def stress_t(self, kin):
+        # S = 2 c q V diag(lam^(q-1)) V^T, formed component-major: S_ij = sum_n V_in w_n V_jn.
+        m = kin.m
+        V_t = np.ascontiguousarray(np.moveaxis(kin.eig[1], 0, -1))  # [i, n] = (v_n)_i
+        w_t = np.ascontiguousarray((2.0 * self.c * self.q) * self._power(kin).T)  # (3, m)
+        return np.einsum("inm,jnm->ijm", V_t * w_t, V_t, out=np.empty((3, 3, m)))
 
     def tangent_coefficients(self, kin):
         lam = kin.eig[0]

@@ -127,8 +127,24 @@ class InvariantFunction(ABC):
         """g, (m,) or a float."""
 
     def stress(self, kin: Kinematics) -> Union[np.ndarray, None]:
-        """S = 2 dg/dC, (m, 3, 3); None when g does not depend on C."""
-        return None
+        """S = 2 dg/dC, (m, 3, 3), or a (3, 3) constant when it is the same in every cell;
+        None when g does not depend on C."""
+        if type(self).stress_t is InvariantFunction.stress_t:
+            return None  # neither form overridden: g does not depend on C
+        S = self.stress_t(kin)
+        return S if S is None or S.ndim == 2 else np.ascontiguousarray(np.moveaxis(S, -1, 0))
+
+    def stress_t(self, kin: Kinematics) -> Union[np.ndarray, None]:
+        """S component-major, (3, 3, m), or a (3, 3) constant; None when g does not depend on C.
+
+        This is what the engine reads. Override it instead of ``stress`` when S is naturally
+        formed component-major (the engine then skips a copy per term); by default it
+        converts ``stress``.
+        """
+        if type(self).stress is InvariantFunction.stress:
+            return None
+        S = self.stress(kin)
+        return S if S is None or S.ndim == 2 else np.ascontiguousarray(np.moveaxis(S, 0, -1))
 
     def tangent_coefficients(self, kin: Kinematics) -> Sequence[Scalar]:
         """beta or gamma for each entry of ``tangent``, each (m,) or a float."""
@@ -148,9 +164,11 @@ class Unity(InvariantFunction):
         return hash(Unity)
 
 
-def _scaled_identity(s: np.ndarray, m: int) -> np.ndarray:
-    out = np.zeros((m, 3, 3))
-    out[:, [0, 1, 2], [0, 1, 2]] = np.broadcast_to(np.asarray(s, dtype=float)[..., None], (m, 3))
+def _scaled_identity_t(s, m: int) -> np.ndarray:
+    """s Id per cell, component-major (3, 3, m); s (m,) or a float."""
+    out = np.zeros((3, 3, m))
+    for i in range(3):
+        out[i, i] = s
     return out
 
 
@@ -167,8 +185,10 @@ class I1Power(InvariantFunction):
     def value(self, kin):
         return self.c * kin.I1**self.n
 
-    def stress(self, kin):
-        return _scaled_identity(2.0 * self.c * self.n * kin.I1 ** (self.n - 1), len(kin.F))
+    def stress_t(self, kin):
+        if self.n == 1:  # 2 c Id, the same in every cell
+            return 2.0 * self.c * IDENTITY
+        return _scaled_identity_t(2.0 * self.c * self.n * kin.I1 ** (self.n - 1), kin.m)
 
     def tangent_coefficients(self, kin):
         if self.n < 2:
@@ -186,9 +206,12 @@ class LinearI2(InvariantFunction):
     def value(self, kin):
         return self.c * kin.I2
 
-    def stress(self, kin):
-        S = _scaled_identity(kin.I1, len(kin.F)) - kin.C
-        return 2.0 * self.c * S
+    def stress_t(self, kin):
+        S = np.multiply(kin.C_t, -2.0 * self.c)
+        t = 2.0 * self.c * kin.I1
+        for i in range(3):
+            S[i, i] += t
+        return S
 
     def tangent_coefficients(self, kin):
         return (2.0 * self.c, -2.0 * self.c)
@@ -203,14 +226,16 @@ class GreenLagrangeQuadratic(InvariantFunction):
     tangent = (TangentPair("first"), TangentPair("second"))
 
     def value(self, kin):
-        E = kin.E
-        trE = np.einsum("mii->m", E)
-        return 0.5 * self.lam * trE**2 + self.mu * np.einsum("mij,mij->m", E, E)
+        E = kin.E_t.reshape(9, -1)
+        trE = kin.trE
+        return 0.5 * self.lam * trE**2 + self.mu * np.einsum("km,km->m", E, E)
 
-    def stress(self, kin):
-        E = kin.E
-        trE = np.einsum("mii->m", E)
-        return _scaled_identity(self.lam * trE, len(E)) + 2.0 * self.mu * E
+    def stress_t(self, kin):
+        S = np.multiply(kin.E_t, 2.0 * self.mu)
+        t = self.lam * kin.trE
+        for i in range(3):
+            S[i, i] += t
+        return S
 
     def tangent_coefficients(self, kin):
         return (0.5 * self.lam, self.mu)

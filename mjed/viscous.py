@@ -28,17 +28,18 @@ restored, e.g. to retry a failed step.
 
 from __future__ import annotations
 
-from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
-from mjed.engine import EDGES, SoAEvaluation, edge_blocks_to_element_matrices
-from mjed.forcefield import HyperelasticForceField, refuse_inverted, checked_positions
+from mjed.edge_blocks import edge_blocks_to_element_matrices
+from mjed.evaluation import CellEvaluation, Want
+from mjed.forcefield import HyperelasticForceField, checked_positions
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
+from mjed.sparse import EDGES
 
 __all__ = ["Prony", "ViscousHistory", "ViscoHyperelasticForceField", "prony_coefficients"]
 
@@ -145,11 +146,9 @@ class ViscoHyperelasticForceField:
         self.gammas = np.zeros((len(prony.alphas), self.mesh.n_cells, 3, 3))
         self.steps = 0
         self._saved: Optional[ViscousHistory] = None
-        self._cache: Optional[Tuple[np.ndarray, SoAEvaluation]] = None  # (x, evaluation) of the last accepted state
-        # Component-major copies for the engine's native layout (see mjed.engine): rest shape
-        # vectors (3, 4, m) and the cells transposed (4, m) for gathering positions.
+        self._cache: Optional[Tuple[np.ndarray, CellEvaluation]] = None  # (x, evaluation) of the last accepted state
+        # Rest shape vectors in the engine's component-major layout (3, 4, m) (mjed.layout).
         self._Dt = np.ascontiguousarray(self.mesh.D.transpose(2, 1, 0))
-        self._cells_t = np.ascontiguousarray(self.mesh.cells.T)
         self.dt: Optional[float] = None
         self._a = self._b = None
         if dt is not None:
@@ -196,18 +195,15 @@ class ViscoHyperelasticForceField:
     # ---------------------------------------------------------------- forces
     def force(self, x) -> np.ndarray:
         """Nodal forces of S_v at fixed history, (n, 3)."""
-        f = self.field.pattern.assemble_vector_layout(self._gradient_and_blocks(x, stiffness=False)[0], "kam")
-        return np.negative(f, out=f)
+        return self.field.assemble_force(self._gradient_and_blocks(x, stiffness=False)[0])
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Consistent tangent at fixed history, CSR (3n, 3n)."""
-        return self.field.pattern.assemble_edge_blocks(self._gradient_and_blocks(x, stiffness=True)[1], "rcem")
+        return self.field.assemble_stiffness(self._gradient_and_blocks(x, stiffness=True)[1])
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         grad, blocks = self._gradient_and_blocks(x, stiffness=True)
-        pattern = self.field.pattern
-        f = pattern.assemble_vector_layout(grad, "kam")
-        return np.negative(f, out=f), pattern.assemble_edge_blocks(blocks, "rcem")
+        return self.field.assemble_force(grad), self.field.assemble_stiffness(blocks)
 
     def element_forces(self, x) -> np.ndarray:
         """Per-cell nodal forces, (m, 4, 3)."""
@@ -251,17 +247,15 @@ class ViscoHyperelasticForceField:
             blocks[r, r] -= DQD
         return grad, blocks
 
-    def _hyperelastic(self, x: np.ndarray, stiffness: bool = True) -> SoAEvaluation:
+    def _hyperelastic(self, x: np.ndarray, stiffness: bool = True) -> CellEvaluation:
+        """The hyperelastic field's gradient, S_h and (if asked) edge blocks at x (fresh
+        arrays: the last accepted state's evaluation is kept and reused)."""
         if self._cache is not None and np.array_equal(self._cache[0], x):
             ev = self._cache[1]
             if ev.blocks is not None or not stiffness:
                 return ev
-        field = self.field
-        check = None if field.allow_inverted else refuse_inverted
-        x_t = np.take(np.ascontiguousarray(x.T), self._cells_t, axis=1)  # (3, 4, m)
-        # ln J and J^p are NaN for J <= 0: with allow_inverted that is the documented answer.
-        with np.errstate(invalid="ignore", divide="ignore") if field.allow_inverted else nullcontext():
-            return field.engine.evaluate_soa(x_t, stiffness=stiffness, check_J=check, pk2=True)
+        want = Want.GRADIENT | Want.STRESS | (Want.STIFFNESS if stiffness else Want(0))
+        return self.field.evaluate(x, want=want)
 
     def _coefficients(self):
         if self._a is None:

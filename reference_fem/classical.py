@@ -57,7 +57,7 @@ class ClassicalGalerkin:
         points: (n, 3) rest positions.
         cells: (m, 4) positively oriented P1 tetrahedra.
         material: an mjed material (StVenantKirchhoff, NeoHookean, MooneyRivlin,
-            VerondaWestmann, ArrudaBoyce, Costa, Ogden); dispatched on its class name and
+            VerondaWestmann, ArrudaBoyce, Costa, Ogden); dispatched on its type (classical_law) and
             read through its attributes. Ogden's ``tangent`` option is ignored (always exact).
         fix_orientation: passed to mjed.TetMesh.
 

@@ -12,7 +12,9 @@ invariants I1, I2, J and C^-1, the decoupled volumetric/isochoric split with the
 tensor P = II - 1/3 C^-1 (x) C for the isochoric laws, a spectral (eigenvalue) form for Ogden,
 and the Green-Lagrange strain in the fibre frame for Costa. It shares no code with the MJED
 term engine (mjed.terms, mjed.engine, mjed.fibre, mjed.spectral): it is the independent
-opponent MJED is compared against.
+opponent MJED is compared against. From mjed it takes only the material types (to dispatch
+on, see :func:`classical_law`) and the constants that define a material (the Arruda-Boyce
+series coefficients).
 
 Voigt order: I = 0..5 <-> (xx, yy, zz, xy, yz, xz). A symmetric tensor A is stored as the
 6-vector A[VI, VJ]. Fourth-order tensors with minor symmetries are stored as 6x6 matrices
@@ -23,7 +25,12 @@ engineering strain vector dE_eng = WEIGHT * dE_v this gives dS_v = CC_v @ dE_eng
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+
+from mjed.materials import ArrudaBoyce, Costa, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
 
 __all__ = [
     "VI",
@@ -266,13 +273,10 @@ class VerondaWestmannLaw(DecoupledInvariantLaw):
         return W, c1 * c2 * e, z - 0.5 * c1 * c2, c1 * c2 * c2 * e, z, z
 
 
-_ARRUDA_BOYCE_C = (1.0 / 2.0, 1.0 / 20.0, 11.0 / 1050.0, 19.0 / 7000.0, 519.0 / 673750.0)
-
-
 class ArrudaBoyceLaw(DecoupledInvariantLaw):
     def __init__(self, mu, k0, N=8.0):
         self.mu, self.k0, self.N = float(mu), float(k0), float(N)
-        self.coef = [self.mu * c * self.N ** (1 - i) for i, c in enumerate(_ARRUDA_BOYCE_C, start=1)]
+        self.coef = [self.mu * c * self.N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
 
     def psi(self, I1b, I2b):
         z = np.zeros_like(I1b)
@@ -416,24 +420,55 @@ class CostaLaw(ClassicalLaw):
         return S, CC
 
 
+@functools.singledispatch
 def classical_law(material) -> ClassicalLaw:
-    """The classical law of an mjed material (dispatch on the class name, parameters read as
-    attributes). An Ogden ``tangent`` attribute is ignored: this is always the exact Hessian."""
-    name = type(material).__name__
-    g = lambda *names: [getattr(material, n) for n in names]  # noqa: E731
-    if name == "StVenantKirchhoff":
-        return StVenantKirchhoffLaw(*g("mu", "lam"))
-    if name == "NeoHookean":
-        return NeoHookeanLaw(*g("mu", "lam"))
-    if name == "MooneyRivlin":
-        return MooneyRivlinLaw(*g("c1", "c2", "k0"))
-    if name == "VerondaWestmann":
-        return VerondaWestmannLaw(*g("c1", "c2", "k0"))
-    if name == "ArrudaBoyce":
-        return ArrudaBoyceLaw(material.mu, material.k0, getattr(material, "N", 8.0))
-    if name == "Ogden":
-        return OgdenLaw(*g("mu", "alpha", "k0"))
-    if name == "Costa":
-        return CostaLaw(material.a, material.k0, material.B, getattr(material, "frame", None))
-    raise TypeError(f"no classical law for material {name!r}")
+    """The classical law of an mjed material, dispatched on its type (parameters read as
+    attributes). Adding a material means registering one function here::
 
+        @classical_law.register
+        def _(material: MyMaterial) -> ClassicalLaw: ...
+
+    Raises:
+        TypeError: naming the type when no classical law is registered for it.
+    """
+    cls = type(material)
+    raise TypeError(
+        f"no classical law for material type {cls.__module__}.{cls.__qualname__}; register one with "
+        "reference_fem.classical_materials.classical_law.register"
+    )
+
+
+@classical_law.register
+def _(material: StVenantKirchhoff) -> ClassicalLaw:
+    return StVenantKirchhoffLaw(material.mu, material.lam)
+
+
+@classical_law.register
+def _(material: NeoHookean) -> ClassicalLaw:
+    return NeoHookeanLaw(material.mu, material.lam)
+
+
+@classical_law.register
+def _(material: MooneyRivlin) -> ClassicalLaw:
+    return MooneyRivlinLaw(material.c1, material.c2, material.k0)
+
+
+@classical_law.register
+def _(material: VerondaWestmann) -> ClassicalLaw:
+    return VerondaWestmannLaw(material.c1, material.c2, material.k0)
+
+
+@classical_law.register
+def _(material: ArrudaBoyce) -> ClassicalLaw:
+    return ArrudaBoyceLaw(material.mu, material.k0, material.N)
+
+
+@classical_law.register
+def _(material: Ogden) -> ClassicalLaw:
+    # The ``tangent`` option is ignored: the classical law is always the exact Hessian.
+    return OgdenLaw(material.mu, material.alpha, material.k0)
+
+
+@classical_law.register
+def _(material: Costa) -> ClassicalLaw:
+    return CostaLaw(material.a, material.k0, material.B, material.frame)

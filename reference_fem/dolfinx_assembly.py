@@ -32,7 +32,7 @@ class DolfinxAssembly:
     Args:
         points: (n, 3) rest positions.
         cells: (m, 4) positively oriented P1 tetrahedra.
-        material: an mjed material (its class name and attributes give W); Costa only with
+        material: an mjed material (its type picks W, its attributes are the parameters); Costa only with
             a constant frame (the timing study's default).
 
     Methods ``set_state``, ``assemble_residual``, ``assemble_jacobian`` and

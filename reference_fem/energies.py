@@ -1,10 +1,23 @@
-"""Strain energy densities W(F) written directly in UFL, one function per material.
+"""Strain energy densities W(F) written directly in UFL, one function per material type.
 
 This module is the "oracle" side of the verification: every energy is typed in from its
-formula in the project conventions (CONVENTIONS.md, "Strain energies W") and nothing else.
-It never imports the MJED term code; it only reads a material's *parameters* (attributes
-of the frozen dataclasses in ``mjed.materials``), dispatching on the class name so that any
-object with the right name and fields works (the tests use stand-ins).
+formula in the project conventions and nothing else. It never imports the MJED term code
+(mjed.terms, mjed.engine, mjed.fibre, mjed.spectral); it reads a material's *parameters*
+(attributes of the frozen dataclasses in ``mjed.materials``) and the constants that are part
+of a material's definition (the Arruda-Boyce series coefficients).
+
+Dispatch is on the material's type through a public registry: :func:`register_energy`
+declares the UFL energy of a type (subclasses inherit it), :func:`energy_formula` finds it,
+and :func:`strain_energy_density` builds the expression. Adding a material means one
+``@register_energy(MyMaterial)`` function here; another module may register its own types
+the same way (e.g. a user-written energy), without editing this file::
+
+    from reference_fem.energies import register_energy
+
+    @register_energy(MyMaterial)
+    def _my_energy(p, F, frame):
+        mu = p("mu")                      # a parameter, as it enters the formula
+        return 0.5 * mu * (ufl.tr(F.T * F) - 3.0)
 
 Each function follows the same layout: parameters, kinematics from F, then psi. ``F`` is a
 UFL 3x3 expression (F = I + grad u); the result is a scalar UFL expression, per unit rest
@@ -16,39 +29,60 @@ values and FFCx compiles each material type once, not once per parameter set.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Dict, NamedTuple, Optional
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Mapping, NamedTuple, Optional, Tuple
 
 import numpy as np
 import ufl
 
+from mjed.materials import ArrudaBoyce, Costa, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
 from reference_fem.ogden_eigen import sum_of_eigenvalue_powers
+from reference_fem.user_energy import UserEnergy
 
-__all__ = ["strain_energy_density", "supported_materials", "ARRUDA_BOYCE_COEFFICIENTS"]
+__all__ = [
+    "Parameters",
+    "EnergyFunction",
+    "EnergyFormula",
+    "register_energy",
+    "energy_formula",
+    "supported_materials",
+    "strain_energy_density",
+]
 
-# 8-chain series coefficients c_1..c_5 of the Arruda-Boyce energy.
-ARRUDA_BOYCE_COEFFICIENTS = (1.0 / 2.0, 1.0 / 20.0, 11.0 / 1050.0, 19.0 / 7000.0, 519.0 / 673750.0)
 
-
-class _Params:
+class Parameters:
     """A material's parameters, read by name: ``p.value(name)`` as a float (for checks),
-    ``p(name)`` as it enters the formula (a number, or what ``constant`` makes of it)."""
+    ``p(name)`` as it enters the formula (a number, or what ``constant`` makes of it).
 
-    def __init__(self, material: Any, constant: Optional[Callable[[Any], Any]]):
+    Args:
+        material: the material object (``p.material``).
+        constant: optional factory applied to every parameter (e.g. a dolfinx Constant).
+        overrides: parameter values used instead of the material's (e.g. ``{"k0": 0.0}`` to
+            drop a bulk term); the material itself is never changed.
+    """
+
+    def __init__(self, material: Any, constant: Optional[Callable[[Any], Any]] = None,
+                 overrides: Optional[Mapping[str, float]] = None):
         self.material = material
         self.constant = constant
+        self.overrides = dict(overrides or {})
 
     def value(self, name: str) -> float:
         m = self.material
-        if not hasattr(m, name):
-            raise ValueError(f"{type(m).__name__}: missing parameter {name!r}")
-        try:
-            v = float(getattr(m, name))
-        except (TypeError, ValueError):
+        label = type(m).__name__  # for messages only
+        if name in self.overrides:
+            got = self.overrides[name]
+        elif hasattr(m, name):
             got = getattr(m, name)
-            msg = f"{type(m).__name__}: parameter {name} must be a real number, got {got!r}"
-            raise ValueError(msg) from None
+        else:
+            raise ValueError(f"{label}: missing parameter {name!r}")
+        try:
+            v = float(got)
+        except (TypeError, ValueError):
+            raise ValueError(f"{label}: parameter {name} must be a real number, got {got!r}") from None
         if not math.isfinite(v):
-            raise ValueError(f"{type(m).__name__}: parameter {name} must be finite, got {v!r}")
+            raise ValueError(f"{label}: parameter {name} must be finite, got {v!r}")
         return v
 
     def wrap(self, value):
@@ -56,6 +90,94 @@ class _Params:
 
     def __call__(self, name: str):
         return self.wrap(self.value(name))
+
+
+#: f(p, F, frame) -> W: parameters, the deformation gradient (UFL 3x3) and the optional UFL
+#: frame (None unless the formula takes one).
+EnergyFunction = Callable[[Parameters, Any, Any], Any]
+
+
+@dataclass(frozen=True)
+class EnergyFormula:
+    """The registered UFL energy of one material type.
+
+    function: see :data:`EnergyFunction`. takes_frame: the formula accepts an explicit UFL
+    frame (one rotation per cell, which the oracle supplies as a DG0 tensor Function).
+    """
+
+    material_type: type
+    function: EnergyFunction
+    takes_frame: bool = False
+
+
+_REGISTRY: Dict[type, EnergyFormula] = {}
+
+
+def register_energy(material_type: type, *, takes_frame: bool = False) -> Callable[[EnergyFunction], EnergyFunction]:
+    """Decorator: declare ``function`` as the UFL energy of ``material_type`` (and of its
+    subclasses that have no energy of their own). Registering a type twice is an error, so
+    two modules cannot silently disagree on one material."""
+    if not isinstance(material_type, type):
+        raise TypeError(f"register_energy needs a type, got {material_type!r}")
+
+    def decorate(function: EnergyFunction) -> EnergyFunction:
+        if material_type in _REGISTRY:
+            raise ValueError(f"a UFL energy is already registered for {material_type.__qualname__}")
+        _REGISTRY[material_type] = EnergyFormula(material_type, function, takes_frame)
+        return function
+
+    return decorate
+
+
+def energy_formula(material_type: type) -> EnergyFormula:
+    """The registered formula of ``material_type`` or of its nearest registered base class.
+
+    Raises:
+        ValueError: naming the type when no UFL energy is registered for it.
+    """
+    for cls in material_type.__mro__:
+        if cls in _REGISTRY:
+            return _REGISTRY[cls]
+    known = ", ".join(t.__qualname__ for t in _REGISTRY)
+    raise ValueError(
+        f"no UFL energy for material type {material_type.__module__}.{material_type.__qualname__}; "
+        f"register one with reference_fem.energies.register_energy (registered: {known})"
+    )
+
+
+def supported_materials() -> Tuple[type, ...]:
+    """The material types with a registered UFL energy, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def strain_energy_density(
+    material: Any,
+    F: ufl.core.expr.Expr,
+    *,
+    frame: Optional[Any] = None,
+    constant: Optional[Callable[[Any], Any]] = None,
+    overrides: Optional[Mapping[str, float]] = None,
+) -> ufl.core.expr.Expr:
+    """W(F) per unit rest volume, as a scalar UFL expression.
+
+    Args:
+        material: an instance of a type with a registered energy (``mjed.materials``
+            dataclasses, or a type registered with :func:`register_energy`).
+        F: the deformation gradient, a UFL 3x3 expression.
+        frame: a UFL 3x3 rotation (columns fibre, sheet, normal) overriding the material's
+            ``frame``, for formulas registered with ``takes_frame`` (Costa); needed when the
+            material holds one rotation per cell.
+        constant: factory applied to every parameter (see :class:`Parameters`).
+        overrides: parameter values used instead of the material's, e.g. ``{"k0": 0.0}``.
+
+    Raises:
+        ValueError: no energy for the material's type, frame given to a formula that takes
+            none, missing or non-finite parameter.
+    """
+    formula = energy_formula(type(material))
+    if frame is not None and not formula.takes_frame:
+        raise ValueError(f"frame= is only meaningful for materials with a fibre frame, not {type(material).__qualname__}")
+    return formula.function(Parameters(material, constant, overrides), F, frame)
 
 
 class _Kinematics(NamedTuple):
@@ -88,25 +210,29 @@ def _kinematics(F: ufl.core.expr.Expr) -> _Kinematics:
     )
 
 
-def _stvk(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(StVenantKirchhoff)
+def _stvk(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     mu, lam = p("mu"), p("lam")
     E = _kinematics(F).E
     return 0.5 * lam * ufl.tr(E) ** 2 + mu * ufl.tr(E * E)
 
 
-def _neo_hookean(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(NeoHookean)
+def _neo_hookean(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     mu, lam = p("mu"), p("lam")
     k = _kinematics(F)
     return 0.5 * mu * (k.I1 - 3.0) - mu * k.lnJ + 0.5 * lam * k.lnJ ** 2
 
 
-def _mooney_rivlin(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(MooneyRivlin)
+def _mooney_rivlin(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     c1, c2, k0 = p("c1"), p("c2"), p("k0")
     k = _kinematics(F)
     return c1 * (k.I1b - 3.0) + c2 * (k.I2b - 3.0) + 0.5 * k0 * k.lnJ ** 2
 
 
-def _veronda_westmann(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(VerondaWestmann)
+def _veronda_westmann(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     c1, c2, k0 = p("c1"), p("c2"), p("k0")
     k = _kinematics(F)
     return (
@@ -116,9 +242,10 @@ def _veronda_westmann(p: _Params, F, frame) -> ufl.core.expr.Expr:
     )
 
 
-def _arruda_boyce(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(ArrudaBoyce)
+def _arruda_boyce(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     mu, k0 = p("mu"), p("k0")
-    N = p("N") if hasattr(p.material, "N") else p.wrap(8.0)
+    N = p("N")
     k = _kinematics(F)
     series = sum(
         c * N ** (1 - i) * (k.I1b ** i - 3.0**i)
@@ -127,12 +254,12 @@ def _arruda_boyce(p: _Params, F, frame) -> ufl.core.expr.Expr:
     return mu * series + 0.5 * k0 * k.lnJ ** 2
 
 
-def _costa_frame(p: _Params, frame) -> ufl.core.expr.Expr:
+def _costa_frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     """The fibre/sheet/normal frame R (columns): the explicit UFL ``frame``, else the
     material's constant (3, 3) ``frame``, else the identity."""
     if frame is not None:
         return frame
-    R = getattr(p.material, "frame", None)
+    R = p.material.frame
     if R is None:
         return ufl.Identity(3)
     R = np.asarray(R, dtype=np.float64)
@@ -144,7 +271,8 @@ def _costa_frame(p: _Params, frame) -> ufl.core.expr.Expr:
     )
 
 
-def _costa(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(Costa, takes_frame=True)
+def _costa(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     a, k0 = p("a"), p("k0")
     b = {n: p(n) for n in ("b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")}
     B = [
@@ -159,7 +287,8 @@ def _costa(p: _Params, F, frame) -> ufl.core.expr.Expr:
     return 0.5 * a * (ufl.exp(k.J ** (-4.0 / 3.0) * Q) - 1.0) + k0 * (k.J * k.lnJ - k.J + 1.0)
 
 
-def _ogden(p: _Params, F, frame) -> ufl.core.expr.Expr:
+@register_energy(Ogden)
+def _ogden(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     if p.value("alpha") == 0.0:
         raise ValueError("Ogden: parameter alpha must be non-zero")
     mu, alpha, k0 = p("mu"), p("alpha"), p("k0")
@@ -169,48 +298,7 @@ def _ogden(p: _Params, F, frame) -> ufl.core.expr.Expr:
     return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k.lnJ ** 2
 
 
-_DISPATCH: Dict[str, Callable[[_Params, Any, Any], ufl.core.expr.Expr]] = {
-    "StVenantKirchhoff": _stvk,
-    "NeoHookean": _neo_hookean,
-    "MooneyRivlin": _mooney_rivlin,
-    "VerondaWestmann": _veronda_westmann,
-    "ArrudaBoyce": _arruda_boyce,
-    "Costa": _costa,
-    "Ogden": _ogden,
-}
-
-
-def supported_materials() -> tuple:
-    """Names of the material classes the oracle knows, e.g. ``("StVenantKirchhoff", ...)``."""
-    return tuple(_DISPATCH)
-
-
-def strain_energy_density(
-    material: Any,
-    F: ufl.core.expr.Expr,
-    *,
-    frame: Optional[Any] = None,
-    constant: Optional[Callable[[Any], Any]] = None,
-) -> ufl.core.expr.Expr:
-    """W(F) per unit rest volume, as a scalar UFL expression.
-
-    Args:
-        material: an object whose class name is one of :func:`supported_materials` and
-            whose attributes are that material's parameters (``mjed.materials`` dataclasses).
-        F: the deformation gradient, a UFL 3x3 expression.
-        frame: Costa only: a UFL 3x3 rotation (columns fibre, sheet, normal) overriding the
-            material's ``frame``; needed when the material holds one rotation per cell.
-
-    Raises:
-        ValueError: unknown material class, missing or non-finite parameter.
-    """
-    name = type(material).__name__
-    try:
-        energy = _DISPATCH[name]
-    except KeyError:
-        raise ValueError(
-            f"no UFL energy for material class {name!r}; known: {', '.join(_DISPATCH)}"
-        ) from None
-    if frame is not None and name != "Costa":
-        raise ValueError(f"frame= is only meaningful for Costa, not {name}")
-    return energy(_Params(material, constant), F, frame)
+@register_energy(UserEnergy)
+def _user_energy(p: Parameters, F, frame) -> ufl.core.expr.Expr:
+    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py).
+    return p.material.ufl_density(F, constant=p.constant)

@@ -24,7 +24,6 @@ term is dropped: its k0 is set to zero).
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 from typing import Any, Tuple
 
 import numpy as np
@@ -66,13 +65,16 @@ def porous_energy_density(J, f_w: float, K0: float, K_lim: float, tangent: str =
     return ufl.conditional(ufl.gt(J, J0), U_log, U_lin)
 
 
-def _without_bulk(material: Any) -> Any:
-    """A stand-in with the same class name and parameters, but k0 = 0."""
+def _bulk_overrides(material: Any, mode: str) -> dict:
+    """Parameter overrides of the base material: none to add, k0 = 0 to replace its bulk term
+    (the material itself is not changed)."""
+    if mode == "add":
+        return {}
+    if mode != "replace":
+        raise ValueError(f"mode must be 'add' or 'replace', got {mode!r}")
     if not hasattr(material, "k0"):
-        raise ValueError(f"replace mode needs a material with a bulk modulus k0, not {type(material).__name__}")
-    params = {k: getattr(material, k) for k in vars(material) if not k.startswith("_")}
-    params["k0"] = 0.0
-    return type(type(material).__name__, (SimpleNamespace,), {})(**params)
+        raise ValueError(f"replace mode needs a material with a bulk modulus k0, not {type(material).__qualname__}")
+    return {"k0": 0.0}
 
 
 class PorousOracle:
@@ -103,7 +105,7 @@ class PorousOracle:
             law = [float(getattr(porous, k)) for k in ("f_w", "K0", "K_lim")]
             W = porous_energy_density(J, *law, getattr(porous, "tangent", "paper"))
         if base is not None:
-            W = W + strain_energy_density(base if mode == "add" else _without_bulk(base), F)
+            W = W + strain_energy_density(base, F, overrides=_bulk_overrides(base, mode))
         if porous is None and base is None and not with_pressure:
             raise ValueError("PorousOracle: nothing to assemble (no porous law, base material or pressure)")
         self._P = None

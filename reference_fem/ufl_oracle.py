@@ -18,10 +18,9 @@ import ufl
 
 from reference_fem import compat
 from reference_fem.distributed import ROOT, all_finite, collective, gather_csr, gather_rows, on_root
-from reference_fem.energies import strain_energy_density
+from reference_fem.energies import energy_formula, strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
-from reference_fem.user_energy import UserEnergy
 from reference_fem.validation import check_cells, check_frame, check_points, check_positions, signed_volumes
 
 __all__ = ["UFLOracle", "QUADRATURE_DEGREE"]
@@ -41,9 +40,8 @@ class UFLOracle:
     Args:
         points: (n, 3) rest positions X.
         cells: (m, 4) node indices of positively oriented P1 tetrahedra (input numbering).
-        material: object whose class name and attributes give the energy (see
-            :func:`reference_fem.strain_energy_density`), or a
-            :class:`reference_fem.user_energy.UserEnergy`; a Costa ``frame`` may be None,
+        material: an object whose type has a registered UFL energy and whose attributes are
+            its parameters (see :func:`reference_fem.energies.register_energy`); a Costa ``frame`` may be None,
             an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
         comm: MPI communicator; None for a serial oracle (MPI.COMM_SELF). With several
             ranks every rank constructs the oracle with the same material; the input and
@@ -74,10 +72,7 @@ class UFLOracle:
         F = ufl.Identity(3) + ufl.grad(self._u)
         # Parameters as dolfinx Constants: the generated code is then the same for every
         # parameter set of a material type, so FFCx's cache is hit after the first build.
-        if isinstance(material, UserEnergy):  # an energy written by the user (reference_fem/user_energy.py)
-            W = material.ufl_density(F, constant=self._constant)
-        else:
-            W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
+        W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
@@ -179,9 +174,9 @@ class UFLOracle:
         return compat.constant(self._mesh, value)
 
     def _cellwise_frame(self):
-        """Costa with one rotation per cell: a DG0 tensor Function holding them; else None
-        (a constant frame is read from the material by the energy itself)."""
-        if type(self._material).__name__ != "Costa":
+        """A fibre-frame material (Costa) with one rotation per cell: a DG0 tensor Function
+        holding them; else None (a constant frame is read from the material by the energy)."""
+        if not energy_formula(type(self._material)).takes_frame:
             return None
         frame = getattr(self._material, "frame", None)
         if frame is None or np.asarray(frame).shape == (3, 3):

@@ -36,7 +36,7 @@ class ViscousUFLOracle:
 
     Args:
         points: (n, 3) rest positions; cells: (m, 4) positively oriented P1 tetrahedra.
-        material: a material dataclass (its class name picks the UFL energy); a Costa frame
+        material: a material dataclass (its type picks the UFL energy); a Costa frame
             must be None or one constant rotation.
         alphas, taus: the Prony series (read as plain numbers).
     """

@@ -226,3 +226,16 @@ def test_matches_ufl_oracle(name, state):
     f, K = cl.force_and_stiffness(x)
     assert _rel(f, oracle.force(x)) <= TOL
     assert _rel(K, oracle.stiffness(x)) <= TOL
+
+
+def test_classical_law_dispatches_on_the_material_type():
+    # A subclass inherits its base's law; an unregistered type gets an error naming it.
+    class Softer(M.NeoHookean):
+        pass
+
+    C = np.diag([1.2, 0.9, 1.1])[None]
+    assert np.array_equal(classical_law(Softer(mu=1.0, lam=2.0)).stress(C),
+                          classical_law(M.NeoHookean(mu=1.0, lam=2.0)).stress(C))
+    Fake = type("NeoHookean", (), {"mu": 1.0, "lam": 2.0})  # the right name is not enough
+    with pytest.raises(TypeError, match=r"no classical law for material type .*NeoHookean"):
+        classical_law(Fake())

@@ -7,6 +7,7 @@ import mjed.materials as M
 from comparisons.cases import DEFAULT_MATERIALS
 from comparisons.closed_form import (
     ISOTROPIC,
+    has_closed_form,
     principal_cauchy,
     uniaxial_cauchy,
     uniaxial_reaction_check,
@@ -28,7 +29,7 @@ STIFF_BULK = 1e8  # k0 / mu: the compressible forms approach the incompressible 
     ids=lambda v: type(v).__name__ if not isinstance(v, float) else "",
 )
 def test_nearly_incompressible_limit_matches_published_uniaxial_stress(material, golden):
-    # Golden values (lambda = 1.4) of the incompressible closed forms, verification.md section 2.
+    # Golden values (lambda = 1.4) of the incompressible closed forms (textbook uniaxial stress).
     sigma, t = uniaxial_cauchy(material, 1.4)
     assert sigma == pytest.approx(golden, abs=2e-6)
     assert t == pytest.approx(1.4**-0.5, rel=1e-6)
@@ -54,7 +55,28 @@ def test_closed_form_refuses_anisotropic_and_bad_stretches():
         principal_cauchy(DEFAULT_MATERIALS["NeoHookean"], (1.1, -1.0, 1.0))
 
 
-@pytest.mark.parametrize("name", list(ISOTROPIC))
+def test_closed_forms_dispatch_on_the_material_type():
+    # Every isotropic default material has one, Costa has none, and a subclass inherits its base's.
+    assert {type(m) for m in DEFAULT_MATERIALS.values() if has_closed_form(m)} == set(ISOTROPIC)
+    assert set(ISOTROPIC) == {M.StVenantKirchhoff, M.NeoHookean, M.MooneyRivlin, M.VerondaWestmann,
+                              M.ArrudaBoyce, M.Ogden}
+
+    class Softer(M.NeoHookean):
+        pass
+
+    assert has_closed_form(Softer(mu=2.0, lam=5.0))
+    assert np.array_equal(principal_cauchy(Softer(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
+                          principal_cauchy(M.NeoHookean(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)))
+
+    class Unknown:  # not a material of this module: the error names its type
+        pass
+
+    assert not has_closed_form(Unknown())
+    with pytest.raises(ValueError, match="no closed form for .*Unknown"):
+        principal_cauchy(Unknown(), (1.1, 1.0, 1.0))
+
+
+@pytest.mark.parametrize("name", [n for n, m in DEFAULT_MATERIALS.items() if has_closed_form(m)])
 @pytest.mark.parametrize("stretch", [1.3, 0.8])
 def test_mjed_face_reaction_equals_analytic_cauchy_stress(name, stretch):
     # Interior nodes jittered: the faces stay planar, the cells are irregular.

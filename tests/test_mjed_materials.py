@@ -172,3 +172,50 @@ def test_sofa_tangent_error_report():
     errs = sofa_tangent_errors(mjed.TetMesh(points, cells), M.Ogden(1.0, 3.0, 5.0), ["rest", "triaxial", "random"])
     assert errs["rest"] < 1e-14
     assert 1e-6 < errs["triaxial"] < 0.1 and 1e-6 < errs["random"] < 0.1
+
+
+COSTA_VALID = dict(a=1.0, k0=1.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5)
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (dict(a=0.0), r"parameter a must be > 0"),
+        (dict(a=-2.0), r"parameter a must be > 0"),
+        (dict(k0=0.0), r"parameter k0 must be > 0 \(the bulk modulus"),
+        (dict(k0=-1.0), r"parameter k0 must be > 0"),
+        (dict(b_ff=-1.0), r"parameter b_ff must be >= 0, got -1.0: Q"),
+        (dict(b_fs=-0.1), r"parameter b_fs must be >= 0"),
+        (dict(b_nn=-1e-9), r"parameter b_nn must be >= 0"),
+        (dict(b_ff=0.0, b_fs=0.0, b_ss=0.0, b_fn=0.0, b_sn=0.0, b_nn=0.0), r"at least one of b_ff"),
+        (dict(b_sn=float("nan")), r"parameter b_sn must be a finite real number"),
+        (dict(a=float("inf")), r"parameter a must be a finite real number"),
+        (dict(k0="1.0"), r"parameter k0 must be a finite real number"),
+        (dict(b_ss=True), r"parameter b_ss must be a finite real number"),
+    ],
+)
+def test_costa_refuses_invalid_stiffness_parameters(change, message):
+    with pytest.raises(ValueError, match="Costa: " + message):
+        M.Costa(**{**COSTA_VALID, **change})
+    # The SOFA route refuses them the same way.
+    values = [{**COSTA_VALID, **change}[n] for n in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")]
+    if all(isinstance(v, float) for v in values):
+        with pytest.raises(ValueError, match="Costa: " + message):
+            M.from_sofa("Costa", values)
+
+
+def test_costa_accepts_zero_and_indefinite_b():
+    # Zero entries (no stiffening in that component) and an indefinite B matrix are valid: Q >= 0.
+    M.Costa(**{**COSTA_VALID, "b_fs": 0.0, "b_fn": 0.0})
+    M.Costa(**{**COSTA_VALID, "b_fs": 0.9, "b_ss": 0.5})
+
+
+def test_a_negative_b_would_lower_the_energy_below_rest():
+    # Why b_ij < 0 is refused: Q < 0 for a strain along that component alone.
+    from mjed.fibre import FibreQuadratic
+    from mjed.kinematics import Kinematics
+
+    B = np.array([[1.0, -0.3, 0.2], [-0.3, 0.8, 0.1], [0.2, 0.1, 0.5]])
+    g = FibreQuadratic(B, np.eye(3), split="eigen")
+    F = np.array([[[1.0, 0.05, 0.0], [0.05, 1.0, 0.0], [0.0, 0.0, 1.0]]])  # E nearly pure fs shear
+    assert g.value(Kinematics(F))[0] < 0.0

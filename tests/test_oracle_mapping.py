@@ -2,15 +2,15 @@
 
 They check the numbering maps (shuffled meshes), the rest state, symmetry, closed-form
 homogeneous deformations computed in NumPy from the same W, Ogden against its invariant
-forms, and finite differences. Materials are stand-in dataclasses defined here: the oracle
-dispatches on the class name, so these behave exactly like mjed's.
+forms, and finite differences. Materials are mjed's declarations (the oracle dispatches on
+their types and reads only their parameters, never mjed's term code).
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Callable
 
 import numpy as np
 import pytest
@@ -23,66 +23,23 @@ import scipy.sparse as sp  # noqa: E402
 import scipy.sparse.linalg  # noqa: E402,F401  (sp.linalg.norm)
 import ufl  # noqa: E402
 
+from mjed.materials import (  # noqa: E402
+    ArrudaBoyce,
+    Costa,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    StVenantKirchhoff,
+    VerondaWestmann,
+)
 from reference_fem import UFLOracle, dolfinx_available, strain_energy_density  # noqa: E402
+from reference_fem.energies import energy_formula, register_energy, supported_materials  # noqa: E402
 from reference_fem.sparse_map import CSRRenumbering  # noqa: E402
 
 pytestmark = pytest.mark.oracle
 
 
-# -- stand-in materials (same names and fields as mjed.materials) ------------------------
-@dataclass(frozen=True)
-class StVenantKirchhoff:
-    mu: float
-    lam: float
-
-
-@dataclass(frozen=True)
-class NeoHookean:
-    mu: float
-    lam: float
-
-
-@dataclass(frozen=True)
-class MooneyRivlin:
-    c1: float
-    c2: float
-    k0: float
-
-
-@dataclass(frozen=True)
-class VerondaWestmann:
-    c1: float
-    c2: float
-    k0: float
-
-
-@dataclass(frozen=True)
-class ArrudaBoyce:
-    mu: float
-    k0: float
-    N: float = 8.0
-
-
-@dataclass(frozen=True, eq=False)
-class Costa:
-    a: float
-    k0: float
-    b_ff: float
-    b_fs: float
-    b_ss: float
-    b_fn: float
-    b_sn: float
-    b_nn: float
-    frame: Optional[np.ndarray] = None
-
-
-@dataclass(frozen=True)
-class Ogden:
-    mu: float
-    alpha: float
-    k0: float
-
-
+# -- materials (mjed's declarations: the oracle dispatches on their types) ---------------
 COSTA = dict(a=1.0, k0=5.0, b_ff=8.0, b_fs=4.0, b_ss=3.0, b_fn=4.0, b_sn=2.0, b_nn=3.0)
 MATERIALS = {
     "StVenantKirchhoff": StVenantKirchhoff(mu=1.0, lam=2.0),
@@ -446,20 +403,39 @@ def test_invalid_inputs_raise_clear_errors(mesh, oracles):
         o.force(x)
 
 
-def test_mjed_material_classes_dispatch(mesh, oracles):
-    """The real mjed dataclasses, where they exist, give the same energies as the stand-ins."""
-    materials = pytest.importorskip("mjed.materials", reason="mjed.materials not importable yet")
-    x = deformed(mesh[0])
-    checked = 0
-    for name, stand_in in MATERIALS.items():
-        cls = getattr(materials, name, None)
-        if cls is None:
-            continue
-        fields = {f.name: getattr(stand_in, f.name) for f in dataclasses.fields(stand_in)}
-        o = UFLOracle(*mesh, cls(**fields))
-        assert o.energy(x) == pytest.approx(oracles[name].energy(x), rel=1e-14)
-        checked += 1
-    assert checked > 0
+def test_energy_registry_dispatches_on_type():
+    # Every material mjed declares has exactly one UFL energy; a subclass inherits its base's.
+    assert set(supported_materials()) >= {type(m) for m in MATERIALS.values()}
+    assert energy_formula(Costa).takes_frame and not energy_formula(NeoHookean).takes_frame
+
+    @dataclass(frozen=True)
+    class Stiffer(NeoHookean):
+        pass
+
+    F = ufl.Identity(3)
+    assert energy_formula(Stiffer) is energy_formula(NeoHookean)
+    assert strain_energy_density(Stiffer(mu=1.0, lam=2.0), F) is not None
+
+    # A type with the right class name but not registered is refused, naming the type.
+    Fake = type("NeoHookean", (), {"mu": 1.0, "lam": 2.0})
+    with pytest.raises(ValueError, match=r"no UFL energy for material type .*NeoHookean; register one"):
+        strain_energy_density(Fake(), F)
+    with pytest.raises(ValueError, match="already registered"):
+        register_energy(NeoHookean)(lambda p, F, frame: None)
+    with pytest.raises(TypeError, match="needs a type"):
+        register_energy("NeoHookean")
+
+
+def test_overrides_replace_a_parameter_without_changing_the_material(mesh):
+    # k0 = 0 drops MooneyRivlin's bulk term: W(F) = c1 (I1b - 3) + c2 (I2b - 3) at a homogeneous F.
+    m = MATERIALS["MooneyRivlin"]
+    A = np.array([[1.2, 0.1, 0.0], [0.0, 0.9, 0.05], [0.02, 0.0, 1.1]])
+    W = strain_energy_density(m, ufl.as_matrix(A.tolist()), overrides={"k0": 0.0})
+    J, C = np.linalg.det(A), A.T @ A
+    I1, I2 = np.trace(C), 0.5 * (np.trace(C) ** 2 - np.trace(C @ C))
+    expected = m.c1 * (J ** (-2 / 3) * I1 - 3.0) + m.c2 * (J ** (-4 / 3) * I2 - 3.0)
+    assert float(W) == pytest.approx(expected, rel=1e-13)
+    assert m.k0 == 5.0
 
 
 def test_helpers():
@@ -468,5 +444,8 @@ def test_helpers():
     assert strain_energy_density(MATERIALS["NeoHookean"], F) is not None
     with pytest.raises(ValueError, match="frame"):
         strain_energy_density(MATERIALS["NeoHookean"], F, frame=ufl.Identity(3))
+    # mjed refuses alpha = 0 on construction; the oracle's own guard is reached by forcing it.
+    zero_alpha = Ogden(1.0, 1.0, 1.0)
+    object.__setattr__(zero_alpha, "alpha", 0.0)
     with pytest.raises(ValueError, match="alpha"):
-        strain_energy_density(Ogden(1.0, 0.0, 1.0), F)
+        strain_energy_density(zero_alpha, F)

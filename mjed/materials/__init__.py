@@ -2,7 +2,7 @@
 
 Every material is a frozen dataclass of its parameters, validated on construction, with a
 ``decomposition()`` method returning its term groups (see :mod:`mjed.terms`). The strain
-energies are those of the project conventions (zero at rest):
+energies (zero at rest) are:
 
     StVenantKirchhoff   lam/2 (tr E)^2 + mu tr(E^2)
     NeoHookean          mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2
@@ -20,6 +20,7 @@ from mjed.materials.isotropic import (
     StVenantKirchhoff,
     VerondaWestmann,
     Ogden,
+    ARRUDA_BOYCE_COEFFICIENTS,
 )
 from mjed.materials.anisotropic import Costa
 from mjed.materials.sofa import from_sofa
@@ -35,4 +36,5 @@ __all__ = [
     "Costa",
     "Ogden",
     "from_sofa",
+    "ARRUDA_BOYCE_COEFFICIENTS",
 ]

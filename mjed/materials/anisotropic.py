@@ -7,10 +7,12 @@ from typing import Optional
 
 import numpy as np
 
-from mjed.materials.base import Material, require_finite, require_positive
+from mjed.materials.base import Material, require_finite
 from mjed.terms import JLogJ, JPower, Term, TermGroup, Unity
 
 __all__ = ["Costa"]
+
+_B_NAMES = ("b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
 
 
 @dataclass(frozen=True, eq=False)
@@ -21,6 +23,21 @@ class Costa(Material):
     sheet, normal): None for the global axes (SOFA's choice), one (3, 3) rotation, or one per
     cell (m, 3, 3). split: how B is written as a signed sum of rank-one terms for the tangent,
     "ldl" (SOFA's signed Cholesky, refuses a zero pivot) or "eigen" (always exists).
+
+    Valid parameters (anything else raises ValueError naming the parameter and the reason):
+
+    - every parameter a finite real number;
+    - a > 0: a scales the whole fibre energy; a = 0 removes all resistance to isochoric
+      deformation and a < 0 makes every strain lower the energy;
+    - k0 > 0: the bulk modulus of k0 (J ln J - J + 1), the only resistance to volume change;
+    - every b_ij >= 0: the six components of Ef are independent, so Q = sum B_ij Ef_ij^2 is
+      >= 0 for every strain exactly when every b_ij is; a negative b_ij lets the strain
+      component Ef_ij alone bring the energy below its rest value (the rest state would not
+      be a minimum);
+    - at least one b_ij > 0: with all six zero, Q = 0 and the body resists no isochoric
+      deformation at all.
+
+    (B itself may be an indefinite matrix: Q is an entrywise weighting, not x^T B x.)
     """
 
     a: float
@@ -35,8 +52,22 @@ class Costa(Material):
     split: str = "ldl"
 
     def __post_init__(self):
-        require_positive(self, "a", "k0")
-        require_finite(self, "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+        require_finite(self, "a", "k0", *_B_NAMES)
+        if self.a <= 0:
+            raise ValueError(f"Costa: parameter a must be > 0 (it scales the fibre energy a/2 (exp(J^(-4/3) Q) - 1); "
+                             f"a <= 0 leaves no resistance to isochoric deformation or reverses it), got {self.a!r}")
+        if self.k0 <= 0:
+            raise ValueError(f"Costa: parameter k0 must be > 0 (the bulk modulus, the only resistance to volume "
+                             f"change), got {self.k0!r}")
+        for name in _B_NAMES:
+            if getattr(self, name) < 0:
+                raise ValueError(
+                    f"Costa: parameter {name} must be >= 0, got {getattr(self, name)!r}: Q = sum B_ij Ef_ij^2 would "
+                    f"be negative for a strain along that component alone, bringing the energy below its rest value"
+                )
+        if all(getattr(self, name) == 0 for name in _B_NAMES):
+            raise ValueError("Costa: at least one of b_ff, b_fs, b_ss, b_fn, b_sn, b_nn must be > 0 "
+                             "(with all zero Q = 0: no resistance to isochoric deformation)")
         if self.frame is not None:
             R = np.array(self.frame, dtype=float)
             if R.shape[-2:] != (3, 3) or R.ndim not in (2, 3):

@@ -1,4 +1,4 @@
-"""Isotropic materials as MJED terms (materials.md, section 2; energies in CONVENTIONS.md).
+"""Isotropic materials as MJED terms (their energies are listed in mjed/materials/__init__.py).
 
 Each decomposition is written so that W = 0 at rest: the constant that makes it so is folded
 into the volumetric term's f(J), as in the MJED plugin.
@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from mjed.materials.base import Material, require_finite, require_positive
 from mjed.terms import GreenLagrangeQuadratic, I1Power, JPower, LinearI2, LogPolynomial, Term, TermGroup, Unity
 
-__all__ = ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann", "ArrudaBoyce", "Ogden"]
+__all__ = ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann", "ArrudaBoyce", "Ogden",
+           "ARRUDA_BOYCE_COEFFICIENTS"]
 
 # Isochoric invariants: I1b = J^(-2/3) I1 and I2b = J^(-4/3) I2.
 _ISO1 = JPower(-2.0 / 3.0)
@@ -118,8 +119,9 @@ class VerondaWestmann(Material):
         )
 
 
-# Coefficients of the five-term inverse-Langevin (8-chain) series.
-ARRUDA_BOYCE_C = (1.0 / 2.0, 1.0 / 20.0, 11.0 / 1050.0, 19.0 / 7000.0, 519.0 / 673750.0)
+#: Coefficients c_1..c_5 of the five-term inverse-Langevin (8-chain) series of the
+#: Arruda-Boyce energy: part of the material's definition, shared by every formula of it.
+ARRUDA_BOYCE_COEFFICIENTS = (1.0 / 2.0, 1.0 / 20.0, 11.0 / 1050.0, 19.0 / 7000.0, 519.0 / 673750.0)
 
 
 @dataclass(frozen=True)
@@ -135,7 +137,7 @@ class ArrudaBoyce(Material):
 
     def decomposition(self):
         mu, N = self.mu, self.N
-        coeffs = [mu * c * N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_C, start=1)]
+        coeffs = [mu * c * N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
         deviatoric = tuple(Term(JPower(-2.0 * i / 3.0), I1Power(a, i)) for i, a in enumerate(coeffs, start=1))
         rest = sum(a * 3.0**i for i, a in enumerate(coeffs, start=1))
         volumetric = Term(LogPolynomial(0.5 * self.k0, 0.0, -rest), Unity())

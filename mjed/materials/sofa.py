@@ -1,7 +1,7 @@
 """Import of SOFA material declarations (materialName + ParameterSet).
 
 SOFA's hyperelastic force fields take a material name and a flat list of reals whose order
-depends on the material (CONVENTIONS.md). Ogden's order changed in SOFA's December 2025
+depends on the material (SOFA_PARAMETER_ORDER below). Ogden's order changed in SOFA's December 2025
 rewrite: [mu, alpha, k0] since then ("sofa"), [k0, mu, alpha] in the MJED plugin and older
 SOFA ("mjed").
 """
@@ -29,6 +29,8 @@ SOFA_PARAMETER_ORDER: Dict[str, Tuple[Callable[..., Material], Tuple[str, ...]]]
     "Ogden": (Ogden, ("mu", "alpha", "k0")),
 }
 _OGDEN_MJED_ORDER = ("k0", "mu", "alpha")
+#: Other spellings accepted for a SOFA name.
+_SOFA_ALIASES = {"VerondaWestmann": "VerondaWestman"}
 
 
 def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order: str = "sofa") -> Material:
@@ -45,17 +47,17 @@ def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order
         ValueError: unknown name, wrong parameter count (the message lists the expected
             parameters), non-numeric values, or parameters the material refuses.
     """
-    key = "VerondaWestman" if name == "VerondaWestmann" else name
+    key = _SOFA_ALIASES.get(name, name)
     if key not in SOFA_PARAMETER_ORDER:
         raise ValueError(f"unknown SOFA material {name!r}; supported: {', '.join(SOFA_PARAMETER_ORDER)}")
     if ogden_order not in ("sofa", "mjed"):
         raise ValueError(f"ogden_order must be 'sofa' or 'mjed', got {ogden_order!r}")
     cls, order = SOFA_PARAMETER_ORDER[key]
-    if key == "Ogden" and ogden_order == "mjed":
+    if cls is Ogden and ogden_order == "mjed":
         order = _OGDEN_MJED_ORDER
     values = _parse(parameter_set, key)
     if len(values) != len(order):
-        which = f" with ogden_order={ogden_order!r}" if key == "Ogden" else ""
+        which = f" with ogden_order={ogden_order!r}" if cls is Ogden else ""
         raise ValueError(
             f"SOFA {key}{which} expects {len(order)} parameters [{', '.join(order)}], "
             f"got {len(values)}: {list(values)}"
