@@ -1,0 +1,534 @@
+"""Numba kernels: the MJED per-element kernel over a lowered term table, and the pieces the
+compiled classical Galerkin shares (3x3 symmetric eigen-decomposition, CSR block positions,
+scatter of element blocks).
+
+Importing this module imports Numba; :mod:`mjed.compiled` imports it only when a compiled
+field is built. Every kernel is serial (one thread): the scatter into the shared CSR array
+then needs no atomics, and the comparison with the classical kernel stays like for like.
+``error_model="numpy"`` gives IEEE results (NaN for ln J at J <= 0) instead of Python
+exceptions inside the kernel; the caller checks J afterwards.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["eigh3", "block_positions", "scatter_edge_blocks", "mjed_cells"]
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy")
+
+# The six edges (a, b), a < b, in mjed.sparse.EDGES order.
+_EA = np.array([0, 0, 0, 1, 1, 2])
+_EB = np.array([1, 2, 3, 2, 3, 3])
+
+
+# ------------------------------------------------------------------ shared pieces
+@njit(**_JIT)
+def eigh3(A, lam, V):
+    """Eigenvalues lam (3,) and eigenvectors V (3, 3) (columns) of the symmetric A (3, 3),
+    by cyclic Jacobi rotations (accurate to round-off in every eigenvector; A is not changed)."""
+    a = A.copy()
+    for i in range(3):
+        for j in range(3):
+            V[i, j] = 1.0 if i == j else 0.0
+    scale = abs(a[0, 0]) + abs(a[1, 1]) + abs(a[2, 2]) + 1e-300
+    for _sweep in range(60):
+        off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+        if off <= (1e-18 * scale) ** 2:
+            break
+        for p, q in ((0, 1), (0, 2), (1, 2)):
+            apq = a[p, q]
+            if apq == 0.0:
+                continue
+            theta = (a[q, q] - a[p, p]) / (2.0 * apq)
+            t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+            if theta < 0.0:
+                t = -t
+            c = 1.0 / math.sqrt(t * t + 1.0)
+            s = t * c
+            for k in range(3):
+                akp, akq = a[k, p], a[k, q]
+                a[k, p] = c * akp - s * akq
+                a[k, q] = s * akp + c * akq
+            for k in range(3):
+                apk, aqk = a[p, k], a[q, k]
+                a[p, k] = c * apk - s * aqk
+                a[q, k] = s * apk + c * aqk
+            a[p, q] = 0.0
+            a[q, p] = 0.0
+            for k in range(3):
+                vkp, vkq = V[k, p], V[k, q]
+                V[k, p] = c * vkp - s * vkq
+                V[k, q] = s * vkp + c * vkq
+    for i in range(3):
+        lam[i] = a[i, i]
+
+
+@njit(**_JIT)
+def block_positions(cells, indptr, indices):
+    """Where node block (a, b) of every cell starts in the CSR data array, and the row
+    length of node a's rows: entry (r, c) of the block is at base[m, a, b] + r * rowlen[m, a] + c.
+
+    cells (m, 4); indptr, indices: a CSR pattern with 3x3 node blocks and sorted columns.
+    Returns base (m, 4, 4) and rowlen (m, 4), int64.
+    """
+    m = cells.shape[0]
+    base = np.empty((m, 4, 4), dtype=np.int64)
+    rowlen = np.empty((m, 4), dtype=np.int64)
+    for e in range(m):
+        for a in range(4):
+            row = 3 * cells[e, a]
+            lo, hi = indptr[row], indptr[row + 1]
+            rowlen[e, a] = hi - lo
+            for b in range(4):
+                col = 3 * cells[e, b]
+                i, j = lo, hi
+                while i < j:  # binary search of the sorted columns
+                    mid = (i + j) // 2
+                    if indices[mid] < col:
+                        i = mid + 1
+                    else:
+                        j = mid
+                base[e, a, b] = i
+    return base, rowlen
+
+
+@njit(**_JIT)
+def scatter_edge_blocks(data, base, rowlen, e, K, V0):
+    """Add V0 times the edge blocks K (6, 3, 3) of cell e, their transposes and the node
+    blocks K_aa = -sum_b K_ab (translation invariance) into the CSR data array."""
+    Kd = np.zeros((4, 3, 3))
+    for k in range(6):
+        a, b = _EA[k], _EB[k]
+        pa = base[e, a, b]
+        pb = base[e, b, a]
+        la, lb = rowlen[e, a], rowlen[e, b]
+        for r in range(3):
+            for c in range(3):
+                v = V0 * K[k, r, c]
+                data[pa + r * la + c] += v
+                data[pb + c * lb + r] += v
+                Kd[a, r, c] -= v
+                Kd[b, c, r] -= v
+    for a in range(4):
+        p = base[e, a, a]
+        la = rowlen[e, a]
+        for r in range(3):
+            for c in range(3):
+                data[p + r * la + c] += Kd[a, r, c]
+
+
+# ------------------------------------------------------------------ the functions of J
+@njit(**_JIT)
+def _jfunction(kind, p, J):
+    """f, f', f'' of the J-function of code ``kind`` (mjed.compiled.lowering.J_KINDS)."""
+    if kind == 0:  # JPower
+        q = p[0]
+        if q == 0.0:
+            return 1.0, 0.0, 0.0
+        Jp2 = J ** (q - 2.0)
+        return Jp2 * J * J, q * Jp2 * J, q * (q - 1.0) * Jp2
+    L = math.log(J)
+    if kind == 1:  # LogPolynomial
+        a2, a1, a0 = p[0], p[1], p[2]
+        return (a2 * L + a1) * L + a0, (2.0 * a2 * L + a1) / J, (2.0 * a2 * (1.0 - L) - a1) / (J * J)
+    k, c = p[0], p[1]  # JLogJ
+    return k * (J * L - J + 1.0) + c, k * L, k / J
+
+
+# ------------------------------------------------------------------ the invariant functions
+@njit(**_JIT)
+def _divided_differences(lam, p, theta):
+    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1), symmetrised (as
+    mjed.spectral.power_divided_differences)."""
+    for n in range(3):
+        for l in range(3):
+            x = (lam[n] - lam[l]) / lam[l]
+            if abs(x) < 1e-12:
+                ratio = p * (1.0 + 0.5 * (p - 1.0) * x)
+            else:
+                ratio = math.expm1(p * math.log1p(x)) / x
+            theta[n, l] = lam[l] ** (p - 1.0) * ratio
+    for n in range(3):
+        for l in range(n + 1, 3):
+            s = 0.5 * (theta[n, l] + theta[l, n])
+            theta[n, l] = s
+            theta[l, n] = s
+
+
+@njit(**_JIT)
+def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
+    """g of the invariant function of code ``kind`` (mjed.compiled.lowering.G_KINDS); writes
+    S = 2 dg/dC into S (3, 3), the tangent coefficients into coef and, for the spectral
+    kind, theta (3, 3). Returns (g, has_stress). W1, W2: (3, 3) scratch."""
+    if kind == 0:  # Unity
+        return 1.0, False
+    if kind == 1:  # I1Power: c I1^n
+        c, n = p[0], p[1]
+        s = 2.0 * c * n * I1 ** (n - 1.0)
+        for i in range(3):
+            for j in range(3):
+                S[i, j] = s if i == j else 0.0
+        if n >= 2.0:
+            coef[0] = 2.0 * c * n * (n - 1.0) * I1 ** (n - 2.0)
+        return c * I1 ** n, True
+    if kind == 2:  # LinearI2: c I2
+        c = p[0]
+        for i in range(3):
+            for j in range(3):
+                S[i, j] = 2.0 * c * ((I1 if i == j else 0.0) - C[i, j])
+        coef[0] = 2.0 * c
+        coef[1] = -2.0 * c
+        return c * I2, True
+    if kind == 3:  # GreenLagrangeQuadratic
+        mu, lm = p[0], p[1]
+        trE = 0.5 * (C[0, 0] + C[1, 1] + C[2, 2]) - 1.5
+        EE = 0.0
+        for i in range(3):
+            for j in range(3):
+                Eij = 0.5 * (C[i, j] - (1.0 if i == j else 0.0))
+                EE += Eij * Eij
+                S[i, j] = 2.0 * mu * Eij + (lm * trE if i == j else 0.0)
+        coef[0] = 0.5 * lm
+        coef[1] = mu
+        return 0.5 * lm * trE * trE + mu * EE, True
+    if kind == 4:  # FibreQuadratic: sum B_ij (R^T E R)_ij^2; W1 = E R, W2 = B o (R^T E R)
+        for i in range(3):
+            for j in range(3):
+                acc = 0.0
+                for k in range(3):
+                    acc += 0.5 * (C[i, k] - (1.0 if i == k else 0.0)) * R[k, j]
+                W1[i, j] = acc
+        g = 0.0
+        for i in range(3):
+            for j in range(3):
+                ef = 0.0
+                for k in range(3):
+                    ef += R[k, i] * W1[k, j]
+                b = p[3 * i + j]
+                g += b * ef * ef
+                W2[i, j] = b * ef
+        for i in range(3):  # S = 2 R W2 R^T
+            for j in range(3):
+                acc = 0.0
+                for k in range(3):
+                    for l in range(3):
+                        acc += R[i, k] * W2[k, l] * R[j, l]
+                S[i, j] = 2.0 * acc
+        for t in range(3):
+            coef[t] = p[9 + t]
+        return g, True
+    # EigenPowerSum: c sum lam^q
+    c, q, mode = p[0], p[1], p[2]
+    g = 0.0
+    for n in range(3):
+        g += lam[n] ** q
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for n in range(3):
+                acc += V[i, n] * lam[n] ** (q - 1.0) * V[j, n]
+            S[i, j] = 2.0 * c * q * acc
+    pp = q - 1.0
+    if mode == 0.0:
+        _divided_differences(lam, pp, theta)
+    else:
+        for n in range(3):
+            for l in range(3):
+                theta[n, l] = pp * lam[n] ** (0.5 * (pp - 1.0)) * lam[l] ** (0.5 * (pp - 1.0))
+    for n in range(3):
+        for l in range(3):
+            theta[n, l] *= 2.0 * c * q
+    return c * g, True
+
+
+# ------------------------------------------------------------------ the MJED kernel
+@njit(**_JIT)
+def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslot, group_start, group_exp,
+               group_coef, slot_kind, slot_ident, slot_M, slot_DMD, need_eig, regularize, want_force,
+               want_stiffness, base, rowlen, force, data, J_out):
+    """Energy, forces and stiffness of every cell by MJED, from the term table.
+
+    x (n, 3) positions; cells (m, 4); D (m, 4, 3); V0 (m,); the term table of
+    mjed.compiled.lowering.TermTable; base, rowlen: block positions in the CSR data array.
+    Adds -dW/dx into ``force`` (n, 3) if want_force and d2W/dx2 into ``data`` (nnz,) if
+    want_stiffness; writes J per cell into J_out (m,). Returns the total energy.
+
+    Per cell, with u, S-bar, S-hat, h, g2 and the slot weights summed over the terms of each
+    group and the groups folded in with weight c (plain) or c e^u (exponential), as in
+    mjed/engine.py: gradient_a = F S-bar D_a + h d_a and the six edge blocks
+      (D_a . S-bar D_b) Id + first: 2 w (F A D_a)(x)(F A D_b)
+      + second: w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers
+      + d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c e^u du_a (x) du_b
+      + h eps (F (D_a x D_b)),
+    then the node blocks by translation invariance, scattered into the CSR array.
+    """
+    m = cells.shape[0]
+    T = jkind.shape[0]
+    G = group_exp.shape[0]
+    nS = slot_kind.shape[0]
+    per_cell_M = slot_M.shape[1] > 1
+    per_cell_R = gmat.shape[1] > 1
+    F = np.empty((3, 3))
+    cof = np.empty((3, 3))
+    C = np.empty((3, 3))
+    lam = np.zeros(3)
+    V = np.eye(3)
+    Sk = np.empty((3, 3))
+    coef = np.zeros(3)
+    theta_k = np.zeros((3, 3))
+    W1 = np.empty((3, 3))
+    W2 = np.empty((3, 3))
+    Sg = np.empty((3, 3))
+    Shg = np.empty((3, 3))
+    thg = np.empty((3, 3))
+    wg = np.empty(nS)
+    St = np.empty((3, 3))
+    Sh = np.empty((3, 3))
+    th = np.empty((3, 3))
+    w = np.empty(nS)
+    du = np.empty((G, 4, 3))
+    escale = np.empty(G)
+    d = np.empty((4, 3))
+    grad = np.empty((4, 3))
+    FSh = np.empty((4, 3))
+    Gs = np.empty((nS, 4, 3))
+    FMF = np.empty((nS, 3, 3))
+    wn = np.empty((3, 3))  # [n, i] = (F v_n)_i
+    cn = np.empty((3, 4))  # [n, a] = v_n . D_a
+    K = np.empty((6, 3, 3))
+    MD = np.empty(3)
+    energy = 0.0
+    for e in range(m):
+        # ---- kinematics
+        for i in range(3):
+            for j in range(3):
+                acc = 0.0
+                for a in range(4):
+                    acc += x[cells[e, a], i] * D[e, a, j]
+                F[i, j] = acc
+        for i in range(3):
+            i1, i2 = (i + 1) % 3, (i + 2) % 3
+            for j in range(3):
+                j1, j2 = (j + 1) % 3, (j + 2) % 3
+                cof[i, j] = F[i1, j1] * F[i2, j2] - F[i1, j2] * F[i2, j1]
+        J = F[0, 0] * cof[0, 0] + F[1, 0] * cof[1, 0] + F[2, 0] * cof[2, 0]
+        J_out[e] = J
+        for i in range(3):
+            for j in range(3):
+                C[i, j] = F[0, i] * F[0, j] + F[1, i] * F[1, j] + F[2, i] * F[2, j]
+        I1 = C[0, 0] + C[1, 1] + C[2, 2]
+        CC = 0.0
+        for i in range(3):
+            for j in range(3):
+                CC += C[i, j] * C[i, j]
+        I2 = 0.5 * (I1 * I1 - CC)
+        if need_eig:
+            eigh3(C, lam, V)
+
+        # ---- terms, groups
+        St[:] = 0.0
+        Sh[:] = 0.0
+        th[:] = 0.0
+        w[:] = 0.0
+        h = 0.0
+        g2 = 0.0
+        has_S = False
+        has_Sh = False
+        has_th = False
+        e_cell = 0.0
+        for grp in range(G):
+            u = 0.0
+            hg = 0.0
+            g2g = 0.0
+            Sg[:] = 0.0
+            Shg[:] = 0.0
+            thg[:] = 0.0
+            wg[:] = 0.0
+            for t in range(group_start[grp], group_start[grp + 1]):
+                f, df, d2f = _jfunction(jkind[t], jpar[t], J)
+                R = gmat[t, e] if per_cell_R else gmat[t, 0]
+                g, stressed = _invariant(gkind[t], gpar[t], R, C, I1, I2, lam, V, Sk, coef, theta_k, W1, W2)
+                u += f * g
+                hg += df * g
+                g2g += d2f * g
+                if stressed:
+                    has_S = True
+                    if df != 0.0:
+                        has_Sh = True
+                    for i in range(3):
+                        for j in range(3):
+                            Sg[i, j] += f * Sk[i, j]
+                            Shg[i, j] += df * Sk[i, j]
+                for pr in range(npair[t]):
+                    s = tslot[t, pr]
+                    if slot_kind[s] == 2:
+                        has_th = True
+                        for i in range(3):
+                            for j in range(3):
+                                thg[i, j] += f * theta_k[i, j]
+                    else:
+                        wg[s] += f * coef[pr]
+            if group_exp[grp] == 1:
+                scale = group_coef[grp] * math.exp(u)
+                e_cell += scale
+                if want_stiffness:  # du_a = F S_g D_a + h_g d_a, d_a = cof D_a
+                    for a in range(4):
+                        for i in range(3):
+                            acc = 0.0
+                            for j in range(3):
+                                FS = 0.0
+                                for k in range(3):
+                                    FS += F[i, k] * Sg[k, j]
+                                acc += FS * D[e, a, j] + hg * cof[i, j] * D[e, a, j]
+                            du[grp, a, i] = acc
+                escale[grp] = scale
+            else:
+                scale = group_coef[grp]
+                e_cell += scale * u
+                escale[grp] = 0.0
+            h += scale * hg
+            g2 += scale * g2g
+            for i in range(3):
+                for j in range(3):
+                    St[i, j] += scale * Sg[i, j]
+                    Sh[i, j] += scale * Shg[i, j]
+                    th[i, j] += scale * thg[i, j]
+            for s in range(nS):
+                w[s] += scale * wg[s]
+        vol = V0[e]
+        energy += vol * e_cell
+
+        # ---- gradient: F S D_a + h d_a
+        for a in range(4):
+            for i in range(3):
+                acc_d = 0.0
+                for j in range(3):
+                    acc_d += cof[i, j] * D[e, a, j]
+                d[a, i] = acc_d
+        if want_force:
+            for a in range(4):
+                for i in range(3):
+                    acc = h * d[a, i]
+                    if has_S:
+                        for j in range(3):
+                            FS = F[i, 0] * St[0, j] + F[i, 1] * St[1, j] + F[i, 2] * St[2, j]
+                            acc += FS * D[e, a, j]
+                    force[cells[e, a], i] -= vol * acc
+        if not want_stiffness:
+            continue
+
+        # ---- per-cell vectors of the edge blocks
+        if has_Sh:
+            for a in range(4):
+                for i in range(3):
+                    acc = 0.0
+                    for j in range(3):
+                        FS = F[i, 0] * Sh[0, j] + F[i, 1] * Sh[1, j] + F[i, 2] * Sh[2, j]
+                        acc += FS * D[e, a, j]
+                    FSh[a, i] = acc
+        for s in range(nS):
+            if slot_kind[s] == 2 or w[s] == 0.0:
+                continue
+            Me = slot_M[s, e] if per_cell_M else slot_M[s, 0]
+            for a in range(4):
+                for i in range(3):
+                    if slot_ident[s] == 1:
+                        MD[i] = D[e, a, i]
+                    else:
+                        MD[i] = Me[i, 0] * D[e, a, 0] + Me[i, 1] * D[e, a, 1] + Me[i, 2] * D[e, a, 2]
+                for i in range(3):
+                    Gs[s, a, i] = F[i, 0] * MD[0] + F[i, 1] * MD[1] + F[i, 2] * MD[2]
+            if slot_kind[s] == 1:  # F M F^T
+                for i in range(3):
+                    for j in range(3):
+                        acc = 0.0
+                        for k in range(3):
+                            for l in range(3):
+                                acc += F[i, k] * Me[k, l] * F[j, l]
+                        FMF[s, i, j] = acc
+        if has_th:
+            for n in range(3):
+                for i in range(3):
+                    wn[n, i] = F[i, 0] * V[0, n] + F[i, 1] * V[1, n] + F[i, 2] * V[2, n]
+                for a in range(4):
+                    cn[n, a] = V[0, n] * D[e, a, 0] + V[1, n] * D[e, a, 1] + V[2, n] * D[e, a, 2]
+        breg = 0.0
+        if regularize:
+            breg = min(max(1.0 - J, 0.0), 1.0)
+        keep = 1.0 - breg
+
+        # ---- the six edge blocks
+        for k in range(6):
+            a, b = _EA[k], _EB[k]
+            diag = 0.0
+            if has_S:  # geometric (D_a . S D_b) Id
+                for i in range(3):
+                    for j in range(3):
+                        diag += D[e, a, i] * St[i, j] * D[e, b, j]
+            for r in range(3):
+                for c in range(3):
+                    K[k, r, c] = 0.0
+            for s in range(nS):
+                ws = w[s]
+                if slot_kind[s] == 2 or ws == 0.0:
+                    continue
+                if slot_kind[s] == 0:
+                    for r in range(3):
+                        for c in range(3):
+                            K[k, r, c] += 2.0 * ws * Gs[s, a, r] * Gs[s, b, c]
+                else:
+                    dmd = ws * slot_DMD[s, e, k]
+                    for r in range(3):
+                        for c in range(3):
+                            K[k, r, c] += ws * Gs[s, b, r] * Gs[s, a, c] + dmd * FMF[s, r, c]
+            if has_th:
+                for n in range(3):
+                    rsum = 0.0
+                    for l in range(3):
+                        rsum += th[n, l] * cn[l, b] * cn[l, a]
+                    for c in range(3):
+                        y = 0.0
+                        for l in range(3):
+                            y += th[n, l] * cn[l, a] * wn[l, c]
+                        y = cn[n, b] * y + rsum * wn[n, c]
+                        for r in range(3):
+                            K[k, r, c] += wn[n, r] * y
+            if has_Sh or g2 != 0.0:
+                gk = g2 * keep
+                for r in range(3):
+                    for c in range(3):
+                        v = gk * d[b, c]
+                        if has_Sh:
+                            v += FSh[b, c]
+                            K[k, r, c] += FSh[a, r] * d[b, c]
+                        K[k, r, c] += d[a, r] * v
+                if regularize and g2 != 0.0:
+                    diag += g2 * breg * (d[a, 0] * d[b, 0] + d[a, 1] * d[b, 1] + d[a, 2] * d[b, 2])
+            for grp in range(G):
+                sc = escale[grp]
+                if sc == 0.0:
+                    continue
+                for r in range(3):
+                    for c in range(3):
+                        K[k, r, c] += sc * keep * du[grp, a, r] * du[grp, b, c]
+                if regularize:
+                    diag += sc * breg * (du[grp, a, 0] * du[grp, b, 0] + du[grp, a, 1] * du[grp, b, 1]
+                                         + du[grp, a, 2] * du[grp, b, 2])
+            if h != 0.0:  # h d2J/dx_a dx_b: the skew matrix of h F (D_a x D_b)
+                q0 = h * (F[0, 0] * DxD[e, k, 0] + F[0, 1] * DxD[e, k, 1] + F[0, 2] * DxD[e, k, 2])
+                q1 = h * (F[1, 0] * DxD[e, k, 0] + F[1, 1] * DxD[e, k, 1] + F[1, 2] * DxD[e, k, 2])
+                q2 = h * (F[2, 0] * DxD[e, k, 0] + F[2, 1] * DxD[e, k, 1] + F[2, 2] * DxD[e, k, 2])
+                K[k, 0, 1] += q2
+                K[k, 1, 0] -= q2
+                K[k, 0, 2] -= q1
+                K[k, 2, 0] += q1
+                K[k, 1, 2] += q0
+                K[k, 2, 1] -= q0
+            for r in range(3):
+                K[k, r, r] += diag
+        scatter_edge_blocks(data, base, rowlen, e, K, vol)
+    return energy
