@@ -19,6 +19,9 @@ from numba import njit
 __all__ = ["eigh3", "block_positions", "scatter_edge_blocks", "mjed_cells"]
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
+# Small helpers are inlined into the kernel at Numba IR level: a call per term and cell with a
+# dozen array arguments would otherwise cost more than the arithmetic it does.
+_INLINE = dict(_JIT, inline="always")
 
 # The six edges (a, b), a < b, in mjed.sparse.EDGES order.
 _EA = np.array([0, 0, 0, 1, 1, 2])
@@ -27,17 +30,20 @@ _EB = np.array([1, 2, 3, 2, 3, 3])
 
 # ------------------------------------------------------------------ shared pieces
 @njit(**_JIT)
-def eigh3(A, lam, V):
+def eigh3(A, lam, V, a):
     """Eigenvalues lam (3,) and eigenvectors V (3, 3) (columns) of the symmetric A (3, 3),
-    by cyclic Jacobi rotations (accurate to round-off in every eigenvector; A is not changed)."""
-    a = A.copy()
+    by cyclic Jacobi rotations (accurate to round-off in every eigenvector; A is not changed).
+    a: (3, 3) scratch."""
+    for i in range(3):
+        for j in range(3):
+            a[i, j] = A[i, j]
     for i in range(3):
         for j in range(3):
             V[i, j] = 1.0 if i == j else 0.0
     scale = abs(a[0, 0]) + abs(a[1, 1]) + abs(a[2, 2]) + 1e-300
     for _sweep in range(60):
         off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
-        if off <= (1e-18 * scale) ** 2:
+        if off <= (1e-17 * scale) ** 2:
             break
         for p, q in ((0, 1), (0, 2), (1, 2)):
             apq = a[p, q]
@@ -97,10 +103,14 @@ def block_positions(cells, indptr, indices):
 
 
 @njit(**_JIT)
-def scatter_edge_blocks(data, base, rowlen, e, K, V0):
+def scatter_edge_blocks(data, base, rowlen, e, K, V0, Kd):
     """Add V0 times the edge blocks K (6, 3, 3) of cell e, their transposes and the node
-    blocks K_aa = -sum_b K_ab (translation invariance) into the CSR data array."""
-    Kd = np.zeros((4, 3, 3))
+    blocks K_aa = -sum_b K_ab (translation invariance) into the CSR data array.
+    Kd: (4, 3, 3) scratch."""
+    for a in range(4):
+        for r in range(3):
+            for c in range(3):
+                Kd[a, r, c] = 0.0
     for k in range(6):
         a, b = _EA[k], _EB[k]
         pa = base[e, a, b]
@@ -121,53 +131,84 @@ def scatter_edge_blocks(data, base, rowlen, e, K, V0):
                 data[p + r * la + c] += Kd[a, r, c]
 
 
+@njit(**_JIT)
+def _matmul3(A, B, out):
+    """out = A B for (3, 3) arrays."""
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+
+
 # ------------------------------------------------------------------ the functions of J
 @njit(**_JIT)
-def _jfunction(kind, p, J):
-    """f, f', f'' of the J-function of code ``kind`` (mjed.compiled.lowering.J_KINDS)."""
+def _jfunction(kind, P, t, J):
+    """f, f', f'' of the J-function of code ``kind`` (mjed.compiled.lowering.J_KINDS) with
+    parameters P[t] (rows are indexed, not sliced: a slice costs a reference count)."""
     if kind == 0:  # JPower
-        q = p[0]
+        q = P[t, 0]
         if q == 0.0:
             return 1.0, 0.0, 0.0
         Jp2 = J ** (q - 2.0)
         return Jp2 * J * J, q * Jp2 * J, q * (q - 1.0) * Jp2
     L = math.log(J)
     if kind == 1:  # LogPolynomial
-        a2, a1, a0 = p[0], p[1], p[2]
+        a2, a1, a0 = P[t, 0], P[t, 1], P[t, 2]
         return (a2 * L + a1) * L + a0, (2.0 * a2 * L + a1) / J, (2.0 * a2 * (1.0 - L) - a1) / (J * J)
-    k, c = p[0], p[1]  # JLogJ
+    k, c = P[t, 0], P[t, 1]  # JLogJ
     return k * (J * L - J + 1.0) + c, k * L, k / J
 
 
 # ------------------------------------------------------------------ the invariant functions
 @njit(**_JIT)
-def _divided_differences(lam, p, theta):
-    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1), symmetrised (as
-    mjed.spectral.power_divided_differences)."""
+def _divided_differences(lam, lp, p, theta):
+    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, symmetric.
+
+    lp: lam^p. Eigenvalues 5 % or more apart use the quotient of the powers directly (its
+    rounding error is below 1e-13 relative there); closer ones use
+    lam_l^(p-1) expm1(p log1p(x))/x, x = (lam_n - lam_l)/lam_l, which has no cancellation,
+    as mjed.spectral.power_divided_differences does for every pair. Three transcendental
+    calls per close pair instead of per pair keeps the spectral tangent affordable."""
     for n in range(3):
-        for l in range(3):
-            x = (lam[n] - lam[l]) / lam[l]
-            if abs(x) < 1e-12:
-                ratio = p * (1.0 + 0.5 * (p - 1.0) * x)
-            else:
-                ratio = math.expm1(p * math.log1p(x)) / x
-            theta[n, l] = lam[l] ** (p - 1.0) * ratio
-    for n in range(3):
+        theta[n, n] = p * lp[n] / lam[n]
         for l in range(n + 1, 3):
-            s = 0.5 * (theta[n, l] + theta[l, n])
-            theta[n, l] = s
-            theta[l, n] = s
+            x = (lam[n] - lam[l]) / lam[l]
+            if abs(x) >= 0.05:
+                v = (lp[n] - lp[l]) / (lam[n] - lam[l])
+            else:
+                v1 = _dd_close(lam[n], lam[l], p)
+                v2 = _dd_close(lam[l], lam[n], p)
+                v = 0.5 * (v1 + v2)
+            theta[n, l] = v
+            theta[l, n] = v
 
 
 @njit(**_JIT)
-def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
-    """g of the invariant function of code ``kind`` (mjed.compiled.lowering.G_KINDS); writes
+def _dd_close(a, b, p):
+    """(a^p - b^p)/(a - b) for a close to b, without cancellation."""
+    x = (a - b) / b
+    if abs(x) < 1e-12:
+        ratio = p * (1.0 + 0.5 * (p - 1.0) * x)
+    else:
+        ratio = math.expm1(p * math.log1p(x)) / x
+    return b ** (p - 1.0) * ratio
+
+
+@njit(**_JIT)
+def _invariant(kind, P, t, Rs, r0, C, I1, I2, lam, V, S, coef, theta, W1, W2, tangent):
+    """g of the invariant function of code ``kind`` (mjed.compiled.lowering.G_KINDS) with
+    parameters P[t] and frame Rs[t, r0] (indexed, not sliced); writes
     S = 2 dg/dC into S (3, 3), the tangent coefficients into coef and, for the spectral
-    kind, theta (3, 3). Returns (g, has_stress). W1, W2: (3, 3) scratch."""
+    kind, theta (3, 3) (only if ``tangent``). Returns (g, has_stress). W1, W2: (3, 3) scratch."""
     if kind == 0:  # Unity
         return 1.0, False
     if kind == 1:  # I1Power: c I1^n
-        c, n = p[0], p[1]
+        c, n = P[t, 0], P[t, 1]
+        if n == 1.0:
+            s = 2.0 * c
+            for i in range(3):
+                for j in range(3):
+                    S[i, j] = s if i == j else 0.0
+            return c * I1, True
         s = 2.0 * c * n * I1 ** (n - 1.0)
         for i in range(3):
             for j in range(3):
@@ -176,7 +217,7 @@ def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
             coef[0] = 2.0 * c * n * (n - 1.0) * I1 ** (n - 2.0)
         return c * I1 ** n, True
     if kind == 2:  # LinearI2: c I2
-        c = p[0]
+        c = P[t, 0]
         for i in range(3):
             for j in range(3):
                 S[i, j] = 2.0 * c * ((I1 if i == j else 0.0) - C[i, j])
@@ -184,7 +225,7 @@ def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
         coef[1] = -2.0 * c
         return c * I2, True
     if kind == 3:  # GreenLagrangeQuadratic
-        mu, lm = p[0], p[1]
+        mu, lm = P[t, 0], P[t, 1]
         trE = 0.5 * (C[0, 0] + C[1, 1] + C[2, 2]) - 1.5
         EE = 0.0
         for i in range(3):
@@ -200,15 +241,15 @@ def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
             for j in range(3):
                 acc = 0.0
                 for k in range(3):
-                    acc += 0.5 * (C[i, k] - (1.0 if i == k else 0.0)) * R[k, j]
+                    acc += 0.5 * (C[i, k] - (1.0 if i == k else 0.0)) * Rs[t, r0, k, j]
                 W1[i, j] = acc
         g = 0.0
         for i in range(3):
             for j in range(3):
                 ef = 0.0
                 for k in range(3):
-                    ef += R[k, i] * W1[k, j]
-                b = p[3 * i + j]
+                    ef += Rs[t, r0, k, i] * W1[k, j]
+                b = P[t, 3 * i + j]
                 g += b * ef * ef
                 W2[i, j] = b * ef
         for i in range(3):  # S = 2 R W2 R^T
@@ -216,25 +257,25 @@ def _invariant(kind, p, R, C, I1, I2, lam, V, S, coef, theta, W1, W2):
                 acc = 0.0
                 for k in range(3):
                     for l in range(3):
-                        acc += R[i, k] * W2[k, l] * R[j, l]
+                        acc += Rs[t, r0, i, k] * W2[k, l] * Rs[t, r0, j, l]
                 S[i, j] = 2.0 * acc
-        for t in range(3):
-            coef[t] = p[9 + t]
+        for k in range(3):
+            coef[k] = P[t, 9 + k]
         return g, True
     # EigenPowerSum: c sum lam^q
-    c, q, mode = p[0], p[1], p[2]
-    g = 0.0
-    for n in range(3):
-        g += lam[n] ** q
+    c, q, mode = P[t, 0], P[t, 1], P[t, 2]
+    l0, l1, l2 = lam[0] ** (q - 1.0), lam[1] ** (q - 1.0), lam[2] ** (q - 1.0)
+    g = l0 * lam[0] + l1 * lam[1] + l2 * lam[2]
     for i in range(3):
         for j in range(3):
-            acc = 0.0
-            for n in range(3):
-                acc += V[i, n] * lam[n] ** (q - 1.0) * V[j, n]
+            acc = V[i, 0] * l0 * V[j, 0] + V[i, 1] * l1 * V[j, 1] + V[i, 2] * l2 * V[j, 2]
             S[i, j] = 2.0 * c * q * acc
+    if not tangent:
+        return c * g, True
     pp = q - 1.0
     if mode == 0.0:
-        _divided_differences(lam, pp, theta)
+        W1[0, 0], W1[0, 1], W1[0, 2] = l0, l1, l2
+        _divided_differences(lam, W1[0], pp, theta)
     else:
         for n in range(3):
             for l in range(3):
@@ -295,11 +336,14 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
     d = np.empty((4, 3))
     grad = np.empty((4, 3))
     FSh = np.empty((4, 3))
+    SD = np.empty((4, 3))
+    M3 = np.empty((3, 3))
     Gs = np.empty((nS, 4, 3))
     FMF = np.empty((nS, 3, 3))
     wn = np.empty((3, 3))  # [n, i] = (F v_n)_i
     cn = np.empty((3, 4))  # [n, a] = v_n . D_a
     K = np.empty((6, 3, 3))
+    Kd = np.empty((4, 3, 3))
     MD = np.empty(3)
     energy = 0.0
     for e in range(m):
@@ -327,13 +371,16 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                 CC += C[i, j] * C[i, j]
         I2 = 0.5 * (I1 * I1 - CC)
         if need_eig:
-            eigh3(C, lam, V)
+            eigh3(C, lam, V, W1)
 
         # ---- terms, groups
-        St[:] = 0.0
-        Sh[:] = 0.0
-        th[:] = 0.0
-        w[:] = 0.0
+        for i in range(3):
+            for j in range(3):
+                St[i, j] = 0.0
+                Sh[i, j] = 0.0
+                th[i, j] = 0.0
+        for s in range(nS):
+            w[s] = 0.0
         h = 0.0
         g2 = 0.0
         has_S = False
@@ -344,14 +391,17 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             u = 0.0
             hg = 0.0
             g2g = 0.0
-            Sg[:] = 0.0
-            Shg[:] = 0.0
-            thg[:] = 0.0
-            wg[:] = 0.0
+            for i in range(3):
+                for j in range(3):
+                    Sg[i, j] = 0.0
+                    Shg[i, j] = 0.0
+                    thg[i, j] = 0.0
+            for s in range(nS):
+                wg[s] = 0.0
             for t in range(group_start[grp], group_start[grp + 1]):
-                f, df, d2f = _jfunction(jkind[t], jpar[t], J)
-                R = gmat[t, e] if per_cell_R else gmat[t, 0]
-                g, stressed = _invariant(gkind[t], gpar[t], R, C, I1, I2, lam, V, Sk, coef, theta_k, W1, W2)
+                f, df, d2f = _jfunction(jkind[t], jpar, t, J)
+                g, stressed = _invariant(gkind[t], gpar, t, gmat, e if per_cell_R else 0, C, I1, I2, lam, V, Sk,
+                                         coef, theta_k, W1, W2, want_stiffness)
                 u += f * g
                 hg += df * g
                 g2g += d2f * g
@@ -375,16 +425,14 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             if group_exp[grp] == 1:
                 scale = group_coef[grp] * math.exp(u)
                 e_cell += scale
-                if want_stiffness:  # du_a = F S_g D_a + h_g d_a, d_a = cof D_a
+                if want_stiffness:  # du_a = (F S_g + h_g cof) D_a
+                    _matmul3(F, Sg, M3)
+                    for i in range(3):
+                        for j in range(3):
+                            M3[i, j] += hg * cof[i, j]
                     for a in range(4):
                         for i in range(3):
-                            acc = 0.0
-                            for j in range(3):
-                                FS = 0.0
-                                for k in range(3):
-                                    FS += F[i, k] * Sg[k, j]
-                                acc += FS * D[e, a, j] + hg * cof[i, j] * D[e, a, j]
-                            du[grp, a, i] = acc
+                            du[grp, a, i] = M3[i, 0] * D[e, a, 0] + M3[i, 1] * D[e, a, 1] + M3[i, 2] * D[e, a, 2]
                 escale[grp] = scale
             else:
                 scale = group_coef[grp]
@@ -402,44 +450,38 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
         vol = V0[e]
         energy += vol * e_cell
 
-        # ---- gradient: F S D_a + h d_a
+        # ---- gradient: F S D_a + h d_a (F S formed once per cell)
         for a in range(4):
             for i in range(3):
-                acc_d = 0.0
-                for j in range(3):
-                    acc_d += cof[i, j] * D[e, a, j]
-                d[a, i] = acc_d
+                d[a, i] = cof[i, 0] * D[e, a, 0] + cof[i, 1] * D[e, a, 1] + cof[i, 2] * D[e, a, 2]
         if want_force:
+            _matmul3(F, St, M3)
             for a in range(4):
                 for i in range(3):
-                    acc = h * d[a, i]
-                    if has_S:
-                        for j in range(3):
-                            FS = F[i, 0] * St[0, j] + F[i, 1] * St[1, j] + F[i, 2] * St[2, j]
-                            acc += FS * D[e, a, j]
+                    acc = h * d[a, i] + M3[i, 0] * D[e, a, 0] + M3[i, 1] * D[e, a, 1] + M3[i, 2] * D[e, a, 2]
                     force[cells[e, a], i] -= vol * acc
         if not want_stiffness:
             continue
 
         # ---- per-cell vectors of the edge blocks
+        for a in range(4):  # S D_a, for the geometric term
+            for i in range(3):
+                SD[a, i] = St[i, 0] * D[e, a, 0] + St[i, 1] * D[e, a, 1] + St[i, 2] * D[e, a, 2]
         if has_Sh:
+            _matmul3(F, Sh, M3)
             for a in range(4):
                 for i in range(3):
-                    acc = 0.0
-                    for j in range(3):
-                        FS = F[i, 0] * Sh[0, j] + F[i, 1] * Sh[1, j] + F[i, 2] * Sh[2, j]
-                        acc += FS * D[e, a, j]
-                    FSh[a, i] = acc
+                    FSh[a, i] = M3[i, 0] * D[e, a, 0] + M3[i, 1] * D[e, a, 1] + M3[i, 2] * D[e, a, 2]
         for s in range(nS):
             if slot_kind[s] == 2 or w[s] == 0.0:
                 continue
-            Me = slot_M[s, e] if per_cell_M else slot_M[s, 0]
+            me = e if per_cell_M else 0
             for a in range(4):
                 for i in range(3):
                     if slot_ident[s] == 1:
                         MD[i] = D[e, a, i]
                     else:
-                        MD[i] = Me[i, 0] * D[e, a, 0] + Me[i, 1] * D[e, a, 1] + Me[i, 2] * D[e, a, 2]
+                        MD[i] = slot_M[s, me, i, 0] * D[e, a, 0] + slot_M[s, me, i, 1] * D[e, a, 1] + slot_M[s, me, i, 2] * D[e, a, 2]
                 for i in range(3):
                     Gs[s, a, i] = F[i, 0] * MD[0] + F[i, 1] * MD[1] + F[i, 2] * MD[2]
             if slot_kind[s] == 1:  # F M F^T
@@ -448,7 +490,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                         acc = 0.0
                         for k in range(3):
                             for l in range(3):
-                                acc += F[i, k] * Me[k, l] * F[j, l]
+                                acc += F[i, k] * slot_M[s, me, k, l] * F[j, l]
                         FMF[s, i, j] = acc
         if has_th:
             for n in range(3):
@@ -466,9 +508,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             a, b = _EA[k], _EB[k]
             diag = 0.0
             if has_S:  # geometric (D_a . S D_b) Id
-                for i in range(3):
-                    for j in range(3):
-                        diag += D[e, a, i] * St[i, j] * D[e, b, j]
+                diag = D[e, a, 0] * SD[b, 0] + D[e, a, 1] * SD[b, 1] + D[e, a, 2] * SD[b, 2]
             for r in range(3):
                 for c in range(3):
                     K[k, r, c] = 0.0
@@ -530,5 +570,5 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                 K[k, 2, 1] -= q0
             for r in range(3):
                 K[k, r, r] += diag
-        scatter_edge_blocks(data, base, rowlen, e, K, vol)
+        scatter_edge_blocks(data, base, rowlen, e, K, vol, Kd)
     return energy
