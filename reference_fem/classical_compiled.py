@@ -17,6 +17,7 @@ from typing import Callable, Dict, Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
 from mjed.forcefield import checked_positions, refuse_inverted
 from mjed.mesh import TetMesh
@@ -115,10 +116,9 @@ class CompiledClassicalGalerkin:
         self._cells = np.ascontiguousarray(self.mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(self.mesh.D, dtype=np.float64)
         self._V0 = np.ascontiguousarray(self.mesh.volumes, dtype=np.float64)
-        from mjed.compiled.kernels import block_positions
+        from mjed.compiled import kernels
 
-        self._base, self._rowlen = block_positions(self._cells, self.pattern.indptr.astype(np.int64),
-                                                   self.pattern.indices.astype(np.int64))
+        self._assembly = CompiledAssembly(self.pattern, kernels)
         self._J = np.empty(self.mesh.n_cells)
 
     def energy(self, x) -> float:
@@ -139,11 +139,6 @@ class CompiledClassicalGalerkin:
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         energy = self._k.classical_cells(x, self._cells, self._D, self._V0, self.code, self.params, self.tensor,
-                                         self._base, self._rowlen, force, stiffness, f, data, self._J)
+                                         force, stiffness, *self._assembly.arguments(), f, data, self._J)
         refuse_inverted(self._J)
-        K = None
-        if stiffness:
-            K = sp.csr_matrix((data, self.pattern.indices.copy(), self.pattern.indptr.copy()),
-                              shape=self.pattern.shape, copy=False)
-            K.has_sorted_indices = True
-        return float(energy), (f if force else None), K
+        return float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None)

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from mjed.compiled.kernels import eigh3
+from mjed.compiled.kernels import add_edge_blocks, eigh3, write_csr
 
 __all__ = ["classical_cells", "LAW_SVK", "LAW_NEOHOOKE", "LAW_DECOUPLED", "LAW_OGDEN", "LAW_COSTA"]
 
@@ -230,9 +230,13 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
 
 
 @njit(**_JIT)
-def classical_cells(x, cells, D, V0, code, P, Tt, base, rowlen, want_force, want_stiffness, force, data, J_out):
-    """Energy, forces (added to ``force``) and stiffness (added to ``data``) of every cell by
-    the classical Galerkin; J per cell into J_out. Tt: Costa's tensor (1 or m, 6, 6).
+def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, cell_edges, cell_flip, U, Dg, src,
+                    blkptr, indptr, force, data, J_out):
+    """Energy, forces (added to ``force``) and stiffness (written to ``data``) of every cell by
+    the classical Galerkin; J per cell into J_out. Tt: Costa's tensor (1 or m, 6, 6). The
+    assembly arguments are those of mjed.compiled.kernels.mjed_cells (the same route: edge
+    blocks summed per mesh edge, node blocks per node, then one ordered write of the CSR
+    data), except that the node blocks are the element's own K_aa, not derived.
     Returns the total energy."""
     m = cells.shape[0]
     per_cell_T = Tt.shape[0] > 1
@@ -253,11 +257,16 @@ def classical_cells(x, cells, D, V0, code, P, Tt, base, rowlen, want_force, want
     Sm = np.empty((3, 3))
     SD = np.empty((4, 3))
     Kab = np.empty((3, 3))
+    Kedge = np.empty((6, 3, 3))
+    Kd = np.empty((4, 3, 3))
     cv = np.empty(6)
     cbv = np.empty(6)
     Siso = np.empty(6)
     M63 = np.empty((6, 3))
     H3 = np.empty((3, 3))
+    if want_stiffness:
+        U[:] = 0.0
+        Dg[:] = 0.0
     energy = 0.0
     for e in range(m):
         for i in range(3):
@@ -307,6 +316,7 @@ def classical_cells(x, cells, D, V0, code, P, Tt, base, rowlen, want_force, want
                 for L in range(6):
                     acc += CC[I, L] * B[L, col]
                 CB[I, col] = acc
+        edge = 0
         for a in range(4):
             for b in range(a, 4):
                 geo = D[e, a, 0] * SD[b, 0] + D[e, a, 1] * SD[b, 1] + D[e, a, 2] * SD[b, 2]
@@ -316,13 +326,17 @@ def classical_cells(x, cells, D, V0, code, P, Tt, base, rowlen, want_force, want
                         for I in range(6):
                             acc += B[I, 3 * a + k] * CB[I, 3 * b + l]
                         Kab[k, l] = vol * acc
-                pa, la = base[e, a, b], rowlen[e, a]
-                for k in range(3):
-                    for l in range(3):
-                        data[pa + k * la + l] += Kab[k, l]
-                if b != a:
-                    pb, lb = base[e, b, a], rowlen[e, b]
+                if a == b:
+                    na = cells[e, a]
                     for k in range(3):
                         for l in range(3):
-                            data[pb + l * lb + k] += Kab[k, l]
+                            Dg[na, k, l] += Kab[k, l]
+                else:  # (a, b) in mjed.sparse.EDGES order: (0,1) (0,2) (0,3) (1,2) (1,3) (2,3)
+                    for k in range(3):
+                        for l in range(3):
+                            Kedge[edge, k, l] = Kab[k, l]
+                    edge += 1
+        add_edge_blocks(U, Dg, cells, cell_edges, cell_flip, e, Kedge, 1.0, Kd, False)
+    if want_stiffness:
+        write_csr(U, Dg, src, blkptr, indptr, data)
     return energy

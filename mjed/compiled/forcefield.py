@@ -8,6 +8,7 @@ from typing import Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
 from mjed.compiled.lowering import lower_groups
 from mjed.forcefield import checked_positions, refuse_inverted
@@ -54,8 +55,7 @@ class CompiledForceField:
         self._cells = np.ascontiguousarray(mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(mesh.D, dtype=np.float64)
         self._V0 = np.ascontiguousarray(mesh.volumes, dtype=np.float64)
-        self._base, self._rowlen = self._k.block_positions(self._cells, self.pattern.indptr.astype(np.int64),
-                                                           self.pattern.indices.astype(np.int64))
+        self._assembly = CompiledAssembly(self.pattern, self._k)
         self._J = np.empty(mesh.n_cells)
 
     # ---------------------------------------------------------------- public API
@@ -85,12 +85,7 @@ class CompiledForceField:
         energy = self._k.mjed_cells(
             x, self._cells, self._D, self._V0, t.DxD, t.jkind, t.jpar, t.gkind, t.gpar, t.gmat, t.npair, t.tslot,
             t.group_start, t.group_exp, t.group_coef, t.slot_kind, t.slot_ident, t.slot_M, t.slot_DMD, t.need_eig,
-            self.regularize, force, stiffness, self._base, self._rowlen, f, data, self._J)
+            self.regularize, force, stiffness, *self._assembly.arguments(), f, data, self._J)
         if not self.allow_inverted:
             refuse_inverted(self._J)
-        K = None
-        if stiffness:
-            K = sp.csr_matrix((data, self.pattern.indices.copy(), self.pattern.indptr.copy()),
-                              shape=self.pattern.shape, copy=False)
-            K.has_sorted_indices = True
-        return float(energy), (f if force else None), K
+        return float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None)

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["eigh3", "block_positions", "scatter_edge_blocks", "mjed_cells"]
+__all__ = ["eigh3", "block_sources", "add_edge_blocks", "write_csr", "mjed_cells"]
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 # Small helpers are inlined into the kernel at Numba IR level: a call per term and cell with a
@@ -74,64 +74,93 @@ def eigh3(A, lam, V, a):
 
 
 @njit(**_JIT)
-def block_positions(cells, indptr, indices):
-    """Where node block (a, b) of every cell starts in the CSR data array, and the row
-    length of node a's rows: entry (r, c) of the block is at base[m, a, b] + r * rowlen[m, a] + c.
+def block_sources(indptr, indices, edges, n_nodes):
+    """Where each 3x3 node block of the CSR pattern comes from, in pattern order.
 
-    cells (m, 4); indptr, indices: a CSR pattern with 3x3 node blocks and sorted columns.
-    Returns base (m, 4, 4) and rowlen (m, 4), int64.
+    indptr, indices: a CSR pattern of 3x3 node blocks with sorted columns (mjed.sparse.CSRPattern);
+    edges: (E, 2) its unique mesh edges (i < j), sorted by (i, j). Returns src (B,) and
+    blkptr (n + 1,): block kk of node row i is src[blkptr[i] + kk], 2 e for the edge sum U_e
+    (i < j), 2 e + 1 for its transpose (i > j) and -1 for the node's own block.
     """
-    m = cells.shape[0]
-    base = np.empty((m, 4, 4), dtype=np.int64)
-    rowlen = np.empty((m, 4), dtype=np.int64)
-    for e in range(m):
+    deg = np.empty(n_nodes, dtype=np.int64)
+    for i in range(n_nodes):
+        deg[i] = (indptr[3 * i + 1] - indptr[3 * i]) // 3
+    blkptr = np.zeros(n_nodes + 1, dtype=np.int64)
+    for i in range(n_nodes):
+        blkptr[i + 1] = blkptr[i] + deg[i]
+    src = np.empty(blkptr[n_nodes], dtype=np.int64)
+    E = edges.shape[0]
+    for i in range(n_nodes):
+        row0 = indptr[3 * i]
+        for kk in range(deg[i]):
+            j = indices[row0 + 3 * kk] // 3
+            if j == i:
+                src[blkptr[i] + kk] = -1
+                continue
+            lo, hi = (i, j) if i < j else (j, i)
+            key = lo * n_nodes + hi
+            a, b = 0, E
+            while a < b:  # binary search of the sorted edge keys
+                mid = (a + b) // 2
+                if edges[mid, 0] * n_nodes + edges[mid, 1] < key:
+                    a = mid + 1
+                else:
+                    b = mid
+            src[blkptr[i] + kk] = 2 * a + (0 if i < j else 1)
+    return src, blkptr
+
+
+@njit(**_INLINE)
+def add_edge_blocks(U, Dg, cells, cell_edges, cell_flip, e, K, scale, Kd, node_blocks):
+    """Add scale K (6, 3, 3), the blocks of the six edges (a, b) of cell e (mjed.sparse.EDGES
+    order), to the sums of their mesh edges (U (E, 3, 3), oriented from the lower node
+    number). node_blocks: also subtract each from both node blocks Dg (n, 3, 3), K_aa =
+    -sum_b K_ab (translation invariance, MJED's route), summed per cell first in Kd (4, 3, 3)."""
+    if node_blocks:
         for a in range(4):
-            row = 3 * cells[e, a]
-            lo, hi = indptr[row], indptr[row + 1]
-            rowlen[e, a] = hi - lo
-            for b in range(4):
-                col = 3 * cells[e, b]
-                i, j = lo, hi
-                while i < j:  # binary search of the sorted columns
-                    mid = (i + j) // 2
-                    if indices[mid] < col:
-                        i = mid + 1
-                    else:
-                        j = mid
-                base[e, a, b] = i
-    return base, rowlen
-
-
-@njit(**_JIT)
-def scatter_edge_blocks(data, base, rowlen, e, K, V0, Kd):
-    """Add V0 times the edge blocks K (6, 3, 3) of cell e, their transposes and the node
-    blocks K_aa = -sum_b K_ab (translation invariance) into the CSR data array.
-    Kd: (4, 3, 3) scratch."""
-    for a in range(4):
-        for r in range(3):
-            for c in range(3):
-                Kd[a, r, c] = 0.0
+            for r in range(3):
+                for c in range(3):
+                    Kd[a, r, c] = 0.0
     for k in range(6):
+        ge = cell_edges[e, k]
+        flip = cell_flip[e, k]
         a, b = _EA[k], _EB[k]
-        pa = base[e, a, b]
-        pb = base[e, b, a]
-        la, lb = rowlen[e, a], rowlen[e, b]
         for r in range(3):
             for c in range(3):
-                v = V0 * K[k, r, c]
-                data[pa + r * la + c] += v
-                data[pb + c * lb + r] += v
+                v = scale * K[k, r, c]
+                if flip:
+                    U[ge, c, r] += v
+                else:
+                    U[ge, r, c] += v
                 Kd[a, r, c] -= v
                 Kd[b, c, r] -= v
-    for a in range(4):
-        p = base[e, a, a]
-        la = rowlen[e, a]
-        for r in range(3):
-            for c in range(3):
-                data[p + r * la + c] += Kd[a, r, c]
+    if node_blocks:
+        for a in range(4):
+            na = cells[e, a]
+            for r in range(3):
+                for c in range(3):
+                    Dg[na, r, c] += Kd[a, r, c]
 
 
 @njit(**_JIT)
+def write_csr(U, Dg, src, blkptr, indptr, data):
+    """Write every CSR entry once, in order, from the edge sums U and the node blocks Dg."""
+    n = blkptr.shape[0] - 1
+    for i in range(n):
+        for kk in range(blkptr[i + 1] - blkptr[i]):
+            s = src[blkptr[i] + kk]
+            for r in range(3):
+                p = indptr[3 * i + r] + 3 * kk
+                for c in range(3):
+                    if s < 0:
+                        data[p + c] = Dg[i, r, c]
+                    elif s % 2 == 0:
+                        data[p + c] = U[s // 2, r, c]
+                    else:
+                        data[p + c] = U[s // 2, c, r]
+
+
+@njit(**_INLINE)
 def _matmul3(A, B, out):
     """out = A B for (3, 3) arrays."""
     for i in range(3):
@@ -140,7 +169,7 @@ def _matmul3(A, B, out):
 
 
 # ------------------------------------------------------------------ the functions of J
-@njit(**_JIT)
+@njit(**_INLINE)
 def _jfunction(kind, P, t, J):
     """f, f', f'' of the J-function of code ``kind`` (mjed.compiled.lowering.J_KINDS) with
     parameters P[t] (rows are indexed, not sliced: a slice costs a reference count)."""
@@ -193,89 +222,100 @@ def _dd_close(a, b, p):
     return b ** (p - 1.0) * ratio
 
 
+# One small function per kind, each given only the arrays it reads or writes: a single
+# function over every kind took a dozen array arguments, and their reference counting cost
+# more than the arithmetic (about 100 ns per term and cell on the test machine).
 @njit(**_JIT)
-def _invariant(kind, P, t, Rs, r0, C, I1, I2, lam, V, S, coef, theta, W1, W2, tangent):
-    """g of the invariant function of code ``kind`` (mjed.compiled.lowering.G_KINDS) with
-    parameters P[t] and frame Rs[t, r0] (indexed, not sliced); writes
-    S = 2 dg/dC into S (3, 3), the tangent coefficients into coef and, for the spectral
-    kind, theta (3, 3) (only if ``tangent``). Returns (g, has_stress). W1, W2: (3, 3) scratch."""
-    if kind == 0:  # Unity
-        return 1.0, False
-    if kind == 1:  # I1Power: c I1^n
-        c, n = P[t, 0], P[t, 1]
-        if n == 1.0:
-            s = 2.0 * c
-            for i in range(3):
-                for j in range(3):
-                    S[i, j] = s if i == j else 0.0
-            return c * I1, True
-        s = 2.0 * c * n * I1 ** (n - 1.0)
-        for i in range(3):
-            for j in range(3):
-                S[i, j] = s if i == j else 0.0
-        if n >= 2.0:
-            coef[0] = 2.0 * c * n * (n - 1.0) * I1 ** (n - 2.0)
-        return c * I1 ** n, True
-    if kind == 2:  # LinearI2: c I2
-        c = P[t, 0]
-        for i in range(3):
-            for j in range(3):
-                S[i, j] = 2.0 * c * ((I1 if i == j else 0.0) - C[i, j])
-        coef[0] = 2.0 * c
-        coef[1] = -2.0 * c
-        return c * I2, True
-    if kind == 3:  # GreenLagrangeQuadratic
-        mu, lm = P[t, 0], P[t, 1]
-        trE = 0.5 * (C[0, 0] + C[1, 1] + C[2, 2]) - 1.5
-        EE = 0.0
-        for i in range(3):
-            for j in range(3):
-                Eij = 0.5 * (C[i, j] - (1.0 if i == j else 0.0))
-                EE += Eij * Eij
-                S[i, j] = 2.0 * mu * Eij + (lm * trE if i == j else 0.0)
-        coef[0] = 0.5 * lm
-        coef[1] = mu
-        return 0.5 * lm * trE * trE + mu * EE, True
-    if kind == 4:  # FibreQuadratic: sum B_ij (R^T E R)_ij^2; W1 = E R, W2 = B o (R^T E R)
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += 0.5 * (C[i, k] - (1.0 if i == k else 0.0)) * Rs[t, r0, k, j]
-                W1[i, j] = acc
-        g = 0.0
-        for i in range(3):
-            for j in range(3):
-                ef = 0.0
-                for k in range(3):
-                    ef += Rs[t, r0, k, i] * W1[k, j]
-                b = P[t, 3 * i + j]
-                g += b * ef * ef
-                W2[i, j] = b * ef
-        for i in range(3):  # S = 2 R W2 R^T
-            for j in range(3):
-                acc = 0.0
-                for k in range(3):
-                    for l in range(3):
-                        acc += Rs[t, r0, i, k] * W2[k, l] * Rs[t, r0, j, l]
-                S[i, j] = 2.0 * acc
-        for k in range(3):
-            coef[k] = P[t, 9 + k]
-        return g, True
-    # EigenPowerSum: c sum lam^q
-    c, q, mode = P[t, 0], P[t, 1], P[t, 2]
-    l0, l1, l2 = lam[0] ** (q - 1.0), lam[1] ** (q - 1.0), lam[2] ** (q - 1.0)
-    g = l0 * lam[0] + l1 * lam[1] + l2 * lam[2]
+def _diag_stress(s, S):
     for i in range(3):
         for j in range(3):
-            acc = V[i, 0] * l0 * V[j, 0] + V[i, 1] * l1 * V[j, 1] + V[i, 2] * l2 * V[j, 2]
+            S[i, j] = s if i == j else 0.0
+
+
+@njit(**_JIT)
+def _g_i1power(c, n, I1, S, coef):
+    """g = c I1^n: S = 2 c n I1^(n-1) Id; coefficient 2 c n (n-1) I1^(n-2) (first kind, Id)."""
+    if n == 1.0:
+        _diag_stress(2.0 * c, S)
+        return c * I1
+    _diag_stress(2.0 * c * n * I1 ** (n - 1.0), S)
+    if n >= 2.0:
+        coef[0] = 2.0 * c * n * (n - 1.0) * I1 ** (n - 2.0)
+    return c * I1 ** n
+
+
+@njit(**_JIT)
+def _g_linear_i2(c, I1, I2, C, S, coef):
+    """g = c I2: S = 2 c (I1 Id - C); coefficients 2c (first), -2c (second)."""
+    for i in range(3):
+        for j in range(3):
+            S[i, j] = 2.0 * c * ((I1 if i == j else 0.0) - C[i, j])
+    coef[0] = 2.0 * c
+    coef[1] = -2.0 * c
+    return c * I2
+
+
+@njit(**_JIT)
+def _g_green_lagrange(mu, lm, C, S, coef):
+    """g = lam/2 (tr E)^2 + mu E:E: S = lam tr E Id + 2 mu E; coefficients lam/2, mu."""
+    trE = 0.5 * (C[0, 0] + C[1, 1] + C[2, 2]) - 1.5
+    EE = 0.0
+    for i in range(3):
+        for j in range(3):
+            Eij = 0.5 * (C[i, j] - (1.0 if i == j else 0.0))
+            EE += Eij * Eij
+            S[i, j] = 2.0 * mu * Eij + (lm * trE if i == j else 0.0)
+    coef[0] = 0.5 * lm
+    coef[1] = mu
+    return 0.5 * lm * trE * trE + mu * EE
+
+
+@njit(**_JIT)
+def _g_fibre(P, t, Rs, r0, C, S, coef, W1, W2):
+    """g = sum B_ij (R^T E R)_ij^2 (B = P[t, :9], R = Rs[t, r0]): S = 2 R (B o R^T E R) R^T;
+    coefficients the signs P[t, 9:12] of the split of B. W1, W2: (3, 3) scratch."""
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += 0.5 * (C[i, k] - (1.0 if i == k else 0.0)) * Rs[t, r0, k, j]
+            W1[i, j] = acc
+    g = 0.0
+    for i in range(3):
+        for j in range(3):
+            ef = 0.0
+            for k in range(3):
+                ef += Rs[t, r0, k, i] * W1[k, j]
+            b = P[t, 3 * i + j]
+            g += b * ef * ef
+            W2[i, j] = b * ef
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                for l in range(3):
+                    acc += Rs[t, r0, i, k] * W2[k, l] * Rs[t, r0, j, l]
+            S[i, j] = 2.0 * acc
+    for k in range(3):
+        coef[k] = P[t, 9 + k]
+    return g
+
+
+@njit(**_JIT)
+def _g_eigen_power(c, q, mode, lam, V, S, theta, lp, tangent):
+    """g = c sum lam_n^q: S = 2 c q sum lam_n^(q-1) v_n v_n^T; theta = 2 c q times the divided
+    differences of lam^(q-1) (exact, mode 0) or SOFA's coaxial approximation (mode 1)."""
+    lp[0], lp[1], lp[2] = lam[0] ** (q - 1.0), lam[1] ** (q - 1.0), lam[2] ** (q - 1.0)
+    g = lp[0] * lam[0] + lp[1] * lam[1] + lp[2] * lam[2]
+    for i in range(3):
+        for j in range(3):
+            acc = V[i, 0] * lp[0] * V[j, 0] + V[i, 1] * lp[1] * V[j, 1] + V[i, 2] * lp[2] * V[j, 2]
             S[i, j] = 2.0 * c * q * acc
     if not tangent:
-        return c * g, True
+        return c * g
     pp = q - 1.0
     if mode == 0.0:
-        W1[0, 0], W1[0, 1], W1[0, 2] = l0, l1, l2
-        _divided_differences(lam, W1[0], pp, theta)
+        _divided_differences(lam, lp, pp, theta)
     else:
         for n in range(3):
             for l in range(3):
@@ -283,18 +323,21 @@ def _invariant(kind, P, t, Rs, r0, C, I1, I2, lam, V, S, coef, theta, W1, W2, ta
     for n in range(3):
         for l in range(3):
             theta[n, l] *= 2.0 * c * q
-    return c * g, True
+    return c * g
 
 
 # ------------------------------------------------------------------ the MJED kernel
 @njit(**_JIT)
 def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslot, group_start, group_exp,
                group_coef, slot_kind, slot_ident, slot_M, slot_DMD, need_eig, regularize, want_force,
-               want_stiffness, base, rowlen, force, data, J_out):
+               want_stiffness, cell_edges, cell_flip, U, Dg, src, blkptr, indptr, force, data, J_out):
     """Energy, forces and stiffness of every cell by MJED, from the term table.
 
     x (n, 3) positions; cells (m, 4); D (m, 4, 3); V0 (m,); the term table of
-    mjed.compiled.lowering.TermTable; base, rowlen: block positions in the CSR data array.
+    mjed.compiled.lowering.TermTable; cell_edges (m, 6) mesh edge of each cell edge,
+    cell_flip (m, 6) whether it runs against the mesh edge (mjed.sparse.CSRPattern); U (E, 3, 3), Dg (n, 3, 3):
+    scratch for the edge sums and node blocks; src, blkptr (block_sources), indptr: where
+    each CSR block comes from.
     Adds -dW/dx into ``force`` (n, 3) if want_force and d2W/dx2 into ``data`` (nnz,) if
     want_stiffness; writes J per cell into J_out (m,). Returns the total energy.
 
@@ -305,7 +348,9 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
       + second: w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers
       + d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c e^u du_a (x) du_b
       + h eps (F (D_a x D_b)),
-    then the node blocks by translation invariance, scattered into the CSR array.
+    summed per mesh edge (node blocks by translation invariance), then every CSR entry written
+    once, in order (write_csr): half the scattered updates of adding 16 blocks per cell into
+    the CSR array, and the output written as one stream.
     """
     m = cells.shape[0]
     T = jkind.shape[0]
@@ -345,6 +390,10 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
     K = np.empty((6, 3, 3))
     Kd = np.empty((4, 3, 3))
     MD = np.empty(3)
+    lp3 = np.empty(3)
+    if want_stiffness:
+        U[:] = 0.0
+        Dg[:] = 0.0
     energy = 0.0
     for e in range(m):
         # ---- kinematics
@@ -400,8 +449,21 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                 wg[s] = 0.0
             for t in range(group_start[grp], group_start[grp + 1]):
                 f, df, d2f = _jfunction(jkind[t], jpar, t, J)
-                g, stressed = _invariant(gkind[t], gpar, t, gmat, e if per_cell_R else 0, C, I1, I2, lam, V, Sk,
-                                         coef, theta_k, W1, W2, want_stiffness)
+                kind = gkind[t]  # mjed.compiled.lowering.G_KINDS
+                stressed = kind != 0
+                if kind == 0:  # Unity
+                    g = 1.0
+                elif kind == 1:
+                    g = _g_i1power(gpar[t, 0], gpar[t, 1], I1, Sk, coef)
+                elif kind == 2:
+                    g = _g_linear_i2(gpar[t, 0], I1, I2, C, Sk, coef)
+                elif kind == 3:
+                    g = _g_green_lagrange(gpar[t, 0], gpar[t, 1], C, Sk, coef)
+                elif kind == 4:
+                    g = _g_fibre(gpar, t, gmat, e if per_cell_R else 0, C, Sk, coef, W1, W2)
+                else:
+                    g = _g_eigen_power(gpar[t, 0], gpar[t, 1], gpar[t, 2], lam, V, Sk, theta_k, lp3,
+                                       want_stiffness)
                 u += f * g
                 hg += df * g
                 g2g += d2f * g
@@ -570,5 +632,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                 K[k, 2, 1] -= q0
             for r in range(3):
                 K[k, r, r] += diag
-        scatter_edge_blocks(data, base, rowlen, e, K, vol, Kd)
+        add_edge_blocks(U, Dg, cells, cell_edges, cell_flip, e, K, vol, Kd, True)
+    if want_stiffness:
+        write_csr(U, Dg, src, blkptr, indptr, data)
     return energy
