@@ -209,6 +209,6 @@ def _slot_arrays(slot_list, D: np.ndarray):
         slot_M[s] = M
         ident[s] = int(M.ndim == 2 and np.array_equal(M, IDENTITY))
         if kind == "second":
-            MD = np.einsum("...ij,maj->mai", M, D)  # (m, 4, 3)
+            MD = np.einsum("ij,maj->mai" if M.ndim == 2 else "mij,maj->mai", M, D)  # (m, 4, 3)
             slot_DMD[s] = np.einsum("mek,mek->me", D[:, EDGES[:, 0]], MD[:, EDGES[:, 1]])
     return kinds, ident, slot_M, slot_DMD
