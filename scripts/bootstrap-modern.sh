@@ -15,6 +15,7 @@ VENV=.venv-modern
 REQUIREMENTS=(
   "dolfinx-solver-real==0.11.0.post0"
   "scipy>=1.11" "pytest>=7" "hypothesis>=6" "meshio>=5.3"
+  "numba==0.68.1"
 )
 stamp=$VENV/.mjed-installed
 want="${REQUIREMENTS[*]}"

@@ -12,6 +12,7 @@ APT_PACKAGES=(
   python3-dolfinx python3-petsc4py python3-mpi4py python3-ufl
   python3-gmsh python3-meshio python3-h5py
   python3-pytest python3-hypothesis
+  python3-numba
 )
 
 missing=()
