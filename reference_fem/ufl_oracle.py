@@ -21,6 +21,7 @@ from reference_fem.distributed import ROOT, all_finite, collective, gather_csr, 
 from reference_fem.energies import strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
+from reference_fem.user_energy import UserEnergy
 from reference_fem.validation import check_cells, check_frame, check_points, check_positions, signed_volumes
 
 __all__ = ["UFLOracle", "QUADRATURE_DEGREE"]
@@ -41,7 +42,8 @@ class UFLOracle:
         points: (n, 3) rest positions X.
         cells: (m, 4) node indices of positively oriented P1 tetrahedra (input numbering).
         material: object whose class name and attributes give the energy (see
-            :func:`reference_fem.strain_energy_density`); a Costa ``frame`` may be None,
+            :func:`reference_fem.strain_energy_density`), or a
+            :class:`reference_fem.user_energy.UserEnergy`; a Costa ``frame`` may be None,
             an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
         comm: MPI communicator; None for a serial oracle (MPI.COMM_SELF). With several
             ranks every rank constructs the oracle with the same material; the input and
@@ -72,7 +74,10 @@ class UFLOracle:
         F = ufl.Identity(3) + ufl.grad(self._u)
         # Parameters as dolfinx Constants: the generated code is then the same for every
         # parameter set of a material type, so FFCx's cache is hit after the first build.
-        W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
+        if isinstance(material, UserEnergy):  # an energy written by the user (reference_fem/user_energy.py)
+            W = material.ufl_density(F, constant=self._constant)
+        else:
+            W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))

@@ -12,7 +12,7 @@ APT_PACKAGES=(
   python3-dolfinx python3-petsc4py python3-mpi4py python3-ufl
   python3-gmsh python3-meshio python3-h5py
   python3-pytest python3-hypothesis
-  python3-numba
+  python3-numba python3-sfepy
 )
 
 missing=()
@@ -51,4 +51,18 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   # NumPy/SciPy, so nothing is fetched from PyPI and the oracle sees the same NumPy.
   .venv/bin/python -m pip install --quiet --no-build-isolation --no-deps -e . >&2
   touch "$stamp"
+fi
+
+# FElupe, a third-party FE library the conformance adapters check (conformance/adapters/felupe.py;
+# its energies were read from this release), with tensortrax for FElupe's automatic
+# differentiation (Hyperelastic). Both pure Python on NumPy/SciPy: --no-deps keeps Debian's
+# NumPy and SciPy. Optional: without PyPI the FElupe tests skip, saying why.
+FELUPE_PINS=("felupe==11.3.0" "tensortrax==0.29.0")
+felupe_stamp=.venv/.felupe-installed
+if [ ! -f "$felupe_stamp" ] || [ "$(cat "$felupe_stamp")" != "${FELUPE_PINS[*]}" ]; then
+  if .venv/bin/python -m pip install --quiet --no-deps "${FELUPE_PINS[@]}" >&2; then
+    echo "${FELUPE_PINS[*]}" > "$felupe_stamp"
+  else
+    echo "bootstrap: could not install ${FELUPE_PINS[*]} from PyPI (offline?); the FElupe adapter tests will skip." >&2
+  fi
 fi

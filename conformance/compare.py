@@ -1,0 +1,75 @@
+"""Relative errors of an engine's output against the oracle, and the tolerances.
+
+    force error     ||f - f_o||_2 / max(||f_o||_2, h ||K_o||_F)
+    stiffness error ||K - K_o||_F / ||K_o||_F
+    energy error    |W - W_o| / max(|W_o|, h max(||f_o||_2, h ||K_o||_F))
+
+h is the mean edge length: at rest f_o = 0 and W_o = 0, and the denominators fall back to the
+force and energy that the stiffness gives over one edge, so that a relative figure still means
+"digits of agreement". The tolerance is 1e-10 on each (docs/conventions.md, "Tolerances").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
+
+from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+
+__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales"]
+
+ENERGY_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Denominators of the relative errors: force [N], stiffness [N/m], energy [J]."""
+
+    force: float
+    stiffness: float
+    energy: float
+
+
+@dataclass(frozen=True)
+class Errors:
+    """Relative errors; energy None when the engine gave none. symmetry: ||K - K^T||_F / ||K||_F."""
+
+    force: float
+    stiffness: float
+    energy: Optional[float]
+    symmetry: float
+
+    @property
+    def passed(self) -> bool:
+        ok = self.force <= FORCE_TOL and self.stiffness <= STIFFNESS_TOL
+        return bool(ok and (self.energy is None or self.energy <= ENERGY_TOL))
+
+    def to_dict(self) -> dict:
+        return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy, "symmetry": self.symmetry}
+
+
+def scales(h: float, W_o: float, f_o: np.ndarray, K_o: sp.spmatrix) -> Scales:
+    nK = float(sparse_norm(K_o))
+    nf = max(float(np.linalg.norm(f_o)), h * nK)
+    return Scales(force=nf, stiffness=nK, energy=max(abs(W_o), h * nf))
+
+
+def _ratio(num: float, den: float) -> float:
+    return num / den if den > 0 else num
+
+
+def errors(f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray, K_o: sp.spmatrix, W_o: float,
+           s: Scales) -> Errors:
+    """Relative errors of (f, K, W) against the oracle (f_o, K_o, W_o) with denominators ``s``."""
+    K = sp.csr_matrix(K)
+    nK = float(sparse_norm(K))
+    return Errors(
+        force=_ratio(float(np.linalg.norm(np.asarray(f) - f_o)), s.force),
+        stiffness=_ratio(float(sparse_norm(K - K_o)), s.stiffness),
+        energy=None if W is None else _ratio(abs(float(W) - W_o), s.energy),
+        symmetry=_ratio(float(sparse_norm(K - K.T)), nK),
+    )

@@ -1,0 +1,296 @@
+"""The exchange format: JSON manifests plus raw little-endian arrays (docs/conventions.md).
+
+An array is one file of raw values, C order, no header; its manifest entry says
+``{"file": "points.f64", "dtype": "<f8", "shape": [n, 3]}``. Any language reads it with a
+plain binary read (C ``fread``, Julia ``read!``, MATLAB ``fread(fid, inf, 'float64', 'l')``).
+
+A case's **input** directory holds ``case.json`` (the manifest), ``case.txt`` (the same
+scalars as ``key value`` lines, for languages without a JSON parser) and the arrays
+``points.f64`` (n, 3), ``cells.i64`` (m, 4), ``positions.f64`` (n, 3) and, for Costa with a
+frame, ``frame.f64`` ((3, 3) or (m, 3, 3)).
+
+The engine writes into the case's **output** directory (file names fixed, float64 and int64
+little-endian, dof = 3 * node + component):
+
+- ``force.f64``: 3n values, f = -dW/dx (required);
+- the stiffness K = d2W/dx2 (3n x 3n) in one of three layouts (required):
+  COO ``stiffness_rows.i64``, ``stiffness_cols.i64``, ``stiffness_values.f64`` (duplicates
+  are summed); CSR ``stiffness_indptr.i64`` (3n + 1), ``stiffness_indices.i64``,
+  ``stiffness_values.f64``; or dense ``stiffness.f64`` (9 n^2 values, row-major);
+- ``energy.f64``: 1 value, the total strain energy (optional).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from typing import Any, Dict, Mapping, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.spec import CaseInput, SpecError, model_frame, model_from_manifest, model_to_manifest
+
+__all__ = ["FORMAT_VERSION", "CASE_FORMAT", "KIT_FORMAT", "FormatError", "EngineOutput", "write_array", "read_array",
+           "write_case_input", "read_case_input", "load_json", "write_output", "read_output", "sha256_of"]
+
+FORMAT_VERSION = 1
+CASE_FORMAT = "mjed-verify case"
+KIT_FORMAT = "mjed-verify conformance kit"
+
+_DTYPES = {"<f8": np.dtype("<f8"), "<i8": np.dtype("<i8"), "<i4": np.dtype("<i4")}
+_STIFFNESS_LAYOUTS = {
+    "coo": ("stiffness_rows.i64", "stiffness_cols.i64", "stiffness_values.f64"),
+    "csr": ("stiffness_indptr.i64", "stiffness_indices.i64", "stiffness_values.f64"),
+    "dense": ("stiffness.f64",),
+}
+
+
+class FormatError(ValueError):
+    """A file that does not follow the format; the message names the case and the file."""
+
+
+@dataclass(frozen=True)
+class EngineOutput:
+    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or None."""
+
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+    energy: Optional[float] = None
+
+
+def sha256_of(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def write_array(folder: str, filename: str, array: np.ndarray, dtype: str) -> Dict[str, Any]:
+    """Write ``array`` as raw ``dtype`` (one of '<f8', '<i8', '<i4') and return its entry."""
+    a = np.ascontiguousarray(array, dtype=_DTYPES[dtype])
+    a.tofile(os.path.join(folder, filename))
+    return {"file": filename, "dtype": dtype, "shape": list(a.shape)}
+
+
+def read_array(folder: str, entry: Any, *, what: str, case: str) -> np.ndarray:
+    """Read the array of a manifest entry, checking its dtype, shape and file size."""
+    if not isinstance(entry, Mapping) or not {"file", "dtype", "shape"} <= set(entry):
+        raise FormatError(f"case {case}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
+    dtype = _DTYPES.get(entry["dtype"])
+    if dtype is None:
+        raise FormatError(f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}")
+    shape = tuple(int(s) for s in entry["shape"])
+    path = os.path.join(folder, str(entry["file"]))
+    return _read_raw(path, dtype, shape, case=case)
+
+
+def _read_raw(path: str, dtype: np.dtype, shape: tuple, *, case: str) -> np.ndarray:
+    if not os.path.isfile(path):
+        raise FormatError(f"case {case}: {path}: file missing")
+    count = int(np.prod(shape))
+    size = os.path.getsize(path)
+    if size != count * dtype.itemsize:
+        raise FormatError(f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
+                          f"({count} values of {dtype.str} for shape {list(shape)})")
+    return np.fromfile(path, dtype=dtype).reshape(shape)
+
+
+# ------------------------------------------------------------------ case input
+def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+    """Write a case's input directory (created, must not exist) and return its manifest."""
+    os.makedirs(folder)
+    arrays = {
+        "points": write_array(folder, "points.f64", case.points, "<f8"),
+        "cells": write_array(folder, "cells.i64", case.cells, "<i8"),
+        "positions": write_array(folder, "positions.f64", case.positions, "<f8"),
+    }
+    frame = model_frame(case.model)
+    if frame is not None:
+        arrays["frame"] = write_array(folder, "frame.f64", frame, "<f8")
+    manifest = {"format": CASE_FORMAT, "format_version": FORMAT_VERSION, "case": case.case_id,
+                "n_nodes": case.n_nodes, "n_cells": case.n_cells, "model": model_to_manifest(case.model),
+                "arrays": arrays, **(dict(extra) if extra else {})}
+    with open(os.path.join(folder, "case.json"), "w") as fh:
+        json.dump(manifest, fh, indent=1)
+    with open(os.path.join(folder, "case.txt"), "w") as fh:
+        fh.write(_case_text(manifest))
+    return manifest
+
+
+def _case_text(manifest: Mapping[str, Any]) -> str:
+    """``key value`` lines: everything a C engine needs, no JSON parser required."""
+    model = manifest["model"]
+    lines = [f"format_version {manifest['format_version']}", f"case {manifest['case']}",
+             f"n_nodes {manifest['n_nodes']}", f"n_cells {manifest['n_cells']}",
+             f"kind {model['kind']}", f"name {model['name']}"]
+    if model["kind"] == "energy":
+        lines.append(f"expression {model['expression']}")
+        if model.get("fibre") is not None:
+            lines.append("fibre " + " ".join(repr(float(v)) for v in model["fibre"]))
+    lines += [f"parameter {k} {float(v)!r}" for k, v in model["parameters"].items()]
+    for name, entry in manifest["arrays"].items():
+        lines.append(f"array {name} {entry['file']} {entry['dtype']} " + " ".join(str(s) for s in entry["shape"]))
+    return "\n".join(lines) + "\n"
+
+
+def load_json(path: str, case: Optional[str] = None, hint: str = "") -> Dict[str, Any]:
+    """A JSON object from ``path``; FormatError naming the case (if any) and the file otherwise."""
+    where = (f"case {case}: " if case else "") + path
+    if not os.path.isfile(path):
+        raise FormatError(f"{where}: file missing{hint}")
+    try:
+        with open(path) as fh:
+            data = json.load(fh)
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise FormatError(f"{where}: malformed JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise FormatError(f"{where}: expected a JSON object")
+    return data
+
+
+def check_version(data: Mapping[str, Any], path: str, case: str, expected_format: str) -> None:
+    if data.get("format") != expected_format:
+        raise FormatError(f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}")
+    if data.get("format_version") != FORMAT_VERSION:
+        raise FormatError(f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
+                          f"(this mjed-verify reads version {FORMAT_VERSION})")
+
+
+def read_case_input(folder: str, case: str = "?") -> CaseInput:
+    """Read back a case input directory (validated)."""
+    path = os.path.join(folder, "case.json")
+    data = load_json(path, case)
+    check_version(data, path, case, CASE_FORMAT)
+    arrays = data.get("arrays")
+    if not isinstance(arrays, Mapping):
+        raise FormatError(f"case {case}: {path}: 'arrays' missing")
+    try:
+        for key in ("points", "cells", "positions"):
+            if key not in arrays:
+                raise FormatError(f"case {case}: {path}: array {key!r} missing")
+        pts = read_array(folder, arrays["points"], what="points", case=case)
+        cells = read_array(folder, arrays["cells"], what="cells", case=case)
+        x = read_array(folder, arrays["positions"], what="positions", case=case)
+        frame = read_array(folder, arrays["frame"], what="frame", case=case) if "frame" in arrays else None
+        model = model_from_manifest(data.get("model"), frame, where=f"case {case}: {path}")
+        return CaseInput(str(data.get("case", case)), pts, cells, x, model)
+    except (SpecError, ValueError) as exc:
+        if isinstance(exc, FormatError):
+            raise
+        raise FormatError(f"case {case}: {path}: {exc}") from None
+
+
+# ------------------------------------------------------------------ engine output
+def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[float] = None, *,
+                 layout: str = "coo") -> None:
+    """Write an engine's result in the format (for Python engines and the tests)."""
+    os.makedirs(folder, exist_ok=True)
+    write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
+    if layout == "dense":
+        write_array(folder, "stiffness.f64", np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness), "<f8")
+    elif layout == "coo":
+        K = sp.coo_matrix(stiffness)
+        for name, arr, dt in (("stiffness_rows.i64", K.row, "<i8"), ("stiffness_cols.i64", K.col, "<i8"),
+                              ("stiffness_values.f64", K.data, "<f8")):
+            write_array(folder, name, arr, dt)
+    elif layout == "csr":
+        K = sp.csr_matrix(stiffness)
+        for name, arr, dt in (("stiffness_indptr.i64", K.indptr, "<i8"), ("stiffness_indices.i64", K.indices, "<i8"),
+                              ("stiffness_values.f64", K.data, "<f8")):
+            write_array(folder, name, arr, dt)
+    else:
+        raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
+    if energy is not None:
+        write_array(folder, "energy.f64", np.array([float(energy)]), "<f8")
+
+
+def _count(path: str, itemsize: int, case: str) -> int:
+    size = os.path.getsize(path)
+    if size % itemsize:
+        raise FormatError(f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values")
+    return size // itemsize
+
+
+def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
+    """Read and validate an engine's output for a mesh of ``n_nodes`` nodes.
+
+    Raises:
+        FormatError naming the case and the file: missing or extra files, a wrong size
+        (shape or node count), indices out of range, NaN or infinite values.
+    """
+    if not os.path.isdir(folder):
+        raise FormatError(f"case {case}: {folder}: output directory missing (the engine wrote nothing)")
+    N = 3 * n_nodes
+    f64, i64 = np.dtype("<f8"), np.dtype("<i8")
+    fpath = os.path.join(folder, "force.f64")
+    if not os.path.isfile(fpath):
+        raise FormatError(f"case {case}: {fpath}: file missing (force, 3n = {N} float64 values)")
+    n_force = _count(fpath, 8, case)
+    if n_force != N:
+        hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
+        raise FormatError(f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes")
+    force = np.fromfile(fpath, dtype=f64).reshape(n_nodes, 3)
+    _require_finite(force, fpath, case)
+
+    present = [k for k, files in _STIFFNESS_LAYOUTS.items() if os.path.isfile(os.path.join(folder, files[0]))]
+    if not present:
+        raise FormatError(f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
+                          "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
+                          "stiffness_values.f64 (CSR) or stiffness.f64 (dense)")
+    if len(present) > 1:
+        raise FormatError(f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); write one")
+    layout = present[0]
+    paths = [os.path.join(folder, f) for f in _STIFFNESS_LAYOUTS[layout]]
+    for p in paths:
+        if not os.path.isfile(p):
+            raise FormatError(f"case {case}: {p}: file missing ({layout} stiffness needs {', '.join(_STIFFNESS_LAYOUTS[layout])})")
+    if layout == "dense":
+        count = _count(paths[0], 8, case)
+        if count != N * N:
+            raise FormatError(f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} nodes")
+        dense = np.fromfile(paths[0], dtype=f64).reshape(N, N)
+        _require_finite(dense, paths[0], case)
+        K = sp.csr_matrix(dense)
+    else:
+        a, b = (np.fromfile(p, dtype=i64) for p in paths[:2])
+        vals = np.fromfile(paths[2], dtype=f64)
+        _require_finite(vals, paths[2], case)
+        if layout == "coo":
+            if not (a.size == b.size == vals.size):
+                raise FormatError(f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols {b.size}, "
+                                  f"values {vals.size})")
+            for arr, p in ((a, paths[0]), (b, paths[1])):
+                _require_indices(arr, N, p, case)
+            K = sp.coo_matrix((vals, (a, b)), shape=(N, N)).tocsr()
+        else:
+            if a.size != N + 1 or a[0] != 0 or np.any(np.diff(a) < 0) or a[-1] != b.size or b.size != vals.size:
+                raise FormatError(f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
+                                  f"column indices and {vals.size} values")
+            _require_indices(b, N, paths[1], case)
+            K = sp.csr_matrix((vals, b, a), shape=(N, N))
+            K.sum_duplicates()
+    energy = None
+    epath = os.path.join(folder, "energy.f64")
+    if os.path.isfile(epath):
+        if _count(epath, 8, case) != 1:
+            raise FormatError(f"case {case}: {epath}: expected exactly one float64 value")
+        energy = float(np.fromfile(epath, dtype=f64)[0])
+        _require_finite(np.array([energy]), epath, case)
+    return EngineOutput(force, sp.csr_matrix(K), energy)
+
+
+def _require_finite(a: np.ndarray, path: str, case: str) -> None:
+    bad = ~np.isfinite(a)
+    if bad.any():
+        first = int(np.flatnonzero(bad.ravel())[0])
+        raise FormatError(f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at flat index {first}")
+
+
+def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
+    if idx.size and (idx.min() < 0 or idx.max() >= N):
+        raise FormatError(f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
+                          f"found {int(idx.min())}..{int(idx.max())}")

@@ -1,0 +1,81 @@
+"""The oracle's values for a case: energy, force and stiffness from the UFL oracle, and the parts of
+its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.spec import CaseInput, model_frame, model_to_manifest
+
+__all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
+
+
+def oracle_available() -> bool:
+    from reference_fem import dolfinx_available
+
+    return dolfinx_available()
+
+
+def energy_density(model: Any, F, frame=None, constant: Optional[Callable[[Any], Any]] = None):
+    """W(F) per unit rest volume in UFL, for a built-in material or a user energy."""
+    from conformance.spec import _user_energy_type
+
+    UE = _user_energy_type()
+    if UE is not None and isinstance(model, UE):
+        return model.ufl_density(F, constant=constant)
+    from reference_fem.energies import strain_energy_density
+
+    return strain_energy_density(model, F, frame=frame, constant=constant)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]."""
+
+    energy: float
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+
+
+def _key(case: CaseInput) -> Tuple[str, str]:
+    h = hashlib.sha256()
+    for a in (case.points, case.cells):
+        h.update(np.ascontiguousarray(a).tobytes())
+    frame = model_frame(case.model)
+    model = json.dumps(model_to_manifest(case.model), sort_keys=True)
+    if frame is not None:
+        model += hashlib.sha256(np.ascontiguousarray(frame).tobytes()).hexdigest()
+    return h.hexdigest(), model
+
+
+class OracleCache:
+    """UFL oracles and stiffness-part oracles, built once per (mesh, model)."""
+
+    def __init__(self) -> None:
+        self._oracles: Dict[Tuple[str, str], Any] = {}
+        self._parts: Dict[Tuple[str, str], Any] = {}
+
+    def reference(self, case: CaseInput) -> Reference:
+        key = _key(case)
+        if key not in self._oracles:
+            from reference_fem import UFLOracle
+
+            self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
+        oracle = self._oracles[key]
+        f, K = oracle.force_and_stiffness(case.positions)
+        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def parts(self, case: CaseInput):
+        """:class:`conformance.parts.StiffnessParts` at the case's positions."""
+        key = _key(case)
+        if key not in self._parts:
+            from conformance.parts import PartsOracle
+
+            self._parts[key] = PartsOracle(case.points, case.cells, case.model)
+        return self._parts[key].parts(case.positions)

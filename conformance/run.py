@@ -1,0 +1,160 @@
+"""Check an engine case by case: get its output (files, a command or a Python callable), compare with
+the oracle, diagnose; a bad case is reported and the others still run.
+
+The engine is reached through an *evaluator*: ``evaluate(kit_case) -> EngineOutput``, raising
+:class:`CaseError` (bad output, crash, time limit) for that case only.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, List, Optional, Sequence
+
+from comparisons.equivalence import _mean_edge
+from conformance.compare import scales
+from conformance.consistency import Consistency, consistency
+from conformance.diagnosis import Diagnosis, diagnose
+from conformance.exchange import EngineOutput, FormatError
+from conformance.kit import KitCase, primary_and_probes
+from conformance.oracle import OracleCache
+
+__all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check", "EXIT_PASSED", "EXIT_FAILED", "EXIT_BAD_INPUT"]
+
+EXIT_PASSED, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+Evaluator = Callable[[KitCase], EngineOutput]
+
+
+class CaseError(FormatError):
+    """One case could not be evaluated: bad output, a crash or a time limit (message names the case)."""
+
+
+@dataclass(frozen=True)
+class CaseOutcome:
+    """status: "passed", "failed" or "bad input"; diagnosis for compared cases, message otherwise."""
+
+    case_id: str
+    model: str
+    mesh: str
+    state: str
+    status: str
+    diagnosis: Optional[Diagnosis] = None
+    message: str = ""
+    seconds: float = 0.0
+    n_nodes: int = 0
+
+    def to_dict(self) -> dict:
+        d = {"case": self.case_id, "model": self.model, "mesh": self.mesh, "state": self.state, "status": self.status,
+             "message": self.message, "seconds": self.seconds}
+        if self.diagnosis is not None:
+            d.update(self.diagnosis.to_dict())
+        return d
+
+
+@dataclass
+class CheckRun:
+    """Every case's outcome, plus kit-level errors (unreadable cases)."""
+
+    outcomes: List[CaseOutcome] = field(default_factory=list)
+    input_errors: Dict[str, str] = field(default_factory=dict)
+
+    @property
+    def n_passed(self) -> int:
+        return sum(o.status == "passed" for o in self.outcomes)
+
+    @property
+    def exit_code(self) -> int:
+        """2 when some case had bad input (the others still ran), else 1 if one failed, else 0."""
+        if self.input_errors or any(o.status == "bad input" for o in self.outcomes):
+            return EXIT_BAD_INPUT
+        if any(o.status != "passed" for o in self.outcomes) or not self.outcomes:
+            return EXIT_FAILED
+        return EXIT_PASSED
+
+    def summary(self) -> str:
+        bad = sum(o.status == "bad input" for o in self.outcomes) + len(self.input_errors)
+        failed = sum(o.status == "failed" for o in self.outcomes)
+        return (f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} failed, "
+                f"{bad} with bad input")
+
+    def text(self) -> str:
+        lines = [self.summary()]
+        for o in self.outcomes:
+            if o.diagnosis is not None:
+                lines.append(o.diagnosis.text())
+            else:
+                lines.append(f"case {o.case_id}: BAD INPUT: {o.message}")
+        lines += [f"BAD INPUT: {msg}" for msg in self.input_errors.values()]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"summary": self.summary(), "exit_code": self.exit_code,
+                "cases": [o.to_dict() for o in self.outcomes], "input_errors": dict(self.input_errors)}
+
+
+def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[OracleCache] = None,
+              input_errors: Optional[Dict[str, str]] = None,
+              progress: Optional[Callable[[str], None]] = None,
+              on_case: Optional[Callable[..., None]] = None) -> CheckRun:
+    """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
+
+    on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
+    its per-node error field).
+    """
+    cache = OracleCache() if cache is None else cache
+    run = CheckRun(input_errors=dict(input_errors or {}))
+    for case, probes in primary_and_probes(cases):
+        t0 = time.perf_counter()
+        ci = case.input
+        label = dict(case_id=case.case_id, model=_model_name(ci.model), mesh=case.mesh, state=case.state,
+                     n_nodes=ci.n_nodes)
+        if progress:
+            progress(case.case_id)
+        try:
+            out = evaluate(case)
+        except FormatError as exc:
+            run.outcomes.append(CaseOutcome(status="bad input", message=str(exc),
+                                            seconds=time.perf_counter() - t0, **label))
+            continue
+        probe_results, probe_errors = [], []
+        for p in probes:
+            try:
+                po = evaluate(p)
+                probe_results.append((p.input.positions, po.force, po.energy))
+            except FormatError as exc:
+                probe_errors.append(str(exc))
+        cons = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results) if not probe_errors \
+            else Consistency(None, None, note="; ".join(probe_errors))
+        ref = cache.reference(ci)
+        s = scales(_mean_edge(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
+        diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
+                        W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
+                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None)
+        status = diag.verdict
+        message = ""
+        if probe_errors:
+            status, message = "bad input", "probe output unusable: " + "; ".join(probe_errors)
+        run.outcomes.append(CaseOutcome(status=status, diagnosis=diag, message=message,
+                                        seconds=time.perf_counter() - t0, **label))
+        if on_case is not None:
+            on_case(case, out, ref, diag)
+    return run
+
+
+def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:
+    """Build once on first call (the stiffness parts compile UFL forms: only when a case fails)."""
+    box: List[Any] = []
+
+    def get():
+        if not box:
+            box.append(make())
+        return box[0]
+
+    return get
+
+
+def _model_name(model: Any) -> str:
+    from conformance.spec import model_label
+
+    return model_label(model)

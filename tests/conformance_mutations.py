@@ -1,0 +1,212 @@
+"""A deliberately broken reference implementation: mjed.HyperelasticForceField with one classic mistake.
+
+Each mutation is a function (case, field, f, K, W) -> (f, K, W) applied to the exact MJED output
+of the case, written independently of the diagnosis: the tangent-part mutations build their
+parts with the classical Total Lagrangian formulas (reference_fem.classical: B^T CC B and the
+geometric term), the energy variant with its own MJED term. ``EXPECTED`` says which finding
+code the diagnosis must name for each one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Dict, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+import mjed
+from mjed.materials import MooneyRivlin
+from mjed.terms import JFunction, LogPolynomial, Term, TermGroup, Unity
+from reference_fem.classical import strain_displacement
+from reference_fem.classical_materials import classical_law
+
+__all__ = ["MUTATIONS", "EXPECTED", "broken_engine", "MATERIAL"]
+
+#: The material every mutation is checked with (both volumetric and isochoric terms matter).
+MATERIAL = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
+
+
+def _assemble(cells: np.ndarray, n: int, Ke: np.ndarray) -> sp.csr_matrix:
+    """Sum element matrices (m, 12, 12) (node-major local dofs) into (3n, 3n)."""
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(len(cells), 12)
+    rows = np.repeat(dofs, 12, axis=1).ravel()
+    cols = np.tile(dofs, (1, 12)).ravel()
+    return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(3 * n, 3 * n))
+
+
+def _classical_blocks(case):
+    """Per cell: V0 (m,), B (m, 6, 12), CC (m, 6, 6) (engineering Voigt), S (m, 3, 3), D (m, 4, 3)."""
+    mesh = mjed.TetMesh(case.points, case.cells)
+    F = np.swapaxes(case.positions[mesh.cells], 1, 2) @ mesh.D
+    S, CC = classical_law(case.model).stress_and_tangent(np.swapaxes(F, 1, 2) @ F)
+    return mesh.volumes, strain_displacement(F, mesh.D), CC, S, mesh.D
+
+
+def _voigt_shear_doubled(case, field, f, K, W):
+    V0, B, CC, S, D = _classical_blocks(case)
+    Bs = B[:, 3:, :]
+    extra = V0[:, None, None] * np.swapaxes(Bs, 1, 2) @ CC[:, 3:, 3:] @ Bs  # the shear-shear block once more
+    return f, (K + _assemble(case.cells, case.n_nodes, extra)).tocsr(), W
+
+
+def _geometric_missing(case, field, f, K, W):
+    V0, B, CC, S, D = _classical_blocks(case)
+    g = V0[:, None, None] * np.einsum("mai,mij,mbj->mab", D, S, D)  # (D_a . S D_b) per node pair
+    geo = np.einsum("mab,kl->makbl", g, np.eye(3)).reshape(-1, 12, 12)
+    return f, (K - _assemble(case.cells, case.n_nodes, geo)).tocsr(), W
+
+
+class _Bulk(mjed.materials.base.Material):
+    """Only the volumetric term k0/2 (ln J)^2 (a material for the 'volumetric tangent doubled' mutation)."""
+
+    def __init__(self, k0: float):
+        self.k0 = k0
+
+    def decomposition(self):
+        return (TermGroup((Term(LogPolynomial(0.5 * self.k0), Unity()),)),)
+
+
+def _volumetric_tangent_doubled(case, field, f, K, W):
+    bulk = mjed.HyperelasticForceField(field.mesh, _Bulk(case.model.k0))
+    return f, (K + bulk.stiffness(case.positions)).tocsr(), W
+
+
+@dataclass(frozen=True)
+class _JMinusOneSquared(JFunction):
+    """k/2 (J - 1)^2 + a0: the common penalty bulk term."""
+
+    k: float
+    a0: float
+
+    def __call__(self, J):
+        return 0.5 * self.k * (J - 1.0) ** 2 + self.a0, self.k * (J - 1.0), self.k + 0.0 * J
+
+
+class _MooneyRivlinJMinusOne(mjed.materials.base.Material):
+    """MooneyRivlin's isochoric terms with k0/2 (J-1)^2 in place of k0/2 (ln J)^2."""
+
+    def __init__(self, m: MooneyRivlin):
+        self.m = m
+
+    def decomposition(self):
+        out = []
+        for group in self.m.decomposition():
+            terms = tuple(Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g) if isinstance(t.f, LogPolynomial) else t
+                          for t in group.terms)
+            out.append(TermGroup(terms, group.exponential, group.coefficient))
+        return tuple(out)
+
+
+def _energy_variant(case, field, f, K, W):
+    variant = mjed.HyperelasticForceField(field.mesh, _MooneyRivlinJMinusOne(case.model))
+    f2, K2 = variant.force_and_stiffness(case.positions)
+    return f2, K2, variant.energy(case.positions)
+
+
+def _tangent_at_rest(case, field, f, K, W):
+    return f, field.stiffness(case.points), W  # the stiffness of the undeformed mesh: not d f / dx
+
+
+def _one_cell_wrong(case, field, f, K, W):
+    c = len(case.cells) // 2  # an interior-ish cell, the same every time
+    fe = field.element_forces(case.positions)[c]
+    Ke = field.element_stiffness(case.positions)[c]
+    f = f.copy()
+    np.add.at(f, case.cells[c], 0.5 * fe)
+    return f, (K + _assemble(case.cells[c:c + 1], case.n_nodes, 0.5 * Ke[None])).tocsr(), W
+
+
+def _component_major(case, field, f, K, W):
+    n = case.n_nodes
+    order = (3 * np.arange(n)[None, :] + np.arange(3)[:, None]).ravel()  # engine index c*n+a holds dof 3a+c
+    Kc = sp.csr_matrix(K)[order][:, order]
+    return f.ravel()[order].reshape(n, 3), Kc.tocsr(), W
+
+
+def _permute(case, f, K, q):
+    """Engine writes node a's values at position q[a]."""
+    n = case.n_nodes
+    inv = np.empty(n, dtype=np.int64)
+    inv[q] = np.arange(n)
+    p = (3 * inv[:, None] + np.arange(3)).ravel()
+    return f[inv], sp.csr_matrix(K)[p][:, p].tocsr()
+
+
+def _nodes_permuted(case, field, f, K, W):
+    q = np.random.default_rng(5).permutation(case.n_nodes)
+    return (*_permute(case, f, K, q), W)
+
+
+def _one_based(case, field, f, K, W):
+    q = (np.arange(case.n_nodes) + 1) % case.n_nodes  # node a written at a + 1 (wrapping the last one)
+    return (*_permute(case, f, K, q), W)
+
+
+def _blocks_transposed(case, field, f, K, W):
+    C = sp.coo_matrix(K)
+    r, ci = np.divmod(C.row, 3)
+    c, cj = np.divmod(C.col, 3)
+    return f, sp.csr_matrix((C.data, (3 * r + cj, 3 * c + ci)), shape=K.shape), W
+
+
+def _unsymmetric(case, field, f, K, W):
+    C = sp.coo_matrix(K)
+    rng = np.random.default_rng(3)
+    A = sp.csr_matrix((rng.standard_normal(C.nnz), (C.row, C.col)), shape=K.shape)
+    skew = (A - A.T) * (1e-3 * abs(K).max())
+    return f, (K + skew).tocsr(), W
+
+
+Mutation = Callable[..., Tuple[np.ndarray, sp.csr_matrix, float]]
+
+MUTATIONS: Dict[str, Mutation] = {
+    "none": lambda case, field, f, K, W: (f, K, W),
+    "force sign": lambda case, field, f, K, W: (-f, K, W),
+    "stiffness sign": lambda case, field, f, K, W: (f, -K, W),
+    "both signs": lambda case, field, f, K, W: (-f, -K, -W),
+    "component-major dofs": _component_major,
+    "nodes permuted": _nodes_permuted,
+    "1-based node index": _one_based,
+    "factor 2": lambda case, field, f, K, W: (2 * f, 2 * K, 2 * W),
+    "3x3 blocks transposed": _blocks_transposed,
+    "unsymmetric K": _unsymmetric,
+    "Voigt shear doubled": _voigt_shear_doubled,
+    "geometric stiffness missing": _geometric_missing,
+    "volumetric tangent doubled": _volumetric_tangent_doubled,
+    "stiffness not the derivative of the force": _tangent_at_rest,
+    "one cell wrong": _one_cell_wrong,
+    "(J-1)^2 bulk term": _energy_variant,
+}
+
+#: Mutation -> the finding code the diagnosis must name (None: the case must pass).
+EXPECTED: Dict[str, object] = {
+    "none": None,
+    "force sign": "force-sign",
+    "stiffness sign": "stiffness-sign",
+    "both signs": "both-signs",
+    "component-major dofs": "dof-order",
+    "nodes permuted": "node-permutation",
+    "1-based node index": "node-offset+1",
+    "factor 2": "scale",
+    "3x3 blocks transposed": "block-transpose",
+    "unsymmetric K": "unsymmetric",
+    "Voigt shear doubled": "tangent-part",
+    "geometric stiffness missing": "tangent-part",
+    "volumetric tangent doubled": "tangent-part",
+    "stiffness not the derivative of the force": "inconsistent-stiffness",
+    "one cell wrong": "localised",
+    "(J-1)^2 bulk term": "volumetric",
+}
+
+
+def broken_engine(mutation: str):
+    """An implementation (CaseInput -> (f, K, W)) with the named mistake."""
+    mutate = MUTATIONS[mutation]
+
+    def engine(case):
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+        f, K = field.force_and_stiffness(case.positions)
+        return mutate(case, field, f, K, field.energy(case.positions))
+
+    return engine
