@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from mjed.compiled.kernels import add_edge_blocks, eigh3, write_csr
+from mjed.compiled.kernels import add_edge_blocks, apply_to_shape_vectors, deformation_gradient, eigh3, write_csr
 
 __all__ = ["classical_cells", "LAW_SVK", "LAW_NEOHOOKE", "LAW_DECOUPLED", "LAW_OGDEN", "LAW_COSTA"]
 
@@ -45,12 +45,14 @@ def _odot(Ci, out):
 
 
 @njit(**_JIT)
-def _volumetric(J, dU, ddU, ci, odot, S, CC):
-    """Adds S_vol = J U' C^-1 and CC_vol = J (U' + J U'') ci (x) ci - 2 J U' C^-1 (.) C^-1."""
+def _volumetric(J, dU, ddU, ci, odot, S, CC, tangent):
+    """Adds S_vol = J U' C^-1 and (if tangent) CC_vol = J (U' + J U'') ci (x) ci - 2 J U' C^-1 (.) C^-1."""
     a = J * (dU + J * ddU)
     b = 2.0 * J * dU
     for I in range(6):
         S[I] += J * dU * ci[I]
+        if not tangent:
+            continue
         for K in range(6):
             CC[I, K] += a * ci[I] * ci[K] - b * odot[I, K]
 
@@ -78,14 +80,16 @@ def _psi(kind, P, I1b, I2b):
 
 
 @njit(**_JIT)
-def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M, H):
-    """W of the law; fills S (6,) and CC (6, 6). P: parameters; T: Costa's (6, 6) tensor.
+def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M, H, tangent):
+    """W of the law; fills S (6,) and, if ``tangent``, CC (6, 6) (a force-only evaluation skips
+    the elasticity tensor, as the NumPy law does). P: parameters; T: Costa's (6, 6) tensor.
     Scratch (kept by the caller, so nothing is allocated per cell): W6, cv, cbv, Siso (6,);
     M66, N66 (6, 6); lam (3,); N, sc, H (3, 3); M (6, 3)."""
     for I in range(6):
         S[I] = 0.0
-        for K in range(6):
-            CC[I, K] = 0.0
+        if tangent:
+            for K in range(6):
+                CC[I, K] = 0.0
     lnJ = math.log(J)
     ci = W6
     for I in range(6):
@@ -100,17 +104,22 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
                 EE += Eij * Eij
         for I in range(6):
             S[I] = 2.0 * mu * 0.5 * (C[_VI[I], _VJ[I]] - _IV[I]) + lm * trE * _IV[I]
+            if not tangent:
+                continue
             CC[I, I] += 2.0 * mu * _II[I]
             for K in range(6):
                 CC[I, K] += lm * _IV[I] * _IV[K]
         return 0.5 * lm * trE * trE + mu * EE
-    _odot(Ci, odot)
+    if tangent:
+        _odot(Ci, odot)
     if code == LAW_NEOHOOKE:
         mu, lm = P[0], P[1]
         a = lm * lnJ - mu
         b = 2.0 * (mu - lm * lnJ)
         for I in range(6):
             S[I] = a * ci[I] + mu * _IV[I]
+            if not tangent:
+                continue
             for K in range(6):
                 CC[I, K] = lm * ci[I] * ci[K] + b * odot[I, K]
         I1 = C[0, 0] + C[1, 1] + C[2, 2]
@@ -137,6 +146,9 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
         for I in range(6):
             Siso[I] -= tr / 3.0 * ci[I]
             S[I] = Siso[I]
+        if not tangent:
+            _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, False)
+            return psi + 0.5 * k0 * lnJ * lnJ
         j43 = j23 * j23
         a = 4.0 * (p11 + 2.0 * I1b * p12 + p2 + I1b * I1b * p22)
         b = -4.0 * (p12 + I1b * p22)
@@ -158,7 +170,7 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
                     acc -= N66[I, L] * ci[K] * cv[L] * _WEIGHT[L] / 3.0
                 CC[I, K] = (acc + 2.0 / 3.0 * tr * (odot[I, K] - ci[I] * ci[K] / 3.0)
                             - 2.0 / 3.0 * (ci[I] * Siso[K] + Siso[I] * ci[K]))
-        _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC)
+        _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, True)
         return psi + 0.5 * k0 * lnJ * lnJ
     if code == LAW_OGDEN:
         c, q, r, alpha, k0 = P[0], P[1], P[2], P[3], P[4]
@@ -177,6 +189,9 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
                 w = cP * (q * lq1[i] + r * sigma / lam[i])
                 acc += M[I, i] * 2.0 * w
             S[I] = acc
+        if not tangent:
+            _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, False)
+            return c * (Pj * sigma - 3.0) + 0.5 * k0 * lnJ * lnJ
         for i in range(3):
             for j in range(3):
                 H[i, j] = r * (q * lq1[i] / lam[j] + q * lq1[j] / lam[i]) + r * r * sigma / (lam[i] * lam[j])
@@ -199,7 +214,7 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
                 for K in range(6):
                     GK = N[_VI[K], i] * N[_VJ[K], j] + N[_VI[K], j] * N[_VJ[K], i]
                     CC[I, K] += theta * W6_I * GK
-        _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC)
+        _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, True)
         return c * (Pj * sigma - 3.0) + 0.5 * k0 * lnJ * lnJ
     # LAW_COSTA
     a_, k0 = P[0], P[1]
@@ -223,6 +238,8 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
     pJJ = ex * (16.0 / 9.0 * Q * Q * j43 * j43 + 28.0 / 9.0 * Q * j43) / (J * J) + k0 / J
     for I in range(6):
         S[I] = pQ * qv[I] + J * pJ * ci[I]
+        if not tangent:
+            continue
         for K in range(6):
             CC[I, K] = (pQQ * qv[I] * qv[K] + J * pQJ * (qv[I] * ci[K] + ci[I] * qv[K]) + pQ * T[I, K]
                         + J * (J * pJJ + pJ) * ci[I] * ci[K] - 2.0 * J * pJ * odot[I, K])
@@ -269,12 +286,7 @@ def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, ce
         Dg[:] = 0.0
     energy = 0.0
     for e in range(m):
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for a in range(4):
-                    acc += x[cells[e, a], i] * D[e, a, j]
-                F[i, j] = acc
+        deformation_gradient(x, cells, D, e, F)
         J = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]) - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
              + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
         J_out[e] = J
@@ -289,15 +301,14 @@ def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, ce
         Ci[1, 2] = Ci[2, 1] = (C[0, 2] * C[1, 0] - C[0, 0] * C[1, 2]) / det
         Ci[0, 2] = Ci[2, 0] = (C[0, 1] * C[1, 2] - C[0, 2] * C[1, 1]) / det
         Te = Tt[e] if per_cell_T else Tt[0]
-        W = _law(code, P, Te, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M63, H3)
+        W = _law(code, P, Te, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M63, H3,
+                 want_stiffness)
         vol = V0[e]
         energy += vol * W
         for I in range(6):
             Sm[_VI[I], _VJ[I]] = S[I]
             Sm[_VJ[I], _VI[I]] = S[I]
-        for a in range(4):
-            for i in range(3):
-                SD[a, i] = Sm[i, 0] * D[e, a, 0] + Sm[i, 1] * D[e, a, 1] + Sm[i, 2] * D[e, a, 2]
+        apply_to_shape_vectors(Sm, D, e, SD)
         if want_force:  # f_a = -V0 F S D_a
             for a in range(4):
                 for k in range(3):

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["eigh3", "block_sources", "add_edge_blocks", "write_csr", "mjed_cells"]
+__all__ = ["eigh3", "deformation_gradient", "apply_to_shape_vectors", "block_sources", "add_edge_blocks", "write_csr", "mjed_cells"]
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 # Small helpers are inlined into the kernel at Numba IR level: a call per term and cell with a
@@ -158,6 +158,35 @@ def write_csr(U, Dg, src, blkptr, indptr, data):
                         data[p + c] = U[s // 2, r, c]
                     else:
                         data[p + c] = U[s // 2, c, r]
+
+
+@njit(**_INLINE)
+def deformation_gradient(x, cells, D, e, F):
+    """F = sum_a x_a (x) D_a of cell e, into F (3, 3)."""
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for a in range(4):
+                acc += x[cells[e, a], i] * D[e, a, j]
+            F[i, j] = acc
+
+
+@njit(**_INLINE)
+def apply_to_shape_vectors(M, D, e, out):
+    """out[a] = M D_a for the four rest shape vectors of cell e: M (3, 3), out (4, 3)."""
+    for a in range(4):
+        for i in range(3):
+            out[a, i] = M[i, 0] * D[e, a, 0] + M[i, 1] * D[e, a, 1] + M[i, 2] * D[e, a, 2]
+
+
+@njit(**_INLINE)
+def _zero3(A, B, C):
+    """Zero three (3, 3) arrays."""
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = 0.0
+            B[i, j] = 0.0
+            C[i, j] = 0.0
 
 
 @njit(**_INLINE)
@@ -397,12 +426,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
     energy = 0.0
     for e in range(m):
         # ---- kinematics
-        for i in range(3):
-            for j in range(3):
-                acc = 0.0
-                for a in range(4):
-                    acc += x[cells[e, a], i] * D[e, a, j]
-                F[i, j] = acc
+        deformation_gradient(x, cells, D, e, F)
         for i in range(3):
             i1, i2 = (i + 1) % 3, (i + 2) % 3
             for j in range(3):
@@ -423,11 +447,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             eigh3(C, lam, V, W1)
 
         # ---- terms, groups
-        for i in range(3):
-            for j in range(3):
-                St[i, j] = 0.0
-                Sh[i, j] = 0.0
-                th[i, j] = 0.0
+        _zero3(St, Sh, th)
         for s in range(nS):
             w[s] = 0.0
         h = 0.0
@@ -440,11 +460,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             u = 0.0
             hg = 0.0
             g2g = 0.0
-            for i in range(3):
-                for j in range(3):
-                    Sg[i, j] = 0.0
-                    Shg[i, j] = 0.0
-                    thg[i, j] = 0.0
+            _zero3(Sg, Shg, thg)
             for s in range(nS):
                 wg[s] = 0.0
             for t in range(group_start[grp], group_start[grp + 1]):
@@ -492,9 +508,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                     for i in range(3):
                         for j in range(3):
                             M3[i, j] += hg * cof[i, j]
-                    for a in range(4):
-                        for i in range(3):
-                            du[grp, a, i] = M3[i, 0] * D[e, a, 0] + M3[i, 1] * D[e, a, 1] + M3[i, 2] * D[e, a, 2]
+                    apply_to_shape_vectors(M3, D, e, du[grp])
                 escale[grp] = scale
             else:
                 scale = group_coef[grp]
@@ -513,9 +527,7 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
         energy += vol * e_cell
 
         # ---- gradient: F S D_a + h d_a (F S formed once per cell)
-        for a in range(4):
-            for i in range(3):
-                d[a, i] = cof[i, 0] * D[e, a, 0] + cof[i, 1] * D[e, a, 1] + cof[i, 2] * D[e, a, 2]
+        apply_to_shape_vectors(cof, D, e, d)
         if want_force:
             _matmul3(F, St, M3)
             for a in range(4):
@@ -526,14 +538,10 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
             continue
 
         # ---- per-cell vectors of the edge blocks
-        for a in range(4):  # S D_a, for the geometric term
-            for i in range(3):
-                SD[a, i] = St[i, 0] * D[e, a, 0] + St[i, 1] * D[e, a, 1] + St[i, 2] * D[e, a, 2]
+        apply_to_shape_vectors(St, D, e, SD)  # S D_a, for the geometric term
         if has_Sh:
             _matmul3(F, Sh, M3)
-            for a in range(4):
-                for i in range(3):
-                    FSh[a, i] = M3[i, 0] * D[e, a, 0] + M3[i, 1] * D[e, a, 1] + M3[i, 2] * D[e, a, 2]
+            apply_to_shape_vectors(M3, D, e, FSh)
         for s in range(nS):
             if slot_kind[s] == 2 or w[s] == 0.0:
                 continue
