@@ -41,7 +41,7 @@ from comparisons.timing_protocol import calls_for, protocol as get_protocol, rel
 
 __all__ = [
     "WHATS", "DEFAULT_METHODS", "timing_study", "scaling_study", "timing_command", "scaling_command",
-    "measure_memory", "timing_state", "run_timing", "run_scaling",
+    "measure_memory", "timing_state", "run_timing", "run_scaling", "check_methods",
 ]
 
 WHATS = ("force+stiffness", "force", "stiffness")
@@ -95,7 +95,7 @@ def _names(materials: "str | Iterable[str]") -> List[str]:
     return [next(k for k, v in DEFAULT_MATERIALS.items() if v is m) for m in mats]
 
 
-def _check_methods(methods: "str | Sequence[str]") -> Tuple[str, ...]:
+def check_methods(methods: "str | Sequence[str]") -> Tuple[str, ...]:
     from comparisons.timing_methods import get
 
     if isinstance(methods, str):
@@ -238,7 +238,7 @@ def timing_study(
     if quick and mesh == "cube-paper":
         mesh = "cube-small"
     proto = get_protocol("quick" if quick and protocol == "budget" else protocol)
-    methods = _check_methods(methods)
+    methods = check_methods(methods)
     names = _names(materials)
     cmd = command or timing_command(names, mesh, quick=quick, protocol=protocol, methods=methods, memory=memory,
                                     out_dir=out_dir)
@@ -501,7 +501,7 @@ def scaling_study(
 
     t_start = time.perf_counter()
     default_material(material)  # raises on an unknown name
-    methods = _check_methods(methods)
+    methods = check_methods(methods)
     if sizes is None:
         sizes = QUICK_SCALING_SIZES if quick else SCALING_SIZES
     if quick:

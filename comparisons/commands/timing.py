@@ -47,10 +47,10 @@ def configure(parser) -> None:
 
 
 def _methods(spec, default):
-    from comparisons.timing import _check_methods
+    from comparisons.timing import check_methods
 
     try:
-        return _check_methods(spec if spec is not None else default)
+        return check_methods(spec if spec is not None else default)
     except ValueError as exc:
         raise opt.InputError(str(exc)) from None
 
