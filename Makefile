@@ -6,7 +6,8 @@ VERIFY := .venv/bin/mjed-verify
 # -p dolfinx_solver loads the wheel's MPI before any test module imports dolfinx.
 MODERN_PY := .venv-modern/bin/python
 MODERN_TESTS := tests/test_compat.py tests/test_oracle_mapping.py tests/test_equivalence_oracle.py tests/test_mpi.py \
-	tests/test_viscous.py tests/test_darcy.py tests/test_porous.py tests/test_adapters_felupe.py tests/test_user_energy.py
+	tests/test_viscous.py tests/test_darcy.py tests/test_porous.py tests/test_adapters_felupe.py tests/test_user_energy.py \
+	tests/test_compiled.py tests/test_compiled_classical.py tests/test_compiled_oracle.py
 
 .PHONY: demo test test-debian bootstrap bootstrap-modern test-modern cross-release docs
 

@@ -11,13 +11,14 @@ This package depends on NumPy and SciPy only; it never imports dolfinx, UFL or P
 from mjed import materials
 from mjed.errors import IntegrationError, InvertedElementError, MeshError, MeshWarning
 from mjed.forcefield import HyperelasticForceField
+from mjed.backends import make_force_field
 from mjed.integrator import ImplicitEuler, Prescribed, StepReport
 from mjed.viscous import Prony, ViscoHyperelasticForceField
 from mjed.mesh import TetMesh
 from mjed.porous import PorousVolume, with_porous_volume
 from mjed.darcy import DarcyParameters, FluidPressureForce
 
-__all__ = ["TetMesh", "HyperelasticForceField", "MeshError", "MeshWarning", "InvertedElementError", "materials",
+__all__ = ["TetMesh", "HyperelasticForceField", "make_force_field", "MeshError", "MeshWarning", "InvertedElementError", "materials",
            "ImplicitEuler", "Prescribed", "StepReport", "IntegrationError", "Prony", "ViscoHyperelasticForceField",
            "PorousVolume", "with_porous_volume", "DarcyParameters", "FluidPressureForce"]
 __version__ = "0.1.0"

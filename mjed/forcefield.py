@@ -39,6 +39,9 @@ class HyperelasticForceField:
             InvertedElementError (energies containing ln J are then NaN there).
     """
 
+    #: Which implementation this is (mjed.make_force_field chooses between backends).
+    backend = "numpy"
+
     def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")

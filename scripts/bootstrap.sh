@@ -14,7 +14,7 @@ APT_PACKAGES=(
   python3-pytest python3-hypothesis
   python3-sphinx python3-myst-parser python3-sphinx-rtd-theme libjs-mathjax fonts-mathjax
   chromium chromium-driver
-  python3-sfepy
+  python3-numba python3-sfepy
 )
 
 missing=()

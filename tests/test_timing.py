@@ -16,7 +16,7 @@ from meshes.tetra import signed_volumes
 from mjed.engine import edge_blocks_to_element_matrices
 from mjed.sparse import CSRPattern, element_dofs
 
-RESULT_KEYS = {"material", "method", "what", "median_s", "min_s", "max_s", "repeats"}
+
 
 
 # ------------------------------------------------------------------ structured meshes
@@ -96,81 +96,180 @@ def test_edge_block_map_refuses_bad_layout():
 
 
 # ------------------------------------------------------------------ the study
+FAST = ["mjed", "classical"]
+
+
 @pytest.fixture(scope="module")
-def tiny_timing(tmp_path_factory):
+def tiny_study(tmp_path_factory):
     pytest.importorskip("matplotlib")
-    from comparisons.timing import run_timing
+    from comparisons.timing import timing_study
 
     out = tmp_path_factory.mktemp("timing")
-    methods = ["mjed", "classical"]
-    from reference_fem import dolfinx_available
-
-    if dolfinx_available():
-        methods.append("dolfinx")
-    result = run_timing("StVenantKirchhoff,NeoHookean", "single-tet", iterations=2, repeats=3, methods=methods,
-                        out_dir=str(out), json_path=str(out / "t.json"), memory=False)
-    return result, out, methods
+    result = timing_study("StVenantKirchhoff,NeoHookean", "single-tet", quick=True, out_dir=str(out), methods=FAST,
+                          memory=False)
+    return result, out
 
 
-def test_timing_json_schema(tiny_timing):
-    result, out, methods = tiny_timing
-    on_disk = json.loads((out / "t.json").read_text())
-    assert on_disk == json.loads(json.dumps(result))
-    assert {"mesh", "results", "ratios", "provenance"} <= set(on_disk)
-    assert on_disk["mesh"] == {"name": "single-tet", "n_cells": 1, "n_nodes": 4}
-    assert all(set(r) == RESULT_KEYS for r in on_disk["results"])
-    combos = {(r["material"], r["method"], r["what"]) for r in on_disk["results"]}
-    assert combos == {(m, meth, w) for m in ("StVenantKirchhoff", "NeoHookean") for meth in methods
+def test_study_result_statuses_checks_and_protocol(tiny_study):
+    from comparisons.result import Status
+
+    result, out = tiny_study
+    assert result.key == "timing"
+    assert result.status in (Status.PASSED, Status.TARGET_MISSED)
+    assert result.partial and any("quick" in n for n in result.not_covered)  # a quick run is never complete
+    assert result.protocol.startswith("quick:")
+    assert all(r["protocol"] == "quick" for r in result.data["results"])
+    # every verification passed and is a tolerance; the speed comparisons are targets
+    tol = [c for c in result.checks if c.kind == "tolerance"]
+    assert tol and all(c.passed for c in tol) and all("classical" in c.name for c in tol)
+    targets = [c for c in result.checks if c.kind == "target"]
+    assert any("classical FEM (NumPy pair)" in c.name for c in targets)
+    assert any("paper's claim" in c.name and c.measured is None for c in targets)  # compiled pair not timed here
+    assert result.command.startswith("mjed-verify timing --material StVenantKirchhoff,NeoHookean --mesh single-tet")
+    assert "--quick" in result.command and "--no-memory" in result.command
+    json.dumps(result.to_dict())  # JSON-serialisable as it stands
+
+
+def test_study_data_schema_and_ratios_per_round(tiny_study):
+    result, _ = tiny_study
+    data = result.data
+    assert data["mesh"]["name"] == "single-tet" and data["mesh"]["n_cells"] == 1
+    combos = {(r["material"], r["method"], r["what"]) for r in data["results"]}
+    assert combos == {(m, meth, w) for m in ("StVenantKirchhoff", "NeoHookean") for meth in FAST
                       for w in ("force+stiffness", "force", "stiffness")}
-    for r in on_disk["results"]:
-        assert r["repeats"] == 3 and 0 < r["min_s"] <= r["median_s"] <= r["max_s"]
-    prov = on_disk["provenance"]
-    for key in ("cpu", "logical_cores", "python", "numpy", "scipy", "dolfinx", "petsc4py", "git_commit"):
-        assert key in prov
-
-
-def test_ratios_are_formed_per_repeat(tiny_timing):
-    result, _, methods = tiny_timing
-    assert len(result["ratios"]) == 2 * 3 * (len(methods) - 1)
-    for r in result["ratios"]:
+    for r in data["results"]:
+        assert 0 < r["min_s"] <= r["median_s"] <= r["max_s"] and r["calls_per_repeat"] >= 1
+        assert r["stopped_by"] in ("spread", "budget", "rounds")
+    for r in data["ratios"]:
         per = np.asarray(r["per_repeat"])
-        assert per.shape == (3,)
-        assert r["median"] == pytest.approx(np.median(per)) and r["min"] == min(per) and r["max"] == max(per)
-        # The ratio of medians is in general not the median of per-repeat ratios; what
-        # must hold is that each ratio lies within the spread the two methods' times allow.
-        other = r["ratio"].split("/")[0]
-        t = {(x["method"]): x for x in result["results"] if x["material"] == r["material"] and x["what"] == r["what"]}
-        assert t[other]["min_s"] / t["mjed"]["max_s"] <= per.min() * (1 + 1e-12)
-        assert per.max() <= t[other]["max_s"] / t["mjed"]["min_s"] * (1 + 1e-12)
-    targets = {t["target"] for t in result["targets"]}
-    assert any("classical" in t for t in targets) and any("5x" in t for t in targets)
+        assert r["median"] == pytest.approx(np.median(per)) and r["min"] == per.min() and r["max"] == per.max()
+        num, den = r["ratio"].split("/")
+        t = {x["method"]: x for x in data["results"] if x["material"] == r["material"] and x["what"] == r["what"]}
+        assert t[num]["min_s"] / t[den]["max_s"] <= per.min() * (1 + 1e-12)
+        assert per.max() <= t[num]["max_s"] / t[den]["min_s"] * (1 + 1e-12)
+    assert {r["ratio"] for r in data["ratios"]} == {"classical/mjed"}
+    assert data["floor"]["seconds"] > 0 and data["bandwidth"]["GB_per_s"] > 0
+    assert set(data["opcount"]) == {"StVenantKirchhoff", "NeoHookean"}
 
 
-def test_markdown_and_png_written(tiny_timing):
-    result, out, methods = tiny_timing
-    md = (out / "timing.md").read_text()
-    assert "| StVenantKirchhoff |" in md and "classical/mjed" in md and "Machine:" in md
-    png = out / "timing_fig2.png"
-    assert str(png) in result["figures"] and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+def test_study_blocks_and_figure(tiny_study):
+    from comparisons.blocks import Figure, Table
+
+    result, out = tiny_study
+    figs = [b for b in result.blocks if isinstance(b, Figure)]
+    assert figs and (out / "timing_fig2.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    captions = " ".join(b.caption for b in result.blocks if isinstance(b, Table))
+    for words in ("quick protocol", "operation-count model", "bandwidth floor", "Speed targets"):
+        assert words in captions
+
+
+def test_paper_protocol_is_100_calls_by_3_rounds():
+    from comparisons.timing import timing_study
+
+    result = timing_study("NeoHookean", "single-tet", protocol="paper", methods=FAST, memory=False, out_dir=None)
+    assert result.protocol.startswith("paper: 100 calls")
+    assert not result.not_covered
+    for r in result.data["results"]:
+        assert r["calls_per_repeat"] == 100 and r["repeats"] == 3 and r["protocol"] == "paper"
+
+
+def test_a_plugged_in_peer_is_timed_only_when_it_matches():
+    from comparisons import timing_methods as tm
+    from comparisons.timing import timing_study
+    import mjed as mj
+
+    class Wrong:
+        def __init__(self, points, cells, material):
+            self.field = mj.HyperelasticForceField(mj.TetMesh(points, cells), material)
+
+        def force_and_stiffness(self, x):
+            f, K = self.field.force_and_stiffness(x)
+            return 1.001 * f, K
+
+    good = tm.register(tm.TimedMethod("test-good", "good peer", "peer", False,
+                                      lambda p, c, m: mj.HyperelasticForceField(mj.TetMesh(p, c), m)))
+    bad = tm.register(tm.TimedMethod("test-wrong", "wrong peer", "peer", False, Wrong))
+    try:
+        result = timing_study("NeoHookean", "single-tet", quick=True, methods=["mjed", good.name, bad.name],
+                              memory=False, out_dir=None)
+    finally:
+        del tm.METHODS[good.name], tm.METHODS[bad.name]
+    timed = {r["method"] for r in result.data["results"]}
+    assert good.name in timed and bad.name not in timed
+    skipped = {k["method"]: k["reason"] for k in result.data["skipped"]}
+    assert "differs from NumPy MJED" in skipped[bad.name]
+    # a peer that only has force_and_stiffness is timed on that alone
+    assert {r["what"] for r in result.data["results"] if r["method"] == good.name} == {"force+stiffness", "force", "stiffness"}
 
 
 def test_bad_study_input_is_refused():
-    from comparisons.timing import run_timing
+    from comparisons.timing import timing_study
 
-    with pytest.raises(ValueError, match="method"):
-        run_timing("NeoHookean", "single-tet", methods=["mjed", "abaqus"], out_dir=None, memory=False)
-    with pytest.raises(ValueError, match="iterations"):
-        run_timing("NeoHookean", "single-tet", iterations=0, out_dir=None, memory=False)
+    with pytest.raises(ValueError, match="unknown method 'abaqus'"):
+        timing_study("NeoHookean", "single-tet", methods=["mjed", "abaqus"], out_dir=None, memory=False)
+    with pytest.raises(ValueError, match="must include 'mjed'"):
+        timing_study("NeoHookean", "single-tet", methods=["classical"], out_dir=None, memory=False)
+    with pytest.raises(ValueError, match="unknown protocol"):
+        timing_study("NeoHookean", "single-tet", protocol="fast", out_dir=None, memory=False)
 
 
+# ------------------------------------------------------------------ protocol and bandwidth
+def test_protocol_stopping_rules():
+    from comparisons.timing_protocol import PROTOCOLS, calls_for, relative_spread
+
+    budget = PROTOCOLS["budget"]
+    assert budget.should_stop(1, [0.0], 0.0) is None  # fewer than min_rounds
+    assert budget.should_stop(3, [0.01, 0.04], 0.0) == "spread"
+    assert budget.should_stop(3, [0.2], 0.0) is None
+    assert budget.should_stop(3, [0.2], budget.budget_s + 1) == "budget"
+    assert budget.should_stop(budget.max_rounds, [0.2], 0.0) == "rounds"
+    assert PROTOCOLS["paper"].should_stop(2, [0.0], 1e9) is None and PROTOCOLS["paper"].should_stop(3, [1.0], 0) == "rounds"
+    assert calls_for(PROTOCOLS["paper"], 1.0) == 100 and calls_for(budget, 0.001) == 20 and calls_for(budget, 5.0) == 1
+    assert relative_spread([1.0, 2.0, 1.0, 1.1, 1.0]) == pytest.approx(0.1)
+    assert relative_spread([1.0]) == float("inf")
+
+
+def test_bandwidth_and_floor_sanity():
+    from comparisons.bandwidth import floor_bytes, measure_bandwidth
+
+    bw = measure_bandwidth(8 * 2**20, repeats=2)
+    assert 1e8 < bw.bytes_per_s < 1e13 and bw.array_bytes == 8 * 2**20
+    # the floor counts every byte once: CSR values + force written, positions + cells + geometry read
+    assert floor_bytes(4, 1, 144) == 8 * 144 + 8 * 12 + 8 * 12 + 4 * 4 + 8 * 13
+    assert floor_bytes(8, 2, 144) > floor_bytes(4, 1, 144)
+    with pytest.raises(ValueError):
+        measure_bandwidth(0)
+
+
+# ------------------------------------------------------------------ scaling and the command line
 @pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="peak memory needs Linux /proc")
 def test_scaling_quick_runs_in_subprocesses(tmp_path):
     pytest.importorskip("matplotlib")
-    from comparisons.timing import run_scaling
+    from comparisons.timing import scaling_study
 
-    result = run_scaling([60, 400], methods=["mjed", "classical"], repeats=1, out_dir=str(tmp_path))
-    assert {(r["method"], r["n_cells"]) for r in result["rows"]} == {(m, n) for m in ("mjed", "classical") for n in (48, 384)}
-    for r in result["rows"]:
+    result = scaling_study(quick=True, sizes=[60, 400], methods=["mjed", "classical"], repeats=1, out_dir=str(tmp_path))
+    rows = result.data["rows"]
+    assert {(r["method"], r["n_cells"]) for r in rows} == {(m, n) for m in ("mjed", "classical") for n in (48, 384)}
+    for r in rows:
         assert r["seconds"] > 0 and r["peak_bytes"] >= 0
-    assert set(result["stopped"]) == {"mjed", "classical"}
-    assert (tmp_path / "timing_scaling.png").exists() and (tmp_path / "scaling.md").exists()
+    assert set(result.data["stopped"]) == {"mjed", "classical"}
+    assert (tmp_path / "timing_scaling.png").exists()
+    assert result.partial and result.title.endswith("from 48 to 384 cells")  # says what ran
+    flat = [c for c in result.checks if "flat" in c.name]
+    assert flat and flat[0].measured is None  # 48 and 384 cells do not span 1e4 to 1e6
+    assert result.command.startswith("mjed-verify timing --scaling")
+
+
+def test_timing_cli_json_exit_code_and_reproduce_line(tmp_path):
+    from comparisons.cli import main
+
+    path = tmp_path / "t.json"
+    code = main(["timing", "--quick", "--material", "NeoHookean", "--mesh", "single-tet", "--methods", "mjed,classical",
+                 "--no-memory", "--out", str(tmp_path / "out"), "--json", str(path)])
+    payload = json.loads(path.read_text())
+    assert code == 3  # a quick run is partial: never exit 0
+    assert payload["key"] == "timing" and payload["partial"] is True
+    assert payload["command"] == ("mjed-verify timing --material NeoHookean --mesh single-tet --methods mjed,classical "
+                                  f"--protocol budget --quick --no-memory --out {tmp_path / 'out'} --json {path}")
+    assert main(["timing", "--methods", "mjed,abaqus", "--mesh", "single-tet"]) == 2
+    assert main(["timing", "--methods", "classical", "--mesh", "single-tet"]) == 2

@@ -1,4 +1,6 @@
-"""mjed-verify timing: force and stiffness assembly time, MJED vs classical FEM vs dolfinx."""
+"""mjed-verify timing: force and stiffness assembly time (paper Fig. 2), NumPy and compiled
+MJED and classical FEM, dolfinx and peer libraries; or --scaling. Parses options, runs the
+study (comparisons.timing), prints its result."""
 
 from __future__ import annotations
 
@@ -8,80 +10,114 @@ from comparisons import options as opt
 
 NAME = "timing"
 ORDER = 40
-HELP = "time force+stiffness assembly (paper Fig. 2): mjed, classical FEM and dolfinx, per material"
+HELP = "time force+stiffness (paper Fig. 2): MJED and classical FEM, NumPy and compiled, dolfinx, FElupe"
 EXAMPLES = """examples:
-  mjed-verify timing                                       # all materials on cube-paper, 100 iterations
-  mjed-verify timing --material StVenantKirchhoff --iterations 20 --repeats 5
-  mjed-verify timing --methods mjed,classical --json reports/timing/t.json
-  mjed-verify timing --scaling                             # 1e3 to 1e6 cells, time and memory per cell
-  mjed-verify timing --quick                               # a small complete run (seconds)
+  mjed-verify timing                                  # all materials on cube-paper, the budget protocol
+  mjed-verify timing --protocol paper                 # the paper's 100 calls x 3 repeats (much longer)
+  mjed-verify timing --material NeoHookean --methods mjed,mjed-numba,classical-numba
+  mjed-verify timing --scaling                        # 1e3 to 1e6 cells, time and memory per cell
+  mjed-verify timing --quick --json reports/timing/t.json
+
+exit codes: 0 every check passed and every target was met on a complete run; 1 a result check
+failed; 2 bad input; 3 a speed target missed or part of the study not run (e.g. Numba or
+dolfinx not installed, --quick).
 """
 
 
 def configure(parser) -> None:
+    from comparisons.timing import DEFAULT_METHODS, SCALING_METHODS
+    from comparisons.timing_protocol import PROTOCOLS
+
     opt.add_material_option(parser)
     opt.add_mesh_option(parser, "cube-paper", several=False)
-    parser.add_argument("--iterations", type=int, default=100, help="calls averaged per measurement (default: 100)")
-    parser.add_argument("--repeats", type=int, default=3, help="interleaved repeats per measurement (default: 3)")
-    parser.add_argument("--methods", default="mjed,classical,dolfinx",
-                        help="comma-separated subset of mjed, classical, dolfinx (default: all three)")
+    parser.add_argument("--methods", default=None,
+                        help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)}; with --scaling: "
+                             f"{','.join(SCALING_METHODS)}); 'mjed' is required (the reference)")
+    parser.add_argument("--protocol", default="budget", choices=[p for p in PROTOCOLS if p != "quick"],
+                        help="budget (default): repeat until the spread is <= 5 %% or the budget is spent; "
+                             "paper: 100 calls x 3 repeats per measurement")
     parser.add_argument("--no-memory", action="store_true", help="skip the peak-memory subprocesses")
     parser.add_argument("--scaling", action="store_true",
                         help="instead: force+stiffness from about 1e3 to 1e6 cells on structured cubes")
     parser.add_argument("--max-cells", type=int, default=None, help="--scaling: largest mesh (default: about 1e6)")
     parser.add_argument("--scaling-material", default="NeoHookean", help="--scaling: the material (default: NeoHookean)")
-    parser.add_argument("--quick", action="store_true", help="a complete but small run")
+    parser.add_argument("--quick", action="store_true", help="a complete but small run (cube-small, seconds)")
     opt.add_json_option(parser)
     opt.add_out_option(parser, "reports/timing")
 
 
-def _methods(spec: str):
-    from comparisons.timing import METHODS
+def _methods(spec, default):
+    from comparisons.timing import check_methods
 
-    names = [m.strip() for m in spec.split(",") if m.strip()]
-    unknown = [m for m in names if m not in METHODS]
-    if unknown or not names:
-        raise opt.InputError(f"unknown method(s) {unknown}; known methods: {', '.join(METHODS)}")
-    return names
+    try:
+        return check_methods(spec if spec is not None else default)
+    except ValueError as exc:
+        raise opt.InputError(str(exc)) from None
 
 
 def run(args) -> int:
-    methods = _methods(args.methods)
-    if args.iterations < 1 or args.repeats < 1:
-        raise opt.InputError(f"--iterations and --repeats must be >= 1, got {args.iterations} and {args.repeats}")
+    from comparisons.result import exit_code
+    from comparisons.timing import DEFAULT_METHODS, SCALING_METHODS, scaling_command, scaling_study, timing_command, timing_study
+
     if args.max_cells is not None and args.max_cells < 6:
         raise opt.InputError(f"--max-cells must be >= 6, got {args.max_cells}")
-
-    from reference_fem import dolfinx_available
-
-    if "dolfinx" in methods and not dolfinx_available():
-        print("mjed-verify: dolfinx is not installed; timing mjed and classical only", file=sys.stderr)
-        methods = [m for m in methods if m != "dolfinx"]
+    if args.json:
+        opt.check_writable_destination(args.json, is_dir=False)
+    if args.out:
+        opt.check_writable_destination(args.out, is_dir=True)
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
 
     if args.scaling:
         from comparisons.cases import default_material
-        from comparisons.timing import format_scaling_markdown, run_scaling
 
         try:
             default_material(args.scaling_material)
         except ValueError as exc:
             raise opt.InputError(str(exc)) from None
-        result = run_scaling(material=args.scaling_material, methods=methods, max_cells=args.max_cells,
-                             out_dir=args.out, json_path=args.json, quick=args.quick, progress=progress)
-        print(format_scaling_markdown(result))
-        print("written: " + ", ".join(result["tables"] + result["figures"]))
-        return 0
+        methods = _methods(args.methods, SCALING_METHODS)
+        command = scaling_command(quick=args.quick, material=args.scaling_material, methods=methods,
+                                  max_cells=args.max_cells, out_dir=args.out, json_path=args.json)
+        result = scaling_study(quick=args.quick, out_dir=args.out, progress=progress, material=args.scaling_material,
+                               methods=methods, max_cells=args.max_cells, command=command)
+    else:
+        from comparisons.cases import DEFAULT_MATERIALS
 
-    materials = opt.resolve_materials(args.material)
-    (label, _, _), = opt.resolve_meshes(args.mesh, several=False)
-    from comparisons.cases import DEFAULT_MATERIALS
-    from comparisons.timing import format_markdown, run_timing
+        materials = opt.resolve_materials(args.material)
+        (label, _, _), = opt.resolve_meshes(args.mesh, several=False)
+        names = [k for k, v in DEFAULT_MATERIALS.items() if any(v is m for m in materials)]
+        methods = _methods(args.methods, DEFAULT_METHODS)
+        command = timing_command(names, label, quick=args.quick, protocol=args.protocol, methods=methods,
+                                 memory=not args.no_memory, out_dir=args.out, json_path=args.json)
+        result = timing_study(names, label, quick=args.quick, out_dir=args.out, progress=progress,
+                              protocol=args.protocol, methods=methods, memory=not args.no_memory, command=command)
+    print(render_text(result))
+    if args.json:
+        opt.write_json(args.json, result.to_dict())
+        print(f"written: {args.json}")
+    return exit_code([result])
 
-    names = [k for k, v in DEFAULT_MATERIALS.items() if any(v is m for m in materials)]
-    result = run_timing(names, label, iterations=args.iterations, repeats=args.repeats, methods=methods,
-                        out_dir=args.out, json_path=args.json, memory=not args.no_memory, quick=args.quick,
-                        progress=progress)
-    print(format_markdown(result))
-    print("written: " + ", ".join(result["tables"] + result["figures"] + ([args.json] if args.json else [])))
-    return 0
+
+def render_text(result) -> str:
+    """The result as plain text: status, headline, the blocks' tables, the checks."""
+    from comparisons.blocks import Figure, Paragraph, Preformatted, Table
+
+    lines = [f"{result.title}", f"status: {result.status.value}" + (" (partial)" if result.partial else ""),
+             result.headline]
+    if result.reason:
+        lines.append(f"reason: {result.reason}")
+    for item in result.not_covered:
+        lines.append(f"not covered: {item}")
+    lines.append(f"protocol: {result.protocol}")
+    for b in result.blocks:
+        lines.append("")
+        if isinstance(b, Table):
+            if b.caption:
+                lines.append(b.caption)
+            lines.append(" | ".join(str(h) for h in b.headers))
+            lines += [" | ".join(str(c) for c in row) for row in b.rows]
+        elif isinstance(b, Figure):
+            lines.append(f"figure: {b.path} ({b.caption})")
+        elif isinstance(b, (Paragraph, Preformatted)):
+            lines.append(b.text)
+    lines += ["", f"reproduce: {result.command}"]
+    return "\n".join(lines)

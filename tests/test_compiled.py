@@ -1,0 +1,131 @@
+"""The compiled (Numba) backend against the NumPy engine, for every material and both
+regularisation settings, plus its interface: backend choice, errors, no Numba at import."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mjed
+from conftest import MATERIALS, box_mesh, perturbed
+from mjed.compiled import numba_available
+
+needs_numba = pytest.mark.skipif(not numba_available(), reason="the compiled backend needs Numba "
+                                 "(Debian: python3-numba; PyPI: numba)")
+
+
+def _rel(a, b):
+    return np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b))
+
+
+@pytest.fixture(scope="module")
+def cube():
+    points, cells = box_mesh(3, jitter=0.3)
+    x = perturbed(points, np.random.default_rng(7), 0.06)
+    return mjed.TetMesh(points, cells), x
+
+
+@needs_numba
+@pytest.mark.parametrize("regularize", [False, True])
+def test_compiled_equals_numpy_engine(material, regularize, cube):
+    mesh, x = cube
+    ref = mjed.make_force_field(mesh, material, regularize=regularize)
+    comp = mjed.make_force_field(mesh, material, backend="numba", regularize=regularize)
+    assert ref.backend == "numpy" and comp.backend == "numba"
+    f_r, K_r = ref.force_and_stiffness(x)
+    f_c, K_c = comp.force_and_stiffness(x)
+    assert _rel(f_c, f_r) < 1e-13
+    assert abs(K_c - K_r).max() <= 1e-13 * abs(K_r).max()
+    assert np.array_equal(K_c.indptr, K_r.indptr) and np.array_equal(K_c.indices, K_r.indices)
+    assert comp.energy(x) == pytest.approx(ref.energy(x), rel=1e-13)
+    # the single-purpose entry points agree with the combined one
+    assert np.array_equal(comp.force(x), f_c)
+    assert abs(comp.stiffness(x) - K_c).max() == 0.0
+
+
+@needs_numba
+def test_compiled_sees_a_compressed_state_and_regularisation_changes_it(cube):
+    # Not vacuous: the state has compressed cells, where the regularised tangent differs.
+    mesh, x = cube
+    mat = MATERIALS["NeoHookean"]
+    x = mesh.points + 0.7 * (x - mesh.points)
+    x[:, 2] *= 0.8
+    K0 = mjed.make_force_field(mesh, mat, backend="numba").stiffness(x)
+    K1 = mjed.make_force_field(mesh, mat, backend="numba", regularize=True).stiffness(x)
+    assert abs(K1 - K0).max() > 1e-6 * abs(K0).max()
+
+
+@needs_numba
+def test_compiled_per_cell_costa_frame(cube, rng):
+    mesh, x = cube
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.random(mesh.n_cells, random_state=3).as_matrix()
+    base = MATERIALS["Costa"]
+    mat = type(base)(**{k: getattr(base, k) for k in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")},
+                     frame=R)
+    f_r, K_r = mjed.make_force_field(mesh, mat).force_and_stiffness(x)
+    f_c, K_c = mjed.make_force_field(mesh, mat, backend="numba").force_and_stiffness(x)
+    assert _rel(f_c, f_r) < 1e-13 and abs(K_c - K_r).max() <= 1e-13 * abs(K_r).max()
+
+
+@needs_numba
+def test_compiled_refuses_inverted_cells_like_the_engine(cube):
+    mesh, _ = cube
+    x = mesh.points.copy()
+    x[mesh.cells[0, 0]] = x[mesh.cells[0, 1:]].mean(axis=0) * 2 - x[mesh.cells[0, 0]]  # flip cell 0
+    field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba")
+    with pytest.raises(mjed.InvertedElementError):
+        field.force_and_stiffness(x)
+    loose = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba", allow_inverted=True)
+    f = loose.force(x)  # NaN where ln J appears, as documented
+    assert not np.isfinite(f).all()
+
+
+@needs_numba
+def test_compiled_refuses_a_term_kind_it_has_no_kernel_for(cube):
+    mesh, _ = cube
+    porous = mjed.with_porous_volume(MATERIALS["NeoHookean"], mjed.PorousVolume(f_w=0.8, K0=1.0, K_lim=40.0))
+    with pytest.raises(NotImplementedError, match="PorousVolume.*backend='numpy'"):
+        mjed.make_force_field(mesh, porous, backend="numba")
+
+
+def test_unknown_backend_and_bad_positions(cube):
+    mesh, x = cube
+    with pytest.raises(ValueError, match="unknown backend 'fortran'"):
+        mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="fortran")
+    if numba_available():
+        field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba")
+        with pytest.raises(ValueError, match="shape"):
+            field.force(x[:-1])
+
+
+def test_importing_mjed_does_not_import_numba():
+    code = "import sys, mjed, mjed.compiled; print('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_missing_numba_gives_a_clear_error(cube, monkeypatch):
+    import mjed.compiled.availability as availability
+
+    monkeypatch.setattr(availability, "numba_available", lambda: False)
+    mesh, _ = cube
+    with pytest.raises(availability.BackendUnavailable, match="needs Numba.*python3-numba"):
+        mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba")
+
+
+@needs_numba
+def test_jacobi_eigen_decomposition_matches_lapack(rng):
+    from mjed.compiled.kernels import eigh3
+
+    for A in [np.eye(3), np.diag([2.0, 2.0, 5.0])] + [rng.standard_normal((3, 3)) for _ in range(50)]:
+        A = A + A.T if not np.allclose(A, np.diag(np.diag(A))) else A
+        lam, V, scratch = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+        eigh3(A, lam, V, scratch)
+        assert np.allclose(np.sort(lam), np.linalg.eigvalsh(A), rtol=0, atol=1e-14 * np.abs(A).max())
+        assert np.abs(V.T @ V - np.eye(3)).max() < 1e-14
+        assert np.abs(A @ V - V * lam).max() < 1e-14 * np.abs(A).max()

@@ -1,0 +1,74 @@
+"""The operation-count model: structure, not timings. It is derived from the declared terms
+(MJED) and the classical law, so declaring more terms must cost more, and each part must move
+with the term that causes it."""
+
+from __future__ import annotations
+
+import pytest
+
+from comparisons.cases import DEFAULT_MATERIALS
+from comparisons.opcount import EIGEN, TRANSCENDENTAL, classical_flops, mjed_flops, model
+from mjed import materials as M
+from mjed.materials.base import Material
+from mjed.terms import InvariantFunction, JPower, Term, TermGroup
+
+
+@pytest.mark.parametrize("name", sorted(DEFAULT_MATERIALS))
+def test_every_material_is_counted_and_totals_add_up(name):
+    r = model(DEFAULT_MATERIALS[name])
+    for method in ("mjed", "classical"):
+        parts = r[method]["parts"]
+        assert all(v >= 0 for v in parts.values()) and r[method]["total"] == sum(parts.values()) > 0
+    assert r["predicted_ratio"] == pytest.approx(r["classical"]["total"] / r["mjed"]["total"])
+
+
+def test_mjed_count_follows_the_declared_terms():
+    nh = mjed_flops(M.NeoHookean(mu=1.0, lam=2.0)).parts
+    mr = mjed_flops(M.MooneyRivlin(c1=1.0, c2=0.5, k0=3.0)).parts
+    vw = mjed_flops(M.VerondaWestmann(c1=1.0, c2=0.5, k0=3.0)).parts
+    svk = mjed_flops(M.StVenantKirchhoff(mu=1.0, lam=2.0)).parts
+    og = mjed_flops(M.Ogden(mu=1.0, alpha=3.0, k0=3.0)).parts
+    # Mooney-Rivlin's I2 term brings a first- and a second-kind tangent pair: more edge-block work.
+    assert mr["edge blocks"] > nh["edge blocks"] and mr["terms"] > nh["terms"]
+    # Veronda-Westmann's exponential group adds a rank-one term per edge and an exp per cell.
+    assert vw["terms"] - mr["terms"] >= TRANSCENDENTAL and vw["edge blocks"] > mr["edge blocks"]
+    # Only Ogden needs the eigen-decomposition of C.
+    assert og["kinematics"] - nh["kinematics"] == EIGEN
+    assert all(p["kinematics"] == nh["kinematics"] for p in (mr, vw, svk))
+    # St Venant-Kirchhoff has no J terms: no volumetric coupling, no d2J skew term.
+    assert svk["terms"] < nh["terms"] + 200 and svk["edge blocks"] != nh["edge blocks"]
+    # Assembly and the force do not depend on the material.
+    assert len({p["assembly"] for p in (nh, mr, vw, svk, og)}) == 1 and len({p["force"] for p in (nh, mr, svk)}) == 1
+
+
+def test_an_added_term_costs_more():
+    base = M.NeoHookean(mu=1.0, lam=2.0)
+
+    class Extra(Material):
+        def decomposition(self):
+            (g,) = base.decomposition()
+            return (TermGroup(g.terms + (Term(JPower(-2.0 / 3.0), g.terms[0].g),)),)
+
+    assert mjed_flops(Extra()).total > mjed_flops(base).total
+
+
+def test_classical_count_follows_the_law():
+    c = {n: classical_flops(m).parts["law (S, CC)"] for n, m in DEFAULT_MATERIALS.items()}
+    # the decoupled (isochoric projection) laws cost far more than the plain neo-Hookean
+    for n in ("MooneyRivlin", "VerondaWestmann", "ArrudaBoyce"):
+        assert c[n] > 3 * c["NeoHookean"]
+    assert c["StVenantKirchhoff"] < c["NeoHookean"] < c["Ogden"]
+    assert len({classical_flops(m).parts["element matrix"] for m in DEFAULT_MATERIALS.values()}) == 1
+
+
+def test_unknown_term_type_is_refused():
+    class Odd(InvariantFunction):
+        def value(self, kin):
+            return 1.0
+
+    class OddMaterial(Material):
+        def decomposition(self):
+            return (TermGroup((Term(JPower(1.0), Odd()),)),)
+
+    with pytest.raises(NotImplementedError, match="Odd"):
+        mjed_flops(OddMaterial())
