@@ -71,14 +71,15 @@ assert np.allclose(D.sum(axis=0), 0.0, atol=1e-14)
 # with constant matrices $A$, $B$ (known when the material is built, so the engine
 # precomputes their products with the shape vectors) and scalars $\beta$, $\gamma$
 # evaluated at each state. An invariant function reads what it needs ($C$, $I_1$, $I_2$, $E$,
-# ...) from a kinematics object holding arrays over cells (here one cell); inside the engine
-# that object computes each quantity on first use, here we hand over the ones computed above.
+# ...) from a kinematics object (`mjed.kinematics.Kinematics`) holding arrays over cells
+# (here one cell), which computes each quantity from $F$ on first use.
 
 # %%
-from types import SimpleNamespace
+from mjed.kinematics import Kinematics
 
-kin = SimpleNamespace(F=F[None], J=np.array([J]), C=C[None], I1=np.array([I1]), I2=np.array([I2]),
-                      E=0.5 * (C - np.eye(3))[None])
+kin = Kinematics(F[None])
+# It sees the same cell as the hand computation above.
+assert np.allclose(kin.C[0], C, rtol=1e-14, atol=0) and np.isclose(kin.J[0], J, rtol=1e-14)
 terms = []
 for group in material.decomposition():
     assert not group.exponential, "Mooney-Rivlin has plain groups only"
@@ -86,7 +87,8 @@ for group in material.decomposition():
         f, df, d2f = (float(np.squeeze(v)) for v in term.f(np.array([J])))
         g = float(np.squeeze(term.g.value(kin)))
         S_g = term.g.stress(kin)
-        S_g = np.zeros((3, 3)) if S_g is None else S_g[0]
+        # None when g is constant; a stress equal in every cell may come back as one (3, 3).
+        S_g = np.zeros((3, 3)) if S_g is None else np.asarray(S_g).reshape(-1, 3, 3)[0]
         pairs = [(p.kind, float(np.squeeze(c)), np.asarray(p.matrix))
                  for p, c in zip(term.g.tangent, term.g.tangent_coefficients(kin))]
         terms.append(dict(name=f"{type(term.f).__name__} x {type(term.g).__name__}", c=group.coefficient,
