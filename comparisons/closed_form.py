@@ -1,7 +1,7 @@
 """Closed-form homogeneous uniaxial stress, and the reaction MJED gives on a cube.
 
 The analytic side is written in principal stretches, by hand, for the compressible energies of
-CONVENTIONS.md (nothing here calls mjed's terms). For a decoupled energy
+docs/conventions.md (nothing here calls mjed's terms). For a decoupled energy
 W = W_iso(I1b, I2b) + U(J) the principal Cauchy stresses are
 
     sigma_i = (2/J) [(W1 + I1b W2) b_i - W2 b_i^2 - (W1 I1b + 2 W2 I2b)/3] + U'(J),

@@ -9,12 +9,12 @@ Per element (Zienkiewicz & Taylor vol. 2, Bonet & Wood), with F = sum_a x_a (x) 
     f_a  = -V0 F S D_a  (= -V0 B_a^T S_v)
     K_ab = V0 [ B_a^T CC B_b + (D_a . S D_b) Id ]   (material + geometric stiffness)
 
-This is the structure of SOFA's StandardTetrahedralFEMForceField (materials.md 5.1), vectorised
+This is the structure of SOFA's StandardTetrahedralFEMForceField, vectorised
 over elements: CC as (m, 6, 6), B as (m, 6, 12), K_e = B^T (CC B) by batched matmul. Only the
 geometry (mjed.mesh.TetMesh: D, V0) and the CSR scatter (mjed.sparse.CSRPattern) are shared
 with mjed; no MJED term code is used.
 
-Conventions (CONVENTIONS.md): f = -dW/dx (n, 3); K = d2W/dx2, CSR (3n, 3n), dof = 3 node + comp.
+Conventions (docs/conventions.md): f = -dW/dx (n, 3); K = d2W/dx2, CSR (3n, 3n), dof = 3 node + comp.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Strain energy densities W(F) written directly in UFL, one function per material type.
 
 This module is the "oracle" side of the verification: every energy is typed in from its
-formula in the project conventions and nothing else. It never imports the MJED term code
+formula in docs/conventions.md and nothing else. It never imports the MJED term code
 (mjed.terms, mjed.engine, mjed.fibre, mjed.spectral); it reads a material's *parameters*
 (attributes of the frozen dataclasses in ``mjed.materials``) and the constants that are part
 of a material's definition (the Arruda-Boyce series coefficients).
@@ -181,7 +181,7 @@ def strain_energy_density(
 
 
 class _Kinematics(NamedTuple):
-    """The quantities every formula is written in (CONVENTIONS.md, "Kinematics")."""
+    """The quantities every formula is written in (docs/conventions.md, "Kinematics")."""
 
     C: Any  # right Cauchy-Green tensor F^T F
     E: Any  # Green-Lagrange strain (C - I) / 2

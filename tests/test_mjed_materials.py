@@ -130,7 +130,7 @@ def test_ogden_sofa_tangent_is_not_the_hessian(rng):
 @pytest.mark.parametrize(
     "name, params, kwargs, expected",
     [
-        # SOFA examples/Component/SolidMechanics/FEM (materials.md 5.4)
+        # SOFA examples/Component/SolidMechanics/FEM: the ParameterSets of its hyperelastic example scenes
         ("ArrudaBoyce", "3448.2759 31034.483", {}, M.ArrudaBoyce(mu=3448.2759, k0=31034.483)),
         ("StVenantKirchhoff", "3448.2759 31034.483", {}, M.StVenantKirchhoff(mu=3448.2759, lam=31034.483)),
         ("NeoHookean", "3448.2759 31034.483", {}, M.NeoHookean(mu=3448.2759, lam=31034.483)),
