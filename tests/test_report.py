@@ -289,3 +289,19 @@ def test_progress_is_drawn_only_when_enabled():
         line.close()
     assert quiet.getvalue() == ""
     assert "work [" in loud.getvalue() and "1/2" in loud.getvalue() and "step 1" in loud.getvalue()
+
+
+@pytest.mark.slow
+def test_all_quick_timing_and_liver_sections_are_their_studies_results(tmp_path):
+    """The report runs timing and liver through their own study functions (no ERROR), and
+    each section's reproduce line names the material that ran."""
+    pytest.importorskip("dolfinx")
+    code = main(["all", "--quick", "--only", "timing,liver", "--material", "NeoHookean", "--out", str(tmp_path),
+                 "--no-progress"])
+    assert code in (1, 3) or code == 0
+    results = json.loads((tmp_path / "latest" / "results.json").read_text())
+    by_key = {s["key"]: s for s in results["studies"]}
+    for key in ("timing", "liver"):
+        assert by_key[key]["status"] not in ("error", "not run"), by_key[key]["reason"]
+    assert [r["material"] for r in by_key["timing"]["data"]["results"]][:1] == ["NeoHookean"]
+    assert "NeoHookean" in by_key["timing"]["command"]
