@@ -305,3 +305,13 @@ def test_all_quick_timing_and_liver_sections_are_their_studies_results(tmp_path)
         assert by_key[key]["status"] not in ("error", "not run"), by_key[key]["reason"]
     assert [r["material"] for r in by_key["timing"]["data"]["results"]][:1] == ["NeoHookean"]
     assert "NeoHookean" in by_key["timing"]["command"]
+
+
+def test_reproduce_lines_drop_only_an_out_into_the_run_directory(tmp_path):
+    from comparisons.report.runner import _without_run_dir_out
+
+    run = str(tmp_path / ".partial-x")
+    cmd = f"mjed-verify liver --quick --out {run}/figures/liver --json liver.json"
+    assert _without_run_dir_out(cmd, run) == "mjed-verify liver --quick --json liver.json"
+    mine = "mjed-verify liver --out /data/my-reports"
+    assert _without_run_dir_out(mine, run) == mine

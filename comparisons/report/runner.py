@@ -120,7 +120,28 @@ def _relative_figures(result: StudyResult, run_dir: str) -> StudyResult:
     so an absolute path into it would point nowhere in report.md afterwards."""
     blocks = tuple(Figure(os.path.relpath(b.path, run_dir), b.caption) if isinstance(b, Figure) and os.path.isabs(b.path)
                    else b for b in result.blocks)
-    return replace(result, blocks=blocks)
+    return replace(result, blocks=blocks, command=_without_run_dir_out(result.command, run_dir))
+
+
+def _without_run_dir_out(command: str, run_dir: str) -> str:
+    """The reproduce line without an ``--out`` into the report's own (temporary) run
+    directory: re-running the study alone writes to its default place instead, and that
+    directory is renamed when the report is written. Every other option is kept."""
+    try:
+        words = shlex.split(command)
+    except ValueError:
+        return command
+    root = os.path.abspath(run_dir)
+    kept, skip = [], False
+    for i, w in enumerate(words):
+        if skip:
+            skip = False
+            continue
+        if w == "--out" and i + 1 < len(words) and os.path.abspath(words[i + 1]).startswith(root + os.sep):
+            skip = True
+            continue
+        kept.append(w)
+    return command if len(kept) == len(words) else " ".join(shlex.quote(w) for w in kept)
 
 
 def _run_one(study: ReportStudy, ctx: StudyContext) -> StudyResult:
