@@ -18,6 +18,7 @@ from typing import Dict, List, Optional
 
 from comparisons import commands
 from comparisons.options import InputError, check_writable_destination
+from comparisons.result import EXIT_INPUT
 from comparisons.verdict import EXIT_POLICY
 
 __all__ = ["main", "build_parser", "command_modules"]
@@ -56,7 +57,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         return int(modules[args.command].run(args))
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_INPUT
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ import mjed
 from comparisons.states import apply_state
 from mjed.materials.base import Material
 
-__all__ = ["KEY", "TITLE", "FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "CaseResult", "compare_arrays", "run_cases",
+__all__ = ["KEY", "TITLE", "FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "CaseResult", "compare_arrays", "mean_edge_length", "run_cases",
            "equivalence_command", "equivalence_study"]
 
 KEY = "equivalence"
@@ -52,7 +52,9 @@ class CaseResult:
         return asdict(self)
 
 
-def _mean_edge(points: np.ndarray, cells: np.ndarray) -> float:
+def mean_edge_length(points: np.ndarray, cells: np.ndarray) -> float:
+    """Mean length of the six edges of every cell (points (n, 3), cells (m, 4)): the length
+    scale of a mesh, for relative perturbations and force scales."""
     i, j = np.triu_indices(4, k=1)
     X = points[cells]
     return float(np.linalg.norm(X[:, i] - X[:, j], axis=2).mean())
@@ -100,7 +102,7 @@ def run_cases(
         oracle_factory = UFLOracle if comm is None else partial(UFLOracle, comm=comm)
     for label, points, cells in meshes:
         mesh = mjed.TetMesh(points, cells)
-        h = _mean_edge(mesh.points, mesh.cells)
+        h = mean_edge_length(mesh.points, mesh.cells)
         # Off rank 0 the oracle reads no positions (it receives rank 0's).
         xs = {s: apply_state(s, mesh.points, mesh.cells) if root else None for s in states}
         for material in materials:

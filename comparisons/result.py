@@ -73,11 +73,6 @@ class Check:
             raise ValueError(f"Check {self.name!r}: kind must be 'tolerance' or 'target', not {self.kind!r}")
 
     @property
-    def measured_ok(self) -> bool:
-        """Whether a figure was measured at all (NaN counts as measured, and fails)."""
-        return self.measured is not None
-
-    @property
     def passed(self) -> Optional[bool]:
         """True or False once measured; None when not measured. NaN never passes."""
         if self.measured is None:

@@ -27,7 +27,7 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from comparisons.equivalence import _mean_edge
+from comparisons.equivalence import mean_edge_length
 from comparisons.states import apply_state
 from conformance.exchange import (FORMAT_VERSION, KIT_FORMAT, FormatError, check_version, load_json, read_case_input,
                                   sha256_of, write_case_input)
@@ -75,7 +75,7 @@ def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, n
     """Every model x mesh x state, each followed by its probes (seeded, reproducible)."""
     out: List[KitCase] = []
     for mesh_label, points, cells in meshes:
-        h = _mean_edge(np.asarray(points, dtype=float), np.asarray(cells))
+        h = mean_edge_length(np.asarray(points, dtype=float), np.asarray(cells))
         xs = {s: apply_state(s, np.asarray(points, dtype=float), np.asarray(cells)) for s in states}
         for model in models:
             for k_state, state in enumerate(states):

@@ -11,7 +11,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from comparisons.equivalence import _mean_edge
+from comparisons.equivalence import mean_edge_length
+from comparisons.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from conformance.compare import scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
@@ -19,9 +20,8 @@ from conformance.exchange import EngineOutput, FormatError
 from conformance.kit import KitCase, primary_and_probes
 from conformance.oracle import OracleCache
 
-__all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check", "EXIT_PASSED", "EXIT_FAILED", "EXIT_BAD_INPUT"]
+__all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
-EXIT_PASSED, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 Evaluator = Callable[[KitCase], EngineOutput]
 
@@ -67,7 +67,7 @@ class CheckRun:
     def exit_code(self) -> int:
         """2 when some case had bad input (the others still ran), else 1 if one failed, else 0."""
         if self.input_errors or any(o.status == "bad input" for o in self.outcomes):
-            return EXIT_BAD_INPUT
+            return EXIT_INPUT
         if any(o.status != "passed" for o in self.outcomes) or not self.outcomes:
             return EXIT_FAILED
         return EXIT_PASSED
@@ -132,7 +132,7 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
             run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
                                             f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
             continue
-        s = scales(_mean_edge(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
+        s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
                         W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
                         parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None)

@@ -10,7 +10,7 @@ import pytest
 
 # The force scale of the equivalence study (rest state: f = 0 on both sides, so |f - f0| is
 # measured against mean edge x |K|), reused so that both checks mean the same thing.
-from comparisons.equivalence import _mean_edge as mean_edge
+from comparisons.equivalence import mean_edge_length as mean_edge
 from comparisons.equivalence import compare_arrays
 from comparisons.states import apply_state, state_names
 
