@@ -20,6 +20,18 @@ def _pyplot():
     return plt
 
 
+def _save(fig, path: str, *, tight: bool = True, **savefig) -> str:
+    """Lay out (unless ``tight`` is False: a 3-D axes sets its own), write at 120 dpi, close
+    the figure (so a long study does not keep every figure in memory) and return the path."""
+    import matplotlib.pyplot as plt
+
+    if tight:
+        fig.tight_layout()
+    fig.savefig(path, dpi=120, **savefig)
+    plt.close(fig)
+    return path
+
+
 def boundary_faces(cells: np.ndarray) -> np.ndarray:
     """Triangles (k, 3) that belong to exactly one cell, oriented outwards."""
     from meshes.tetra import boundary_triangles
@@ -49,10 +61,7 @@ def plot_porous_stress(path: str, params) -> str:
         ax.set_title(f"f_w = {f_w}, K0 = {params.K0:g} Pa, K_lim = {params.K_lim:g} Pa")
         ax.legend(fontsize=7, loc="lower right")
         ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
@@ -73,10 +82,7 @@ def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
     ax.set_title(f"Liver under gravity ({label})", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarray) -> str:
@@ -102,9 +108,7 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.12, label="fluid pressure (Pa)")
     ax.legend(loc="upper left", fontsize=8)
     ax.set_title("Fluid pressure under gravity (largest |P| reached)", fontsize=10)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path, tight=False)
 
 
 def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str:
@@ -129,10 +133,7 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
     ax.set_ylim(len(split) - 0.5, -0.8)  # first model on top, room above it for the paper's mark
     ax.set_xlabel("share of the step's wall-clock time (%)")
     ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2))
-    fig.tight_layout()
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    return _save(fig, path, bbox_inches="tight")
 
 
 def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
@@ -157,10 +158,7 @@ def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
     axes[0][0].set_ylabel("max displacement (mm)")
     axes[0][-1].legend(fontsize=8, loc="lower right")
     fig.suptitle(f"Liver under gravity with little damping ({label})", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def plot_decay(path: str, rows: Sequence[Dict]) -> str:
@@ -179,7 +177,4 @@ def plot_decay(path: str, rows: Sequence[Dict]) -> str:
     ax.set_ylabel("decay rate of the oscillation (1/s)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
