@@ -84,6 +84,16 @@ class HyperelasticForceField:
         ev = self.evaluate(x, want=Want.GRADIENT | Want.STIFFNESS, out=self._reused_blocks())
         return self.assemble_force(ev.gradient), self.assemble_stiffness(ev.blocks)
 
+    def stress(self, x) -> np.ndarray:
+        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest volume)."""
+        return self.evaluate(x, want=Want.STRESS).pk2
+
+    def force_stiffness_and_stress(self, x) -> Tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
+        """Force (n, 3), stiffness CSR (3n, 3n) and S per cell (m, 3, 3), from one evaluation
+        (what a stress-history model needs when it accepts a step)."""
+        ev = self.evaluate(x, want=Want.GRADIENT | Want.STIFFNESS | Want.STRESS, out=self._reused_blocks())
+        return self.assemble_force(ev.gradient), self.assemble_stiffness(ev.blocks), ev.pk2
+
     def element_stiffness(self, x) -> np.ndarray:
         """Element stiffness matrices, (m, 12, 12), dof order (node 0: x, y, z, node 1: ...)."""
         return edge_blocks_to_element_matrices(self.evaluate(x, want=Want.STIFFNESS).public().edge_blocks)

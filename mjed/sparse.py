@@ -189,6 +189,45 @@ class CSRPattern:
         data = np.concatenate([U, diag])[gather]
         return self._csr(data)
 
+    def edge_scalar_matrix(self, values: np.ndarray) -> sp.csr_matrix:
+        """The node-level (n, n) CSR matrix L of one scalar per cell edge: L_ab sums values
+        over the cells' edges (a, b) (both orientations), L_aa = -sum_b L_ab.
+
+        Args:
+            values: (m, 6) one scalar per cell edge (a, b) of mjed.sparse.EDGES.
+
+        L (x) Id is the (3n, 3n) matrix whose edge blocks are values * Id (node blocks by
+        translation invariance, as in assemble_edge_blocks); :meth:`add_scalar_blocks` adds
+        it into a data array of this pattern. A stiffness of this form is that of a constant
+        stress Q, blocks V (D_a . Q D_b) Id; such a body's energy is quadratic in x, so that
+        is its whole tangent and its force is -(L @ x).
+        """
+        values = np.asarray(values, dtype=float)
+        if values.shape != self.cell_edges.shape:
+            raise ValueError(f"values must be (m, 6) = {self.cell_edges.shape}, got {values.shape}")
+        E, n = self.n_edges, self.n_nodes
+        U = np.bincount(self.cell_edges.ravel(), weights=values.ravel(), minlength=E)
+        diag = np.bincount(self.edges[:, 0], weights=U, minlength=n) + np.bincount(self.edges[:, 1], weights=U, minlength=n)
+        src = self._node_source  # node-pattern order: 0..E-1 upper, E..2E-1 transposed, 2E.. diagonal
+        data = np.concatenate([U, -diag])[np.where(src < E, src, src - E)]
+        indptr = self._nodeptr.astype(self.indptr.dtype)
+        indices = (self._node_keys % n).astype(self.indices.dtype)
+        L = sp.csr_matrix((data, indices, indptr), shape=(n, n), copy=False)
+        L.has_sorted_indices = True
+        return L
+
+    def add_scalar_blocks(self, data: np.ndarray, L: sp.csr_matrix) -> None:
+        """data += the entries of L (x) Id, in place: data is the value array of a CSR matrix
+        with this pattern and L comes from :meth:`edge_scalar_matrix` (same node pattern)."""
+        if L.nnz != len(self._node_keys) or len(data) != self.nnz:
+            raise ValueError(f"L must come from edge_scalar_matrix of this pattern ({len(self._node_keys)} entries, "
+                             f"got {L.nnz}) and data must have {self.nnz} entries (got {len(data)})")
+        key = "diag"
+        if key not in self._maps:
+            pos = self._entry_positions()
+            self._maps[key] = np.ascontiguousarray(np.stack([pos[:, r, r] for r in range(3)], axis=1))  # (P, 3)
+        data[self._maps[key]] += L.data[:, None]
+
     # ------------------------------------------------------------ general route
     @property
     def scatter(self) -> np.ndarray:

@@ -16,8 +16,17 @@ Within a step the history gamma_i^(n-1) is fixed, so
     S_v = (1 - sum_i a_i) S_h - Q,    Q = sum_i b_i gamma_i^(n-1)   (per cell, (3, 3)),
 
 and the nodal force and consistent tangent are those of the hyperelastic body scaled by
-c = 1 - sum_i a_i, plus the force of the constant stress -Q:
+c = 1 - sum_i a_i, plus those of the constant stress -Q:
 f_a = -V (c F S_h D_a - F Q D_a), K_ab = c K_h,ab - V (D_a . Q D_b) I.
+
+The second body's energy, -V Q : E, is quadratic in x (F is linear in x), so its tangent K_Q
+(blocks -V (D_a . Q D_b) I) is constant within a step and its force is exactly -K_Q x:
+
+    f_v = c f_h(x) - K_Q x,    K_v = c K_h(x) + K_Q.
+
+K_Q is assembled once per step. The hyperelastic body is any field with the force,
+stiffness and per-cell stress methods of :class:`mjed.HyperelasticForceField` (the NumPy
+engine, or :class:`mjed.compiled.CompiledForceField`), used only through those methods.
 
 The paper applies the series to the whole hyperelastic S_h (its S_h is the full second
 Piola-Kirchhoff stress of W_h, volumetric part included; the Fig. 3 rheometer is St
@@ -34,8 +43,6 @@ from typing import Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from mjed.edge_blocks import edge_blocks_to_element_matrices
-from mjed.evaluation import CellEvaluation, Want
 from mjed.forcefield import HyperelasticForceField, checked_positions
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
@@ -114,11 +121,18 @@ class ViscousHistory:
     steps: int
 
 
+#: What the viscous field asks of its hyperelastic body.
+FIELD_METHODS = ("force", "stiffness", "force_and_stiffness", "stress", "force_stiffness_and_stress")
+
+
 class ViscoHyperelasticForceField:
     """A hyperelastic body whose S_h is relaxed by a Prony series (backward Euler history).
 
     Args:
-        field: a HyperelasticForceField, or a TetMesh together with ``material``.
+        field: a hyperelastic force field (:class:`mjed.HyperelasticForceField`, or any field
+            with ``mesh``, ``pattern`` and the methods of FIELD_METHODS, e.g.
+            ``mjed.make_force_field(mesh, material, backend="numba")``), or a TetMesh
+            together with ``material`` (then the NumPy engine).
         material: the material when ``field`` is a mesh.
         prony: the Prony series.
         dt: optional step size; otherwise set by ``prepare_step(dt)`` before evaluating.
@@ -132,12 +146,16 @@ class ViscoHyperelasticForceField:
                  regularize: bool = False, allow_inverted: bool = False):
         if isinstance(field, TetMesh):
             if material is None:
-                raise ValueError("give a material with a mesh (or a HyperelasticForceField alone)")
+                raise ValueError("give a material with a mesh (or a hyperelastic force field alone)")
             field = HyperelasticForceField(field, material, regularize=regularize, allow_inverted=allow_inverted)
-        elif not isinstance(field, HyperelasticForceField):
-            raise TypeError(f"field must be a HyperelasticForceField or a TetMesh, got {type(field).__name__}")
         elif material is not None:
-            raise ValueError("material is given by the HyperelasticForceField; do not pass it again")
+            raise ValueError("material is given by the force field; do not pass it again")
+        else:
+            missing = [name for name in FIELD_METHODS if not callable(getattr(field, name, None))]
+            if missing or not isinstance(getattr(field, "mesh", None), TetMesh) or not hasattr(field, "pattern"):
+                raise TypeError(f"field must be a hyperelastic force field (mesh, pattern and {', '.join(FIELD_METHODS)}) "
+                                f"or a TetMesh; {type(field).__name__} lacks "
+                                f"{', '.join(missing) or 'a TetMesh mesh or a pattern'}")
         if not isinstance(prony, Prony):
             raise TypeError(f"prony must be a Prony, got {type(prony).__name__}")
         self.field = field
@@ -146,9 +164,11 @@ class ViscoHyperelasticForceField:
         self.gammas = np.zeros((len(prony.alphas), self.mesh.n_cells, 3, 3))
         self.steps = 0
         self._saved: Optional[ViscousHistory] = None
-        self._cache: Optional[Tuple[np.ndarray, CellEvaluation]] = None  # (x, evaluation) of the last accepted state
-        # Rest shape vectors in the engine's component-major layout (3, 4, m) (mjed.layout).
-        self._Dt = np.ascontiguousarray(self.mesh.D.transpose(2, 1, 0))
+        # (x, f_h, K_h) of the last accepted state: the next step starts there, so its first
+        # force_and_stiffness is already computed (used once, then dropped).
+        self._cache: Optional[Tuple[np.ndarray, np.ndarray, sp.csr_matrix]] = None
+        self._KQ: Optional[sp.csr_matrix] = None  # the history's stiffness, rebuilt when Q changes
+        self._Dt = np.ascontiguousarray(self.mesh.D.transpose(2, 1, 0))  # rest shape vectors (3, 4, m)
         self.dt: Optional[float] = None
         self._a = self._b = None
         if dt is not None:
@@ -157,7 +177,10 @@ class ViscoHyperelasticForceField:
     # ---------------------------------------------------------------- time stepping
     def prepare_step(self, dt: float) -> None:
         """Set the step size of the coming step (the coefficients a_i, b_i depend on it)."""
-        self._a, self._b = prony_coefficients(self.prony, dt)
+        a, b = prony_coefficients(self.prony, dt)
+        if self.dt != float(dt):
+            self._KQ = None
+        self._a, self._b = a, b
         self.dt = float(dt)
 
     def accept_step(self, x, dt: Optional[float] = None) -> None:
@@ -166,11 +189,11 @@ class ViscoHyperelasticForceField:
             self.prepare_step(dt)
         a, b = self._coefficients()
         x = self._check_positions(x)
-        ev = self._hyperelastic(x)
-        S = ev.pk2  # (m, 3, 3)
+        f, K, S = self.field.force_stiffness_and_stress(x)  # S: (m, 3, 3)
         self.gammas = a[:, None, None, None] * S[None] + b[:, None, None, None] * self.gammas
         self.steps += 1
-        self._cache = (x.copy(), ev)  # the next step starts from x: its evaluation is reused
+        self._KQ = None
+        self._cache = (x.copy(), f, K)
 
     def save_history(self) -> ViscousHistory:
         """A copy of the history (also kept, for restore_history() without an argument)."""
@@ -186,76 +209,70 @@ class ViscoHyperelasticForceField:
             raise ValueError(f"saved history has shape {saved.gammas.shape}, expected {self.gammas.shape}")
         self.gammas = saved.gammas.copy()
         self.steps = saved.steps
+        self._KQ = None
+        self._cache = None
 
     def viscous_stress(self) -> np.ndarray:
         """Q = sum_i b_i gamma_i^(n-1), the history's stress in the coming step, (m, 3, 3)."""
         _, b = self._coefficients()
         return np.einsum("p,pmij->mij", b, self.gammas)
 
+    def history_stiffness(self) -> sp.csr_matrix:
+        """L_Q, (n, n) CSR: the tangent of the constant stress -Q is K_Q = L_Q (x) Id, blocks
+        -V (D_a . Q D_b) Id (mjed.sparse.CSRPattern.edge_scalar_matrix); its force is
+        -K_Q x. Kept until the history or dt changes."""
+        if self._KQ is None:
+            # Component-major (cell axis last): each product runs over all cells at once, far
+            # faster than an einsum over (m, 3, 3) matrices.
+            Q = np.ascontiguousarray(np.moveaxis(self.viscous_stress(), 0, -1))  # (3, 3, m)
+            Dt = self._Dt  # (3, 4, m)
+            QD = sum(Q[:, j, None, :] * Dt[j, None] for j in range(3))  # (3, 4, m): Q D_a
+            DQD = sum(Dt[k, EDGES[:, 0]] * QD[k, EDGES[:, 1]] for k in range(3))  # (6, m)
+            DQD *= -self.mesh.volumes
+            self._KQ = self.field.pattern.edge_scalar_matrix(DQD.T)
+        return self._KQ
+
     # ---------------------------------------------------------------- forces
     def force(self, x) -> np.ndarray:
         """Nodal forces of S_v at fixed history, (n, 3)."""
-        return self.field.assemble_force(self._gradient_and_blocks(x, stiffness=False)[0])
+        x = self._check_positions(x)
+        return self._scale() * self.field.force(x) - self._history_force(x)
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Consistent tangent at fixed history, CSR (3n, 3n)."""
-        return self.field.assemble_stiffness(self._gradient_and_blocks(x, stiffness=True)[1])
+        return self._combine(self.field.stiffness(self._check_positions(x)))
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
-        grad, blocks = self._gradient_and_blocks(x, stiffness=True)
-        return self.field.assemble_force(grad), self.field.assemble_stiffness(blocks)
-
-    def element_forces(self, x) -> np.ndarray:
-        """Per-cell nodal forces, (m, 4, 3)."""
-        return -np.ascontiguousarray(self._gradient_and_blocks(x, stiffness=False)[0].transpose(2, 1, 0))
-
-    def element_stiffness(self, x) -> np.ndarray:
-        """Per-cell tangents at fixed history, (m, 12, 12)."""
-        return edge_blocks_to_element_matrices(self._gradient_and_blocks(x, stiffness=True)[1].transpose(3, 2, 0, 1))
+        x = self._check_positions(x)
+        cache, self._cache = self._cache, None
+        if cache is not None and np.array_equal(cache[0], x):
+            f, K = cache[1], cache[2]
+        else:
+            f, K = self.field.force_and_stiffness(x)
+        return self._scale() * f - self._history_force(x), self._combine(K)
 
     def stress(self, x) -> np.ndarray:
         """S_v at x with the current history, per cell (m, 3, 3)."""
-        a, _ = self._coefficients()
-        return (1.0 - a.sum()) * self._hyperelastic(self._check_positions(x)).pk2 - self.viscous_stress()
+        return self._scale() * self.field.stress(self._check_positions(x)) - self.viscous_stress()
 
     # ---------------------------------------------------------------- internals
-    def _gradient_and_blocks(self, x, *, stiffness: bool):
-        """dW_v/dx per cell (3, 4, m) and the edge blocks (3, 3, 6, m) (None if not asked), in
-        the engine's component-major layout ([k, a, cell] and [r, c, edge, cell])."""
+    def _scale(self) -> float:
         a, _ = self._coefficients()
-        c = 1.0 - a.sum()
-        x = self._check_positions(x)
-        ev = self._hyperelastic(x, stiffness=stiffness)
-        Q = self.viscous_stress()  # (m, 3, 3)
-        Dt, V = self._Dt, self.mesh.volumes
-        # Everything component-major (contiguous (3, 3, m) and (3, 4, m)): the cell axis is the
-        # inner loop of each product, several times faster than small (m, 3, 3) matrices.
-        Q_t = np.ascontiguousarray(np.moveaxis(Q, 0, -1))
-        F_t = np.ascontiguousarray(np.moveaxis(ev.F, 0, -1))
-        FQ_t = np.einsum("ikm,kjm->ijm", F_t, Q_t)
-        FQD = np.einsum("ijm,jam->iam", FQ_t, Dt)  # F Q D_a, (3, 4, m)
-        grad = c * ev.gradient
-        grad -= V * FQD
-        if not stiffness:
-            return grad, None
-        # Geometric stiffness of the constant stress -Q: -V (D_a . Q D_b) I on each edge (a, b).
-        QD = np.einsum("ijm,jam->iam", Q_t, Dt)  # (3, 4, m)
-        DQD = np.einsum("iem,iem->em", Dt[:, EDGES[:, 0]], QD[:, EDGES[:, 1]])  # (6, m)
-        DQD *= V
-        blocks = c * ev.blocks  # (3, 3, 6, m)
-        for r in range(3):
-            blocks[r, r] -= DQD
-        return grad, blocks
+        return 1.0 - float(a.sum())
 
-    def _hyperelastic(self, x: np.ndarray, stiffness: bool = True) -> CellEvaluation:
-        """The hyperelastic field's gradient, S_h and (if asked) edge blocks at x (fresh
-        arrays: the last accepted state's evaluation is kept and reused)."""
-        if self._cache is not None and np.array_equal(self._cache[0], x):
-            ev = self._cache[1]
-            if ev.blocks is not None or not stiffness:
-                return ev
-        want = Want.GRADIENT | Want.STRESS | (Want.STIFFNESS if stiffness else Want(0))
-        return self.field.evaluate(x, want=want)
+    def _history_force(self, x: np.ndarray) -> np.ndarray:
+        """K_Q x = L_Q x, (n, 3): minus the force of the constant stress -Q."""
+        return self.history_stiffness() @ x
+
+    def _combine(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        """c K + K_Q, in place in K (a fresh matrix with the field's pattern)."""
+        pattern = self.field.pattern
+        if K.nnz != pattern.nnz or not np.array_equal(K.indptr, pattern.indptr):
+            raise ValueError(f"the force field's stiffness does not have its pattern's structure ({K.nnz} entries, "
+                             f"pattern {pattern.nnz}); the viscous field adds its history in place")
+        K.data *= self._scale()
+        pattern.add_scalar_blocks(K.data, self.history_stiffness())
+        return K
 
     def _coefficients(self):
         if self._a is None:

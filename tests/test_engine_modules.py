@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 import mjed
 from conftest import MATERIALS, box_mesh, perturbed
@@ -236,3 +237,23 @@ def test_invariant_functions_may_give_either_stress_layout(body):
     a = fold_groups(groups(CellMajor()), st.kin, st.J)
     b = fold_groups(groups(ComponentMajor()), st.kin, st.J)
     assert np.array_equal(a.S, b.S) and np.array_equal(a.h, b.h)
+
+
+def test_edge_scalar_assembly_equals_identity_blocks(rng):
+    # The history stiffness of the viscous field: blocks s Id, node blocks by translation invariance.
+    from mjed.sparse import CSRPattern
+
+    points, cells = box_mesh(3, jitter=0.2)
+    pattern = CSRPattern(cells, len(points))
+    s = rng.standard_normal((len(cells), 6))
+    blocks = s[:, :, None, None] * np.eye(3)[None, None]
+    K_ref = pattern.assemble_edge_blocks(blocks)
+    L = pattern.edge_scalar_matrix(s)
+    assert abs(sp.kron(L, sp.identity(3)) - K_ref).max() <= 1e-14 * np.abs(K_ref.data).max()
+    data = np.zeros(pattern.nnz)
+    pattern.add_scalar_blocks(data, L)
+    assert np.abs(data - K_ref.data).max() <= 1e-14 * np.abs(K_ref.data).max()
+    with pytest.raises(ValueError, match=r"\(m, 6\)"):
+        pattern.edge_scalar_matrix(s[:, :5])
+    with pytest.raises(ValueError, match="edge_scalar_matrix"):
+        pattern.add_scalar_blocks(data[:-1], L)

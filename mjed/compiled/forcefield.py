@@ -73,19 +73,30 @@ class CompiledForceField:
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Both from one pass over the cells."""
-        _, f, K = self._run(x, force=True, stiffness=True)
+        _, f, K, _ = self._run(x, force=True, stiffness=True)
         return f, K
 
+    def stress(self, x) -> np.ndarray:
+        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest volume)."""
+        return self._run(x, force=False, stiffness=False, stress=True)[3]
+
+    def force_stiffness_and_stress(self, x) -> Tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
+        """Force (n, 3), stiffness CSR (3n, 3n) and S per cell (m, 3, 3), from one pass."""
+        _, f, K, S = self._run(x, force=True, stiffness=True, stress=True)
+        return f, K, S
+
     # ---------------------------------------------------------------- internals
-    def _run(self, x, *, force: bool, stiffness: bool):
+    def _run(self, x, *, force: bool, stiffness: bool, stress: bool = False):
         x = checked_positions(x, self.mesh.n_nodes)
         t = self.table
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
+        S = np.empty((self.mesh.n_cells if stress else 0, 3, 3))
         energy = self._k.mjed_cells(
             x, self._cells, self._D, self._V0, t.DxD, t.jkind, t.jpar, t.gkind, t.gpar, t.gmat, t.npair, t.tslot,
             t.group_start, t.group_exp, t.group_coef, t.slot_kind, t.slot_ident, t.slot_M, t.slot_DMD, t.need_eig,
-            self.regularize, force, stiffness, *self._assembly.arguments(), f, data, self._J)
+            self.regularize, force, stiffness, stress, *self._assembly.arguments(), f, data, self._J, S)
         if not self.allow_inverted:
             refuse_inverted(self._J)
-        return float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None)
+        return (float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None),
+                (S if stress else None))

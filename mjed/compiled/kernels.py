@@ -355,11 +355,21 @@ def _g_eigen_power(c, q, mode, lam, V, S, theta, lp, tangent):
     return c * g
 
 
+@njit(**_INLINE)
+def _pk2(Sbar, cof, J, h, out, e):
+    """out[e] = S = 2 dW/dC = S-bar + h J C^-1 (dJ/dC = J C^-1 / 2, J C^-1 = cof^T cof / J)."""
+    hJ = h / J
+    for i in range(3):
+        for j in range(3):
+            out[e, i, j] = Sbar[i, j] + hJ * (cof[0, i] * cof[0, j] + cof[1, i] * cof[1, j] + cof[2, i] * cof[2, j])
+
+
 # ------------------------------------------------------------------ the MJED kernel
 @njit(**_JIT)
 def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslot, group_start, group_exp,
                group_coef, slot_kind, slot_ident, slot_M, slot_DMD, need_eig, regularize, want_force,
-               want_stiffness, cell_edges, cell_flip, U, Dg, src, blkptr, indptr, force, data, J_out):
+               want_stiffness, want_stress, cell_edges, cell_flip, U, Dg, src, blkptr, indptr, force, data, J_out,
+               stress_out):
     """Energy, forces and stiffness of every cell by MJED, from the term table.
 
     x (n, 3) positions; cells (m, 4); D (m, 4, 3); V0 (m,); the term table of
@@ -368,7 +378,9 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
     scratch for the edge sums and node blocks; src, blkptr (block_sources), indptr: where
     each CSR block comes from.
     Adds -dW/dx into ``force`` (n, 3) if want_force and d2W/dx2 into ``data`` (nnz,) if
-    want_stiffness; writes J per cell into J_out (m,). Returns the total energy.
+    want_stiffness; writes J per cell into J_out (m,) and, if want_stress, the second
+    Piola-Kirchhoff stress S = 2 dW/dC per cell into stress_out (m, 3, 3). Returns the total
+    energy.
 
     Per cell, with u, S-bar, S-hat, h, g2 and the slot weights summed over the terms of each
     group and the groups folded in with weight c (plain) or c e^u (exponential), as in
@@ -525,6 +537,8 @@ def mjed_cells(x, cells, D, V0, DxD, jkind, jpar, gkind, gpar, gmat, npair, tslo
                 w[s] += scale * wg[s]
         vol = V0[e]
         energy += vol * e_cell
+        if want_stress:
+            _pk2(St, cof, J, h, stress_out, e)
 
         # ---- gradient: F S D_a + h d_a (F S formed once per cell)
         apply_to_shape_vectors(cof, D, e, d)
