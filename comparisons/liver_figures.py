@@ -112,7 +112,7 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
 
 
 def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str:
-    """Where a step's time goes, per model (stacked shares), beside the paper's hyperelastic share."""
+    """Where a step's time goes, per run (model and backend; stacked shares), beside the paper's hyperelastic share."""
     plt = _pyplot()
     phases = list(split[0]["shares"])
     fig, ax = plt.subplots(figsize=(8, 1.2 + 0.7 * len(split)))
@@ -128,7 +128,8 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
     ax.axvline(100 * paper_share, color="k", ls="--", lw=1)
     ax.text(100 * paper_share, -0.55, f" paper: hyperelastic about {100 * paper_share:.0f} %", fontsize=8, va="bottom")
     ax.set_yticks(range(len(split)))
-    ax.set_yticklabels([f"{r['model']}\n{r['ms_per_step']:.1f} ms/step" for r in split], fontsize=8)
+    ax.set_yticklabels([f"{r['model']}" + (f" ({r['backend']})" if "backend" in r else "") + f"\n{r['ms_per_step']:.1f} ms/step"
+                        for r in split], fontsize=8)
     ax.set_xlim(0, 100)
     ax.set_ylim(len(split) - 0.5, -0.8)  # first model on top, room above it for the paper's mark
     ax.set_xlabel("share of the step's wall-clock time (%)")

@@ -132,7 +132,7 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
         return Indefinite(numpy_force_field(mesh, material, **kw))
 
     result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
-                       force_field=broken)
+                       force_fields=[broken])
     (run,) = result["runs"]
     assert not result["passed"] and run["steps"] == 0 < run["steps_planned"]
     assert run["error"].startswith("time step 1 (t = 0.3 s) failed:")

@@ -12,9 +12,10 @@ import pytest
 
 from comparisons.cli import main
 from comparisons.commands import liver as liver_command_module
-from comparisons.liver import MODELS, liver_study
+from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, liver_study
 from comparisons.oscillation import euler_decay_rate, oscillation_metrics
 from comparisons.result import Status
+from mjed.compiled import numba_available
 
 pytest.importorskip("meshio")
 
@@ -40,7 +41,12 @@ def test_a_liver_hung_from_three_nodes_y_up_in_cm_completes_with_substeps(organ_
     data = json.loads((tmp_path / "liver.json").read_text())
     assert data["key"] == "liver" and data["status"] in ("passed", "target missed") and data["partial"]
     runs = data["data"]["runs"]
-    assert [r["model"] for r in runs] == list(MODELS)
+    backends = ["numpy", "numba"] if numba_available() else ["numpy"]
+    assert [(r["backend"], r["model"]) for r in runs] == [(b, m) for b in backends for m in MODELS]
+    # Every backend follows the same trajectory (the compiled one is checked against NumPy's).
+    agreement = data["data"]["backend_agreement"]
+    assert len(agreement) == len(MODELS) * (len(backends) - 1)
+    assert all(a["relative_difference"] is not None and a["relative_difference"] <= BACKEND_AGREEMENT_TOL for a in agreement)
     for r in runs:
         assert r["error"] is None and r["steps"] == r["steps_planned"] and r["fps"] > 0
     assert sum(r["steps_split"] for r in runs) >= 1 and runs[0]["substeps"][0] > 1
@@ -131,7 +137,9 @@ def test_the_study_result_and_its_reproduce_command(tmp_path):
     result = liver_study(quick=True, out_dir=str(tmp_path), series=False, models=["hyperelastic"], steps=2,
                          params=params, oscillation=False)
     kinds = {c.name.split(" ")[0] + " " + c.kind for c in result.checks}
-    assert kinds == {"Terzaghi tolerance", "hyperelastic tolerance", "hyperelastic target"}
+    compiled = {"hyperelastic: tolerance"} if numba_available() else set()  # the backends agree
+    assert kinds == {"Terzaghi tolerance", "hyperelastic tolerance", "hyperelastic target"} | compiled
+    assert sum("compiled backend" in c.name for c in result.checks) == (1 if numba_available() else 0)
     assert result.status in (Status.PASSED, Status.TARGET_MISSED) and result.partial
     assert any("quick" in n for n in result.not_covered) and any("oscillation" in n for n in result.not_covered)
     argv = shlex.split(result.command)
@@ -141,6 +149,25 @@ def test_the_study_result_and_its_reproduce_command(tmp_path):
     again = liver_command_module.liver_options(parser.parse_args(argv[2:]))
     assert again["params"] == params and again["quick"] and again["models"] == ["hyperelastic"]
     assert again["steps"] == 2 and not again["oscillation"] and not again["series"] and again["out_dir"] == str(tmp_path)
+    assert again["backends"] == ["numpy", "numba"]
+
+
+def test_backends_option_and_a_missing_numba(tmp_path, monkeypatch, capsys):
+    # One backend: no agreement check, the command line says so; an unknown one is bad input (2).
+    one = liver_study(quick=True, out_dir=str(tmp_path), series=False, models=["hyperelastic"], steps=1,
+                      oscillation=False, backends=["numpy"])
+    assert [r["backend"] for r in one.data["runs"]] == ["numpy"] and one.data["backend_agreement"] == []
+    assert "--backends numpy" in one.command
+    assert main(["liver", "--quick", "--backends", "numpy,fortran", "--out", str(tmp_path)]) == 2
+    assert "--backends" in capsys.readouterr().err
+    # Without Numba the compiled runs are left out and the result says so (partial), not silently.
+    import mjed.compiled
+
+    monkeypatch.setattr(mjed.compiled, "numba_available", lambda: False)
+    res = liver_study(quick=True, out_dir=str(tmp_path), series=False, models=["hyperelastic"], steps=1,
+                      oscillation=False)
+    assert [r["backend"] for r in res.data["runs"]] == ["numpy"]
+    assert any("Numba is not installed" in n for n in res.not_covered) and res.partial
 
 
 def test_oscillation_metrics_recover_a_known_damped_oscillation():
@@ -180,7 +207,7 @@ def test_the_oscillation_study_sizes(monkeypatch, tmp_path, full, quick, mesh, e
     monkeypatch.setattr(oscillation_module, "run_oscillations", fake)
     monkeypatch.setattr(liver_module, "run_liver", lambda **kw: {
         "runs": [], "terzaghi": {"times": [{"relative_l2_error": 0.0}]}, "figures": [], "step_split": [],
-        "fps_table": [], "mesh_description": "", "n_fixed": 0, "fixed_regions": [], "duration": 0.0, "mesh": "m",
+        "fps_table": [], "backends": ["numpy"], "backend_agreement": [], "mesh_description": "", "n_fixed": 0, "fixed_regions": [], "duration": 0.0, "mesh": "m",
         "series": []})
     result = liver_study(quick=quick, out_dir=str(tmp_path), full_oscillation=full, mesh=mesh)
     assert (seen["label"], seen["dts"], seen["duration"]) == expected

@@ -69,6 +69,10 @@ def configure(parser) -> None:
     parser.add_argument("--kappa", type=float, default=None, help="permeability in m^4/(N s) (default 5e-6; the paper prints 20)")
     parser.add_argument("--models", default="all",
                         help="'all' or a comma-separated list of: hyperelastic, visco-hyperelastic, visco-poro-hyperelastic")
+    parser.add_argument("--backends", default="numpy,numba",
+                        help="comma-separated MJED backends, each running every model: numpy (the NumPy engine) and "
+                             "numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
+                             "first is the reference the others are checked against and the one the figures show")
     parser.add_argument("--solver", default="factorized", choices=("factorized", "jacobi", "block-jacobi", "direct"),
                         help="linear solver: CG preconditioned by a kept sparse LU (default), by Jacobi or by 3x3 "
                              "node blocks, or a direct sparse LU every step (comparison point)")
@@ -150,6 +154,10 @@ def liver_options(args) -> dict:
     from comparisons.organ import scale_of
 
     models = list(MODELS) if args.models.strip().lower() == "all" else [m.strip() for m in args.models.split(",") if m.strip()]
+    backends = [b.strip() for b in args.backends.split(",") if b.strip()]
+    unknown = [b for b in backends if b not in ("numpy", "numba")]
+    if unknown or not backends:
+        raise opt.InputError(f"--backends {args.backends!r}: expected a comma-separated list of numpy, numba")
     if args.steps is not None and args.steps < 1:
         raise opt.InputError(f"--steps must be a positive integer, got {args.steps}")
     scale_of(args.units, args.scale)  # refuses both, or a bad scale, before any work
@@ -176,7 +184,7 @@ def liver_options(args) -> dict:
     return dict(quick=args.quick, out_dir=args.out, series=not args.no_series, mesh=args.mesh, fixed=args.fixed,
                 steps=args.steps, units=args.units, scale=args.scale, fix_orientation=args.fix_orientation,
                 params=params, models=models, oscillation=not args.no_oscillation,
-                full_oscillation=args.full_oscillation)
+                full_oscillation=args.full_oscillation, backends=backends)
 
 
 def run(args) -> int:
@@ -193,21 +201,25 @@ def run(args) -> int:
         result = liver_study(progress=progress, **kwargs)
     data = result.data
     print(f"liver under gravity on {data['mesh_description']}, {data['n_fixed']} fixed, {data['duration']:g} s simulated")
-    print(f"  {'model':26s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} {'substeps':>8s} {'inverted':>8s} "
+    print(f"  {'model':26s} {'backend':7s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} {'substeps':>8s} {'inverted':>8s} "
           f"{'final max |u| (mm)':>18s} {'CG/step':>7s} {'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}")
     for r in data["runs"]:
         steps = f"{r['steps']}/{r['steps_planned']}"
         cg = f"{r['cg_iterations_mean']:7.1f}" if r["cg_iterations_mean"] is not None else f"{'-':>7s}"
         fps = f"{r['fps']:6.1f} {r['cpu_fps']:7.1f}" if r["fps"] else f"{'-':>6s} {'-':>7s}"
-        print(f"  {r['model']:26s} {r['dt']:6.3g} {steps:>7s} {r['steps_split']:5d} {r['substeps_total']:8d} "
+        print(f"  {r['model']:26s} {r['backend']:7s} {r['dt']:6.3g} {steps:>7s} {r['steps_split']:5d} {r['substeps_total']:8d} "
               f"{r['inverted_cells_max']:8d} {1e3 * r['final_max_displacement']:18.2f} {cg} {fps} {r['paper_fps']:5.1f}")
         if r["error"]:
             print(f"    FAILED: {r['error']}")
     if data["runs"]:
-        print(f"  linear solver: {data['runs'][0]['solver']}; force field: {data['runs'][0]['force_field']}")
+        fields = "; ".join(dict.fromkeys(f"{r['backend']}: {r['force_field']}" for r in data["runs"]))
+        print(f"  linear solver: {data['runs'][0]['solver']}; force fields: {fields}")
+    for a in data["backend_agreement"]:
+        diff = "not comparable" if a["relative_difference"] is None else f"{a['relative_difference']:.1e}"
+        print(f"  {a['model']}: {a['backend']} trajectory against {a['reference']}: largest difference / peak {diff}")
     for s in data["step_split"]:
         shares = ", ".join(f"{p} {100 * v:.0f} %" for p, v in s["shares"].items())
-        print(f"  step split, {s['model']} ({s['ms_per_step']:.1f} ms/step): {shares}")
+        print(f"  step split, {s['model']}, {s['backend']} ({s['ms_per_step']:.1f} ms/step): {shares}")
     if data["step_split"]:
         print(f"  (the paper: hyperelastic force + stiffness about {100 * PAPER_HYPERELASTIC_SHARE:.0f} % of a step)")
     if "oscillation" in data:

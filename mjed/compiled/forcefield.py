@@ -88,6 +88,10 @@ class CompiledForceField:
     # ---------------------------------------------------------------- internals
     def _run(self, x, *, force: bool, stiffness: bool, stress: bool = False):
         x = checked_positions(x, self.mesh.n_nodes)
+        if not (x.flags.c_contiguous and x.flags.writeable):
+            # Numba compiles one specialisation per array layout and per read-only flag (each
+            # several seconds): a view or a read-only array from the caller gets a C copy.
+            x = np.array(x, order="C")
         t = self.table
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
