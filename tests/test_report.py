@@ -305,6 +305,19 @@ def test_all_quick_timing_and_liver_sections_are_their_studies_results(tmp_path)
         assert by_key[key]["status"] not in ("error", "not run"), by_key[key]["reason"]
     assert [r["material"] for r in by_key["timing"]["data"]["results"]][:1] == ["NeoHookean"]
     assert "NeoHookean" in by_key["timing"]["command"]
+    # The figure paths in the data resolve from the published run directory (it was renamed).
+    figures = by_key["liver"]["data"]["figures"]
+    assert figures and all(not os.path.isabs(p) and (tmp_path / "latest" / p).is_file() for p in figures)
+
+
+def test_paths_into_the_run_directory_become_relative_and_nothing_else_changes(tmp_path):
+    from comparisons.report.runner import _paths_relative_to
+
+    run = str(tmp_path / ".partial-x")
+    payload = {"a": [f"{run}/liver/fig.png", os.path.abspath(run) + "/t.png"], "b": {"c": run + "-other/x"},
+               "d": "/data/mine.png", "e": 3, "f": "plain words"}
+    assert _paths_relative_to(payload, run) == {"a": ["liver/fig.png", "t.png"], "b": {"c": run + "-other/x"},
+                                                "d": "/data/mine.png", "e": 3, "f": "plain words"}
 
 
 def test_reproduce_lines_drop_only_an_out_into_the_run_directory(tmp_path):

@@ -123,6 +123,22 @@ def _relative_figures(result: StudyResult, run_dir: str) -> StudyResult:
     return replace(result, blocks=blocks, command=_without_run_dir_out(result.command, run_dir))
 
 
+def _paths_relative_to(obj, run_dir: str):
+    """A copy of a JSON-like payload in which every string that is a path inside ``run_dir``
+    (absolute, or as the studies were given it) is made relative to it: the directory is
+    renamed once the report is written, so such paths would point nowhere in results.json."""
+    root = os.path.abspath(run_dir)
+    if isinstance(obj, dict):
+        return {k: _paths_relative_to(v, run_dir) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_paths_relative_to(v, run_dir) for v in obj]
+    if isinstance(obj, str) and (obj.startswith(run_dir) or obj.startswith(root)) and "\n" not in obj:
+        path = os.path.abspath(obj)
+        if path == root or path.startswith(root + os.sep):
+            return os.path.relpath(path, root)
+    return obj
+
+
 def _without_run_dir_out(command: str, run_dir: str) -> str:
     """The reproduce line without an ``--out`` into the report's own (temporary) run
     directory: re-running the study alone writes to its default place instead, and that
@@ -217,7 +233,7 @@ def run_report(
                "studies": [r.to_dict() for r in results]}
     from comparisons.options import write_json
 
-    write_json(os.path.join(partial, "results.json"), payload)
+    write_json(os.path.join(partial, "results.json"), _paths_relative_to(payload, partial))
     with open(os.path.join(partial, "report.md"), "w") as fh:
         fh.write(to_markdown(title, preamble, results))
     with open(os.path.join(partial, "index.html"), "w") as fh:
