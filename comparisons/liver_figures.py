@@ -133,7 +133,7 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
     ax.set_xlim(0, 100)
     ax.set_ylim(len(split) - 0.5, -0.8)  # first model on top, room above it for the paper's mark
     ax.set_xlabel("share of the step's wall-clock time (%)")
-    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2))
+    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2 if len(split) == 3 else -0.11))
     return _save(fig, path, bbox_inches="tight")
 
 
