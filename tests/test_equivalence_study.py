@@ -120,3 +120,18 @@ def test_a_material_the_command_line_cannot_set_is_said_in_a_comment():
     r = equivalence_study(_single_tet(), (custom,), ["rest"], oracle_factory=_ScaledMJED)
     assert "# custom parameters for NeoHookean" in r.command
     assert np.isfinite(r.checks[0].measured)
+
+
+def test_sofa_ogden_tangent_table_has_an_exact_control_row_and_inexact_others():
+    # alpha 2 makes the spectral power linear in C: the coaxial tangent is then exact, a row
+    # that would catch a table comparing the wrong matrices; the others differ once deformed.
+    from comparisons.equivalence import OGDEN_TANGENT_ALPHAS, _ogden_tangent
+    from meshes import catalog
+
+    points, cells, label = catalog.resolve("single-tet")
+    ogden = mjed.materials.Ogden(mu=1e3, alpha=3.0, k0=1e4)
+    table = _ogden_tangent([(label, points, cells)], [ogden], ["rest", "shear", "random"])[label]
+    assert list(table) == ["alpha 3", *(f"alpha {a:g}" for a in OGDEN_TANGENT_ALPHAS)]
+    assert max(table["alpha 2"].values()) <= 1e-14
+    for alpha in ("alpha 3", "alpha -2", "alpha 6"):
+        assert table[alpha]["rest"] <= 1e-14 and table[alpha]["random"] > 1e-6
