@@ -18,7 +18,9 @@ from numba import njit
 
 __all__ = ["eigh3", "deformation_gradient", "apply_to_shape_vectors", "block_sources", "add_edge_blocks", "write_csr", "mjed_cells"]
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
+#: The compiler options of every kernel (the generated MJED kernels and the classical ones too).
+JIT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
+_JIT = JIT_OPTIONS
 # Small helpers are inlined into the kernel at Numba IR level: a call per term and cell with a
 # dozen array arguments would otherwise cost more than the arithmetic it does.
 _INLINE = dict(_JIT, inline="always")
@@ -218,7 +220,7 @@ def _jfunction(kind, P, t, J):
 
 # ------------------------------------------------------------------ the invariant functions
 @njit(**_JIT)
-def _divided_differences(lam, lp, p, theta):
+def divided_differences(lam, lp, p, theta):
     """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, symmetric.
 
     lp: lam^p. Eigenvalues 5 % or more apart use the quotient of the powers directly (its
@@ -344,7 +346,7 @@ def _g_eigen_power(c, q, mode, lam, V, S, theta, lp, tangent):
         return c * g
     pp = q - 1.0
     if mode == 0.0:
-        _divided_differences(lam, lp, pp, theta)
+        divided_differences(lam, lp, pp, theta)
     else:
         for n in range(3):
             for l in range(3):
