@@ -112,6 +112,8 @@ class CompiledClassicalGalerkin:
             raise ValueError(f"Costa frame has {len(frame)} rotations for {self.mesh.n_cells} cells")
         self.law = cm.classical_law(material)
         self.code, self.params, self.tensor = lower_law(self.law)
+        # the isochoric part of a decoupled law (P[8]): part of what the kernel is compiled for
+        self.psi = int(self.params[8]) if self.code == LAW_DECOUPLED else 0
         self.pattern = CSRPattern(self.mesh.cells, self.mesh.n_nodes)
         self._cells = np.ascontiguousarray(self.mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(self.mesh.D, dtype=np.float64)
@@ -138,7 +140,7 @@ class CompiledClassicalGalerkin:
         x = checked_positions(x, self.mesh.n_nodes)
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
-        energy = self._k.classical_cells(x, self._cells, self._D, self._V0, self.code, self.params, self.tensor,
+        energy = self._k.classical_cells(x, self._cells, self._D, self._V0, self.code, self.psi, self.params, self.tensor,
                                          force, stiffness, *self._assembly.arguments(), f, data, self._J)
         refuse_inverted(self._J)
         return float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None)
