@@ -19,13 +19,20 @@ The algebra is the NumPy engine's (mjed/engine.py, mjed/edge_blocks.py), per cel
 - the six edge blocks (D_a . S-bar D_b) Id + first-kind 2 w (F A D_a)(x)(F A D_b) +
   second-kind w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers +
   d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c e^u du_a (x) du_b + h [F (D_a x D_b)]_x,
-  and the node blocks by translation invariance; scattered as
-  :func:`mjed.compiled.kernels.mjed_cells` documents. D_a x D_b and D_a . B D_b are formed
-  from D in registers rather than read from precomputed per-cell arrays (cheaper than the
-  memory traffic).
+  all scaled by V0, and the node blocks by translation invariance (K_aa = -sum_b K_ab);
+  the blocks are added into the mesh-edge sums U and node sums Dg, then every CSR entry is
+  written once, in order (:func:`mjed.compiled.kernels.write_csr`): half the scattered
+  updates of adding 16 blocks per cell into the CSR array (writing straight into the CSR
+  data from per-cell positions measured 3.5 ms against 2.4 ms for NeoHookean).
 
-The generated module defines ``mjed_cells`` with the arguments documented in
-:data:`KERNEL_SIGNATURE`. Pure Python; no Numba.
+Rewrites of that algebra, exact in real arithmetic, save operations: F (D_a x D_b) is
+(x_d - x_c) / (6 V0) on a P1 cell (see ``stiffness``); D_a . B D_b is formed from D in
+registers rather than read from a per-cell array; V0 scales a few per-cell factors instead
+of every block entry; K_aa, a diagonal block of a Hessian, is formed as its upper triangle;
+the regularised part of the diagonal is formed only when asked for.
+
+The generated module defines ``mjed_cells`` with the arguments of :data:`KERNEL_SIGNATURE`
+(documented in its docstring). Pure Python; no Numba.
 """
 
 from __future__ import annotations
@@ -43,6 +50,17 @@ KERNEL_SIGNATURE = ("x", "cells", "D", "V0", "jpar", "gpar", "gmat", "group_coef
                     "want_force", "want_stiffness", "want_stress", "cell_edges", "cell_flip", "U", "Dg", "src",
                     "blkptr", "indptr", "force", "data", "J_out", "stress_out")
 
+_KERNEL_DOC = '''"""Energy, forces, stiffness and stress of every cell by MJED, for one term shape.
+
+x (n, 3) positions; cells (m, 4); D (m, 4, 3) rest shape vectors; V0 (m,) rest volumes;
+jpar, gpar, gmat, group_coef, slot_M: the numbers of mjed.compiled.lowering.TermTable;
+regularize: paper section 2.3; want_force / want_stiffness / want_stress: what to form;
+cell_edges (m, 6), cell_flip (m, 6): mesh edge of each cell edge and whether it runs against
+it (mjed.sparse.CSRPattern); U (E, 3, 3), Dg (n, 3, 3): scratch for the edge and node sums;
+src, blkptr, indptr: where each CSR block comes from (mjed.compiled.kernels.block_sources).
+Adds -dW/dx into force (n, 3), writes d2W/dx2 into data (nnz,), J per cell into J_out (m,)
+and S = 2 dW/dC per cell into stress_out (m, 3, 3) (when wanted). Returns the total energy.
+"""'''
 EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))  # mjed.sparse.EDGES
 # The opposite edge (c, d) of each edge (a, b), ordered so that (a, b, c, d) is an even permutation.
 _OPPOSITE = {(0, 1): (2, 3), (0, 2): (3, 1), (0, 3): (1, 2), (1, 2): (0, 3), (1, 3): (2, 0), (2, 3): (0, 1)}
@@ -599,7 +617,8 @@ class _Kernel:
         s("")
         s("@njit(**JIT_OPTIONS)")
         with s.block(f"def mjed_cells({', '.join(KERNEL_SIGNATURE)}):"):
-            s('"""Energy; force, stiffness and stress per the want_* flags (mjed.compiled.kernels.mjed_cells)."""')
+            for line in _KERNEL_DOC.splitlines():
+                s(line)
             s("m = cells.shape[0]")
             if shape.need_eig:
                 s("W3 = local_matrix(3, 3)")

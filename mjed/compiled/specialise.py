@@ -1,8 +1,9 @@
 """Generated kernels: written once to a cache directory, imported, compiled once per machine.
 
-:func:`kernel_module` returns the module of the kernel of a :class:`KernelShape`. Its source
-(:mod:`mjed.compiled.codegen`) is named by a hash of itself and of the compiled helpers it
-calls, so:
+:func:`kernel_module` returns the module of the kernel of a :class:`KernelShape`
+(:func:`generated_module` any generated source, e.g. the classical kernel of one law). A
+source (:mod:`mjed.compiled.codegen`) is named by a hash of itself and of the compiled
+helpers it calls, so:
 
 - two shapes never share a file, hence never share compiled code (Numba's on-disk cache is
   keyed by the source file); two materials of one shape share it, their numbers being
@@ -29,12 +30,12 @@ import tempfile
 import threading
 from pathlib import Path
 from types import ModuleType
-from typing import Dict
+from typing import Dict, Sequence
 
 from mjed.compiled.codegen import kernel_source
 from mjed.compiled.shape import KernelShape
 
-__all__ = ["kernel_module", "cache_directory"]
+__all__ = ["kernel_module", "generated_module", "cache_directory"]
 
 _MODULES: Dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
@@ -61,25 +62,23 @@ def cache_directory() -> Path:
                   "set MJED_KERNEL_CACHE")
 
 
-def _helpers_digest() -> str:
-    here = Path(__file__).parent
+def _digest(paths: Sequence[Path]) -> str:
     h = hashlib.sha256()
-    for name in _HELPERS:
-        h.update((here / name).read_bytes())
+    for path in paths:
+        h.update(path.read_bytes())
     return h.hexdigest()
 
 
-def kernel_module(shape: KernelShape, prefix: str = "mjed_kernel", source: "str | None" = None) -> ModuleType:
-    """The imported module of the kernel of ``shape`` (generated, written and imported once
-    per process; compiled on first call, or loaded from Numba's cache).
+def generated_module(source: str, prefix: str, helpers: Sequence[Path] = ()) -> ModuleType:
+    """The imported module of a generated ``source`` (written and imported once per process;
+    its functions compile on first call, or load from Numba's cache).
 
-    prefix / source: for other generated kernels (the classical ones) that share this
-    machinery: the file name prefix and the source (default: the MJED kernel of ``shape``).
+    prefix: the file name's prefix; helpers: the source files of the compiled functions it
+    calls besides mjed.compiled's own (their contents are part of the file's name).
     """
-    source = kernel_source(shape) if source is None else source
-    text = f"# helpers {_helpers_digest()}\n{source}"
-    digest = hashlib.sha256(text.encode()).hexdigest()[:20]
-    name = f"{prefix}_{digest}"
+    here = Path(__file__).parent
+    text = f"# helpers {_digest([here / name for name in _HELPERS] + list(helpers))}\n{source}"
+    name = f"{prefix}_{hashlib.sha256(text.encode()).hexdigest()[:20]}"
     with _LOCK:
         module = _MODULES.get(name)
         if module is None:
@@ -91,6 +90,11 @@ def kernel_module(shape: KernelShape, prefix: str = "mjed_kernel", source: "str 
             spec.loader.exec_module(module)
             _MODULES[name] = module
     return module
+
+
+def kernel_module(shape: KernelShape) -> ModuleType:
+    """The module of the MJED kernel of ``shape`` (its function ``mjed_cells``)."""
+    return generated_module(kernel_source(shape), "mjed_kernel")
 
 
 def _write_if_changed(path: Path, text: str) -> None:
