@@ -12,10 +12,13 @@ On the same footing as the generated MJED kernels (mjed.compiled.codegen): the c
 compiled once per law (a generated caller passes the law's code as a constant, see
 :func:`kernel_source`, so the other laws' branches are not in it), with the same compiler
 options, its scratch arrays on the stack (mjed.compiled.scratch), the same Jacobi
-eigen-solver, V0 applied once per row of CC rather than per entry of K, the symmetric node
-blocks formed as upper triangles, and the same assembly (edge and node sums, one ordered
-write of the CSR data). What it does not get is the MJED generator's dropping of
-structurally zero terms: its element matrix B^T CC B is dense whatever the law.
+eigen-solver, V0 applied once per row of CC rather than per entry of K, and the same assembly
+(edge and node sums, one ordered write of the CSR data). The isochoric projection of the
+decoupled laws is applied as the rank-one update it is. What it does not get is the MJED
+generator's dropping of structurally zero terms (its element matrix B^T CC B is dense
+whatever the law) nor its scalar locals. Forming the node blocks as upper triangles, as the
+MJED kernel does, made it slower here (the loop bounds then vary, 7.96 -> 8.95 ms for
+St Venant-Kirchhoff), so it forms all nine entries.
 
 Importing this module imports Numba. Serial, like the compiled MJED kernel.
 """
@@ -167,18 +170,25 @@ def _law(code, psi, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, c
                 M66[I, K] = j43 * (a * _IV[I] * _IV[K] + b * (_IV[I] * cbv[K] + cbv[I] * _IV[K])
                                    + 4.0 * p22 * cbv[I] * cbv[K])
             M66[I, I] -= j43 * 4.0 * p2 * _II[I]
-        for I in range(6):  # N66 = Pw CCb,  Pw = Id - ci (x) (cv W) / 3
+        # Pw = Id - ci (x) w, w = (cv W) / 3, is a rank-one update: N66 = Pw CCb = CCb - ci (x) (w CCb)
+        # and N66 Pw^T = N66 - (N66 w) (x) ci, O(36) each instead of a 6x6x6 product.
+        # Scratch: M[:, 0] = w, M[:, 1] = w CCb, M[:, 2] = N66 w (M is Ogden's, unused here).
+        for L in range(6):
+            M[L, 0] = cv[L] * _WEIGHT[L] / 3.0
+        for K in range(6):
+            acc = 0.0
+            for L in range(6):
+                acc += M[L, 0] * M66[L, K]
+            M[K, 1] = acc
+        for I in range(6):
+            acc = 0.0
             for K in range(6):
-                acc = M66[I, K]
-                for L in range(6):
-                    acc -= ci[I] * cv[L] * _WEIGHT[L] / 3.0 * M66[L, K]
-                N66[I, K] = acc
+                N66[I, K] = M66[I, K] - ci[I] * M[K, 1]
+                acc += N66[I, K] * M[K, 0]
+            M[I, 2] = acc
         for I in range(6):  # CC = N66 Pw^T + ...
             for K in range(6):
-                acc = N66[I, K]
-                for L in range(6):
-                    acc -= N66[I, L] * ci[K] * cv[L] * _WEIGHT[L] / 3.0
-                CC[I, K] = (acc + 2.0 / 3.0 * tr * (odot[I, K] - ci[I] * ci[K] / 3.0)
+                CC[I, K] = (N66[I, K] - M[I, 2] * ci[K] + 2.0 / 3.0 * tr * (odot[I, K] - ci[I] * ci[K] / 3.0)
                             - 2.0 / 3.0 * (ci[I] * Siso[K] + Siso[I] * ci[K]))
         _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, True)
         return psi_v + 0.5 * k0 * lnJ * lnJ
@@ -267,8 +277,7 @@ def cells_for_law(code, psi, x, cells, D, V0, P, Tt, want_force, want_stiffness,
     kernel holds only its material's terms. Tt: Costa's tensor
     (1 or m, 6, 6). The assembly is the MJED kernels' (edge blocks summed per mesh edge, node
     blocks per node, then one ordered write of the CSR data: mjed.compiled.kernels.write_csr),
-    except that the node blocks are the element's own K_aa (symmetric: six entries formed),
-    not derived. Scratch arrays live on the stack (mjed.compiled.scratch). Returns the total
+    except that the node blocks are the element's own K_aa, not derived. Scratch arrays live on the stack (mjed.compiled.scratch). Returns the total
     energy."""
     literally(code)
     literally(psi)
@@ -349,7 +358,7 @@ def cells_for_law(code, psi, x, cells, D, V0, P, Tt, want_force, want_stiffness,
             for b in range(a, 4):
                 geo = vol * (D[e, a, 0] * SD[b, 0] + D[e, a, 1] * SD[b, 1] + D[e, a, 2] * SD[b, 2])
                 for k in range(3):
-                    for l in range(k if a == b else 0, 3):  # K_aa is symmetric: its upper triangle
+                    for l in range(3):
                         acc = geo if k == l else 0.0
                         for I in range(6):
                             acc += B[I, 3 * a + k] * CB[I, 3 * b + l]
@@ -358,7 +367,7 @@ def cells_for_law(code, psi, x, cells, D, V0, P, Tt, want_force, want_stiffness,
                     na = cells[e, a]
                     for k in range(3):
                         for l in range(3):
-                            Dg[na, k, l] += Kab[min(k, l), max(k, l)]
+                            Dg[na, k, l] += Kab[k, l]
                 else:  # (a, b) in mjed.sparse.EDGES order: (0,1) (0,2) (0,3) (1,2) (1,3) (2,3)
                     add_edge_block(U, cell_edges[e, edge], cell_flip[e, edge], Kab)
                     edge += 1
