@@ -12,6 +12,7 @@ parameters by a registry keyed by the law's type; the formulas themselves are in
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Callable, Dict, Tuple
 
 import numpy as np
@@ -103,15 +104,19 @@ class CompiledClassicalGalerkin:
         else:
             self.mesh = TetMesh(points, cells, fix_orientation=fix_orientation)
         require_numba()
+        from mjed.compiled.specialise import generated_module
         from reference_fem import classical_kernels as k
 
-        self._k = k
         self.material = material
         frame = getattr(material, "frame", None)
         if frame is not None and np.ndim(frame) == 3 and len(frame) != self.mesh.n_cells:
             raise ValueError(f"Costa frame has {len(frame)} rotations for {self.mesh.n_cells} cells")
         self.law = cm.classical_law(material)
         self.code, self.params, self.tensor = lower_law(self.law)
+        # the isochoric part of a decoupled law (P[8]): part of what the kernel is compiled for
+        self.psi = int(self.params[8]) if self.code == LAW_DECOUPLED else 0
+        self._kernel = generated_module(k.kernel_source(self.code, self.psi), "classical_kernel",
+                                        helpers=[Path(k.__file__)]).classical_cells
         self.pattern = CSRPattern(self.mesh.cells, self.mesh.n_nodes)
         self._cells = np.ascontiguousarray(self.mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(self.mesh.D, dtype=np.float64)
@@ -138,7 +143,7 @@ class CompiledClassicalGalerkin:
         x = checked_positions(x, self.mesh.n_nodes)
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
-        energy = self._k.classical_cells(x, self._cells, self._D, self._V0, self.code, self.params, self.tensor,
+        energy = self._kernel(x, self._cells, self._D, self._V0, self.params, self.tensor,
                                          force, stiffness, *self._assembly.arguments(), f, data, self._J)
         refuse_inverted(self._J)
         return float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None)

@@ -5,8 +5,20 @@ W, S (Voigt 6) and the 6x6 elasticity tensor CC; B (6 x 12) the Green-Lagrange s
 f_a = -V0 F S D_a; K_ab = V0 (B_a^T CC B_b + (D_a . S D_b) Id) for a <= b (K_ba = K_ab^T),
 scattered into the CSR data array of mjed.sparse.CSRPattern. The laws are the formulas of
 :mod:`reference_fem.classical_materials` (Holzapfel's invariant and decoupled forms, the
-spectral form for Ogden, the fibre-frame quadratic for Costa), one compiled function per law,
-selected by the integer code :mod:`reference_fem.classical_compiled` gives each law type.
+spectral form for Ogden, the fibre-frame quadratic for Costa), selected by the integer code
+:mod:`reference_fem.classical_compiled` gives each law type.
+
+On the same footing as the generated MJED kernels (mjed.compiled.codegen): the cell loop is
+compiled once per law (a generated caller passes the law's code as a constant, see
+:func:`kernel_source`, so the other laws' branches are not in it), with the same compiler
+options, its scratch arrays on the stack (mjed.compiled.scratch), the same Jacobi
+eigen-solver, V0 applied once per row of CC rather than per entry of K, and the same assembly
+(edge and node sums, one ordered write of the CSR data). The isochoric projection of the
+decoupled laws is applied as the rank-one update it is. What it does not get is the MJED
+generator's dropping of structurally zero terms (its element matrix B^T CC B is dense
+whatever the law) nor its scalar locals. Forming the node blocks as upper triangles, as the
+MJED kernel does, made it slower here (the loop bounds then vary, 7.96 -> 8.95 ms for
+St Venant-Kirchhoff), so it forms all nine entries.
 
 Importing this module imports Numba. Serial, like the compiled MJED kernel.
 """
@@ -16,13 +28,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import literally, njit
 
-from mjed.compiled.kernels import add_edge_blocks, apply_to_shape_vectors, deformation_gradient, eigh3, write_csr
+from mjed.compiled.kernels import JIT_OPTIONS, add_edge_block, apply_to_shape_vectors, deformation_gradient, eigh3, write_csr
+from mjed.compiled.scratch import local_matrix, local_vector
 
-__all__ = ["classical_cells", "LAW_SVK", "LAW_NEOHOOKE", "LAW_DECOUPLED", "LAW_OGDEN", "LAW_COSTA"]
+__all__ = ["cells_for_law", "kernel_source", "LAW_SVK", "LAW_NEOHOOKE", "LAW_DECOUPLED", "LAW_OGDEN", "LAW_COSTA"]
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
+_JIT = JIT_OPTIONS  # the MJED kernels' options
 
 LAW_SVK, LAW_NEOHOOKE, LAW_DECOUPLED, LAW_OGDEN, LAW_COSTA = 0, 1, 2, 3, 4
 PSI_MOONEY, PSI_VERONDA, PSI_ARRUDA = 0, 1, 2
@@ -80,7 +93,7 @@ def _psi(kind, P, I1b, I2b):
 
 
 @njit(**_JIT)
-def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M, H, tangent):
+def _law(code, psi, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M, H, tangent):
     """W of the law; fills S (6,) and, if ``tangent``, CC (6, 6) (a force-only evaluation skips
     the elasticity tensor, as the NumPy law does). P: parameters; T: Costa's (6, 6) tensor.
     Scratch (kept by the caller, so nothing is allocated per cell): W6, cv, cbv, Siso (6,);
@@ -134,7 +147,7 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
         I2 = 0.5 * (I1 * I1 - CCs)
         j23 = J ** (-2.0 / 3.0)
         I1b, I2b = j23 * I1, j23 * j23 * I2
-        psi, p1, p2, p11, p12, p22 = _psi(int(P[8]), P, I1b, I2b)
+        psi_v, p1, p2, p11, p12, p22 = _psi(psi, P, I1b, I2b)
         # Sb, then S_iso = j23 Sb - tr/3 ci, tr = j23 Sb : C (sc[0] holds cv, sc[1] cbv / S_iso halves)
         tr = 0.0
         for I in range(6):
@@ -148,7 +161,7 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
             S[I] = Siso[I]
         if not tangent:
             _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, False)
-            return psi + 0.5 * k0 * lnJ * lnJ
+            return psi_v + 0.5 * k0 * lnJ * lnJ
         j43 = j23 * j23
         a = 4.0 * (p11 + 2.0 * I1b * p12 + p2 + I1b * I1b * p22)
         b = -4.0 * (p12 + I1b * p22)
@@ -157,21 +170,28 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
                 M66[I, K] = j43 * (a * _IV[I] * _IV[K] + b * (_IV[I] * cbv[K] + cbv[I] * _IV[K])
                                    + 4.0 * p22 * cbv[I] * cbv[K])
             M66[I, I] -= j43 * 4.0 * p2 * _II[I]
-        for I in range(6):  # N66 = Pw CCb,  Pw = Id - ci (x) (cv W) / 3
+        # Pw = Id - ci (x) w, w = (cv W) / 3, is a rank-one update: N66 = Pw CCb = CCb - ci (x) (w CCb)
+        # and N66 Pw^T = N66 - (N66 w) (x) ci, O(36) each instead of a 6x6x6 product.
+        # Scratch: M[:, 0] = w, M[:, 1] = w CCb, M[:, 2] = N66 w (M is Ogden's, unused here).
+        for L in range(6):
+            M[L, 0] = cv[L] * _WEIGHT[L] / 3.0
+        for K in range(6):
+            acc = 0.0
+            for L in range(6):
+                acc += M[L, 0] * M66[L, K]
+            M[K, 1] = acc
+        for I in range(6):
+            acc = 0.0
             for K in range(6):
-                acc = M66[I, K]
-                for L in range(6):
-                    acc -= ci[I] * cv[L] * _WEIGHT[L] / 3.0 * M66[L, K]
-                N66[I, K] = acc
+                N66[I, K] = M66[I, K] - ci[I] * M[K, 1]
+                acc += N66[I, K] * M[K, 0]
+            M[I, 2] = acc
         for I in range(6):  # CC = N66 Pw^T + ...
             for K in range(6):
-                acc = N66[I, K]
-                for L in range(6):
-                    acc -= N66[I, L] * ci[K] * cv[L] * _WEIGHT[L] / 3.0
-                CC[I, K] = (acc + 2.0 / 3.0 * tr * (odot[I, K] - ci[I] * ci[K] / 3.0)
+                CC[I, K] = (N66[I, K] - M[I, 2] * ci[K] + 2.0 / 3.0 * tr * (odot[I, K] - ci[I] * ci[K] / 3.0)
                             - 2.0 / 3.0 * (ci[I] * Siso[K] + Siso[I] * ci[K]))
         _volumetric(J, k0 * lnJ / J, k0 * (1.0 - lnJ) / (J * J), ci, odot, S, CC, True)
-        return psi + 0.5 * k0 * lnJ * lnJ
+        return psi_v + 0.5 * k0 * lnJ * lnJ
     if code == LAW_OGDEN:
         c, q, r, alpha, k0 = P[0], P[1], P[2], P[3], P[4]
         eigh3(C, lam, N, sc)
@@ -247,40 +267,44 @@ def _law(code, P, T, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, S
 
 
 @njit(**_JIT)
-def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, cell_edges, cell_flip, U, Dg, src,
+def cells_for_law(code, psi, x, cells, D, V0, P, Tt, want_force, want_stiffness, cell_edges, cell_flip, U, Dg, src,
                     blkptr, indptr, force, data, J_out):
     """Energy, forces (added to ``force``) and stiffness (written to ``data``) of every cell by
-    the classical Galerkin; J per cell into J_out. Tt: Costa's tensor (1 or m, 6, 6). The
-    assembly arguments are those of mjed.compiled.kernels.mjed_cells (the same route: edge
-    blocks summed per mesh edge, node blocks per node, then one ordered write of the CSR
-    data), except that the node blocks are the element's own K_aa, not derived.
-    Returns the total energy."""
+    the classical Galerkin; J per cell into J_out. code, psi: the law and (decoupled laws) the
+    isochoric part, as reference_fem.classical_compiled lowers them, given as constants by the
+    generated caller (:func:`kernel_source`): the loop is compiled once per (code, psi)
+    (``literally``), so the branches of the other laws are not in it, as the generated MJED
+    kernel holds only its material's terms. Tt: Costa's tensor
+    (1 or m, 6, 6). The assembly is the MJED kernels' (edge blocks summed per mesh edge, node
+    blocks per node, then one ordered write of the CSR data: mjed.compiled.kernels.write_csr),
+    except that the node blocks are the element's own K_aa, not derived. Scratch arrays live on the stack (mjed.compiled.scratch). Returns the total
+    energy."""
+    literally(code)
+    literally(psi)
     m = cells.shape[0]
     per_cell_T = Tt.shape[0] > 1
-    F = np.empty((3, 3))
-    C = np.empty((3, 3))
-    Ci = np.empty((3, 3))
-    S = np.empty(6)
-    CC = np.empty((6, 6))
-    odot = np.empty((6, 6))
-    W6 = np.empty(6)
-    M66 = np.empty((6, 6))
-    N66 = np.empty((6, 6))
-    lam = np.empty(3)
-    N = np.empty((3, 3))
-    sc = np.empty((3, 3))
-    B = np.empty((6, 12))
-    CB = np.empty((6, 12))
-    Sm = np.empty((3, 3))
-    SD = np.empty((4, 3))
-    Kab = np.empty((3, 3))
-    Kedge = np.empty((6, 3, 3))
-    Kd = np.empty((4, 3, 3))
-    cv = np.empty(6)
-    cbv = np.empty(6)
-    Siso = np.empty(6)
-    M63 = np.empty((6, 3))
-    H3 = np.empty((3, 3))
+    F = local_matrix(3, 3)
+    C = local_matrix(3, 3)
+    Ci = local_matrix(3, 3)
+    S = local_vector(6)
+    CC = local_matrix(6, 6)
+    odot = local_matrix(6, 6)
+    W6 = local_vector(6)
+    M66 = local_matrix(6, 6)
+    N66 = local_matrix(6, 6)
+    lam = local_vector(3)
+    N = local_matrix(3, 3)
+    sc = local_matrix(3, 3)
+    B = local_matrix(6, 12)
+    CB = local_matrix(6, 12)
+    Sm = local_matrix(3, 3)
+    SD = local_matrix(4, 3)
+    Kab = local_matrix(3, 3)
+    cv = local_vector(6)
+    cbv = local_vector(6)
+    Siso = local_vector(6)
+    M63 = local_matrix(6, 3)
+    H3 = local_matrix(3, 3)
     if want_stiffness:
         U[:] = 0.0
         Dg[:] = 0.0
@@ -301,7 +325,7 @@ def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, ce
         Ci[1, 2] = Ci[2, 1] = (C[0, 2] * C[1, 0] - C[0, 0] * C[1, 2]) / det
         Ci[0, 2] = Ci[2, 0] = (C[0, 1] * C[1, 2] - C[0, 2] * C[1, 1]) / det
         Te = Tt[e] if per_cell_T else Tt[0]
-        W = _law(code, P, Te, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M63, H3,
+        W = _law(code, psi, P, Te, C, Ci, J, S, CC, odot, W6, M66, N66, lam, N, sc, cv, cbv, Siso, M63, H3,
                  want_stiffness)
         vol = V0[e]
         energy += vol * W
@@ -321,7 +345,9 @@ def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, ce
             for a in range(4):
                 for k in range(3):
                     B[I, 3 * a + k] = half * (D[e, a, j] * F[k, i] + D[e, a, i] * F[k, j])
-        for I in range(6):
+        for I in range(6):  # CB = V0 CC B: V0 applied once per row of CC, not per entry of K
+            for L in range(6):
+                CC[I, L] *= vol
             for col in range(12):
                 acc = 0.0
                 for L in range(6):
@@ -330,24 +356,41 @@ def classical_cells(x, cells, D, V0, code, P, Tt, want_force, want_stiffness, ce
         edge = 0
         for a in range(4):
             for b in range(a, 4):
-                geo = D[e, a, 0] * SD[b, 0] + D[e, a, 1] * SD[b, 1] + D[e, a, 2] * SD[b, 2]
+                geo = vol * (D[e, a, 0] * SD[b, 0] + D[e, a, 1] * SD[b, 1] + D[e, a, 2] * SD[b, 2])
                 for k in range(3):
                     for l in range(3):
                         acc = geo if k == l else 0.0
                         for I in range(6):
                             acc += B[I, 3 * a + k] * CB[I, 3 * b + l]
-                        Kab[k, l] = vol * acc
+                        Kab[k, l] = acc
                 if a == b:
                     na = cells[e, a]
                     for k in range(3):
                         for l in range(3):
                             Dg[na, k, l] += Kab[k, l]
                 else:  # (a, b) in mjed.sparse.EDGES order: (0,1) (0,2) (0,3) (1,2) (1,3) (2,3)
-                    for k in range(3):
-                        for l in range(3):
-                            Kedge[edge, k, l] = Kab[k, l]
+                    add_edge_block(U, cell_edges[e, edge], cell_flip[e, edge], Kab)
                     edge += 1
-        add_edge_blocks(U, Dg, cells, cell_edges, cell_flip, e, Kedge, 1.0, Kd, False)
     if want_stiffness:
         write_csr(U, Dg, src, blkptr, indptr, data)
     return energy
+
+
+def kernel_source(code: int, psi: int) -> str:
+    """Source of a module whose ``classical_cells`` (the arguments of :func:`cells_for_law`
+    without code and psi) runs the loop compiled for law ``code`` and isochoric part ``psi``.
+    Loaded by mjed.compiled.specialise.generated_module, as the MJED kernels are: calling
+    cells_for_law with constants resolves ``literally`` at compile time, once."""
+    args = ("x, cells, D, V0, P, Tt, want_force, want_stiffness, cell_edges, cell_flip, U, Dg, src, blkptr, indptr, "
+            "force, data, J_out")
+    return (f'''"""Classical Galerkin kernel for law {int(code)}, isochoric part {int(psi)}; generated by
+reference_fem.classical_kernels.kernel_source, do not edit."""
+from numba import njit
+
+from reference_fem.classical_kernels import JIT_OPTIONS, cells_for_law
+
+
+@njit(**JIT_OPTIONS)
+def classical_cells({args}):
+    return cells_for_law({int(code)}, {int(psi)}, {args})
+''')

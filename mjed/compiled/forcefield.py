@@ -11,6 +11,8 @@ import scipy.sparse as sp
 from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
 from mjed.compiled.lowering import lower_groups
+from mjed.compiled.shape import kernel_shape
+from mjed.compiled.specialise import kernel_module
 from mjed.forcefield import checked_positions, refuse_inverted
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
@@ -51,6 +53,8 @@ class CompiledForceField:
         self.regularize = bool(regularize)
         self.allow_inverted = bool(allow_inverted)
         self.table = lower_groups(material.decomposition(), mesh.D)
+        self.shape = kernel_shape(self.table)
+        self._kernel = kernel_module(self.shape).mjed_cells
         self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
         self._cells = np.ascontiguousarray(mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(mesh.D, dtype=np.float64)
@@ -96,10 +100,8 @@ class CompiledForceField:
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         S = np.empty((self.mesh.n_cells if stress else 0, 3, 3))
-        energy = self._k.mjed_cells(
-            x, self._cells, self._D, self._V0, t.DxD, t.jkind, t.jpar, t.gkind, t.gpar, t.gmat, t.npair, t.tslot,
-            t.group_start, t.group_exp, t.group_coef, t.slot_kind, t.slot_ident, t.slot_M, t.slot_DMD, t.need_eig,
-            self.regularize, force, stiffness, stress, *self._assembly.arguments(), f, data, self._J, S)
+        energy = self._kernel(x, self._cells, self._D, self._V0, t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M,
+                              self.regularize, force, stiffness, stress, *self._assembly.arguments(), f, data, self._J, S)
         if not self.allow_inverted:
             refuse_inverted(self._J)
         return (float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None),

@@ -9,8 +9,9 @@ Each term f(J) g(C) of each group becomes one row of integer codes and float par
   pair with the same kind and matrix, as in the NumPy engine (mjed/engine.py), so that
   F M D_a is formed once per slot and per cell.
 
-The per-mesh edge quantities of the paper are precomputed here too: D_a x D_b (the d2J/dx2
-term) and D_a . M D_b of every second-kind slot, for the six edges of every cell.
+The per-mesh edge quantities of the paper (D_a x D_b, D_a . M D_b) are not stored: the
+generated kernels form them from D in registers, which costs less than reading them.
+:mod:`mjed.compiled.shape` reads the table's structure, from which the kernel is generated.
 
 Which kinds exist is decided by type (a registry keyed by the Python class of the J-function
 or invariant function); a term of a type without a compiled form is refused with a
@@ -26,7 +27,6 @@ from typing import Callable, Dict, List, Tuple
 import numpy as np
 
 from mjed.fibre import FibreQuadratic
-from mjed.sparse import EDGES
 from mjed.spectral import EigenPowerSum
 from mjed.terms import (IDENTITY, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial,
                         TermGroup, Unity)
@@ -50,9 +50,8 @@ class TermTable:
     jkind (T,), jpar (T, 3); gkind (T,), gpar (T, 12), gmat (T, 1 or m, 3, 3) (frames);
     npair (T,), tslot (T, 3) slot of each tangent pair (-1 unused); group_start (G + 1,),
     group_exp (G,) 1 for exponential groups, group_coef (G,); slot_kind (S,), slot_ident (S,)
-    1 when the slot's matrix is the identity, slot_M (S, 1 or m, 3, 3); slot_DMD (S, m, 6)
-    D_a . M D_b per edge (second-kind slots; zero otherwise); DxD (m, 6, 3) D_a x D_b;
-    need_eig: a term reads the eigen-decomposition of C.
+    1 when the slot's matrix is the identity, slot_M (S, 1 or m, 3, 3); need_eig: a term reads
+    the eigen-decomposition of C.
     """
 
     jkind: np.ndarray
@@ -68,8 +67,6 @@ class TermTable:
     slot_kind: np.ndarray
     slot_ident: np.ndarray
     slot_M: np.ndarray
-    slot_DMD: np.ndarray
-    DxD: np.ndarray
     need_eig: bool
 
 
@@ -178,12 +175,11 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
     for t, R in enumerate(mats):
         if R is not None:
             gmat[t] = R
-    slot_kind, slot_ident, slot_M, slot_DMD = _slot_arrays(slot_list, D)
-    DxD = np.ascontiguousarray(np.cross(D[:, EDGES[:, 0]], D[:, EDGES[:, 1]]))  # (m, 6, 3)
+    slot_kind, slot_ident, slot_M = _slot_arrays(slot_list, m)
     return TermTable(jkind, jpar, gkind, gpar, gmat, np.array(npair, dtype=np.int64),
                      np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS), np.array(group_start, dtype=np.int64),
                      np.array(group_exp, dtype=np.int64), np.array(group_coef, dtype=float),
-                     slot_kind, slot_ident, slot_M, slot_DMD, DxD, bool(need_eig))
+                     slot_kind, slot_ident, slot_M, bool(need_eig))
 
 
 def _slot_key(pair) -> Tuple[str, object]:
@@ -193,12 +189,11 @@ def _slot_key(pair) -> Tuple[str, object]:
     return (pair.kind, M.tobytes()) if M.ndim == 2 else (pair.kind, id(pair.matrix))
 
 
-def _slot_arrays(slot_list, D: np.ndarray):
-    m = len(D)
+def _slot_arrays(slot_list, m: int):
+    """slot_kind (S,), slot_ident (S,), slot_M (S, 1 or m, 3, 3) of the slots."""
     S = len(slot_list)
     per_cell = any(kind != "spectral" and np.ndim(M) == 3 for kind, M in slot_list)
     slot_M = np.zeros((S, m if per_cell else 1, 3, 3))
-    slot_DMD = np.zeros((S, m, 6))
     kinds = np.zeros(S, dtype=np.int64)
     ident = np.zeros(S, dtype=np.int64)
     for s, (kind, M) in enumerate(slot_list):
@@ -208,7 +203,4 @@ def _slot_arrays(slot_list, D: np.ndarray):
         M = np.asarray(M, float)
         slot_M[s] = M
         ident[s] = int(M.ndim == 2 and np.array_equal(M, IDENTITY))
-        if kind == "second":
-            MD = np.einsum("ij,maj->mai" if M.ndim == 2 else "mij,maj->mai", M, D)  # (m, 4, 3)
-            slot_DMD[s] = np.einsum("mek,mek->me", D[:, EDGES[:, 0]], MD[:, EDGES[:, 1]])
-    return kinds, ident, slot_M, slot_DMD
+    return kinds, ident, slot_M
