@@ -23,7 +23,7 @@ from mjed.cellwise import is_zero
 from mjed.kinematics import Kinematics
 from mjed.terms import TangentPair, Term, TermGroup
 
-__all__ = ["slot_key", "GroupSums", "Aggregates", "fold_groups"]
+__all__ = ["slot_key", "add_stress", "GroupSums", "Aggregates", "fold_groups"]
 
 def slot_key(pair: TangentPair) -> Tuple[str, Hashable]:
     """The key shared by all tangent pairs with the same kind and the same constant matrix
@@ -41,6 +41,22 @@ def add_optional(acc, value):
     if value is None:
         return acc
     return value if acc is None else acc + value
+
+
+def add_stress(acc, value):
+    """acc + value for stresses, None standing for zero: each is component-major (3, 3, m) or
+    a constant (3, 3) matrix. A constant added to a per-cell stress is broadcast over the
+    cells (NumPy alone would align (3, 3) with the trailing (3, m) axes: an error, or for
+    m = 3 a silently wrong sum)."""
+    if value is None:
+        return acc
+    if acc is None:
+        return value
+    if np.ndim(acc) == 2 and np.ndim(value) == 3:
+        acc = acc[:, :, None]
+    elif np.ndim(acc) == 3 and np.ndim(value) == 2:
+        value = value[:, :, None]
+    return acc + value
 
 
 def scale(s, A):
@@ -93,13 +109,13 @@ class GroupSums:
                 self.h = add_optional(self.h, df * g)
         Sk = term.g.stress_t(kin)
         if Sk is not None and not is_zero(f):
-            self.S = add_optional(self.S, scale(f, Sk))
+            self.S = add_stress(self.S, scale(f, Sk))
         if not self.tangent:
             return
         if not is_zero(d2f) and not is_zero(g):  # g was formed above whenever f'' != 0
             self.g2 = add_optional(self.g2, d2f * g)
         if Sk is not None and not is_zero(df):
-            self.S_hat = add_optional(self.S_hat, scale(df, Sk))
+            self.S_hat = add_stress(self.S_hat, scale(df, Sk))
         for pair, coef in zip(term.g.tangent, term.g.tangent_coefficients(kin)):
             key = slot_key(pair)
             self.pair_weights[key] = add_optional(self.pair_weights.get(key), scale_weight(f, coef))
@@ -161,8 +177,8 @@ def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
             c = group.coefficient
             if energy:
                 W += c * sums.u
-        S = add_optional(S, scale_optional(c, sums.S))
-        S_hat = add_optional(S_hat, scale_optional(c, sums.S_hat))
+        S = add_stress(S, scale_optional(c, sums.S))
+        S_hat = add_stress(S_hat, scale_optional(c, sums.S_hat))
         h = add_optional(h, None if sums.h is None else c * sums.h)
         g2 = add_optional(g2, None if sums.g2 is None else c * sums.g2)
         for key, w in sums.pair_weights.items():

@@ -257,3 +257,41 @@ def test_edge_scalar_assembly_equals_identity_blocks(rng):
         pattern.edge_scalar_matrix(s[:, :5])
     with pytest.raises(ValueError, match="edge_scalar_matrix"):
         pattern.add_scalar_blocks(data[:-1], L)
+
+
+def test_a_group_mixing_constant_and_per_cell_stresses_sums_them_per_cell(rng):
+    # mu/2 I1 (f = 1: a constant S) beside c J^(-2/3) I1 (per-cell S) in one group: the sum is
+    # broadcast over the cells. Declared as two groups instead, nothing mixes: same energy,
+    # same force and tangent. Three cells is the size where a bad broadcast passes silently.
+    import warnings
+
+    from mjed.materials.base import Material
+    from mjed.terms import I1Power, JPower, LogPolynomial, Term, TermGroup, Unity
+
+    terms = (Term(JPower(0.0), I1Power(500.0, 1)), Term(JPower(-2 / 3), I1Power(300.0, 1)),
+             Term(LogPolynomial(5000.0, -1000.0, 0.0), Unity()))
+
+    class OneGroup(Material):
+        def decomposition(self):
+            return (TermGroup(terms),)
+
+    class Split(Material):
+        def decomposition(self):
+            return tuple(TermGroup((t,)) for t in terms)
+
+    points, cells = box_mesh(2, jitter=0.2)
+    for m in (3, len(cells)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # nodes no kept cell uses
+            mesh = mjed.TetMesh(points, cells[:m])
+        x = perturbed(points, rng, 0.05)
+        f1, K1 = mjed.HyperelasticForceField(mesh, OneGroup()).force_and_stiffness(x)
+        f2, K2 = mjed.HyperelasticForceField(mesh, Split()).force_and_stiffness(x)
+        assert np.abs(f1 - f2).max() <= 1e-12 * np.abs(f2).max()
+        assert abs(K1 - K2).max() <= 1e-12 * abs(K2).max()
+        from mjed.compiled import numba_available
+
+        if numba_available():  # the compiled kernel sums the same group
+            f3, K3 = mjed.make_force_field(mesh, OneGroup(), backend="numba").force_and_stiffness(x)
+            assert np.abs(f3 - f2).max() <= 1e-12 * np.abs(f2).max()
+            assert abs(K3 - K2).max() <= 1e-12 * abs(K2).max()
