@@ -34,13 +34,31 @@ def test_compiled_classical_equals_numpy_classical(material, cube):
     assert np.array_equal(comp.force(x), f_c) and abs(comp.stiffness(x) - K_c).max() == 0.0
 
 
-def test_law_codes_match_the_kernel_module():
-    from reference_fem import classical_compiled as cc
-    from reference_fem import classical_kernels as ck
+def test_costa_with_one_frame_per_cell(cube):
+    from scipy.spatial.transform import Rotation
 
-    for name in ("LAW_SVK", "LAW_NEOHOOKE", "LAW_DECOUPLED", "LAW_OGDEN", "LAW_COSTA",
-                 "PSI_MOONEY", "PSI_VERONDA", "PSI_ARRUDA"):
-        assert getattr(cc, name) == getattr(ck, name), name
+    from reference_fem.classical import ClassicalGalerkin
+    from reference_fem.classical_compiled import CompiledClassicalGalerkin
+
+    mesh, x = cube
+    frame = Rotation.random(mesh.n_cells, random_state=3).as_matrix()
+    material = mjed.materials.Costa(a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5,
+                                    frame=frame)
+    comp = CompiledClassicalGalerkin(mesh, None, material)
+    assert comp.shape.per_cell_T
+    (f_r, K_r), (f_c, K_c) = ClassicalGalerkin(mesh, None, material).force_and_stiffness(x), comp.force_and_stiffness(x)
+    assert np.linalg.norm(f_c - f_r) <= 1e-13 * np.linalg.norm(f_r)
+    assert abs(K_c - K_r).max() <= 1e-12 * abs(K_r).max()
+
+
+def test_every_default_material_has_its_own_kernel_shape():
+    from reference_fem.classical_compiled import lower_law
+    from reference_fem.classical_materials import classical_law
+
+    shapes = {name: lower_law(classical_law(m))[0] for name, m in MATERIALS.items()}
+    assert shapes["Ogden"] == shapes["OgdenNegative"] and shapes["Costa"] == shapes["CostaIndefinite"]
+    assert len({shapes[n] for n in ("StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann",
+                                    "ArrudaBoyce", "Ogden", "Costa")}) == 7
 
 
 def test_unknown_law_is_refused():

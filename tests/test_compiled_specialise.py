@@ -165,3 +165,21 @@ def test_a_second_process_loads_the_compiled_kernels_from_the_cache(tmp_path):
     assert misses1 == 2 and hits1 == 0  # compiled once each
     assert hits2 == 2 and misses2 == 0  # then loaded, not compiled
     assert not any(p.suffix == ".py" for p in ROOT.rglob("mjed_kernel_*.py")), "generated files in the repository"
+
+
+def test_classical_kernels_are_one_per_law_shape_and_keep_their_numbers(cube):
+    # The classical kernel is generated per law shape too: laws of one shape share a module
+    # and read their own numbers; laws of different shapes never share one.
+    from reference_fem.classical import ClassicalGalerkin
+    from reference_fem.classical_compiled import CompiledClassicalGalerkin
+
+    mesh, x = cube
+    names = ("StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "Ogden", "OgdenNegative", "Costa", "CostaIndefinite")
+    fields = {name: CompiledClassicalGalerkin(mesh, None, MATERIALS[name]) for name in names}
+    kernels = {name: f._kernel for name, f in fields.items()}
+    assert kernels["Ogden"] is kernels["OgdenNegative"] and kernels["Costa"] is kernels["CostaIndefinite"]
+    distinct = ("StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "Ogden", "Costa")
+    assert len({Path(sys.modules[kernels[n].__module__].__file__).name for n in distinct}) == len(distinct)
+    for name in ("OgdenNegative", "CostaIndefinite"):  # the second of a shape gets its own numbers
+        f_r = ClassicalGalerkin(mesh, None, MATERIALS[name]).force(x)
+        assert _rel(fields[name].force(x), f_r) < 1e-13

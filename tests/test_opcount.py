@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from comparisons.cases import DEFAULT_MATERIALS
-from comparisons.opcount import EIGEN, TRANSCENDENTAL, classical_flops, mjed_flops, model
+from comparisons.opcount import EIGEN, TRANSCENDENTAL, classical_flops, mjed_flops, mjed_source_flops, model, source_flops
 from mjed import materials as M
 from mjed.materials.base import Material
 from mjed.terms import InvariantFunction, JPower, Term, TermGroup
@@ -56,9 +56,40 @@ def test_classical_count_follows_the_law():
     c = {n: classical_flops(m).parts["law (S, CC)"] for n, m in DEFAULT_MATERIALS.items()}
     # the decoupled (isochoric projection) laws cost far more than the plain neo-Hookean
     for n in ("MooneyRivlin", "VerondaWestmann", "ArrudaBoyce"):
-        assert c[n] > 3 * c["NeoHookean"]
+        assert c[n] > 2 * c["NeoHookean"]
     assert c["StVenantKirchhoff"] < c["NeoHookean"] < c["Ogden"]
-    assert len({classical_flops(m).parts["element matrix"] for m in DEFAULT_MATERIALS.values()}) == 1
+    # the element matrix B^T CC B is dense for every law but St Venant-Kirchhoff, whose
+    # constant CC has 12 structural zeros of 21 the generated kernel leaves out
+    matrix = {n: classical_flops(m).parts["element matrix"] for n, m in DEFAULT_MATERIALS.items()}
+    assert len({v for n, v in matrix.items() if n != "StVenantKirchhoff"}) == 1
+    assert matrix["StVenantKirchhoff"] < matrix["NeoHookean"]
+    assert classical_flops(M.Ogden(mu=1.0, alpha=3.0, k0=3.0)).parts["law (S, CC)"] > EIGEN
+
+
+def test_source_count_rules():
+    source = """
+def kernel(x, flag):
+    m = 1.0
+    for e in range(3):
+        a = x[e] * 2.0 + (1.0 / 3.0)
+        b = a if a == 0.0 else math.exp(a)
+        if flag:
+            c = a * b - a
+        else:
+            c = a
+        if regularize:
+            d = a * a * a
+        energy += a ** 1.5
+"""
+    # a: one multiply and one add (the literal quotient is folded); b: the generic (else) branch, a
+    # libm call; c: the larger branch (2); d: skipped; energy: one add and a libm power
+    counts = source_flops(source, {"a": "first"}, "rest", skip=("regularize",))
+    assert counts == {"first": 2, "rest": TRANSCENDENTAL + 2 + 1 + TRANSCENDENTAL}
+
+
+def test_mjed_hand_model_is_no_lower_than_its_source_count():
+    for m in DEFAULT_MATERIALS.values():
+        assert mjed_source_flops(m) <= mjed_flops(m).total
 
 
 def test_unknown_term_type_is_refused():

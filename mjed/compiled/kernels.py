@@ -1,7 +1,7 @@
 """Compiled helpers shared by the generated MJED kernels (mjed.compiled.codegen) and the
-compiled classical Galerkin (reference_fem.classical_kernels): the compiler options, the 3x3
-symmetric eigen-decomposition, the divided differences of the spectral tangent, the CSR
-block sources and the ordered write of the CSR data, the scatter of one edge block.
+generated classical Galerkin kernels (reference_fem.classical_codegen): the compiler options,
+the 3x3 symmetric eigen-decomposition, the divided differences of the spectral tangent, the
+CSR block sources and the ordered write of the CSR data.
 
 Importing this module imports Numba; :mod:`mjed.compiled` imports it only when a compiled
 field is built. Every kernel is serial (one thread): the scatter into the shared CSR array
@@ -20,15 +20,11 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["JIT_OPTIONS", "eigh3", "eigh3_sym", "deformation_gradient", "apply_to_shape_vectors", "block_sources",
-           "add_edge_block", "write_csr", "divided_differences"]
+__all__ = ["JIT_OPTIONS", "eigh3", "eigh3_sym", "block_sources", "write_csr", "divided_differences"]
 
 #: The compiler options of every kernel (the generated MJED kernels and the classical ones too).
 JIT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
 _JIT = JIT_OPTIONS
-# Small helpers are inlined into the kernel at Numba IR level: a call per cell with array
-# arguments would otherwise cost more than the arithmetic it does.
-_INLINE = dict(_JIT, inline="always")
 
 
 # ------------------------------------------------------------------ shared pieces
@@ -139,20 +135,6 @@ def block_sources(indptr, indices, edges, n_nodes):
     return src, blkptr
 
 
-@njit(**_INLINE)
-def add_edge_block(U, ge, flip, K):
-    """Add the 3x3 block K of a cell edge to the sum U[ge] of its mesh edge (U (E, 3, 3),
-    oriented from the lower node number; transposed when the cell edge runs against it). The
-    orientation is decided once per block, not per entry."""
-    if flip:
-        for r in range(3):
-            for c in range(3):
-                U[ge, c, r] += K[r, c]
-    else:
-        for r in range(3):
-            for c in range(3):
-                U[ge, r, c] += K[r, c]
-
 
 @njit(**_JIT)
 def write_csr(U, Dg, src, blkptr, indptr, data):
@@ -184,23 +166,6 @@ def write_csr(U, Dg, src, blkptr, indptr, data):
                         data[p + r * L + c] = U[ge, c, r]
 
 
-@njit(**_INLINE)
-def deformation_gradient(x, cells, D, e, F):
-    """F = sum_a x_a (x) D_a of cell e, into F (3, 3)."""
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for a in range(4):
-                acc += x[cells[e, a], i] * D[e, a, j]
-            F[i, j] = acc
-
-
-@njit(**_INLINE)
-def apply_to_shape_vectors(M, D, e, out):
-    """out[a] = M D_a for the four rest shape vectors of cell e: M (3, 3), out (4, 3)."""
-    for a in range(4):
-        for i in range(3):
-            out[a, i] = M[i, 0] * D[e, a, 0] + M[i, 1] * D[e, a, 1] + M[i, 2] * D[e, a, 2]
 
 
 # ------------------------------------------------------------------ the spectral tangent
