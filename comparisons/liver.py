@@ -77,6 +77,7 @@ from comparisons.options import InputError
 from comparisons.organ import Organ, fixed_nodes, load_organ
 from comparisons.regions import relative_box
 from comparisons.result import StudyResult
+from mjed.backends import BACKENDS as MJED_BACKENDS
 from mjed.materials import ArrudaBoyce
 from mjed.materials.base import Material
 from mjed.solvers import LinearSolverOptions
@@ -136,8 +137,9 @@ def backend_force_field(backend: str) -> Callable:
 
 #: The default force field: NumPy MJED (mjed.HyperelasticForceField).
 numpy_force_field = backend_force_field("numpy")
-#: The backends the study runs by default, the reference (first) one first.
-BACKENDS = ("numpy", "numba")
+#: The backends the study runs by default (every backend of mjed.make_force_field), the
+#: reference (first) one first.
+BACKENDS = MJED_BACKENDS
 
 
 def _backend_factories(backends: Sequence[str]):

@@ -16,7 +16,7 @@ from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 
-__all__ = ["HyperelasticForceField", "Want", "checked_positions", "refuse_inverted"]
+__all__ = ["HyperelasticForceField", "Want", "check_field_arguments", "checked_positions", "refuse_inverted"]
 
 
 class HyperelasticForceField:
@@ -43,10 +43,7 @@ class HyperelasticForceField:
     backend = "numpy"
 
     def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
-        if not isinstance(mesh, TetMesh):
-            raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
-        if not isinstance(material, Material):
-            raise TypeError(f"material must be an mjed material, got {type(material).__name__}")
+        check_field_arguments(mesh, material)
         self.mesh = mesh
         self.material = material
         self.regularize = bool(regularize)
@@ -143,6 +140,15 @@ class HyperelasticForceField:
         if self._blocks_buffer is None:
             self._blocks_buffer = np.empty((3, 3, 6, self.mesh.n_cells))
         return self._blocks_buffer
+
+
+def check_field_arguments(mesh, material) -> None:
+    """TypeError unless mesh is an mjed.TetMesh and material an mjed material (every backend's
+    force field checks its arguments so)."""
+    if not isinstance(mesh, TetMesh):
+        raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be an mjed material, got {type(material).__name__}")
 
 
 def checked_positions(x, n_nodes: int) -> np.ndarray:

@@ -150,14 +150,14 @@ def material_from_options(name: Optional[str], params: Optional[List[str]], sofa
 
 def liver_options(args) -> dict:
     """The liver_study keyword arguments of the parsed command line (InputError on bad input)."""
-    from comparisons.liver import LIVER_SOLVER, MODELS, LiverParameters
+    from comparisons.liver import BACKENDS, LIVER_SOLVER, MODELS, LiverParameters
     from comparisons.organ import scale_of
 
     models = list(MODELS) if args.models.strip().lower() == "all" else [m.strip() for m in args.models.split(",") if m.strip()]
     backends = [b.strip() for b in args.backends.split(",") if b.strip()]
-    unknown = [b for b in backends if b not in ("numpy", "numba")]
+    unknown = [b for b in backends if b not in BACKENDS]
     if unknown or not backends:
-        raise opt.InputError(f"--backends {args.backends!r}: expected a comma-separated list of numpy, numba")
+        raise opt.InputError(f"--backends {args.backends!r}: expected a comma-separated list of {', '.join(BACKENDS)}")
     if args.steps is not None and args.steps < 1:
         raise opt.InputError(f"--steps must be a positive integer, got {args.steps}")
     scale_of(args.units, args.scale)  # refuses both, or a bad scale, before any work

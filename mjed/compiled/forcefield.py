@@ -13,7 +13,7 @@ from mjed.compiled.availability import require_numba
 from mjed.compiled.lowering import lower_groups
 from mjed.compiled.shape import kernel_shape
 from mjed.compiled.specialise import kernel_module
-from mjed.forcefield import checked_positions, refuse_inverted
+from mjed.forcefield import check_field_arguments, checked_positions, refuse_inverted
 from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
@@ -43,10 +43,7 @@ class CompiledForceField:
     backend = "numba"
 
     def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
-        if not isinstance(mesh, TetMesh):
-            raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
-        if not isinstance(material, Material):
-            raise TypeError(f"material must be an mjed material, got {type(material).__name__}")
+        check_field_arguments(mesh, material)
         self._k = require_numba()
         self.mesh = mesh
         self.material = material
