@@ -21,7 +21,8 @@ import scipy.sparse as sp
 
 from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
-from mjed.forcefield import checked_positions, refuse_inverted
+from mjed.compiled.forcefield import kernel_positions
+from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 from reference_fem import classical_materials as cm
@@ -126,7 +127,7 @@ class CompiledClassicalGalerkin:
         return f, K
 
     def _run(self, x, force: bool, stiffness: bool):
-        x = checked_positions(x, self.mesh.n_nodes)
+        x = kernel_positions(x, self.mesh.n_nodes)
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         energy = self._kernel(x, self._cells, self._D, self._V0, self.params, self.tensor, force, stiffness,

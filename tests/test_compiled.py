@@ -168,3 +168,22 @@ def test_viscous_field_on_the_compiled_backend_equals_numpy(cube):
     assert np.abs(fields[0].gammas).max() > 0
     assert _rel(fields[1].gammas, fields[0].gammas) < 1e-12
     assert _rel(fields[1].stress(x), fields[0].stress(x)) < 1e-12
+
+
+@needs_numba
+def test_a_view_or_read_only_positions_reuse_the_compiled_kernel(cube):
+    # Numba would compile a new specialisation (seconds) for an F-ordered or read-only array;
+    # both compiled fields hand their kernel a C copy instead: same result, no new signature.
+    from reference_fem.classical_compiled import CompiledClassicalGalerkin
+
+    mesh, x = cube
+    mat = MATERIALS["NeoHookean"]
+    for field in (mjed.make_force_field(mesh, mat, backend="numba"),
+                  CompiledClassicalGalerkin(mesh.points, mesh.cells, mat)):
+        f, K = field.force_and_stiffness(x)
+        n_signatures = len(field._kernel.signatures)
+        view = np.asfortranarray(x)
+        view.setflags(write=False)
+        f2, K2 = field.force_and_stiffness(view)
+        assert np.array_equal(f2, f) and abs(K2 - K).max() == 0.0
+        assert len(field._kernel.signatures) == n_signatures

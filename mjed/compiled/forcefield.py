@@ -18,7 +18,18 @@ from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 
-__all__ = ["CompiledForceField"]
+__all__ = ["CompiledForceField", "kernel_positions"]
+
+
+def kernel_positions(x, n_nodes: int) -> np.ndarray:
+    """x checked (mjed.forcefield.checked_positions) and as a C-contiguous, writeable float64
+    (n_nodes, 3) array: Numba compiles one specialisation per array layout and per read-only
+    flag (each several seconds), so a view or a read-only array from the caller is copied
+    rather than handed to a compiled kernel."""
+    x = checked_positions(x, n_nodes)
+    if not (x.flags.c_contiguous and x.flags.writeable):
+        x = np.array(x, order="C")
+    return x
 
 
 class CompiledForceField:
@@ -88,11 +99,7 @@ class CompiledForceField:
 
     # ---------------------------------------------------------------- internals
     def _run(self, x, *, force: bool, stiffness: bool, stress: bool = False):
-        x = checked_positions(x, self.mesh.n_nodes)
-        if not (x.flags.c_contiguous and x.flags.writeable):
-            # Numba compiles one specialisation per array layout and per read-only flag (each
-            # several seconds): a view or a read-only array from the caller gets a C copy.
-            x = np.array(x, order="C")
+        x = kernel_positions(x, self.mesh.n_nodes)
         t = self.table
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
