@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Tuple
+from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -11,6 +11,7 @@ import scipy.sparse as sp
 from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
 from mjed.compiled.lowering import lower_groups
+from mjed.compiled.schedule import SLABS_PER_THREAD, cell_schedule
 from mjed.compiled.shape import kernel_shape
 from mjed.compiled.specialise import kernel_module
 from mjed.forcefield import check_field_arguments, checked_positions, refuse_inverted
@@ -37,7 +38,7 @@ class CompiledForceField:
 
     Same conventions and methods as :class:`mjed.HyperelasticForceField`: f = -dW/dx (n, 3),
     K = d2W/dx2 as SciPy CSR (3n, 3n) with the pattern of :class:`mjed.sparse.CSRPattern`,
-    dof = 3 node + component. ``backend`` is "numba". Serial (one thread).
+    dof = 3 node + component. ``backend`` is "numba".
 
     Args:
         mesh: the rest mesh.
@@ -45,6 +46,13 @@ class CompiledForceField:
             :mod:`mjed.compiled.lowering`).
         regularize: compressed-element regularisation (paper section 2.3), as the NumPy engine.
         allow_inverted: evaluate states with J <= 0 (NaN where ln J appears) instead of raising.
+        parallel: run the cells on all of Numba's threads (``numba.set_num_threads`` or
+            ``NUMBA_NUM_THREADS`` choose how many): slabs of cells, coloured so that no two
+            slabs of a colour share a node (:mod:`mjed.compiled.schedule`), add into the
+            same sums without atomics. Same results to round-off (the sums are added in
+            another order). The default, one thread, keeps the timing study's comparison
+            with the serial classical kernel like for like.
+        slabs: slabs of the parallel schedule (default: 4 per thread of Numba's at construction).
 
     Raises:
         BackendUnavailable: Numba is not installed.
@@ -53,7 +61,8 @@ class CompiledForceField:
 
     backend = "numba"
 
-    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
+    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False,
+                 parallel: bool = False, slabs: Optional[int] = None):
         check_field_arguments(mesh, material)
         self._k = require_numba()
         self.mesh = mesh
@@ -62,13 +71,27 @@ class CompiledForceField:
         self.allow_inverted = bool(allow_inverted)
         self.table = lower_groups(material.decomposition(), mesh.D)
         self.shape = kernel_shape(self.table)
-        self._kernel = kernel_module(self.shape).mjed_cells
+        self.parallel = bool(parallel)
+        self._kernel = kernel_module(self.shape, parallel=self.parallel).mjed_cells
         self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
         self._cells = np.ascontiguousarray(mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(mesh.D, dtype=np.float64)
         self._V0 = np.ascontiguousarray(mesh.volumes, dtype=np.float64)
         self._assembly = CompiledAssembly(self.pattern, self._k)
         self._J = np.empty(mesh.n_cells)
+        self._numbers = (self.table.jpar, self.table.gpar, self.table.gmat, self.table.group_coef, self.table.slot_M)
+        self._schedule = ()
+        self.schedule = None
+        if self.parallel:  # every per-cell argument in schedule order, once
+            sch = self.schedule = cell_schedule(mesh.points, mesh.cells, slabs or SLABS_PER_THREAD * self._k.threads())
+            self._cells, self._D, self._V0 = sch.permute(self._cells), sch.permute(self._D), sch.permute(self._V0)
+            t = self.table
+            self._numbers = (t.jpar, t.gpar, sch.permute(t.gmat, axis=1), t.group_coef, sch.permute(t.slot_M, axis=1))
+            a = self._assembly
+            self._assembly_args = (sch.permute(a.cell_edges), sch.permute(a.cell_flip)) + a.arguments()[2:]
+            self._schedule = sch.arguments()
+        else:
+            self._assembly_args = self._assembly.arguments()
 
     # ---------------------------------------------------------------- public API
     def energy(self, x) -> float:
@@ -100,12 +123,11 @@ class CompiledForceField:
     # ---------------------------------------------------------------- internals
     def _run(self, x, *, force: bool, stiffness: bool, stress: bool = False):
         x = kernel_positions(x, self.mesh.n_nodes)
-        t = self.table
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         S = np.empty((self.mesh.n_cells if stress else 0, 3, 3))
-        energy = self._kernel(x, self._cells, self._D, self._V0, t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M,
-                              self.regularize, force, stiffness, stress, *self._assembly.arguments(), f, data, self._J, S)
+        energy = self._kernel(x, self._cells, self._D, self._V0, *self._numbers, self.regularize, force, stiffness,
+                              stress, *self._assembly_args, f, data, self._J, S, *self._schedule)
         if not self.allow_inverted:
             refuse_inverted(self._J)
         return (float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None),

@@ -18,9 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
-__all__ = ["JIT_OPTIONS", "eigh3", "eigh3_sym", "block_sources", "write_csr", "divided_differences"]
+__all__ = ["JIT_OPTIONS", "eigh3", "eigh3_sym", "block_sources", "write_csr", "write_csr_parallel",
+           "divided_differences", "divided_differences_sym", "colour_chunks", "threads", "DEVICE_HELPERS"]
 
 #: The compiler options of every kernel (the generated MJED kernels and the classical ones too).
 JIT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
@@ -143,53 +144,74 @@ def write_csr(U, Dg, src, blkptr, indptr, data):
     The three rows of a node's blocks have the same length L (its block row), so entry (r, c)
     of block kk is at indptr[3 i] + r L + 3 kk + c; the source of a block is decided once
     per block, not per entry (a third faster than branching in the inner loop)."""
-    n = blkptr.shape[0] - 1
-    for i in range(n):
-        p0 = indptr[3 * i]
-        L = indptr[3 * i + 1] - p0
-        for kk in range(blkptr[i + 1] - blkptr[i]):
-            s = src[blkptr[i] + kk]
-            p = p0 + 3 * kk
-            if s < 0:
-                for r in range(3):
-                    for c in range(3):
-                        data[p + r * L + c] = Dg[i, r, c]
-            elif s % 2 == 0:
-                ge = s // 2
-                for r in range(3):
-                    for c in range(3):
-                        data[p + r * L + c] = U[ge, r, c]
-            else:
-                ge = s // 2
-                for r in range(3):
-                    for c in range(3):
-                        data[p + r * L + c] = U[ge, c, r]
+    for i in range(blkptr.shape[0] - 1):
+        _write_node_row(i, U, Dg, src, blkptr, indptr, data)
 
 
+@njit(parallel=True, **_JIT)
+def write_csr_parallel(U, Dg, src, blkptr, indptr, data):
+    """:func:`write_csr` over the threads: one node row per iteration (each row's entries are
+    written by one thread only)."""
+    for i in prange(blkptr.shape[0] - 1):
+        _write_node_row(i, U, Dg, src, blkptr, indptr, data)
+
+
+@njit(inline="always", **_JIT)
+def _write_node_row(i, U, Dg, src, blkptr, indptr, data):
+    """The CSR entries of node row i (see write_csr)."""
+    p0 = indptr[3 * i]
+    L = indptr[3 * i + 1] - p0
+    for kk in range(blkptr[i + 1] - blkptr[i]):
+        s = src[blkptr[i] + kk]
+        p = p0 + 3 * kk
+        if s < 0:
+            for r in range(3):
+                for c in range(3):
+                    data[p + r * L + c] = Dg[i, r, c]
+        elif s % 2 == 0:
+            ge = s // 2
+            for r in range(3):
+                for c in range(3):
+                    data[p + r * L + c] = U[ge, r, c]
+        else:
+            ge = s // 2
+            for r in range(3):
+                for c in range(3):
+                    data[p + r * L + c] = U[ge, c, r]
 
 
 # ------------------------------------------------------------------ the spectral tangent
 @njit(**_JIT)
 def divided_differences(lam, lp, p, theta):
-    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, symmetric.
+    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, symmetric,
+    into theta (3, 3): :func:`divided_differences_sym` on arrays."""
+    r = divided_differences_sym(lam[0], lam[1], lam[2], lp[0], lp[1], lp[2], p)
+    theta[0, 0], theta[0, 1], theta[0, 2], theta[1, 1], theta[1, 2], theta[2, 2] = r
+    theta[1, 0], theta[2, 0], theta[2, 1] = r[1], r[2], r[4]
 
-    lp: lam^p. Eigenvalues 5 % or more apart use the quotient of the powers directly (its
+
+@njit(**_JIT)
+def divided_differences_sym(lam0, lam1, lam2, lp0, lp1, lp2, p):
+    """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, as scalars:
+    (theta00, theta01, theta02, theta11, theta12, theta22) (no arrays, so it runs unchanged in
+    a thread of a parallel loop and as a CUDA device function).
+
+    lp_n: lam_n^p. Eigenvalues 5 % or more apart use the quotient of the powers directly (its
     rounding error is below 1e-13 relative there); closer ones use
     lam_l^(p-1) expm1(p log1p(x))/x, x = (lam_n - lam_l)/lam_l, which has no cancellation,
     as mjed.spectral.power_divided_differences does for every pair. Three transcendental
     calls per close pair instead of per pair keeps the spectral tangent affordable."""
-    for n in range(3):
-        theta[n, n] = p * lp[n] / lam[n]
-        for l in range(n + 1, 3):
-            x = (lam[n] - lam[l]) / lam[l]
-            if abs(x) >= 0.05:
-                v = (lp[n] - lp[l]) / (lam[n] - lam[l])
-            else:
-                v1 = _dd_close(lam[n], lam[l], p)
-                v2 = _dd_close(lam[l], lam[n], p)
-                v = 0.5 * (v1 + v2)
-            theta[n, l] = v
-            theta[l, n] = v
+    return (p * lp0 / lam0, _dd_pair(lam0, lam1, lp0, lp1, p), _dd_pair(lam0, lam2, lp0, lp2, p),
+            p * lp1 / lam1, _dd_pair(lam1, lam2, lp1, lp2, p), p * lp2 / lam2)
+
+
+@njit(**_JIT)
+def _dd_pair(a, b, lpa, lpb, p):
+    """(a^p - b^p)/(a - b) from lpa = a^p, lpb = b^p (see divided_differences_sym)."""
+    x = (a - b) / b
+    if abs(x) >= 0.05:
+        return (lpa - lpb) / (a - b)
+    return 0.5 * (_dd_close(a, b, p) + _dd_close(b, a, p))
 
 
 @njit(**_JIT)
@@ -201,3 +223,47 @@ def _dd_close(a, b, p):
     else:
         ratio = math.expm1(p * math.log1p(x)) / x
     return b ** (p - 1.0) * ratio
+
+
+#: The compiled helpers a generated kernel may call, in an order where each comes after the
+#: helpers it calls: a CUDA module (mjed.cuda.codegen) compiles their Python source again as
+#: device functions, so the CPU and GPU kernels share one implementation of each.
+DEVICE_HELPERS = (_rotation, _rotate_columns, eigh3_sym, _dd_close, _dd_pair, divided_differences_sym)
+
+
+# ------------------------------------------------------------------ the parallel kernel
+def threads() -> int:
+    """The number of threads Numba's parallel loops use now."""
+    import numba
+
+    return int(numba.get_num_threads())
+
+
+@njit(cache=True)
+def colour_chunks(cells, chunk_ptr, n_nodes):
+    """A greedy colouring of chunks of cells (chunk k: cells chunk_ptr[k] to chunk_ptr[k + 1]
+    - 1) such that no two chunks of one colour share a node: the chunks of one colour may then
+    add into the node and edge sums from different threads without a race. Returns the colour
+    of each chunk (the smallest not used by a chunk sharing a node; at most 512 colours)."""
+    n_chunks = chunk_ptr.shape[0] - 1
+    words = 8
+    used = np.zeros((n_nodes, words), dtype=np.uint64)
+    colour = np.empty(n_chunks, dtype=np.int64)
+    forbidden = np.zeros(words, dtype=np.uint64)
+    one = np.uint64(1)
+    for k in range(n_chunks):
+        forbidden[:] = 0
+        for e in range(chunk_ptr[k], chunk_ptr[k + 1]):
+            for a in range(4):
+                for w in range(words):
+                    forbidden[w] |= used[cells[e, a], w]
+        c = 0
+        while c < 64 * words and (forbidden[c // 64] >> np.uint64(c % 64)) & one:
+            c += 1
+        if c == 64 * words:
+            raise ValueError("colour_chunks: more than 512 colours")
+        colour[k] = c
+        for e in range(chunk_ptr[k], chunk_ptr[k + 1]):
+            for a in range(4):
+                used[cells[e, a], c // 64] |= one << np.uint64(c % 64)
+    return colour

@@ -32,7 +32,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Dict, Sequence
 
-from mjed.compiled.codegen import kernel_source
+from mjed.compiled.codegen import PARALLEL, kernel_source
 from mjed.compiled.shape import KernelShape
 
 __all__ = ["kernel_module", "generated_module", "cache_directory"]
@@ -92,8 +92,11 @@ def generated_module(source: str, prefix: str, helpers: Sequence[Path] = ()) -> 
     return module
 
 
-def kernel_module(shape: KernelShape) -> ModuleType:
-    """The module of the MJED kernel of ``shape`` (its function ``mjed_cells``)."""
+def kernel_module(shape: KernelShape, parallel: bool = False) -> ModuleType:
+    """The module of the MJED kernel of ``shape`` (its function ``mjed_cells``): serial, or
+    parallel over cells (:data:`mjed.compiled.codegen.PARALLEL`)."""
+    if parallel:
+        return generated_module(kernel_source(shape, PARALLEL), "mjed_parallel")
     return generated_module(kernel_source(shape), "mjed_kernel")
 
 
