@@ -41,7 +41,7 @@ _MODULES: Dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
 # The compiled helpers a generated kernel calls: their sources are part of its name, since
 # Numba's cache of the kernel does not notice when a callee changes.
-_HELPERS = ("kernels.py", "scratch.py")
+_HELPERS = ("kernels.py",)
 
 
 def cache_directory() -> Path:
