@@ -1,0 +1,23 @@
+"""The optional CUDA backend of mjed (Numba's CUDA target), FP64 or FP32.
+
+    >>> from mjed.cuda import CudaForceField
+    >>> field = CudaForceField(mesh, material)                  # FP64
+    >>> field32 = CudaForceField(mesh, material, dtype=np.float32)
+    >>> f, K = field.force_and_stiffness(x)                     # same methods as HyperelasticForceField
+
+or ``mjed.make_force_field(mesh, material, backend="cuda", dtype=...)``.
+
+The kernel is generated from the material's declared terms by the generator of the CPU
+kernels (:mod:`mjed.compiled.codegen`) with a CUDA target (:mod:`mjed.cuda.codegen`): one
+thread per cell, the stiffness added straight into the CSR values through a block map
+computed once per mesh. Without a GPU it runs on Numba's CUDA simulator when
+``NUMBA_ENABLE_CUDASIM=1`` is set before Numba is imported (the tests do so, in a
+subprocess); otherwise building a field raises :class:`BackendUnavailable` saying why.
+Importing :mod:`mjed` or this package does not import Numba.
+"""
+
+from mjed.compiled.availability import BackendUnavailable
+from mjed.cuda.availability import cuda_available, require_cuda, simulated
+from mjed.cuda.forcefield import CudaForceField
+
+__all__ = ["CudaForceField", "BackendUnavailable", "cuda_available", "require_cuda", "simulated"]

@@ -1,0 +1,169 @@
+"""The CUDA target of the MJED kernel generator: one GPU thread per cell, FP64 or FP32.
+
+The cell body (kinematics, every term, the group aggregates, the gradient, the six edge
+blocks) is written by the same generator as the CPU kernels (:mod:`mjed.compiled.codegen`);
+this target only says how a cell's results leave it and writes the module around the body:
+
+- energy: each thread writes its cell's V0 W into E_out[e] (summed afterwards);
+- force: ``cuda.atomic.add`` of -V0 dW/dx_a into the nodal force (cells sharing a node run
+  at the same time);
+- stiffness: each block goes straight into the CSR data array, at positions read from the
+  per-cell block map ``blk`` (m, 16) computed once per mesh (block (a, b) of cell e starts at
+  blk[e, 4 a + b], its row r at r * rowlen[node a] further; :func:`block_map`): the edge
+  block K_ab, its transpose K_ba and the node blocks K_aa = -sum_b K_ab, 144 atomic adds per
+  cell. No pass over mesh edges, no per-edge scratch.
+
+The compiled helpers of the CPU kernels (the Jacobi eigen-decomposition of C, the divided
+differences of Ogden's tangent: :data:`mjed.compiled.kernels.DEVICE_HELPERS`) are compiled
+again from their own Python source as device functions, so both targets run one
+implementation.
+
+FP32: every floating literal of the generated source becomes ``f32(literal)`` and every
+``math.*`` call a device function that rounds to float32, so that no operation is promoted
+to double (Numba types a Python float literal as float64). On a GPU these casts are no-ops
+(libdevice's single-precision functions already return float32); under Numba's CUDA
+simulator, which runs the kernel as Python on NumPy scalars, they make the arithmetic
+float32 too, so the simulator's FP32 errors are those of single precision.
+
+Pure Python; the generated module imports numba.cuda when it is loaded.
+"""
+
+from __future__ import annotations
+
+import ast
+import inspect
+import re
+import textwrap
+
+import numpy as np
+
+from mjed.compiled.codegen import EDGES, PAIRS6, Source, Target, node_block_sum
+
+__all__ = ["CudaTarget", "CUDA_SIGNATURE", "block_map", "fp32_source"]
+
+#: The arguments of the generated CUDA ``mjed_cells``, in order.
+CUDA_SIGNATURE = ("x", "cells", "D", "V0", "jpar", "gpar", "gmat", "group_coef", "slot_M", "regularize",
+                  "want_force", "want_stiffness", "want_stress", "blk", "rowlen", "force", "data", "J_out",
+                  "E_out", "stress_out")
+
+_MATH = ("sqrt", "log", "exp", "expm1", "log1p")
+_FLOAT = re.compile(r"(?<![\w.])((?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
+
+
+def fp32_source(code: str) -> str:
+    """``code`` with every floating literal wrapped in f32(...) and math.f( calls turned into
+    f32_f( (see the module docstring)."""
+    code = _FLOAT.sub(r"f32(\1)", code)
+    for name in _MATH:
+        code = code.replace(f"math.{name}(", f"f32_{name}(")
+    return code
+
+
+def _helper_source(fn) -> str:
+    """The Python source of a compiled helper without its decorators and docstring."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(getattr(fn, "py_func", fn))))
+    func = tree.body[0]
+    func.decorator_list = []
+    if func.body and isinstance(func.body[0], ast.Expr) and isinstance(func.body[0].value, ast.Constant):
+        func.body = func.body[1:]
+    return ast.unparse(func)
+
+
+class CudaTarget(Target):
+    """The generated CUDA kernel ``mjed_cells`` of :data:`CUDA_SIGNATURE`, in ``dtype``
+    (np.float64 or np.float32)."""
+
+    def __init__(self, dtype=np.float64):
+        self.dtype = np.dtype(dtype)
+        if self.dtype not in (np.dtype(np.float64), np.dtype(np.float32)):
+            raise ValueError(f"dtype must be float64 or float32, got {self.dtype}")
+
+    def add_energy(self, s: Source, expr: str) -> None:
+        s(f"E_out[e] = {expr}")
+
+    def add_force(self, s: Source, a: int, i: int, expr: str) -> None:
+        s(f"cuda.atomic.add(force, (n{a}, {i}), -({expr}))")
+
+    def scatter(self, s: Source) -> None:
+        """Every block of the cell added straight into the CSR data (see the module docstring)."""
+        for a in range(4):
+            s(f"L{a} = rowlen[n{a}]")
+        for k, (a, b) in enumerate(EDGES):
+            s(f"p = blk[e, {4 * a + b}]")
+            for r in range(3):
+                for c in range(3):
+                    s(f"cuda.atomic.add(data, p + {r} * L{a} + {c}, K{k}_{r}{c})")
+            s(f"p = blk[e, {4 * b + a}]")
+            for r in range(3):
+                for c in range(3):
+                    s(f"cuda.atomic.add(data, p + {r} * L{b} + {c}, K{k}_{c}{r})")
+        for a in range(4):
+            for r, c in PAIRS6:
+                s(f"N{r}{c} = " + node_block_sum(a, r, c))
+            s(f"p = blk[e, {5 * a}]")
+            for r in range(3):
+                for c in range(3):
+                    s(f"cuda.atomic.add(data, p + {r} * L{a} + {c}, -N{min(r, c)}{max(r, c)})")
+
+    def module(self, kernel) -> None:
+        from mjed.compiled.kernels import DEVICE_HELPERS
+
+        s = kernel.src
+        fp32 = self.dtype == np.dtype(np.float32)
+        body = Source()
+        kernel.src = body
+        for fn in DEVICE_HELPERS:
+            body("@cuda.jit(device=True)")
+            for line in _helper_source(fn).splitlines():
+                body(line)
+            body("")
+            body("")
+        body("@cuda.jit")
+        with body.block(f"def mjed_cells({', '.join(CUDA_SIGNATURE)}):"):
+            body("e = cuda.grid(1)")
+            with body.block("if e < cells.shape[0]:"):
+                kernel.parameters()
+                kernel.cell()
+        kernel.src = s
+        s(f'"""MJED CUDA kernel ({self.dtype.name}) generated by mjed.cuda.codegen for one kernel shape; do not edit.')
+        s("")
+        s(f"shape: {kernel.shape!r}")
+        s('"""')
+        s("import math")
+        s("")
+        s("from numba import cuda")
+        s("from numba import float32 as f32")
+        s("")
+        s("")
+        if fp32:
+            for name in _MATH:
+                s("@cuda.jit(device=True)")
+                with s.block(f"def f32_{name}(v):"):
+                    s(f"return f32(math.{name}(v))")
+                s("")
+                s("")
+        code = body.text()
+        s.lines.extend((fp32_source(code) if fp32 else code).rstrip("\n").splitlines())
+
+
+def block_map(cells: np.ndarray, indptr: np.ndarray, indices: np.ndarray, n_nodes: int):
+    """Where each cell's 16 node blocks start in the CSR data of a node-block pattern
+    (mjed.sparse.CSRPattern: rows 3 i + r hold, for each neighbour k of node i in order, the
+    three columns 3 k + c). Returns blk (m, 16), entry 4 a + b the position of entry (0, 0)
+    of block (node a, node b) of the cell, and rowlen (n,), the length of node i's rows:
+    entry (r, c) of the block is at blk + r * rowlen[node a] + c. Vectorised, once per mesh."""
+    cells = np.asarray(cells, dtype=np.int64)
+    indptr = np.asarray(indptr, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    row0 = indptr[0:3 * n_nodes:3]
+    rowlen = indptr[1:3 * n_nodes + 1:3] - row0
+    deg = rowlen // 3
+    rows = np.repeat(np.arange(n_nodes), deg)
+    first = row0[rows] + 3 * (np.arange(len(rows)) - np.repeat(np.cumsum(deg) - deg, deg))  # (0, 0) of each block
+    keys = rows * n_nodes + indices[first] // 3  # sorted: rows in order, columns sorted in a row
+    a = np.repeat(cells, 4, axis=1)  # (m, 16): node a of block 4 a + b
+    b = np.tile(cells, (1, 4))
+    pos = np.searchsorted(keys, a * n_nodes + b)
+    if len(keys) and not np.array_equal(keys[np.minimum(pos, len(keys) - 1)], a * n_nodes + b):
+        raise ValueError("block_map: a cell's node pair is missing from the pattern")
+    return first[pos], rowlen

@@ -1,0 +1,132 @@
+"""The cuda backend (mjed.cuda): its kernels on Numba's CUDA simulator against the NumPy
+engine for every material, FP64 and FP32, both regularisation settings; and its host-side
+parts (the CSR block map, the FP32 source rewrite, the backend choice) without Numba's CUDA.
+
+The simulator runs the generated kernel as Python, one thread per cell, on a 6-cell mesh;
+it needs NUMBA_ENABLE_CUDASIM=1 before Numba is imported, so it runs in a subprocess
+(tests/cuda_simulated.py). It checks the arithmetic, the atomics into the force and the CSR
+values and the block map; it cannot check that the CUDA compiler accepts the kernel or how
+fast it is: that needs a GPU (docs/studies/timing.md, the GPU section).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mjed
+from conftest import MATERIALS, box_mesh
+from mjed.compiled import numba_available
+
+ROOT = Path(__file__).resolve().parents[1]
+needs_numba = pytest.mark.skipif(not numba_available(), reason="the cuda backend needs Numba's CUDA target "
+                                 "(Debian: python3-numba; PyPI: numba, numba-cuda)")
+
+#: FP32 tolerances: the single-precision unit roundoff is 6e-8; forces, stresses and energies
+#: are sums in which terms of larger size cancel (the stored energy of a moderate state is a
+#: small difference of f(J) g(C) terms), measured 1e-6 to 5e-6 on the simulator.
+FP32_TOL = {"force": 5e-5, "stiffness": 5e-5, "stress": 5e-5, "energy": 1e-4}
+FP64_TOL = {"force": 1e-13, "stiffness": 1e-13, "stress": 1e-13, "energy": 1e-12}
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1",
+               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, str(ROOT / "tests" / "cuda_simulated.py"), *sorted(MATERIALS)],
+                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=1200)
+    assert out.returncode == 0, out.stderr[-4000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@needs_numba
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_cuda_kernels_equal_numpy_engine_on_the_simulator(simulated, dtype):
+    assert simulated["simulated"]
+    tol = FP64_TOL if dtype == "float64" else FP32_TOL
+    cases = [c for c in simulated["cases"] if c["dtype"] == dtype]
+    assert {c["material"] for c in cases} == set(MATERIALS) and len(cases) == 2 * len(MATERIALS)
+    for c in cases:
+        assert c["backend"] == "cuda" and c["same_pattern"], c
+        for q in ("force", "stiffness", "stress", "energy"):
+            assert c[q] <= tol[q], (c["material"], c["regularize"], q, c[q])
+        assert c["force_alone"] <= tol["force"] and c["stiffness_alone"] <= tol["stiffness"], c
+    if dtype == "float32":  # single precision really ran (no silent promotion to double)
+        assert max(c["force"] for c in cases) > 1e-9
+
+
+@needs_numba
+def test_cuda_device_arrays_inversion_and_regularisation(simulated):
+    for c in simulated["cases"]:
+        if c["material"] == "NeoHookean":
+            assert c["device_force"] == 0.0 and c["device_data"] == 0.0 and c["device_energy"] < 1e-6
+            if c["regularize"]:
+                assert c["regularisation_changes_K"] > 1e-3  # the state has compressed cells
+    assert "cell 2 " in simulated["inverted"]
+    assert simulated["inverted_allowed"] < 1e-13  # allow_inverted evaluates, as the other backends
+
+
+def test_block_map_points_at_each_blocks_entries():
+    from mjed.cuda.codegen import block_map
+    from mjed.sparse import CSRPattern
+
+    points, cells = box_mesh(2, jitter=0.2)
+    p = CSRPattern(cells, len(points))
+    blk, rowlen = block_map(cells, p.indptr, p.indices, len(points))
+    assert blk.shape == (len(cells), 16)
+    rows = np.repeat(np.arange(p.shape[0]), np.diff(p.indptr))
+    for e in (0, 7, len(cells) - 1):
+        for a in range(4):
+            for b in range(4):
+                for r in range(3):
+                    for c in range(3):
+                        pos = blk[e, 4 * a + b] + r * rowlen[cells[e, a]] + c
+                        assert rows[pos] == 3 * cells[e, a] + r and p.indices[pos] == 3 * cells[e, b] + c
+
+
+def test_fp32_source_rewrites_every_float_literal_and_math_call():
+    from mjed.cuda.codegen import fp32_source
+
+    code = "y = 2.0 * x_1 + 1e-17 * math.sqrt(J) - .5 + a2_0 * 3\nz = math.log(1.0 - q1)"
+    assert fp32_source(code) == ("y = f32(2.0) * x_1 + f32(1e-17) * f32_sqrt(J) - f32(.5) + a2_0 * 3\n"
+                                 "z = f32_log(f32(1.0) - q1)")
+
+
+def test_generated_cuda_source_is_one_thread_per_cell_without_allocation():
+    # what the simulator cannot catch: the CUDA target accepts no array allocation, no NumPy
+    # call and no call to a CPU-compiled function inside a kernel
+    from mjed.compiled.codegen import kernel_source
+    from mjed.compiled.lowering import lower_groups
+    from mjed.compiled.shape import kernel_shape
+    from mjed.cuda.codegen import CudaTarget
+
+    for name in ("Ogden", "Costa", "NeoHookean"):
+        shape = kernel_shape(lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3))))
+        for dtype in (np.float64, np.float32):
+            src = kernel_source(shape, CudaTarget(dtype))
+            compile(src, "<cuda kernel>", "exec")
+            assert "np." not in src and "local_" not in src and "njit" not in src
+            assert src.count("@cuda.jit\n") == 1 and "e = cuda.grid(1)" in src
+            assert src.count("cuda.atomic.add(data") == 144
+            if dtype == np.float32:
+                assert "math." not in src.split("def mjed_cells")[1]
+
+
+@pytest.mark.skipif(numba_available() and __import__("mjed.cuda", fromlist=["cuda_available"]).cuda_available(),
+                    reason="a CUDA device (or the simulator) is present here")
+def test_cuda_backend_without_a_device_says_why():
+    points, cells = box_mesh(1)
+    with pytest.raises(mjed.compiled.BackendUnavailable, match="cuda"):
+        mjed.make_force_field(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="cuda")
+
+
+def test_unknown_backend_lists_cuda():
+    points, cells = box_mesh(1)
+    with pytest.raises(ValueError, match="numpy, numba, cuda"):
+        mjed.make_force_field(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="opencl")
