@@ -1,0 +1,361 @@
+"""MJED at the hardware's limit: the figures of one run, printed (docs/studies/timing.md).
+
+    python -m comparisons.hardware_bench                       # cube-paper, NeoHookean
+    python -m comparisons.hardware_bench --materials NeoHookean,Ogden --mesh cube-medium
+    python -m comparisons.hardware_bench --json figures.json
+
+CPU: force + stiffness and force alone on one mesh by the NumPy engine, the compiled kernel
+on one thread and the compiled kernel on all of Numba's threads (CompiledForceField with
+parallel=True), in nanoseconds per cell, against two floors measured in the same run:
+
+- the bandwidth floor (comparisons.bandwidth): the bytes force + stiffness must move at
+  least, over the copy bandwidth of this machine (one thread, and all threads);
+- the compute floor: the kernel's flops per cell, counted from its generated source
+  (comparisons.opcount.mjed_source_flops), over this machine's measured peak: the flop rate
+  of a vectorised polynomial kernel (Horner, 64 flops per element on an array in L1 cache,
+  every lane and FMA unit busy), on one thread and on all.
+
+Every figure is the best of interleaved rounds (each round times every method once, in a
+rotated order), so drift and other work on the machine hit them alike; the spread over the
+rounds is printed with it.
+
+GPU: the cuda backend (mjed.cuda) timed on the device, kernel only (positions already on
+the device, forces and CSR values left there), FP64 and FP32, force only and force +
+stiffness, in tets per second on structured cubes of 1e4 to 1e6 tets, with the GB/s it
+achieves against the device's copy bandwidth measured in the same run. Without a CUDA
+device the section prints "not run: no GPU" (and never times the simulator).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import platform
+import sys
+import time
+from typing import Callable, Dict, List, Optional, Sequence
+
+import numpy as np
+
+__all__ = ["measure_peak_flops", "cpu_figures", "gpu_figures", "main"]
+
+#: Horner steps of the peak kernel (2 flops each).
+_HORNER = 32
+
+
+def _peak_kernels():
+    """The Horner kernel, serial and over threads. 32 multiply-adds per element written out,
+    the coefficients scalar arguments of a separate function whose only loop runs over the
+    elements: that loop is what the compiler turns into SIMD (measured: with the coefficients
+    read from an array inside the same function, or the multiply-adds in a loop, Numba 0.56
+    emits scalar FMAs, 3 to 4 Gflop/s here instead of 20 to 30)."""
+    from numba import njit, prange
+
+    coefs = ", ".join(f"c{k}" for k in range(_HORNER + 1))
+    steps = "\n".join(f"        acc = acc * v + c{k}" for k in range(1, _HORNER + 1))
+    source = f"""
+def horner(x, y, {coefs}):
+    for i in range(x.shape[0]):
+        v = x[i]
+        acc = c0
+{steps}
+        y[i] = acc
+
+
+def run(x, y, c, reps, threads):
+    block = x.shape[0] // threads
+    for t in prange(threads):
+        for _ in range(reps):
+            horner(x[t * block:(t + 1) * block], y[t * block:(t + 1) * block], {", ".join(f"c[{k}]" for k in range(_HORNER + 1))})
+"""
+    namespace = {"prange": prange}
+    exec(compile(source, "<peak kernel>", "exec"), namespace)
+    namespace["horner"] = njit(fastmath=True, inline="never", cache=False)(namespace["horner"])
+    run = namespace["run"]
+    return njit(cache=False)(run), njit(cache=False, parallel=True)(run)
+
+
+def measure_peak_flops(threads: int, seconds: float = 0.2) -> float:
+    """Flops per second of a vectorised Horner kernel on ``threads`` threads (1: serial),
+    4 KiB of data per thread (in L1 cache)."""
+    import numba
+
+    serial, parallel = _peak_kernels()
+    kernel = serial if threads == 1 else parallel
+    threads = max(1, threads)
+    old = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        n = 512 * threads
+        x = np.linspace(0.5, 0.9, n)
+        y = np.empty(n)
+        c = np.linspace(0.1, 0.2, _HORNER + 1) / _HORNER
+        kernel(x, y, c, 1, threads)
+        reps = 100
+        while True:
+            t0 = time.perf_counter()
+            kernel(x, y, c, reps, threads)
+            dt = time.perf_counter() - t0
+            if dt > seconds / 5:
+                break
+            reps *= 4
+        best = dt
+        for _ in range(4):
+            t0 = time.perf_counter()
+            kernel(x, y, c, reps, threads)
+            best = min(best, time.perf_counter() - t0)
+    finally:
+        numba.set_num_threads(old)
+    return 2.0 * _HORNER * n * reps / best
+
+
+def _rounds(calls: Dict[str, Callable[[], object]], rounds: int, min_batch_s: float) -> Dict[str, dict]:
+    """Best and spread of seconds per call of each callable, interleaved rounds."""
+    batch = {}
+    for name, fn in calls.items():  # warm up, then choose a batch lasting min_batch_s
+        fn()
+        t0 = time.perf_counter()
+        fn()
+        dt = max(time.perf_counter() - t0, 1e-7)
+        batch[name] = max(1, int(min_batch_s / dt))
+    samples: Dict[str, List[float]] = {name: [] for name in calls}
+    names = list(calls)
+    for r in range(rounds):
+        for name in names[r % len(names):] + names[:r % len(names)]:
+            fn, k = calls[name], batch[name]
+            t0 = time.perf_counter()
+            for _ in range(k):
+                fn()
+            samples[name].append((time.perf_counter() - t0) / k)
+    return {name: {"best_s": min(v), "median_s": float(np.median(v)), "spread": max(v) / min(v) - 1.0}
+            for name, v in samples.items()}
+
+
+def cpu_figures(mesh_name: str, material_name: str, rounds: int = 7, min_batch_s: float = 0.05) -> dict:
+    """The CPU figures of one material on one mesh (see the module docstring)."""
+    import numba
+
+    import mjed
+    from comparisons.bandwidth import floor_bytes, measure_bandwidth
+    from comparisons.opcount import mjed_source_flops
+    from meshes import catalog
+
+    points, cells = catalog.resolve(mesh_name)[:2]
+    mesh = mjed.TetMesh(points, cells)
+    material = _materials()[material_name]
+    rng = np.random.default_rng(0)
+    h = (mesh.volumes.mean() * 6) ** (1 / 3)
+    x = points * [1.08, 0.97, 0.98] + 0.02 * h * rng.standard_normal(points.shape)
+    threads = numba.get_num_threads()
+    fields = {"numpy": mjed.make_force_field(mesh, material),
+              "numba-serial": mjed.make_force_field(mesh, material, backend="numba"),
+              "numba-parallel": mjed.make_force_field(mesh, material, backend="numba", parallel=True)}
+    f_ref, K_ref = fields["numpy"].force_and_stiffness(x)
+    for name in ("numba-serial", "numba-parallel"):  # same answer before anything is timed
+        f, K = fields[name].force_and_stiffness(x)
+        assert np.abs(f - f_ref).max() <= 1e-12 * np.abs(f_ref).max(), name
+        assert abs(K - K_ref).max() <= 1e-12 * abs(K_ref).max(), name
+    calls = {}
+    for name, field in fields.items():
+        calls[f"{name} f+K"] = (lambda fl: lambda: fl.force_and_stiffness(x))(field)
+        calls[f"{name} f"] = (lambda fl: lambda: fl.force(x))(field)
+    timed = _rounds(calls, rounds, min_batch_s)
+    m, n, nnz = mesh.n_cells, mesh.n_nodes, fields["numba-serial"].pattern.nnz
+
+    bw1 = measure_bandwidth()
+    bw_all = _parallel_bandwidth(threads)
+    flops = mjed_source_flops(material)
+    peak1 = measure_peak_flops(1)
+    peak_all = measure_peak_flops(threads)
+    floor_b = floor_bytes(n, m, nnz)
+    out = {"mesh": mesh_name, "material": material_name, "cells": m, "nodes": n, "nnz": nnz, "threads": threads,
+           "flops_per_cell": flops, "floor_bytes": floor_b,
+           "bandwidth_GBs": {"1 thread": bw1.bytes_per_s / 1e9, f"{threads} threads": bw_all / 1e9},
+           "peak_Gflops": {"1 thread": peak1 / 1e9, f"{threads} threads": peak_all / 1e9},
+           "floors_ns_per_cell": {
+               "bandwidth, 1 thread": floor_b / bw1.bytes_per_s / m * 1e9,
+               f"bandwidth, {threads} threads": floor_b / bw_all / m * 1e9,
+               "compute, 1 thread": flops / peak1 * 1e9,
+               f"compute, {threads} threads": flops / peak_all * 1e9},
+           "timings": {}}
+    for name, t in timed.items():
+        out["timings"][name] = dict(t, ns_per_cell=t["best_s"] / m * 1e9, ms=t["best_s"] * 1e3)
+        if name.endswith("f+K") and not name.startswith("numpy"):
+            out["timings"][name]["Gflops"] = flops * m / t["best_s"] / 1e9
+    tf = {k: v["best_s"] for k, v in timed.items()}
+    out["ratios"] = {"numpy / numba-serial, f+K": tf["numpy f+K"] / tf["numba-serial f+K"],
+                     "numpy / numba-parallel, f+K": tf["numpy f+K"] / tf["numba-parallel f+K"],
+                     "numba-serial / numba-parallel, f+K": tf["numba-serial f+K"] / tf["numba-parallel f+K"],
+                     "numba-serial / numba-parallel, f": tf["numba-serial f"] / tf["numba-parallel f"]}
+    out["colours"] = fields["numba-parallel"].schedule.n_colours
+    return out
+
+
+def _parallel_bandwidth(threads: int) -> float:
+    """Copy bandwidth (read + write bytes/s) of a 64 MiB array on ``threads`` threads."""
+    from numba import njit, prange
+
+    @njit(parallel=True, cache=False)
+    def copy(src, dst):
+        for i in prange(src.shape[0]):
+            dst[i] = src[i]
+
+    n = 8 * 2**20
+    src, dst = np.ones(n), np.zeros(n)
+    copy(src, dst)
+    best = np.inf
+    for _ in range(5):
+        t0 = time.perf_counter()
+        copy(src, dst)
+        best = min(best, time.perf_counter() - t0)
+    return 16.0 * n / best
+
+
+def _materials() -> dict:
+    from mjed import materials as M
+
+    # the timing study's parameters (soft tissue, Pa)
+    return {"NeoHookean": M.NeoHookean(mu=3.4e3, lam=3.1e4),
+            "StVenantKirchhoff": M.StVenantKirchhoff(mu=3.4e3, lam=3.1e4),
+            "MooneyRivlin": M.MooneyRivlin(c1=1.5e3, c2=0.2e3, k0=3.1e4),
+            "ArrudaBoyce": M.ArrudaBoyce(mu=3.4e3, k0=3.1e4),
+            "Ogden": M.Ogden(mu=3.4e3, alpha=3.0, k0=3.1e4)}
+
+
+# ------------------------------------------------------------------ GPU
+def gpu_status() -> Optional[str]:
+    """None when a real CUDA device can be timed, else why not ("no GPU", "simulator", ...)."""
+    from mjed.cuda import cuda_available, simulated
+
+    if simulated():
+        return "not run: NUMBA_ENABLE_CUDASIM is set (Numba's CUDA simulator is not a GPU)"
+    if not cuda_available():
+        return "not run: no GPU (numba.cuda found no CUDA device)"
+    return None
+
+
+def gpu_figures(material_name: str = "NeoHookean", sizes: Sequence[int] = (10_000, 100_000, 1_000_000),
+                repeats: int = 20) -> dict:
+    """Tets per second of the cuda backend, kernel only, per size, dtype and quantity."""
+    from numba import cuda
+
+    import mjed
+    from meshes.structured import cube_with_cells
+
+    device = cuda.get_current_device()
+    out = {"device": device.name.decode() if isinstance(device.name, bytes) else str(device.name), "sizes": []}
+    a = cuda.device_array(2**26)  # 512 MiB copy bandwidth
+    b = cuda.device_array(2**26)
+    a.copy_to_device(np.ones(2**26))
+    best = np.inf
+    for _ in range(5):
+        cuda.synchronize()
+        t0 = time.perf_counter()
+        b.copy_to_device(a)
+        cuda.synchronize()
+        best = min(best, time.perf_counter() - t0)
+    out["copy_GBs"] = 2 * 8 * 2**26 / best / 1e9
+    material = _materials()[material_name]
+    for target in sizes:
+        points, cells = cube_with_cells(target)
+        mesh = mjed.TetMesh(points, cells)
+        x = points * [1.05, 0.98, 0.99]
+        row = {"cells": mesh.n_cells, "nodes": mesh.n_nodes}
+        for dtype in (np.float64, np.float32):
+            field = mjed.make_force_field(mesh, material, backend="cuda", dtype=dtype)
+            x_d = cuda.to_device(np.asarray(x, dtype=dtype))
+            f_d = cuda.device_array((mesh.n_nodes, 3), dtype=dtype)
+            data_d = cuda.device_array(field.pattern.nnz, dtype=dtype)
+            for quantity, stiff in (("f", False), ("f+K", True)):
+                call = lambda: field.device_force_and_stiffness(x_d, force=True, stiffness=stiff,  # noqa: E731
+                                                                 out=(f_d, data_d))
+                call()
+                cuda.synchronize()
+                best = np.inf
+                for _ in range(repeats):
+                    t0 = time.perf_counter()
+                    call()
+                    cuda.synchronize()
+                    best = min(best, time.perf_counter() - t0)
+                isz = np.dtype(dtype).itemsize
+                moved = (isz * (2 * 3 * mesh.n_nodes + 13 * mesh.n_cells) + 4 * 4 * mesh.n_cells
+                         + (isz * field.pattern.nnz + 4 * 16 * mesh.n_cells if stiff else 0))
+                row[f"{np.dtype(dtype).name} {quantity}"] = {"s": best, "tets_per_s": mesh.n_cells / best,
+                                                             "GBs": moved / best / 1e9}
+        out["sizes"].append(row)
+    return out
+
+
+# ------------------------------------------------------------------ printing
+def _print_cpu(fig: dict) -> None:
+    print(f"CPU: {fig['material']} on {fig['mesh']} ({fig['cells']} cells, {fig['nodes']} nodes, nnz {fig['nnz']}), "
+          f"{fig['threads']} threads, {fig['colours']} colours in the parallel schedule")
+    print(f"  measured: copy bandwidth " + ", ".join(f"{k} {v:.1f} GB/s" for k, v in fig["bandwidth_GBs"].items())
+          + "; peak " + ", ".join(f"{k} {v:.1f} Gflop/s" for k, v in fig["peak_Gflops"].items()))
+    print(f"  kernel: {fig['flops_per_cell']} flops per cell (generated source); floor bytes "
+          f"{fig['floor_bytes'] / fig['cells']:.0f} per cell")
+    for k, v in fig["floors_ns_per_cell"].items():
+        print(f"  floor {k:<28s} {v:8.1f} ns/cell")
+    for k, v in fig["timings"].items():
+        extra = f"  {v['Gflops']:.1f} Gflop/s" if "Gflops" in v else ""
+        print(f"  {k:<24s} {v['ms']:8.3f} ms  {v['ns_per_cell']:8.1f} ns/cell  (spread {100 * v['spread']:.0f} %)"
+              f"{extra}")
+    for k, v in fig["ratios"].items():
+        print(f"  {k:<40s} {v:6.2f}x")
+
+
+def _print_gpu(status: Optional[str], fig: Optional[dict]) -> None:
+    if status is not None:
+        print(f"GPU: {status}")
+        return
+    print(f"GPU: {fig['device']}, copy bandwidth {fig['copy_GBs']:.0f} GB/s")
+    for row in fig["sizes"]:
+        for k, v in row.items():
+            if isinstance(v, dict):
+                print(f"  {row['cells']:>9d} tets  {k:<12s} {v['tets_per_s']:.3e} tets/s  {v['GBs']:7.1f} GB/s")
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m comparisons.hardware_bench", description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--mesh", default="cube-paper", help="catalog name or mesh file (default cube-paper)")
+    ap.add_argument("--materials", default="NeoHookean", help=f"comma-separated, of {', '.join(_materials())}")
+    ap.add_argument("--rounds", type=int, default=7, help="interleaved timing rounds (default 7)")
+    ap.add_argument("--gpu-sizes", default="10000,100000,1000000", help="tets of the GPU cubes")
+    ap.add_argument("--no-gpu", action="store_true", help="skip the GPU section")
+    ap.add_argument("--json", help="also write the figures to this file")
+    args = ap.parse_args(argv)
+    names = [s for s in args.materials.split(",") if s]
+    unknown = [s for s in names if s not in _materials()]
+    if unknown or args.rounds < 1:
+        ap.error(f"unknown material(s) {unknown}" if unknown else "--rounds must be >= 1")
+    import numba
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"MJED hardware figures, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC, "
+          f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
+          f"Numba {numba.__version__}, load average {load:.2f} before")
+    figures = {"cpu": [], "load_before": load}
+    for name in names:
+        fig = cpu_figures(args.mesh, name, rounds=args.rounds)
+        figures["cpu"].append(fig)
+        _print_cpu(fig)
+    status = "not run: --no-gpu" if args.no_gpu else gpu_status()
+    gpu = None
+    if status is None:
+        gpu = gpu_figures(names[0], [int(s) for s in args.gpu_sizes.split(",") if s])
+    figures["gpu"] = gpu if gpu is not None else {"status": status}
+    _print_gpu(status, gpu)
+    figures["load_after"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"load average {figures['load_after']:.2f} after (a load above the core count means other work "
+          f"shared the cores: the parallel figures are then pessimistic)")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(figures, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
