@@ -71,6 +71,18 @@ def main(names) -> dict:
         out["inverted"] = str(exc)
     loose = mjed.make_force_field(mesh, svk, backend="cuda", allow_inverted=True).force(z)
     out["inverted_allowed"] = _rel_max(loose, mjed.make_force_field(mesh, svk, allow_inverted=True).force(z))
+    # The cuda field as a force model of the implicit integrator (forces and stiffness on the
+    # device, the CG on the host): same trajectory as the NumPy engine's, FP64.
+    from mjed.integrator import ImplicitEuler
+
+    fixed = np.flatnonzero(mesh.points[:, 2] == 0.0)
+    positions = {}
+    for backend in ("numpy", "cuda"):
+        field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend=backend)
+        integ = ImplicitEuler(mesh, field, 1.0, dt=0.05, fixed_nodes=fixed)
+        integ.run(3)
+        positions[backend] = integ.x
+    out["integrator"] = _rel_max(positions["cuda"] - mesh.points, positions["numpy"] - mesh.points)
     return out
 
 

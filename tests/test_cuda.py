@@ -72,6 +72,12 @@ def test_cuda_device_arrays_inversion_and_regularisation(simulated):
     assert simulated["inverted_allowed"] < 1e-13  # allow_inverted evaluates, as the other backends
 
 
+@needs_numba
+def test_cuda_field_drives_the_implicit_integrator(simulated):
+    # three backward Euler steps under gravity, forces and stiffness from the simulated kernel
+    assert simulated["integrator"] < 1e-10
+
+
 def test_block_map_points_at_each_blocks_entries():
     from mjed.cuda.codegen import block_map
     from mjed.sparse import CSRPattern
