@@ -720,7 +720,7 @@ class ParallelTarget(Target):
         s('"""')
         for line in ("import math", "", "from numba import njit, prange", "",
                      "from mjed.compiled.kernels import JIT_OPTIONS, divided_differences_sym, eigh3_sym, "
-                     "write_csr_parallel", "", ""):
+                     "write_csr_parallel, zero_sums_parallel", "", ""):
             s(line)
         s("@njit(**JIT_OPTIONS)")
         with s.block(f"def mjed_cell_range(lo, hi, {', '.join(_RANGE_ARGS)}):"):
@@ -737,8 +737,7 @@ class ParallelTarget(Target):
             for line in _PARALLEL_DOC.splitlines():
                 s(line)
             with s.block("if want_stiffness:"):
-                s("U[:] = 0.0")
-                s("Dg[:] = 0.0")
+                s("zero_sums_parallel(U, Dg)")
             s("energy = 0.0")
             with s.block("for colour in range(colour_ptr.shape[0] - 1):"):
                 s("energy_c = 0.0")
