@@ -32,7 +32,11 @@ of every block entry; K_aa, a diagonal block of a Hessian, is formed as its uppe
 the regularised part of the diagonal is formed only when asked for.
 
 The generated module defines ``mjed_cells`` with the arguments of :data:`KERNEL_SIGNATURE`
-(documented in its docstring). Pure Python; no Numba.
+(documented in its docstring). The cell body is written for a :class:`Target`, which says how
+a cell's energy, force and blocks leave it and writes the module around the body: the serial
+kernel (the default), the parallel driver over coloured slabs (:data:`PARALLEL`,
+:data:`PARALLEL_SIGNATURE`) and the CUDA kernel (mjed.cuda.codegen.CudaTarget) share it, so a
+new kind of term is written once for the three. Pure Python; no Numba.
 """
 
 from __future__ import annotations
@@ -43,7 +47,8 @@ from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 from mjed.compiled.shape import KernelShape, TermShape
 
-__all__ = ["kernel_source", "KERNEL_SIGNATURE", "PARALLEL_SIGNATURE", "Target", "SERIAL", "PARALLEL", "gather_cell", "scatter_edge_block", "write_kernel_module"]
+__all__ = ["kernel_source", "KERNEL_SIGNATURE", "PARALLEL_SIGNATURE", "Target", "SERIAL", "PARALLEL", "gather_cell",
+           "scatter_edge_block", "node_block_sum", "write_kernel_module"]
 
 #: The arguments of the generated ``mjed_cells``, in order (see its docstring).
 KERNEL_SIGNATURE = ("x", "cells", "D", "V0", "jpar", "gpar", "gmat", "group_coef", "slot_M", "regularize",
@@ -63,7 +68,7 @@ and S = 2 dW/dC per cell into stress_out (m, 3, 3) (when wanted). Returns the to
 """'''
 _PARALLEL_DOC = _KERNEL_DOC[:-3] + '''Parallel: the per-cell arguments (cells, D, V0, per-cell frames and slot matrices,
 cell_edges, cell_flip) come in schedule order; cell_id (m,) is the caller's index of each
-(J_out and stress_out are written there); cells of chunk k are chunk_ptr[k] to
+(J_out and stress_out are written there); cells of chunk (slab) k are chunk_ptr[k] to
 chunk_ptr[k + 1] - 1, chunks of colour c are colour_ptr[c] to colour_ptr[c + 1] - 1
 (mjed.compiled.schedule.CellSchedule).
 """'''
