@@ -331,12 +331,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     unknown = [s for s in names if s not in _materials()]
     if unknown or args.rounds < 1:
         ap.error(f"unknown material(s) {unknown}" if unknown else "--rounds must be >= 1")
+    from mjed.compiled.kernels import prefer_passive_wait
+
+    prefer_passive_wait()  # as a parallel field does, before anything starts Numba's threads
     import numba
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"MJED hardware figures, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC, "
           f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
-          f"Numba {numba.__version__}, load average {load:.2f} before")
+          f"Numba {numba.__version__}, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}, "
+          f"load average {load:.2f} before")
     figures = {"cpu": [], "load_before": load}
     for name in names:
         fig = cpu_figures(args.mesh, name, rounds=args.rounds)

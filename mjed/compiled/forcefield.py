@@ -51,7 +51,8 @@ class CompiledForceField:
             slabs of a colour share a node (:mod:`mjed.compiled.schedule`), add into the
             same sums without atomics. Same results to round-off (the sums are added in
             another order). The default, one thread, keeps the timing study's comparison
-            with the serial classical kernel like for like.
+            with the serial classical kernel like for like. Sets ``OMP_WAIT_POLICY=PASSIVE``
+            unless it is set (see mjed.compiled.kernels.prefer_passive_wait).
         slabs: slabs of the parallel schedule (default: 4 per thread of Numba's at construction).
 
     Raises:
@@ -83,6 +84,7 @@ class CompiledForceField:
         self._schedule = ()
         self.schedule = None
         if self.parallel:  # every per-cell argument in schedule order, once
+            self._k.prefer_passive_wait()  # before the thread pool starts
             sch = self.schedule = cell_schedule(mesh.points, mesh.cells, slabs or SLABS_PER_THREAD * self._k.threads())
             self._cells, self._D, self._V0 = sch.permute(self._cells), sch.permute(self._D), sch.permute(self._V0)
             t = self.table
