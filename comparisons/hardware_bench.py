@@ -6,7 +6,8 @@
 
 CPU: force + stiffness and force alone on one mesh by the NumPy engine, the compiled kernel
 on one thread and the compiled kernel on all of Numba's threads (CompiledForceField with
-parallel=True), in nanoseconds per cell, against two floors measured in the same run:
+parallel=True; its force + stiffness also on one thread, which measures its cell order
+without the threads), in nanoseconds per cell, against two floors measured in the same run:
 
 - the bandwidth floor (comparisons.bandwidth): the bytes force + stiffness must move at
   least, over the copy bandwidth of this machine (one thread, and all threads);
@@ -161,6 +162,15 @@ def cpu_figures(mesh_name: str, material_name: str, rounds: int = 7, min_batch_s
     for name, field in fields.items():
         calls[f"{name} f+K"] = (lambda fl: lambda: fl.force_and_stiffness(x))(field)
         calls[f"{name} f"] = (lambda fl: lambda: fl.force(x))(field)
+
+    def one_thread():  # the parallel schedule run by one thread: its cell order, no threads
+        numba.set_num_threads(1)
+        try:
+            fields["numba-parallel"].force_and_stiffness(x)
+        finally:
+            numba.set_num_threads(threads)
+
+    calls["numba-parallel-1thread f+K"] = one_thread
     timed = _rounds(calls, rounds, min_batch_s)
     m, n, nnz = mesh.n_cells, mesh.n_nodes, fields["numba-serial"].pattern.nnz
 
