@@ -31,6 +31,28 @@ def test_benchmark_prints_cpu_figures_and_no_gpu_figure(tmp_path, capsys):
         assert "GPU: not run: no GPU" in text and figures["gpu"] == {"status": hardware_bench.gpu_status()}
 
 
+def test_gpu_section_code_path_runs_on_the_simulator():
+    # The GPU section only runs on a device; its code path is exercised here on Numba's CUDA
+    # simulator (figures meaningless, structure checked), in a subprocess (the simulator must
+    # be chosen before Numba is imported).
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    code = ("import json; from comparisons.hardware_bench import gpu_figures; "
+            "print(json.dumps(gpu_figures(sizes=(48,), repeats=1, copy_bytes=2**12)))")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1", PYTHONPATH=str(root))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    fig = json.loads(out.stdout.strip().splitlines()[-1])
+    row = fig["sizes"][0]
+    assert row["cells"] == 48 and fig["copy_GBs"] > 0
+    for key in ("float64 f", "float64 f+K", "float32 f", "float32 f+K"):
+        assert row[key]["tets_per_s"] > 0 and row[key]["GBs"] > 0
+
+
 def test_benchmark_never_times_the_simulator(monkeypatch):
     from comparisons import hardware_bench
 
