@@ -118,7 +118,7 @@ class CudaTarget(Target):
                 body(line)
             body("")
             body("")
-        body("@cuda.jit")
+        body("@cuda.jit(cache=True)")  # the device code kept beside the source, as the CPU kernels'
         with body.block(f"def mjed_cells({', '.join(CUDA_SIGNATURE)}):"):
             body("e = cuda.grid(1)")
             with body.block("if e < cells.shape[0]:"):
