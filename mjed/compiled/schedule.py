@@ -95,8 +95,8 @@ def cell_schedule(points: np.ndarray, cells: np.ndarray, slabs: int) -> CellSche
     pos[order] = np.arange(m)
     order = np.lexsort((pos, slab))
     ptr = np.unique(np.searchsorted(slab[order], np.arange(slabs + 1)).astype(np.int64))
-    colour = colour_chunks(np.ascontiguousarray(cells[order]), ptr, len(points))  # one colour per slab
-    by_colour = np.argsort(colour, kind="stable")  # chunks laid out colour by colour
+    colour = colour_chunks(np.ascontiguousarray(cells[order]), ptr, len(points))  # the colour of each slab
+    by_colour = np.argsort(colour, kind="stable")  # slabs laid out colour by colour
     sizes = np.diff(ptr)[by_colour]
     cell_id = np.concatenate([order[ptr[k]:ptr[k + 1]] for k in by_colour]) if m else np.zeros(0, np.int64)
     chunk_ptr = np.zeros(len(by_colour) + 1, dtype=np.int64)
