@@ -52,10 +52,11 @@ def main(names) -> dict:
         shape = kernel_shape(lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3))))
         for dtype in (np.float64, np.float32):
             module = kernels.cuda_module(shape, dtype)
-            ptx, _ = cuda.compile_ptx(module.mjed_cells.py_func, signature(dtype), cc=(8, 0))
-            out["kernels"].append({"material": name, "dtype": np.dtype(dtype).name, "f64": ptx.count(".f64"),
-                                   "f32": ptx.count(".f32"), "atomics": ptx.count("atom."),
-                                   "entry": ".entry" in ptx})
+            for kernel in ("mjed_cells", "mjed_force"):
+                ptx, _ = cuda.compile_ptx(getattr(module, kernel).py_func, signature(dtype), cc=(8, 0))
+                out["kernels"].append({"material": name, "kernel": kernel, "dtype": np.dtype(dtype).name,
+                                       "f64": ptx.count(".f64"), "f32": ptx.count(".f32"),
+                                       "atomics": ptx.count("atom."), "entry": ".entry" in ptx})
     for fn, sig in ((kernels._zero, (nt.float64[:],)),
                     (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:]))):
         ptx, _ = cuda.compile_ptx(fn.py_func, sig, cc=(8, 0))

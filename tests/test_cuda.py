@@ -118,8 +118,10 @@ def test_generated_cuda_source_is_one_thread_per_cell_without_allocation():
             src = kernel_source(shape, CudaTarget(dtype))
             compile(src, "<cuda kernel>", "exec")
             assert "np." not in src and "local_" not in src and "njit" not in src
-            assert src.count("@cuda.jit(cache=True)") == 1 and "e = cuda.grid(1)" in src
-            assert src.count("cuda.atomic.add(data") == 144
+            assert src.count("@cuda.jit(cache=True)") == 2 and src.count("e = cuda.grid(1)") == 2
+            force_kernel = src.split("def mjed_force")[1]
+            assert "want_stiffness = False" in force_kernel.split("e = cuda.grid(1)")[0]
+            assert src.count("cuda.atomic.add(data") == 2 * 144
             if dtype == np.float32:
                 assert "math." not in src.split("def mjed_cells")[1]
 

@@ -611,8 +611,10 @@ class _Kernel:
 
     # ---- the module
     def cell(self) -> None:
-        """Write the body of the loop over cells e: everything one cell contributes."""
+        """Write the body of the loop over cells e: everything one cell contributes (may be
+        called once per function of a module: nothing written is reused across calls)."""
         s = self.src
+        self.I1_powers = {}
         self.kinematics()
         q = self.terms_and_groups()
         needs_d = q["h"] is not None or q["g2"] is not None or not _is_zero(q["Sh"])

@@ -59,7 +59,8 @@ class CudaForceField:
         self.dtype = np.dtype(dtype)
         self.table = lower_groups(material.decomposition(), mesh.D)
         self.shape = kernel_shape(self.table)
-        self._kernel = cuda_module(self.shape, self.dtype).mjed_cells
+        module = cuda_module(self.shape, self.dtype)
+        self._kernel, self._force_kernel = module.mjed_cells, module.mjed_force
         self._min_sum, self._zero = reduce_kernels()
         self.pattern = p = CSRPattern(mesh.cells, mesh.n_nodes)
         index = np.int32 if max(p.nnz, 3 * mesh.n_nodes) < 2**31 else np.int64
@@ -145,7 +146,8 @@ class CudaForceField:
             self._zero_array(data)
         S = cuda.device_array((m, 3, 3), dtype=self.dtype) if stress else self._empty["stress"]
         if m:
-            self._kernel[self._blocks, THREADS_PER_BLOCK](
+            kernel = self._kernel if stiffness else self._force_kernel
+            kernel[self._blocks, THREADS_PER_BLOCK](
                 x_d, d["cells"], d["D"], d["V0"], *d["numbers"], self.regularize, force, stiffness, stress, d["blk"],
                 d["rowlen"], f, data, d["J"], d["E"], S)
         J_min, energy = self._reduce()
