@@ -7,13 +7,15 @@
 
 or ``mjed.make_force_field(mesh, material, backend="cuda", dtype=...)``.
 
-The kernel is generated from the material's declared terms by the generator of the CPU
+The kernels are generated from the material's declared terms by the generator of the CPU
 kernels (:mod:`mjed.compiled.codegen`) with a CUDA target (:mod:`mjed.cuda.codegen`): one
 thread per cell, the stiffness added straight into the CSR values through a block map
-computed once per mesh. Without a GPU it runs on Numba's CUDA simulator when
-``NUMBA_ENABLE_CUDASIM=1`` is set before Numba is imported (the tests do so, in a
-subprocess); otherwise building a field raises :class:`BackendUnavailable` saying why.
-Importing :mod:`mjed` or this package does not import Numba.
+computed once per mesh, and a second kernel without the stiffness code for the force alone.
+Without a GPU they run on Numba's CUDA simulator when ``NUMBA_ENABLE_CUDASIM=1`` is set
+before Numba is imported (tests/test_cuda.py does so, in a subprocess), and compile to PTX
+wherever a CUDA toolkit's NVVM is found (tests/test_cuda_ptx.py); otherwise building a field
+raises :class:`BackendUnavailable` saying why. Importing :mod:`mjed` or this package does not
+import Numba. Speed on a GPU: still to be measured (docs/studies/timing.md).
 """
 
 from mjed.compiled.availability import BackendUnavailable
