@@ -3,7 +3,7 @@
     mjed-verify equivalence --material all --mesh cube-paper --json out.json
 
 Each subcommand lives in its own module of :mod:`comparisons.commands`; this file only finds
-them, parses, and turns :class:`comparisons.options.InputError` into exit code 2.
+them, parses, and turns :class:`common.options.InputError` into exit code 2.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import sys
 from types import ModuleType
 from typing import Dict, List, Optional
 
+from common.options import InputError, check_writable_destination
+from common.result import EXIT_INPUT
+from common.verdict import EXIT_POLICY
 from comparisons import commands
-from comparisons.options import InputError, check_writable_destination
-from comparisons.result import EXIT_INPUT
-from comparisons.verdict import EXIT_POLICY
 
 __all__ = ["main", "build_parser", "command_modules"]
 

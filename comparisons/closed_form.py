@@ -198,7 +198,7 @@ def uniaxial_checks(materials, label: str, points: np.ndarray, cells: np.ndarray
     ``passed`` (both errors within the equivalence suite's force tolerance). Materials
     without a closed form (Costa) are skipped.
     """
-    from comparisons.equivalence import FORCE_TOL
+    from common.tolerances import FORCE_TOL
 
     rows = []
     for m in materials:

@@ -65,7 +65,7 @@ MESH = "cube-small"
 
 def snapshot_cases(quick: bool) -> List[Tuple[str, object, str]]:
     """(case name, material, state) triples; ``quick`` keeps three materials and one state."""
-    from comparisons.cases import DEFAULT_MATERIALS
+    from common.cases import DEFAULT_MATERIALS
     from mjed import materials as M
 
     names = ["NeoHookean", "Ogden"] if quick else list(DEFAULT_MATERIALS)
@@ -101,7 +101,7 @@ def take_snapshot(*, quick: bool = True, comm=None) -> Optional[dict]:
     None on the other ranks.
     """
     import meshes
-    from comparisons.states import apply_state
+    from common.states import apply_state
     from reference_fem import UFLOracle, compat
 
     comm = compat.comm_world() if comm is None else comm
@@ -344,9 +344,9 @@ def cross_release_study(*, quick: bool = False, stacks: Optional[Sequence[Tuple[
     snapshots nothing is compared and the study is NOT RUN. ``quick`` keeps three cases; the
     result says so. ``data`` is the dict of :func:`cross_release_check`.
     """
-    from comparisons.blocks import Paragraph, Preformatted, Table
-    from comparisons.reproduce import command
-    from comparisons.result import Check, StudyResult
+    from common.blocks import Paragraph, Preformatted, Table
+    from common.reproduce import command
+    from common.result import Check, StudyResult
 
     t0 = time.perf_counter()
     if progress:
@@ -416,13 +416,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 0
     # The same verdict as `mjed-verify cross-release` (exit 3 when a stack is missing); the
     # JSON keeps the raw check, which provenance_summary reads.
-    from comparisons.result import exit_code
-    from comparisons.terminal import format_result
+    from common.result import exit_code
+    from common.terminal import format_result
 
     study = cross_release_study(quick=args.quick)
     print(format_result(study, details=False))
     if args.json:
-        from comparisons.options import write_json
+        from common.options import write_json
 
         write_json(args.json, dict(study.data))
     return exit_code([study])

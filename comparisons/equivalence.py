@@ -22,18 +22,16 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
 import mjed
-from comparisons.states import apply_state
+from common.states import apply_state
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL, SYMMETRY_TOL, mean_edge_length
 from mjed.materials.base import Material
 
-__all__ = ["KEY", "TITLE", "FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "CaseResult", "compare_arrays", "mean_edge_length", "run_cases",
+__all__ = ["KEY", "TITLE", "CaseResult", "compare_arrays", "run_cases",
            "equivalence_command", "equivalence_study"]
 
 KEY = "equivalence"
 TITLE = "Equivalence: MJED against the UFL oracle"
 
-FORCE_TOL = 1e-10
-STIFFNESS_TOL = 1e-10
-SYMMETRY_TOL = 1e-12
 
 
 @dataclass
@@ -52,12 +50,6 @@ class CaseResult:
         return asdict(self)
 
 
-def mean_edge_length(points: np.ndarray, cells: np.ndarray) -> float:
-    """Mean length of the six edges of every cell (points (n, 3), cells (m, 4)): the length
-    scale of a mesh, for relative perturbations and force scales."""
-    i, j = np.triu_indices(4, k=1)
-    X = points[cells]
-    return float(np.linalg.norm(X[:, i] - X[:, j], axis=2).mean())
 
 
 def compare_arrays(f_m, K_m, f_o, K_o, force_scale: float) -> tuple:
@@ -88,7 +80,7 @@ def run_cases(
     Args:
         meshes: (label, points (n, 3), cells (m, 4)) triples.
         materials: material instances.
-        states: names from comparisons.states.
+        states: names from common.states.
         oracle_factory: (points, cells, material) -> object with force(x), stiffness(x);
             defaults to reference_fem.UFLOracle (distributed over ``comm`` if given).
         comm: MPI communicator for an oracle distributed over several ranks. Every rank
@@ -124,7 +116,7 @@ def run_cases(
 def equivalence_command(labels: Sequence[str], materials: Sequence[Material], states: Sequence[str], *,
                         mpi_ranks: int = 1) -> str:
     """The command line that re-runs this selection (under mpirun when the oracle was distributed)."""
-    from comparisons.reproduce import command, material_option, mesh_option, states_option
+    from common.reproduce import command, material_option, mesh_option, states_option
 
     material, comment = material_option(materials)
     prefix = ("mpirun", "-n", str(mpi_ranks)) if mpi_ranks > 1 else ()
@@ -206,16 +198,16 @@ def equivalence_study(
         comm: MPI communicator distributing the oracle (collective on every rank).
 
     Returns:
-        A :class:`comparisons.result.StudyResult` on rank 0 (None on the other ranks); NOT_RUN
+        A :class:`common.result.StudyResult` on rank 0 (None on the other ranks); NOT_RUN
         when dolfinx is missing. Checks: the worst force, stiffness and symmetry errors over
         all cases and the worst uniaxial closed-form errors, each against its tolerance.
         ``data`` holds ``cases``, ``uniaxial_closed_form`` and ``ogden_sofa_tangent_error``.
     """
     import time
 
-    from comparisons.blocks import Paragraph, Table
+    from common.blocks import Paragraph, Table
+    from common.result import Check, StudyResult
     from comparisons.closed_form import UNIAXIAL_STRETCHES, uniaxial_checks
-    from comparisons.result import Check, StudyResult
 
     labels = [m[0] for m in meshes]
     cmd = equivalence_command(labels, materials, states, mpi_ranks=1 if comm is None else comm.size)
@@ -311,7 +303,7 @@ def equivalence_study(
 
 def _digest(cases: Sequence[CaseResult]):
     """Worst errors per material and mesh, over the states (the full table follows it)."""
-    from comparisons.blocks import Table
+    from common.blocks import Table
 
     rows = []
     for material, mesh in dict.fromkeys((c.material, c.mesh) for c in cases):

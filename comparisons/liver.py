@@ -64,365 +64,37 @@ trajectory, the pressure and the oscillation study come from the first.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import shlex
 import time
-from dataclasses import asdict, dataclass, is_dataclass
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from comparisons.options import InputError
+from common.options import InputError
+from common.result import StudyResult
 from comparisons.organ import Organ, fixed_nodes, load_organ
-from comparisons.regions import relative_box
-from comparisons.result import StudyResult
-from mjed.backends import BACKENDS as MJED_BACKENDS
-from mjed.materials import ArrudaBoyce
-from mjed.materials.base import Material
-from mjed.solvers import LinearSolverOptions
 
 __all__ = ["LiverParameters", "MODELS", "PAPER_FPS", "TARGET_FPS", "COMPILED_TARGET_FPS", "PAPER_HYPERELASTIC_SHARE",
            "BACKEND_AGREEMENT_TOL", "backend_force_field", "default_fixed_specs",
            "run_liver", "liver_study", "numpy_force_field", "LIVER_SOLVER"]
-
-MODELS = ("hyperelastic", "visco-hyperelastic", "visco-poro-hyperelastic")
-#: The paper's frame rates (2010 laptop, Core Duo 2.8 GHz), and the real-time target.
-PAPER_FPS = {"hyperelastic": 7.5, "visco-hyperelastic": 7.0, "visco-poro-hyperelastic": 6.0}
-TARGET_FPS = 25.0
-#: The frame rate asked of the compiled backend on this study's 2-core machine (issue 15).
-COMPILED_TARGET_FPS = 60.0
-#: Two backends give the same trajectory up to this relative difference of the maximum
-#: displacement curve: their forces differ by round-off, and each linearised step is solved
-#: only to a relative CG residual of 1e-5 (LIVER_SOLVER), which bounds how far they may drift.
-BACKEND_AGREEMENT_TOL = 1e-4
-#: The paper's share of one step spent in the hyperelastic force and stiffness ("around 60 %").
-PAPER_HYPERELASTIC_SHARE = 0.60
-#: Relative L2 pressure error allowed in the Terzaghi check (the same 1 % as tests/test_darcy.py).
-TERZAGHI_TOL = 1e-2
-#: The liver's linear solver (see the module docstring).
-LIVER_SOLVER = LinearSolverOptions(cg_tol=1e-5, preconditioner="factorized", refactor_iterations=20,
-                                   factor_precision="single")
-
-
-_BACKEND_LABELS = {"numpy": "NumPy MJED (mjed.HyperelasticForceField)",
-                   "numba": "compiled MJED (mjed.compiled.CompiledForceField, Numba)"}
-
-
-def backend_force_field(backend: str) -> Callable:
-    """The factory (mesh, material, *, regularize, allow_inverted) -> force field of
-    ``mjed.make_force_field(..., backend=backend)``, with ``backend`` and ``label`` attributes.
-
-    The compiled field is evaluated once at rest when built, so its kernel is compiled (or
-    loaded from Numba's cache) before any step is timed. Raises ValueError for an unknown
-    backend; building a "numba" field without Numba raises mjed.compiled.BackendUnavailable.
-    """
-    if backend not in _BACKEND_LABELS:
-        raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(_BACKEND_LABELS)}")
-
-    def factory(mesh, material: Material, *, regularize: bool, allow_inverted: bool):
-        import mjed
-
-        field = mjed.make_force_field(mesh, material, backend=backend, regularize=regularize,
-                                      allow_inverted=allow_inverted)
-        if backend != "numpy":
-            field.force_and_stiffness(mesh.points)  # compile / load the kernel now, not in the first step
-        return field
-
-    factory.backend = backend
-    factory.label = _BACKEND_LABELS[backend]
-    factory.__qualname__ = f"backend_force_field({backend!r})"
-    return factory
-
-
-#: The default force field: NumPy MJED (mjed.HyperelasticForceField).
-numpy_force_field = backend_force_field("numpy")
-#: The backends the study runs by default (every backend of mjed.make_force_field), the
-#: reference (first) one first.
-BACKENDS = MJED_BACKENDS
-
-
-def _backend_factories(backends: Sequence[str]):
-    """The factories of ``backends`` that can be built here, and what was left out (and why)."""
-    from mjed.compiled import numba_available
-
-    if not backends:
-        raise InputError("give at least one backend (numpy, numba)")
-    unknown = [b for b in backends if b not in _BACKEND_LABELS]
-    if unknown:
-        raise InputError(f"unknown backend(s) {unknown}; known: {', '.join(_BACKEND_LABELS)}")
-    factories, missing = [], []
-    for b in dict.fromkeys(backends):
-        if b == "numba" and not numba_available():
-            missing.append("the compiled (numba) backend: Numba is not installed (Debian: python3-numba)")
-            continue
-        factories.append(backend_force_field(b))
-    if not factories:
-        raise InputError(f"none of the backends {list(backends)} can run here: {'; '.join(missing)}")
-    return factories, missing
-
-
-def _positive(name: str, v, *, zero: bool = False) -> None:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and (v >= 0 if zero else v > 0)
-    if not ok:
-        raise ValueError(f"LiverParameters: parameter {name} must be finite and {'>= 0' if zero else '> 0'}, got {v!r}")
-
-
-@dataclass(frozen=True)
-class LiverParameters:
-    """The liver model and the scenario (see the module docstring for the sources).
-
-    material: the hyperelastic law (default Arruda-Boyce mu 2 kPa, k0 20 kPa, N 8).
-    dt_porous: the porous run's step; None for dt / 2 (the paper's 0.15 s beside 0.3 s).
-    solver: the integrator's LinearSolverOptions. max_halvings: a failed step is retried in
-    halves down to dt / 2^max_halvings. allow_inverted: accept inverted cells (counted), only
-    for a material whose energy is finite at J <= 0, with the regularisation on.
-    max_volume_change: a step changing a cell's volume by more than this factor is retried in
-    substeps (None: no limit); see mjed.integrator.
-    """
-
-    material: Material = ArrudaBoyce(mu=2000.0, k0=20000.0, N=8.0)
-    density: float = 1000.0
-    prony_alphas: tuple = (0.235, 0.333)
-    prony_taus: tuple = (0.27, 0.03)
-    f_w: float = 0.5
-    K0: float = 400.0
-    K_lim: float = 2200.0
-    kappa: float = 5e-6
-    dt: float = 0.3
-    dt_porous: Optional[float] = None
-    rayleigh_mass: float = 0.1
-    rayleigh_stiffness: float = 0.1
-    gravity: tuple = (0.0, 0.0, -9.81)
-    regularize: bool = True
-    solver: LinearSolverOptions = LIVER_SOLVER
-    max_halvings: int = 4
-    allow_inverted: bool = False
-    max_volume_change: Optional[float] = 1.5
-
-    def __post_init__(self):
-        if not isinstance(self.material, Material):
-            raise ValueError(f"LiverParameters: material must be one of mjed.materials, got {type(self.material).__name__}")
-        for name in ("density", "K0", "K_lim", "dt"):
-            _positive(name, getattr(self, name))
-        if self.dt_porous is not None:
-            _positive("dt_porous", self.dt_porous)
-        for name in ("kappa", "rayleigh_mass", "rayleigh_stiffness"):
-            _positive(name, getattr(self, name), zero=True)
-        g = tuple(self.gravity)
-        if len(g) != 3 or not all(isinstance(c, (int, float)) and math.isfinite(c) for c in g):
-            raise ValueError(f"LiverParameters: parameter gravity must be 3 finite numbers (m/s^2), got {self.gravity!r}")
-        object.__setattr__(self, "gravity", tuple(float(c) for c in g))
-        if not isinstance(self.solver, LinearSolverOptions):
-            raise ValueError(f"LiverParameters: parameter solver must be a LinearSolverOptions, got {self.solver!r}")
-        if self.max_volume_change is not None and not (isinstance(self.max_volume_change, (int, float))
-                                                       and math.isfinite(self.max_volume_change) and self.max_volume_change > 1):
-            raise ValueError(f"LiverParameters: parameter max_volume_change must be a factor > 1 or None, "
-                             f"got {self.max_volume_change!r}")
-        m = self.max_halvings
-        if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m <= 10:
-            raise ValueError(f"LiverParameters: parameter max_halvings must be an integer in [0, 10], got {m!r}")
-        if self.allow_inverted:
-            from mjed.inversion import inversion_blockers
-
-            blockers = inversion_blockers(self.material)
-            if blockers or not self.regularize:
-                why = (f"its energy term {blockers[0][0]} is not finite at {blockers[0][1]}" if blockers
-                       else "the regularisation is off")
-                raise ValueError(f"LiverParameters: allow_inverted needs the regularisation and an energy finite at "
-                                 f"J <= 0 (paper, section 2.3); {type(self.material).__name__} does not qualify: {why}")
-
-    @property
-    def porous_dt(self) -> float:
-        return self.dt / 2 if self.dt_porous is None else self.dt_porous
-
-    def to_dict(self) -> dict:
-        out = {}
-        for k in self.__dataclass_fields__:
-            v = getattr(self, k)
-            if isinstance(v, Material):
-                out[k] = {"name": type(v).__name__, **_jsonable(asdict(v))}
-            elif is_dataclass(v):
-                out[k] = asdict(v)
-            else:
-                out[k] = _jsonable(v)
-        return out
-
-
-def _jsonable(v):
-    if isinstance(v, dict):
-        return {k: _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (tuple, list)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, np.generic):
-        return v.item()
-    return v
-
-
-def default_fixed_specs(points: np.ndarray) -> List[str]:
-    """Vena cava and suspensory ligament, as fractions of the mesh's bounding box.
-
-    Vena cava (with the bare area around it, where the liver lies against the diaphragm): a
-    block on the posterior-superior side between the lobes (x in 25-75 %, y in the back 40 %,
-    z above 35 %). Suspensory ligament: a strip on top between the lobes (x in 30-55 %, z in
-    the top 20 %). Axes as in meshes/liver.py (x left to right, y anterior to posterior, z up):
-    for a mesh with other axes, give --fixed.
-    """
-    return [
-        relative_box(points, (0.25, 0.60, 0.35), (0.75, 1.0, 1.0)),
-        relative_box(points, (0.30, 0.0, 0.80), (0.55, 1.0, 1.0)),
-    ]
-
-
-def _models(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, force_field):
-    """Force models, the time step and the fluid model (or None) of one run."""
-    from mjed.darcy import DarcyParameters, FluidPressureForce
-    from mjed.porous import PorousVolume
-    from mjed.viscous import Prony, ViscoHyperelasticForceField
-
-    solid = force_field(mesh, params.material, regularize=params.regularize, allow_inverted=params.allow_inverted)
-    if kind == "hyperelastic":
-        return [solid], params.dt, None
-    visco = ViscoHyperelasticForceField(solid, prony=Prony(params.prony_alphas, params.prony_taus))
-    if kind == "visco-hyperelastic":
-        return [visco], params.dt, None
-    # The porous solid U(J) and the fluid pressure are one volumetric model (sigma_p = sigma - P),
-    # in parallel with the visco-hyperelastic network, so the Prony series does not relax them.
-    law = PorousVolume(params.f_w, params.K0, params.K_lim)
-    fluid = FluidPressureForce(mesh, DarcyParameters(params.K_lim, params.kappa), solid=law, drained_nodes=fixed)
-    return [visco, fluid], params.porous_dt, fluid
-
-
-#: The phases of a step, in the order of the split figure.
-PHASES = ("hyperelastic force + stiffness", "other forces", "building the system", "linear solve", "rest")
-
-
-def _phase_seconds(times) -> np.ndarray:
-    """(5,) seconds of one StepTimes by PHASES: model 0 is the (visco-)hyperelastic MJED field."""
-    return np.array([times.models[0], sum(times.models[1:]), times.system, times.solve, times.rest])
-
-
-def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, duration: float, *,
-             force_field=numpy_force_field, writer=None, progress=None, dt: Optional[float] = None) -> Dict:
-    """One run of ``kind`` over ``duration`` seconds; a JSON-serialisable record.
-
-    dt overrides the model's step (the oscillation study). A step the integrator refuses
-    (after its substeps) ends the run: "error" holds the message.
-    """
-    from mjed.darcy import cell_jacobians
-    from mjed.errors import IntegrationError
-    from mjed.integrator import ImplicitEuler
-
-    models, model_dt, fluid = _models(kind, mesh, params, fixed, force_field)
-    dt = model_dt if dt is None else dt
-    n_steps = max(1, int(round(duration / dt)))
-    integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity, fixed_nodes=fixed,
-                          rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness,
-                          solver=params.solver, max_halvings=params.max_halvings, allow_inverted=params.allow_inverted,
-                          max_volume_change=params.max_volume_change)
-    times, amplitude, cg, substeps, retries, inverted, p_max = [0.0], [0.0], [], [], [], [], [0.0]
-    factorizations, stepping, cpu = 0, 0.0, 0.0  # wall-clock and CPU seconds spent in the integrator's steps
-    phases = np.zeros(len(PHASES))
-    best_P = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture
-    if writer is not None:
-        writer(0.0, integ.x, np.ones(mesh.n_cells), None if fluid is None else fluid.P)
-    error = None
-    for _ in range(n_steps):
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            report = integ.step()
-        except IntegrationError as exc:  # recorded, and the run stops here (the study fails)
-            error = str(exc)
-            break
-        stepping += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        phases += _phase_seconds(report.times)
-        u = integ.x - mesh.points
-        times.append(integ.t)
-        amplitude.append(float(np.linalg.norm(u, axis=1).max()))
-        cg.append(report.cg_iterations)
-        substeps.append(report.substeps)
-        retries.append(list(report.retries))
-        inverted.append(report.inverted_cells)
-        factorizations += report.factorizations
-        if fluid is not None:
-            p_max.append(float(np.abs(fluid.P).max()))
-            if p_max[-1] >= best_P[0]:
-                best_P = (p_max[-1], fluid.P.copy(), integ.x.copy())
-        if writer is not None:
-            writer(integ.t, integ.x, cell_jacobians(mesh, integ.x), None if fluid is None else fluid.P)
-        if progress is not None:
-            split = f", {report.substeps} substeps" if report.substeps > 1 else ""
-            progress(f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * amplitude[-1]:.1f} mm, {report.cg_iterations} CG{split}")
-    done = len(cg)
-    out = {
-        "model": kind,
-        "dt": dt,
-        "steps": done,
-        "steps_planned": n_steps,
-        "error": error,
-        "time": times,
-        "max_displacement": amplitude,
-        "final_max_displacement": amplitude[-1],
-        "peak_max_displacement": max(amplitude),
-        "cg_iterations_mean": float(np.mean(cg)) if cg else None,
-        "cg_iterations": cg,
-        "substeps": substeps,
-        "steps_split": int(sum(s > 1 for s in substeps)),
-        "substeps_total": int(sum(substeps)),
-        "retries": retries,
-        "inverted_cells": inverted,
-        "inverted_cells_max": int(max(inverted)) if inverted else 0,
-        "factorizations": factorizations,
-        "solver": params.solver.label(),
-        "force_field": getattr(force_field, "label", getattr(force_field, "__qualname__", type(force_field).__name__)),
-        "backend": getattr(force_field, "backend", "custom"),
-        "stepping_seconds": stepping,
-        "fps": done / stepping if stepping > 0 else None,
-        # Steps per CPU second of this process: what the run would reach with a core to itself
-        # (the wall-clock FPS above also counts the time other jobs on a shared machine take).
-        "cpu_fps": done / cpu if cpu > 0 else None,
-        "realtime_factor": done * dt / stepping if stepping > 0 else None,  # simulated s per wall s
-        "paper_fps": PAPER_FPS[kind],
-        "phase_seconds": dict(zip(PHASES, phases.tolist())),
-    }
-    if fluid is not None:
-        out["max_abs_pressure"] = p_max
-        out["_pressure_snapshot"] = best_P
-    return out
-
-class _SeriesWriter:
-    """A ParaView time series: one .vtu per step (meshio) under ``<stem>/`` and a .pvd index.
-
-    (meshio 5.0's XDMF writer puts its .h5 file in the working directory, not beside the
-    .xdmf, so the portable .pvd + .vtu form is used.)
-    """
-
-    def __init__(self, path: str, mesh):
-        self.path = path
-        self.mesh = mesh
-        self.folder = os.path.splitext(path)[0]
-        os.makedirs(self.folder, exist_ok=True)
-        self.entries: List[tuple] = []
-
-    def __call__(self, t: float, x: np.ndarray, J: np.ndarray, P) -> None:
-        import meshio
-
-        point_data = {"displacement": x - self.mesh.points}
-        if P is not None:
-            point_data["pressure"] = np.asarray(P, dtype=float)
-        name = f"step_{len(self.entries):05d}.vtu"
-        meshio.write(os.path.join(self.folder, name),
-                     meshio.Mesh(self.mesh.points, [("tetra", self.mesh.cells)], point_data=point_data, cell_data={"J": [J]}))
-        self.entries.append((t, f"{os.path.basename(self.folder)}/{name}"))
-
-    def close(self) -> None:
-        rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries)
-        with open(self.path, "w") as fh:
-            fh.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-                     f"{rows}\n  </Collection>\n</VTKFile>\n")
+from comparisons.liver_setup import (
+    BACKEND_AGREEMENT_TOL,
+    BACKENDS,
+    COMPILED_TARGET_FPS,
+    LIVER_SOLVER,
+    MODELS,
+    PAPER_FPS,
+    PAPER_HYPERELASTIC_SHARE,
+    TARGET_FPS,
+    TERZAGHI_TOL,
+    LiverParameters,
+    _backend_factories,
+    backend_force_field,
+    default_fixed_specs,
+    numpy_force_field,
+)
+from comparisons.liver_simulation import PHASES, _SeriesWriter, simulate
 
 
 def run_liver(
@@ -554,7 +226,7 @@ def run_liver(
         "series": series_paths,
     }
     if json_path:
-        from comparisons.options import write_json
+        from common.options import write_json
 
         write_json(json_path, result)
     return result
@@ -711,10 +383,10 @@ def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "
     relative_to: figure paths in the blocks are made relative to this directory (a report's
     run directory); as written otherwise. Raises InputError on bad input (before any run).
     """
-    from comparisons.blocks import Figure, Paragraph, Table
-    from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
+    from common.blocks import Figure, Paragraph, Table
+    from common.result import Check
     from comparisons.organ import scale_of
-    from comparisons.result import Check
+    from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
 
     clock = time.perf_counter()
     command = liver_command(quick=quick, out_dir=out_dir, series=series, mesh=mesh, fixed=fixed, steps=steps,
@@ -836,7 +508,7 @@ def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "
                    if osc is not None else "not run"))
     data["protocol"] = protocol
     if json_path:
-        from comparisons.options import write_json
+        from common.options import write_json
 
         write_json(json_path, data)
     return StudyResult.from_checks(KEY, TITLE, checks, headline=headline, command=command, not_covered=not_covered,

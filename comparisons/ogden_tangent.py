@@ -9,11 +9,10 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Dict, Sequence
 
-import numpy as np
 from scipy.sparse.linalg import norm as sparse_norm
 
 import mjed
-from comparisons.states import apply_state
+from common.states import apply_state
 
 __all__ = ["sofa_tangent_errors"]
 

@@ -14,7 +14,7 @@ from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from comparisons.options import InputError
+from common.options import InputError
 
 __all__ = ["UNITS", "Organ", "load_organ", "scale_of"]
 

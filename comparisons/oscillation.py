@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, Dict, Optional, Sequence
 
 import numpy as np
 
@@ -77,8 +77,8 @@ def run_oscillations(organ, fixed: np.ndarray, params, *, dts: Sequence[float] =
                      duration: float = 3.0, models: Sequence[str], force_field, out_dir: str,
                      progress: Optional[Callable[[str], None]] = None) -> Dict:
     """Every model at every dt without Rayleigh damping; curves, metrics, figures (see module)."""
-    from comparisons.liver import simulate
     from comparisons.liver_figures import plot_decay, plot_oscillations
+    from comparisons.liver_simulation import simulate
 
     light = dataclasses.replace(params, rayleigh_mass=0.0, rayleigh_stiffness=0.0)
     curves, rows = [], []

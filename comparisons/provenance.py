@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any, Dict, Optional
 
-from comparisons.result import Status
+from common.result import Status
 
 __all__ = ["KEY", "TITLE", "cpu_model", "git_commit", "provenance", "provenance_study"]
 
@@ -108,8 +108,8 @@ def provenance_study():
     stack that is not installed is recorded as 'not available', which is a fact, not a gap."""
     import json
 
-    from comparisons.blocks import Paragraph, Table
-    from comparisons.result import StudyResult
+    from common.blocks import Paragraph, Table
+    from common.result import StudyResult
 
     info = provenance()
     try:

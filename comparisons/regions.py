@@ -13,7 +13,7 @@ Specs (coordinates in the mesh file's own units, before any --units/--scale):
 
 FILE holds integers separated by whitespace or commas; '#' starts a comment.
 
-Several specs select the union. Every error raises :class:`comparisons.options.InputError`
+Several specs select the union. Every error raises :class:`common.options.InputError`
 naming the spec.
 """
 
@@ -24,7 +24,7 @@ from typing import Iterable, Optional
 
 import numpy as np
 
-from comparisons.options import InputError
+from common.options import InputError
 
 __all__ = ["select_nodes", "parse_region", "relative_box"]
 

@@ -145,14 +145,14 @@ def regularization_study(label: str, points: np.ndarray, cells: np.ndarray, mate
     change a force (it only rewrites a stiffness term), or make K unsymmetric.
 
     Returns:
-        A :class:`comparisons.result.StudyResult`; ``data`` is ``{"mesh", "results"}`` with
+        A :class:`common.result.StudyResult`; ``data`` is ``{"mesh", "results"}`` with
         one :class:`RegularizationOutcome` dict per material.
     """
     import time
 
-    from comparisons.blocks import Paragraph, Table
-    from comparisons.reproduce import command, material_option
-    from comparisons.result import Check, StudyResult
+    from common.blocks import Paragraph, Table
+    from common.reproduce import command, material_option
+    from common.result import Check, StudyResult
 
     t0 = time.perf_counter()
     mesh = mjed.TetMesh(points, cells)

@@ -48,8 +48,8 @@ import numpy as np
 
 import mjed
 from mjed.integrator import ImplicitEuler, Prescribed
-from mjed.solvers import LinearSolverOptions
 from mjed.materials import StVenantKirchhoff
+from mjed.solvers import LinearSolverOptions
 from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients
 
 __all__ = ["KEY", "TITLE", "DISCRETE_TOL", "RheometerSpec", "TorsionSample", "run_rheometer", "sweep", "fit_harmonic",
@@ -264,7 +264,7 @@ def run_rheometer(*, quick: bool = False, out: Optional[str] = None, json_path: 
     result["figures"] = figures
     result["elapsed_s"] = time.perf_counter() - t0
     if json_path:
-        from comparisons.options import write_json
+        from common.options import write_json
 
         write_json(json_path, result)
     return result
@@ -336,13 +336,13 @@ def rheometer_study(*, quick: bool = False, out_dir: Optional[str] = None, figur
         overrides: cells, frequencies, samples_per_period, amplitude (as ``mjed-verify dma``).
 
     Returns:
-        A :class:`comparisons.result.StudyResult`. One tolerance: the largest relative error of
+        A :class:`common.result.StudyResult`. One tolerance: the largest relative error of
         G' and G'' against the exact backward-Euler response, <= DISCRETE_TOL. ``data`` is the
         dict of :func:`run_rheometer` (spec, mesh, frequencies, errors, figures, elapsed_s).
     """
-    from comparisons.blocks import Figure, Paragraph, Table
-    from comparisons.reproduce import command
-    from comparisons.result import Check, StudyResult
+    from common.blocks import Figure, Paragraph, Table
+    from common.reproduce import command
+    from common.result import Check, StudyResult
 
     spec = rheometer_spec(quick, **overrides)
     res = run_rheometer(spec=spec, out=out_dir, progress=progress)

@@ -8,7 +8,7 @@ convergence rate; a wrong derivative gives rate 1 (or 0).
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 

@@ -36,8 +36,9 @@ from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tupl
 
 import numpy as np
 
-from comparisons.result import Check, StudyResult
-from comparisons.timing_protocol import calls_for, protocol as get_protocol, relative_spread, summary, time_batch
+from common.result import Check, StudyResult
+from comparisons.timing_protocol import calls_for, relative_spread, summary, time_batch
+from comparisons.timing_protocol import protocol as get_protocol
 
 KEY = "timing"
 TITLE = "Timing: MJED and the classical FEM, NumPy and compiled, dolfinx and peers (paper Fig. 2)"
@@ -77,7 +78,7 @@ FLATNESS_RANGE = (1e4, 1.5e6)
 def timing_state(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """The deformed positions every method is timed at: the equivalence study's seeded
     smooth random field with a rotation (J > 0.2 everywhere), so no branch is trivial."""
-    from comparisons.states import smooth_random
+    from common.states import smooth_random
 
     return smooth_random(points, cells)
 
@@ -94,7 +95,7 @@ def _load_mesh(mesh: Any) -> Tuple[np.ndarray, np.ndarray]:
 
 
 def _names(materials: "str | Iterable[str]") -> List[str]:
-    from comparisons.cases import DEFAULT_MATERIALS, parse_materials
+    from common.cases import DEFAULT_MATERIALS, parse_materials
 
     mats = parse_materials(materials)
     return [next(k for k, v in DEFAULT_MATERIALS.items() if v is m) for m in mats]
@@ -159,7 +160,7 @@ def _status_kib() -> Dict[str, int]:
 def _memory_worker(spec: Dict[str, Any]) -> Dict[str, Any]:
     """Runs in a fresh process: peak resident-set growth of building ``spec['method']``
     and one force+stiffness call, then ``repeats`` timed calls."""
-    from comparisons.cases import default_material
+    from common.cases import default_material
     from comparisons.timing_methods import get
 
     method = get(spec["method"])
@@ -231,10 +232,10 @@ def timing_study(
         memory: measure peak memory in subprocesses (all materials under "paper", else one).
         command: the command line that ran (default: the equivalent mjed-verify command).
     """
+    from common.cases import default_material
     from comparisons import timing_blocks
     from comparisons.bandwidth import floor_bytes, measure_bandwidth
     from comparisons.opcount import model
-    from comparisons.cases import default_material
     from comparisons.provenance import provenance
     from comparisons.timing_methods import get, verify
     from mjed.sparse import CSRPattern
@@ -508,8 +509,8 @@ def scaling_study(
     ``repeats`` timed calls; the best is reported). A method stops growing when a size fails
     (memory) or took longer than ``time_budget_s`` (build and calls); the reason is recorded.
     """
+    from common.cases import default_material
     from comparisons import timing_blocks
-    from comparisons.cases import default_material
     from comparisons.provenance import provenance
     from comparisons.timing_methods import get
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Dict, List, Optional, Sequence
 
-from comparisons.blocks import Figure, Paragraph, Table
-from comparisons.result import Check
+from common.blocks import Figure, Paragraph, Table
+from common.result import Check
 
 __all__ = ["timing_blocks", "timing_headline", "scaling_blocks", "scaling_headline"]
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
 __all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales"]
 

@@ -255,7 +255,7 @@ def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
         return
     words = " and ".join(describe_coefficient(n, c) for n, c in zip(fit.names, fit.coefficients))
     figs = {"parts": list(fit.names), "coefficients": list(fit.coefficients), "residual": fit.residual}
-    text = (f"K - K_oracle = " + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(fit.names, fit.coefficients))
+    text = ("K - K_oracle = " + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(fit.names, fit.coefficients))
             + f" leaves a stiffness error of {fit.residual:.1e}; the force matches")
     if ok is not None:
         full.append(Finding("tangent-part", f"tangent error in one part: {words}", FULL, text, figs))

@@ -27,10 +27,18 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from comparisons.equivalence import mean_edge_length
-from comparisons.states import apply_state
-from conformance.exchange import (FORMAT_VERSION, KIT_FORMAT, FormatError, check_version, load_json, read_case_input,
-                                  sha256_of, write_case_input)
+from common.states import apply_state
+from common.tolerances import mean_edge_length
+from conformance.exchange import (
+    FORMAT_VERSION,
+    KIT_FORMAT,
+    FormatError,
+    check_version,
+    load_json,
+    read_case_input,
+    sha256_of,
+    write_case_input,
+)
 from conformance.spec import CaseInput, model_label
 
 __all__ = ["KitCase", "PROBES", "PROBE_STEP", "build_cases", "write_kit", "read_kit", "KitManifest", "case_id"]

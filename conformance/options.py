@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import List
 
-from comparisons import options as opt
-from comparisons.options import InputError
+from common import options as opt
+from common.options import InputError
 
 __all__ = ["add_model_options", "resolve_models", "cases_from_args"]
 

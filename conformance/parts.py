@@ -203,7 +203,7 @@ class PartsOracle:
         from reference_fem.sparse_map import CSRRenumbering
 
         if energy is None:
-            from conformance.oracle import energy_density as energy
+            from conformance.energy import energy_density as energy
         X = np.ascontiguousarray(points, dtype=np.float64)
         cells = np.ascontiguousarray(cells, dtype=np.int64)
         self._X = X

@@ -88,7 +88,7 @@ def python_evaluator(impl: Callable[[CaseInput], Any]) -> Callable[[KitCase], En
 
 def resolve_models(material: Union[None, str, Any, Sequence[Any]] = None, energy: Any = None) -> list:
     """Models from a material name ('all', 'NeoHookean', ...), material instance(s) or a user energy."""
-    from comparisons.cases import parse_materials
+    from common.cases import parse_materials
 
     models: list = []
     if material is not None:

@@ -9,8 +9,8 @@ from typing import Dict, List, Optional
 
 import numpy as np
 
-from comparisons.blocks import Paragraph, Preformatted, Table
-from comparisons.result import Status, StudyResult
+from common.blocks import Paragraph, Preformatted, Table
+from common.result import Status, StudyResult
 from conformance.kit import KitCase
 from conformance.run import CheckRun
 
@@ -74,7 +74,7 @@ def write_report(folder: str, run: CheckRun, *, command: str, fields: Dict[str, 
 
     fields: case id -> VTU path relative to ``folder`` (written by the caller).
     """
-    from comparisons.report.render import to_html, to_markdown
+    from common.render import to_html, to_markdown
 
     # Each case is a typed result, so the report's summary says exactly what passed.
     status = {0: Status.PASSED, 1: Status.FAILED, 2: Status.ERROR}[run.exit_code]

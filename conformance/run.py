@@ -11,8 +11,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from comparisons.equivalence import mean_edge_length
-from comparisons.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
+from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
+from common.tolerances import mean_edge_length
 from conformance.compare import scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose

@@ -21,7 +21,8 @@ from typing import Dict, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import lsqr, norm as sparse_norm
+from scipy.sparse.linalg import lsqr
+from scipy.sparse.linalg import norm as sparse_norm
 
 from mjed.mesh import shape_vectors
 

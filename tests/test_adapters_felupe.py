@@ -1,5 +1,5 @@
 """FElupe (conformance/adapters/felupe.py) against the UFL oracle with matched energies, on
-single-tet and cube-small in every state of comparisons/states.py.
+single-tet and cube-small in every state of common/states.py.
 
 What the check finds (FElupe 11.3.0): its hand-written stresses and tangents of
 NeoHookeCompressible and of the isochoric NeoHooke with a (J - 1)^2 bulk term equal UFL's
@@ -25,13 +25,13 @@ import numpy as np
 import pytest
 
 from adapter_cases import ADAPTER_MESHES, errors_in_every_state, load_mesh, mesh_volume
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
 felupe = pytest.importorskip("felupe", reason="FElupe is not installed (scripts/bootstrap.sh installs felupe==11.3.0)")
 pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
 pytestmark = pytest.mark.oracle
 
-from comparisons.cases import DEFAULT_MATERIALS  # noqa: E402
+from common.cases import DEFAULT_MATERIALS  # noqa: E402
 from conformance.adapters import Unsupported  # noqa: E402
 from conformance.adapters.felupe import (  # noqa: E402
     CHECKED_TENSORTRAX,

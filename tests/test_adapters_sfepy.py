@@ -1,5 +1,5 @@
 """SfePy (conformance/adapters/sfepy.py) against the UFL oracle with matched energies, on
-single-tet and cube-small in every state of comparisons/states.py.
+single-tet and cube-small in every state of common/states.py.
 
 What the check finds (SfePy 2021.4, Debian):
 * dw_tl_he_neohook, dw_tl_he_mooney_rivlin, dw_tl_bulk_penalty and dw_tl_he_genyeoh: force
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from adapter_cases import ADAPTER_MESHES, errors_in_every_state, load_mesh
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
 pytest.importorskip("sfepy", reason="SfePy is not installed (Debian: python3-sfepy)")
 pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
@@ -29,8 +29,8 @@ pytestmark = pytest.mark.oracle
 
 import sfepy  # noqa: E402
 
-from comparisons.cases import DEFAULT_MATERIALS  # noqa: E402
-from comparisons.states import apply_state  # noqa: E402
+from common.cases import DEFAULT_MATERIALS  # noqa: E402
+from common.states import apply_state  # noqa: E402
 from conformance.adapters import Unsupported  # noqa: E402
 from conformance.adapters.sfepy import CHECKED_VERSION, SfePyAdapter, SfePyTerms, supports  # noqa: E402
 from mjed import materials as M  # noqa: E402

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import mjed.materials as M
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 from comparisons.closed_form import (
     ISOTROPIC,
     has_closed_form,

@@ -11,7 +11,8 @@ pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: pyt
 pytestmark = pytest.mark.oracle
 
 import mjed  # noqa: E402
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL, compare_arrays  # noqa: E402
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL  # noqa: E402
+from comparisons.equivalence import compare_arrays  # noqa: E402
 from conftest import MATERIALS, perturbed, random_tetrahedron  # noqa: E402
 from mjed.compiled import numba_available  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
@@ -46,8 +47,8 @@ def test_compiled_per_element_against_oracle(material, kind, seed):
 def test_compiled_assembled_against_oracle_on_the_small_cube_in_every_state(kind):
     pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file")
     import meshes
-    from comparisons.cases import DEFAULT_MATERIALS
-    from comparisons.states import apply_state, state_names
+    from common.cases import DEFAULT_MATERIALS
+    from common.states import apply_state, state_names
 
     points, cells = meshes.load("cube-small")
     mesh = mjed.TetMesh(points, cells)

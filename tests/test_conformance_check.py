@@ -194,8 +194,8 @@ def _as(engine, case, model):
 def test_stiffness_parts_sum_to_the_oracle(name):
     from scipy.sparse.linalg import norm
 
-    from comparisons.cases import DEFAULT_MATERIALS
-    from comparisons.states import apply_state
+    from common.cases import DEFAULT_MATERIALS
+    from common.states import apply_state
     from conformance.oracle import OracleCache
     from conformance.spec import CaseInput
     import meshes
@@ -215,7 +215,7 @@ def test_user_energy_tangent_split_names_the_volumetric_part():
     from scipy.sparse.linalg import norm
 
     import meshes
-    from comparisons.states import apply_state
+    from common.states import apply_state
     from conformance.oracle import OracleCache
     from conformance.parts import volumetric_user_energy
     from conformance.protocol import check_implementation

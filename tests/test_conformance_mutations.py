@@ -96,7 +96,7 @@ def test_an_unexplained_error_is_called_so():
     ("geometric stiffness missing", "geometric stiffness", -1.0),
 ])
 def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
-    from comparisons.cases import DEFAULT_MATERIALS
+    from common.cases import DEFAULT_MATERIALS
     from conformance.protocol import check_implementation
     from conformance_mutations import broken_engine
 

@@ -100,7 +100,7 @@ def _check_result(*, comparisons=(1e-15,), missing=("modern-serial",), errors=()
 ])
 def test_study_result_follows_the_policy(monkeypatch, kwargs, status, code):
     from comparisons import cross_release
-    from comparisons.result import exit_code
+    from common.result import exit_code
 
     monkeypatch.setattr(cross_release, "cross_release_check", lambda stacks, quick: _check_result(**kwargs))
     r = cross_release.cross_release_study(quick=False)

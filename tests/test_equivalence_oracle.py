@@ -12,9 +12,10 @@ pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: pyt
 pytestmark = pytest.mark.oracle
 
 import mjed  # noqa: E402
-from comparisons.cases import DEFAULT_MATERIALS  # noqa: E402
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL, compare_arrays, run_cases  # noqa: E402
-from comparisons.states import state_names  # noqa: E402
+from common.cases import DEFAULT_MATERIALS  # noqa: E402
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL  # noqa: E402
+from comparisons.equivalence import compare_arrays, run_cases  # noqa: E402
+from common.states import state_names  # noqa: E402
 from conftest import MATERIALS, perturbed, random_tetrahedron  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
 

@@ -12,10 +12,10 @@ import pytest
 import meshes
 import mjed
 import reference_fem
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 from comparisons.cli import main
 from comparisons.equivalence import equivalence_study
-from comparisons.result import Status, exit_code
+from common.result import Status, exit_code
 from conftest import parse_reproduce
 
 

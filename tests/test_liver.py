@@ -9,7 +9,7 @@ import pytest
 
 from comparisons.cli import main
 from comparisons.liver import MODELS, default_fixed_specs, run_liver
-from comparisons.options import InputError
+from common.options import InputError
 from comparisons.regions import parse_region, select_nodes
 
 pytest.importorskip("meshio", reason="the ParaView series is written with meshio")

@@ -14,7 +14,7 @@ from comparisons.cli import main
 from comparisons.commands import liver as liver_command_module
 from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, liver_study
 from comparisons.oscillation import euler_decay_rate, oscillation_metrics
-from comparisons.result import Status
+from common.result import Status
 from mjed.compiled import numba_available
 
 pytest.importorskip("meshio")
@@ -72,7 +72,7 @@ def test_units_and_scale_mean_the_same_and_not_both(organ_files, tmp_path):
 
 def test_nodes_files_use_the_mesh_files_numbering_and_index_files_positions(organ_files):
     from comparisons.organ import fixed_nodes, load_organ
-    from comparisons.options import InputError
+    from common.options import InputError
 
     folder, path, numbers = organ_files
     organ = load_organ(str(path), scale=0.01)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 from comparisons.opcount import EIGEN, TRANSCENDENTAL, classical_flops, mjed_flops, mjed_source_flops, model, source_flops
 from mjed import materials as M
 from mjed.materials.base import Material

@@ -5,7 +5,7 @@ import subprocess
 import sys
 
 from comparisons.provenance import provenance_study
-from comparisons.result import Status
+from common.result import Status
 
 
 def test_provenance_is_a_complete_result_with_a_real_command():

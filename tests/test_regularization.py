@@ -45,7 +45,7 @@ def test_half_height_cube_study():
     pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
     import meshes
 
-    from comparisons.cases import DEFAULT_MATERIALS
+    from common.cases import DEFAULT_MATERIALS
 
     points, cells = meshes.load("cube-small")
     out = run_study(mjed.TetMesh(points, cells), DEFAULT_MATERIALS["NeoHookean"])

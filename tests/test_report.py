@@ -8,10 +8,10 @@ import re
 
 import pytest
 
-from comparisons.blocks import Figure, Paragraph, Table
+from common.blocks import Figure, Paragraph, Table
 from comparisons.cli import main
 from comparisons.report.runner import ReportStudy, publish_latest, run_report
-from comparisons.result import Check, Status, StudyResult
+from common.result import Check, Status, StudyResult
 from conftest import parse_reproduce
 
 EVERY = "every check passed"
@@ -277,7 +277,7 @@ def test_unwritable_destinations_are_refused_before_any_work(argv, capsys):
 def test_progress_is_drawn_only_when_enabled():
     import io
 
-    from comparisons.progress import Progress, StatusLine
+    from common.progress import Progress, StatusLine
 
     quiet, loud = io.StringIO(), io.StringIO()
     for stream, enabled in ((quiet, None), (loud, True)):  # StringIO is not a terminal

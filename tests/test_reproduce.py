@@ -1,7 +1,7 @@
 """Reproduce lines: quoted, flags only when set, and parsed back by the real parser."""
 
-from comparisons.cases import DEFAULT_MATERIALS
-from comparisons.reproduce import command, material_option, mesh_option, states_option
+from common.cases import DEFAULT_MATERIALS
+from common.reproduce import command, material_option, mesh_option, states_option
 from conftest import parse_reproduce
 
 

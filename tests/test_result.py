@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from comparisons.result import (EXIT_FAILED, EXIT_INCOMPLETE, EXIT_PASSED, Check, Status, StudyResult,
+from common.result import (EXIT_FAILED, EXIT_INCOMPLETE, EXIT_PASSED, Check, Status, StudyResult,
                                 exit_code, status_from_checks)
 
 

@@ -1,8 +1,8 @@
 """A study result on the terminal: blocks, checks, left-outs, verdict line and reproduce line."""
 
-from comparisons.blocks import Figure, Paragraph, Table
-from comparisons.result import Check, StudyResult
-from comparisons.terminal import format_result
+from common.blocks import Figure, Paragraph, Table
+from common.result import Check, StudyResult
+from common.terminal import format_result
 
 
 def test_format_result_shows_what_was_checked_and_left_out():

@@ -111,7 +111,7 @@ def tiny_study(tmp_path_factory):
 
 
 def test_study_result_statuses_checks_and_protocol(tiny_study):
-    from comparisons.result import Status
+    from common.result import Status
 
     result, out = tiny_study
     assert result.key == "timing"
@@ -153,7 +153,7 @@ def test_study_data_schema_and_ratios_per_round(tiny_study):
 
 
 def test_study_blocks_and_figure(tiny_study):
-    from comparisons.blocks import Figure, Table
+    from common.blocks import Figure, Table
 
     result, out = tiny_study
     figs = [b for b in result.blocks if isinstance(b, Figure)]

@@ -243,7 +243,7 @@ def test_a_user_energy_equal_to_a_builtin_gives_the_builtin_oracle(builtin, expr
     user = UserEnergy(expression, {n: getattr(mat, n) for n in names[builtin]}, name=f"{builtin} as an expression")
     points, cells = _cube_small()
     ref, mine = UFLOracle(points, cells, mat), UFLOracle(points, cells, user)
-    from comparisons.states import apply_state
+    from common.states import apply_state
 
     for state in ("uniaxial", "shear", "random"):
         x = apply_state(state, points, cells)

@@ -2,8 +2,8 @@
 
 import pytest
 
-from comparisons.result import Check, StudyResult
-from comparisons.verdict import EXIT_POLICY, not_covered_lines, status_label, verdict_sentence
+from common.result import Check, StudyResult
+from common.verdict import EXIT_POLICY, not_covered_lines, status_label, verdict_sentence
 
 
 def _r(key, checks=(("x", 0.5, 1.0, "<=", "tolerance"),), **kw):

@@ -204,7 +204,7 @@ def test_constructor_and_inverted_errors():
 @pytest.mark.parametrize("name", ["StVenantKirchhoff", "NeoHookean", "ArrudaBoyce", "Costa"])
 def test_one_viscous_step_agrees_with_the_ufl_oracle(name):
     pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
-    from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+    from common.tolerances import FORCE_TOL, STIFFNESS_TOL
     from reference_fem.viscous_oracle import ViscousUFLOracle
 
     rng = np.random.default_rng(7)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "all"
 ORDER = 1
@@ -53,9 +53,9 @@ def run(args) -> int:
         mesh_spec = QUICK_MESHES if args.quick else "all"
     mesh_list = opt.resolve_meshes(mesh_spec)
 
+    from common.verdict import not_covered_lines, status_label, verdict_sentence
     from comparisons.report.runner import run_report
     from comparisons.report.studies import report_studies, study_keys
-    from comparisons.verdict import not_covered_lines, status_label, verdict_sentence
 
     only = parse_only(args.only, study_keys())
     outcome = run_report(

@@ -22,7 +22,7 @@ directory under --out.
 
 
 def configure(parser) -> None:
-    from comparisons import options as opt
+    from common import options as opt
     from conformance.options import add_model_options
 
     parser.add_argument("dir", metavar="DIR", nargs="?", help="a kit written by 'mjed-verify export' (optional with --command)")
@@ -36,7 +36,7 @@ def configure(parser) -> None:
 
 
 def run(args) -> int:
-    from comparisons.options import InputError
+    from common.options import InputError
     from conformance.command import command_words
     from conformance.exchange import FormatError
 

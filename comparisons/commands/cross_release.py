@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "cross-release"
 ORDER = 90
@@ -23,8 +23,8 @@ def configure(parser) -> None:
 
 
 def run(args) -> int:
+    from common.terminal import finish
     from comparisons.cross_release import cross_release_study
-    from comparisons.terminal import finish
 
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
     return finish(cross_release_study(quick=args.quick, progress=progress), args)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "dma"
 ORDER = 30
@@ -28,8 +28,8 @@ def configure(parser) -> None:
 
 
 def run(args) -> int:
+    from common.terminal import finish
     from comparisons.rheometer import SPEC_OPTIONS, rheometer_spec, rheometer_study
-    from comparisons.terminal import finish
 
     overrides = {k: getattr(args, k) for k in SPEC_OPTIONS}
     try:

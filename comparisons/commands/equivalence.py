@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "equivalence"
 ORDER = 10
@@ -32,8 +32,8 @@ def run(args) -> int:
     states = opt.resolve_states(args.states)
     mesh_list = opt.resolve_meshes(args.mesh)
 
+    from common.terminal import finish
     from comparisons.equivalence import equivalence_study
-    from comparisons.terminal import finish
     from reference_fem import dolfinx_available
 
     progress = None if args.quiet else (lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True))

@@ -26,7 +26,7 @@ def configure(parser) -> None:
 
 
 def run(args) -> int:
-    from comparisons.options import InputError
+    from common.options import InputError
     from conformance.kit import PROBES, write_kit
     from conformance.options import cases_from_args, reproduce
 

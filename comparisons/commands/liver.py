@@ -10,7 +10,7 @@ import os
 import sys
 from typing import Dict, List, Optional
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "liver"
 ORDER = 40
@@ -115,7 +115,7 @@ def _param_values(items: Optional[List[str]]) -> Dict[str, object]:
 
 def material_from_options(name: Optional[str], params: Optional[List[str]], sofa: Optional[str], ogden_order: str):
     """The material the options describe, or None for the liver's default."""
-    from comparisons.cases import default_material
+    from common.cases import default_material
     from comparisons.liver import LiverParameters
     from mjed.materials import from_sofa
 
@@ -188,8 +188,8 @@ def liver_options(args) -> dict:
 
 
 def run(args) -> int:
+    from common.result import exit_code
     from comparisons.liver import PAPER_HYPERELASTIC_SHARE, liver_study, oscillation_findings
-    from comparisons.result import exit_code
     from meshes.io import one_line_warnings
 
     kwargs = liver_options(args)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "timing"
 ORDER = 40
@@ -56,8 +56,15 @@ def _methods(spec, default):
 
 
 def run(args) -> int:
-    from comparisons.result import exit_code
-    from comparisons.timing import DEFAULT_METHODS, SCALING_METHODS, scaling_command, scaling_study, timing_command, timing_study
+    from common.result import exit_code
+    from comparisons.timing import (
+        DEFAULT_METHODS,
+        SCALING_METHODS,
+        scaling_command,
+        scaling_study,
+        timing_command,
+        timing_study,
+    )
 
     if args.max_cells is not None and args.max_cells < 6:
         raise opt.InputError(f"--max-cells must be >= 6, got {args.max_cells}")
@@ -68,7 +75,7 @@ def run(args) -> int:
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
 
     if args.scaling:
-        from comparisons.cases import default_material
+        from common.cases import default_material
 
         try:
             default_material(args.scaling_material)
@@ -80,7 +87,7 @@ def run(args) -> int:
         result = scaling_study(quick=args.quick, out_dir=args.out, progress=progress, material=args.scaling_material,
                                methods=methods, max_cells=args.max_cells, command=command)
     else:
-        from comparisons.cases import DEFAULT_MATERIALS
+        from common.cases import DEFAULT_MATERIALS
 
         materials = opt.resolve_materials(args.material)
         (label, _, _), = opt.resolve_meshes(args.mesh, several=False)
@@ -99,7 +106,7 @@ def run(args) -> int:
 
 def render_text(result) -> str:
     """The result as plain text: status, headline, the blocks' tables, the checks."""
-    from comparisons.blocks import Figure, Paragraph, Preformatted, Table
+    from common.blocks import Figure, Paragraph, Preformatted, Table
 
     lines = [f"{result.title}", f"status: {result.status.value}" + (" (partial)" if result.partial else ""),
              result.headline]

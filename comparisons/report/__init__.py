@@ -1,6 +1,6 @@
 """The verification report: study results rendered as HTML, Markdown and JSON.
 
-The studies own their results (:class:`comparisons.result.StudyResult`); this package only
+The studies own their results (:class:`common.result.StudyResult`); this package only
 runs the registry (:mod:`comparisons.report.studies`) safely and renders what comes back:
 
     from comparisons.report import run_report

@@ -10,8 +10,8 @@ Safety rules, in order of importance:
   ``latest`` where it was;
 - a study left out by ``--only`` is listed as NOT RUN with that reason, never silently dropped.
 
-The runner decides no verdict: each study returns its :class:`comparisons.result.StudyResult`,
-and the summary words them (:mod:`comparisons.verdict`).
+The runner decides no verdict: each study returns its :class:`common.result.StudyResult`,
+and the summary words them (:mod:`common.verdict`).
 """
 
 from __future__ import annotations
@@ -25,10 +25,10 @@ import traceback
 from dataclasses import dataclass, replace
 from typing import Callable, List, Optional, Sequence
 
-from comparisons.blocks import Figure, Preformatted
-from comparisons.report.render import to_html, to_markdown
-from comparisons.result import StudyResult, exit_code
-from comparisons.verdict import not_covered_lines, status_label, verdict_sentence
+from common.blocks import Figure, Preformatted
+from common.render import to_html, to_markdown
+from common.result import StudyResult, exit_code
+from common.verdict import not_covered_lines, status_label, verdict_sentence
 
 __all__ = ["StudyContext", "ReportStudy", "RunOutcome", "run_report", "publish_latest", "report_command"]
 
@@ -54,7 +54,7 @@ class StudyContext:
 
     def status(self, label: str):
         """A status-line callback for a study's progress (silent off a terminal)."""
-        from comparisons.progress import StatusLine
+        from common.progress import StatusLine
 
         return StatusLine(f"  {label}", enabled=None if self.show_progress else False)
 
@@ -75,7 +75,7 @@ class RunOutcome:
     results: List[StudyResult]
 
     def exit_code(self, *, allow_incomplete: bool = False) -> int:
-        """The written policy (comparisons.verdict.EXIT_POLICY); 130 for an interrupted run."""
+        """The written policy (common.verdict.EXIT_POLICY); 130 for an interrupted run."""
         return exit_code(self.results, allow_incomplete=allow_incomplete) if self.complete else 130
 
     @property
@@ -85,7 +85,7 @@ class RunOutcome:
 
 def report_command(ctx: StudyContext, only: Optional[Sequence[str]] = None) -> str:
     """``mjed-verify all ...`` with this run's selections (and ``--only`` if given)."""
-    from comparisons.reproduce import command, material_option, mesh_option, only_option, states_option
+    from common.reproduce import command, material_option, mesh_option, only_option, states_option
 
     material, comment = material_option(ctx.materials)
     return command("all", comment=comment, quick=ctx.quick, material=material,
@@ -231,7 +231,7 @@ def run_report(
                "exit_code": exit_code(results) if not interrupted else 130,
                "verdict": verdict_sentence(results), "not_covered": not_covered_lines(results),
                "studies": [r.to_dict() for r in results]}
-    from comparisons.options import write_json
+    from common.options import write_json
 
     write_json(os.path.join(partial, "results.json"), _paths_relative_to(payload, partial))
     with open(os.path.join(partial, "report.md"), "w") as fh:

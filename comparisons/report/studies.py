@@ -1,7 +1,7 @@
 """The report's registry of studies, in the order they appear.
 
 Each entry calls the study's own entry point (the same function its subcommand calls), which
-returns a :class:`comparisons.result.StudyResult`; nothing here composes a verdict, a check or
+returns a :class:`common.result.StudyResult`; nothing here composes a verdict, a check or
 a table of a study of its own.
 """
 
@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Tuple
 
+from common.result import StudyResult
 from comparisons.report.runner import ReportStudy, StudyContext
-from comparisons.result import StudyResult
 
 __all__ = ["report_studies", "study_keys"]
 
@@ -26,8 +26,8 @@ def _with_status(ctx: StudyContext, label: str, study, *args, **kwargs):
 
 # ----------------------------------------------------------------------------- the studies
 def _equivalence(ctx: StudyContext) -> StudyResult:
+    from common.progress import Progress
     from comparisons.equivalence import equivalence_study
-    from comparisons.progress import Progress
 
     bar = Progress(len(ctx.meshes) * len(ctx.materials) + 2, "equivalence", enabled=None if ctx.show_progress else False)
     try:
@@ -38,7 +38,6 @@ def _equivalence(ctx: StudyContext) -> StudyResult:
 
 def _regularization(ctx: StudyContext) -> StudyResult:
     import meshes
-
     from comparisons.regularization import regularization_study
 
     points, cells, label = meshes.resolve("cube-small")
@@ -61,7 +60,7 @@ def _cross_release(ctx: StudyContext) -> StudyResult:
 def _timing(ctx: StudyContext) -> StudyResult:
     from comparisons.timing import timing_study
 
-    # The timing study times the materials of comparisons/cases.py, chosen by name.
+    # The timing study times the materials of common/cases.py, chosen by name.
     names = [m.name for m in ctx.materials]
     return _with_status(ctx, "timing", timing_study, names, "cube-small" if ctx.quick else "cube-paper",
                         quick=ctx.quick, out_dir=ctx.figure_path("timing"))

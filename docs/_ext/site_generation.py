@@ -4,7 +4,7 @@ At ``builder-inited`` (before Sphinx reads the sources) it writes into ``docs/ge
 (git-ignored):
 
 - ``cli.md``: the command-line reference, from ``comparisons.cli.build_parser()``;
-- ``api/<package>.md``: one autodoc page per package (mjed, reference_fem, comparisons,
+- ``api/<package>.md``: one autodoc page per package (mjed, reference_fem, common, comparisons,
   meshes, and conformance when it exists), one section per module;
 - ``tutorials/<name>.md`` and its figures: each ``docs/tutorials/*.py`` executed by
   ``tutorial_runner`` (reused when its source key matches, see there).
@@ -32,7 +32,7 @@ import tutorial_runner  # noqa: E402
 
 LOG = logging.getLogger(__name__)
 ROOT = tutorial_runner.ROOT
-API_PACKAGES = ("mjed", "reference_fem", "comparisons", "meshes", "conformance")
+API_PACKAGES = ("mjed", "reference_fem", "common", "comparisons", "meshes", "conformance")
 MATHJAX_SOURCE = Path("/usr/share/javascript/mathjax")
 # What MathJax 2's TeX-AMS_CHTML configuration loads (the fonts are CommonHTML's woff files).
 MATHJAX_PARTS = ("MathJax.js", "config/TeX-AMS_CHTML.js", "extensions", "jax/input/TeX", "jax/output/CommonHTML",

@@ -39,7 +39,7 @@ from typing import List, Optional, Sequence
 ROOT = Path(__file__).resolve().parents[2]
 TUTORIAL_DIR = ROOT / "docs" / "tutorials"
 # The project's sources whose change must re-execute every tutorial.
-SOURCE_PACKAGES = ("mjed", "reference_fem", "comparisons", "meshes", "conformance")
+SOURCE_PACKAGES = ("mjed", "reference_fem", "common", "comparisons", "meshes", "conformance")
 
 _CELL_MARK = re.compile(r"^# %%(.*)$")
 

@@ -112,7 +112,7 @@ assert outcome["shear"].status == "passed"
 random_cause = outcome["random"].diagnosis.causes[0]
 assert random_cause.code == "volumetric"
 assert "k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2" in random_cause.evidence
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 
 lam = DEFAULT_MATERIALS["NeoHookean"].lam
 assert f"k = {lam:.6g} Pa" in random_cause.evidence  # the fitted coefficient is the engine's lam
@@ -128,7 +128,7 @@ print(random_cause.text())
 import matplotlib.pyplot as plt
 
 import meshes
-from comparisons.states import apply_state
+from common.states import apply_state
 
 X, cells, _ = meshes.resolve("cube-small")
 x = apply_state("random", X, cells)

@@ -19,7 +19,7 @@
 import numpy as np
 
 import mjed
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 from comparisons.regularization import negative_eigenvalues
 from meshes import load
 

@@ -23,7 +23,7 @@ from functools import singledispatch
 import numpy as np
 
 import mjed
-from comparisons.cases import DEFAULT_MATERIALS
+from common.cases import DEFAULT_MATERIALS
 from meshes.structured import structured_box
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
@@ -249,7 +249,7 @@ assert all(m.special == k.special and m.eig == k.eig for _, m, k in rows)
 # The full protocol is the timing study (`mjed-verify timing`).
 
 # %%
-from comparisons.states import smooth_random
+from common.states import smooth_random
 
 X, cells = structured_box(12)
 mesh = mjed.TetMesh(X, cells)

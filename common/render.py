@@ -1,9 +1,9 @@
 """Markdown and self-contained HTML from study results (figures embedded as data URIs).
 
-One generic renderer serves every study: a :class:`comparisons.result.StudyResult` is shown as
+One generic renderer serves every study: a :class:`common.result.StudyResult` is shown as
 its status, headline and reason, what it left out, its protocol, its checks, the command that
 reproduces it and then its own blocks. The summary at the top and the table of contents word
-the statuses with :mod:`comparisons.verdict`, so they say no more than the results do.
+the statuses with :mod:`common.verdict`, so they say no more than the results do.
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import html
 import os
 from typing import List, Sequence
 
-from comparisons.blocks import Block, Figure, Paragraph, Preformatted, Table
-from comparisons.result import Check, Status, StudyResult
-from comparisons.terminal import format_cell
-from comparisons.verdict import not_covered_lines, status_label, verdict_sentence
+from common.blocks import Block, Figure, Paragraph, Preformatted, Table
+from common.result import Check, Status, StudyResult
+from common.terminal import format_cell
+from common.verdict import not_covered_lines, status_label, verdict_sentence
 
 __all__ = ["to_markdown", "to_html", "summary_blocks", "study_blocks", "status_class"]
 

@@ -1,8 +1,8 @@
 """What a set of study results may claim, in words: status labels, the verdict, the exit policy.
 
-The status of each study comes from :mod:`comparisons.result`; this module only words it, the
+The status of each study comes from :mod:`common.result`; this module only words it, the
 same way on the terminal, in the report's table of contents, its summary and results.json.
-"every check passed" is said only when :func:`comparisons.result.exit_code` is 0: every study
+"every check passed" is said only when :func:`common.result.exit_code` is 0: every study
 ran, passed, and left nothing out.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from comparisons.result import EXIT_FAILED, EXIT_PASSED, Status, StudyResult, exit_code
+from common.result import EXIT_FAILED, EXIT_PASSED, Status, StudyResult, exit_code
 
 __all__ = ["EXIT_POLICY", "status_label", "verdict_sentence", "not_covered_lines"]
 

@@ -25,14 +25,14 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Iterable, Mapping, Optional, Sequence, Tuple
 
-from comparisons.blocks import Block
+from common.blocks import Block
 
 __all__ = ["Status", "Check", "StudyResult", "status_from_checks", "worst_status", "exit_code",
            "EXIT_PASSED", "EXIT_FAILED", "EXIT_INPUT", "EXIT_INCOMPLETE"]
 
 EXIT_PASSED = 0
 EXIT_FAILED = 1
-EXIT_INPUT = 2  # bad input, refused before any work (comparisons.options.InputError)
+EXIT_INPUT = 2  # bad input, refused before any work (common.options.InputError)
 EXIT_INCOMPLETE = 3  # a target missed, a study not run, or a partial run
 
 

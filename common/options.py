@@ -65,7 +65,7 @@ def add_out_option(parser: argparse.ArgumentParser, default: str) -> None:
 
 
 def resolve_materials(spec: str):
-    from comparisons.cases import parse_materials
+    from common.cases import parse_materials
 
     try:
         return parse_materials(spec)
@@ -97,7 +97,7 @@ def resolve_meshes(spec: str, *, several: bool = True) -> List[Tuple[str, np.nda
 
 
 def resolve_states(spec: str) -> List[str]:
-    from comparisons.states import state_names
+    from common.states import state_names
 
     if spec.strip().lower() == "all":
         return list(state_names())
