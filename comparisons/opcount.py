@@ -115,7 +115,7 @@ def mjed_flops(material: Material) -> OpCount:
     has_Sh = any(s and _varies(t.f) for s, t in zip(stressed, terms))
     has_h = any(_varies(t.f) for t in terms)
     need_eig = table.need_eig
-    n_exp = int(table.group_exp.sum())
+    n_exp = int((table.group_kind != 0).sum())  # groups with a function of their sum
     slots = list(zip(table.slot_kind.tolist(), table.slot_ident.tolist()))
     n_first = sum(1 for k, _ in slots if k == 0)
     n_second = sum(1 for k, _ in slots if k == 1)

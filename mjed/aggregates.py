@@ -5,9 +5,10 @@ For one group with u = sum_k f_k g_k (paper, eqs. 3-4):
     S-bar = sum_k f_k S_k,  S-hat = sum_k f'_k S_k,  h = sum_k f'_k g_k,  g2 = sum_k f''_k g_k,
 
 and, per declared tangent pair, the weight sum_k f_k beta_k (or gamma_k). A plain group
-contributes c u, an exponential group c e^u. Everything in the Hessian but the rank-one term
-c e^u du (x) du of an exponential group is linear in these sums, so all groups are folded
-into one :class:`Aggregates` record (each weighted by c or c e^u) before any 3x3 algebra.
+contributes c u, a group with a smooth function phi (e^u, ln(a + u), (a + u)^p) c phi(u).
+Everything in the Hessian but the rank-one term c phi''(u) du (x) du of such a group is
+linear in these sums, so all groups are folded into one :class:`Aggregates` record (each
+weighted by c or c phi'(u)) before any 3x3 algebra.
 Sums that no term feeds stay None, so e.g. St Venant-Kirchhoff (f = 1) never builds the
 volumetric coupling.
 """
@@ -89,7 +90,7 @@ class GroupSums:
     def __init__(self, m: int, tangent: bool = True, value: bool = True):
         self.m = m
         self.tangent = tangent
-        self.value = value  # u is wanted (the energy, or an exponential group's e^u)
+        self.value = value  # u is wanted (the energy, or phi(u) of a non-plain group)
         self.u = np.zeros(m)
         self.S = None
         self.S_hat = None
@@ -123,13 +124,13 @@ class GroupSums:
 
 @dataclass(frozen=True)
 class Aggregates:
-    """All groups folded, each weighted by c (plain) or c e^u (exponential); None is zero.
+    """All groups folded, each weighted by c (plain) or c phi'(u); None is zero.
 
     energy: (m,) W per cell (not multiplied by the rest volume), or None if not asked.
     S: S-bar, component-major (3, 3, m) or a (3, 3) constant. S_hat: S-hat, the same.
     h: (m,). g2: (m,).
     weights: tangent-pair weights by :func:`slot_key`, each (m,) or a float.
-    rank_one: (c e^u (m,), du (3, 4, m)) of each exponential group.
+    rank_one: (c phi''(u) (m,), du (3, 4, m)) of each non-plain group.
     S_hat, g2, weights and rank_one are formed only when the stiffness is asked (else None,
     None, {} and ()).
     """
@@ -152,7 +153,7 @@ def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
         groups: the material's term groups.
         kin, J: the kinematics of every cell (m cells).
         du_of: given when the stiffness is asked: du_of(S, h, k) returns the gradient
-            F S D_a + h d_a (3, 4, m) of the k-th exponential group's u, for its rank-one
+            F S D_a + h d_a (3, 4, m) of the k-th non-plain group's u, for its rank-one
             term. Without it, only what the energy, the gradient and the stress need is
             formed (no S-hat, g2 or tangent coefficients: the force-only path).
         energy: also sum the energy (else Aggregates.energy is None and plain groups skip
@@ -164,15 +165,16 @@ def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
     weights: Dict[Tuple[str, Hashable], object] = {}
     rank_one = []
     for group in groups:
-        sums = GroupSums(m, tangent=du_of is not None, value=energy or group.exponential)
+        sums = GroupSums(m, tangent=du_of is not None, value=energy or not group.plain)
         for term in group.terms:
             sums.add(term, kin, J)
-        if group.exponential:
-            c = group.coefficient * np.exp(sums.u)
+        if not group.plain:
+            phi, dphi, d2phi = group.function(sums.u)
+            c = group.coefficient * dphi  # the weight of every sum that is linear in u's
             if energy:
-                W += c
+                W += group.coefficient * phi
             if du_of is not None:
-                rank_one.append((c, du_of(sums.S, sums.h, len(rank_one))))
+                rank_one.append((group.coefficient * d2phi, du_of(sums.S, sums.h, len(rank_one))))
         else:
             c = group.coefficient
             if energy:

@@ -33,6 +33,7 @@ attached to any material with :func:`with_porous_volume`.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Literal, Tuple
 
@@ -199,8 +200,9 @@ def _without_volumetric(group: TermGroup, material: str) -> TermGroup:
         if not isinstance(term.g, Unity):
             terms.append(term)
             continue
-        if group.exponential:
-            raise ValueError(f"with_porous_volume: {material} has a J-only term inside an exponential group; use mode='add'")
+        if not group.plain:
+            raise ValueError(f"with_porous_volume: {material} has a J-only term inside a group with a function of "
+                             "its sum (exp, log, power); use mode='add'")
         f1, df1, _ = term.f(np.ones(1))
         if abs(float(np.asarray(df1).ravel()[0])) > 0.0:
             raise ValueError(
@@ -208,7 +210,7 @@ def _without_volumetric(group: TermGroup, material: str) -> TermGroup:
                 "isochoric stress at rest), so it cannot be replaced; use mode='add'"
             )
         terms.append(Term(_Constant(float(np.asarray(f1).ravel()[0])), Unity()))
-    return TermGroup(tuple(terms), group.exponential, group.coefficient)
+    return dataclasses.replace(group, terms=tuple(terms))
 
 
 def with_porous_volume(material: Material, porous: PorousVolume, *, mode: Literal["add", "replace"] = "add") -> PorousMaterial:

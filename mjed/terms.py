@@ -3,7 +3,11 @@
 A strain energy density is written as
 
     W = sum_groups c_w * sum_{k in w} f_k(J) g_k(C)          (plain group)
-      + sum_groups c_w * exp(sum_{k in w} f_k(J) g_k(C))     (exponential group)
+      + sum_groups c_w * phi_w(sum_{k in w} f_k(J) g_k(C))   (smooth function of the sum)
+
+with phi_w one of :class:`Exp` (e^u), :class:`Log` (ln(a + u)) or :class:`Power`
+((a + u)^p): a smooth function of a separable sum, whose Hessian is phi' times the sum's
+plus the rank-one phi'' du (x) du.
 
 A :class:`Term` pairs a function of J (:class:`JFunction`, which gives f, f', f'') with a
 function of C (:class:`InvariantFunction`, which gives g, S = 2 dg/dC and dS/dC). The
@@ -20,7 +24,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Literal, Sequence, Tuple, Union
+from typing import Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -39,6 +43,10 @@ __all__ = [
     "LinearI2",
     "GreenLagrangeQuadratic",
     "Term",
+    "SmoothFunction",
+    "Exp",
+    "Log",
+    "Power",
     "TermGroup",
 ]
 
@@ -250,10 +258,69 @@ class Term:
     g: InvariantFunction
 
 
+class SmoothFunction(ABC):
+    """phi(u) of a group's sum u, applied per cell."""
+
+    @abstractmethod
+    def __call__(self, u: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """phi(u), phi'(u), phi''(u), each (m,) like u."""
+
+
+@dataclass(frozen=True)
+class Exp(SmoothFunction):
+    """phi = e^u (a shift would only scale the group's coefficient)."""
+
+    def __call__(self, u):
+        e = np.exp(u)
+        return e, e, e
+
+
+@dataclass(frozen=True)
+class Log(SmoothFunction):
+    """phi = ln(shift + u); defined for shift + u > 0 (NaN beyond, as ln J for J <= 0)."""
+
+    shift: float = 0.0
+
+    def __call__(self, u):
+        a = self.shift + u
+        inv = 1.0 / a
+        return np.log(a), inv, -inv * inv
+
+
+@dataclass(frozen=True)
+class Power(SmoothFunction):
+    """phi = (shift + u)^p for real p (shift + u > 0 unless p is an integer)."""
+
+    p: float
+    shift: float = 0.0
+
+    def __call__(self, u):
+        a = self.shift + u
+        ap2 = a ** (self.p - 2.0)
+        return ap2 * a * a, self.p * ap2 * a, self.p * (self.p - 1.0) * ap2
+
+
 @dataclass(frozen=True)
 class TermGroup:
-    """Terms whose products are summed; an exponential group contributes c exp(sum)."""
+    """Terms whose products are summed into u; the group contributes c u (plain) or
+    c phi(u) with ``function`` phi. ``exponential=True`` is the same as function=Exp()."""
 
     terms: Tuple[Term, ...]
     exponential: bool = False
     coefficient: float = 1.0
+    function: Optional[SmoothFunction] = None
+
+    def __post_init__(self):
+        if self.exponential and self.function not in (None, Exp()):
+            raise ValueError(f"TermGroup: exponential=True contradicts function={self.function!r}")
+        if self.function is not None and not isinstance(self.function, SmoothFunction):
+            raise TypeError(f"TermGroup: function must be a SmoothFunction, got {self.function!r}")
+        if self.exponential:
+            object.__setattr__(self, "function", Exp())
+        elif self.function == Exp():
+            object.__setattr__(self, "exponential", True)
+
+    @property
+    def plain(self) -> bool:
+        """The group contributes c u (no function of the sum)."""
+        return self.function is None

@@ -9,6 +9,7 @@ code the diagnosis must name for each one.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable, Dict, Tuple
 
@@ -94,7 +95,7 @@ class _MooneyRivlinJMinusOne(mjed.materials.base.Material):
         for group in self.m.decomposition():
             terms = tuple(Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g) if isinstance(t.f, LogPolynomial) else t
                           for t in group.terms)
-            out.append(TermGroup(terms, group.exponential, group.coefficient))
+            out.append(dataclasses.replace(group, terms=terms))
         return tuple(out)
 
 

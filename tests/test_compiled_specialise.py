@@ -46,8 +46,8 @@ def _agree(mesh, material, x, **kw):
 
 @dataclass(frozen=True)
 class EveryKind(Material):
-    """A made-up energy with every compiled kind of f(J) and g(C), a plain and an exponential
-    group, identity, constant and per-cell slot matrices and both eigen tangents. (The NumPy
+    """A made-up energy with every compiled kind of f(J) and g(C), a plain group and one group
+    of each function of a sum (exp, log, power), identity, constant and per-cell slot matrices and both eigen tangents. (The NumPy
     engine cannot yet add a constant S, I1Power(n=1) times a constant f, to a per-cell one in
     one group, so the constant f multiplies LinearI2 here.)"""
 
@@ -56,8 +56,8 @@ class EveryKind(Material):
     def decomposition(self):
         from mjed.fibre import FibreQuadratic
         from mjed.spectral import EigenPowerSum
-        from mjed.terms import (GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial, Term,
-                                TermGroup, Unity)
+        from mjed.terms import (GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, Log, LogPolynomial,
+                                Power, Term, TermGroup, Unity)
 
         B = np.array([[1.0, 0.3, 0.2], [0.3, 0.8, 0.1], [0.2, 0.1, 0.5]])
         R = np.eye(3) if self.frame is None else self.frame
@@ -72,7 +72,11 @@ class EveryKind(Material):
             Term(JLogJ(0.8, 0.2), Unity()),
         ))
         fibre = TermGroup((Term(JPower(-4.0 / 3.0), FibreQuadratic(B, R)),), exponential=True, coefficient=0.3)
-        return plain, fibre
+        # shift + u stays positive for any J > 0: both sums are >= 0
+        log = TermGroup((Term(JPower(-2.0 / 3.0), I1Power(0.05)), Term(JPower(0.3), LinearI2(0.02))),
+                        coefficient=-0.7, function=Log(0.9))
+        power = TermGroup((Term(JPower(-4.0 / 3.0), LinearI2(0.03)),), coefficient=0.4, function=Power(1.5, 0.2))
+        return plain, fibre, log, power
 
 
 @pytest.mark.parametrize("regularize", [False, True])
@@ -91,6 +95,7 @@ def test_a_material_with_every_term_kind(cube, regularize, per_cell):
     assert {g for _, g, *_ in kinds} == {"unity", "i1power", "linear_i2", "green_lagrange", "fibre", "eigen"}
     assert {c for *_, c in kinds} == {False, True}
     assert {k for k, _ in comp.shape.slots} == {"first", "second", "spectral"}
+    assert {fn for *_, fn in comp.shape.groups} == {"plain", "exp", "log", "power"}
 
 
 def test_one_shape_two_parameter_sets_share_a_kernel_and_keep_their_numbers(cube):

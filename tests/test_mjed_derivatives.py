@@ -42,13 +42,9 @@ def test_a_wrong_derivative_fails_the_taylor_test(jittered_field, rng):
     assert rates.min() < 1.5
 
 
-def test_central_differences_single_tet(material, rng):
-    P, cells = random_tetrahedron(rng)
-    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), material)
-    x = perturbed(P, rng, 0.1)
-    f = field.force(x)
-    K = field.stiffness(x).toarray()
-    h = 1e-6
+def _central_differences(field, x, h: float = 1e-6):
+    """Force (12,) and stiffness (12, 12) of a one-cell field by central differences of its
+    energy and force."""
     f_fd = np.zeros(12)
     K_fd = np.zeros((12, 12))
     for k in range(12):
@@ -57,6 +53,16 @@ def test_central_differences_single_tet(material, rng):
         e = e.reshape(4, 3)
         f_fd[k] = -(field.energy(x + e) - field.energy(x - e)) / (2 * h)
         K_fd[:, k] = -(field.force(x + e) - field.force(x - e)).ravel() / (2 * h)
+    return f_fd, K_fd
+
+
+def test_central_differences_single_tet(material, rng):
+    P, cells = random_tetrahedron(rng)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), material)
+    x = perturbed(P, rng, 0.1)
+    f = field.force(x)
+    K = field.stiffness(x).toarray()
+    f_fd, K_fd = _central_differences(field, x)
     assert np.linalg.norm(f.ravel() - f_fd) <= 1e-7 * np.linalg.norm(f_fd)
     assert np.linalg.norm(K - K_fd) <= 1e-7 * np.linalg.norm(K_fd)
 
@@ -113,3 +119,32 @@ def test_patch_test_interior_forces_vanish(material, rng):
     interior = np.all((points > 1e-12) & (points < 1 - 1e-12), axis=1)
     assert interior.sum() == 8
     assert np.abs(f[interior]).max() <= 1e-12 * np.abs(f).max()
+
+
+@pytest.mark.parametrize("function", ["log", "power", "power_integer"])
+def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
+    """A group c phi(u) with phi = ln(a + u) or (a + u)^p: force and stiffness are the
+    derivatives of the energy (central differences), including the rank-one c phi'' term."""
+    from dataclasses import dataclass
+
+    from mjed.materials.base import Material
+    from mjed.terms import I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup, Unity
+
+    phi = {"log": Log(0.8), "power": Power(2.5, 0.3), "power_integer": Power(3.0, -0.5)}[function]
+
+    @dataclass(frozen=True)
+    class Made(Material):
+        def decomposition(self):
+            u = (Term(JPower(-2.0 / 3.0), I1Power(0.2)), Term(JPower(-4.0 / 3.0), LinearI2(0.1)))
+            return (TermGroup(u, coefficient=1.7, function=phi),
+                    TermGroup((Term(LogPolynomial(2.0), Unity()),)))
+
+    P, cells = random_tetrahedron(rng)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), Made())
+    x = perturbed(P, rng, 0.1)
+    f, K = field.force(x), field.stiffness(x).toarray()
+    f_fd, K_fd = _central_differences(field, x)
+    assert np.linalg.norm(f.ravel() - f_fd) <= 1e-7 * np.linalg.norm(f_fd)
+    assert np.linalg.norm(K - K_fd) <= 1e-7 * np.linalg.norm(K_fd)
+    # a Hessian: symmetric
+    assert np.linalg.norm(K - K.T) <= 1e-12 * np.linalg.norm(K)
