@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
-from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS
 
 __all__ = [
     "ISOTROPIC",

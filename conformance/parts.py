@@ -39,7 +39,7 @@ _VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 _NORMAL = (0, 1, 2)
 _SHEAR = (3, 4, 5)
 
-# Volumetric (J-only) energies per material type, typed from the formulas in docs/conventions.md.
+# Volumetric (J-only) energies per material type: the declared ones (mjed.materials), user energies'.
 _VOLUMETRIC: Dict[type, Callable[[Any, Any, Callable[[str], Any]], Any]] = {}
 
 
@@ -55,29 +55,16 @@ def register_volumetric(cls: type):
 
 
 def _register_builtin() -> None:
-    import ufl
+    from mjed.materials import declarations
+    from reference_fem.energies import UFLNamespace
 
-    from mjed import materials as M
+    def volumetric_of(formula):
+        if formula is None:  # e.g. St Venant-Kirchhoff: every term depends on E
+            return lambda m, F, p: None
+        return lambda m, F, p: formula(p, UFLNamespace(F))
 
-    @register_volumetric(M.StVenantKirchhoff)
-    def _svk(m, F, p):
-        return None  # every term depends on E; nothing is a function of J alone
-
-    @register_volumetric(M.NeoHookean)
-    def _nh(m, F, p):
-        J = ufl.det(F)
-        return -p("mu") * ufl.ln(J) + 0.5 * p("lam") * ufl.ln(J) ** 2
-
-    def _log_squared(m, F, p):
-        return 0.5 * p("k0") * ufl.ln(ufl.det(F)) ** 2
-
-    for cls in (M.MooneyRivlin, M.VerondaWestmann, M.ArrudaBoyce, M.Ogden):
-        register_volumetric(cls)(_log_squared)
-
-    @register_volumetric(M.Costa)
-    def _costa(m, F, p):
-        J = ufl.det(F)
-        return p("k0") * (J * ufl.ln(J) - J + 1.0)
+    for declaration in declarations():  # the J-only parts, as each material declares them
+        register_volumetric(declaration.material)(volumetric_of(declaration.volumetric))
 
     try:
         from reference_fem.user_energy import UserEnergy

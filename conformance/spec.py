@@ -1,6 +1,6 @@
 """What an engine is asked to compute: a model (material or user energy) on a mesh at a state.
 
-A *model* is either one of the seven built-in materials of :mod:`mjed.materials` (its name and
+A *model* is either one of the declared materials of :mod:`mjed.materials` (its name and
 numeric parameters, plus a Costa fibre frame) or a user energy
 (:class:`reference_fem.user_energy.UserEnergy`: expression, parameters, optional fibre).
 :func:`model_to_manifest` and :func:`model_from_manifest` turn one into the ``"model"`` entry of
@@ -17,15 +17,14 @@ from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
-from mjed import materials as M
+from mjed.materials import declarations
 from mjed.materials.base import Material
 
 __all__ = ["CaseInput", "MATERIAL_TYPES", "model_to_manifest", "model_from_manifest", "model_label",
            "model_frame", "SpecError"]
 
-#: The built-in materials, by the name written in a manifest (deserialisation registry).
-MATERIAL_TYPES: Dict[str, type] = {cls.__name__: cls for cls in (
-    M.StVenantKirchhoff, M.NeoHookean, M.MooneyRivlin, M.VerondaWestmann, M.ArrudaBoyce, M.Costa, M.Ogden)}
+#: The declared materials, by the name written in a manifest (deserialisation registry).
+MATERIAL_TYPES: Dict[str, type] = {d.name: d.material for d in declarations()}
 
 
 class SpecError(ValueError):

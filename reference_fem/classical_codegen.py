@@ -37,16 +37,17 @@ The generated ``classical_cells`` takes the arguments of :data:`KERNEL_SIGNATURE
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
 from mjed.compiled.codegen import EDGES, Source, add, gather_cell, mul, scatter_edge_block, write_kernel_module
+from mjed.materials.classical_forms import IsochoricPsi
 
-__all__ = ["LawShape", "classical_source", "KERNEL_SIGNATURE", "LAWS", "PSIS"]
+__all__ = ["LawShape", "classical_source", "KERNEL_SIGNATURE", "LAWS"]
 
-#: The law kinds and the isochoric parts of the decoupled law.
+#: The law kinds.
 LAWS = ("svk", "neohooke", "decoupled", "ogden", "costa")
-PSIS = ("mooney", "veronda", "arruda")
 
 #: The arguments of the generated ``classical_cells``, in order.
 KERNEL_SIGNATURE = ("x", "cells", "D", "V0", "P", "Tt", "want_force", "want_stiffness", "cell_edges", "cell_flip",
@@ -74,11 +75,13 @@ UPPER6 = [(I, K) for I in range(6) for K in range(I, 6)]
 @dataclass(frozen=True)
 class LawShape:
     """What changes the code of a classical kernel: the law kind (one of :data:`LAWS`), the
-    isochoric part of a decoupled law (one of :data:`PSIS`, else None) and whether Costa's
-    tensor is one per cell. The law's numbers stay arguments (P, Tt)."""
+    isochoric Psi of a decoupled law (a material's declared function, else None), the names
+    of the parameters that Psi reads, and whether Costa's tensor is one per cell. The law's
+    numbers stay arguments (P, Tt)."""
 
     law: str
-    psi: Optional[str] = None
+    psi: Optional[IsochoricPsi] = None
+    psi_parameters: Tuple[str, ...] = ()
     per_cell_T: bool = False
 
 
@@ -107,7 +110,7 @@ class _Classical:
     """Writes the kernel of one law shape; each method writes one part of the cell loop."""
 
     def __init__(self, shape: LawShape):
-        if shape.law not in LAWS or (shape.law == "decoupled") != (shape.psi in PSIS):
+        if shape.law not in LAWS or (shape.law == "decoupled") != (shape.psi is not None):
             raise ValueError(f"no classical kernel for {shape!r}")
         self.shape = shape
         self.src = Source()
@@ -124,19 +127,7 @@ class _Classical:
         elif law == "decoupled":
             s("k0 = P[0]")
             s("tk0 = 2.0 * k0")
-            if self.shape.psi == "arruda":  # a_i (I1b^i - 3^i): i a_i and i (i-1) a_i for the derivatives
-                for i in range(1, 6):
-                    s(f"a{i} = P[{1 + i}]")
-                    s(f"da{i} = {float(i)!r} * a{i}")
-                    if i > 1:
-                        s(f"dda{i} = {float(i * (i - 1))!r} * a{i}")
-                s("a3sum = " + " + ".join(f"a{i} * {3.0 ** i!r}" for i in range(1, 6)))
-            else:
-                s("c1, c2 = P[1], P[2]")
-                if self.shape.psi == "veronda":
-                    s("c12 = c1 * c2")
-                    s("c122 = c12 * c2")
-                    s("p2 = -0.5 * c12")
+            self.psi_cell = _declared_psi(s, self.shape)  # hoists what depends on parameters only
         elif law == "ogden":
             s("c, q, r, alpha, k0 = P[0], P[1], P[2], P[3], P[4]")
             s("qm1 = q - 1.0")
@@ -226,24 +217,13 @@ class _Classical:
         return {(I, K): add(mul("lm", ci[I], ci[K]), mul("sb", od[I, K])) for I, K in UPPER6}
 
     def _psi(self) -> Tuple[str, Expr, Expr, Expr]:
-        """Psi(I1b, I2b) and its non-zero derivatives Psi_1, Psi_2, Psi_11 (Psi_12 = Psi_22 = 0
-        for the three laws); returns the names of (Psi, Psi_1, Psi_2, Psi_11)."""
-        s, psi = self.src, self.shape.psi
-        if psi == "mooney":
-            s("psi_v = c1 * (I1b - 3.0) + c2 * (I2b - 3.0)")
-            return "psi_v", "c1", "c2", None
-        if psi == "veronda":
-            s("ex = math.exp(c2 * (I1b - 3.0))")
-            s("psi_v = c1 * (ex - 1.0) + p2 * (I2b - 3.0)")
-            return "psi_v", s.let("p1", "c12 * ex"), "p2", s.let("p11", "c122 * ex")
-        # Arruda-Boyce: the powers of I1b by products
-        s("b2 = I1b * I1b")
-        s("b3 = b2 * I1b")
-        s("b4 = b3 * I1b")
-        s("psi_v = a1 * I1b + a2 * b2 + a3 * b3 + a4 * b4 + a5 * (b4 * I1b) - a3sum")
-        s("p1 = da1 + da2 * I1b + da3 * b2 + da4 * b3 + da5 * b4")
-        s("p11 = dda2 + dda3 * I1b + dda4 * b2 + dda5 * b3")
-        return "psi_v", "p1", None, "p11"
+        """Psi(I1b, I2b) and its derivatives Psi_1, Psi_2, Psi_11 written into the cell loop
+        (the decoupled tangent below takes Psi_12 = Psi_22 = 0); returns their names."""
+        s = self.src
+        psi_v, p1, p2, p11, p12, p22 = self.psi_cell
+        if p12 is not None or p22 is not None:
+            raise NotImplementedError(f"{self.shape.psi!r}: the compiled decoupled law needs Psi_12 = Psi_22 = 0")
+        return s.let("psi_v", psi_v), s.let("p1", p1), s.let("p2", p2), s.let("p11", p11)
 
     def _decoupled_stress(self) -> Tuple[str, Vec6]:
         """S_iso = J^(-2/3) Sb - tr/3 C^-1, Sb = 2 (Psi1 + I1b Psi2) I - 2 Psi2 Cb, plus
@@ -252,7 +232,7 @@ class _Classical:
         s("I1 = C00 + C11 + C22")
         s("j23 = J ** (-2.0 / 3.0)")
         s("I1b = j23 * I1")
-        if self.shape.psi != "arruda":
+        if any(e is not None and "I2b" in e for e in self.psi_cell):
             s("I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C12 * C12 + C02 * C02)))")
             s("I2b = j23 * j23 * I2")
         psi_v, p1, p2, p11 = self._psi()
@@ -447,6 +427,92 @@ class _Classical:
                             ["from mjed.compiled.kernels import JIT_OPTIONS, eigh3_sym, write_csr"], "classical_cells",
                             KERNEL_SIGNATURE, _KERNEL_DOC, self.parameters, cell)
         return s.text()
+
+
+class _Sym:
+    """An expression of the generated source, written by evaluating a declared Psi on it.
+
+    ``const`` marks an expression of the parameters only: when it meets a per-cell one, it is
+    named before the loop (:class:`_Hoist`), so the loop computes no parameter arithmetic.
+    """
+
+    def __init__(self, text: str, const: bool, hoist: "_Hoist"):
+        self.text, self.const, self.hoist = text, const, hoist
+
+    def _wrap(self, other) -> "_Sym":
+        if isinstance(other, _Sym):
+            return other
+        return _Sym(repr(float(other)) if not isinstance(other, int) else repr(other), True, self.hoist)
+
+    def _op(self, a, b, op: str) -> "_Sym":
+        a, b = self._wrap(a), self._wrap(b)
+        if a.const and b.const:
+            return _Sym(f"({a.text} {op} {b.text})", True, self.hoist)
+        return _Sym(f"({self.hoist(a)} {op} {self.hoist(b)})", False, self.hoist)
+
+    def __add__(self, o): return self._op(self, o, "+")  # noqa: E704
+    def __radd__(self, o): return self._op(o, self, "+")  # noqa: E704
+    def __sub__(self, o): return self._op(self, o, "-")  # noqa: E704
+    def __rsub__(self, o): return self._op(o, self, "-")  # noqa: E704
+    def __mul__(self, o): return self._op(self, o, "*")  # noqa: E704
+    def __rmul__(self, o): return self._op(o, self, "*")  # noqa: E704
+    def __truediv__(self, o): return self._op(self, o, "/")  # noqa: E704
+    def __rtruediv__(self, o): return self._op(o, self, "/")  # noqa: E704
+    def __pow__(self, o): return self._op(self, o, "**")  # noqa: E704
+    def __rpow__(self, o): return self._op(o, self, "**")  # noqa: E704
+    def __neg__(self): return self._op(0.0, self, "-")  # noqa: E704
+
+
+class _Hoist:
+    """Names a parameter-only expression before the loop (once per distinct text)."""
+
+    def __init__(self, src: Source):
+        self.src, self.names = src, {}
+
+    def __call__(self, e: _Sym) -> str:
+        if not e.const or _SIMPLE_NAME.match(e.text):
+            return e.text
+        if e.text not in self.names:
+            self.names[e.text] = self.src.let(f"hp{len(self.names)}", e.text)
+        return self.names[e.text]
+
+
+_SIMPLE_NAME = re.compile(r"^-?([A-Za-z_][A-Za-z0-9_]*|[0-9.e+-]+)$")
+
+
+class _SourceMath:
+    """The m of a declared Psi for the source writer: m.exp, m.log write math.exp, math.log."""
+
+    def __init__(self, hoist: _Hoist):
+        self.hoist = hoist
+
+    def _call(self, name: str, x) -> _Sym:
+        x = x if isinstance(x, _Sym) else _Sym(repr(float(x)), True, self.hoist)
+        return _Sym(f"math.{name}({x.text})", x.const, self.hoist)
+
+    def exp(self, x): return self._call("exp", x)  # noqa: E704
+    def log(self, x): return self._call("log", x)  # noqa: E704
+
+
+def _declared_psi(src: Source, shape: LawShape) -> Tuple[Expr, ...]:
+    """Evaluate the shape's declared Psi on symbols: the parameters P[1], P[2], ... (read and
+    combined before the loop) and the per-cell I1b, I2b. Returns the six cell expressions
+    (Psi, Psi_1, Psi_2, Psi_11, Psi_12, Psi_22), None where the declaration gives 0."""
+    hoist = _Hoist(src)
+    names = {}
+    for k, name in enumerate(shape.psi_parameters, start=1):
+        names[name] = _Sym(src.let(f"prm_{name}", f"P[{k}]"), True, hoist)
+    params = type("PsiParameters", (), names)()
+    out = shape.psi.function(params, _Sym("I1b", False, hoist), _Sym("I2b", False, hoist), _SourceMath(hoist))
+    exprs: List[Expr] = []
+    for e in out:
+        if isinstance(e, _Sym):
+            exprs.append(hoist(e) if e.const else e.text)
+        elif e == 0:
+            exprs.append(None)  # structurally zero: its terms are dropped
+        else:
+            exprs.append(repr(float(e)))
+    return tuple(exprs)
 
 
 def classical_source(shape: LawShape) -> str:

@@ -41,16 +41,9 @@ def _neo(law: cm.NeoHookeanLaw):
     return "neohooke", None, [law.mu, law.lam], _NO_TENSOR
 
 
-def _mooney(law: cm.MooneyRivlinLaw):
-    return "decoupled", "mooney", [law.k0, law.c1, law.c2], _NO_TENSOR
-
-
-def _veronda(law: cm.VerondaWestmannLaw):
-    return "decoupled", "veronda", [law.k0, law.c1, law.c2], _NO_TENSOR
-
-
-def _arruda(law: cm.ArrudaBoyceLaw):
-    return "decoupled", "arruda", [law.k0, 0.0] + list(law.coef), _NO_TENSOR  # P[2..6] = a_1..a_5
+def _decoupled(law: cm.DeclaredDecoupledLaw):
+    # P[0] = k0, then the parameters the declared Psi reads, in its declaration's order
+    return "decoupled", law.form.psi, [law.k0] + [v for _, v in law.form.parameters], _NO_TENSOR
 
 
 def _ogden(law: cm.OgdenLaw):
@@ -62,9 +55,8 @@ def _costa(law: cm.CostaLaw):
 
 
 # Parameter layouts: those read by reference_fem.classical_codegen (its ``parameters``).
-_LOWER: Dict[type, Callable] = {cm.StVenantKirchhoffLaw: _svk, cm.NeoHookeanLaw: _neo, cm.MooneyRivlinLaw: _mooney,
-                                cm.VerondaWestmannLaw: _veronda, cm.ArrudaBoyceLaw: _arruda, cm.OgdenLaw: _ogden,
-                                cm.CostaLaw: _costa}
+_LOWER: Dict[type, Callable] = {cm.StVenantKirchhoffLaw: _svk, cm.NeoHookeanLaw: _neo,
+                                cm.DeclaredDecoupledLaw: _decoupled, cm.OgdenLaw: _ogden, cm.CostaLaw: _costa}
 
 
 def lower_law(law: cm.ClassicalLaw) -> Tuple[LawShape, np.ndarray, np.ndarray]:
@@ -74,7 +66,8 @@ def lower_law(law: cm.ClassicalLaw) -> Tuple[LawShape, np.ndarray, np.ndarray]:
         raise NotImplementedError(f"no compiled classical kernel for the law {type(law).__name__}; "
                                   f"supported: {', '.join(c.__name__ for c in _LOWER)}")
     kind, psi, P, T = fn(law)
-    return LawShape(kind, psi, T.shape[0] > 1), np.ascontiguousarray(P, dtype=float), T
+    names = tuple(n for n, _ in law.form.parameters) if psi is not None else ()
+    return LawShape(kind, psi, names, T.shape[0] > 1), np.ascontiguousarray(P, dtype=float), T
 
 
 class CompiledClassicalGalerkin:

@@ -12,9 +12,9 @@ invariants I1, I2, J and C^-1, the decoupled volumetric/isochoric split with the
 tensor P = II - 1/3 C^-1 (x) C for the isochoric laws, a spectral (eigenvalue) form for Ogden,
 and the Green-Lagrange strain in the fibre frame for Costa. It shares no code with the MJED
 term engine (mjed.terms, mjed.engine, mjed.fibre, mjed.spectral): it is the independent
-opponent MJED is compared against. From mjed it takes only the material types (to dispatch
-on, see :func:`classical_law`) and the constants that define a material (the Arruda-Boyce
-series coefficients).
+opponent MJED is compared against. From mjed it takes only each material's declared form of
+law (:mod:`mjed.materials.classical_forms`: which of these laws, with which parameters, and
+for the decoupled law the derivatives of its isochoric Psi), see :func:`classical_law`.
 
 Voigt order: I = 0..5 <-> (xx, yy, zz, xy, yz, xz). A symmetric tensor A is stored as the
 6-vector A[VI, VJ]. Fourth-order tensors with minor symmetries are stored as 6x6 matrices
@@ -29,8 +29,8 @@ import functools
 
 import numpy as np
 
-from mjed.materials import ArrudaBoyce, Costa, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
-from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials import classical_forms as forms
+from mjed.materials.declaration import declaration_of
 
 __all__ = [
     "VI",
@@ -39,6 +39,7 @@ __all__ = [
     "voigt",
     "from_voigt",
     "classical_law",
+    "law_of_form",
     "ClassicalLaw",
 ]
 
@@ -251,42 +252,26 @@ class DecoupledInvariantLaw(ClassicalLaw):
         return S, CC_iso + CC_vol
 
 
-class MooneyRivlinLaw(DecoupledInvariantLaw):
-    def __init__(self, c1, c2, k0):
-        self.c1, self.c2, self.k0 = float(c1), float(c2), float(k0)
+class DeclaredDecoupledLaw(DecoupledInvariantLaw):
+    """The decoupled law of a :class:`mjed.materials.classical_forms.Decoupled` form: Psi and
+    its derivatives are the form's function, evaluated with NumPy."""
+
+    def __init__(self, form: forms.Decoupled):
+        self.form = form
+        self.k0 = float(form.k0)
+        self.parameters = _Named(form.parameters)
 
     def psi(self, I1b, I2b):
         z = np.zeros_like(I1b)
-        W = self.c1 * (I1b - 3.0) + self.c2 * (I2b - 3.0)
-        return W, z + self.c1, z + self.c2, z, z, z
+        return tuple(v + z for v in self.form.psi.function(self.parameters, I1b, I2b, np))
 
 
-class VerondaWestmannLaw(DecoupledInvariantLaw):
-    def __init__(self, c1, c2, k0):
-        self.c1, self.c2, self.k0 = float(c1), float(c2), float(k0)
+class _Named:
+    """Parameters read by attribute (p.mu) from (name, value) pairs."""
 
-    def psi(self, I1b, I2b):
-        c1, c2 = self.c1, self.c2
-        e = np.exp(c2 * (I1b - 3.0))
-        z = np.zeros_like(I1b)
-        W = c1 * (e - 1.0) - 0.5 * c1 * c2 * (I2b - 3.0)
-        return W, c1 * c2 * e, z - 0.5 * c1 * c2, c1 * c2 * c2 * e, z, z
-
-
-class ArrudaBoyceLaw(DecoupledInvariantLaw):
-    def __init__(self, mu, k0, N=8.0):
-        self.mu, self.k0, self.N = float(mu), float(k0), float(N)
-        self.coef = [self.mu * c * self.N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
-
-    def psi(self, I1b, I2b):
-        z = np.zeros_like(I1b)
-        W, p1, p11 = z.copy(), z.copy(), z.copy()
-        for i, a in enumerate(self.coef, start=1):
-            W += a * (I1b**i - 3.0**i)
-            p1 += i * a * I1b ** (i - 1)
-            if i > 1:
-                p11 += i * (i - 1) * a * I1b ** (i - 2)
-        return W, p1, z, p11, z, z
+    def __init__(self, pairs):
+        for name, value in pairs:
+            setattr(self, name, float(value))
 
 
 def _power_divided_difference(a, b, p):
@@ -420,55 +405,49 @@ class CostaLaw(ClassicalLaw):
         return S, CC
 
 
-@functools.singledispatch
 def classical_law(material) -> ClassicalLaw:
-    """The classical law of an mjed material, dispatched on its type (parameters read as
-    attributes). Adding a material means registering one function here::
-
-        @classical_law.register
-        def _(material: MyMaterial) -> ClassicalLaw: ...
+    """The classical law of a declared material: the law of the form its declaration gives
+    (``Declaration.classical``), built by :func:`law_of_form`.
 
     Raises:
-        TypeError: naming the type when no classical law is registered for it.
+        TypeError: naming the type when it is not declared, or when its form has no law here.
     """
-    cls = type(material)
-    raise TypeError(
-        f"no classical law for material type {cls.__module__}.{cls.__qualname__}; register one with "
-        "reference_fem.classical_materials.classical_law.register"
-    )
+    try:
+        declaration = declaration_of(type(material))
+    except LookupError:
+        cls = type(material)
+        raise TypeError(f"no classical law for material type {cls.__module__}.{cls.__qualname__}: it is not "
+                        "declared (mjed.materials.declaration.declare, with its classical form)") from None
+    return law_of_form(declaration.classical(material))
 
 
-@classical_law.register
-def _(material: StVenantKirchhoff) -> ClassicalLaw:
-    return StVenantKirchhoffLaw(material.mu, material.lam)
+@functools.singledispatch
+def law_of_form(form) -> ClassicalLaw:
+    """The classical law of a form of :mod:`mjed.materials.classical_forms`, by its type."""
+    raise TypeError(f"the classical element has no law for the form {type(form).__qualname__}; register one with "
+                    "reference_fem.classical_materials.law_of_form.register")
 
 
-@classical_law.register
-def _(material: NeoHookean) -> ClassicalLaw:
-    return NeoHookeanLaw(material.mu, material.lam)
+@law_of_form.register
+def _(form: forms.GreenLagrangeQuadratic) -> ClassicalLaw:
+    return StVenantKirchhoffLaw(form.mu, form.lam)
 
 
-@classical_law.register
-def _(material: MooneyRivlin) -> ClassicalLaw:
-    return MooneyRivlinLaw(material.c1, material.c2, material.k0)
+@law_of_form.register
+def _(form: forms.CompressibleNeoHookean) -> ClassicalLaw:
+    return NeoHookeanLaw(form.mu, form.lam)
 
 
-@classical_law.register
-def _(material: VerondaWestmann) -> ClassicalLaw:
-    return VerondaWestmannLaw(material.c1, material.c2, material.k0)
+@law_of_form.register
+def _(form: forms.Decoupled) -> ClassicalLaw:
+    return DeclaredDecoupledLaw(form)
 
 
-@classical_law.register
-def _(material: ArrudaBoyce) -> ClassicalLaw:
-    return ArrudaBoyceLaw(material.mu, material.k0, material.N)
+@law_of_form.register
+def _(form: forms.SpectralOgden) -> ClassicalLaw:
+    return OgdenLaw(form.mu, form.alpha, form.k0)
 
 
-@classical_law.register
-def _(material: Ogden) -> ClassicalLaw:
-    # The ``tangent`` option is ignored: the classical law is always the exact Hessian.
-    return OgdenLaw(material.mu, material.alpha, material.k0)
-
-
-@classical_law.register
-def _(material: Costa) -> ClassicalLaw:
-    return CostaLaw(material.a, material.k0, material.B, material.frame)
+@law_of_form.register
+def _(form: forms.FibreExponential) -> ClassicalLaw:
+    return CostaLaw(form.a, form.k0, form.B, form.frame)

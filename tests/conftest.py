@@ -7,7 +7,9 @@ import pytest
 
 from mjed import materials as M
 
-# One parameter set per material, chosen so that every term of each energy matters.
+# One parameter set per material, chosen so that every term of each energy matters (and a
+# second one where the sign of a parameter changes the kernel or the split). Every declared
+# material must have one: tests/test_material_declarations.py checks it.
 MATERIALS = {
     "StVenantKirchhoff": M.StVenantKirchhoff(mu=1.3, lam=2.1),
     "NeoHookean": M.NeoHookean(mu=1.3, lam=2.1),

@@ -10,24 +10,15 @@ from __future__ import annotations
 
 from typing import Callable, Dict, Sequence, Tuple, Union
 
-from mjed.materials.anisotropic import Costa
 from mjed.materials.base import Material
-from mjed.materials.isotropic import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.declaration import declarations
+from mjed.materials.ogden import Ogden
 
 __all__ = ["from_sofa", "SOFA_PARAMETER_ORDER"]
 
-_COSTA = ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
-
-#: SOFA material name -> (class, parameter names in ParameterSet order).
+#: SOFA material name -> (class, parameter names in ParameterSet order), from the declarations.
 SOFA_PARAMETER_ORDER: Dict[str, Tuple[Callable[..., Material], Tuple[str, ...]]] = {
-    "StVenantKirchhoff": (StVenantKirchhoff, ("mu", "lam")),
-    "NeoHookean": (NeoHookean, ("mu", "lam")),
-    "MooneyRivlin": (MooneyRivlin, ("c1", "c2", "k0")),
-    "VerondaWestman": (VerondaWestmann, ("c1", "c2", "k0")),
-    "ArrudaBoyce": (ArrudaBoyce, ("mu", "k0")),
-    "Costa": (Costa, _COSTA),
-    "Ogden": (Ogden, ("mu", "alpha", "k0")),
-}
+    d.sofa[0]: (d.material, d.sofa[1]) for d in declarations() if d.sofa is not None}
 _OGDEN_MJED_ORDER = ("k0", "mu", "alpha")
 #: Other spellings accepted for a SOFA name.
 _SOFA_ALIASES = {"VerondaWestmann": "VerondaWestman"}
