@@ -19,6 +19,8 @@ from mjed.materials.veronda_westmann import VerondaWestmann
 from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS, ArrudaBoyce
 from mjed.materials.costa import Costa
 from mjed.materials.ogden import Ogden
+from mjed.materials.yeoh import Yeoh
+from mjed.materials.gent import Gent
 from mjed.materials.declaration import Declaration, declaration_of, declarations
 from mjed.materials.sofa import from_sofa
 
@@ -31,6 +33,8 @@ __all__ = [
     "ArrudaBoyce",
     "Costa",
     "Ogden",
+    "Yeoh",
+    "Gent",
     "Declaration",
     "declarations",
     "declaration_of",
