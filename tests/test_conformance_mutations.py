@@ -6,6 +6,7 @@ import logging
 
 import pytest
 
+from mjed.materials import declarations
 from reference_fem import dolfinx_available
 
 pytestmark = [pytest.mark.oracle,
@@ -89,8 +90,7 @@ def test_an_unexplained_error_is_called_so():
     assert not d.causes and d.findings[0].code == "unexplained", d.text()
 
 
-@pytest.mark.parametrize("material", ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann",
-                                      "ArrudaBoyce", "Costa", "Ogden"])
+@pytest.mark.parametrize("material", [d.name for d in declarations()])
 @pytest.mark.parametrize("mutation, part, coefficient", [
     ("Voigt shear doubled", "shear-shear block of the material tangent (Voigt)", 1.0),
     ("geometric stiffness missing", "geometric stiffness", -1.0),

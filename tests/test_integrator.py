@@ -519,7 +519,7 @@ def test_nodes_no_cell_uses_are_held_in_place():
 @pytest.mark.parametrize("name", list(MATERIALS))
 def test_which_materials_may_continue_through_inverted_cells(name):
     """Only energies whose J functions stay finite at J <= 0 qualify: St Venant-Kirchhoff alone
-    of the seven (ln J, J^(-2/3), J ln J all fail at J = 0)."""
+    of the declared materials (ln J, J^(-2/3), J ln J all fail at J = 0)."""
     from mjed.inversion import finite_when_inverted, inversion_blockers
 
     assert finite_when_inverted(MATERIALS[name]) == (name == "StVenantKirchhoff")

@@ -39,7 +39,7 @@ materials (--material): StVenantKirchhoff, NeoHookean, MooneyRivlin, VerondaWest
 Ogden; parameters by --param NAME=VALUE (the dataclass fields, e.g. mu, k0, N) or a SOFA ParameterSet
 (--sofa-parameters, SOFA's order). Default: ArrudaBoyce mu=2000 k0=20000 N=8.
 --allow-inverted lets inverted cells continue (counted and reported) for a material whose energy is finite
-at J <= 0 (of the seven, St Venant-Kirchhoff only), as the paper's section 2.3 allows.
+at J <= 0 (of the built-in materials, St Venant-Kirchhoff only), as the paper's section 2.3 allows.
 
 exit codes: 0 every check passed and the run is complete; 1 a run failed or Terzaghi is off; 2 bad input;
 3 an FPS target missed or a partial run (--quick, --models, --no-oscillation).

@@ -28,7 +28,7 @@ from typing import Any, Callable, Dict, Optional, Protocol, Tuple
 from mjed.materials.base import Material
 
 __all__ = ["FormulaNamespace", "Declaration", "declare", "declarations", "declaration_of", "declared_types",
-           "docs_table_row"]
+           "docs_table_row", "docs_table", "DOCS_TABLE_HEADER"]
 
 
 class FormulaNamespace(Protocol):
@@ -146,7 +146,17 @@ def declaration_of(material_type: type) -> Declaration:
                       "declare it with mjed.materials.declaration.declare (see docs/organisation.md)")
 
 
+#: The header of the materials table in docs/conventions.md; :func:`docs_table_row` gives its rows.
+DOCS_TABLE_HEADER = ("| material | parameters | W | J-only part |", "|---|---|---|---|")
+
+
 def docs_table_row(declaration: Declaration) -> str:
     """The material's row of the table in docs/conventions.md ("The materials")."""
     w = f"`{declaration.formula}`" + (f", {declaration.notes}" if declaration.notes else "")
-    return f"| `{declaration.name}` | {declaration.parameters} | {w} |"
+    vol = f"`{declaration.volumetric_formula}`" if declaration.volumetric_formula else "none"
+    return f"| `{declaration.name}` | {declaration.parameters} | {w} | {vol} |"
+
+
+def docs_table() -> str:
+    """The whole materials table of docs/conventions.md, one row per declared material."""
+    return "\n".join(DOCS_TABLE_HEADER + tuple(docs_table_row(d) for d in declarations()))
