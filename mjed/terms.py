@@ -284,7 +284,10 @@ class Log(SmoothFunction):
     def __call__(self, u):
         a = self.shift + u
         inv = 1.0 / a
-        return np.log(a), inv, -inv * inv
+        if not np.all(a > 0.0):  # outside the domain the derivatives are NaN too, like ln itself
+            inv = np.where(a > 0.0, inv, np.nan)
+        with np.errstate(invalid="ignore"):
+            return np.log(a), inv, -inv * inv
 
 
 @dataclass(frozen=True)

@@ -21,9 +21,9 @@ MATERIALS = {
     "Ogden": M.Ogden(mu=1.0, alpha=3.0, k0=5.0),
     "OgdenNegative": M.Ogden(mu=1.0, alpha=-2.0, k0=5.0),
     "Yeoh": M.Yeoh(c10=0.6, c20=-0.15, c30=0.2, k0=5.0),
-    # Jm above the largest I1b - 3 of the test states (about 7.5 on the perturbed jittered
-    # box), close enough that the logarithm bends: 1 - (I1b - 3)/Jm falls to about 0.4
-    "Gent": M.Gent(mu=1.2, Jm=12.0, k0=5.0),
+    # Jm above the largest I1b - 3 of the test states (about 20, on the perturbed box of
+    # test_engine_modules), close enough that the logarithm bends: 1 - (I1b - 3)/Jm falls to 0.3
+    "Gent": M.Gent(mu=1.2, Jm=30.0, k0=5.0),
 }
 
 

@@ -188,3 +188,14 @@ def test_classical_kernels_are_one_per_law_shape_and_keep_their_numbers(cube):
     for name in ("OgdenNegative", "CostaIndefinite"):  # the second of a shape gets its own numbers
         f_r = ClassicalGalerkin(mesh, None, MATERIALS[name]).force(x)
         assert _rel(fields[name].force(x), f_r) < 1e-13
+
+
+def test_a_log_group_beyond_its_domain_gives_nan_in_the_kernel_too():
+    """The kernel's ln(a + u) group, like the NumPy engine's, has NaN derivatives where a + u <= 0
+    (Gent past its locking stretch), not a finite force."""
+    points, cells = box_mesh(1)
+    mesh = mjed.TetMesh(points, cells)
+    field = mjed.make_force_field(mesh, mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0), backend="numba")
+    f, K = field.force_and_stiffness(points * np.array([2.0, 0.7, 0.7]))
+    assert np.isnan(f).all() and np.isnan(K.data).all()
+    assert np.isfinite(field.force(points * np.array([1.1, 0.95, 0.95]))).all()

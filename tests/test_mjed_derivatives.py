@@ -148,3 +148,15 @@ def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
     assert np.linalg.norm(K - K_fd) <= 1e-7 * np.linalg.norm(K_fd)
     # a Hessian: symmetric
     assert np.linalg.norm(K - K.T) <= 1e-12 * np.linalg.norm(K)
+
+
+def test_a_log_group_beyond_its_domain_gives_nan_not_a_finite_force():
+    """Gent past its locking stretch (I1b - 3 >= Jm): W is undefined, and so are the force and
+    the stiffness (a finite force there would push the wrong way)."""
+    P, cells = box_mesh(1)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0))
+    x = P * np.array([2.0, 0.7, 0.7])  # I1b - 3 of about 1.4 in every cell
+    with np.errstate(all="ignore"):
+        f, K = field.force_and_stiffness(x)
+    assert np.isnan(f).all() and np.isnan(K.data).all() and np.isnan(field.energy(x))
+    assert np.isfinite(field.force(P * np.array([1.1, 0.95, 0.95]))).all()

@@ -428,9 +428,10 @@ class _Kernel:
             sc = s.let(f"sc_{gi}", f"gc_{gi} * math.exp({u})")
             energy.append(sc)
             return sc, sc
-        if function == "log":  # ln(a + u): 1 / (a + u), -1 / (a + u)^2
-            s(f"ia_{gi} = 1.0 / (ga_{gi} + {u})")
-            energy.append(f"gc_{gi} * math.log(ga_{gi} + {u})")
+        if function == "log":  # ln(a + u): 1 / (a + u), -1 / (a + u)^2; NaN where a + u <= 0
+            s(f"ag_{gi} = ga_{gi} + {u}")
+            s(f"ia_{gi} = 1.0 / ag_{gi} if ag_{gi} > 0.0 else math.nan")
+            energy.append(f"gc_{gi} * math.log(ag_{gi})")
             sc = s.let(f"sc_{gi}", f"gc_{gi} * ia_{gi}")
             return sc, s.let(f"rc_{gi}", f"-sc_{gi} * ia_{gi}")
         if function == "power":  # (a + u)^p: p (a + u)^(p-1), p (p-1) (a + u)^(p-2)
