@@ -56,9 +56,8 @@ class ClassicalGalerkin:
     Args:
         points: (n, 3) rest positions.
         cells: (m, 4) positively oriented P1 tetrahedra.
-        material: an mjed material (StVenantKirchhoff, NeoHookean, MooneyRivlin,
-            VerondaWestmann, ArrudaBoyce, Costa, Ogden); dispatched on its type (classical_law) and
-            read through its attributes. Ogden's ``tangent`` option is ignored (always exact).
+        material: a declared mjed material (mjed.materials); its law is the form its declaration
+            gives (classical_law). Ogden's ``tangent`` option is ignored (always exact).
         fix_orientation: passed to mjed.TetMesh.
 
     ``points`` may also be an mjed.TetMesh, with ``cells=None``, to share one validated mesh.

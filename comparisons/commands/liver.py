@@ -11,6 +11,7 @@ import sys
 from typing import Dict, List, Optional
 
 from common import options as opt
+from common.cases import material_names
 
 NAME = "liver"
 ORDER = 40
@@ -35,15 +36,15 @@ region specs (--fixed, repeatable, union), in the mesh file's units:
   index:FILE   0-based positions in the order the nodes are read, whatever the format
 Default: vena cava and suspensory ligament, placed relative to the bounding box of a z-up mesh.
 
-materials (--material): StVenantKirchhoff, NeoHookean, MooneyRivlin, VerondaWestmann, ArrudaBoyce, Costa,
-Ogden; parameters by --param NAME=VALUE (the dataclass fields, e.g. mu, k0, N) or a SOFA ParameterSet
+materials (--material): {materials};
+parameters by --param NAME=VALUE (the dataclass fields, e.g. mu, k0, N) or a SOFA ParameterSet
 (--sofa-parameters, SOFA's order). Default: ArrudaBoyce mu=2000 k0=20000 N=8.
 --allow-inverted lets inverted cells continue (counted and reported) for a material whose energy is finite
 at J <= 0 (of the built-in materials, St Venant-Kirchhoff only), as the paper's section 2.3 allows.
 
 exit codes: 0 every check passed and the run is complete; 1 a run failed or Terzaghi is off; 2 bad input;
 3 an FPS target missed or a partial run (--quick, --models, --no-oscillation).
-"""
+""".replace("{materials}", ", ".join(material_names()))
 
 
 def configure(parser) -> None:
