@@ -39,7 +39,7 @@ _VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 _NORMAL = (0, 1, 2)
 _SHEAR = (3, 4, 5)
 
-# Volumetric (J-only) energies per material type: the declared ones (mjed.materials), user energies'.
+# Volumetric (J-only) energies per material type: the declared materials' and user energies'.
 _VOLUMETRIC: Dict[type, Callable[[Any, Any, Callable[[str], Any]], Any]] = {}
 
 

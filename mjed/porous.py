@@ -201,8 +201,8 @@ def _without_volumetric(group: TermGroup, material: str) -> TermGroup:
             terms.append(term)
             continue
         if not group.plain:
-            raise ValueError(f"with_porous_volume: {material} has a J-only term inside a group with a function of "
-                             "its sum (exp, log, power); use mode='add'")
+            raise ValueError(f"with_porous_volume: {material} has a J-only term inside a group "
+                             "with a function of its sum (exp, log, power); use mode='add'")
         f1, df1, _ = term.f(np.ones(1))
         if abs(float(np.asarray(df1).ravel()[0])) > 0.0:
             raise ValueError(

@@ -222,7 +222,8 @@ class _Classical:
         s = self.src
         psi_v, p1, p2, p11, p12, p22 = self.psi_cell
         if p12 is not None or p22 is not None:
-            raise NotImplementedError(f"{self.shape.psi!r}: the compiled decoupled law needs Psi_12 = Psi_22 = 0")
+            raise NotImplementedError(f"{self.shape.psi!r}: the compiled decoupled law needs "
+                                      "Psi_12 = Psi_22 = 0")
         return s.let("psi_v", psi_v), s.let("p1", p1), s.let("p2", p2), s.let("p11", p11)
 
     def _decoupled_stress(self) -> Tuple[str, Vec6]:
@@ -442,7 +443,9 @@ class _Sym:
     def _wrap(self, other) -> "_Sym":
         if isinstance(other, _Sym):
             return other
-        return _Sym(repr(float(other)) if not isinstance(other, int) else repr(other), True, self.hoist)
+        # an int stays an int: I1b ** 2 is then formed by a product
+        text = repr(other) if isinstance(other, int) else repr(float(other))
+        return _Sym(text, True, self.hoist)
 
     def _op(self, a, b, op: str) -> "_Sym":
         a, b = self._wrap(a), self._wrap(b)
@@ -503,7 +506,8 @@ def _declared_psi(src: Source, shape: LawShape) -> Tuple[Expr, ...]:
     for k, name in enumerate(shape.psi_parameters, start=1):
         names[name] = _Sym(src.let(f"prm_{name}", f"P[{k}]"), True, hoist)
     params = type("PsiParameters", (), names)()
-    out = shape.psi.function(params, _Sym("I1b", False, hoist), _Sym("I2b", False, hoist), _SourceMath(hoist))
+    I1b, I2b = _Sym("I1b", False, hoist), _Sym("I2b", False, hoist)
+    out = shape.psi.function(params, I1b, I2b, _SourceMath(hoist))
     exprs: List[Expr] = []
     for e in out:
         if isinstance(e, _Sym):

@@ -56,7 +56,8 @@ def _costa(law: cm.CostaLaw):
 
 # Parameter layouts: those read by reference_fem.classical_codegen (its ``parameters``).
 _LOWER: Dict[type, Callable] = {cm.StVenantKirchhoffLaw: _svk, cm.NeoHookeanLaw: _neo,
-                                cm.DeclaredDecoupledLaw: _decoupled, cm.OgdenLaw: _ogden, cm.CostaLaw: _costa}
+                                cm.DeclaredDecoupledLaw: _decoupled, cm.OgdenLaw: _ogden,
+                                cm.CostaLaw: _costa}
 
 
 def lower_law(law: cm.ClassicalLaw) -> Tuple[LawShape, np.ndarray, np.ndarray]:

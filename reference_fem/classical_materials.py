@@ -416,16 +416,17 @@ def classical_law(material) -> ClassicalLaw:
         declaration = declaration_of(type(material))
     except LookupError:
         cls = type(material)
-        raise TypeError(f"no classical law for material type {cls.__module__}.{cls.__qualname__}: it is not "
-                        "declared (mjed.materials.declaration.declare, with its classical form)") from None
+        raise TypeError(f"no classical law for material type {cls.__module__}.{cls.__qualname__}: "
+                        "it is not declared (mjed.materials.declaration.declare, with its "
+                        "classical form)") from None
     return law_of_form(declaration.classical(material))
 
 
 @functools.singledispatch
 def law_of_form(form) -> ClassicalLaw:
     """The classical law of a form of :mod:`mjed.materials.classical_forms`, by its type."""
-    raise TypeError(f"the classical element has no law for the form {type(form).__qualname__}; register one with "
-                    "reference_fem.classical_materials.law_of_form.register")
+    raise TypeError(f"the classical element has no law for the form {type(form).__qualname__}; "
+                    "register one with reference_fem.classical_materials.law_of_form.register")
 
 
 @law_of_form.register

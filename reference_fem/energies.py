@@ -217,8 +217,8 @@ def _frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     if R.shape == (3, 3):
         return ufl.as_matrix(R.tolist()) if p.constant is None else p.wrap(R)
     raise ValueError(
-        f"{type(p.material).__name__}: a per-cell frame of shape {R.shape} needs a mesh; pass frame= as a UFL "
-        "expression (UFLOracle does this with a DG0 tensor Function)"
+        f"{type(p.material).__name__}: a per-cell frame of shape {R.shape} needs a mesh; pass "
+        "frame= as a UFL expression (UFLOracle does this with a DG0 tensor Function)"
     )
 
 
@@ -231,9 +231,15 @@ def declared_energy(formula: Formula) -> EnergyFunction:
     return energy
 
 
-for _declaration in declarations():
-    register_energy(_declaration.material, takes_frame=any(
-        f.name == "frame" for f in dataclasses.fields(_declaration.material)))(declared_energy(_declaration.energy))
+def _register_declared() -> None:
+    """Register the energy of every declared material (a fibre frame if it has the field)."""
+    for declaration in declarations():
+        takes_frame = any(f.name == "frame" for f in dataclasses.fields(declaration.material))
+        energy = declared_energy(declaration.energy)
+        register_energy(declaration.material, takes_frame=takes_frame)(energy)
+
+
+_register_declared()
 
 
 @register_energy(UserEnergy)

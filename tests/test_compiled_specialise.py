@@ -47,7 +47,8 @@ def _agree(mesh, material, x, **kw):
 @dataclass(frozen=True)
 class EveryKind(Material):
     """A made-up energy with every compiled kind of f(J) and g(C), a plain group and one group
-    of each function of a sum (exp, log, power), identity, constant and per-cell slot matrices and both eigen tangents. (The NumPy
+    of each function of a sum (exp, log, power), identity, constant and per-cell slot matrices
+    and both eigen tangents. (The NumPy
     engine cannot yet add a constant S, I1Power(n=1) times a constant f, to a per-cell one in
     one group, so the constant f multiplies LinearI2 here.)"""
 
@@ -56,8 +57,8 @@ class EveryKind(Material):
     def decomposition(self):
         from mjed.fibre import FibreQuadratic
         from mjed.spectral import EigenPowerSum
-        from mjed.terms import (GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, Log, LogPolynomial,
-                                Power, Term, TermGroup, Unity)
+        from mjed.terms import (GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, Log,
+                                LogPolynomial, Power, Term, TermGroup, Unity)
 
         B = np.array([[1.0, 0.3, 0.2], [0.3, 0.8, 0.1], [0.2, 0.1, 0.5]])
         R = np.eye(3) if self.frame is None else self.frame
@@ -73,9 +74,10 @@ class EveryKind(Material):
         ))
         fibre = TermGroup((Term(JPower(-4.0 / 3.0), FibreQuadratic(B, R)),), exponential=True, coefficient=0.3)
         # shift + u stays positive for any J > 0: both sums are >= 0
-        log = TermGroup((Term(JPower(-2.0 / 3.0), I1Power(0.05)), Term(JPower(0.3), LinearI2(0.02))),
-                        coefficient=-0.7, function=Log(0.9))
-        power = TermGroup((Term(JPower(-4.0 / 3.0), LinearI2(0.03)),), coefficient=0.4, function=Power(1.5, 0.2))
+        log = TermGroup((Term(JPower(-2.0 / 3.0), I1Power(0.05)),
+                         Term(JPower(0.3), LinearI2(0.02))), coefficient=-0.7, function=Log(0.9))
+        power = TermGroup((Term(JPower(-4.0 / 3.0), LinearI2(0.03)),), coefficient=0.4,
+                          function=Power(1.5, 0.2))
         return plain, fibre, log, power
 
 
@@ -195,7 +197,8 @@ def test_a_log_group_beyond_its_domain_gives_nan_in_the_kernel_too():
     (Gent past its locking stretch), not a finite force."""
     points, cells = box_mesh(1)
     mesh = mjed.TetMesh(points, cells)
-    field = mjed.make_force_field(mesh, mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0), backend="numba")
+    gent = mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0)
+    field = mjed.make_force_field(mesh, gent, backend="numba")
     f, K = field.force_and_stiffness(points * np.array([2.0, 0.7, 0.7]))
     assert np.isnan(f).all() and np.isnan(K.data).all()
     assert np.isfinite(field.force(points * np.array([1.1, 0.95, 0.95]))).all()

@@ -51,7 +51,9 @@ def test_exchange_format_round_trip(declared):
     assert MATERIAL_TYPES[declared.name] is declared.material
     entry = model_to_manifest(declared.default)
     assert entry["name"] == declared.name
-    assert model_from_manifest(entry) == declared.default or declared.name == "Costa"  # Costa: eq=False
+    assert (
+        model_from_manifest(entry) == declared.default or declared.name == "Costa"
+    )  # Costa: eq=False
     assert model_to_manifest(model_from_manifest(entry)) == entry
 
 
@@ -99,7 +101,9 @@ def test_oracle_has_its_energy_and_its_volumetric_part(declared):
     assert energy_formula(declared.material).material_type is declared.material
     F = ufl.as_matrix([[1.1, 0.05, 0.0], [0.0, 0.95, 0.02], [0.01, 0.0, 1.05]])
     assert strain_energy_density(declared.default, F) is not None
-    vol = volumetric_energy(declared.default, F, lambda name: float(getattr(declared.default, name)))
+    vol = volumetric_energy(
+        declared.default, F, lambda name: float(getattr(declared.default, name))
+    )
     assert (vol is None) == (declared.volumetric is None)
 
 
@@ -109,8 +113,10 @@ def test_every_declared_material_has_test_parameters(declared):
 
 def test_docs_table_is_the_declarations():
     text = (ROOT / "docs" / "conventions.md").read_text()
-    assert docs_table() in text, "docs/conventions.md's materials table differs from the declarations; " \
-                                 "paste mjed.materials.declaration.docs_table() there"
+    assert docs_table() in text, (
+        "docs/conventions.md's materials table differs from the declarations; "
+        "paste mjed.materials.declaration.docs_table() there"
+    )
     for name in DECLARED:
         assert text.count(f"| `{name}` |") == 1
 
@@ -120,13 +126,16 @@ def _yeoh_fields():
     return {f.name: getattr(d, f.name) for f in dataclasses.fields(Declaration)}
 
 
-@pytest.mark.parametrize("missing, message", [
-    ("formula", "formula .* missing"),
-    ("default", "default must be a Yeoh"),
-    ("energy", "energy must be a function"),
-    ("classical", "classical must be a function"),
-    ("volumetric_formula", "volumetric and volumetric_formula go together"),
-])
+@pytest.mark.parametrize(
+    "missing, message",
+    [
+        ("formula", "formula .* missing"),
+        ("default", "default must be a Yeoh"),
+        ("energy", "energy must be a function"),
+        ("classical", "classical must be a function"),
+        ("volumetric_formula", "volumetric and volumetric_formula go together"),
+    ],
+)
 def test_a_declaration_missing_a_piece_is_refused(missing, message):
     fields = _yeoh_fields()
     fields[missing] = None

@@ -128,7 +128,8 @@ def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
     from dataclasses import dataclass
 
     from mjed.materials.base import Material
-    from mjed.terms import I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup, Unity
+    from mjed.terms import (I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup,
+                            Unity)
 
     phi = {"log": Log(0.8), "power": Power(2.5, 0.3), "power_integer": Power(3.0, -0.5)}[function]
 
@@ -154,7 +155,8 @@ def test_a_log_group_beyond_its_domain_gives_nan_not_a_finite_force():
     """Gent past its locking stretch (I1b - 3 >= Jm): W is undefined, and so are the force and
     the stiffness (a finite force there would push the wrong way)."""
     P, cells = box_mesh(1)
-    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0))
+    gent = mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), gent)
     x = P * np.array([2.0, 0.7, 0.7])  # I1b - 3 of about 1.4 in every cell
     with np.errstate(all="ignore"):
         f, K = field.force_and_stiffness(x)

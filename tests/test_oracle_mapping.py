@@ -24,13 +24,10 @@ import scipy.sparse.linalg  # noqa: E402,F401  (sp.linalg.norm)
 import ufl  # noqa: E402
 
 from mjed.materials import (  # noqa: E402
-    ArrudaBoyce,
     Costa,
-    MooneyRivlin,
     NeoHookean,
     Ogden,
     StVenantKirchhoff,
-    VerondaWestmann,
     declarations,
 )
 from conftest import MATERIALS as TEST_MATERIALS  # noqa: E402

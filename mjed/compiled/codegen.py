@@ -19,7 +19,8 @@ The algebra is the NumPy engine's (mjed/engine.py, mjed/edge_blocks.py), per cel
 - force: -V0 (F S-bar D_a + h d_a), d_a = cof D_a;
 - the six edge blocks (D_a . S-bar D_b) Id + first-kind 2 w (F A D_a)(x)(F A D_b) +
   second-kind w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers +
-  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c phi'' du_a (x) du_b + h [F (D_a x D_b)]_x,
+  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c phi'' du_a (x) du_b
+  + h [F (D_a x D_b)]_x,
   all scaled by V0, and the node blocks by translation invariance (K_aa = -sum_b K_ab);
   the blocks are added into the mesh-edge sums U and node sums Dg, then every CSR entry is
   written once, in order (:func:`mjed.compiled.kernels.write_csr`): half the scattered
@@ -417,7 +418,8 @@ class _Kernel:
         s(f"energy += V0[e] * ({add(*tot['energy']) or '0.0'})")
         return out
 
-    def _group_function(self, gi: int, function: str, u: str, energy: List[Expr]) -> Tuple[str, Expr]:
+    def _group_function(self, gi: int, function: str, u: str,
+                        energy: List[Expr]) -> Tuple[str, Expr]:
         """Append c phi(u) to ``energy``; return the names of c phi'(u) (the weight of the
         group's linear sums) and c phi''(u) (its rank-one term; None for a plain group)."""
         s = self.src

@@ -28,8 +28,8 @@ import numpy as np
 
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import (IDENTITY, Exp, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, Log,
-                        LogPolynomial, Power, SmoothFunction, TermGroup, Unity)
+from mjed.terms import (IDENTITY, Exp, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2,
+                        Log, LogPolynomial, Power, TermGroup, Unity)
 
 __all__ = ["J_KINDS", "G_KINDS", "SLOT_KINDS", "GROUP_KINDS", "TermTable", "lower_groups"]
 
@@ -193,7 +193,8 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
     slot_kind, slot_ident, slot_M = _slot_arrays(slot_list, m)
     return TermTable(jkind, jpar, gkind, gpar, gmat, np.array(npair, dtype=np.int64),
                      np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS), np.array(group_start, dtype=np.int64),
-                     np.array(group_kind, dtype=np.int64), np.array(group_coef, dtype=float).reshape(-1, 3),
+                     np.array(group_kind, dtype=np.int64),
+                     np.array(group_coef, dtype=float).reshape(-1, 3),
                      slot_kind, slot_ident, slot_M, bool(need_eig))
 
 

@@ -86,6 +86,7 @@ def kernel_shape(table: TermTable) -> KernelShape:
         slots = tuple(int(s) for s in table.tslot[t, : int(table.npair[t])])
         terms.append(TermShape(j, g, n, bool(coaxial), slots))
     starts = [int(s) for s in table.group_start]
-    groups = tuple((starts[i], starts[i + 1], _GROUP_NAMES[int(table.group_kind[i])]) for i in range(len(starts) - 1))
+    groups = tuple((starts[i], starts[i + 1], _GROUP_NAMES[int(table.group_kind[i])])
+                   for i in range(len(starts) - 1))
     slots = tuple((_SLOT_NAMES[int(k)], bool(i)) for k, i in zip(table.slot_kind, table.slot_ident))
     return KernelShape(tuple(terms), groups, slots, table.slot_M.shape[1] > 1, table.gmat.shape[1] > 1)

@@ -1,4 +1,5 @@
-"""Arruda-Boyce (five-term 8-chain series): W = mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2."""
+"""Arruda-Boyce, the five-term 8-chain series:
+W = mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2."""
 
 from __future__ import annotations
 
@@ -30,7 +31,9 @@ class ArrudaBoyce(Material):
     def decomposition(self):
         mu, N = self.mu, self.N
         coeffs = [mu * c * N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
-        deviatoric = tuple(Term(JPower(-2.0 * i / 3.0), I1Power(a, i)) for i, a in enumerate(coeffs, start=1))
+        deviatoric = tuple(
+            Term(JPower(-2.0 * i / 3.0), I1Power(a, i)) for i, a in enumerate(coeffs, start=1)
+        )
         rest = sum(a * 3.0**i for i, a in enumerate(coeffs, start=1))
         volumetric = Term(LogPolynomial(0.5 * self.k0, 0.0, -rest), Unity())
         return (TermGroup(deviatoric + (volumetric,)),)
@@ -38,8 +41,11 @@ class ArrudaBoyce(Material):
 
 def energy(p, k):
     N = p("N")
-    series = sum(c * N ** (1 - i) * (k.I1b ** i - 3.0**i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1))
-    return p("mu") * series + 0.5 * p("k0") * k.lnJ ** 2
+    series = sum(
+        c * N ** (1 - i) * (k.I1b**i - 3.0**i)
+        for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)
+    )
+    return p("mu") * series + 0.5 * p("k0") * k.lnJ**2
 
 
 def psi(p, I1b, I2b, m):
@@ -48,23 +54,31 @@ def psi(p, I1b, I2b, m):
     Psi_11 = sum i (i-1) a_i I1b^(i-2)."""
     a = [p.mu * c * p.N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
     powers = [1.0, I1b, I1b * I1b]
-    powers += [powers[2] * I1b, powers[2] * powers[2], powers[2] * powers[2] * I1b]  # I1b^0 .. I1b^5
+    powers += [
+        powers[2] * I1b,
+        powers[2] * powers[2],
+        powers[2] * powers[2] * I1b,
+    ]  # I1b^0 .. I1b^5
     W = sum(a[i - 1] * powers[i] for i in range(1, 6)) - sum(a[i - 1] * 3.0**i for i in range(1, 6))
     p1 = a[0] + sum(i * a[i - 1] * powers[i - 1] for i in range(2, 6))
     p11 = 2.0 * a[1] + sum(i * (i - 1) * a[i - 1] * powers[i - 2] for i in range(3, 6))
     return W, p1, 0, p11, 0, 0
 
 
-declare(Declaration(
-    material=ArrudaBoyce,
-    formula="mu sum_{i=1..5} c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2",
-    notes="`c = (1/2, 1/20, 11/1050, 19/7000, 519/673750)`",
-    parameters="`mu`, `k0` (Pa), `N` (dimensionless, default 8)",
-    default=ArrudaBoyce(mu=2500.0, k0=3.0e4),
-    energy=energy,
-    volumetric=log_squared,
-    volumetric_formula="k0/2 (ln J)^2",
-    classical=lambda m: forms.Decoupled(forms.IsochoricPsi(psi), (("mu", m.mu), ("N", m.N)), m.k0),
-    aliases=("ab",),
-    sofa=("ArrudaBoyce", ("mu", "k0")),
-))
+declare(
+    Declaration(
+        material=ArrudaBoyce,
+        formula="mu sum_{i=1..5} c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2",
+        notes="`c = (1/2, 1/20, 11/1050, 19/7000, 519/673750)`",
+        parameters="`mu`, `k0` (Pa), `N` (dimensionless, default 8)",
+        default=ArrudaBoyce(mu=2500.0, k0=3.0e4),
+        energy=energy,
+        volumetric=log_squared,
+        volumetric_formula="k0/2 (ln J)^2",
+        classical=lambda m: forms.Decoupled(
+            forms.IsochoricPsi(psi), (("mu", m.mu), ("N", m.N)), m.k0
+        ),
+        aliases=("ab",),
+        sofa=("ArrudaBoyce", ("mu", "k0")),
+    )
+)

@@ -7,8 +7,8 @@ from typing import Tuple
 
 from mjed.terms import JPower, TermGroup
 
-__all__ = ["Material", "require_finite", "require_positive", "check_lame", "ISOCHORIC_I1", "ISOCHORIC_I2",
-           "log_squared"]
+__all__ = ["Material", "require_finite", "require_positive", "check_lame", "ISOCHORIC_I1",
+           "ISOCHORIC_I2", "log_squared"]
 
 #: f(J) of the isochoric invariants: I1b = J^(-2/3) I1 and I2b = J^(-4/3) I2.
 ISOCHORIC_I1 = JPower(-2.0 / 3.0)
@@ -51,8 +51,8 @@ def check_lame(obj, mu: float, lam: float) -> None:
     require_positive(obj, "mu")
     require_finite(obj, "lam")
     if 3.0 * lam + 2.0 * mu <= 0:
-        raise ValueError(f"{type(obj).__name__}: parameter lam must give a positive bulk modulus lam + 2 mu/3, "
-                         f"got lam={lam!r}")
+        raise ValueError(f"{type(obj).__name__}: parameter lam must give a positive bulk modulus "
+                         f"lam + 2 mu/3, got lam={lam!r}")
 
 
 def log_squared(p, k):

@@ -14,8 +14,14 @@ from typing import Any, Callable, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["GreenLagrangeQuadratic", "CompressibleNeoHookean", "IsochoricPsi", "Decoupled", "SpectralOgden",
-           "FibreExponential"]
+__all__ = [
+    "GreenLagrangeQuadratic",
+    "CompressibleNeoHookean",
+    "IsochoricPsi",
+    "Decoupled",
+    "SpectralOgden",
+    "FibreExponential",
+]
 
 
 @dataclass(frozen=True)

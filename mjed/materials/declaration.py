@@ -27,8 +27,17 @@ from typing import Any, Callable, Dict, Optional, Protocol, Tuple
 
 from mjed.materials.base import Material
 
-__all__ = ["FormulaNamespace", "Declaration", "declare", "declarations", "declaration_of", "declared_types",
-           "docs_table_row", "docs_table", "DOCS_TABLE_HEADER"]
+__all__ = [
+    "FormulaNamespace",
+    "Declaration",
+    "declare",
+    "declarations",
+    "declaration_of",
+    "declared_types",
+    "docs_table_row",
+    "docs_table",
+    "DOCS_TABLE_HEADER",
+]
 
 
 class FormulaNamespace(Protocol):
@@ -86,7 +95,9 @@ class Declaration:
         if not (isinstance(self.material, type) and issubclass(self.material, Material)):
             raise TypeError(f"declaration of {who}: material must be a Material subclass")
         if not dataclasses.is_dataclass(self.material):
-            raise TypeError(f"declaration of {who}: the material must be a (frozen) dataclass of its parameters")
+            raise TypeError(
+                f"declaration of {who}: the material must be a (frozen) dataclass of its parameters"
+            )
         for name in ("formula", "parameters"):
             if not isinstance(getattr(self, name), str) or not getattr(self, name).strip():
                 raise TypeError(f"declaration of {who}: {name} (the docs table's text) is missing")
@@ -94,17 +105,23 @@ class Declaration:
             raise TypeError(f"declaration of {who}: default must be a {who}, got {self.default!r}")
         for name in ("energy", "classical"):
             if not callable(getattr(self, name)):
-                raise TypeError(f"declaration of {who}: {name} must be a function, got {getattr(self, name)!r}")
+                raise TypeError(
+                    f"declaration of {who}: {name} must be a function, got {getattr(self, name)!r}"
+                )
         if (self.volumetric is None) != (self.volumetric_formula is None):
-            raise TypeError(f"declaration of {who}: volumetric and volumetric_formula go together "
-                            "(both None for a material without a J-only part)")
+            raise TypeError(
+                f"declaration of {who}: volumetric and volumetric_formula go together "
+                "(both None for a material without a J-only part)"
+            )
         if self.volumetric is not None and not callable(self.volumetric):
             raise TypeError(f"declaration of {who}: volumetric must be a function")
         if self.sofa is not None:
             fields = {f.name for f in dataclasses.fields(self.material)}
             unknown = [n for n in self.sofa[1] if n not in fields]
             if unknown:
-                raise TypeError(f"declaration of {who}: SOFA order names unknown parameters {unknown}")
+                raise TypeError(
+                    f"declaration of {who}: SOFA order names unknown parameters {unknown}"
+                )
 
     @property
     def name(self) -> str:
@@ -118,7 +135,9 @@ def declare(declaration: Declaration) -> Declaration:
     """Register ``declaration``; a type or a name declared twice is an error."""
     if not isinstance(declaration, Declaration):
         raise TypeError(f"declare needs a Declaration, got {declaration!r}")
-    if declaration.material in _DECLARATIONS or declaration.name in {d.name for d in _DECLARATIONS.values()}:
+    if declaration.material in _DECLARATIONS or declaration.name in {
+        d.name for d in _DECLARATIONS.values()
+    }:
         raise ValueError(f"material {declaration.name} is already declared")
     _DECLARATIONS[declaration.material] = declaration
     return declaration
@@ -142,8 +161,10 @@ def declaration_of(material_type: type) -> Declaration:
     for cls in material_type.__mro__:
         if cls in _DECLARATIONS:
             return _DECLARATIONS[cls]
-    raise LookupError(f"material type {material_type.__module__}.{material_type.__qualname__} is not declared; "
-                      "declare it with mjed.materials.declaration.declare (see docs/organisation.md)")
+    raise LookupError(
+        f"material type {material_type.__module__}.{material_type.__qualname__} is not declared; "
+        "declare it with mjed.materials.declaration.declare (see docs/organisation.md)"
+    )
 
 
 #: The header of the materials table in docs/conventions.md; :func:`docs_table_row` gives its rows.

@@ -31,14 +31,19 @@ class Gent(Material):
 
     def decomposition(self):
         mu, Jm = self.mu, self.Jm
-        return (TermGroup((Term(ISOCHORIC_I1, I1Power(-1.0 / Jm)),), coefficient=-0.5 * mu * Jm,
-                          function=Log(1.0 + 3.0 / Jm)),
-                TermGroup((Term(LogPolynomial(0.5 * self.k0), Unity()),)))
+        return (
+            TermGroup(
+                (Term(ISOCHORIC_I1, I1Power(-1.0 / Jm)),),
+                coefficient=-0.5 * mu * Jm,
+                function=Log(1.0 + 3.0 / Jm),
+            ),
+            TermGroup((Term(LogPolynomial(0.5 * self.k0), Unity()),)),
+        )
 
 
 def energy(p, k):
     mu, Jm = p("mu"), p("Jm")
-    return -0.5 * mu * Jm * k.ln(1.0 - (k.I1b - 3.0) / Jm) + 0.5 * p("k0") * k.lnJ ** 2
+    return -0.5 * mu * Jm * k.ln(1.0 - (k.I1b - 3.0) / Jm) + 0.5 * p("k0") * k.lnJ**2
 
 
 def psi(p, I1b, I2b, m):
@@ -49,14 +54,18 @@ def psi(p, I1b, I2b, m):
     return -0.5 * p.mu * p.Jm * m.log(d), p1, 0, p1 / (p.Jm * d), 0, 0
 
 
-declare(Declaration(
-    material=Gent,
-    formula="-mu Jm/2 ln(1 - (I1b - 3)/Jm) + k0/2 (ln J)^2",
-    notes="finite for `I1b - 3 < Jm`",
-    parameters="`mu`, `k0` (Pa), `Jm` (dimensionless)",
-    default=Gent(mu=2500.0, Jm=10.0, k0=3.0e4),
-    energy=energy,
-    volumetric=log_squared,
-    volumetric_formula="k0/2 (ln J)^2",
-    classical=lambda m: forms.Decoupled(forms.IsochoricPsi(psi), (("mu", m.mu), ("Jm", m.Jm)), m.k0),
-))
+declare(
+    Declaration(
+        material=Gent,
+        formula="-mu Jm/2 ln(1 - (I1b - 3)/Jm) + k0/2 (ln J)^2",
+        notes="finite for `I1b - 3 < Jm`",
+        parameters="`mu`, `k0` (Pa), `Jm` (dimensionless)",
+        default=Gent(mu=2500.0, Jm=10.0, k0=3.0e4),
+        energy=energy,
+        volumetric=log_squared,
+        volumetric_formula="k0/2 (ln J)^2",
+        classical=lambda m: forms.Decoupled(
+            forms.IsochoricPsi(psi), (("mu", m.mu), ("Jm", m.Jm)), m.k0
+        ),
+    )
+)

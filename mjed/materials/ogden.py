@@ -33,7 +33,9 @@ class Ogden(Material):
         if self.alpha == 0:
             raise ValueError("Ogden: parameter alpha must be non-zero")
         if self.tangent not in ("exact", "sofa"):
-            raise ValueError(f"Ogden: parameter tangent must be 'exact' or 'sofa', got {self.tangent!r}")
+            raise ValueError(
+                f"Ogden: parameter tangent must be 'exact' or 'sofa', got {self.tangent!r}"
+            )
 
     def decomposition(self):
         from mjed.spectral import EigenPowerSum
@@ -41,8 +43,12 @@ class Ogden(Material):
         mu, alpha = self.mu, self.alpha
         c = mu / alpha**2
         return (
-            TermGroup((Term(JPower(-alpha / 3.0), EigenPowerSum(c, 0.5 * alpha, self.tangent)),
-                       Term(LogPolynomial(0.5 * self.k0, 0.0, -3.0 * c), Unity()))),
+            TermGroup(
+                (
+                    Term(JPower(-alpha / 3.0), EigenPowerSum(c, 0.5 * alpha, self.tangent)),
+                    Term(LogPolynomial(0.5 * self.k0, 0.0, -3.0 * c), Unity()),
+                )
+            ),
         )
 
 
@@ -52,19 +58,21 @@ def energy(p, k):
     mu, alpha = p("mu"), p("alpha")
     # sum_i lambda_i^(alpha/2) over the eigenvalues lambda_i of C (= principal stretches^alpha)
     stretch_sum = k.eigenvalue_power_sum(k.C, 0.5 * alpha)
-    return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * p("k0") * k.lnJ ** 2
+    return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * p("k0") * k.lnJ**2
 
 
-declare(Declaration(
-    material=Ogden,
-    formula="mu / alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2",
-    notes="`lambda_i` the eigenvalues of `C` (one term)",
-    parameters="`mu`, `k0` (Pa), `alpha` (dimensionless, non-zero)",
-    default=Ogden(mu=5000.0, alpha=3.0, k0=3.0e4),
-    energy=energy,
-    volumetric=log_squared,
-    volumetric_formula="k0/2 (ln J)^2",
-    # the ``tangent`` option is the engine's: the classical law is always the exact Hessian
-    classical=lambda m: forms.SpectralOgden(m.mu, m.alpha, m.k0),
-    sofa=("Ogden", ("mu", "alpha", "k0")),
-))
+declare(
+    Declaration(
+        material=Ogden,
+        formula="mu / alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2",
+        notes="`lambda_i` the eigenvalues of `C` (one term)",
+        parameters="`mu`, `k0` (Pa), `alpha` (dimensionless, non-zero)",
+        default=Ogden(mu=5000.0, alpha=3.0, k0=3.0e4),
+        energy=energy,
+        volumetric=log_squared,
+        volumetric_formula="k0/2 (ln J)^2",
+        # the ``tangent`` option is the engine's: the classical law is always the exact Hessian
+        classical=lambda m: forms.SpectralOgden(m.mu, m.alpha, m.k0),
+        sofa=("Ogden", ("mu", "alpha", "k0")),
+    )
+)

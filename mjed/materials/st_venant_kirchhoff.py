@@ -30,15 +30,17 @@ def energy(p, k):
     return 0.5 * p("lam") * k.tr(k.E) ** 2 + p("mu") * k.tr(k.E * k.E)
 
 
-declare(Declaration(
-    material=StVenantKirchhoff,
-    formula="lam/2 (tr E)^2 + mu tr(E^2)",
-    parameters="`mu`, `lam` (Pa)",
-    default=StVenantKirchhoff(mu=3448.2759, lam=31034.483),  # E = 1e4, nu = 0.45
-    energy=energy,
-    volumetric=None,  # every term depends on E: nothing is a function of J alone
-    volumetric_formula=None,
-    classical=lambda m: forms.GreenLagrangeQuadratic(m.mu, m.lam),
-    aliases=("stvk", "svk"),
-    sofa=("StVenantKirchhoff", ("mu", "lam")),
-))
+declare(
+    Declaration(
+        material=StVenantKirchhoff,
+        formula="lam/2 (tr E)^2 + mu tr(E^2)",
+        parameters="`mu`, `lam` (Pa)",
+        default=StVenantKirchhoff(mu=3448.2759, lam=31034.483),  # E = 1e4, nu = 0.45
+        energy=energy,
+        volumetric=None,  # every term depends on E: nothing is a function of J alone
+        volumetric_formula=None,
+        classical=lambda m: forms.GreenLagrangeQuadratic(m.mu, m.lam),
+        aliases=("stvk", "svk"),
+        sofa=("StVenantKirchhoff", ("mu", "lam")),
+    )
+)

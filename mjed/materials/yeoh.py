@@ -5,7 +5,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mjed.materials import classical_forms as forms
-from mjed.materials.base import ISOCHORIC_I1, Material, log_squared, require_finite, require_positive
+from mjed.materials.base import (
+    ISOCHORIC_I1,
+    Material,
+    log_squared,
+    require_finite,
+    require_positive,
+)
 from mjed.materials.declaration import Declaration, declare
 from mjed.terms import I1Power, LogPolynomial, Power, Term, TermGroup, Unity
 
@@ -33,8 +39,14 @@ class Yeoh(Material):
 
     def decomposition(self):
         u = (Term(ISOCHORIC_I1, I1Power(1.0)),)
-        groups = [TermGroup((Term(ISOCHORIC_I1, I1Power(self.c10)),
-                             Term(LogPolynomial(0.5 * self.k0, 0.0, -3.0 * self.c10), Unity())))]
+        groups = [
+            TermGroup(
+                (
+                    Term(ISOCHORIC_I1, I1Power(self.c10)),
+                    Term(LogPolynomial(0.5 * self.k0, 0.0, -3.0 * self.c10), Unity()),
+                )
+            )
+        ]
         for n, c in ((2, self.c20), (3, self.c30)):
             if c != 0.0:  # a zero term would only cost a rank-one update
                 groups.append(TermGroup(u, coefficient=c, function=Power(float(n), -3.0)))
@@ -43,7 +55,7 @@ class Yeoh(Material):
 
 def energy(p, k):
     x = k.I1b - 3.0
-    return p("c10") * x + p("c20") * x ** 2 + p("c30") * x ** 3 + 0.5 * p("k0") * k.lnJ ** 2
+    return p("c10") * x + p("c20") * x**2 + p("c30") * x**3 + 0.5 * p("k0") * k.lnJ**2
 
 
 def psi(p, I1b, I2b, m):
@@ -53,14 +65,17 @@ def psi(p, I1b, I2b, m):
     return W, p.c10 + (2.0 * p.c20 + 3.0 * p.c30 * x) * x, 0, 2.0 * p.c20 + 6.0 * p.c30 * x, 0, 0
 
 
-declare(Declaration(
-    material=Yeoh,
-    formula="c10 (I1b - 3) + c20 (I1b - 3)^2 + c30 (I1b - 3)^3 + k0/2 (ln J)^2",
-    parameters="`c10`, `c20`, `c30`, `k0` (Pa)",
-    default=Yeoh(c10=1200.0, c20=-200.0, c30=300.0, k0=3.0e4),
-    energy=energy,
-    volumetric=log_squared,
-    volumetric_formula="k0/2 (ln J)^2",
-    classical=lambda m: forms.Decoupled(forms.IsochoricPsi(psi), (("c10", m.c10), ("c20", m.c20),
-                                                                   ("c30", m.c30)), m.k0),
-))
+declare(
+    Declaration(
+        material=Yeoh,
+        formula="c10 (I1b - 3) + c20 (I1b - 3)^2 + c30 (I1b - 3)^3 + k0/2 (ln J)^2",
+        parameters="`c10`, `c20`, `c30`, `k0` (Pa)",
+        default=Yeoh(c10=1200.0, c20=-200.0, c30=300.0, k0=3.0e4),
+        energy=energy,
+        volumetric=log_squared,
+        volumetric_formula="k0/2 (ln J)^2",
+        classical=lambda m: forms.Decoupled(
+            forms.IsochoricPsi(psi), (("c10", m.c10), ("c20", m.c20), ("c30", m.c30)), m.k0
+        ),
+    )
+)
