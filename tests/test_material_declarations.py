@@ -143,6 +143,13 @@ def test_a_declaration_missing_a_piece_is_refused(missing, message):
         Declaration(**fields)
 
 
+def test_a_classical_law_that_is_no_known_form_is_refused():
+    fields = _yeoh_fields()
+    fields["classical"] = lambda m: ("decoupled", m.c10)
+    with pytest.raises(TypeError, match="declaration of Yeoh: classical must return a form of "):
+        Declaration(**fields)
+
+
 def test_a_declaration_is_refused_twice_and_an_undeclared_type_everywhere():
     from common.cases import default_material
     from conformance.spec import SpecError, model_from_manifest
@@ -163,3 +170,56 @@ def test_a_declaration_is_refused_twice_and_an_undeclared_type_everywhere():
         model_from_manifest({"kind": "material", "name": "Undeclared", "parameters": {"mu": 1.0}})
     with pytest.raises(ValueError, match="unknown material 'Undeclared'"):
         default_material("Undeclared")
+
+
+class _NumPyNamespace:
+    """The formula namespace bound to NumPy for one homogeneous F: np.matrix gives the UFL
+    meaning of ``*`` (matrix product), ``.T`` and ``[i, j]``."""
+
+    exp, ln = staticmethod(np.exp), staticmethod(np.log)
+
+    def __init__(self, F: np.ndarray, frame=None):
+        self.C = np.matrix(F.T @ F)
+        self.E = 0.5 * (self.C - np.eye(3))
+        self.I1 = np.trace(self.C)
+        self.I2 = 0.5 * (self.I1**2 - np.trace(self.C * self.C))
+        self.J = np.linalg.det(F)
+        self.lnJ = np.log(self.J)
+        self.I1b, self.I2b = self.J ** (-2 / 3) * self.I1, self.J ** (-4 / 3) * self.I2
+        self.frame = np.matrix(np.eye(3) if frame is None else frame)
+
+    @staticmethod
+    def tr(A):
+        return np.trace(A)
+
+    @staticmethod
+    def eigenvalue_power_sum(C, q):
+        return float((np.linalg.eigvalsh(np.asarray(C)) ** q).sum())
+
+
+class _Values:
+    def __init__(self, material):
+        self.material = material
+
+    def value(self, name):
+        return float(getattr(self.material, name))
+
+    __call__ = value
+
+
+@pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
+def test_the_oracles_formula_and_the_engines_terms_give_one_energy(declared):
+    """Without dolfinx: the declared formula, evaluated with NumPy, is zero at rest and equals
+    the energy of the MJED terms at a strained state (two independent writings of one W)."""
+    material = MATERIALS[declared.name]
+    P, cells = random_tetrahedron(np.random.default_rng(3))
+    field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), material)
+    A = np.array([[1.15, 0.08, -0.03], [0.02, 0.92, 0.05], [-0.04, 0.01, 1.06]])
+    frame = getattr(material, "frame", None)
+    W = declared.energy(_Values(material), _NumPyNamespace(A, frame))
+    assert W * field.mesh.volumes[0] == pytest.approx(field.energy(P @ A.T), rel=1e-12)
+    assert abs(declared.energy(_Values(material), _NumPyNamespace(np.eye(3), frame))) <= 1e-12
+    if declared.volumetric is not None:  # a function of J alone: the same for a pure dilation
+        vol = declared.volumetric(_Values(material), _NumPyNamespace(A))
+        dilation = np.linalg.det(A) ** (1 / 3) * np.eye(3)
+        assert declared.volumetric(_Values(material), _NumPyNamespace(dilation)) == pytest.approx(vol)

@@ -15,6 +15,7 @@ from typing import Any, Callable, Optional, Tuple
 import numpy as np
 
 __all__ = [
+    "FORMS",
     "GreenLagrangeQuadratic",
     "CompressibleNeoHookean",
     "IsochoricPsi",
@@ -91,3 +92,7 @@ class FibreExponential:
     k0: float
     B: np.ndarray
     frame: Optional[np.ndarray] = None
+
+
+#: Every form the classical element knows (a declaration's ``classical`` must return one).
+FORMS = (GreenLagrangeQuadratic, CompressibleNeoHookean, Decoupled, SpectralOgden, FibreExponential)

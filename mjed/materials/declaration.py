@@ -25,6 +25,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, Optional, Protocol, Tuple
 
+from mjed.materials import classical_forms
 from mjed.materials.base import Material
 
 __all__ = [
@@ -115,6 +116,11 @@ class Declaration:
             )
         if self.volumetric is not None and not callable(self.volumetric):
             raise TypeError(f"declaration of {who}: volumetric must be a function")
+        form = self.classical(self.default)
+        if not isinstance(form, classical_forms.FORMS):
+            known = ", ".join(f.__name__ for f in classical_forms.FORMS)
+            raise TypeError(f"declaration of {who}: classical must return a form of "
+                            f"mjed.materials.classical_forms ({known}), got {form!r}")
         if self.sofa is not None:
             fields = {f.name for f in dataclasses.fields(self.material)}
             unknown = [n for n in self.sofa[1] if n not in fields]
