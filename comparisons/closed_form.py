@@ -8,7 +8,9 @@ W = W_iso(I1b, I2b) + U(J) the principal Cauchy stresses are
 
 with b_i = J^(-2/3) lambda_i^2 the principal values of the isochoric left Cauchy-Green tensor
 and W1, W2 the derivatives of W_iso. Neo-Hookean, St Venant-Kirchhoff and Ogden are not of
-that form and get their own lines. Uniaxial stress means sigma_2 = sigma_3 = 0: the lateral
+that form and get their own lines. A material with no lines of its own whose declaration gives
+the decoupled classical form (mjed.materials.classical_forms.Decoupled, e.g. Yeoh, Gent) uses
+that form's W1, W2 and k0/2 (ln J)^2, so a new material of that form needs nothing here. Uniaxial stress means sigma_2 = sigma_3 = 0: the lateral
 stretch is the root of sigma_2(lambda, t, t) = 0.
 
 The discrete side prescribes x = F X on every node of a cube mesh. For a homogeneous F the
@@ -26,8 +28,11 @@ from typing import Tuple
 import numpy as np
 from scipy.optimize import brentq
 
-from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials import (ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff,
+                            VerondaWestmann, declarations)
 from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials.classical_forms import Decoupled
+from mjed.materials.declaration import declaration_of
 
 __all__ = [
     "ISOTROPIC",
@@ -61,9 +66,36 @@ def _isochoric_I1(stretches: Stretches) -> float:
     return float(np.prod(lam) ** (-2.0 / 3.0) * (lam**2).sum())
 
 
+def _decoupled_form(material) -> "Decoupled | None":
+    """The declared classical form of ``material`` when it is the decoupled one, else None."""
+    try:
+        form = declaration_of(type(material)).classical(material)
+    except (LookupError, TypeError):  # not a declared material
+        return None
+    return form if isinstance(form, Decoupled) else None
+
+
+class _Named:
+    """The parameters of a decoupled form, read by attribute as its Psi reads them."""
+
+    def __init__(self, pairs):
+        self.__dict__.update({name: float(value) for name, value in pairs})
+
+
 @functools.singledispatch
 def _principal(material, s: Stretches) -> np.ndarray:
-    """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type."""
+    """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type;
+    without lines of its own, a declared decoupled form's Psi derivatives."""
+    form = _decoupled_form(material)
+    if form is not None:
+        J = float(np.prod(s))
+        lam = np.asarray(s, dtype=float)
+        b = J ** (-2.0 / 3.0) * lam**2
+        I2b = b[0] * b[1] + b[1] * b[2] + b[0] * b[2]
+        with np.errstate(invalid="ignore", divide="ignore"):  # Psi itself may be undefined (Gent
+            # far beyond its lock, tried while bracketing the lateral stretch); W1, W2 are not
+            _, W1, W2, *_ = form.psi.function(_Named(form.parameters), b.sum(), I2b, np)
+        return _decoupled(float(W1), float(W2), form.k0 * np.log(J) / J, s)
     cls = type(material)
     raise ValueError(f"no closed form for {cls.__qualname__}; isotropic materials with one: "
                      f"{', '.join(t.__qualname__ for t in ISOTROPIC)}")
@@ -115,13 +147,18 @@ def _ogden(m: Ogden, s: Stretches) -> np.ndarray:
     return (m.mu / m.alpha * (p - p.mean()) + m.k0 * np.log(J)) / J
 
 
-#: The isotropic material types with a closed form.
-ISOTROPIC: Tuple[type, ...] = tuple(t for t in _principal.registry if t is not object)
+#: The isotropic material types with a closed form: their own lines, then the declared ones of
+#: the decoupled form.
+ISOTROPIC: Tuple[type, ...] = tuple(t for t in _principal.registry if t is not object) + tuple(
+    d.material for d in declarations()
+    if d.material not in _principal.registry and isinstance(d.classical(d.default), Decoupled))
 
 
 def has_closed_form(material) -> bool:
     """True when the material's type (or a base of it) has a closed form here."""
-    return _principal.dispatch(type(material)) is not _principal.dispatch(object)
+    if _principal.dispatch(type(material)) is not _principal.dispatch(object):
+        return True
+    return _decoupled_form(material) is not None
 
 
 def principal_cauchy(material, stretches: Stretches) -> np.ndarray:
