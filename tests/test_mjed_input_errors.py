@@ -101,6 +101,11 @@ def test_clean_mesh_is_silent():
         (lambda: M.VerondaWestmann(c1=1.0, c2=-1.0, k0=1.0), "c2"),
         (lambda: M.ArrudaBoyce(mu=1.0, k0=1.0, N=0.0), "N"),
         (lambda: M.ArrudaBoyce(mu=math.nan, k0=1.0), "mu"),
+        (lambda: M.Yeoh(c10=0.0, c20=0.1, c30=0.1, k0=1.0), "c10"),
+        (lambda: M.Yeoh(c10=1.0, c20=math.inf, c30=0.1, k0=1.0), "c20"),
+        (lambda: M.Yeoh(c10=1.0, c20=-0.1, c30=0.1, k0=-1.0), "k0"),
+        (lambda: M.Gent(mu=1.0, Jm=0.0, k0=1.0), "Jm"),
+        (lambda: M.Gent(mu=-1.0, Jm=5.0, k0=1.0), "mu"),
     ],
 )
 def test_invalid_parameters_name_the_parameter(factory, name):
