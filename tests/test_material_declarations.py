@@ -107,6 +107,21 @@ def test_oracle_has_its_energy_and_its_volumetric_part(declared):
     assert (vol is None) == (declared.volumetric is None)
 
 
+def test_the_checker_passes_mjed_and_fails_a_wrong_engine(declared):
+    """The conformance check runs the material end to end (model, oracle, comparison)."""
+    pytest.importorskip("dolfinx", reason="the checker's oracle needs dolfinx")
+    from conformance import check_implementation
+
+    def engine(case, scale=1.0):
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+        f, K = field.force_and_stiffness(case.positions)
+        return scale * f, scale * K
+
+    kw = dict(material=declared.default, mesh="single-tet", states=("random",), probes=False)
+    assert check_implementation(engine, **kw).n_passed == 1
+    assert check_implementation(lambda case: engine(case, 1.001), **kw).n_passed == 0
+
+
 def test_every_declared_material_has_test_parameters(declared):
     assert type(MATERIALS[declared.name]) is declared.material
 
