@@ -251,13 +251,17 @@ class PartsOracle:
 
 
 class _Constants:
-    """p(name): the model's parameter as a dolfinx Constant; p.constant: the factory itself."""
+    """p(name): the model's parameter as a dolfinx Constant; p.value(name): as a float (what a
+    declared formula may read for a check); p.constant: the factory itself."""
 
     def __init__(self, model: Any, constant: Callable[[Any], Any]):
         self.model, self.constant = model, constant
 
+    def value(self, name: str) -> float:
+        return float(getattr(self.model, name))
+
     def __call__(self, name: str):
-        return self.constant(float(getattr(self.model, name)))
+        return self.constant(self.value(name))
 
 
 def volumetric_energy_or_none(model: Any, F, constant: Callable[[Any], Any]):

@@ -34,7 +34,6 @@ __all__ = [
     "declare",
     "declarations",
     "declaration_of",
-    "declared_types",
     "docs_table_row",
     "docs_table",
     "DOCS_TABLE_HEADER",
@@ -152,10 +151,6 @@ def declare(declaration: Declaration) -> Declaration:
 def declarations() -> Tuple[Declaration, ...]:
     """Every declared material, in declaration order."""
     return tuple(_DECLARATIONS.values())
-
-
-def declared_types() -> Tuple[type, ...]:
-    return tuple(_DECLARATIONS)
 
 
 def declaration_of(material_type: type) -> Declaration:
