@@ -71,6 +71,8 @@ def command_evaluator(template: str, input_dir: Callable[[KitCase], str], output
             how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0 else f"exit code {proc.returncode}")
             raise CaseError(f"case {case.case_id}: {argv[0]} failed ({how})"
                             + (f"; stderr: {_tail(err)}" if err.strip() else "; no stderr"))
-        return read_output(out, case.input.n_nodes, case.case_id)
+        # within: the engine may have replaced its output directory by a link elsewhere
+        return read_output(out, case.input.n_nodes, case.case_id, n_cells=case.input.n_cells,
+                           within=os.path.abspath(output_root))
 
     return evaluate

@@ -29,9 +29,17 @@ import numpy as np
 
 from common.states import apply_state
 from common.tolerances import mean_edge_length
+from conformance.confine import (
+    MAX_CASE_ID,
+    ConfinementError,
+    check_case_id,
+    confined_path,
+    read_confined,
+)
 from conformance.exchange import (
     FORMAT_VERSION,
     KIT_FORMAT,
+    MAX_INPUT_ARRAY_BYTES,
     FormatError,
     check_version,
     load_json,
@@ -60,6 +68,10 @@ class KitCase:
     state: str
     probe_of: Optional[str] = None
     step: int = 0
+    # Where a kit read back keeps this case (confined to the kit): the engine is given exactly
+    # the input directory whose hashes were checked, and its output is read from output_dir.
+    input_dir: Optional[str] = None
+    output_dir: Optional[str] = None
 
     @property
     def case_id(self) -> str:
@@ -68,7 +80,9 @@ class KitCase:
 
 def case_id(model: Any, mesh: str, state: str) -> str:
     raw = f"{model_label(model)}.{os.path.splitext(os.path.basename(mesh))[0]}.{state}"
-    return re.sub(r"[^A-Za-z0-9_.+-]", "_", raw)
+    # one safe path component (conformance.confine.check_case_id): no '..', no leading dot
+    safe = re.sub(r"\.{2,}", ".", re.sub(r"[^A-Za-z0-9_.+-]", "_", raw)).lstrip(".")
+    return safe[:MAX_CASE_ID - 8]  # room for a probe's "~probeK"
 
 
 def probe_direction(points: np.ndarray, seed: int) -> np.ndarray:
@@ -95,6 +109,8 @@ def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, n
                     out.append(KitCase(CaseInput(f"{cid}~probe{k}", points, cells, x, model), "probe", mesh_label,
                                        state, probe_of=cid, step=k))
     ids = [c.case_id for c in out]
+    for i in ids:
+        check_case_id(i, "case id")
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
         raise ValueError(f"two cases share an id ({', '.join(dup[:3])}): give the meshes distinct names")
@@ -139,50 +155,102 @@ class KitManifest:
     errors: Mapping[str, str]
 
 
+#: All the input arrays of a kit together (each case holds its own copy in memory).
+MAX_KIT_BYTES = 4 << 30
+
+
 def read_kit(folder: str) -> KitManifest:
     """Read a kit; a bad case becomes an entry of ``errors`` (case id -> message), the others are kept.
+
+    Every path is confined to ``folder``, every file read is listed in the case's
+    ``input_sha256`` and hashed on the bytes read, and sizes are checked before reading.
 
     Raises:
         FormatError: the kit manifest itself is missing or malformed (then nothing can run).
     """
     path = os.path.join(folder, "manifest.json")
-    data = load_json(path, hint=f" (is {folder} a kit written by mjed-verify export?)")
+    data = load_json(folder, "manifest.json",
+                     hint=f" (is {folder} a kit written by mjed-verify export?)")
     check_version(data, path, "(kit)", KIT_FORMAT)
     raw = data.get("cases")
     if not isinstance(raw, list) or not raw:
         raise FormatError(f"{path}: 'cases' must be a non-empty list")
+    ids = [e.get("id") if isinstance(e, dict) else None for e in raw]
+    counts: Dict[str, int] = {}
+    for cid in ids:
+        if isinstance(cid, str):
+            counts[cid] = counts.get(cid, 0) + 1
     cases, entries, errors = [], {}, {}
+    total = 0
     for i, e in enumerate(raw):
-        if not isinstance(e, dict) or not isinstance(e.get("id"), str):
+        cid = ids[i]
+        if not isinstance(cid, str):
             errors[f"#{i}"] = f"case #{i} of {path}: entry without an 'id'"
             continue
-        cid = e["id"]
-        entries[cid] = e
         try:
-            cases.append(_read_entry(folder, e, path))
+            check_case_id(cid, f"case #{i} of {path}")
+        except ConfinementError as exc:
+            errors[f"#{i}"] = str(exc)
+            continue
+        if counts[cid] > 1:  # neither entry can be trusted to be the one meant; both are refused
+            errors[cid] = (f"case {cid}: {path}: the id appears {counts[cid]} times; case ids must "
+                           "be unique")
+            continue
+        entries[cid] = e
+        if total > MAX_KIT_BYTES:
+            errors[cid] = (f"case {cid}: {path}: not read, the kit's input arrays already exceed "
+                           f"{MAX_KIT_BYTES} bytes")
+            continue
+        try:
+            case = _read_entry(folder, e, path)
         except FormatError as exc:
             errors[cid] = str(exc)
+            continue
+        except (TypeError, ValueError, OverflowError, RecursionError) as exc:
+            # a field of an unexpected JSON type deep in the entry: bad input of this case only
+            errors[cid] = f"case {cid}: {path}: {type(exc).__name__}: {exc}"
+            continue
+        total += sum(a.nbytes for a in (case.input.points, case.input.cells, case.input.positions))
+        cases.append(case)
     return KitManifest(folder, tuple(cases), entries, errors)
 
 
 def _read_entry(folder: str, e: Mapping[str, Any], manifest_path: str) -> KitCase:
     cid = e["id"]
+    where = f"case {cid}: {manifest_path}"
     for key in ("role", "input", "output", "mesh", "state"):
         if not isinstance(e.get(key), str):
-            raise FormatError(f"case {cid}: {manifest_path}: field {key!r} missing or not a string")
+            raise FormatError(f"{where}: field {key!r} missing or not a string")
     if e["role"] not in ("case", "probe"):
-        raise FormatError(f"case {cid}: {manifest_path}: role must be 'case' or 'probe', not {e['role']!r}")
-    in_dir = os.path.join(folder, e["input"])
-    for name, digest in dict(e.get("input_sha256") or {}).items():
-        p = os.path.join(in_dir, name)
-        if not os.path.isfile(p):
-            raise FormatError(f"case {cid}: {p}: file missing")
-        if sha256_of(p) != digest:
-            raise FormatError(f"case {cid}: {p}: changed since export (SHA-256 differs); re-export the kit")
-    case = read_case_input(in_dir, cid)
+        raise FormatError(f"{where}: role must be 'case' or 'probe', not {e['role']!r}")
+    probe_of, step = e.get("probe_of"), e.get("step", 0)
+    if e["role"] == "probe" and not isinstance(probe_of, str):
+        raise FormatError(f"{where}: a probe needs 'probe_of', the id of its case")
+    if isinstance(step, bool) or not isinstance(step, int) or not 0 <= step < 64:
+        raise FormatError(f"{where}: 'step' must be an integer in [0, 64), got {step!r}")
+    try:
+        in_dir = confined_path(folder, e["input"], f"{where}: field 'input'")
+        out_dir = confined_path(folder, e["output"], f"{where}: field 'output'")
+    except ConfinementError as exc:
+        raise FormatError(str(exc)) from None
+    digests = e.get("input_sha256")
+    if not isinstance(digests, dict) or not digests \
+            or not all(isinstance(k, str) and isinstance(v, str) for k, v in digests.items()):
+        raise FormatError(f"{where}: 'input_sha256' must map each input file to its SHA-256")
+    for name, digest in digests.items():
+        # every listed file is verified (case.txt too, which the check does not parse); the
+        # arrays are hashed again on the very bytes read_case_input reads
+        if name != "case.json":
+            try:
+                read_confined(in_dir, name, f"case {cid}", limit=MAX_INPUT_ARRAY_BYTES,
+                              sha256=digest)
+            except ConfinementError as exc:
+                raise FormatError(str(exc)) from None
+    case = read_case_input(in_dir, cid, digests=digests)
     if case.case_id != cid:
         raise FormatError(f"case {cid}: {os.path.join(in_dir, 'case.json')}: names case {case.case_id!r}")
-    return KitCase(case, e["role"], e["mesh"], e["state"], probe_of=e.get("probe_of"), step=int(e.get("step", 0)))
+    return KitCase(case, e["role"], e["mesh"], e["state"], probe_of=probe_of, step=step,
+                   input_dir=in_dir, output_dir=out_dir)
 
 
 def primary_and_probes(cases: Iterable[KitCase]) -> List[Tuple[KitCase, List[KitCase]]]:

@@ -93,11 +93,16 @@ def _run(args, cases, input_errors) -> int:
         else:
             base = args.dir
         os.makedirs(os.path.join(folder, "outputs"))
-        evaluate = command_evaluator(args.engine_command, lambda c: os.path.join(base, "cases", c.case_id, "input"),
-                                     os.path.join(folder, "outputs"), args.timeout)
+        # A kit's case carries the input directory its hashes were checked on: the engine gets
+        # exactly that one. Generated cases live in the report's own kit/.
+        evaluate = command_evaluator(
+            args.engine_command,
+            lambda c: c.input_dir or os.path.join(base, "cases", c.case_id, "input"),
+            os.path.join(folder, "outputs"), args.timeout)
     else:
-        evaluate = lambda c: read_output(os.path.join(args.dir, "cases", c.case_id, "output"),  # noqa: E731
-                                         c.input.n_nodes, c.case_id)
+        def evaluate(c):
+            return read_output(c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells,
+                               within=args.dir)
 
     fields = {}
 
