@@ -67,13 +67,15 @@ import dataclasses
 import os
 import shlex
 import time
+import warnings
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
 from common.options import InputError
 from common.result import StudyResult
-from comparisons.organ import Organ, fixed_nodes, load_organ
+from comparisons.organ import Organ, check_supports, fixed_nodes, load_organ
+from mjed.errors import MeshWarning
 
 __all__ = ["LiverParameters", "MODELS", "PAPER_FPS", "TARGET_FPS", "COMPILED_TARGET_FPS", "PAPER_HYPERELASTIC_SHARE",
            "BACKEND_AGREEMENT_TOL", "backend_force_field", "default_fixed_specs",
@@ -113,6 +115,7 @@ def run_liver(
     fix_orientation: bool = False,
     force_fields: Sequence[Callable] = (numpy_force_field,),
     organ: Optional[Organ] = None,
+    allow_disconnected: bool = False,
 ) -> Dict:
     """Run the liver simulations and write the figures; returns a JSON-serialisable dict.
 
@@ -131,6 +134,8 @@ def run_liver(
         force_fields: factories of the hyperelastic force field (see backend_force_field);
             every model runs once per factory. The figures show the first one's runs.
         organ: an already loaded organ (then mesh, scale and fix_orientation are not used).
+        allow_disconnected: accept a mesh in several parts when each has a fixed node (warned);
+            a part with no fixed node is always refused (comparisons.organ.check_supports).
 
     Raises:
         InputError: unknown mesh, a mesh without volume cells, a bad region spec, an empty
@@ -151,6 +156,10 @@ def run_liver(
                              f"{list(params.gravity)} give the supports with --fixed (box:, sphere:, nodes:FILE)")
     specs = list(fixed) if fixed else default_fixed_specs(organ.file_points)
     fixed_nodes_ = fixed_nodes(organ, specs)
+    # before any run: a part of the mesh that nothing holds would fall freely and still "pass"
+    mesh_warnings = check_supports(organ, fixed_nodes_, allow_disconnected=allow_disconnected)
+    for text in mesh_warnings:
+        warnings.warn(text, MeshWarning, stacklevel=2)
     if steps is None:
         steps = 6 if quick else 30
     if isinstance(steps, bool) or int(steps) != steps or steps < 1:
@@ -202,6 +211,7 @@ def run_liver(
         "numbering": organ.numbering,
         "reoriented_cells": organ.reoriented,
         "unused_nodes": int(len(organ.unused_nodes)),
+        "mesh_warnings": mesh_warnings,
         "fixed_regions": specs,
         "n_fixed": int(len(fixed_nodes_)),
         "fixed_node_ids": organ.node_ids[fixed_nodes_].tolist() if len(fixed_nodes_) <= 50 else None,
@@ -287,7 +297,7 @@ _CAPTIONS = {
 def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixed=None, steps=None, units=None,
                   scale=None, fix_orientation=False, params: LiverParameters = LiverParameters(), models=MODELS,
                   oscillation=True, full_oscillation=False, backends: Sequence[str] = BACKENDS,
-                  custom_force_fields: bool = False) -> str:
+                  custom_force_fields: bool = False, allow_disconnected: bool = False) -> str:
     """The mjed-verify command that reproduces a liver study with these options.
 
     Options the command line cannot express (a Python-only parameter) are named after it.
@@ -305,6 +315,8 @@ def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixe
         parts += ["--scale", f"{scale:g}"]
     if fix_orientation:
         parts.append("--fix-orientation")
+    if allow_disconnected:
+        parts.append("--allow-disconnected")
     for spec in fixed or ():
         parts += ["--fixed", spec]
     if steps is not None:
@@ -364,7 +376,8 @@ def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "
                 fix_orientation: bool = False, params: LiverParameters = LiverParameters(),
                 models: Sequence[str] = MODELS, oscillation: bool = True, full_oscillation: bool = False,
                 backends: Sequence[str] = BACKENDS, force_fields: Optional[Sequence[Callable]] = None,
-                json_path: Optional[str] = None, relative_to: Optional[str] = None) -> StudyResult:
+                json_path: Optional[str] = None, relative_to: Optional[str] = None,
+                allow_disconnected: bool = False) -> StudyResult:
     """The liver study as a typed result: the three runs, FPS, substeps, the step split, the
     oscillation study (Fig. 4 as the paper describes it) and the Terzaghi check.
 
@@ -392,7 +405,8 @@ def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "
     command = liver_command(quick=quick, out_dir=out_dir, series=series, mesh=mesh, fixed=fixed, steps=steps,
                             units=units, scale=scale, fix_orientation=fix_orientation, params=params, models=models,
                             oscillation=oscillation, full_oscillation=full_oscillation, backends=backends,
-                            custom_force_fields=force_fields is not None)
+                            custom_force_fields=force_fields is not None,
+                            allow_disconnected=allow_disconnected)
     not_covered: List[str] = []
     if force_fields is None:
         force_fields, missing = _backend_factories(backends)
@@ -402,7 +416,8 @@ def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "
         mesh = "liver-coarse"
     organ = load_organ(mesh, scale=metres, fix_orientation=fix_orientation)
     data = run_liver(fixed=fixed, steps=steps, out=out_dir, quick=quick, params=params, models=models, series=series,
-                     progress=progress, force_fields=force_fields, organ=organ)
+                     progress=progress, force_fields=force_fields, organ=organ,
+                     allow_disconnected=allow_disconnected)
     if quick:
         not_covered.append("quick: coarse liver and 6 steps instead of the paper-size liver and 30 steps; oscillation "
                            "study at dt 0.3, 0.1, 0.03 s over 1.5 s")

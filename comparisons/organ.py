@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Optional, Sequence, Tuple, Union
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from common.options import InputError
 
-__all__ = ["UNITS", "Organ", "load_organ", "scale_of"]
+__all__ = ["UNITS", "Organ", "load_organ", "scale_of", "fixed_nodes", "check_supports",
+           "duplicate_nodes"]
 
 #: Length units accepted by --units, as metres per unit.
 UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
@@ -110,7 +111,85 @@ def load_organ(mesh_spec: Union[str, Tuple], *, scale: float = 1.0, fix_orientat
 
 
 def fixed_nodes(organ: Organ, specs: Sequence[str]) -> np.ndarray:
-    """Positions of the nodes the region specs select, in the file's units and numbering."""
+    """Positions of the nodes the region specs select, in the file's units and numbering.
+
+    Raises InputError when they select every node: nothing would be left to move.
+    """
     from comparisons.regions import select_nodes
 
-    return select_nodes(specs, organ.file_points, node_ids=organ.node_ids, numbering=organ.numbering)
+    chosen = select_nodes(specs, organ.file_points, node_ids=organ.node_ids,
+                          numbering=organ.numbering)
+    if len(chosen) >= organ.mesh.n_nodes:
+        raise InputError(f"mesh {organ.label}: the fixed region(s) {list(specs)} select every one "
+                         f"of its {organ.mesh.n_nodes} nodes; nothing would move. Fix only the "
+                         "supports")
+    return chosen
+
+
+def duplicate_nodes(organ: Organ, limit: int = 5) -> List[Tuple[int, ...]]:
+    """Groups of nodes (ids in the file's numbering) at exactly the same position, at most
+    ``limit`` groups: two parts meant to be joined but numbered apart."""
+    pts = np.asarray(organ.file_points)
+    _, inverse, counts = np.unique(pts, axis=0, return_inverse=True, return_counts=True)
+    groups = []
+    for k in np.flatnonzero(counts > 1)[:limit]:
+        groups.append(tuple(int(organ.node_ids[i]) for i in np.flatnonzero(inverse.ravel() == k)))
+    return groups
+
+
+def check_supports(organ: Organ, fixed: np.ndarray, *,
+                   allow_disconnected: bool = False) -> List[str]:
+    """Refuse a mesh that would fall freely in part; return the warnings to report.
+
+    The mesh's cells are split into connected parts (sharing a node). A part with no fixed
+    node has rigid-body modes: under gravity it falls for ever, and the run would still
+    "pass". Such a part is always refused. Several parts each held are refused too unless
+    ``allow_disconnected`` (then a warning says so). Duplicated nodes (same position, other
+    ids), the usual cause of an accidental split, are named in both cases.
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    cells = np.asarray(organ.mesh.cells)
+    n = organ.mesh.n_nodes
+    rows = np.repeat(cells[:, :1], 3, axis=1).ravel()
+    graph = sp.coo_matrix((np.ones(rows.size), (rows, cells[:, 1:].ravel())), shape=(n, n))
+    n_parts, part = connected_components(graph, directed=False)
+    used = np.zeros(n, dtype=bool)
+    used[cells.ravel()] = True
+    parts = np.unique(part[used])  # nodes in no cell are held by the integrator, not a part
+    warnings_: List[str] = []
+    dups = duplicate_nodes(organ)
+    dup_text = ""
+    if dups:
+        shown = "; ".join(", ".join(str(i) for i in g) for g in dups)
+        dup_text = (f" Nodes at the same position with different ids ({organ.numbering}): {shown}"
+                    f"{' (first 5 groups)' if len(dups) == 5 else ''}; merge them to join the "
+                    "parts.")
+    if len(parts) <= 1:
+        if dups:
+            warnings_.append(f"mesh {organ.label}:{dup_text}")
+        return warnings_
+    held = set(part[np.asarray(fixed, dtype=np.int64)].tolist())
+    sizes = {int(p): int(np.count_nonzero(part[used] == p)) for p in parts}
+    free = [p for p in parts if p not in held]
+
+    def describe(ps) -> str:
+        return ", ".join(f"{sizes[int(p)]} nodes around {_centre(organ, part == p)}"
+                         for p in ps[:5])
+
+    if free:
+        raise InputError(f"mesh {organ.label}: {len(parts)} disconnected parts, {len(free)} with "
+                         f"no fixed node ({describe(free)}): such a part would fall freely "
+                         f"(rigid-body motion). Fix a node in each part or remove it.{dup_text}")
+    text = (f"mesh {organ.label}: {len(parts)} disconnected parts, each with fixed nodes "
+            f"({describe(parts)}).")
+    if not allow_disconnected:
+        raise InputError(f"{text} Run again with --allow-disconnected if that is meant.{dup_text}")
+    warnings_.append(text + dup_text)
+    return warnings_
+
+
+def _centre(organ: Organ, mask: np.ndarray) -> list:
+    """The centroid of some nodes in the file's units, for a message."""
+    return np.round(np.asarray(organ.file_points)[mask].mean(axis=0), 4).tolist()

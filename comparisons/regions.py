@@ -80,14 +80,34 @@ def parse_region(spec: str, points: np.ndarray, node_ids: Optional[np.ndarray] =
     raise InputError(f"region {spec!r}: unknown kind {kind!r}; use box, sphere, nodes or index")
 
 
+#: A node-number file larger than this is not a list of node numbers someone wrote.
+MAX_NODE_FILE_BYTES = 64 << 20
+
+
 def _integers(spec: str, path: Path) -> np.ndarray:
     if not path.is_file():
         raise InputError(f"region {spec!r}: no such file {path}")
-    text = " ".join(line.split("#", 1)[0] for line in path.read_text().splitlines())
+    if path.stat().st_size > MAX_NODE_FILE_BYTES:
+        raise InputError(f"region {spec!r}: {path} is {path.stat().st_size} bytes, more than the "
+                         f"{MAX_NODE_FILE_BYTES} a file of node numbers may hold")
     try:
-        return np.array([int(t) for t in text.replace(",", " ").split()], dtype=np.int64)
+        raw = path.read_text(encoding="utf-8")
+    except (UnicodeDecodeError, OSError) as exc:
+        why = ("not a text file" if isinstance(exc, UnicodeDecodeError)
+               else exc.strerror or str(exc))
+        raise InputError(f"region {spec!r}: {path}: {why}; expected node numbers as text, "
+                         "separated by spaces, commas or new lines ('#' starts a comment)") \
+            from None
+    text = " ".join(line.split("#", 1)[0] for line in raw.splitlines())
+    try:
+        values = [int(t) for t in text.replace(",", " ").split()]
     except ValueError:
         raise InputError(f"region {spec!r}: {path} must hold integer node numbers") from None
+    big = [v for v in values if not -(2**63) <= v < 2**63]
+    if big:  # would overflow int64 (np.array raises OverflowError without naming the file)
+        raise InputError(f"region {spec!r}: {path}: node number {big[0]} is too large to be a node "
+                         "of any mesh")
+    return np.array(values, dtype=np.int64)
 
 
 def select_nodes(specs: Iterable[str], points: np.ndarray, *, what: str = "fixed", node_ids: Optional[np.ndarray] = None,

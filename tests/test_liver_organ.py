@@ -87,6 +87,70 @@ def test_nodes_files_use_the_mesh_files_numbering_and_index_files_positions(orga
         fixed_nodes(organ, [f"nodes:{bad}"])
 
 
+@pytest.mark.parametrize("content, words", [
+    (bytes(range(256)) * 4, "not a text file; expected node numbers as text"),
+    (b"12345678901234567890\n", "node number 12345678901234567890 is too large"),
+])
+def test_a_binary_or_absurd_node_file_is_a_clear_error(organ_files, tmp_path, content, words):
+    from common.options import InputError
+    from comparisons.organ import fixed_nodes, load_organ
+
+    organ = load_organ(str(organ_files[1]), scale=0.01)
+    bad = tmp_path / "ids.bin"
+    bad.write_bytes(content)
+    with pytest.raises(InputError, match=words) as info:
+        fixed_nodes(organ, [f"nodes:{bad}"])
+    assert str(bad) in str(info.value)
+
+
+def test_fixing_every_node_is_refused(organ_files, tmp_path, capsys):
+    folder, path, _ = organ_files
+    every = tmp_path / "all.txt"
+    every.write_text("\n".join(str(i) for i in range(1, 201)))
+    args = ["liver", "--mesh", str(path), "--units", "cm", "--gravity", "0,-9.81,0",
+            "--fixed", f"nodes:{every}", "--steps", "1", "--models", "hyperelastic", "--no-series",
+            "--no-oscillation", "--out", str(tmp_path)]
+    assert main(args) == 2
+    assert "select every one of its 200 nodes; nothing would move" in capsys.readouterr().err
+
+
+def _two_cubes(gap: float):
+    """Two unit cubes of 6 tetrahedra side by side along x, numbered apart (gap 0: they touch,
+    with duplicated nodes on the shared face)."""
+    from conftest import box_mesh
+
+    points, cells = box_mesh(1)
+    other = points + [1.0 + gap, 0.0, 0.0]
+    return np.vstack([points, other]), np.vstack([cells, cells + len(points)])
+
+
+def test_a_part_of_the_mesh_that_nothing_holds_is_refused(tmp_path):
+    from common.options import InputError
+    from comparisons.liver import run_liver
+    from comparisons.organ import load_organ
+
+    organ = load_organ(_two_cubes(0.5))
+    with pytest.raises(InputError, match=r"2 disconnected parts, 1 with no fixed node "
+                                         r"\(8 nodes around "
+                                         r"\[2.0, 0.5, 0.5\]\): such a part would fall freely"):
+        run_liver(organ=organ, fixed=["box:-1,-1,-1,0.1,2,2"], steps=1, models=["hyperelastic"],
+                  series=False, out=str(tmp_path))
+
+
+def test_a_mesh_in_several_held_parts_needs_the_option_and_names_duplicated_nodes(tmp_path):
+    from common.options import InputError
+    from comparisons.organ import check_supports, fixed_nodes, load_organ
+
+    organ = load_organ(_two_cubes(0.0))
+    both = fixed_nodes(organ, ["box:-1,-1,-1,0.1,2,2", "box:1.9,-1,-1,3,2,2"])
+    with pytest.raises(InputError, match="Run again with --allow-disconnected") as info:
+        check_supports(organ, both)
+    assert ("Nodes at the same position with different ids (0-based positions): 4, 8; 5, 9"
+            in str(info.value))
+    (warning,) = check_supports(organ, both, allow_disconnected=True)
+    assert "2 disconnected parts, each with fixed nodes" in warning and "4, 8" in warning
+
+
 def test_a_negatively_oriented_mesh_names_the_option_that_fixes_it(tmp_path, capsys):
     import meshes
     from meshes.io import write_mesh

@@ -54,6 +54,9 @@ def configure(parser) -> None:
                         help="swap two nodes of every negatively oriented cell (the number reordered is reported)")
     parser.add_argument("--fixed", action="append", metavar="REGION",
                         help="fixed nodes: box:..., sphere:..., nodes:FILE or index:FILE (repeatable; default vena cava + ligament)")
+    parser.add_argument("--allow-disconnected", action="store_true",
+                        help="accept a mesh in several parts when each part has a fixed node "
+                             "(warned); a part with no fixed node is always refused")
     parser.add_argument("--gravity", metavar="X,Y,Z", help="gravity in m/s^2 (default 0,0,-9.81)")
     parser.add_argument("--steps", type=int, default=None,
                         help="steps of the dt runs (default 30, quick 6); the porous run covers the same time at its own step")
@@ -184,7 +187,8 @@ def liver_options(args) -> dict:
     return dict(quick=args.quick, out_dir=args.out, series=not args.no_series, mesh=args.mesh, fixed=args.fixed,
                 steps=args.steps, units=args.units, scale=args.scale, fix_orientation=args.fix_orientation,
                 params=params, models=models, oscillation=not args.no_oscillation,
-                full_oscillation=args.full_oscillation, backends=backends)
+                full_oscillation=args.full_oscillation, backends=backends,
+                allow_disconnected=args.allow_disconnected)
 
 
 def run(args) -> int:
