@@ -8,6 +8,7 @@ import hashlib
 import json
 import os
 import sys
+import time
 import tracemalloc
 
 import numpy as np
@@ -102,7 +103,8 @@ def test_a_duplicated_id_is_bad_input_not_counted_twice(tmp_path):
     kit = read_kit(folder)
     assert not kit.cases
     where = f"case {m['cases'][0]['id']}: {os.path.join(folder, 'manifest.json')}"
-    assert list(kit.errors.values()) == [f"{where}: the id appears 2 times; case ids must be unique"]
+    assert list(kit.errors.values()) == [
+        f"{where}: the id appears 2 times; case ids must be unique"]
 
 
 def test_generated_ids_are_safe_whatever_the_mesh_name():
@@ -326,3 +328,34 @@ def test_a_malformed_manifest_is_exit_2_naming_it(tmp_path, capsys):
     assert main(["check", folder, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "manifest.json: malformed JSON" in err and "NaN is not a JSON value" in err
+
+
+# ---------------------------------------------------------------- user energy budget
+@needs_oracle
+def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(tmp_path, capsys,
+                                                                         monkeypatch):
+    import random
+
+    from reference_fem import symbolic_budget
+
+    monkeypatch.setattr(symbolic_budget, "SYMBOLIC_SECONDS", 3.0)
+    # forty components of C multiplied: FFCx needs about 50 s for it (a fresh order each run,
+    # so that no FFCx cache entry from an earlier run can make it fast)
+    names = [f"C{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)] * 5
+    random.shuffle(names)
+    expression = "mu*(" + "*".join(names[:40]) + "-1)"
+    engine = tmp_path / "engine.py"  # a well-formed output, so that the oracle is reached
+    engine.write_text("import json, os, sys\nimport numpy as np\n"
+                      "n = json.load(open(os.path.join(sys.argv[1], 'case.json')))['n_nodes']\n"
+                      "os.makedirs(sys.argv[2], exist_ok=True)\n"
+                      "np.zeros(3 * n).tofile(os.path.join(sys.argv[2], 'force.f64'))\n"
+                      "np.eye(3 * n).tofile(os.path.join(sys.argv[2], 'stiffness.f64'))\n")
+    t0 = time.monotonic()
+    code = main(["check", "--command", f"{sys.executable} {engine} {{input}} {{output}}",
+                 "--energy", expression, "--param", "mu=1", "--states", "uniaxial",
+                 "--out", str(tmp_path / "out"), "--quiet"])
+    assert code == 2
+    assert time.monotonic() - t0 < 40
+    (run,) = os.listdir(tmp_path / "out")
+    (case,) = json.load(open(tmp_path / "out" / run / "results.json"))["cases"]
+    assert "took more than 3 s (the symbolic budget)" in case["message"]
