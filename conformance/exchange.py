@@ -162,7 +162,7 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
                 "n_nodes": case.n_nodes, "n_cells": case.n_cells, "model": model_to_manifest(case.model),
                 "arrays": arrays, **(dict(extra) if extra else {})}
     with open(os.path.join(folder, "case.json"), "w") as fh:
-        json.dump(manifest, fh, indent=1)
+        json.dump(manifest, fh, indent=1, allow_nan=False)  # every value is checked finite
     with open(os.path.join(folder, "case.txt"), "w") as fh:
         fh.write(_case_text(manifest))
     return manifest

@@ -137,7 +137,7 @@ def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Di
     manifest = {"format": KIT_FORMAT, "format_version": FORMAT_VERSION, "created_by": command,
                 "conventions": "docs/conventions.md", "cases": entries}
     with open(os.path.join(folder, "manifest.json"), "w") as fh:
-        json.dump(manifest, fh, indent=1)
+        json.dump(manifest, fh, indent=1, allow_nan=False)  # every value is checked finite
     return manifest
 
 

@@ -3,7 +3,6 @@ fields as VTU files for ParaView (one per failing case, referenced from the repo
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Dict, List, Optional
 
@@ -74,6 +73,7 @@ def write_report(folder: str, run: CheckRun, *, command: str, fields: Dict[str, 
 
     fields: case id -> VTU path relative to ``folder`` (written by the caller).
     """
+    from common.options import write_json
     from common.render import to_html, to_markdown
 
     # Each case is a typed result, so the report's summary says exactly what passed.
@@ -112,8 +112,8 @@ def write_report(folder: str, run: CheckRun, *, command: str, fields: Dict[str, 
         fh.write(to_html(title, preamble, results, folder))
     with open(paths["markdown"], "w") as fh:
         fh.write(to_markdown(title, preamble, results))
-    with open(paths["json"], "w") as fh:
-        json.dump({"command": command, **run.to_dict(), "fields": fields}, fh, indent=1, default=_json_default)
+    # strict JSON: a non-finite figure becomes null, listed with its value under "non_finite"
+    write_json(paths["json"], {"command": command, **run.to_dict(), "fields": fields})
     return paths
 
 
@@ -121,11 +121,3 @@ def _first_finding(d) -> str:
     """The named cause (or the first finding) of a diagnosis, as one line for the summary."""
     findings = d.causes or list(d.findings)
     return findings[0].text() if findings else "failed with no finding"
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o).__name__)

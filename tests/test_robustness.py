@@ -5,6 +5,8 @@ errors (ValueError subclasses whose message names the problem), never a raw Inde
 LinAlgError or a silent NaN.
 """
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
@@ -158,3 +160,38 @@ def test_the_oracle_refuses_invalid_meshes_with_our_errors(how, seed):
     with pytest.raises(ValueError) as info:
         UFLOracle(points, cells, M.NeoHookean(mu=1.0, lam=1.0))
     assert len(str(info.value)) > 10
+
+
+def _strict_load(path):
+    """json.load refusing the NaN and Infinity literals that Python writes by default."""
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    with open(path) as fh:
+        return json.load(fh, parse_constant=refuse)
+
+
+def test_results_are_written_as_strict_json_with_the_reason_for_each_null(tmp_path):
+    from common.options import write_json
+
+    path = tmp_path / "r.json"
+    write_json(str(path), {"fps": float("inf"), "runs": [{"err": np.float64("nan")}],
+                           "field": np.array([1.0, -np.inf]), "ok": 2.5})
+    data = _strict_load(path)
+    assert data["fps"] is None and data["runs"][0]["err"] is None and data["field"] == [1.0, None]
+    assert data["ok"] == 2.5
+    assert data["non_finite"] == [{"path": "fps", "value": "inf"},
+                                  {"path": "runs/0/err", "value": "nan"},
+                                  {"path": "field/1", "value": "-inf"}]
+
+
+def test_the_check_report_json_is_strict(tmp_path):
+    from conformance.report import write_report
+    from conformance.run import CaseOutcome, CheckRun
+
+    run = CheckRun(outcomes=[CaseOutcome("c", "NeoHookean", "box", "rest", "bad input", message="m",
+                                         seconds=float("nan"))])
+    paths = write_report(str(tmp_path), run, command="mjed-verify check kit", fields={})
+    data = _strict_load(paths["json"])
+    assert data["cases"][0]["seconds"] is None
+    assert data["non_finite"] == [{"path": "cases/0/seconds", "value": "nan"}]
