@@ -58,6 +58,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM where a command turns it into one
+        print(f"mjed-verify {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

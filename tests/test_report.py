@@ -328,3 +328,50 @@ def test_reproduce_lines_drop_only_an_out_into_the_run_directory(tmp_path):
     assert _without_run_dir_out(cmd, run) == "mjed-verify liver --quick --json liver.json"
     mine = "mjed-verify liver --out /data/my-reports"
     assert _without_run_dir_out(mine, run) == mine
+
+
+def test_sigterm_ends_the_run_like_ctrl_c_and_leaves_no_partial_folder(tmp_path):
+    import subprocess
+    import sys
+
+    # in a child: SIGTERM's default action would kill the test process itself
+    script = f"""
+import os, signal, sys, time
+sys.path.insert(0, {os.getcwd()!r})
+from common.result import Check, StudyResult
+from comparisons.report.runner import ReportStudy, run_report
+
+def fine(ctx):
+    return StudyResult.from_checks("a", "A", [Check("x", 0.5, 1.0)], headline="ok", command="c")
+
+def terminated(ctx):
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(5)
+
+studies = [ReportStudy("a", "A", fine), ReportStudy("t", "T", terminated)]
+context = {{"materials": (), "meshes": (), "states": (), "show_progress": False}}
+out = run_report({str(tmp_path)!r}, studies, context, quick=True, stream=open(os.devnull, "w"))
+print(out.run_dir, out.complete, out.results[1].reason)
+"""
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    run_dir, complete, reason = proc.stdout.split(" ", 2)
+    assert run_dir.endswith("-interrupted") and complete == "False"
+    assert reason.strip() == "terminated (SIGTERM) during this study"
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".partial")]
+    assert os.path.isfile(os.path.join(run_dir, "index.html"))
+
+
+def test_the_interruption_message_names_the_out_folder(tmp_path, monkeypatch, capsys):
+    from comparisons.report import runner
+
+    def cut(reports_dir, *args, **kwargs):
+        return runner.RunOutcome(run_dir=os.path.join(reports_dir, "x-interrupted"), complete=False,
+                                 results=[])
+
+    monkeypatch.setattr(runner, "run_report", cut)
+    out = str(tmp_path / "elsewhere")
+    assert main(["all", "--only", "provenance", "--out", out, "--no-progress"]) == 130
+    err = capsys.readouterr().err
+    assert f"{out}/latest unchanged" in err and "reports/latest" not in err

@@ -66,7 +66,8 @@ def run(args) -> int:
     )
     where = outcome.run_dir + "/index.html"
     if not outcome.complete:
-        print(f"interrupted: partial report in {where}; reports/latest unchanged", file=sys.stderr)
+        print(f"interrupted: partial report in {where}; {args.out}/latest unchanged",
+              file=sys.stderr)
         return outcome.exit_code()
     for r in outcome.results:
         print(f"  {r.title}: {status_label(r)}" + (f": {r.reason}" if r.reason else ""))

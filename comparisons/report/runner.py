@@ -6,8 +6,9 @@ Safety rules, in order of importance:
 - the run is assembled in ``<reports>/.partial-<name>`` and renamed when its report is written;
   only then does ``latest`` move (an atomic symlink replace);
 - a study that raises becomes an ERROR result saying what failed and why; the others run;
-- an interrupted run (Ctrl-C) still writes what it has, as ``<name>-interrupted``, and leaves
-  ``latest`` where it was;
+- an interrupted run (Ctrl-C, or SIGTERM from a job scheduler or ``timeout``) still writes
+  what it has, as ``<name>-interrupted``, and leaves ``latest`` where it was; if even that
+  cannot be written, the ``.partial-*`` folder is removed, never left behind;
 - a study left out by ``--only`` is listed as NOT RUN with that reason, never silently dropped.
 
 The runner decides no verdict: each study returns its :class:`common.result.StudyResult`,
@@ -19,7 +20,10 @@ from __future__ import annotations
 import os
 import platform
 import shlex
+import shutil
+import signal
 import sys
+import threading
 import time
 import traceback
 from dataclasses import dataclass, replace
@@ -30,7 +34,24 @@ from common.render import to_html, to_markdown
 from common.result import StudyResult, exit_code
 from common.verdict import not_covered_lines, status_label, verdict_sentence
 
-__all__ = ["StudyContext", "ReportStudy", "RunOutcome", "run_report", "publish_latest", "report_command"]
+__all__ = ["StudyContext", "ReportStudy", "RunOutcome", "run_report", "publish_latest",
+           "report_command", "Terminated"]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: handled as an interruption, so that the run ends the way Ctrl-C ends it."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated()
+
+
+def _on_sigterm():
+    """Install the SIGTERM handler (main thread only; signals cannot be caught elsewhere);
+    returns the previous handler, or None when it could not be installed."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 @dataclass(frozen=True)
@@ -195,6 +216,23 @@ def run_report(
     name = _new_run_name(reports_dir, quick)
     partial = os.path.join(reports_dir, f".partial-{name}")
     os.makedirs(partial)
+    previous = _on_sigterm()
+    try:
+        return _run_into(partial, reports_dir, name, studies, context_args, quick=quick, only=only,
+                         command_line=command_line, stream=stream)
+    except BaseException:
+        # even the interrupted report could not be written (a second signal, a full disk):
+        # remove the folder rather than leave a .partial-* behind
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run_into(partial: str, reports_dir: str, name: str, studies: Sequence[ReportStudy],
+              context_args: dict, *, quick: bool, only: Optional[Sequence[str]], command_line: Optional[Sequence[str]],
+              stream) -> RunOutcome:
     ctx = StudyContext(run_dir=partial, quick=quick, **context_args)
     results: List[StudyResult] = []
     interrupted = False
@@ -211,9 +249,11 @@ def run_report(
         t0 = time.perf_counter()
         try:
             result = _run_one(study, ctx)
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:
             interrupted = True
-            result = StudyResult.not_run(study.key, study.title, "interrupted by the user during this study", again)
+            how = ("terminated (SIGTERM)" if isinstance(exc, Terminated)
+                   else "interrupted by the user")
+            result = StudyResult.not_run(study.key, study.title, f"{how} during this study", again)
         result = result.with_seconds(time.perf_counter() - t0)
         why = f": {result.reason}" if result.reason else ""
         print(f"      {status_label(result)}{why} ({result.seconds:.1f} s)", file=stream, flush=True)
