@@ -117,11 +117,35 @@ def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, n
     return out
 
 
+#: Created first, exclusively, by an export, and removed when its manifest is written: two
+#: exports into one folder cannot interleave (the second is refused by name).
+EXPORT_LOCK = ".mjed-verify-export-in-progress"
+
+
 def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Dict[str, Any]:
-    """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten)."""
+    """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten).
+
+    Raises FileExistsError when the folder is not empty or another export is writing into it.
+    """
+    not_empty = f"{folder}: exists and is not an empty directory; export writes only into a new one"
     if os.path.exists(folder) and (not os.path.isdir(folder) or os.listdir(folder)):
-        raise FileExistsError(f"{folder}: exists and is not an empty directory; export writes only into a new one")
+        raise FileExistsError(not_empty)
     os.makedirs(folder, exist_ok=True)
+    lock = os.path.join(folder, EXPORT_LOCK)
+    try:
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+    except FileExistsError:
+        raise FileExistsError(f"{folder}: another export is writing into it ({EXPORT_LOCK}); "
+                              "export into a new directory") from None
+    if os.listdir(folder) != [EXPORT_LOCK]:  # an export finished between the check and the claim
+        os.remove(lock)
+        raise FileExistsError(not_empty)
+    manifest = _write_cases(folder, cases, command)
+    os.remove(lock)
+    return manifest
+
+
+def _write_cases(folder: str, cases: Sequence[KitCase], command: str) -> Dict[str, Any]:
     entries = []
     for c in cases:
         rel_in = f"cases/{c.case_id}/input"

@@ -359,3 +359,39 @@ def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(tmp_pat
     (run,) = os.listdir(tmp_path / "out")
     (case,) = json.load(open(tmp_path / "out" / run / "results.json"))["cases"]
     assert "took more than 3 s (the symbolic budget)" in case["message"]
+
+
+# ---------------------------------------------------------------- concurrent exports
+def test_an_export_into_a_folder_another_export_holds_is_refused(tmp_path, monkeypatch):
+    from conformance.kit import EXPORT_LOCK
+
+    cases = _kit(tmp_path, name="other")[1]
+    folder = tmp_path / "kit"
+    makedirs = os.makedirs
+
+    def and_the_other_export_claims_it(path, *args, **kwargs):
+        # the race: another export claims the folder just after this one found it empty
+        makedirs(path, *args, **kwargs)
+        if path == str(folder):
+            (folder / EXPORT_LOCK).touch()
+
+    monkeypatch.setattr(os, "makedirs", and_the_other_export_claims_it)
+    with pytest.raises(FileExistsError, match="another export is writing into it"):
+        write_kit(str(folder), cases)
+    assert os.listdir(folder) == [EXPORT_LOCK]  # nothing of this export written
+
+
+def test_two_concurrent_exports_into_one_folder_give_one_kit_and_one_clear_error(tmp_path):
+    import subprocess
+
+    folder = str(tmp_path / "kit")
+    argv = [sys.executable, "-m", "comparisons.cli", "export", folder, "--material", "NeoHookean",
+            "--states", "rest,uniaxial,shear", "--no-probes"]
+    procs = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    results = sorted((p.wait(timeout=120), p.stderr.read()) for p in procs)
+    assert [code for code, _ in results] == [0, 2]
+    assert "Traceback" not in results[1][1]
+    assert ("another export is writing into it" in results[1][1]
+            or "exists and is not an empty directory" in results[1][1])
+    assert len(read_kit(folder).cases) == 3

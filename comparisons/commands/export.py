@@ -33,7 +33,10 @@ def run(args) -> int:
     if os.path.exists(args.dir) and (not os.path.isdir(args.dir) or os.listdir(args.dir)):
         raise InputError(f"{args.dir}: exists and is not an empty directory; export never writes into one")
     cases = cases_from_args(args, probes=0 if args.no_probes else PROBES)
-    manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
+    try:
+        manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
+    except FileExistsError as exc:  # another export took the folder after the check above
+        raise InputError(str(exc)) from None
     n_main = sum(e["role"] == "case" for e in manifest["cases"])
     print(f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
           f"compute each cases/<id>/output, then: mjed-verify check {args.dir}")
