@@ -56,16 +56,16 @@ def confined_path(root: str, rel: object, what: str) -> str:
     what: how to name ``rel`` in a message (e.g. "case X: manifest.json: field 'input'").
     """
     if not isinstance(rel, str) or not rel:
-        raise ConfinementError(f"{what}: expected a non-empty relative path, got {rel!r}")
+        raise ConfinementError(f"{what}: expected a non-empty path relative to {root}, got {rel!r}")
     if "\x00" in rel:
-        raise ConfinementError(f"{what}: {rel!r} contains a NUL character")
-    if os.path.isabs(rel) or rel.startswith("~"):
-        raise ConfinementError(f"{what}: {rel!r} is an absolute path; paths in a kit are "
-                               "relative to it")
+        raise ConfinementError(f"{what}: {rel!r} (in {root}) contains a NUL character")
+    if os.path.isabs(rel):
+        raise ConfinementError(f"{what}: {rel!r} (in {root}) is an absolute path; paths in a kit "
+                               "are relative to it")
     parts = rel.replace("\\", "/").split("/")
     if ".." in parts:
-        raise ConfinementError(f"{what}: {rel!r} climbs out with '..'; paths in a kit stay "
-                               "inside it")
+        raise ConfinementError(f"{what}: {rel!r} (in {root}) climbs out with '..'; paths in a kit "
+                               "stay inside it")
     path = os.path.join(root, rel)
     real_root = os.path.realpath(root)
     real = os.path.realpath(path)
