@@ -130,7 +130,7 @@ def test_sofa_ogden_tangent_table_has_an_exact_control_row_and_inexact_others():
 
     points, cells, label = catalog.resolve("single-tet")
     ogden = mjed.materials.Ogden(mu=1e3, alpha=3.0, k0=1e4)
-    table = _ogden_tangent([(label, points, cells)], [ogden], ["rest", "shear", "random"])[label]
+    table = _ogden_tangent([(label, mjed.TetMesh(points, cells))], [ogden], ["rest", "shear", "random"])[label]
     assert list(table) == ["alpha 3", *(f"alpha {a:g}" for a in OGDEN_TANGENT_ALPHAS)]
     assert max(table["alpha 2"].values()) <= 1e-14
     for alpha in ("alpha 3", "alpha -2", "alpha 6"):
