@@ -16,7 +16,13 @@ from comparisons.liver_setup import PAPER_FPS, LiverParameters, _models, numpy_f
 
 __all__ = ["PHASES", "simulate"]
 
-PHASES = ("hyperelastic force + stiffness", "other forces", "building the system", "linear solve", "rest")
+PHASES = (
+    "hyperelastic force + stiffness",
+    "other forces",
+    "building the system",
+    "linear solve",
+    "rest",
+)
 
 
 def _phase_seconds(times) -> np.ndarray:
@@ -58,9 +64,18 @@ class Trajectory:
                 self.best_P = (self.p_max[-1], fluid.P.copy(), integ.x.copy())
 
 
-def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, duration: float, *,
-             force_field=numpy_force_field, writer=None, progress=None,
-             dt: Optional[float] = None) -> Dict:
+def simulate(
+    kind: str,
+    mesh,
+    params: LiverParameters,
+    fixed: np.ndarray,
+    duration: float,
+    *,
+    force_field=numpy_force_field,
+    writer=None,
+    progress=None,
+    dt: Optional[float] = None,
+) -> Dict:
     """One run of ``kind`` over ``duration`` seconds; a JSON-serialisable record.
 
     dt overrides the model's step (the oscillation study). A step the integrator refuses
@@ -73,11 +88,20 @@ def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, durati
     models, model_dt, fluid = _models(kind, mesh, params, fixed, force_field)
     dt = model_dt if dt is None else dt
     n_steps = max(1, int(round(duration / dt)))
-    integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity,
-                          fixed_nodes=fixed, rayleigh_mass=params.rayleigh_mass,
-                          rayleigh_stiffness=params.rayleigh_stiffness, solver=params.solver,
-                          max_halvings=params.max_halvings, allow_inverted=params.allow_inverted,
-                          max_volume_change=params.max_volume_change)
+    integ = ImplicitEuler(
+        mesh,
+        models,
+        params.density,
+        dt=dt,
+        gravity=params.gravity,
+        fixed_nodes=fixed,
+        rayleigh_mass=params.rayleigh_mass,
+        rayleigh_stiffness=params.rayleigh_stiffness,
+        solver=params.solver,
+        max_halvings=params.max_halvings,
+        allow_inverted=params.allow_inverted,
+        max_volume_change=params.max_volume_change,
+    )
     track = Trajectory()
     pressure = (lambda: None) if fluid is None else (lambda: fluid.P)
     if writer is not None:
@@ -95,30 +119,50 @@ def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, durati
             writer(integ.t, integ.x, cell_jacobians(mesh, integ.x), pressure())
         if progress is not None:
             split = f", {report.substeps} substeps" if report.substeps > 1 else ""
-            progress(f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * track.amplitude[-1]:.1f} mm, "
-                     f"{report.cg_iterations} CG{split}")
+            progress(
+                f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * track.amplitude[-1]:.1f} mm, "
+                f"{report.cg_iterations} CG{split}"
+            )
     return _run_record(kind, dt, n_steps, error, track, params, force_field, fluid is not None)
 
 
-def _run_record(kind: str, dt: float, n_steps: int, error: Optional[str], track: Trajectory,
-                params: LiverParameters, force_field, porous: bool) -> Dict:
+def _run_record(
+    kind: str,
+    dt: float,
+    n_steps: int,
+    error: Optional[str],
+    track: Trajectory,
+    params: LiverParameters,
+    force_field,
+    porous: bool,
+) -> Dict:
     """The JSON record of one run."""
     done, stepping, cpu = len(track.cg), track.stepping, track.cpu
-    label = getattr(force_field, "label",
-                    getattr(force_field, "__qualname__", type(force_field).__name__))
+    label = getattr(
+        force_field, "label", getattr(force_field, "__qualname__", type(force_field).__name__)
+    )
     out = {
-        "model": kind, "dt": dt, "steps": done, "steps_planned": n_steps, "error": error,
-        "time": track.times, "max_displacement": track.amplitude,
+        "model": kind,
+        "dt": dt,
+        "steps": done,
+        "steps_planned": n_steps,
+        "error": error,
+        "time": track.times,
+        "max_displacement": track.amplitude,
         "final_max_displacement": track.amplitude[-1],
         "peak_max_displacement": max(track.amplitude),
         "cg_iterations_mean": float(np.mean(track.cg)) if track.cg else None,
-        "cg_iterations": track.cg, "substeps": track.substeps,
+        "cg_iterations": track.cg,
+        "substeps": track.substeps,
         "steps_split": int(sum(s > 1 for s in track.substeps)),
-        "substeps_total": int(sum(track.substeps)), "retries": track.retries,
+        "substeps_total": int(sum(track.substeps)),
+        "retries": track.retries,
         "inverted_cells": track.inverted,
         "inverted_cells_max": int(max(track.inverted)) if track.inverted else 0,
-        "factorizations": track.factorizations, "solver": params.solver.label(),
-        "force_field": label, "backend": getattr(force_field, "backend", "custom"),
+        "factorizations": track.factorizations,
+        "solver": params.solver.label(),
+        "force_field": label,
+        "backend": getattr(force_field, "backend", "custom"),
         "stepping_seconds": stepping,
         "fps": done / stepping if stepping > 0 else None,
         # Steps per CPU second of this process: what the run would reach with a core to itself
@@ -155,12 +199,23 @@ class _SeriesWriter:
         if P is not None:
             point_data["pressure"] = np.asarray(P, dtype=float)
         name = f"step_{len(self.entries):05d}.vtu"
-        meshio.write(os.path.join(self.folder, name),
-                     meshio.Mesh(self.mesh.points, [("tetra", self.mesh.cells)], point_data=point_data, cell_data={"J": [J]}))
+        meshio.write(
+            os.path.join(self.folder, name),
+            meshio.Mesh(
+                self.mesh.points,
+                [("tetra", self.mesh.cells)],
+                point_data=point_data,
+                cell_data={"J": [J]},
+            ),
+        )
         self.entries.append((t, f"{os.path.basename(self.folder)}/{name}"))
 
     def close(self) -> None:
-        rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries)
+        rows = "\n".join(
+            f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries
+        )
         with open(self.path, "w") as fh:
-            fh.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-                     f"{rows}\n  </Collection>\n</VTKFile>\n")
+            fh.write(
+                '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+                f"{rows}\n  </Collection>\n</VTKFile>\n"
+            )

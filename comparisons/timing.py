@@ -38,10 +38,22 @@ from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tupl
 import numpy as np
 
 from common.result import Check, StudyResult
+from comparisons.timing_data import (
+    Floor,
+    MemoryRecord,
+    MeshInfo,
+    Ratio,
+    Rounds,
+    ScalingData,
+    ScalingRow,
+    ScalingSettings,
+    Skipped,
+    TimedCall,
+    TimingData,
+    TimingSettings,
+    Verified,
+)
 from comparisons.timing_protocol import calls_for, relative_spread, summary, time_batch
-from comparisons.timing_data import (Floor, MeshInfo, MemoryRecord, Ratio, Rounds, ScalingData,
-                                     ScalingRow, ScalingSettings, Skipped, TimedCall, TimingData,
-                                     TimingSettings, Verified)
 from comparisons.timing_protocol import protocol as get_protocol
 
 KEY = "timing"
@@ -50,12 +62,32 @@ SCALING_KEY = "scaling"
 SCALING_TITLE = "Scaling with mesh size"
 
 __all__ = [
-    "KEY", "TITLE", "SCALING_KEY", "SCALING_TITLE", "WHATS", "DEFAULT_METHODS", "timing_study", "scaling_study", "timing_command", "scaling_command",
-    "measure_memory", "timing_state", "check_methods", "timing_checks",
+    "KEY",
+    "TITLE",
+    "SCALING_KEY",
+    "SCALING_TITLE",
+    "WHATS",
+    "DEFAULT_METHODS",
+    "timing_study",
+    "scaling_study",
+    "timing_command",
+    "scaling_command",
+    "measure_memory",
+    "timing_state",
+    "check_methods",
+    "timing_checks",
 ]
 
 WHATS = ("force+stiffness", "force", "stiffness")
-DEFAULT_METHODS = ("mjed", "mjed-numba", "classical", "classical-numba", "dolfinx", "felupe", "sfepy")
+DEFAULT_METHODS = (
+    "mjed",
+    "mjed-numba",
+    "classical",
+    "classical-numba",
+    "dolfinx",
+    "felupe",
+    "sfepy",
+)
 REFERENCE = "mjed"  # NumPy MJED: every result is compared with it, every ratio is against an MJED
 
 #: Targets (issues 4 and 15), on force+stiffness unless said.
@@ -67,8 +99,14 @@ TARGET_MATERIAL = "NeoHookean"
 VERIFY_TOL = 1e-10  # the equivalence study's force and stiffness tolerances
 
 #: Ratio pairs (numerator / denominator) formed per round; the first method must be timed too.
-PAIRS = (("classical", "mjed"), ("classical-numba", "mjed-numba"), ("mjed", "mjed-numba"), ("dolfinx", "mjed"),
-         ("felupe", "mjed"), ("sfepy", "mjed"))
+PAIRS = (
+    ("classical", "mjed"),
+    ("classical-numba", "mjed-numba"),
+    ("mjed", "mjed-numba"),
+    ("dolfinx", "mjed"),
+    ("felupe", "mjed"),
+    ("sfepy", "mjed"),
+)
 
 #: Scaling: target cell counts of the structured cube (6 n^3 cells).
 SCALING_SIZES = (1_000, 10_000, 100_000, 1_000_000)
@@ -81,7 +119,8 @@ FLATNESS_RANGE = (1e4, 1.5e6)
 # ------------------------------------------------------------------ shared helpers
 def timing_state(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """The deformed positions every method is timed at: the equivalence study's seeded
-    smooth random field with a rotation (J > 0.2 everywhere), so no branch is trivial."""
+    smooth random field with a rotation (J > 0.2 everywhere), so no branch is trivial.
+    """
     from common.states import smooth_random
 
     return smooth_random(points, cells)
@@ -116,16 +155,37 @@ def check_methods(methods: "str | Sequence[str]") -> Tuple[str, ...]:
         get(m)  # raises naming the known methods
     methods = tuple(dict.fromkeys(methods))
     if REFERENCE not in methods:
-        raise ValueError(f"the methods must include {REFERENCE!r} (NumPy MJED: the reference every result is "
-                         "checked against)")
+        raise ValueError(
+            f"the methods must include {REFERENCE!r} (NumPy MJED: the reference every result is "
+            "checked against)"
+        )
     return methods
 
 
-def timing_command(materials: Sequence[str], mesh: str, *, quick: bool, protocol: str, methods: Sequence[str],
-                   memory: bool, out_dir: Optional[str], json_path: Optional[str] = None) -> str:
+def timing_command(
+    materials: Sequence[str],
+    mesh: str,
+    *,
+    quick: bool,
+    protocol: str,
+    methods: Sequence[str],
+    memory: bool,
+    out_dir: Optional[str],
+    json_path: Optional[str] = None,
+) -> str:
     """The mjed-verify command line that runs exactly this timing study."""
-    parts = ["mjed-verify", "timing", "--material", ",".join(materials), "--mesh", str(mesh), "--methods",
-             ",".join(methods), "--protocol", protocol]
+    parts = [
+        "mjed-verify",
+        "timing",
+        "--material",
+        ",".join(materials),
+        "--mesh",
+        str(mesh),
+        "--methods",
+        ",".join(methods),
+        "--protocol",
+        protocol,
+    ]
     parts += ["--quick"] if quick else []
     parts += [] if memory else ["--no-memory"]
     parts += ["--out", out_dir] if out_dir else []
@@ -133,9 +193,24 @@ def timing_command(materials: Sequence[str], mesh: str, *, quick: bool, protocol
     return shlex.join(parts)
 
 
-def scaling_command(*, quick: bool, material: str, methods: Sequence[str], max_cells: Optional[int],
-                    out_dir: Optional[str], json_path: Optional[str] = None) -> str:
-    parts = ["mjed-verify", "timing", "--scaling", "--scaling-material", material, "--methods", ",".join(methods)]
+def scaling_command(
+    *,
+    quick: bool,
+    material: str,
+    methods: Sequence[str],
+    max_cells: Optional[int],
+    out_dir: Optional[str],
+    json_path: Optional[str] = None,
+) -> str:
+    parts = [
+        "mjed-verify",
+        "timing",
+        "--scaling",
+        "--scaling-material",
+        material,
+        "--methods",
+        ",".join(methods),
+    ]
     parts += ["--quick"] if quick else []
     parts += ["--max-cells", str(max_cells)] if max_cells else []
     parts += ["--out", out_dir] if out_dir else []
@@ -163,7 +238,8 @@ def _status_kib() -> Dict[str, int]:
 
 def _memory_worker(spec: Dict[str, Any]) -> Dict[str, Any]:
     """Runs in a fresh process: peak resident-set growth of building ``spec['method']``
-    and one force+stiffness call, then ``repeats`` timed calls."""
+    and one force+stiffness call, then ``repeats`` timed calls.
+    """
     from common.cases import default_material
     from comparisons.timing_methods import get
 
@@ -183,14 +259,23 @@ def _memory_worker(spec: Dict[str, Any]) -> Dict[str, Any]:
     first_s = time.perf_counter() - t0
     after = _status_kib()
     times = [time_batch(obj.force_and_stiffness, x, 1) for _ in range(spec.get("repeats", 0))]
-    return {"peak_bytes": 1024 * (after["VmHWM"] - before), "resident_after_bytes": 1024 * (after["VmRSS"] - before),
-            "setup_s": setup_s, "first_call_s": first_s, "times_s": times, "n_cells": int(len(cells)),
-            "n_nodes": int(len(points))}
+    return {
+        "peak_bytes": 1024 * (after["VmHWM"] - before),
+        "resident_after_bytes": 1024 * (after["VmRSS"] - before),
+        "setup_s": setup_s,
+        "first_call_s": first_s,
+        "times_s": times,
+        "n_cells": int(len(cells)),
+        "n_nodes": int(len(points)),
+    }
 
 
-def measure_memory(method: str, material: str, mesh: Any, *, repeats: int = 0, timeout: float = 1800.0) -> Dict[str, Any]:
+def measure_memory(
+    method: str, material: str, mesh: Any, *, repeats: int = 0, timeout: float = 1800.0
+) -> Dict[str, Any]:
     """Run the memory worker in a subprocess; its dict, or {'error': ...}.
-    mesh: a catalog name or path, or {'structured': n_cells}."""
+    mesh: a catalog name or path, or {'structured': n_cells}.
+    """
     if not os.path.exists("/proc/self/clear_refs"):
         return {"error": "peak memory needs Linux /proc (VmHWM); not measured"}
     spec = {"method": method, "material": material, "mesh": mesh, "repeats": repeats}
@@ -198,8 +283,13 @@ def measure_memory(method: str, material: str, mesh: Any, *, repeats: int = 0, t
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     try:
-        proc = subprocess.run([sys.executable, "-m", "comparisons.timing", json.dumps(spec)], capture_output=True,
-                              text=True, timeout=timeout, env=env)
+        proc = subprocess.run(
+            [sys.executable, "-m", "comparisons.timing", json.dumps(spec)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=env,
+        )
     except subprocess.TimeoutExpired:
         return {"error": f"did not finish within {timeout:.0f} s"}
     if proc.returncode != 0:
@@ -263,8 +353,9 @@ def timing_study(
         mesh = "cube-small"
     methods = check_methods(methods)
     names = _names(materials)
-    cmd = command or timing_command(names, mesh, quick=quick, protocol=protocol, methods=methods,
-                                    memory=memory, out_dir=out_dir)
+    cmd = command or timing_command(
+        names, mesh, quick=quick, protocol=protocol, methods=methods, memory=memory, out_dir=out_dir
+    )
     say = progress or (lambda msg: None)
     load_before = _load()
     setup = _timing_setup(mesh, quick, protocol, methods)
@@ -289,8 +380,10 @@ def _timing_setup(mesh: str, quick: bool, protocol: str, methods: Sequence[str])
     edge = float(np.mean(np.linalg.norm(points[cells[:, 1]] - points[cells[:, 0]], axis=1)))
     not_covered: List[str] = []
     if quick:
-        not_covered.append(f"quick run: {mesh} and the quick protocol instead of cube-paper and "
-                           "the budget protocol")
+        not_covered.append(
+            f"quick run: {mesh} and the quick protocol instead of cube-paper and "
+            "the budget protocol"
+        )
     unavailable = {m: get(m).unavailable() for m in methods}
     not_covered += [f"{get(m).label} not timed: {why}" for m, why in unavailable.items() if why]
     active = [m for m in methods if not unavailable[m]]
@@ -308,20 +401,35 @@ def _timing_data(setup: TimingSetup, methods: Sequence[str], quick: bool, say) -
     say("bandwidth: copy of 64 MiB")
     bw = measure_bandwidth()
     floor_b = floor_bytes(len(setup.points), len(setup.cells), pattern.nnz)
-    floor = Floor(floor_b, floor_b / bw.bytes_per_s,
-                  "CSR values and force written once; positions, connectivity (int32) and rest "
-                  "geometry (D, V0) read once; at the measured copy bandwidth")
+    floor = Floor(
+        floor_b,
+        floor_b / bw.bytes_per_s,
+        "CSR values and force written once; positions, connectivity (int32) and rest "
+        "geometry (D, V0) read once; at the measured copy bandwidth",
+    )
     proto = setup.protocol
-    settings = TimingSettings(proto.name, proto.describe(), list(setup.active),
-                              {m: get(m).label for m in methods}, quick, proto.calls or "adaptive", 0)
-    return TimingData(MeshInfo(setup.mesh, int(len(setup.cells)), int(len(setup.points)),
-                               int(pattern.nnz)), settings, bw, floor,
-                      provenance=provenance(with_dolfinx="dolfinx" in setup.active))
+    settings = TimingSettings(
+        proto.name,
+        proto.describe(),
+        list(setup.active),
+        {m: get(m).label for m in methods},
+        quick,
+        proto.calls or "adaptive",
+        0,
+    )
+    return TimingData(
+        MeshInfo(setup.mesh, int(len(setup.cells)), int(len(setup.points)), int(pattern.nnz)),
+        settings,
+        bw,
+        floor,
+        provenance=provenance(with_dolfinx="dolfinx" in setup.active),
+    )
 
 
 def _build_methods(name: str, setup: TimingSetup, data: TimingData):
     """Build every runnable method for one material, verify it against NumPy MJED, and return
-    the ones that may be timed (name -> object); the others are recorded as skipped."""
+    the ones that may be timed (name -> object); the others are recorded as skipped.
+    """
     from common.cases import default_material
     from comparisons.timing_methods import get, verify
 
@@ -337,7 +445,9 @@ def _build_methods(name: str, setup: TimingSetup, data: TimingData):
         try:
             obj = get(m).build(setup.points, setup.cells, material)
         except Exception as exc:  # a peer refusing at build time: not timed, said why
-            data.skipped.append(Skipped(name, m, f"could not be built: {type(exc).__name__}: {exc}"))
+            data.skipped.append(
+                Skipped(name, m, f"could not be built: {type(exc).__name__}: {exc}")
+            )
             continue
         if m == REFERENCE:
             reference = obj.force_and_stiffness(setup.x)
@@ -354,13 +464,14 @@ def _build_methods(name: str, setup: TimingSetup, data: TimingData):
     return objs
 
 
-def _time_material(name: str, setup: TimingSetup, data: TimingData, samples: _Samples,
-                   say) -> None:
+def _time_material(name: str, setup: TimingSetup, data: TimingData, samples: _Samples, say) -> None:
     """Time every verified method of one material in interleaved rounds until the protocol
-    stops them (the order rotates each round, so drift in the machine hits all methods)."""
+    stops them (the order rotates each round, so drift in the machine hits all methods).
+    """
     objs = _build_methods(name, setup, data)
-    fns = {(m, w): getattr(o, _ATTR[w]) for m, o in objs.items() for w in WHATS
-           if hasattr(o, _ATTR[w])}
+    fns = {
+        (m, w): getattr(o, _ATTR[w]) for m, o in objs.items() for w in WHATS if hasattr(o, _ATTR[w])
+    }
     x, proto = setup.x, setup.protocol
     for (m, w), fn in fns.items():  # warm-up (lazy maps, JIT, caches), then a call sizes the batch
         fn(x)
@@ -379,9 +490,14 @@ def _time_material(name: str, setup: TimingSetup, data: TimingData, samples: _Sa
                     samples.times.setdefault((name, m, w), []).append(t)
                     elapsed += t * n
         rounds += 1
-        say(f"{name}: round {rounds}: " + ", ".join(
-            f"{m} {samples.times[(name, m, 'force+stiffness')][-1] * 1e3:.2f} ms" for m in order
-            if (name, m, "force+stiffness") in samples.times))
+        say(
+            f"{name}: round {rounds}: "
+            + ", ".join(
+                f"{m} {samples.times[(name, m, 'force+stiffness')][-1] * 1e3:.2f} ms"
+                for m in order
+                if (name, m, "force+stiffness") in samples.times
+            )
+        )
         spreads = [relative_spread(samples.times[(name, m, w)]) for (m, w) in fns]
         why = proto.should_stop(rounds, spreads, elapsed)
         if why:
@@ -398,9 +514,21 @@ def _summarise(data: TimingData, samples: _Samples, names: Sequence[str], protoc
 
     for (name, m, w), v in samples.times.items():
         s = summary(v)
-        data.results.append(TimedCall(name, m, w, s["median"], s["min"], s["max"], len(v),
-                                      samples.calls[(name, m, w)], relative_spread(v),
-                                      data.rounds[name].stopped_by, protocol))
+        data.results.append(
+            TimedCall(
+                name,
+                m,
+                w,
+                s["median"],
+                s["min"],
+                s["max"],
+                len(v),
+                samples.calls[(name, m, w)],
+                relative_spread(v),
+                data.rounds[name].stopped_by,
+                protocol,
+            )
+        )
     for num, den in PAIRS:
         for name in names:
             for w in WHATS:
@@ -408,16 +536,19 @@ def _summarise(data: TimingData, samples: _Samples, names: Sequence[str], protoc
                 if a and b:
                     per = [p / q for p, q in zip(a, b)]
                     s = summary(per)
-                    data.ratios.append(Ratio(name, w, f"{num}/{den}", s["median"], s["min"],
-                                             s["max"], per))
+                    data.ratios.append(
+                        Ratio(name, w, f"{num}/{den}", s["median"], s["min"], s["max"], per)
+                    )
     data.opcount = {name: model(default_material(name)) for name in names}
-    data.settings = replace(data.settings, repeats=max((r.rounds for r in data.rounds.values()),
-                                                       default=0))
+    data.settings = replace(
+        data.settings, repeats=max((r.rounds for r in data.rounds.values()), default=0)
+    )
 
 
 def _measure_memories(data: TimingData, names: Sequence[str], setup: TimingSetup, say) -> None:
     """Peak memory per method in fresh processes: every material under the paper protocol,
-    else only the target material (each measurement rebuilds the method from scratch)."""
+    else only the target material (each measurement rebuilds the method from scratch).
+    """
     if setup.protocol.name == "paper":
         mem_names = list(names)
     else:
@@ -429,12 +560,25 @@ def _measure_memories(data: TimingData, names: Sequence[str], setup: TimingSetup
                 continue
             say(f"{name}: peak memory of {m} (subprocess)")
             rec = measure_memory(m, name, setup.mesh)
-            data.memory.append(MemoryRecord(name, m, rec.get("peak_bytes"),
-                                            rec.get("resident_after_bytes"), rec.get("error")))
+            data.memory.append(
+                MemoryRecord(
+                    name,
+                    m,
+                    rec.get("peak_bytes"),
+                    rec.get("resident_after_bytes"),
+                    rec.get("error"),
+                )
+            )
 
 
-def _timing_result(data: TimingData, names: Sequence[str], setup: TimingSetup,
-                   out_dir: Optional[str], cmd: str, seconds: float) -> StudyResult:
+def _timing_result(
+    data: TimingData,
+    names: Sequence[str],
+    setup: TimingSetup,
+    out_dir: Optional[str],
+    cmd: str,
+    seconds: float,
+) -> StudyResult:
     """Checks, figure and report blocks of a measured run."""
     from comparisons import timing_blocks
 
@@ -446,11 +590,18 @@ def _timing_result(data: TimingData, names: Sequence[str], setup: TimingSetup,
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_fig2.png")
         data.figures.append(figures_timing.plot_fig2(data.to_dict(), path))
-    return StudyResult.from_checks(KEY, TITLE, checks, headline=timing_blocks.timing_headline(data),
-                                   command=cmd, not_covered=tuple(setup.not_covered),
-                                   protocol=setup.protocol.describe(), data=data.to_dict(),
-                                   blocks=timing_blocks.timing_blocks(data, checks),
-                                   seconds=seconds)
+    return StudyResult.from_checks(
+        KEY,
+        TITLE,
+        checks,
+        headline=timing_blocks.timing_headline(data),
+        command=cmd,
+        not_covered=tuple(setup.not_covered),
+        protocol=setup.protocol.describe(),
+        data=data.to_dict(),
+        blocks=timing_blocks.timing_blocks(data, checks),
+        seconds=seconds,
+    )
 
 
 _ATTR = {"force+stiffness": "force_and_stiffness", "force": "force", "stiffness": "stiffness"}
@@ -469,10 +620,15 @@ def timing_checks(data: TimingData, names: Sequence[str], mesh: str) -> List[Che
 def _verification_checks(data: TimingData) -> List[Check]:
     # Methods verified by construction, and peers (which are simply not timed when they
     # differ, and said so), have no tolerance check of their own.
-    return [Check(f"{v.method} matches NumPy MJED before timing, {v.material} (force, stiffness)",
-                  max(v.check.force_err, v.check.stiffness_err), VERIFY_TOL)
-            for v in data.verification
-            if v.check.force_err is not None and v.method not in ("felupe", "sfepy")]
+    return [
+        Check(
+            f"{v.method} matches NumPy MJED before timing, {v.material} (force, stiffness)",
+            max(v.check.force_err, v.check.stiffness_err),
+            VERIFY_TOL,
+        )
+        for v in data.verification
+        if v.check.force_err is not None and v.method not in ("felupe", "sfepy")
+    ]
 
 
 def _median_ratio(data: TimingData, name: str, pair: str, what: str = "force+stiffness"):
@@ -487,20 +643,48 @@ def _ratio_targets(data: TimingData, name: str, mesh: str) -> List[Check]:
     for pair, label in (("classical/mjed", "NumPy"), ("classical-numba/mjed-numba", "compiled")):
         r = _median_ratio(data, name, pair)
         if r is not None:
-            note = (f"operation-count model predicts {pred:.2f}x; measured/predicted {r / pred:.2f}"
-                    if label == "compiled" else "")
-            checks.append(Check(f"MJED faster than the classical FEM ({label} pair), {name} on {mesh}",
-                                r, 1.0, ">=", "target", note))
+            note = (
+                f"operation-count model predicts {pred:.2f}x; measured/predicted {r / pred:.2f}"
+                if label == "compiled"
+                else ""
+            )
+            checks.append(
+                Check(
+                    f"MJED faster than the classical FEM ({label} pair), {name} on {mesh}",
+                    r,
+                    1.0,
+                    ">=",
+                    "target",
+                    note,
+                )
+            )
     if name == "StVenantKirchhoff":
-        checks.append(Check(f"paper's claim: classical/MJED >= {PAPER_SPEEDUP:g}x, compiled pair, "
-                            f"{name} on {mesh}", _median_ratio(data, name, "classical-numba/mjed-numba"),
-                            PAPER_SPEEDUP, ">=", "target",
-                            f"the operation-count model predicts {pred:.2f}x for these two kernels"))
+        checks.append(
+            Check(
+                f"paper's claim: classical/MJED >= {PAPER_SPEEDUP:g}x, compiled pair, "
+                f"{name} on {mesh}",
+                _median_ratio(data, name, "classical-numba/mjed-numba"),
+                PAPER_SPEEDUP,
+                ">=",
+                "target",
+                f"the operation-count model predicts {pred:.2f}x for these two kernels",
+            )
+        )
     for pair, what, text, limit in (
-            ("dolfinx/mjed", "force+stiffness", "NumPy MJED no slower than dolfinx (force+stiffness)", 1.0),
-            ("dolfinx/mjed", "force", "NumPy MJED force no slower than dolfinx's residual", 1.0),
-            ("felupe/mjed", "force+stiffness", f"NumPy MJED at least {PEER_SPEEDUP:g}x faster than FElupe",
-             PEER_SPEEDUP)):
+        (
+            "dolfinx/mjed",
+            "force+stiffness",
+            "NumPy MJED no slower than dolfinx (force+stiffness)",
+            1.0,
+        ),
+        ("dolfinx/mjed", "force", "NumPy MJED force no slower than dolfinx's residual", 1.0),
+        (
+            "felupe/mjed",
+            "force+stiffness",
+            f"NumPy MJED at least {PEER_SPEEDUP:g}x faster than FElupe",
+            PEER_SPEEDUP,
+        ),
+    ):
         r = _median_ratio(data, name, pair, what)
         if r is not None:
             checks.append(Check(f"{text}, {name} on {mesh}", r, limit, ">=", "target"))
@@ -513,24 +697,45 @@ def _compiled_targets(data: TimingData, t: str, mesh: str) -> List[Check]:
     floor = data.floor.seconds
     flops = data.opcount[t]["mjed_source"]  # counted from the generated kernel's source
     cells = data.mesh.n_cells
-    floor_note = ("not measured: compiled MJED not timed" if comp is None else
-                  f"floor {floor * 1e3:.3f} ms at {data.bandwidth.bytes_per_s / 1e9:.1f} GB/s, so "
-                  f"{FLOOR_FACTOR:g}x the floor is {FLOOR_FACTOR * floor / cells * 1e9:.0f} ns per "
-                  f"cell; the kernel takes {comp / cells * 1e9:.0f} ns per cell for about {flops} "
-                  f"flops ({flops * cells / comp / 1e9:.2f} Gflop/s measured): a serial kernel at "
-                  "that arithmetic is compute-bound, not memory-bound")
+    floor_note = (
+        "not measured: compiled MJED not timed"
+        if comp is None
+        else f"floor {floor * 1e3:.3f} ms at {data.bandwidth.bytes_per_s / 1e9:.1f} GB/s, so "
+        f"{FLOOR_FACTOR:g}x the floor is {FLOOR_FACTOR * floor / cells * 1e9:.0f} ns per "
+        f"cell; the kernel takes {comp / cells * 1e9:.0f} ns per cell for about {flops} "
+        f"flops ({flops * cells / comp / 1e9:.2f} Gflop/s measured): a serial kernel at "
+        "that arithmetic is compute-bound, not memory-bound"
+    )
     r = _median_ratio(data, t, "mjed/mjed-numba")
-    speed_note = ("not measured: compiled MJED not timed" if r is None else
-                  f"NumPy {data.median(t, 'mjed') * 1e3:.2f} ms, compiled {comp * 1e3:.2f} ms; "
-                  f"for the same {flops} flops per cell that is "
-                  f"{_gflops(flops, data, t, 'mjed'):.2f} and "
-                  f"{_gflops(flops, data, t, 'mjed-numba'):.2f} Gflop/s: the NumPy engine already "
-                  "runs each step as a whole-array (SIMD) operation over all cells, the compiled "
-                  "kernel is scalar per cell")
-    return [Check(f"compiled MJED within {FLOOR_FACTOR:g}x of the bandwidth floor, {t} on {mesh}",
-                  None if comp is None else comp / floor, FLOOR_FACTOR, "<=", "target", floor_note),
-            Check(f"compiled MJED at least {COMPILED_SPEEDUP:g}x faster than the NumPy engine, "
-                  f"{t} on {mesh}", r, COMPILED_SPEEDUP, ">=", "target", speed_note)]
+    speed_note = (
+        "not measured: compiled MJED not timed"
+        if r is None
+        else f"NumPy {data.median(t, 'mjed') * 1e3:.2f} ms, compiled {comp * 1e3:.2f} ms; "
+        f"for the same {flops} flops per cell that is "
+        f"{_gflops(flops, data, t, 'mjed'):.2f} and "
+        f"{_gflops(flops, data, t, 'mjed-numba'):.2f} Gflop/s: the NumPy engine already "
+        "runs each step as a whole-array (SIMD) operation over all cells, the compiled "
+        "kernel is scalar per cell"
+    )
+    return [
+        Check(
+            f"compiled MJED within {FLOOR_FACTOR:g}x of the bandwidth floor, {t} on {mesh}",
+            None if comp is None else comp / floor,
+            FLOOR_FACTOR,
+            "<=",
+            "target",
+            floor_note,
+        ),
+        Check(
+            f"compiled MJED at least {COMPILED_SPEEDUP:g}x faster than the NumPy engine, "
+            f"{t} on {mesh}",
+            r,
+            COMPILED_SPEEDUP,
+            ">=",
+            "target",
+            speed_note,
+        ),
+    ]
 
 
 def _gflops(flops: int, data: TimingData, material: str, method: str) -> float:
@@ -539,8 +744,14 @@ def _gflops(flops: int, data: TimingData, material: str, method: str) -> float:
 
 
 def _target_dict(c: Check) -> dict:
-    return {"target": c.name, "measured": c.measured, "required": c.limit, "relation": c.relation,
-            "met": c.passed, "note": c.note}
+    return {
+        "target": c.name,
+        "measured": c.measured,
+        "required": c.limit,
+        "relation": c.relation,
+        "met": c.passed,
+        "note": c.note,
+    }
 
 
 # ------------------------------------------------------------------ the scaling study
@@ -576,19 +787,31 @@ def scaling_study(
         repeats = min(repeats, 2)
     if max_cells is not None:
         sizes = [s for s in sizes if s <= max_cells]
-    cmd = command or scaling_command(quick=quick, material=material, methods=methods,
-                                     max_cells=max_cells, out_dir=out_dir)
-    settings = ScalingSettings([int(s) for s in sizes], repeats, time_budget_s, quick, list(methods),
-                               {m: get(m).label for m in methods})
-    data = ScalingData(material, settings, load_average=_load(),
-                       provenance=provenance(with_dolfinx="dolfinx" in methods))
+    cmd = command or scaling_command(
+        quick=quick, material=material, methods=methods, max_cells=max_cells, out_dir=out_dir
+    )
+    settings = ScalingSettings(
+        [int(s) for s in sizes],
+        repeats,
+        time_budget_s,
+        quick,
+        list(methods),
+        {m: get(m).label for m in methods},
+    )
+    data = ScalingData(
+        material,
+        settings,
+        load_average=_load(),
+        provenance=provenance(with_dolfinx="dolfinx" in methods),
+    )
     _measure_sizes(data, progress or (lambda msg: None))
     return _scaling_result(data, out_dir, cmd, time.perf_counter() - t_start)
 
 
 def _measure_sizes(data: ScalingData, say) -> None:
     """Every (size, method) in a fresh process, smallest first; a method stops growing after a
-    failure or a size over the time budget, and ``data.stopped`` says why."""
+    failure or a size over the time budget, and ``data.stopped`` says why.
+    """
     from comparisons.timing_methods import get
 
     s = data.settings
@@ -602,26 +825,45 @@ def _measure_sizes(data: ScalingData, say) -> None:
                 continue
             say(f"scaling: {m} on ~{size:,} cells")
             t0 = time.perf_counter()
-            rec = measure_memory(m, data.material, {"structured": int(size)}, repeats=s.repeats,
-                                 timeout=max(600.0, 20 * s.time_budget_s))
+            rec = measure_memory(
+                m,
+                data.material,
+                {"structured": int(size)},
+                repeats=s.repeats,
+                timeout=max(600.0, 20 * s.time_budget_s),
+            )
             wall = time.perf_counter() - t0
             if "error" in rec:
                 data.stopped[m] = f"stopped at ~{size:,} cells: {rec['error']}"
                 continue
             best = min(rec["times_s"]) if rec["times_s"] else rec["first_call_s"]
             n = rec["n_cells"]
-            data.rows.append(ScalingRow(m, int(size), n, rec["n_nodes"], best, best / n,
-                                        rec["peak_bytes"], rec["peak_bytes"] / n, rec["setup_s"],
-                                        wall))
+            data.rows.append(
+                ScalingRow(
+                    m,
+                    int(size),
+                    n,
+                    rec["n_nodes"],
+                    best,
+                    best / n,
+                    rec["peak_bytes"],
+                    rec["peak_bytes"] / n,
+                    rec["setup_s"],
+                    wall,
+                )
+            )
             if wall > s.time_budget_s and size != s.sizes[-1]:
-                data.stopped[m] = (f"stopped after ~{size:,} cells: that size took {wall:.0f} s "
-                                   f"(budget {s.time_budget_s:.0f} s per size)")
+                data.stopped[m] = (
+                    f"stopped after ~{size:,} cells: that size took {wall:.0f} s "
+                    f"(budget {s.time_budget_s:.0f} s per size)"
+                )
     for m in s.methods:
         data.stopped.setdefault(m, f"completed all sizes up to ~{max(s.sizes):,} cells")
 
 
-def _scaling_result(data: ScalingData, out_dir: Optional[str], cmd: str,
-                    seconds: float) -> StudyResult:
+def _scaling_result(
+    data: ScalingData, out_dir: Optional[str], cmd: str, seconds: float
+) -> StudyResult:
     """Checks, figure and report blocks of a measured scaling run."""
     from comparisons import timing_blocks
     from comparisons.timing_methods import get
@@ -631,10 +873,14 @@ def _scaling_result(data: ScalingData, out_dir: Optional[str], cmd: str,
     smallest = min((r.n_cells for r in data.rows), default=0)
     not_covered = []
     if max(s.sizes) < FLATNESS_RANGE[0] * 100 * 0.9:
-        not_covered.append(f"sizes only up to ~{max(s.sizes):,} cells (the flatness target spans "
-                           "1e4 to 1e6)")
-    not_covered += [f"{get(m).label}: {why}" for m, why in data.stopped.items()
-                    if not why.startswith("completed")]
+        not_covered.append(
+            f"sizes only up to ~{max(s.sizes):,} cells (the flatness target spans 1e4 to 1e6)"
+        )
+    not_covered += [
+        f"{get(m).label}: {why}"
+        for m, why in data.stopped.items()
+        if not why.startswith("completed")
+    ]
     checks = _flatness_checks(data.rows)
     data.targets = [_target_dict(c) for c in checks]
     if out_dir and data.rows:
@@ -643,14 +889,23 @@ def _scaling_result(data: ScalingData, out_dir: Optional[str], cmd: str,
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_scaling.png")
         data.figures.append(figures_timing.plot_scaling(data.to_dict(), path))
-    protocol = (f"each (method, size) in a fresh process: build, one call (peak memory), then the "
-                f"best of {s.repeats} timed calls; a method stops growing after a size that took "
-                f"over {s.time_budget_s:.0f} s")
+    protocol = (
+        f"each (method, size) in a fresh process: build, one call (peak memory), then the "
+        f"best of {s.repeats} timed calls; a method stops growing after a size that took "
+        f"over {s.time_budget_s:.0f} s"
+    )
     return StudyResult.from_checks(
-        SCALING_KEY, f"{SCALING_TITLE}: force+stiffness from {smallest:,} to {largest:,} cells",
-        checks, headline=timing_blocks.scaling_headline(data), command=cmd,
-        not_covered=tuple(not_covered), protocol=protocol, data=data.to_dict(),
-        blocks=timing_blocks.scaling_blocks(data, checks), seconds=seconds)
+        SCALING_KEY,
+        f"{SCALING_TITLE}: force+stiffness from {smallest:,} to {largest:,} cells",
+        checks,
+        headline=timing_blocks.scaling_headline(data),
+        command=cmd,
+        not_covered=tuple(not_covered),
+        protocol=protocol,
+        data=data.to_dict(),
+        blocks=timing_blocks.scaling_blocks(data, checks),
+        seconds=seconds,
+    )
 
 
 def _flatness_checks(rows: Sequence[ScalingRow]) -> List[Check]:
@@ -662,8 +917,16 @@ def _flatness_checks(rows: Sequence[ScalingRow]) -> List[Check]:
         per = [r.seconds_per_cell for r in rows if r.method == m and lo <= r.n_cells <= hi]
         name = f"{m} time per cell flat within {FLATNESS_TARGET:g}x from 1e4 to 1e6 cells"
         if len(per) < 2:
-            out.append(Check(name, None, FLATNESS_TARGET, "<=", "target",
-                             "fewer than two sizes in that range were measured"))
+            out.append(
+                Check(
+                    name,
+                    None,
+                    FLATNESS_TARGET,
+                    "<=",
+                    "target",
+                    "fewer than two sizes in that range were measured",
+                )
+            )
         else:
             out.append(Check(name, max(per) / min(per), FLATNESS_TARGET, "<=", "target"))
     return out

@@ -14,8 +14,19 @@ from comparisons.bandwidth import Bandwidth
 from comparisons.timing_methods import Verification
 
 __all__ = [
-    "MeshInfo", "TimedCall", "Ratio", "Floor", "Verified", "Skipped", "MemoryRecord",
-    "Rounds", "TimingSettings", "TimingData", "ScalingRow", "ScalingSettings", "ScalingData",
+    "MeshInfo",
+    "TimedCall",
+    "Ratio",
+    "Floor",
+    "Verified",
+    "Skipped",
+    "MemoryRecord",
+    "Rounds",
+    "TimingSettings",
+    "TimingData",
+    "ScalingRow",
+    "ScalingSettings",
+    "ScalingData",
     "MEMORY_NOTE",
 ]
 
@@ -99,7 +110,9 @@ class MemoryRecord:
     error: Optional[str] = None
 
     def to_dict(self) -> dict:
-        return {k: v for k, v in asdict(self).items() if v is not None or k in ("material", "method")}
+        return {
+            k: v for k, v in asdict(self).items() if v is not None or k in ("material", "method")
+        }
 
 
 @dataclass(frozen=True)
@@ -121,8 +134,10 @@ class TimingSettings:
     timer: str = "time.perf_counter, mean per call, gc off"
 
 
-MEMORY_NOTE = ("peak_bytes: resident-set high-water mark (VmHWM) of a fresh process after building "
-               "the method and one force+stiffness call, minus its resident set before building")
+MEMORY_NOTE = (
+    "peak_bytes: resident-set high-water mark (VmHWM) of a fresh process after building "
+    "the method and one force+stiffness call, minus its resident set before building"
+)
 
 
 @dataclass
@@ -151,17 +166,23 @@ class TimingData:
         """The timed materials, in the order they were timed."""
         return list(dict.fromkeys(r.material for r in self.results))
 
-    def call(self, material: str, method: str, what: str = "force+stiffness") -> Optional[TimedCall]:
-        return next((r for r in self.results
-                     if (r.material, r.method, r.what) == (material, method, what)), None)
+    def call(
+        self, material: str, method: str, what: str = "force+stiffness"
+    ) -> Optional[TimedCall]:
+        return next(
+            (r for r in self.results if (r.material, r.method, r.what) == (material, method, what)),
+            None,
+        )
 
     def median(self, material: str, method: str, what: str = "force+stiffness") -> Optional[float]:
         r = self.call(material, method, what)
         return None if r is None else r.median_s
 
     def ratio(self, material: str, pair: str, what: str = "force+stiffness") -> Optional[Ratio]:
-        return next((r for r in self.ratios
-                     if (r.material, r.ratio, r.what) == (material, pair, what)), None)
+        return next(
+            (r for r in self.ratios if (r.material, r.ratio, r.what) == (material, pair, what)),
+            None,
+        )
 
     def skipped_pairs(self) -> set:
         return {(s.material, s.method) for s in self.skipped}
@@ -178,8 +199,9 @@ class TimingData:
             "skipped": [asdict(s) for s in self.skipped],
             "memory": [m.to_dict() for m in self.memory],
             "memory_note": MEMORY_NOTE,
-            "setup_s": [{"material": n, "method": m, "seconds": s}
-                        for (n, m), s in self.setup_s.items()],
+            "setup_s": [
+                {"material": n, "method": m, "seconds": s} for (n, m), s in self.setup_s.items()
+            ],
             "rounds": {n: asdict(r) for n, r in self.rounds.items()},
             "settings": asdict(self.settings),
             "load_average": self.load_average,
@@ -230,7 +252,13 @@ class ScalingData:
     targets: List[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"material": self.material, "rows": [asdict(r) for r in self.rows],
-                "stopped": dict(self.stopped), "settings": asdict(self.settings),
-                "load_average": self.load_average, "provenance": self.provenance,
-                "figures": list(self.figures), "targets": list(self.targets)}
+        return {
+            "material": self.material,
+            "rows": [asdict(r) for r in self.rows],
+            "stopped": dict(self.stopped),
+            "settings": asdict(self.settings),
+            "load_average": self.load_average,
+            "provenance": self.provenance,
+            "figures": list(self.figures),
+            "targets": list(self.targets),
+        }

@@ -1,6 +1,7 @@
 """Errors raised by mjed. All derive from ValueError so that callers who only care about
 "bad input" can catch one thing, except IntegrationError: a time step that fails during a run
-is not bad input, so it is a RuntimeError."""
+is not bad input, so it is a RuntimeError.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ class MeshError(ValueError):
 
 
 class MeshWarning(UserWarning):
-    """The mesh is usable but something about it deserves attention (unused nodes, fixed orientation)."""
+    """The mesh is usable but something about it deserves attention (unused nodes, fixed
+    orientation).
+    """
 
 
 class InvertedElementError(ValueError):
@@ -51,5 +54,7 @@ class IntegrationError(RuntimeError):
         self.time = float(time)
         self.reason = reason
         self.cells = cells
-        super().__init__(f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; "
-                         "the integrator kept the state of the last accepted step")
+        super().__init__(
+            f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; "
+            "the integrator kept the state of the last accepted step"
+        )

@@ -90,7 +90,11 @@ class TetMesh:
             cells = cells.copy()
             cells[negative, 2], cells[negative, 3] = cells[negative, 3], cells[negative, 2].copy()
             signed, D = shape_vectors(points, cells)
-            warnings.warn(f"reoriented {self.n_reoriented} cell(s) by swapping two nodes", MeshWarning, stacklevel=2)
+            warnings.warn(
+                f"reoriented {self.n_reoriented} cell(s) by swapping two nodes",
+                MeshWarning,
+                stacklevel=2,
+            )
 
         used = np.zeros(len(points), dtype=bool)
         used[cells.ravel()] = True
@@ -135,7 +139,10 @@ def _as_points(points) -> np.ndarray:
     bad = ~np.isfinite(p).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise MeshError(f"{int(bad.sum())} node(s) with non-finite coordinates; first is node {i}: {p[i].tolist()}")
+        raise MeshError(
+            f"{int(bad.sum())} node(s) with non-finite coordinates; first is node {i}: "
+            f"{p[i].tolist()}"
+        )
     return p
 
 
@@ -146,7 +153,11 @@ def _as_cells(cells, n_points: int) -> np.ndarray:
     if len(c) == 0:
         raise MeshError("the mesh has no cells")
     if not np.issubdtype(c.dtype, np.integer):
-        if not (np.issubdtype(c.dtype, np.floating) and np.isfinite(c).all() and (c == np.round(c)).all()):
+        if not (
+            np.issubdtype(c.dtype, np.floating)
+            and np.isfinite(c).all()
+            and (c == np.round(c)).all()
+        ):
             raise MeshError(f"cells must hold integer node indices, got dtype {c.dtype}")
     c = c.astype(np.int64)
     out = (c < 0) | (c >= n_points)

@@ -18,8 +18,10 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 LAYERS = ("mjed", "meshes", "reference_fem", "common", "conformance", "comparisons")
 #: Third-party packages a layer must never import: mjed stays NumPy/SciPy (plus optional Numba).
-FORBIDDEN = {"mjed": ("dolfinx", "ufl", "petsc4py", "basix", "ffcx", "mpi4py"),
-             "common": ("dolfinx", "ufl", "petsc4py")}
+FORBIDDEN = {
+    "mjed": ("dolfinx", "ufl", "petsc4py", "basix", "ffcx", "mpi4py"),
+    "common": ("dolfinx", "ufl", "petsc4py"),
+}
 
 
 def module_files(root: pathlib.Path, packages=LAYERS) -> Dict[str, pathlib.Path]:
@@ -50,7 +52,7 @@ def imported_names(path: pathlib.Path) -> Set[str]:
 
 
 def import_graph(mods: Dict[str, pathlib.Path]) -> Dict[str, Set[str]]:
-    """module -> the project modules it imports (a name resolves to its longest module prefix)."""
+    """Module -> the project modules it imports (a name resolves to its longest module prefix)."""
 
     def resolve(name: str):
         while name and name not in mods:
@@ -136,9 +138,13 @@ def test_low_layers_do_not_import_the_oracle_stack(layer):
 
 def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
     """The two checks above can fail: a miniature tree with one of each."""
-    for pkg, files in {"common": {"a": "from conformance.b import x\n"},
-                       "conformance": {"b": "def f():\n    from conformance.c import y\n",
-                                       "c": "import conformance.b\n"}}.items():
+    for pkg, files in {
+        "common": {"a": "from conformance.b import x\n"},
+        "conformance": {
+            "b": "def f():\n    from conformance.c import y\n",
+            "c": "import conformance.b\n",
+        },
+    }.items():
         (tmp_path / pkg).mkdir()
         (tmp_path / pkg / "__init__.py").write_text("")
         for name, text in files.items():
