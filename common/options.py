@@ -161,6 +161,5 @@ def add_allow_incomplete_option(parser: argparse.ArgumentParser) -> None:
         "--allow-incomplete",
         action="store_true",
         help="exit with 0 instead of 3 when a target was missed, a study did not run or the run "
-        "was "
-        "partial (a failed check still exits with 1)",
+        "was partial (a failed check still exits with 1)",
     )

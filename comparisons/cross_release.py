@@ -268,8 +268,8 @@ def _why_missing(python: str, timeout: float) -> Optional[str]:
     if not Path(python).exists():
         return f"{python} does not exist"
     probe = (
-        "import sys; from reference_fem import dolfinx_available; "
-        "sys.exit(0 if dolfinx_available() else 3)"
+        "import sys; from reference_fem import dolfinx_available; sys.exit(0 if "
+        "dolfinx_available() else 3)"
     )
     try:
         rc = subprocess.run(
@@ -305,35 +305,8 @@ def cross_release_check(
         "errors": [],
         "figures": [],
     }
-    snaps = []
     with tempfile.TemporaryDirectory() as tmp:
-        missing: Dict[str, Optional[str]] = {}
-        for i, (label, python, ranks) in enumerate(stacks):
-            if python not in missing:
-                missing[python] = _why_missing(python, timeout)
-            if missing[python]:
-                result["missing"].append({"label": label, "reason": missing[python]})
-                continue
-            out = os.path.join(tmp, f"{i}.npz")
-            t0 = time.perf_counter()
-            try:
-                _run_snapshot(python, ranks, out, quick, timeout)
-            except (RuntimeError, FileNotFoundError, subprocess.TimeoutExpired) as exc:
-                result["errors"].append({"label": label, "error": str(exc)})
-                continue
-            snap = load_snapshot(out)
-            meta = snap["meta"]
-            result["stacks"].append(
-                {
-                    "label": label,
-                    "python": python,
-                    "ranks": ranks,
-                    "versions": meta["versions"],
-                    "cells_per_rank": meta["cells_per_rank"],
-                    "seconds": round(time.perf_counter() - t0, 1),
-                }
-            )
-            snaps.append((label, snap))
+        snaps = _snapshots(stacks, result, tmp, quick, timeout)
     if snaps:
         ref_label, ref = snaps[0]
         result["reference"] = ref_label
@@ -345,6 +318,39 @@ def cross_release_check(
     return result
 
 
+def _snapshots(stacks, result: dict, tmp: str, quick: bool, timeout: float) -> list:
+    """(label, snapshot) of every stack that ran; missing and failed stacks go into result."""
+    snaps = []
+    missing: Dict[str, Optional[str]] = {}
+    for i, (label, python, ranks) in enumerate(stacks):
+        if python not in missing:
+            missing[python] = _why_missing(python, timeout)
+        if missing[python]:
+            result["missing"].append({"label": label, "reason": missing[python]})
+            continue
+        out = os.path.join(tmp, f"{i}.npz")
+        t0 = time.perf_counter()
+        try:
+            _run_snapshot(python, ranks, out, quick, timeout)
+        except (RuntimeError, FileNotFoundError, subprocess.TimeoutExpired) as exc:
+            result["errors"].append({"label": label, "error": str(exc)})
+            continue
+        snap = load_snapshot(out)
+        meta = snap["meta"]
+        result["stacks"].append(
+            {
+                "label": label,
+                "python": python,
+                "ranks": ranks,
+                "versions": meta["versions"],
+                "cells_per_rank": meta["cells_per_rank"],
+                "seconds": round(time.perf_counter() - t0, 1),
+            }
+        )
+        snaps.append((label, snap))
+    return snaps
+
+
 def format_check(result: dict) -> str:
     """A few lines of text for the check's result."""
     lines = []
@@ -352,13 +358,13 @@ def format_check(result: dict) -> str:
         v = s["versions"]
         lines.append(
             f"  {s['label']:<14} dolfinx {v['dolfinx']:<13} ufl {v['ufl']:<10} petsc "
-            f"{v['petsc']:<7} "
-            f"numpy {v['numpy']:<7} cells per rank {s['cells_per_rank']} ({s['seconds']} s)"
+            f"{v['petsc']:<7} numpy {v['numpy']:<7} cells per rank {s['cells_per_rank']} "
+            f"({s['seconds']} s)"
         )
     for c in result["comparisons"]:
         lines.append(
-            f"  {c['label']} vs {result['reference']}: energy {c['energy_rel_diff']:.1e}, "
-            f"force {c['force_rel_diff']:.1e}, stiffness {c['stiffness_rel_diff']:.1e} "
+            f"  {c['label']} vs {result['reference']}: energy {c['energy_rel_diff']:.1e}, force "
+            f"{c['force_rel_diff']:.1e}, stiffness {c['stiffness_rel_diff']:.1e} "
             f"({'pass' if c['passed'] else 'FAIL'}, tolerance {result['tolerance']:g})"
         )
     for m in result["missing"]:
@@ -408,86 +414,92 @@ def cross_release_study(
     snapshots nothing is compared and the study is NOT RUN. ``quick`` keeps three cases; the
     result says so. ``data`` is the dict of :func:`cross_release_check`.
     """
-    from common.blocks import Paragraph, Preformatted, Table
     from common.reproduce import command
-    from common.result import Check, StudyResult
+    from common.result import StudyResult
 
     t0 = time.perf_counter()
     if progress:
         progress("snapshots on every stack (subprocesses)")
     res = cross_release_check(stacks, quick=quick)
     cmd = command("cross-release", quick=quick)
-    not_covered = [
+    not_covered = _left_out(res, quick)
+    blocks = _blocks(res)
+    seconds = time.perf_counter() - t0
+    if len(res["stacks"]) < 2 and not res["errors"]:
+        ran = ", ".join(s["label"] for s in res["stacks"]) or "none"
+        missing = "; ".join(not_covered[: len(res["missing"])]) or "no stack given"
+        why = f"fewer than two stacks ran (ran: {ran}), nothing was compared; {missing}"
+        return replace(
+            StudyResult.not_run(KEY, TITLE, why, cmd), data=res, blocks=blocks, seconds=seconds
+        )
+    return StudyResult.from_checks(
+        KEY,
+        TITLE,
+        _checks(res),
+        headline=_headline(res),
+        command=cmd,
+        not_covered=tuple(not_covered),
+        data=res,
+        blocks=blocks,
+        seconds=seconds,
+    )
+
+
+def _left_out(res: dict, quick: bool) -> List[str]:
+    """The stacks not installed here, and the quick selection, in words."""
+    out = [
         f"{m['label']}: not installed here ({m['reason']}; make bootstrap-modern installs the "
         "modern stack)"
         for m in res["missing"]
     ]
     if quick:
         n_quick, n_full = len(snapshot_cases(True)), len(snapshot_cases(False))
-        not_covered.append(
-            f"quick: {n_quick} oracle cases instead of {n_full} (all materials, two states)"
-        )
-    rows = [
-        (
-            s["label"],
-            s["ranks"],
-            s["versions"].get("dolfinx"),
-            s["versions"].get("ufl"),
-            s["versions"].get("petsc"),
-            s["versions"].get("numpy"),
-            s["versions"].get("python"),
-            s["seconds"],
-        )
+        out.append(f"quick: {n_quick} oracle cases instead of {n_full} (all materials, two states)")
+    return out
+
+
+def _blocks(res: dict) -> tuple:
+    from common.blocks import Paragraph, Preformatted, Table
+
+    versions = ("dolfinx", "ufl", "petsc", "numpy", "python")
+    stacks = [
+        (s["label"], s["ranks"], *(s["versions"].get(v) for v in versions), s["seconds"])
         for s in res["stacks"]
     ]
-    blocks = (
+    diffs = [
+        (
+            c["label"],
+            c["energy_rel_diff"],
+            c["force_rel_diff"],
+            c["stiffness_rel_diff"],
+            c["passed"],
+        )
+        for c in res["comparisons"]
+    ]
+    return (
         Paragraph(
             f"The same oracle cases ({MESH}, deformed states, including Costa with one fibre frame "
-            "per cell) "
-            "on Debian's dolfinx and a current dolfinx, serially and on 2 MPI ranks, compared with "
-            "the first "
-            "stack that ran."
+            "per cell) on Debian's dolfinx and a current dolfinx, serially and on 2 MPI ranks, "
+            "compared with the first stack that ran."
         ),
-        Table(("stack", "ranks", "dolfinx", "ufl", "petsc", "numpy", "python", "seconds"), rows),
+        Table(("stack", "ranks", *versions, "seconds"), stacks),
         Table(
             (f"against {res['reference']}", "energy", "force", "stiffness", "verdict"),
-            [
-                (
-                    c["label"],
-                    c["energy_rel_diff"],
-                    c["force_rel_diff"],
-                    c["stiffness_rel_diff"],
-                    c["passed"],
-                )
-                for c in res["comparisons"]
-            ],
+            diffs,
             caption="Relative differences of the oracle's results "
             f"(tolerance {res['tolerance']:g})",
         ),
         Preformatted(format_check(res)),
     )
-    seconds = time.perf_counter() - t0
-    if len(res["stacks"]) < 2 and not res["errors"]:
-        ran = ", ".join(s["label"] for s in res["stacks"]) or "none"
-        missing = "; ".join(not_covered[: len(res["missing"])]) or "no stack given"
-        return replace(
-            StudyResult.not_run(
-                KEY,
-                TITLE,
-                f"fewer than two stacks ran (ran: {ran}), nothing was compared; {missing}",
-                cmd,
-            ),
-            data=res,
-            blocks=blocks,
-            seconds=seconds,
-        )
+
+
+def _checks(res: dict) -> list:
+    """A failed stack is a failed check; every comparison is three tolerance checks."""
+    from common.result import Check
+
+    errors = "; ".join(e["label"] for e in res["errors"])
     checks = [
-        Check(
-            "stacks that exist but failed to run",
-            float(len(res["errors"])),
-            0.0,
-            note="; ".join(e["label"] for e in res["errors"]),
-        )
+        Check("stacks that exist but failed to run", float(len(res["errors"])), 0.0, note=errors)
     ]
     for c in res["comparisons"]:
         checks += [
@@ -498,29 +510,19 @@ def cross_release_study(
             )
             for q in ("energy", "force", "stiffness")
         ]
-    worst = max(
-        (
-            max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"])
-            for c in res["comparisons"]
-        ),
-        default=float("nan"),
-    )
-    headline = (
-        f"{len(res['stacks'])} stacks ran ({', '.join(s['label'] for s in res['stacks'])}); "
-        "largest "
-        "relative "
-        f"difference {worst:.1e} (tolerance {res['tolerance']:g})"
-    )
-    return StudyResult.from_checks(
-        KEY,
-        TITLE,
-        checks,
-        headline=headline,
-        command=cmd,
-        not_covered=tuple(not_covered),
-        data=res,
-        blocks=blocks,
-        seconds=seconds,
+    return checks
+
+
+def _headline(res: dict) -> str:
+    diffs = [
+        max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"])
+        for c in res["comparisons"]
+    ]
+    worst = max(diffs, default=float("nan"))
+    labels = ", ".join(s["label"] for s in res["stacks"])
+    return (
+        f"{len(res['stacks'])} stacks ran ({labels}); largest relative difference {worst:.1e} "
+        f"(tolerance {res['tolerance']:g})"
     )
 
 

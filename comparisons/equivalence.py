@@ -214,14 +214,10 @@ def _ogden_tangent_findings(tangent: dict) -> str:
     spread = ", ".join(f"{v:.1e} at {a}" for a, v in worst.items())
     return (
         "Not a pass/fail check: SOFA's MJED Ogden approximates the tangent; the forces are "
-        "identical. The "
-        "approximation is exact where C commutes with the perturbation (at rest) and where the "
-        "power is linear "
-        f"(alpha 2, a control row), and not elsewhere. Largest error over the states: {spread}. "
-        "An inexact tangent slows Newton from quadratic to linear convergence; it does not change "
-        "a "
-        "converged "
-        "answer."
+        "identical. The approximation is exact where C commutes with the perturbation (at rest) "
+        "and where the power is linear (alpha 2, a control row), and not elsewhere. Largest error "
+        f"over the states: {spread}. An inexact tangent slows Newton from quadratic to linear "
+        "convergence; it does not change a converged answer."
     )
 
 
@@ -280,9 +276,8 @@ def equivalence_study(
             return StudyResult.not_run(
                 KEY,
                 TITLE,
-                "the UFL oracle needs dolfinx, which is not "
-                "installed (Debian: apt install python3-dolfinx; or make "
-                "bootstrap)",
+                "the UFL oracle needs dolfinx, which is not installed (Debian: apt install "
+                "python3-dolfinx; or make bootstrap)",
                 cmd,
             )
     t0 = time.perf_counter()
@@ -293,8 +288,8 @@ def equivalence_study(
     not_covered = []
     if quick and "cube-paper" not in labels:
         not_covered.append(
-            f"quick: {', '.join(labels)} instead of the paper's cube (cube-paper, "
-            "about 20,700 cells)"
+            f"quick: {', '.join(labels)} instead of the paper's cube (cube-paper, about 20,700 "
+            "cells)"
         )
     data = measured.to_dict()
     if comm is not None:
@@ -396,8 +391,8 @@ def _failure_reason(m: EquivalenceMeasurements) -> str:
     if bad_uniaxial:
         u = bad_uniaxial[0]
         parts.append(
-            f"{len(bad_uniaxial)} of {len(m.uniaxial)} uniaxial checks off (first: "
-            f"{u['material']} at stretch {u['stretch']:g} on {u['mesh']})"
+            f"{len(bad_uniaxial)} of {len(m.uniaxial)} uniaxial checks off (first: {u['material']} "
+            f"at stretch {u['stretch']:g} on {u['mesh']})"
         )
     return "; ".join(parts)
 
@@ -408,8 +403,8 @@ def _headline(m: EquivalenceMeasurements, comm) -> str:
     headline = f"{passed}/{len(cases)} cases pass"
     if cases:
         headline += (
-            f"; worst force error {_worst([c.force_rel_err for c in cases]):.1e}, "
-            f"stiffness {_worst([c.stiffness_rel_err for c in cases]):.1e}"
+            f"; worst force error {_worst([c.force_rel_err for c in cases]):.1e}, stiffness "
+            f"{_worst([c.stiffness_rel_err for c in cases]):.1e}"
         )
     if comm is not None:
         headline += f" (oracle on {comm.size} MPI ranks)"
@@ -429,9 +424,9 @@ def _blocks(m: EquivalenceMeasurements, states: Sequence[str]) -> list:
     blocks = [
         Paragraph(
             "Every material on every mesh and deformation state: nodal forces and tangent "
-            "stiffness of MJED against the UFL Galerkin oracle (relative errors; tolerances "
-            "1e-10 for force and stiffness, 1e-12 for the symmetry of MJED's K), then the "
-            "uniaxial closed form and SOFA's approximate Ogden tangent."
+            "stiffness of MJED against the UFL Galerkin oracle (relative errors; tolerances 1e-10 "
+            "for force and stiffness, 1e-12 for the symmetry of MJED's K), then the uniaxial "
+            "closed form and SOFA's approximate Ogden tangent."
         ),
         _digest(m.cases),
         Table(
@@ -473,8 +468,8 @@ def _blocks(m: EquivalenceMeasurements, states: Sequence[str]) -> list:
             Table(
                 ("mesh", "Ogden alpha", *states),
                 rows,
-                caption="Ogden: ||K_sofa - K_exact||_F / ||K_exact||_F, SOFA's coaxial "
-                "tangent against the exact Hessian",
+                caption="Ogden: ||K_sofa - K_exact||_F / ||K_exact||_F, SOFA's coaxial tangent "
+                "against the exact Hessian",
             ),
             Paragraph(_ogden_tangent_findings(m.tangent)),
         ]
@@ -490,8 +485,8 @@ def _uniaxial_blocks(m: EquivalenceMeasurements) -> list:
         f"{', '.join(f'{s:g}' for s in UNIAXIAL_STRETCHES)}: the cube is given the homogeneous "
         "stretch that frees its sides (lateral stretch from the analytic principal Cauchy "
         "stresses of our compressible energies); MJED's reaction on the loaded face over the "
-        "current area must equal the analytic sigma_11 to 1e-10, with no reaction on the "
-        "sides. Materials without a closed form (Costa, anisotropic) are not in this table."
+        "current area must equal the analytic sigma_11 to 1e-10, with no reaction on the sides. "
+        "Materials without a closed form (Costa, anisotropic) are not in this table."
     )
     rows = [
         (

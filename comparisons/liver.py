@@ -215,9 +215,9 @@ def liver_setup(
         g = np.asarray(params.gravity)
         if not (g[0] == 0 and g[1] == 0 and g[2] < 0):
             raise InputError(
-                f"the default fixed regions (vena cava, ligament) assume a z-up organ; "
-                f"with gravity {list(params.gravity)} give the supports with --fixed "
-                "(box:, sphere:, nodes:FILE)"
+                "the default fixed regions (vena cava, ligament) assume a z-up organ; with "
+                f"gravity {list(params.gravity)} give the supports with --fixed (box:, sphere:, "
+                "nodes:FILE)"
             )
     specs = list(fixed) if fixed else default_fixed_specs(organ.file_points)
     nodes = fixed_nodes(organ, specs)
@@ -429,19 +429,16 @@ KEY = "liver"
 TITLE = "The liver under gravity (paper Fig. 1, Fig. 2 left and Fig. 4)"
 _CAPTIONS = {
     "fig1_left_porous_stress": "Fig. 1 left: porous volumetric stress sigma(J) before and after "
-    "the "
-    "tangent substitution below J0",
+    "the tangent substitution below J0",
     "fig1_right_pressure": "Fig. 1 right: fluid pressure in the liver at the time of its largest "
     "magnitude",
     "fig4_max_displacement": "Fig. 4 (this study's scenario, Rayleigh damping as SOFA's liver "
-    "demo): maximum displacement "
-    "over time for the three models; ringed steps were taken in substeps",
+    "demo): maximum displacement over time for the three models; ringed steps were taken in "
+    "substeps",
     "fig4_oscillations": "Fig. 4 as the paper describes it: the three models without Rayleigh "
-    "damping, time steps from "
-    "the paper's 0.3 s down; backward Euler's own damping grows with dt",
+    "damping, time steps from the paper's 0.3 s down; backward Euler's own damping grows with dt",
     "fig4_decay_rate": "Decay rate of the oscillation against dt, with backward Euler's prediction "
-    "on the frequency "
-    "measured at the smallest dt",
+    "on the frequency measured at the smallest dt",
     "step_time_split": "Where a step's time goes (paper Fig. 2 left: the hyperelastic force and "
     "stiffness take about 60 %)",
     "terzaghi": "Terzaghi consolidation: the pressure solver against the series solution",
@@ -751,8 +748,8 @@ def _liver_checks(data: Dict) -> List:
     runs = data["runs"]
     checks += [
         Check(
-            f"{r['model']} run completes its {r['steps_planned']} steps of {r['dt']:g} s "
-            "(fraction done)",
+            f"{r['model']} run completes its {r['steps_planned']} steps of {r['dt']:g} s (fraction "
+            "done)",
             r["steps"] / r["steps_planned"],
             1.0,
             ">=",
@@ -787,8 +784,8 @@ def _liver_checks(data: Dict) -> List:
         diff = a["relative_difference"]
         checks.append(
             Check(
-                f"{a['model']}: the {a['backend']} run's maximum displacement curve "
-                f"against the {a['reference']} run's (largest difference / peak)",
+                f"{a['model']}: the {a['backend']} run's maximum displacement curve against the "
+                f"{a['reference']} run's (largest difference / peak)",
                 diff,
                 BACKEND_AGREEMENT_TOL,
                 note="" if diff is not None else "not comparable: a run failed or took other steps",
@@ -812,11 +809,9 @@ def _liver_blocks(
             f"Mesh {data['mesh_description']}, {data['n_fixed']} fixed nodes "
             f"({'; '.join(data['fixed_regions'])}), gravity {list(params.gravity)} m/s^2, material "
             f"{type(params.material).__name__}, {data['duration']:g} s simulated. FPS are time "
-            "steps "
-            "per wall-clock second of stepping (assembly, solve, substeps included) on this "
-            "machine; "
-            f"the linear solver: {solver.label()}. A step the integrator could not take whole was "
-            f"retried in halves (down to dt/{2**params.max_halvings})."
+            "steps per wall-clock second of stepping (assembly, solve, substeps included) on this "
+            f"machine; the linear solver: {solver.label()}. A step the integrator could not take "
+            f"whole was retried in halves (down to dt/{2**params.max_halvings})."
         )
     ]
     blocks += [
@@ -878,9 +873,8 @@ def _run_tables(data: Dict) -> List:
                 "error",
             ),
             rows,
-            caption=f"Frames per second and substeps, per backend (targets: "
-            f"{TARGET_FPS:g} FPS, the real-time bar; {COMPILED_TARGET_FPS:g} FPS "
-            "for the compiled backend)",
+            caption=f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, "
+            f"the real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)",
         )
     ]
     if data["backend_agreement"]:
@@ -896,9 +890,8 @@ def _run_tables(data: Dict) -> List:
                     (a["model"], a["backend"], a["reference"], a["relative_difference"])
                     for a in data["backend_agreement"]
                 ],
-                caption=f"The backends give the same trajectory (tolerance "
-                f"{BACKEND_AGREEMENT_TOL:g}: the linear solve's own tolerance "
-                "bounds the drift)",
+                caption="The backends give the same trajectory (tolerance "
+                f"{BACKEND_AGREEMENT_TOL:g}: the linear solve's own tolerance bounds the drift)",
             )
         )
     if data["step_split"]:
@@ -954,8 +947,8 @@ def _oscillation_blocks(osc: Dict) -> List:
                 "steps in substeps",
             ),
             rows,
-            caption=f"Oscillation study on {osc['mesh']}, no Rayleigh damping, "
-            f"{osc['duration']:g} s",
+            caption=f"Oscillation study on {osc['mesh']}, no Rayleigh damping, {osc['duration']:g} "
+            "s",
         ),
         Paragraph(oscillation_findings(osc)),
     ]
@@ -972,9 +965,9 @@ def _liver_headline(data: Dict, osc: Optional[Dict], models: Sequence[str]) -> s
     split = sum(r["steps_split"] for r in data["runs"])
     tz_err = max(t["relative_l2_error"] for t in data["terzaghi"]["times"])
     headline = (
-        f"FPS on {data['mesh']}: {', '.join(per_backend)} for {', '.join(models)} "
-        f"(targets 25, compiled {COMPILED_TARGET_FPS:g}; paper 7.5 / 7 / 6); {split} "
-        f"step(s) taken in substeps; Terzaghi {100 * tz_err:.2f} %"
+        f"FPS on {data['mesh']}: {', '.join(per_backend)} for {', '.join(models)} (targets 25, "
+        f"compiled {COMPILED_TARGET_FPS:g}; paper 7.5 / 7 / 6); {split} step(s) taken in substeps; "
+        f"Terzaghi {100 * tz_err:.2f} %"
     )
     if osc is not None:
         headline += (
@@ -987,8 +980,7 @@ def _liver_headline(data: Dict, osc: Optional[Dict], models: Sequence[str]) -> s
 def _liver_protocol(data: Dict, osc: Optional[Dict], full: bool) -> str:
     text = (
         f"{len(data['runs'])} runs of {data['duration']:g} s on {data['mesh']} (backends: "
-        f"{', '.join(data['backends'])}); oscillation study with the {data['backends'][0]} "
-        "backend "
+        f"{', '.join(data['backends'])}); oscillation study with the {data['backends'][0]} backend "
     )
     if osc is None:
         return text + "not run"
@@ -1040,6 +1032,6 @@ def oscillation_findings(osc: Dict) -> str:
     return (
         "Findings. "
         + ". ".join(parts)
-        + f". Peak amplitude at dt {osc['amplitude_ordering_dt']:g} s, largest "
-        f"first: {order} (the paper: visco > poro > hyper)."
+        + f". Peak amplitude at dt {osc['amplitude_ordering_dt']:g} s, largest first: {order} (the "
+        "paper: visco > poro > hyper)."
     )

@@ -130,8 +130,7 @@ def _positive(name: str, v, *, zero: bool = False) -> None:
     if not ok:
         raise ValueError(
             f"LiverParameters: parameter {name} must be finite and {'>= 0' if zero else '> 0'}, "
-            "got "
-            f"{v!r}"
+            f"got {v!r}"
         )
 
 
@@ -197,8 +196,8 @@ class LiverParameters:
             and self.max_volume_change > 1
         ):
             raise ValueError(
-                f"LiverParameters: parameter max_volume_change must be a factor > 1 or None, "
-                f"got {self.max_volume_change!r}"
+                "LiverParameters: parameter max_volume_change must be a factor > 1 or None, got "
+                f"{self.max_volume_change!r}"
             )
         m = self.max_halvings
         if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m <= 10:
@@ -216,11 +215,9 @@ class LiverParameters:
                     else "the regularisation is off"
                 )
                 raise ValueError(
-                    "LiverParameters: allow_inverted needs the regularisation and an energy finite "
-                    "at "
-                    f"J <= 0 (paper, section 2.3); {type(self.material).__name__} does not "
-                    "qualify: "
-                    f"{why}"
+                    "LiverParameters: allow_inverted needs the regularisation and an energy "
+                    f"finite at J <= 0 (paper, section 2.3); {type(self.material).__name__} does "
+                    f"not qualify: {why}"
                 )
 
     @property

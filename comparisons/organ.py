@@ -118,8 +118,8 @@ def load_organ(
             if "negatively oriented" in text:  # name the option the command line has
                 text = (
                     text.split(" Pass fix_orientation")[0]
-                    + " Run again with --fix-orientation to swap two "
-                    "nodes of each such cell (the number reordered is reported)."
+                    + " Run again with --fix-orientation to swap two nodes of each such cell (the "
+                    "number reordered is reported)."
                 )
             raise InputError(f"mesh {label}: {text}") from None
     return Organ(

@@ -83,9 +83,8 @@ def parse_region(
         missing = ids[order][at] != idx
         if missing.any():
             raise InputError(
-                f"region {spec!r}: node id {int(idx[missing][0])} is not in the mesh "
-                f"({numbering}: {int(ids.min())} to {int(ids.max())}; index:FILE takes 0-based "
-                "positions)"
+                f"region {spec!r}: node id {int(idx[missing][0])} is not in the mesh ({numbering}: "
+                f"{int(ids.min())} to {int(ids.max())}; index:FILE takes 0-based positions)"
             )
         return np.unique(order[at])
     raise InputError(f"region {spec!r}: unknown kind {kind!r}; use box, sphere, nodes or index")

@@ -248,21 +248,17 @@ def regularization_study(
     solved_off = sum(o.solve_off.converged for o in out)
     headline = (
         f"no negative eigenvalue left with the regularisation for {len(cleared)}/{len(out)} "
-        "materials; static "
-        f"solve succeeds for {solved_on}/{len(out)} with it, {solved_off}/{len(out)} without"
+        f"materials; static solve succeeds for {solved_on}/{len(out)} with it, "
+        f"{solved_off}/{len(out)} without"
     )
     blocks = (
         Paragraph(
             f"The {label} mesh ({mesh.n_cells} cells) compressed to half its height: negative "
-            "eigenvalues of K at "
-            "the homogeneous half-height state, and a static Newton + Jacobi-CG solve in 4 load "
-            "steps (bottom "
-            "clamped, top pushed down, sides free), with and without the regularisation of the "
-            "f''(J) term. The "
-            "paper gives no figure to reach, so these outcomes are reported, not held to a target; "
-            "a material "
-            "whose instability does not come from a volumetric f(J) term (St Venant-Kirchhoff) "
-            "keeps it."
+            "eigenvalues of K at the homogeneous half-height state, and a static Newton + "
+            "Jacobi-CG solve in 4 load steps (bottom clamped, top pushed down, sides free), with "
+            "and without the regularisation of the f''(J) term. The paper gives no figure to "
+            "reach, so these outcomes are reported, not held to a target; a material whose "
+            "instability does not come from a volumetric f(J) term (St Venant-Kirchhoff) keeps it."
         ),
         Table(
             (

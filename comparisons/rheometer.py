@@ -477,9 +477,8 @@ def rheometer_study(
         not_covered.append(
             f"quick: {spec.n_frequencies} frequencies, about {spec.target_cells} cells, "
             f"{spec.samples_per_period} steps per period and {spec.measured_periods} measured "
-            "period(s) "
-            f"instead of {full.n_frequencies}, {full.target_cells}, {full.samples_per_period} and "
-            f"{full.measured_periods}"
+            f"period(s) instead of {full.n_frequencies}, {full.target_cells}, "
+            f"{full.samples_per_period} and {full.measured_periods}"
         )
     check = Check(
         "G', G'' against the exact backward-Euler response: largest relative error",
@@ -514,17 +513,13 @@ def rheometer_study(
     blocks += [
         Paragraph(
             "A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: "
-            f"{2e3 * spec.radius:g} mm across "
-            f"and {1e3 * spec.height:g} mm high ({res['mesh']['n_cells']} cells), lower face "
-            "clamped, upper face "
-            f"twisted by {spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with "
-            "Prony "
-            "alphas "
+            f"{2e3 * spec.radius:g} mm across and {1e3 * spec.height:g} mm high "
+            f"({res['mesh']['n_cells']} cells), lower face clamped, upper face twisted by "
+            f"{spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
             f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps "
-            "per period. The "
-            "storage and loss moduli fitted from the torque are compared with the generalised "
-            "Maxwell model and "
-            "with the exact response of the backward-Euler Prony recursion."
+            "per period. The storage and loss moduli fitted from the torque are compared with the "
+            "generalised Maxwell model and with the exact response of the backward-Euler Prony "
+            "recursion."
         ),
         Table(
             ("reference", "mean relative error", "max relative error"),
@@ -533,8 +528,7 @@ def rheometer_study(
                 ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"]),
             ],
             caption="The gap to the continuous moduli is the time step's own error, not a check "
-            "(the paper "
-            "reports 5 % against experiment).",
+            "(the paper reports 5 % against experiment).",
         ),
         Table(
             (
@@ -553,8 +547,8 @@ def rheometer_study(
     ]
     headline = (
         f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max "
-        f"{100 * e['continuous']['max']:.1f} %; "
-        f"against the exact discrete response max {e['discrete']['max']:.1e}"
+        f"{100 * e['continuous']['max']:.1f} %; against the exact discrete response max "
+        f"{e['discrete']['max']:.1e}"
     )
     return StudyResult.from_checks(
         KEY,

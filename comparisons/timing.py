@@ -381,8 +381,8 @@ def _timing_setup(mesh: str, quick: bool, protocol: str, methods: Sequence[str])
     not_covered: List[str] = []
     if quick:
         not_covered.append(
-            f"quick run: {mesh} and the quick protocol instead of cube-paper and "
-            "the budget protocol"
+            f"quick run: {mesh} and the quick protocol instead of cube-paper and the budget "
+            "protocol"
         )
     unavailable = {m: get(m).unavailable() for m in methods}
     not_covered += [f"{get(m).label} not timed: {why}" for m, why in unavailable.items() if why]
@@ -404,8 +404,8 @@ def _timing_data(setup: TimingSetup, methods: Sequence[str], quick: bool, say) -
     floor = Floor(
         floor_b,
         floor_b / bw.bytes_per_s,
-        "CSR values and force written once; positions, connectivity (int32) and rest "
-        "geometry (D, V0) read once; at the measured copy bandwidth",
+        "CSR values and force written once; positions, connectivity (int32) and rest geometry (D, "
+        "V0) read once; at the measured copy bandwidth",
     )
     proto = setup.protocol
     settings = TimingSettings(
@@ -661,8 +661,8 @@ def _ratio_targets(data: TimingData, name: str, mesh: str) -> List[Check]:
     if name == "StVenantKirchhoff":
         checks.append(
             Check(
-                f"paper's claim: classical/MJED >= {PAPER_SPEEDUP:g}x, compiled pair, "
-                f"{name} on {mesh}",
+                f"paper's claim: classical/MJED >= {PAPER_SPEEDUP:g}x, compiled pair, {name} on "
+                f"{mesh}",
                 _median_ratio(data, name, "classical-numba/mjed-numba"),
                 PAPER_SPEEDUP,
                 ">=",
@@ -701,21 +701,20 @@ def _compiled_targets(data: TimingData, t: str, mesh: str) -> List[Check]:
         "not measured: compiled MJED not timed"
         if comp is None
         else f"floor {floor * 1e3:.3f} ms at {data.bandwidth.bytes_per_s / 1e9:.1f} GB/s, so "
-        f"{FLOOR_FACTOR:g}x the floor is {FLOOR_FACTOR * floor / cells * 1e9:.0f} ns per "
-        f"cell; the kernel takes {comp / cells * 1e9:.0f} ns per cell for about {flops} "
-        f"flops ({flops * cells / comp / 1e9:.2f} Gflop/s measured): a serial kernel at "
-        "that arithmetic is compute-bound, not memory-bound"
+        f"{FLOOR_FACTOR:g}x the floor is {FLOOR_FACTOR * floor / cells * 1e9:.0f} ns per cell; the "
+        f"kernel takes {comp / cells * 1e9:.0f} ns per cell for about {flops} flops "
+        f"({flops * cells / comp / 1e9:.2f} Gflop/s measured): a serial kernel at that arithmetic "
+        "is compute-bound, not memory-bound"
     )
     r = _median_ratio(data, t, "mjed/mjed-numba")
     speed_note = (
         "not measured: compiled MJED not timed"
         if r is None
-        else f"NumPy {data.median(t, 'mjed') * 1e3:.2f} ms, compiled {comp * 1e3:.2f} ms; "
-        f"for the same {flops} flops per cell that is "
-        f"{_gflops(flops, data, t, 'mjed'):.2f} and "
-        f"{_gflops(flops, data, t, 'mjed-numba'):.2f} Gflop/s: the NumPy engine already "
-        "runs each step as a whole-array (SIMD) operation over all cells, the compiled "
-        "kernel is scalar per cell"
+        else f"NumPy {data.median(t, 'mjed') * 1e3:.2f} ms, compiled {comp * 1e3:.2f} ms; for the "
+        f"same {flops} flops per cell that is {_gflops(flops, data, t, 'mjed'):.2f} and "
+        f"{_gflops(flops, data, t, 'mjed-numba'):.2f} Gflop/s: the NumPy engine already runs each "
+        "step as a whole-array (SIMD) operation over all cells, the compiled kernel is scalar per "
+        "cell"
     )
     return [
         Check(
@@ -727,8 +726,8 @@ def _compiled_targets(data: TimingData, t: str, mesh: str) -> List[Check]:
             floor_note,
         ),
         Check(
-            f"compiled MJED at least {COMPILED_SPEEDUP:g}x faster than the NumPy engine, "
-            f"{t} on {mesh}",
+            f"compiled MJED at least {COMPILED_SPEEDUP:g}x faster than the NumPy engine, {t} on "
+            f"{mesh}",
             r,
             COMPILED_SPEEDUP,
             ">=",
@@ -854,8 +853,8 @@ def _measure_sizes(data: ScalingData, say) -> None:
             )
             if wall > s.time_budget_s and size != s.sizes[-1]:
                 data.stopped[m] = (
-                    f"stopped after ~{size:,} cells: that size took {wall:.0f} s "
-                    f"(budget {s.time_budget_s:.0f} s per size)"
+                    f"stopped after ~{size:,} cells: that size took {wall:.0f} s (budget "
+                    f"{s.time_budget_s:.0f} s per size)"
                 )
     for m in s.methods:
         data.stopped.setdefault(m, f"completed all sizes up to ~{max(s.sizes):,} cells")
@@ -890,9 +889,9 @@ def _scaling_result(
         path = os.path.join(out_dir, "timing_scaling.png")
         data.figures.append(figures_timing.plot_scaling(data.to_dict(), path))
     protocol = (
-        f"each (method, size) in a fresh process: build, one call (peak memory), then the "
-        f"best of {s.repeats} timed calls; a method stops growing after a size that took "
-        f"over {s.time_budget_s:.0f} s"
+        "each (method, size) in a fresh process: build, one call (peak memory), then the best of "
+        f"{s.repeats} timed calls; a method stops growing after a size that took over "
+        f"{s.time_budget_s:.0f} s"
     )
     return StudyResult.from_checks(
         SCALING_KEY,

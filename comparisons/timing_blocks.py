@@ -58,9 +58,8 @@ def timing_blocks(data: TimingData, checks: Sequence[Check]) -> List:
     blocks: List = [
         Figure(
             p,
-            "Force + stiffness per call, per material and method (log scale), in "
-            "the style of the paper's Fig. 2; bars are medians, whiskers the "
-            "range over the rounds",
+            "Force + stiffness per call, per material and method (log scale), in the style of the "
+            "paper's Fig. 2; bars are medians, whiskers the range over the rounds",
         )
         for p in data.figures
     ]
@@ -105,8 +104,8 @@ def _times_table(data: TimingData) -> Table:
     return Table(
         ("material", "what", *[f"{s.labels[m]} ms" for m in s.methods]),
         rows,
-        caption=f"Median time per call in ms ({s.protocol} protocol; in brackets rounds x "
-        "calls per round); '-': not timed (see below)",
+        caption=f"Median time per call in ms ({s.protocol} protocol; in brackets rounds x calls "
+        "per round); '-': not timed (see below)",
     )
 
 
@@ -149,11 +148,10 @@ def _ratios_table(data: TimingData) -> Table:
             "dolfinx/MJED force only",
         ),
         rows,
-        caption="Force+stiffness ratios, median [min, max] of per-round ratios (> 1: MJED "
-        "faster), and the operation-count model of the two compiled kernels "
-        "(comparisons/opcount.py, both counted from their generated sources; "
-        "MJED's count derived by hand from its terms in brackets): "
-        "measured/model near 1 means the ratio is explained by the arithmetic",
+        caption="Force+stiffness ratios, median [min, max] of per-round ratios (> 1: MJED faster), "
+        "and the operation-count model of the two compiled kernels (comparisons/opcount.py, both "
+        "counted from their generated sources; MJED's count derived by hand from its terms in "
+        "brackets): measured/model near 1 means the ratio is explained by the arithmetic",
     )
 
 
@@ -199,9 +197,8 @@ def _verification_blocks(data: TimingData) -> List:
             Table(
                 ("material", "method", "force error", "stiffness error", "verdict"),
                 rows,
-                caption="Every method's result at the timing state against NumPy "
-                "MJED before it is timed (tolerance 1e-10, the "
-                "equivalence study's)",
+                caption="Every method's result at the timing state against NumPy MJED before it is "
+                "timed (tolerance 1e-10, the equivalence study's)",
             )
         )
     if data.skipped:
@@ -262,8 +259,8 @@ def scaling_blocks(data: ScalingData, checks: Sequence[Check]) -> List:
         Table(
             ("method", "cells", "nodes", "f+K (s)", "us per cell", "peak MiB", "bytes per cell"),
             rows,
-            caption=f"{data.material} on {data.settings.mesh}; best of "
-            f"{data.settings.repeats} calls",
+            caption=f"{data.material} on {data.settings.mesh}; best of {data.settings.repeats} "
+            "calls",
         )
     )
     blocks.append(

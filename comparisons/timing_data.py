@@ -135,8 +135,8 @@ class TimingSettings:
 
 
 MEMORY_NOTE = (
-    "peak_bytes: resident-set high-water mark (VmHWM) of a fresh process after building "
-    "the method and one force+stiffness call, minus its resident set before building"
+    "peak_bytes: resident-set high-water mark (VmHWM) of a fresh process after building the method "
+    "and one force+stiffness call, minus its resident set before building"
 )
 
 

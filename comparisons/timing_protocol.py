@@ -59,17 +59,14 @@ class Protocol:
         if self.calls is not None:
             return (
                 f"{self.name}: {self.calls} calls per measurement (mean), {self.max_rounds} "
-                "interleaved rounds, "
-                "median over the rounds (the paper's protocol)"
+                "interleaved rounds, median over the rounds (the paper's protocol)"
             )
         return (
             f"{self.name}: batches of at least {self.min_batch_s * 1e3:.0f} ms (mean per call), "
-            "interleaved rounds "
-            "until every measurement's relative spread (max - min)/median over its last 3 rounds "
-            "is <= "
-            f"{100 * self.spread:.0f} % (at least {self.min_rounds}, at most {self.max_rounds} "
-            "rounds, "
-            f"or {self.budget_s:.0f} s of timed calls per material); median over the rounds"
+            "interleaved rounds until every measurement's relative spread (max - min)/median over "
+            f"its last 3 rounds is <= {100 * self.spread:.0f} % (at least {self.min_rounds}, at "
+            f"most {self.max_rounds} rounds, or {self.budget_s:.0f} s of timed calls per "
+            "material); median over the rounds"
         )
 
     def should_stop(self, rounds: int, spreads: Sequence[float], elapsed_s: float) -> Optional[str]:

@@ -36,8 +36,8 @@ def command_words(template: str) -> List[str]:
     missing = [k for k in ("{input}", "{output}") if k not in text]
     if missing:
         raise ValueError(
-            f"--command {template!r} must contain {' and '.join(missing)} "
-            "(replaced by the case's input and output directories)"
+            f"--command {template!r} must contain {' and '.join(missing)} (replaced by the case's "
+            "input and output directories)"
         )
     return words
 

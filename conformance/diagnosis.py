@@ -143,10 +143,9 @@ def diagnose(
                     "the force is wrong away from this state",
                     OBSERVED,
                     "force and stiffness match the oracle here, but the stiffness is not the "
-                    "derivative of the engine's "
-                    "own force at the probes: the force changes wrongly as the mesh deforms (check "
-                    "a deformed state, "
-                    "where the diagnosis can name the mistake)",
+                    "derivative of the engine's own force at the probes: the force changes wrongly "
+                    "as the mesh deforms (check a deformed state, where the diagnosis can name the "
+                    "mistake)",
                     {},
                 ),
             )
@@ -162,15 +161,12 @@ def diagnose(
             "unexplained",
             PARTIAL if best else OBSERVED,
             "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
-            "unsymmetric K, "
-            "global factor, tangent parts, volumetric energy, localisation) brings the error "
-            "within "
-            "tolerance"
+            "unsymmetric K, global factor, tangent parts, volumetric energy, localisation) brings "
+            "the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + (
                 "; the force is right and the stiffness is not the derivative of the engine's own "
-                "force (below): "
-                "the mistake is in the tangent alone"
+                "force (below): the mistake is in the tangent alone"
                 if inconsistent and err.force <= FORCE_TOL
                 else ""
             ),
@@ -202,10 +198,9 @@ def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
         "energy",
         "energy differs while force and stiffness match",
         FULL,
-        f"energy {W:.6e} J against {W_o:.6e} J (relative error {err.energy:.1e})"
-        f"{'; ' + words if words else ''}; as a constant density over the rest volume: "
-        f"{offset:.6g} "
-        "Pa",
+        f"energy {W:.6e} J against {W_o:.6e} J (relative error "
+        f"{err.energy:.1e}){'; ' + words if words else ''}; as a constant density over the rest "
+        f"volume: {offset:.6g} Pa",
         {"energy": W, "oracle_energy": W_o, "offset_density": offset},
     )
 
@@ -221,8 +216,7 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
                     "stiffness is not the derivative of the engine's own force",
                     OBSERVED,
                     f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
-                    "direction "
-                    f"(limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
+                    f"direction (limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
                     {"inconsistency": c.force_stiffness, "rates": list(c.rates_force)},
                 )
             )
@@ -288,8 +282,8 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
 
                 skew = float(sparse_norm(K - K.T)) / 2 / max(float(sparse_norm(K)), 1e-300)
                 extra = (
-                    f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; "
-                    "symmetric part matches"
+                    f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part "
+                    "matches"
                 )
                 if err.symmetry <= 1e-12:
                     continue  # a symmetric K: the correction is the identity
@@ -394,10 +388,9 @@ def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full,
     }
     text = (
         f"a per-cell change of the J-only energy U(J) leaves force error {fit.force_residual:.1e} "
-        "and stiffness "
-        f"error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
-        f"{np.median(fit.dU1):.4g} Pa and "
-        f"d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = {J1:.4g}"
+        f"and stiffness error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
+        f"{np.median(fit.dU1):.4g} Pa and d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = "
+        f"{J1:.4g}"
     )
     if fit.variant:
         text += f"; recognised: {fit.variant}"
@@ -451,8 +444,7 @@ def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) 
     }
     text = (
         f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, "
-        "stiffness error "
-        f"{kout:.1e}; see the per-node error field"
+        f"stiffness error {kout:.1e}; see the per-node error field"
     )
     if fout <= FORCE_TOL and kout <= STIFFNESS_TOL:
         full.append(

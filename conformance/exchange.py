@@ -118,8 +118,8 @@ def _read_raw(path: str, dtype: np.dtype, shape: tuple, *, case: str) -> np.ndar
     size = os.path.getsize(path)
     if size != count * dtype.itemsize:
         raise FormatError(
-            f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
-            f"({count} values of {dtype.str} for shape {list(shape)})"
+            f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} ({count} values "
+            f"of {dtype.str} for shape {list(shape)})"
         )
     return np.fromfile(path, dtype=dtype).reshape(shape)
 
@@ -351,8 +351,7 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
             if not (a.size == b.size == vals.size):
                 raise FormatError(
                     f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols "
-                    f"{b.size}, "
-                    f"values {vals.size})"
+                    f"{b.size}, values {vals.size})"
                 )
             for arr, p in ((a, paths[0]), (b, paths[1])):
                 _require_indices(arr, N, p, case)
@@ -388,8 +387,7 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
         first = int(np.flatnonzero(bad.ravel())[0])
         raise FormatError(
             f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at "
-            "flat "
-            f"index {first}"
+            f"flat index {first}"
         )
 
 

@@ -23,8 +23,7 @@ def add_model_options(parser, *, material_default: str = "all") -> None:
         "--energy",
         metavar="EXPR",
         help="a strain energy of I1, I2, I3, J, I1b, I2b, I4, I5, C11..C33, E11..E33 and "
-        "parameters, "
-        "e.g. 'mu/2*(I1b-3) + K/2*(J-1)**2' (docs/conventions.md, 'User energies')",
+        "parameters, e.g. 'mu/2*(I1b-3) + K/2*(J-1)**2' (docs/conventions.md, 'User energies')",
     )
     parser.add_argument(
         "--param",

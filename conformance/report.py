@@ -97,8 +97,7 @@ def _case_table(run: CheckRun) -> Table:
         ],
         rows,
         caption="Relative errors against the oracle (tolerance 1e-10); 'K vs own force' is the "
-        "probes' "
-        "inconsistency (limit 1e-6)",
+        "probes' inconsistency (limit 1e-6)",
     )
 
 
@@ -137,8 +136,7 @@ def write_report(
             blocks.append(
                 Paragraph(
                     f"Per-node error field for ParaView: {fields[o.case_id]} (point data "
-                    "node_error, "
-                    "force_error, force_oracle on the current positions)."
+                    "node_error, force_error, force_oracle on the current positions)."
                 )
             )
         failed = o.status == "failed"

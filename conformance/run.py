@@ -89,8 +89,7 @@ class CheckRun:
         failed = sum(o.status == "failed" for o in self.outcomes)
         return (
             f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} "
-            "failed, "
-            f"{bad} with bad input"
+            f"failed, {bad} with bad input"
         )
 
     def text(self) -> str:

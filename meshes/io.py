@@ -89,8 +89,7 @@ def surface_advice(path: Path) -> str:
         "a surface mesh holds no volume: MJED needs linear tetrahedra. Mesh the inside of the "
         "closed surface "
         f'with gmsh: write {stem.name}.geo containing  Merge "{path.name}"; Surface Loop(1) = '
-        f"{{1}}; "
-        f"Volume(1) = {{1}};  then run  gmsh {stem.name}.geo -3 -o {stem.name}.msh"
+        f"{{1}}; Volume(1) = {{1}};  then run  gmsh {stem.name}.geo -3 -o {stem.name}.msh"
     )
 
 
@@ -281,8 +280,8 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
     higher = {t: counts_by_type[t] for t in _HIGHER_ORDER_TETS if counts_by_type.get(t)}
     if higher:
         raise MeshReadError(
-            f"{where}: higher-order tetrahedra ({_describe(higher)}) are not supported; "
-            "only linear 4-node tetrahedra are (re-mesh with element order 1)"
+            f"{where}: higher-order tetrahedra ({_describe(higher)}) are not supported; only "
+            "linear 4-node tetrahedra are (re-mesh with element order 1)"
         )
     n_tets = sum(len(b) for b in tets)
     if n_tets == 0:
@@ -301,8 +300,8 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
     if undefined.any():
         k = int(np.flatnonzero(undefined.any(axis=1))[0])
         raise MeshReadError(
-            f"{where}: tetrahedron {k} uses node id(s) {cell_ids[k][undefined[k]].tolist()} "
-            f"that the file does not define"
+            f"{where}: tetrahedron {k} uses node id(s) {cell_ids[k][undefined[k]].tolist()} that "
+            "the file does not define"
         )
     cells = order[at].astype(np.int64)
     s = np.sort(cells, axis=1)
@@ -326,8 +325,8 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
         )
     if unused.size:
         warnings.warn(
-            f"{where}: {unused.size} node(s) no tetrahedron uses are kept with their numbers "
-            f"(ids {ids[unused][:5].tolist()}{' ...' if unused.size > 5 else ''})",
+            f"{where}: {unused.size} node(s) no tetrahedron uses are kept with their numbers (ids "
+            f"{ids[unused][:5].tolist()}{' ...' if unused.size > 5 else ''})",
             MeshReadWarning,
             stacklevel=3,
         )

@@ -133,8 +133,7 @@ def cell_source(mesh: TetMesh, J_old: np.ndarray, J_new: np.ndarray) -> np.ndarr
         if len(bad):
             raise ValueError(
                 f"{name}: {len(bad)} cell(s) with J <= 0 or non-finite; first is cell {bad[0]} (J "
-                "= "
-                f"{J[bad[0]]!r})"
+                f"= {J[bad[0]]!r})"
             )
     r = np.log(np.asarray(J_new) / np.asarray(J_old)) * (mesh.volumes / 4.0)
     return np.bincount(mesh.cells.ravel(), weights=np.repeat(r, 4), minlength=mesh.n_nodes)

@@ -99,8 +99,7 @@ def tangent_slots(
                 if pair.kind != "spectral" and pair.matrix.ndim == 3 and len(pair.matrix) != m:
                     raise ValueError(
                         "the material holds per-cell data (e.g. a Costa frame) for "
-                        f"{len(pair.matrix)} cells, "
-                        f"but the mesh has {m} cells"
+                        f"{len(pair.matrix)} cells, but the mesh has {m} cells"
                     )
                 key = slot_key(pair)
                 if key not in slots:

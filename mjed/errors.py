@@ -33,8 +33,8 @@ class InvertedElementError(ValueError):
         more = f" and {len(cells) - 5} more" if len(cells) > 5 else ""
         where = f" {context}" if context else ""
         super().__init__(
-            f"{len(cells)} inverted or flattened cell(s){where}: {shown}{more}. "
-            "Pass allow_inverted=True to evaluate anyway (energies with ln J are then NaN)."
+            f"{len(cells)} inverted or flattened cell(s){where}: {shown}{more}. Pass "
+            "allow_inverted=True to evaluate anyway (energies with ln J are then NaN)."
         )
 
 
@@ -55,6 +55,6 @@ class IntegrationError(RuntimeError):
         self.reason = reason
         self.cells = cells
         super().__init__(
-            f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; "
-            "the integrator kept the state of the last accepted step"
+            f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; the integrator kept "
+            "the state of the last accepted step"
         )

@@ -47,8 +47,7 @@ def signed_split(B: np.ndarray, method: str = "ldl") -> Tuple[np.ndarray, np.nda
                 names = ("b_ff", "b_ss - b_fs^2/b_ff")
                 raise ValueError(
                     f"Costa: the signed L D L^T split of B divides by zero: pivot {k + 1} "
-                    f"({names[k]}) is zero. "
-                    "Perturb the b parameters or use split='eigen'."
+                    f"({names[k]}) is zero. Perturb the b parameters or use split='eigen'."
                 )
             L[k + 1 :, k] = A[k + 1 :, k] / pivots[k]
             A[k + 1 :, k + 1 :] -= np.outer(L[k + 1 :, k], A[k, k + 1 :])

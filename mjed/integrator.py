@@ -454,8 +454,7 @@ class ImplicitEuler:
                 t_end,
                 exc.reason,
                 f"{_detail(exc)}; retried in substeps down to dt/{2**self.max_halvings} = "
-                f"{smallest:.3g} s "
-                f"({len(tally.retries)} failed attempt(s): "
+                f"{smallest:.3g} s ({len(tally.retries)} failed attempt(s): "
                 f"{', '.join(sorted(set(tally.retries)))})",
                 cells=exc.cells,
             ) from exc
@@ -758,8 +757,8 @@ class ImplicitEuler:
                 step,
                 t1,
                 "volume_jump",
-                f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step "
-                f"(cell {worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})",
+                f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step (cell "
+                f"{worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})",
                 cells=bad,
             )
 

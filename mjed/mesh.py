@@ -73,8 +73,8 @@ class TetMesh:
         if flat.any():
             c = int(np.flatnonzero(flat)[0])
             raise MeshError(
-                f"{int(flat.sum())} degenerate (zero-volume) cell(s); first is cell {c} "
-                f"with nodes {cells[c].tolist()} and volume {signed[c]:.3e}"
+                f"{int(flat.sum())} degenerate (zero-volume) cell(s); first is cell {c} with nodes "
+                f"{cells[c].tolist()} and volume {signed[c]:.3e}"
             )
 
         negative = signed < 0
@@ -84,8 +84,8 @@ class TetMesh:
                 c = int(np.flatnonzero(negative)[0])
                 raise MeshError(
                     f"{self.n_reoriented} negatively oriented cell(s); first is cell {c} with "
-                    f"nodes {cells[c].tolist()} and signed volume {signed[c]:.3e}. "
-                    "Pass fix_orientation=True to swap two nodes of each such cell."
+                    f"nodes {cells[c].tolist()} and signed volume {signed[c]:.3e}. Pass "
+                    "fix_orientation=True to swap two nodes of each such cell."
                 )
             cells = cells.copy()
             cells[negative, 2], cells[negative, 3] = cells[negative, 3], cells[negative, 2].copy()
@@ -102,8 +102,8 @@ class TetMesh:
         if len(self.unreferenced_nodes):
             k = self.unreferenced_nodes
             warnings.warn(
-                f"{len(k)} node(s) belong to no cell (first: {k[:5].tolist()}); "
-                "their rows of the stiffness matrix are empty",
+                f"{len(k)} node(s) belong to no cell (first: {k[:5].tolist()}); their rows of the "
+                "stiffness matrix are empty",
                 MeshWarning,
                 stacklevel=2,
             )

@@ -77,9 +77,8 @@ class PorousVolume(JFunction):
         if not self.J0 < 1.0:
             raise ValueError(
                 f"PorousVolume: the substitution point J0 = {self.J0:.6g} must be < 1 (rest must "
-                "be "
-                "stress free); "
-                f"K0/K_lim = {self.K0 / self.K_lim:.6g} is too large for f_w = {self.f_w!r}"
+                f"be stress free); K0/K_lim = {self.K0 / self.K_lim:.6g} is too large for f_w = "
+                f"{self.f_w!r}"
             )
 
     # ------------------------------------------------------------------ the substitution point
@@ -220,15 +219,13 @@ def _without_volumetric(group: TermGroup, material: str) -> TermGroup:
         if group.exponential:
             raise ValueError(
                 f"with_porous_volume: {material} has a J-only term inside an exponential group; "
-                "use "
-                "mode='add'"
+                "use mode='add'"
             )
         f1, df1, _ = term.f(np.ones(1))
         if abs(float(np.asarray(df1).ravel()[0])) > 0.0:
             raise ValueError(
                 f"with_porous_volume: {material}'s J-only term has a non-zero slope at J = 1 (it "
-                "balances the "
-                "isochoric stress at rest), so it cannot be replaced; use mode='add'"
+                "balances the isochoric stress at rest), so it cannot be replaced; use mode='add'"
             )
         terms.append(Term(_Constant(float(np.asarray(f1).ravel()[0])), Unity()))
     return TermGroup(tuple(terms), group.exponential, group.coefficient)

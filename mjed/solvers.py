@@ -107,8 +107,7 @@ class LinearSolverOptions:
         if self.preconditioner == "factorized":
             return (
                 f"CG, kept {self.factor_precision}-precision sparse LU preconditioner (renewed "
-                "after "
-                f"> {self.refactor_iterations} iterations), rtol {self.cg_tol:g}"
+                f"after > {self.refactor_iterations} iterations), rtol {self.cg_tol:g}"
             )
         return f"CG, {self.preconditioner} preconditioner, rtol {self.cg_tol:g}"
 

@@ -236,8 +236,7 @@ class CSRPattern:
         if L.nnz != len(self._node_keys) or len(data) != self.nnz:
             raise ValueError(
                 f"L must come from edge_scalar_matrix of this pattern ({len(self._node_keys)} "
-                "entries, "
-                f"got {L.nnz}) and data must have {self.nnz} entries (got {len(data)})"
+                f"entries, got {L.nnz}) and data must have {self.nnz} entries (got {len(data)})"
             )
         key = "diag"
         if key not in self._maps:
@@ -308,8 +307,8 @@ class CSRPattern:
         """Like assemble_vector, for element vectors stored with axes in ``layout`` order."""
         if element_vectors.size != 12 * len(self.cells):
             raise ValueError(
-                f"element vectors must hold 12 values per cell ({12 * len(self.cells)}), "
-                f"got shape {element_vectors.shape}"
+                f"element vectors must hold 12 values per cell ({12 * len(self.cells)}), got shape "
+                f"{element_vectors.shape}"
             )
         return (self.vector_scatter(layout) @ element_vectors.reshape(-1)).reshape(-1, 3)
 

@@ -181,8 +181,7 @@ class ViscoHyperelasticForceField:
             ):
                 raise TypeError(
                     "field must be a hyperelastic force field (mesh, pattern and "
-                    f"{', '.join(FIELD_METHODS)}) "
-                    f"or a TetMesh; {type(field).__name__} lacks "
+                    f"{', '.join(FIELD_METHODS)}) or a TetMesh; {type(field).__name__} lacks "
                     f"{', '.join(missing) or 'a TetMesh mesh or a pattern'}"
                 )
         if not isinstance(prony, Prony):
@@ -304,8 +303,7 @@ class ViscoHyperelasticForceField:
         if K.nnz != pattern.nnz or not np.array_equal(K.indptr, pattern.indptr):
             raise ValueError(
                 f"the force field's stiffness does not have its pattern's structure ({K.nnz} "
-                "entries, "
-                f"pattern {pattern.nnz}); the viscous field adds its history in place"
+                f"entries, pattern {pattern.nnz}); the viscous field adds its history in place"
             )
         K.data *= self._scale()
         pattern.add_scalar_blocks(K.data, self.history_stiffness())

@@ -190,8 +190,7 @@ class _Classical:
         gather_cell(s)
         s(
             "J = F00 * (F11 * F22 - F12 * F21) - F01 * (F10 * F22 - F12 * F20) + F02 * (F10 * F21 "
-            "- "
-            "F11 * F20)"
+            "- F11 * F20)"
         )
         s("J_out[e] = J")
         for i, j in VOIGT:
@@ -472,8 +471,8 @@ class _Classical:
             (
                 I,
                 K,
-            ): f"pQQ * qv{I} * qv{K} + JpQJ * (qv{I} * {ci[K]} + {ci[I]} * qv{K}) + pQ * T{I}{K} "
-            f"+ cA * {ci[I]} * {ci[K]} + cB * {od[I, K]}"
+            ): f"pQQ * qv{I} * qv{K} + JpQJ * (qv{I} * {ci[K]} + {ci[I]} * qv{K}) + pQ * T{I}{K} + "
+            f"cA * {ci[I]} * {ci[K]} + cB * {od[I, K]}"
             for I, K in UPPER6
         }
 

@@ -79,8 +79,8 @@ def lower_law(law: cm.ClassicalLaw) -> Tuple[LawShape, np.ndarray, np.ndarray]:
     fn = _LOWER.get(type(law))
     if fn is None:
         raise NotImplementedError(
-            f"no compiled classical kernel for the law {type(law).__name__}; "
-            f"supported: {', '.join(c.__name__ for c in _LOWER)}"
+            f"no compiled classical kernel for the law {type(law).__name__}; supported: "
+            f"{', '.join(c.__name__ for c in _LOWER)}"
         )
     kind, psi, P, T = fn(law)
     return LawShape(kind, psi, T.shape[0] > 1), np.ascontiguousarray(P, dtype=float), T

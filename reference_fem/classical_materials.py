@@ -474,8 +474,7 @@ def classical_law(material) -> ClassicalLaw:
     cls = type(material)
     raise TypeError(
         f"no classical law for material type {cls.__module__}.{cls.__qualname__}; register one "
-        "with "
-        "reference_fem.classical_materials.classical_law.register"
+        "with reference_fem.classical_materials.classical_law.register"
     )
 
 

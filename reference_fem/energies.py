@@ -287,8 +287,8 @@ def _costa_frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     if R.shape == (3, 3):
         return ufl.as_matrix(R.tolist()) if p.constant is None else p.wrap(R)
     raise ValueError(
-        f"Costa: a per-cell frame of shape {R.shape} needs a mesh; pass frame= as a UFL "
-        "expression (UFLOracle does this with a DG0 tensor Function)"
+        f"Costa: a per-cell frame of shape {R.shape} needs a mesh; pass frame= as a UFL expression "
+        "(UFLOracle does this with a DG0 tensor Function)"
     )
 
 

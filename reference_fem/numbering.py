@@ -110,8 +110,8 @@ def _check_cell_permutation(comm, input_cell_of_cell: np.ndarray, m: int) -> Non
         every = np.concatenate(comm.allgather(input_cell_of_cell))
     if every.shape != (m,) or not np.array_equal(np.sort(every), np.arange(m)):
         raise NumberingError(
-            f"original cell indices are not a permutation of the {m} input cells "
-            f"(dolfinx holds {every.size} cells)"
+            f"original cell indices are not a permutation of the {m} input cells (dolfinx holds "
+            f"{every.size} cells)"
         )
 
 

@@ -487,8 +487,7 @@ class UserEnergy:
         if unused:
             raise ValueError(
                 f"user energy {self.expression!r}: parameter(s) {', '.join(unused)} not used in "
-                "the "
-                "expression"
+                "the expression"
             )
         needs_fibre = sorted(used & _FIBRE_VARIABLES)
         if needs_fibre and self.fibre is None:
@@ -540,8 +539,7 @@ class UserEnergy:
         if self.prestressed:
             return (
                 f"{self.name} ({self.expression}): the stress at rest is not zero (|P(I)| = "
-                f"{norm:.6g}); "
-                "forces on the undeformed mesh are not zero"
+                f"{norm:.6g}); forces on the undeformed mesh are not zero"
             )
         return (
             f"{self.name} ({self.expression}): stress-free at rest; W(I) = {self.rest_energy:.6g}"

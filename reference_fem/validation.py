@@ -58,8 +58,8 @@ def check_cells(cells, points: np.ndarray) -> np.ndarray:
     if bad.size:
         c = bad[0]
         raise ValueError(
-            f"{bad.size} cell(s) are not positively oriented or are degenerate "
-            f"(first: cell {c}, signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
+            f"{bad.size} cell(s) are not positively oriented or are degenerate (first: cell {c}, "
+            f"signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
         )
     return T
 

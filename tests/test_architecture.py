@@ -152,3 +152,32 @@ def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
     g = import_graph(module_files(tmp_path, ("common", "conformance")))
     assert upward_imports(g, ("common", "conformance")) == ["common.a -> conformance.b"]
     assert cycles(g) == [["conformance.b", "conformance.c"]]
+
+
+#: A study driver longer than this mixes setup, measurement and presentation; split it.
+MAX_FUNCTION_LINES = 60
+
+
+def long_functions(root: pathlib.Path, package: str, limit: int = MAX_FUNCTION_LINES) -> List[str]:
+    """'file:function (lines)' for every function of ``package`` longer than ``limit`` lines
+    (from its ``def`` to its last line, docstring included).
+    """
+    out = []
+    for path in sorted((root / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > limit:
+                    out.append(f"{path.relative_to(root)}:{node.name} ({n})")
+    return out
+
+
+def test_no_function_of_the_studies_is_over_60_lines():
+    assert long_functions(ROOT, "comparisons") == []
+
+
+def test_the_length_check_finds_a_long_function(tmp_path):
+    (tmp_path / "pkg").mkdir()
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES))
+    (tmp_path / "pkg" / "m.py").write_text(f"def short():\n    return 1\n\n\ndef long():\n{body}\n")
+    assert long_functions(tmp_path, "pkg") == [f"pkg/m.py:long ({MAX_FUNCTION_LINES + 1})"]

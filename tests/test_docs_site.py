@@ -188,8 +188,8 @@ def browsed_pages():
 
 needs_browser = pytest.mark.skipif(
     not (CHROMIUM and CHROMEDRIVER),
-    reason="Debian's chromium and chromium-driver are not installed "
-    "(scripts/bootstrap.sh installs them)",
+    reason="Debian's chromium and chromium-driver are not installed (scripts/bootstrap.sh installs "
+    "them)",
 )
 
 

@@ -79,8 +79,8 @@ def test_legacy_gmsh_keeps_sparse_node_numbers_and_unused_nodes(tmp_path, organ)
 def test_a_cell_that_repeats_a_node_is_named(tmp_path):
     path = tmp_path / "bad.msh"
     path.write_text(
-        "$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n$ELM\n2\n"
-        "1 4 1 1 4 1 2 3 4\n2 4 1 1 4 1 2 2 4\n$ENDELM\n"
+        "$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n$ELM\n2\n1 4 1 1 4 1 2 3 4\n2 4 1 1 "
+        "4 1 2 2 4\n$ENDELM\n"
     )
     with pytest.raises(
         meshes.MeshReadError,
@@ -93,8 +93,7 @@ def test_an_undefined_node_id_is_named(tmp_path):
     path = tmp_path / "bad.msh"
     path.write_text(
         "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 "
-        "1\n$EndNodes\n"
-        "$Elements\n1\n1 4 2 1 1 1 2 3 9\n$EndElements\n"
+        "1\n$EndNodes\n$Elements\n1\n1 4 2 1 1 1 2 3 9\n$EndElements\n"
     )
     with pytest.raises(
         meshes.MeshReadError, match=r"bad\.msh: tetrahedron 0 uses node id\(s\) \[9\] that the file"

@@ -64,8 +64,8 @@ def test_the_scan_finds_what_it_should():
     ]
     # ... while a module's own private attributes, on self or on another instance, are not.
     good = (
-        "class A:\n    def __init__(self):\n        self._x = 1\n\n"
-        "    def same(self, other):\n        return other._x\n"
+        "class A:\n    def __init__(self):\n        self._x = 1\n\n    def same(self, other):\n    "
+        "    return other._x\n"
     )
     assert foreign_private_accesses(good) == []
 

@@ -39,8 +39,7 @@ def _random_F(rng, m=5, scale=0.2):
         (
             "__import__('os').system('true')",
             "only calls of ln, log, exp, sqrt, pow are allowed: '__import__('os').system' at "
-            "column "
-            "1",
+            "column 1",
         ),
         ("__import__('os')", "'__import__' at column 1"),
         ("mu.real", "attribute access"),

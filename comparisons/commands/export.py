@@ -43,7 +43,7 @@ def run(args) -> int:
     manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
     n_main = sum(e["role"] == "case" for e in manifest["cases"])
     print(
-        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
-        f"compute each cases/<id>/output, then: mjed-verify check {args.dir}"
+        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; compute "
+        f"each cases/<id>/output, then: mjed-verify check {args.dir}"
     )
     return 0

@@ -116,8 +116,7 @@ def configure(parser) -> None:
         "--backends",
         default="numpy,numba",
         help="comma-separated MJED backends, each running every model: numpy (the NumPy engine) "
-        "and "
-        "numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
+        "and numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
         "first is the reference the others are checked against and the one the figures show",
     )
     parser.add_argument(
@@ -319,8 +318,8 @@ def run(args) -> int:
     )
     print(
         f"  {'model':26s} {'backend':7s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} "
-        f"{'substeps':>8s} {'inverted':>8s} "
-        f"{'final max |u| (mm)':>18s} {'CG/step':>7s} {'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}"
+        f"{'substeps':>8s} {'inverted':>8s} {'final max |u| (mm)':>18s} {'CG/step':>7s} "
+        f"{'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}"
     )
     for r in data["runs"]:
         steps = f"{r['steps']}/{r['steps_planned']}"
@@ -332,10 +331,8 @@ def run(args) -> int:
         fps = f"{r['fps']:6.1f} {r['cpu_fps']:7.1f}" if r["fps"] else f"{'-':>6s} {'-':>7s}"
         print(
             f"  {r['model']:26s} {r['backend']:7s} {r['dt']:6.3g} {steps:>7s} "
-            f"{r['steps_split']:5d} "
-            f"{r['substeps_total']:8d} "
-            f"{r['inverted_cells_max']:8d} {1e3 * r['final_max_displacement']:18.2f} {cg} {fps} "
-            f"{r['paper_fps']:5.1f}"
+            f"{r['steps_split']:5d} {r['substeps_total']:8d} {r['inverted_cells_max']:8d} "
+            f"{1e3 * r['final_max_displacement']:18.2f} {cg} {fps} {r['paper_fps']:5.1f}"
         )
         if r["error"]:
             print(f"    FAILED: {r['error']}")

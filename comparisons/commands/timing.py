@@ -44,8 +44,8 @@ def configure(parser) -> None:
         "--protocol",
         default="budget",
         choices=[p for p in PROTOCOLS if p != "quick"],
-        help="budget (default): repeat until the spread is <= 5 %% or the budget is spent; "
-        "paper: 100 calls x 3 repeats per measurement",
+        help="budget (default): repeat until the spread is <= 5 %% or the budget is spent; paper: "
+        "100 calls x 3 repeats per measurement",
     )
     parser.add_argument(
         "--no-memory", action="store_true", help="skip the peak-memory subprocesses"

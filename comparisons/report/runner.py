@@ -285,11 +285,8 @@ def run_report(
         f"Run {name} on {platform.node() or 'this machine'}, "
         f"{time.strftime('%Y-%m-%d %H:%M:%S %Z')}; command: {cmd}.",
         "MJED (Marchesseau et al., MICCAI 2010) checked force by force and stiffness by stiffness "
-        "against a "
-        "UFL Galerkin oracle, with timings, the rheometer study and the liver under gravity. How "
-        "to "
-        "read this "
-        "report (statuses, exit codes, Reproduce lines): docs/report.md.",
+        "against a UFL Galerkin oracle, with timings, the rheometer study and the liver under "
+        "gravity. How to read this report (statuses, exit codes, Reproduce lines): docs/report.md.",
         f"Selection: materials {', '.join(m.name for m in ctx.materials)}; meshes "
         f"{', '.join(m[0] for m in ctx.meshes)} (equivalence); states {', '.join(ctx.states)}.",
     ]

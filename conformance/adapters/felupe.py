@@ -209,8 +209,7 @@ def _from_felupe_object(umat) -> Tuple[Any, UserEnergy, str]:
         umat_used, why = (
             inner,
             "LinearElasticLargeStrain is FElupe's NeoHookeCompressible with Lamé constants from "
-            "(E, "
-            "nu)",
+            "(E, nu)",
         )
     else:
         umat_used, why = umat, f"FElupe's {type(umat).__name__}"
@@ -249,13 +248,12 @@ def _(model):
     if not ok:
         raise Unsupported(
             f"FElupe: the energy {model.expression!r} is not one of FElupe's closed forms "
-            f"({listed}), "
-            f"and the automatic-differentiation route is unavailable: {why}"
+            f"({listed}), and the automatic-differentiation route is unavailable: {why}"
         )
     return _hyperelastic(
         _user_energy_function(model),
-        "FElupe's Hyperelastic (tensortrax automatic differentiation) "
-        f"of the expression {model.expression}",
+        "FElupe's Hyperelastic (tensortrax automatic differentiation) of the expression "
+        f"{model.expression}",
         model,
     )
 
@@ -326,8 +324,8 @@ def _(model):
     bulk = _ln_j_bulk(model.k0)
     return _hyperelastic(
         lambda C: ogden(C, mu=[0.5 * model.mu], alpha=[model.alpha]) + bulk(C),
-        "FElupe's Hyperelastic(ogden, mu=[mu/2], alpha=[alpha]) (2 mu_i/alpha_i^2 convention) "
-        "+ k0/2 (ln J)^2 in tensortrax: the same W",
+        "FElupe's Hyperelastic(ogden, mu=[mu/2], alpha=[alpha]) (2 mu_i/alpha_i^2 convention) + "
+        "k0/2 (ln J)^2 in tensortrax: the same W",
         model,
     )
 

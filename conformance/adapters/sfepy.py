@@ -168,8 +168,7 @@ def _match(model) -> Tuple[SfePyTerms, str]:
         )
     raise Unsupported(
         f"SfePy: no SfePy term sum matches {type(model).__name__} (SfePy's bulk terms are K/2 "
-        "(J-1)^2, "
-        "not the (ln J)^2 of this project's materials); pass SfePyTerms or a UserEnergy"
+        "(J-1)^2, not the (ln J)^2 of this project's materials); pass SfePyTerms or a UserEnergy"
     )
 
 

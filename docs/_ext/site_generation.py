@@ -190,14 +190,11 @@ def tutorial_page(script: Path, run: "tutorial_runner.Execution", target: Path) 
     body = (run.outdir / "page.md").read_text()
     body = body.replace("](fig", f"]({script.stem}/fig")
     header = (
-        f"```{{admonition}} Run it yourself\n"
-        f"This page is the executed file {{download}}`docs/tutorials/{script.name} "
-        f"</tutorials/{script.name}>` "
-        "(jupytext percent format: `jupytext --to notebook` opens it in Jupyter). From the "
-        "repository: "
-        f"`.venv/bin/python docs/tutorials/{script.name}`. Its `assert` lines are checked by "
-        f"`make test` (`tests/test_tutorials.py`); it ran in {run.seconds:.1f} s for this "
-        "build.\n```\n\n"
+        "```{admonition} Run it yourself\nThis page is the executed file "
+        f"{{download}}`docs/tutorials/{script.name} </tutorials/{script.name}>` (jupytext percent "
+        "format: `jupytext --to notebook` opens it in Jupyter). From the repository: "
+        f"`.venv/bin/python docs/tutorials/{script.name}`. Its `assert` lines are checked by `make "
+        f"test` (`tests/test_tutorials.py`); it ran in {run.seconds:.1f} s for this build.\n```\n\n"
     )
     lines = body.splitlines()
     # Put the admonition after the title (the first Markdown heading).

@@ -25,8 +25,8 @@ print(f"{'model':26s} {'dt':>5s} {'steps':>5s} {'final max |u|':>14s} {'CG/step'
 for run in result["runs"]:
     print(
         f"{run['model']:26s} {run['dt']:5.2f} {run['steps']:5d} "
-        f"{1e3 * run['final_max_displacement']:11.1f} mm "
-        f"{run['cg_iterations_mean']:8.1f} {run['fps']:6.0f}"
+        f"{1e3 * run['final_max_displacement']:11.1f} mm {run['cg_iterations_mean']:8.1f} "
+        f"{run['fps']:6.0f}"
     )
 terzaghi = max(t["relative_l2_error"] for t in result["terzaghi"]["times"])
 print(

@@ -116,9 +116,8 @@ print(
 for r in result["frequencies"]:
     print(
         f"{r['omega']:8.3g} {r['G_storage']:8.2f} {r['discrete'][0]:8.2f} "
-        f"{r['continuous'][0]:8.2f} "
-        "| "
-        f"{r['G_loss']:8.2f} {r['discrete'][1]:8.2f} {r['continuous'][1]:8.2f}"
+        f"{r['continuous'][0]:8.2f} | {r['G_loss']:8.2f} {r['discrete'][1]:8.2f} "
+        f"{r['continuous'][1]:8.2f}"
     )
 e_d, e_c = result["errors"]["discrete"], result["errors"]["continuous"]
 print(f"relative error against the discrete response: mean {e_d['mean']:.1e}, max {e_d['max']:.1e}")

@@ -258,8 +258,7 @@ for name, material in DEFAULT_MATERIALS.items():
     rows.append((name, m, k))
     print(
         f"{name:18s} MJED {m.flops:5d} flops + {m.special} special + {m.eig} eig | classical "
-        f"{k.flops:5d} flops "
-        f"+ {k.special} special + {k.eig} eig | ratio {k.flops / m.flops:4.2f}"
+        f"{k.flops:5d} flops + {k.special} special + {k.eig} eig | ratio {k.flops / m.flops:4.2f}"
     )
 
 assert all(m.flops > 0 and k.flops > 0 for _, m, k in rows)

@@ -70,8 +70,8 @@ def gmsh_version(path: Path) -> Tuple[str, bool]:
             return "1.0", True
         if first != b"$MeshFormat":
             raise MeshReadError(
-                f"{path}: cannot be read as a gmsh file (first line {first[:40]!r}, "
-                "expected $MeshFormat or $NOD)"
+                f"{path}: cannot be read as a gmsh file (first line {first[:40]!r}, expected "
+                "$MeshFormat or $NOD)"
             )
         fields = fh.readline().split()
     if len(fields) < 2:

@@ -22,9 +22,7 @@ def require_numba() -> ModuleType:
     if not numba_available():
         raise BackendUnavailable(
             "the 'numba' backend needs Numba, which is not installed: on Debian 12 `apt-get "
-            "install "
-            "python3-numba`, "
-            "elsewhere `pip install numba`; or use backend='numpy'"
+            "install python3-numba`, elsewhere `pip install numba`; or use backend='numpy'"
         )
     try:
         from mjed.compiled import kernels

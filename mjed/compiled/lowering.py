@@ -145,9 +145,8 @@ def _kind_of(obj, table: Dict[type, object], what: str):
         if cls in table:
             return table[cls]
     raise NotImplementedError(
-        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; "
-        f"it supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this "
-        "material."
+        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; it "
+        f"supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material."
     )
 
 

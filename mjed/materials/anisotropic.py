@@ -55,28 +55,26 @@ class Costa(Material):
         require_finite(self, "a", "k0", *_B_NAMES)
         if self.a <= 0:
             raise ValueError(
-                "Costa: parameter a must be > 0 (it scales the fibre energy a/2 (exp(J^(-4/3) Q) - "
-                "1); "
-                "a <= 0 leaves no resistance to isochoric deformation or reverses it), got "
+                "Costa: parameter a must be > 0 (it scales the fibre energy a/2 (exp(J^(-4/3) Q) "
+                "- 1); a <= 0 leaves no resistance to isochoric deformation or reverses it), got "
                 f"{self.a!r}"
             )
         if self.k0 <= 0:
             raise ValueError(
-                f"Costa: parameter k0 must be > 0 (the bulk modulus, the only resistance to volume "
+                "Costa: parameter k0 must be > 0 (the bulk modulus, the only resistance to volume "
                 f"change), got {self.k0!r}"
             )
         for name in _B_NAMES:
             if getattr(self, name) < 0:
                 raise ValueError(
                     f"Costa: parameter {name} must be >= 0, got {getattr(self, name)!r}: Q = sum "
-                    "B_ij Ef_ij^2 would "
-                    "be negative for a strain along that component alone, bringing the energy "
-                    "below its rest value"
+                    "B_ij Ef_ij^2 would be negative for a strain along that component alone, "
+                    "bringing the energy below its rest value"
                 )
         if all(getattr(self, name) == 0 for name in _B_NAMES):
             raise ValueError(
-                "Costa: at least one of b_ff, b_fs, b_ss, b_fn, b_sn, b_nn must be > 0 "
-                "(with all zero Q = 0: no resistance to isochoric deformation)"
+                "Costa: at least one of b_ff, b_fs, b_ss, b_fn, b_sn, b_nn must be > 0 (with all "
+                "zero Q = 0: no resistance to isochoric deformation)"
             )
         if self.frame is not None:
             R = np.array(self.frame, dtype=float)

@@ -70,8 +70,8 @@ def from_sofa(
     if len(values) != len(order):
         which = f" with ogden_order={ogden_order!r}" if cls is Ogden else ""
         raise ValueError(
-            f"SOFA {key}{which} expects {len(order)} parameters [{', '.join(order)}], "
-            f"got {len(values)}: {list(values)}"
+            f"SOFA {key}{which} expects {len(order)} parameters [{', '.join(order)}], got "
+            f"{len(values)}: {list(values)}"
         )
     return cls(**dict(zip(order, values)))
 
