@@ -396,23 +396,7 @@ def plot_moduli(result: dict, path: str) -> str:
         fontsize=8,
     )
     ax.legend(fontsize=7)
-    for j, (name, marker) in enumerate((("G'", "o"), ("G''", "s"))):
-        ax_err.loglog(
-            w,
-            [r["rel_err_continuous"][j] for r in rows],
-            marker + "-",
-            mfc="none",
-            color="C2" if j == 0 else "C3",
-            label=f"{name} vs continuous",
-        )
-        ax_err.loglog(
-            w,
-            [max(r["rel_err_discrete"][j], 1e-17) for r in rows],
-            marker + "--",
-            mfc="none",
-            color="C2" if j == 0 else "C3",
-            label=f"{name} vs discrete",
-        )
+    _plot_errors(ax_err, w, rows)
     ax_err.set_xlabel("angular frequency omega (rad/s)")
     ax_err.set_ylabel("relative error")
     ax_err.legend(fontsize=7, ncol=2)
@@ -420,6 +404,18 @@ def plot_moduli(result: dict, path: str) -> str:
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _plot_errors(ax, w: np.ndarray, rows: list) -> None:
+    """The lower panel: each modulus' relative error against both references."""
+    for j, (name, marker) in enumerate((("G'", "o"), ("G''", "s"))):
+        colour = "C2" if j == 0 else "C3"
+        continuous = [r["rel_err_continuous"][j] for r in rows]
+        discrete = [max(r["rel_err_discrete"][j], 1e-17) for r in rows]  # zero on a log axis
+        ax.loglog(
+            w, continuous, marker + "-", mfc="none", color=colour, label=f"{name} vs continuous"
+        )
+        ax.loglog(w, discrete, marker + "--", mfc="none", color=colour, label=f"{name} vs discrete")
 
 
 #: The command-line options of ``mjed-verify dma`` that override a field of the spec.
@@ -463,13 +459,11 @@ def rheometer_study(
         G' and G'' against the exact backward-Euler response, <= DISCRETE_TOL. ``data`` is the
         dict of :func:`run_rheometer` (spec, mesh, frequencies, errors, figures, elapsed_s).
     """
-    from common.blocks import Figure, Paragraph, Table
     from common.reproduce import command
     from common.result import Check, StudyResult
 
     spec = rheometer_spec(quick, **overrides)
     res = run_rheometer(spec=spec, out=out_dir, progress=progress)
-    cmd = command("dma", quick=quick, **overrides)
     e = res["errors"]
     full = rheometer_spec(False, **overrides)
     not_covered = []
@@ -487,6 +481,57 @@ def rheometer_study(
     )
     if figure_root:  # the report's run directory is renamed when done: keep paths relative to it
         res["figures"] = [os.path.relpath(p, figure_root) for p in res["figures"]]
+    headline = (
+        f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max "
+        f"{100 * e['continuous']['max']:.1f} %; against the exact discrete response max "
+        f"{e['discrete']['max']:.1e}"
+    )
+    return StudyResult.from_checks(
+        KEY,
+        TITLE,
+        [check],
+        headline=headline,
+        command=command("dma", quick=quick, **overrides),
+        not_covered=tuple(not_covered),
+        data=res,
+        blocks=tuple(_blocks(spec, res)),
+        seconds=res["elapsed_s"],
+    )
+
+
+def _blocks(spec: RheometerSpec, res: dict) -> list:
+    """The figure, the set-up in words, the error summary and the per-frequency table."""
+    from common.blocks import Figure, Paragraph, Table
+
+    e = res["errors"]
+    caption = (
+        "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
+        "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's Fig. 3"
+    )
+    blocks: list = [Figure(p, caption) for p in res["figures"]]
+    blocks.append(
+        Paragraph(
+            "A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: "
+            f"{2e3 * spec.radius:g} mm across and {1e3 * spec.height:g} mm high "
+            f"({res['mesh']['n_cells']} cells), lower face clamped, upper face twisted by "
+            f"{spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
+            f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps "
+            "per period. The storage and loss moduli fitted from the torque are compared with the "
+            "generalised Maxwell model and with the exact response of the backward-Euler Prony "
+            "recursion."
+        )
+    )
+    blocks.append(
+        Table(
+            ("reference", "mean relative error", "max relative error"),
+            [
+                ("continuous generalised Maxwell", e["continuous"]["mean"], e["continuous"]["max"]),
+                ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"]),
+            ],
+            caption="The gap to the continuous moduli is the time step's own error, not a check "
+            "(the paper reports 5 % against experiment).",
+        )
+    )
     rows = [
         (
             f["frequency_hz"],
@@ -501,66 +546,19 @@ def rheometer_study(
         )
         for f in res["frequencies"]
     ]
-    blocks = [
-        Figure(
-            p,
-            "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
-            "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's "
-            "Fig. 3",
-        )
-        for p in res["figures"]
-    ]
-    blocks += [
-        Paragraph(
-            "A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: "
-            f"{2e3 * spec.radius:g} mm across and {1e3 * spec.height:g} mm high "
-            f"({res['mesh']['n_cells']} cells), lower face clamped, upper face twisted by "
-            f"{spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
-            f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps "
-            "per period. The storage and loss moduli fitted from the torque are compared with the "
-            "generalised Maxwell model and with the exact response of the backward-Euler Prony "
-            "recursion."
-        ),
-        Table(
-            ("reference", "mean relative error", "max relative error"),
-            [
-                ("continuous generalised Maxwell", e["continuous"]["mean"], e["continuous"]["max"]),
-                ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"]),
-            ],
-            caption="The gap to the continuous moduli is the time step's own error, not a check "
-            "(the paper reports 5 % against experiment).",
-        ),
-        Table(
-            (
-                "f (Hz)",
-                "omega (rad/s)",
-                "G' (Pa)",
-                "G' Maxwell",
-                "G' discrete",
-                "G'' (Pa)",
-                "G'' Maxwell",
-                "G'' discrete",
-                "error vs discrete",
-            ),
-            rows,
-        ),
-    ]
-    headline = (
-        f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max "
-        f"{100 * e['continuous']['max']:.1f} %; against the exact discrete response max "
-        f"{e['discrete']['max']:.1e}"
+    header = (
+        "f (Hz)",
+        "omega (rad/s)",
+        "G' (Pa)",
+        "G' Maxwell",
+        "G' discrete",
+        "G'' (Pa)",
+        "G'' Maxwell",
+        "G'' discrete",
+        "error vs discrete",
     )
-    return StudyResult.from_checks(
-        KEY,
-        TITLE,
-        [check],
-        headline=headline,
-        command=cmd,
-        not_covered=tuple(not_covered),
-        data=res,
-        blocks=tuple(blocks),
-        seconds=res["elapsed_s"],
-    )
+    blocks.append(Table(header, rows))
+    return blocks
 
 
 def _rel(value: float, reference: float) -> float:
