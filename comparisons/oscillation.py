@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Callable, Dict, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -82,6 +82,34 @@ def euler_decay_rate(omega: float, dt: float) -> float:
     return float(np.log1p((omega * dt) ** 2) / (2.0 * dt))
 
 
+#: What the oscillation study keeps of each run for its figure and results.json.
+_CURVE_KEYS = (
+    "model",
+    "dt",
+    "time",
+    "max_displacement",
+    "error",
+    "steps",
+    "steps_planned",
+    "steps_split",
+    "substeps_total",
+    "fps",
+)
+
+
+def _add_euler_rates(rows: List[Dict], models: Sequence[str], smallest: float) -> None:
+    """Backward Euler's own damping at each dt, on the frequency each model shows at the
+    smallest dt (added to the rows as omega_smallest_dt and euler_decay_rate).
+    """
+    for kind in models:
+        ref = next(r for r in rows if r["model"] == kind and r["dt"] == smallest)
+        omega = 2 * np.pi / ref["period"] if ref["period"] else None
+        for r in rows:
+            if r["model"] == kind:
+                r["omega_smallest_dt"] = omega
+                r["euler_decay_rate"] = euler_decay_rate(omega, r["dt"]) if omega else None
+
+
 def run_oscillations(
     organ,
     fixed: np.ndarray,
@@ -106,23 +134,7 @@ def run_oscillations(
                 progress(f"oscillation study: {kind}, dt = {dt:g} s")
             run = simulate(kind, organ.mesh, light, fixed, duration, force_field=force_field, dt=dt)
             run.pop("_pressure_snapshot", None)
-            curves.append(
-                {
-                    k: run[k]
-                    for k in (
-                        "model",
-                        "dt",
-                        "time",
-                        "max_displacement",
-                        "error",
-                        "steps",
-                        "steps_planned",
-                        "steps_split",
-                        "substeps_total",
-                        "fps",
-                    )
-                }
-            )
+            curves.append({k: run[k] for k in _CURVE_KEYS})
             rows.append(
                 {
                     "model": kind,
@@ -133,15 +145,8 @@ def run_oscillations(
                     **oscillation_metrics(run["time"], run["max_displacement"]),
                 }
             )
-    # Backward Euler's own damping, on the frequency each model shows at the smallest dt.
     smallest = min(dts)
-    for kind in models:
-        ref = next(r for r in rows if r["model"] == kind and r["dt"] == smallest)
-        omega = 2 * np.pi / ref["period"] if ref["period"] else None
-        for r in rows:
-            if r["model"] == kind:
-                r["omega_smallest_dt"] = omega
-                r["euler_decay_rate"] = euler_decay_rate(omega, r["dt"]) if omega else None
+    _add_euler_rates(rows, models, smallest)
     fine = {r["model"]: r for r in rows if r["dt"] == smallest}
     ordering = sorted(fine, key=lambda m: fine[m]["peak"], reverse=True)
     figures = [

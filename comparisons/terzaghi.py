@@ -22,7 +22,7 @@ the step (fixed point), which makes the coupling implicit.
 
 from __future__ import annotations
 
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -88,43 +88,27 @@ def run_terzaghi(
     ||P - P_exact|| / ||P_exact|| along the column, and "figures" (the PNG, if written).
     """
     M = lam + 2.0 * mu
-    storage = 1.0 / K_lim + 1.0 / M
-    kappa = c_v * storage
+    kappa = c_v * (1.0 / K_lim + 1.0 / M)  # c_v = kappa / storage, storage = 1/K_lim + 1/M
     p0 = 1e-4 * M
     B = K_lim / (K_lim + M)
-
     X, T = column_mesh(h, n_layers)
     mesh = mjed.TetMesh(X, T)
     solid = mjed.HyperelasticForceField(mesh, NeoHookean(mu=mu, lam=lam))
     top = np.flatnonzero(np.isclose(X[:, 2], h))
     fluid = FluidPressureForce(mesh, DarcyParameters(K_lim, kappa), drained_nodes=top)
-
-    # Lateral rollers: only z moves; the base does not move at all.
-    free = np.zeros((len(X), 3), dtype=bool)
-    free[:, 2] = X[:, 2] > 0
-    free = free.ravel()
-    load = np.zeros((len(X), 3))
-    load[top, 2] = -p0 * 0.1 * 0.1 / len(top)  # the top face carries p0 evenly (4 corners)
-
-    results: List[Dict] = []
-    n_steps = int(round(max(times) / dt))
-    check_steps = {int(round(t / dt)): t for t in times}
-    axis = np.flatnonzero(np.isclose(X[:, 0], 0) & np.isclose(X[:, 1], 0))  # nodes on one edge
-    x = X.copy()
-    for step in range(1, n_steps + 1):
-        x = _coupled_step(solid, fluid, mesh, x, load, free, dt, coupling_iterations)
-        if step in check_steps:
-            t = check_steps[step]
-            exact = terzaghi_pressure(X[axis, 2], t, h, c_v, B * p0)
-            err = np.linalg.norm(fluid.P[axis] - exact) / np.linalg.norm(exact)
-            results.append(
-                {
-                    "T_v": c_v * t / h**2,
-                    "relative_l2_error": float(err),
-                    "z": X[axis, 2].tolist(),
-                    "P": fluid.P[axis].tolist(),
-                }
-            )
+    free, load = _column_loads(X, top, p0)
+    results = _march(
+        solid,
+        fluid,
+        mesh,
+        load,
+        free,
+        dt,
+        times,
+        coupling_iterations,
+        lambda z, t: terzaghi_pressure(z, t, h, c_v, B * p0),
+        c_v / h**2,
+    )
     figures = [] if figure is None else [_plot(figure, results, h, c_v, B * p0)]
     for r in results:  # the profiles were only for the figure
         r.pop("z"), r.pop("P")
@@ -139,6 +123,54 @@ def run_terzaghi(
         "constrained_modulus": M,
         "times": results,
     }
+
+
+def _march(
+    solid,
+    fluid,
+    mesh,
+    load,
+    free,
+    dt: float,
+    times,
+    coupling_iterations: int,
+    exact: Callable,
+    tv_per_s: float,
+) -> List[Dict]:
+    """Step to max(times); at each of ``times`` compare P along one vertical edge with
+    ``exact(z, t)``: one dict per time (T_v, relative L2 error, and the profile z, P).
+    """
+    X = mesh.points
+    axis = np.flatnonzero(np.isclose(X[:, 0], 0) & np.isclose(X[:, 1], 0))
+    check_steps = {int(round(t / dt)): t for t in times}
+    results: List[Dict] = []
+    x = X.copy()
+    for step in range(1, int(round(max(times) / dt)) + 1):
+        x = _coupled_step(solid, fluid, mesh, x, load, free, dt, coupling_iterations)
+        if step in check_steps:
+            t = check_steps[step]
+            P_exact = exact(X[axis, 2], t)
+            err = np.linalg.norm(fluid.P[axis] - P_exact) / np.linalg.norm(P_exact)
+            results.append(
+                {
+                    "T_v": tv_per_s * t,
+                    "relative_l2_error": float(err),
+                    "z": X[axis, 2].tolist(),
+                    "P": fluid.P[axis].tolist(),
+                }
+            )
+    return results
+
+
+def _column_loads(X: np.ndarray, top: np.ndarray, p0: float):
+    """Free dofs (3n,) of the column on lateral rollers with a fixed base, and the nodal load
+    (n, 3) of the pressure p0 spread evenly over the top face's nodes.
+    """
+    free = np.zeros((len(X), 3), dtype=bool)
+    free[:, 2] = X[:, 2] > 0  # only z moves; the base does not move at all
+    load = np.zeros((len(X), 3))
+    load[top, 2] = -p0 * 0.1 * 0.1 / len(top)  # the 0.1 x 0.1 top face carries p0
+    return free.ravel(), load
 
 
 def _coupled_step(
