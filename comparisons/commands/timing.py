@@ -81,14 +81,6 @@ def _methods(spec, default):
 
 def run(args) -> int:
     from common.result import exit_code
-    from comparisons.timing import (
-        DEFAULT_METHODS,
-        SCALING_METHODS,
-        scaling_command,
-        scaling_study,
-        timing_command,
-        timing_study,
-    )
 
     if args.max_cells is not None and args.max_cells < 6:
         raise opt.InputError(f"--max-cells must be >= 6, got {args.max_cells}")
@@ -96,66 +88,54 @@ def run(args) -> int:
         opt.check_writable_destination(args.json, is_dir=False)
     if args.out:
         opt.check_writable_destination(args.out, is_dir=True)
-    progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
-
-    if args.scaling:
-        from common.cases import default_material
-
-        try:
-            default_material(args.scaling_material)
-        except ValueError as exc:
-            raise opt.InputError(str(exc)) from None
-        methods = _methods(args.methods, SCALING_METHODS)
-        command = scaling_command(
-            quick=args.quick,
-            material=args.scaling_material,
-            methods=methods,
-            max_cells=args.max_cells,
-            out_dir=args.out,
-            json_path=args.json,
-        )
-        result = scaling_study(
-            quick=args.quick,
-            out_dir=args.out,
-            progress=progress,
-            material=args.scaling_material,
-            methods=methods,
-            max_cells=args.max_cells,
-            command=command,
-        )
-    else:
-        from common.cases import DEFAULT_MATERIALS
-
-        materials = opt.resolve_materials(args.material)
-        ((label, _, _),) = opt.resolve_meshes(args.mesh, several=False)
-        names = [k for k, v in DEFAULT_MATERIALS.items() if any(v is m for m in materials)]
-        methods = _methods(args.methods, DEFAULT_METHODS)
-        command = timing_command(
-            names,
-            label,
-            quick=args.quick,
-            protocol=args.protocol,
-            methods=methods,
-            memory=not args.no_memory,
-            out_dir=args.out,
-            json_path=args.json,
-        )
-        result = timing_study(
-            names,
-            label,
-            quick=args.quick,
-            out_dir=args.out,
-            progress=progress,
-            protocol=args.protocol,
-            methods=methods,
-            memory=not args.no_memory,
-            command=command,
-        )
+    result = _run_scaling(args) if args.scaling else _run_timing(args)
     print(render_text(result))
     if args.json:
         opt.write_json(args.json, result.to_dict())
         print(f"written: {args.json}")
     return exit_code([result])
+
+
+def _progress(msg: str) -> None:
+    print(f"  ... {msg}", file=sys.stderr, flush=True)
+
+
+def _run_scaling(args):
+    from common.cases import default_material
+    from comparisons.timing import SCALING_METHODS, scaling_command, scaling_study
+
+    try:
+        default_material(args.scaling_material)
+    except ValueError as exc:
+        raise opt.InputError(str(exc)) from None
+    methods = _methods(args.methods, SCALING_METHODS)
+    options = dict(
+        quick=args.quick,
+        material=args.scaling_material,
+        methods=methods,
+        max_cells=args.max_cells,
+        out_dir=args.out,
+    )
+    command = scaling_command(json_path=args.json, **options)
+    return scaling_study(progress=_progress, command=command, **options)
+
+
+def _run_timing(args):
+    from common.cases import DEFAULT_MATERIALS
+    from comparisons.timing import DEFAULT_METHODS, timing_command, timing_study
+
+    materials = opt.resolve_materials(args.material)
+    ((label, _, _),) = opt.resolve_meshes(args.mesh, several=False)
+    names = [k for k, v in DEFAULT_MATERIALS.items() if any(v is m for m in materials)]
+    options = dict(
+        quick=args.quick,
+        protocol=args.protocol,
+        methods=_methods(args.methods, DEFAULT_METHODS),
+        memory=not args.no_memory,
+        out_dir=args.out,
+    )
+    command = timing_command(names, label, json_path=args.json, **options)
+    return timing_study(names, label, progress=_progress, command=command, **options)
 
 
 def render_text(result) -> str:
