@@ -17,6 +17,7 @@ from conformance.compare import scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
+from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes
 from conformance.oracle import OracleCache
 
@@ -135,7 +136,8 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
                         W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
-                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None)
+                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None,
+                        frame_variants=_lazy(lambda: frame_variants(ci, cache)))
         status = diag.verdict
         message = ""
         if probe_errors:
