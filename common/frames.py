@@ -18,6 +18,7 @@ Everything here is a pure function of arrays; no mesh object is needed.
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass, replace
 from typing import Any, Tuple
 
@@ -123,14 +124,13 @@ def permutation_distance(R: np.ndarray) -> np.ndarray:
 
 def needs_frame(model: Any) -> bool:
     """True for a model whose energy depends on material directions and that has none yet: a
-    Costa material without a frame, or a user energy using I4/I5 without a frame."""
+    Costa material without a frame, or a user energy using I4/I5 with neither a fibre nor a
+    frame (:attr:`reference_fem.user_energy.UserEnergy.direction_missing`)."""
     from mjed.materials import Costa
 
     if isinstance(model, Costa):
         return model.frame is None
-    uses = getattr(model, "variables", ())
-    return hasattr(model, "frame") and getattr(model, "frame") is None and bool({"I4", "I5"} & set(uses)) \
-        and getattr(model, "fibre", None) is None
+    return bool(getattr(model, "direction_missing", False))
 
 
 def with_default_frame(model: Any, points: np.ndarray, cells: np.ndarray, field: HelixField = HELIX) -> Any:
@@ -138,4 +138,9 @@ def with_default_frame(model: Any, points: np.ndarray, cells: np.ndarray, field:
     and has none (:func:`needs_frame`); any other model, or one given a frame, is returned as is."""
     if not needs_frame(model):
         return model
-    return replace(model, frame=helix_frames(points, cells, field))
+    from reference_fem.user_energy import PrestressWarning
+
+    with warnings.catch_warnings():
+        # A pre-stressed user energy was reported when it was built; its copy would say it again.
+        warnings.simplefilter("ignore", PrestressWarning)
+        return replace(model, frame=helix_frames(points, cells, field))

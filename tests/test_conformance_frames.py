@@ -183,3 +183,67 @@ def test_the_equivalence_study_uses_the_kits_frames(cube):
     (result,) = run_cases([("cube-small", points, cells)], [COSTA], ["fibre-shear"], oracle_factory=oracle)
     assert result.passed, result
     np.testing.assert_array_equal(seen[0].frame, helix_frames(points, cells))
+
+
+@needs_oracle
+@pytest.mark.oracle
+def test_an_engine_command_reads_the_frame_from_the_kit_and_one_that_does_not_is_named(tmp_path, capsys):
+    """Through files: the engine process reads frame.f64; a process that ignores it is diagnosed."""
+    import sys
+
+    from comparisons.cli import main
+
+    engine = os.path.join(os.path.dirname(__file__), "engines", "mjed_engine.py")
+    args = ["--material", "Costa", "--mesh", "cube-small", "--states", "fibre-stretch", "--quiet"]
+    assert main(["check", "--command", f"{sys.executable} {engine} {{input}} {{output}}",
+                 "--out", str(tmp_path / "ok")] + args) == 0
+    assert main(["check", "--command", f"{sys.executable} {engine} {{input}} {{output}} --mistake ignore-frame",
+                 "--out", str(tmp_path / "blind"), "--json", str(tmp_path / "blind.json")] + args) == 1
+    result = json.loads((tmp_path / "blind.json").read_text())
+    (case,) = result["cases"]
+    assert [f["code"] for f in case["findings"] if f["strength"] == "explains"] == ["frame-ignored"], case
+
+
+FIBRE_ENERGY = "mu/2*(I1b-3) + K/2*(J-1)**2 + k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-I4**2)"
+FIBRE_PARAMS = {"mu": 1.0e3, "K": 1.0e4, "k1": 2.0e3, "k2": 0.7, "c": 300.0}
+
+
+def test_a_fibre_energy_without_a_direction_gets_the_field_in_the_kit(tmp_path, cube):
+    from conformance.kit import build_cases, read_kit, write_kit
+    from reference_fem.user_energy import UserEnergy
+
+    points, cells = cube
+    energy = UserEnergy(FIBRE_ENERGY, FIBRE_PARAMS, name="fibres")
+    cases = build_cases([energy, UserEnergy(FIBRE_ENERGY, FIBRE_PARAMS, fibre=(0.0, 1.0, 0.0), name="one")],
+                        [("cube-small", points, cells)], ["fibre-stretch"], probes=0)
+    write_kit(str(tmp_path / "kit"), cases)
+    kit = {c.case_id: c for c in read_kit(str(tmp_path / "kit")).cases}
+    field = kit["fibres.cube-small.fibre-stretch"].input.model
+    np.testing.assert_array_equal(field.frame, helix_frames(points, cells))
+    assert field.fibre is None
+    chosen = kit["one.cube-small.fibre-stretch"].input.model  # a direction the user gave is kept
+    assert chosen.frame is None and chosen.fibre == (0.0, 1.0, 0.0)
+    assert not (tmp_path / "kit" / "cases" / "one.cube-small.fibre-stretch" / "input" / "frame.f64").exists()
+
+
+@needs_oracle
+@pytest.mark.oracle
+def test_a_fibre_energy_engine_that_ignores_the_field_is_named(cube):
+    """The frame hypothesis on a user energy. There is no independent I4/I5 engine in the project
+    (MJED has no user energies), so the mistaken engine is the oracle itself run with the global
+    axes: this checks that the kit's field reaches the check and that the variant is tried and
+    named for user energies, not the oracle's arithmetic (test_user_energy.py does that)."""
+    from conformance.protocol import check_implementation
+    from reference_fem import UFLOracle
+    from reference_fem.user_energy import UserEnergy
+
+    def frame_blind(case):
+        oracle = UFLOracle(case.points, case.cells, dataclasses.replace(case.model, frame=np.eye(3)))
+        f, K = oracle.force_and_stiffness(case.positions)
+        return f, K
+
+    energy = UserEnergy(FIBRE_ENERGY, FIBRE_PARAMS, name="fibres")
+    run = check_implementation(frame_blind, energy=energy, mesh="cube-small", states=("fibre-shear",), probes=False)
+    (outcome,) = run.outcomes
+    assert outcome.status == "failed" and [f.code for f in outcome.diagnosis.causes] == ["frame-ignored"], \
+        outcome.diagnosis.text()
