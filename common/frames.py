@@ -69,18 +69,19 @@ def _rotation(axis: int, angle: np.ndarray) -> np.ndarray:
 def _frames_at(t: np.ndarray, field: HelixField) -> np.ndarray:
     """Frames (k, 3, 3) at wall depths t (k,) in [0, 1]."""
     a = field.axis
-    r, c, l = a, (a + 1) % 3, (a + 2) % 3  # transmural, circumferential, longitudinal (cyclic: proper)
+    # Transmural, circumferential, longitudinal: a cyclic relabelling, so a proper rotation.
+    trans, circ, longi = a, (a + 1) % 3, (a + 2) % 3
     base = np.zeros((3, 3))
-    base[c, 0] = 1.0   # fibre along the circumferential axis before any rotation
-    base[r, 1] = 1.0   # sheet along the transmural axis
-    base[l, 2] = -1.0  # normal = fibre x sheet
+    base[circ, 0] = 1.0    # fibre along the circumferential axis before any rotation
+    base[trans, 1] = 1.0   # sheet along the transmural axis
+    base[longi, 2] = -1.0  # normal = fibre x sheet
     lo, hi = np.deg2rad(field.helix)
     helix = lo + (hi - lo) * np.asarray(t, dtype=np.float64)
-    tilt = _rotation(l, np.array(np.deg2rad(field.transverse)))       # fibre out of the wall plane
-    sheet = _rotation(0, np.array(np.deg2rad(field.sheet)))           # about the frame's own fibre
+    tilt = _rotation(longi, np.array(np.deg2rad(field.transverse)))  # fibre out of the wall plane
+    sheet = _rotation(0, np.array(np.deg2rad(field.sheet)))          # about the frame's own fibre
     # R = Rot_r(helix) Rot_l(transverse) base Rot_f(sheet): a product of rotations, so orthonormal
     # and right-handed in every cell.
-    return _rotation(r, helix) @ (tilt @ base @ sheet)
+    return _rotation(trans, helix) @ (tilt @ base @ sheet)
 
 
 def helix_frames(points: np.ndarray, cells: np.ndarray, field: HelixField = HELIX) -> np.ndarray:
@@ -133,7 +134,8 @@ def needs_frame(model: Any) -> bool:
     return bool(getattr(model, "direction_missing", False))
 
 
-def with_default_frame(model: Any, points: np.ndarray, cells: np.ndarray, field: HelixField = HELIX) -> Any:
+def with_default_frame(model: Any, points: np.ndarray, cells: np.ndarray,
+                       field: HelixField = HELIX) -> Any:
     """``model`` with the helical field of this mesh (:func:`helix_frames`) when it needs a frame
     and has none (:func:`needs_frame`); any other model, or one given a frame, is returned as is."""
     if not needs_frame(model):

@@ -89,9 +89,9 @@ STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = 
     "compression": ("compression 0.8 along x (J = 0.8)", _affine(np.diag([0.8, 1.0, 1.0]))),
     "shear": ("simple shear, amount 0.4 (x += 0.4 y)", _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]]))),
     "triaxial": ("stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9", _affine(np.diag([1.25, 0.9, 0.8]))),
-    "fibre-stretch": ("stretch 1.25 along the mid-wall fibre of the default frame field (J = 1.25)",
+    "fibre-stretch": ("stretch 1.25 along the mid-wall fibre of the default frame field, J = 1.25",
                       _affine(_FIBRE_STRETCH)),
-    "fibre-shear": ("shear 0.4 in the mid-wall fibre-sheet plane of the default frame field (J = 1)",
+    "fibre-shear": ("shear 0.4 in the mid-wall fibre-sheet plane of the default frame field",
                     _affine(_FIBRE_SHEAR)),
     "random": ("seeded smooth random field with a rotation, J > 0.2", lambda X, cells: smooth_random(X, cells)),
 }

@@ -122,7 +122,8 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
                 "where the diagnosis can name the mistake)", {}))
         return Diagnosis(case_id, "failed", err, findings, field_, consistency)
 
-    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants)
+    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_,
+                               frame_variants)
     if causes:
         findings = causes + findings
     else:
@@ -131,8 +132,8 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
             "unexplained", "unexplained",
             PARTIAL if best else OBSERVED,
             "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or unsymmetric K, "
-            "global factor, fibre frame where the model has one, tangent parts, volumetric energy, localisation) "
-            "brings the error within tolerance"
+            "global factor, fibre frame where the model has one, tangent parts, volumetric energy, "
+            "localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + ("; the force is right and the stiffness is not the derivative of the engine's own force (below): "
                "the mistake is in the tangent alone" if inconsistent and err.force <= FORCE_TOL else ""),
@@ -255,7 +256,8 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, fr
     return full, partial
 
 
-def _frame_findings(f, K, W_o, variants, judge) -> None:
+def _frame_findings(f: np.ndarray, K: sp.csr_matrix, W_o: float, variants: Sequence[Any],
+                    judge: Callable[..., None]) -> None:
     """The engine against the oracle evaluated with each mistaken frame: a frame mistake is named
     when the engine agrees with that variant (the error lives inside the energy, so it cannot be
     undone on the output)."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, List
+from typing import Any, List, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -53,7 +53,7 @@ def _frame_of(model: Any) -> "np.ndarray | None":
     return None if frame is None else np.asarray(frame, dtype=np.float64)
 
 
-def frame_models(model: Any) -> List[tuple]:
+def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
     """(code, title, model with the mistaken frame) for each frame mistake that differs from the
     model's own frame; empty for a model without a frame or with the identity."""
     R = _frame_of(model)
@@ -61,10 +61,10 @@ def frame_models(model: Any) -> List[tuple]:
         return []
     eye = np.eye(3)
     candidates = [
-        ("frame-ignored", "fibre frame ignored: global x, y, z used as fibre, sheet and normal", eye),
-        ("frame-transposed", "fibre frame transposed: R^T used for R (rows read as fibre, sheet, normal)",
-         np.ascontiguousarray(np.swapaxes(R, -1, -2))),
-        ("frame-global", "one frame for the whole mesh (the first cell's), not the frame of each cell",
+        ("frame-ignored", "fibre frame ignored: global x, y, z used as fibre, sheet, normal", eye),
+        ("frame-transposed", "fibre frame transposed: R^T used for R (rows read as fibre, sheet, "
+         "normal)", np.ascontiguousarray(np.swapaxes(R, -1, -2))),
+        ("frame-global", "one frame for the whole mesh (the first cell's), not each cell's frame",
          R[0] if R.ndim == 3 else R),
     ]
     out = []
@@ -84,7 +84,8 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     h = mean_edge_length(case.points, case.cells)
     out = []
     for code, title, model in frame_models(case.model):
-        ref = cache.reference(CaseInput(case.case_id, case.points, case.cells, case.positions, model))
+        variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
+        ref = cache.reference(variant)
         out.append(FrameVariant(code, title, ref.force, ref.stiffness,
                                 scales(h, ref.energy, ref.force, ref.stiffness)))
     return out

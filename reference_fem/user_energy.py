@@ -481,7 +481,8 @@ class UserEnergy:
         object.__setattr__(self, "fibre", _checked_fibre(self.fibre))
         object.__setattr__(self, "frame", _checked_frame(self.frame))
         if self.fibre is not None and self.frame is not None:
-            raise ValueError("user energy: give a fibre direction (fibre=) or a frame (frame=), not both")
+            raise ValueError("user energy: give a fibre direction (fibre=) or a frame (frame=), "
+                             "not both")
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError("user energy: name must be a non-empty string")
         tree = _parse(self.expression, frozenset(VARIABLES) | frozenset(params))
@@ -494,7 +495,8 @@ class UserEnergy:
         needs_fibre = sorted(used & _FIBRE_VARIABLES)
         if (self.fibre is not None or self.frame is not None) and not needs_fibre:
             what = "fibre" if self.frame is None else "frame"
-            raise ValueError(f"user energy {self.expression!r}: a {what} is given but neither I4 nor I5 is used")
+            raise ValueError(f"user energy {self.expression!r}: a {what} is given but neither I4 "
+                             "nor I5 is used")
         object.__setattr__(self, "_tree", tree)
         self._examine_rest()
 
@@ -531,15 +533,16 @@ class UserEnergy:
         if not self.uses_fibre:
             return None
         if self.direction_missing:
-            raise ValueError(f"user energy {self.expression!r}: I4 and I5 need a fibre direction: give fibre= or "
-                             "frame= (a conformance kit gives the mesh's helical frame field)")
+            raise ValueError(f"user energy {self.expression!r}: I4 and I5 need a fibre direction: "
+                             "give fibre= or frame= (a conformance kit gives the mesh's helical "
+                             "frame field)")
         if self.frame is None:
             return self.unit_fibre
         if self.frame.ndim == 2:
             return self.frame[:, 0]
         if m is not None and m != self.frame.shape[0]:
-            raise ValueError(f"user energy {self.expression!r}: {m} cells evaluated with a frame of "
-                             f"{self.frame.shape[0]} cells")
+            raise ValueError(f"user energy {self.expression!r}: {m} cells evaluated with a frame "
+                             f"of {self.frame.shape[0]} cells")
         return self.frame[:, :, 0]
 
     # -- the rest state ---------------------------------------------------------------------
@@ -549,7 +552,8 @@ class UserEnergy:
         # one direction serves: the first cell's, or x when none is given yet.
         a = None
         if self.uses_fibre:
-            a = np.array([1.0, 0.0, 0.0]) if self.direction_missing else self.directions().reshape(-1, 3)[0]
+            missing = self.direction_missing
+            a = np.array([1.0, 0.0, 0.0]) if missing else self.directions().reshape(-1, 3)[0]
         with np.errstate(all="ignore"):
             W0 = float(self._density(eye, a)[0])
             P0 = self._first_piola(eye, a)[0]
@@ -638,7 +642,8 @@ class UserEnergy:
         m = F.shape[0]
         Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)  # (m, 9, 3, 3)
         Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
-        a9 = a if a is None or a.ndim == 1 else np.repeat(a, 9, axis=0)  # each cell's fibre, 9 times
+        # Each cell's fibre once per perturbed copy of its F.
+        a9 = a if a is None or a.ndim == 1 else np.repeat(a, 9, axis=0)
         W = self._density(Fc.reshape(m * 9, 3, 3), a9).reshape(m, 9)
         return (W.imag / h).reshape(m, 3, 3)
 
@@ -654,7 +659,8 @@ class UserEnergy:
         V0 = np.linalg.det(D0) / 6.0
         return V0 * self.density(F)
 
-    def ufl_density(self, F, constant: Optional[Callable[[Any], Any]] = None, frame: Optional[Any] = None):
+    def ufl_density(self, F, constant: Optional[Callable[[Any], Any]] = None,
+                    frame: Optional[Any] = None):
         """W(F) as a scalar UFL expression for a UFL 3x3 ``F``. ``constant`` (optional)
         turns each parameter value into what enters the form (the oracle makes dolfinx
         Constants, so one compiled form serves every parameter set of one expression).
@@ -667,8 +673,9 @@ class UserEnergy:
             a = ufl.as_vector([frame[i, 0] for i in range(3)])
         elif self.uses_fibre:
             if self.frame is not None and self.frame.ndim == 3:
-                raise ValueError(f"user energy {self.expression!r}: a frame per cell needs a mesh; pass frame= as "
-                                 "a UFL expression (UFLOracle does this with a DG0 tensor Function)")
+                raise ValueError(f"user energy {self.expression!r}: a frame per cell needs a mesh; "
+                                 "pass frame= as a UFL expression (UFLOracle does this with a DG0 "
+                                 "tensor Function)")
             a = ufl.as_vector([float(v) for v in self.directions()])
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
 

@@ -22,8 +22,8 @@ from mjed.terms import JFunction, LogPolynomial, Term, TermGroup, Unity
 from reference_fem.classical import strain_displacement
 from reference_fem.classical_materials import classical_law
 
-__all__ = ["MUTATIONS", "EXPECTED", "broken_engine", "MATERIAL", "FRAME_MUTATIONS", "FRAME_EXPECTED",
-           "FRAME_MATERIAL", "broken_frame_engine"]
+__all__ = ["MUTATIONS", "EXPECTED", "broken_engine", "MATERIAL", "FRAME_MUTATIONS",
+           "FRAME_EXPECTED", "FRAME_MATERIAL", "broken_frame_engine"]
 
 #: The material every mutation is checked with (both volumetric and isochoric terms matter).
 MATERIAL = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
@@ -244,6 +244,7 @@ def broken_frame_engine(mutation: str):
     exact = broken_engine("none")
 
     def engine(case):
-        return exact(replace(case, model=replace(case.model, frame=frame_of(np.asarray(case.model.frame)))))
+        wrong = replace(case.model, frame=frame_of(np.asarray(case.model.frame)))
+        return exact(replace(case, model=wrong))
 
     return engine

@@ -42,7 +42,8 @@ def test_c_engine_passes(tmp_path):
     assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
                  "--mesh", "cube-small", "--out", str(tmp_path / "r"), "--quiet"]) == 0
     res = _results(tmp_path / "r")
-    assert len(res["cases"]) == len(state_names()) and all(c["status"] == "passed" for c in res["cases"])
+    assert len(res["cases"]) == len(state_names())
+    assert all(c["status"] == "passed" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) < 1e-12
 
 

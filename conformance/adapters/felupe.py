@@ -211,8 +211,9 @@ def _match(model) -> Tuple[Any, UserEnergy, str]:
 @_match.register(UserEnergy)
 def _(model):
     if model.direction_missing or (model.frame is not None and model.frame.ndim == 3):
-        raise Unsupported("FElupe: this adapter gives tensortrax one fibre direction for I4 and I5, not one per "
-                          "cell; give the energy one fibre (--fibre X,Y,Z) to check FElupe with it")
+        raise Unsupported("FElupe: this adapter gives tensortrax one fibre direction for I4 and I5,"
+                          " not one per cell; give the energy one fibre (--fibre X,Y,Z) to check "
+                          "FElupe with it")
     fe = _felupe()
     names = tuple(sorted(model.params))
     text = _squash(model.expression)

@@ -29,7 +29,7 @@ def main() -> int:
     if a.mistake == "hang":
         time.sleep(600)
     model = case.model
-    if a.mistake == "ignore-frame":  # never reads frame.f64: the global axes as fibre, sheet, normal
+    if a.mistake == "ignore-frame":  # never reads frame.f64: global x, y, z as fibre, sheet, normal
         import dataclasses
 
         model = dataclasses.replace(model, frame=None)
