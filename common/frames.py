@@ -24,8 +24,16 @@ from typing import Any, Tuple
 
 import numpy as np
 
-__all__ = ["HelixField", "HELIX", "helix_frames", "signed_permutations", "permutation_distance",
-           "mid_wall_frame", "needs_frame", "with_default_frame"]
+__all__ = [
+    "HelixField",
+    "HELIX",
+    "helix_frames",
+    "signed_permutations",
+    "permutation_distance",
+    "mid_wall_frame",
+    "needs_frame",
+    "with_default_frame",
+]
 
 
 @dataclass(frozen=True)
@@ -72,13 +80,13 @@ def _frames_at(t: np.ndarray, field: HelixField) -> np.ndarray:
     # Transmural, circumferential, longitudinal: a cyclic relabelling, so a proper rotation.
     trans, circ, longi = a, (a + 1) % 3, (a + 2) % 3
     base = np.zeros((3, 3))
-    base[circ, 0] = 1.0    # fibre along the circumferential axis before any rotation
-    base[trans, 1] = 1.0   # sheet along the transmural axis
+    base[circ, 0] = 1.0  # fibre along the circumferential axis before any rotation
+    base[trans, 1] = 1.0  # sheet along the transmural axis
     base[longi, 2] = -1.0  # normal = fibre x sheet
     lo, hi = np.deg2rad(field.helix)
     helix = lo + (hi - lo) * np.asarray(t, dtype=np.float64)
     tilt = _rotation(longi, np.array(np.deg2rad(field.transverse)))  # fibre out of the wall plane
-    sheet = _rotation(0, np.array(np.deg2rad(field.sheet)))          # about the frame's own fibre
+    sheet = _rotation(0, np.array(np.deg2rad(field.sheet)))  # about the frame's own fibre
     # R = Rot_r(helix) Rot_l(transverse) base Rot_f(sheet): a product of rotations, so orthonormal
     # and right-handed in every cell.
     return _rotation(trans, helix) @ (tilt @ base @ sheet)
@@ -117,7 +125,8 @@ def signed_permutations() -> np.ndarray:
 
 def permutation_distance(R: np.ndarray) -> np.ndarray:
     """(m,) the Frobenius distance of each frame of R (m, 3, 3) to the nearest signed permutation
-    of the global axes (0 for the identity or an axis relabelling; at most about 1.5)."""
+    of the global axes (0 for the identity or an axis relabelling; at most about 1.5).
+    """
     R = np.asarray(R, dtype=np.float64).reshape(-1, 3, 3)
     d = np.linalg.norm(R[:, None] - signed_permutations()[None], axis=(2, 3))
     return d.min(axis=1)
@@ -126,7 +135,8 @@ def permutation_distance(R: np.ndarray) -> np.ndarray:
 def needs_frame(model: Any) -> bool:
     """True for a model whose energy depends on material directions and that has none yet: a
     Costa material without a frame, or a user energy using I4/I5 with neither a fibre nor a
-    frame (:attr:`reference_fem.user_energy.UserEnergy.direction_missing`)."""
+    frame (:attr:`reference_fem.user_energy.UserEnergy.direction_missing`).
+    """
     from mjed.materials import Costa
 
     if isinstance(model, Costa):
@@ -134,10 +144,12 @@ def needs_frame(model: Any) -> bool:
     return bool(getattr(model, "direction_missing", False))
 
 
-def with_default_frame(model: Any, points: np.ndarray, cells: np.ndarray,
-                       field: HelixField = HELIX) -> Any:
+def with_default_frame(
+    model: Any, points: np.ndarray, cells: np.ndarray, field: HelixField = HELIX
+) -> Any:
     """``model`` with the helical field of this mesh (:func:`helix_frames`) when it needs a frame
-    and has none (:func:`needs_frame`); any other model, or one given a frame, is returned as is."""
+    and has none (:func:`needs_frame`); any other model, or one given a frame, is returned as is.
+    """
     if not needs_frame(model):
         return model
     from reference_fem.user_energy import PrestressWarning

@@ -40,8 +40,11 @@ class InputError(ValueError):
 
 
 def add_material_option(parser: argparse.ArgumentParser, default: str = "all") -> None:
-    parser.add_argument("--material", default=default,
-                        help=f"'all', a material name, or a comma-separated list (default: {default})")
+    parser.add_argument(
+        "--material",
+        default=default,
+        help=f"'all', a material name, or a comma-separated list (default: {default})",
+    )
 
 
 def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: bool = True) -> None:
@@ -52,8 +55,12 @@ def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: b
 
 
 def add_states_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--states", default="all",
-                        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, random")
+    parser.add_argument(
+        "--states",
+        default="all",
+        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, "
+        "random",
+    )
 
 
 def add_json_option(parser: argparse.ArgumentParser) -> None:
@@ -61,7 +68,12 @@ def add_json_option(parser: argparse.ArgumentParser) -> None:
 
 
 def add_out_option(parser: argparse.ArgumentParser, default: str) -> None:
-    parser.add_argument("--out", metavar="DIR", default=default, help=f"directory for figures and tables (default: {default})")
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=default,
+        help=f"directory for figures and tables (default: {default})",
+    )
 
 
 def resolve_materials(spec: str):
@@ -125,7 +137,9 @@ def check_writable_destination(path: str, *, is_dir: bool) -> None:
             raise OSError("not a directory")
         tempfile.TemporaryFile(dir=probe).close()
     except OSError:
-        raise InputError(f"{path}: cannot write there ({probe} is not a writable directory)") from None
+        raise InputError(
+            f"{path}: cannot write there ({probe} is not a writable directory)"
+        ) from None
 
 
 def write_json(path: str, payload: dict) -> None:
@@ -143,6 +157,9 @@ def _jsonable(obj):
 
 
 def add_allow_incomplete_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--allow-incomplete", action="store_true",
-                        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run was "
-                             "partial (a failed check still exits with 1)")
+    parser.add_argument(
+        "--allow-incomplete",
+        action="store_true",
+        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run "
+        "was partial (a failed check still exits with 1)",
+    )

@@ -29,7 +29,9 @@ def min_volume_ratio(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
     return float((signed_volumes(x, cells) / signed_volumes(X, cells)).min())
 
 
-def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2) -> np.ndarray:
+def smooth_random(
+    X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2
+) -> np.ndarray:
     """A seeded smooth random deformation: a rotation of X plus a sum of sine modes.
 
     The amplitude starts at 15 % of the mesh size and is halved until every cell keeps
@@ -52,7 +54,9 @@ def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: flo
         if min_volume_ratio(X, x, cells) > min_J:
             return x
         scale *= 0.5
-    raise RuntimeError("could not find an admissible random perturbation")  # unreachable for valid meshes
+    raise RuntimeError(
+        "could not find an admissible random perturbation"
+    )  # unreachable for valid meshes
 
 
 def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
@@ -87,13 +91,26 @@ STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = 
     "rest": ("x = X", lambda X, cells: X.copy()),
     "uniaxial": ("stretch 1.3 along x (J = 1.3)", _affine(np.diag([1.3, 1.0, 1.0]))),
     "compression": ("compression 0.8 along x (J = 0.8)", _affine(np.diag([0.8, 1.0, 1.0]))),
-    "shear": ("simple shear, amount 0.4 (x += 0.4 y)", _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]]))),
-    "triaxial": ("stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9", _affine(np.diag([1.25, 0.9, 0.8]))),
-    "fibre-stretch": ("stretch 1.25 along the mid-wall fibre of the default frame field, J = 1.25",
-                      _affine(_FIBRE_STRETCH)),
-    "fibre-shear": ("shear 0.4 in the mid-wall fibre-sheet plane of the default frame field",
-                    _affine(_FIBRE_SHEAR)),
-    "random": ("seeded smooth random field with a rotation, J > 0.2", lambda X, cells: smooth_random(X, cells)),
+    "shear": (
+        "simple shear, amount 0.4 (x += 0.4 y)",
+        _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]])),
+    ),
+    "triaxial": (
+        "stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9",
+        _affine(np.diag([1.25, 0.9, 0.8])),
+    ),
+    "fibre-stretch": (
+        "stretch 1.25 along the mid-wall fibre of the default frame field, J = 1.25",
+        _affine(_FIBRE_STRETCH),
+    ),
+    "fibre-shear": (
+        "shear 0.4 in the mid-wall fibre-sheet plane of the default frame field",
+        _affine(_FIBRE_SHEAR),
+    ),
+    "random": (
+        "seeded smooth random field with a rotation, J > 0.2",
+        lambda X, cells: smooth_random(X, cells),
+    ),
 }
 
 

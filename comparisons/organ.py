@@ -30,7 +30,9 @@ def scale_of(units: Optional[str] = None, scale: Optional[float] = None) -> floa
         try:
             return UNITS[units]
         except KeyError:
-            raise InputError(f"unknown unit {units!r}; use one of {', '.join(UNITS)} (or --scale)") from None
+            raise InputError(
+                f"unknown unit {units!r}; use one of {', '.join(UNITS)} (or --scale)"
+            ) from None
     if scale is None:
         return 1.0
     if not (np.isfinite(scale) and scale > 0):
@@ -59,7 +61,10 @@ class Organ:
     unused_nodes: np.ndarray
 
     def describe(self) -> str:
-        notes = [f"{self.mesh.n_nodes} nodes, {self.mesh.n_cells} cells", f"{self.scale:g} m per mesh unit"]
+        notes = [
+            f"{self.mesh.n_nodes} nodes, {self.mesh.n_cells} cells",
+            f"{self.scale:g} m per mesh unit",
+        ]
         if self.reoriented:
             notes.append(f"{self.reoriented} cell(s) reoriented (--fix-orientation)")
         if len(self.unused_nodes):
@@ -67,7 +72,9 @@ class Organ:
         return f"{self.label} ({', '.join(notes)})"
 
 
-def load_organ(mesh_spec: Union[str, Tuple], *, scale: float = 1.0, fix_orientation: bool = False) -> Organ:
+def load_organ(
+    mesh_spec: Union[str, Tuple], *, scale: float = 1.0, fix_orientation: bool = False
+) -> Organ:
     """Load a catalog mesh, a mesh file or (points, cells[, label]) for the liver study.
 
     Raises:
@@ -89,7 +96,13 @@ def load_organ(mesh_spec: Union[str, Tuple], *, scale: float = 1.0, fix_orientat
             data = read_mesh(mesh_spec)
         except (ValueError, OSError) as exc:
             raise InputError(str(exc)) from None
-        points, cells, label, ids, numbering = data.points, data.cells, str(mesh_spec), data.node_ids, data.numbering
+        points, cells, label, ids, numbering = (
+            data.points,
+            data.cells,
+            str(mesh_spec),
+            data.node_ids,
+            data.numbering,
+        )
     points = np.asarray(points, dtype=float)
     cells = np.asarray(cells)
     if cells.ndim != 2 or len(cells) == 0:
@@ -103,14 +116,21 @@ def load_organ(mesh_spec: Union[str, Tuple], *, scale: float = 1.0, fix_orientat
         except ValueError as exc:
             text = str(exc)
             if "negatively oriented" in text:  # name the option the command line has
-                text = (text.split(" Pass fix_orientation")[0] + " Run again with --fix-orientation to swap two "
-                        "nodes of each such cell (the number reordered is reported).")
+                text = (
+                    text.split(" Pass fix_orientation")[0]
+                    + " Run again with --fix-orientation to swap two nodes of each such cell (the "
+                    "number reordered is reported)."
+                )
             raise InputError(f"mesh {label}: {text}") from None
-    return Organ(mesh, label, points, ids, numbering, scale, mesh.n_reoriented, mesh.unreferenced_nodes)
+    return Organ(
+        mesh, label, points, ids, numbering, scale, mesh.n_reoriented, mesh.unreferenced_nodes
+    )
 
 
 def fixed_nodes(organ: Organ, specs: Sequence[str]) -> np.ndarray:
     """Positions of the nodes the region specs select, in the file's units and numbering."""
     from comparisons.regions import select_nodes
 
-    return select_nodes(specs, organ.file_points, node_ids=organ.node_ids, numbering=organ.numbering)
+    return select_nodes(
+        specs, organ.file_points, node_ids=organ.node_ids, numbering=organ.numbering
+    )

@@ -35,8 +35,10 @@ def command_words(template: str) -> List[str]:
     text = " ".join(words)
     missing = [k for k in ("{input}", "{output}") if k not in text]
     if missing:
-        raise ValueError(f"--command {template!r} must contain {' and '.join(missing)} "
-                         "(replaced by the case's input and output directories)")
+        raise ValueError(
+            f"--command {template!r} must contain {' and '.join(missing)} (replaced by the case's "
+            "input and output directories)"
+        )
     return words
 
 
@@ -45,10 +47,12 @@ def _tail(data: bytes) -> str:
     return ("..." + text[-STDERR_TAIL:]) if len(text) > STDERR_TAIL else text
 
 
-def command_evaluator(template: str, input_dir: Callable[[KitCase], str], output_root: str,
-                      timeout: float) -> Callable[[KitCase], EngineOutput]:
+def command_evaluator(
+    template: str, input_dir: Callable[[KitCase], str], output_root: str, timeout: float
+) -> Callable[[KitCase], EngineOutput]:
     """An evaluator running the command for each case; outputs go to ``output_root/<case id>``
-    (a new directory per case, never the user's kit)."""
+    (a new directory per case, never the user's kit).
+    """
     words = command_words(template)
 
     def evaluate(case: KitCase) -> EngineOutput:
@@ -57,20 +61,32 @@ def command_evaluator(template: str, input_dir: Callable[[KitCase], str], output
         os.makedirs(out)
         argv = [w.replace("{input}", src).replace("{output}", out) for w in words]
         try:
-            proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+            proc = subprocess.Popen(
+                argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
+            )
         except OSError as exc:
-            raise CaseError(f"case {case.case_id}: cannot start {argv[0]!r}: {exc.strerror or exc}") from None
+            raise CaseError(
+                f"case {case.case_id}: cannot start {argv[0]!r}: {exc.strerror or exc}"
+            ) from None
         try:
             _, err = proc.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)  # the engine and anything it started
             _, err = proc.communicate()
-            raise CaseError(f"case {case.case_id}: {argv[0]} ran past the time limit of {timeout:g} s and was killed"
-                            + (f"; stderr: {_tail(err)}" if err.strip() else "")) from None
+            raise CaseError(
+                f"case {case.case_id}: {argv[0]} ran past the time limit of {timeout:g} s and was "
+                "killed" + (f"; stderr: {_tail(err)}" if err.strip() else "")
+            ) from None
         if proc.returncode != 0:
-            how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0 else f"exit code {proc.returncode}")
-            raise CaseError(f"case {case.case_id}: {argv[0]} failed ({how})"
-                            + (f"; stderr: {_tail(err)}" if err.strip() else "; no stderr"))
+            how = (
+                f"killed by signal {-proc.returncode}"
+                if proc.returncode < 0
+                else f"exit code {proc.returncode}"
+            )
+            raise CaseError(
+                f"case {case.case_id}: {argv[0]} failed ({how})"
+                + (f"; stderr: {_tail(err)}" if err.strip() else "; no stderr")
+            )
         return read_output(out, case.input.n_nodes, case.case_id)
 
     return evaluate

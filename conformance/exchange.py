@@ -31,10 +31,29 @@ from typing import Any, Dict, Mapping, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.spec import CaseInput, SpecError, model_frame, model_from_manifest, model_to_manifest
+from conformance.spec import (
+    CaseInput,
+    SpecError,
+    model_frame,
+    model_from_manifest,
+    model_to_manifest,
+)
 
-__all__ = ["FORMAT_VERSION", "CASE_FORMAT", "KIT_FORMAT", "FormatError", "EngineOutput", "write_array", "read_array",
-           "write_case_input", "read_case_input", "load_json", "write_output", "read_output", "sha256_of"]
+__all__ = [
+    "FORMAT_VERSION",
+    "CASE_FORMAT",
+    "KIT_FORMAT",
+    "FormatError",
+    "EngineOutput",
+    "write_array",
+    "read_array",
+    "write_case_input",
+    "read_case_input",
+    "load_json",
+    "write_output",
+    "read_output",
+    "sha256_of",
+]
 
 FORMAT_VERSION = 1
 CASE_FORMAT = "mjed-verify case"
@@ -54,7 +73,9 @@ class FormatError(ValueError):
 
 @dataclass(frozen=True)
 class EngineOutput:
-    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or None."""
+    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or
+    None.
+    """
 
     force: np.ndarray
     stiffness: sp.csr_matrix
@@ -82,7 +103,9 @@ def read_array(folder: str, entry: Any, *, what: str, case: str) -> np.ndarray:
         raise FormatError(f"case {case}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
     dtype = _DTYPES.get(entry["dtype"])
     if dtype is None:
-        raise FormatError(f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}")
+        raise FormatError(
+            f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}"
+        )
     shape = tuple(int(s) for s in entry["shape"])
     path = os.path.join(folder, str(entry["file"]))
     return _read_raw(path, dtype, shape, case=case)
@@ -94,13 +117,17 @@ def _read_raw(path: str, dtype: np.dtype, shape: tuple, *, case: str) -> np.ndar
     count = int(np.prod(shape))
     size = os.path.getsize(path)
     if size != count * dtype.itemsize:
-        raise FormatError(f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
-                          f"({count} values of {dtype.str} for shape {list(shape)})")
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} ({count} values "
+            f"of {dtype.str} for shape {list(shape)})"
+        )
     return np.fromfile(path, dtype=dtype).reshape(shape)
 
 
 # ------------------------------------------------------------------ case input
-def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+def write_case_input(
+    folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None
+) -> Dict[str, Any]:
     """Write a case's input directory (created, must not exist) and return its manifest."""
     os.makedirs(folder)
     arrays = {
@@ -111,9 +138,16 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
     frame = model_frame(case.model)
     if frame is not None:
         arrays["frame"] = write_array(folder, "frame.f64", frame, "<f8")
-    manifest = {"format": CASE_FORMAT, "format_version": FORMAT_VERSION, "case": case.case_id,
-                "n_nodes": case.n_nodes, "n_cells": case.n_cells, "model": model_to_manifest(case.model),
-                "arrays": arrays, **(dict(extra) if extra else {})}
+    manifest = {
+        "format": CASE_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "case": case.case_id,
+        "n_nodes": case.n_nodes,
+        "n_cells": case.n_cells,
+        "model": model_to_manifest(case.model),
+        "arrays": arrays,
+        **(dict(extra) if extra else {}),
+    }
     with open(os.path.join(folder, "case.json"), "w") as fh:
         json.dump(manifest, fh, indent=1)
     with open(os.path.join(folder, "case.txt"), "w") as fh:
@@ -124,16 +158,24 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
 def _case_text(manifest: Mapping[str, Any]) -> str:
     """``key value`` lines: everything a C engine needs, no JSON parser required."""
     model = manifest["model"]
-    lines = [f"format_version {manifest['format_version']}", f"case {manifest['case']}",
-             f"n_nodes {manifest['n_nodes']}", f"n_cells {manifest['n_cells']}",
-             f"kind {model['kind']}", f"name {model['name']}"]
+    lines = [
+        f"format_version {manifest['format_version']}",
+        f"case {manifest['case']}",
+        f"n_nodes {manifest['n_nodes']}",
+        f"n_cells {manifest['n_cells']}",
+        f"kind {model['kind']}",
+        f"name {model['name']}",
+    ]
     if model["kind"] == "energy":
         lines.append(f"expression {model['expression']}")
         if model.get("fibre") is not None:
             lines.append("fibre " + " ".join(repr(float(v)) for v in model["fibre"]))
     lines += [f"parameter {k} {float(v)!r}" for k, v in model["parameters"].items()]
     for name, entry in manifest["arrays"].items():
-        lines.append(f"array {name} {entry['file']} {entry['dtype']} " + " ".join(str(s) for s in entry["shape"]))
+        lines.append(
+            f"array {name} {entry['file']} {entry['dtype']} "
+            + " ".join(str(s) for s in entry["shape"])
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -154,10 +196,14 @@ def load_json(path: str, case: Optional[str] = None, hint: str = "") -> Dict[str
 
 def check_version(data: Mapping[str, Any], path: str, case: str, expected_format: str) -> None:
     if data.get("format") != expected_format:
-        raise FormatError(f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}")
+        raise FormatError(
+            f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}"
+        )
     if data.get("format_version") != FORMAT_VERSION:
-        raise FormatError(f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
-                          f"(this mjed-verify reads version {FORMAT_VERSION})")
+        raise FormatError(
+            f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
+            f"(this mjed-verify reads version {FORMAT_VERSION})"
+        )
 
 
 def read_case_input(folder: str, case: str = "?") -> CaseInput:
@@ -175,7 +221,11 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
         pts = read_array(folder, arrays["points"], what="points", case=case)
         cells = read_array(folder, arrays["cells"], what="cells", case=case)
         x = read_array(folder, arrays["positions"], what="positions", case=case)
-        frame = read_array(folder, arrays["frame"], what="frame", case=case) if "frame" in arrays else None
+        frame = (
+            read_array(folder, arrays["frame"], what="frame", case=case)
+            if "frame" in arrays
+            else None
+        )
         model = model_from_manifest(data.get("model"), frame, where=f"case {case}: {path}")
         return CaseInput(str(data.get("case", case)), pts, cells, x, model)
     except (SpecError, ValueError) as exc:
@@ -185,22 +235,39 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
 
 
 # ------------------------------------------------------------------ engine output
-def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[float] = None, *,
-                 layout: str = "coo") -> None:
+def write_output(
+    folder: str,
+    force: np.ndarray,
+    stiffness,
+    energy: Optional[float] = None,
+    *,
+    layout: str = "coo",
+) -> None:
     """Write an engine's result in the format (for Python engines and the tests)."""
     os.makedirs(folder, exist_ok=True)
     write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
     if layout == "dense":
-        write_array(folder, "stiffness.f64", np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness), "<f8")
+        write_array(
+            folder,
+            "stiffness.f64",
+            np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness),
+            "<f8",
+        )
     elif layout == "coo":
         K = sp.coo_matrix(stiffness)
-        for name, arr, dt in (("stiffness_rows.i64", K.row, "<i8"), ("stiffness_cols.i64", K.col, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_rows.i64", K.row, "<i8"),
+            ("stiffness_cols.i64", K.col, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     elif layout == "csr":
         K = sp.csr_matrix(stiffness)
-        for name, arr, dt in (("stiffness_indptr.i64", K.indptr, "<i8"), ("stiffness_indices.i64", K.indices, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_indptr.i64", K.indptr, "<i8"),
+            ("stiffness_indices.i64", K.indices, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     else:
         raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
@@ -211,7 +278,9 @@ def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[flo
 def _count(path: str, itemsize: int, case: str) -> int:
     size = os.path.getsize(path)
     if size % itemsize:
-        raise FormatError(f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values")
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values"
+        )
     return size // itemsize
 
 
@@ -223,7 +292,9 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
         (shape or node count), indices out of range, NaN or infinite values.
     """
     if not os.path.isdir(folder):
-        raise FormatError(f"case {case}: {folder}: output directory missing (the engine wrote nothing)")
+        raise FormatError(
+            f"case {case}: {folder}: output directory missing (the engine wrote nothing)"
+        )
     N = 3 * n_nodes
     f64, i64 = np.dtype("<f8"), np.dtype("<i8")
     fpath = os.path.join(folder, "force.f64")
@@ -232,26 +303,43 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
     n_force = _count(fpath, 8, case)
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
-        raise FormatError(f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes")
+        raise FormatError(
+            f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
+        )
     force = np.fromfile(fpath, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
 
-    present = [k for k, files in _STIFFNESS_LAYOUTS.items() if os.path.isfile(os.path.join(folder, files[0]))]
+    present = [
+        k
+        for k, files in _STIFFNESS_LAYOUTS.items()
+        if os.path.isfile(os.path.join(folder, files[0]))
+    ]
     if not present:
-        raise FormatError(f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
-                          "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
-                          "stiffness_values.f64 (CSR) or stiffness.f64 (dense)")
+        raise FormatError(
+            f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
+            "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
+            "stiffness_values.f64 (CSR) or stiffness.f64 (dense)"
+        )
     if len(present) > 1:
-        raise FormatError(f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); write one")
+        raise FormatError(
+            f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); "
+            "write one"
+        )
     layout = present[0]
     paths = [os.path.join(folder, f) for f in _STIFFNESS_LAYOUTS[layout]]
     for p in paths:
         if not os.path.isfile(p):
-            raise FormatError(f"case {case}: {p}: file missing ({layout} stiffness needs {', '.join(_STIFFNESS_LAYOUTS[layout])})")
+            raise FormatError(
+                f"case {case}: {p}: file missing ({layout} stiffness needs "
+                f"{', '.join(_STIFFNESS_LAYOUTS[layout])})"
+            )
     if layout == "dense":
         count = _count(paths[0], 8, case)
         if count != N * N:
-            raise FormatError(f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} nodes")
+            raise FormatError(
+                f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} "
+                "nodes"
+            )
         dense = np.fromfile(paths[0], dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
         K = sp.csr_matrix(dense)
@@ -261,15 +349,25 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
         _require_finite(vals, paths[2], case)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
-                raise FormatError(f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols {b.size}, "
-                                  f"values {vals.size})")
+                raise FormatError(
+                    f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols "
+                    f"{b.size}, values {vals.size})"
+                )
             for arr, p in ((a, paths[0]), (b, paths[1])):
                 _require_indices(arr, N, p, case)
             K = sp.coo_matrix((vals, (a, b)), shape=(N, N)).tocsr()
         else:
-            if a.size != N + 1 or a[0] != 0 or np.any(np.diff(a) < 0) or a[-1] != b.size or b.size != vals.size:
-                raise FormatError(f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
-                                  f"column indices and {vals.size} values")
+            if (
+                a.size != N + 1
+                or a[0] != 0
+                or np.any(np.diff(a) < 0)
+                or a[-1] != b.size
+                or b.size != vals.size
+            ):
+                raise FormatError(
+                    f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
+                    f"column indices and {vals.size} values"
+                )
             _require_indices(b, N, paths[1], case)
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
@@ -287,10 +385,15 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
     bad = ~np.isfinite(a)
     if bad.any():
         first = int(np.flatnonzero(bad.ravel())[0])
-        raise FormatError(f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at flat index {first}")
+        raise FormatError(
+            f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at "
+            f"flat index {first}"
+        )
 
 
 def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
     if idx.size and (idx.min() < 0 or idx.max() >= N):
-        raise FormatError(f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
-                          f"found {int(idx.min())}..{int(idx.max())}")
+        raise FormatError(
+            f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
+            f"found {int(idx.min())}..{int(idx.max())}"
+        )

@@ -55,17 +55,24 @@ def _frame_of(model: Any) -> "np.ndarray | None":
 
 def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
     """(code, title, model with the mistaken frame) for each frame mistake that differs from the
-    model's own frame; empty for a model without a frame or with the identity."""
+    model's own frame; empty for a model without a frame or with the identity.
+    """
     R = _frame_of(model)
     if R is None:
         return []
     eye = np.eye(3)
     candidates = [
         ("frame-ignored", "fibre frame ignored: global x, y, z used as fibre, sheet, normal", eye),
-        ("frame-transposed", "fibre frame transposed: R^T used for R (rows read as fibre, sheet, "
-         "normal)", np.ascontiguousarray(np.swapaxes(R, -1, -2))),
-        ("frame-global", "one frame for the whole mesh (the first cell's), not each cell's frame",
-         R[0] if R.ndim == 3 else R),
+        (
+            "frame-transposed",
+            "fibre frame transposed: R^T used for R (rows read as fibre, sheet, normal)",
+            np.ascontiguousarray(np.swapaxes(R, -1, -2)),
+        ),
+        (
+            "frame-global",
+            "one frame for the whole mesh (the first cell's), not each cell's frame",
+            R[0] if R.ndim == 3 else R,
+        ),
     ]
     out = []
     for code, title, variant in candidates:
@@ -86,6 +93,13 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     for code, title, model in frame_models(case.model):
         variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
         ref = cache.reference(variant)
-        out.append(FrameVariant(code, title, ref.force, ref.stiffness,
-                                scales(h, ref.energy, ref.force, ref.stiffness)))
+        out.append(
+            FrameVariant(
+                code,
+                title,
+                ref.force,
+                ref.stiffness,
+                scales(h, ref.energy, ref.force, ref.stiffness),
+            )
+        )
     return out

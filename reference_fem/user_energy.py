@@ -131,12 +131,14 @@ _NODE_WORDS = {
 
 class EnergySyntaxError(ValueError):
     """An energy expression outside the accepted syntax; the message names the offending
-    text and its column (1-based)."""
+    text and its column (1-based).
+    """
 
 
 class PrestressWarning(UserWarning):
     """A user energy whose first Piola stress at rest is not zero (legal, but the force on
-    an undeformed mesh is then not zero)."""
+    an undeformed mesh is then not zero).
+    """
 
 
 # -- parsing --------------------------------------------------------------------------------
@@ -169,7 +171,11 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
     """Raise EnergySyntaxError unless every node of the tree is on the whitelist."""
     if isinstance(node, ast.Constant):
         if type(node.value) not in (int, float):  # bool, complex, str, bytes, None, Ellipsis
-            raise _refuse(expression, node, f"only real numbers are allowed, not a {type(node.value).__name__}")
+            raise _refuse(
+                expression,
+                node,
+                f"only real numbers are allowed, not a {type(node.value).__name__}",
+            )
         if not math.isfinite(float(node.value)):
             raise _refuse(expression, node, "number is not finite")
         return
@@ -182,20 +188,30 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
         return
     if isinstance(node, ast.BinOp):
         if type(node.op) not in _BINARY:
-            raise _refuse(expression, node, f"operator {type(node.op).__name__} is not allowed (only + - * / **)")
+            raise _refuse(
+                expression,
+                node,
+                f"operator {type(node.op).__name__} is not allowed (only + - * / **)",
+            )
         if isinstance(node.op, ast.Pow):
             p = _literal(node.right)
             if p is not None and abs(p) > MAX_LITERAL_EXPONENT:
                 raise _refuse(
-                    expression, node.right,
-                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, {MAX_LITERAL_EXPONENT:g}]",
+                    expression,
+                    node.right,
+                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, "
+                    f"{MAX_LITERAL_EXPONENT:g}]",
                 )
         _check_tree(expression, node.left, names)
         _check_tree(expression, node.right, names)
         return
     if isinstance(node, ast.UnaryOp):
         if type(node.op) not in _UNARY:
-            raise _refuse(expression, node, f"operator {type(node.op).__name__} is not allowed (only unary - and +)")
+            raise _refuse(
+                expression,
+                node,
+                f"operator {type(node.op).__name__} is not allowed (only unary - and +)",
+            )
         _check_tree(expression, node.operand, names)
         return
     if isinstance(node, ast.Call):
@@ -209,13 +225,17 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
                 raise _refuse(expression, arg, "starred arguments are not allowed")
         n = FUNCTIONS[node.func.id]
         if len(node.args) != n:
-            raise _refuse(expression, node, f"{node.func.id} takes {n} argument(s), got {len(node.args)}")
+            raise _refuse(
+                expression, node, f"{node.func.id} takes {n} argument(s), got {len(node.args)}"
+            )
         if node.func.id == "pow":
             p = _literal(node.args[1])
             if p is not None and abs(p) > MAX_LITERAL_EXPONENT:
                 raise _refuse(
-                    expression, node.args[1],
-                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, {MAX_LITERAL_EXPONENT:g}]",
+                    expression,
+                    node.args[1],
+                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, "
+                    f"{MAX_LITERAL_EXPONENT:g}]",
                 )
         for arg in node.args:
             _check_tree(expression, arg, names)
@@ -226,12 +246,15 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
 
 def _parse(expression: str, names: frozenset) -> ast.expr:
     if not isinstance(expression, str):
-        raise EnergySyntaxError(f"energy expression must be a string, got {type(expression).__name__}")
+        raise EnergySyntaxError(
+            f"energy expression must be a string, got {type(expression).__name__}"
+        )
     if not expression.strip():
         raise EnergySyntaxError("energy expression is empty")
     if len(expression) > MAX_EXPRESSION_LENGTH:
         raise EnergySyntaxError(
-            f"energy expression has {len(expression)} characters; at most {MAX_EXPRESSION_LENGTH} are accepted"
+            f"energy expression has {len(expression)} characters; at most {MAX_EXPRESSION_LENGTH} "
+            "are accepted"
         )
     if "\n" in expression or "\r" in expression:
         raise EnergySyntaxError("energy expression must be on one line")
@@ -239,7 +262,9 @@ def _parse(expression: str, names: frozenset) -> ast.expr:
         tree = ast.parse(expression.strip(), mode="eval")
     except SyntaxError as e:
         col = f" at column {e.offset}" if e.offset else ""
-        raise EnergySyntaxError(f"energy {expression!r}: not a valid expression{col} ({e.msg})") from None
+        raise EnergySyntaxError(
+            f"energy {expression!r}: not a valid expression{col} ({e.msg})"
+        ) from None
     except (RecursionError, MemoryError):
         raise EnergySyntaxError(f"energy {expression!r}: nested too deeply") from None
     expr = expression.strip()
@@ -253,7 +278,9 @@ def _parse(expression: str, names: frozenset) -> ast.expr:
 def _used_names(tree: ast.AST) -> frozenset:
     # Function names are ast.Name too (the callee); they are not variables or parameters.
     callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
-    return frozenset(n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in callees)
+    return frozenset(
+        n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in callees
+    )
 
 
 # -- evaluation of the checked tree on a backend -------------------------------------------
@@ -309,6 +336,7 @@ class _LazyKinematics(dict):
 
 def _numpy_variable(name: str, F: np.ndarray, a: Optional[np.ndarray], cache: Dict[str, Any]):
     """Variable ``name`` for F (m, 3, 3), real or complex; values (m,)."""
+
     def get(n):
         if n not in cache:
             cache[n] = _numpy_variable(n, F, a, cache)
@@ -385,7 +413,9 @@ _NUMPY = _Backend(ln=np.log, exp=np.exp, sqrt=np.sqrt)
 
 def _checked_params(params: Mapping[str, float]) -> Mapping[str, float]:
     if not isinstance(params, Mapping):
-        raise ValueError(f"user energy: params must be a mapping name -> value, got {type(params).__name__}")
+        raise ValueError(
+            f"user energy: params must be a mapping name -> value, got {type(params).__name__}"
+        )
     out = {}
     for name, value in params.items():
         if not isinstance(name, str) or not _PARAM_NAME.match(name):
@@ -397,7 +427,9 @@ def _checked_params(params: Mapping[str, float]) -> Mapping[str, float]:
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise ValueError(f"user energy: parameter {name} must be a real number, got {value!r}") from None
+            raise ValueError(
+                f"user energy: parameter {name} must be a real number, got {value!r}"
+            ) from None
         if not math.isfinite(v):
             raise ValueError(f"user energy: parameter {name} must be finite, got {value!r}")
         out[name] = v
@@ -481,8 +513,9 @@ class UserEnergy:
         object.__setattr__(self, "fibre", _checked_fibre(self.fibre))
         object.__setattr__(self, "frame", _checked_frame(self.frame))
         if self.fibre is not None and self.frame is not None:
-            raise ValueError("user energy: give a fibre direction (fibre=) or a frame (frame=), "
-                             "not both")
+            raise ValueError(
+                "user energy: give a fibre direction (fibre=) or a frame (frame=), not both"
+            )
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError("user energy: name must be a non-empty string")
         tree = _parse(self.expression, frozenset(VARIABLES) | frozenset(params))
@@ -490,13 +523,15 @@ class UserEnergy:
         unused = sorted(set(params) - used)
         if unused:
             raise ValueError(
-                f"user energy {self.expression!r}: parameter(s) {', '.join(unused)} not used in the expression"
+                f"user energy {self.expression!r}: parameter(s) {', '.join(unused)} not used in "
+                "the expression"
             )
         needs_fibre = sorted(used & _FIBRE_VARIABLES)
         if (self.fibre is not None or self.frame is not None) and not needs_fibre:
             what = "fibre" if self.frame is None else "frame"
-            raise ValueError(f"user energy {self.expression!r}: a {what} is given but neither I4 "
-                             "nor I5 is used")
+            raise ValueError(
+                f"user energy {self.expression!r}: a {what} is given but neither I4 nor I5 is used"
+            )
         object.__setattr__(self, "_tree", tree)
         self._examine_rest()
 
@@ -533,16 +568,20 @@ class UserEnergy:
         if not self.uses_fibre:
             return None
         if self.direction_missing:
-            raise ValueError(f"user energy {self.expression!r}: I4 and I5 need a fibre direction: "
-                             "give fibre= or frame= (a conformance kit gives the mesh's helical "
-                             "frame field)")
+            raise ValueError(
+                f"user energy {self.expression!r}: I4 and I5 need a fibre direction: "
+                "give fibre= or frame= (a conformance kit gives the mesh's helical "
+                "frame field)"
+            )
         if self.frame is None:
             return self.unit_fibre
         if self.frame.ndim == 2:
             return self.frame[:, 0]
         if m is not None and m != self.frame.shape[0]:
-            raise ValueError(f"user energy {self.expression!r}: {m} cells evaluated with a frame "
-                             f"of {self.frame.shape[0]} cells")
+            raise ValueError(
+                f"user energy {self.expression!r}: {m} cells evaluated with a frame "
+                f"of {self.frame.shape[0]} cells"
+            )
         return self.frame[:, :, 0]
 
     # -- the rest state ---------------------------------------------------------------------
@@ -560,9 +599,13 @@ class UserEnergy:
             stretch = np.diag([1.01, 1.0, 1.0])[None]
             modulus = float(np.linalg.norm(self._first_piola(stretch, a)[0] - P0)) / 0.01
         if not math.isfinite(W0):
-            raise ValueError(f"user energy {self.expression!r}: W at rest (F = I) is not finite ({W0})")
+            raise ValueError(
+                f"user energy {self.expression!r}: W at rest (F = I) is not finite ({W0})"
+            )
         if not np.all(np.isfinite(P0)):
-            raise ValueError(f"user energy {self.expression!r}: the stress at rest (F = I) is not finite")
+            raise ValueError(
+                f"user energy {self.expression!r}: the stress at rest (F = I) is not finite"
+            )
         P0.setflags(write=False)
         object.__setattr__(self, "rest_energy", W0)
         object.__setattr__(self, "rest_stress", P0)
@@ -571,17 +614,21 @@ class UserEnergy:
         prestressed = norm > REST_STRESS_RTOL * scale
         object.__setattr__(self, "prestressed", bool(prestressed))
         if prestressed:
-            warnings.warn(PrestressWarning(self.rest_report()), stacklevel=4)  # the caller of UserEnergy(...)
+            warnings.warn(
+                PrestressWarning(self.rest_report()), stacklevel=4
+            )  # the caller of UserEnergy(...)
 
     def rest_report(self) -> str:
         """One sentence on the state at rest (energy and first Piola stress at F = I)."""
         norm = float(np.linalg.norm(self.rest_stress))
         if self.prestressed:
             return (
-                f"{self.name} ({self.expression}): the stress at rest is not zero (|P(I)| = {norm:.6g}); "
-                "forces on the undeformed mesh are not zero"
+                f"{self.name} ({self.expression}): the stress at rest is not zero (|P(I)| = "
+                f"{norm:.6g}); forces on the undeformed mesh are not zero"
             )
-        return f"{self.name} ({self.expression}): stress-free at rest; W(I) = {self.rest_energy:.6g}"
+        return (
+            f"{self.name} ({self.expression}): stress-free at rest; W(I) = {self.rest_energy:.6g}"
+        )
 
     # -- evaluations --------------------------------------------------------------------------
     @property
@@ -597,8 +644,14 @@ class UserEnergy:
         """The kinematic variables the expression uses."""
         return tuple(sorted(_used_names(self._tree) & set(VARIABLES)))
 
-    def evaluate(self, variable: Callable[[str], Any], ln: Callable, exp: Callable, sqrt: Callable,
-                 constant: Optional[Callable[[float], Any]] = None):
+    def evaluate(
+        self,
+        variable: Callable[[str], Any],
+        ln: Callable,
+        exp: Callable,
+        sqrt: Callable,
+        constant: Optional[Callable[[float], Any]] = None,
+    ):
         """W on any array or symbolic backend (how another library can run this energy).
 
         Args:
@@ -620,7 +673,8 @@ class UserEnergy:
         """W per unit rest volume for each F of ``F`` (m, 3, 3), real or complex; shape (m,).
         With a frame per cell, F holds one gradient per cell of that frame.
 
-        Non-finite values (e.g. ln J with J <= 0) are returned as they come."""
+        Non-finite values (e.g. ln J with J <= 0) are returned as they come.
+        """
         F = np.asarray(F)
         if F.ndim != 3 or F.shape[1:] != (3, 3):
             raise ValueError(f"user energy: F must have shape (m, 3, 3), got {F.shape}")
@@ -634,7 +688,8 @@ class UserEnergy:
 
     def first_piola(self, F: np.ndarray, h: float = 1e-30) -> np.ndarray:
         """P = dW/dF (m, 3, 3) by complex-step differentiation of :meth:`density`: each entry
-        is Im W(F + i h e_kl) / h, free of cancellation, so exact to round-off."""
+        is Im W(F + i h e_kl) / h, free of cancellation, so exact to round-off.
+        """
         F = np.asarray(F, dtype=np.float64)
         return self._first_piola(F, self.directions(F.shape[0]), h)
 
@@ -649,7 +704,8 @@ class UserEnergy:
 
     def cell_energies(self, points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> np.ndarray:
         """V0 W(F) per P1 cell (m,): rest positions ``points`` (n, 3), ``cells`` (m, 4),
-        current positions ``x`` (n, 3)."""
+        current positions ``x`` (n, 3).
+        """
         X = np.asarray(points, dtype=np.float64)
         x = np.asarray(x, dtype=np.float64)
         cells = np.asarray(cells)
@@ -659,13 +715,15 @@ class UserEnergy:
         V0 = np.linalg.det(D0) / 6.0
         return V0 * self.density(F)
 
-    def ufl_density(self, F, constant: Optional[Callable[[Any], Any]] = None,
-                    frame: Optional[Any] = None):
+    def ufl_density(
+        self, F, constant: Optional[Callable[[Any], Any]] = None, frame: Optional[Any] = None
+    ):
         """W(F) as a scalar UFL expression for a UFL 3x3 ``F``. ``constant`` (optional)
         turns each parameter value into what enters the form (the oracle makes dolfinx
         Constants, so one compiled form serves every parameter set of one expression).
         ``frame`` (optional): a UFL 3x3 frame whose first column is the fibre, in place of the
-        energy's own (the oracle passes a per-cell frame as a DG0 tensor Function)."""
+        energy's own (the oracle passes a per-cell frame as a DG0 tensor Function).
+        """
         import ufl
 
         a = None
@@ -673,9 +731,11 @@ class UserEnergy:
             a = ufl.as_vector([frame[i, 0] for i in range(3)])
         elif self.uses_fibre:
             if self.frame is not None and self.frame.ndim == 3:
-                raise ValueError(f"user energy {self.expression!r}: a frame per cell needs a mesh; "
-                                 "pass frame= as a UFL expression (UFLOracle does this with a DG0 "
-                                 "tensor Function)")
+                raise ValueError(
+                    f"user energy {self.expression!r}: a frame per cell needs a mesh; "
+                    "pass frame= as a UFL expression (UFLOracle does this with a DG0 "
+                    "tensor Function)"
+                )
             a = ufl.as_vector([float(v) for v in self.directions()])
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
 
@@ -723,7 +783,9 @@ def parse_fibre(text: str) -> Tuple[float, float, float]:
     try:
         values = tuple(float(p) for p in parts)
     except ValueError:
-        raise ValueError(f"--fibre {text!r}: expected three numbers separated by commas, e.g. 1,0,0") from None
+        raise ValueError(
+            f"--fibre {text!r}: expected three numbers separated by commas, e.g. 1,0,0"
+        ) from None
     if len(values) != 3:
         raise ValueError(f"--fibre {text!r}: expected three numbers, got {len(values)}")
     return values  # type: ignore[return-value]
@@ -734,7 +796,8 @@ def user_energy_from_cli(
 ) -> UserEnergy:
     """The energy of ``--energy EXPR --param NAME=VALUE ... [--fibre a,b,c]``.
 
-    A parameter given twice is refused (rather than silently keeping one of the values)."""
+    A parameter given twice is refused (rather than silently keeping one of the values).
+    """
     values: Dict[str, float] = {}
     for text in params:
         key, v = parse_param(text)

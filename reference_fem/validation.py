@@ -42,7 +42,9 @@ def check_cells(cells, points: np.ndarray) -> np.ndarray:
     T = np.ascontiguousarray(raw, dtype=np.int64)
     n = points.shape[0]
     if T.min() < 0 or T.max() >= n:
-        raise ValueError(f"cell node indices must lie in [0, {n}), got range [{T.min()}, {T.max()}]")
+        raise ValueError(
+            f"cell node indices must lie in [0, {n}), got range [{T.min()}, {T.max()}]"
+        )
     s = np.sort(T, axis=1)
     repeated = np.flatnonzero(np.any(s[:, 1:] == s[:, :-1], axis=1))
     if repeated.size:
@@ -56,8 +58,8 @@ def check_cells(cells, points: np.ndarray) -> np.ndarray:
     if bad.size:
         c = bad[0]
         raise ValueError(
-            f"{bad.size} cell(s) are not positively oriented or are degenerate "
-            f"(first: cell {c}, signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
+            f"{bad.size} cell(s) are not positively oriented or are degenerate (first: cell {c}, "
+            f"signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
         )
     return T
 
@@ -68,7 +70,9 @@ def check_positions(x, n: int) -> np.ndarray:
     if a.shape != (n, 3):
         raise ValueError(f"positions must have shape ({n}, 3), got {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"positions contain {np.count_nonzero(~np.isfinite(a))} non-finite value(s)")
+        raise ValueError(
+            f"positions contain {np.count_nonzero(~np.isfinite(a))} non-finite value(s)"
+        )
     return a
 
 

@@ -1,5 +1,6 @@
 """Fibre frames in the kit (issue 25): a helical per-cell field for Costa, exported, read back,
-used by the oracle and by the equivalence study, and the frame mistakes named by the diagnosis."""
+used by the oracle and by the equivalence study, and the frame mistakes named by the diagnosis.
+"""
 
 from __future__ import annotations
 
@@ -14,14 +15,21 @@ import pytest
 import meshes
 import mjed
 from common.cases import DEFAULT_MATERIALS
-from common.frames import (HELIX, helix_frames, mid_wall_frame, permutation_distance,
-                           signed_permutations, with_default_frame)
+from common.frames import (
+    HELIX,
+    helix_frames,
+    mid_wall_frame,
+    permutation_distance,
+    signed_permutations,
+    with_default_frame,
+)
 from reference_fem import dolfinx_available
 
 logging.disable(logging.INFO)  # FFCx logs every compilation
 
-needs_oracle = pytest.mark.skipif(not dolfinx_available(),
-                                  reason="the oracle needs dolfinx (python3-dolfinx)")
+needs_oracle = pytest.mark.skipif(
+    not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)"
+)
 COSTA = DEFAULT_MATERIALS["Costa"]
 
 
@@ -82,8 +90,11 @@ def test_a_frame_mistake_shows_in_force_and_stiffness_of_the_fibre_states(cube, 
     points, cells = cube
     right = with_default_frame(COSTA, points, cells)
     R = right.frame
-    other = {"identity": np.eye(3), "transposed": np.swapaxes(R, 1, 2).copy(),
-             "first cell": R[0].copy()}[wrong]
+    other = {
+        "identity": np.eye(3),
+        "transposed": np.swapaxes(R, 1, 2).copy(),
+        "first cell": R[0].copy(),
+    }[wrong]
     mesh = mjed.TetMesh(points, cells)
     x = apply_state(state, points, cells)
     f, K = mjed.HyperelasticForceField(mesh, right).force_and_stiffness(x)
@@ -98,8 +109,12 @@ def test_the_kit_exports_the_frame_hashed_and_reads_it_back(tmp_path, cube):
     from conformance.kit import build_cases, read_kit, write_kit
 
     points, cells = cube
-    cases = build_cases([COSTA, DEFAULT_MATERIALS["NeoHookean"]], [("cube-small", points, cells)],
-                        ["fibre-shear"], probes=1)
+    cases = build_cases(
+        [COSTA, DEFAULT_MATERIALS["NeoHookean"]],
+        [("cube-small", points, cells)],
+        ["fibre-shear"],
+        probes=1,
+    )
     write_kit(str(tmp_path / "kit"), cases)
     manifest = json.loads((tmp_path / "kit" / "manifest.json").read_text())
     costa = next(e for e in manifest["cases"] if e["id"] == "Costa.cube-small.fibre-shear")
@@ -128,19 +143,33 @@ def test_the_kit_exports_the_frame_hashed_and_reads_it_back(tmp_path, cube):
 
 @pytest.fixture(scope="module")
 def frame_runs():
-    from conformance.protocol import check_implementation
     from conformance_mutations import FRAME_MATERIAL, FRAME_MUTATIONS, broken_frame_engine
 
+    from conformance.protocol import check_implementation
+
     states = ("rest", "fibre-stretch", "fibre-shear")
-    return {name: check_implementation(broken_frame_engine(name), material=FRAME_MATERIAL,
-                                       mesh="cube-small", states=states, probes=False)
-            for name in FRAME_MUTATIONS}
+    return {
+        name: check_implementation(
+            broken_frame_engine(name),
+            material=FRAME_MATERIAL,
+            mesh="cube-small",
+            states=states,
+            probes=False,
+        )
+        for name in FRAME_MUTATIONS
+    }
 
 
 @needs_oracle
 @pytest.mark.oracle
-@pytest.mark.parametrize("mutation", ["frame-blind engine (identity frame)", "transposed rotation",
-                                      "global axes (one frame for the mesh)"])
+@pytest.mark.parametrize(
+    "mutation",
+    [
+        "frame-blind engine (identity frame)",
+        "transposed rotation",
+        "global axes (one frame for the mesh)",
+    ],
+)
 def test_each_frame_mistake_fails_and_is_named(frame_runs, mutation):
     from conformance_mutations import FRAME_EXPECTED
 
@@ -185,8 +214,9 @@ def test_the_equivalence_study_uses_the_kits_frames(cube):
         seen.append(material)
         return UFLOracle(pts, cls, material)
 
-    (result,) = run_cases([("cube-small", points, cells)], [COSTA], ["fibre-shear"],
-                          oracle_factory=oracle)
+    (result,) = run_cases(
+        [("cube-small", points, cells)], [COSTA], ["fibre-shear"], oracle_factory=oracle
+    )
     assert result.passed, result
     np.testing.assert_array_equal(seen[0].frame, helix_frames(points, cells))
 
@@ -201,11 +231,35 @@ def test_an_engine_command_reads_the_frame_and_one_that_does_not_is_named(tmp_pa
 
     engine = os.path.join(os.path.dirname(__file__), "engines", "mjed_engine.py")
     args = ["--material", "Costa", "--mesh", "cube-small", "--states", "fibre-stretch", "--quiet"]
-    assert main(["check", "--command", f"{sys.executable} {engine} {{input}} {{output}}",
-                 "--out", str(tmp_path / "ok")] + args) == 0
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{sys.executable} {engine} {{input}} {{output}}",
+                "--out",
+                str(tmp_path / "ok"),
+            ]
+            + args
+        )
+        == 0
+    )
     blind = f"{sys.executable} {engine} {{input}} {{output}} --mistake ignore-frame"
-    assert main(["check", "--command", blind, "--out", str(tmp_path / "blind"),
-                 "--json", str(tmp_path / "blind.json")] + args) == 1
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                blind,
+                "--out",
+                str(tmp_path / "blind"),
+                "--json",
+                str(tmp_path / "blind.json"),
+            ]
+            + args
+        )
+        == 1
+    )
     result = json.loads((tmp_path / "blind.json").read_text())
     (case,) = result["cases"]
     named = [f["code"] for f in case["findings"] if f["strength"] == "explains"]
@@ -241,7 +295,8 @@ def test_a_fibre_energy_engine_that_ignores_the_field_is_named(cube):
     """The frame hypothesis on a user energy. There is no independent I4/I5 engine in the project
     (MJED has no user energies), so the mistaken engine is the oracle itself run with the global
     axes: this checks that the kit's field reaches the check and that the variant is tried and
-    named for user energies, not the oracle's arithmetic (test_user_energy.py does that)."""
+    named for user energies, not the oracle's arithmetic (test_user_energy.py does that).
+    """
     from conformance.protocol import check_implementation
     from reference_fem import UFLOracle
     from reference_fem.user_energy import UserEnergy
@@ -253,8 +308,9 @@ def test_a_fibre_energy_engine_that_ignores_the_field_is_named(cube):
         return f, K
 
     energy = UserEnergy(FIBRE_ENERGY, FIBRE_PARAMS, name="fibres")
-    run = check_implementation(frame_blind, energy=energy, mesh="cube-small",
-                               states=("fibre-shear",), probes=False)
+    run = check_implementation(
+        frame_blind, energy=energy, mesh="cube-small", states=("fibre-shear",), probes=False
+    )
     (outcome,) = run.outcomes
     named = [f.code for f in outcome.diagnosis.causes]
     assert outcome.status == "failed" and named == ["frame-ignored"], outcome.diagnosis.text()

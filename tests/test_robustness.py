@@ -7,11 +7,11 @@ LinAlgError or a silent NaN.
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import mjed
-from conftest import box_mesh
 from mjed import materials as M
 from mjed.errors import InvertedElementError, MeshError
 
@@ -24,8 +24,17 @@ materials = st.one_of(
     st.builds(M.MooneyRivlin, c1=pos, c2=st.floats(0.0, 5.0), k0=pos),
     st.builds(M.VerondaWestmann, c1=pos, c2=st.floats(0.05, 2.0), k0=pos),
     st.builds(M.ArrudaBoyce, mu=pos, k0=pos, N=st.floats(2.0, 20.0)),
-    st.builds(M.Costa, a=pos, k0=pos, b_ff=st.floats(0.5, 5.0), b_fs=st.floats(0.0, 0.5), b_ss=st.floats(0.5, 5.0),
-              b_fn=st.floats(0.0, 0.5), b_sn=st.floats(0.0, 0.5), b_nn=st.floats(0.5, 5.0)),
+    st.builds(
+        M.Costa,
+        a=pos,
+        k0=pos,
+        b_ff=st.floats(0.5, 5.0),
+        b_fs=st.floats(0.0, 0.5),
+        b_ss=st.floats(0.5, 5.0),
+        b_fn=st.floats(0.0, 0.5),
+        b_sn=st.floats(0.0, 0.5),
+        b_nn=st.floats(0.5, 5.0),
+    ),
     st.builds(M.Ogden, mu=pos, alpha=st.sampled_from([-4.0, -2.0, 1.5, 2.0, 3.0, 5.0]), k0=pos),
 )
 
@@ -48,7 +57,9 @@ def test_valid_input_gives_finite_symmetric_results(case, material):
     field = mjed.HyperelasticForceField(mesh, material)
     try:
         f, K = field.force_and_stiffness(x)
-    except InvertedElementError as exc:  # a legitimate answer for a folded state: it names the cells
+    except (
+        InvertedElementError
+    ) as exc:  # a legitimate answer for a folded state: it names the cells
         assert len(exc.cells) > 0 and "J" in str(exc)
         assume(False)
     assert f.shape == (mesh.n_nodes, 3) and np.isfinite(f).all()
@@ -87,9 +98,24 @@ def _corrupt(points, cells, how, rng):
 
 
 @SETTINGS
-@given(st.sampled_from(["nan point", "inf point", "index too large", "negative index", "repeated node", "flat cell",
-                        "three-node cells", "float cells", "no cells", "2-d points"]),
-       st.integers(0, 10_000), st.integers(1, 2))
+@given(
+    st.sampled_from(
+        [
+            "nan point",
+            "inf point",
+            "index too large",
+            "negative index",
+            "repeated node",
+            "flat cell",
+            "three-node cells",
+            "float cells",
+            "no cells",
+            "2-d points",
+        ]
+    ),
+    st.integers(0, 10_000),
+    st.integers(1, 2),
+)
 def test_invalid_meshes_raise_mesh_errors(how, seed, n):
     points, cells = box_mesh(n, jitter=0.2, seed=seed)
     points, cells = _corrupt(points, cells, how, np.random.default_rng(seed))
@@ -147,8 +173,21 @@ def test_invalid_positions_are_refused(kind, seed):
 
 @pytest.mark.oracle
 @settings(max_examples=15, deadline=None)
-@given(st.sampled_from(["nan point", "index too large", "negative index", "repeated node", "flat cell",
-                        "three-node cells", "no cells", "2-d points"]), st.integers(0, 10_000))
+@given(
+    st.sampled_from(
+        [
+            "nan point",
+            "index too large",
+            "negative index",
+            "repeated node",
+            "flat cell",
+            "three-node cells",
+            "no cells",
+            "2-d points",
+        ]
+    ),
+    st.integers(0, 10_000),
+)
 def test_the_oracle_refuses_invalid_meshes_with_our_errors(how, seed):
     pytest.importorskip("dolfinx")
     from reference_fem import UFLOracle
