@@ -106,6 +106,7 @@ from comparisons.liver_setup import (
     TARGET_FPS,
     TERZAGHI_TOL,
     LiverParameters,
+    LiverStudyOptions,
     _backend_factories,
     backend_force_field,
     default_fixed_specs,
@@ -133,28 +134,15 @@ def run_liver(
 ) -> Dict:
     """Run the liver simulations and write the figures; returns a JSON-serialisable dict.
 
-    Args:
-        mesh: a catalog name, a mesh file path, or (points, cells).
-        fixed: region specs (see comparisons.regions; in the mesh file's units and numbering);
-            default vena cava + ligament.
-        steps: steps of the dt runs (default 30, quick 6); the porous run covers the same
-            simulated time at its own step.
-        out: output directory (figures, .pvd + .vtu series).
-        quick: the coarse mesh (when ``mesh`` is the default) and few steps.
-        models: which of MODELS to run.
-        series: write the ParaView time series.
-        scale: metres per mesh unit (see comparisons.organ.scale_of).
-        fix_orientation: reorder negatively oriented cells (reported) instead of refusing them.
-        force_fields: factories of the hyperelastic force field (see backend_force_field);
-            every model runs once per factory. The figures show the first one's runs.
-        organ: an already loaded organ (then mesh, scale and fix_orientation are not used).
-
-    Raises:
-        InputError: unknown mesh, a mesh without volume cells, a bad region spec, an empty
-            fixed set, bad step count.
-
-    A run that fails (the integrator refuses a step after its substeps) stops there; its
-    "error" holds the message and "passed" is False.
+    mesh: a catalog name, a mesh file path, or (points, cells), or ``organ`` already loaded
+    (then mesh, scale and fix_orientation are not used); fixed: region specs (see
+    comparisons.regions; in the mesh file's units and numbering), default vena cava +
+    ligament; steps: of the dt runs (default 30, quick 6; the porous run covers the same
+    time); out: figures and the .pvd + .vtu series; scale: metres per mesh unit;
+    force_fields: factories of the hyperelastic force field (see backend_force_field), every
+    model runs once per factory and the figures show the first one's runs. Raises InputError
+    on bad input (see liver_setup). A run the integrator stops (a step refused after its
+    substeps) ends there: its "error" holds the message and "passed" is False.
     """
     setup = liver_setup(
         mesh,
@@ -445,63 +433,52 @@ _CAPTIONS = {
 }
 
 
-def liver_command(
-    *,
-    quick: bool,
-    out_dir: str,
-    series: bool,
-    mesh="liver",
-    fixed=None,
-    steps=None,
-    units=None,
-    scale=None,
-    fix_orientation=False,
-    params: LiverParameters = LiverParameters(),
-    models=MODELS,
-    oscillation=True,
-    full_oscillation=False,
-    backends: Sequence[str] = BACKENDS,
-    custom_force_fields: bool = False,
-) -> str:
+def liver_command(opts: LiverStudyOptions) -> str:
     """The mjed-verify command that reproduces a liver study with these options.
 
     Options the command line cannot express (a Python-only parameter) are named after it.
     """
     parts, python_only = ["mjed-verify", "liver"], []
-    if quick:
+    if opts.quick:
         parts.append("--quick")
-    if not isinstance(mesh, tuple) and mesh != "liver":
-        parts += ["--mesh", str(mesh)]
-    elif isinstance(mesh, tuple):
+    if isinstance(opts.mesh, tuple):
         python_only.append("mesh given as arrays")
-    if units is not None:
-        parts += ["--units", units]
-    if scale is not None:
-        parts += ["--scale", f"{scale:g}"]
-    if fix_orientation:
+    elif opts.mesh != "liver":
+        parts += ["--mesh", str(opts.mesh)]
+    if opts.units is not None:
+        parts += ["--units", opts.units]
+    if opts.scale is not None:
+        parts += ["--scale", f"{opts.scale:g}"]
+    if opts.fix_orientation:
         parts.append("--fix-orientation")
-    for spec in fixed or ():
+    for spec in opts.fixed or ():
         parts += ["--fixed", spec]
-    if steps is not None:
-        parts += ["--steps", str(steps)]
-    if list(models) != list(MODELS):
-        parts += ["--models", ",".join(models)]
-    if custom_force_fields:
+    if opts.steps is not None:
+        parts += ["--steps", str(opts.steps)]
+    if list(opts.models) != list(MODELS):
+        parts += ["--models", ",".join(opts.models)]
+    if opts.force_fields is not None:
         python_only.append("force fields given as factories")
-    elif list(backends) != list(BACKENDS):
-        parts += ["--backends", ",".join(backends)]
-    words, unexpressed = _parameter_words(params)
-    parts += words
+    elif list(opts.backends) != list(BACKENDS):
+        parts += ["--backends", ",".join(opts.backends)]
+    words, unexpressed = _parameter_words(opts.params)
+    parts += words + _switch_words(opts) + ["--out", opts.out_dir]
     python_only += unexpressed
-    if not oscillation:
-        parts.append("--no-oscillation")
-    if full_oscillation:
-        parts.append("--full-oscillation")
-    if not series:
-        parts.append("--no-series")
-    parts += ["--out", out_dir]
     text = " ".join(_quote(p) for p in parts)
     return text + (f"  (plus, from Python only: {'; '.join(python_only)})" if python_only else "")
+
+
+def _switch_words(opts: LiverStudyOptions) -> List[str]:
+    """The on/off options that differ from the defaults."""
+    return [
+        word
+        for on, word in (
+            (not opts.oscillation, "--no-oscillation"),
+            (opts.full_oscillation, "--full-oscillation"),
+            (not opts.series, "--no-series"),
+        )
+        if on
+    ]
 
 
 _PARAMETER_FLAGS = {
@@ -556,119 +533,64 @@ def _quote(text: str) -> str:
     return shlex.quote(text)
 
 
-def liver_study(
-    *,
-    quick: bool = False,
-    out_dir: str = os.path.join("reports", "liver"),
-    series: bool = True,
-    progress: Optional[Callable[[str], None]] = None,
-    mesh="liver",
-    fixed: Optional[Sequence[str]] = None,
-    steps: Optional[int] = None,
-    units: Optional[str] = None,
-    scale: Optional[float] = None,
-    fix_orientation: bool = False,
-    params: LiverParameters = LiverParameters(),
-    models: Sequence[str] = MODELS,
-    oscillation: bool = True,
-    full_oscillation: bool = False,
-    backends: Sequence[str] = BACKENDS,
-    force_fields: Optional[Sequence[Callable]] = None,
-    json_path: Optional[str] = None,
-    relative_to: Optional[str] = None,
-) -> StudyResult:
-    """The liver study as a typed result: the three runs, FPS, substeps, the step split, the
+def liver_study(*, progress: Optional[Callable[[str], None]] = None, **options) -> StudyResult:
+    """The liver study as a typed result: the runs, FPS, substeps, the step split, the
     oscillation study (Fig. 4 as the paper describes it) and the Terzaghi check.
 
-    Checks: Terzaghi's pressure error (tolerance 1 %), each run completing its steps
-    (tolerance), each run's FPS >= 25 (target), the compiled backend's >= 60 (target), each
-    later backend's trajectory equal to the first's (tolerance BACKEND_AGREEMENT_TOL). Every
-    model runs once per backend (``backends``, "numpy" and "numba"; a backend that cannot be
-    built here, Numba missing, is left out and said so), or per factory of ``force_fields``
-    (Python only; replaces ``backends``). The oscillation study is measured and
-    reported, not held to a threshold (a run it cannot complete is a finding, not a wrong
-    result). Default sizes keep the study near a minute on a 2-core machine: for the built-in
-    organ the oscillation study runs on the coarse liver over 3 s; ``full_oscillation`` runs it
-    on the paper-size liver over 5 s with one more step size (0.003 s). A user's mesh is used
-    as given in both cases.
-
-    relative_to: figure paths in the blocks are made relative to this directory (a report's
-    run directory); as written otherwise. Raises InputError on bad input (before any run).
+    options: the fields of :class:`LiverStudyOptions`. Checks: Terzaghi (1 %), each run
+    completing its steps, FPS >= 25 and >= 60 compiled (targets), each later backend's
+    trajectory equal to the first's (BACKEND_AGREEMENT_TOL). A backend that cannot be built
+    here is left out and said so. The oscillation study is reported, not held to a threshold:
+    on the built-in organ it runs on the coarse liver over 3 s, or with ``full_oscillation``
+    on the paper-size liver over 5 s down to dt 0.003 s; a user's mesh is used as given.
+    Raises InputError on bad input, before any run.
     """
     from comparisons.organ import scale_of
 
+    opts = LiverStudyOptions(**options)
     clock = time.perf_counter()
-    command = liver_command(
-        quick=quick,
-        out_dir=out_dir,
-        series=series,
-        mesh=mesh,
-        fixed=fixed,
-        steps=steps,
-        units=units,
-        scale=scale,
-        fix_orientation=fix_orientation,
-        params=params,
-        models=models,
-        oscillation=oscillation,
-        full_oscillation=full_oscillation,
-        backends=backends,
-        custom_force_fields=force_fields is not None,
-    )
-    not_covered: List[str] = []
+    command = liver_command(opts)
+    force_fields, not_covered = opts.force_fields, []
     if force_fields is None:
-        force_fields, missing = _backend_factories(backends)
-        not_covered += missing
-    not_covered += _left_out(quick, models, oscillation)
-    if quick and mesh == "liver":
-        mesh = "liver-coarse"
+        force_fields, not_covered = _backend_factories(opts.backends)
+    not_covered += _left_out(opts.quick, opts.models, opts.oscillation)
+    mesh = "liver-coarse" if opts.quick and opts.mesh == "liver" else opts.mesh
     # The organ is read and validated once here; every run below uses this one.
-    organ = load_organ(mesh, scale=scale_of(units, scale), fix_orientation=fix_orientation)
+    organ = load_organ(
+        mesh, scale=scale_of(opts.units, opts.scale), fix_orientation=opts.fix_orientation
+    )
     data = run_liver(
-        fixed=fixed,
-        steps=steps,
-        out=out_dir,
-        quick=quick,
-        params=params,
-        models=models,
-        series=series,
+        fixed=opts.fixed,
+        steps=opts.steps,
+        out=opts.out_dir,
+        quick=opts.quick,
+        params=opts.params,
+        models=opts.models,
+        series=opts.series,
         progress=progress,
         force_fields=force_fields,
         organ=organ,
     )
     osc = None
-    if oscillation:
-        osc = _oscillation(
-            organ,
-            fixed,
-            params,
-            models,
-            force_fields[0],
-            out_dir,
-            progress,
-            full=full_oscillation and not quick,
-            quick=quick,
-        )
+    if opts.oscillation:
+        osc = _oscillation(organ, opts, force_fields[0], progress)
         data["oscillation"] = osc
         data["figures"] += osc["figures"]
-    checks = _liver_checks(data)
-    blocks = _liver_blocks(data, params, osc, relative_to)
-    protocol = _liver_protocol(data, osc, full_oscillation and not quick)
-    data["protocol"] = protocol
-    if json_path:
+    data["protocol"] = protocol = _liver_protocol(data, osc, opts.full)
+    if opts.json_path:
         from common.options import write_json
 
-        write_json(json_path, data)
+        write_json(opts.json_path, data)
     return StudyResult.from_checks(
         KEY,
         TITLE,
-        checks,
-        headline=_liver_headline(data, osc, models),
+        _liver_checks(data),
+        headline=_liver_headline(data, osc, opts.models),
         command=command,
         not_covered=not_covered,
         protocol=protocol,
         data=data,
-        blocks=blocks,
+        blocks=_liver_blocks(data, opts.params, osc, opts.relative_to),
         seconds=time.perf_counter() - clock,
     )
 
@@ -689,18 +611,7 @@ def _left_out(quick: bool, models: Sequence[str], oscillation: bool) -> List[str
     return out
 
 
-def _oscillation(
-    organ: Organ,
-    fixed,
-    params: LiverParameters,
-    models,
-    force_field,
-    out_dir: str,
-    progress,
-    *,
-    full: bool,
-    quick: bool,
-) -> Dict:
+def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -> Dict:
     """Fig. 4 as the paper describes it: the models without damping, over several time steps.
 
     The built-in organ's study runs on the coarse liver by default (time), the paper-size one
@@ -709,26 +620,28 @@ def _oscillation(
     from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
 
     if organ.label in ("liver", "liver-coarse"):
-        wanted = "liver" if full else "liver-coarse"
+        wanted = "liver" if opts.full else "liver-coarse"
         osc_organ = organ if organ.label == wanted else load_organ(wanted)
     else:
         osc_organ = organ
-    if full:
+    if opts.full:
         dts, duration = (*OSCILLATION_DTS, 0.003), 5.0
     else:
-        dts, duration = (OSCILLATION_DTS[:3], 1.5) if quick else (OSCILLATION_DTS, 3.0)
+        dts, duration = (OSCILLATION_DTS[:3], 1.5) if opts.quick else (OSCILLATION_DTS, 3.0)
     specs = (
-        list(fixed) if fixed and osc_organ is organ else default_fixed_specs(osc_organ.file_points)
+        list(opts.fixed)
+        if opts.fixed and osc_organ is organ
+        else default_fixed_specs(osc_organ.file_points)
     )
     return run_oscillations(
         osc_organ,
         fixed_nodes(osc_organ, specs),
-        params,
+        opts.params,
         dts=dts,
         duration=duration,
-        models=models,
+        models=opts.models,
         force_field=force_field,
-        out_dir=out_dir,
+        out_dir=opts.out_dir,
         progress=progress,
     )
 
@@ -831,87 +744,71 @@ def _liver_blocks(
     return blocks
 
 
+#: The FPS table's columns: (header, value of a run record).
+_FPS_COLUMNS = (
+    ("model", lambda r: r["model"]),
+    ("backend", lambda r: r["backend"]),
+    ("dt (s)", lambda r: r["dt"]),
+    ("steps", lambda r: f"{r['steps']}/{r['steps_planned']}"),
+    ("steps in substeps", lambda r: r["steps_split"]),
+    ("substeps", lambda r: r["substeps_total"]),
+    ("max inverted cells", lambda r: r["inverted_cells_max"]),
+    ("CG / step", lambda r: r["cg_iterations_mean"]),
+    ("final max |u| (mm)", lambda r: 1e3 * r["final_max_displacement"]),
+    ("FPS", lambda r: r["fps"]),
+    ("CPU FPS", lambda r: r["cpu_fps"]),
+    ("paper FPS", lambda r: r["paper_fps"]),
+    ("target", lambda r: _fps_target(r)),
+    ("error", lambda r: r["error"] or ""),
+)
+
+
 def _run_tables(data: Dict) -> List:
     """The FPS table, the backends' agreement and the step split."""
     from common.blocks import Table
 
+    caption = (
+        f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, the "
+        f"real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)"
+    )
+    rows = [tuple(value(r) for _, value in _FPS_COLUMNS) for r in data["runs"]]
+    tables = [Table(tuple(h for h, _ in _FPS_COLUMNS), rows, caption=caption)]
+    if data["backend_agreement"]:
+        tables.append(_agreement_table(data["backend_agreement"]))
+    if data["step_split"]:
+        tables.append(_split_table(data["step_split"]))
+    return tables
+
+
+def _agreement_table(agreement: List[Dict]):
+    from common.blocks import Table
+
+    header = ("model", "backend", "against", "max displacement curve: largest difference / peak")
+    rows = [(a["model"], a["backend"], a["reference"], a["relative_difference"]) for a in agreement]
+    caption = (
+        f"The backends give the same trajectory (tolerance {BACKEND_AGREEMENT_TOL:g}: the "
+        "linear solve's own tolerance bounds the drift)"
+    )
+    return Table(header, rows, caption=caption)
+
+
+def _split_table(split: List[Dict]):
+    from common.blocks import Table
+
     rows = [
         (
-            r["model"],
-            r["backend"],
-            r["dt"],
-            f"{r['steps']}/{r['steps_planned']}",
-            r["steps_split"],
-            r["substeps_total"],
-            r["inverted_cells_max"],
-            r["cg_iterations_mean"],
-            1e3 * r["final_max_displacement"],
-            r["fps"],
-            r["cpu_fps"],
-            r["paper_fps"],
-            _fps_target(r),
-            r["error"] or "",
+            s["model"],
+            s["backend"],
+            s["ms_per_step"],
+            *(f"{100 * s['shares'][p]:.0f} %" for p in PHASES),
         )
-        for r in data["runs"]
+        for s in split
     ]
-    tables = [
-        Table(
-            (
-                "model",
-                "backend",
-                "dt (s)",
-                "steps",
-                "steps in substeps",
-                "substeps",
-                "max inverted cells",
-                "CG / step",
-                "final max |u| (mm)",
-                "FPS",
-                "CPU FPS",
-                "paper FPS",
-                "target",
-                "error",
-            ),
-            rows,
-            caption=f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, "
-            f"the real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)",
-        )
-    ]
-    if data["backend_agreement"]:
-        tables.append(
-            Table(
-                (
-                    "model",
-                    "backend",
-                    "against",
-                    "max displacement curve: largest difference / peak",
-                ),
-                [
-                    (a["model"], a["backend"], a["reference"], a["relative_difference"])
-                    for a in data["backend_agreement"]
-                ],
-                caption="The backends give the same trajectory (tolerance "
-                f"{BACKEND_AGREEMENT_TOL:g}: the linear solve's own tolerance bounds the drift)",
-            )
-        )
-    if data["step_split"]:
-        tables.append(
-            Table(
-                ("model", "backend", "ms / step", *PHASES),
-                [
-                    (
-                        s["model"],
-                        s["backend"],
-                        s["ms_per_step"],
-                        *(f"{100 * s['shares'][p]:.0f} %" for p in PHASES),
-                    )
-                    for s in data["step_split"]
-                ],
-                caption="Where a step's time goes; the paper: hyperelastic about "
-                f"{100 * PAPER_HYPERELASTIC_SHARE:.0f} %",
-            )
-        )
-    return tables
+    caption = (
+        f"Where a step's time goes; the paper: hyperelastic about "
+        f"{100 * PAPER_HYPERELASTIC_SHARE:.0f} %"
+    )
+    return Table(("model", "backend", "ms / step", *PHASES), rows, caption=caption)
 
 
 def _oscillation_blocks(osc: Dict) -> List:

@@ -6,8 +6,9 @@ See comparisons.liver for the study and the reasons behind each figure.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, is_dataclass
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from mjed.solvers import LinearSolverOptions
 
 __all__ = [
     "LiverParameters",
+    "LiverStudyOptions",
     "MODELS",
     "PAPER_FPS",
     "TARGET_FPS",
@@ -288,3 +290,39 @@ def _models(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, force_f
 
 
 #: The phases of a step, in the order of the split figure.
+
+
+@dataclass(frozen=True)
+class LiverStudyOptions:
+    """What a liver study runs: the organ, its supports, the models, backends and outputs.
+
+    mesh: a catalog name, a mesh file or (points, cells); fixed: region specs (default: vena
+    cava and ligament); steps: time steps of each run (default 30, quick 6); units or scale:
+    the mesh's length unit; models: which of MODELS; backends: the MJED backends, or
+    force_fields: factories replacing them (Python only); oscillation / full_oscillation: the
+    Fig. 4 study and its long version; json_path: also write the data there; relative_to:
+    figure paths in the blocks are made relative to this directory (a report's run directory).
+    """
+
+    quick: bool = False
+    out_dir: str = os.path.join("reports", "liver")
+    series: bool = True
+    mesh: Any = "liver"
+    fixed: Optional[Sequence[str]] = None
+    steps: Optional[int] = None
+    units: Optional[str] = None
+    scale: Optional[float] = None
+    fix_orientation: bool = False
+    params: LiverParameters = LiverParameters()
+    models: Sequence[str] = MODELS
+    oscillation: bool = True
+    full_oscillation: bool = False
+    backends: Sequence[str] = BACKENDS
+    force_fields: Optional[Sequence[Callable]] = None
+    json_path: Optional[str] = None
+    relative_to: Optional[str] = None
+
+    @property
+    def full(self) -> bool:
+        """The long oscillation study (never with --quick)."""
+        return self.full_oscillation and not self.quick
