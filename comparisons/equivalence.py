@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
 import mjed
+from common.frames import with_default_frame
 from common.states import apply_state
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL, SYMMETRY_TOL, mean_edge_length
 from mjed.materials.base import Material
@@ -91,6 +92,9 @@ def run_cases(
             (already validated: the study builds each mesh once and passes it on).
         materials: material instances.
         states: names from common.states.
+        A material that needs a fibre frame and has none (Costa) gets the mesh's helical field
+        (:func:`common.frames.with_default_frame`), the frames the conformance kit exports:
+        MJED is held to what the kit asks of other engines.
         oracle_factory: (points, cells, material) -> object with force(x), stiffness(x);
             defaults to reference_fem.UFLOracle (distributed over ``comm`` if given).
         comm: MPI communicator for an oracle distributed over several ranks. Every rank
@@ -106,7 +110,8 @@ def run_cases(
         h = mean_edge_length(mesh.points, mesh.cells)
         # Off rank 0 the oracle reads no positions (it receives rank 0's).
         xs = {s: apply_state(s, mesh.points, mesh.cells) if root else None for s in states}
-        for material in materials:
+        for given in materials:
+            material = with_default_frame(given, mesh.points, mesh.cells)
             if progress and root:
                 progress(f"{label}: {material.name}")
             field = mjed.HyperelasticForceField(mesh, material) if root else None

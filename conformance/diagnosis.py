@@ -6,6 +6,8 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
 1. conventions: sign of force and/or stiffness; component-major dof order; node offsets and
    permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
 2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
+   then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
+   transposed or a single frame (:mod:`conformance.frame_hypotheses`);
 3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
    explains a stiffness error when the force is right (:mod:`conformance.tangent`);
 4. a different volumetric (J-only) energy, fitted per cell;
@@ -110,6 +112,7 @@ def diagnose(
     x: np.ndarray,
     parts: Optional[Callable[[], Any]] = None,
     consistency: Optional[Consistency] = None,
+    frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
 ) -> Diagnosis:
     """Diagnose one case.
 
@@ -119,6 +122,8 @@ def diagnose(
         points, cells, x: the mesh and the current positions.
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
+        frame_variants: a callable returning the oracle with mistaken frames
+            (:class:`conformance.frame_hypotheses.FrameVariant`; built only if needed).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -151,7 +156,9 @@ def diagnose(
             )
         return Diagnosis(case_id, "failed", err, findings, field_, consistency)
 
-    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_)
+    causes, partial = _explain(
+        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants
+    )
     if causes:
         findings = causes + findings
     else:
@@ -161,8 +168,8 @@ def diagnose(
             "unexplained",
             PARTIAL if best else OBSERVED,
             "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
-            "unsymmetric K, global factor, tangent parts, volumetric energy, localisation) brings "
-            "the error within tolerance"
+            "unsymmetric K, global factor, fibre frame where the model has one, tangent parts, "
+            "volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + (
                 "; the force is right and the stiffness is not the derivative of the engine's own "
@@ -245,7 +252,7 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
     return out
 
 
-def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
+def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants=None):
     """(causes that fully explain, partial explanations)."""
     full: List[Finding] = []
     partial: List[Finding] = []
@@ -318,6 +325,11 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
         if full:
             return full, partial
 
+    if frame_variants is not None:
+        _frame_findings(f, K, W_o, frame_variants(), judge)
+        if full:
+            return full, partial
+
     # A localised error cannot be a global convention or a part of the tangent everywhere: test it
     # first (it is cheap; the fits below are not on large meshes).
     _locality_findings(f, K, f_o, K_o, s, cells, field_, full, partial)
@@ -339,6 +351,18 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
                 return full, partial
 
     return full, partial
+
+
+def _frame_findings(
+    f: np.ndarray, K: sp.csr_matrix, W_o: float, variants: Sequence[Any], judge: Callable[..., None]
+) -> None:
+    """The engine against the oracle evaluated with each mistaken frame: a frame mistake is named
+    when the engine agrees with that variant (the error lives inside the energy, so it cannot be
+    undone on the output).
+    """
+    for v in variants:
+        e = errors(f, K, None, v.force, v.stiffness, W_o, v.scales)
+        judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
 
 
 def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:

@@ -28,6 +28,7 @@ from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from common.frames import with_default_frame
 from common.states import apply_state
 from common.tolerances import mean_edge_length
 from conformance.exchange import (
@@ -97,12 +98,19 @@ def build_cases(
     *,
     probes: int = PROBES,
 ) -> List[KitCase]:
-    """Every model x mesh x state, each followed by its probes (seeded, reproducible)."""
+    """Every model x mesh x state, each followed by its probes (seeded, reproducible).
+
+    A model whose energy needs material directions and has none (Costa without a frame, a user
+    energy using I4/I5 without a fibre) is given the mesh's helical frame field
+    (:func:`common.frames.with_default_frame`), so that the kit carries a frame that varies
+    from cell to cell and an engine that ignores or mis-rotates it fails.
+    """
     out: List[KitCase] = []
     for mesh_label, points, cells in meshes:
         h = mean_edge_length(np.asarray(points, dtype=float), np.asarray(cells))
         xs = {s: apply_state(s, np.asarray(points, dtype=float), np.asarray(cells)) for s in states}
-        for model in models:
+        for given in models:
+            model = with_default_frame(given, points, cells)
             for k_state, state in enumerate(states):
                 cid = case_id(model, mesh_label, state)
                 out.append(

@@ -32,7 +32,12 @@ def add_model_options(parser, *, material_default: str = "all") -> None:
         metavar="NAME=VALUE",
         help="a parameter of --energy (repeat for each)",
     )
-    parser.add_argument("--fibre", metavar="X,Y,Z", help="fibre direction for I4 and I5")
+    parser.add_argument(
+        "--fibre",
+        metavar="X,Y,Z",
+        help="one fibre direction for I4 and I5 in every cell (default: the mesh's helical frame "
+        "field, one fibre per cell, as for Costa; docs/conventions.md, 'Fibre frames')",
+    )
     opt.add_mesh_option(parser, "single-tet")
     opt.add_states_option(parser)
 

@@ -18,6 +18,7 @@ from conformance.compare import scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
+from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes
 from conformance.oracle import OracleCache
 
@@ -189,6 +190,7 @@ def run_check(
             x=ci.positions,
             parts=_lazy(lambda: cache.parts(ci)),
             consistency=cons if probes else None,
+            frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
         status = diag.verdict
         message = ""

@@ -2,7 +2,8 @@
 
 A *model* is either one of the seven built-in materials of :mod:`mjed.materials` (its name and
 numeric parameters, plus a Costa fibre frame) or a user energy
-(:class:`reference_fem.user_energy.UserEnergy`: expression, parameters, optional fibre).
+(:class:`reference_fem.user_energy.UserEnergy`: expression, parameters, optional fibre or
+frame).
 :func:`model_to_manifest` and :func:`model_from_manifest` turn one into the ``"model"`` entry of
 the exchange format and back (docs/conventions.md, "Exchange format").
 """
@@ -129,8 +130,12 @@ def _(model: Material) -> Dict[str, Any]:
 
 
 def model_frame(model: Any) -> Optional[np.ndarray]:
-    """A Costa fibre frame (3, 3) or (m, 3, 3) (columns fibre, sheet, normal), else None."""
-    frame = getattr(model, "frame", None) if isinstance(model, Material) else None
+    """The fibre frame (3, 3) or (m, 3, 3) (columns fibre, sheet, normal) of Costa or of a user
+    energy with I4/I5, else None.
+    """
+    UE = _user_energy_type()
+    has_frame = isinstance(model, Material) or (UE is not None and isinstance(model, UE))
+    frame = getattr(model, "frame", None) if has_frame else None
     return None if frame is None else np.asarray(frame, dtype=np.float64)
 
 
@@ -191,6 +196,7 @@ def model_from_manifest(
                 params=params,
                 fibre=None if fibre is None else tuple(float(v) for v in fibre),
                 name=str(entry.get("name", "energy")),
+                frame=frame,
             )
         except (TypeError, ValueError) as exc:
             raise SpecError(f"{where}: {exc}") from None

@@ -319,7 +319,8 @@ def _ogden(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k.lnJ**2
 
 
-@register_energy(UserEnergy)
+@register_energy(UserEnergy, takes_frame=True)
 def _user_energy(p: Parameters, F, frame) -> ufl.core.expr.Expr:
-    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py).
-    return p.material.ufl_density(F, constant=p.constant)
+    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py);
+    # a per-cell frame (its first column is the fibre of I4 and I5) comes from the oracle.
+    return p.material.ufl_density(F, constant=p.constant, frame=frame)

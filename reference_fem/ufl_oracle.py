@@ -187,8 +187,9 @@ class UFLOracle:
         return compat.constant(self._mesh, value)
 
     def _cellwise_frame(self):
-        """A fibre-frame material (Costa) with one rotation per cell: a DG0 tensor Function
-        holding them; else None (a constant frame is read from the material by the energy).
+        """A fibre-frame model (Costa, a user energy with I4/I5) with one rotation per cell: a
+        DG0 tensor Function holding them; else None (a constant frame is read from the material
+        by the energy).
         """
         if not energy_formula(type(self._material)).takes_frame:
             return None

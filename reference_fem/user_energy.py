@@ -14,8 +14,11 @@ The syntax (one Python-style arithmetic expression; nothing else is accepted):
 * calls of ``ln(x)`` (``log(x)`` is the same natural logarithm), ``exp(x)``, ``sqrt(x)``
   and ``pow(x, y)``, with positional arguments only;
 * the kinematic variables of :data:`VARIABLES` (C = F^T F, E = (C - I)/2, J = det F);
-  ``I4`` = a.C a and ``I5`` = a.C^2 a need a fibre direction a (the fibre vector given,
-  normalised to unit length);
+  ``I4`` = a.C a and ``I5`` = a.C^2 a use a fibre direction a: the ``fibre`` vector given
+  (normalised to unit length, the same in every cell), or the first column of ``frame``, a
+  fibre/sheet/normal frame per cell (m, 3, 3) or for the whole mesh (3, 3), the layout of
+  Costa's frame. With neither, the energy can be built but not evaluated: a conformance kit
+  gives it the mesh's helical field (common.frames), as it does Costa;
 * the named parameters (each must be used; each must be a finite real number).
 
 The expression is parsed with :mod:`ast` and checked against that whitelist before anything
@@ -358,10 +361,12 @@ def _numpy_variable(name: str, F: np.ndarray, a: Optional[np.ndarray], cache: Di
         return get("J") ** (-2.0 / 3.0) * get("I1")
     if name == "I2b":
         return get("J") ** (-4.0 / 3.0) * get("I2")
-    if name == "Ca":
-        return get("C") @ a
+    if name == "Ca":  # a is one direction (3,) or one per F (m, 3)
+        C = get("C")
+        return np.einsum("mij,mj->mi", C, np.broadcast_to(a, C.shape[:2]))
     if name == "I4":
-        return get("Ca") @ a
+        Ca = get("Ca")
+        return np.einsum("mi,mi->m", Ca, np.broadcast_to(a, Ca.shape))
     if name == "I5":
         Ca = get("Ca")
         return np.einsum("mi,mi->m", Ca, Ca)
@@ -431,6 +436,26 @@ def _checked_params(params: Mapping[str, float]) -> Mapping[str, float]:
     return types.MappingProxyType(dict(sorted(out.items())))
 
 
+def _checked_frame(frame) -> Optional[np.ndarray]:
+    """A read-only float64 copy of a (3, 3) or (m, 3, 3) orthonormal frame, or None."""
+    from reference_fem.validation import check_frame
+
+    if frame is None:
+        return None
+    try:
+        R = np.array(frame, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("user energy: frame must be an array of real numbers") from None
+    if R.ndim not in (2, 3) or R.shape[-2:] != (3, 3) or R.size == 0:
+        raise ValueError(f"user energy: frame must have shape (3, 3) or (m, 3, 3), got {R.shape}")
+    try:
+        check_frame(R, R.shape[0] if R.ndim == 3 else 1)  # finite and orthonormal, naming the cell
+    except ValueError as exc:
+        raise ValueError(f"user energy: {exc}") from None
+    R.setflags(write=False)
+    return R
+
+
 def _checked_fibre(fibre) -> Optional[Tuple[float, float, float]]:
     if fibre is None:
         return None
@@ -454,22 +479,29 @@ class UserEnergy:
         params: name -> value (floats; stored as a read-only copy). Every parameter must
             appear in the expression and every name of the expression must be a variable or
             a parameter.
-        fibre: direction a of I4 and I5, 3 numbers (normalised before use); required
-            exactly when the expression uses I4 or I5.
+        fibre: direction a of I4 and I5, 3 numbers (normalised before use), the same in
+            every cell; only when the expression uses I4 or I5.
         name: a label for reports.
+        frame: instead of ``fibre``, fibre/sheet/normal frames as columns, (3, 3) or one per
+            cell (m, 3, 3), orthonormal; I4 and I5 use the first column, the fibre. Only when
+            the expression uses I4 or I5. With neither fibre nor frame such an energy is built
+            but refuses to be evaluated (:attr:`direction_missing`) until one is given, e.g. by
+            ``dataclasses.replace(energy, frame=...)``.
 
     Derived at construction (not compared): ``rest_energy`` W(I), ``rest_stress`` P(I)
     (3, 3), ``prestressed`` (see the module docstring).
 
     Raises:
         EnergySyntaxError: the expression is outside the accepted syntax.
-        ValueError: bad, missing or unused parameter, bad fibre, non-finite W or P at rest.
+        ValueError: bad, missing or unused parameter, bad fibre or frame, both given,
+            non-finite W or P at rest.
     """
 
     expression: str
     params: Mapping[str, float]
     fibre: Optional[Tuple[float, float, float]] = None
     name: str = "user energy"
+    frame: Optional[np.ndarray] = None
     _tree: ast.expr = field(init=False, repr=False, compare=False)
     rest_energy: float = field(init=False, repr=False, compare=False)
     rest_stress: np.ndarray = field(init=False, repr=False, compare=False)
@@ -479,6 +511,11 @@ class UserEnergy:
         params = _checked_params(self.params)
         object.__setattr__(self, "params", params)
         object.__setattr__(self, "fibre", _checked_fibre(self.fibre))
+        object.__setattr__(self, "frame", _checked_frame(self.frame))
+        if self.fibre is not None and self.frame is not None:
+            raise ValueError(
+                "user energy: give a fibre direction (fibre=) or a frame (frame=), not both"
+            )
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError("user energy: name must be a non-empty string")
         tree = _parse(self.expression, frozenset(VARIABLES) | frozenset(params))
@@ -490,29 +527,77 @@ class UserEnergy:
                 "the expression"
             )
         needs_fibre = sorted(used & _FIBRE_VARIABLES)
-        if needs_fibre and self.fibre is None:
+        if (self.fibre is not None or self.frame is not None) and not needs_fibre:
+            what = "fibre" if self.frame is None else "frame"
             raise ValueError(
-                f"user energy {self.expression!r}: {', '.join(needs_fibre)} need a fibre direction "
-                "(fibre=)"
-            )
-        if self.fibre is not None and not needs_fibre:
-            raise ValueError(
-                f"user energy {self.expression!r}: a fibre is given but neither I4 nor I5 is used"
+                f"user energy {self.expression!r}: a {what} is given but neither I4 nor I5 is used"
             )
         object.__setattr__(self, "_tree", tree)
         self._examine_rest()
 
+    def _key(self) -> tuple:
+        frame = None if self.frame is None else (self.frame.shape, self.frame.tobytes())
+        return (self.expression, tuple(self.params.items()), self.fibre, self.name, frame)
+
     def __hash__(self):
-        return hash((self.expression, tuple(self.params.items()), self.fibre, self.name))
+        return hash(self._key())
+
+    def __eq__(self, other):
+        # Written by hand: the generated one would compare the frame arrays elementwise.
+        if not isinstance(other, UserEnergy):
+            return NotImplemented
+        return self._key() == other._key()
+
+    @property
+    def uses_fibre(self) -> bool:
+        """True when the expression uses I4 or I5."""
+        return bool(_used_names(self._tree) & _FIBRE_VARIABLES)
+
+    @property
+    def direction_missing(self) -> bool:
+        """True when the expression uses I4 or I5 and neither a fibre nor a frame is given."""
+        return self.uses_fibre and self.fibre is None and self.frame is None
+
+    def directions(self, m: Optional[int] = None) -> Optional[np.ndarray]:
+        """The unit fibre of I4 and I5: (3,) for one direction, (m, 3) for a frame per cell; None
+        when the expression uses neither.
+
+        Raises:
+            ValueError: the direction is missing, or ``m`` differs from the frame's cell count.
+        """
+        if not self.uses_fibre:
+            return None
+        if self.direction_missing:
+            raise ValueError(
+                f"user energy {self.expression!r}: I4 and I5 need a fibre direction: "
+                "give fibre= or frame= (a conformance kit gives the mesh's helical "
+                "frame field)"
+            )
+        if self.frame is None:
+            return self.unit_fibre
+        if self.frame.ndim == 2:
+            return self.frame[:, 0]
+        if m is not None and m != self.frame.shape[0]:
+            raise ValueError(
+                f"user energy {self.expression!r}: {m} cells evaluated with a frame "
+                f"of {self.frame.shape[0]} cells"
+            )
+        return self.frame[:, :, 0]
 
     # -- the rest state ---------------------------------------------------------------------
     def _examine_rest(self) -> None:
         eye = np.eye(3)[None]
+        # W(I) and |P(I)| do not depend on the fibre's direction (I4 = I5 = 1 for every unit a);
+        # one direction serves: the first cell's, or x when none is given yet.
+        a = None
+        if self.uses_fibre:
+            missing = self.direction_missing
+            a = np.array([1.0, 0.0, 0.0]) if missing else self.directions().reshape(-1, 3)[0]
         with np.errstate(all="ignore"):
-            W0 = float(self.density(eye)[0])
-            P0 = self.first_piola(eye)[0]
+            W0 = float(self._density(eye, a)[0])
+            P0 = self._first_piola(eye, a)[0]
             stretch = np.diag([1.01, 1.0, 1.0])[None]
-            modulus = float(np.linalg.norm(self.first_piola(stretch)[0] - P0)) / 0.01
+            modulus = float(np.linalg.norm(self._first_piola(stretch, a)[0] - P0)) / 0.01
         if not math.isfinite(W0):
             raise ValueError(
                 f"user energy {self.expression!r}: W at rest (F = I) is not finite ({W0})"
@@ -571,7 +656,7 @@ class UserEnergy:
 
         Args:
             variable: name in :data:`VARIABLES` -> its value on the backend (called once per
-                name the expression uses; I4/I5 with :attr:`unit_fibre`).
+                name the expression uses; I4/I5 with the fibre of :meth:`directions`).
             ln, exp, sqrt: the backend's functions (``log`` is ``ln``; ``pow`` is ``**``).
             constant: turns each parameter value into what enters the result (default: the float).
         """
@@ -586,14 +671,18 @@ class UserEnergy:
 
     def density(self, F: np.ndarray) -> np.ndarray:
         """W per unit rest volume for each F of ``F`` (m, 3, 3), real or complex; shape (m,).
+        With a frame per cell, F holds one gradient per cell of that frame.
 
         Non-finite values (e.g. ln J with J <= 0) are returned as they come.
         """
         F = np.asarray(F)
         if F.ndim != 3 or F.shape[1:] != (3, 3):
             raise ValueError(f"user energy: F must have shape (m, 3, 3), got {F.shape}")
+        return self._density(F, self.directions(F.shape[0]))
+
+    def _density(self, F: np.ndarray, a: Optional[np.ndarray]) -> np.ndarray:
+        """W (m,) for F (m, 3, 3) with unit fibre(s) a, (3,) or (m, 3), or None."""
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
-        a = self.unit_fibre
         W = self.evaluate(lambda n: _numpy_variable(n, F, a, internal), np.log, np.exp, np.sqrt)
         return np.broadcast_to(W, F.shape[:1]).copy()
 
@@ -602,10 +691,15 @@ class UserEnergy:
         is Im W(F + i h e_kl) / h, free of cancellation, so exact to round-off.
         """
         F = np.asarray(F, dtype=np.float64)
+        return self._first_piola(F, self.directions(F.shape[0]), h)
+
+    def _first_piola(self, F: np.ndarray, a: Optional[np.ndarray], h: float = 1e-30) -> np.ndarray:
         m = F.shape[0]
         Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)  # (m, 9, 3, 3)
         Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
-        W = self.density(Fc.reshape(m * 9, 3, 3)).reshape(m, 9)
+        # Each cell's fibre once per perturbed copy of its F.
+        a9 = a if a is None or a.ndim == 1 else np.repeat(a, 9, axis=0)
+        W = self._density(Fc.reshape(m * 9, 3, 3), a9).reshape(m, 9)
         return (W.imag / h).reshape(m, 3, 3)
 
     def cell_energies(self, points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -621,14 +715,28 @@ class UserEnergy:
         V0 = np.linalg.det(D0) / 6.0
         return V0 * self.density(F)
 
-    def ufl_density(self, F, constant: Optional[Callable[[Any], Any]] = None):
+    def ufl_density(
+        self, F, constant: Optional[Callable[[Any], Any]] = None, frame: Optional[Any] = None
+    ):
         """W(F) as a scalar UFL expression for a UFL 3x3 ``F``. ``constant`` (optional)
         turns each parameter value into what enters the form (the oracle makes dolfinx
         Constants, so one compiled form serves every parameter set of one expression).
+        ``frame`` (optional): a UFL 3x3 frame whose first column is the fibre, in place of the
+        energy's own (the oracle passes a per-cell frame as a DG0 tensor Function).
         """
         import ufl
 
-        a = None if self.fibre is None else ufl.as_vector([float(v) for v in self.unit_fibre])
+        a = None
+        if frame is not None:
+            a = ufl.as_vector([frame[i, 0] for i in range(3)])
+        elif self.uses_fibre:
+            if self.frame is not None and self.frame.ndim == 3:
+                raise ValueError(
+                    f"user energy {self.expression!r}: a frame per cell needs a mesh; "
+                    "pass frame= as a UFL expression (UFLOracle does this with a DG0 "
+                    "tensor Function)"
+                )
+            a = ufl.as_vector([float(v) for v in self.directions()])
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
 
         def get(n: str):

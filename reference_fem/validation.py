@@ -77,7 +77,8 @@ def check_positions(x, n: int) -> np.ndarray:
 
 
 def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
-    """A Costa frame: None, a (3, 3) or (m, 3, 3) orthonormal frame; returned as (m, 3, 3).
+    """A fibre frame (Costa, a user energy with I4/I5): None, a (3, 3) or (m, 3, 3) orthonormal
+    frame; returned as (m, 3, 3).
 
     Orthonormality (R^T R = I to ``tol``) is required; det R = -1 is allowed, since flipping
     the sign of a frame column leaves Q = sum B_ij Ef_ij^2 unchanged.
@@ -88,13 +89,13 @@ def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
     if R.shape == (3, 3):
         R = np.broadcast_to(R, (m, 3, 3))
     if R.shape != (m, 3, 3):
-        raise ValueError(f"Costa frame must have shape (3, 3) or ({m}, 3, 3), got {R.shape}")
+        raise ValueError(f"fibre frame must have shape (3, 3) or ({m}, 3, 3), got {R.shape}")
     if not np.all(np.isfinite(R)):
-        raise ValueError("Costa frame contains non-finite values")
+        raise ValueError("fibre frame contains non-finite values")
     err = np.abs(np.einsum("cki,ckj->cij", R, R) - np.eye(3)).reshape(m, 9).max(axis=1)
     if np.any(err > tol):
         c = int(np.argmax(err))
         raise ValueError(
-            f"Costa frame must be orthonormal (R^T R = I); cell {c}: max |R^T R - I| = {err[c]:.3g}"
+            f"fibre frame must be orthonormal (R^T R = I); cell {c}: max |R^T R - I| = {err[c]:.3g}"
         )
     return R

@@ -92,10 +92,20 @@ def test_parameters_and_fibre_are_checked():
         UserEnergy("mu*(I1-3)", {"mu": float("nan")})
     with pytest.raises(ValueError, match="is a variable or function name"):
         UserEnergy("J*(I1-3)", {"J": 1.0})
-    with pytest.raises(ValueError, match="need a fibre"):
-        UserEnergy("(I4-1)**2", {})
+    deferred = UserEnergy("(I4-1)**2", {})  # built; a kit gives it the mesh's frame field
+    assert deferred.direction_missing
+    with pytest.raises(ValueError, match="need a fibre direction"):
+        deferred.density(np.eye(3)[None])
     with pytest.raises(ValueError, match="neither I4 nor I5"):
         UserEnergy("I1-3", {}, fibre=(1.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="a frame is given but neither I4 nor I5"):
+        UserEnergy("I1-3", {}, frame=np.eye(3))
+    with pytest.raises(ValueError, match="not both"):
+        UserEnergy("(I4-1)**2", {}, fibre=(1.0, 0.0, 0.0), frame=np.eye(3))
+    with pytest.raises(ValueError, match="must be orthonormal"):
+        UserEnergy("(I4-1)**2", {}, frame=np.stack([np.eye(3), 2 * np.eye(3)]))
+    with pytest.raises(ValueError, match="shape"):
+        UserEnergy("(I4-1)**2", {}, frame=np.eye(3)[:2])
     with pytest.raises(ValueError, match="zero vector"):
         UserEnergy("(I4-1)**2", {}, fibre=(0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="not finite"):
@@ -340,3 +350,36 @@ def test_a_prestressed_energy_has_a_force_at_rest_in_the_oracle():
     f = UFLOracle(points, cells, e).force(points)
     # P(I) = p I: the boundary nodes are pulled, total force zero.
     assert np.linalg.norm(f) > 1.0 and np.allclose(f.sum(axis=0), 0.0, atol=1e-12)
+
+
+def test_a_frame_per_cell_gives_each_cell_its_own_fibre():
+    """I4 and I5 with a frame per cell (first column the fibre): NumPy and the oracle, cell by cell,
+    against energies built with that cell's fibre alone; equality and hashing see the frame.
+    """
+    import dataclasses
+
+    from common.frames import helix_frames
+
+    UFLOracle = _oracle_class()
+    expression = "k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2"
+    params = {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0}
+    points, cells = box_mesh(2, jitter=0.2)
+    R = helix_frames(points, cells)
+    e = UserEnergy(expression, params, frame=R)
+    x = perturbed(points, np.random.default_rng(3), 0.05)
+    alone = [UserEnergy(expression, params, fibre=tuple(R[k][:, 0])) for k in range(len(cells))]
+    one_by_one = np.array([e_k.cell_energies(points, cells, x)[k] for k, e_k in enumerate(alone)])
+    np.testing.assert_allclose(e.cell_energies(points, cells, x), one_by_one, rtol=1e-13)
+    assert np.ptp(R[:, :, 0], axis=0).max() > 0.5  # the fibres really differ from cell to cell
+    oracle = UFLOracle(points, cells, e)
+    assert abs(oracle.energy(x) - one_by_one.sum()) <= 1e-12 * abs(one_by_one.sum())
+    h = 1e-6
+    d = np.random.default_rng(5).standard_normal(x.shape)
+    plus, minus = (e.cell_energies(points, cells, x + s * h * d).sum() for s in (1.0, -1.0))
+    dW = (plus - minus) / (2 * h)
+    assert abs(-np.vdot(oracle.force(x), d) - dW) <= 1e-7 * abs(dW)
+    same = dataclasses.replace(e, frame=R.copy())
+    assert same == e and hash(same) == hash(e)
+    assert dataclasses.replace(e, frame=np.swapaxes(R, 1, 2).copy()) != e
+    with pytest.raises(ValueError, match="cells evaluated with a frame of"):
+        e.density(np.eye(3)[None])

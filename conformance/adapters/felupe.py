@@ -171,7 +171,7 @@ def _tensortrax_variable(C, a, tm):
 def _user_energy_function(energy: UserEnergy):
     """W(C) of a user energy in tensortrax operations, for FElupe's Hyperelastic."""
     tm = _tensortrax()
-    a = energy.unit_fibre
+    a = energy.directions()  # one direction: a frame per cell is refused by _match
 
     def fun(C):
         return energy.evaluate(_tensortrax_variable(C, a, tm), tm.log, tm.exp, tm.sqrt)
@@ -231,6 +231,12 @@ def _match(model) -> Tuple[Any, UserEnergy, str]:
 
 @_match.register(UserEnergy)
 def _(model):
+    if model.direction_missing or (model.frame is not None and model.frame.ndim == 3):
+        raise Unsupported(
+            "FElupe: this adapter gives tensortrax one fibre direction for I4 and I5,"
+            " not one per cell; give the energy one fibre (--fibre X,Y,Z) to check "
+            "FElupe with it"
+        )
     fe = _felupe()
     names = tuple(sorted(model.params))
     text = _squash(model.expression)
