@@ -29,8 +29,17 @@ DEFAULT_MATERIALS: Dict[str, Material] = {
 }
 
 _ALIASES = {n.lower(): n for n in DEFAULT_MATERIALS}
-_ALIASES.update({"stvk": "StVenantKirchhoff", "svk": "StVenantKirchhoff", "nh": "NeoHookean", "mr": "MooneyRivlin",
-                 "vw": "VerondaWestmann", "verondawestman": "VerondaWestmann", "ab": "ArrudaBoyce"})
+_ALIASES.update(
+    {
+        "stvk": "StVenantKirchhoff",
+        "svk": "StVenantKirchhoff",
+        "nh": "NeoHookean",
+        "mr": "MooneyRivlin",
+        "vw": "VerondaWestmann",
+        "verondawestman": "VerondaWestmann",
+        "ab": "ArrudaBoyce",
+    }
+)
 
 
 def material_names() -> Tuple[str, ...]:
@@ -40,7 +49,9 @@ def material_names() -> Tuple[str, ...]:
 def default_material(name: str) -> Material:
     key = _ALIASES.get(name.lower().replace("-", "").replace("_", ""))
     if key is None:
-        raise ValueError(f"unknown material {name!r}; known materials: {', '.join(DEFAULT_MATERIALS)} (or 'all')")
+        raise ValueError(
+            f"unknown material {name!r}; known materials: {', '.join(DEFAULT_MATERIALS)} (or 'all')"
+        )
     return DEFAULT_MATERIALS[key]
 
 

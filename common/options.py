@@ -42,8 +42,11 @@ class InputError(ValueError):
 
 
 def add_material_option(parser: argparse.ArgumentParser, default: str = "all") -> None:
-    parser.add_argument("--material", default=default,
-                        help=f"'all', a material name, or a comma-separated list (default: {default})")
+    parser.add_argument(
+        "--material",
+        default=default,
+        help=f"'all', a material name, or a comma-separated list (default: {default})",
+    )
 
 
 def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: bool = True) -> None:
@@ -54,8 +57,12 @@ def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: b
 
 
 def add_states_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--states", default="all",
-                        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, random")
+    parser.add_argument(
+        "--states",
+        default="all",
+        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, "
+        "random",
+    )
 
 
 def add_json_option(parser: argparse.ArgumentParser) -> None:
@@ -63,7 +70,12 @@ def add_json_option(parser: argparse.ArgumentParser) -> None:
 
 
 def add_out_option(parser: argparse.ArgumentParser, default: str) -> None:
-    parser.add_argument("--out", metavar="DIR", default=default, help=f"directory for figures and tables (default: {default})")
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=default,
+        help=f"directory for figures and tables (default: {default})",
+    )
 
 
 def resolve_materials(spec: str):
@@ -127,12 +139,15 @@ def check_writable_destination(path: str, *, is_dir: bool) -> None:
             raise OSError("not a directory")
         tempfile.TemporaryFile(dir=probe).close()
     except OSError:
-        raise InputError(f"{path}: cannot write there ({probe} is not a writable directory)") from None
+        raise InputError(
+            f"{path}: cannot write there ({probe} is not a writable directory)"
+        ) from None
 
 
 def write_json(path: str, payload: dict) -> None:
     """Write strict JSON (see :func:`strict_json`), creating the directory (reports/ is not in a
-    fresh clone)."""
+    fresh clone).
+    """
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as fh:
         json.dump(strict_json(payload), fh, indent=1, allow_nan=False)
@@ -147,7 +162,8 @@ def strict_json(payload: dict) -> dict:
     write as the non-standard ``NaN`` and ``Infinity``) become null, and a top-level
     ``"non_finite"`` list says where each was and what it was, e.g.
     ``{"path": "data/runs/0/fps", "value": "inf"}``. NumPy scalars and arrays become numbers and
-    lists; any other object its text."""
+    lists; any other object its text.
+    """
     notes: List[dict] = []
     count = [0]
 
@@ -178,6 +194,9 @@ def strict_json(payload: dict) -> dict:
 
 
 def add_allow_incomplete_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--allow-incomplete", action="store_true",
-                        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run was "
-                             "partial (a failed check still exits with 1)")
+    parser.add_argument(
+        "--allow-incomplete",
+        action="store_true",
+        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run "
+        "was partial (a failed check still exits with 1)",
+    )

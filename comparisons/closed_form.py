@@ -26,7 +26,14 @@ from typing import Tuple
 import numpy as np
 from scipy.optimize import brentq
 
-from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials import (
+    ArrudaBoyce,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    StVenantKirchhoff,
+    VerondaWestmann,
+)
 from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
 
 __all__ = [
@@ -65,8 +72,10 @@ def _isochoric_I1(stretches: Stretches) -> float:
 def _principal(material, s: Stretches) -> np.ndarray:
     """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type."""
     cls = type(material)
-    raise ValueError(f"no closed form for {cls.__qualname__}; isotropic materials with one: "
-                     f"{', '.join(t.__qualname__ for t in ISOTROPIC)}")
+    raise ValueError(
+        f"no closed form for {cls.__qualname__}; isotropic materials with one: "
+        f"{', '.join(t.__qualname__ for t in ISOTROPIC)}"
+    )
 
 
 @_principal.register
@@ -101,7 +110,10 @@ def _veronda_westmann(m: VerondaWestmann, s: Stretches) -> np.ndarray:
 def _arruda_boyce(m: ArrudaBoyce, s: Stretches) -> np.ndarray:
     J = float(np.prod(s))
     I1b = _isochoric_I1(s)
-    W1 = m.mu * sum(i * c * m.N ** (1 - i) * I1b ** (i - 1) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1))
+    W1 = m.mu * sum(
+        i * c * m.N ** (1 - i) * I1b ** (i - 1)
+        for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)
+    )
     return _decoupled(W1, 0.0, m.k0 * np.log(J) / J, s)
 
 
@@ -136,7 +148,10 @@ def uniaxial_lateral_stretch(material, stretch: float) -> float:
     lateral = lambda t: principal_cauchy(material, (stretch, t, t))[1]
     lo, hi = 0.2, 3.0
     if not lateral(lo) < 0.0 < lateral(hi):
-        raise ValueError(f"{type(material).__name__}: no lateral stretch in ({lo}, {hi}) frees the sides at stretch {stretch}")
+        raise ValueError(
+            f"{type(material).__name__}: no lateral stretch in ({lo}, {hi}) frees the sides at "
+            f"stretch {stretch}"
+        )
     return float(brentq(lateral, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
 
 
@@ -160,7 +175,9 @@ class UniaxialResult:
         return asdict(self)
 
 
-def uniaxial_reaction_check(material, points: np.ndarray, cells: np.ndarray, stretch: float) -> UniaxialResult:
+def uniaxial_reaction_check(
+    material, points: np.ndarray, cells: np.ndarray, stretch: float
+) -> UniaxialResult:
     """Cube stretched along x in uniaxial stress: MJED's face reaction against sigma_11.
 
     points (n, 3) of an axis-aligned box mesh; cells (m, 4).
@@ -206,6 +223,9 @@ def uniaxial_checks(materials, label: str, points: np.ndarray, cells: np.ndarray
             continue
         for stretch in UNIAXIAL_STRETCHES:
             r = uniaxial_reaction_check(m, points, cells, stretch).to_dict()
-            r.update(mesh=label, passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL))
+            r.update(
+                mesh=label,
+                passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL),
+            )
             rows.append(r)
     return rows

@@ -35,8 +35,10 @@ def command_words(template: str) -> List[str]:
     text = " ".join(words)
     missing = [k for k in ("{input}", "{output}") if k not in text]
     if missing:
-        raise ValueError(f"--command {template!r} must contain {' and '.join(missing)} "
-                         "(replaced by the case's input and output directories)")
+        raise ValueError(
+            f"--command {template!r} must contain {' and '.join(missing)} "
+            "(replaced by the case's input and output directories)"
+        )
     return words
 
 
@@ -45,10 +47,12 @@ def _tail(data: bytes) -> str:
     return ("..." + text[-STDERR_TAIL:]) if len(text) > STDERR_TAIL else text
 
 
-def command_evaluator(template: str, input_dir: Callable[[KitCase], str], output_root: str,
-                      timeout: float) -> Callable[[KitCase], EngineOutput]:
+def command_evaluator(
+    template: str, input_dir: Callable[[KitCase], str], output_root: str, timeout: float
+) -> Callable[[KitCase], EngineOutput]:
     """An evaluator running the command for each case; outputs go to ``output_root/<case id>``
-    (a new directory per case, never the user's kit)."""
+    (a new directory per case, never the user's kit).
+    """
     words = command_words(template)
 
     def evaluate(case: KitCase) -> EngineOutput:
@@ -59,19 +63,27 @@ def command_evaluator(template: str, input_dir: Callable[[KitCase], str], output
         try:
             ran = run_engine(argv, timeout)
         except OSError as exc:
-            raise CaseError(f"case {case.case_id}: cannot start {argv[0]!r}: "
-                            f"{exc.strerror or exc}") from None
+            raise CaseError(
+                f"case {case.case_id}: cannot start {argv[0]!r}: {exc.strerror or exc}"
+            ) from None
         # quote stderr, or stdout when the engine wrote its complaint there
         stream, err = ("stderr", ran.stderr) if ran.stderr.strip() else ("stdout", ran.stdout)
         said = f"; {stream}: {_tail(err)}" if err.strip() else "; no stderr"
         if ran.timed_out:
-            raise CaseError(f"case {case.case_id}: {argv[0]} ran past the time limit of "
-                            f"{timeout:g} s and was killed, with every process it started{said}")
+            raise CaseError(
+                f"case {case.case_id}: {argv[0]} ran past the time limit of "
+                f"{timeout:g} s and was killed, with every process it started{said}"
+            )
         if ran.returncode != 0:
             code = ran.returncode
             how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
             raise CaseError(f"case {case.case_id}: {argv[0]} failed ({how}){said}")
-        return read_output(out, case.input.n_nodes, case.case_id, n_cells=case.input.n_cells,
-                           within=os.path.abspath(output_root))
+        return read_output(
+            out,
+            case.input.n_nodes,
+            case.case_id,
+            n_cells=case.input.n_cells,
+            within=os.path.abspath(output_root),
+        )
 
     return evaluate

@@ -22,8 +22,14 @@ import re
 import stat
 from typing import Optional
 
-__all__ = ["ConfinementError", "check_case_id", "confined_path", "read_confined", "CASE_ID_PATTERN",
-           "MAX_CASE_ID"]
+__all__ = [
+    "ConfinementError",
+    "check_case_id",
+    "confined_path",
+    "read_confined",
+    "CASE_ID_PATTERN",
+    "MAX_CASE_ID",
+]
 
 #: Letters, digits and ``_ . + - ~``; not starting with a dot and without ``..``, so that an id
 #: is one harmless path component (docs/conventions.md, "The kit manifest").
@@ -41,12 +47,15 @@ def check_case_id(cid: object, where: str) -> str:
         raise ConfinementError(f"{where}: case id must be a string, got {type(cid).__name__}")
     shown = cid if len(cid) <= 80 else cid[:77] + "..."
     if len(cid) > MAX_CASE_ID:
-        raise ConfinementError(f"{where}: case id {shown!r} is longer than {MAX_CASE_ID} "
-                               "characters")
+        raise ConfinementError(
+            f"{where}: case id {shown!r} is longer than {MAX_CASE_ID} characters"
+        )
     if not CASE_ID_PATTERN.fullmatch(cid) or ".." in cid:
-        raise ConfinementError(f"{where}: case id {shown!r} is not a safe name (letters, digits "
-                               "and _ . + - ~ only, not starting with '.', no '..', no path "
-                               "separators)")
+        raise ConfinementError(
+            f"{where}: case id {shown!r} is not a safe name (letters, digits "
+            "and _ . + - ~ only, not starting with '.', no '..', no path "
+            "separators)"
+        )
     return cid
 
 
@@ -60,32 +69,48 @@ def confined_path(root: str, rel: object, what: str) -> str:
     if "\x00" in rel:
         raise ConfinementError(f"{what}: {rel!r} (in {root}) contains a NUL character")
     if os.path.isabs(rel):
-        raise ConfinementError(f"{what}: {rel!r} (in {root}) is an absolute path; paths in a kit "
-                               "are relative to it")
+        raise ConfinementError(
+            f"{what}: {rel!r} (in {root}) is an absolute path; paths in a kit are relative to it"
+        )
     parts = rel.replace("\\", "/").split("/")
     if ".." in parts:
-        raise ConfinementError(f"{what}: {rel!r} (in {root}) climbs out with '..'; paths in a kit "
-                               "stay inside it")
+        raise ConfinementError(
+            f"{what}: {rel!r} (in {root}) climbs out with '..'; paths in a kit stay inside it"
+        )
     path = os.path.join(root, rel)
     real_root = os.path.realpath(root)
     real = os.path.realpath(path)
     if real != real_root and os.path.commonpath([real, real_root]) != real_root:
-        raise ConfinementError(f"{what}: {path} leads outside {root} (a symbolic link to {real}); "
-                               "refused: only files inside it are read")
+        raise ConfinementError(
+            f"{what}: {path} leads outside {root} (a symbolic link to {real}); "
+            "refused: only files inside it are read"
+        )
     return path
 
 
 def _kind(mode: int) -> Optional[str]:
-    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
-                       (stat.S_ISSOCK, "a socket")):
+    for test, name in (
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
         if test(mode):
             return name
     return None if stat.S_ISREG(mode) else "not a regular file"
 
 
-def read_confined(root: str, rel: str, what: str, *, limit: int, expected: Optional[int] = None,
-                  sha256: Optional[str] = None, missing: str = "") -> bytearray:
+def read_confined(
+    root: str,
+    rel: str,
+    what: str,
+    *,
+    limit: int,
+    expected: Optional[int] = None,
+    sha256: Optional[str] = None,
+    missing: str = "",
+) -> bytearray:
     """The bytes of the regular file ``root/rel``, at most ``limit`` of them.
 
     expected: the exact size the caller needs (the message gives both sizes otherwise).
@@ -100,8 +125,9 @@ def read_confined(root: str, rel: str, what: str, *, limit: int, expected: Optio
     except FileNotFoundError:
         raise ConfinementError(f"{what}: {path}: file missing{missing}") from None
     except OSError as exc:
-        raise ConfinementError(f"{what}: {path}: cannot be opened ({exc.strerror or exc})") \
-            from None
+        raise ConfinementError(
+            f"{what}: {path}: cannot be opened ({exc.strerror or exc})"
+        ) from None
     try:
         st = os.fstat(fd)
         kind = _kind(st.st_mode)
@@ -111,8 +137,9 @@ def read_confined(root: str, rel: str, what: str, *, limit: int, expected: Optio
         if expected is not None and size != expected:
             raise ConfinementError(f"{what}: {path}: {size} bytes, expected {expected}")
         if size > limit:
-            raise ConfinementError(f"{what}: {path}: {size} bytes, more than the {limit} this "
-                                   "file may hold")
+            raise ConfinementError(
+                f"{what}: {path}: {size} bytes, more than the {limit} this file may hold"
+            )
         buf = bytearray(size)
         view, got = memoryview(buf), 0
         while got < size:
@@ -125,6 +152,7 @@ def read_confined(root: str, rel: str, what: str, *, limit: int, expected: Optio
     finally:
         os.close(fd)
     if sha256 is not None and hashlib.sha256(buf).hexdigest() != sha256:
-        raise ConfinementError(f"{what}: {path}: changed since export (SHA-256 differs); "
-                               "re-export the kit")
+        raise ConfinementError(
+            f"{what}: {path}: changed since export (SHA-256 differs); re-export the kit"
+        )
     return buf

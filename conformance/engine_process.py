@@ -69,7 +69,8 @@ class EngineRun:
 
 class _BoundedReader(threading.Thread):
     """Drain one pipe, keeping its head and tail. It polls, so it can be told to stop even while
-    a process that escaped every kill still holds the pipe open."""
+    a process that escaped every kill still holds the pipe open.
+    """
 
     def __init__(self, fd: int) -> None:
         super().__init__(daemon=True)
@@ -133,7 +134,7 @@ def _adopting() -> Iterator[bool]:
 
 
 def _proc_table() -> Dict[int, Tuple[int, int, int, str]]:
-    """pid -> (ppid, pgid, sid, state) of every process visible in /proc."""
+    """Pid -> (ppid, pgid, sid, state) of every process visible in /proc."""
     table = {}
     try:
         names = os.listdir("/proc")
@@ -147,7 +148,7 @@ def _proc_table() -> Dict[int, Tuple[int, int, int, str]]:
                 raw = fh.read()
         except OSError:
             continue
-        rest = raw[raw.rfind(b")") + 2:].split()  # the command name may hold spaces and ')'
+        rest = raw[raw.rfind(b")") + 2 :].split()  # the command name may hold spaces and ')'
         try:
             table[int(name)] = (int(rest[1]), int(rest[2]), int(rest[3]), rest[0].decode())
         except (IndexError, ValueError):
@@ -170,10 +171,14 @@ def _tree(root: int, token: bytes, me: int, spare: Set[int]) -> Set[int]:
     helper in its own session as our child: killing it would abort this process).
     """
     table = _proc_table()
-    found = {pid for pid, (ppid, pgid, sid, state) in table.items()
-             if pid != me and pid not in spare and state != "Z"
-             and (pgid == root or sid == root or (ppid == me and pid != root)
-                  or _carries(pid, token))}
+    found = {
+        pid
+        for pid, (ppid, pgid, sid, state) in table.items()
+        if pid != me
+        and pid not in spare
+        and state != "Z"
+        and (pgid == root or sid == root or (ppid == me and pid != root) or _carries(pid, token))
+    }
     children: Dict[int, List[int]] = {}
     for pid, (ppid, *_rest) in table.items():
         children.setdefault(ppid, []).append(pid)
@@ -200,10 +205,12 @@ def _reap_adopted(me: int, skip: Set[int]) -> None:
                 pass
 
 
-def end_process_tree(root: int, token: str, spare: Set[int] = frozenset(), *,
-                     rounds: int = 200) -> int:
+def end_process_tree(
+    root: int, token: str, spare: Set[int] = frozenset(), *, rounds: int = 200
+) -> int:
     """SIGKILL the engine's process group and every process of its tree; returns how many
-    distinct processes were killed (the group leader not counted). spare: as for _tree."""
+    distinct processes were killed (the group leader not counted). spare: as for _tree.
+    """
     try:
         os.killpg(root, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
@@ -226,8 +233,9 @@ def end_process_tree(root: int, token: str, spare: Set[int] = frozenset(), *,
     return len(killed)
 
 
-def run_engine(argv: Sequence[str], timeout: float, *,
-               env: Optional[Dict[str, str]] = None) -> EngineRun:
+def run_engine(
+    argv: Sequence[str], timeout: float, *, env: Optional[Dict[str, str]] = None
+) -> EngineRun:
     """Run ``argv`` (no shell) with a time limit; its whole tree is ended before returning.
 
     Raises OSError when it cannot be started.
@@ -243,9 +251,15 @@ def run_engine(argv: Sequence[str], timeout: float, *,
         err_r, err_w = os.pipe()
         fds += [out_r, err_r]
         try:
-            proc = subprocess.Popen(list(argv), stdin=subprocess.DEVNULL, stdout=out_w,
-                                    stderr=err_w, start_new_session=True, env=env,
-                                    close_fds=True)
+            proc = subprocess.Popen(
+                list(argv),
+                stdin=subprocess.DEVNULL,
+                stdout=out_w,
+                stderr=err_w,
+                start_new_session=True,
+                env=env,
+                close_fds=True,
+            )
         except OSError:
             for fd in (out_r, err_r):
                 os.close(fd)

@@ -33,10 +33,29 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.confine import ConfinementError, confined_path, read_confined
-from conformance.spec import CaseInput, SpecError, model_frame, model_from_manifest, model_to_manifest
+from conformance.spec import (
+    CaseInput,
+    SpecError,
+    model_frame,
+    model_from_manifest,
+    model_to_manifest,
+)
 
-__all__ = ["FORMAT_VERSION", "CASE_FORMAT", "KIT_FORMAT", "FormatError", "EngineOutput", "write_array", "read_array",
-           "write_case_input", "read_case_input", "load_json", "write_output", "read_output", "sha256_of"]
+__all__ = [
+    "FORMAT_VERSION",
+    "CASE_FORMAT",
+    "KIT_FORMAT",
+    "FormatError",
+    "EngineOutput",
+    "write_array",
+    "read_array",
+    "write_case_input",
+    "read_case_input",
+    "load_json",
+    "write_output",
+    "read_output",
+    "sha256_of",
+]
 
 FORMAT_VERSION = 1
 CASE_FORMAT = "mjed-verify case"
@@ -65,7 +84,9 @@ class FormatError(ValueError):
 
 @dataclass(frozen=True)
 class EngineOutput:
-    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or None."""
+    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or
+    None.
+    """
 
     force: np.ndarray
     stiffness: sp.csr_matrix
@@ -87,58 +108,83 @@ def write_array(folder: str, filename: str, array: np.ndarray, dtype: str) -> Di
     return {"file": filename, "dtype": dtype, "shape": list(a.shape)}
 
 
-def read_array(folder: str, entry: Any, *, what: str, case: str,
-               digests: Optional[Mapping[str, str]] = None) -> np.ndarray:
+def read_array(
+    folder: str, entry: Any, *, what: str, case: str, digests: Optional[Mapping[str, str]] = None
+) -> np.ndarray:
     """Read the array of a manifest entry, checking its dtype, shape and file size.
 
     The file must lie inside ``folder``; its size is compared with the declared shape before a
     byte is read. digests: file name -> SHA-256, when given every file read must be listed and
     match (the kit's ``input_sha256``).
     """
+    where = f"case {case}: {os.path.join(folder, 'case.json')}"  # the file that declares it
     if not isinstance(entry, Mapping) or not {"file", "dtype", "shape"} <= set(entry):
-        raise FormatError(f"case {case}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
+        raise FormatError(f"{where}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
     code = entry["dtype"]
     dtype = _DTYPES.get(code) if isinstance(code, str) else None
     if dtype is None:
-        raise FormatError(f"case {case}: {what}: dtype {code!r} is not one of {', '.join(_DTYPES)}")
-    shape = _shape(entry["shape"], what, case)
+        raise FormatError(f"{where}: {what}: dtype {code!r} is not one of {', '.join(_DTYPES)}")
+    shape = _shape(entry["shape"], what, where)
     count = math.prod(shape)  # Python ints: no silent overflow
     nbytes = count * dtype.itemsize
     if nbytes > MAX_INPUT_ARRAY_BYTES:
-        raise FormatError(f"case {case}: {what}: shape {list(shape)} needs {nbytes} bytes, more "
-                          f"than the {MAX_INPUT_ARRAY_BYTES} an input array may hold")
+        raise FormatError(
+            f"{where}: {what}: shape {list(shape)} needs {nbytes} bytes, more "
+            f"than the {MAX_INPUT_ARRAY_BYTES} an input array may hold"
+        )
     detail = f" ({count} values of {dtype.str} for shape {list(shape)})"
-    data = _read_file(folder, entry["file"], f"case {case}", expected=nbytes, limit=nbytes,
-                      digests=digests, detail=detail)
+    data = _read_file(
+        folder,
+        entry["file"],
+        f"case {case}",
+        expected=nbytes,
+        limit=nbytes,
+        digests=digests,
+        detail=detail,
+    )
     return np.frombuffer(data, dtype=dtype).reshape(shape)
 
 
-def _shape(raw: Any, what: str, case: str) -> Tuple[int, ...]:
-    """A declared shape: a list of 1 to 3 non-negative integers."""
+def _shape(raw: Any, what: str, where: str) -> Tuple[int, ...]:
+    """A declared shape: a list of 1 to 3 non-negative integers (where: the case and its file)."""
+
     def extent(s: Any) -> bool:
         return isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= 2**40
 
     if not isinstance(raw, list) or not 1 <= len(raw) <= 3 or not all(extent(s) for s in raw):
         shown = repr(raw) if len(repr(raw)) <= 60 else repr(raw)[:57] + "..."
-        raise FormatError(f"case {case}: {what}: shape must be a list of 1 to 3 non-negative "
-                          f"integers, got {shown}")
+        raise FormatError(
+            f"{where}: {what}: shape must be a list of 1 to 3 non-negative integers, got {shown}"
+        )
     return tuple(raw)
 
 
-def _read_file(folder: str, name: Any, where: str, *, limit: int, expected: Optional[int] = None,
-               digests: Optional[Mapping[str, str]] = None, detail: str = "",
-               missing: str = "") -> bytearray:
+def _read_file(
+    folder: str,
+    name: Any,
+    where: str,
+    *,
+    limit: int,
+    expected: Optional[int] = None,
+    digests: Optional[Mapping[str, str]] = None,
+    detail: str = "",
+    missing: str = "",
+) -> bytearray:
     """The bytes of ``folder/name``, confined to ``folder``, regular, size-checked before reading;
-    with ``digests`` the file must be listed there and its bytes must match."""
+    with ``digests`` the file must be listed there and its bytes must match.
+    """
     digest = None
     if digests is not None:
         if not isinstance(name, str) or name not in digests:
-            raise FormatError(f"{where}: {os.path.join(folder, str(name))}: not listed in the "
-                              "kit's input_sha256; every input file read must be hashed")
+            raise FormatError(
+                f"{where}: {os.path.join(folder, str(name))}: not listed in the "
+                "kit's input_sha256; every input file read must be hashed"
+            )
         digest = digests[name]
     try:
-        return read_confined(folder, name, where, limit=limit, expected=expected, sha256=digest,
-                             missing=missing)
+        return read_confined(
+            folder, name, where, limit=limit, expected=expected, sha256=digest, missing=missing
+        )
     except ConfinementError as exc:
         text = str(exc)
         if expected is not None and text.endswith(f"bytes, expected {expected}"):
@@ -147,7 +193,9 @@ def _read_file(folder: str, name: Any, where: str, *, limit: int, expected: Opti
 
 
 # ------------------------------------------------------------------ case input
-def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+def write_case_input(
+    folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None
+) -> Dict[str, Any]:
     """Write a case's input directory (created, must not exist) and return its manifest."""
     os.makedirs(folder)
     arrays = {
@@ -158,9 +206,16 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
     frame = model_frame(case.model)
     if frame is not None:
         arrays["frame"] = write_array(folder, "frame.f64", frame, "<f8")
-    manifest = {"format": CASE_FORMAT, "format_version": FORMAT_VERSION, "case": case.case_id,
-                "n_nodes": case.n_nodes, "n_cells": case.n_cells, "model": model_to_manifest(case.model),
-                "arrays": arrays, **(dict(extra) if extra else {})}
+    manifest = {
+        "format": CASE_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "case": case.case_id,
+        "n_nodes": case.n_nodes,
+        "n_cells": case.n_cells,
+        "model": model_to_manifest(case.model),
+        "arrays": arrays,
+        **(dict(extra) if extra else {}),
+    }
     with open(os.path.join(folder, "case.json"), "w") as fh:
         json.dump(manifest, fh, indent=1, allow_nan=False)  # every value is checked finite
     with open(os.path.join(folder, "case.txt"), "w") as fh:
@@ -171,24 +226,39 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
 def _case_text(manifest: Mapping[str, Any]) -> str:
     """``key value`` lines: everything a C engine needs, no JSON parser required."""
     model = manifest["model"]
-    lines = [f"format_version {manifest['format_version']}", f"case {manifest['case']}",
-             f"n_nodes {manifest['n_nodes']}", f"n_cells {manifest['n_cells']}",
-             f"kind {model['kind']}", f"name {model['name']}"]
+    lines = [
+        f"format_version {manifest['format_version']}",
+        f"case {manifest['case']}",
+        f"n_nodes {manifest['n_nodes']}",
+        f"n_cells {manifest['n_cells']}",
+        f"kind {model['kind']}",
+        f"name {model['name']}",
+    ]
     if model["kind"] == "energy":
         lines.append(f"expression {model['expression']}")
         if model.get("fibre") is not None:
             lines.append("fibre " + " ".join(repr(float(v)) for v in model["fibre"]))
     lines += [f"parameter {k} {float(v)!r}" for k, v in model["parameters"].items()]
     for name, entry in manifest["arrays"].items():
-        lines.append(f"array {name} {entry['file']} {entry['dtype']} " + " ".join(str(s) for s in entry["shape"]))
+        lines.append(
+            f"array {name} {entry['file']} {entry['dtype']} "
+            + " ".join(str(s) for s in entry["shape"])
+        )
     return "\n".join(lines) + "\n"
 
 
-def load_json(folder: str, name: str, case: Optional[str] = None, hint: str = "", *,
-              digests: Optional[Mapping[str, str]] = None,
-              limit: int = MAX_JSON_BYTES) -> Dict[str, Any]:
+def load_json(
+    folder: str,
+    name: str,
+    case: Optional[str] = None,
+    hint: str = "",
+    *,
+    digests: Optional[Mapping[str, str]] = None,
+    limit: int = MAX_JSON_BYTES,
+) -> Dict[str, Any]:
     """A JSON object from ``folder/name`` (confined, bounded, strict: no NaN or Infinity, no nesting
-    deeper than Python can parse); FormatError naming the case (if any) and the file otherwise."""
+    deeper than Python can parse); FormatError naming the case (if any) and the file otherwise.
+    """
     path = os.path.join(folder, name)
     where = f"case {case}" if case else "kit"
     raw = _read_file(folder, name, where, limit=limit, digests=digests, missing=hint)
@@ -210,14 +280,19 @@ def _no_constant(name: str) -> Any:
 
 def check_version(data: Mapping[str, Any], path: str, case: str, expected_format: str) -> None:
     if data.get("format") != expected_format:
-        raise FormatError(f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}")
+        raise FormatError(
+            f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}"
+        )
     if data.get("format_version") != FORMAT_VERSION:
-        raise FormatError(f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
-                          f"(this mjed-verify reads version {FORMAT_VERSION})")
+        raise FormatError(
+            f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
+            f"(this mjed-verify reads version {FORMAT_VERSION})"
+        )
 
 
-def read_case_input(folder: str, case: str = "?", *,
-                    digests: Optional[Mapping[str, str]] = None) -> CaseInput:
+def read_case_input(
+    folder: str, case: str = "?", *, digests: Optional[Mapping[str, str]] = None
+) -> CaseInput:
     """Read back a case input directory (validated).
 
     digests: the kit's ``input_sha256`` for this case; when given, case.json and every array
@@ -233,10 +308,15 @@ def read_case_input(folder: str, case: str = "?", *,
         for key in ("points", "cells", "positions"):
             if key not in arrays:
                 raise FormatError(f"case {case}: {path}: array {key!r} missing")
-        pts, cells, x = (read_array(folder, arrays[k], what=k, case=case, digests=digests)
-                         for k in ("points", "cells", "positions"))
-        frame = read_array(folder, arrays["frame"], what="frame", case=case, digests=digests) \
-            if "frame" in arrays else None
+        pts, cells, x = (
+            read_array(folder, arrays[k], what=k, case=case, digests=digests)
+            for k in ("points", "cells", "positions")
+        )
+        frame = (
+            read_array(folder, arrays["frame"], what="frame", case=case, digests=digests)
+            if "frame" in arrays
+            else None
+        )
         _check_mesh_arrays(pts, cells, x, path, case)
         model = model_from_manifest(data.get("model"), frame, where=f"case {case}: {path}")
         name = data.get("case", case)
@@ -250,35 +330,55 @@ def read_case_input(folder: str, case: str = "?", *,
         raise FormatError(f"case {case}: {path}: {kind}{exc}") from None
 
 
-def _check_mesh_arrays(pts: np.ndarray, cells: np.ndarray, x: np.ndarray, path: str,
-                       case: str) -> None:
+def _check_mesh_arrays(
+    pts: np.ndarray, cells: np.ndarray, x: np.ndarray, path: str, case: str
+) -> None:
     """Node indices within range and finite coordinates, before anything indexes with them."""
     n = pts.shape[0] if pts.ndim == 2 else 0
     if cells.size and (cells.min() < 0 or cells.max() >= n):
-        raise FormatError(f"case {case}: {path}: cell node indices must lie in [0, {n}), "
-                          f"found {int(cells.min())}..{int(cells.max())}")
+        raise FormatError(
+            f"case {case}: {path}: cell node indices must lie in [0, {n}), "
+            f"found {int(cells.min())}..{int(cells.max())}"
+        )
     for name, arr in (("points", pts), ("positions", x)):
         if not np.all(np.isfinite(arr)):
             raise FormatError(f"case {case}: {path}: {name} holds non-finite values (NaN or inf)")
 
 
 # ------------------------------------------------------------------ engine output
-def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[float] = None, *,
-                 layout: str = "coo") -> None:
+def write_output(
+    folder: str,
+    force: np.ndarray,
+    stiffness,
+    energy: Optional[float] = None,
+    *,
+    layout: str = "coo",
+) -> None:
     """Write an engine's result in the format (for Python engines and the tests)."""
     os.makedirs(folder, exist_ok=True)
     write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
     if layout == "dense":
-        write_array(folder, "stiffness.f64", np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness), "<f8")
+        write_array(
+            folder,
+            "stiffness.f64",
+            np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness),
+            "<f8",
+        )
     elif layout == "coo":
         K = sp.coo_matrix(stiffness)
-        for name, arr, dt in (("stiffness_rows.i64", K.row, "<i8"), ("stiffness_cols.i64", K.col, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_rows.i64", K.row, "<i8"),
+            ("stiffness_cols.i64", K.col, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     elif layout == "csr":
         K = sp.csr_matrix(stiffness)
-        for name, arr, dt in (("stiffness_indptr.i64", K.indptr, "<i8"), ("stiffness_indices.i64", K.indices, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_indptr.i64", K.indptr, "<i8"),
+            ("stiffness_indices.i64", K.indices, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     else:
         raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
@@ -286,8 +386,14 @@ def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[flo
         write_array(folder, "energy.f64", np.array([float(energy)]), "<f8")
 
 
-def read_output(folder: str, n_nodes: int, case: str, *, n_cells: Optional[int] = None,
-                within: Optional[str] = None) -> EngineOutput:
+def read_output(
+    folder: str,
+    n_nodes: int,
+    case: str,
+    *,
+    n_cells: Optional[int] = None,
+    within: Optional[str] = None,
+) -> EngineOutput:
     """Read and validate an engine's output for a mesh of ``n_nodes`` nodes (``n_cells`` cells).
 
     Only regular files inside ``folder`` are read, and each file's size is compared with what the
@@ -312,40 +418,57 @@ def read_output(folder: str, n_nodes: int, case: str, *, n_cells: Optional[int] 
     f64, i64 = np.dtype("<f8"), np.dtype("<i8")
     fpath = os.path.join(folder, "force.f64")
     # the limit leaves room for a wrong node count, which the message below names
-    raw = _read_file(folder, "force.f64", where, limit=16 * N + 4096,
-                     missing=f" (force, 3n = {N} float64 values)")
+    raw = _read_file(
+        folder,
+        "force.f64",
+        where,
+        limit=16 * N + 4096,
+        missing=f" (force, 3n = {N} float64 values)",
+    )
     n_force = _values(raw, 8, fpath, case)
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
-        raise FormatError(f"{where}: {fpath}: {n_force} values{hint}, expected 3n = {N} for "
-                          f"{n_nodes} nodes")
+        raise FormatError(
+            f"{where}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
+        )
     force = np.frombuffer(raw, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
 
     # lexists: a link or special file in place of a stiffness is named for what it is
-    present = [k for k, files in _STIFFNESS_LAYOUTS.items()
-               if os.path.lexists(os.path.join(folder, files[0]))]
+    present = [
+        k
+        for k, files in _STIFFNESS_LAYOUTS.items()
+        if os.path.lexists(os.path.join(folder, files[0]))
+    ]
     if not present:
-        raise FormatError(f"{where}: {folder}: no stiffness: write stiffness_rows.i64/"
-                          "stiffness_cols.i64/stiffness_values.f64 (COO), stiffness_indptr.i64/"
-                          "stiffness_indices.i64/stiffness_values.f64 (CSR) or stiffness.f64 "
-                          "(dense)")
+        raise FormatError(
+            f"{where}: {folder}: no stiffness: write stiffness_rows.i64/"
+            "stiffness_cols.i64/stiffness_values.f64 (COO), stiffness_indptr.i64/"
+            "stiffness_indices.i64/stiffness_values.f64 (CSR) or stiffness.f64 "
+            "(dense)"
+        )
     if len(present) > 1:
-        raise FormatError(f"{where}: {folder}: several stiffness layouts present "
-                          f"({', '.join(present)}); write one")
+        raise FormatError(
+            f"{where}: {folder}: several stiffness layouts present "
+            f"({', '.join(present)}); write one"
+        )
     layout = present[0]
     names = _STIFFNESS_LAYOUTS[layout]
     paths = [os.path.join(folder, f) for f in names]
     need = f" ({layout} stiffness needs {', '.join(names)})"
     if layout == "dense":
         if N > MAX_DENSE_DOFS:
-            raise FormatError(f"{where}: {paths[0]}: a dense stiffness of {N} dofs is too large "
-                              f"to read (at most {MAX_DENSE_DOFS}); write it as COO or CSR")
+            raise FormatError(
+                f"{where}: {paths[0]}: a dense stiffness of {N} dofs is too large "
+                f"to read (at most {MAX_DENSE_DOFS}); write it as COO or CSR"
+            )
         raw = _read_file(folder, names[0], where, limit=16 * N * N + 4096, missing=need)
         count = _values(raw, 8, paths[0], case)
         if count != N * N:
-            raise FormatError(f"{where}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} "
-                              f"for {n_nodes} nodes")
+            raise FormatError(
+                f"{where}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} "
+                f"for {n_nodes} nodes"
+            )
         dense = np.frombuffer(raw, dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
         K = sp.csr_matrix(dense)
@@ -361,15 +484,25 @@ def read_output(folder: str, n_nodes: int, case: str, *, n_cells: Optional[int] 
         _require_finite(vals, paths[2], case)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
-                raise FormatError(f"{where}: {folder}: COO arrays differ in length (rows {a.size}, "
-                                  f"cols {b.size}, values {vals.size})")
+                raise FormatError(
+                    f"{where}: {folder}: COO arrays differ in length (rows {a.size}, "
+                    f"cols {b.size}, values {vals.size})"
+                )
             for arr, p in ((a, paths[0]), (b, paths[1])):
                 _require_indices(arr, N, p, case)
             K = sp.coo_matrix((vals, (a, b)), shape=(N, N)).tocsr()
         else:
-            if a.size != N + 1 or a[0] != 0 or np.any(np.diff(a) < 0) or a[-1] != b.size or b.size != vals.size:
-                raise FormatError(f"{where}: {paths[0]}: not a CSR row pointer of {N} rows for "
-                                  f"{b.size} column indices and {vals.size} values")
+            if (
+                a.size != N + 1
+                or a[0] != 0
+                or np.any(np.diff(a) < 0)
+                or a[-1] != b.size
+                or b.size != vals.size
+            ):
+                raise FormatError(
+                    f"{where}: {paths[0]}: not a CSR row pointer of {N} rows for "
+                    f"{b.size} column indices and {vals.size} values"
+                )
             _require_indices(b, N, paths[1], case)
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
@@ -384,22 +517,26 @@ def read_output(folder: str, n_nodes: int, case: str, *, n_cells: Optional[int] 
     return EngineOutput(force, sp.csr_matrix(K), energy)
 
 
-def _sparse_file(folder: str, name: str, where: str, limit: int, max_nnz: int, layout: str,
-                 need: str) -> bytearray:
+def _sparse_file(
+    folder: str, name: str, where: str, limit: int, max_nnz: int, layout: str, need: str
+) -> bytearray:
     try:
         return _read_file(folder, name, where, limit=limit, missing=need)
     except FormatError as exc:
         if "more than the" in str(exc):  # say where the limit comes from
-            raise FormatError(f"{exc}: at most {max_nnz} {layout} entries are read for this mesh "
-                              f"({ENTRIES_PER_CELL} per cell)") from None
+            raise FormatError(
+                f"{exc}: at most {max_nnz} {layout} entries are read for this mesh "
+                f"({ENTRIES_PER_CELL} per cell)"
+            ) from None
         raise
 
 
 def _values(raw, itemsize: int, path: str, case: str) -> int:
     size = len(raw)
     if size % itemsize:
-        raise FormatError(f"case {case}: {path}: {size} bytes is not a whole number of "
-                          f"{itemsize}-byte values")
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values"
+        )
     return size // itemsize
 
 
@@ -407,10 +544,15 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
     bad = ~np.isfinite(a)
     if bad.any():
         first = int(np.flatnonzero(bad.ravel())[0])
-        raise FormatError(f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at flat index {first}")
+        raise FormatError(
+            f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at "
+            f"flat index {first}"
+        )
 
 
 def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
     if idx.size and (idx.min() < 0 or idx.max() >= N):
-        raise FormatError(f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
-                          f"found {int(idx.min())}..{int(idx.max())}")
+        raise FormatError(
+            f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
+            f"found {int(idx.min())}..{int(idx.max())}"
+        )

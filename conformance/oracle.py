@@ -1,5 +1,6 @@
 """The oracle's values for a case: energy, force and stiffness from the UFL oracle, and the parts of
-its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes."""
+its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes.
+"""
 
 from __future__ import annotations
 

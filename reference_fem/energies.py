@@ -35,7 +35,15 @@ from typing import Any, Callable, Dict, Mapping, NamedTuple, Optional, Tuple
 import numpy as np
 import ufl
 
-from mjed.materials import ArrudaBoyce, Costa, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials import (
+    ArrudaBoyce,
+    Costa,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    StVenantKirchhoff,
+    VerondaWestmann,
+)
 from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
 from reference_fem.ogden_eigen import sum_of_eigenvalue_powers
 from reference_fem.user_energy import UserEnergy
@@ -62,8 +70,12 @@ class Parameters:
             drop a bulk term); the material itself is never changed.
     """
 
-    def __init__(self, material: Any, constant: Optional[Callable[[Any], Any]] = None,
-                 overrides: Optional[Mapping[str, float]] = None):
+    def __init__(
+        self,
+        material: Any,
+        constant: Optional[Callable[[Any], Any]] = None,
+        overrides: Optional[Mapping[str, float]] = None,
+    ):
         self.material = material
         self.constant = constant
         self.overrides = dict(overrides or {})
@@ -80,7 +92,9 @@ class Parameters:
         try:
             v = float(got)
         except (TypeError, ValueError):
-            raise ValueError(f"{label}: parameter {name} must be a real number, got {got!r}") from None
+            raise ValueError(
+                f"{label}: parameter {name} must be a real number, got {got!r}"
+            ) from None
         if not math.isfinite(v):
             raise ValueError(f"{label}: parameter {name} must be finite, got {v!r}")
         return v
@@ -113,10 +127,13 @@ class EnergyFormula:
 _REGISTRY: Dict[type, EnergyFormula] = {}
 
 
-def register_energy(material_type: type, *, takes_frame: bool = False) -> Callable[[EnergyFunction], EnergyFunction]:
+def register_energy(
+    material_type: type, *, takes_frame: bool = False
+) -> Callable[[EnergyFunction], EnergyFunction]:
     """Decorator: declare ``function`` as the UFL energy of ``material_type`` (and of its
     subclasses that have no energy of their own). Registering a type twice is an error, so
-    two modules cannot silently disagree on one material."""
+    two modules cannot silently disagree on one material.
+    """
     if not isinstance(material_type, type):
         raise TypeError(f"register_energy needs a type, got {material_type!r}")
 
@@ -176,7 +193,10 @@ def strain_energy_density(
     """
     formula = energy_formula(type(material))
     if frame is not None and not formula.takes_frame:
-        raise ValueError(f"frame= is only meaningful for materials with a fibre frame, not {type(material).__qualname__}")
+        raise ValueError(
+            "frame= is only meaningful for materials with a fibre frame, not "
+            f"{type(material).__qualname__}"
+        )
     return formula.function(Parameters(material, constant, overrides), F, frame)
 
 
@@ -221,14 +241,14 @@ def _stvk(p: Parameters, F, frame) -> ufl.core.expr.Expr:
 def _neo_hookean(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     mu, lam = p("mu"), p("lam")
     k = _kinematics(F)
-    return 0.5 * mu * (k.I1 - 3.0) - mu * k.lnJ + 0.5 * lam * k.lnJ ** 2
+    return 0.5 * mu * (k.I1 - 3.0) - mu * k.lnJ + 0.5 * lam * k.lnJ**2
 
 
 @register_energy(MooneyRivlin)
 def _mooney_rivlin(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     c1, c2, k0 = p("c1"), p("c2"), p("k0")
     k = _kinematics(F)
-    return c1 * (k.I1b - 3.0) + c2 * (k.I2b - 3.0) + 0.5 * k0 * k.lnJ ** 2
+    return c1 * (k.I1b - 3.0) + c2 * (k.I2b - 3.0) + 0.5 * k0 * k.lnJ**2
 
 
 @register_energy(VerondaWestmann)
@@ -238,7 +258,7 @@ def _veronda_westmann(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     return (
         c1 * (ufl.exp(c2 * (k.I1b - 3.0)) - 1.0)
         - 0.5 * c1 * c2 * (k.I2b - 3.0)
-        + 0.5 * k0 * k.lnJ ** 2
+        + 0.5 * k0 * k.lnJ**2
     )
 
 
@@ -248,15 +268,16 @@ def _arruda_boyce(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     N = p("N")
     k = _kinematics(F)
     series = sum(
-        c * N ** (1 - i) * (k.I1b ** i - 3.0**i)
+        c * N ** (1 - i) * (k.I1b**i - 3.0**i)
         for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)
     )
-    return mu * series + 0.5 * k0 * k.lnJ ** 2
+    return mu * series + 0.5 * k0 * k.lnJ**2
 
 
 def _costa_frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     """The fibre/sheet/normal frame R (columns): the explicit UFL ``frame``, else the
-    material's constant (3, 3) ``frame``, else the identity."""
+    material's constant (3, 3) ``frame``, else the identity.
+    """
     if frame is not None:
         return frame
     R = p.material.frame
@@ -266,8 +287,8 @@ def _costa_frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     if R.shape == (3, 3):
         return ufl.as_matrix(R.tolist()) if p.constant is None else p.wrap(R)
     raise ValueError(
-        f"Costa: a per-cell frame of shape {R.shape} needs a mesh; pass frame= as a UFL "
-        "expression (UFLOracle does this with a DG0 tensor Function)"
+        f"Costa: a per-cell frame of shape {R.shape} needs a mesh; pass frame= as a UFL expression "
+        "(UFLOracle does this with a DG0 tensor Function)"
     )
 
 
@@ -295,10 +316,11 @@ def _ogden(p: Parameters, F, frame) -> ufl.core.expr.Expr:
     k = _kinematics(F)
     # sum_i lambda_i^(alpha/2) over the eigenvalues lambda_i of C (= principal stretches^alpha).
     stretch_sum = sum_of_eigenvalue_powers(k.C, 0.5 * alpha)
-    return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k.lnJ ** 2
+    return mu / alpha**2 * (k.J ** (-alpha / 3.0) * stretch_sum - 3.0) + 0.5 * k0 * k.lnJ**2
 
 
-@register_energy(UserEnergy)
+@register_energy(UserEnergy, takes_frame=True)
 def _user_energy(p: Parameters, F, frame) -> ufl.core.expr.Expr:
-    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py).
-    return p.material.ufl_density(F, constant=p.constant)
+    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py);
+    # a per-cell frame (its first column is the fibre of I4 and I5) comes from the oracle.
+    return p.material.ufl_density(F, constant=p.constant, frame=frame)

@@ -35,9 +35,15 @@ class SymbolicBudgetError(ValueError):
 
 
 def _key(energy: Any) -> str:
-    return json.dumps({"expression": energy.expression, "params": dict(energy.params),
-                       "fibre": None if energy.fibre is None else list(energy.fibre),
-                       "name": energy.name}, sort_keys=True)
+    return json.dumps(
+        {
+            "expression": energy.expression,
+            "params": dict(energy.params),
+            "fibre": None if energy.fibre is None else list(energy.fibre),
+            "name": energy.name,
+        },
+        sort_keys=True,
+    )
 
 
 def _limit_memory(nbytes: int) -> None:
@@ -46,10 +52,12 @@ def _limit_memory(nbytes: int) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (nbytes, nbytes))
 
 
-def check_symbolic_budget(energy: Any, *, seconds: Optional[float] = None,
-                          nbytes: Optional[int] = None) -> None:
+def check_symbolic_budget(
+    energy: Any, *, seconds: Optional[float] = None, nbytes: Optional[int] = None
+) -> None:
     """Compile ``energy``'s oracle forms in a child within the budget, or raise
-    SymbolicBudgetError saying which limit it exceeded. A no-op for an energy that fitted before."""
+    SymbolicBudgetError saying which limit it exceeded. A no-op for an energy that fitted before.
+    """
     seconds = SYMBOLIC_SECONDS if seconds is None else seconds
     nbytes = SYMBOLIC_BYTES if nbytes is None else nbytes
     key = _key(energy)
@@ -57,10 +65,15 @@ def check_symbolic_budget(energy: Any, *, seconds: Optional[float] = None,
         return
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, os.environ.get("PYTHONPATH", "")]))
-    proc = subprocess.Popen([sys.executable, "-m", "reference_fem.symbolic_budget"],
-                            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, env=env,
-                            preexec_fn=lambda: _limit_memory(nbytes), start_new_session=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "reference_fem.symbolic_budget"],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env=env,
+        preexec_fn=lambda: _limit_memory(nbytes),
+        start_new_session=True,
+    )
     shown = f"{energy.expression[:80]!r}{'...' if len(energy.expression) > 80 else ''}"
     try:
         _, err = proc.communicate(key.encode(), timeout=seconds)
@@ -70,16 +83,21 @@ def check_symbolic_budget(energy: Any, *, seconds: Optional[float] = None,
         raise SymbolicBudgetError(
             f"user energy {shown}: differentiating and compiling it took more than {seconds:g} s "
             "(the symbolic budget); simplify the expression (long products of components of C or E "
-            "are the usual cause)") from None
+            "are the usual cause)"
+        ) from None
     if proc.returncode != 0:
         text = err.decode("utf-8", "replace")
         signs = ("MemoryError", "Cannot allocate memory", "bad_alloc", "out of memory")
         memory = proc.returncode < 0 or any(w in text for w in signs)
         last = (text.strip().splitlines() or ["no message"])[-1][:200]
-        why = (f"needed more than {nbytes >> 20} MiB of address space (the symbolic budget)"
-               if memory else f"failed ({last})")
-        raise SymbolicBudgetError(f"user energy {shown}: differentiating and compiling it {why}; "
-                                  "simplify the expression")
+        why = (
+            f"needed more than {nbytes >> 20} MiB of address space (the symbolic budget)"
+            if memory
+            else f"failed ({last})"
+        )
+        raise SymbolicBudgetError(
+            f"user energy {shown}: differentiating and compiling it {why}; simplify the expression"
+        )
     _within.add(key)
 
 
@@ -94,8 +112,9 @@ def _child() -> int:
     logging.disable(logging.INFO)
     data = json.loads(sys.stdin.read())
     fibre = None if data["fibre"] is None else tuple(data["fibre"])
-    energy = UserEnergy(expression=data["expression"], params=data["params"], fibre=fibre,
-                        name=data["name"])
+    energy = UserEnergy(
+        expression=data["expression"], params=data["params"], fibre=fibre, name=data["name"]
+    )
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     UFLOracle(points, np.array([[0, 1, 2, 3]]), energy)
     return 0

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 import mjed.materials as M
 from common.cases import DEFAULT_MATERIALS
@@ -12,7 +13,6 @@ from comparisons.closed_form import (
     uniaxial_cauchy,
     uniaxial_reaction_check,
 )
-from conftest import box_mesh
 
 STIFF_BULK = 1e8  # k0 / mu: the compressible forms approach the incompressible golden values
 
@@ -58,15 +58,23 @@ def test_closed_form_refuses_anisotropic_and_bad_stretches():
 def test_closed_forms_dispatch_on_the_material_type():
     # Every isotropic default material has one, Costa has none, and a subclass inherits its base's.
     assert {type(m) for m in DEFAULT_MATERIALS.values() if has_closed_form(m)} == set(ISOTROPIC)
-    assert set(ISOTROPIC) == {M.StVenantKirchhoff, M.NeoHookean, M.MooneyRivlin, M.VerondaWestmann,
-                              M.ArrudaBoyce, M.Ogden}
+    assert set(ISOTROPIC) == {
+        M.StVenantKirchhoff,
+        M.NeoHookean,
+        M.MooneyRivlin,
+        M.VerondaWestmann,
+        M.ArrudaBoyce,
+        M.Ogden,
+    }
 
     class Softer(M.NeoHookean):
         pass
 
     assert has_closed_form(Softer(mu=2.0, lam=5.0))
-    assert np.array_equal(principal_cauchy(Softer(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
-                          principal_cauchy(M.NeoHookean(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)))
+    assert np.array_equal(
+        principal_cauchy(Softer(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
+        principal_cauchy(M.NeoHookean(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
+    )
 
     class Unknown:  # not a material of this module: the error names its type
         pass

@@ -1,5 +1,6 @@
 """An engine is untrusted code: --timeout bounds the run, its whole process tree (daemonised or
-not) is ended after every case, and its output is read through bounded buffers."""
+not) is ended after every case, and its output is read through bounded buffers.
+"""
 
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ import pytest
 
 from conformance.engine_process import HEAD_BYTES, TAIL_BYTES, run_engine
 
-linux_only = pytest.mark.skipif(not os.path.isdir("/proc/self"),
-                                reason="the process scan reads /proc")
+linux_only = pytest.mark.skipif(
+    not os.path.isdir("/proc/self"), reason="the process scan reads /proc"
+)
 
 
 def _alive(pid: int) -> bool:
@@ -23,7 +25,7 @@ def _alive(pid: int) -> bool:
             raw = fh.read()
     except OSError:
         return False
-    return raw[raw.rfind(b")") + 2:].split()[0] != b"Z"
+    return raw[raw.rfind(b")") + 2 :].split()[0] != b"Z"
 
 
 def _pids(path) -> list:
@@ -44,8 +46,9 @@ def _assert_ended(path, count: int) -> None:
 @linux_only
 def test_a_daemonised_grandchild_holding_stderr_does_not_hold_the_run(tmp_path):
     pidfile = tmp_path / "pids"
-    script = (f"setsid sh -c 'echo $$ >> {pidfile}; exec sleep 45' & echo done >&2; sleep 0.3; "
-              "exit 0")
+    script = (
+        f"setsid sh -c 'echo $$ >> {pidfile}; exec sleep 45' & echo done >&2; sleep 0.3; exit 0"
+    )
     t0 = time.monotonic()
     ran = run_engine(["sh", "-c", script], timeout=20)
     assert time.monotonic() - t0 < 5
@@ -70,9 +73,10 @@ def test_a_double_forked_daemon_with_a_scrubbed_environment_is_ended(tmp_path):
     # The daemon leaves the session, drops the marked environment and is orphaned by its parent:
     # only the subreaper keeps it findable.
     pidfile = tmp_path / "pids"
-    daemon = (f"env -i setsid sh -c 'echo $$ >> {pidfile}; exec sleep 45' "
-              "</dev/null >/dev/null 2>&1 &")
-    ran = run_engine(["sh", "-c", f"sh -c \"{daemon}\"; sleep 0.3; exit 0"], timeout=20)
+    daemon = (
+        f"env -i setsid sh -c 'echo $$ >> {pidfile}; exec sleep 45' </dev/null >/dev/null 2>&1 &"
+    )
+    ran = run_engine(["sh", "-c", f'sh -c "{daemon}"; sleep 0.3; exit 0'], timeout=20)
     assert ran.returncode == 0
     _assert_ended(pidfile, 1)
 
@@ -88,10 +92,12 @@ def test_background_children_of_a_successful_engine_are_not_left_running(tmp_pat
 
 def test_output_is_kept_as_head_and_tail_only(tmp_path):
     # 64 MB on stderr and stdout: the run keeps at most head + tail of each
-    writer = ("import sys\nchunk = b'x' * (1 << 20)\nsys.stderr.buffer.write(b'FIRST')\n"
-              "for _ in range(64):\n"
-              "    sys.stderr.buffer.write(chunk); sys.stdout.buffer.write(chunk)\n"
-              "sys.stderr.buffer.write(b'LAST')\n")
+    writer = (
+        "import sys\nchunk = b'x' * (1 << 20)\nsys.stderr.buffer.write(b'FIRST')\n"
+        "for _ in range(64):\n"
+        "    sys.stderr.buffer.write(chunk); sys.stdout.buffer.write(chunk)\n"
+        "sys.stderr.buffer.write(b'LAST')\n"
+    )
     ran = run_engine([sys.executable, "-c", writer], timeout=60)
     assert ran.returncode == 0
     for stream in (ran.stderr, ran.stdout):
@@ -116,11 +122,27 @@ def test_check_timeout_bounds_a_correct_engine_with_a_detached_grandchild(tmp_pa
     engine = os.path.join(os.path.dirname(__file__), "engines", "mjed_engine.py")
     pidfile = tmp_path / "pids"
     # a correct engine that leaves a daemon holding its stderr for 45 s
-    cmd = (f"sh -c 'setsid sh -c \"echo \\$\\$ >> {pidfile}; exec sleep 45\" & "
-           f"exec {sys.executable} {engine} \"$0\" \"$1\"' {{input}} {{output}}")
+    cmd = (
+        f'sh -c \'setsid sh -c "echo \\$\\$ >> {pidfile}; exec sleep 45" & '
+        f'exec {sys.executable} {engine} "$0" "$1"\' {{input}} {{output}}'
+    )
     t0 = time.monotonic()
-    code = main(["check", "--command", cmd, "--material", "NeoHookean", "--states", "rest",
-                 "--timeout", "5", "--quiet", "--out", str(tmp_path / "out")])
+    code = main(
+        [
+            "check",
+            "--command",
+            cmd,
+            "--material",
+            "NeoHookean",
+            "--states",
+            "rest",
+            "--timeout",
+            "5",
+            "--quiet",
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     elapsed = time.monotonic() - t0
     assert code == 0, capsys.readouterr()
     assert elapsed < 30  # before: 46 s per process, and the case called "ran past the time limit"

@@ -23,6 +23,7 @@ from datetime import timedelta
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -33,49 +34,105 @@ from conformance.kit import build_cases, write_kit
 from mjed import materials as M
 from reference_fem import dolfinx_available
 
-from conftest import box_mesh
-
-pytestmark = pytest.mark.skipif(not dolfinx_available(),
-                                reason="check needs the oracle (python3-dolfinx)")
+pytestmark = pytest.mark.skipif(
+    not dolfinx_available(), reason="check needs the oracle (python3-dolfinx)"
+)
 
 MAX_TRACED = 64 << 20
 MAX_SECONDS = 20.0
 INPUTS = ("case.json", "points.f64", "cells.i64", "positions.f64")
-OUTPUTS = ("force.f64", "stiffness_rows.i64", "stiffness_cols.i64", "stiffness_values.f64",
-           "energy.f64")
+OUTPUTS = (
+    "force.f64",
+    "stiffness_rows.i64",
+    "stiffness_cols.i64",
+    "stiffness_values.f64",
+    "energy.f64",
+)
 
 # Names an attacker or a careless script would try, and arbitrary text.
-NAMES = st.one_of(st.sampled_from(["../escape", "../../../../tmp/escape", "/etc/hostname", "a/b",
-                                   "..", ".", "", "x" * 300, "~root", "points.f64", "cells.i64",
-                                   "case.json", "nul\x00byte", "ok~probe0", "-dash", "sp ace"]),
-                  st.text(max_size=24))
+NAMES = st.one_of(
+    st.sampled_from(
+        [
+            "../escape",
+            "../../../../tmp/escape",
+            "/etc/hostname",
+            "a/b",
+            "..",
+            ".",
+            "",
+            "x" * 300,
+            "~root",
+            "points.f64",
+            "cells.i64",
+            "case.json",
+            "nul\x00byte",
+            "ok~probe0",
+            "-dash",
+            "sp ace",
+        ]
+    ),
+    st.text(max_size=24),
+)
 JSON = st.recursive(
-    st.one_of(st.none(), st.booleans(), st.integers(-(2**70), 2**70), st.floats(allow_nan=True),
-              st.text(max_size=12), NAMES),
-    lambda inner: st.one_of(st.lists(inner, max_size=4),
-                            st.dictionaries(st.text(max_size=8), inner, max_size=4)),
-    max_leaves=10)
-MANIFEST_KEYS = ("id", "role", "input", "output", "mesh", "state", "probe_of", "step",
-                 "input_sha256", "n_nodes")
-CASE_FIELDS = (("case",), ("format_version",), ("arrays",), ("arrays", "points"),
-               ("arrays", "points", "file"), ("arrays", "points", "shape"),
-               ("arrays", "cells", "dtype"), ("arrays", "positions", "shape"), ("model",),
-               ("model", "name"), ("model", "kind"), ("model", "parameters"),
-               ("model", "parameters", "mu"))
+    st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(2**70), 2**70),
+        st.floats(allow_nan=True),
+        st.text(max_size=12),
+        NAMES,
+    ),
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)
+    ),
+    max_leaves=10,
+)
+MANIFEST_KEYS = (
+    "id",
+    "role",
+    "input",
+    "output",
+    "mesh",
+    "state",
+    "probe_of",
+    "step",
+    "input_sha256",
+    "n_nodes",
+)
+CASE_FIELDS = (
+    ("case",),
+    ("format_version",),
+    ("arrays",),
+    ("arrays", "points"),
+    ("arrays", "points", "file"),
+    ("arrays", "points", "shape"),
+    ("arrays", "cells", "dtype"),
+    ("arrays", "positions", "shape"),
+    ("model",),
+    ("model", "name"),
+    ("model", "kind"),
+    ("model", "parameters"),
+    ("model", "parameters", "mu"),
+)
 SPECIAL = ("link-out", "link-devzero", "fifo", "directory", "huge", "missing")
 JSON_FILES = ("manifest.json", "case.json")
 
 OPS = st.one_of(
     st.tuples(st.just("manifest-field"), st.integers(0, 1), st.sampled_from(MANIFEST_KEYS), JSON),
-    st.tuples(st.just("manifest-top"), st.sampled_from(["format", "format_version", "cases"]),
-              JSON),
+    st.tuples(
+        st.just("manifest-top"), st.sampled_from(["format", "format_version", "cases"]), JSON
+    ),
     st.tuples(st.just("hash-key"), NAMES),
     st.tuples(st.just("case-field"), st.sampled_from(CASE_FIELDS), JSON, st.booleans()),
-    st.tuples(st.just("input-bytes"), st.sampled_from(INPUTS[1:]), st.binary(max_size=400),
-              st.booleans()),
+    st.tuples(
+        st.just("input-bytes"), st.sampled_from(INPUTS[1:]), st.binary(max_size=400), st.booleans()
+    ),
     st.tuples(st.just("output-bytes"), st.sampled_from(OUTPUTS), st.binary(max_size=400)),
-    st.tuples(st.just("special"), st.sampled_from(INPUTS + OUTPUTS + ("output",)),
-              st.sampled_from(SPECIAL)),
+    st.tuples(
+        st.just("special"),
+        st.sampled_from(INPUTS + OUTPUTS + ("output",)),
+        st.sampled_from(SPECIAL),
+    ),
     st.tuples(st.just("deep"), st.sampled_from(JSON_FILES), st.integers(500, 100_000)),
     st.tuples(st.just("garbage"), st.sampled_from(JSON_FILES), st.binary(max_size=200)),
 )
@@ -95,8 +152,12 @@ def _make_kit(root):
     field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
     for c in cases:
         f, K = field.force_and_stiffness(c.input.positions)
-        write_output(os.path.join(folder, "cases", c.case_id, "output"), f, K,
-                     field.energy(c.input.positions))
+        write_output(
+            os.path.join(folder, "cases", c.case_id, "output"),
+            f,
+            K,
+            field.energy(c.input.positions),
+        )
     return folder, [c.case_id for c in cases]
 
 
@@ -127,8 +188,9 @@ def _apply(op, folder, ids, outside):
             m = manifest()
             e = m["cases"][0]
             d = os.path.join(first, "input")
-            e["input_sha256"] = {n: _sha(os.path.join(d, n)) for n in INPUTS
-                                 if os.path.isfile(os.path.join(d, n))}
+            e["input_sha256"] = {
+                n: _sha(os.path.join(d, n)) for n in INPUTS if os.path.isfile(os.path.join(d, n))
+            }
             save(m)
         except (ValueError, KeyError, TypeError, IndexError, OSError, RecursionError):
             pass  # the manifest itself is already broken
@@ -161,8 +223,11 @@ def _apply(op, folder, ids, outside):
                 fh.write(op[2])
         elif kind == "special":
             where = "output" if op[1] in OUTPUTS else "input"
-            path = (os.path.join(first, "output") if op[1] == "output"
-                    else os.path.join(first, where, op[1]))
+            path = (
+                os.path.join(first, "output")
+                if op[1] == "output"
+                else os.path.join(first, where, op[1])
+            )
             if os.path.isdir(path) and not os.path.islink(path):
                 shutil.rmtree(path)
             elif os.path.lexists(path):
@@ -211,8 +276,12 @@ def warm(tmp_path_factory):
     assert main(["check", folder, "--out", os.path.join(root, "out"), "--quiet"]) == 0
 
 
-@settings(max_examples=50, deadline=timedelta(seconds=MAX_SECONDS), derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=50,
+    deadline=timedelta(seconds=MAX_SECONDS),
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(ops=st.lists(OPS, min_size=1, max_size=4))
 def test_check_holds_against_a_broken_kit(warm, capsys, ops):
     with tempfile.TemporaryDirectory() as root:
@@ -245,8 +314,9 @@ def test_check_holds_against_a_broken_kit(warm, capsys, ops):
             (run,) = os.listdir(out)
             with open(os.path.join(out, run, "results.json")) as fh:
                 res = json.load(fh)
-            messages = list(res["input_errors"].values()) + [c["message"] for c in res["cases"]
-                                                             if c["status"] == "bad input"]
+            messages = list(res["input_errors"].values()) + [
+                c["message"] for c in res["cases"] if c["status"] == "bad input"
+            ]
             assert (code == 2) == bool(messages)
             for msg in messages:
                 assert folder in msg, msg

@@ -1,6 +1,7 @@
 """A kit is untrusted input: its ids, paths, links, special files, sizes and malformed fields
 are refused for that case only, naming the file, and nothing outside the kit and --out is
-read or written (docs/checking.md, "Threat model")."""
+read or written (docs/checking.md, "Threat model").
+"""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 from comparisons.cli import main
 from conformance.exchange import ENTRIES_PER_CELL, FormatError, read_output, write_output
@@ -20,16 +22,16 @@ from conformance.kit import build_cases, read_kit, write_kit
 from mjed import materials as M
 from reference_fem import dolfinx_available
 
-from conftest import box_mesh
-
-needs_oracle = pytest.mark.skipif(not dolfinx_available(),
-                                  reason="check needs the oracle (python3-dolfinx)")
+needs_oracle = pytest.mark.skipif(
+    not dolfinx_available(), reason="check needs the oracle (python3-dolfinx)"
+)
 
 
 def _kit(tmp_path, states=("uniaxial",), name="kit"):
     points, cells = box_mesh(1)
-    cases = build_cases([M.NeoHookean(mu=1.3, lam=2.1)], [("box", points, cells)], list(states),
-                        probes=0)
+    cases = build_cases(
+        [M.NeoHookean(mu=1.3, lam=2.1)], [("box", points, cells)], list(states), probes=0
+    )
     folder = str(tmp_path / name)
     write_kit(folder, cases)
     return folder, cases
@@ -48,8 +50,11 @@ def _save(folder, manifest):
 def _rehash(folder, entry):
     """Recompute the digests of an entry's input files (a hostile kit is self-consistent)."""
     d = os.path.join(folder, entry["input"])
-    entry["input_sha256"] = {n: hashlib.sha256(open(os.path.join(d, n), "rb").read()).hexdigest()
-                             for n in sorted(os.listdir(d)) if os.path.isfile(os.path.join(d, n))}
+    entry["input_sha256"] = {
+        n: hashlib.sha256(open(os.path.join(d, n), "rb").read()).hexdigest()
+        for n in sorted(os.listdir(d))
+        if os.path.isfile(os.path.join(d, n))
+    }
 
 
 def _tree(root):
@@ -61,9 +66,16 @@ def _tree(root):
     return out
 
 
+def _check_with(engine, folder, out):
+    """mjed-verify check of ``folder`` with the Python script ``engine`` as the --command."""
+    command = f"{sys.executable} {engine} {{input}} {{output}}"
+    return main(["check", folder, "--command", command, "--out", out, "--quiet", "--timeout", "20"])
+
+
 # ---------------------------------------------------------------- case ids
-@pytest.mark.parametrize("bad", ["../../escaped", "/tmp/absolute", "a/b", ".hidden", "a..b",
-                                 "x" * 201, ""])
+@pytest.mark.parametrize(
+    "bad", ["../../escaped", "/tmp/absolute", "a/b", ".hidden", "a..b", "x" * 201, ""]
+)
 def test_unsafe_case_ids_are_refused(tmp_path, bad):
     folder, _ = _kit(tmp_path)
     m = _manifest(folder)
@@ -84,8 +96,7 @@ def test_a_traversing_id_writes_nothing_outside_kit_and_out(tmp_path, capsys):
     engine = tmp_path / "engine.py"
     engine.write_text("import sys, os\nos.makedirs(sys.argv[2], exist_ok=True)\n")
     before = _tree(str(tmp_path))
-    code = main(["check", folder, "--command", f"{sys.executable} {engine} {{input}} {{output}}",
-                 "--out", str(tmp_path / "out"), "--quiet", "--timeout", "20"])
+    code = _check_with(engine, folder, str(tmp_path / "out"))
     assert code == 2
     created = {p for p in _tree(str(tmp_path)) - before if not p.startswith("out")}
     assert created == set()
@@ -104,13 +115,15 @@ def test_a_duplicated_id_is_bad_input_not_counted_twice(tmp_path):
     assert not kit.cases
     where = f"case {m['cases'][0]['id']}: {os.path.join(folder, 'manifest.json')}"
     assert list(kit.errors.values()) == [
-        f"{where}: the id appears 2 times; case ids must be unique"]
+        f"{where}: the id appears 2 times; case ids must be unique"
+    ]
 
 
 def test_generated_ids_are_safe_whatever_the_mesh_name():
     points, cells = box_mesh(1)
-    (case,) = build_cases([M.NeoHookean(mu=1.0, lam=1.0)], [("../my..mesh.msh", points, cells)],
-                          ["rest"], probes=0)
+    (case,) = build_cases(
+        [M.NeoHookean(mu=1.0, lam=1.0)], [("../my..mesh.msh", points, cells)], ["rest"], probes=0
+    )
     assert case.case_id == "NeoHookean.my.mesh.rest"
 
 
@@ -126,8 +139,10 @@ def _set_array_file(folder, name):
     return m, e
 
 
-@pytest.mark.parametrize("name, words", [("../../../outside.f64", "climbs out with '..'"),
-                                         ("/etc/hostname", "is an absolute path")])
+@pytest.mark.parametrize(
+    "name, words",
+    [("../../../outside.f64", "climbs out with '..'"), ("/etc/hostname", "is an absolute path")],
+)
 def test_array_file_names_are_confined(tmp_path, name, words):
     folder, _ = _kit(tmp_path)
     m, e = _set_array_file(folder, name)
@@ -190,10 +205,11 @@ def test_the_engine_gets_the_input_whose_hashes_were_checked(tmp_path, capsys):
     # a decoy where the old code looked
     os.makedirs(os.path.join(folder, "cases", e["id"], "input"))
     engine = tmp_path / "engine.py"
-    engine.write_text("import sys, os\nos.makedirs(sys.argv[2], exist_ok=True)\n"
-                      "open(os.path.join(sys.argv[2], 'seen.txt'), 'w').write(sys.argv[1])\n")
-    main(["check", folder, "--command", f"{sys.executable} {engine} {{input}} {{output}}",
-          "--out", str(tmp_path / "out"), "--quiet", "--timeout", "20"])
+    engine.write_text(
+        "import sys, os\nos.makedirs(sys.argv[2], exist_ok=True)\n"
+        "open(os.path.join(sys.argv[2], 'seen.txt'), 'w').write(sys.argv[1])\n"
+    )
+    _check_with(engine, folder, str(tmp_path / "out"))
     run = os.path.join(str(tmp_path / "out"), os.listdir(tmp_path / "out")[0])
     seen = open(os.path.join(run, "outputs", e["id"], "seen.txt")).read()
     assert seen == os.path.abspath(os.path.join(folder, "moved"))
@@ -273,15 +289,18 @@ def _edit_case_json(folder, edit):
     return e["id"]
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda d: d["arrays"]["points"].update(shape=None), "shape must be a list"),
-    (lambda d: d["arrays"]["points"].update(shape=[[8, 3]]), "shape must be a list"),
-    (lambda d: d["arrays"]["points"].update(shape=[2**40, 2**40, 2**40]), "needs"),
-    (lambda d: d["arrays"]["points"].update(dtype=["<f8"]), "is not one of"),
-    (lambda d: d["model"].update(name=["NeoHookean"]), "case.json"),
-    (lambda d: d["model"].update(parameters={"mu": 10**400, "lam": 1}), "case.json"),
-    (lambda d: d["arrays"].update(points=None), "needs 'file', 'dtype' and 'shape'"),
-])
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda d: d["arrays"]["points"].update(shape=None), "shape must be a list"),
+        (lambda d: d["arrays"]["points"].update(shape=[[8, 3]]), "shape must be a list"),
+        (lambda d: d["arrays"]["points"].update(shape=[2**40, 2**40, 2**40]), "needs"),
+        (lambda d: d["arrays"]["points"].update(dtype=["<f8"]), "is not one of"),
+        (lambda d: d["model"].update(name=["NeoHookean"]), "case.json"),
+        (lambda d: d["model"].update(parameters={"mu": 10**400, "lam": 1}), "case.json"),
+        (lambda d: d["arrays"].update(points=None), "needs 'file', 'dtype' and 'shape'"),
+    ],
+)
 def test_malformed_case_fields_are_bad_input_of_that_case(tmp_path, edit, words):
     folder, _ = _kit(tmp_path, states=("uniaxial", "shear"))
     cid = _edit_case_json(folder, edit)
@@ -332,8 +351,9 @@ def test_a_malformed_manifest_is_exit_2_naming_it(tmp_path, capsys):
 
 # ---------------------------------------------------------------- user energy budget
 @needs_oracle
-def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(tmp_path, capsys,
-                                                                         monkeypatch):
+def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(
+    tmp_path, capsys, monkeypatch
+):
     import random
 
     from reference_fem import symbolic_budget
@@ -345,15 +365,30 @@ def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(tmp_pat
     random.shuffle(names)
     expression = "mu*(" + "*".join(names[:40]) + "-1)"
     engine = tmp_path / "engine.py"  # a well-formed output, so that the oracle is reached
-    engine.write_text("import json, os, sys\nimport numpy as np\n"
-                      "n = json.load(open(os.path.join(sys.argv[1], 'case.json')))['n_nodes']\n"
-                      "os.makedirs(sys.argv[2], exist_ok=True)\n"
-                      "np.zeros(3 * n).tofile(os.path.join(sys.argv[2], 'force.f64'))\n"
-                      "np.eye(3 * n).tofile(os.path.join(sys.argv[2], 'stiffness.f64'))\n")
+    engine.write_text(
+        "import json, os, sys\nimport numpy as np\n"
+        "n = json.load(open(os.path.join(sys.argv[1], 'case.json')))['n_nodes']\n"
+        "os.makedirs(sys.argv[2], exist_ok=True)\n"
+        "np.zeros(3 * n).tofile(os.path.join(sys.argv[2], 'force.f64'))\n"
+        "np.eye(3 * n).tofile(os.path.join(sys.argv[2], 'stiffness.f64'))\n"
+    )
     t0 = time.monotonic()
-    code = main(["check", "--command", f"{sys.executable} {engine} {{input}} {{output}}",
-                 "--energy", expression, "--param", "mu=1", "--states", "uniaxial",
-                 "--out", str(tmp_path / "out"), "--quiet"])
+    code = main(
+        [
+            "check",
+            "--command",
+            f"{sys.executable} {engine} {{input}} {{output}}",
+            "--energy",
+            expression,
+            "--param",
+            "mu=1",
+            "--states",
+            "uniaxial",
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+        ]
+    )
     assert code == 2
     assert time.monotonic() - t0 < 40
     (run,) = os.listdir(tmp_path / "out")
@@ -385,13 +420,27 @@ def test_two_concurrent_exports_into_one_folder_give_one_kit_and_one_clear_error
     import subprocess
 
     folder = str(tmp_path / "kit")
-    argv = [sys.executable, "-m", "comparisons.cli", "export", folder, "--material", "NeoHookean",
-            "--states", "rest,uniaxial,shear", "--no-probes"]
-    procs = [subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for _ in range(2)]
+    argv = [
+        sys.executable,
+        "-m",
+        "comparisons.cli",
+        "export",
+        folder,
+        "--material",
+        "NeoHookean",
+        "--states",
+        "rest,uniaxial,shear",
+        "--no-probes",
+    ]
+    procs = [
+        subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
     results = sorted((p.wait(timeout=120), p.stderr.read()) for p in procs)
     assert [code for code, _ in results] == [0, 2]
     assert "Traceback" not in results[1][1]
-    assert ("another export is writing into it" in results[1][1]
-            or "exists and is not an empty directory" in results[1][1])
+    assert (
+        "another export is writing into it" in results[1][1]
+        or "exists and is not an empty directory" in results[1][1]
+    )
     assert len(read_kit(folder).cases) == 3

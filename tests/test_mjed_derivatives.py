@@ -1,14 +1,15 @@
 """Derivative checks of the MJED engine that need no oracle: Taylor rates, central
-differences, rest state, symmetry, invariance and the patch test."""
+differences, rest state, symmetry, invariance and the patch test.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import box_mesh, perturbed, random_tetrahedron
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
-from conftest import box_mesh, perturbed, random_tetrahedron
 
 
 @pytest.fixture
@@ -82,7 +83,9 @@ def test_element_stiffness_assembles_to_global(jittered_field, rng):
     dofs = (3 * jittered_field.mesh.cells[:, :, None] + np.arange(3)).reshape(-1, 12)
     for d, k in zip(dofs, Ke):
         dense[np.ix_(d, d)] += k
-    assert np.allclose(jittered_field.stiffness(x).toarray(), dense, rtol=0, atol=1e-13 * np.abs(dense).max())
+    assert np.allclose(
+        jittered_field.stiffness(x).toarray(), dense, rtol=0, atol=1e-13 * np.abs(dense).max()
+    )
 
 
 def test_force_and_stiffness_match_separate_calls(jittered_field, rng):
@@ -100,7 +103,9 @@ def test_forces_balance_and_rotate(jittered_field, rng):
     assert np.abs(np.cross(x, f).sum(axis=0)).max() <= 1e-12 * scale  # rotation
     Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
     Q *= np.sign(np.linalg.det(Q))
-    assert np.allclose(jittered_field.force(x @ Q.T), f @ Q.T, rtol=0, atol=1e-12 * scale)  # objectivity
+    assert np.allclose(
+        jittered_field.force(x @ Q.T), f @ Q.T, rtol=0, atol=1e-12 * scale
+    )  # objectivity
 
 
 def test_patch_test_interior_forces_vanish(material, rng):

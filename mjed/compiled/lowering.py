@@ -28,15 +28,31 @@ import numpy as np
 
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import (IDENTITY, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial,
-                        TermGroup, Unity)
+from mjed.terms import (
+    IDENTITY,
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    LogPolynomial,
+    TermGroup,
+    Unity,
+)
 
 __all__ = ["J_KINDS", "G_KINDS", "SLOT_KINDS", "TermTable", "lower_groups"]
 
 #: Codes of the functions of J (the kernel branches on them).
 J_KINDS = {JPower: 0, LogPolynomial: 1, JLogJ: 2}
 #: Codes of the invariant functions.
-G_KINDS = {Unity: 0, I1Power: 1, LinearI2: 2, GreenLagrangeQuadratic: 3, FibreQuadratic: 4, EigenPowerSum: 5}
+G_KINDS = {
+    Unity: 0,
+    I1Power: 1,
+    LinearI2: 2,
+    GreenLagrangeQuadratic: 3,
+    FibreQuadratic: 4,
+    EigenPowerSum: 5,
+}
 #: Codes of the tangent pair kinds.
 SLOT_KINDS = {"first": 0, "second": 1, "spectral": 2}
 
@@ -105,15 +121,23 @@ def _glq(g: GreenLagrangeQuadratic):
 
 def _fibre(g: FibreQuadratic):
     # B (9 entries), then the signs of the split (one per tangent pair).
-    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(g.R, float)
+    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(
+        g.R, float
+    )
 
 
 def _eigen(g: EigenPowerSum):
     return [g.c, g.q, 0.0 if g.tangent_mode == "exact" else 1.0], None
 
 
-_G_PARAMS: Dict[type, Callable] = {Unity: _no_params, I1Power: _i1power, LinearI2: _lineari2,
-                                   GreenLagrangeQuadratic: _glq, FibreQuadratic: _fibre, EigenPowerSum: _eigen}
+_G_PARAMS: Dict[type, Callable] = {
+    Unity: _no_params,
+    I1Power: _i1power,
+    LinearI2: _lineari2,
+    GreenLagrangeQuadratic: _glq,
+    FibreQuadratic: _fibre,
+    EigenPowerSum: _eigen,
+}
 
 
 def _kind_of(obj, table: Dict[type, object], what: str):
@@ -121,8 +145,9 @@ def _kind_of(obj, table: Dict[type, object], what: str):
         if cls in table:
             return table[cls]
     raise NotImplementedError(
-        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; "
-        f"it supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material.")
+        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; it "
+        f"supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material."
+    )
 
 
 # ------------------------------------------------------------------ lowering
@@ -146,8 +171,10 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
             mats.append(R)
             pairs = term.g.tangent
             if len(pairs) > MAX_PAIRS:
-                raise NotImplementedError(f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
-                                          f"kernel takes at most {MAX_PAIRS}")
+                raise NotImplementedError(
+                    f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
+                    f"kernel takes at most {MAX_PAIRS}"
+                )
             row = [-1] * MAX_PAIRS
             for p, pair in enumerate(pairs):
                 key = _slot_key(pair)
@@ -176,10 +203,22 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
         if R is not None:
             gmat[t] = R
     slot_kind, slot_ident, slot_M = _slot_arrays(slot_list, m)
-    return TermTable(jkind, jpar, gkind, gpar, gmat, np.array(npair, dtype=np.int64),
-                     np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS), np.array(group_start, dtype=np.int64),
-                     np.array(group_exp, dtype=np.int64), np.array(group_coef, dtype=float),
-                     slot_kind, slot_ident, slot_M, bool(need_eig))
+    return TermTable(
+        jkind,
+        jpar,
+        gkind,
+        gpar,
+        gmat,
+        np.array(npair, dtype=np.int64),
+        np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS),
+        np.array(group_start, dtype=np.int64),
+        np.array(group_exp, dtype=np.int64),
+        np.array(group_coef, dtype=float),
+        slot_kind,
+        slot_ident,
+        slot_M,
+        bool(need_eig),
+    )
 
 
 def _slot_key(pair) -> Tuple[str, object]:

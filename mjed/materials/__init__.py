@@ -13,18 +13,18 @@ energies (zero at rest) are:
     Ogden               mu/alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2
 """
 
+from mjed.materials.anisotropic import Costa
+from mjed.materials.base import Material
 from mjed.materials.isotropic import (
+    ARRUDA_BOYCE_COEFFICIENTS,
     ArrudaBoyce,
     MooneyRivlin,
     NeoHookean,
+    Ogden,
     StVenantKirchhoff,
     VerondaWestmann,
-    Ogden,
-    ARRUDA_BOYCE_COEFFICIENTS,
 )
-from mjed.materials.anisotropic import Costa
 from mjed.materials.sofa import from_sofa
-from mjed.materials.base import Material
 
 __all__ = [
     "Material",

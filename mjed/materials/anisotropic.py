@@ -54,31 +54,45 @@ class Costa(Material):
     def __post_init__(self):
         require_finite(self, "a", "k0", *_B_NAMES)
         if self.a <= 0:
-            raise ValueError(f"Costa: parameter a must be > 0 (it scales the fibre energy a/2 (exp(J^(-4/3) Q) - 1); "
-                             f"a <= 0 leaves no resistance to isochoric deformation or reverses it), got {self.a!r}")
+            raise ValueError(
+                "Costa: parameter a must be > 0 (it scales the fibre energy a/2 (exp(J^(-4/3) Q) "
+                "- 1); a <= 0 leaves no resistance to isochoric deformation or reverses it), got "
+                f"{self.a!r}"
+            )
         if self.k0 <= 0:
-            raise ValueError(f"Costa: parameter k0 must be > 0 (the bulk modulus, the only resistance to volume "
-                             f"change), got {self.k0!r}")
+            raise ValueError(
+                "Costa: parameter k0 must be > 0 (the bulk modulus, the only resistance to volume "
+                f"change), got {self.k0!r}"
+            )
         for name in _B_NAMES:
             if getattr(self, name) < 0:
                 raise ValueError(
-                    f"Costa: parameter {name} must be >= 0, got {getattr(self, name)!r}: Q = sum B_ij Ef_ij^2 would "
-                    f"be negative for a strain along that component alone, bringing the energy below its rest value"
+                    f"Costa: parameter {name} must be >= 0, got {getattr(self, name)!r}: Q = sum "
+                    "B_ij Ef_ij^2 would be negative for a strain along that component alone, "
+                    "bringing the energy below its rest value"
                 )
         if all(getattr(self, name) == 0 for name in _B_NAMES):
-            raise ValueError("Costa: at least one of b_ff, b_fs, b_ss, b_fn, b_sn, b_nn must be > 0 "
-                             "(with all zero Q = 0: no resistance to isochoric deformation)")
+            raise ValueError(
+                "Costa: at least one of b_ff, b_fs, b_ss, b_fn, b_sn, b_nn must be > 0 (with all "
+                "zero Q = 0: no resistance to isochoric deformation)"
+            )
         if self.frame is not None:
             R = np.array(self.frame, dtype=float)
             if R.shape[-2:] != (3, 3) or R.ndim not in (2, 3):
-                raise ValueError(f"Costa: parameter frame must have shape (3, 3) or (m, 3, 3), got {R.shape}")
+                raise ValueError(
+                    f"Costa: parameter frame must have shape (3, 3) or (m, 3, 3), got {R.shape}"
+                )
             if not np.isfinite(R).all():
                 raise ValueError("Costa: parameter frame has non-finite entries")
-            err = np.abs(np.einsum("...ki,...kj->...ij", R, R) - np.eye(3)).reshape(-1, 9).max(axis=1)
+            err = (
+                np.abs(np.einsum("...ki,...kj->...ij", R, R) - np.eye(3)).reshape(-1, 9).max(axis=1)
+            )
             if (err > 1e-8).any():
                 k = int(np.argmax(err))
                 where = f" (cell {k})" if R.ndim == 3 else ""
-                raise ValueError(f"Costa: parameter frame is not orthonormal{where}: |R^T R - I| = {err[k]:.2e}")
+                raise ValueError(
+                    f"Costa: parameter frame is not orthonormal{where}: |R^T R - I| = {err[k]:.2e}"
+                )
             R.setflags(write=False)
             object.__setattr__(self, "frame", R)
         # Fail now, not at the first evaluation, if the split cannot be made.
@@ -89,7 +103,11 @@ class Costa(Material):
     @property
     def B(self) -> np.ndarray:
         return np.array(
-            [[self.b_ff, self.b_fs, self.b_fn], [self.b_fs, self.b_ss, self.b_sn], [self.b_fn, self.b_sn, self.b_nn]]
+            [
+                [self.b_ff, self.b_fs, self.b_fn],
+                [self.b_fs, self.b_ss, self.b_sn],
+                [self.b_fn, self.b_sn, self.b_nn],
+            ]
         )
 
     def decomposition(self):
@@ -98,6 +116,10 @@ class Costa(Material):
         R = np.eye(3) if self.frame is None else self.frame
         half_a = 0.5 * self.a
         return (
-            TermGroup((Term(JPower(-4.0 / 3.0), FibreQuadratic(self.B, R, self.split)),), exponential=True, coefficient=half_a),
+            TermGroup(
+                (Term(JPower(-4.0 / 3.0), FibreQuadratic(self.B, R, self.split)),),
+                exponential=True,
+                coefficient=half_a,
+            ),
             TermGroup((Term(JLogJ(self.k0, -half_a), Unity()),)),
         )

@@ -30,7 +30,9 @@ def require_finite(obj, *names: str) -> None:
     for n in names:
         v = getattr(obj, n)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ValueError(f"{type(obj).__name__}: parameter {n} must be a finite real number, got {v!r}")
+            raise ValueError(
+                f"{type(obj).__name__}: parameter {n} must be a finite real number, got {v!r}"
+            )
 
 
 def require_positive(obj, *names: str) -> None:
@@ -38,4 +40,6 @@ def require_positive(obj, *names: str) -> None:
     require_finite(obj, *names)
     for n in names:
         if getattr(obj, n) <= 0:
-            raise ValueError(f"{type(obj).__name__}: parameter {n} must be > 0, got {getattr(obj, n)!r}")
+            raise ValueError(
+                f"{type(obj).__name__}: parameter {n} must be > 0, got {getattr(obj, n)!r}"
+            )

@@ -10,10 +10,26 @@ import math
 from dataclasses import dataclass
 
 from mjed.materials.base import Material, require_finite, require_positive
-from mjed.terms import GreenLagrangeQuadratic, I1Power, JPower, LinearI2, LogPolynomial, Term, TermGroup, Unity
+from mjed.terms import (
+    GreenLagrangeQuadratic,
+    I1Power,
+    JPower,
+    LinearI2,
+    LogPolynomial,
+    Term,
+    TermGroup,
+    Unity,
+)
 
-__all__ = ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann", "ArrudaBoyce", "Ogden",
-           "ARRUDA_BOYCE_COEFFICIENTS"]
+__all__ = [
+    "StVenantKirchhoff",
+    "NeoHookean",
+    "MooneyRivlin",
+    "VerondaWestmann",
+    "ArrudaBoyce",
+    "Ogden",
+    "ARRUDA_BOYCE_COEFFICIENTS",
+]
 
 # Isochoric invariants: I1b = J^(-2/3) I1 and I2b = J^(-4/3) I2.
 _ISO1 = JPower(-2.0 / 3.0)
@@ -25,7 +41,8 @@ def _check_lame(obj, mu: float, lam: float) -> None:
     require_finite(obj, "lam")
     if 3.0 * lam + 2.0 * mu <= 0:
         raise ValueError(
-            f"{type(obj).__name__}: parameter lam must give a positive bulk modulus lam + 2 mu/3, got lam={lam!r}"
+            f"{type(obj).__name__}: parameter lam must give a positive bulk modulus lam + 2 mu/3, "
+            f"got lam={lam!r}"
         )
 
 
@@ -77,7 +94,10 @@ class MooneyRivlin(Material):
         require_finite(self, "c1", "c2")
         require_positive(self, "k0")
         if self.c1 + self.c2 <= 0:
-            raise ValueError(f"MooneyRivlin: parameters c1 + c2 must be > 0 (shear modulus 2 (c1 + c2)), got {self.c1 + self.c2!r}")
+            raise ValueError(
+                "MooneyRivlin: parameters c1 + c2 must be > 0 (shear modulus 2 (c1 + c2)), got "
+                f"{self.c1 + self.c2!r}"
+            )
 
     def decomposition(self):
         c1, c2 = self.c1, self.c2
@@ -109,7 +129,9 @@ class VerondaWestmann(Material):
     def decomposition(self):
         c1, c2 = self.c1, self.c2
         return (
-            TermGroup((Term(_ISO1, I1Power(c2)),), exponential=True, coefficient=c1 * math.exp(-3.0 * c2)),
+            TermGroup(
+                (Term(_ISO1, I1Power(c2)),), exponential=True, coefficient=c1 * math.exp(-3.0 * c2)
+            ),
             TermGroup(
                 (
                     Term(_ISO2, LinearI2(-0.5 * c1 * c2)),
@@ -138,7 +160,9 @@ class ArrudaBoyce(Material):
     def decomposition(self):
         mu, N = self.mu, self.N
         coeffs = [mu * c * N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
-        deviatoric = tuple(Term(JPower(-2.0 * i / 3.0), I1Power(a, i)) for i, a in enumerate(coeffs, start=1))
+        deviatoric = tuple(
+            Term(JPower(-2.0 * i / 3.0), I1Power(a, i)) for i, a in enumerate(coeffs, start=1)
+        )
         rest = sum(a * 3.0**i for i, a in enumerate(coeffs, start=1))
         volumetric = Term(LogPolynomial(0.5 * self.k0, 0.0, -rest), Unity())
         return (TermGroup(deviatoric + (volumetric,)),)
@@ -164,7 +188,9 @@ class Ogden(Material):
         if self.alpha == 0:
             raise ValueError("Ogden: parameter alpha must be non-zero")
         if self.tangent not in ("exact", "sofa"):
-            raise ValueError(f"Ogden: parameter tangent must be 'exact' or 'sofa', got {self.tangent!r}")
+            raise ValueError(
+                f"Ogden: parameter tangent must be 'exact' or 'sofa', got {self.tangent!r}"
+            )
 
     def decomposition(self):
         from mjed.spectral import EigenPowerSum

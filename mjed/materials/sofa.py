@@ -12,7 +12,14 @@ from typing import Callable, Dict, Sequence, Tuple, Union
 
 from mjed.materials.anisotropic import Costa
 from mjed.materials.base import Material
-from mjed.materials.isotropic import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.isotropic import (
+    ArrudaBoyce,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    StVenantKirchhoff,
+    VerondaWestmann,
+)
 
 __all__ = ["from_sofa", "SOFA_PARAMETER_ORDER"]
 
@@ -33,7 +40,9 @@ _OGDEN_MJED_ORDER = ("k0", "mu", "alpha")
 _SOFA_ALIASES = {"VerondaWestmann": "VerondaWestman"}
 
 
-def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order: str = "sofa") -> Material:
+def from_sofa(
+    name: str, parameter_set: Union[str, Sequence[float]], ogden_order: str = "sofa"
+) -> Material:
     """The material a SOFA scene declares.
 
     Args:
@@ -49,7 +58,9 @@ def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order
     """
     key = _SOFA_ALIASES.get(name, name)
     if key not in SOFA_PARAMETER_ORDER:
-        raise ValueError(f"unknown SOFA material {name!r}; supported: {', '.join(SOFA_PARAMETER_ORDER)}")
+        raise ValueError(
+            f"unknown SOFA material {name!r}; supported: {', '.join(SOFA_PARAMETER_ORDER)}"
+        )
     if ogden_order not in ("sofa", "mjed"):
         raise ValueError(f"ogden_order must be 'sofa' or 'mjed', got {ogden_order!r}")
     cls, order = SOFA_PARAMETER_ORDER[key]
@@ -59,8 +70,8 @@ def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order
     if len(values) != len(order):
         which = f" with ogden_order={ogden_order!r}" if cls is Ogden else ""
         raise ValueError(
-            f"SOFA {key}{which} expects {len(order)} parameters [{', '.join(order)}], "
-            f"got {len(values)}: {list(values)}"
+            f"SOFA {key}{which} expects {len(order)} parameters [{', '.join(order)}], got "
+            f"{len(values)}: {list(values)}"
         )
     return cls(**dict(zip(order, values)))
 
@@ -70,4 +81,6 @@ def _parse(parameter_set, name: str) -> Tuple[float, ...]:
     try:
         return tuple(float(v) for v in items)
     except (TypeError, ValueError):
-        raise ValueError(f"SOFA {name}: ParameterSet must hold numbers, got {parameter_set!r}") from None
+        raise ValueError(
+            f"SOFA {name}: ParameterSet must hold numbers, got {parameter_set!r}"
+        ) from None

@@ -1,0 +1,105 @@
+"""Fibre-frame mistakes as oracle variants: what the oracle gives with the frame an engine
+probably used instead of the one in the kit.
+
+A frame mistake cannot be undone on the engine's output the way a sign or a dof order can: the
+error lives inside the energy. So the hypothesis is tested the other way round: the oracle is
+evaluated with the mistaken frame, and the mistake is named when the engine agrees with that
+variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"):
+
+- ``frame-ignored``: the identity frame (fibre, sheet and normal taken as the global x, y, z, as
+  an engine that never reads frame.f64 does);
+- ``frame-transposed``: each cell's R^T for R (rows read as the fibre, sheet and normal, or the
+  global-to-material rotation used as material-to-global; also what a column-major reader
+  of the row-major file gets);
+- ``frame-global``: one frame for the whole mesh, the first cell's (the material axes held
+  fixed in space instead of following the field: an engine that reads frame.f64 as one
+  (3, 3) rotation).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, List, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from common.tolerances import mean_edge_length
+from conformance.compare import Scales, scales
+from conformance.spec import CaseInput
+
+__all__ = ["FrameVariant", "frame_models", "frame_variants"]
+
+
+@dataclass(frozen=True)
+class FrameVariant:
+    """The oracle with a mistaken frame, at the case's positions.
+
+    code, title: the mistake; force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]: the variant
+    oracle's values; scales: its error denominators (:func:`conformance.compare.scales`).
+    """
+
+    code: str
+    title: str
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+    scales: Scales
+
+
+def _frame_of(model: Any) -> "np.ndarray | None":
+    """The model's frame (3, 3) or (m, 3, 3), or None (no frame, or a model without one)."""
+    frame = getattr(model, "frame", None)
+    return None if frame is None else np.asarray(frame, dtype=np.float64)
+
+
+def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
+    """(code, title, model with the mistaken frame) for each frame mistake that differs from the
+    model's own frame; empty for a model without a frame or with the identity.
+    """
+    R = _frame_of(model)
+    if R is None:
+        return []
+    eye = np.eye(3)
+    candidates = [
+        ("frame-ignored", "fibre frame ignored: global x, y, z used as fibre, sheet, normal", eye),
+        (
+            "frame-transposed",
+            "fibre frame transposed: R^T used for R (rows read as fibre, sheet, normal)",
+            np.ascontiguousarray(np.swapaxes(R, -1, -2)),
+        ),
+        (
+            "frame-global",
+            "one frame for the whole mesh (the first cell's), not each cell's frame",
+            R[0] if R.ndim == 3 else R,
+        ),
+    ]
+    out = []
+    for code, title, variant in candidates:
+        if np.array_equal(np.broadcast_to(variant, R.shape), R):
+            continue  # the same frame as the model's: no mistake to tell apart
+        out.append((code, title, dataclasses.replace(model, frame=variant)))
+    return out
+
+
+def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
+    """The oracle at ``case.positions`` for each frame mistake of the case's model.
+
+    cache: a :class:`conformance.oracle.OracleCache` (one oracle per variant frame, reused
+    across the states and probes of the same mesh). Raises what the oracle raises.
+    """
+    h = mean_edge_length(case.points, case.cells)
+    out = []
+    for code, title, model in frame_models(case.model):
+        variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
+        ref = cache.reference(variant)
+        out.append(
+            FrameVariant(
+                code,
+                title,
+                ref.force,
+                ref.stiffness,
+                scales(h, ref.energy, ref.force, ref.stiffness),
+            )
+        )
+    return out
