@@ -302,6 +302,18 @@ def read_kit(folder: str) -> KitManifest:
     return KitManifest(folder, tuple(cases), entries, errors)
 
 
+class _Recording(dict):
+    """The digests of a case, noting which files the reader looked up (and so hashed as read)."""
+
+    def __init__(self, digests: Mapping[str, str]) -> None:
+        super().__init__(digests)
+        self.looked_up: set = set()
+
+    def __getitem__(self, name: str) -> str:
+        self.looked_up.add(name)
+        return super().__getitem__(name)
+
+
 def _read_entry(folder: str, e: Mapping[str, Any], manifest_path: str) -> KitCase:
     cid = e["id"]
     where = f"case {cid}: {manifest_path}"
@@ -327,17 +339,17 @@ def _read_entry(folder: str, e: Mapping[str, Any], manifest_path: str) -> KitCas
         or not all(isinstance(k, str) and isinstance(v, str) for k, v in digests.items())
     ):
         raise FormatError(f"{where}: 'input_sha256' must map each input file to its SHA-256")
-    for name, digest in digests.items():
-        # every listed file is verified (case.txt too, which the check does not parse); the
-        # arrays are hashed again on the very bytes read_case_input reads
-        if name != "case.json":
-            try:
-                read_confined(
-                    in_dir, name, f"case {cid}", limit=MAX_INPUT_ARRAY_BYTES, sha256=digest
-                )
-            except ConfinementError as exc:
-                raise FormatError(str(exc)) from None
-    case = read_case_input(in_dir, cid, digests=digests)
+    used = _Recording(digests)
+    case = read_case_input(in_dir, cid, digests=used)
+    for name in sorted(set(digests) - used.looked_up):
+        # listed but not parsed (case.txt): still verified, confined and bounded, so that a
+        # changed kit is refused whole
+        try:
+            read_confined(
+                in_dir, name, f"case {cid}", limit=MAX_INPUT_ARRAY_BYTES, sha256=digests[name]
+            )
+        except ConfinementError as exc:
+            raise FormatError(str(exc)) from None
     if case.case_id != cid:
         raise FormatError(
             f"case {cid}: {os.path.join(in_dir, 'case.json')}: names case {case.case_id!r}"

@@ -22,6 +22,8 @@ import subprocess
 import sys
 from typing import Any, Optional, Set
 
+import numpy as np
+
 __all__ = ["SymbolicBudgetError", "SYMBOLIC_SECONDS", "SYMBOLIC_BYTES", "check_symbolic_budget"]
 
 SYMBOLIC_SECONDS = 60.0  # the built-in energies compile in 3 to 10 s on the 2-core machine
@@ -35,11 +37,20 @@ class SymbolicBudgetError(ValueError):
 
 
 def _key(energy: Any) -> str:
+    """The energy as JSON for the child. A frame is reduced to what shapes the forms (one
+    global frame, or one per cell: the child's single cell gets the first), since FFCx's cache
+    key is the form, not the mesh or the values.
+    """
+    frame = getattr(energy, "frame", None)
+    if frame is not None:
+        frame = np.asarray(frame, dtype=float)
+        frame = frame.tolist() if frame.ndim == 2 else frame[:1].tolist()
     return json.dumps(
         {
             "expression": energy.expression,
             "params": dict(energy.params),
             "fibre": None if energy.fibre is None else list(energy.fibre),
+            "frame": frame,
             "name": energy.name,
         },
         sort_keys=True,
@@ -104,16 +115,19 @@ def check_symbolic_budget(
 def _child() -> int:
     import logging
 
-    import numpy as np
-
     from reference_fem import UFLOracle
     from reference_fem.user_energy import UserEnergy
 
     logging.disable(logging.INFO)
     data = json.loads(sys.stdin.read())
     fibre = None if data["fibre"] is None else tuple(data["fibre"])
+    frame = None if data["frame"] is None else np.array(data["frame"])
     energy = UserEnergy(
-        expression=data["expression"], params=data["params"], fibre=fibre, name=data["name"]
+        expression=data["expression"],
+        params=data["params"],
+        fibre=fibre,
+        frame=frame,
+        name=data["name"],
     )
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     UFLOracle(points, np.array([[0, 1, 2, 3]]), energy)

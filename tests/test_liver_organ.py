@@ -152,6 +152,7 @@ def test_nodes_files_use_the_mesh_files_numbering_and_index_files_positions(orga
         (bytes(range(256)) * 4, "not a text file; expected node numbers as text"),
         (b"12345678901234567890\n", "node number 12345678901234567890 is too large"),
     ],
+    ids=["binary", "20-digit id"],
 )
 def test_a_binary_or_absurd_node_file_is_a_clear_error(organ_files, tmp_path, content, words):
     from common.options import InputError
