@@ -72,6 +72,24 @@ def test_the_permutation_distance_sees_permutations_and_small_rotations():
     assert 0.0 < permutation_distance(near)[0] < 0.2
 
 
+def test_the_field_turns_across_the_axis_it_is_given_and_refuses_a_bad_one(cube):
+    from common.frames import HelixField
+
+    points, cells = cube
+    R = helix_frames(points, cells, HelixField(axis=1))
+    depth = points[cells].mean(axis=1)[:, 1]
+    f = R[:, :, 0]  # the wall plane is now (z, x): the fibre's angle follows the depth along y
+    angle = np.degrees(np.arctan2(f[:, 0], f[:, 2]))
+    assert np.corrcoef(depth, angle)[0, 1] > 0.99 and np.ptp(angle) > 100.0
+    flat = points.copy()
+    flat[:, 0] = 0.0  # no extent along the transmural axis: every cell at mid-wall
+    np.testing.assert_allclose(helix_frames(flat, cells[:3]), np.stack([mid_wall_frame()] * 3))
+    with pytest.raises(ValueError, match="axis must be 0, 1 or 2"):
+        HelixField(axis=3)
+    with pytest.raises(ValueError, match="two finite angles"):
+        HelixField(helix=(0.0, float("nan")))
+
+
 def test_only_a_frameless_costa_gets_the_default_field(cube):
     points, cells = cube
     given = with_default_frame(COSTA, points, cells)
