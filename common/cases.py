@@ -29,7 +29,9 @@ def material_names() -> Tuple[str, ...]:
 def default_material(name: str) -> Material:
     key = _ALIASES.get(name.lower().replace("-", "").replace("_", ""))
     if key is None:
-        raise ValueError(f"unknown material {name!r}; known materials: {', '.join(DEFAULT_MATERIALS)} (or 'all')")
+        raise ValueError(
+            f"unknown material {name!r}; known materials: {', '.join(DEFAULT_MATERIALS)} (or 'all')"
+        )
     return DEFAULT_MATERIALS[key]
 
 

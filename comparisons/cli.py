@@ -26,8 +26,11 @@ __all__ = ["main", "build_parser", "command_modules"]
 
 def command_modules() -> Dict[str, ModuleType]:
     """The subcommand modules, by name, in help order."""
-    mods = [importlib.import_module(f"{commands.__name__}.{info.name}")
-            for info in pkgutil.iter_modules(commands.__path__) if not info.name.startswith("_")]
+    mods = [
+        importlib.import_module(f"{commands.__name__}.{info.name}")
+        for info in pkgutil.iter_modules(commands.__path__)
+        if not info.name.startswith("_")
+    ]
     mods = [m for m in mods if hasattr(m, "NAME") and hasattr(m, "run")]
     return {m.NAME: m for m in sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.NAME))}
 
@@ -35,13 +38,19 @@ def command_modules() -> Dict[str, ModuleType]:
 def build_parser(modules: Optional[Dict[str, ModuleType]] = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mjed-verify",
-        description="Verify a NumPy MJED implementation force by force and stiffness by stiffness against a UFL Galerkin oracle.",
+        description="Verify a NumPy MJED implementation force by force and stiffness by stiffness "
+        "against a UFL Galerkin oracle.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, mod in (command_modules() if modules is None else modules).items():
         epilog = "\n".join(t for t in (getattr(mod, "EXAMPLES", ""), EXIT_POLICY) if t)
-        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP, epilog=epilog,
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        p = sub.add_parser(
+            name,
+            help=mod.HELP,
+            description=mod.HELP,
+            epilog=epilog,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
         mod.configure(p)
     return parser
 
@@ -58,6 +67,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
+    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM where a command turns it into one
+        print(f"mjed-verify {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -26,9 +26,11 @@ from mjed.terms import TangentPair, Term, TermGroup
 
 __all__ = ["slot_key", "add_stress", "GroupSums", "Aggregates", "fold_groups"]
 
+
 def slot_key(pair: TangentPair) -> Tuple[str, Hashable]:
     """The key shared by all tangent pairs with the same kind and the same constant matrix
-    (per-cell matrices are keyed by identity)."""
+    (per-cell matrices are keyed by identity).
+    """
     if pair.kind == "spectral":
         return pair.kind, None
     m = pair.matrix
@@ -38,17 +40,18 @@ def slot_key(pair: TangentPair) -> Tuple[str, Hashable]:
 
 
 def add_optional(acc, value):
-    """acc + value where None stands for zero (so absent terms cost nothing)."""
+    """Acc + value where None stands for zero (so absent terms cost nothing)."""
     if value is None:
         return acc
     return value if acc is None else acc + value
 
 
 def add_stress(acc, value):
-    """acc + value for stresses, None standing for zero: each is component-major (3, 3, m) or
+    """Acc + value for stresses, None standing for zero: each is component-major (3, 3, m) or
     a constant (3, 3) matrix. A constant added to a per-cell stress is broadcast over the
     cells (NumPy alone would align (3, 3) with the trailing (3, m) axes: an error, or for
-    m = 3 a silently wrong sum)."""
+    m = 3 a silently wrong sum).
+    """
     if value is None:
         return acc
     if acc is None:
@@ -61,9 +64,10 @@ def add_stress(acc, value):
 
 
 def scale(s, A):
-    """s * A for a stress: s per cell, (m,) or scalar, and A component-major (3, 3, m), a
+    """S * A for a stress: s per cell, (m,) or scalar, and A component-major (3, 3, m), a
     constant (3, 3) matrix or a scalar. A scale of exactly 1.0 returns A itself (no copy:
-    the product would be A)."""
+    the product would be A).
+    """
     if np.ndim(s) == 0:
         return A if (s == 1.0 and np.ndim(A) > 0) else s * A
     if np.ndim(A) == 2:  # a constant matrix, the same in every cell
@@ -72,8 +76,9 @@ def scale(s, A):
 
 
 def scale_weight(s, w):
-    """s * w for a tangent weight: s per cell, (m,) or scalar, and w (m,), a float or, for a
-    spectral pair, (m, 3, 3) cell-major."""
+    """S * w for a tangent weight: s per cell, (m,) or scalar, and w (m,), a float or, for a
+    spectral pair, (m, 3, 3) cell-major.
+    """
     if np.ndim(s) == 0 or np.ndim(w) <= 1:
         return s * w
     return np.reshape(s, np.shape(s) + (1,) * (np.ndim(w) - 1)) * w
@@ -85,7 +90,8 @@ def scale_optional(s, A):
 
 class GroupSums:
     """Running sums of one group's terms: u, S-bar, h and, for the stiffness only (``tangent``),
-    S-hat, g2 and the tangent weights."""
+    S-hat, g2 and the tangent weights.
+    """
 
     def __init__(self, m: int, tangent: bool = True, value: bool = True):
         self.m = m
@@ -144,9 +150,14 @@ class Aggregates:
     rank_one: Tuple[Tuple[np.ndarray, np.ndarray], ...] = ()
 
 
-def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
-                du_of: Optional[Callable[[object, object, int], np.ndarray]] = None, *,
-                energy: bool = True) -> Aggregates:
+def fold_groups(
+    groups: Sequence[TermGroup],
+    kin: Kinematics,
+    J: np.ndarray,
+    du_of: Optional[Callable[[object, object, int], np.ndarray]] = None,
+    *,
+    energy: bool = True,
+) -> Aggregates:
     """Fold every group's sums into one :class:`Aggregates` record.
 
     Args:

@@ -45,7 +45,10 @@ def inversion_blockers(material: Material) -> List[Tuple[str, str]]:
     blockers = []
     for f in _j_functions(material):
         with np.errstate(all="ignore"):
-            values = [np.broadcast_to(np.asarray(v, dtype=float), SAMPLE_J.shape) for v in f(SAMPLE_J.copy())]
+            values = [
+                np.broadcast_to(np.asarray(v, dtype=float), SAMPLE_J.shape)
+                for v in f(SAMPLE_J.copy())
+            ]
         finite = np.logical_and.reduce([np.isfinite(v) for v in values])
         if not finite.all():
             blockers.append((repr(f), f"J = {SAMPLE_J[np.flatnonzero(~finite)[0]]:g}"))
@@ -60,5 +63,6 @@ def inversion_blockers(material: Material) -> List[Tuple[str, str]]:
 
 def finite_when_inverted(material: Material) -> bool:
     """True when every term of the material's energy (and its first two J derivatives) is
-    finite for J <= 0, so that inverted cells can be evaluated (with the regularisation)."""
+    finite for J <= 0, so that inverted cells can be evaluated (with the regularisation).
+    """
     return not inversion_blockers(material)

@@ -136,7 +136,8 @@ class InvariantFunction(ABC):
 
     def stress(self, kin: Kinematics) -> Union[np.ndarray, None]:
         """S = 2 dg/dC, (m, 3, 3), or a (3, 3) constant when it is the same in every cell;
-        None when g does not depend on C."""
+        None when g does not depend on C.
+        """
         if type(self).stress_t is InvariantFunction.stress_t:
             return None  # neither form overridden: g does not depend on C
         S = self.stress_t(kin)
@@ -155,7 +156,7 @@ class InvariantFunction(ABC):
         return S if S is None or S.ndim == 2 else np.ascontiguousarray(np.moveaxis(S, 0, -1))
 
     def tangent_coefficients(self, kin: Kinematics) -> Sequence[Scalar]:
-        """beta or gamma for each entry of ``tangent``, each (m,) or a float."""
+        """Beta or gamma for each entry of ``tangent``, each (m,) or a float."""
         return ()
 
 
@@ -173,7 +174,7 @@ class Unity(InvariantFunction):
 
 
 def _scaled_identity_t(s, m: int) -> np.ndarray:
-    """s Id per cell, component-major (3, 3, m); s (m,) or a float."""
+    """S Id per cell, component-major (3, 3, m); s (m,) or a float."""
     out = np.zeros((3, 3, m))
     for i in range(3):
         out[i, i] = s
@@ -227,7 +228,9 @@ class LinearI2(InvariantFunction):
 
 @dataclass(frozen=True)
 class GreenLagrangeQuadratic(InvariantFunction):
-    """g = lam/2 (tr E)^2 + mu tr(E^2): S = lam tr(E) Id + 2 mu E; dS/dC : H = lam/2 tr(H) Id + mu H."""
+    """g = lam/2 (tr E)^2 + mu tr(E^2): S = lam tr(E) Id + 2 mu E; dS/dC : H = lam/2 tr(H) Id +
+    mu H.
+    """
 
     mu: float
     lam: float
@@ -306,7 +309,8 @@ class Power(SmoothFunction):
 @dataclass(frozen=True)
 class TermGroup:
     """Terms whose products are summed into u; the group contributes c u (plain) or
-    c phi(u) with ``function`` phi. ``exponential=True`` is the same as function=Exp()."""
+    c phi(u) with ``function`` phi. ``exponential=True`` is the same as function=Exp().
+    """
 
     terms: Tuple[Term, ...]
     exponential: bool = False

@@ -64,12 +64,12 @@ def from_voigt(a: np.ndarray) -> np.ndarray:
 
 
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (x) b of two Voigt vectors, (..., 6, 6)."""
+    """A (x) b of two Voigt vectors, (..., 6, 6)."""
     return a[..., :, None] * b[..., None, :]
 
 
 def _sym_outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (x) b + b (x) a."""
+    """A (x) b + b (x) a."""
     o = _outer(a, b)
     return o + np.swapaxes(o, -1, -2)
 
@@ -150,7 +150,8 @@ class StVenantKirchhoffLaw(ClassicalLaw):
 
 class NeoHookeanLaw(ClassicalLaw):
     """Compressible neo-Hookean (Bonet & Wood 6.4.3):
-    S = mu (I - C^-1) + lam ln J C^-1, CC = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1."""
+    S = mu (I - C^-1) + lam ln J C^-1, CC = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1.
+    """
 
     def __init__(self, mu, lam):
         self.mu, self.lam = float(mu), float(lam)
@@ -169,7 +170,9 @@ class NeoHookeanLaw(ClassicalLaw):
         if not tangent:
             return S, None
         ci = voigt(Ci)
-        CC = self.lam * _outer(ci, ci) + (2.0 * (self.mu - self.lam * lnJ))[:, None, None] * _odot(Ci)
+        CC = self.lam * _outer(ci, ci) + (2.0 * (self.mu - self.lam * lnJ))[:, None, None] * _odot(
+            Ci
+        )
         return S, CC
 
 
@@ -180,12 +183,16 @@ def _log_volumetric(k0, J):
 
 
 def _volumetric(J, Ci, ci, dU, ddU, tangent):
-    """S_vol = J p C^-1, CC_vol = J (p + J p') C^-1 (x) C^-1 - 2 J p C^-1 (.) C^-1 (Holzapfel 6.166)."""
+    """S_vol = J p C^-1, CC_vol = J (p + J p') C^-1 (x) C^-1 - 2 J p C^-1 (.) C^-1 (Holzapfel
+    6.166).
+    """
     p = dU
     S = (J * p)[:, None, None] * Ci
     if not tangent:
         return S, None
-    CC = (J * (p + J * ddU))[:, None, None] * _outer(ci, ci) - (2.0 * J * p)[:, None, None] * _odot(Ci)
+    CC = (J * (p + J * ddU))[:, None, None] * _outer(ci, ci) - (2.0 * J * p)[:, None, None] * _odot(
+        Ci
+    )
     return S, CC
 
 
@@ -241,20 +248,29 @@ class DecoupledInvariantLaw(ClassicalLaw):
         j43 = (j23 * j23)[:, None, None]
         a = (4.0 * (p11 + 2.0 * I1b * p12 + p2 + I1b**2 * p22))[:, None, None]
         b = (-4.0 * (p12 + I1b * p22))[:, None, None]
-        CCb = j43 * (a * _IXI + b * _sym_outer(np.broadcast_to(_I_V, cbv.shape), cbv)
-                     + (4.0 * p22)[:, None, None] * _outer(cbv, cbv) - (4.0 * p2)[:, None, None] * _II)
+        CCb = j43 * (
+            a * _IXI
+            + b * _sym_outer(np.broadcast_to(_I_V, cbv.shape), cbv)
+            + (4.0 * p22)[:, None, None] * _outer(cbv, cbv)
+            - (4.0 * p2)[:, None, None] * _II
+        )
         # P : CCb : P^T with the Voigt contraction weights; P = II - 1/3 C^-1 (x) C.
-        Pw = np.broadcast_to(np.eye(6), CCb.shape) - _outer(ci, cv * WEIGHT) / 3.0  # P_v diag(WEIGHT)
+        Pw = (
+            np.broadcast_to(np.eye(6), CCb.shape) - _outer(ci, cv * WEIGHT) / 3.0
+        )  # P_v diag(WEIGHT)
         CC_iso = Pw @ CCb @ np.swapaxes(Pw, -1, -2)
         odot = _odot(Ci)
         cixci = _outer(ci, ci)
-        CC_iso += (2.0 / 3.0 * tr)[:, None, None] * (odot - cixci / 3.0) - (2.0 / 3.0) * _sym_outer(ci, S_iso)
+        CC_iso += (2.0 / 3.0 * tr)[:, None, None] * (odot - cixci / 3.0) - (2.0 / 3.0) * _sym_outer(
+            ci, S_iso
+        )
         return S, CC_iso + CC_vol
 
 
 class DeclaredDecoupledLaw(DecoupledInvariantLaw):
     """The decoupled law of a :class:`mjed.materials.classical_forms.Decoupled` form: Psi and
-    its derivatives are the form's function, evaluated with NumPy."""
+    its derivatives are the form's function, evaluated with NumPy.
+    """
 
     def __init__(self, form: forms.Decoupled):
         self.form = form
@@ -276,7 +292,8 @@ class _Named:
 
 def _power_divided_difference(a, b, p):
     """(a^p - b^p) / (a - b) for a, b > 0, continuous (= p b^(p-1)) at a = b and free of
-    cancellation near it: b^(p-1) expm1(p t) / expm1(t) with t = ln(a/b)."""
+    cancellation near it: b^(p-1) expm1(p t) / expm1(t) with t = ln(a/b).
+    """
     t = np.log(a / b)
     same = t == 0.0
     ts = np.where(same, 1.0, t)
@@ -343,9 +360,17 @@ class OgdenLaw(ClassicalLaw):
         CC = M @ (4.0 * H) @ np.swapaxes(M, 1, 2)
 
         i, j = np.array(_PAIRS).T
-        G = N[:, VI][:, :, i] * N[:, VJ][:, :, j] + N[:, VI][:, :, j] * N[:, VJ][:, :, i]  # (m, 6, 3)
-        theta = 2.0 * cP * (q * _power_divided_difference(lam[:, i], lam[:, j], q - 1.0)
-                            - r * sigma[:, None] * inv[:, i] * inv[:, j])
+        G = (
+            N[:, VI][:, :, i] * N[:, VJ][:, :, j] + N[:, VI][:, :, j] * N[:, VJ][:, :, i]
+        )  # (m, 6, 3)
+        theta = (
+            2.0
+            * cP
+            * (
+                q * _power_divided_difference(lam[:, i], lam[:, j], q - 1.0)
+                - r * sigma[:, None] * inv[:, i] * inv[:, j]
+            )
+        )
         CC += (G * theta[:, None, :]) @ np.swapaxes(G, 1, 2)
         return S, CC + CC_vol
 
@@ -400,8 +425,13 @@ class CostaLaw(ClassicalLaw):
         pQJ = -4.0 / 3.0 * e * j43 / J * (1.0 + j43 * Q)
         pJJ = e * (16.0 / 9.0 * Q * Q * j43 * j43 + 28.0 / 9.0 * Q * j43) / (J * J) + self.k0 / J
         s = lambda v: v[:, None, None]  # noqa: E731
-        CC = (s(pQQ) * _outer(q, q) + s(J * pQJ) * _sym_outer(q, ci) + s(pQ) * self.T
-              + s(J * (J * pJJ + pJ)) * _outer(ci, ci) - s(2.0 * J * pJ) * _odot(Ci))
+        CC = (
+            s(pQQ) * _outer(q, q)
+            + s(J * pQJ) * _sym_outer(q, ci)
+            + s(pQ) * self.T
+            + s(J * (J * pJJ + pJ)) * _outer(ci, ci)
+            - s(2.0 * J * pJ) * _odot(Ci)
+        )
         return S, CC
 
 
@@ -416,17 +446,21 @@ def classical_law(material) -> ClassicalLaw:
         declaration = declaration_of(type(material))
     except LookupError:
         cls = type(material)
-        raise TypeError(f"no classical law for material type {cls.__module__}.{cls.__qualname__}: "
-                        "it is not declared (mjed.materials.declaration.declare, with its "
-                        "classical form)") from None
+        raise TypeError(
+            f"no classical law for material type {cls.__module__}.{cls.__qualname__}: "
+            "it is not declared (mjed.materials.declaration.declare, with its "
+            "classical form)"
+        ) from None
     return law_of_form(declaration.classical(material))
 
 
 @functools.singledispatch
 def law_of_form(form) -> ClassicalLaw:
     """The classical law of a form of :mod:`mjed.materials.classical_forms`, by its type."""
-    raise TypeError(f"the classical element has no law for the form {type(form).__qualname__}; "
-                    "register one with reference_fem.classical_materials.law_of_form.register")
+    raise TypeError(
+        f"the classical element has no law for the form {type(form).__qualname__}; "
+        "register one with reference_fem.classical_materials.law_of_form.register"
+    )
 
 
 @law_of_form.register

@@ -65,8 +65,12 @@ class Parameters:
             drop a bulk term); the material itself is never changed.
     """
 
-    def __init__(self, material: Any, constant: Optional[Callable[[Any], Any]] = None,
-                 overrides: Optional[Mapping[str, float]] = None):
+    def __init__(
+        self,
+        material: Any,
+        constant: Optional[Callable[[Any], Any]] = None,
+        overrides: Optional[Mapping[str, float]] = None,
+    ):
         self.material = material
         self.constant = constant
         self.overrides = dict(overrides or {})
@@ -83,7 +87,9 @@ class Parameters:
         try:
             v = float(got)
         except (TypeError, ValueError):
-            raise ValueError(f"{label}: parameter {name} must be a real number, got {got!r}") from None
+            raise ValueError(
+                f"{label}: parameter {name} must be a real number, got {got!r}"
+            ) from None
         if not math.isfinite(v):
             raise ValueError(f"{label}: parameter {name} must be finite, got {v!r}")
         return v
@@ -116,10 +122,13 @@ class EnergyFormula:
 _REGISTRY: Dict[type, EnergyFormula] = {}
 
 
-def register_energy(material_type: type, *, takes_frame: bool = False) -> Callable[[EnergyFunction], EnergyFunction]:
+def register_energy(
+    material_type: type, *, takes_frame: bool = False
+) -> Callable[[EnergyFunction], EnergyFunction]:
     """Decorator: declare ``function`` as the UFL energy of ``material_type`` (and of its
     subclasses that have no energy of their own). Registering a type twice is an error, so
-    two modules cannot silently disagree on one material."""
+    two modules cannot silently disagree on one material.
+    """
     if not isinstance(material_type, type):
         raise TypeError(f"register_energy needs a type, got {material_type!r}")
 
@@ -179,14 +188,18 @@ def strain_energy_density(
     """
     formula = energy_formula(type(material))
     if frame is not None and not formula.takes_frame:
-        raise ValueError(f"frame= is only meaningful for materials with a fibre frame, not {type(material).__qualname__}")
+        raise ValueError(
+            "frame= is only meaningful for materials with a fibre frame, not "
+            f"{type(material).__qualname__}"
+        )
     return formula.function(Parameters(material, constant, overrides), F, frame)
 
 
 class UFLNamespace:
     """The formula namespace of :mod:`mjed.materials.declaration` bound to UFL: the
     quantities every formula is written in (docs/conventions.md, "Kinematics") and the
-    functions it may call."""
+    functions it may call.
+    """
 
     exp = staticmethod(ufl.exp)
     ln = staticmethod(ufl.ln)
@@ -207,7 +220,8 @@ class UFLNamespace:
 
 def _frame(p: Parameters, frame) -> ufl.core.expr.Expr:
     """The fibre/sheet/normal frame R (columns): the explicit UFL ``frame``, else the
-    material's constant (3, 3) ``frame``, else the identity."""
+    material's constant (3, 3) ``frame``, else the identity.
+    """
     if frame is not None:
         return frame
     R = getattr(p.material, "frame", None)
@@ -242,7 +256,8 @@ def _register_declared() -> None:
 _register_declared()
 
 
-@register_energy(UserEnergy)
+@register_energy(UserEnergy, takes_frame=True)
 def _user_energy(p: Parameters, F, frame) -> ufl.core.expr.Expr:
-    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py).
-    return p.material.ufl_density(F, constant=p.constant)
+    # The user's expression, translated into UFL by its own parser (reference_fem/user_energy.py);
+    # a per-cell frame (its first column is the fibre of I4 and I5) comes from the oracle.
+    return p.material.ufl_density(F, constant=p.constant, frame=frame)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 import mjed.materials as M
 from common.cases import DEFAULT_MATERIALS
@@ -12,7 +13,6 @@ from comparisons.closed_form import (
     uniaxial_cauchy,
     uniaxial_reaction_check,
 )
-from conftest import box_mesh
 
 STIFF_BULK = 1e8  # k0 / mu: the compressible forms approach the incompressible golden values
 
@@ -69,8 +69,10 @@ def test_closed_forms_dispatch_on_the_material_type():
         pass
 
     assert has_closed_form(Softer(mu=2.0, lam=5.0))
-    assert np.array_equal(principal_cauchy(Softer(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
-                          principal_cauchy(M.NeoHookean(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)))
+    assert np.array_equal(
+        principal_cauchy(Softer(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
+        principal_cauchy(M.NeoHookean(mu=2.0, lam=5.0), (1.1, 1.0, 0.9)),
+    )
 
     class Unknown:  # not a material of this module: the error names its type
         pass

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, random_tetrahedron
 
 import mjed
-from conftest import MATERIALS, random_tetrahedron
 from mjed.materials import declarations
 from mjed.materials.declaration import Declaration, declaration_of, declare, docs_table
 
@@ -59,7 +59,8 @@ def test_exchange_format_round_trip(declared):
 
 def test_classical_element_agrees_with_the_engine_on_energy_and_stress(declared):
     """Its classical law exists, and at a strained state its W and S = 2 dW/dC are MJED's:
-    the two come from different declarations (law form and terms), so this is a check."""
+    the two come from different declarations (law form and terms), so this is a check.
+    """
     from reference_fem.classical_materials import classical_law
 
     material = MATERIALS[declared.name]
@@ -77,7 +78,8 @@ def test_classical_element_agrees_with_the_engine_on_energy_and_stress(declared)
 
 def test_compiled_kernels_have_a_shape(declared):
     """Both compiled kernels can be written for it (lowering only; compiling and running
-    them against the oracle is tests/test_compiled_oracle.py's job, on the same list)."""
+    them against the oracle is tests/test_compiled_oracle.py's job, on the same list).
+    """
     from mjed.compiled.lowering import lower_groups
     from mjed.compiled.shape import kernel_shape
     from reference_fem.classical_codegen import classical_source
@@ -189,7 +191,8 @@ def test_a_declaration_is_refused_twice_and_an_undeclared_type_everywhere():
 
 class _NumPyNamespace:
     """The formula namespace bound to NumPy for one homogeneous F: np.matrix gives the UFL
-    meaning of ``*`` (matrix product), ``.T`` and ``[i, j]``."""
+    meaning of ``*`` (matrix product), ``.T`` and ``[i, j]``.
+    """
 
     exp, ln = staticmethod(np.exp), staticmethod(np.log)
 
@@ -225,7 +228,8 @@ class _Values:
 @pytest.mark.filterwarnings("ignore:the matrix subclass:PendingDeprecationWarning")
 def test_the_oracles_formula_and_the_engines_terms_give_one_energy(declared):
     """Without dolfinx: the declared formula, evaluated with NumPy, is zero at rest and equals
-    the energy of the MJED terms at a strained state (two independent writings of one W)."""
+    the energy of the MJED terms at a strained state (two independent writings of one W).
+    """
     material = MATERIALS[declared.name]
     P, cells = random_tetrahedron(np.random.default_rng(3))
     field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), material)
@@ -237,4 +241,6 @@ def test_the_oracles_formula_and_the_engines_terms_give_one_energy(declared):
     if declared.volumetric is not None:  # a function of J alone: the same for a pure dilation
         vol = declared.volumetric(_Values(material), _NumPyNamespace(A))
         dilation = np.linalg.det(A) ** (1 / 3) * np.eye(3)
-        assert declared.volumetric(_Values(material), _NumPyNamespace(dilation)) == pytest.approx(vol)
+        assert declared.volumetric(_Values(material), _NumPyNamespace(dilation)) == pytest.approx(
+            vol
+        )

@@ -1,14 +1,15 @@
 """Derivative checks of the MJED engine that need no oracle: Taylor rates, central
-differences, rest state, symmetry, invariance and the patch test."""
+differences, rest state, symmetry, invariance and the patch test.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import box_mesh, perturbed, random_tetrahedron
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
-from conftest import box_mesh, perturbed, random_tetrahedron
 
 
 @pytest.fixture
@@ -44,7 +45,8 @@ def test_a_wrong_derivative_fails_the_taylor_test(jittered_field, rng):
 
 def _central_differences(field, x, h: float = 1e-6):
     """Force (12,) and stiffness (12, 12) of a one-cell field by central differences of its
-    energy and force."""
+    energy and force.
+    """
     f_fd = np.zeros(12)
     K_fd = np.zeros((12, 12))
     for k in range(12):
@@ -88,7 +90,9 @@ def test_element_stiffness_assembles_to_global(jittered_field, rng):
     dofs = (3 * jittered_field.mesh.cells[:, :, None] + np.arange(3)).reshape(-1, 12)
     for d, k in zip(dofs, Ke):
         dense[np.ix_(d, d)] += k
-    assert np.allclose(jittered_field.stiffness(x).toarray(), dense, rtol=0, atol=1e-13 * np.abs(dense).max())
+    assert np.allclose(
+        jittered_field.stiffness(x).toarray(), dense, rtol=0, atol=1e-13 * np.abs(dense).max()
+    )
 
 
 def test_force_and_stiffness_match_separate_calls(jittered_field, rng):
@@ -106,7 +110,9 @@ def test_forces_balance_and_rotate(jittered_field, rng):
     assert np.abs(np.cross(x, f).sum(axis=0)).max() <= 1e-12 * scale  # rotation
     Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
     Q *= np.sign(np.linalg.det(Q))
-    assert np.allclose(jittered_field.force(x @ Q.T), f @ Q.T, rtol=0, atol=1e-12 * scale)  # objectivity
+    assert np.allclose(
+        jittered_field.force(x @ Q.T), f @ Q.T, rtol=0, atol=1e-12 * scale
+    )  # objectivity
 
 
 def test_patch_test_interior_forces_vanish(material, rng):
@@ -124,12 +130,22 @@ def test_patch_test_interior_forces_vanish(material, rng):
 @pytest.mark.parametrize("function", ["log", "power", "power_integer"])
 def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
     """A group c phi(u) with phi = ln(a + u) or (a + u)^p: force and stiffness are the
-    derivatives of the energy (central differences), including the rank-one c phi'' term."""
+    derivatives of the energy (central differences), including the rank-one c phi'' term.
+    """
     from dataclasses import dataclass
 
     from mjed.materials.base import Material
-    from mjed.terms import (I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup,
-                            Unity)
+    from mjed.terms import (
+        I1Power,
+        JPower,
+        LinearI2,
+        Log,
+        LogPolynomial,
+        Power,
+        Term,
+        TermGroup,
+        Unity,
+    )
 
     phi = {"log": Log(0.8), "power": Power(2.5, 0.3), "power_integer": Power(3.0, -0.5)}[function]
 
@@ -137,8 +153,10 @@ def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
     class Made(Material):
         def decomposition(self):
             u = (Term(JPower(-2.0 / 3.0), I1Power(0.2)), Term(JPower(-4.0 / 3.0), LinearI2(0.1)))
-            return (TermGroup(u, coefficient=1.7, function=phi),
-                    TermGroup((Term(LogPolynomial(2.0), Unity()),)))
+            return (
+                TermGroup(u, coefficient=1.7, function=phi),
+                TermGroup((Term(LogPolynomial(2.0), Unity()),)),
+            )
 
     P, cells = random_tetrahedron(rng)
     field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), Made())
@@ -153,7 +171,8 @@ def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
 
 def test_a_log_group_beyond_its_domain_gives_nan_not_a_finite_force():
     """Gent past its locking stretch (I1b - 3 >= Jm): W is undefined, and so are the force and
-    the stiffness (a finite force there would push the wrong way)."""
+    the stiffness (a finite force there would push the wrong way).
+    """
     P, cells = box_mesh(1)
     gent = mjed.materials.Gent(mu=1.0, Jm=0.5, k0=3.0)
     field = mjed.HyperelasticForceField(mjed.TetMesh(P, cells), gent)

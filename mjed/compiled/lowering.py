@@ -28,15 +28,34 @@ import numpy as np
 
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import (IDENTITY, Exp, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2,
-                        Log, LogPolynomial, Power, TermGroup, Unity)
+from mjed.terms import (
+    IDENTITY,
+    Exp,
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    Log,
+    LogPolynomial,
+    Power,
+    TermGroup,
+    Unity,
+)
 
 __all__ = ["J_KINDS", "G_KINDS", "SLOT_KINDS", "GROUP_KINDS", "TermTable", "lower_groups"]
 
 #: Codes of the functions of J (the kernel branches on them).
 J_KINDS = {JPower: 0, LogPolynomial: 1, JLogJ: 2}
 #: Codes of the invariant functions.
-G_KINDS = {Unity: 0, I1Power: 1, LinearI2: 2, GreenLagrangeQuadratic: 3, FibreQuadratic: 4, EigenPowerSum: 5}
+G_KINDS = {
+    Unity: 0,
+    I1Power: 1,
+    LinearI2: 2,
+    GreenLagrangeQuadratic: 3,
+    FibreQuadratic: 4,
+    EigenPowerSum: 5,
+}
 #: Codes of the function of a group's sum (0: a plain group, no function).
 GROUP_KINDS = {Exp: 1, Log: 2, Power: 3}
 #: Codes of the tangent pair kinds.
@@ -109,7 +128,9 @@ def _glq(g: GreenLagrangeQuadratic):
 
 def _fibre(g: FibreQuadratic):
     # B (9 entries), then the signs of the split (one per tangent pair).
-    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(g.R, float)
+    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(
+        g.R, float
+    )
 
 
 def _eigen(g: EigenPowerSum):
@@ -126,8 +147,14 @@ def _group_row(group: TermGroup) -> Tuple[int, List[float]]:
     return kind, [float(group.coefficient), shift, float(getattr(fn, "p", 0.0))]
 
 
-_G_PARAMS: Dict[type, Callable] = {Unity: _no_params, I1Power: _i1power, LinearI2: _lineari2,
-                                   GreenLagrangeQuadratic: _glq, FibreQuadratic: _fibre, EigenPowerSum: _eigen}
+_G_PARAMS: Dict[type, Callable] = {
+    Unity: _no_params,
+    I1Power: _i1power,
+    LinearI2: _lineari2,
+    GreenLagrangeQuadratic: _glq,
+    FibreQuadratic: _fibre,
+    EigenPowerSum: _eigen,
+}
 
 
 def _kind_of(obj, table: Dict[type, object], what: str):
@@ -135,8 +162,9 @@ def _kind_of(obj, table: Dict[type, object], what: str):
         if cls in table:
             return table[cls]
     raise NotImplementedError(
-        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; "
-        f"it supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material.")
+        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; it "
+        f"supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material."
+    )
 
 
 # ------------------------------------------------------------------ lowering
@@ -160,8 +188,10 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
             mats.append(R)
             pairs = term.g.tangent
             if len(pairs) > MAX_PAIRS:
-                raise NotImplementedError(f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
-                                          f"kernel takes at most {MAX_PAIRS}")
+                raise NotImplementedError(
+                    f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
+                    f"kernel takes at most {MAX_PAIRS}"
+                )
             row = [-1] * MAX_PAIRS
             for p, pair in enumerate(pairs):
                 key = _slot_key(pair)
@@ -191,11 +221,22 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
         if R is not None:
             gmat[t] = R
     slot_kind, slot_ident, slot_M = _slot_arrays(slot_list, m)
-    return TermTable(jkind, jpar, gkind, gpar, gmat, np.array(npair, dtype=np.int64),
-                     np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS), np.array(group_start, dtype=np.int64),
-                     np.array(group_kind, dtype=np.int64),
-                     np.array(group_coef, dtype=float).reshape(-1, 3),
-                     slot_kind, slot_ident, slot_M, bool(need_eig))
+    return TermTable(
+        jkind,
+        jpar,
+        gkind,
+        gpar,
+        gmat,
+        np.array(npair, dtype=np.int64),
+        np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS),
+        np.array(group_start, dtype=np.int64),
+        np.array(group_kind, dtype=np.int64),
+        np.array(group_coef, dtype=float).reshape(-1, 3),
+        slot_kind,
+        slot_ident,
+        slot_M,
+        bool(need_eig),
+    )
 
 
 def _slot_key(pair) -> Tuple[str, object]:

@@ -11,6 +11,9 @@ exchange format, SOFA names, the docs table) is read from :func:`declarations`. 
 Importing this package declares the built-in materials, in this order.
 """
 
+# isort: off
+# The import order is the declaration order: the order of the docs table, of --material all
+# and of every table a study prints. Keep it by hand (isort would sort it by file name).
 from mjed.materials.base import Material
 from mjed.materials.st_venant_kirchhoff import StVenantKirchhoff
 from mjed.materials.neo_hookean import NeoHookean
@@ -23,6 +26,7 @@ from mjed.materials.yeoh import Yeoh
 from mjed.materials.gent import Gent
 from mjed.materials.declaration import Declaration, declaration_of, declarations
 from mjed.materials.sofa import from_sofa
+# isort: on
 
 __all__ = [
     "Material",

@@ -1,5 +1,6 @@
 """Arruda-Boyce, the five-term 8-chain series:
-W = mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2."""
+W = mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2.
+"""
 
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def energy(p, k):
 def psi(p, I1b, I2b, m):
     """The isochoric part and its derivatives by I1b (for the classical element): with
     a_i = mu c_i N^(1-i), Psi = sum a_i (I1b^i - 3^i), Psi_1 = sum i a_i I1b^(i-1),
-    Psi_11 = sum i (i-1) a_i I1b^(i-2)."""
+    Psi_11 = sum i (i-1) a_i I1b^(i-2).
+    """
     a = [p.mu * c * p.N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
     powers = [1.0, I1b, I1b * I1b]
     powers += [

@@ -51,7 +51,8 @@ PsiFunction = Callable[[Any, Any, Any, Any], Tuple[Any, Any, Any, Any, Any, Any]
 @dataclass(frozen=True, eq=False)
 class IsochoricPsi:
     """A named :data:`PsiFunction`; equal and hashed by the function, shown by its name (a
-    compiled kernel's shape holds it, and its printed form must not change between runs)."""
+    compiled kernel's shape holds it, and its printed form must not change between runs).
+    """
 
     function: PsiFunction
 
@@ -86,7 +87,8 @@ class SpectralOgden:
 @dataclass(frozen=True, eq=False)
 class FibreExponential:
     """W = a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum_ij B_ij (R^T E R)_ij^2;
-    frame R None (identity), (3, 3) or (m, 3, 3)."""
+    frame R None (identity), (3, 3) or (m, 3, 3).
+    """
 
     a: float
     k0: float

@@ -152,7 +152,7 @@ declare(
         formula="a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1)",
         notes="`Q = sum_ij B_ij (Ef_ij)^2`, `Ef = R^T E R`",
         parameters="`a`, `k0` (Pa); `b_ff`, `b_fs`, `b_ss`, `b_fn`, `b_sn`, `b_nn` "
-    "(dimensionless); a frame",
+        "(dimensionless); a frame",
         # Fibre stiffer than sheet and normal, with shear couplings (Guccione-like ratios).
         default=Costa(
             a=800.0, k0=3.0e4, b_ff=18.5, b_fs=2.8, b_ss=3.6, b_fn=2.0, b_sn=1.6, b_nn=3.6

@@ -118,8 +118,10 @@ class Declaration:
         form = self.classical(self.default)
         if not isinstance(form, classical_forms.FORMS):
             known = ", ".join(f.__name__ for f in classical_forms.FORMS)
-            raise TypeError(f"declaration of {who}: classical must return a form of "
-                            f"mjed.materials.classical_forms ({known}), got {form!r}")
+            raise TypeError(
+                f"declaration of {who}: classical must return a form of "
+                f"mjed.materials.classical_forms ({known}), got {form!r}"
+            )
         if self.sofa is not None:
             fields = {f.name for f in dataclasses.fields(self.material)}
             unknown = [n for n in self.sofa[1] if n not in fields]

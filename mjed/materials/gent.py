@@ -48,7 +48,8 @@ def energy(p, k):
 
 def psi(p, I1b, I2b, m):
     """The isochoric part and its derivatives by I1b (for the classical element):
-    d = 1 - (I1b - 3)/Jm, Psi_1 = mu / (2 d), Psi_11 = mu / (2 Jm d^2)."""
+    d = 1 - (I1b - 3)/Jm, Psi_1 = mu / (2 d), Psi_11 = mu / (2 Jm d^2).
+    """
     d = 1.0 - (I1b - 3.0) / p.Jm
     p1 = 0.5 * p.mu / d
     return -0.5 * p.mu * p.Jm * m.log(d), p1, 0, p1 / (p.Jm * d), 0, 0

@@ -1,5 +1,6 @@
 """Ogden (one term): W = mu/alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2,
-lambda_i the eigenvalues of C."""
+lambda_i the eigenvalues of C.
+"""
 
 from __future__ import annotations
 
