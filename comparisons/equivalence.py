@@ -431,7 +431,8 @@ def _blocks(m: EquivalenceMeasurements, states: Sequence[str]) -> list:
             "Every material on every mesh and deformation state: nodal forces and tangent "
             "stiffness of MJED against the UFL Galerkin oracle (relative errors; tolerances 1e-10 "
             "for force and stiffness, 1e-12 for the symmetry of MJED's K), then the uniaxial "
-            "closed form and SOFA's approximate Ogden tangent."
+            "closed form and SOFA's approximate Ogden tangent. Costa is given the mesh's helical "
+            "fibre field, one frame per cell, as a conformance kit gives it to other engines."
         ),
         _digest(m.cases),
         Table(

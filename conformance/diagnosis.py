@@ -7,7 +7,8 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
    permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
 2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
    then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
-   transposed or a single frame (:mod:`conformance.frame_hypotheses`);
+   transposed or a single frame, or the columns in another order
+   (:mod:`conformance.frame_hypotheses`);
 3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
    explains a stiffness error when the force is right (:mod:`conformance.tangent`);
 4. a different volumetric (J-only) energy, fitted per cell;

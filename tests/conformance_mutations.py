@@ -254,12 +254,14 @@ FRAME_MUTATIONS: Dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "frame-blind engine (identity frame)": lambda R: np.eye(3),
     "transposed rotation": lambda R: np.swapaxes(R, -1, -2).copy(),
     "global axes (one frame for the mesh)": lambda R: R.reshape(-1, 3, 3)[0].copy(),
+    "fibre and sheet columns swapped": lambda R: R[..., [1, 0, 2]].copy(),
 }
 
 FRAME_EXPECTED: Dict[str, str] = {
     "frame-blind engine (identity frame)": "frame-ignored",
     "transposed rotation": "frame-transposed",
     "global axes (one frame for the mesh)": "frame-global",
+    "fibre and sheet columns swapped": "frame-columns",
 }
 
 

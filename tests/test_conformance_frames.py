@@ -72,6 +72,24 @@ def test_the_permutation_distance_sees_permutations_and_small_rotations():
     assert 0.0 < permutation_distance(near)[0] < 0.2
 
 
+def test_the_field_turns_across_the_axis_it_is_given_and_refuses_a_bad_one(cube):
+    from common.frames import HelixField
+
+    points, cells = cube
+    R = helix_frames(points, cells, HelixField(axis=1))
+    depth = points[cells].mean(axis=1)[:, 1]
+    f = R[:, :, 0]  # the wall plane is now (z, x): the fibre's angle follows the depth along y
+    angle = np.degrees(np.arctan2(f[:, 0], f[:, 2]))
+    assert np.corrcoef(depth, angle)[0, 1] > 0.99 and np.ptp(angle) > 100.0
+    flat = points.copy()
+    flat[:, 0] = 0.0  # no extent along the transmural axis: every cell at mid-wall
+    np.testing.assert_allclose(helix_frames(flat, cells[:3]), np.stack([mid_wall_frame()] * 3))
+    with pytest.raises(ValueError, match="axis must be 0, 1 or 2"):
+        HelixField(axis=3)
+    with pytest.raises(ValueError, match="two finite angles"):
+        HelixField(helix=(0.0, float("nan")))
+
+
 def test_only_a_frameless_costa_gets_the_default_field(cube):
     points, cells = cube
     given = with_default_frame(COSTA, points, cells)
@@ -168,6 +186,7 @@ def frame_runs():
         "frame-blind engine (identity frame)",
         "transposed rotation",
         "global axes (one frame for the mesh)",
+        "fibre and sheet columns swapped",
     ],
 )
 def test_each_frame_mistake_fails_and_is_named(frame_runs, mutation):
@@ -179,6 +198,8 @@ def test_each_frame_mistake_fails_and_is_named(frame_runs, mutation):
         codes = [f.code for f in d.causes]
         assert codes == [FRAME_EXPECTED[mutation]], d.text()
         assert d.causes[0].figures["residual"] <= 1e-10
+        if FRAME_EXPECTED[mutation] == "frame-columns":  # which order, not only that one was wrong
+            assert "the sheet, fibre, normal columns used as fibre" in d.causes[0].title
         if outcome.state != "rest":  # at rest every frame gives a zero force: only K can tell
             assert d.errors.force > 1e-4 and d.errors.stiffness > 1e-3, d.text()
 
@@ -291,26 +312,33 @@ def test_a_fibre_energy_without_a_direction_gets_the_field_in_the_kit(tmp_path, 
 
 @needs_oracle
 @pytest.mark.oracle
-def test_a_fibre_energy_engine_that_ignores_the_field_is_named(cube):
-    """The frame hypothesis on a user energy. There is no independent I4/I5 engine in the project
-    (MJED has no user energies), so the mistaken engine is the oracle itself run with the global
-    axes: this checks that the kit's field reaches the check and that the variant is tried and
-    named for user energies, not the oracle's arithmetic (test_user_energy.py does that).
+@pytest.mark.parametrize(
+    "wrong, expected",
+    [("global axes", "frame-ignored"), ("sheet as fibre", "frame-columns")],
+)
+def test_a_fibre_energy_engine_with_a_frame_mistake_is_named(cube, wrong, expected):
+    """The frame hypotheses on a user energy. There is no independent I4/I5 engine in the project
+    (MJED has no user energies), so the mistaken engine is the oracle itself run with the wrong
+    frame: this checks that the kit's field reaches the check and that the variants are tried and
+    named for user energies, not the oracle's arithmetic (test_user_energy.py does that). I4 and
+    I5 see only the fibre column, so the two column orders that put the sheet first predict the
+    same forces: the mistake is named once.
     """
     from conformance.protocol import check_implementation
     from reference_fem import UFLOracle
     from reference_fem.user_energy import UserEnergy
 
-    def frame_blind(case):
-        global_axes = dataclasses.replace(case.model, frame=np.eye(3))
-        oracle = UFLOracle(case.points, case.cells, global_axes)
+    def mistaken(case):
+        R = case.model.frame
+        frame = np.eye(3) if wrong == "global axes" else R[..., [1, 0, 2]].copy()
+        oracle = UFLOracle(case.points, case.cells, dataclasses.replace(case.model, frame=frame))
         f, K = oracle.force_and_stiffness(case.positions)
         return f, K
 
     energy = UserEnergy(FIBRE_ENERGY, FIBRE_PARAMS, name="fibres")
     run = check_implementation(
-        frame_blind, energy=energy, mesh="cube-small", states=("fibre-shear",), probes=False
+        mistaken, energy=energy, mesh="cube-small", states=("fibre-shear",), probes=False
     )
     (outcome,) = run.outcomes
     named = [f.code for f in outcome.diagnosis.causes]
-    assert outcome.status == "failed" and named == ["frame-ignored"], outcome.diagnosis.text()
+    assert outcome.status == "failed" and named == [expected], outcome.diagnosis.text()

@@ -16,6 +16,7 @@ import mjed
 import reference_fem
 from common.cases import DEFAULT_MATERIALS
 from common.result import Status, exit_code
+from common.states import state_names
 from comparisons.cli import main
 from comparisons.equivalence import equivalence_study
 
@@ -135,7 +136,7 @@ def test_the_reproduce_line_parses_back_to_what_ran(tmp_path):
     everything = equivalence_study(
         _single_tet(),
         tuple(DEFAULT_MATERIALS.values()),
-        ["rest", "uniaxial", "compression", "shear", "triaxial", "random"],
+        list(state_names()),
         oracle_factory=_ScaledMJED,
     )
     assert parse_reproduce(everything.command)["material"] == "all"

@@ -12,6 +12,7 @@ from conftest import parse_reproduce
 
 from common.blocks import Figure, Paragraph, Table
 from common.result import Check, Status, StudyResult
+from common.states import state_names
 from comparisons.cli import main
 from comparisons.report.runner import ReportStudy, publish_latest, run_report
 
@@ -367,7 +368,7 @@ def test_all_quick_equivalence_section_end_to_end(tmp_path):
     eq = results["studies"][0]
     assert eq["key"] == "equivalence" and eq["status"] == "passed" and eq["partial"]
     cases = eq["data"]["cases"]
-    assert len(cases) == 12 and all(c["passed"] for c in cases)
+    assert len(cases) == 2 * len(state_names()) and all(c["passed"] for c in cases)
     args = parse_reproduce(eq["command"])
     assert (args["command"], args["material"], args["mesh"], args["states"]) == (
         "equivalence",

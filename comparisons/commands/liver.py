@@ -52,113 +52,137 @@ exit codes: 0 every check passed and the run is complete; 1 a run failed or Terz
 
 
 def configure(parser) -> None:
+    _mesh_options(parser)
+    _time_options(parser)
+    _material_options(parser)
+    _run_options(parser)
+
+
+def _mesh_options(parser) -> None:
+    """The organ: mesh, units, supports and gravity."""
+    group = parser.add_argument_group("the organ: mesh, units, supports and gravity")
     opt.add_mesh_option(parser, "liver", several=False)
-    parser.add_argument(
+    group.add_argument(
         "--units", choices=("m", "cm", "mm"), help="length unit of the mesh file (default m)"
     )
-    parser.add_argument("--scale", type=float, help="metres per mesh unit (instead of --units)")
-    parser.add_argument(
+    group.add_argument("--scale", type=float, help="metres per mesh unit (instead of --units)")
+    group.add_argument(
         "--fix-orientation",
         action="store_true",
         help="swap two nodes of every negatively oriented cell (the number reordered is reported)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--fixed",
         action="append",
         metavar="REGION",
         help="fixed nodes: box:..., sphere:..., nodes:FILE or index:FILE (repeatable; default vena "
         "cava + ligament)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--allow-disconnected",
         action="store_true",
         help="accept a mesh in several parts when each part has a fixed node (warned); a part "
         "with no fixed node is always refused",
     )
-    parser.add_argument("--gravity", metavar="X,Y,Z", help="gravity in m/s^2 (default 0,0,-9.81)")
-    parser.add_argument(
+    group.add_argument("--gravity", metavar="X,Y,Z", help="gravity in m/s^2 (default 0,0,-9.81)")
+
+
+def _time_options(parser) -> None:
+    """Time stepping and the linear solver."""
+    group = parser.add_argument_group("time stepping and the linear solver")
+    group.add_argument(
         "--steps",
         type=int,
         default=None,
         help="steps of the dt runs (default 30, quick 6); the porous run covers the same time at "
         "its own step",
     )
-    parser.add_argument("--dt", type=float, help="time step in s (default 0.3)")
-    parser.add_argument(
+    group.add_argument("--dt", type=float, help="time step in s (default 0.3)")
+    group.add_argument(
         "--dt-porous", type=float, help="time step of the porous run in s (default dt / 2)"
     )
-    parser.add_argument("--material", help="hyperelastic material (default ArrudaBoyce)")
-    parser.add_argument(
-        "--param", action="append", metavar="NAME=VALUE", help="a material parameter (repeatable)"
+    group.add_argument(
+        "--max-halvings",
+        type=int,
+        help="a failed step is retried in halves down to dt/2^N (default 4)",
     )
-    parser.add_argument(
-        "--sofa-parameters", metavar="'V1 V2 ...'", help="the material from a SOFA ParameterSet"
-    )
-    parser.add_argument(
-        "--ogden-order", choices=("sofa", "mjed"), default="sofa", help="Ogden ParameterSet order"
-    )
-    parser.add_argument("--density", type=float, help="kg/m^3 (default 1000)")
-    parser.add_argument(
-        "--rayleigh-mass", type=float, help="Rayleigh mass coefficient r_M in 1/s (default 0.1)"
-    )
-    parser.add_argument(
-        "--rayleigh-stiffness",
+    group.add_argument(
+        "--max-volume-change",
         type=float,
-        help="Rayleigh stiffness coefficient r_K in s (default 0.1)",
+        help="a step changing a cell's volume by more than this factor is retried in substeps "
+        "(default 1.5)",
     )
-    parser.add_argument(
-        "--kappa",
-        type=float,
-        default=None,
-        help="permeability in m^4/(N s) (default 5e-6; the paper prints 20)",
-    )
-    parser.add_argument(
-        "--models",
-        default="all",
-        help="'all' or a comma-separated list of: hyperelastic, visco-hyperelastic, "
-        "visco-poro-hyperelastic",
-    )
-    parser.add_argument(
-        "--backends",
-        default="numpy,numba",
-        help="comma-separated MJED backends, each running every model: numpy (the NumPy engine) "
-        "and numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
-        "first is the reference the others are checked against and the one the figures show",
-    )
-    parser.add_argument(
+    group.add_argument(
         "--solver",
         default="factorized",
         choices=("factorized", "jacobi", "block-jacobi", "direct"),
         help="linear solver: CG preconditioned by a kept sparse LU (default), by Jacobi or by 3x3 "
         "node blocks, or a direct sparse LU every step (comparison point)",
     )
-    parser.add_argument(
-        "--max-halvings",
-        type=int,
-        help="a failed step is retried in halves down to dt/2^N (default 4)",
+
+
+def _material_options(parser) -> None:
+    """Material, density, damping and permeability."""
+    group = parser.add_argument_group("material, density, damping and permeability")
+    group.add_argument("--material", help="hyperelastic material (default ArrudaBoyce)")
+    group.add_argument(
+        "--param", action="append", metavar="NAME=VALUE", help="a material parameter (repeatable)"
     )
-    parser.add_argument(
-        "--max-volume-change",
+    group.add_argument(
+        "--sofa-parameters", metavar="'V1 V2 ...'", help="the material from a SOFA ParameterSet"
+    )
+    group.add_argument(
+        "--ogden-order", choices=("sofa", "mjed"), default="sofa", help="Ogden ParameterSet order"
+    )
+    group.add_argument("--density", type=float, help="kg/m^3 (default 1000)")
+    group.add_argument(
+        "--rayleigh-mass", type=float, help="Rayleigh mass coefficient r_M in 1/s (default 0.1)"
+    )
+    group.add_argument(
+        "--rayleigh-stiffness",
         type=float,
-        help="a step changing a cell's volume by more than this factor is retried in substeps "
-        "(default 1.5)",
+        help="Rayleigh stiffness coefficient r_K in s (default 0.1)",
     )
-    parser.add_argument(
+    group.add_argument(
+        "--kappa",
+        type=float,
+        default=None,
+        help="permeability in m^4/(N s) (default 5e-6; the paper prints 20)",
+    )
+    group.add_argument(
         "--allow-inverted",
         action="store_true",
         help="accept inverted cells (counted) for a material finite at J <= 0 (regularisation on)",
     )
-    parser.add_argument(
+
+
+def _run_options(parser) -> None:
+    """What runs, and where the results go."""
+    group = parser.add_argument_group("what runs, and where the results go")
+    group.add_argument(
+        "--models",
+        default="all",
+        help="'all' or a comma-separated list of: hyperelastic, visco-hyperelastic, "
+        "visco-poro-hyperelastic",
+    )
+    group.add_argument(
+        "--backends",
+        default="numpy,numba",
+        help="comma-separated MJED backends, each running every model: numpy (the NumPy engine) "
+        "and numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
+        "first is the reference the others are checked against and the one the figures show",
+    )
+    group.add_argument(
         "--quick", action="store_true", help="coarse liver mesh, 6 steps, a short oscillation study"
     )
-    parser.add_argument("--no-oscillation", action="store_true", help="skip the oscillation study")
-    parser.add_argument(
+    group.add_argument("--no-oscillation", action="store_true", help="skip the oscillation study")
+    group.add_argument(
         "--full-oscillation",
         action="store_true",
         help="the oscillation study on the paper-size liver over 5 s with dt down to 0.003 s "
         "(minutes)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--no-series",
         action="store_true",
         help="do not write the ParaView time series (.pvd + .vtu)",
