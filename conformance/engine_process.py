@@ -81,10 +81,11 @@ class _BoundedReader(threading.Thread):
         self.stop = threading.Event()
 
     def run(self) -> None:
+        poller = select.poll()  # not select(): it fails on descriptors past FD_SETSIZE
+        poller.register(self.fd, select.POLLIN | select.POLLHUP | select.POLLERR)
         try:
             while not self.stop.is_set():
-                ready, _, _ = select.select([self.fd], [], [], 0.1)
-                if not ready:
+                if not poller.poll(100):
                     continue
                 chunk = os.read(self.fd, 1 << 16)
                 if not chunk:
