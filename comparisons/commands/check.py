@@ -105,41 +105,40 @@ def run(args) -> int:
     return _run(args, cases, input_errors)
 
 
-def _run(args, cases, input_errors) -> int:
+def _evaluator(args, cases, folder: str, command: str):
+    """Case -> engine output: the outputs in the kit, or the engine run on each case."""
     from conformance.exchange import read_output
     from conformance.kit import write_kit
+
+    if args.engine_command is None:
+        return lambda c: read_output(
+            c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells, within=args.dir
+        )
+    from conformance.command import command_evaluator
+
+    base = args.dir
+    if base is None:  # the inputs are written into the report directory, then run through it
+        base = os.path.join(folder, "kit")
+        write_kit(base, cases, command=command)
+    os.makedirs(os.path.join(folder, "outputs"))
+    # A kit's case carries the input directory its hashes were checked on: the engine gets
+    # exactly that one. Generated cases live in the report's own kit/.
+    return command_evaluator(
+        args.engine_command,
+        lambda c: c.input_dir or os.path.join(base, "cases", c.case_id, "input"),
+        os.path.join(folder, "outputs"),
+        args.timeout,
+    )
+
+
+def _run(args, cases, input_errors) -> int:
     from conformance.options import reproduce
     from conformance.report import new_report_dir, write_error_field, write_report
     from conformance.run import run_check
 
     folder = new_report_dir(args.out)
     command = reproduce(NAME, args, args.dir or "")
-    if args.engine_command is not None:
-        from conformance.command import command_evaluator
-
-        if (
-            args.dir is None
-        ):  # the inputs are written into the report directory, then run through the command
-            write_kit(os.path.join(folder, "kit"), cases, command=command)
-            base = os.path.join(folder, "kit")
-        else:
-            base = args.dir
-        os.makedirs(os.path.join(folder, "outputs"))
-        # A kit's case carries the input directory its hashes were checked on: the engine gets
-        # exactly that one. Generated cases live in the report's own kit/.
-        evaluate = command_evaluator(
-            args.engine_command,
-            lambda c: c.input_dir or os.path.join(base, "cases", c.case_id, "input"),
-            os.path.join(folder, "outputs"),
-            args.timeout,
-        )
-    else:
-
-        def evaluate(c):
-            return read_output(
-                c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells, within=args.dir
-            )
-
+    evaluate = _evaluator(args, cases, folder, command)
     fields = {}
 
     def on_case(case, out, ref, diag):

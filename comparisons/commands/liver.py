@@ -258,10 +258,9 @@ def material_from_options(
         raise opt.InputError(f"--material {name}: {exc}") from None
 
 
-def liver_options(args) -> dict:
-    """The liver_study keyword arguments of the parsed command line (InputError on bad input)."""
-    from comparisons.liver import BACKENDS, LIVER_SOLVER, MODELS, LiverParameters
-    from comparisons.organ import scale_of
+def _models_and_backends(args):
+    """The --models and --backends lists (InputError naming a backend that does not exist)."""
+    from comparisons.liver import BACKENDS, MODELS
 
     models = (
         list(MODELS)
@@ -275,9 +274,26 @@ def liver_options(args) -> dict:
             f"--backends {args.backends!r}: expected a comma-separated list of "
             f"{', '.join(BACKENDS)}"
         )
-    if args.steps is not None and args.steps < 1:
-        raise opt.InputError(f"--steps must be a positive integer, got {args.steps}")
-    scale_of(args.units, args.scale)  # refuses both, or a bad scale, before any work
+    return models, backends
+
+
+#: LiverParameters fields given on the command line as they are (None: the default).
+_PARAMETER_NAMES = (
+    "dt",
+    "dt_porous",
+    "density",
+    "rayleigh_mass",
+    "rayleigh_stiffness",
+    "kappa",
+    "max_halvings",
+    "max_volume_change",
+)
+
+
+def _liver_parameters(args):
+    """The LiverParameters of the command line (InputError when a value is refused)."""
+    from comparisons.liver import LIVER_SOLVER, LiverParameters
+
     changes: Dict[str, object] = {}
     if args.solver != "factorized":
         changes["solver"] = (
@@ -292,25 +308,24 @@ def liver_options(args) -> dict:
         changes["material"] = material
     if args.gravity is not None:
         changes["gravity"] = _gravity(args.gravity)
-    for name in (
-        "dt",
-        "dt_porous",
-        "density",
-        "rayleigh_mass",
-        "rayleigh_stiffness",
-        "kappa",
-        "max_halvings",
-        "max_volume_change",
-    ):
-        value = getattr(args, name)
-        if value is not None:
-            changes[name] = value
+    changes.update({n: getattr(args, n) for n in _PARAMETER_NAMES if getattr(args, n) is not None})
     if args.allow_inverted:
         changes["allow_inverted"] = True
     try:
-        params = LiverParameters(**changes)
+        return LiverParameters(**changes)
     except ValueError as exc:
         raise opt.InputError(str(exc)) from None
+
+
+def liver_options(args) -> dict:
+    """The liver_study keyword arguments of the parsed command line (InputError on bad input)."""
+    from comparisons.organ import scale_of
+
+    models, backends = _models_and_backends(args)
+    if args.steps is not None and args.steps < 1:
+        raise opt.InputError(f"--steps must be a positive integer, got {args.steps}")
+    scale_of(args.units, args.scale)  # refuses both, or a bad scale, before any work
+    params = _liver_parameters(args)
     return dict(
         quick=args.quick,
         out_dir=args.out,
@@ -332,7 +347,7 @@ def liver_options(args) -> dict:
 
 def run(args) -> int:
     from common.result import exit_code
-    from comparisons.liver import PAPER_HYPERELASTIC_SHARE, liver_study, oscillation_findings
+    from comparisons.liver import liver_study
     from meshes.io import one_line_warnings
 
     kwargs = liver_options(args)
@@ -347,18 +362,30 @@ def run(args) -> int:
         f"liver under gravity on {data['mesh_description']}, {data['n_fixed']} fixed, "
         f"{data['duration']:g} s simulated"
     )
+    _print_runs(data["runs"])
+    _print_findings(data)
+    for path in data["figures"] + data["series"]:
+        print(f"  wrote {path}")
+    left_out = list(result.not_covered) + [f"not measured: {c.name}" for c in result.unmeasured]
+    partial = f" (partial: {'; '.join(left_out)})" if result.partial else ""
+    print(f"status: {result.status.value}{partial}: {result.reason or result.headline}")
+    print(f"reproduce: {result.command}")
+    if args.json:
+        opt.write_json(args.json, result.to_dict())
+    return exit_code([result])
+
+
+def _print_runs(runs) -> None:
+    """One line per run: steps, substeps, displacement, CG, frame rates."""
     print(
         f"  {'model':26s} {'backend':7s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} "
         f"{'substeps':>8s} {'inverted':>8s} {'final max |u| (mm)':>18s} {'CG/step':>7s} "
         f"{'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}"
     )
-    for r in data["runs"]:
+    for r in runs:
         steps = f"{r['steps']}/{r['steps_planned']}"
-        cg = (
-            f"{r['cg_iterations_mean']:7.1f}"
-            if r["cg_iterations_mean"] is not None
-            else f"{'-':>7s}"
-        )
+        cg = r["cg_iterations_mean"]
+        cg = f"{cg:7.1f}" if cg is not None else f"{'-':>7s}"
         fps = f"{r['fps']:6.1f} {r['cpu_fps']:7.1f}" if r["fps"] else f"{'-':>6s} {'-':>7s}"
         print(
             f"  {r['model']:26s} {r['backend']:7s} {r['dt']:6.3g} {steps:>7s} "
@@ -367,17 +394,18 @@ def run(args) -> int:
         )
         if r["error"]:
             print(f"    FAILED: {r['error']}")
-    if data["runs"]:
-        fields = "; ".join(
-            dict.fromkeys(f"{r['backend']}: {r['force_field']}" for r in data["runs"])
-        )
-        print(f"  linear solver: {data['runs'][0]['solver']}; force fields: {fields}")
+    if runs:
+        fields = "; ".join(dict.fromkeys(f"{r['backend']}: {r['force_field']}" for r in runs))
+        print(f"  linear solver: {runs[0]['solver']}; force fields: {fields}")
+
+
+def _print_findings(data) -> None:
+    """Backend agreement, the step split, the oscillation findings and Terzaghi."""
+    from comparisons.liver import PAPER_HYPERELASTIC_SHARE, oscillation_findings
+
     for a in data["backend_agreement"]:
-        diff = (
-            "not comparable"
-            if a["relative_difference"] is None
-            else f"{a['relative_difference']:.1e}"
-        )
+        d = a["relative_difference"]
+        diff = "not comparable" if d is None else f"{d:.1e}"
         print(
             f"  {a['model']}: {a['backend']} trajectory against {a['reference']}: largest "
             f"difference / peak {diff}"
@@ -388,23 +416,11 @@ def run(args) -> int:
             f"  step split, {s['model']}, {s['backend']} ({s['ms_per_step']:.1f} ms/step): {shares}"
         )
     if data["step_split"]:
-        print(
-            "  (the paper: hyperelastic force + stiffness about "
-            f"{100 * PAPER_HYPERELASTIC_SHARE:.0f} % of a step)"
-        )
+        share = 100 * PAPER_HYPERELASTIC_SHARE
+        print(f"  (the paper: hyperelastic force + stiffness about {share:.0f} % of a step)")
     if "oscillation" in data:
         print("  " + oscillation_findings(data["oscillation"]))
-    tz = data["terzaghi"]
-    print(
-        "  Terzaghi check of the pressure step (relative L2 error of P, tolerance 1 %): "
-        + ", ".join(f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in tz["times"])
+    tz = ", ".join(
+        f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in data["terzaghi"]["times"]
     )
-    for path in data["figures"] + data["series"]:
-        print(f"  wrote {path}")
-    left_out = list(result.not_covered) + [f"not measured: {c.name}" for c in result.unmeasured]
-    partial = f" (partial: {'; '.join(left_out)})" if result.partial else ""
-    print(f"status: {result.status.value}{partial}: {result.reason or result.headline}")
-    print(f"reproduce: {result.command}")
-    if args.json:
-        opt.write_json(args.json, result.to_dict())
-    return exit_code([result])
+    print(f"  Terzaghi check of the pressure step (relative L2 error of P, tolerance 1 %): {tz}")

@@ -284,43 +284,25 @@ def run_report(
             signal.signal(signal.SIGTERM, previous)
 
 
-def _run_into(
-    partial: str,
-    reports_dir: str,
-    name: str,
-    studies: Sequence[ReportStudy],
-    context_args: dict,
-    *,
-    quick: bool,
-    only: Optional[Sequence[str]],
-    command_line: Optional[Sequence[str]],
-    stream,
-) -> RunOutcome:
-    ctx = StudyContext(run_dir=partial, quick=quick, **context_args)
+def _run_studies(ctx: StudyContext, studies: Sequence[ReportStudy], only, stream):
+    """Each selected study in turn; after an interruption the rest are NOT RUN, saying why.
+    Returns (results, interrupted).
+    """
     results: List[StudyResult] = []
     interrupted = False
     selected = [s for s in studies if only is None or s.key in only]
     for study in studies:
         again = report_command(ctx, only=[study.key])
         if only is not None and study.key not in only:
-            results.append(
-                StudyResult.not_run(
-                    study.key, study.title, f"not selected: --only {','.join(only)}", again
-                )
-            )
+            why = f"not selected: --only {','.join(only)}"
+            results.append(StudyResult.not_run(study.key, study.title, why, again))
             continue
         if interrupted:
-            results.append(
-                StudyResult.not_run(
-                    study.key, study.title, "the run was interrupted before this study", again
-                )
-            )
+            why = "the run was interrupted before this study"
+            results.append(StudyResult.not_run(study.key, study.title, why, again))
             continue
-        print(
-            f"[{selected.index(study) + 1}/{len(selected)}] {study.title} ...",
-            file=stream,
-            flush=True,
-        )
+        n = selected.index(study) + 1
+        print(f"[{n}/{len(selected)}] {study.title} ...", file=stream, flush=True)
         t0 = time.perf_counter()
         try:
             result = _run_one(study, ctx)
@@ -336,6 +318,20 @@ def _run_into(
             f"      {status_label(result)}{why} ({result.seconds:.1f} s)", file=stream, flush=True
         )
         results.append(result)
+    return results, interrupted
+
+
+def _write_run(
+    partial: str,
+    name: str,
+    ctx: StudyContext,
+    results,
+    interrupted: bool,
+    quick: bool,
+    command_line,
+) -> None:
+    """results.json, report.md and index.html of a run, into its .partial folder."""
+    from common.options import write_json
 
     cmd = " ".join(shlex.quote(a) for a in (command_line if command_line is not None else sys.argv))
     title = "MJED verification report" + (" (quick)" if quick else "")
@@ -358,14 +354,28 @@ def _run_into(
         "not_covered": not_covered_lines(results),
         "studies": [r.to_dict() for r in results],
     }
-    from common.options import write_json
-
     write_json(os.path.join(partial, "results.json"), _paths_relative_to(payload, partial))
     with open(os.path.join(partial, "report.md"), "w") as fh:
         fh.write(to_markdown(title, preamble, results))
     with open(os.path.join(partial, "index.html"), "w") as fh:
         fh.write(to_html(title, preamble, results, partial))
 
+
+def _run_into(
+    partial: str,
+    reports_dir: str,
+    name: str,
+    studies: Sequence[ReportStudy],
+    context_args: dict,
+    *,
+    quick: bool,
+    only: Optional[Sequence[str]],
+    command_line: Optional[Sequence[str]],
+    stream,
+) -> RunOutcome:
+    ctx = StudyContext(run_dir=partial, quick=quick, **context_args)
+    results, interrupted = _run_studies(ctx, studies, only, stream)
+    _write_run(partial, name, ctx, results, interrupted, quick, command_line)
     final = os.path.join(reports_dir, name + ("-interrupted" if interrupted else ""))
     os.rename(partial, final)
     if not interrupted:
