@@ -12,7 +12,9 @@ import argparse
 import importlib
 import logging
 import pkgutil
+import signal
 import sys
+import threading
 from types import ModuleType
 from typing import Dict, List, Optional
 
@@ -59,6 +61,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     modules = command_modules()
     args = build_parser(modules).parse_args(argv)
     logging.disable(logging.INFO)  # FFCx's JIT logs every compilation at INFO
+    previous = _sigterm_as_interrupt()
     try:
         for attr, is_dir in (("json", False), ("out", True)):
             if getattr(args, attr, None):
@@ -67,9 +70,26 @@ def main(argv: Optional[List[str]] = None) -> int:
     except InputError as exc:
         print(f"mjed-verify {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
-    except KeyboardInterrupt:  # Ctrl-C, or SIGTERM where a command turns it into one
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM
         print(f"mjed-verify {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _sigterm_as_interrupt():
+    """SIGTERM raises KeyboardInterrupt, as Ctrl-C does, so that every command cleans up the same
+    way (an engine's process tree ended, a report's partial folder handled); returns the
+    previous handler, or None off the main thread, where signals cannot be caught.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt()
+
+    return signal.signal(signal.SIGTERM, interrupt)
 
 
 if __name__ == "__main__":

@@ -81,10 +81,11 @@ class _BoundedReader(threading.Thread):
         self.stop = threading.Event()
 
     def run(self) -> None:
+        poller = select.poll()  # not select(): it fails on descriptors past FD_SETSIZE
+        poller.register(self.fd, select.POLLIN | select.POLLHUP | select.POLLERR)
         try:
             while not self.stop.is_set():
-                ready, _, _ = select.select([self.fd], [], [], 0.1)
-                if not ready:
+                if not poller.poll(100):
                     continue
                 chunk = os.read(self.fd, 1 << 16)
                 if not chunk:
@@ -243,7 +244,6 @@ def run_engine(
     token = secrets.token_hex(16)
     env = dict(os.environ if env is None else env)
     env[MARK] = token
-    readers: List[_BoundedReader] = []
     fds: List[int] = []
     spare = _children(os.getpid())
     with _adopting():
@@ -272,16 +272,19 @@ def run_engine(
             r.start()
         timed_out = False
         try:
-            proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            timed_out = True
-        finally:  # also on Ctrl-C while the engine runs
-            ended = end_process_tree(proc.pid, token, spare)
-            proc.wait()
-    for r in readers:  # every writer is dead now; a process out of our reach cannot hold us
-        r.join(timeout=2.0)
-        r.stop.set()
-        r.join()
-    for fd in fds:
-        os.close(fd)
+            try:
+                proc.wait(timeout=timeout)
+            except subprocess.TimeoutExpired:
+                timed_out = True
+            finally:  # also on Ctrl-C while the engine runs
+                ended = end_process_tree(proc.pid, token, spare)
+                proc.wait()
+        finally:
+            # every writer is dead now; one out of our reach (another user's) cannot hold us
+            for r in readers:
+                r.join(timeout=2.0)
+                r.stop.set()
+                r.join()
+            for fd in fds:
+                os.close(fd)
     return EngineRun(proc.returncode, timed_out, readers[0].text(), readers[1].text(), ended)

@@ -294,6 +294,8 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
         raise MeshReadError(f"{where}: no linear tetrahedra; found {found}{advice}")
 
     cell_ids = np.concatenate(tets)
+    if len(ids) == 0:
+        raise MeshReadError(f"{where}: {n_tets} tetrahedra but no nodes")
     order = np.argsort(ids, kind="stable")
     at = np.clip(np.searchsorted(ids[order], cell_ids), 0, len(ids) - 1)
     undefined = ids[order][at] != cell_ids

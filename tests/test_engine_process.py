@@ -149,3 +149,34 @@ def test_check_timeout_bounds_a_correct_engine_with_a_detached_grandchild(tmp_pa
     _assert_ended(pidfile, 5)  # one daemon for the case, one for each of its four probes
     (run,) = os.listdir(tmp_path / "out")
     assert json.load(open(tmp_path / "out" / run / "results.json"))["exit_code"] == 0
+
+
+@linux_only
+def test_sigterm_to_check_ends_the_engine_it_is_running(tmp_path):
+    import signal
+    import subprocess
+
+    pidfile = tmp_path / "pids"
+    engine = f"sh -c 'echo $$ >> {pidfile}; exec sleep 60' {{input}} {{output}}"
+    argv = [
+        sys.executable,
+        "-m",
+        "comparisons.cli",
+        "check",
+        "--command",
+        engine,
+        "--material",
+        "NeoHookean",
+        "--states",
+        "rest",
+        "--out",
+        str(tmp_path / "out"),
+    ]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not pidfile.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 130
+    assert "interrupted" in proc.stderr.read()
+    _assert_ended(pidfile, 1)

@@ -101,6 +101,49 @@ def test_an_undefined_node_id_is_named(tmp_path):
         read_mesh(path)
 
 
+V22 = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"
+V41 = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n"
+FOUR_NODES = "1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (  # a node number past int64, which numpy would wrap or refuse with OverflowError
+            f"{V22}$Nodes\n4\n123456789012345678901234 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n"
+            "$EndNodes\n$Elements\n1\n1 4 0 123456789012345678901234 2 3 4\n$EndElements\n",
+            "a node id of \\$NODES is too large",
+        ),
+        (
+            f"$NOD\n4\n{FOUR_NODES}$ENDNOD\n$ELM\n1\n1 4 0 0 4 1 2 3 99999999999999999999\n"
+            "$ENDELM\n",
+            "number 99999999999999999999 in the \\$ELM section is too large",
+        ),
+        (  # a negative count in a 4.1 node block
+            f"{V41}$Nodes\n1 4 1 4\n3 1 0 -5\n1\n0 0 0\n$EndNodes\n$Elements\n1 1 1 1\n"
+            "3 1 4 1\n1 1 2 3 4\n$EndElements\n",
+            "malformed gmsh 4.1",
+        ),
+        (
+            f"{V22}$Nodes\n-4\n$EndNodes\n$Elements\n0\n$EndElements\n",
+            "announces a negative count",
+        ),
+        (  # tetrahedra, and no node at all
+            f"{V41}$Nodes\n0 0 0 0\n$EndNodes\n$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n"
+            "$EndElements\n",
+            "1 tetrahedra but no nodes",
+        ),
+    ],
+    ids=["huge node id", "huge element node", "negative 4.1 count", "negative count", "no nodes"],
+)
+def test_hostile_gmsh_files_are_refused_by_name(tmp_path, text, words):
+    path = tmp_path / "hostile.msh"
+    path.write_text(text)
+    with pytest.raises(meshes.MeshReadError, match=words) as info:
+        read_mesh(path)
+    assert "hostile.msh" in str(info.value)
+
+
 @pytest.mark.parametrize("suffix", [".stl", ".obj"])
 def test_surface_files_are_refused_with_the_gmsh_commands(tmp_path, suffix):
     path = tmp_path / f"organ{suffix}"

@@ -101,20 +101,39 @@ def _sections(path: Path) -> Dict[str, List[str]]:
     return out
 
 
+#: Node and element numbers are kept as int64: a larger one is refused by name, not overflowed.
+_INT64 = 2**63
+
+
+def _in_int64(path: Path, values: List[int], what: str) -> List[int]:
+    big = [v for v in values if not -_INT64 <= v < _INT64]
+    if big:
+        raise MeshReadError(
+            f"{path}: number {big[0]} in the {what} is too large for a node or element number"
+        )
+    return values
+
+
 def _int_rows(path: Path, lines: List[str], what: str) -> List[List[int]]:
     try:
-        return [[int(v) for v in line.split()] for line in lines if line]
+        rows = [[int(v) for v in line.split()] for line in lines if line]
     except ValueError:
         raise MeshReadError(f"{path}: non-integer entry in the {what}") from None
+    for row in rows:
+        _in_int64(path, row, what)
+    return rows
 
 
 def _count(path: Path, lines: List[str], what: str) -> int:
     if not lines:
         raise MeshReadError(f"{path}: the {what} section is empty")
     try:
-        return int(lines[0].split()[0])
-    except ValueError:
+        n = int(lines[0].split()[0])
+    except (ValueError, IndexError):
         raise MeshReadError(f"{path}: the {what} section does not start with a count") from None
+    if n < 0:
+        raise MeshReadError(f"{path}: the {what} section announces a negative count ({n})")
+    return n
 
 
 def _flat_nodes(path: Path, lines: List[str], section: str) -> Tuple[np.ndarray, np.ndarray]:
@@ -129,6 +148,8 @@ def _flat_nodes(path: Path, lines: List[str], section: str) -> Tuple[np.ndarray,
         raise MeshReadError(f"{path}: a ${section} line is not 'id x y z'") from None
     if table.shape != (n, 4) or not np.array_equal(table[:, 0], np.round(table[:, 0])):
         raise MeshReadError(f"{path}: a ${section} line is not 'id x y z'")
+    if n and not (np.abs(table[:, 0]) < _INT64).all():  # the cast below would wrap silently
+        raise MeshReadError(f"{path}: a node id of ${section} is too large for a node number")
     return table[:, 0].astype(np.int64), table[:, 1:4].copy()
 
 
@@ -185,7 +206,9 @@ def _v41(path: Path) -> RawMesh:
         pos, ids, coords = 1, [], []
         for _ in range(n_blocks):
             _, _, parametric, count = (int(v) for v in lines[pos].split()[:4])
-            ids += [int(v) for v in lines[pos + 1 : pos + 1 + count]]
+            if count < 0:
+                raise ValueError("negative count")
+            ids += _in_int64(path, [int(v) for v in lines[pos + 1 : pos + 1 + count]], "$Nodes")
             coords += [ln.split()[:3] for ln in lines[pos + 1 + count : pos + 1 + 2 * count]]
             pos += 1 + 2 * count
         lines = [ln for ln in sec["ELEMENTS"] if ln]
@@ -193,8 +216,11 @@ def _v41(path: Path) -> RawMesh:
         pos, entries = 1, []
         for _ in range(n_blocks):
             _, _, code, count = (int(v) for v in lines[pos].split()[:4])
+            if count < 0:
+                raise ValueError("negative count")
             entries += [
-                (code, [int(v) for v in ln.split()[1:]]) for ln in lines[pos + 1 : pos + 1 + count]
+                (code, _in_int64(path, [int(v) for v in ln.split()[1:]], "$Elements"))
+                for ln in lines[pos + 1 : pos + 1 + count]
             ]
             pos += 1 + count
         points = np.array(coords, dtype=float).reshape(-1, 3)
