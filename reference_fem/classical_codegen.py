@@ -155,7 +155,8 @@ class _Classical:
         elif law == "decoupled":
             s("k0 = P[0]")
             s("tk0 = 2.0 * k0")
-            self.psi_cell = _declared_psi(s, self.shape)  # hoists what depends on parameters only
+            # hoists what depends on the parameters only
+            self.psi_calls, self.psi_cell = _declared_psi(s, self.shape)
         elif law == "ogden":
             s("c, q, r, alpha, k0 = P[0], P[1], P[2], P[3], P[4]")
             s("qm1 = q - 1.0")
@@ -264,6 +265,8 @@ class _Classical:
         (the decoupled tangent below takes Psi_12 = Psi_22 = 0); returns their names.
         """
         s = self.src
+        for name, call in self.psi_calls:
+            s(f"{name} = {call}")
         psi_v, p1, p2, p11, p12, p22 = self.psi_cell
         if p12 is not None or p22 is not None:
             raise NotImplementedError(
@@ -279,7 +282,8 @@ class _Classical:
         s("I1 = C00 + C11 + C22")
         s("j23 = J ** (-2.0 / 3.0)")
         s("I1b = j23 * I1")
-        if any(e is not None and "I2b" in e for e in self.psi_cell):
+        reads = [e for e in self.psi_cell if e is not None] + [c for _, c in self.psi_calls]
+        if any("I2b" in e for e in reads):
             s(
                 "I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C12 "
                 "* C12 + C02 * C02)))"
@@ -563,49 +567,64 @@ class _Sym:
 
     def _op(self, a, b, op: str) -> "_Sym":
         a, b = self._wrap(a), self._wrap(b)
+        if op == "+" and a.text in ("0", "0.0"):  # what sum() starts from
+            return b
         if a.const and b.const:
             return _Sym(f"({a.text} {op} {b.text})", True, self.hoist)
         return _Sym(f"({self.hoist(a)} {op} {self.hoist(b)})", False, self.hoist)
 
     def __add__(self, o):
-        return self._op(self, o, "+")  # noqa: E704
+        return self._op(self, o, "+")
 
     def __radd__(self, o):
-        return self._op(o, self, "+")  # noqa: E704
+        return self._op(o, self, "+")
 
     def __sub__(self, o):
-        return self._op(self, o, "-")  # noqa: E704
+        return self._op(self, o, "-")
 
     def __rsub__(self, o):
-        return self._op(o, self, "-")  # noqa: E704
+        return self._op(o, self, "-")
 
     def __mul__(self, o):
-        return self._op(self, o, "*")  # noqa: E704
+        return self._op(self, o, "*")
 
     def __rmul__(self, o):
-        return self._op(o, self, "*")  # noqa: E704
+        return self._op(o, self, "*")
 
     def __truediv__(self, o):
-        return self._op(self, o, "/")  # noqa: E704
+        return self._op(self, o, "/")
 
     def __rtruediv__(self, o):
-        return self._op(o, self, "/")  # noqa: E704
+        return self._op(o, self, "/")
 
     def __pow__(self, o):
-        return self._op(self, o, "**")  # noqa: E704
+        return self._op(self, o, "**")
 
     def __rpow__(self, o):
-        return self._op(o, self, "**")  # noqa: E704
+        return self._op(o, self, "**")
 
     def __neg__(self):
-        return self._op(0.0, self, "-")  # noqa: E704
+        return self._op(0.0, self, "-")
 
 
 class _Hoist:
-    """Names a parameter-only expression before the loop (once per distinct text)."""
+    """Names a parameter-only expression before the loop (once per distinct text), and keeps
+    the per-cell function calls (``cell_lets``, written at the top of the cell's Psi) so that
+    a call used by Psi and its derivatives is made once.
+    """
 
     def __init__(self, src: Source):
         self.src, self.names = src, {}
+        self.cell_lets: List[Tuple[str, str]] = []
+
+    def cell(self, text: str) -> str:
+        """The name of a per-cell expression, assigned once in the cell."""
+        for name, known in self.cell_lets:
+            if known == text:
+                return name
+        name = f"pc{len(self.cell_lets)}"
+        self.cell_lets.append((name, text))
+        return name
 
     def __call__(self, e: _Sym) -> str:
         if not e.const or _SIMPLE_NAME.match(e.text):
@@ -626,19 +645,22 @@ class _SourceMath:
 
     def _call(self, name: str, x) -> _Sym:
         x = x if isinstance(x, _Sym) else _Sym(repr(float(x)), True, self.hoist)
-        return _Sym(f"math.{name}({x.text})", x.const, self.hoist)
+        if x.const:
+            return _Sym(f"math.{name}({x.text})", True, self.hoist)
+        return _Sym(self.hoist.cell(f"math.{name}({x.text})"), False, self.hoist)
 
     def exp(self, x):
-        return self._call("exp", x)  # noqa: E704
+        return self._call("exp", x)
 
     def log(self, x):
-        return self._call("log", x)  # noqa: E704
+        return self._call("log", x)
 
 
-def _declared_psi(src: Source, shape: LawShape) -> Tuple[Expr, ...]:
+def _declared_psi(src: Source, shape: LawShape) -> Tuple[List[Tuple[str, str]], Tuple[Expr, ...]]:
     """Evaluate the shape's declared Psi on symbols: the parameters P[1], P[2], ... (read and
-    combined before the loop) and the per-cell I1b, I2b. Returns the six cell expressions
-    (Psi, Psi_1, Psi_2, Psi_11, Psi_12, Psi_22), None where the declaration gives 0.
+    combined before the loop) and the per-cell I1b, I2b. Returns the cell's named function
+    calls (name, expression), to be written first, and the six cell expressions (Psi, Psi_1,
+    Psi_2, Psi_11, Psi_12, Psi_22), None where the declaration gives 0.
     """
     hoist = _Hoist(src)
     names = {}
@@ -655,7 +677,7 @@ def _declared_psi(src: Source, shape: LawShape) -> Tuple[Expr, ...]:
             exprs.append(None)  # structurally zero: its terms are dropped
         else:
             exprs.append(repr(float(e)))
-    return tuple(exprs)
+    return hoist.cell_lets, tuple(exprs)
 
 
 def classical_source(shape: LawShape) -> str:
