@@ -4,12 +4,16 @@ differences, rest state, symmetry, invariance and the patch test.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 from conftest import box_mesh, perturbed, random_tetrahedron
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
+from mjed.materials.base import Material
+from mjed.terms import I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup, Unity
 
 
 @pytest.fixture
@@ -132,21 +136,6 @@ def test_smooth_function_of_a_sum_has_consistent_derivatives(function, rng):
     """A group c phi(u) with phi = ln(a + u) or (a + u)^p: force and stiffness are the
     derivatives of the energy (central differences), including the rank-one c phi'' term.
     """
-    from dataclasses import dataclass
-
-    from mjed.materials.base import Material
-    from mjed.terms import (
-        I1Power,
-        JPower,
-        LinearI2,
-        Log,
-        LogPolynomial,
-        Power,
-        Term,
-        TermGroup,
-        Unity,
-    )
-
     phi = {"log": Log(0.8), "power": Power(2.5, 0.3), "power_integer": Power(3.0, -0.5)}[function]
 
     @dataclass(frozen=True)
