@@ -571,7 +571,10 @@ class _Sym:
             return b
         if a.const and b.const:
             return _Sym(f"({a.text} {op} {b.text})", True, self.hoist)
-        return _Sym(f"({self.hoist(a)} {op} {self.hoist(b)})", False, self.hoist)
+        text = f"({self.hoist(a)} {op} {self.hoist(b)})"
+        if op == "*" and not a.const and not b.const:  # a power of cell values, e.g. I1b^2:
+            return _Sym(self.hoist.cell(text), False, self.hoist)  # formed once, then reused
+        return _Sym(text, False, self.hoist)
 
     def __add__(self, o):
         return self._op(self, o, "+")
@@ -609,8 +612,8 @@ class _Sym:
 
 class _Hoist:
     """Names a parameter-only expression before the loop (once per distinct text), and keeps
-    the per-cell function calls (``cell_lets``, written at the top of the cell's Psi) so that
-    a call used by Psi and its derivatives is made once.
+    the per-cell function calls and products of cell values (``cell_lets``, written at the
+    top of the cell's Psi) so that one used by Psi and its derivatives is formed once.
     """
 
     def __init__(self, src: Source):
