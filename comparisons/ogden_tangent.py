@@ -9,16 +9,17 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Dict, Sequence
 
-import numpy as np
 from scipy.sparse.linalg import norm as sparse_norm
 
 import mjed
-from comparisons.states import apply_state
+from common.states import apply_state
 
 __all__ = ["sofa_tangent_errors"]
 
 
-def sofa_tangent_errors(mesh: mjed.TetMesh, material: mjed.materials.Ogden, states: Sequence[str]) -> Dict[str, float]:
+def sofa_tangent_errors(
+    mesh: mjed.TetMesh, material: mjed.materials.Ogden, states: Sequence[str]
+) -> Dict[str, float]:
     """||K_sofa - K_exact||_F / ||K_exact||_F for each state."""
     exact = mjed.HyperelasticForceField(mesh, replace(material, tangent="exact"))
     approx = mjed.HyperelasticForceField(mesh, replace(material, tangent="sofa"))

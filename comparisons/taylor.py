@@ -8,14 +8,16 @@ convergence rate; a wrong derivative gives rate 1 (or 0).
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Callable
 
 import numpy as np
 
 __all__ = ["taylor_rates", "energy_force_rates", "force_stiffness_rates"]
 
 
-def taylor_rates(phi: Callable, dphi_v, x: np.ndarray, v: np.ndarray, eps0: float, n: int = 4) -> np.ndarray:
+def taylor_rates(
+    phi: Callable, dphi_v, x: np.ndarray, v: np.ndarray, eps0: float, n: int = 4
+) -> np.ndarray:
     """Rates log2(r(eps_i) / r(eps_{i+1})) for eps_i = eps0 / 2^i.
 
     Args:

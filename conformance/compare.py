@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
-from comparisons.equivalence import FORCE_TOL, STIFFNESS_TOL
+from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
 __all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales"]
 
@@ -49,7 +49,12 @@ class Errors:
         return bool(ok and (self.energy is None or self.energy <= ENERGY_TOL))
 
     def to_dict(self) -> dict:
-        return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy, "symmetry": self.symmetry}
+        return {
+            "force": self.force,
+            "stiffness": self.stiffness,
+            "energy": self.energy,
+            "symmetry": self.symmetry,
+        }
 
 
 def scales(h: float, W_o: float, f_o: np.ndarray, K_o: sp.spmatrix) -> Scales:
@@ -62,8 +67,15 @@ def _ratio(num: float, den: float) -> float:
     return num / den if den > 0 else num
 
 
-def errors(f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray, K_o: sp.spmatrix, W_o: float,
-           s: Scales) -> Errors:
+def errors(
+    f: np.ndarray,
+    K: sp.spmatrix,
+    W: Optional[float],
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    W_o: float,
+    s: Scales,
+) -> Errors:
     """Relative errors of (f, K, W) against the oracle (f_o, K_o, W_o) with denominators ``s``."""
     K = sp.csr_matrix(K)
     nK = float(sparse_norm(K))

@@ -41,9 +41,11 @@ ENERGY_PROBE_TOL = 1e-4
 
 @dataclass(frozen=True)
 class Consistency:
-    """force_stiffness: relative inconsistency of K with the engine's own force (None: not measured);
+    """force_stiffness: relative inconsistency of K with the engine's own force (None: not
+    measured);
     energy_force: the same for the force against the engine's energy (None without energies);
-    rates_*: Taylor rates; note: why something was not measured."""
+    rates_*: Taylor rates; note: why something was not measured.
+    """
 
     force_stiffness: Optional[float]
     energy_force: Optional[float]
@@ -60,9 +62,13 @@ class Consistency:
         return None if self.energy_force is None else self.energy_force <= ENERGY_PROBE_TOL
 
     def to_dict(self) -> dict:
-        return {"force_stiffness": self.force_stiffness, "energy_force": self.energy_force,
-                "rates_force": [float(r) for r in self.rates_force],
-                "rates_energy": [float(r) for r in self.rates_energy], "note": self.note}
+        return {
+            "force_stiffness": self.force_stiffness,
+            "energy_force": self.energy_force,
+            "rates_force": [float(r) for r in self.rates_force],
+            "rates_energy": [float(r) for r in self.rates_energy],
+            "note": self.note,
+        }
 
 
 def _linear_coefficient(t: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -73,22 +79,28 @@ def _linear_coefficient(t: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def _rates(norms: List[float]) -> List[float]:
-    return [float(np.log2(a / b)) if a > 0 and b > 0 else float("nan") for a, b in zip(norms, norms[1:])]
+    return [
+        float(np.log2(a / b)) if a > 0 and b > 0 else float("nan") for a, b in zip(norms, norms[1:])
+    ]
 
 
-def consistency(x: np.ndarray, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
-                probes: Sequence[tuple]) -> Consistency:
+def consistency(
+    x: np.ndarray, f: np.ndarray, K: sp.spmatrix, W: Optional[float], probes: Sequence[tuple]
+) -> Consistency:
     """Taylor test of an engine against itself.
 
     Args:
-        x, f, K, W: the base state's positions (n, 3), force (n, 3), stiffness (3n, 3n), energy or None.
+        x, f, K, W: the base state's positions (n, 3), force (n, 3), stiffness (3n, 3n), energy or
+        None.
         probes: (x_k, f_k, W_k) in step order k = 0, 1, ... (x_k = x + d / 2^k).
     """
     if len(probes) < 2:
         return Consistency(None, None, note=f"{len(probes)} probe result(s); at least 2 are needed")
     t = np.array([0.5**k for k in range(len(probes))])
     d = [np.asarray(p[0]) - x for p in probes]
-    r = np.array([np.asarray(p[1]).ravel() - f.ravel() + K @ dk.ravel() for p, dk in zip(probes, d)])
+    r = np.array(
+        [np.asarray(p[1]).ravel() - f.ravel() + K @ dk.ravel() for p, dk in zip(probes, d)]
+    )
     Kd0 = float(np.linalg.norm(K @ d[0].ravel()))
     A = _linear_coefficient(t, r)
     fs = float(np.linalg.norm(A)) / Kd0 if Kd0 > 0 else float(np.linalg.norm(A))

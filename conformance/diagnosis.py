@@ -6,6 +6,9 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
 1. conventions: sign of force and/or stiffness; component-major dof order; node offsets and
    permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
 2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
+   then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
+   transposed or a single frame, or the columns in another order
+   (:mod:`conformance.frame_hypotheses`);
 3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
    explains a stiffness error when the force is right (:mod:`conformance.tangent`);
 4. a different volumetric (J-only) energy, fitted per cell;
@@ -36,7 +39,8 @@ SIGN_CODES = ("force-sign", "stiffness-sign", "both-signs")
 @dataclass(frozen=True)
 class Diagnosis:
     """case_id, verdict ("passed" / "failed"), errors, findings (named causes first), and
-    node_error: (n,) per-node relative error (force and stiffness rows), for ParaView."""
+    node_error: (n,) per-node relative error (force and stiffness rows), for ParaView.
+    """
 
     case_id: str
     verdict: str
@@ -56,19 +60,29 @@ class Diagnosis:
     def text(self) -> str:
         e = self.errors
         energy = "not given" if e.energy is None else f"{e.energy:.2e}"
-        lines = [f"case {self.case_id}: {self.verdict.upper()} (relative errors: force {e.force:.2e}, "
-                 f"stiffness {e.stiffness:.2e}, energy {energy}; tolerance {FORCE_TOL:g})"]
+        lines = [
+            f"case {self.case_id}: {self.verdict.upper()} (relative errors: force {e.force:.2e}, "
+            f"stiffness {e.stiffness:.2e}, energy {energy}; tolerance {FORCE_TOL:g})"
+        ]
         lines += [f"  - {f.text()}" for f in self.findings]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        return {"case": self.case_id, "verdict": self.verdict, "errors": self.errors.to_dict(),
-                "findings": [f.to_dict() for f in self.findings],
-                "consistency": None if self.consistency is None else self.consistency.to_dict()}
+        return {
+            "case": self.case_id,
+            "verdict": self.verdict,
+            "errors": self.errors.to_dict(),
+            "findings": [f.to_dict() for f in self.findings],
+            "consistency": None if self.consistency is None else self.consistency.to_dict(),
+        }
 
 
-def node_error_field(f: np.ndarray, K: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix, s: Scales) -> np.ndarray:
-    """(n,) per-node error: sqrt(|f_a - f_o,a|^2 / s_f^2 + ||rows of node a of K - K_o||^2 / s_K^2)."""
+def node_error_field(
+    f: np.ndarray, K: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix, s: Scales
+) -> np.ndarray:
+    """(n,) per-node error: sqrt(|f_a - f_o,a|^2 / s_f^2 + ||rows of node a of K - K_o||^2 /
+    s_K^2).
+    """
     df2 = np.sum((f - f_o) ** 2, axis=1) / s.force**2 if s.force > 0 else np.zeros(len(f))
     D = sp.csr_matrix(K - K_o)
     row2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
@@ -84,9 +98,23 @@ def _evidence(e: Errors) -> str:
     return f"after the correction: force error {e.force:.1e}, stiffness error {e.stiffness:.1e}"
 
 
-def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray,
-             K_o: sp.spmatrix, W_o: float, s: Scales, points: np.ndarray, cells: np.ndarray, x: np.ndarray,
-             parts: Optional[Callable[[], Any]] = None, consistency: Optional[Consistency] = None) -> Diagnosis:
+def diagnose(
+    case_id: str,
+    *,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    W: Optional[float],
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    W_o: float,
+    s: Scales,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    parts: Optional[Callable[[], Any]] = None,
+    consistency: Optional[Consistency] = None,
+    frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
+) -> Diagnosis:
     """Diagnose one case.
 
     Args:
@@ -95,6 +123,8 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
         points, cells, x: the mesh and the current positions.
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
+        frame_variants: a callable returning the oracle with mistaken frames
+            (:class:`conformance.frame_hypotheses.FrameVariant`; built only if needed).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -106,50 +136,81 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
     inconsistent = any(x_.code.startswith("inconsistent") for x_ in findings)
     if err.passed and not inconsistent:
         return Diagnosis(case_id, "passed", err, findings, field_, consistency)
-    if _within(err):  # force and stiffness right: only the energy (or the engine's consistency) is off
+    if _within(
+        err
+    ):  # force and stiffness right: only the energy (or the engine's consistency) is off
         if err.energy is not None and err.energy > ENERGY_TOL:
             findings.insert(0, _energy_finding(W, W_o, err, _rest_volumes(points, cells).sum()))
         if inconsistent and consistency is not None and consistency.stiffness_consistent is False:
-            findings.insert(0, Finding(
-                "force-wrong-nearby", "the force is wrong away from this state", OBSERVED,
-                "force and stiffness match the oracle here, but the stiffness is not the derivative of the engine's "
-                "own force at the probes: the force changes wrongly as the mesh deforms (check a deformed state, "
-                "where the diagnosis can name the mistake)", {}))
+            findings.insert(
+                0,
+                Finding(
+                    "force-wrong-nearby",
+                    "the force is wrong away from this state",
+                    OBSERVED,
+                    "force and stiffness match the oracle here, but the stiffness is not the "
+                    "derivative of the engine's own force at the probes: the force changes wrongly "
+                    "as the mesh deforms (check a deformed state, where the diagnosis can name the "
+                    "mistake)",
+                    {},
+                ),
+            )
         return Diagnosis(case_id, "failed", err, findings, field_, consistency)
 
-    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_)
+    causes, partial = _explain(
+        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants
+    )
     if causes:
         findings = causes + findings
     else:
         best = sorted(partial, key=lambda p: p.figures.get("residual", np.inf))[:2]
         unexplained = Finding(
-            "unexplained", "unexplained",
+            "unexplained",
+            "unexplained",
             PARTIAL if best else OBSERVED,
-            "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or unsymmetric K, "
-            "global factor, tangent parts, volumetric energy, localisation) brings the error within tolerance"
+            "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
+            "unsymmetric K, global factor, fibre frame where the model has one, tangent parts, "
+            "volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
-            + ("; the force is right and the stiffness is not the derivative of the engine's own force (below): "
-               "the mistake is in the tangent alone" if inconsistent and err.force <= FORCE_TOL else ""),
-            {"force": err.force, "stiffness": err.stiffness})
+            + (
+                "; the force is right and the stiffness is not the derivative of the engine's own "
+                "force (below): the mistake is in the tangent alone"
+                if inconsistent and err.force <= FORCE_TOL
+                else ""
+            ),
+            {"force": err.force, "stiffness": err.stiffness},
+        )
         findings = [unexplained] + findings
     return Diagnosis(case_id, "failed", err, findings, field_, consistency)
 
 
 def _rest_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """(m,) rest cell volumes [m^3]."""
-    return np.abs(np.linalg.det(np.swapaxes(points[cells][:, 1:] - points[cells][:, :1], 1, 2))) / 6.0
+    return (
+        np.abs(np.linalg.det(np.swapaxes(points[cells][:, 1:] - points[cells][:, :1], 1, 2))) / 6.0
+    )
 
 
 def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
     ratio = W / W_o if W_o else float("nan")
-    words = "sign flipped" if abs(ratio + 1) < 1e-9 else (f"engine/oracle ratio {ratio:.6g}" if W_o else "")
-    # Force and stiffness agree, so a difference that is a constant density (e.g. W without its '- 3')
+    words = (
+        "sign flipped"
+        if abs(ratio + 1) < 1e-9
+        else (f"engine/oracle ratio {ratio:.6g}" if W_o else "")
+    )
+    # Force and stiffness agree, so a difference that is a constant density (e.g. W without its '-
+    # 3')
     # is the likely reading: say what density it would be, as a figure, not as a claim.
     offset = (W - W_o) / volume
-    return Finding("energy", "energy differs while force and stiffness match", FULL,
-                   f"energy {W:.6e} J against {W_o:.6e} J (relative error {err.energy:.1e})"
-                   f"{'; ' + words if words else ''}; as a constant density over the rest volume: {offset:.6g} Pa",
-                   {"energy": W, "oracle_energy": W_o, "offset_density": offset})
+    return Finding(
+        "energy",
+        "energy differs while force and stiffness match",
+        FULL,
+        f"energy {W:.6e} J against {W_o:.6e} J (relative error "
+        f"{err.energy:.1e}){'; ' + words if words else ''}; as a constant density over the rest "
+        f"volume: {offset:.6g} Pa",
+        {"energy": W, "oracle_energy": W_o, "offset_density": offset},
+    )
 
 
 def _consistency_findings(c: Consistency) -> List[Finding]:
@@ -157,35 +218,67 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
     if c.force_stiffness is not None:
         rates = ", ".join(f"{r:.2f}" for r in c.rates_force)
         if c.force_stiffness > PROBE_TOL:
-            out.append(Finding("inconsistent-stiffness", "stiffness is not the derivative of the engine's own force",
-                               OBSERVED, f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random direction "
-                               f"(limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
-                               {"inconsistency": c.force_stiffness, "rates": list(c.rates_force)}))
+            out.append(
+                Finding(
+                    "inconsistent-stiffness",
+                    "stiffness is not the derivative of the engine's own force",
+                    OBSERVED,
+                    f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
+                    f"direction (limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
+                    {"inconsistency": c.force_stiffness, "rates": list(c.rates_force)},
+                )
+            )
         else:
-            out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force", OBSERVED,
-                               f"relative inconsistency {c.force_stiffness:.1e} (limit {PROBE_TOL:g}); Taylor rates {rates}",
-                               {"inconsistency": c.force_stiffness}))
+            out.append(
+                Finding(
+                    "consistent-stiffness",
+                    "stiffness is the derivative of the engine's own force",
+                    OBSERVED,
+                    f"relative inconsistency {c.force_stiffness:.1e} (limit {PROBE_TOL:g}); Taylor "
+                    f"rates {rates}",
+                    {"inconsistency": c.force_stiffness},
+                )
+            )
     if c.energy_force is not None and c.energy_force > ENERGY_PROBE_TOL:
-        out.append(Finding("inconsistent-force", "force is not minus the derivative of the engine's own energy", OBSERVED,
-                           f"relative inconsistency {c.energy_force:.1e} (limit {ENERGY_PROBE_TOL:g}); Taylor rates "
-                           + ", ".join(f"{r:.2f}" for r in c.rates_energy), {"inconsistency": c.energy_force}))
+        out.append(
+            Finding(
+                "inconsistent-force",
+                "force is not minus the derivative of the engine's own energy",
+                OBSERVED,
+                f"relative inconsistency {c.energy_force:.1e} (limit {ENERGY_PROBE_TOL:g}); Taylor "
+                "rates " + ", ".join(f"{r:.2f}" for r in c.rates_energy),
+                {"inconsistency": c.energy_force},
+            )
+        )
     return out
 
 
-def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
+def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants=None):
     """(causes that fully explain, partial explanations)."""
     full: List[Finding] = []
     partial: List[Finding] = []
     worst = max(err.force, err.stiffness)
 
-    def judge(code: str, title: str, corrected_errors: Errors, extra: str = "", figures: Optional[dict] = None):
-        figs = {"force_after": corrected_errors.force, "stiffness_after": corrected_errors.stiffness,
-                "residual": max(corrected_errors.force, corrected_errors.stiffness), **(figures or {})}
+    def judge(
+        code: str,
+        title: str,
+        corrected_errors: Errors,
+        extra: str = "",
+        figures: Optional[dict] = None,
+    ):
+        figs = {
+            "force_after": corrected_errors.force,
+            "stiffness_after": corrected_errors.stiffness,
+            "residual": max(corrected_errors.force, corrected_errors.stiffness),
+            **(figures or {}),
+        }
         text = _evidence(corrected_errors) + (f"; {extra}" if extra else "")
         if _within(corrected_errors):
             full.append(Finding(code, title, FULL, text, figs))
         elif figs["residual"] < 0.1 * worst:
-            partial.append(Finding(code, title, PARTIAL, text + " (residual above tolerance)", figs))
+            partial.append(
+                Finding(code, title, PARTIAL, text + " (residual above tolerance)", figs)
+            )
 
     for c in convention_corrections(f_o, K_o, f, K):
         out = c.apply(f, K, W)
@@ -194,8 +287,12 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
             extra = ""
             if c.code == "unsymmetric":
                 from scipy.sparse.linalg import norm as sparse_norm
+
                 skew = float(sparse_norm(K - K.T)) / 2 / max(float(sparse_norm(K)), 1e-300)
-                extra = f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part matches"
+                extra = (
+                    f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part "
+                    "matches"
+                )
                 if err.symmetry <= 1e-12:
                     continue  # a symmetric K: the correction is the identity
             judge(c.code, c.title, e, extra)
@@ -210,7 +307,11 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
             if c.code in SIGN_CODES or c.code == "unsymmetric":
                 continue
             out = c.apply(f1, K1, W1)
-            judge(f"{c.code}+{sign.code}", f"{c.title}, and {sign.title}", errors(*out[:2], None, f_o, K_o, W_o, s))
+            judge(
+                f"{c.code}+{sign.code}",
+                f"{c.title}, and {sign.title}",
+                errors(*out[:2], None, f_o, K_o, W_o, s),
+            )
     if full:
         return full, partial
 
@@ -219,7 +320,14 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
     for code, which, ratio, out in scale_corrections(f_o, K_o, f, K, W_o, W):
         e = errors(*out[:2], None, f_o, K_o, W_o, s)
         name = common_factor_name(ratio, float(V0.mean()), uniform)
-        judge(code, f"{which} scaled: {name}", e, f"engine / oracle = {ratio:.6g}", {"ratio": ratio})
+        judge(
+            code, f"{which} scaled: {name}", e, f"engine / oracle = {ratio:.6g}", {"ratio": ratio}
+        )
+        if full:
+            return full, partial
+
+    if frame_variants is not None:
+        _frame_findings(f, K, W_o, frame_variants(), judge)
         if full:
             return full, partial
 
@@ -237,11 +345,25 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
     if parts is not None:
         p = parts()
         if p["geometric_volumetric"] is not None:
-            _volumetric_findings(points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, full, partial)
+            _volumetric_findings(
+                points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, full, partial
+            )
             if full:
                 return full, partial
 
     return full, partial
+
+
+def _frame_findings(
+    f: np.ndarray, K: sp.csr_matrix, W_o: float, variants: Sequence[Any], judge: Callable[..., None]
+) -> None:
+    """The engine against the oracle evaluated with each mistaken frame: a frame mistake is named
+    when the engine agrees with that variant (the error lives inside the energy, so it cannot be
+    undone on the output).
+    """
+    for v in variants:
+        e = errors(f, K, None, v.force, v.stiffness, W_o, v.scales)
+        judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
 
 
 def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
@@ -254,13 +376,24 @@ def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
     if fit is None:
         return
     words = " and ".join(describe_coefficient(n, c) for n, c in zip(fit.names, fit.coefficients))
-    figs = {"parts": list(fit.names), "coefficients": list(fit.coefficients), "residual": fit.residual}
-    text = (f"K - K_oracle = " + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(fit.names, fit.coefficients))
-            + f" leaves a stiffness error of {fit.residual:.1e}; the force matches")
+    figs = {
+        "parts": list(fit.names),
+        "coefficients": list(fit.coefficients),
+        "residual": fit.residual,
+    }
+    text = (
+        "K - K_oracle = "
+        + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(fit.names, fit.coefficients))
+        + f" leaves a stiffness error of {fit.residual:.1e}; the force matches"
+    )
     if ok is not None:
-        full.append(Finding("tangent-part", f"tangent error in one part: {words}", FULL, text, figs))
+        full.append(
+            Finding("tangent-part", f"tangent error in one part: {words}", FULL, text, figs)
+        )
     elif fit.residual < 0.1 * err.stiffness:
-        partial.append(Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs))
+        partial.append(
+            Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs)
+        )
 
 
 def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full, partial) -> None:
@@ -270,18 +403,31 @@ def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full,
     if fit is None:
         return
     J1 = float(np.median(fit.J))
-    figs = {"force_after": fit.force_residual, "stiffness_after": fit.stiffness_residual,
-            "residual": max(fit.force_residual, fit.stiffness_residual), "variant": fit.variant,
-            "dU1_median": float(np.median(fit.dU1)), "dU2_median": float(np.median(fit.dU2))}
-    text = (f"a per-cell change of the J-only energy U(J) leaves force error {fit.force_residual:.1e} and stiffness "
-            f"error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ {np.median(fit.dU1):.4g} Pa and "
-            f"d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = {J1:.4g}")
+    figs = {
+        "force_after": fit.force_residual,
+        "stiffness_after": fit.stiffness_residual,
+        "residual": max(fit.force_residual, fit.stiffness_residual),
+        "variant": fit.variant,
+        "dU1_median": float(np.median(fit.dU1)),
+        "dU2_median": float(np.median(fit.dU2)),
+    }
+    text = (
+        f"a per-cell change of the J-only energy U(J) leaves force error {fit.force_residual:.1e} "
+        f"and stiffness error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
+        f"{np.median(fit.dU1):.4g} Pa and d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = "
+        f"{J1:.4g}"
+    )
     if fit.variant:
         text += f"; recognised: {fit.variant}"
     elif np.unique(np.round(fit.J, 12)).size < 3:
-        text += "; the state has a single J, so the form of U cannot be identified from this case alone"
-    title = ("volumetric (J-only) tangent differs (the force matches)" if np.linalg.norm(df) / s.force <= FORCE_TOL
-             else "volumetric (J-only) energy differs from the oracle's")
+        text += (
+            "; the state has a single J, so the form of U cannot be identified from this case alone"
+        )
+    title = (
+        "volumetric (J-only) tangent differs (the force matches)"
+        if np.linalg.norm(df) / s.force <= FORCE_TOL
+        else "volumetric (J-only) energy differs from the oracle's"
+    )
     if fit.force_residual <= FORCE_TOL and fit.stiffness_residual <= STIFFNESS_TOL:
         full.append(Finding("volumetric", title, FULL, text, figs))
     elif figs["residual"] < 0.1 * worst:
@@ -304,17 +450,35 @@ def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) 
     mask[nodes] = False
     dofs = np.flatnonzero(np.repeat(mask, 3))
     from scipy.sparse.linalg import norm as sparse_norm
+
     fout = float(np.linalg.norm((f - f_o)[mask])) / s.force
     kout = float(sparse_norm((K - K_o).tocsr()[dofs][:, dofs])) / s.stiffness
     in_set = np.isin(cells, nodes).all(axis=1)
     cell_ids = np.flatnonzero(in_set)
     where = f"nodes {', '.join(map(str, nodes[:12]))}{' ...' if nodes.size > 12 else ''}"
     if cell_ids.size:
-        where += f" (cells {', '.join(map(str, cell_ids[:8]))}{' ...' if cell_ids.size > 8 else ''})"
-    figs = {"nodes": nodes.tolist(), "cells": cell_ids.tolist(), "force_outside": fout, "stiffness_outside": kout,
-            "residual": max(fout, kout)}
-    text = (f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, stiffness error "
-            f"{kout:.1e}; see the per-node error field")
+        where += (
+            f" (cells {', '.join(map(str, cell_ids[:8]))}{' ...' if cell_ids.size > 8 else ''})"
+        )
+    figs = {
+        "nodes": nodes.tolist(),
+        "cells": cell_ids.tolist(),
+        "force_outside": fout,
+        "stiffness_outside": kout,
+        "residual": max(fout, kout),
+    }
+    text = (
+        f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, "
+        f"stiffness error {kout:.1e}; see the per-node error field"
+    )
     if fout <= FORCE_TOL and kout <= STIFFNESS_TOL:
-        full.append(Finding("localised", f"error localised to {nodes.size} node(s)"
-                            + (f" / {cell_ids.size} cell(s)" if cell_ids.size else ""), FULL, text, figs))
+        full.append(
+            Finding(
+                "localised",
+                f"error localised to {nodes.size} node(s)"
+                + (f" / {cell_ids.size} cell(s)" if cell_ids.size else ""),
+                FULL,
+                text,
+                figs,
+            )
+        )

@@ -33,5 +33,10 @@ class Finding:
         return f"{self.title} [{self.strength}]: {self.evidence}"
 
     def to_dict(self) -> dict:
-        return {"code": self.code, "title": self.title, "strength": self.strength, "evidence": self.evidence,
-                "figures": dict(self.figures)}
+        return {
+            "code": self.code,
+            "title": self.title,
+            "strength": self.strength,
+            "evidence": self.evidence,
+            "figures": dict(self.figures),
+        }

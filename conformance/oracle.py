@@ -1,16 +1,19 @@
 """The oracle's values for a case: energy, force and stiffness from the UFL oracle, and the parts of
-its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes."""
+its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes.
+"""
 
 from __future__ import annotations
 
 import hashlib
 import json
 from dataclasses import dataclass
-from typing import Any, Callable, Dict, Optional, Tuple
+from typing import Any, Dict, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.energy import energy_density
+from conformance.parts import PartsOracle
 from conformance.spec import CaseInput, model_frame, model_to_manifest
 
 __all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
@@ -20,18 +23,6 @@ def oracle_available() -> bool:
     from reference_fem import dolfinx_available
 
     return dolfinx_available()
-
-
-def energy_density(model: Any, F, frame=None, constant: Optional[Callable[[Any], Any]] = None):
-    """W(F) per unit rest volume in UFL, for a built-in material or a user energy."""
-    from conformance.spec import _user_energy_type
-
-    UE = _user_energy_type()
-    if UE is not None and isinstance(model, UE):
-        return model.ufl_density(F, constant=constant)
-    from reference_fem.energies import strain_energy_density
-
-    return strain_energy_density(model, F, frame=frame, constant=constant)
 
 
 @dataclass(frozen=True)
@@ -65,7 +56,14 @@ class OracleCache:
         key = _key(case)
         if key not in self._oracles:
             from reference_fem import UFLOracle
+            from reference_fem.user_energy import UserEnergy
 
+            if isinstance(case.model, UserEnergy):
+                # a user energy's symbolic work is unbounded by its length: compile it first
+                # in a child with a time and memory budget (SymbolicBudgetError, a ValueError)
+                from reference_fem.symbolic_budget import check_symbolic_budget
+
+                check_symbolic_budget(case.model)
             self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)
@@ -75,7 +73,5 @@ class OracleCache:
         """:class:`conformance.parts.StiffnessParts` at the case's positions."""
         key = _key(case)
         if key not in self._parts:
-            from conformance.parts import PartsOracle
-
             self._parts[key] = PartsOracle(case.points, case.cells, case.model)
         return self._parts[key].parts(case.positions)

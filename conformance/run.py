@@ -1,4 +1,5 @@
-"""Check an engine case by case: get its output (files, a command or a Python callable), compare with
+"""Check an engine case by case: get its output (files, a command or a Python callable), compare
+with
 the oracle, diagnose; a bad case is reported and the others still run.
 
 The engine is reached through an *evaluator*: ``evaluate(kit_case) -> EngineOutput``, raising
@@ -11,12 +12,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from comparisons.equivalence import mean_edge_length
-from comparisons.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
+from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
+from common.tolerances import mean_edge_length
 from conformance.compare import scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
+from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes
 from conformance.oracle import OracleCache
 
@@ -27,12 +29,16 @@ Evaluator = Callable[[KitCase], EngineOutput]
 
 
 class CaseError(FormatError):
-    """One case could not be evaluated: bad output, a crash or a time limit (message names the case)."""
+    """One case could not be evaluated: bad output, a crash or a time limit (message names the
+    case).
+    """
 
 
 @dataclass(frozen=True)
 class CaseOutcome:
-    """status: "passed", "failed" or "bad input"; diagnosis for compared cases, message otherwise."""
+    """status: "passed", "failed" or "bad input"; diagnosis for compared cases, message
+    otherwise.
+    """
 
     case_id: str
     model: str
@@ -45,8 +51,15 @@ class CaseOutcome:
     n_nodes: int = 0
 
     def to_dict(self) -> dict:
-        d = {"case": self.case_id, "model": self.model, "mesh": self.mesh, "state": self.state, "status": self.status,
-             "message": self.message, "seconds": self.seconds}
+        d = {
+            "case": self.case_id,
+            "model": self.model,
+            "mesh": self.mesh,
+            "state": self.state,
+            "status": self.status,
+            "message": self.message,
+            "seconds": self.seconds,
+        }
         if self.diagnosis is not None:
             d.update(self.diagnosis.to_dict())
         return d
@@ -75,8 +88,10 @@ class CheckRun:
     def summary(self) -> str:
         bad = sum(o.status == "bad input" for o in self.outcomes) + len(self.input_errors)
         failed = sum(o.status == "failed" for o in self.outcomes)
-        return (f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} failed, "
-                f"{bad} with bad input")
+        return (
+            f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} "
+            f"failed, {bad} with bad input"
+        )
 
     def text(self) -> str:
         lines = [self.summary()]
@@ -89,14 +104,23 @@ class CheckRun:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        return {"summary": self.summary(), "exit_code": self.exit_code,
-                "cases": [o.to_dict() for o in self.outcomes], "input_errors": dict(self.input_errors)}
+        return {
+            "summary": self.summary(),
+            "exit_code": self.exit_code,
+            "cases": [o.to_dict() for o in self.outcomes],
+            "input_errors": dict(self.input_errors),
+        }
 
 
-def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[OracleCache] = None,
-              input_errors: Optional[Dict[str, str]] = None,
-              progress: Optional[Callable[[str], None]] = None,
-              on_case: Optional[Callable[..., None]] = None) -> CheckRun:
+def run_check(
+    cases: Sequence[KitCase],
+    evaluate: Evaluator,
+    *,
+    cache: Optional[OracleCache] = None,
+    input_errors: Optional[Dict[str, str]] = None,
+    progress: Optional[Callable[[str], None]] = None,
+    on_case: Optional[Callable[..., None]] = None,
+) -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
 
     on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
@@ -107,15 +131,23 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
     for case, probes in primary_and_probes(cases):
         t0 = time.perf_counter()
         ci = case.input
-        label = dict(case_id=case.case_id, model=_model_name(ci.model), mesh=case.mesh, state=case.state,
-                     n_nodes=ci.n_nodes)
+        label = dict(
+            case_id=case.case_id,
+            model=_model_name(ci.model),
+            mesh=case.mesh,
+            state=case.state,
+            n_nodes=ci.n_nodes,
+        )
         if progress:
             progress(case.case_id)
         try:
             out = evaluate(case)
         except FormatError as exc:
-            run.outcomes.append(CaseOutcome(status="bad input", message=str(exc),
-                                            seconds=time.perf_counter() - t0, **label))
+            run.outcomes.append(
+                CaseOutcome(
+                    status="bad input", message=str(exc), seconds=time.perf_counter() - t0, **label
+                )
+            )
             continue
         probe_results, probe_errors = [], []
         for p in probes:
@@ -124,24 +156,55 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
                 probe_results.append((p.input.positions, po.force, po.energy))
             except FormatError as exc:
                 probe_errors.append(str(exc))
-        cons = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results) if not probe_errors \
+        cons = (
+            consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
+            if not probe_errors
             else Consistency(None, None, note="; ".join(probe_errors))
+        )
         try:
             ref = cache.reference(ci)
-        except ValueError as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
-            run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
-                                            f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
+        except (
+            ValueError
+        ) as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
+            run.outcomes.append(
+                CaseOutcome(
+                    status="bad input",
+                    message=f"case {case.case_id}: the oracle cannot evaluate this case: {exc}",
+                    seconds=time.perf_counter() - t0,
+                    **label,
+                )
+            )
             continue
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
-        diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
-                        W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
-                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None)
+        diag = diagnose(
+            case.case_id,
+            f=out.force,
+            K=out.stiffness,
+            W=out.energy,
+            f_o=ref.force,
+            K_o=ref.stiffness,
+            W_o=ref.energy,
+            s=s,
+            points=ci.points,
+            cells=ci.cells,
+            x=ci.positions,
+            parts=_lazy(lambda: cache.parts(ci)),
+            consistency=cons if probes else None,
+            frame_variants=_lazy(lambda: frame_variants(ci, cache)),
+        )
         status = diag.verdict
         message = ""
         if probe_errors:
             status, message = "bad input", "probe output unusable: " + "; ".join(probe_errors)
-        run.outcomes.append(CaseOutcome(status=status, diagnosis=diag, message=message,
-                                        seconds=time.perf_counter() - t0, **label))
+        run.outcomes.append(
+            CaseOutcome(
+                status=status,
+                diagnosis=diag,
+                message=message,
+                seconds=time.perf_counter() - t0,
+                **label,
+            )
+        )
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run

@@ -1,4 +1,5 @@
-"""A deliberately broken reference implementation: mjed.HyperelasticForceField with one classic mistake.
+"""A deliberately broken reference implementation: mjed.HyperelasticForceField with one classic
+mistake.
 
 Each mutation is a function (case, field, f, K, W) -> (f, K, W) applied to the exact MJED output
 of the case, written independently of the diagnosis: the tangent-part mutations build their
@@ -9,19 +10,29 @@ code the diagnosis must name for each one.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Dict, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
 import mjed
+from common.cases import DEFAULT_MATERIALS
 from mjed.materials import MooneyRivlin
 from mjed.terms import JFunction, LogPolynomial, Term, TermGroup, Unity
 from reference_fem.classical import strain_displacement
 from reference_fem.classical_materials import classical_law
 
-__all__ = ["MUTATIONS", "EXPECTED", "broken_engine", "MATERIAL"]
+__all__ = [
+    "MUTATIONS",
+    "EXPECTED",
+    "broken_engine",
+    "MATERIAL",
+    "FRAME_MUTATIONS",
+    "FRAME_EXPECTED",
+    "FRAME_MATERIAL",
+    "broken_frame_engine",
+]
 
 #: The material every mutation is checked with (both volumetric and isochoric terms matter).
 MATERIAL = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
@@ -36,7 +47,9 @@ def _assemble(cells: np.ndarray, n: int, Ke: np.ndarray) -> sp.csr_matrix:
 
 
 def _classical_blocks(case):
-    """Per cell: V0 (m,), B (m, 6, 12), CC (m, 6, 6) (engineering Voigt), S (m, 3, 3), D (m, 4, 3)."""
+    """Per cell: V0 (m,), B (m, 6, 12), CC (m, 6, 6) (engineering Voigt), S (m, 3, 3), D (m, 4,
+    3).
+    """
     mesh = mjed.TetMesh(case.points, case.cells)
     F = np.swapaxes(case.positions[mesh.cells], 1, 2) @ mesh.D
     S, CC = classical_law(case.model).stress_and_tangent(np.swapaxes(F, 1, 2) @ F)
@@ -46,7 +59,9 @@ def _classical_blocks(case):
 def _voigt_shear_doubled(case, field, f, K, W):
     V0, B, CC, S, D = _classical_blocks(case)
     Bs = B[:, 3:, :]
-    extra = V0[:, None, None] * np.swapaxes(Bs, 1, 2) @ CC[:, 3:, 3:] @ Bs  # the shear-shear block once more
+    extra = (
+        V0[:, None, None] * np.swapaxes(Bs, 1, 2) @ CC[:, 3:, 3:] @ Bs
+    )  # the shear-shear block once more
     return f, (K + _assemble(case.cells, case.n_nodes, extra)).tocsr(), W
 
 
@@ -58,7 +73,9 @@ def _geometric_missing(case, field, f, K, W):
 
 
 class _Bulk(mjed.materials.base.Material):
-    """Only the volumetric term k0/2 (ln J)^2 (a material for the 'volumetric tangent doubled' mutation)."""
+    """Only the volumetric term k0/2 (ln J)^2 (a material for the 'volumetric tangent doubled'
+    mutation).
+    """
 
     def __init__(self, k0: float):
         self.k0 = k0
@@ -92,9 +109,13 @@ class _MooneyRivlinJMinusOne(mjed.materials.base.Material):
     def decomposition(self):
         out = []
         for group in self.m.decomposition():
-            terms = tuple(Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g) if isinstance(t.f, LogPolynomial) else t
-                          for t in group.terms)
-            out.append(TermGroup(terms, group.exponential, group.coefficient))
+            terms = tuple(
+                Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g)
+                if isinstance(t.f, LogPolynomial)
+                else t
+                for t in group.terms
+            )
+            out.append(replace(group, terms=terms))
         return tuple(out)
 
 
@@ -114,12 +135,14 @@ def _one_cell_wrong(case, field, f, K, W):
     Ke = field.element_stiffness(case.positions)[c]
     f = f.copy()
     np.add.at(f, case.cells[c], 0.5 * fe)
-    return f, (K + _assemble(case.cells[c:c + 1], case.n_nodes, 0.5 * Ke[None])).tocsr(), W
+    return f, (K + _assemble(case.cells[c : c + 1], case.n_nodes, 0.5 * Ke[None])).tocsr(), W
 
 
 def _component_major(case, field, f, K, W):
     n = case.n_nodes
-    order = (3 * np.arange(n)[None, :] + np.arange(3)[:, None]).ravel()  # engine index c*n+a holds dof 3a+c
+    order = (
+        3 * np.arange(n)[None, :] + np.arange(3)[:, None]
+    ).ravel()  # engine index c*n+a holds dof 3a+c
     Kc = sp.csr_matrix(K)[order][:, order]
     return f.ravel()[order].reshape(n, 3), Kc.tocsr(), W
 
@@ -139,7 +162,9 @@ def _nodes_permuted(case, field, f, K, W):
 
 
 def _one_based(case, field, f, K, W):
-    q = (np.arange(case.n_nodes) + 1) % case.n_nodes  # node a written at a + 1 (wrapping the last one)
+    q = (
+        np.arange(case.n_nodes) + 1
+    ) % case.n_nodes  # node a written at a + 1 (wrapping the last one)
     return (*_permute(case, f, K, q), W)
 
 
@@ -169,7 +194,9 @@ MUTATIONS: Dict[str, Mutation] = {
     "nodes permuted": _nodes_permuted,
     "1-based node index": _one_based,
     "factor 2": lambda case, field, f, K, W: (2 * f, 2 * K, 2 * W),
-    "component-major dofs and the residual's sign": lambda case, field, f, K, W: _component_major(case, field, -f, K, W),
+    "component-major dofs and the residual's sign": lambda case, field, f, K, W: _component_major(
+        case, field, -f, K, W
+    ),
     "3x3 blocks transposed": _blocks_transposed,
     "unsymmetric K": _unsymmetric,
     "Voigt shear doubled": _voigt_shear_doubled,
@@ -210,5 +237,41 @@ def broken_engine(mutation: str):
         field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
         f, K = field.force_and_stiffness(case.positions)
         return mutate(case, field, f, K, field.energy(case.positions))
+
+    return engine
+
+
+# -- Fibre-frame mistakes (issue 25) ---------------------------------------------------------------
+# Checked on Costa, whose energy depends on the frame, with the helical per-cell field the kit gives
+# it (common.frames). Each engine is MJED run with a frame other than the case's: the mistake sits
+# inside the energy, so force and stiffness are both wrong in every deformed state.
+
+#: The material of the frame mutations (no frame: the kit gives it the mesh's helical field).
+FRAME_MATERIAL = DEFAULT_MATERIALS["Costa"]
+
+#: Mutation -> the frame the engine uses, from the case's frame R (m, 3, 3).
+FRAME_MUTATIONS: Dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "frame-blind engine (identity frame)": lambda R: np.eye(3),
+    "transposed rotation": lambda R: np.swapaxes(R, -1, -2).copy(),
+    "global axes (one frame for the mesh)": lambda R: R.reshape(-1, 3, 3)[0].copy(),
+    "fibre and sheet columns swapped": lambda R: R[..., [1, 0, 2]].copy(),
+}
+
+FRAME_EXPECTED: Dict[str, str] = {
+    "frame-blind engine (identity frame)": "frame-ignored",
+    "transposed rotation": "frame-transposed",
+    "global axes (one frame for the mesh)": "frame-global",
+    "fibre and sheet columns swapped": "frame-columns",
+}
+
+
+def broken_frame_engine(mutation: str):
+    """An implementation (CaseInput -> (f, K, W)): MJED with the case's frame replaced as named."""
+    frame_of = FRAME_MUTATIONS[mutation]
+    exact = broken_engine("none")
+
+    def engine(case):
+        wrong = replace(case.model, frame=frame_of(np.asarray(case.model.frame)))
+        return exact(replace(case, model=wrong))
 
     return engine

@@ -1,5 +1,7 @@
-"""Language neutrality: a C engine written from docs/conventions.md, compiled with the system compiler,
-passes `mjed-verify check --command`; compiled with -DMISTAKE (force sign flipped) it is named."""
+"""Language neutrality: a C engine written from docs/conventions.md, compiled with the system
+compiler,
+passes `mjed-verify check --command`; compiled with -DMISTAKE (force sign flipped) it is named.
+"""
 
 from __future__ import annotations
 
@@ -11,11 +13,16 @@ import subprocess
 
 import pytest
 
+from common.states import state_names
 from comparisons.cli import main
 from reference_fem import dolfinx_available
 
-pytestmark = [pytest.mark.oracle,
-              pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")]
+pytestmark = [
+    pytest.mark.oracle,
+    pytest.mark.skipif(
+        not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)"
+    ),
+]
 
 logging.disable(logging.INFO)
 SOURCE = os.path.join(os.path.dirname(__file__), "c_engine", "neohookean.c")
@@ -26,8 +33,11 @@ def _compile(tmp_path, *flags):
     if CC is None:
         pytest.skip("no C compiler (cc, gcc or clang) on PATH")
     exe = str(tmp_path / ("neohookean" + "".join(f.replace("-", "_") for f in flags)))
-    subprocess.run([CC, "-std=c99", "-O2", "-Wall", "-Werror", *flags, "-o", exe, SOURCE, "-lm"], check=True,
-                   capture_output=True)
+    subprocess.run(
+        [CC, "-std=c99", "-O2", "-Wall", "-Werror", *flags, "-o", exe, SOURCE, "-lm"],
+        check=True,
+        capture_output=True,
+    )
     return exe
 
 
@@ -38,10 +48,26 @@ def _results(out):
 
 def test_c_engine_passes(tmp_path):
     exe = _compile(tmp_path)
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
-                 "--mesh", "cube-small", "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--mesh",
+                "cube-small",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     res = _results(tmp_path / "r")
-    assert len(res["cases"]) == 6 and all(c["status"] == "passed" for c in res["cases"])
+    assert len(res["cases"]) == len(state_names())
+    assert all(c["status"] == "passed" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) < 1e-12
 
 
@@ -57,16 +83,51 @@ def test_c_engine_files_mode(tmp_path):
 
 def test_c_engine_mistake_is_named(tmp_path):
     exe = _compile(tmp_path, "-DMISTAKE")
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
-                 "--states", "uniaxial,random", "--out", str(tmp_path / "r"), "--quiet"]) == 1
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--states",
+                "uniaxial,random",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 1
+    )
     for case in _results(tmp_path / "r")["cases"]:
-        assert case["findings"][0]["code"] == "force-sign" and case["findings"][0]["strength"] == "explains"
+        assert (
+            case["findings"][0]["code"] == "force-sign"
+            and case["findings"][0]["strength"] == "explains"
+        )
 
 
 def test_c_engine_refusal_is_bad_input(tmp_path):
-    """A material the program does not implement: it exits 2 with a message, reported for that case."""
+    """A material the program does not implement: it exits 2 with a message, reported for that
+    case.
+    """
     exe = _compile(tmp_path)
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "Ogden", "--states", "rest",
-                 "--out", str(tmp_path / "r"), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "Ogden",
+                "--states",
+                "rest",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     msg = _results(tmp_path / "r")["cases"][0]["message"]
     assert "exit code 2" in msg and "only NeoHookean is implemented, not Ogden" in msg

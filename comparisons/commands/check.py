@@ -1,5 +1,6 @@
 """mjed-verify check: compare an engine's forces and stiffness with the oracle, case by case, and
-diagnose each failure (docs/conventions.md)."""
+diagnose each failure (docs/conventions.md).
+"""
 
 from __future__ import annotations
 
@@ -8,27 +9,45 @@ import sys
 
 NAME = "check"
 ORDER = 61
-HELP = "check an engine against the oracle (a kit it computed, or a command run per case) and diagnose failures"
+HELP = (
+    "check an engine against the oracle (a kit it computed, or a command run per case) and "
+    "diagnose failures"
+)
 EXAMPLES = """examples:
-  mjed-verify check kit/                                   # outputs already written into kit/cases/<id>/output
+  mjed-verify check kit/             # outputs already written into kit/cases/<id>/output
   mjed-verify check --command './my_engine {input} {output}' --material NeoHookean --mesh cube-small
   mjed-verify check kit/ --command './my_engine {input} {output}' --timeout 30
-  mjed-verify check --command 'julia engine.jl {input} {output}' --energy "mu/2*(I1b-3) + K/2*(J-1)**2" \\
-                    --param mu=1e3 --param K=1e4
-exit codes: 0 every case passes, 1 a case fails, 2 bad input (the other cases still run and are reported).
+  mjed-verify check --command 'julia engine.jl {input} {output}' \\
+                    --energy "mu/2*(I1b-3) + K/2*(J-1)**2" --param mu=1e3 --param K=1e4
+exit codes: 0 every case passes, 1 a case fails, 2 bad input (the other cases still run and are
+reported).
 The report (index.html, report.md, results.json, per-node error fields as .vtu) goes to a new
 directory under --out.
 """
 
 
 def configure(parser) -> None:
-    from comparisons import options as opt
+    from common import options as opt
     from conformance.options import add_model_options
 
-    parser.add_argument("dir", metavar="DIR", nargs="?", help="a kit written by 'mjed-verify export' (optional with --command)")
-    parser.add_argument("--command", dest="engine_command", metavar="CMD",
-                        help="run CMD per case; {input} and {output} are replaced by the case's directories")
-    parser.add_argument("--timeout", type=float, default=60.0, help="time limit per case for --command, seconds (default 60)")
+    parser.add_argument(
+        "dir",
+        metavar="DIR",
+        nargs="?",
+        help="a kit written by 'mjed-verify export' (optional with --command)",
+    )
+    parser.add_argument(
+        "--command",
+        dest="engine_command",
+        metavar="CMD",
+        help="run CMD per case; {input} and {output} are replaced by the case's directories",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=60.0,
+        help="time limit per case for --command, seconds (default 60)",
+    )
     add_model_options(parser)
     opt.add_out_option(parser, "reports")
     opt.add_json_option(parser)
@@ -36,7 +55,7 @@ def configure(parser) -> None:
 
 
 def run(args) -> int:
-    from comparisons.options import InputError
+    from common.options import InputError
     from conformance.command import command_words
     from conformance.exchange import FormatError
 
@@ -52,10 +71,18 @@ def run(args) -> int:
     if args.dir is not None:
         from conformance.kit import read_kit
 
-        given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (["param"] if args.param else [])
-        given += [k for k, default in (("mesh", "single-tet"), ("states", "all")) if getattr(args, k) != default]
+        given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (
+            ["param"] if args.param else []
+        )
+        given += [
+            k
+            for k, default in (("mesh", "single-tet"), ("states", "all"))
+            if getattr(args, k) != default
+        ]
         if given:
-            raise InputError(f"--{given[0]} is not used with a kit: the kit's manifest says what to compute")
+            raise InputError(
+                f"--{given[0]} is not used with a kit: the kit's manifest says what to compute"
+            )
         try:
             kit = read_kit(args.dir)
         except FormatError as exc:
@@ -70,35 +97,48 @@ def run(args) -> int:
     from conformance.oracle import oracle_available
 
     if not oracle_available():
-        print("mjed-verify check: the oracle needs dolfinx (Debian: apt install python3-dolfinx)", file=sys.stderr)
+        print(
+            "mjed-verify check: the oracle needs dolfinx (Debian: apt install python3-dolfinx)",
+            file=sys.stderr,
+        )
         return 3
     return _run(args, cases, input_errors)
 
 
-def _run(args, cases, input_errors) -> int:
+def _evaluator(args, cases, folder: str, command: str):
+    """Case -> engine output: the outputs in the kit, or the engine run on each case."""
     from conformance.exchange import read_output
     from conformance.kit import write_kit
+
+    if args.engine_command is None:
+        return lambda c: read_output(
+            c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells, within=args.dir
+        )
+    from conformance.command import command_evaluator
+
+    base = args.dir
+    if base is None:  # the inputs are written into the report directory, then run through it
+        base = os.path.join(folder, "kit")
+        write_kit(base, cases, command=command)
+    os.makedirs(os.path.join(folder, "outputs"))
+    # A kit's case carries the input directory its hashes were checked on: the engine gets
+    # exactly that one. Generated cases live in the report's own kit/.
+    return command_evaluator(
+        args.engine_command,
+        lambda c: c.input_dir or os.path.join(base, "cases", c.case_id, "input"),
+        os.path.join(folder, "outputs"),
+        args.timeout,
+    )
+
+
+def _run(args, cases, input_errors) -> int:
     from conformance.options import reproduce
     from conformance.report import new_report_dir, write_error_field, write_report
     from conformance.run import run_check
 
     folder = new_report_dir(args.out)
     command = reproduce(NAME, args, args.dir or "")
-    if args.engine_command is not None:
-        from conformance.command import command_evaluator
-
-        if args.dir is None:  # the inputs are written into the report directory, then run through the command
-            write_kit(os.path.join(folder, "kit"), cases, command=command)
-            base = os.path.join(folder, "kit")
-        else:
-            base = args.dir
-        os.makedirs(os.path.join(folder, "outputs"))
-        evaluate = command_evaluator(args.engine_command, lambda c: os.path.join(base, "cases", c.case_id, "input"),
-                                     os.path.join(folder, "outputs"), args.timeout)
-    else:
-        evaluate = lambda c: read_output(os.path.join(args.dir, "cases", c.case_id, "output"),  # noqa: E731
-                                         c.input.n_nodes, c.case_id)
-
+    evaluate = _evaluator(args, cases, folder, command)
     fields = {}
 
     def on_case(case, out, ref, diag):
@@ -109,8 +149,12 @@ def _run(args, cases, input_errors) -> int:
         write_error_field(os.path.join(folder, rel), case, out.force, ref.force, diag.node_error)
         fields[case.case_id] = rel
 
-    progress = None if args.quiet else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
-    result = run_check(cases, evaluate, input_errors=input_errors, progress=progress, on_case=on_case)
+    progress = (
+        None if args.quiet else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
+    )
+    result = run_check(
+        cases, evaluate, input_errors=input_errors, progress=progress, on_case=on_case
+    )
     paths = write_report(folder, result, command=command, fields=fields)
     if not args.quiet:
         print(result.text())

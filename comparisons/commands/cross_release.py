@@ -4,27 +4,33 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "cross-release"
 ORDER = 90
-HELP = "compare the UFL oracle across dolfinx releases (.venv, .venv-modern) and process counts (1e-12)"
+HELP = (
+    "compare the UFL oracle across dolfinx releases (.venv, .venv-modern) and process counts "
+    "(1e-12)"
+)
 EXAMPLES = """examples:
   mjed-verify cross-release --quick
   mjed-verify cross-release --json reports/cross_release.json
-  (set up the second stack first: make bootstrap-modern; without it the run is partial and exits with 3)
+  (set up the second stack first: make bootstrap-modern; without it the run is partial and
+  exits with 3)
 """
 
 
 def configure(parser) -> None:
-    parser.add_argument("--quick", action="store_true", help="two materials and Costa with cell frames, one state")
+    parser.add_argument(
+        "--quick", action="store_true", help="two materials and Costa with cell frames, one state"
+    )
     opt.add_json_option(parser)
     opt.add_allow_incomplete_option(parser)
 
 
 def run(args) -> int:
+    from common.terminal import finish
     from comparisons.cross_release import cross_release_study
-    from comparisons.terminal import finish
 
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
     return finish(cross_release_study(quick=args.quick, progress=progress), args)

@@ -1,4 +1,6 @@
-"""mjed-verify export DIR: write a conformance kit for an engine to compute (docs/conventions.md)."""
+"""mjed-verify export DIR: write a conformance kit for an engine to compute
+(docs/conventions.md).
+"""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ NAME = "export"
 ORDER = 60
 HELP = "write a conformance kit (meshes, models, positions of each case) for your engine to compute"
 EXAMPLES = """examples:
-  mjed-verify export kit/                                         # all materials, single-tet, all states
+  mjed-verify export kit/                          # all materials, single-tet, all states
   mjed-verify export kit/ --material NeoHookean --mesh cube-small --states uniaxial,random
   mjed-verify export kit/ --energy "mu/2*(I1b-3) + K/2*(J-1)**2" --param mu=1e3 --param K=1e4
 then: for each case of kit/manifest.json, read cases/<id>/input, write cases/<id>/output;
@@ -21,20 +23,30 @@ def configure(parser) -> None:
     from conformance.options import add_model_options
 
     add_model_options(parser)
-    parser.add_argument("--no-probes", action="store_true",
-                        help="leave out the perturbed states (no self-consistency test of the stiffness)")
+    parser.add_argument(
+        "--no-probes",
+        action="store_true",
+        help="leave out the perturbed states (no self-consistency test of the stiffness)",
+    )
 
 
 def run(args) -> int:
-    from comparisons.options import InputError
+    from common.options import InputError
     from conformance.kit import PROBES, write_kit
     from conformance.options import cases_from_args, reproduce
 
     if os.path.exists(args.dir) and (not os.path.isdir(args.dir) or os.listdir(args.dir)):
-        raise InputError(f"{args.dir}: exists and is not an empty directory; export never writes into one")
+        raise InputError(
+            f"{args.dir}: exists and is not an empty directory; export never writes into one"
+        )
     cases = cases_from_args(args, probes=0 if args.no_probes else PROBES)
-    manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
+    try:
+        manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
+    except FileExistsError as exc:  # another export took the folder after the check above
+        raise InputError(str(exc)) from None
     n_main = sum(e["role"] == "case" for e in manifest["cases"])
-    print(f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
-          f"compute each cases/<id>/output, then: mjed-verify check {args.dir}")
+    print(
+        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; compute "
+        f"each cases/<id>/output, then: mjed-verify check {args.dir}"
+    )
     return 0

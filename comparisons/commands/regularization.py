@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from comparisons import options as opt
+from common import options as opt
 
 NAME = "regularization"
 ORDER = 20
@@ -24,10 +24,10 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     materials = opt.resolve_materials(args.material)
-    (label, points, cells), = opt.resolve_meshes(args.mesh, several=False)
+    ((label, points, cells),) = opt.resolve_meshes(args.mesh, several=False)
 
+    from common.terminal import finish
     from comparisons.regularization import regularization_study
-    from comparisons.terminal import finish
 
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
     return finish(regularization_study(label, points, cells, materials, progress=progress), args)

@@ -14,11 +14,13 @@ The algebra is the NumPy engine's (mjed/engine.py, mjed/edge_blocks.py), per cel
 - kinematics: F = sum_a x_a (x) D_a, cof(F), J, C = F^T F, I1, I2, ln J, eigen-pairs of C;
 - each term: f, f', f'' and g, S = 2 dg/dC, the tangent coefficients (or theta);
 - each group: u, h_g, g2_g, S_g, S-hat_g, theta_g and the slot weights, folded in with weight
-  c (plain) or c e^u (exponential; then du_a = (F S_g + h_g cof) D_a);
+  c (plain) or c phi'(u) for a function phi of the sum (e^u, ln(a + u), (a + u)^p; then also
+  the rank-one c phi''(u) du_a (x) du_b, du_a = (F S_g + h_g cof) D_a);
 - force: -V0 (F S-bar D_a + h d_a), d_a = cof D_a;
 - the six edge blocks (D_a . S-bar D_b) Id + first-kind 2 w (F A D_a)(x)(F A D_b) +
   second-kind w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers +
-  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c e^u du_a (x) du_b + h [F (D_a x D_b)]_x,
+  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c phi'' du_a (x) du_b
+  + h [F (D_a x D_b)]_x,
   all scaled by V0, and the node blocks by translation invariance (K_aa = -sum_b K_ab);
   the blocks are added into the mesh-edge sums U and node sums Dg, then every CSR entry is
   written once, in order (:func:`mjed.compiled.kernels.write_csr`): half the scattered
@@ -279,8 +281,15 @@ class _Kernel:
                 s(f"c2q_{t} = 2.0 * c_{t} * qe_{t}")
                 if term.coaxial:
                     s(f"hp_{t} = 0.5 * (qm1_{t} - 1.0)")
-        for g in range(len(self.shape.groups)):
-            s(f"gc_{g} = group_coef[{g}]")
+        for g, (_, _, function) in enumerate(self.shape.groups):
+            s(f"gc_{g} = group_coef[{g}, 0]")
+            if function in ("log", "power"):
+                s(f"ga_{g} = group_coef[{g}, 1]")
+            if function == "power":
+                s(f"gp_{g} = group_coef[{g}, 2]")
+                s(f"gpm2_{g} = gp_{g} - 2.0")
+                s(f"gcp_{g} = gc_{g} * gp_{g}")
+                s(f"gcpp_{g} = gcp_{g} * (gp_{g} - 1.0)")
         for sl, (kind, ident) in enumerate(self.shape.slots):
             if kind != "spectral" and not ident and not self.shape.per_cell_M:
                 self._load3(f"M{sl}_", f"slot_M[{sl}, 0")
@@ -488,7 +497,7 @@ class _Kernel:
             "energy": [],
             "exp": [],
         }
-        for gi, (start, stop, exponential) in enumerate(shape.groups):
+        for gi, (start, stop, function) in enumerate(shape.groups):
             u, hg, g2g = [], [], []
             Sg = {ij: [] for ij in PAIRS6}
             Shg = {ij: [] for ij in PAIRS6}
@@ -508,12 +517,7 @@ class _Kernel:
                 for slot, coef in zip(term.slots, coefs):
                     wg[slot].append(mul(f, coef))
             u_g = s.let(f"u_{gi}", add(*u))
-            if exponential:
-                sc = s.let(f"sc_{gi}", f"gc_{gi} * math.exp({u_g or '0.0'})")
-                tot["energy"].append(sc)
-            else:
-                sc = f"gc_{gi}"
-                tot["energy"].append(mul(sc, u_g))
+            sc, rank_one = self._group_function(gi, function, u_g or "0.0", tot["energy"])
             hg_e = s.let(f"hg_{gi}", add(*hg))
             tot["h"].append(mul(sc, hg_e))
             tot["g2"].append(mul(sc, s.let(f"g2g_{gi}", add(*g2g))))
@@ -524,8 +528,8 @@ class _Kernel:
                 tot["th"][ij].append(mul(sc, s.let(f"thg{gi}_{ij[0]}{ij[1]}", add(*thg[ij]))))
             for sl in range(n_slots):
                 tot["w"][sl].append(mul(sc, s.let(f"wg{gi}_{sl}", add(*wg[sl]))))
-            if exponential:
-                tot["exp"].append((gi, sc, Sg_n, hg_e))
+            if rank_one is not None:
+                tot["exp"].append((gi, rank_one, Sg_n, hg_e))
         out = {
             "h": s.let("h", add(*tot["h"])),
             "g2": s.let("g2", add(*tot["g2"])),
@@ -537,6 +541,34 @@ class _Kernel:
         }
         self.target.add_energy(s, f"V0[e] * ({add(*tot['energy']) or '0.0'})")
         return out
+
+    def _group_function(
+        self, gi: int, function: str, u: str, energy: List[Expr]
+    ) -> Tuple[str, Expr]:
+        """Append c phi(u) to ``energy``; return the names of c phi'(u) (the weight of the
+        group's linear sums) and c phi''(u) (its rank-one term; None for a plain group).
+        """
+        s = self.src
+        if function == "plain":
+            energy.append(mul(f"gc_{gi}", u))
+            return f"gc_{gi}", None
+        if function == "exp":  # phi = phi' = phi''
+            sc = s.let(f"sc_{gi}", f"gc_{gi} * math.exp({u})")
+            energy.append(sc)
+            return sc, sc
+        if function == "log":  # ln(a + u): 1 / (a + u), -1 / (a + u)^2; NaN where a + u <= 0
+            s(f"ag_{gi} = ga_{gi} + {u}")
+            s(f"ia_{gi} = 1.0 / ag_{gi} if ag_{gi} > 0.0 else math.nan")
+            energy.append(f"gc_{gi} * math.log(ag_{gi})")
+            sc = s.let(f"sc_{gi}", f"gc_{gi} * ia_{gi}")
+            return sc, s.let(f"rc_{gi}", f"-sc_{gi} * ia_{gi}")
+        if function == "power":  # (a + u)^p: p (a + u)^(p-1), p (p-1) (a + u)^(p-2)
+            s(f"pa_{gi} = ga_{gi} + {u}")
+            s(f"pb_{gi} = pa_{gi} ** gpm2_{gi}")
+            energy.append(f"gc_{gi} * pb_{gi} * pa_{gi} * pa_{gi}")
+            sc = s.let(f"sc_{gi}", f"gcp_{gi} * pb_{gi} * pa_{gi}")
+            return sc, s.let(f"rc_{gi}", f"gcpp_{gi} * pb_{gi}")
+        raise ValueError(f"no code for a group function {function!r}")
 
     # ---- helpers on per-cell matrices
     def _apply(self, prefix: str, M, node_vec: str = "D") -> Dict[Tuple[int, int], str]:
@@ -584,7 +616,7 @@ class _Kernel:
         # Every edge-block term is scaled by V0 through one of its per-cell factors (a few
         # multiplications per cell instead of one per block entry).
         s("vol = V0[e]")
-        h = s.let("hv", mul(q["h"], "vol"))
+        s.let("hv", mul(q["h"], "vol"))
         g2 = s.let("g2v", mul(q["g2"], "vol"))
         St = _sym_let(s, "Stv", {ij: mul(q["St"][ij], "vol") for ij in PAIRS6})
         Sh = _sym_let(s, "Shv", {ij: mul(q["Sh"][ij], "vol") for ij in PAIRS6})
@@ -760,8 +792,8 @@ class _Kernel:
         return block
 
     def _exp_groups(self, groups) -> list:
-        """du_a = (F S_g + h_g cof) D_a of each exponential group; returns one function per
-        group giving its term c e^u keep du_a[r] du_b[c].
+        """du_a = (F S_g + h_g cof) D_a of each group with a function of its sum; returns one
+        function per group giving its term c phi''(u) keep du_a[r] du_b[c].
         """
         s = self.src
         fns = []

@@ -1,8 +1,8 @@
 """The content of a report section, independent of the output format.
 
 A section body is a list of blocks: Paragraph, Table, Figure, Preformatted. Renderers in
-:mod:`comparisons.report.render` turn them into Markdown and self-contained HTML,
-:mod:`comparisons.terminal` into text.
+:mod:`common.render` turn them into Markdown and self-contained HTML,
+:mod:`common.terminal` into text.
 """
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from typing import Callable, Dict, Tuple
 
 import numpy as np
 
+from common.frames import mid_wall_frame
 from meshes import signed_volumes
 
 __all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio"]
@@ -28,7 +29,9 @@ def min_volume_ratio(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
     return float((signed_volumes(x, cells) / signed_volumes(X, cells)).min())
 
 
-def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2) -> np.ndarray:
+def smooth_random(
+    X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2
+) -> np.ndarray:
     """A seeded smooth random deformation: a rotation of X plus a sum of sine modes.
 
     The amplitude starts at 15 % of the mesh size and is halved until every cell keeps
@@ -51,7 +54,9 @@ def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: flo
         if min_volume_ratio(X, x, cells) > min_J:
             return x
         scale *= 0.5
-    raise RuntimeError("could not find an admissible random perturbation")  # unreachable for valid meshes
+    raise RuntimeError(
+        "could not find an admissible random perturbation"
+    )  # unreachable for valid meshes
 
 
 def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
@@ -65,14 +70,47 @@ def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
     )
 
 
+def _fibre_states() -> Tuple[np.ndarray, np.ndarray]:
+    """Deformation gradients (3, 3) of a stretch along the mid-wall fibre f0 (1.25) and of a shear
+    in the mid-wall fibre-sheet plane (x += 0.4 (s0 . X) f0; J = 1 since f0 is normal to s0).
+
+    The fibre frame turns through the wall (common/frames.py), so no homogeneous state follows the
+    fibre of every cell; these follow the mid-wall one, where an engine that ignores, transposes
+    or globalises the frame sees a fibre energy different from the true one, in force and in
+    stiffness alike.
+    """
+    R0 = mid_wall_frame()
+    f0, s0 = R0[:, 0], R0[:, 1]
+    return np.eye(3) + 0.25 * np.outer(f0, f0), np.eye(3) + 0.4 * np.outer(f0, s0)
+
+
+_FIBRE_STRETCH, _FIBRE_SHEAR = _fibre_states()
+
 #: name -> (description, function(X, cells) -> x)
 STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = {
     "rest": ("x = X", lambda X, cells: X.copy()),
     "uniaxial": ("stretch 1.3 along x (J = 1.3)", _affine(np.diag([1.3, 1.0, 1.0]))),
     "compression": ("compression 0.8 along x (J = 0.8)", _affine(np.diag([0.8, 1.0, 1.0]))),
-    "shear": ("simple shear, amount 0.4 (x += 0.4 y)", _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]]))),
-    "triaxial": ("stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9", _affine(np.diag([1.25, 0.9, 0.8]))),
-    "random": ("seeded smooth random field with a rotation, J > 0.2", lambda X, cells: smooth_random(X, cells)),
+    "shear": (
+        "simple shear, amount 0.4 (x += 0.4 y)",
+        _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]])),
+    ),
+    "triaxial": (
+        "stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9",
+        _affine(np.diag([1.25, 0.9, 0.8])),
+    ),
+    "fibre-stretch": (
+        "stretch 1.25 along the mid-wall fibre of the default frame field, J = 1.25",
+        _affine(_FIBRE_STRETCH),
+    ),
+    "fibre-shear": (
+        "shear 0.4 in the mid-wall fibre-sheet plane of the default frame field",
+        _affine(_FIBRE_SHEAR),
+    ),
+    "random": (
+        "seeded smooth random field with a rotation, J > 0.2",
+        lambda X, cells: smooth_random(X, cells),
+    ),
 }
 
 

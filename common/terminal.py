@@ -2,7 +2,7 @@
 
 A command parses its options, calls its study and hands the :class:`StudyResult` to
 :func:`finish`, which prints it, writes ``--json`` (``result.to_dict()``) and returns the exit
-code of the written policy (:data:`comparisons.verdict.EXIT_POLICY`).
+code of the written policy (:data:`common.verdict.EXIT_POLICY`).
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import sys
 import textwrap
 from typing import List, Sequence, TextIO
 
-from comparisons.blocks import Block, Figure, Paragraph, Preformatted, Table
-from comparisons.result import StudyResult, exit_code
-from comparisons.verdict import status_label
+from common.blocks import Block, Figure, Paragraph, Preformatted, Table
+from common.result import StudyResult, exit_code
+from common.verdict import status_label
 
 __all__ = ["format_cell", "format_blocks", "format_result", "finish"]
 
@@ -60,11 +60,21 @@ def format_result(result: StudyResult, *, details: bool = True) -> str:
     """The result as text: blocks (if ``details``), checks, what was left out, the verdict line."""
     lines: List[str] = format_blocks(result.blocks) if details else []
     if result.checks:
-        lines += _text_table(Table(("check", "kind", "measured", "required", "verdict"),
-                                   [(c.name, c.kind, c.measured if c.measured is not None else "not measured",
-                                     f"{c.relation} {c.limit:g}",
-                                     "not measured" if c.passed is None else ("met" if c.passed else "NOT MET"))
-                                    for c in result.checks]))
+        lines += _text_table(
+            Table(
+                ("check", "kind", "measured", "required", "verdict"),
+                [
+                    (
+                        c.name,
+                        c.kind,
+                        c.measured if c.measured is not None else "not measured",
+                        f"{c.relation} {c.limit:g}",
+                        "not measured" if c.passed is None else ("met" if c.passed else "NOT MET"),
+                    )
+                    for c in result.checks
+                ],
+            )
+        )
         lines.append("")
     if result.protocol:
         lines.append(f"protocol: {result.protocol}")
@@ -78,7 +88,7 @@ def format_result(result: StudyResult, *, details: bool = True) -> str:
 
 def finish(result: StudyResult, args, *, stream: TextIO = None, details: bool = True) -> int:
     """Print ``result``, write ``args.json`` if given, return the exit code (policy of --help)."""
-    from comparisons.options import write_json
+    from common.options import write_json
 
     print(format_result(result, details=details), file=stream if stream is not None else sys.stdout)
     if getattr(args, "json", None):

@@ -1,6 +1,6 @@
 """Spell the command line that re-runs a study exactly as it ran.
 
-Every :class:`comparisons.result.StudyResult` carries a ``command``. It is built here from the
+Every :class:`common.result.StudyResult` carries a ``command``. It is built here from the
 arguments the study actually received (not from the defaults of a parser), so that ``--quick``,
 a ``--mesh PATH``, a ``--material`` subset or ``--only`` are never lost. The inverse direction
 (parsing the line back with the CLI parser) is what the tests check.
@@ -21,7 +21,9 @@ PROGRAM = "mjed-verify"
 Value = Union[str, int, float, bool, None]
 
 
-def command(subcommand: str, *, prefix: Sequence[str] = (), comment: str = "", **options: Value) -> str:
+def command(
+    subcommand: str, *, prefix: Sequence[str] = (), comment: str = "", **options: Value
+) -> str:
     """``mjed-verify SUBCOMMAND --opt value ...`` with shell quoting.
 
     options: keyword ``snake_case`` becomes ``--kebab-case``; True gives a bare flag; None and
@@ -43,24 +45,30 @@ def command(subcommand: str, *, prefix: Sequence[str] = (), comment: str = "", *
 def material_option(materials: Iterable) -> tuple:
     """(--material value, comment): 'all' for the full default set, else the names in order.
 
-    The command line selects the default parameter sets of :mod:`comparisons.cases` by name;
+    The command line selects the default parameter sets of :mod:`common.cases` by name;
     a material whose parameters differ from its default is named in the comment, since no
     option reproduces it.
     """
-    from comparisons.cases import DEFAULT_MATERIALS
+    from common.cases import DEFAULT_MATERIALS
 
     materials = list(materials)
     names = [m.name for m in materials]
     custom = [m.name for m in materials if DEFAULT_MATERIALS.get(m.name) != m]
-    comment = f"custom parameters for {', '.join(custom)}: the command line uses those of comparisons/cases.py" if custom else ""
+    comment = (
+        f"custom parameters for {', '.join(custom)}: the command line uses those of common/cases.py"
+        if custom
+        else ""
+    )
     if not custom and names == list(DEFAULT_MATERIALS):
         return "all", comment
     return ",".join(names), comment
 
 
 def mesh_option(labels: Iterable[str]) -> str:
-    """The --mesh value: 'all' for the default built-in set, else the labels (names or paths as given)."""
-    from comparisons.options import DEFAULT_MESHES
+    """The --mesh value: 'all' for the default built-in set, else the labels (names or paths as
+    given).
+    """
+    from common.options import DEFAULT_MESHES
 
     labels = list(labels)
     return "all" if tuple(labels) == DEFAULT_MESHES else ",".join(labels)
@@ -68,7 +76,7 @@ def mesh_option(labels: Iterable[str]) -> str:
 
 def states_option(states: Iterable[str]) -> str:
     """The --states value: 'all' for every state in order, else the names."""
-    from comparisons.states import state_names
+    from common.states import state_names
 
     states = list(states)
     return "all" if states == list(state_names()) else ",".join(states)
