@@ -57,8 +57,14 @@ def main(names) -> dict:
                 out["kernels"].append({"material": name, "kernel": kernel, "dtype": np.dtype(dtype).name,
                                        "f64": ptx.count(".f64"), "f32": ptx.count(".f32"),
                                        "atomics": ptx.count("atom."), "entry": ".entry" in ptx})
+    from mjed.cuda import solvers
+
+    i32, f64 = nt.int32[:], nt.float64[:]
     for fn, sig in ((kernels._zero, (nt.float64[:],)),
-                    (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:]))):
+                    (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),
+                    (solvers._spmv, (i32, i32, f64, f64, f64)), (solvers._jacobi, (i32, i32, f64, f64)),
+                    (solvers._dots, (f64, f64, f64, f64)), (solvers._step, (f64, f64, f64, f64, f64, f64, nt.float64)),
+                    (solvers._direction, (f64, f64, nt.float64)), (solvers._residual_start, (f64, f64, f64, f64, f64))):
         ptx, _ = cuda.compile_ptx(fn.py_func, sig, cc=(8, 0))
         out["kernels"].append({"material": fn.py_func.__name__, "entry": ".entry" in ptx})
     return out

@@ -83,6 +83,29 @@ def main(names) -> dict:
         integ.run(3)
         positions[backend] = integ.x
     out["integrator"] = _rel_max(positions["cuda"] - mesh.points, positions["numpy"] - mesh.points)
+
+    # CG on the device against the host CG, on a system like an implicit step's (K + c I)
+    import scipy.sparse as sp
+
+    from mjed.cuda.solvers import DeviceCSR, device_conjugate_gradient
+    from mjed.solvers import conjugate_gradient
+
+    K = mjed.make_force_field(mesh, MATERIALS["NeoHookean"]).stiffness(x)
+    A = (K + 0.05 * abs(K).max() * sp.identity(K.shape[0], format="csr")).tocsr()
+    A.sort_indices()
+    rhs = np.random.default_rng(3).standard_normal(A.shape[0])
+    host = conjugate_gradient(A, rhs, tol=1e-12, max_iterations=500)
+    dev = device_conjugate_gradient(A, rhs, tol=1e-12, max_iterations=500)
+    from numba import cuda
+
+    on_device = DeviceCSR(A.indptr, A.indices, cuda.to_device(A.data))  # values already on the device
+    dev2 = device_conjugate_gradient(on_device, rhs, tol=1e-12, x0=host.x)
+    indefinite = device_conjugate_gradient(-A, rhs, tol=1e-12)
+    out["cg"] = {"converged": dev.converged, "iterations": dev.iterations, "host_iterations": host.iterations,
+                 "residual": float(np.linalg.norm(rhs - A @ dev.x) / np.linalg.norm(rhs)),
+                 "difference": _rel_max(dev.x, host.x), "warm_iterations": dev2.iterations,
+                 "indefinite": indefinite.reason,
+                 "host_indefinite": conjugate_gradient(-A, rhs, tol=1e-12).reason}
     return out
 
 

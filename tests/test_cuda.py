@@ -138,3 +138,12 @@ def test_unknown_backend_lists_cuda():
     points, cells = box_mesh(1)
     with pytest.raises(ValueError, match="numpy, numba, cuda"):
         mjed.make_force_field(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="opencl")
+
+
+@needs_numba
+def test_device_cg_solves_like_the_host_cg(simulated):
+    cg = simulated["cg"]
+    assert cg["converged"] and cg["residual"] <= 1e-12 and cg["difference"] < 1e-10
+    assert abs(cg["iterations"] - cg["host_iterations"]) <= 1  # the same algorithm
+    assert cg["warm_iterations"] == 0  # a converged first guess is returned as it is
+    assert cg["indefinite"] == cg["host_indefinite"] == "negative_curvature"  # -A is refused as on the host
