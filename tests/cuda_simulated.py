@@ -75,14 +75,20 @@ def main(names) -> dict:
     # device, the CG on the host): same trajectory as the NumPy engine's, FP64.
     from mjed.integrator import ImplicitEuler
 
+    from mjed.solvers import LinearSolverOptions
+
     fixed = np.flatnonzero(mesh.points[:, 2] == 0.0)
     positions = {}
-    for backend in ("numpy", "cuda"):
+    for backend, solver in (("numpy", "cg"), ("cuda", "cg"), ("cuda", "cuda-cg")):
         field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend=backend)
-        integ = ImplicitEuler(mesh, field, 1.0, dt=0.05, fixed_nodes=fixed)
-        integ.run(3)
-        positions[backend] = integ.x
-    out["integrator"] = _rel_max(positions["cuda"] - mesh.points, positions["numpy"] - mesh.points)
+        integ = ImplicitEuler(mesh, field, 1.0, dt=0.05, fixed_nodes=fixed,
+                              solver=LinearSolverOptions(solver=solver, cg_tol=1e-12))
+        reports = integ.run(3)
+        positions[backend, solver] = integ.x
+    ref = positions["numpy", "cg"] - mesh.points
+    out["integrator"] = _rel_max(positions["cuda", "cg"] - mesh.points, ref)
+    out["integrator_device_cg"] = _rel_max(positions["cuda", "cuda-cg"] - mesh.points, ref)
+    out["integrator_device_cg_iterations"] = int(sum(r.cg_iterations for r in reports))
 
     # CG on the device against the host CG, on a system like an implicit step's (K + c I)
     import scipy.sparse as sp

@@ -74,8 +74,18 @@ def test_cuda_device_arrays_inversion_and_regularisation(simulated):
 
 @needs_numba
 def test_cuda_field_drives_the_implicit_integrator(simulated):
-    # three backward Euler steps under gravity, forces and stiffness from the simulated kernel
+    # three backward Euler steps under gravity, forces and stiffness from the simulated kernel,
+    # the linear systems solved on the host, then on the (simulated) device
     assert simulated["integrator"] < 1e-10
+    assert simulated["integrator_device_cg"] < 1e-9 and simulated["integrator_device_cg_iterations"] > 0
+
+
+def test_cuda_cg_takes_the_jacobi_preconditioner_only():
+    from mjed.solvers import LinearSolverOptions
+
+    assert "GPU" in LinearSolverOptions(solver="cuda-cg").label()
+    with pytest.raises(ValueError, match="cuda-cg.*jacobi"):
+        LinearSolverOptions(solver="cuda-cg", preconditioner="factorized")
 
 
 def test_block_map_points_at_each_blocks_entries():
