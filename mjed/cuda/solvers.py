@@ -8,10 +8,11 @@ products reduced by one atomic add per thread of a grid-stride loop. The CSR val
 straight from :meth:`mjed.cuda.CudaForceField.device_force_and_stiffness`, whose pattern is
 the field's (``field.pattern``), so that the stiffness never leaves the device.
 
-A building block: :class:`mjed.integrator.ImplicitEuler` still assembles its step matrix and
-runs its CG on the host (docs/studies/timing.md, what is left). Each iteration reads two
-scalars back to the host (p.Ap, then r.r and r.z together), which costs a few microseconds
-per iteration on a GPU. Importing this module imports numba.cuda.
+:class:`mjed.integrator.ImplicitEuler` uses it with ``LinearSolverOptions(solver="cuda-cg")``;
+it still forms its step matrix on the host and copies it here at each solve
+(docs/studies/timing.md, what is left). Each iteration reads two scalars back to the host
+(p.Ap, then r.r and r.z together), a few microseconds per iteration on a GPU. Importing this
+module imports numba.cuda.
 """
 
 from __future__ import annotations
