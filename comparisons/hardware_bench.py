@@ -51,7 +51,8 @@ def _peak_kernels():
     the coefficients scalar arguments of a separate function whose only loop runs over the
     elements: that loop is what the compiler turns into SIMD (measured: with the coefficients
     read from an array inside the same function, or the multiply-adds in a loop, Numba 0.56
-    emits scalar FMAs, 3 to 4 Gflop/s here instead of 20 to 30)."""
+    emits scalar FMAs, 3 to 4 Gflop/s here instead of 20 to 30).
+    """
     from numba import njit, prange
 
     coefs = ", ".join(f"c{k}" for k in range(_HORNER + 1))
@@ -80,7 +81,8 @@ def run(x, y, c, reps, threads):
 
 def measure_peak_flops(threads: int, seconds: float = 0.2) -> float:
     """Flops per second of a vectorised Horner kernel on ``threads`` threads (1: serial),
-    4 KiB of data per thread (in L1 cache)."""
+    4 KiB of data per thread (in L1 cache).
+    """
     import numba
 
     serial, parallel = _peak_kernels()
@@ -112,7 +114,9 @@ def measure_peak_flops(threads: int, seconds: float = 0.2) -> float:
     return 2.0 * _HORNER * n * reps / best
 
 
-def _rounds(calls: Dict[str, Callable[[], object]], rounds: int, min_batch_s: float) -> Dict[str, dict]:
+def _rounds(
+    calls: Dict[str, Callable[[], object]], rounds: int, min_batch_s: float
+) -> Dict[str, dict]:
     """Best and spread of seconds per call of each callable, interleaved rounds."""
     batch = {}
     for name, fn in calls.items():  # warm up, then choose a batch lasting min_batch_s
@@ -124,17 +128,21 @@ def _rounds(calls: Dict[str, Callable[[], object]], rounds: int, min_batch_s: fl
     samples: Dict[str, List[float]] = {name: [] for name in calls}
     names = list(calls)
     for r in range(rounds):
-        for name in names[r % len(names):] + names[:r % len(names)]:
+        for name in names[r % len(names) :] + names[: r % len(names)]:
             fn, k = calls[name], batch[name]
             t0 = time.perf_counter()
             for _ in range(k):
                 fn()
             samples[name].append((time.perf_counter() - t0) / k)
-    return {name: {"best_s": min(v), "median_s": float(np.median(v)), "spread": max(v) / min(v) - 1.0}
-            for name, v in samples.items()}
+    return {
+        name: {"best_s": min(v), "median_s": float(np.median(v)), "spread": max(v) / min(v) - 1.0}
+        for name, v in samples.items()
+    }
 
 
-def cpu_figures(mesh_name: str, material_name: str, rounds: int = 7, min_batch_s: float = 0.05) -> dict:
+def cpu_figures(
+    mesh_name: str, material_name: str, rounds: int = 7, min_batch_s: float = 0.05
+) -> dict:
     """The CPU figures of one material on one mesh (see the module docstring)."""
     import numba
 
@@ -150,9 +158,11 @@ def cpu_figures(mesh_name: str, material_name: str, rounds: int = 7, min_batch_s
     h = (mesh.volumes.mean() * 6) ** (1 / 3)
     x = points * [1.08, 0.97, 0.98] + 0.02 * h * rng.standard_normal(points.shape)
     threads = numba.get_num_threads()
-    fields = {"numpy": mjed.make_force_field(mesh, material),
-              "numba-serial": mjed.make_force_field(mesh, material, backend="numba"),
-              "numba-parallel": mjed.make_force_field(mesh, material, backend="numba", parallel=True)}
+    fields = {
+        "numpy": mjed.make_force_field(mesh, material),
+        "numba-serial": mjed.make_force_field(mesh, material, backend="numba"),
+        "numba-parallel": mjed.make_force_field(mesh, material, backend="numba", parallel=True),
+    }
     f_ref, K_ref = fields["numpy"].force_and_stiffness(x)
     for name in ("numba-serial", "numba-parallel"):  # same answer before anything is timed
         f, K = fields[name].force_and_stiffness(x)
@@ -180,25 +190,36 @@ def cpu_figures(mesh_name: str, material_name: str, rounds: int = 7, min_batch_s
     peak1 = measure_peak_flops(1)
     peak_all = measure_peak_flops(threads)
     floor_b = floor_bytes(n, m, nnz)
-    out = {"mesh": mesh_name, "material": material_name, "cells": m, "nodes": n, "nnz": nnz, "threads": threads,
-           "flops_per_cell": flops, "floor_bytes": floor_b,
-           "bandwidth_GBs": {"1 thread": bw1.bytes_per_s / 1e9, f"{threads} threads": bw_all / 1e9},
-           "peak_Gflops": {"1 thread": peak1 / 1e9, f"{threads} threads": peak_all / 1e9},
-           "floors_ns_per_cell": {
-               "bandwidth, 1 thread": floor_b / bw1.bytes_per_s / m * 1e9,
-               f"bandwidth, {threads} threads": floor_b / bw_all / m * 1e9,
-               "compute, 1 thread": flops / peak1 * 1e9,
-               f"compute, {threads} threads": flops / peak_all * 1e9},
-           "timings": {}}
+    out = {
+        "mesh": mesh_name,
+        "material": material_name,
+        "cells": m,
+        "nodes": n,
+        "nnz": nnz,
+        "threads": threads,
+        "flops_per_cell": flops,
+        "floor_bytes": floor_b,
+        "bandwidth_GBs": {"1 thread": bw1.bytes_per_s / 1e9, f"{threads} threads": bw_all / 1e9},
+        "peak_Gflops": {"1 thread": peak1 / 1e9, f"{threads} threads": peak_all / 1e9},
+        "floors_ns_per_cell": {
+            "bandwidth, 1 thread": floor_b / bw1.bytes_per_s / m * 1e9,
+            f"bandwidth, {threads} threads": floor_b / bw_all / m * 1e9,
+            "compute, 1 thread": flops / peak1 * 1e9,
+            f"compute, {threads} threads": flops / peak_all * 1e9,
+        },
+        "timings": {},
+    }
     for name, t in timed.items():
         out["timings"][name] = dict(t, ns_per_cell=t["best_s"] / m * 1e9, ms=t["best_s"] * 1e3)
         if name.endswith("f+K") and not name.startswith("numpy"):
             out["timings"][name]["Gflops"] = flops * m / t["best_s"] / 1e9
     tf = {k: v["best_s"] for k, v in timed.items()}
-    out["ratios"] = {"numpy / numba-serial, f+K": tf["numpy f+K"] / tf["numba-serial f+K"],
-                     "numpy / numba-parallel, f+K": tf["numpy f+K"] / tf["numba-parallel f+K"],
-                     "numba-serial / numba-parallel, f+K": tf["numba-serial f+K"] / tf["numba-parallel f+K"],
-                     "numba-serial / numba-parallel, f": tf["numba-serial f"] / tf["numba-parallel f"]}
+    out["ratios"] = {
+        "numpy / numba-serial, f+K": tf["numpy f+K"] / tf["numba-serial f+K"],
+        "numpy / numba-parallel, f+K": tf["numpy f+K"] / tf["numba-parallel f+K"],
+        "numba-serial / numba-parallel, f+K": tf["numba-serial f+K"] / tf["numba-parallel f+K"],
+        "numba-serial / numba-parallel, f": tf["numba-serial f"] / tf["numba-parallel f"],
+    }
     out["colours"] = fields["numba-parallel"].schedule.n_colours
     return out
 
@@ -227,11 +248,13 @@ def _materials() -> dict:
     from mjed import materials as M
 
     # the timing study's parameters (soft tissue, Pa)
-    return {"NeoHookean": M.NeoHookean(mu=3.4e3, lam=3.1e4),
-            "StVenantKirchhoff": M.StVenantKirchhoff(mu=3.4e3, lam=3.1e4),
-            "MooneyRivlin": M.MooneyRivlin(c1=1.5e3, c2=0.2e3, k0=3.1e4),
-            "ArrudaBoyce": M.ArrudaBoyce(mu=3.4e3, k0=3.1e4),
-            "Ogden": M.Ogden(mu=3.4e3, alpha=3.0, k0=3.1e4)}
+    return {
+        "NeoHookean": M.NeoHookean(mu=3.4e3, lam=3.1e4),
+        "StVenantKirchhoff": M.StVenantKirchhoff(mu=3.4e3, lam=3.1e4),
+        "MooneyRivlin": M.MooneyRivlin(c1=1.5e3, c2=0.2e3, k0=3.1e4),
+        "ArrudaBoyce": M.ArrudaBoyce(mu=3.4e3, k0=3.1e4),
+        "Ogden": M.Ogden(mu=3.4e3, alpha=3.0, k0=3.1e4),
+    }
 
 
 # ------------------------------------------------------------------ GPU
@@ -246,10 +269,15 @@ def gpu_status() -> Optional[str]:
     return None
 
 
-def gpu_figures(material_name: str = "NeoHookean", sizes: Sequence[int] = (10_000, 100_000, 1_000_000),
-                repeats: int = 20, copy_bytes: int = 2**29) -> dict:
+def gpu_figures(
+    material_name: str = "NeoHookean",
+    sizes: Sequence[int] = (10_000, 100_000, 1_000_000),
+    repeats: int = 20,
+    copy_bytes: int = 2**29,
+) -> dict:
     """Tets per second of the cuda backend, kernel only, per size, dtype and quantity, and
-    the device's copy bandwidth (a device-to-device copy of ``copy_bytes``)."""
+    the device's copy bandwidth (a device-to-device copy of ``copy_bytes``).
+    """
     from numba import cuda
 
     import mjed
@@ -284,8 +312,12 @@ def gpu_figures(material_name: str = "NeoHookean", sizes: Sequence[int] = (10_00
             f_d = cuda.device_array((mesh.n_nodes, 3), dtype=dtype)
             data_d = cuda.device_array(field.pattern.nnz, dtype=dtype)
             for quantity, stiff in (("f", False), ("f+K", True)):
-                call = lambda: field.device_force_and_stiffness(x_d, force=True, stiffness=stiff,  # noqa: E731
-                                                                 out=(f_d, data_d))
+                call = lambda: field.device_force_and_stiffness(
+                    x_d,
+                    force=True,
+                    stiffness=stiff,  # noqa: E731
+                    out=(f_d, data_d),
+                )
                 call()
                 cuda.synchronize()
                 best = np.inf
@@ -295,28 +327,46 @@ def gpu_figures(material_name: str = "NeoHookean", sizes: Sequence[int] = (10_00
                     cuda.synchronize()
                     best = min(best, time.perf_counter() - t0)
                 isz = np.dtype(dtype).itemsize
-                moved = (isz * (2 * 3 * mesh.n_nodes + 13 * mesh.n_cells) + 4 * 4 * mesh.n_cells
-                         + (isz * field.pattern.nnz + 4 * 16 * mesh.n_cells if stiff else 0))
-                row[f"{np.dtype(dtype).name} {quantity}"] = {"s": best, "tets_per_s": mesh.n_cells / best,
-                                                             "GBs": moved / best / 1e9}
+                moved = (
+                    isz * (2 * 3 * mesh.n_nodes + 13 * mesh.n_cells)
+                    + 4 * 4 * mesh.n_cells
+                    + (isz * field.pattern.nnz + 4 * 16 * mesh.n_cells if stiff else 0)
+                )
+                row[f"{np.dtype(dtype).name} {quantity}"] = {
+                    "s": best,
+                    "tets_per_s": mesh.n_cells / best,
+                    "GBs": moved / best / 1e9,
+                }
         out["sizes"].append(row)
     return out
 
 
 # ------------------------------------------------------------------ printing
 def _print_cpu(fig: dict) -> None:
-    print(f"CPU: {fig['material']} on {fig['mesh']} ({fig['cells']} cells, {fig['nodes']} nodes, nnz {fig['nnz']}), "
-          f"{fig['threads']} threads, {fig['colours']} colours in the parallel schedule")
-    print(f"  measured: copy bandwidth " + ", ".join(f"{k} {v:.1f} GB/s" for k, v in fig["bandwidth_GBs"].items())
-          + "; peak " + ", ".join(f"{k} {v:.1f} Gflop/s" for k, v in fig["peak_Gflops"].items()))
-    print(f"  kernel: {fig['flops_per_cell']} flops per cell (generated source); floor bytes "
-          f"{fig['floor_bytes'] / fig['cells']:.0f} per cell")
+    print(
+        f"CPU: {fig['material']} on {fig['mesh']} ({fig['cells']} cells, {fig['nodes']} nodes, nnz "
+        f"{fig['nnz']}), "
+        f"{fig['threads']} threads, {fig['colours']} colours in the parallel schedule"
+    )
+    print(
+        "  measured: copy bandwidth "
+        + ", ".join(f"{k} {v:.1f} GB/s" for k, v in fig["bandwidth_GBs"].items())
+        + "; peak "
+        + ", ".join(f"{k} {v:.1f} Gflop/s" for k, v in fig["peak_Gflops"].items())
+    )
+    print(
+        f"  kernel: {fig['flops_per_cell']} flops per cell (generated source); floor bytes "
+        f"{fig['floor_bytes'] / fig['cells']:.0f} per cell"
+    )
     for k, v in fig["floors_ns_per_cell"].items():
         print(f"  floor {k:<28s} {v:8.1f} ns/cell")
     for k, v in fig["timings"].items():
         extra = f"  {v['Gflops']:.1f} Gflop/s" if "Gflops" in v else ""
-        print(f"  {k:<24s} {v['ms']:8.3f} ms  {v['ns_per_cell']:8.1f} ns/cell  (spread {100 * v['spread']:.0f} %)"
-              f"{extra}")
+        print(
+            f"  {k:<24s} {v['ms']:8.3f} ms  {v['ns_per_cell']:8.1f} ns/cell  (spread "
+            f"{100 * v['spread']:.0f} %)"
+            f"{extra}"
+        )
     for k, v in fig["ratios"].items():
         print(f"  {k:<40s} {v:6.2f}x")
 
@@ -329,14 +379,24 @@ def _print_gpu(status: Optional[str], fig: Optional[dict]) -> None:
     for row in fig["sizes"]:
         for k, v in row.items():
             if isinstance(v, dict):
-                print(f"  {row['cells']:>9d} tets  {k:<12s} {v['tets_per_s']:.3e} tets/s  {v['GBs']:7.1f} GB/s")
+                print(
+                    f"  {row['cells']:>9d} tets  {k:<12s} {v['tets_per_s']:.3e} tets/s  "
+                    f"{v['GBs']:7.1f} GB/s"
+                )
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m comparisons.hardware_bench", description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--mesh", default="cube-paper", help="catalog name or mesh file (default cube-paper)")
-    ap.add_argument("--materials", default="NeoHookean", help=f"comma-separated, of {', '.join(_materials())}")
+    ap = argparse.ArgumentParser(
+        prog="python -m comparisons.hardware_bench",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "--mesh", default="cube-paper", help="catalog name or mesh file (default cube-paper)"
+    )
+    ap.add_argument(
+        "--materials", default="NeoHookean", help=f"comma-separated, of {', '.join(_materials())}"
+    )
     ap.add_argument("--rounds", type=int, default=7, help="interleaved timing rounds (default 7)")
     ap.add_argument("--gpu-sizes", default="10000,100000,1000000", help="tets of the GPU cubes")
     ap.add_argument("--no-gpu", action="store_true", help="skip the GPU section")
@@ -352,10 +412,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     import numba
 
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"MJED hardware figures, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC, "
-          f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
-          f"Numba {numba.__version__}, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}, "
-          f"load average {load:.2f} before")
+    print(
+        f"MJED hardware figures, {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC, "
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} logical CPUs, "
+        f"Numba {numba.__version__}, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY')}, "
+        f"load average {load:.2f} before"
+    )
     figures = {"cpu": [], "load_before": load}
     for name in names:
         fig = cpu_figures(args.mesh, name, rounds=args.rounds)
@@ -368,8 +430,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     figures["gpu"] = gpu if gpu is not None else {"status": status}
     _print_gpu(status, gpu)
     figures["load_after"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"load average {figures['load_after']:.2f} after (a load above the core count means other work "
-          f"shared the cores: the parallel figures are then pessimistic)")
+    print(
+        f"load average {figures['load_after']:.2f} after (a load above the core count means other "
+        "work "
+        f"shared the cores: the parallel figures are then pessimistic)"
+    )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(figures, fh, indent=1)

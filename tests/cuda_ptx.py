@@ -32,10 +32,10 @@ def main(names) -> dict:
     if hasattr(nvvmutils, "current_context"):  # Numba 0.56: double atomics ask the device
         device = types.SimpleNamespace(compute_capability=(8, 0))
         nvvmutils.current_context = lambda: types.SimpleNamespace(device=device)
+    from conftest import MATERIALS
     from numba import cuda
     from numba import types as nt
 
-    from conftest import MATERIALS
     from mjed.compiled.lowering import lower_groups
     from mjed.compiled.shape import kernel_shape
     from mjed.cuda import kernels
@@ -44,8 +44,28 @@ def main(names) -> dict:
         f = nt.float64 if dtype == np.float64 else nt.float32
         a = lambda t, nd: nt.Array(t, nd, "C")  # noqa: E731
         i = nt.int32
-        return (a(f, 2), a(i, 2), a(f, 3), a(f, 1), a(f, 2), a(f, 2), a(f, 4), a(f, 1), a(f, 4), nt.boolean,
-                nt.boolean, nt.boolean, nt.boolean, a(i, 2), a(i, 1), a(f, 2), a(f, 1), a(f, 1), a(f, 1), a(f, 3))
+        return (
+            a(f, 2),
+            a(i, 2),
+            a(f, 3),
+            a(f, 1),
+            a(f, 2),
+            a(f, 2),
+            a(f, 4),
+            a(f, 1),
+            a(f, 4),
+            nt.boolean,
+            nt.boolean,
+            nt.boolean,
+            nt.boolean,
+            a(i, 2),
+            a(i, 1),
+            a(f, 2),
+            a(f, 1),
+            a(f, 1),
+            a(f, 1),
+            a(f, 3),
+        )
 
     out = {"nvvm": True, "kernels": []}
     for name in names:
@@ -53,18 +73,33 @@ def main(names) -> dict:
         for dtype in (np.float64, np.float32):
             module = kernels.cuda_module(shape, dtype)
             for kernel in ("mjed_cells", "mjed_force"):
-                ptx, _ = cuda.compile_ptx(getattr(module, kernel).py_func, signature(dtype), cc=(8, 0))
-                out["kernels"].append({"material": name, "kernel": kernel, "dtype": np.dtype(dtype).name,
-                                       "f64": ptx.count(".f64"), "f32": ptx.count(".f32"),
-                                       "atomics": ptx.count("atom."), "entry": ".entry" in ptx})
+                ptx, _ = cuda.compile_ptx(
+                    getattr(module, kernel).py_func, signature(dtype), cc=(8, 0)
+                )
+                out["kernels"].append(
+                    {
+                        "material": name,
+                        "kernel": kernel,
+                        "dtype": np.dtype(dtype).name,
+                        "f64": ptx.count(".f64"),
+                        "f32": ptx.count(".f32"),
+                        "atomics": ptx.count("atom."),
+                        "entry": ".entry" in ptx,
+                    }
+                )
     from mjed.cuda import solvers
 
     i32, f64 = nt.int32[:], nt.float64[:]
-    for fn, sig in ((kernels._zero, (nt.float64[:],)),
-                    (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),
-                    (solvers._spmv, (i32, i32, f64, f64, f64)), (solvers._jacobi, (i32, i32, f64, f64)),
-                    (solvers._dots, (f64, f64, f64, f64)), (solvers._step, (f64, f64, f64, f64, f64, f64, nt.float64)),
-                    (solvers._direction, (f64, f64, nt.float64)), (solvers._residual_start, (f64, f64, f64, f64, f64))):
+    for fn, sig in (
+        (kernels._zero, (nt.float64[:],)),
+        (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),
+        (solvers._spmv, (i32, i32, f64, f64, f64)),
+        (solvers._jacobi, (i32, i32, f64, f64)),
+        (solvers._dots, (f64, f64, f64, f64)),
+        (solvers._step, (f64, f64, f64, f64, f64, f64, nt.float64)),
+        (solvers._direction, (f64, f64, nt.float64)),
+        (solvers._residual_start, (f64, f64, f64, f64, f64)),
+    ):
         ptx, _ = cuda.compile_ptx(fn.py_func, sig, cc=(8, 0))
         out["kernels"].append({"material": fn.py_func.__name__, "entry": ".entry" in ptx})
     return out

@@ -19,14 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, box_mesh
 
 import mjed
-from conftest import MATERIALS, box_mesh
 from mjed.compiled import numba_available
 
 ROOT = Path(__file__).resolve().parents[1]
-needs_numba = pytest.mark.skipif(not numba_available(), reason="the cuda backend needs Numba's CUDA target "
-                                 "(Debian: python3-numba; PyPI: numba, numba-cuda)")
+needs_numba = pytest.mark.skipif(
+    not numba_available(),
+    reason="the cuda backend needs Numba's CUDA target "
+    "(Debian: python3-numba; PyPI: numba, numba-cuda)",
+)
 
 #: FP32 tolerances: the single-precision unit roundoff is 6e-8; forces, stresses and energies
 #: are sums in which terms of larger size cancel (the stored energy of a moderate state is a
@@ -37,10 +40,21 @@ FP64_TOL = {"force": 1e-13, "stiffness": 1e-13, "stress": 1e-13, "energy": 1e-12
 
 @pytest.fixture(scope="module")
 def simulated():
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1",
-               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]))
-    out = subprocess.run([sys.executable, str(ROOT / "tests" / "cuda_simulated.py"), *sorted(MATERIALS)],
-                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=1200)
+    env = dict(
+        os.environ,
+        NUMBA_ENABLE_CUDASIM="1",
+        PYTHONPATH=os.pathsep.join(
+            [str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]
+        ),
+    )
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "cuda_simulated.py"), *sorted(MATERIALS)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+        timeout=1200,
+    )
     assert out.returncode == 0, out.stderr[-4000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -65,7 +79,9 @@ def test_cuda_kernels_equal_numpy_engine_on_the_simulator(simulated, dtype):
 def test_cuda_device_arrays_inversion_and_regularisation(simulated):
     for c in simulated["cases"]:
         if c["material"] == "NeoHookean":
-            assert c["device_force"] == 0.0 and c["device_data"] == 0.0 and c["device_energy"] < 1e-6
+            assert (
+                c["device_force"] == 0.0 and c["device_data"] == 0.0 and c["device_energy"] < 1e-6
+            )
             if c["regularize"]:
                 assert c["regularisation_changes_K"] > 1e-3  # the state has compressed cells
     assert "cell 2 " in simulated["inverted"]
@@ -77,7 +93,10 @@ def test_cuda_field_drives_the_implicit_integrator(simulated):
     # three backward Euler steps under gravity, forces and stiffness from the simulated kernel,
     # the linear systems solved on the host, then on the (simulated) device
     assert simulated["integrator"] < 1e-10
-    assert simulated["integrator_device_cg"] < 1e-9 and simulated["integrator_device_cg_iterations"] > 0
+    assert (
+        simulated["integrator_device_cg"] < 1e-9
+        and simulated["integrator_device_cg_iterations"] > 0
+    )
 
 
 def test_cuda_cg_takes_the_jacobi_preconditioner_only():
@@ -103,15 +122,20 @@ def test_block_map_points_at_each_blocks_entries():
                 for r in range(3):
                     for c in range(3):
                         pos = blk[e, 4 * a + b] + r * rowlen[cells[e, a]] + c
-                        assert rows[pos] == 3 * cells[e, a] + r and p.indices[pos] == 3 * cells[e, b] + c
+                        assert (
+                            rows[pos] == 3 * cells[e, a] + r
+                            and p.indices[pos] == 3 * cells[e, b] + c
+                        )
 
 
 def test_fp32_source_rewrites_every_float_literal_and_math_call():
     from mjed.cuda.codegen import fp32_source
 
     code = "y = 2.0 * x_1 + 1e-17 * math.sqrt(J) - .5 + a2_0 * 3\nz = math.log(1.0 - q1)"
-    assert fp32_source(code) == ("y = f32(2.0) * x_1 + f32(1e-17) * f32_sqrt(J) - f32(.5) + a2_0 * 3\n"
-                                 "z = f32_log(f32(1.0) - q1)")
+    assert fp32_source(code) == (
+        "y = f32(2.0) * x_1 + f32(1e-17) * f32_sqrt(J) - f32(.5) + a2_0 * 3\n"
+        "z = f32_log(f32(1.0) - q1)"
+    )
 
 
 def test_generated_cuda_source_is_one_thread_per_cell_without_allocation():
@@ -136,8 +160,10 @@ def test_generated_cuda_source_is_one_thread_per_cell_without_allocation():
                 assert "math." not in src.split("def mjed_cells")[1]
 
 
-@pytest.mark.skipif(numba_available() and __import__("mjed.cuda", fromlist=["cuda_available"]).cuda_available(),
-                    reason="a CUDA device (or the simulator) is present here")
+@pytest.mark.skipif(
+    numba_available() and __import__("mjed.cuda", fromlist=["cuda_available"]).cuda_available(),
+    reason="a CUDA device (or the simulator) is present here",
+)
 def test_cuda_backend_without_a_device_says_why():
     points, cells = box_mesh(1)
     with pytest.raises(mjed.compiled.BackendUnavailable, match="cuda"):
@@ -147,7 +173,9 @@ def test_cuda_backend_without_a_device_says_why():
 def test_unknown_backend_lists_cuda():
     points, cells = box_mesh(1)
     with pytest.raises(ValueError, match="numpy, numba, cuda"):
-        mjed.make_force_field(mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="opencl")
+        mjed.make_force_field(
+            mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="opencl"
+        )
 
 
 @needs_numba
@@ -156,4 +184,6 @@ def test_device_cg_solves_like_the_host_cg(simulated):
     assert cg["converged"] and cg["residual"] <= 1e-12 and cg["difference"] < 1e-10
     assert abs(cg["iterations"] - cg["host_iterations"]) <= 1  # the same algorithm
     assert cg["warm_iterations"] == 0  # a converged first guess is returned as it is
-    assert cg["indefinite"] == cg["host_indefinite"] == "negative_curvature"  # -A is refused as on the host
+    assert (
+        cg["indefinite"] == cg["host_indefinite"] == "negative_curvature"
+    )  # -A is refused as on the host

@@ -1,6 +1,7 @@
 """The hardware benchmark command (comparisons.hardware_bench): it runs end to end on a small
 mesh, checks every backend's answer before timing it, and without a GPU prints "not run: no
-GPU" for the GPU section instead of a figure."""
+GPU" for the GPU section instead of a figure.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import pytest
 
 from mjed.compiled import numba_available
 
-pytestmark = pytest.mark.skipif(not numba_available(), reason="the benchmark needs Numba "
-                                "(Debian: python3-numba; PyPI: numba)")
+pytestmark = pytest.mark.skipif(
+    not numba_available(), reason="the benchmark needs Numba (Debian: python3-numba; PyPI: numba)"
+)
 
 
 def test_benchmark_prints_cpu_figures_and_no_gpu_figure(tmp_path, capsys):
@@ -28,7 +30,9 @@ def test_benchmark_prints_cpu_figures_and_no_gpu_figure(tmp_path, capsys):
         assert cpu["timings"][name]["ns_per_cell"] > 0 and name in text
     assert all(v > 0 for v in cpu["floors_ns_per_cell"].values())
     if not cuda_available():
-        assert "GPU: not run: no GPU" in text and figures["gpu"] == {"status": hardware_bench.gpu_status()}
+        assert "GPU: not run: no GPU" in text and figures["gpu"] == {
+            "status": hardware_bench.gpu_status()
+        }
 
 
 def test_gpu_section_code_path_runs_on_the_simulator():
@@ -41,10 +45,14 @@ def test_gpu_section_code_path_runs_on_the_simulator():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
-    code = ("import json; from comparisons.hardware_bench import gpu_figures; "
-            "print(json.dumps(gpu_figures(sizes=(48,), repeats=1, copy_bytes=2**12)))")
+    code = (
+        "import json; from comparisons.hardware_bench import gpu_figures; "
+        "print(json.dumps(gpu_figures(sizes=(48,), repeats=1, copy_bytes=2**12)))"
+    )
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1", PYTHONPATH=str(root))
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root, timeout=600
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     fig = json.loads(out.stdout.strip().splitlines()[-1])
     row = fig["sizes"][0]

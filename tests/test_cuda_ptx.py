@@ -2,7 +2,8 @@
 nvcc), for every material and both precisions, without a GPU. What Numba's simulator cannot
 show (tests/test_cuda.py checks the arithmetic there). Skips, saying why, where no CUDA
 toolkit's NVVM is found (set CUDA_HOME to one; PyPI's nvidia-cuda-nvcc-cu11 wheel, unpacked,
-is enough: its libnvvm.so needs a versioned link, libnvvm.so.4, for Numba 0.56 to find it)."""
+is enough: its libnvvm.so needs a versioned link, libnvvm.so.4, for Numba 0.56 to find it).
+"""
 
 from __future__ import annotations
 
@@ -13,8 +14,8 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from conftest import MATERIALS
+
 from mjed.compiled import numba_available
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,8 +28,14 @@ def ptx():
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
     env.setdefault("NUMBA_FORCE_CUDA_CC", "8.0")
     env.pop("NUMBA_ENABLE_CUDASIM", None)
-    out = subprocess.run([sys.executable, str(ROOT / "tests" / "cuda_ptx.py"), *sorted(MATERIALS)],
-                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=1200)
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "cuda_ptx.py"), *sorted(MATERIALS)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=ROOT,
+        timeout=1200,
+    )
     assert out.returncode == 0, out.stderr[-4000:]
     result = json.loads(out.stdout.strip().splitlines()[-1])
     if not result["nvvm"]:
@@ -40,7 +47,9 @@ def test_every_kernel_compiles_to_ptx(ptx):
     kernels = [k for k in ptx["kernels"] if "dtype" in k]
     assert len(kernels) == 4 * len(MATERIALS) and all(k["entry"] for k in ptx["kernels"])
     for k in kernels:
-        if k["kernel"] == "mjed_cells":  # every block entry and force component, straight into memory
+        if (
+            k["kernel"] == "mjed_cells"
+        ):  # every block entry and force component, straight into memory
             assert k["atomics"] >= 144 + 12
         else:  # the force kernel has no stiffness code left
             assert 12 <= k["atomics"] < 144

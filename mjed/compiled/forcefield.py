@@ -1,5 +1,6 @@
 """CompiledForceField: MJED forces and stiffness from the compiled kernel, same API as
-:class:`mjed.HyperelasticForceField`."""
+:class:`mjed.HyperelasticForceField`.
+"""
 
 from __future__ import annotations
 
@@ -23,10 +24,11 @@ __all__ = ["CompiledForceField", "kernel_positions"]
 
 
 def kernel_positions(x, n_nodes: int) -> np.ndarray:
-    """x checked (mjed.forcefield.checked_positions) and as a C-contiguous, writeable float64
+    """X checked (mjed.forcefield.checked_positions) and as a C-contiguous, writeable float64
     (n_nodes, 3) array: Numba compiles one specialisation per array layout and per read-only
     flag (each several seconds), so a view or a read-only array from the caller is copied
-    rather than handed to a compiled kernel."""
+    rather than handed to a compiled kernel.
+    """
     x = checked_positions(x, n_nodes)
     if not (x.flags.c_contiguous and x.flags.writeable):
         x = np.array(x, order="C")
@@ -62,8 +64,16 @@ class CompiledForceField:
 
     backend = "numba"
 
-    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False,
-                 parallel: bool = False, slabs: Optional[int] = None):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        material: Material,
+        *,
+        regularize: bool = False,
+        allow_inverted: bool = False,
+        parallel: bool = False,
+        slabs: Optional[int] = None,
+    ):
         check_field_arguments(mesh, material)
         self._k = require_numba()
         self.mesh = mesh
@@ -80,17 +90,38 @@ class CompiledForceField:
         self._V0 = np.ascontiguousarray(mesh.volumes, dtype=np.float64)
         self._assembly = CompiledAssembly(self.pattern, self._k)
         self._J = np.empty(mesh.n_cells)
-        self._numbers = (self.table.jpar, self.table.gpar, self.table.gmat, self.table.group_coef, self.table.slot_M)
+        self._numbers = (
+            self.table.jpar,
+            self.table.gpar,
+            self.table.gmat,
+            self.table.group_coef,
+            self.table.slot_M,
+        )
         self._schedule = ()
         self.schedule = None
         if self.parallel:  # every per-cell argument in schedule order, once
             self._k.prefer_passive_wait()  # before the thread pool starts
-            sch = self.schedule = cell_schedule(mesh.points, mesh.cells, slabs or SLABS_PER_THREAD * self._k.threads())
-            self._cells, self._D, self._V0 = sch.permute(self._cells), sch.permute(self._D), sch.permute(self._V0)
+            sch = self.schedule = cell_schedule(
+                mesh.points, mesh.cells, slabs or SLABS_PER_THREAD * self._k.threads()
+            )
+            self._cells, self._D, self._V0 = (
+                sch.permute(self._cells),
+                sch.permute(self._D),
+                sch.permute(self._V0),
+            )
             t = self.table
-            self._numbers = (t.jpar, t.gpar, sch.permute(t.gmat, axis=1), t.group_coef, sch.permute(t.slot_M, axis=1))
+            self._numbers = (
+                t.jpar,
+                t.gpar,
+                sch.permute(t.gmat, axis=1),
+                t.group_coef,
+                sch.permute(t.slot_M, axis=1),
+            )
             a = self._assembly
-            self._assembly_args = (sch.permute(a.cell_edges), sch.permute(a.cell_flip)) + a.arguments()[2:]
+            self._assembly_args = (
+                sch.permute(a.cell_edges),
+                sch.permute(a.cell_flip),
+            ) + a.arguments()[2:]
             self._schedule = sch.arguments()
         else:
             self._assembly_args = self._assembly.arguments()
@@ -114,7 +145,9 @@ class CompiledForceField:
         return f, K
 
     def stress(self, x) -> np.ndarray:
-        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest volume)."""
+        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest
+        volume).
+        """
         return self._run(x, force=False, stiffness=False, stress=True)[3]
 
     def force_stiffness_and_stress(self, x) -> Tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
@@ -128,9 +161,28 @@ class CompiledForceField:
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         S = np.empty((self.mesh.n_cells if stress else 0, 3, 3))
-        energy = self._kernel(x, self._cells, self._D, self._V0, *self._numbers, self.regularize, force, stiffness,
-                              stress, *self._assembly_args, f, data, self._J, S, *self._schedule)
+        energy = self._kernel(
+            x,
+            self._cells,
+            self._D,
+            self._V0,
+            *self._numbers,
+            self.regularize,
+            force,
+            stiffness,
+            stress,
+            *self._assembly_args,
+            f,
+            data,
+            self._J,
+            S,
+            *self._schedule,
+        )
         if not self.allow_inverted:
             refuse_inverted(self._J)
-        return (float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None),
-                (S if stress else None))
+        return (
+            float(energy),
+            (f if force else None),
+            (self._assembly.matrix(data) if stiffness else None),
+            (S if stress else None),
+        )

@@ -22,9 +22,21 @@ import math
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["JIT_OPTIONS", "eigh3", "eigh3_sym", "block_sources", "write_csr", "write_csr_parallel", "zero_sums_parallel",
-           "divided_differences", "divided_differences_sym", "colour_chunks", "threads", "prefer_passive_wait",
-           "DEVICE_HELPERS"]
+__all__ = [
+    "JIT_OPTIONS",
+    "eigh3",
+    "eigh3_sym",
+    "block_sources",
+    "write_csr",
+    "write_csr_parallel",
+    "zero_sums_parallel",
+    "divided_differences",
+    "divided_differences_sym",
+    "colour_chunks",
+    "threads",
+    "prefer_passive_wait",
+    "DEVICE_HELPERS",
+]
 
 #: The compiler options of every kernel (the generated MJED kernels and the classical ones too).
 JIT_OPTIONS = dict(cache=True, nogil=True, error_model="numpy")
@@ -41,7 +53,8 @@ def _rotation(app, aqq, apq, arp, arq):
     |s| = |b| / w, w = sqrt(2 rho m). This is Golub and Van Loan's rotation (t = tan of the
     smaller angle, sign of theta = d / b) with the two divisions and two square roots of
     theta, t and c folded into one division and two square roots (a rotation is a chain of
-    dependent divisions and roots, so their number sets its latency)."""
+    dependent divisions and roots, so their number sets its latency).
+    """
     d = aqq - app
     b = 2.0 * apq
     rho = math.sqrt(d * d + b * b)
@@ -58,8 +71,14 @@ def _rotation(app, aqq, apq, arp, arq):
 @njit(**_JIT)
 def _rotate_columns(c, s, x0p, x0q, x1p, x1q, x2p, x2q):
     """Columns p and q of a 3x3 matrix (x_ip, x_iq) after the rotation (c, s)."""
-    return (c * x0p - s * x0q, s * x0p + c * x0q, c * x1p - s * x1q, s * x1p + c * x1q,
-            c * x2p - s * x2q, s * x2p + c * x2q)
+    return (
+        c * x0p - s * x0q,
+        s * x0p + c * x0q,
+        c * x1p - s * x1q,
+        s * x1p + c * x1q,
+        c * x2p - s * x2q,
+        s * x2p + c * x2q,
+    )
 
 
 @njit(**_JIT)
@@ -69,7 +88,8 @@ def eigh3_sym(a00, a01, a02, a11, a12, a22):
 
     Returns (lam0, lam1, lam2, V00, V01, V02, V10, V11, V12, V20, V21, V22), V[:, n] the
     eigenvector of lam_n (unsorted). Entries of physical magnitude are assumed (d^2 + b^2 of
-    a rotation must not overflow or underflow), as they are for C = F^T F."""
+    a rotation must not overflow or underflow), as they are for C = F^T F.
+    """
     v00, v01, v02, v10, v11, v12, v20, v21, v22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     tol = (1e-17 * (abs(a00) + abs(a11) + abs(a22) + 1e-300)) ** 2
     for _sweep in range(60):
@@ -94,7 +114,8 @@ def eigh3_sym(a00, a01, a02, a11, a12, a22):
 def eigh3(A, lam, V, a):
     """eigh3_sym on arrays: eigenvalues lam (3,) and eigenvectors V (3, 3) (columns) of the
     symmetric A (3, 3) (upper triangle read; A is not changed). a: unused scratch, kept for
-    the callers' signature."""
+    the callers' signature.
+    """
     r = eigh3_sym(A[0, 0], A[0, 1], A[0, 2], A[1, 1], A[1, 2], A[2, 2])
     for i in range(3):
         lam[i] = r[i]
@@ -139,14 +160,14 @@ def block_sources(indptr, indices, edges, n_nodes):
     return src, blkptr
 
 
-
 @njit(**_JIT)
 def write_csr(U, Dg, src, blkptr, indptr, data):
     """Write every CSR entry once, in order, from the edge sums U and the node blocks Dg.
 
     The three rows of a node's blocks have the same length L (its block row), so entry (r, c)
     of block kk is at indptr[3 i] + r L + 3 kk + c; the source of a block is decided once
-    per block, not per entry (a third faster than branching in the inner loop)."""
+    per block, not per entry (a third faster than branching in the inner loop).
+    """
     for i in range(blkptr.shape[0] - 1):
         _write_node_row(i, U, Dg, src, blkptr, indptr, data)
 
@@ -154,7 +175,8 @@ def write_csr(U, Dg, src, blkptr, indptr, data):
 @njit(parallel=True, **_JIT)
 def write_csr_parallel(U, Dg, src, blkptr, indptr, data):
     """:func:`write_csr` over the threads: one node row per iteration (each row's entries are
-    written by one thread only)."""
+    written by one thread only).
+    """
     for i in prange(blkptr.shape[0] - 1):
         _write_node_row(i, U, Dg, src, blkptr, indptr, data)
 
@@ -202,7 +224,8 @@ def _write_node_row(i, U, Dg, src, blkptr, indptr, data):
 @njit(**_JIT)
 def divided_differences(lam, lp, p, theta):
     """theta_nl = (lam_n^p - lam_l^p)/(lam_n - lam_l), limit p lam^(p-1) on ties, symmetric,
-    into theta (3, 3): :func:`divided_differences_sym` on arrays."""
+    into theta (3, 3): :func:`divided_differences_sym` on arrays.
+    """
     r = divided_differences_sym(lam[0], lam[1], lam[2], lp[0], lp[1], lp[2], p)
     theta[0, 0], theta[0, 1], theta[0, 2], theta[1, 1], theta[1, 2], theta[2, 2] = r
     theta[1, 0], theta[2, 0], theta[2, 1] = r[1], r[2], r[4]
@@ -218,9 +241,16 @@ def divided_differences_sym(lam0, lam1, lam2, lp0, lp1, lp2, p):
     rounding error is below 1e-13 relative there); closer ones use
     lam_l^(p-1) expm1(p log1p(x))/x, x = (lam_n - lam_l)/lam_l, which has no cancellation,
     as mjed.spectral.power_divided_differences does for every pair. Three transcendental
-    calls per close pair instead of per pair keeps the spectral tangent affordable."""
-    return (p * lp0 / lam0, _dd_pair(lam0, lam1, lp0, lp1, p), _dd_pair(lam0, lam2, lp0, lp2, p),
-            p * lp1 / lam1, _dd_pair(lam1, lam2, lp1, lp2, p), p * lp2 / lam2)
+    calls per close pair instead of per pair keeps the spectral tangent affordable.
+    """
+    return (
+        p * lp0 / lam0,
+        _dd_pair(lam0, lam1, lp0, lp1, p),
+        _dd_pair(lam0, lam2, lp0, lp2, p),
+        p * lp1 / lam1,
+        _dd_pair(lam1, lam2, lp1, lp2, p),
+        p * lp2 / lam2,
+    )
 
 
 @njit(**_JIT)
@@ -246,7 +276,14 @@ def _dd_close(a, b, p):
 #: The compiled helpers a generated kernel may call, in an order where each comes after the
 #: helpers it calls: a CUDA module (mjed.cuda.codegen) compiles their Python source again as
 #: device functions, so the CPU and GPU kernels share one implementation of each.
-DEVICE_HELPERS = (_rotation, _rotate_columns, eigh3_sym, _dd_close, _dd_pair, divided_differences_sym)
+DEVICE_HELPERS = (
+    _rotation,
+    _rotate_columns,
+    eigh3_sym,
+    _dd_close,
+    _dd_pair,
+    divided_differences_sym,
+)
 
 
 # ------------------------------------------------------------------ the parallel kernel
@@ -267,7 +304,8 @@ def prefer_passive_wait() -> None:
     on the 2-core test machine (load average 3), the parallel force + stiffness on cube-paper
     took 11 to 23 ms with spinning threads and 2.9 ms with sleeping ones (one thread: 2.7 ms;
     NUMBA_THREADING_LAYER=workqueue, whose threads sleep too: 3.6 ms). On idle cores sleeping
-    costs one wake-up per parallel loop (three per call), microseconds against milliseconds."""
+    costs one wake-up per parallel loop (three per call), microseconds against milliseconds.
+    """
     import os
 
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
@@ -278,7 +316,8 @@ def colour_chunks(cells, chunk_ptr, n_nodes):
     """A greedy colouring of chunks of cells (chunk k: cells chunk_ptr[k] to chunk_ptr[k + 1]
     - 1) such that no two chunks of one colour share a node: the chunks of one colour may then
     add into the node and edge sums from different threads without a race. Returns the colour
-    of each chunk (the smallest not used by a chunk sharing a node; at most 512 colours)."""
+    of each chunk (the smallest not used by a chunk sharing a node; at most 512 colours).
+    """
     n_chunks = chunk_ptr.shape[0] - 1
     words = 8
     used = np.zeros((n_nodes, words), dtype=np.uint64)

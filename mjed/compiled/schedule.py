@@ -45,7 +45,11 @@ def morton_order(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     c = np.asarray(points, float)[np.asarray(cells)].mean(axis=1)
     lo, span = c.min(axis=0), np.ptp(c, axis=0)
     q = ((c - lo) / np.where(span > 0, span, 1.0) * (2**21 - 1)).astype(np.int64)
-    code = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << np.uint64(1)) | (_spread_bits(q[:, 2]) << np.uint64(2))
+    code = (
+        _spread_bits(q[:, 0])
+        | (_spread_bits(q[:, 1]) << np.uint64(1))
+        | (_spread_bits(q[:, 2]) << np.uint64(2))
+    )
     return np.argsort(code, kind="stable")
 
 
@@ -53,7 +57,8 @@ def morton_order(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
 class CellSchedule:
     """cell_id (m,): the caller's index of the cell at each schedule position (so a per-cell
     array ``a`` in schedule order is ``a[cell_id]``); chunk_ptr (chunks + 1,), colour_ptr
-    (colours + 1,): see :class:`mjed.compiled.codegen.ParallelTarget`."""
+    (colours + 1,): see :class:`mjed.compiled.codegen.ParallelTarget`.
+    """
 
     cell_id: np.ndarray
     chunk_ptr: np.ndarray
@@ -68,7 +73,8 @@ class CellSchedule:
 
     def permute(self, per_cell: np.ndarray, axis: int = 0) -> np.ndarray:
         """``per_cell`` (cell axis ``axis``) in schedule order, C-contiguous; an axis of length
-        one (a value shared by every cell) is left as it is."""
+        one (a value shared by every cell) is left as it is.
+        """
         if per_cell.shape[axis] == 1:
             return np.ascontiguousarray(per_cell)
         return np.ascontiguousarray(np.take(per_cell, self.cell_id, axis=axis))
@@ -78,7 +84,8 @@ def cell_schedule(points: np.ndarray, cells: np.ndarray, slabs: int) -> CellSche
     """The schedule of a mesh: ``slabs`` slabs of equal cell counts along the mesh's longest
     extent (each slab's cells in Morton order), laid out by colour (see the module docstring).
     Correct for any mesh and any ``slabs`` >= 1 (the colouring, not the geometry, guarantees
-    that no two slabs of a colour share a node; thin slabs only cost more colours)."""
+    that no two slabs of a colour share a node; thin slabs only cost more colours).
+    """
     from mjed.compiled.kernels import colour_chunks
 
     if slabs < 1:
@@ -95,10 +102,16 @@ def cell_schedule(points: np.ndarray, cells: np.ndarray, slabs: int) -> CellSche
     pos[order] = np.arange(m)
     order = np.lexsort((pos, slab))
     ptr = np.unique(np.searchsorted(slab[order], np.arange(slabs + 1)).astype(np.int64))
-    colour = colour_chunks(np.ascontiguousarray(cells[order]), ptr, len(points))  # the colour of each slab
+    colour = colour_chunks(
+        np.ascontiguousarray(cells[order]), ptr, len(points)
+    )  # the colour of each slab
     by_colour = np.argsort(colour, kind="stable")  # slabs laid out colour by colour
     sizes = np.diff(ptr)[by_colour]
-    cell_id = np.concatenate([order[ptr[k]:ptr[k + 1]] for k in by_colour]) if m else np.zeros(0, np.int64)
+    cell_id = (
+        np.concatenate([order[ptr[k] : ptr[k + 1]] for k in by_colour])
+        if m
+        else np.zeros(0, np.int64)
+    )
     chunk_ptr = np.zeros(len(by_colour) + 1, dtype=np.int64)
     np.cumsum(sizes, out=chunk_ptr[1:])
     counts = np.bincount(colour, minlength=int(colour.max()) + 1 if len(colour) else 0)

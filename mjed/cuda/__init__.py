@@ -3,7 +3,8 @@
     >>> from mjed.cuda import CudaForceField
     >>> field = CudaForceField(mesh, material)                  # FP64
     >>> field32 = CudaForceField(mesh, material, dtype=np.float32)
-    >>> f, K = field.force_and_stiffness(x)                     # same methods as HyperelasticForceField
+    >>> f, K = field.force_and_stiffness(x)                     # same methods as
+    HyperelasticForceField
 
 or ``mjed.make_force_field(mesh, material, backend="cuda", dtype=...)``.
 

@@ -1,6 +1,7 @@
 """Whether the CUDA backend can run here: Numba with its CUDA target, and a CUDA device or
 Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1`` set before Numba is imported). Checked
-without importing Numba at mjed's import."""
+without importing Numba at mjed's import.
+"""
 
 from __future__ import annotations
 
@@ -19,7 +20,8 @@ def simulated() -> bool:
 
 def cuda_available() -> bool:
     """True when the cuda backend can run: Numba is installed and a CUDA device (or the
-    simulator) answers. Imports Numba."""
+    simulator) answers. Imports Numba.
+    """
     if not numba_available():
         return False
     try:
@@ -33,14 +35,18 @@ def cuda_available() -> bool:
 def require_cuda() -> ModuleType:
     """numba.cuda, or BackendUnavailable saying what is missing."""
     if not numba_available():
-        raise BackendUnavailable("the 'cuda' backend needs Numba with its CUDA target (Debian: python3-numba; "
-                                 "PyPI: numba and numba-cuda) and an NVIDIA GPU; or use backend='numpy'")
+        raise BackendUnavailable(
+            "the 'cuda' backend needs Numba with its CUDA target (Debian: python3-numba; "
+            "PyPI: numba and numba-cuda) and an NVIDIA GPU; or use backend='numpy'"
+        )
     try:
         from numba import cuda
     except ImportError as exc:
         raise BackendUnavailable(f"the 'cuda' backend could not import numba.cuda: {exc}") from exc
     if not cuda.is_available():
-        raise BackendUnavailable("the 'cuda' backend found no usable CUDA device (driver and GPU) on this machine; "
-                                 "set NUMBA_ENABLE_CUDASIM=1 before Numba is imported to run its kernels on Numba's "
-                                 "CUDA simulator (slow, for tests), or use backend='numpy' or 'numba'")
+        raise BackendUnavailable(
+            "the 'cuda' backend found no usable CUDA device (driver and GPU) on this machine; "
+            "set NUMBA_ENABLE_CUDASIM=1 before Numba is imported to run its kernels on Numba's "
+            "CUDA simulator (slow, for tests), or use backend='numpy' or 'numba'"
+        )
     return cuda

@@ -1,5 +1,6 @@
 """CudaForceField: MJED forces and stiffness on an NVIDIA GPU (Numba CUDA), same API as
-:class:`mjed.HyperelasticForceField`, in FP64 (the default) or FP32."""
+:class:`mjed.HyperelasticForceField`, in FP64 (the default) or FP32.
+"""
 
 from __future__ import annotations
 
@@ -44,8 +45,15 @@ class CudaForceField:
 
     backend = "cuda"
 
-    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False,
-                 dtype=np.float64):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        material: Material,
+        *,
+        regularize: bool = False,
+        allow_inverted: bool = False,
+        dtype=np.float64,
+    ):
         check_field_arguments(mesh, material)
         cuda = require_cuda()
         from mjed.cuda.codegen import block_map
@@ -69,15 +77,23 @@ class CudaForceField:
         to = cuda.to_device
         self._d = {
             "cells": to(np.ascontiguousarray(mesh.cells, dtype=index)),
-            "D": to(np.ascontiguousarray(mesh.D, dtype=dt)), "V0": to(np.ascontiguousarray(mesh.volumes, dtype=dt)),
-            "numbers": tuple(to(np.ascontiguousarray(a, dtype=dt))
-                             for a in (t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M)),
-            "blk": to(np.ascontiguousarray(blk, dtype=index)), "rowlen": to(np.ascontiguousarray(rowlen, dtype=index)),
-            "J": cuda.device_array(mesh.n_cells, dtype=dt), "E": cuda.device_array(mesh.n_cells, dtype=dt),
+            "D": to(np.ascontiguousarray(mesh.D, dtype=dt)),
+            "V0": to(np.ascontiguousarray(mesh.volumes, dtype=dt)),
+            "numbers": tuple(
+                to(np.ascontiguousarray(a, dtype=dt))
+                for a in (t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M)
+            ),
+            "blk": to(np.ascontiguousarray(blk, dtype=index)),
+            "rowlen": to(np.ascontiguousarray(rowlen, dtype=index)),
+            "J": cuda.device_array(mesh.n_cells, dtype=dt),
+            "E": cuda.device_array(mesh.n_cells, dtype=dt),
             "reduced": cuda.device_array(2, dtype=np.float64),
         }
-        self._empty = {"force": cuda.device_array((0, 3), dtype=dt), "data": cuda.device_array(0, dtype=dt),
-                       "stress": cuda.device_array((0, 3, 3), dtype=dt)}
+        self._empty = {
+            "force": cuda.device_array((0, 3), dtype=dt),
+            "data": cuda.device_array(0, dtype=dt),
+            "stress": cuda.device_array((0, 3, 3), dtype=dt),
+        }
         self._blocks = max(1, -(-mesh.n_cells // THREADS_PER_BLOCK))
 
     # ---------------------------------------------------------------- public API
@@ -107,20 +123,25 @@ class CudaForceField:
         _, f, K, S = self._host(x, force=True, stiffness=True, stress=True)
         return f, K, S
 
-    def device_force_and_stiffness(self, x_device, *, force: bool = True, stiffness: bool = True,
-                                   out: Optional[tuple] = None):
-        """f (n, 3) and the CSR values (nnz,) as device arrays of ``dtype``, from positions
+    def device_force_and_stiffness(
+        self, x_device, *, force: bool = True, stiffness: bool = True, out: Optional[tuple] = None
+    ):
+        """F (n, 3) and the CSR values (nnz,) as device arrays of ``dtype``, from positions
         already on the device (n, 3) of ``dtype``; nothing crosses to the host but the minimum
         J and the energy (16 bytes). out: (f, data) device arrays to reuse. Returns
-        (energy, f or None, data or None); raises InvertedElementError as the host methods."""
+        (energy, f or None, data or None); raises InvertedElementError as the host methods.
+        """
         energy, f, data, _ = self._launch(x_device, force, stiffness, False, out)
         return energy, (f if force else None), (data if stiffness else None)
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """The CSR matrix of host ``data`` (nnz,) with this field's pattern (owning its indices)."""
         p = self.pattern
-        K = sp.csr_matrix((np.asarray(data, dtype=np.float64), p.indices.copy(), p.indptr.copy()), shape=p.shape,
-                          copy=False)
+        K = sp.csr_matrix(
+            (np.asarray(data, dtype=np.float64), p.indices.copy(), p.indptr.copy()),
+            shape=p.shape,
+            copy=False,
+        )
         K.has_sorted_indices = True
         return K
 
@@ -129,9 +150,12 @@ class CudaForceField:
         x = checked_positions(x, self.mesh.n_nodes)
         x_d = self._cuda.to_device(np.ascontiguousarray(x, dtype=self.dtype))
         energy, f, data, S = self._launch(x_d, force, stiffness, stress, None)
-        return (energy, f.copy_to_host().astype(np.float64) if force else None,
-                self.matrix(data.copy_to_host()) if stiffness else None,
-                S.copy_to_host().astype(np.float64) if stress else None)
+        return (
+            energy,
+            f.copy_to_host().astype(np.float64) if force else None,
+            self.matrix(data.copy_to_host()) if stiffness else None,
+            S.copy_to_host().astype(np.float64) if stress else None,
+        )
 
     def _launch(self, x_d, force: bool, stiffness: bool, stress: bool, out):
         cuda, d, m, n = self._cuda, self._d, self.mesh.n_cells, self.mesh.n_nodes
@@ -139,7 +163,11 @@ class CudaForceField:
             f, data = out
         else:
             f = cuda.device_array((n, 3), dtype=self.dtype) if force else self._empty["force"]
-            data = cuda.device_array(self.pattern.nnz, dtype=self.dtype) if stiffness else self._empty["data"]
+            data = (
+                cuda.device_array(self.pattern.nnz, dtype=self.dtype)
+                if stiffness
+                else self._empty["data"]
+            )
         if force:
             self._zero_array(f.reshape(3 * n))
         if stiffness:
@@ -148,8 +176,23 @@ class CudaForceField:
         if m:
             kernel = self._kernel if stiffness else self._force_kernel
             kernel[self._blocks, THREADS_PER_BLOCK](
-                x_d, d["cells"], d["D"], d["V0"], *d["numbers"], self.regularize, force, stiffness, stress, d["blk"],
-                d["rowlen"], f, data, d["J"], d["E"], S)
+                x_d,
+                d["cells"],
+                d["D"],
+                d["V0"],
+                *d["numbers"],
+                self.regularize,
+                force,
+                stiffness,
+                stress,
+                d["blk"],
+                d["rowlen"],
+                f,
+                data,
+                d["J"],
+                d["E"],
+                S,
+            )
         J_min, energy = self._reduce()
         if not self.allow_inverted and not J_min > 0.0:
             refuse_inverted(d["J"].copy_to_host())  # names the cells

@@ -1,6 +1,7 @@
 """The CUDA modules: the generated cell kernel of a shape (one per dtype) and two small
 fixed kernels (zeroing an array; the minimum J and the energy sum). Importing this module
-imports numba.cuda."""
+imports numba.cuda.
+"""
 
 from __future__ import annotations
 
@@ -21,7 +22,8 @@ __all__ = ["cuda_module", "reduce_kernels"]
 def cuda_module(shape: KernelShape, dtype=np.float64) -> ModuleType:
     """The module of the CUDA kernel of ``shape`` in ``dtype`` (its kernel ``mjed_cells``),
     written to the kernel cache directory (mjed.compiled.specialise) and imported; Numba
-    compiles it for the device on its first launch."""
+    compiles it for the device on its first launch.
+    """
     target = CudaTarget(dtype)
     return generated_module(kernel_source(shape, target), f"mjed_cuda_{target.dtype.name}")
 
@@ -37,7 +39,8 @@ def _zero(a):
 @cuda.jit
 def _min_and_sum(J, E, out):
     """out[0] = min(out[0], min J), out[1] += sum E (float64), grid-stride, one atomic of each
-    per thread."""
+    per thread.
+    """
     start, stride = cuda.grid(1), cuda.gridsize(1)
     lo = np.inf
     total = 0.0

@@ -18,7 +18,6 @@ module imports numba.cuda.
 from __future__ import annotations
 
 import math
-from typing import Optional
 
 import numpy as np
 from numba import cuda
@@ -32,7 +31,7 @@ _THREADS = 128
 
 @cuda.jit
 def _spmv(indptr, indices, data, x, y):
-    """y = A x, one thread per row."""
+    """Y = A x, one thread per row."""
     i = cuda.grid(1)
     if i < y.shape[0]:
         acc = 0.0
@@ -43,7 +42,9 @@ def _spmv(indptr, indices, data, x, y):
 
 @cuda.jit
 def _jacobi(indptr, indices, data, dinv):
-    """dinv = 1 / diag(A), 1 where the diagonal is not positive (as mjed.solvers.jacobi_preconditioner)."""
+    """Dinv = 1 / diag(A), 1 where the diagonal is not positive (as
+    mjed.solvers.jacobi_preconditioner).
+    """
     i = cuda.grid(1)
     if i < dinv.shape[0]:
         d = 0.0
@@ -68,7 +69,7 @@ def _dots(a, b, c, out):
 
 @cuda.jit
 def _step(x, r, p, Ap, dinv, z, alpha):
-    """x += alpha p; r -= alpha Ap; z = dinv r."""
+    """X += alpha p; r -= alpha Ap; z = dinv r."""
     i = cuda.grid(1)
     if i < x.shape[0]:
         x[i] += alpha * p[i]
@@ -79,7 +80,7 @@ def _step(x, r, p, Ap, dinv, z, alpha):
 
 @cuda.jit
 def _direction(z, p, beta):
-    """p = z + beta p."""
+    """P = z + beta p."""
     i = cuda.grid(1)
     if i < p.shape[0]:
         p[i] = z[i] + beta * p[i]
@@ -87,7 +88,7 @@ def _direction(z, p, beta):
 
 @cuda.jit
 def _residual_start(b, Ax, dinv, r, z):
-    """r = b - A x; z = dinv r."""
+    """R = b - A x; z = dinv r."""
     i = cuda.grid(1)
     if i < r.shape[0]:
         ri = b[i] - Ax[i]
@@ -97,7 +98,8 @@ def _residual_start(b, Ax, dinv, r, z):
 
 class DeviceCSR:
     """A square CSR matrix on the device (float64 values, int32 or int64 indices). From a
-    SciPy CSR matrix, or from device values with a host pattern (indptr, indices)."""
+    SciPy CSR matrix, or from device values with a host pattern (indptr, indices).
+    """
 
     def __init__(self, indptr, indices, data):
         self.n = len(indptr) - 1
@@ -105,7 +107,9 @@ class DeviceCSR:
         self.indptr = cuda.to_device(np.ascontiguousarray(indptr, dtype=index))
         self.indices = cuda.to_device(np.ascontiguousarray(indices, dtype=index))
         on_device = hasattr(data, "copy_to_host")  # a device array (also under the simulator)
-        self.data = data if on_device else cuda.to_device(np.ascontiguousarray(data, dtype=np.float64))
+        self.data = (
+            data if on_device else cuda.to_device(np.ascontiguousarray(data, dtype=np.float64))
+        )
 
     @classmethod
     def from_scipy(cls, A) -> "DeviceCSR":
@@ -115,8 +119,9 @@ class DeviceCSR:
         return cls(A.indptr, A.indices, A.data)
 
 
-def device_conjugate_gradient(A, b, *, tol: float = 1e-10, max_iterations: int = 1000,
-                              x0=None) -> CGResult:
+def device_conjugate_gradient(
+    A, b, *, tol: float = 1e-10, max_iterations: int = 1000, x0=None
+) -> CGResult:
     """Solve A x = b for a symmetric A by Jacobi-preconditioned CG on the device.
 
     Args:
