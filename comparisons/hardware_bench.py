@@ -57,6 +57,7 @@ def _peak_kernels():
 
     coefs = ", ".join(f"c{k}" for k in range(_HORNER + 1))
     steps = "\n".join(f"        acc = acc * v + c{k}" for k in range(1, _HORNER + 1))
+    args = ", ".join(f"c[{k}]" for k in range(_HORNER + 1))
     source = f"""
 def horner(x, y, {coefs}):
     for i in range(x.shape[0]):
@@ -70,7 +71,8 @@ def run(x, y, c, reps, threads):
     block = x.shape[0] // threads
     for t in prange(threads):
         for _ in range(reps):
-            horner(x[t * block:(t + 1) * block], y[t * block:(t + 1) * block], {", ".join(f"c[{k}]" for k in range(_HORNER + 1))})
+            lo, hi = t * block, (t + 1) * block
+            horner(x[lo:hi], y[lo:hi], {args})
 """
     namespace = {"prange": prange}
     exec(compile(source, "<peak kernel>", "exec"), namespace)

@@ -638,18 +638,30 @@ class ImplicitEuler:
             return CGResult(x, 0, True, "direct", residual), 1
         done = 0
         single = opts.factor_precision == "single"
-        if opts.preconditioner == "jacobi":
-            apply = None
-        elif opts.preconditioner == "block-jacobi":
-            apply = block_jacobi_preconditioner(A)
+        if opts.solver == "cuda-cg":  # Jacobi CG on the device (validated: jacobi preconditioner)
+            from mjed.cuda.solvers import device_conjugate_gradient
+
+            res = device_conjugate_gradient(
+                A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm
+            )
         else:
-            if self._factor is None:
-                self._factor = self._factorize(A, step, t1, single=single)
-                done = 1
-            apply = self._factor
-        res = conjugate_gradient(
-            A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm, preconditioner=apply
-        )
+            if opts.preconditioner == "jacobi":
+                apply = None
+            elif opts.preconditioner == "block-jacobi":
+                apply = block_jacobi_preconditioner(A)
+            else:
+                if self._factor is None:
+                    self._factor = self._factorize(A, step, t1, single=single)
+                    done = 1
+                apply = self._factor
+            res = conjugate_gradient(
+                A,
+                b,
+                tol=opts.cg_tol,
+                max_iterations=opts.max_iterations,
+                x0=warm,
+                preconditioner=apply,
+            )
         if opts.preconditioner == "factorized":
             if not res.converged and done == 0 and res.reason != "negative_curvature":
                 # A stale factorisation (an earlier step's A) may simply be too far off now.

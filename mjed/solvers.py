@@ -44,7 +44,7 @@ __all__ = [
 Preconditioner = Callable[[np.ndarray], np.ndarray]
 
 #: Linear solvers, CG preconditioners and factorisation precisions of LinearSolverOptions.
-LINEAR_SOLVERS = ("cg", "direct")
+LINEAR_SOLVERS = ("cg", "direct", "cuda-cg")
 PRECONDITIONERS = ("jacobi", "block-jacobi", "factorized")
 FACTOR_PRECISIONS = ("double", "single")
 
@@ -53,8 +53,11 @@ FACTOR_PRECISIONS = ("double", "single")
 class LinearSolverOptions:
     """How an implicit scheme solves its linear system each step (validated on construction).
 
-    solver: "cg" (preconditioned conjugate gradients) or "direct" (a sparse factorisation of
-        every system; its residual is still held to ``cg_tol``).
+    solver: "cg" (preconditioned conjugate gradients), "direct" (a sparse factorisation of
+        every system; its residual is still held to ``cg_tol``) or "cuda-cg" (Jacobi CG on an
+        NVIDIA GPU, :func:`mjed.cuda.solvers.device_conjugate_gradient`: the system is copied
+        to the device at each solve; needs the "jacobi" preconditioner, Numba's CUDA target and
+        a device).
     cg_tol: relative residual ||b - A x|| / ||b|| to reach, > 0.
     max_iterations: CG's iteration cap, an integer >= 1.
     preconditioner: "jacobi", "block-jacobi" or "factorized" (a kept sparse factorisation of
@@ -86,6 +89,11 @@ class LinearSolverOptions:
                     f"LinearSolverOptions.{name} must be one of {allowed}, got "
                     f"{getattr(self, name)!r}"
                 )
+        if self.solver == "cuda-cg" and self.preconditioner != "jacobi":
+            raise ValueError(
+                "LinearSolverOptions.solver='cuda-cg' runs the 'jacobi' preconditioner only, got "
+                f"preconditioner={self.preconditioner!r}"
+            )
         tol = self.cg_tol
         if (
             isinstance(tol, bool)
@@ -104,6 +112,8 @@ class LinearSolverOptions:
         """One line for tables: how each system was solved."""
         if self.solver == "direct":
             return f"direct sparse LU (SuperLU) every solve, residual <= {self.cg_tol:g}"
+        if self.solver == "cuda-cg":
+            return f"CG on the GPU, jacobi preconditioner, rtol {self.cg_tol:g}"
         if self.preconditioner == "factorized":
             return (
                 f"CG, kept {self.factor_precision}-precision sparse LU preconditioner (renewed "

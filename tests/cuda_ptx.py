@@ -87,9 +87,18 @@ def main(names) -> dict:
                         "entry": ".entry" in ptx,
                     }
                 )
+    from mjed.cuda import solvers
+
+    i32, f64 = nt.int32[:], nt.float64[:]
     for fn, sig in (
         (kernels._zero, (nt.float64[:],)),
         (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),
+        (solvers._spmv, (i32, i32, f64, f64, f64)),
+        (solvers._jacobi, (i32, i32, f64, f64)),
+        (solvers._dots, (f64, f64, f64, f64)),
+        (solvers._step, (f64, f64, f64, f64, f64, f64, nt.float64)),
+        (solvers._direction, (f64, f64, nt.float64)),
+        (solvers._residual_start, (f64, f64, f64, f64, f64)),
     ):
         ptx, _ = cuda.compile_ptx(fn.py_func, sig, cc=(8, 0))
         out["kernels"].append({"material": fn.py_func.__name__, "entry": ".entry" in ptx})

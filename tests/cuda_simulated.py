@@ -98,15 +98,56 @@ def main(names) -> dict:
     # The cuda field as a force model of the implicit integrator (forces and stiffness on the
     # device, the CG on the host): same trajectory as the NumPy engine's, FP64.
     from mjed.integrator import ImplicitEuler
+    from mjed.solvers import LinearSolverOptions
 
     fixed = np.flatnonzero(mesh.points[:, 2] == 0.0)
     positions = {}
-    for backend in ("numpy", "cuda"):
+    for backend, solver in (("numpy", "cg"), ("cuda", "cg"), ("cuda", "cuda-cg")):
         field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend=backend)
-        integ = ImplicitEuler(mesh, field, 1.0, dt=0.05, fixed_nodes=fixed)
-        integ.run(3)
-        positions[backend] = integ.x
-    out["integrator"] = _rel_max(positions["cuda"] - mesh.points, positions["numpy"] - mesh.points)
+        integ = ImplicitEuler(
+            mesh,
+            field,
+            1.0,
+            dt=0.05,
+            fixed_nodes=fixed,
+            solver=LinearSolverOptions(solver=solver, cg_tol=1e-12),
+        )
+        reports = integ.run(3)
+        positions[backend, solver] = integ.x
+    ref = positions["numpy", "cg"] - mesh.points
+    out["integrator"] = _rel_max(positions["cuda", "cg"] - mesh.points, ref)
+    out["integrator_device_cg"] = _rel_max(positions["cuda", "cuda-cg"] - mesh.points, ref)
+    out["integrator_device_cg_iterations"] = int(sum(r.cg_iterations for r in reports))
+
+    # CG on the device against the host CG, on a system like an implicit step's (K + c I)
+    import scipy.sparse as sp
+
+    from mjed.cuda.solvers import DeviceCSR, device_conjugate_gradient
+    from mjed.solvers import conjugate_gradient
+
+    K = mjed.make_force_field(mesh, MATERIALS["NeoHookean"]).stiffness(x)
+    A = (K + 0.05 * abs(K).max() * sp.identity(K.shape[0], format="csr")).tocsr()
+    A.sort_indices()
+    rhs = np.random.default_rng(3).standard_normal(A.shape[0])
+    host = conjugate_gradient(A, rhs, tol=1e-12, max_iterations=500)
+    dev = device_conjugate_gradient(A, rhs, tol=1e-12, max_iterations=500)
+    from numba import cuda
+
+    on_device = DeviceCSR(
+        A.indptr, A.indices, cuda.to_device(A.data)
+    )  # values already on the device
+    dev2 = device_conjugate_gradient(on_device, rhs, tol=1e-12, x0=host.x)
+    indefinite = device_conjugate_gradient(-A, rhs, tol=1e-12)
+    out["cg"] = {
+        "converged": dev.converged,
+        "iterations": dev.iterations,
+        "host_iterations": host.iterations,
+        "residual": float(np.linalg.norm(rhs - A @ dev.x) / np.linalg.norm(rhs)),
+        "difference": _rel_max(dev.x, host.x),
+        "warm_iterations": dev2.iterations,
+        "indefinite": indefinite.reason,
+        "host_indefinite": conjugate_gradient(-A, rhs, tol=1e-12).reason,
+    }
     return out
 
 

@@ -27,8 +27,8 @@ from mjed.compiled import numba_available
 ROOT = Path(__file__).resolve().parents[1]
 needs_numba = pytest.mark.skipif(
     not numba_available(),
-    reason="the cuda backend needs Numba's CUDA target "
-    "(Debian: python3-numba; PyPI: numba, numba-cuda)",
+    reason="the cuda backend needs Numba's CUDA target (Debian: python3-numba; PyPI: numba, "
+    "numba-cuda)",
 )
 
 #: FP32 tolerances: the single-precision unit roundoff is 6e-8; forces, stresses and energies
@@ -90,8 +90,21 @@ def test_cuda_device_arrays_inversion_and_regularisation(simulated):
 
 @needs_numba
 def test_cuda_field_drives_the_implicit_integrator(simulated):
-    # three backward Euler steps under gravity, forces and stiffness from the simulated kernel
+    # three backward Euler steps under gravity, forces and stiffness from the simulated kernel,
+    # the linear systems solved on the host, then on the (simulated) device
     assert simulated["integrator"] < 1e-10
+    assert (
+        simulated["integrator_device_cg"] < 1e-9
+        and simulated["integrator_device_cg_iterations"] > 0
+    )
+
+
+def test_cuda_cg_takes_the_jacobi_preconditioner_only():
+    from mjed.solvers import LinearSolverOptions
+
+    assert "GPU" in LinearSolverOptions(solver="cuda-cg").label()
+    with pytest.raises(ValueError, match="cuda-cg.*jacobi"):
+        LinearSolverOptions(solver="cuda-cg", preconditioner="factorized")
 
 
 def test_block_map_points_at_each_blocks_entries():
@@ -120,8 +133,8 @@ def test_fp32_source_rewrites_every_float_literal_and_math_call():
 
     code = "y = 2.0 * x_1 + 1e-17 * math.sqrt(J) - .5 + a2_0 * 3\nz = math.log(1.0 - q1)"
     assert fp32_source(code) == (
-        "y = f32(2.0) * x_1 + f32(1e-17) * f32_sqrt(J) - f32(.5) + a2_0 * 3\n"
-        "z = f32_log(f32(1.0) - q1)"
+        "y = f32(2.0) * x_1 + f32(1e-17) * f32_sqrt(J) - f32(.5) + a2_0 * 3\nz = f32_log(f32(1.0) "
+        "- q1)"
     )
 
 
@@ -163,3 +176,14 @@ def test_unknown_backend_lists_cuda():
         mjed.make_force_field(
             mjed.TetMesh(points, cells), MATERIALS["NeoHookean"], backend="opencl"
         )
+
+
+@needs_numba
+def test_device_cg_solves_like_the_host_cg(simulated):
+    cg = simulated["cg"]
+    assert cg["converged"] and cg["residual"] <= 1e-12 and cg["difference"] < 1e-10
+    assert abs(cg["iterations"] - cg["host_iterations"]) <= 1  # the same algorithm
+    assert cg["warm_iterations"] == 0  # a converged first guess is returned as it is
+    assert (
+        cg["indefinite"] == cg["host_indefinite"] == "negative_curvature"
+    )  # -A is refused as on the host

@@ -36,8 +36,8 @@ def require_cuda() -> ModuleType:
     """numba.cuda, or BackendUnavailable saying what is missing."""
     if not numba_available():
         raise BackendUnavailable(
-            "the 'cuda' backend needs Numba with its CUDA target (Debian: python3-numba; "
-            "PyPI: numba and numba-cuda) and an NVIDIA GPU; or use backend='numpy'"
+            "the 'cuda' backend needs Numba with its CUDA target (Debian: python3-numba; PyPI: "
+            "numba and numba-cuda) and an NVIDIA GPU; or use backend='numpy'"
         )
     try:
         from numba import cuda
@@ -45,8 +45,8 @@ def require_cuda() -> ModuleType:
         raise BackendUnavailable(f"the 'cuda' backend could not import numba.cuda: {exc}") from exc
     if not cuda.is_available():
         raise BackendUnavailable(
-            "the 'cuda' backend found no usable CUDA device (driver and GPU) on this machine; "
-            "set NUMBA_ENABLE_CUDASIM=1 before Numba is imported to run its kernels on Numba's "
-            "CUDA simulator (slow, for tests), or use backend='numpy' or 'numba'"
+            "the 'cuda' backend found no usable CUDA device (driver and GPU) on this machine; set "
+            "NUMBA_ENABLE_CUDASIM=1 before Numba is imported to run its kernels on Numba's CUDA "
+            "simulator (slow, for tests), or use backend='numpy' or 'numba'"
         )
     return cuda

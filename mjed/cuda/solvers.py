@@ -1,0 +1,182 @@
+"""Jacobi-preconditioned conjugate gradients on the device (Numba CUDA), FP64.
+
+:func:`device_conjugate_gradient` solves A x = b with the semantics of
+:func:`mjed.solvers.conjugate_gradient` (same tolerance test ||b - A x|| <= tol ||b||, same
+stopping reasons, same :class:`mjed.solvers.CGResult`) with A in CSR on the device: the
+matrix-vector product one thread per row, the vector updates one thread per entry, the dot
+products reduced by one atomic add per thread of a grid-stride loop. The CSR values can come
+straight from :meth:`mjed.cuda.CudaForceField.device_force_and_stiffness`, whose pattern is
+the field's (``field.pattern``), so that the stiffness never leaves the device.
+
+:class:`mjed.integrator.ImplicitEuler` uses it with ``LinearSolverOptions(solver="cuda-cg")``;
+it still forms its step matrix on the host and copies it here at each solve
+(docs/studies/timing.md, what is left). Each iteration reads two scalars back to the host
+(p.Ap, then r.r and r.z together), a few microseconds per iteration on a GPU. Importing this
+module imports numba.cuda.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import cuda
+
+from mjed.solvers import CGResult
+
+__all__ = ["DeviceCSR", "device_conjugate_gradient"]
+
+_THREADS = 128
+
+
+@cuda.jit
+def _spmv(indptr, indices, data, x, y):
+    """Y = A x, one thread per row."""
+    i = cuda.grid(1)
+    if i < y.shape[0]:
+        acc = 0.0
+        for k in range(indptr[i], indptr[i + 1]):
+            acc += data[k] * x[indices[k]]
+        y[i] = acc
+
+
+@cuda.jit
+def _jacobi(indptr, indices, data, dinv):
+    """Dinv = 1 / diag(A), 1 where the diagonal is not positive (as
+    mjed.solvers.jacobi_preconditioner).
+    """
+    i = cuda.grid(1)
+    if i < dinv.shape[0]:
+        d = 0.0
+        for k in range(indptr[i], indptr[i + 1]):
+            if indices[k] == i:
+                d += data[k]
+        dinv[i] = 1.0 / d if d > 0.0 else 1.0
+
+
+@cuda.jit
+def _dots(a, b, c, out):
+    """out[0] += a.b, out[1] += a.c (grid-stride; one atomic add of each per thread)."""
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    s0 = 0.0
+    s1 = 0.0
+    for i in range(start, a.shape[0], stride):
+        s0 += a[i] * b[i]
+        s1 += a[i] * c[i]
+    cuda.atomic.add(out, 0, s0)
+    cuda.atomic.add(out, 1, s1)
+
+
+@cuda.jit
+def _step(x, r, p, Ap, dinv, z, alpha):
+    """X += alpha p; r -= alpha Ap; z = dinv r."""
+    i = cuda.grid(1)
+    if i < x.shape[0]:
+        x[i] += alpha * p[i]
+        ri = r[i] - alpha * Ap[i]
+        r[i] = ri
+        z[i] = dinv[i] * ri
+
+
+@cuda.jit
+def _direction(z, p, beta):
+    """P = z + beta p."""
+    i = cuda.grid(1)
+    if i < p.shape[0]:
+        p[i] = z[i] + beta * p[i]
+
+
+@cuda.jit
+def _residual_start(b, Ax, dinv, r, z):
+    """R = b - A x; z = dinv r."""
+    i = cuda.grid(1)
+    if i < r.shape[0]:
+        ri = b[i] - Ax[i]
+        r[i] = ri
+        z[i] = dinv[i] * ri
+
+
+class DeviceCSR:
+    """A square CSR matrix on the device (float64 values, int32 or int64 indices). From a
+    SciPy CSR matrix, or from device values with a host pattern (indptr, indices).
+    """
+
+    def __init__(self, indptr, indices, data):
+        self.n = len(indptr) - 1
+        index = np.int32 if max(len(indices), self.n) < 2**31 else np.int64
+        self.indptr = cuda.to_device(np.ascontiguousarray(indptr, dtype=index))
+        self.indices = cuda.to_device(np.ascontiguousarray(indices, dtype=index))
+        on_device = hasattr(data, "copy_to_host")  # a device array (also under the simulator)
+        self.data = (
+            data if on_device else cuda.to_device(np.ascontiguousarray(data, dtype=np.float64))
+        )
+
+    @classmethod
+    def from_scipy(cls, A) -> "DeviceCSR":
+        A = A.tocsr()
+        if A.shape[0] != A.shape[1]:
+            raise ValueError(f"A must be square, got {A.shape}")
+        return cls(A.indptr, A.indices, A.data)
+
+
+def device_conjugate_gradient(
+    A, b, *, tol: float = 1e-10, max_iterations: int = 1000, x0=None
+) -> CGResult:
+    """Solve A x = b for a symmetric A by Jacobi-preconditioned CG on the device.
+
+    Args:
+        A: a SciPy sparse matrix (copied to the device) or a :class:`DeviceCSR`.
+        b: (N,) host array; x0: first guess (N,) (zero by default).
+        tol, max_iterations: as :func:`mjed.solvers.conjugate_gradient`.
+
+    Returns a :class:`mjed.solvers.CGResult` with x on the host.
+    """
+    M = A if isinstance(A, DeviceCSR) else DeviceCSR.from_scipy(A)
+    b = np.asarray(b, dtype=np.float64)
+    n = M.n
+    if b.shape != (n,):
+        raise ValueError(f"b must have shape ({n},), got {b.shape}")
+    nb = math.sqrt(float(b @ b))
+    x_host = np.zeros(n) if x0 is None else np.array(x0, dtype=np.float64)
+    if nb == 0.0:
+        return CGResult(x_host, 0, True, "converged", 0.0)
+    blocks = max(1, -(-n // _THREADS))
+    reduce_blocks = max(1, min(blocks, 256))
+    b_d, x = cuda.to_device(b), cuda.to_device(x_host)
+    r, z, p, Ap, dinv = (cuda.device_array(n) for _ in range(5))
+    sums = cuda.device_array(2)
+    zero2 = np.zeros(2)
+    _jacobi[blocks, _THREADS](M.indptr, M.indices, M.data, dinv)
+    _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, x, Ap)
+    _residual_start[blocks, _THREADS](b_d, Ap, dinv, r, z)
+
+    def dots(a, u, v):
+        sums.copy_to_device(zero2)
+        _dots[reduce_blocks, _THREADS](a, u, v, sums)
+        s = sums.copy_to_host()
+        return float(s[0]), float(s[1])
+
+    rr, rz = dots(r, r, z)
+    res = math.sqrt(rr) / nb
+    if res <= tol:
+        return CGResult(x.copy_to_host(), 0, True, "converged", res)
+    p.copy_to_device(z)
+    for k in range(1, max_iterations + 1):
+        if not (rz > 0.0):
+            reason = "non_finite" if not math.isfinite(rz) else "preconditioner_indefinite"
+            return CGResult(x.copy_to_host(), k, False, reason, res)
+        _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, p, Ap)
+        pAp, _ = dots(p, Ap, Ap)
+        if not math.isfinite(pAp):
+            return CGResult(x.copy_to_host(), k, False, "non_finite", res)
+        if pAp <= 0.0:
+            return CGResult(x.copy_to_host(), k, False, "negative_curvature", res)
+        alpha = rz / pAp
+        _step[blocks, _THREADS](x, r, p, Ap, dinv, z, alpha)
+        rr, rz_new = dots(r, r, z)
+        res = math.sqrt(rr) / nb
+        if res <= tol:
+            return CGResult(x.copy_to_host(), k, True, "converged", res)
+        _direction[blocks, _THREADS](z, p, rz_new / rz)
+        rz = rz_new
+    return CGResult(x.copy_to_host(), max_iterations, False, "max_iterations", res)
