@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.compare import ENERGY_TOL, FORCE_TOL, STIFFNESS_TOL, Errors, Scales, errors
-from conformance.consistency import ENERGY_PROBE_TOL, PROBE_TOL, Consistency
+from conformance.consistency import FLOOR_FACTOR, PROBE_TOL, Consistency
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.hypotheses import common_factor_name, convention_corrections, scale_corrections
 
@@ -103,7 +103,8 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
     findings: List[Finding] = []
     if consistency is not None:
         findings += _consistency_findings(consistency)
-    inconsistent = any(x_.code.startswith("inconsistent") for x_ in findings)
+    inconsistent = any(x_.code.startswith("inconsistent") or x_.code == "consistency-not-measured"
+                       for x_ in findings)
     if err.passed and not inconsistent:
         return Diagnosis(case_id, "passed", err, findings, field_, consistency)
     if _within(err):  # force and stiffness right: only the energy (or the engine's consistency) is off
@@ -153,23 +154,43 @@ def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
 
 
 def _consistency_findings(c: Consistency) -> List[Finding]:
+    """What the probes show, each figure with the limit it was held to on this case."""
     out = []
+    if c.non_finite:
+        out.append(Finding("consistency-not-measured", "the engine's self-consistency could not be measured",
+                           OBSERVED, c.note + "; the case cannot pass on figures that are not finite", {}))
     if c.force_stiffness is not None:
-        rates = ", ".join(f"{r:.2f}" for r in c.rates_force)
-        if c.force_stiffness > PROBE_TOL:
-            out.append(Finding("inconsistent-stiffness", "stiffness is not the derivative of the engine's own force",
-                               OBSERVED, f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random direction "
-                               f"(limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
-                               {"inconsistency": c.force_stiffness, "rates": list(c.rates_force)}))
+        rates = ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_force)
+        if c.stiffness_excess is not None:
+            calib = (f"the oracle's exact tangent leaves {c.stiffness_floor:.1e} on the same probes, so the part "
+                     f"not explained by the fit is {c.stiffness_excess:.1e} (limit {c.stiffness_limit:.1e} = "
+                     f"max({PROBE_TOL:g}, {FLOOR_FACTOR:g} x that floor))")
         else:
-            out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force", OBSERVED,
-                               f"relative inconsistency {c.force_stiffness:.1e} (limit {PROBE_TOL:g}); Taylor rates {rates}",
-                               {"inconsistency": c.force_stiffness}))
-    if c.energy_force is not None and c.energy_force > ENERGY_PROBE_TOL:
-        out.append(Finding("inconsistent-force", "force is not minus the derivative of the engine's own energy", OBSERVED,
-                           f"relative inconsistency {c.energy_force:.1e} (limit {ENERGY_PROBE_TOL:g}); Taylor rates "
-                           + ", ".join(f"{r:.2f}" for r in c.rates_energy), {"inconsistency": c.energy_force}))
+            calib = f"not calibrated by the oracle (limit {c.stiffness_limit:.1e})"
+        figures = {"inconsistency": c.force_stiffness, "floor": c.stiffness_floor, "excess": c.stiffness_excess,
+                   "limit": c.stiffness_limit}
+        if c.stiffness_consistent is False:
+            out.append(Finding("inconsistent-stiffness", "stiffness is not the derivative of the engine's own force",
+                               OBSERVED, f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
+                               f"direction; {calib}; Taylor rates {rates} (2 when consistent)",
+                               {**figures, "rates": [_finite_or_none(r) for r in c.rates_force]}))
+        elif c.stiffness_consistent is True:
+            out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force",
+                               OBSERVED, f"relative inconsistency {c.force_stiffness:.1e}; {calib}; Taylor rates "
+                               f"{rates}", figures))
+    if c.force_consistent is False:
+        calib = ("" if c.energy_excess is None else
+                 f"; beyond the oracle's {c.energy_floor:.1e} on the same probes: {c.energy_excess:.1e}")
+        out.append(Finding("inconsistent-force", "force is not minus the derivative of the engine's own energy",
+                           OBSERVED, f"relative inconsistency {c.energy_force:.1e}{calib} (limit "
+                           f"{c.energy_limit:.1e}); Taylor rates "
+                           + ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_energy),
+                           {"inconsistency": c.energy_force, "excess": c.energy_excess, "limit": c.energy_limit}))
     return out
+
+
+def _finite_or_none(v: float) -> Optional[float]:
+    return float(v) if np.isfinite(v) else None
 
 
 def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):

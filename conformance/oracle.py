@@ -6,11 +6,12 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.consistency import ReferenceProbes
 from conformance.energy import energy_density
 from conformance.parts import PartsOracle
 from conformance.spec import CaseInput, model_frame, model_to_manifest
@@ -60,6 +61,18 @@ class OracleCache:
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def probes(self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]) -> ReferenceProbes:
+        """The oracle's force and energy at the probes of ``case`` (same mesh and model), with
+        ``ref`` at the base state: what calibrates the engine's self-consistency test.
+
+        Raises:
+            ValueError: the oracle cannot evaluate a probe (e.g. a user energy not finite there).
+        """
+        oracle = self._oracles[_key(case)]
+        forces = tuple(np.asarray(oracle.force(p.positions)) for p in probes)
+        energies = tuple(float(oracle.energy(p.positions)) for p in probes)
+        return ReferenceProbes(ref.force, ref.stiffness, ref.energy, forces, energies)
 
     def parts(self, case: CaseInput):
         """:class:`conformance.parts.StiffnessParts` at the case's positions."""

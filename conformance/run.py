@@ -8,7 +8,7 @@ The engine is reached through an *evaluator*: ``evaluate(kit_case) -> EngineOutp
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
@@ -124,14 +124,14 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
                 probe_results.append((p.input.positions, po.force, po.energy))
             except FormatError as exc:
                 probe_errors.append(str(exc))
-        cons = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results) if not probe_errors \
-            else Consistency(None, None, note="; ".join(probe_errors))
         try:
             ref = cache.reference(ci)
         except ValueError as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
             run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
                                             f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
             continue
+        cons = _self_consistency(cache, ci, ref, out, probes, probe_results) if not probe_errors \
+            else Consistency(None, None, note="; ".join(probe_errors))
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
                         W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
@@ -145,6 +145,19 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, *, cache: Optional[
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run
+
+
+def _self_consistency(cache: OracleCache, ci, ref, out: EngineOutput, probes: Sequence[KitCase],
+                      probe_results: list) -> Consistency:
+    """The engine's Taylor test, calibrated by the oracle at the same probes (its floor on this
+    case); uncalibrated, and said so, when the oracle cannot evaluate a probe."""
+    try:
+        reference = cache.probes(ci, ref, [p.input for p in probes]) if probes else None
+    except ValueError as exc:
+        c = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
+        return replace(c, note=(c.note + "; " if c.note else "") + f"not calibrated: the oracle cannot evaluate "
+                       f"a probe ({exc})")
+    return consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results, reference)
 
 
 def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:
