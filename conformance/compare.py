@@ -19,6 +19,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
+from conformance.consistency import safe_norm
 
 __all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales"]
 
@@ -49,12 +50,19 @@ class Errors:
         return bool(ok and (self.energy is None or self.energy <= ENERGY_TOL))
 
     def to_dict(self) -> dict:
-        return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy, "symmetry": self.symmetry}
+        """Strict JSON: a figure that is not finite is null, and ``not_finite`` names it."""
+        d = {"force": self.force, "stiffness": self.stiffness, "energy": self.energy,
+             "symmetry": self.symmetry}
+        bad = [k for k, v in d.items() if v is not None and not np.isfinite(v)]
+        d.update({k: None for k in bad})
+        if bad:
+            d["not_finite"] = bad
+        return d
 
 
 def scales(h: float, W_o: float, f_o: np.ndarray, K_o: sp.spmatrix) -> Scales:
-    nK = float(sparse_norm(K_o))
-    nf = max(float(np.linalg.norm(f_o)), h * nK)
+    nK = safe_norm(K_o)
+    nf = max(safe_norm(f_o), h * nK)
     return Scales(force=nf, stiffness=nK, energy=max(abs(W_o), h * nf))
 
 
@@ -66,10 +74,13 @@ def errors(f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray, K
            s: Scales) -> Errors:
     """Relative errors of (f, K, W) against the oracle (f_o, K_o, W_o) with denominators ``s``."""
     K = sp.csr_matrix(K)
-    nK = float(sparse_norm(K))
-    return Errors(
-        force=_ratio(float(np.linalg.norm(np.asarray(f) - f_o)), s.force),
-        stiffness=_ratio(float(sparse_norm(K - K_o)), s.stiffness),
-        energy=None if W is None else _ratio(abs(float(W) - W_o), s.energy),
-        symmetry=_ratio(float(sparse_norm(K - K.T)), nK),
-    )
+    nK = safe_norm(K)
+    # Norms scaled by their largest entry: an engine writing values near 1e300 still gets finite
+    # (huge) relative errors rather than inf / inf = NaN.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return Errors(
+            force=_ratio(safe_norm(np.asarray(f) - f_o), s.force),
+            stiffness=_ratio(safe_norm(K - K_o), s.stiffness),
+            energy=None if W is None else _ratio(abs(float(W) - W_o), s.energy),
+            symmetry=_ratio(safe_norm(K - K.T), nK),
+        )

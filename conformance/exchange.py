@@ -18,6 +18,12 @@ little-endian, dof = 3 * node + component):
   are summed); CSR ``stiffness_indptr.i64`` (3n + 1), ``stiffness_indices.i64``,
   ``stiffness_values.f64``; or dense ``stiffness.f64`` (9 n^2 values, row-major);
 - ``energy.f64``: 1 value, the total strain energy (optional).
+
+An engine that computes in single precision may write its values as little-endian float32
+instead, in files ending ``.f32`` (``force.f32``, ``stiffness_values.f32`` or ``stiffness.f32``,
+``energy.f32``); the output is then marked single precision and judged as such
+(:mod:`conformance.precision`). Arrays written in the wrong byte order, or float32 values in a
+``.f64`` file, are refused with the likely cause named.
 """
 
 from __future__ import annotations
@@ -59,6 +65,7 @@ class EngineOutput:
     force: np.ndarray
     stiffness: sp.csr_matrix
     energy: Optional[float] = None
+    precision: str = "double"  # "single" when the engine wrote float32 (.f32) values
 
 
 def sha256_of(path: str) -> str:
@@ -186,8 +193,11 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
 
 # ------------------------------------------------------------------ engine output
 def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[float] = None, *,
-                 layout: str = "coo") -> None:
-    """Write an engine's result in the format (for Python engines and the tests)."""
+                 layout: str = "coo", precision: str = "double") -> None:
+    """Write an engine's result in the format (for Python engines and the tests); precision
+    "single" writes the floating-point arrays as float32 ``.f32`` files."""
+    if precision not in ("double", "single"):
+        raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     os.makedirs(folder, exist_ok=True)
     write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
     if layout == "dense":
@@ -206,6 +216,12 @@ def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[flo
         raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
     if energy is not None:
         write_array(folder, "energy.f64", np.array([float(energy)]), "<f8")
+    if precision == "single":  # the same arrays rounded to float32, under their .f32 names
+        for name in sorted(os.listdir(folder)):
+            if name.endswith(".f64"):
+                path = os.path.join(folder, name)
+                np.fromfile(path, dtype="<f8").astype("<f4").tofile(path[:-4] + ".f32")
+                os.remove(path)
 
 
 def _count(path: str, itemsize: int, case: str) -> int:
@@ -225,18 +241,24 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
     if not os.path.isdir(folder):
         raise FormatError(f"case {case}: {folder}: output directory missing (the engine wrote nothing)")
     N = 3 * n_nodes
-    f64, i64 = np.dtype("<f8"), np.dtype("<i8")
-    fpath = os.path.join(folder, "force.f64")
+    precision = output_precision(folder)
+    f64, i64 = np.dtype("<f8" if precision == "double" else "<f4"), np.dtype("<i8")
+    fpath = os.path.join(folder, _value_file("force.f64", precision))
     if not os.path.isfile(fpath):
         raise FormatError(f"case {case}: {fpath}: file missing (force, 3n = {N} float64 values)")
-    n_force = _count(fpath, 8, case)
+    n_force = _count(fpath, f64.itemsize, case)
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
+        if 2 * n_force == N and precision == "double":
+            hint += ("; that is exactly 3n float32 values: a single-precision engine "
+                     "writes force.f32")
         raise FormatError(f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes")
     force = np.fromfile(fpath, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
+    force = force.astype(np.float64)
 
-    present = [k for k, files in _STIFFNESS_LAYOUTS.items() if os.path.isfile(os.path.join(folder, files[0]))]
+    present = [k for k, files in _STIFFNESS_LAYOUTS.items()
+               if os.path.isfile(os.path.join(folder, _value_file(files[0], precision)))]
     if not present:
         raise FormatError(f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
                           "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
@@ -244,21 +266,23 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
     if len(present) > 1:
         raise FormatError(f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); write one")
     layout = present[0]
-    paths = [os.path.join(folder, f) for f in _STIFFNESS_LAYOUTS[layout]]
+    paths = [os.path.join(folder, _value_file(f, precision)) for f in _STIFFNESS_LAYOUTS[layout]]
     for p in paths:
         if not os.path.isfile(p):
             raise FormatError(f"case {case}: {p}: file missing ({layout} stiffness needs {', '.join(_STIFFNESS_LAYOUTS[layout])})")
     if layout == "dense":
-        count = _count(paths[0], 8, case)
+        count = _count(paths[0], f64.itemsize, case)
         if count != N * N:
             raise FormatError(f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} nodes")
         dense = np.fromfile(paths[0], dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
+        dense = dense.astype(np.float64)
         K = sp.csr_matrix(dense)
     else:
         a, b = (np.fromfile(p, dtype=i64) for p in paths[:2])
         vals = np.fromfile(paths[2], dtype=f64)
         _require_finite(vals, paths[2], case)
+        vals = vals.astype(np.float64)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
                 raise FormatError(f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols {b.size}, "
@@ -274,16 +298,20 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
     energy = None
-    epath = os.path.join(folder, "energy.f64")
+    epath = os.path.join(folder, _value_file("energy.f64", precision))
     if os.path.isfile(epath):
-        if _count(epath, 8, case) != 1:
-            raise FormatError(f"case {case}: {epath}: expected exactly one float64 value")
-        energy = float(np.fromfile(epath, dtype=f64)[0])
-        _require_finite(np.array([energy]), epath, case)
-    return EngineOutput(force, sp.csr_matrix(K), energy)
+        if _count(epath, f64.itemsize, case) != 1:
+            raise FormatError(f"case {case}: {epath}: expected exactly one {f64.name} value")
+        raw = np.fromfile(epath, dtype=f64)
+        _require_finite(raw, epath, case)
+        energy = float(raw[0])
+    return EngineOutput(force, sp.csr_matrix(K), energy, precision)
 
 
 def _require_finite(a: np.ndarray, path: str, case: str) -> None:
+    swapped = byte_order_problem(a, path)
+    if swapped:
+        raise FormatError(f"case {case}: {swapped}")
     bad = ~np.isfinite(a)
     if bad.any():
         first = int(np.flatnonzero(bad.ravel())[0])
@@ -292,5 +320,47 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
 
 def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
     if idx.size and (idx.min() < 0 or idx.max() >= N):
+        swapped = idx.byteswap()
+        if swapped.min() >= 0 and swapped.max() < N:
+            raise FormatError(
+                f"case {case}: {path}: indices out of range as little-endian int64 but all in "
+                f"[0, {N}) with their bytes reversed: written big-endian (the format is "
+                "little-endian '<i8'; e.g. a big-endian machine, Java's DataOutputStream or "
+                "NumPy '>i8')")
         raise FormatError(f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
                           f"found {int(idx.min())}..{int(idx.max())}")
+
+
+def output_precision(folder: str) -> str:
+    """"single" when the engine wrote its force as float32 (``force.f32``), else "double"."""
+    return "single" if os.path.isfile(os.path.join(folder, "force.f32")) and \
+        not os.path.isfile(os.path.join(folder, "force.f64")) else "double"
+
+
+def _value_file(name: str, precision: str) -> str:
+    """The file of a floating-point array at the output's precision (index files keep .i64)."""
+    return name[:-4] + ".f32" if precision == "single" and name.endswith(".f64") else name
+
+
+def _plausible(a: np.ndarray) -> float:
+    """Fraction of the non-zero values that are finite and within 1e-100..1e100 in magnitude."""
+    nz = a[a != 0]
+    if nz.size == 0:
+        return 1.0
+    with np.errstate(all="ignore"):
+        m = np.abs(nz)
+        return float(np.mean(np.isfinite(m) & (m > 1e-100) & (m < 1e100)))
+
+
+def byte_order_problem(a: np.ndarray, path: str) -> str:
+    """Words naming a byte-order mistake when ``a`` (read little-endian) looks like big-endian
+    floats: implausible as read (NaN, inf, 1e-300 or 1e300 magnitudes), plausible with its bytes
+    reversed. "" otherwise. a: any float array as read from ``path``."""
+    if a.size == 0 or _plausible(a) > 0.9:
+        return ""
+    if _plausible(a.byteswap()) < 0.999:
+        return ""
+    return (f"{path}: the values are implausible as little-endian {a.dtype.name} (NaN, inf or "
+            "magnitudes beyond 1e+-100) and plausible with their bytes reversed: written big-endian "
+            "(the format is little-endian; e.g. a big-endian machine, Java's DataOutputStream, "
+            "MATLAB fwrite with 'b', or NumPy '>f8')")

@@ -130,3 +130,76 @@ def test_sliver_still_fails_an_inconsistent_tangent():
     (o,) = run.outcomes
     codes = [f.code for f in o.diagnosis.findings]
     assert o.status == "failed" and "inconsistent-stiffness" in codes, o.diagnosis.text()
+
+
+def _write_mjed_output(folder, case_input, **kw):
+    from conformance.exchange import write_output
+
+    f, K, W = mjed_impl(case_input)
+    write_output(str(folder), f, K, W, **kw)
+    return f, K, W
+
+
+def _small_case():
+    from conformance.kit import build_cases
+
+    P, C, _ = meshes.resolve("single-tet")
+    (case,) = build_cases([default_material("NeoHookean")], [("one", P, C)], ["shear"], probes=0)
+    return case.input
+
+
+def test_big_endian_output_is_named_as_such(tmp_path):
+    """Arrays written big-endian: BAD INPUT naming the file and the likely cause."""
+    from conformance.exchange import FormatError, read_output
+
+    ci = _small_case()
+    _write_mjed_output(tmp_path, ci)
+    for name in ("force.f64", "stiffness_values.f64", "stiffness_rows.i64"):
+        path = tmp_path / name
+        dtype = "<i8" if name.endswith("i64") else "<f8"
+        np.fromfile(path, dtype=dtype).byteswap().tofile(path)
+        with pytest.raises(FormatError, match="written big-endian") as err:
+            read_output(str(tmp_path), ci.n_nodes, ci.case_id)
+        assert name in str(err.value)
+        np.fromfile(path, dtype=dtype).byteswap().tofile(path)  # restored
+    read_output(str(tmp_path), ci.n_nodes, ci.case_id)
+
+
+def test_float32_output_is_recognised(tmp_path):
+    """.f32 files are read as a single-precision output; float32 values in a .f64 file are named."""
+    from conformance.exchange import FormatError, read_output
+
+    ci = _small_case()
+    f, K, W = _write_mjed_output(tmp_path / "single", ci, precision="single")
+    out = read_output(str(tmp_path / "single"), ci.n_nodes, ci.case_id)
+    assert out.precision == "single" and out.force.dtype == np.float64
+    np.testing.assert_array_equal(out.force, f.astype(np.float32).astype(np.float64))
+    wrong = tmp_path / "wrong"
+    _write_mjed_output(wrong, ci)
+    np.fromfile(wrong / "force.f64").astype("<f4").tofile(wrong / "force.f64")
+    with pytest.raises(FormatError, match="exactly 3n float32 values"):
+        read_output(str(wrong), ci.n_nodes, ci.case_id)
+
+
+@needs_oracle
+def test_garbage_near_1e300_fails_quietly_with_finite_figures(recwarn):
+    """Finite garbage: a failure whose every figure is finite or null with its reason, no raw
+    warning, no 'consistent' finding drawn from a NaN, and results that are strict JSON."""
+    import json
+
+    from conformance import check_implementation
+
+    def garbage(case):
+        rng = np.random.default_rng(int(1e6 * case.positions.sum()) % 2**32)
+        n = 3 * case.n_nodes
+        return rng.standard_normal((case.n_nodes, 3)) * 1e300, rng.standard_normal((n, n)) * 1e300
+
+    run = check_implementation(garbage, material=default_material("NeoHookean"), mesh="single-tet",
+                               states=("shear",))
+    (o,) = run.outcomes
+    assert o.status == "failed"
+    codes = [f.code for f in o.diagnosis.findings]
+    assert "consistent-stiffness" not in codes
+    assert np.isfinite(o.diagnosis.errors.force) and o.diagnosis.errors.force > 1e200
+    json.dumps(run.to_dict(), allow_nan=False)  # raises on NaN or Infinity
+    assert not [w for w in recwarn.list if issubclass(w.category, RuntimeWarning)]
