@@ -21,9 +21,52 @@ from scipy.sparse.linalg import norm as sparse_norm
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 from conformance.consistency import safe_norm
 
-__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales"]
+__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales",
+           "Tolerances", "DOUBLE"]
 
 ENERGY_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """The relative errors a case may show and still pass, at one precision.
+
+    force, stiffness, energy: limits on the relative errors (dimensionless);
+    precision: "double" or "single"; basis: how the limits were set (words, for the report).
+    """
+
+    force: float
+    stiffness: float
+    energy: float
+    precision: str = "double"
+    basis: str = "fixed at 1e-10 (docs/conventions.md, Tolerances)"
+
+    def __post_init__(self) -> None:
+        if self.precision not in ("double", "single"):
+            raise ValueError(f"precision must be 'double' or 'single', not {self.precision!r}")
+        for name in ("force", "stiffness", "energy"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"Tolerances.{name} must be finite and > 0, got {v}")
+
+    def within(self, e: "Errors", *, energy: bool = True) -> bool:
+        """Force and stiffness (and, with ``energy``, a given energy) within the limits."""
+        ok = e.force <= self.force and e.stiffness <= self.stiffness
+        return bool(ok and (not energy or e.energy is None or e.energy <= self.energy))
+
+    def text(self) -> str:
+        if self.force == self.stiffness == self.energy:
+            return f"tolerance {self.force:.1e}"
+        return (f"tolerances force {self.force:.1e}, stiffness {self.stiffness:.1e}, energy "
+                f"{self.energy:.1e} at {self.precision} precision")
+
+    def to_dict(self) -> dict:
+        return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy,
+                "precision": self.precision, "basis": self.basis}
+
+
+#: The double-precision tolerances of every case.
+DOUBLE = Tolerances(FORCE_TOL, STIFFNESS_TOL, ENERGY_TOL)
 
 
 @dataclass(frozen=True)

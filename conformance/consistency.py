@@ -18,8 +18,10 @@ consistent engine. A fixed limit cannot be calibrated for every mesh and state, 
 is calibrated:
 
 * **the floor**: the oracle's force (and energy) at the same probes, with its exact tangent,
-  go through the same fit. What the fit leaves for the oracle, floor = ||A_o|| / ||K d||, is
-  what it leaves on this case for any engine with the same energy;
+  go through the same fit. What the fit leaves for the oracle, ||A_o|| / ||K d||, is what it
+  leaves on this case for any engine with the same energy. The floor is that, or the round-off
+  in the difference of the two remainders if larger (the part of r - r_o that no cubic in t
+  explains, carried through the fit: a tangent error is linear in t and adds nothing to it);
 * **the excess**: ||A - A_o|| / ||K d||, the part of the engine's linear remainder that the
   oracle's remainder on the same probes does not have. The fit is linear in the data, so the
   higher-order terms they share cancel exactly; what is left is round-off, the higher-order
@@ -44,6 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 
 __all__ = [
+    "RESOLUTION",
     "PROBE_TOL",
     "ENERGY_PROBE_TOL",
     "FLOOR_FACTOR",
@@ -66,6 +69,11 @@ ENERGY_PROBE_TOL = 1e-4
 
 #: Limit = max(tolerance, FLOOR_FACTOR x the floor measured through the oracle on the same probes).
 FLOOR_FACTOR = 10.0
+
+#: A limit above this is no test: the probes do not resolve the tangent on the case (an engine
+#: in float32, whose round-off over a step of 1e-4 is a few per cent of K d). The result is then
+#: "not resolved", neither consistent nor not.
+RESOLUTION = 1e-2
 
 
 @dataclass(frozen=True)
@@ -140,12 +148,16 @@ class Consistency:
     @property
     def stiffness_consistent(self) -> Optional[bool]:
         s = self.stiffness_statistic
-        return None if s is None else s <= self.stiffness_limit
+        if s is None or self.stiffness_limit > RESOLUTION:
+            return None
+        return bool(s <= self.stiffness_limit)
 
     @property
     def force_consistent(self) -> Optional[bool]:
         s = self.energy_statistic
-        return None if s is None else s <= self.energy_limit
+        if s is None or self.energy_limit > RESOLUTION * ENERGY_PROBE_TOL / PROBE_TOL:
+            return None
+        return bool(s <= self.energy_limit)
 
     def to_dict(self) -> dict:
         return {
@@ -188,6 +200,21 @@ def _linear_coefficient(t: np.ndarray, r: np.ndarray) -> np.ndarray:
     return coef[0]
 
 
+def _noise_in_linear_coefficient(t: np.ndarray, r: np.ndarray) -> float:
+    """Round-off in the fitted A of r (k, N): the part of r that no cubic in t explains (the
+    residual of the fit, k - 3 degrees of freedom), propagated to A through the fit. A tangent
+    error is exactly linear in t and leaves no residual; round-off does. 0 with 3 probes or
+    fewer (nothing to measure it with)."""
+    k = len(t)
+    if k <= 3:
+        return 0.0
+    V = np.stack([t, t**2, t**3], axis=1)
+    coef, *_ = np.linalg.lstsq(V, r.reshape(k, -1), rcond=None)
+    residual = safe_norm(r.reshape(k, -1) - V @ coef)
+    gain = float(np.linalg.norm(np.linalg.pinv(V)[0]))
+    return float(gain * residual / np.sqrt(k - 3))
+
+
 def _rates(norms: List[float]) -> List[float]:
     return [
         float(np.log2(a / b)) if a > 0 and b > 0 and np.isfinite(a / b) else float("nan")
@@ -222,6 +249,7 @@ def consistency(
     W: Optional[float],
     probes: Sequence[tuple],
     reference: Optional[ReferenceProbes] = None,
+    roundoff: float = 2.0**-53,
 ) -> Consistency:
     """Taylor test of an engine against itself, calibrated on the oracle when ``reference`` is
     given.
@@ -231,14 +259,17 @@ def consistency(
             [N/m], energy [J] or None.
         probes: (x_k, f_k, W_k) in step order k = 0, 1, ... (x_k = x + d / 2^k).
         reference: the oracle at x and at the same probes (:class:`ReferenceProbes`).
+        roundoff: the engine's unit round-off (2^-24 for an engine in float32): an energy is
+            one number, so its round-off cannot be measured from a fit residual; it is bounded
+            from the energies' magnitude instead.
     """
     if len(probes) < 2:
         return Consistency(None, None, note=f"{len(probes)} probe result(s); at least 2 are needed")
     with np.errstate(all="ignore"):  # overflow is detected below and said in words
-        return _consistency(x, f, sp.csr_matrix(K), W, probes, reference)
+        return _consistency(x, f, sp.csr_matrix(K), W, probes, reference, roundoff)
 
 
-def _consistency(x, f, K, W, probes, reference) -> Consistency:
+def _consistency(x, f, K, W, probes, reference, roundoff) -> Consistency:
     t = np.array([0.5**k for k in range(len(probes))])
     px = [np.asarray(p[0]) for p in probes]
     r = _force_remainders(x, f, K, px, [p[1] for p in probes])
@@ -252,8 +283,11 @@ def _consistency(x, f, K, W, probes, reference) -> Consistency:
             x, reference.force, sp.csr_matrix(reference.stiffness), px, reference.probe_forces
         )
         A_o = _linear_coefficient(t, r_o)
-        floor = safe_norm(A_o) / Kd0 if Kd0 > 0 else safe_norm(A_o)
-        excess = safe_norm(A - A_o) / Kd0 if Kd0 > 0 else safe_norm(A - A_o)
+        scale = Kd0 if Kd0 > 0 else 1.0
+        # The floor: the larger of what the fit leaves for the exact tangent and the round-off
+        # in the engine's and the oracle's differences (what is not a polynomial in t).
+        floor = max(safe_norm(A_o), _noise_in_linear_coefficient(t, r - r_o)) / scale
+        excess = safe_norm(A - A_o) / scale
     notes = []
     if not all(np.isfinite(v) for v in (fs, floor or 0.0, excess or 0.0)):
         notes.append(
@@ -280,8 +314,14 @@ def _consistency(x, f, K, W, probes, reference) -> Consistency:
                 x, reference.force, reference.energy, px, reference.probe_energies
             )
             a_o = _linear_coefficient(t, s_o)[0]
-            e_floor = float(abs(a_o)) / den if den > 0 else float(abs(a_o))
-            e_excess = float(abs(_linear_coefficient(t, s)[0] - a_o)) / den if den > 0 else None
+            e_scale = den if den > 0 else 1.0
+            # Each energy carries about roundoff x its magnitude (times a few for the sum over
+            # cells); the fit carries that to A with its gain.
+            gain = float(np.linalg.norm(np.linalg.pinv(np.stack([t, t**2, t**3], axis=1))[0]))
+            magnitude = 4.0 * roundoff * gain * max(abs(W), *(abs(float(p[2])) for p in probes))
+            noise = _noise_in_linear_coefficient(t, s - s_o)
+            e_floor = max(float(abs(a_o)), noise, magnitude) / e_scale
+            e_excess = float(abs(_linear_coefficient(t, s)[0] - a_o)) / e_scale
             e_limit = (
                 max(ENERGY_PROBE_TOL, FLOOR_FACTOR * e_floor) if np.isfinite(e_floor) else e_limit
             )

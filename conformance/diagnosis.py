@@ -23,8 +23,8 @@ from typing import Any, Callable, List, Optional, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.compare import ENERGY_TOL, FORCE_TOL, STIFFNESS_TOL, Errors, Scales, errors
-from conformance.consistency import FLOOR_FACTOR, PROBE_TOL, Consistency
+from conformance.compare import DOUBLE, Errors, Scales, Tolerances, errors
+from conformance.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.hypotheses import common_factor_name, convention_corrections, scale_corrections
 
@@ -44,6 +44,7 @@ class Diagnosis:
     findings: Sequence[Finding]
     node_error: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     consistency: Optional[Consistency] = None
+    tolerances: Tolerances = DOUBLE
 
     @property
     def passed(self) -> bool:
@@ -56,28 +57,32 @@ class Diagnosis:
     def text(self) -> str:
         e = self.errors
         energy = "not given" if e.energy is None else f"{e.energy:.2e}"
-        lines = [f"case {self.case_id}: {self.verdict.upper()} (relative errors: force {e.force:.2e}, "
-                 f"stiffness {e.stiffness:.2e}, energy {energy}; tolerance {FORCE_TOL:g})"]
+        at = " at single precision" if self.tolerances.precision == "single" else ""
+        lines = [f"case {self.case_id}: {self.verdict.upper()}{at} (relative errors: "
+                 f"force {e.force:.2e}, "
+                 f"stiffness {e.stiffness:.2e}, energy {energy}; {self.tolerances.text()})"]
         lines += [f"  - {f.text()}" for f in self.findings]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
         return {"case": self.case_id, "verdict": self.verdict, "errors": self.errors.to_dict(),
                 "findings": [f.to_dict() for f in self.findings],
-                "consistency": None if self.consistency is None else self.consistency.to_dict()}
+                "consistency": None if self.consistency is None else self.consistency.to_dict(),
+                "tolerances": self.tolerances.to_dict()}
 
 
 def node_error_field(f: np.ndarray, K: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix, s: Scales) -> np.ndarray:
     """(n,) per-node error: sqrt(|f_a - f_o,a|^2 / s_f^2 + ||rows of node a of K - K_o||^2 / s_K^2)."""
-    df2 = np.sum((f - f_o) ** 2, axis=1) / s.force**2 if s.force > 0 else np.zeros(len(f))
-    D = sp.csr_matrix(K - K_o)
-    row2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
-    dk2 = row2 / s.stiffness**2 if s.stiffness > 0 else row2
+    # Divided before squaring: forces of 1e160 (an exponential energy on a sliver) stay finite.
+    df = (f - f_o) / s.force if s.force > 0 else f - f_o
+    df2 = np.sum(df**2, axis=1)
+    D = sp.csr_matrix(K - K_o) / (s.stiffness if s.stiffness > 0 else 1.0)
+    dk2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
     return np.sqrt(df2 + dk2)
 
 
-def _within(e: Errors) -> bool:
-    return e.force <= FORCE_TOL and e.stiffness <= STIFFNESS_TOL
+def _within(e: Errors, tol: Tolerances) -> bool:
+    return tol.within(e, energy=False)
 
 
 def _evidence(e: Errors) -> str:
@@ -86,7 +91,8 @@ def _evidence(e: Errors) -> str:
 
 def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray,
              K_o: sp.spmatrix, W_o: float, s: Scales, points: np.ndarray, cells: np.ndarray, x: np.ndarray,
-             parts: Optional[Callable[[], Any]] = None, consistency: Optional[Consistency] = None) -> Diagnosis:
+             parts: Optional[Callable[[], Any]] = None, consistency: Optional[Consistency] = None,
+             tol: Tolerances = DOUBLE) -> Diagnosis:
     """Diagnose one case.
 
     Args:
@@ -95,6 +101,7 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
         points, cells, x: the mesh and the current positions.
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
+        tol: the tolerances the case is held to (double precision by default).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -105,10 +112,10 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
         findings += _consistency_findings(consistency)
     inconsistent = any(x_.code.startswith("inconsistent") or x_.code == "consistency-not-measured"
                        for x_ in findings)
-    if err.passed and not inconsistent:
-        return Diagnosis(case_id, "passed", err, findings, field_, consistency)
-    if _within(err):  # force and stiffness right: only the energy (or the engine's consistency) is off
-        if err.energy is not None and err.energy > ENERGY_TOL:
+    if tol.within(err) and not inconsistent:
+        return Diagnosis(case_id, "passed", err, findings, field_, consistency, tol)
+    if _within(err, tol):  # force and stiffness right: only the energy (or the consistency) is off
+        if err.energy is not None and err.energy > tol.energy:
             findings.insert(0, _energy_finding(W, W_o, err, _rest_volumes(points, cells).sum()))
         if inconsistent and consistency is not None and consistency.stiffness_consistent is False:
             findings.insert(0, Finding(
@@ -116,9 +123,9 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
                 "force and stiffness match the oracle here, but the stiffness is not the derivative of the engine's "
                 "own force at the probes: the force changes wrongly as the mesh deforms (check a deformed state, "
                 "where the diagnosis can name the mistake)", {}))
-        return Diagnosis(case_id, "failed", err, findings, field_, consistency)
+        return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
-    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_)
+    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol)
     if causes:
         findings = causes + findings
     else:
@@ -130,10 +137,11 @@ def diagnose(case_id: str, *, f: np.ndarray, K: sp.spmatrix, W: Optional[float],
             "global factor, tangent parts, volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + ("; the force is right and the stiffness is not the derivative of the engine's own force (below): "
-               "the mistake is in the tangent alone" if inconsistent and err.force <= FORCE_TOL else ""),
+               "the mistake is in the tangent alone"
+               if inconsistent and err.force <= tol.force else ""),
             {"force": err.force, "stiffness": err.stiffness})
         findings = [unexplained] + findings
-    return Diagnosis(case_id, "failed", err, findings, field_, consistency)
+    return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
 
 def _rest_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -174,6 +182,12 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
                                OBSERVED, f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
                                f"direction; {calib}; Taylor rates {rates} (2 when consistent)",
                                {**figures, "rates": [_finite_or_none(r) for r in c.rates_force]}))
+        elif c.stiffness_limit > RESOLUTION:
+            out.append(Finding(
+                "consistency-unresolved", "the probes do not resolve the tangent on this case",
+                OBSERVED, f"round-off and the fit leave {c.stiffness_floor:.1e} of K d over the "
+                f"probes' step (limit {c.stiffness_limit:.1e} would be above {RESOLUTION:g}): no "
+                "verdict on the engine's own consistency", figures))
         elif c.stiffness_consistent is True:
             out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force",
                                OBSERVED, f"relative inconsistency {c.force_stiffness:.1e}; {calib}; Taylor rates "
@@ -193,7 +207,7 @@ def _finite_or_none(v: float) -> Optional[float]:
     return float(v) if np.isfinite(v) else None
 
 
-def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
+def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol: Tolerances):
     """(causes that fully explain, partial explanations)."""
     full: List[Finding] = []
     partial: List[Finding] = []
@@ -203,7 +217,7 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
         figs = {"force_after": corrected_errors.force, "stiffness_after": corrected_errors.stiffness,
                 "residual": max(corrected_errors.force, corrected_errors.stiffness), **(figures or {})}
         text = _evidence(corrected_errors) + (f"; {extra}" if extra else "")
-        if _within(corrected_errors):
+        if _within(corrected_errors, tol):
             full.append(Finding(code, title, FULL, text, figs))
         elif figs["residual"] < 0.1 * worst:
             partial.append(Finding(code, title, PARTIAL, text + " (residual above tolerance)", figs))
@@ -246,31 +260,32 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_):
 
     # A localised error cannot be a global convention or a part of the tangent everywhere: test it
     # first (it is cheap; the fits below are not on large meshes).
-    _locality_findings(f, K, f_o, K_o, s, cells, field_, full, partial)
+    _locality_findings(f, K, f_o, K_o, s, cells, field_, tol, full, partial)
     if full:
         return full, partial
 
-    if parts is not None and err.force <= FORCE_TOL:
-        _tangent_findings(K, K_o, parts(), err, full, partial)
+    if parts is not None and err.force <= tol.force:
+        _tangent_findings(K, K_o, parts(), err, tol, full, partial)
         if full:
             return full, partial
 
     if parts is not None:
         p = parts()
         if p["geometric_volumetric"] is not None:
-            _volumetric_findings(points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, full, partial)
+            _volumetric_findings(points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, tol, full,
+                                 partial)
             if full:
                 return full, partial
 
     return full, partial
 
 
-def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
+def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
     from conformance.tangent import candidate_parts, describe_coefficient, fit_parts
 
     D = (K - K_o).tocsr()
     cands = candidate_parts(parts, K_o)
-    ok, best = fit_parts(D, K_o, cands, STIFFNESS_TOL)
+    ok, best = fit_parts(D, K_o, cands, tol.stiffness)
     fit = ok or best
     if fit is None:
         return
@@ -284,7 +299,8 @@ def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
         partial.append(Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs))
 
 
-def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full, partial) -> None:
+def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, tol: Tolerances, full,
+                         partial) -> None:
     from conformance.tangent import fit_volumetric
 
     fit = fit_volumetric(points, cells, x, df, D, s.force, s.stiffness)
@@ -301,15 +317,17 @@ def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full,
         text += f"; recognised: {fit.variant}"
     elif np.unique(np.round(fit.J, 12)).size < 3:
         text += "; the state has a single J, so the form of U cannot be identified from this case alone"
-    title = ("volumetric (J-only) tangent differs (the force matches)" if np.linalg.norm(df) / s.force <= FORCE_TOL
+    force_ok = np.linalg.norm(df) / s.force <= tol.force
+    title = ("volumetric (J-only) tangent differs (the force matches)" if force_ok
              else "volumetric (J-only) energy differs from the oracle's")
-    if fit.force_residual <= FORCE_TOL and fit.stiffness_residual <= STIFFNESS_TOL:
+    if fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness:
         full.append(Finding("volumetric", title, FULL, text, figs))
     elif figs["residual"] < 0.1 * worst:
         partial.append(Finding("volumetric", title, PARTIAL, text, figs))
 
 
-def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) -> None:
+def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, tol: Tolerances, full,
+                       partial) -> None:
     n = field_.size
     total = float(np.sum(field_**2))
     if total == 0:
@@ -336,6 +354,6 @@ def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) 
             "residual": max(fout, kout)}
     text = (f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, stiffness error "
             f"{kout:.1e}; see the per-node error field")
-    if fout <= FORCE_TOL and kout <= STIFFNESS_TOL:
+    if fout <= tol.force and kout <= tol.stiffness:
         full.append(Finding("localised", f"error localised to {nodes.size} node(s)"
                             + (f" / {cell_ids.size} cell(s)" if cell_ids.size else ""), FULL, text, figs))

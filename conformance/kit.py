@@ -7,7 +7,8 @@ Layout of a kit directory (docs/conventions.md, "Exchange format")::
     cases/<case id>/output/            where the engine writes (force.f64, stiffness..., energy.f64)
 
 Each primary case has PROBES probe cases: the same model and mesh at x + eps_k d with
-eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-4 of the mean edge length. The check
+eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-4 of the mean edge length at each
+node, or of the smallest height of the node's cells if smaller (:func:`probe_lengths`). The check
 uses them for a Taylor test of the engine's stiffness against its own forces (and of its forces
 against its own energy), which needs no oracle.
 
@@ -23,7 +24,7 @@ import json
 import os
 import re
 from dataclasses import dataclass
-from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -78,13 +79,36 @@ def probe_direction(points: np.ndarray, seed: int) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1).max()
 
 
-def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, np.ndarray]], states: Sequence[str],
-                *, probes: int = PROBES) -> List[KitCase]:
-    """Every model x mesh x state, each followed by its probes (seeded, reproducible)."""
+StateSpec = Union[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]]
+
+
+def probe_lengths(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(n,) per node, the length its probe displacement is a fraction of: the mean edge, or the
+    smallest height of the cells around the node when smaller. A step of 1e-4 of the mean edge
+    is a strain of 10 % in a cap of quality 1e-3, where no fit can resolve the tangent; scaled
+    by each node's own cells, every cell is strained by about 1e-4, the large cells of a graded
+    mesh as much as its tiny ones. points (n, 3), cells (m, 4) [length unit of points]."""
+    from meshes.hard import heights
+
+    out = np.full(len(points), mean_edge_length(points, cells))
+    h = np.repeat(heights(points, cells), 4)
+    np.minimum.at(out, np.asarray(cells).ravel(), h)
+    return out
+
+
+def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, np.ndarray]],
+                states: Sequence[StateSpec], *, probes: int = PROBES) -> List[KitCase]:
+    """Every model x mesh x state, each followed by its probes (seeded, reproducible).
+
+    A state is a name of :data:`common.states.STATES` or a pair (name, function(X, cells) -> x).
+    """
     out: List[KitCase] = []
+    named = [(s, lambda X, c, s=s: apply_state(s, X, c)) if isinstance(s, str) else s
+             for s in states]
+    states = [name for name, _ in named]
     for mesh_label, points, cells in meshes:
-        h = mean_edge_length(np.asarray(points, dtype=float), np.asarray(cells))
-        xs = {s: apply_state(s, np.asarray(points, dtype=float), np.asarray(cells)) for s in states}
+        h = probe_lengths(np.asarray(points, dtype=float), np.asarray(cells))[:, None]
+        xs = {name: fn(np.asarray(points, dtype=float), np.asarray(cells)) for name, fn in named}
         for model in models:
             for k_state, state in enumerate(states):
                 cid = case_id(model, mesh_label, state)
@@ -101,8 +125,14 @@ def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, n
     return out
 
 
-def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Dict[str, Any]:
-    """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten)."""
+def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "",
+              precision: str = "double") -> Dict[str, Any]:
+    """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten).
+
+    precision: the engine's declared precision, "double" or "single" (float32), kept in the
+    manifest; ``check`` then holds every case to that precision's tolerances."""
+    if precision not in ("double", "single"):
+        raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     if os.path.exists(folder) and (not os.path.isdir(folder) or os.listdir(folder)):
         raise FileExistsError(f"{folder}: exists and is not an empty directory; export writes only into a new one")
     os.makedirs(folder, exist_ok=True)
@@ -119,7 +149,7 @@ def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Di
             entry.update(probe_of=c.probe_of, step=c.step)
         entries.append(entry)
     manifest = {"format": KIT_FORMAT, "format_version": FORMAT_VERSION, "created_by": command,
-                "conventions": "docs/conventions.md", "cases": entries}
+                "conventions": "docs/conventions.md", "precision": precision, "cases": entries}
     with open(os.path.join(folder, "manifest.json"), "w") as fh:
         json.dump(manifest, fh, indent=1)
     return manifest
@@ -137,6 +167,7 @@ class KitManifest:
     cases: Tuple[KitCase, ...]
     entries: Mapping[str, Mapping[str, Any]]
     errors: Mapping[str, str]
+    precision: str = "auto"  # declared by the manifest ("double" or "single"), else "auto"
 
 
 def read_kit(folder: str) -> KitManifest:
@@ -162,7 +193,10 @@ def read_kit(folder: str) -> KitManifest:
             cases.append(_read_entry(folder, e, path))
         except FormatError as exc:
             errors[cid] = str(exc)
-    return KitManifest(folder, tuple(cases), entries, errors)
+    precision = data.get("precision", "auto")
+    if precision not in ("double", "single", "auto"):
+        raise FormatError(f"{path}: 'precision' must be 'double' or 'single', not {precision!r}")
+    return KitManifest(folder, tuple(cases), entries, errors, precision)
 
 
 def _read_entry(folder: str, e: Mapping[str, Any], manifest_path: str) -> KitCase:

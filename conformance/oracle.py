@@ -11,7 +11,9 @@ from typing import Any, Dict, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.compare import Scales, Tolerances
 from conformance.consistency import ReferenceProbes
+from conformance.precision import sensitivity_of, single_tolerances
 from conformance.energy import energy_density
 from conformance.parts import PartsOracle
 from conformance.spec import CaseInput, model_frame, model_to_manifest
@@ -61,6 +63,21 @@ class OracleCache:
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
+        """The case's tolerances at single precision (:mod:`conformance.precision`), measured by
+        the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
+        perturbed mesh, not kept)."""
+        from reference_fem import UFLOracle
+
+        def evaluate(points: np.ndarray, positions: np.ndarray):
+            oracle = UFLOracle(points, case.cells, case.model)
+            f, K = oracle.force_and_stiffness(positions)
+            return float(oracle.energy(positions)), f, sp.csr_matrix(K)
+
+        sens = sensitivity_of(evaluate, case.points, case.positions,
+                              (ref.energy, ref.force, ref.stiffness), s)
+        return single_tolerances(sens)
 
     def probes(self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]) -> ReferenceProbes:
         """The oracle's force and energy at the probes of ``case`` (same mesh and model), with

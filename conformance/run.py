@@ -16,12 +16,14 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
-from conformance.compare import scales
+from conformance.compare import DOUBLE, Tolerances, scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
+from conformance.findings import FULL, Finding
 from conformance.kit import KitCase, primary_and_probes
 from conformance.oracle import OracleCache
+from conformance.precision import U32
 
 __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
@@ -109,8 +111,12 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
                cache: Optional[OracleCache] = None,
                input_errors: Optional[Dict[str, str]] = None,
                progress: Optional[Callable[[str], None]] = None,
-               on_case: Optional[Callable[..., None]] = None) -> CheckRun:
+               on_case: Optional[Callable[..., None]] = None, precision: str = "auto") -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
+
+    precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
+    case's conditioning, :mod:`conformance.precision`) or "auto": single for an output the
+    engine wrote in float32, double otherwise.
 
     on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
     its per-node error field).
@@ -143,12 +149,25 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
             run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
                                             f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
             continue
-        cons = _self_consistency(cache, ci, ref, out, probes, probe_results) if not probe_errors \
-            else Consistency(None, None, note="; ".join(probe_errors))
+        single = precision == "single" or (precision == "auto" and out.precision == "single")
+        cons = Consistency(None, None, note="; ".join(probe_errors)) if probe_errors \
+            else _self_consistency(cache, ci, ref, out, probes, probe_results, single)
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
+        tol = cache.single_precision(ci, ref, s) if single else DOUBLE
         diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
                         W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
-                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None)
+                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None,
+                        tol=tol)
+        if not single and not diag.passed:  # would it pass as a float32 engine?
+            tol32 = cache.single_precision(ci, ref, s)
+            if tol32.within(diag.errors):
+                cons32 = _self_consistency(cache, ci, ref, out, probes, probe_results, True) \
+                    if probes and not probe_errors else None
+                diag32 = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy,
+                                  f_o=ref.force, K_o=ref.stiffness, W_o=ref.energy, s=s,
+                                  points=ci.points, cells=ci.cells, x=ci.positions,
+                                  consistency=cons32, tol=tol32)
+                diag = _single_precision_reading(diag, diag32)
         status = diag.verdict
         message = ""
         if probe_errors:
@@ -160,8 +179,25 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
     return run
 
 
+def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
+    """A case failed at double precision and ``diag32``, the same case judged as a float32
+    engine's, passes: the failure is named as float32 round-off, first, with what the probes
+    show at that precision; the double-precision verdict stands."""
+    if not diag32.passed:
+        return diag
+    e, tol = diag.errors, diag32.tolerances
+    finding = Finding(
+        "single-precision", "the errors are single-precision (float32) round-off", FULL,
+        f"force {e.force:.1e}, stiffness {e.stiffness:.1e} are within what float32 leaves on this "
+        f"case ({tol.text()}; {tol.basis}): an engine computing in float32 passes with "
+        "--precision single "
+        "(or \"precision\": \"single\" in the kit, or .f32 output files)",
+        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness})
+    return replace(diag, findings=[finding, *diag32.findings], consistency=diag32.consistency)
+
+
 def _self_consistency(cache: OracleCache, ci, ref, out: EngineOutput, probes: Sequence[KitCase],
-                      probe_results: list) -> Consistency:
+                      probe_results: list, single: bool) -> Consistency:
     """The engine's Taylor test, calibrated by the oracle at the same probes (its floor on this
     case); uncalibrated, and said so, when the oracle cannot evaluate a probe."""
     try:
@@ -170,7 +206,8 @@ def _self_consistency(cache: OracleCache, ci, ref, out: EngineOutput, probes: Se
         c = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
         return replace(c, note=(c.note + "; " if c.note else "") + f"not calibrated: the oracle cannot evaluate "
                        f"a probe ({exc})")
-    return consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results, reference)
+    return consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results, reference,
+                       roundoff=U32 if single else 2.0**-53)
 
 
 def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:

@@ -15,7 +15,7 @@ import numpy as np
 
 from meshes.tetra import signed_volumes
 
-__all__ = ["quality", "DEGENERACIES", "degrade", "graded", "stretched"]
+__all__ = ["quality", "heights", "DEGENERACIES", "degrade", "graded", "stretched"]
 
 Mesh = Tuple[np.ndarray, np.ndarray]
 
@@ -37,6 +37,15 @@ def quality(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     x = np.asarray(points, dtype=np.float64)[np.asarray(cells)]
     l2 = np.sum((x[:, _EDGES[:, 0]] - x[:, _EDGES[:, 1]]) ** 2, axis=2).mean(axis=1)
     return 6.0 * np.sqrt(2.0) * signed_volumes(points, cells) / l2**1.5
+
+
+def heights(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) smallest height of every cell: 3 |V| / (largest face area) [length unit of points]."""
+    x = np.asarray(points, dtype=np.float64)[np.asarray(cells)]
+    faces = ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))
+    areas = np.stack([0.5 * np.linalg.norm(np.cross(x[:, b] - x[:, a], x[:, c] - x[:, a]), axis=1)
+                      for a, b, c in faces], axis=1)
+    return 3.0 * np.abs(signed_volumes(points, cells)) / areas.max(axis=1)
 
 
 def _target(

@@ -106,3 +106,43 @@ def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
     assert d.causes and d.causes[0].code == "tangent-part", d.text()
     assert d.causes[0].figures["parts"] == [part]
     assert d.causes[0].figures["coefficients"][0] == pytest.approx(coefficient, abs=1e-9)
+
+
+# ---------------------------------------------------------------- issue 21: single precision
+def float32_engine(engine):
+    """The engine as a float32 code sees and writes things: coordinates rounded to float32 on the
+    way in, force, stiffness and energy rounded to float32 on the way out (the check then holds
+    it to single-precision tolerances)."""
+    import dataclasses
+
+    import numpy as np
+    import scipy.sparse as sp
+
+    def run(case):
+        rounded = dataclasses.replace(case, points=case.points.astype(np.float32).astype(np.float64),
+                                      positions=case.positions.astype(np.float32).astype(np.float64))
+        f, K, W = engine(rounded)
+        return np.asarray(f, dtype=np.float32), sp.csr_matrix(K).astype(np.float32), np.float32(W)
+
+    return run
+
+
+@pytest.fixture(scope="module")
+def runs_single():
+    from conformance.protocol import check_implementation
+    from conformance_mutations import MATERIAL, MUTATIONS, broken_engine
+
+    return {name: check_implementation(float32_engine(broken_engine(name)), material=MATERIAL,
+                                       mesh="cube-small", states=("random",)) for name in MUTATIONS}
+
+
+@pytest.mark.parametrize("mutation", list(EXPECTED))
+def test_mutation_in_float32_still_fails_at_single_precision(runs_single, mutation):
+    (outcome,) = runs_single[mutation].outcomes
+    d = outcome.diagnosis
+    assert d.tolerances.precision == "single", d.text()
+    if EXPECTED[mutation] is None:
+        assert outcome.status == "passed", d.text()
+        assert "PASSED at single precision" in d.text()
+    else:
+        assert outcome.status == "failed", d.text()

@@ -32,6 +32,10 @@ def configure(parser) -> None:
     add_model_options(parser)
     opt.add_out_option(parser, "reports")
     opt.add_json_option(parser)
+    parser.add_argument("--precision", choices=("auto", "double", "single"), default="auto",
+                        help="tolerances: 'double' (1e-10), 'single' (from float32 round-off and "
+                             "each case's conditioning) or 'auto' (the kit's declaration, else "
+                             "single for .f32 outputs)")
     parser.add_argument("--quiet", action="store_true", help="print only the summary line")
 
 
@@ -61,6 +65,8 @@ def run(args) -> int:
         except FormatError as exc:
             raise InputError(str(exc)) from None
         cases, input_errors = list(kit.cases), dict(kit.errors)
+        if args.precision == "auto":
+            args.precision = kit.precision
     else:
         from conformance.kit import PROBES
         from conformance.options import cases_from_args
@@ -110,7 +116,8 @@ def _run(args, cases, input_errors) -> int:
         fields[case.case_id] = rel
 
     progress = None if args.quiet else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
-    result = run_check(cases, evaluate, input_errors=input_errors, progress=progress, on_case=on_case)
+    result = run_check(cases, evaluate, input_errors=input_errors, progress=progress,
+                       on_case=on_case, precision=args.precision)
     paths = write_report(folder, result, command=command, fields=fields)
     if not args.quiet:
         print(result.text())
