@@ -168,6 +168,8 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
                                   points=ci.points, cells=ci.cells, x=ci.positions,
                                   consistency=cons32, tol=tol32)
                 diag = _single_precision_reading(diag, diag32)
+        if not diag.passed and not diag.causes:
+            diag = _variant_reading(diag, cache, ci, out, s)
         status = diag.verdict
         message = ""
         if probe_errors:
@@ -177,6 +179,34 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run
+
+
+def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
+    """Nothing explained the failure: does the engine compute a variant of the energy
+    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances."""
+    from conformance.compare import errors
+    from conformance.variants import match_variant
+
+    def evaluate(model):
+        ref = cache.reference(replace(ci, model=model))
+        return ref.force, ref.stiffness
+
+    tol = diag.tolerances
+
+    def within(fv, Kv) -> bool:
+        return tol.within(errors(out.force, out.stiffness, None, fv, Kv, 0.0, s), energy=False)
+
+    found = match_variant(ci.model, out.force, out.stiffness, within, evaluate)
+    if found is None:
+        return diag
+    v, (fv, Kv) = found
+    e = errors(out.force, out.stiffness, None, fv, Kv, 0.0, s)
+    finding = Finding("energy-variant", f"your engine matches W' = {v.expression}", FULL,
+                      f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
+                      f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                      {"variant": v.rewrite.code, "expression": v.expression, "residual":
+                       max(e.force, e.stiffness)})
+    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
 def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
