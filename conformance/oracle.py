@@ -64,6 +64,21 @@ class OracleCache:
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
 
+    def column_derivatives(self, case: CaseInput, step: np.ndarray) -> sp.csr_matrix:
+        """G (3n, 3n): column j is the derivative of the oracle's K column j along dof j, by a
+        forward difference of step ``step[j]`` [m] (3n oracle stiffness assemblies: small
+        meshes only)."""
+        oracle = self._oracles[_key(case)]
+        x = np.asarray(case.positions, dtype=np.float64).ravel()
+        K0 = sp.csc_matrix(oracle.stiffness(case.positions))
+        cols = []
+        for j in range(x.size):
+            y = x.copy()
+            y[j] += step[j]
+            Kj = sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))
+            cols.append((Kj[:, j] - K0[:, j]) / step[j])
+        return sp.hstack(cols).tocsr()
+
     def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
         """The case's tolerances at single precision (:mod:`conformance.precision`), measured by
         the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the

@@ -254,3 +254,21 @@ EXPECTED.update({
     "one triangle of K": "one-triangle",
     "both triangles summed": "both-triangles",
 })
+
+
+def _finite_difference_tangent(case, field, f, K, W):
+    """K column by column from forward differences of the force, step 1e-6 of the mean edge."""
+    from common.tolerances import mean_edge_length
+
+    h = 1e-6 * mean_edge_length(case.points, case.cells)
+    x = case.positions.ravel()
+    cols = []
+    for j in range(x.size):
+        y = x.copy()
+        y[j] += h
+        cols.append(sp.csc_matrix(-(field.force(y.reshape(-1, 3)).ravel() - f.ravel()) / h).T)
+    return f, sp.hstack(cols).tocsr(), W
+
+
+MUTATIONS["finite-difference tangent"] = _finite_difference_tangent
+EXPECTED["finite-difference tangent"] = "finite-difference"
