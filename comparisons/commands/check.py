@@ -115,9 +115,15 @@ def _run(args, cases, input_errors) -> int:
         write_error_field(os.path.join(folder, rel), case, out.force, ref.force, diag.node_error)
         fields[case.case_id] = rel
 
-    progress = None if args.quiet else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
+    from common.progress import Progress
+
+    # A bar on a terminal (a check of a large mesh runs for minutes); one line per case otherwise.
+    bar = Progress(sum(c.role == "case" for c in cases), "check")
+    progress = None if args.quiet else (bar.advance if bar.enabled else
+                                        (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True)))
     result = run_check(cases, evaluate, input_errors=input_errors, progress=progress,
                        on_case=on_case, precision=args.precision)
+    bar.close()
     paths = write_report(folder, result, command=command, fields=fields)
     if not args.quiet:
         print(result.text())
