@@ -12,7 +12,7 @@ force and energy that the stiffness gives over one edge, so that a relative figu
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,6 +40,7 @@ class Tolerances:
     energy: float
     precision: str = "double"
     basis: str = "fixed at 1e-10 (docs/conventions.md, Tolerances)"
+    capped: Tuple[str, ...] = ()  # quantities whose limit was capped (not resolvable at this precision)
 
     def __post_init__(self) -> None:
         if self.precision not in ("double", "single"):
@@ -62,7 +63,7 @@ class Tolerances:
 
     def to_dict(self) -> dict:
         return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy,
-                "precision": self.precision, "basis": self.basis}
+                "precision": self.precision, "basis": self.basis, "capped": list(self.capped)}
 
 
 #: The double-precision tolerances of every case.

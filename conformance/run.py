@@ -20,7 +20,7 @@ from conformance.compare import DOUBLE, Tolerances, scales
 from conformance.consistency import Consistency, consistency
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
-from conformance.findings import FULL, PARTIAL, Finding
+from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.kit import KitCase, primary_and_probes, probe_lengths
 from conformance.oracle import OracleCache
 from conformance.precision import U32
@@ -160,6 +160,10 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
                         tol=tol)
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
+        if tol.capped and not diag.passed:
+            diag = replace(diag, findings=[*diag.findings, Finding(
+                "beyond-single-precision", "this case is beyond what float32 resolves", OBSERVED,
+                tol.basis, {"capped": list(tol.capped)})])
         unexplained = not diag.passed and not diag.causes and \
             not diag.tolerances.within(diag.errors, energy=False)
         if unexplained:

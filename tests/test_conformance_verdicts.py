@@ -280,3 +280,15 @@ def test_every_mutant_is_caught_on_the_small_corpus(small_corpus):
     assert len(figure) == sum(v is not None for v in conformance_mutations.EXPECTED.values())
     missed = {k: v["missed"] for k, v in figure.items() if v["missed"]}
     assert not missed
+
+
+def test_single_precision_tolerances_follow_the_case():
+    """100 x max(u, sensitivity), capped at 1e-2 where float32 cannot resolve the case (said)."""
+    from conformance.compare import Errors
+    from conformance.precision import CAP, U32, single_tolerances
+
+    well = single_tolerances(Errors(1e-9, 5.6e-7, None, 0.0))
+    assert well.force == pytest.approx(100 * U32) and well.stiffness == pytest.approx(5.6e-5)
+    assert well.precision == "single" and not well.capped
+    cap = single_tolerances(Errors(2e-7, 8.5e-3, 1e-11, 0.0))
+    assert cap.stiffness == CAP and cap.capped == ("stiffness",) and "cannot resolve" in cap.basis
