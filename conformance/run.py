@@ -17,7 +17,7 @@ import numpy as np
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.compare import DOUBLE, Tolerances, scales
-from conformance.consistency import Consistency, consistency
+from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
@@ -173,7 +173,9 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for a force as inexact as float32 storage alone makes it (a float32 value carries
         # a relative error of u / sqrt(3) on average): a small exact-looking error is a mistake.
-        if not single and unexplained and not diag.causes and diag.errors.force >= U32 / 4:
+        nf = safe_norm(ref.force)
+        inexact = nf == 0 or diag.errors.force * s.force >= U32 / 4 * nf
+        if not single and unexplained and not diag.causes and inexact:
             tol32 = cache.single_precision(ci, ref, s)
             if tol32.within(diag.errors):
                 cons32 = _self_consistency(cache, ci, ref, out, probes, probe_results, True) \

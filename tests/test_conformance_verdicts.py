@@ -292,3 +292,31 @@ def test_single_precision_tolerances_follow_the_case():
     assert well.precision == "single" and not well.capped
     cap = single_tolerances(Errors(2e-7, 8.5e-3, 1e-11, 0.0))
     assert cap.stiffness == CAP and cap.capped == ("stiffness",) and "cannot resolve" in cap.basis
+
+
+@needs_oracle
+def test_a_kit_declares_single_precision(tmp_path):
+    """export --precision single writes the declaration; an engine writing float32 into the kit
+    (here MJED's values rounded to float32) passes 'at single precision'; the same values
+    checked with --precision double fail, named as float32 round-off."""
+    import json
+
+    from comparisons.cli import main
+    from conformance.exchange import write_output
+    from conformance.kit import read_kit
+
+    kit = tmp_path / "kit"
+    assert main(["export", str(kit), "--material", "NeoHookean", "--states", "random", "--precision",
+                 "single"]) == 0
+    assert json.load(open(kit / "manifest.json"))["precision"] == "single"
+    for c in read_kit(str(kit)).cases:
+        f, K, W = mjed_impl(c.input)
+        write_output(str(kit / "cases" / c.case_id / "output"), f, K, W, precision="single")
+    assert main(["check", str(kit), "--out", str(tmp_path / "s"), "--quiet"]) == 0
+    (run,) = (tmp_path / "s").iterdir()
+    (case,) = json.load(open(run / "results.json"))["cases"]
+    assert case["tolerances"]["precision"] == "single"
+    assert main(["check", str(kit), "--precision", "double", "--out", str(tmp_path / "d"), "--quiet"]) == 1
+    (run,) = (tmp_path / "d").iterdir()
+    (case,) = json.load(open(run / "results.json"))["cases"]
+    assert case["findings"][0]["code"] == "single-precision"
