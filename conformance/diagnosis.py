@@ -192,6 +192,14 @@ def _consistency_findings(c: Consistency) -> List[Finding]:
             out.append(Finding("consistent-stiffness", "stiffness is the derivative of the engine's own force",
                                OBSERVED, f"relative inconsistency {c.force_stiffness:.1e}; {calib}; Taylor rates "
                                f"{rates}", figures))
+    if c.energy_force is not None and c.force_consistent is None:
+        out.append(Finding(
+            "energy-consistency-unresolved",
+            "the probes do not resolve the force against the energy", OBSERVED,
+            f"round-off of the energies leaves {c.energy_floor or 0.0:.1e} of the energy change "
+            f"over the probes' step (limit {c.energy_limit:.1e}): no verdict on whether the "
+            "force is minus the derivative of the engine's energy",
+            {"floor": c.energy_floor, "limit": c.energy_limit}))
     if c.force_consistent is False:
         calib = ("" if c.energy_excess is None else
                  f"; beyond the oracle's {c.energy_floor:.1e} on the same probes: {c.energy_excess:.1e}")

@@ -306,8 +306,8 @@ def test_a_kit_declares_single_precision(tmp_path):
     from conformance.kit import read_kit
 
     kit = tmp_path / "kit"
-    assert main(["export", str(kit), "--material", "NeoHookean", "--states", "random", "--precision",
-                 "single"]) == 0
+    assert main(["export", str(kit), "--material", "NeoHookean", "--states", "random",
+                 "--precision", "single"]) == 0
     assert json.load(open(kit / "manifest.json"))["precision"] == "single"
     for c in read_kit(str(kit)).cases:
         f, K, W = mjed_impl(c.input)
@@ -316,7 +316,8 @@ def test_a_kit_declares_single_precision(tmp_path):
     (run,) = (tmp_path / "s").iterdir()
     (case,) = json.load(open(run / "results.json"))["cases"]
     assert case["tolerances"]["precision"] == "single"
-    assert main(["check", str(kit), "--precision", "double", "--out", str(tmp_path / "d"), "--quiet"]) == 1
+    assert main(["check", str(kit), "--precision", "double", "--out", str(tmp_path / "d"),
+                 "--quiet"]) == 1
     (run,) = (tmp_path / "d").iterdir()
     (case,) = json.load(open(run / "results.json"))["cases"]
     assert case["findings"][0]["code"] == "single-precision"
