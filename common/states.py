@@ -12,8 +12,14 @@ import numpy as np
 
 from meshes import signed_volumes
 
-__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio",
-           "max_stretch"]
+__all__ = [
+    "STATES",
+    "state_names",
+    "apply_state",
+    "smooth_random",
+    "min_volume_ratio",
+    "max_stretch",
+]
 
 
 def _affine(A: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -38,8 +44,14 @@ def max_stretch(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
     return float(np.linalg.svd(F, compute_uv=False)[:, 0].max())
 
 
-def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2,
-                  stretch_limit: Optional[float] = None) -> np.ndarray:
+def smooth_random(
+    X: np.ndarray,
+    cells: np.ndarray,
+    *,
+    seed: int = 0,
+    min_J: float = 0.2,
+    stretch_limit: Optional[float] = None,
+) -> np.ndarray:
     """A seeded smooth random deformation: a rotation of X plus a sum of sine modes.
 
     The amplitude starts at 15 % of the mesh size and is halved until every cell keeps
@@ -65,7 +77,9 @@ def smooth_random(X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: flo
         if min_volume_ratio(X, x, cells) > min_J and stretched_ok:
             return x
         scale *= 0.5
-    raise RuntimeError("could not find an admissible random perturbation")  # unreachable for valid meshes
+    raise RuntimeError(
+        "could not find an admissible random perturbation"
+    )  # unreachable for valid meshes
 
 
 def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
@@ -84,9 +98,18 @@ STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = 
     "rest": ("x = X", lambda X, cells: X.copy()),
     "uniaxial": ("stretch 1.3 along x (J = 1.3)", _affine(np.diag([1.3, 1.0, 1.0]))),
     "compression": ("compression 0.8 along x (J = 0.8)", _affine(np.diag([0.8, 1.0, 1.0]))),
-    "shear": ("simple shear, amount 0.4 (x += 0.4 y)", _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]]))),
-    "triaxial": ("stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9", _affine(np.diag([1.25, 0.9, 0.8]))),
-    "random": ("seeded smooth random field with a rotation, J > 0.2", lambda X, cells: smooth_random(X, cells)),
+    "shear": (
+        "simple shear, amount 0.4 (x += 0.4 y)",
+        _affine(np.array([[1.0, 0.4, 0.0], [0, 1, 0], [0, 0, 1]])),
+    ),
+    "triaxial": (
+        "stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9",
+        _affine(np.diag([1.25, 0.9, 0.8])),
+    ),
+    "random": (
+        "seeded smooth random field with a rotation, J > 0.2",
+        lambda X, cells: smooth_random(X, cells),
+    ),
 }
 
 

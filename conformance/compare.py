@@ -16,13 +16,21 @@ from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import norm as sparse_norm
 
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 from conformance.consistency import safe_norm
 
-__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "ENERGY_TOL", "Scales", "Errors", "errors", "scales",
-           "Tolerances", "DOUBLE"]
+__all__ = [
+    "FORCE_TOL",
+    "STIFFNESS_TOL",
+    "ENERGY_TOL",
+    "Scales",
+    "Errors",
+    "errors",
+    "scales",
+    "Tolerances",
+    "DOUBLE",
+]
 
 ENERGY_TOL = 1e-10
 
@@ -40,7 +48,9 @@ class Tolerances:
     energy: float
     precision: str = "double"
     basis: str = "fixed at 1e-10 (docs/conventions.md, Tolerances)"
-    capped: Tuple[str, ...] = ()  # quantities whose limit was capped (not resolvable at this precision)
+    capped: Tuple[
+        str, ...
+    ] = ()  # quantities whose limit was capped (not resolvable at this precision)
 
     def __post_init__(self) -> None:
         if self.precision not in ("double", "single"):
@@ -58,12 +68,20 @@ class Tolerances:
     def text(self) -> str:
         if self.force == self.stiffness == self.energy:
             return f"tolerance {self.force:.1e}"
-        return (f"tolerances force {self.force:.1e}, stiffness {self.stiffness:.1e}, energy "
-                f"{self.energy:.1e} at {self.precision} precision")
+        return (
+            f"tolerances force {self.force:.1e}, stiffness {self.stiffness:.1e}, energy "
+            f"{self.energy:.1e} at {self.precision} precision"
+        )
 
     def to_dict(self) -> dict:
-        return {"force": self.force, "stiffness": self.stiffness, "energy": self.energy,
-                "precision": self.precision, "basis": self.basis, "capped": list(self.capped)}
+        return {
+            "force": self.force,
+            "stiffness": self.stiffness,
+            "energy": self.energy,
+            "precision": self.precision,
+            "basis": self.basis,
+            "capped": list(self.capped),
+        }
 
 
 #: The double-precision tolerances of every case.
@@ -95,8 +113,12 @@ class Errors:
 
     def to_dict(self) -> dict:
         """Strict JSON: a figure that is not finite is null, and ``not_finite`` names it."""
-        d = {"force": self.force, "stiffness": self.stiffness, "energy": self.energy,
-             "symmetry": self.symmetry}
+        d = {
+            "force": self.force,
+            "stiffness": self.stiffness,
+            "energy": self.energy,
+            "symmetry": self.symmetry,
+        }
         bad = [k for k, v in d.items() if v is not None and not np.isfinite(v)]
         d.update({k: None for k in bad})
         if bad:
@@ -114,8 +136,15 @@ def _ratio(num: float, den: float) -> float:
     return num / den if den > 0 else num
 
 
-def errors(f: np.ndarray, K: sp.spmatrix, W: Optional[float], f_o: np.ndarray, K_o: sp.spmatrix, W_o: float,
-           s: Scales) -> Errors:
+def errors(
+    f: np.ndarray,
+    K: sp.spmatrix,
+    W: Optional[float],
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    W_o: float,
+    s: Scales,
+) -> Errors:
     """Relative errors of (f, K, W) against the oracle (f_o, K_o, W_o) with denominators ``s``."""
     K = sp.csr_matrix(K)
     nK = safe_norm(K)

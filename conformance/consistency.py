@@ -143,7 +143,8 @@ class Consistency:
     @property
     def stiffness_statistic(self) -> Optional[float]:
         """The figure held to ``stiffness_limit``: the excess over the oracle, else the
-        inconsistency."""
+        inconsistency.
+        """
         return self.stiffness_excess if self.stiffness_excess is not None else self.force_stiffness
 
     @property
@@ -188,7 +189,8 @@ def _json_rate(r: float) -> Optional[float]:
 
 def safe_norm(a) -> float:
     """Euclidean (Frobenius) norm without overflow: values near 1e300 still give a finite figure
-    when the norm itself is representable. a: ndarray or scipy sparse matrix."""
+    when the norm itself is representable. a: ndarray or scipy sparse matrix.
+    """
     v = np.asarray(a.data if sp.issparse(a) else a, dtype=np.float64).ravel()
     if v.size == 0:
         return 0.0
@@ -209,7 +211,8 @@ def _noise_in_linear_coefficient(t: np.ndarray, r: np.ndarray) -> float:
     """Round-off in the fitted A of r (k, N): the part of r that no cubic in t explains (the
     residual of the fit, k - 3 degrees of freedom), propagated to A through the fit. A tangent
     error is exactly linear in t and leaves no residual; round-off does. 0 with 3 probes or
-    fewer (nothing to measure it with)."""
+    fewer (nothing to measure it with).
+    """
     k = len(t)
     if k <= 3:
         return 0.0

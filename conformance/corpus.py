@@ -55,7 +55,8 @@ Mesh = Tuple[np.ndarray, np.ndarray]
 @dataclass(frozen=True)
 class CorpusMesh:
     """label; points (n, 3) [the mesh's length unit]; cells (m, 4); units ("m" or "mm");
-    how: how it was made (words)."""
+    how: how it was made (words).
+    """
 
     label: str
     points: np.ndarray
@@ -79,7 +80,8 @@ class CorpusMesh:
 
 def _single_sliver(thickness: float) -> Mesh:
     """One sliver: the corners of a unit square, two of them lifted by ``thickness`` (quality
-    about ``thickness``)."""
+    about ``thickness``).
+    """
     P = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, thickness], [0.0, 1.0, thickness]])
     from meshes.tetra import orient_positively
 
@@ -201,7 +203,8 @@ def _random(seed: int, min_J: float) -> Callable[[np.ndarray, np.ndarray], np.nd
 
 def corpus_states(small: bool = False) -> List[Tuple[str, Callable]]:
     """(name, function(X, cells) -> x): the homogeneous named states, the random state and
-    stronger random fields (J > 0.05), every random one with stretches up to STRETCH_LIMIT."""
+    stronger random fields (J > 0.05), every random one with stretches up to STRETCH_LIMIT.
+    """
     names = ("uniaxial",) if small else ("rest", "uniaxial", "compression", "shear", "triaxial")
     seeds = (1,) if small else (1, 2, 3, 4, 5)
     return (
@@ -269,7 +272,8 @@ def corpus_engine() -> Callable:
 class CorpusFigure:
     """n_cases; false: (case id, reason) of every case a correct engine did not pass; worst_excess:
     the largest self-consistency excess over the oracle; worst_floor: the largest floor;
-    worst_error: the largest relative force or stiffness error; seconds."""
+    worst_error: the largest relative force or stiffness error; seconds.
+    """
 
     n_cases: int
     false: Tuple[Tuple[str, str], ...]
@@ -305,7 +309,8 @@ def run_corpus(
     progress: Optional[Callable[[str], None]] = None,
 ) -> Tuple[CorpusFigure, CheckRun]:
     """Check ``impl`` (a correct engine) on every mesh x model x state; every case not passed is
-    a false failure."""
+    a false failure.
+    """
     t0 = time.perf_counter()
     cases = build_cases(
         models, [(m.label, m.points, m.cells) for m in meshes_], states, probes=probes
@@ -349,7 +354,8 @@ def mutant_figure(
     progress: Optional[Callable[[str], None]] = None,
 ) -> Dict[str, Dict[str, List[str]]]:
     """For each mutant: {"missed": meshes where it passed, "unnamed": meshes where it failed
-    without the expected finding}. The catalogue's "none" (the correct engine) is left out."""
+    without the expected finding}. The catalogue's "none" (the correct engine) is left out.
+    """
     out: Dict[str, Dict[str, List[str]]] = {}
     for name, expected in catalogue.EXPECTED.items():
         if expected is None:

@@ -37,10 +37,29 @@ from typing import Any, Dict, Mapping, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.spec import CaseInput, SpecError, model_frame, model_from_manifest, model_to_manifest
+from conformance.spec import (
+    CaseInput,
+    SpecError,
+    model_frame,
+    model_from_manifest,
+    model_to_manifest,
+)
 
-__all__ = ["FORMAT_VERSION", "CASE_FORMAT", "KIT_FORMAT", "FormatError", "EngineOutput", "write_array", "read_array",
-           "write_case_input", "read_case_input", "load_json", "write_output", "read_output", "sha256_of"]
+__all__ = [
+    "FORMAT_VERSION",
+    "CASE_FORMAT",
+    "KIT_FORMAT",
+    "FormatError",
+    "EngineOutput",
+    "write_array",
+    "read_array",
+    "write_case_input",
+    "read_case_input",
+    "load_json",
+    "write_output",
+    "read_output",
+    "sha256_of",
+]
 
 FORMAT_VERSION = 1
 CASE_FORMAT = "mjed-verify case"
@@ -60,7 +79,9 @@ class FormatError(ValueError):
 
 @dataclass(frozen=True)
 class EngineOutput:
-    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or None."""
+    """What an engine returned for one case: force (n, 3), stiffness CSR (3n, 3n), energy or
+    None.
+    """
 
     force: np.ndarray
     stiffness: sp.csr_matrix
@@ -89,7 +110,9 @@ def read_array(folder: str, entry: Any, *, what: str, case: str) -> np.ndarray:
         raise FormatError(f"case {case}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
     dtype = _DTYPES.get(entry["dtype"])
     if dtype is None:
-        raise FormatError(f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}")
+        raise FormatError(
+            f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}"
+        )
     shape = tuple(int(s) for s in entry["shape"])
     path = os.path.join(folder, str(entry["file"]))
     return _read_raw(path, dtype, shape, case=case)
@@ -101,13 +124,17 @@ def _read_raw(path: str, dtype: np.dtype, shape: tuple, *, case: str) -> np.ndar
     count = int(np.prod(shape))
     size = os.path.getsize(path)
     if size != count * dtype.itemsize:
-        raise FormatError(f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
-                          f"({count} values of {dtype.str} for shape {list(shape)})")
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
+            f"({count} values of {dtype.str} for shape {list(shape)})"
+        )
     return np.fromfile(path, dtype=dtype).reshape(shape)
 
 
 # ------------------------------------------------------------------ case input
-def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None) -> Dict[str, Any]:
+def write_case_input(
+    folder: str, case: CaseInput, *, extra: Optional[Mapping[str, Any]] = None
+) -> Dict[str, Any]:
     """Write a case's input directory (created, must not exist) and return its manifest."""
     os.makedirs(folder)
     arrays = {
@@ -118,9 +145,16 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
     frame = model_frame(case.model)
     if frame is not None:
         arrays["frame"] = write_array(folder, "frame.f64", frame, "<f8")
-    manifest = {"format": CASE_FORMAT, "format_version": FORMAT_VERSION, "case": case.case_id,
-                "n_nodes": case.n_nodes, "n_cells": case.n_cells, "model": model_to_manifest(case.model),
-                "arrays": arrays, **(dict(extra) if extra else {})}
+    manifest = {
+        "format": CASE_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "case": case.case_id,
+        "n_nodes": case.n_nodes,
+        "n_cells": case.n_cells,
+        "model": model_to_manifest(case.model),
+        "arrays": arrays,
+        **(dict(extra) if extra else {}),
+    }
     with open(os.path.join(folder, "case.json"), "w") as fh:
         json.dump(manifest, fh, indent=1)
     with open(os.path.join(folder, "case.txt"), "w") as fh:
@@ -131,16 +165,24 @@ def write_case_input(folder: str, case: CaseInput, *, extra: Optional[Mapping[st
 def _case_text(manifest: Mapping[str, Any]) -> str:
     """``key value`` lines: everything a C engine needs, no JSON parser required."""
     model = manifest["model"]
-    lines = [f"format_version {manifest['format_version']}", f"case {manifest['case']}",
-             f"n_nodes {manifest['n_nodes']}", f"n_cells {manifest['n_cells']}",
-             f"kind {model['kind']}", f"name {model['name']}"]
+    lines = [
+        f"format_version {manifest['format_version']}",
+        f"case {manifest['case']}",
+        f"n_nodes {manifest['n_nodes']}",
+        f"n_cells {manifest['n_cells']}",
+        f"kind {model['kind']}",
+        f"name {model['name']}",
+    ]
     if model["kind"] == "energy":
         lines.append(f"expression {model['expression']}")
         if model.get("fibre") is not None:
             lines.append("fibre " + " ".join(repr(float(v)) for v in model["fibre"]))
     lines += [f"parameter {k} {float(v)!r}" for k, v in model["parameters"].items()]
     for name, entry in manifest["arrays"].items():
-        lines.append(f"array {name} {entry['file']} {entry['dtype']} " + " ".join(str(s) for s in entry["shape"]))
+        lines.append(
+            f"array {name} {entry['file']} {entry['dtype']} "
+            + " ".join(str(s) for s in entry["shape"])
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -161,10 +203,14 @@ def load_json(path: str, case: Optional[str] = None, hint: str = "") -> Dict[str
 
 def check_version(data: Mapping[str, Any], path: str, case: str, expected_format: str) -> None:
     if data.get("format") != expected_format:
-        raise FormatError(f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}")
+        raise FormatError(
+            f"case {case}: {path}: 'format' must be {expected_format!r}, got {data.get('format')!r}"
+        )
     if data.get("format_version") != FORMAT_VERSION:
-        raise FormatError(f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
-                          f"(this mjed-verify reads version {FORMAT_VERSION})")
+        raise FormatError(
+            f"case {case}: {path}: format_version {data.get('format_version')!r} is not supported "
+            f"(this mjed-verify reads version {FORMAT_VERSION})"
+        )
 
 
 def read_case_input(folder: str, case: str = "?") -> CaseInput:
@@ -182,7 +228,11 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
         pts = read_array(folder, arrays["points"], what="points", case=case)
         cells = read_array(folder, arrays["cells"], what="cells", case=case)
         x = read_array(folder, arrays["positions"], what="positions", case=case)
-        frame = read_array(folder, arrays["frame"], what="frame", case=case) if "frame" in arrays else None
+        frame = (
+            read_array(folder, arrays["frame"], what="frame", case=case)
+            if "frame" in arrays
+            else None
+        )
         model = model_from_manifest(data.get("model"), frame, where=f"case {case}: {path}")
         return CaseInput(str(data.get("case", case)), pts, cells, x, model)
     except (SpecError, ValueError) as exc:
@@ -192,25 +242,44 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
 
 
 # ------------------------------------------------------------------ engine output
-def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[float] = None, *,
-                 layout: str = "coo", precision: str = "double") -> None:
+def write_output(
+    folder: str,
+    force: np.ndarray,
+    stiffness,
+    energy: Optional[float] = None,
+    *,
+    layout: str = "coo",
+    precision: str = "double",
+) -> None:
     """Write an engine's result in the format (for Python engines and the tests); precision
-    "single" writes the floating-point arrays as float32 ``.f32`` files."""
+    "single" writes the floating-point arrays as float32 ``.f32`` files.
+    """
     if precision not in ("double", "single"):
         raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     os.makedirs(folder, exist_ok=True)
     write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
     if layout == "dense":
-        write_array(folder, "stiffness.f64", np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness), "<f8")
+        write_array(
+            folder,
+            "stiffness.f64",
+            np.asarray(stiffness.toarray() if sp.issparse(stiffness) else stiffness),
+            "<f8",
+        )
     elif layout == "coo":
         K = sp.coo_matrix(stiffness)
-        for name, arr, dt in (("stiffness_rows.i64", K.row, "<i8"), ("stiffness_cols.i64", K.col, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_rows.i64", K.row, "<i8"),
+            ("stiffness_cols.i64", K.col, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     elif layout == "csr":
         K = sp.csr_matrix(stiffness)
-        for name, arr, dt in (("stiffness_indptr.i64", K.indptr, "<i8"), ("stiffness_indices.i64", K.indices, "<i8"),
-                              ("stiffness_values.f64", K.data, "<f8")):
+        for name, arr, dt in (
+            ("stiffness_indptr.i64", K.indptr, "<i8"),
+            ("stiffness_indices.i64", K.indices, "<i8"),
+            ("stiffness_values.f64", K.data, "<f8"),
+        ):
             write_array(folder, name, arr, dt)
     else:
         raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
@@ -227,7 +296,9 @@ def write_output(folder: str, force: np.ndarray, stiffness, energy: Optional[flo
 def _count(path: str, itemsize: int, case: str) -> int:
     size = os.path.getsize(path)
     if size % itemsize:
-        raise FormatError(f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values")
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values"
+        )
     return size // itemsize
 
 
@@ -239,7 +310,9 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
         (shape or node count), indices out of range, NaN or infinite values.
     """
     if not os.path.isdir(folder):
-        raise FormatError(f"case {case}: {folder}: output directory missing (the engine wrote nothing)")
+        raise FormatError(
+            f"case {case}: {folder}: output directory missing (the engine wrote nothing)"
+        )
     N = 3 * n_nodes
     precision = output_precision(folder)
     f64, i64 = np.dtype("<f8" if precision == "double" else "<f4"), np.dtype("<i8")
@@ -250,30 +323,47 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
         if 2 * n_force == N and precision == "double":
-            hint += ("; that is exactly 3n float32 values: a single-precision engine "
-                     "writes force.f32")
-        raise FormatError(f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes")
+            hint += (
+                "; that is exactly 3n float32 values: a single-precision engine writes force.f32"
+            )
+        raise FormatError(
+            f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
+        )
     force = np.fromfile(fpath, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
     force = force.astype(np.float64)
 
-    present = [k for k, files in _STIFFNESS_LAYOUTS.items()
-               if os.path.isfile(os.path.join(folder, _value_file(files[0], precision)))]
+    present = [
+        k
+        for k, files in _STIFFNESS_LAYOUTS.items()
+        if os.path.isfile(os.path.join(folder, _value_file(files[0], precision)))
+    ]
     if not present:
-        raise FormatError(f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
-                          "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
-                          "stiffness_values.f64 (CSR) or stiffness.f64 (dense)")
+        raise FormatError(
+            f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
+            "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
+            "stiffness_values.f64 (CSR) or stiffness.f64 (dense)"
+        )
     if len(present) > 1:
-        raise FormatError(f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); write one")
+        raise FormatError(
+            f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); "
+            "write one"
+        )
     layout = present[0]
     paths = [os.path.join(folder, _value_file(f, precision)) for f in _STIFFNESS_LAYOUTS[layout]]
     for p in paths:
         if not os.path.isfile(p):
-            raise FormatError(f"case {case}: {p}: file missing ({layout} stiffness needs {', '.join(_STIFFNESS_LAYOUTS[layout])})")
+            raise FormatError(
+                f"case {case}: {p}: file missing ({layout} stiffness needs "
+                f"{', '.join(_STIFFNESS_LAYOUTS[layout])})"
+            )
     if layout == "dense":
         count = _count(paths[0], f64.itemsize, case)
         if count != N * N:
-            raise FormatError(f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} nodes")
+            raise FormatError(
+                f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} "
+                "nodes"
+            )
         dense = np.fromfile(paths[0], dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
         dense = dense.astype(np.float64)
@@ -285,15 +375,26 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
         vals = vals.astype(np.float64)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
-                raise FormatError(f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols {b.size}, "
-                                  f"values {vals.size})")
+                raise FormatError(
+                    f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols "
+                    f"{b.size}, "
+                    f"values {vals.size})"
+                )
             for arr, p in ((a, paths[0]), (b, paths[1])):
                 _require_indices(arr, N, p, case)
             K = sp.coo_matrix((vals, (a, b)), shape=(N, N)).tocsr()
         else:
-            if a.size != N + 1 or a[0] != 0 or np.any(np.diff(a) < 0) or a[-1] != b.size or b.size != vals.size:
-                raise FormatError(f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
-                                  f"column indices and {vals.size} values")
+            if (
+                a.size != N + 1
+                or a[0] != 0
+                or np.any(np.diff(a) < 0)
+                or a[-1] != b.size
+                or b.size != vals.size
+            ):
+                raise FormatError(
+                    f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
+                    f"column indices and {vals.size} values"
+                )
             _require_indices(b, N, paths[1], case)
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
@@ -315,7 +416,10 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
     bad = ~np.isfinite(a)
     if bad.any():
         first = int(np.flatnonzero(bad.ravel())[0])
-        raise FormatError(f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at flat index {first}")
+        raise FormatError(
+            f"case {case}: {path}: {int(bad.sum())} non-finite value(s) (NaN or inf), first at "
+            f"flat index {first}"
+        )
 
 
 def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
@@ -326,15 +430,22 @@ def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
                 f"case {case}: {path}: indices out of range as little-endian int64 but all in "
                 f"[0, {N}) with their bytes reversed: written big-endian (the format is "
                 "little-endian '<i8'; e.g. a big-endian machine, Java's DataOutputStream or "
-                "NumPy '>i8')")
-        raise FormatError(f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
-                          f"found {int(idx.min())}..{int(idx.max())}")
+                "NumPy '>i8')"
+            )
+        raise FormatError(
+            f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
+            f"found {int(idx.min())}..{int(idx.max())}"
+        )
 
 
 def output_precision(folder: str) -> str:
-    """"single" when the engine wrote its force as float32 (``force.f32``), else "double"."""
-    return "single" if os.path.isfile(os.path.join(folder, "force.f32")) and \
-        not os.path.isfile(os.path.join(folder, "force.f64")) else "double"
+    """ "single" when the engine wrote its force as float32 (``force.f32``), else "double"."""
+    return (
+        "single"
+        if os.path.isfile(os.path.join(folder, "force.f32"))
+        and not os.path.isfile(os.path.join(folder, "force.f64"))
+        else "double"
+    )
 
 
 def _value_file(name: str, precision: str) -> str:
@@ -355,12 +466,15 @@ def _plausible(a: np.ndarray) -> float:
 def byte_order_problem(a: np.ndarray, path: str) -> str:
     """Words naming a byte-order mistake when ``a`` (read little-endian) looks like big-endian
     floats: implausible as read (NaN, inf, 1e-300 or 1e300 magnitudes), plausible with its bytes
-    reversed. "" otherwise. a: any float array as read from ``path``."""
+    reversed. "" otherwise. a: any float array as read from ``path``.
+    """
     if a.size == 0 or _plausible(a) > 0.9:
         return ""
     if _plausible(a.byteswap()) < 0.999:
         return ""
-    return (f"{path}: the values are implausible as little-endian {a.dtype.name} (NaN, inf or "
-            "magnitudes beyond 1e+-100) and plausible with their bytes reversed: written big-endian "
-            "(the format is little-endian; e.g. a big-endian machine, Java's DataOutputStream, "
-            "MATLAB fwrite with 'b', or NumPy '>f8')")
+    return (
+        f"{path}: the values are implausible as little-endian {a.dtype.name} (NaN, inf or "
+        "magnitudes beyond 1e+-100) and plausible with their bytes reversed: written big-endian "
+        "(the format is little-endian; e.g. a big-endian machine, Java's DataOutputStream, "
+        "MATLAB fwrite with 'b', or NumPy '>f8')"
+    )

@@ -39,8 +39,13 @@ class Finding:
         bad = [k for k, v in self.figures.items() if _finite(v) is None and v is not None]
         if bad:
             figures["not_finite"] = bad
-        return {"code": self.code, "title": self.title, "strength": self.strength, "evidence": self.evidence,
-                "figures": figures}
+        return {
+            "code": self.code,
+            "title": self.title,
+            "strength": self.strength,
+            "evidence": self.evidence,
+            "figures": figures,
+        }
 
 
 def _finite(v: Any) -> Any:

@@ -1,6 +1,8 @@
-"""Convention mistakes as corrections: each hypothesis maps the engine's output back to what it would
+"""Convention mistakes as corrections: each hypothesis maps the engine's output back to what it
+would
 be without the mistake. A hypothesis is named only when its correction brings the force and the
-stiffness within tolerance of the oracle (or it is reported as partly explaining, with the residual).
+stiffness within tolerance of the oracle (or it is reported as partly explaining, with the
+residual).
 
 All functions are pure: arrays in, arrays out. f is (n, 3), K scipy sparse (3n, 3n),
 dof = 3 * node + component.
@@ -14,15 +16,26 @@ from typing import Callable, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Correction", "convention_corrections", "component_major_to_node_major", "permute_nodes",
-           "transpose_blocks", "fit_scale", "match_nodes", "describe_permutation", "common_factor_name"]
+__all__ = [
+    "Correction",
+    "convention_corrections",
+    "component_major_to_node_major",
+    "permute_nodes",
+    "transpose_blocks",
+    "fit_scale",
+    "match_nodes",
+    "describe_permutation",
+    "common_factor_name",
+]
 
 Output = Tuple[np.ndarray, sp.csr_matrix, Optional[float]]
 
 
 @dataclass(frozen=True)
 class Correction:
-    """code, title: the mistake; apply: engine output -> corrected output (None when not applicable)."""
+    """code, title: the mistake; apply: engine output -> corrected output (None when not
+    applicable).
+    """
 
     code: str
     title: str
@@ -30,7 +43,7 @@ class Correction:
 
 
 def component_major_to_node_major(n: int) -> np.ndarray:
-    """p with node-major index i = p-th entry read: engine wrote value of dof 3a+c at c*n+a."""
+    """P with node-major index i = p-th entry read: engine wrote value of dof 3a+c at c*n+a."""
     a, c = np.divmod(np.arange(3 * n), 3)
     return c * n + a
 
@@ -58,7 +71,7 @@ def transpose_blocks(K: sp.csr_matrix) -> sp.csr_matrix:
 
 
 def fit_scale(engine: np.ndarray, oracle: np.ndarray) -> Optional[float]:
-    """s minimising ||s engine - oracle|| (None if engine is zero)."""
+    """S minimising ||s engine - oracle|| (None if engine is zero)."""
     ee = float(np.vdot(engine, engine))
     return None if ee == 0 else float(np.vdot(engine, oracle)) / ee
 
@@ -67,9 +80,12 @@ def _sparse_dot(A: sp.spmatrix, B: sp.spmatrix) -> float:
     return float(sp.csr_matrix(A).multiply(B).sum())
 
 
-def match_nodes(f_e: np.ndarray, K_e: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix) -> Optional[np.ndarray]:
-    """q with engine node q[a] carrying oracle node a's values, matched on force and diagonal block;
-    None when the match is not one to one (symmetric nodes) or is the identity."""
+def match_nodes(
+    f_e: np.ndarray, K_e: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix
+) -> Optional[np.ndarray]:
+    """Q with engine node q[a] carrying oracle node a's values, matched on force and diagonal block;
+    None when the match is not one to one (symmetric nodes) or is the identity.
+    """
     from scipy.spatial import cKDTree
 
     def features(f, K):
@@ -93,7 +109,9 @@ def describe_permutation(q: np.ndarray) -> str:
     if counts.max() >= n - 2 and k != 0:
         k_signed = k if k <= n // 2 else k - n
         hint = " (1-based node numbers?)" if k_signed == 1 else ""
-        return f"node index offset by {k_signed:+d}: node a's values sit at index a{k_signed:+d}{hint}"
+        return (
+            f"node index offset by {k_signed:+d}: node a's values sit at index a{k_signed:+d}{hint}"
+        )
     moved = np.flatnonzero(q != np.arange(n))
     pairs = ", ".join(f"{a}->{q[a]}" for a in moved[:6])
     return f"nodes permuted: {moved.size} of {n} nodes moved ({pairs}{', ...' if moved.size > 6 else ''})"
@@ -101,9 +119,12 @@ def describe_permutation(q: np.ndarray) -> str:
 
 def common_factor_name(ratio: float, mean_volume: float, uniform_volume: bool) -> str:
     """Words for an engine/oracle ratio: the usual suspects, else the number."""
-    named = {2.0: "factor 2 (e.g. energy counted twice, or C - I used for E = (C - I)/2)",
-             0.5: "factor 1/2 (e.g. a missing 2 in S = 2 dW/dC)",
-             6.0: "factor 6 (the 1/6 of the tetrahedron volume missing)", 1.0 / 6.0: "factor 1/6"}
+    named = {
+        2.0: "factor 2 (e.g. energy counted twice, or C - I used for E = (C - I)/2)",
+        0.5: "factor 1/2 (e.g. a missing 2 in S = 2 dW/dC)",
+        6.0: "factor 6 (the 1/6 of the tetrahedron volume missing)",
+        1.0 / 6.0: "factor 1/6",
+    }
     words = [name for value, name in named.items() if abs(ratio / value - 1.0) < 1e-6]
     if uniform_volume and abs(ratio * mean_volume - 1.0) < 1e-6:
         words.append(f"volume weighting missing (engine = oracle / V0, V0 = {mean_volume:.3e} m^3)")
@@ -114,50 +135,90 @@ def common_factor_name(ratio: float, mean_volume: float, uniform_volume: bool) -
     return f"factor {ratio:.6g}"
 
 
-def convention_corrections(f_o: np.ndarray, K_o: sp.csr_matrix, f_e: np.ndarray, K_e: sp.csr_matrix) -> List[Correction]:
+def convention_corrections(
+    f_o: np.ndarray, K_o: sp.csr_matrix, f_e: np.ndarray, K_e: sp.csr_matrix
+) -> List[Correction]:
     """The convention hypotheses for one case, most specific first."""
     n = f_o.shape[0]
     cm = component_major_to_node_major(n)
     out = [
-        Correction("force-sign", "force sign flipped (f = +dW/dx, the residual, instead of -dW/dx)",
-                   lambda f, K, W: (-f, K, W)),
-        Correction("stiffness-sign", "stiffness sign flipped (df/dx = -K given instead of K = d2W/dx2)",
-                   lambda f, K, W: (f, -K, W)),
+        Correction(
+            "force-sign",
+            "force sign flipped (f = +dW/dx, the residual, instead of -dW/dx)",
+            lambda f, K, W: (-f, K, W),
+        ),
+        Correction(
+            "stiffness-sign",
+            "stiffness sign flipped (df/dx = -K given instead of K = d2W/dx2)",
+            lambda f, K, W: (f, -K, W),
+        ),
         Correction("both-signs", "force and stiffness signs flipped", lambda f, K, W: (-f, -K, W)),
-        Correction("dof-order", "component-major dof order (c*n + node) instead of node-major (3*node + c)",
-                   lambda f, K, W: (_reindex_vector(f, cm), _reindex_matrix(K, cm), W)),
-        Correction("dof-order-force", "force in component-major dof order (stiffness node-major)",
-                   lambda f, K, W: (_reindex_vector(f, cm), K, W)),
-        Correction("dof-order-stiffness", "stiffness in component-major dof order (force node-major)",
-                   lambda f, K, W: (f, _reindex_matrix(K, cm), W)),
-        Correction("block-transpose", "each 3x3 node block of K transposed (K_ab^T written for K_ab)",
-                   lambda f, K, W: (f, transpose_blocks(K), W)),
-        Correction("unsymmetric", "K is not symmetric: its symmetric part is right",
-                   lambda f, K, W: (f, (0.5 * (K + K.T)).tocsr(), W)),
-        Correction("one-triangle", "only one triangle of the symmetric K written (upper or lower "
-                   "storage read as a full matrix)",
-                   lambda f, K, W: (f, _full_from_triangle(K), W)),
-        Correction("both-triangles", "both triangles summed: every off-diagonal entry counted "
-                   "twice "
-                   "(a full K added to its transpose, the diagonal once)",
-                   lambda f, K, W: (f, (0.5 * (K + sp.diags(K.diagonal()))).tocsr(), W)),
+        Correction(
+            "dof-order",
+            "component-major dof order (c*n + node) instead of node-major (3*node + c)",
+            lambda f, K, W: (_reindex_vector(f, cm), _reindex_matrix(K, cm), W),
+        ),
+        Correction(
+            "dof-order-force",
+            "force in component-major dof order (stiffness node-major)",
+            lambda f, K, W: (_reindex_vector(f, cm), K, W),
+        ),
+        Correction(
+            "dof-order-stiffness",
+            "stiffness in component-major dof order (force node-major)",
+            lambda f, K, W: (f, _reindex_matrix(K, cm), W),
+        ),
+        Correction(
+            "block-transpose",
+            "each 3x3 node block of K transposed (K_ab^T written for K_ab)",
+            lambda f, K, W: (f, transpose_blocks(K), W),
+        ),
+        Correction(
+            "unsymmetric",
+            "K is not symmetric: its symmetric part is right",
+            lambda f, K, W: (f, (0.5 * (K + K.T)).tocsr(), W),
+        ),
+        Correction(
+            "one-triangle",
+            "only one triangle of the symmetric K written (upper or lower "
+            "storage read as a full matrix)",
+            lambda f, K, W: (f, _full_from_triangle(K), W),
+        ),
+        Correction(
+            "both-triangles",
+            "both triangles summed: every off-diagonal entry counted "
+            "twice "
+            "(a full K added to its transpose, the diagonal once)",
+            lambda f, K, W: (f, (0.5 * (K + sp.diags(K.diagonal()))).tocsr(), W),
+        ),
     ]
     for k in (1, -1, 2, -2):
         q = (np.arange(n) + k) % n
         p = permute_nodes(q)
-        out.append(Correction(f"node-offset{k:+d}", describe_permutation(q),
-                              lambda f, K, W, p=p: (_reindex_vector(f, p), _reindex_matrix(K, p), W)))
+        out.append(
+            Correction(
+                f"node-offset{k:+d}",
+                describe_permutation(q),
+                lambda f, K, W, p=p: (_reindex_vector(f, p), _reindex_matrix(K, p), W),
+            )
+        )
     q = match_nodes(f_e, K_e, f_o, K_o)
     if q is not None and not any(np.array_equal(q, (np.arange(n) + k) % n) for k in (1, -1, 2, -2)):
         p = permute_nodes(q)
-        out.append(Correction("node-permutation", describe_permutation(q),
-                              lambda f, K, W, p=p: (_reindex_vector(f, p), _reindex_matrix(K, p), W)))
+        out.append(
+            Correction(
+                "node-permutation",
+                describe_permutation(q),
+                lambda f, K, W, p=p: (_reindex_vector(f, p), _reindex_matrix(K, p), W),
+            )
+        )
     return out
 
 
 def _full_from_triangle(K: sp.csr_matrix) -> sp.csr_matrix:
     """K + K^T - diag K when one strict triangle of K is empty, else K unchanged (then the
-    correction explains nothing and is not named). K: (3n, 3n)."""
+    correction explains nothing and is not named). K: (3n, 3n).
+    """
     K = sp.csr_matrix(K)
     if sp.tril(K, -1).count_nonzero() and sp.triu(K, 1).count_nonzero():
         return K
@@ -165,7 +226,9 @@ def _full_from_triangle(K: sp.csr_matrix) -> sp.csr_matrix:
 
 
 def scale_corrections(f_o, K_o, f_e, K_e, W_o, W_e) -> List[Tuple[str, str, float, Output]]:
-    """Global factors fitted on force and stiffness: (code, which, engine/oracle ratio, corrected output)."""
+    """Global factors fitted on force and stiffness: (code, which, engine/oracle ratio, corrected
+    output).
+    """
     out = []
     s_f = fit_scale(f_e, f_o)
     kk = _sparse_dot(K_e, K_e)
@@ -174,7 +237,9 @@ def scale_corrections(f_o, K_o, f_e, K_e, W_o, W_e) -> List[Tuple[str, str, floa
         # One factor for both: a force scaled differently is left unexplained.
         W = None if W_e is None else W_e * s_K
         out.append(("scale", "force and stiffness", 1.0 / s_K, (f_e * s_K, (K_e * s_K).tocsr(), W)))
-        out.append(("scale-stiffness", "stiffness only", 1.0 / s_K, (f_e, (K_e * s_K).tocsr(), W_e)))
+        out.append(
+            ("scale-stiffness", "stiffness only", 1.0 / s_K, (f_e, (K_e * s_K).tocsr(), W_e))
+        )
     if s_f is not None and s_f > 0:
         out.append(("scale-force", "force only", 1.0 / s_f, (f_e * s_f, K_e, W_e)))
     return out

@@ -1,4 +1,5 @@
-"""The conformance kit: cases (model x mesh x state) plus probes, written to and read from a directory.
+"""The conformance kit: cases (model x mesh x state) plus probes, written to and read from a
+directory.
 
 Layout of a kit directory (docs/conventions.md, "Exchange format")::
 
@@ -42,7 +43,16 @@ from conformance.exchange import (
 )
 from conformance.spec import CaseInput, model_label
 
-__all__ = ["KitCase", "PROBES", "PROBE_STEP", "build_cases", "write_kit", "read_kit", "KitManifest", "case_id"]
+__all__ = [
+    "KitCase",
+    "PROBES",
+    "PROBE_STEP",
+    "build_cases",
+    "write_kit",
+    "read_kit",
+    "KitManifest",
+    "case_id",
+]
 
 PROBES = 4
 PROBE_STEP = 1e-4  # eps_0 as a fraction of the mean edge length
@@ -73,7 +83,9 @@ def case_id(model: Any, mesh: str, state: str) -> str:
 
 
 def probe_direction(points: np.ndarray, seed: int) -> np.ndarray:
-    """A seeded random nodal direction (n, 3) scaled to eps_0 = PROBE_STEP x mean edge at its largest node."""
+    """A seeded random nodal direction (n, 3) scaled to eps_0 = PROBE_STEP x mean edge at its
+    largest node.
+    """
     rng = np.random.default_rng(seed)
     d = rng.standard_normal(points.shape)
     return d / np.linalg.norm(d, axis=1).max()
@@ -87,7 +99,8 @@ def probe_lengths(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     smallest height of the cells around the node when smaller. A step of 1e-4 of the mean edge
     is a strain of 10 % in a cap of quality 1e-3, where no fit can resolve the tangent; scaled
     by each node's own cells, every cell is strained by about 1e-4, the large cells of a graded
-    mesh as much as its tiny ones. points (n, 3), cells (m, 4) [length unit of points]."""
+    mesh as much as its tiny ones. points (n, 3), cells (m, 4) [length unit of points].
+    """
     from meshes.hard import heights
 
     out = np.full(len(points), mean_edge_length(points, cells))
@@ -96,15 +109,21 @@ def probe_lengths(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     return out
 
 
-def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, np.ndarray]],
-                states: Sequence[StateSpec], *, probes: int = PROBES) -> List[KitCase]:
+def build_cases(
+    models: Sequence[Any],
+    meshes: Sequence[Tuple[str, np.ndarray, np.ndarray]],
+    states: Sequence[StateSpec],
+    *,
+    probes: int = PROBES,
+) -> List[KitCase]:
     """Every model x mesh x state, each followed by its probes (seeded, reproducible).
 
     A state is a name of :data:`common.states.STATES` or a pair (name, function(X, cells) -> x).
     """
     out: List[KitCase] = []
-    named = [(s, lambda X, c, s=s: apply_state(s, X, c)) if isinstance(s, str) else s
-             for s in states]
+    named = [
+        (s, lambda X, c, s=s: apply_state(s, X, c)) if isinstance(s, str) else s for s in states
+    ]
     states = [name for name, _ in named]
     for mesh_label, points, cells in meshes:
         h = probe_lengths(np.asarray(points, dtype=float), np.asarray(cells))[:, None]
@@ -112,44 +131,80 @@ def build_cases(models: Sequence[Any], meshes: Sequence[Tuple[str, np.ndarray, n
         for model in models:
             for k_state, state in enumerate(states):
                 cid = case_id(model, mesh_label, state)
-                out.append(KitCase(CaseInput(cid, points, cells, xs[state], model), "case", mesh_label, state))
+                out.append(
+                    KitCase(
+                        CaseInput(cid, points, cells, xs[state], model), "case", mesh_label, state
+                    )
+                )
                 d = probe_direction(np.asarray(points), seed=1000 + k_state) * (PROBE_STEP * h)
                 for k in range(probes):
                     x = xs[state] + d / 2**k
-                    out.append(KitCase(CaseInput(f"{cid}~probe{k}", points, cells, x, model), "probe", mesh_label,
-                                       state, probe_of=cid, step=k))
+                    out.append(
+                        KitCase(
+                            CaseInput(f"{cid}~probe{k}", points, cells, x, model),
+                            "probe",
+                            mesh_label,
+                            state,
+                            probe_of=cid,
+                            step=k,
+                        )
+                    )
     ids = [c.case_id for c in out]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})
-        raise ValueError(f"two cases share an id ({', '.join(dup[:3])}): give the meshes distinct names")
+        raise ValueError(
+            f"two cases share an id ({', '.join(dup[:3])}): give the meshes distinct names"
+        )
     return out
 
 
-def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "",
-              precision: str = "double") -> Dict[str, Any]:
+def write_kit(
+    folder: str, cases: Sequence[KitCase], *, command: str = "", precision: str = "double"
+) -> Dict[str, Any]:
     """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten).
 
     precision: the engine's declared precision, "double" or "single" (float32), kept in the
-    manifest; ``check`` then holds every case to that precision's tolerances."""
+    manifest; ``check`` then holds every case to that precision's tolerances.
+    """
     if precision not in ("double", "single"):
         raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     if os.path.exists(folder) and (not os.path.isdir(folder) or os.listdir(folder)):
-        raise FileExistsError(f"{folder}: exists and is not an empty directory; export writes only into a new one")
+        raise FileExistsError(
+            f"{folder}: exists and is not an empty directory; export writes only into a new one"
+        )
     os.makedirs(folder, exist_ok=True)
     entries = []
     for c in cases:
         rel_in = f"cases/{c.case_id}/input"
         rel_out = f"cases/{c.case_id}/output"
-        write_case_input(os.path.join(folder, rel_in), c.input,
-                         extra={"role": c.role, "mesh": c.mesh, "state": c.state})
-        entry = {"id": c.case_id, "role": c.role, "model": model_label(c.input.model), "mesh": c.mesh, "state": c.state,
-                 "n_nodes": c.input.n_nodes, "n_cells": c.input.n_cells, "input": rel_in, "output": rel_out,
-                 "input_sha256": _hashes(os.path.join(folder, rel_in))}
+        write_case_input(
+            os.path.join(folder, rel_in),
+            c.input,
+            extra={"role": c.role, "mesh": c.mesh, "state": c.state},
+        )
+        entry = {
+            "id": c.case_id,
+            "role": c.role,
+            "model": model_label(c.input.model),
+            "mesh": c.mesh,
+            "state": c.state,
+            "n_nodes": c.input.n_nodes,
+            "n_cells": c.input.n_cells,
+            "input": rel_in,
+            "output": rel_out,
+            "input_sha256": _hashes(os.path.join(folder, rel_in)),
+        }
         if c.role == "probe":
             entry.update(probe_of=c.probe_of, step=c.step)
         entries.append(entry)
-    manifest = {"format": KIT_FORMAT, "format_version": FORMAT_VERSION, "created_by": command,
-                "conventions": "docs/conventions.md", "precision": precision, "cases": entries}
+    manifest = {
+        "format": KIT_FORMAT,
+        "format_version": FORMAT_VERSION,
+        "created_by": command,
+        "conventions": "docs/conventions.md",
+        "precision": precision,
+        "cases": entries,
+    }
     with open(os.path.join(folder, "manifest.json"), "w") as fh:
         json.dump(manifest, fh, indent=1)
     return manifest
@@ -171,7 +226,8 @@ class KitManifest:
 
 
 def read_kit(folder: str) -> KitManifest:
-    """Read a kit; a bad case becomes an entry of ``errors`` (case id -> message), the others are kept.
+    """Read a kit; a bad case becomes an entry of ``errors`` (case id -> message), the others are
+    kept.
 
     Raises:
         FormatError: the kit manifest itself is missing or malformed (then nothing can run).
@@ -205,18 +261,31 @@ def _read_entry(folder: str, e: Mapping[str, Any], manifest_path: str) -> KitCas
         if not isinstance(e.get(key), str):
             raise FormatError(f"case {cid}: {manifest_path}: field {key!r} missing or not a string")
     if e["role"] not in ("case", "probe"):
-        raise FormatError(f"case {cid}: {manifest_path}: role must be 'case' or 'probe', not {e['role']!r}")
+        raise FormatError(
+            f"case {cid}: {manifest_path}: role must be 'case' or 'probe', not {e['role']!r}"
+        )
     in_dir = os.path.join(folder, e["input"])
     for name, digest in dict(e.get("input_sha256") or {}).items():
         p = os.path.join(in_dir, name)
         if not os.path.isfile(p):
             raise FormatError(f"case {cid}: {p}: file missing")
         if sha256_of(p) != digest:
-            raise FormatError(f"case {cid}: {p}: changed since export (SHA-256 differs); re-export the kit")
+            raise FormatError(
+                f"case {cid}: {p}: changed since export (SHA-256 differs); re-export the kit"
+            )
     case = read_case_input(in_dir, cid)
     if case.case_id != cid:
-        raise FormatError(f"case {cid}: {os.path.join(in_dir, 'case.json')}: names case {case.case_id!r}")
-    return KitCase(case, e["role"], e["mesh"], e["state"], probe_of=e.get("probe_of"), step=int(e.get("step", 0)))
+        raise FormatError(
+            f"case {cid}: {os.path.join(in_dir, 'case.json')}: names case {case.case_id!r}"
+        )
+    return KitCase(
+        case,
+        e["role"],
+        e["mesh"],
+        e["state"],
+        probe_of=e.get("probe_of"),
+        step=int(e.get("step", 0)),
+    )
 
 
 def primary_and_probes(cases: Iterable[KitCase]) -> List[Tuple[KitCase, List[KitCase]]]:
@@ -226,4 +295,8 @@ def primary_and_probes(cases: Iterable[KitCase]) -> List[Tuple[KitCase, List[Kit
     for c in cases:
         if c.role == "probe":
             probes.setdefault(c.probe_of or "", []).append(c)
-    return [(c, sorted(probes.get(c.case_id, []), key=lambda p: p.step)) for c in cases if c.role == "case"]
+    return [
+        (c, sorted(probes.get(c.case_id, []), key=lambda p: p.step))
+        for c in cases
+        if c.role == "case"
+    ]

@@ -1,5 +1,6 @@
 """The oracle's values for a case: energy, force and stiffness from the UFL oracle, and the parts of
-its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes."""
+its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes.
+"""
 
 from __future__ import annotations
 
@@ -13,9 +14,9 @@ import scipy.sparse as sp
 
 from conformance.compare import Scales, Tolerances
 from conformance.consistency import ReferenceProbes
-from conformance.precision import sensitivity_of, single_tolerances
 from conformance.energy import energy_density
 from conformance.parts import PartsOracle
+from conformance.precision import sensitivity_of, single_tolerances
 from conformance.spec import CaseInput, model_frame, model_to_manifest
 
 __all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
@@ -67,7 +68,8 @@ class OracleCache:
     def column_derivatives(self, case: CaseInput, step: np.ndarray) -> sp.csr_matrix:
         """G (3n, 3n): column j is the derivative of the oracle's K column j along dof j, by a
         forward difference of step ``step[j]`` [m] (3n oracle stiffness assemblies: small
-        meshes only)."""
+        meshes only).
+        """
         oracle = self._oracles[_key(case)]
         x = np.asarray(case.positions, dtype=np.float64).ravel()
         K0 = sp.csc_matrix(oracle.stiffness(case.positions))
@@ -82,7 +84,8 @@ class OracleCache:
     def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
         """The case's tolerances at single precision (:mod:`conformance.precision`), measured by
         the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
-        perturbed mesh, not kept)."""
+        perturbed mesh, not kept).
+        """
         from reference_fem import UFLOracle
 
         def evaluate(points: np.ndarray, positions: np.ndarray):
@@ -90,11 +93,14 @@ class OracleCache:
             f, K = oracle.force_and_stiffness(positions)
             return float(oracle.energy(positions)), f, sp.csr_matrix(K)
 
-        sens = sensitivity_of(evaluate, case.points, case.positions,
-                              (ref.energy, ref.force, ref.stiffness), s)
+        sens = sensitivity_of(
+            evaluate, case.points, case.positions, (ref.energy, ref.force, ref.stiffness), s
+        )
         return single_tolerances(sens)
 
-    def probes(self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]) -> ReferenceProbes:
+    def probes(
+        self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]
+    ) -> ReferenceProbes:
         """The oracle's force and energy at the probes of ``case`` (same mesh and model), with
         ``ref`` at the base state: what calibrates the engine's self-consistency test.
 

@@ -45,7 +45,7 @@ CAP = 1e-2
 
 
 def perturbed(a: np.ndarray, seed: int) -> np.ndarray:
-    """a (any shape) with every entry moved by a seeded relative amount in [-U32, U32]."""
+    """A (any shape) with every entry moved by a seeded relative amount in [-U32, U32]."""
     rng = np.random.default_rng(seed)
     return a * (1.0 + U32 * rng.uniform(-1.0, 1.0, size=a.shape))
 
@@ -54,17 +54,28 @@ def single_tolerances(sensitivity: Errors) -> Tolerances:
     """Tolerances at single precision from the relative change of the oracle's energy, force and
     stiffness when the case's coordinates carry float32 round-off (:func:`sensitivity_of`),
     each at most CAP: where float32 cannot resolve a case better than that, a looser limit would
-    pass anything, and the basis says so."""
+    pass anything, and the basis says so.
+    """
     energy = U32 if sensitivity.energy is None else sensitivity.energy
-    raw = {q: SAFETY * max(v, U32) for q, v in
-           (("force", sensitivity.force), ("stiffness", sensitivity.stiffness), ("energy", energy))}
+    raw = {
+        q: SAFETY * max(v, U32)
+        for q, v in (
+            ("force", sensitivity.force),
+            ("stiffness", sensitivity.stiffness),
+            ("energy", energy),
+        )
+    }
     capped = [q for q, v in raw.items() if v > CAP]
-    basis = (f"{SAFETY:g} x max(float32 round-off u = {U32:.1e}, the oracle's relative change "
-             f"when the coordinates carry u): force {sensitivity.force:.1e}, stiffness "
-             f"{sensitivity.stiffness:.1e}, energy {energy:.1e}")
+    basis = (
+        f"{SAFETY:g} x max(float32 round-off u = {U32:.1e}, the oracle's relative change "
+        f"when the coordinates carry u): force {sensitivity.force:.1e}, stiffness "
+        f"{sensitivity.stiffness:.1e}, energy {energy:.1e}"
+    )
     if capped:
-        basis += (f"; capped at {CAP:g} for the {' and '.join(capped)}: float32 cannot resolve "
-                  "this case better than that, so a float32 engine may fail it")
+        basis += (
+            f"; capped at {CAP:g} for the {' and '.join(capped)}: float32 cannot resolve "
+            "this case better than that, so a float32 engine may fail it"
+        )
     limits = (min(raw[q], CAP) for q in ("force", "stiffness", "energy"))
     return Tolerances(*limits, "single", basis, tuple(capped))
 

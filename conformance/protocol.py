@@ -25,18 +25,28 @@ from conformance.kit import KitCase, build_cases
 from conformance.run import CaseError, CheckRun, run_check
 from conformance.spec import CaseInput
 
-__all__ = ["Implementation", "as_engine_output", "check_implementation", "assert_matches_oracle", "resolve_models",
-           "python_evaluator"]
+__all__ = [
+    "Implementation",
+    "as_engine_output",
+    "check_implementation",
+    "assert_matches_oracle",
+    "resolve_models",
+    "python_evaluator",
+]
 
 
 @runtime_checkable
 class Implementation(Protocol):
-    """Force, stiffness and optionally energy of a case (docs/conventions.md for signs and order)."""
+    """Force, stiffness and optionally energy of a case (docs/conventions.md for signs and
+    order).
+    """
 
     def __call__(self, case: CaseInput) -> Any: ...
 
 
-def as_engine_output(result: Any, n_nodes: int, case_id: str, source: str = "implementation") -> EngineOutput:
+def as_engine_output(
+    result: Any, n_nodes: int, case_id: str, source: str = "implementation"
+) -> EngineOutput:
     """Normalise and validate what an implementation returned (shape, node count, finiteness)."""
     where = f"case {case_id}: {source}"
     if isinstance(result, EngineOutput):
@@ -49,23 +59,34 @@ def as_engine_output(result: Any, n_nodes: int, case_id: str, source: str = "imp
         f, K = result[:2]
         W = result[2] if len(result) == 3 else None
     else:
-        raise CaseError(f"{where}: returned {type(result).__name__}; expected (force, stiffness[, energy]), "
-                        "a mapping or an EngineOutput")
+        raise CaseError(
+            f"{where}: returned {type(result).__name__}; expected (force, stiffness[, energy]), "
+            "a mapping or an EngineOutput"
+        )
     # float32 arrays: the engine computes in single precision (the check's "auto" precision).
     single = np.asarray(f).dtype == np.float32 or getattr(K, "dtype", None) == np.float32
     precision = "single" if single else "double"
     f = np.asarray(f, dtype=np.float64)
     N = 3 * n_nodes
     if f.size != N:
-        raise CaseError(f"{where}: force has {f.size} values (shape {f.shape}), expected (n, 3) = ({n_nodes}, 3)")
+        raise CaseError(
+            f"{where}: force has {f.size} values (shape {f.shape}), expected (n, 3) = ({n_nodes}, "
+            "3)"
+        )
     f = f.reshape(n_nodes, 3)
-    K = sp.csr_matrix(K, dtype=np.float64) if sp.issparse(K) else sp.csr_matrix(np.asarray(K, dtype=np.float64))
+    K = (
+        sp.csr_matrix(K, dtype=np.float64)
+        if sp.issparse(K)
+        else sp.csr_matrix(np.asarray(K, dtype=np.float64))
+    )
     if K.shape != (N, N):
         raise CaseError(f"{where}: stiffness has shape {K.shape}, expected (3n, 3n) = ({N}, {N})")
     for name, arr in (("force", f), ("stiffness", K.data)):
         bad = ~np.isfinite(arr)
         if bad.any():
-            raise CaseError(f"{where}: {name} has {int(bad.sum())} non-finite value(s) (NaN or inf)")
+            raise CaseError(
+                f"{where}: {name} has {int(bad.sum())} non-finite value(s) (NaN or inf)"
+            )
     if W is not None:
         W = float(W)
         if not np.isfinite(W):
@@ -74,8 +95,10 @@ def as_engine_output(result: Any, n_nodes: int, case_id: str, source: str = "imp
 
 
 def python_evaluator(impl: Callable[[CaseInput], Any]) -> Callable[[KitCase], EngineOutput]:
-    """An evaluator for :func:`conformance.run.run_check` that calls ``impl``; an exception it raises
-    becomes a bad-input outcome for that case (named with the exception)."""
+    """An evaluator for :func:`conformance.run.run_check` that calls ``impl``; an exception it
+    raises
+    becomes a bad-input outcome for that case (named with the exception).
+    """
 
     def evaluate(case: KitCase) -> EngineOutput:
         try:
@@ -83,19 +106,29 @@ def python_evaluator(impl: Callable[[CaseInput], Any]) -> Callable[[KitCase], En
         except CaseError:
             raise
         except Exception as exc:  # the user's code failed on this case: report it, run the others
-            raise CaseError(f"case {case.case_id}: implementation raised {type(exc).__name__}: {exc}") from exc
+            raise CaseError(
+                f"case {case.case_id}: implementation raised {type(exc).__name__}: {exc}"
+            ) from exc
         return as_engine_output(result, case.input.n_nodes, case.case_id)
 
     return evaluate
 
 
-def resolve_models(material: Union[None, str, Any, Sequence[Any]] = None, energy: Any = None) -> list:
-    """Models from a material name ('all', 'NeoHookean', ...), material instance(s) or a user energy."""
+def resolve_models(
+    material: Union[None, str, Any, Sequence[Any]] = None, energy: Any = None
+) -> list:
+    """Models from a material name ('all', 'NeoHookean', ...), material instance(s) or a user
+    energy.
+    """
     from common.cases import parse_materials
 
     models: list = []
     if material is not None:
-        items = [material] if isinstance(material, str) or not isinstance(material, Iterable) else list(material)
+        items = (
+            [material]
+            if isinstance(material, str) or not isinstance(material, Iterable)
+            else list(material)
+        )
         for m in items:
             models.extend(parse_materials(m) if isinstance(m, str) else [m])
     if energy is not None:
@@ -112,16 +145,25 @@ def _meshes(mesh: Union[str, tuple, Sequence]) -> list:
     out = []
     for m in items:
         if isinstance(m, tuple) and len(m) == 2:
-            out.append(("user-mesh", np.asarray(m[0], dtype=float), np.asarray(m[1], dtype=np.int64)))
+            out.append(
+                ("user-mesh", np.asarray(m[0], dtype=float), np.asarray(m[1], dtype=np.int64))
+            )
         else:
             pts, cells, label = meshes.resolve(m)
             out.append((label, pts, cells))
     return out
 
 
-def check_implementation(impl: Callable[[CaseInput], Any], *, material: Any = None, energy: Any = None,
-                         mesh: Any = "single-tet", states: Sequence[str] = ("uniaxial", "shear", "random"),
-                         probes: bool = True, precision: str = "auto") -> CheckRun:
+def check_implementation(
+    impl: Callable[[CaseInput], Any],
+    *,
+    material: Any = None,
+    energy: Any = None,
+    mesh: Any = "single-tet",
+    states: Sequence[str] = ("uniaxial", "shear", "random"),
+    probes: bool = True,
+    precision: str = "auto",
+) -> CheckRun:
     """Run ``impl`` on every model x mesh x state (with probes) and diagnose each case.
 
     mesh: a built-in name, a file path, a (points, cells) pair, or a list of them.
@@ -129,18 +171,34 @@ def check_implementation(impl: Callable[[CaseInput], Any], *, material: Any = No
     """
     if precision not in ("auto", "double", "single"):
         raise ValueError(f"precision must be 'auto', 'double' or 'single', not {precision!r}")
-    cases = build_cases(resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0)
+    cases = build_cases(
+        resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0
+    )
     return run_check(cases, python_evaluator(impl), precision=precision)
 
 
-def assert_matches_oracle(impl: Callable[[CaseInput], Any], *, material: Any = None, energy: Any = None,
-                          mesh: Any = "single-tet", states: Sequence[str] = ("uniaxial", "shear", "random"),
-                          probes: bool = True) -> CheckRun:
-    """:func:`check_implementation`, raising AssertionError with the diagnosis unless every case passes."""
-    run = check_implementation(impl, material=material, energy=energy, mesh=mesh, states=states, probes=probes)
+def assert_matches_oracle(
+    impl: Callable[[CaseInput], Any],
+    *,
+    material: Any = None,
+    energy: Any = None,
+    mesh: Any = "single-tet",
+    states: Sequence[str] = ("uniaxial", "shear", "random"),
+    probes: bool = True,
+) -> CheckRun:
+    """:func:`check_implementation`, raising AssertionError with the diagnosis unless every case
+    passes.
+    """
+    run = check_implementation(
+        impl, material=material, energy=energy, mesh=mesh, states=states, probes=probes
+    )
     if run.exit_code != 0:
         failing = [o for o in run.outcomes if o.status != "passed"]
-        body = "\n".join(o.diagnosis.text() if o.diagnosis is not None else f"case {o.case_id}: BAD INPUT: {o.message}"
-                         for o in failing)
+        body = "\n".join(
+            o.diagnosis.text()
+            if o.diagnosis is not None
+            else f"case {o.case_id}: BAD INPUT: {o.message}"
+            for o in failing
+        )
         raise AssertionError(f"{run.summary()}\n{body}")
     return run

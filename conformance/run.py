@@ -1,4 +1,5 @@
-"""Check an engine case by case: get its output (files, a command or a Python callable), compare with
+"""Check an engine case by case: get its output (files, a command or a Python callable), compare
+with
 the oracle, diagnose; a bad case is reported and the others still run.
 
 The engine is reached through an *evaluator*: ``evaluate(kit_case) -> EngineOutput``, raising
@@ -16,7 +17,7 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
-from conformance.compare import DOUBLE, Tolerances, scales
+from conformance.compare import DOUBLE, scales
 from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
@@ -32,12 +33,16 @@ Evaluator = Callable[[KitCase], EngineOutput]
 
 
 class CaseError(FormatError):
-    """One case could not be evaluated: bad output, a crash or a time limit (message names the case)."""
+    """One case could not be evaluated: bad output, a crash or a time limit (message names the
+    case).
+    """
 
 
 @dataclass(frozen=True)
 class CaseOutcome:
-    """status: "passed", "failed" or "bad input"; diagnosis for compared cases, message otherwise."""
+    """status: "passed", "failed" or "bad input"; diagnosis for compared cases, message
+    otherwise.
+    """
 
     case_id: str
     model: str
@@ -50,8 +55,15 @@ class CaseOutcome:
     n_nodes: int = 0
 
     def to_dict(self) -> dict:
-        d = {"case": self.case_id, "model": self.model, "mesh": self.mesh, "state": self.state, "status": self.status,
-             "message": self.message, "seconds": self.seconds}
+        d = {
+            "case": self.case_id,
+            "model": self.model,
+            "mesh": self.mesh,
+            "state": self.state,
+            "status": self.status,
+            "message": self.message,
+            "seconds": self.seconds,
+        }
         if self.diagnosis is not None:
             d.update(self.diagnosis.to_dict())
         return d
@@ -80,8 +92,11 @@ class CheckRun:
     def summary(self) -> str:
         bad = sum(o.status == "bad input" for o in self.outcomes) + len(self.input_errors)
         failed = sum(o.status == "failed" for o in self.outcomes)
-        return (f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} failed, "
-                f"{bad} with bad input")
+        return (
+            f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} "
+            "failed, "
+            f"{bad} with bad input"
+        )
 
     def text(self) -> str:
         lines = [self.summary()]
@@ -94,24 +109,34 @@ class CheckRun:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        return {"summary": self.summary(), "exit_code": self.exit_code,
-                "cases": [o.to_dict() for o in self.outcomes], "input_errors": dict(self.input_errors)}
+        return {
+            "summary": self.summary(),
+            "exit_code": self.exit_code,
+            "cases": [o.to_dict() for o in self.outcomes],
+            "input_errors": dict(self.input_errors),
+        }
 
 
 def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> CheckRun:
     """:func:`_run_check` with NumPy's floating-point warnings silenced: every figure is checked
     for finiteness and a non-finite one is said in the verdict, so no raw RuntimeWarning reaches
-    the terminal."""
+    the terminal.
+    """
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         return _run_check(cases, evaluate, **options)
 
 
-def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
-               cache: Optional[OracleCache] = None,
-               input_errors: Optional[Dict[str, str]] = None,
-               progress: Optional[Callable[[str], None]] = None,
-               on_case: Optional[Callable[..., None]] = None, precision: str = "auto") -> CheckRun:
+def _run_check(
+    cases: Sequence[KitCase],
+    evaluate: Evaluator,
+    *,
+    cache: Optional[OracleCache] = None,
+    input_errors: Optional[Dict[str, str]] = None,
+    progress: Optional[Callable[[str], None]] = None,
+    on_case: Optional[Callable[..., None]] = None,
+    precision: str = "auto",
+) -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
 
     precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
@@ -126,15 +151,23 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
     for case, probes in primary_and_probes(cases):
         t0 = time.perf_counter()
         ci = case.input
-        label = dict(case_id=case.case_id, model=_model_name(ci.model), mesh=case.mesh, state=case.state,
-                     n_nodes=ci.n_nodes)
+        label = dict(
+            case_id=case.case_id,
+            model=_model_name(ci.model),
+            mesh=case.mesh,
+            state=case.state,
+            n_nodes=ci.n_nodes,
+        )
         if progress:
             progress(case.case_id)
         try:
             out = evaluate(case)
         except FormatError as exc:
-            run.outcomes.append(CaseOutcome(status="bad input", message=str(exc),
-                                            seconds=time.perf_counter() - t0, **label))
+            run.outcomes.append(
+                CaseOutcome(
+                    status="bad input", message=str(exc), seconds=time.perf_counter() - t0, **label
+                )
+            )
             continue
         probe_results, probe_errors = [], []
         for p in probes:
@@ -145,27 +178,63 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
                 probe_errors.append(str(exc))
         try:
             ref = cache.reference(ci)
-        except ValueError as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
-            run.outcomes.append(CaseOutcome(status="bad input", message=f"case {case.case_id}: the oracle cannot "
-                                            f"evaluate this case: {exc}", seconds=time.perf_counter() - t0, **label))
+        except (
+            ValueError
+        ) as exc:  # e.g. a user energy that is not finite at this state (ln of J <= 0)
+            run.outcomes.append(
+                CaseOutcome(
+                    status="bad input",
+                    message=f"case {case.case_id}: the oracle cannot evaluate this case: {exc}",
+                    seconds=time.perf_counter() - t0,
+                    **label,
+                )
+            )
             continue
         single = precision == "single" or (precision == "auto" and out.precision == "single")
-        cons = Consistency(None, None, note="; ".join(probe_errors)) if probe_errors \
+        cons = (
+            Consistency(None, None, note="; ".join(probe_errors))
+            if probe_errors
             else _self_consistency(cache, ci, ref, out, probes, probe_results, single)
+        )
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         tol = cache.single_precision(ci, ref, s) if single else DOUBLE
-        diag = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy, f_o=ref.force, K_o=ref.stiffness,
-                        W_o=ref.energy, s=s, points=ci.points, cells=ci.cells, x=ci.positions,
-                        parts=_lazy(lambda: cache.parts(ci)), consistency=cons if probes else None,
-                        tol=tol)
+        diag = diagnose(
+            case.case_id,
+            f=out.force,
+            K=out.stiffness,
+            W=out.energy,
+            f_o=ref.force,
+            K_o=ref.stiffness,
+            W_o=ref.energy,
+            s=s,
+            points=ci.points,
+            cells=ci.cells,
+            x=ci.positions,
+            parts=_lazy(lambda: cache.parts(ci)),
+            consistency=cons if probes else None,
+            tol=tol,
+        )
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
         if tol.capped and not diag.passed:
-            diag = replace(diag, findings=[*diag.findings, Finding(
-                "beyond-single-precision", "this case is beyond what float32 resolves", OBSERVED,
-                tol.basis, {"capped": list(tol.capped)})])
-        unexplained = not diag.passed and not diag.causes and \
-            not diag.tolerances.within(diag.errors, energy=False)
+            diag = replace(
+                diag,
+                findings=[
+                    *diag.findings,
+                    Finding(
+                        "beyond-single-precision",
+                        "this case is beyond what float32 resolves",
+                        OBSERVED,
+                        tol.basis,
+                        {"capped": list(tol.capped)},
+                    ),
+                ],
+            )
+        unexplained = (
+            not diag.passed
+            and not diag.causes
+            and not diag.tolerances.within(diag.errors, energy=False)
+        )
         if unexplained:
             diag = _variant_reading(diag, cache, ci, out, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
@@ -178,19 +247,40 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
         if not single and unexplained and not diag.causes and inexact:
             tol32 = cache.single_precision(ci, ref, s)
             if tol32.within(diag.errors):
-                cons32 = _self_consistency(cache, ci, ref, out, probes, probe_results, True) \
-                    if probes and not probe_errors else None
-                diag32 = diagnose(case.case_id, f=out.force, K=out.stiffness, W=out.energy,
-                                  f_o=ref.force, K_o=ref.stiffness, W_o=ref.energy, s=s,
-                                  points=ci.points, cells=ci.cells, x=ci.positions,
-                                  consistency=cons32, tol=tol32)
+                cons32 = (
+                    _self_consistency(cache, ci, ref, out, probes, probe_results, True)
+                    if probes and not probe_errors
+                    else None
+                )
+                diag32 = diagnose(
+                    case.case_id,
+                    f=out.force,
+                    K=out.stiffness,
+                    W=out.energy,
+                    f_o=ref.force,
+                    K_o=ref.stiffness,
+                    W_o=ref.energy,
+                    s=s,
+                    points=ci.points,
+                    cells=ci.cells,
+                    x=ci.positions,
+                    consistency=cons32,
+                    tol=tol32,
+                )
                 diag = _single_precision_reading(diag, diag32)
         status = diag.verdict
         message = ""
         if probe_errors:
             status, message = "bad input", "probe output unusable: " + "; ".join(probe_errors)
-        run.outcomes.append(CaseOutcome(status=status, diagnosis=diag, message=message,
-                                        seconds=time.perf_counter() - t0, **label))
+        run.outcomes.append(
+            CaseOutcome(
+                status=status,
+                diagnosis=diag,
+                message=message,
+                seconds=time.perf_counter() - t0,
+                **label,
+            )
+        )
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run
@@ -198,7 +288,8 @@ def _run_check(cases: Sequence[KitCase], evaluate: Evaluator, *,
 
 def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
     """Nothing explained the failure: does the engine compute a variant of the energy
-    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances."""
+    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances.
+    """
     from conformance.compare import errors
     from conformance.variants import match_variant
 
@@ -216,11 +307,18 @@ def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput,
         return diag
     v, (fv, Kv) = found
     e = errors(out.force, out.stiffness, None, fv, Kv, 0.0, s)
-    finding = Finding("energy-variant", f"your engine matches W' = {v.expression}", FULL,
-                      f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
-                      f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
-                      {"variant": v.rewrite.code, "expression": v.expression, "residual":
-                       max(e.force, e.stiffness)})
+    finding = Finding(
+        "energy-variant",
+        f"your engine matches W' = {v.expression}",
+        FULL,
+        f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
+        f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
+        {
+            "variant": v.rewrite.code,
+            "expression": v.expression,
+            "residual": max(e.force, e.stiffness),
+        },
+    )
     return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
@@ -228,11 +326,13 @@ def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput,
 FD_MAX_NODES = 400
 
 
-def _finite_difference_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput,
-                               ref) -> Diagnosis:
+def _finite_difference_reading(
+    diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, ref
+) -> Diagnosis:
     """The force is right and nothing explains the stiffness: is it forward differences of the
     force? Its error is then (h / 2) x the derivative of each column along its own dof; the
-    fitted h is named when that accounts for nearly all of the error (99 %)."""
+    fitted h is named when that accounts for nearly all of the error (99 %).
+    """
     from conformance.tangent import fit_finite_difference
 
     if ci.n_nodes > FD_MAX_NODES:
@@ -243,45 +343,70 @@ def _finite_difference_reading(diag: Diagnosis, cache: OracleCache, ci, out: Eng
     if fit is None or fit.explained < 0.99 or fit.step <= 0:
         return diag
     finding = Finding(
-        "finite-difference", "a finite-difference tangent: forward differences of the force "
-        f"with a step h = {fit.step:.2e} m", PARTIAL,
+        "finite-difference",
+        "a finite-difference tangent: forward differences of the force "
+        f"with a step h = {fit.step:.2e} m",
+        PARTIAL,
         f"K - K_oracle = (h/2) x the derivative of each column of K along its own dof, the leading "
         f"error of -(f(x + h e_j) - f(x)) / h, accounts for {100 * fit.explained:.2f} % of the "
         f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off of the "
         "differences)",
-        {"step": fit.step, "explained": fit.explained, "residual": fit.residual})
+        {"step": fit.step, "explained": fit.explained, "residual": fit.residual},
+    )
     return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
 def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
     """A case failed at double precision and ``diag32``, the same case judged as a float32
     engine's, passes: the failure is named as float32 round-off, first, with what the probes
-    show at that precision; the double-precision verdict stands."""
+    show at that precision; the double-precision verdict stands.
+    """
     if not diag32.passed:
         return diag
     e, tol = diag.errors, diag32.tolerances
     finding = Finding(
-        "single-precision", "the errors are single-precision (float32) round-off", FULL,
+        "single-precision",
+        "the errors are single-precision (float32) round-off",
+        FULL,
         f"force {e.force:.1e}, stiffness {e.stiffness:.1e} are within what float32 leaves on this "
         f"case ({tol.text()}; {tol.basis}): an engine computing in float32 passes with "
         "--precision single "
-        "(or \"precision\": \"single\" in the kit, or .f32 output files)",
-        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness})
+        '(or "precision": "single" in the kit, or .f32 output files)',
+        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness},
+    )
     return replace(diag, findings=[finding, *diag32.findings], consistency=diag32.consistency)
 
 
-def _self_consistency(cache: OracleCache, ci, ref, out: EngineOutput, probes: Sequence[KitCase],
-                      probe_results: list, single: bool) -> Consistency:
+def _self_consistency(
+    cache: OracleCache,
+    ci,
+    ref,
+    out: EngineOutput,
+    probes: Sequence[KitCase],
+    probe_results: list,
+    single: bool,
+) -> Consistency:
     """The engine's Taylor test, calibrated by the oracle at the same probes (its floor on this
-    case); uncalibrated, and said so, when the oracle cannot evaluate a probe."""
+    case); uncalibrated, and said so, when the oracle cannot evaluate a probe.
+    """
     try:
         reference = cache.probes(ci, ref, [p.input for p in probes]) if probes else None
     except ValueError as exc:
         c = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
-        return replace(c, note=(c.note + "; " if c.note else "") + f"not calibrated: the oracle cannot evaluate "
-                       f"a probe ({exc})")
-    return consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results, reference,
-                       roundoff=U32 if single else 2.0**-53)
+        return replace(
+            c,
+            note=(c.note + "; " if c.note else "") + f"not calibrated: the oracle cannot evaluate "
+            f"a probe ({exc})",
+        )
+    return consistency(
+        ci.positions,
+        out.force,
+        out.stiffness,
+        out.energy,
+        probe_results,
+        reference,
+        roundoff=U32 if single else 2.0**-53,
+    )
 
 
 def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:

@@ -26,8 +26,16 @@ from scipy.sparse.linalg import norm as sparse_norm
 
 from mjed.mesh import shape_vectors
 
-__all__ = ["PartFit", "candidate_parts", "fit_parts", "VolumetricFit", "fit_volumetric",
-           "describe_coefficient", "FiniteDifferenceFit", "fit_finite_difference"]
+__all__ = [
+    "PartFit",
+    "candidate_parts",
+    "fit_parts",
+    "VolumetricFit",
+    "fit_volumetric",
+    "describe_coefficient",
+    "FiniteDifferenceFit",
+    "fit_finite_difference",
+]
 
 
 @dataclass(frozen=True)
@@ -51,14 +59,16 @@ def candidate_parts(parts, K_o: sp.csr_matrix) -> Dict[str, sp.csr_matrix]:
     }
     Gv, Mv = parts["geometric_volumetric"], parts["material_volumetric"]
     if Gv is not None and Mv is not None:
-        out.update({
-            "volumetric tangent (J-only terms)": (Gv + Mv).tocsr(),
-            "isochoric tangent (all but the J-only terms)": (K_o - Gv - Mv).tocsr(),
-            "volumetric material tangent": Mv,
-            "volumetric geometric stiffness": Gv,
-            "isochoric material tangent": (K_o - G - Mv).tocsr(),
-            "isochoric geometric stiffness": (G - Gv).tocsr(),
-        })
+        out.update(
+            {
+                "volumetric tangent (J-only terms)": (Gv + Mv).tocsr(),
+                "isochoric tangent (all but the J-only terms)": (K_o - Gv - Mv).tocsr(),
+                "volumetric material tangent": Mv,
+                "volumetric geometric stiffness": Gv,
+                "isochoric material tangent": (K_o - G - Mv).tocsr(),
+                "isochoric geometric stiffness": (G - Gv).tocsr(),
+            }
+        )
     nK = float(sparse_norm(K_o))
     return {k: v for k, v in out.items() if v is not None and float(sparse_norm(v)) > 1e-12 * nK}
 
@@ -72,8 +82,13 @@ def _gram(mats: Sequence[sp.csr_matrix]) -> np.ndarray:
     return G
 
 
-def fit_parts(D: sp.csr_matrix, K_o: sp.csr_matrix, candidates: Dict[str, sp.csr_matrix], tol: float,
-              max_parts: int = 2) -> Tuple[Optional[PartFit], Optional[PartFit]]:
+def fit_parts(
+    D: sp.csr_matrix,
+    K_o: sp.csr_matrix,
+    candidates: Dict[str, sp.csr_matrix],
+    tol: float,
+    max_parts: int = 2,
+) -> Tuple[Optional[PartFit], Optional[PartFit]]:
     """(smallest fit within ``tol``, best fit found) over subsets of up to ``max_parts`` parts."""
     names = list(candidates)
     mats = [candidates[k] for k in names]
@@ -93,7 +108,9 @@ def fit_parts(D: sp.csr_matrix, K_o: sp.csr_matrix, candidates: Dict[str, sp.csr
                 continue  # two parts that coincide in this state: no fit can tell them apart
             c = np.linalg.solve(Gs, b[list(idx)])
             res2 = max(dd - 2 * c @ b[list(idx)] + c @ Gs @ c, 0.0)
-            fit = PartFit(tuple(names[i] for i in idx), tuple(float(v) for v in c), float(np.sqrt(res2 / nK2)))
+            fit = PartFit(
+                tuple(names[i] for i in idx), tuple(float(v) for v in c), float(np.sqrt(res2 / nK2))
+            )
             if fit.residual <= shortlist:
                 R = D - sum(ci * mats[i] for ci, i in zip(fit.coefficients, idx))
                 fit = PartFit(fit.names, fit.coefficients, float(sparse_norm(R)) / np.sqrt(nK2))
@@ -140,12 +157,21 @@ def _cell_derivatives(points: np.ndarray, cells: np.ndarray, x: np.ndarray):
     g = np.einsum("mji,maj->mai", np.linalg.inv(F), D)  # F^-T D_a: (m, 4, 3)
     dJ = (J[:, None, None] * g).reshape(-1, 12)
     # d2J/dx_ai dx_bj = J (g_ai g_bj - g_bi g_aj)
-    H = J[:, None, None, None, None] * (np.einsum("mai,mbj->maibj", g, g) - np.einsum("mbi,maj->maibj", g, g))
+    H = J[:, None, None, None, None] * (
+        np.einsum("mai,mbj->maibj", g, g) - np.einsum("mbi,maj->maibj", g, g)
+    )
     return V0, J, dJ, H.reshape(-1, 12, 12)
 
 
-def fit_volumetric(points: np.ndarray, cells: np.ndarray, x: np.ndarray, df: np.ndarray, D: sp.csr_matrix,
-                   force_scale: float, stiffness_scale: float) -> Optional[VolumetricFit]:
+def fit_volumetric(
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    df: np.ndarray,
+    D: sp.csr_matrix,
+    force_scale: float,
+    stiffness_scale: float,
+) -> Optional[VolumetricFit]:
     """Fit the errors (df (n, 3), D (3n, 3n)) as a per-cell change of the J-only energy."""
     m, n = cells.shape[0], points.shape[0]
     N = 3 * n
@@ -163,10 +189,22 @@ def fit_volumetric(points: np.ndarray, cells: np.ndarray, x: np.ndarray, df: np.
     outer = (V0[:, None, None] * dJ[:, :, None] * dJ[:, None, :]).reshape(m, 144) / stiffness_scale
     hess = (V0[:, None, None] * H).reshape(m, 144) / stiffness_scale
     force_col = (-V0[:, None] * dJ) / force_scale
-    A = sp.coo_matrix((np.concatenate([outer.ravel(), hess.ravel(), force_col.ravel()]),
-                       (np.concatenate([N + where.ravel(), N + where.ravel(), dofs.ravel()]),
-                        np.concatenate([np.repeat(2 * cell, 144), np.repeat(2 * cell + 1, 144),
-                                        np.repeat(2 * cell + 1, 12)]))), shape=(n_eq, 2 * m)).tocsr()
+    A = sp.coo_matrix(
+        (
+            np.concatenate([outer.ravel(), hess.ravel(), force_col.ravel()]),
+            (
+                np.concatenate([N + where.ravel(), N + where.ravel(), dofs.ravel()]),
+                np.concatenate(
+                    [
+                        np.repeat(2 * cell, 144),
+                        np.repeat(2 * cell + 1, 144),
+                        np.repeat(2 * cell + 1, 12),
+                    ]
+                ),
+            ),
+        ),
+        shape=(n_eq, 2 * m),
+    ).tocsr()
     Dc = sp.coo_matrix(D)
     dkeys = Dc.row.astype(np.int64) * N + Dc.col
     pos = np.searchsorted(pattern, dkeys)
@@ -174,7 +212,9 @@ def fit_volumetric(points: np.ndarray, cells: np.ndarray, x: np.ndarray, df: np.
     b = np.zeros(n_eq)
     b[:N] = df.ravel() / force_scale
     np.add.at(b, N + pos[inside], Dc.data[inside] / stiffness_scale)
-    outside = float(np.linalg.norm(Dc.data[~inside])) / stiffness_scale  # error where no cell couples: unfittable
+    outside = (
+        float(np.linalg.norm(Dc.data[~inside])) / stiffness_scale
+    )  # error where no cell couples: unfittable
     # Least squares by LSQR on unit-norm columns (a direct factorisation of the normal equations
     # fills in badly on large meshes). Stopping far below the tolerance keeps the residual honest.
     norms = np.sqrt(np.asarray(A.multiply(A).sum(axis=0)).ravel())
@@ -201,8 +241,10 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
     k = float(basis @ dU1) / bb
     rel = float(np.linalg.norm(dU1 - k * basis) / np.linalg.norm(dU1))
     if rel < 1e-6:
-        return (f"k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = {k:.6g} Pa "
-                f"(fit over {distinct.size} distinct J values, relative residual {rel:.1e})")
+        return (
+            f"k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = {k:.6g} Pa "
+            f"(fit over {distinct.size} distinct J values, relative residual {rel:.1e})"
+        )
     return ""
 
 
@@ -211,15 +253,17 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
 class FiniteDifferenceFit:
     """step: the step h [m] a forward-difference tangent with this error would have used;
     explained: the fraction of ||K - K_o||_F the fit accounts for; residual: what is left,
-    relative to ||K_o||_F."""
+    relative to ||K_o||_F.
+    """
 
     step: float
     explained: float
     residual: float
 
 
-def fit_finite_difference(D: sp.csr_matrix, G: sp.csr_matrix,
-                          K_o: sp.csr_matrix) -> Optional[FiniteDifferenceFit]:
+def fit_finite_difference(
+    D: sp.csr_matrix, G: sp.csr_matrix, K_o: sp.csr_matrix
+) -> Optional[FiniteDifferenceFit]:
     """Fit D = K - K_o as (h / 2) G, the leading error of a tangent built column by column from
     forward differences of the force: -(f(x + h e_j) - f(x)) / h = K e_j + (h / 2) G e_j + O(h^2),
     G e_j the derivative of K's column j along e_j (third derivatives of the energy).

@@ -32,7 +32,8 @@ Expression = Tuple[str, Dict[str, float]]
 @functools.singledispatch
 def energy_expression(model: Any) -> Optional[Expression]:
     """(formula in the user-energy syntax, parameters) of a model; None when the energy cannot
-    be written in that syntax (Ogden's eigenvalues, Costa's frame)."""
+    be written in that syntax (Ogden's eigenvalues, Costa's frame).
+    """
     return None
 
 
@@ -159,7 +160,8 @@ def match_variant(
 ) -> Optional[Tuple[Variant, Any]]:
     """The first variant of ``model`` whose oracle force and stiffness the engine's (f (n, 3),
     K (3n, 3n)) match: ``within(f_v, K_v)`` judges; ``evaluate(variant model)`` gives the
-    oracle's (f_v, K_v). Returns (variant, (f_v, K_v)) or None."""
+    oracle's (f_v, K_v). Returns (variant, (f_v, K_v)) or None.
+    """
     for v in variants(model):
         try:
             fv, Kv = evaluate(v.model)

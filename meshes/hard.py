@@ -43,8 +43,13 @@ def heights(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """(m,) smallest height of every cell: 3 |V| / (largest face area) [length unit of points]."""
     x = np.asarray(points, dtype=np.float64)[np.asarray(cells)]
     faces = ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))
-    areas = np.stack([0.5 * np.linalg.norm(np.cross(x[:, b] - x[:, a], x[:, c] - x[:, a]), axis=1)
-                      for a, b, c in faces], axis=1)
+    areas = np.stack(
+        [
+            0.5 * np.linalg.norm(np.cross(x[:, b] - x[:, a], x[:, c] - x[:, a]), axis=1)
+            for a, b, c in faces
+        ],
+        axis=1,
+    )
     return 3.0 * np.abs(signed_volumes(points, cells)) / areas.max(axis=1)
 
 
@@ -121,7 +126,8 @@ def degrade(
 def graded(points: np.ndarray, power: float) -> np.ndarray:
     """Nodes mapped by X_i -> lo_i + L_i ((X_i - lo_i) / L_i)^power per axis (a monotone grading
     toward the lower corner): cell volumes then span about power x 3 x log10(1/h) orders of
-    magnitude for a mesh of spacing h. points (n, 3); power >= 1."""
+    magnitude for a mesh of spacing h. points (n, 3); power >= 1.
+    """
     if power < 1.0:
         raise ValueError(f"power must be >= 1, got {power}")
     P = np.asarray(points, dtype=np.float64)

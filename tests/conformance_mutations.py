@@ -1,4 +1,5 @@
-"""A deliberately broken reference implementation: mjed.HyperelasticForceField with one classic mistake.
+"""A deliberately broken reference implementation: mjed.HyperelasticForceField with one classic
+mistake.
 
 Each mutation is a function (case, field, f, K, W) -> (f, K, W) applied to the exact MJED output
 of the case, written independently of the diagnosis: the tangent-part mutations build their
@@ -36,7 +37,9 @@ def _assemble(cells: np.ndarray, n: int, Ke: np.ndarray) -> sp.csr_matrix:
 
 
 def _classical_blocks(case):
-    """Per cell: V0 (m,), B (m, 6, 12), CC (m, 6, 6) (engineering Voigt), S (m, 3, 3), D (m, 4, 3)."""
+    """Per cell: V0 (m,), B (m, 6, 12), CC (m, 6, 6) (engineering Voigt), S (m, 3, 3), D (m, 4,
+    3).
+    """
     mesh = mjed.TetMesh(case.points, case.cells)
     F = np.swapaxes(case.positions[mesh.cells], 1, 2) @ mesh.D
     S, CC = classical_law(case.model).stress_and_tangent(np.swapaxes(F, 1, 2) @ F)
@@ -46,7 +49,9 @@ def _classical_blocks(case):
 def _voigt_shear_doubled(case, field, f, K, W):
     V0, B, CC, S, D = _classical_blocks(case)
     Bs = B[:, 3:, :]
-    extra = V0[:, None, None] * np.swapaxes(Bs, 1, 2) @ CC[:, 3:, 3:] @ Bs  # the shear-shear block once more
+    extra = (
+        V0[:, None, None] * np.swapaxes(Bs, 1, 2) @ CC[:, 3:, 3:] @ Bs
+    )  # the shear-shear block once more
     return f, (K + _assemble(case.cells, case.n_nodes, extra)).tocsr(), W
 
 
@@ -58,7 +63,9 @@ def _geometric_missing(case, field, f, K, W):
 
 
 class _Bulk(mjed.materials.base.Material):
-    """Only the volumetric term k0/2 (ln J)^2 (a material for the 'volumetric tangent doubled' mutation)."""
+    """Only the volumetric term k0/2 (ln J)^2 (a material for the 'volumetric tangent doubled'
+    mutation).
+    """
 
     def __init__(self, k0: float):
         self.k0 = k0
@@ -92,8 +99,12 @@ class _MooneyRivlinJMinusOne(mjed.materials.base.Material):
     def decomposition(self):
         out = []
         for group in self.m.decomposition():
-            terms = tuple(Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g) if isinstance(t.f, LogPolynomial) else t
-                          for t in group.terms)
+            terms = tuple(
+                Term(_JMinusOneSquared(2 * t.f.a2, t.f.a0), t.g)
+                if isinstance(t.f, LogPolynomial)
+                else t
+                for t in group.terms
+            )
             out.append(TermGroup(terms, group.exponential, group.coefficient))
         return tuple(out)
 
@@ -114,12 +125,14 @@ def _one_cell_wrong(case, field, f, K, W):
     Ke = field.element_stiffness(case.positions)[c]
     f = f.copy()
     np.add.at(f, case.cells[c], 0.5 * fe)
-    return f, (K + _assemble(case.cells[c:c + 1], case.n_nodes, 0.5 * Ke[None])).tocsr(), W
+    return f, (K + _assemble(case.cells[c : c + 1], case.n_nodes, 0.5 * Ke[None])).tocsr(), W
 
 
 def _component_major(case, field, f, K, W):
     n = case.n_nodes
-    order = (3 * np.arange(n)[None, :] + np.arange(3)[:, None]).ravel()  # engine index c*n+a holds dof 3a+c
+    order = (
+        3 * np.arange(n)[None, :] + np.arange(3)[:, None]
+    ).ravel()  # engine index c*n+a holds dof 3a+c
     Kc = sp.csr_matrix(K)[order][:, order]
     return f.ravel()[order].reshape(n, 3), Kc.tocsr(), W
 
@@ -139,7 +152,9 @@ def _nodes_permuted(case, field, f, K, W):
 
 
 def _one_based(case, field, f, K, W):
-    q = (np.arange(case.n_nodes) + 1) % case.n_nodes  # node a written at a + 1 (wrapping the last one)
+    q = (
+        np.arange(case.n_nodes) + 1
+    ) % case.n_nodes  # node a written at a + 1 (wrapping the last one)
     return (*_permute(case, f, K, q), W)
 
 
@@ -169,7 +184,9 @@ MUTATIONS: Dict[str, Mutation] = {
     "nodes permuted": _nodes_permuted,
     "1-based node index": _one_based,
     "factor 2": lambda case, field, f, K, W: (2 * f, 2 * K, 2 * W),
-    "component-major dofs and the residual's sign": lambda case, field, f, K, W: _component_major(case, field, -f, K, W),
+    "component-major dofs and the residual's sign": lambda case, field, f, K, W: _component_major(
+        case, field, -f, K, W
+    ),
     "3x3 blocks transposed": _blocks_transposed,
     "unsymmetric K": _unsymmetric,
     "Voigt shear doubled": _voigt_shear_doubled,
@@ -226,8 +243,9 @@ class _MooneyRivlinPowers(mjed.materials.base.Material):
 
         out = []
         for group in self.m.decomposition():
-            terms = tuple(Term(JPower(self.p), t.g) if isinstance(t.g, I1Power) else t
-                          for t in group.terms)
+            terms = tuple(
+                Term(JPower(self.p), t.g) if isinstance(t.g, I1Power) else t for t in group.terms
+            )
             out.append(TermGroup(terms, group.exponential, group.coefficient))
         return tuple(out)
 
@@ -241,19 +259,26 @@ def _with_material(material):
     return mutate
 
 
-MUTATIONS.update({
-    "I1 without its isochoric factor": _with_material(lambda m: _MooneyRivlinPowers(m, 0.0)),
-    "J^(-1/3) on I1": _with_material(lambda m: _MooneyRivlinPowers(m, -1.0 / 3.0)),
-    "one triangle of K": lambda case, field, f, K, W: (f, sp.triu(K).tocsr(), W),
-    "both triangles summed":
-        lambda case, field, f, K, W: (f, (2 * K - sp.diags(K.diagonal())).tocsr(), W),
-})
-EXPECTED.update({
-    "I1 without its isochoric factor": "energy-variant",
-    "J^(-1/3) on I1": "energy-variant",
-    "one triangle of K": "one-triangle",
-    "both triangles summed": "both-triangles",
-})
+MUTATIONS.update(
+    {
+        "I1 without its isochoric factor": _with_material(lambda m: _MooneyRivlinPowers(m, 0.0)),
+        "J^(-1/3) on I1": _with_material(lambda m: _MooneyRivlinPowers(m, -1.0 / 3.0)),
+        "one triangle of K": lambda case, field, f, K, W: (f, sp.triu(K).tocsr(), W),
+        "both triangles summed": lambda case, field, f, K, W: (
+            f,
+            (2 * K - sp.diags(K.diagonal())).tocsr(),
+            W,
+        ),
+    }
+)
+EXPECTED.update(
+    {
+        "I1 without its isochoric factor": "energy-variant",
+        "J^(-1/3) on I1": "energy-variant",
+        "one triangle of K": "one-triangle",
+        "both triangles summed": "both-triangles",
+    }
+)
 
 
 def _finite_difference_tangent(case, field, f, K, W):

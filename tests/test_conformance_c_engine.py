@@ -1,5 +1,7 @@
-"""Language neutrality: a C engine written from docs/conventions.md, compiled with the system compiler,
-passes `mjed-verify check --command`; compiled with -DMISTAKE (force sign flipped) it is named."""
+"""Language neutrality: a C engine written from docs/conventions.md, compiled with the system
+compiler,
+passes `mjed-verify check --command`; compiled with -DMISTAKE (force sign flipped) it is named.
+"""
 
 from __future__ import annotations
 
@@ -14,8 +16,12 @@ import pytest
 from comparisons.cli import main
 from reference_fem import dolfinx_available
 
-pytestmark = [pytest.mark.oracle,
-              pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")]
+pytestmark = [
+    pytest.mark.oracle,
+    pytest.mark.skipif(
+        not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)"
+    ),
+]
 
 logging.disable(logging.INFO)
 SOURCE = os.path.join(os.path.dirname(__file__), "c_engine", "neohookean.c")
@@ -26,8 +32,11 @@ def _compile(tmp_path, *flags):
     if CC is None:
         pytest.skip("no C compiler (cc, gcc or clang) on PATH")
     exe = str(tmp_path / ("neohookean" + "".join(f.replace("-", "_") for f in flags)))
-    subprocess.run([CC, "-std=c99", "-O2", "-Wall", "-Werror", *flags, "-o", exe, SOURCE, "-lm"], check=True,
-                   capture_output=True)
+    subprocess.run(
+        [CC, "-std=c99", "-O2", "-Wall", "-Werror", *flags, "-o", exe, SOURCE, "-lm"],
+        check=True,
+        capture_output=True,
+    )
     return exe
 
 
@@ -38,8 +47,23 @@ def _results(out):
 
 def test_c_engine_passes(tmp_path):
     exe = _compile(tmp_path)
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
-                 "--mesh", "cube-small", "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--mesh",
+                "cube-small",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     res = _results(tmp_path / "r")
     assert len(res["cases"]) == 6 and all(c["status"] == "passed" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) < 1e-12
@@ -57,17 +81,52 @@ def test_c_engine_files_mode(tmp_path):
 
 def test_c_engine_mistake_is_named(tmp_path):
     exe = _compile(tmp_path, "-DMISTAKE")
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
-                 "--states", "uniaxial,random", "--out", str(tmp_path / "r"), "--quiet"]) == 1
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--states",
+                "uniaxial,random",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 1
+    )
     for case in _results(tmp_path / "r")["cases"]:
-        assert case["findings"][0]["code"] == "force-sign" and case["findings"][0]["strength"] == "explains"
+        assert (
+            case["findings"][0]["code"] == "force-sign"
+            and case["findings"][0]["strength"] == "explains"
+        )
 
 
 def test_c_engine_refusal_is_bad_input(tmp_path):
-    """A material the program does not implement: it exits 2 with a message, reported for that case."""
+    """A material the program does not implement: it exits 2 with a message, reported for that
+    case.
+    """
     exe = _compile(tmp_path)
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "Ogden", "--states", "rest",
-                 "--out", str(tmp_path / "r"), "--quiet"]) == 2
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "Ogden",
+                "--states",
+                "rest",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 2
+    )
     msg = _results(tmp_path / "r")["cases"][0]["message"]
     assert "exit code 2" in msg and "only NeoHookean is implemented, not Ogden" in msg
 
@@ -75,26 +134,79 @@ def test_c_engine_refusal_is_bad_input(tmp_path):
 def test_c_engine_in_single_precision(tmp_path):
     """Built with -DSINGLE the engine computes in float and writes .f32 files: it passes at single
     precision; checked at double precision it is told its error is float32 round-off; with its
-    sign mistake it still fails at single precision, the mistake named."""
+    sign mistake it still fails at single precision, the mistake named.
+    """
     exe = _compile(tmp_path, "-DSINGLE")
-    args = ["--material", "NeoHookean", "--mesh", "cube-small", "--states", "uniaxial,random", "--quiet"]
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--out", str(tmp_path / "s")] + args) == 0
+    args = [
+        "--material",
+        "NeoHookean",
+        "--mesh",
+        "cube-small",
+        "--states",
+        "uniaxial,random",
+        "--quiet",
+    ]
+    assert (
+        main(
+            ["check", "--command", f"{exe} {{input}} {{output}}", "--out", str(tmp_path / "s")]
+            + args
+        )
+        == 0
+    )
     res = _results(tmp_path / "s")
     assert all(c["tolerances"]["precision"] == "single" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) > 1e-8  # really float32 arithmetic
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--precision", "double",
-                 "--out", str(tmp_path / "d")] + args) == 1
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--precision",
+                "double",
+                "--out",
+                str(tmp_path / "d"),
+            ]
+            + args
+        )
+        == 1
+    )
     res = _results(tmp_path / "d")
     assert all(c["findings"][0]["code"] == "single-precision" for c in res["cases"])
     wrong = _compile(tmp_path, "-DSINGLE", "-DMISTAKE")
-    assert main(["check", "--command", f"{wrong} {{input}} {{output}}", "--out", str(tmp_path / "m")] + args) == 1
+    assert (
+        main(
+            ["check", "--command", f"{wrong} {{input}} {{output}}", "--out", str(tmp_path / "m")]
+            + args
+        )
+        == 1
+    )
     res = _results(tmp_path / "m")
-    assert all(c["status"] == "failed" and c["findings"][0]["code"] == "force-sign" for c in res["cases"])
+    assert all(
+        c["status"] == "failed" and c["findings"][0]["code"] == "force-sign" for c in res["cases"]
+    )
 
 
 def test_c_engine_writing_one_triangle_is_named(tmp_path):
     exe = _compile(tmp_path, "-DUPPER")
-    assert main(["check", "--command", f"{exe} {{input}} {{output}}", "--material", "NeoHookean",
-                 "--mesh", "cube-small", "--states", "random", "--out", str(tmp_path / "r"), "--quiet"]) == 1
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--mesh",
+                "cube-small",
+                "--states",
+                "random",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 1
+    )
     (case,) = _results(tmp_path / "r")["cases"]
     assert case["findings"][0]["code"] == "one-triangle"

@@ -1,4 +1,6 @@
-"""Every mistake of the mutation catalogue (tests/conformance_mutations.py) is detected and named."""
+"""Every mistake of the mutation catalogue (tests/conformance_mutations.py) is detected and
+named.
+"""
 
 from __future__ import annotations
 
@@ -8,19 +10,28 @@ import pytest
 
 from reference_fem import dolfinx_available
 
-pytestmark = [pytest.mark.oracle,
-              pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")]
+pytestmark = [
+    pytest.mark.oracle,
+    pytest.mark.skipif(
+        not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)"
+    ),
+]
 
 logging.disable(logging.INFO)  # FFCx logs every compilation
 
 
 @pytest.fixture(scope="module")
 def runs():
-    from conformance.protocol import check_implementation
     from conformance_mutations import MATERIAL, MUTATIONS, broken_engine
 
-    return {name: check_implementation(broken_engine(name), material=MATERIAL, mesh="cube-small",
-                                       states=("uniaxial", "random")) for name in MUTATIONS}
+    from conformance.protocol import check_implementation
+
+    return {
+        name: check_implementation(
+            broken_engine(name), material=MATERIAL, mesh="cube-small", states=("uniaxial", "random")
+        )
+        for name in MUTATIONS
+    }
 
 
 from conformance_mutations import EXPECTED  # noqa: E402
@@ -46,9 +57,14 @@ def test_mutation_is_named(runs, mutation):
             h = 1e-6 * mean_edge_length(*meshes.resolve("cube-small")[:2])
             assert first.figures["step"] == pytest.approx(h, rel=1e-2)
             assert first.figures["explained"] > 0.999
-        elif expected == "inconsistent-stiffness":  # an observation, not a correction: no cause may be claimed
+        elif (
+            expected == "inconsistent-stiffness"
+        ):  # an observation, not a correction: no cause may be claimed
             assert expected in [f.code for f in d.findings] and not codes, d.text()
-            assert d.findings[0].code == "unexplained" and "the mistake is in the tangent alone" in d.text()
+            assert (
+                d.findings[0].code == "unexplained"
+                and "the mistake is in the tangent alone" in d.text()
+            )
         else:
             assert codes and codes[0] == expected, d.text()
             assert d.causes[0].figures["residual"] <= 1e-10
@@ -56,6 +72,7 @@ def test_mutation_is_named(runs, mutation):
 
 def test_the_named_figures(runs):
     """The evidence carries the fitted numbers, not only the name."""
+
     def cause(name, state="random"):
         (o,) = [o for o in runs[name].outcomes if o.state == state]
         return o.diagnosis.causes[0]
@@ -65,11 +82,18 @@ def test_the_named_figures(runs):
     assert shear["parts"] == ["shear-shear block of the material tangent (Voigt)"]
     assert shear["coefficients"][0] == pytest.approx(1.0, abs=1e-9)
     geo = cause("geometric stiffness missing").figures
-    assert geo["parts"] == ["geometric stiffness"] and geo["coefficients"][0] == pytest.approx(-1.0, abs=1e-9)
+    assert geo["parts"] == ["geometric stiffness"] and geo["coefficients"][0] == pytest.approx(
+        -1.0, abs=1e-9
+    )
     vol = cause("volumetric tangent doubled").figures
     assert vol["parts"] == ["volumetric tangent (J-only terms)"]
-    assert "k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = 30000" in cause("(J-1)^2 bulk term").evidence
-    assert "single J" in cause("(J-1)^2 bulk term", "uniaxial").evidence  # not identifiable from one J: said so
+    assert (
+        "k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = 30000"
+        in cause("(J-1)^2 bulk term").evidence
+    )
+    assert (
+        "single J" in cause("(J-1)^2 bulk term", "uniaxial").evidence
+    )  # not identifiable from one J: said so
     loc = cause("one cell wrong").figures
     assert len(loc["nodes"]) == 4 and len(loc["cells"]) == 1
     assert "1-based" in cause("1-based node index").title
@@ -80,10 +104,10 @@ def test_an_unexplained_error_is_called_so():
     """Random noise on K: no hypothesis may claim it."""
     import numpy as np
     import scipy.sparse as sp
+    from conformance_mutations import MATERIAL
 
     import mjed
     from conformance.protocol import check_implementation
-    from conformance_mutations import MATERIAL
 
     def noisy(case):
         field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
@@ -93,24 +117,45 @@ def test_an_unexplained_error_is_called_so():
         N = sp.csr_matrix((noise, (C.row, C.col)), shape=K.shape)
         return f, K + N + N.T
 
-    run = check_implementation(noisy, material=MATERIAL, mesh="cube-small", states=("random",), probes=False)
+    run = check_implementation(
+        noisy, material=MATERIAL, mesh="cube-small", states=("random",), probes=False
+    )
     d = run.outcomes[0].diagnosis
     assert not d.causes and d.findings[0].code == "unexplained", d.text()
 
 
-@pytest.mark.parametrize("material", ["StVenantKirchhoff", "NeoHookean", "MooneyRivlin", "VerondaWestmann",
-                                      "ArrudaBoyce", "Costa", "Ogden"])
-@pytest.mark.parametrize("mutation, part, coefficient", [
-    ("Voigt shear doubled", "shear-shear block of the material tangent (Voigt)", 1.0),
-    ("geometric stiffness missing", "geometric stiffness", -1.0),
-])
+@pytest.mark.parametrize(
+    "material",
+    [
+        "StVenantKirchhoff",
+        "NeoHookean",
+        "MooneyRivlin",
+        "VerondaWestmann",
+        "ArrudaBoyce",
+        "Costa",
+        "Ogden",
+    ],
+)
+@pytest.mark.parametrize(
+    "mutation, part, coefficient",
+    [
+        ("Voigt shear doubled", "shear-shear block of the material tangent (Voigt)", 1.0),
+        ("geometric stiffness missing", "geometric stiffness", -1.0),
+    ],
+)
 def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
-    from common.cases import DEFAULT_MATERIALS
-    from conformance.protocol import check_implementation
     from conformance_mutations import broken_engine
 
-    run = check_implementation(broken_engine(mutation), material=DEFAULT_MATERIALS[material], mesh="cube-small",
-                               states=("random",), probes=False)
+    from common.cases import DEFAULT_MATERIALS
+    from conformance.protocol import check_implementation
+
+    run = check_implementation(
+        broken_engine(mutation),
+        material=DEFAULT_MATERIALS[material],
+        mesh="cube-small",
+        states=("random",),
+        probes=False,
+    )
     d = run.outcomes[0].diagnosis
     assert d.causes and d.causes[0].code == "tangent-part", d.text()
     assert d.causes[0].figures["parts"] == [part]
@@ -121,15 +166,19 @@ def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
 def float32_engine(engine):
     """The engine as a float32 code sees and writes things: coordinates rounded to float32 on the
     way in, force, stiffness and energy rounded to float32 on the way out (the check then holds
-    it to single-precision tolerances)."""
+    it to single-precision tolerances).
+    """
     import dataclasses
 
     import numpy as np
     import scipy.sparse as sp
 
     def run(case):
-        rounded = dataclasses.replace(case, points=case.points.astype(np.float32).astype(np.float64),
-                                      positions=case.positions.astype(np.float32).astype(np.float64))
+        rounded = dataclasses.replace(
+            case,
+            points=case.points.astype(np.float32).astype(np.float64),
+            positions=case.positions.astype(np.float32).astype(np.float64),
+        )
         f, K, W = engine(rounded)
         return np.asarray(f, dtype=np.float32), sp.csr_matrix(K).astype(np.float32), np.float32(W)
 
@@ -138,11 +187,19 @@ def float32_engine(engine):
 
 @pytest.fixture(scope="module")
 def runs_single():
-    from conformance.protocol import check_implementation
     from conformance_mutations import MATERIAL, MUTATIONS, broken_engine
 
-    return {name: check_implementation(float32_engine(broken_engine(name)), material=MATERIAL,
-                                       mesh="cube-small", states=("random",)) for name in MUTATIONS}
+    from conformance.protocol import check_implementation
+
+    return {
+        name: check_implementation(
+            float32_engine(broken_engine(name)),
+            material=MATERIAL,
+            mesh="cube-small",
+            states=("random",),
+        )
+        for name in MUTATIONS
+    }
 
 
 @pytest.mark.parametrize("mutation", list(EXPECTED))

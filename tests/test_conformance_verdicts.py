@@ -1,5 +1,6 @@
 """Verdicts that hold on hard meshes: the self-consistency test calibrated per case, never a NaN
-taken as a pass (issue 21)."""
+taken as a pass (issue 21).
+"""
 
 from __future__ import annotations
 
@@ -32,14 +33,16 @@ def mjed_impl(case):
 def sliver_cube_si():
     """cube-small as a 5 cm cube in metres (cell volumes 1e-9..1e-6 m^3) with one cap of
     quality 0.018:
-    the uncalibrated fit left 1.2e-4 there for a correct engine (VerondaWestmann, state random)."""
+    the uncalibrated fit left 1.2e-4 there for a correct engine (VerondaWestmann, state random).
+    """
     P, C, _ = meshes.resolve("cube-small")
     return degrade(P * 0.05, C, "cap", 0.03, seed=2), C
 
 
 def exponential(x):
     """W = sum exp(2 x) / 4 + sum x_i x_{i+1}: force and exact Hessian (every Taylor term is
-    non-zero)."""
+    non-zero).
+    """
     flat = x.ravel()
     f = -(0.5 * np.exp(2 * flat) + np.roll(flat, 1) + np.roll(flat, -1))
     n = flat.size
@@ -58,7 +61,8 @@ def test_the_floor_is_measured_on_the_reference_and_removed():
     """A large step makes the cubic fit leave far more than PROBE_TOL for the exact tangent; with
     the
     same function as the reference the excess is round-off and the verdict 'consistent'; a tangent
-    wrong by 1 % still fails, the limit being ten times the floor."""
+    wrong by 1 % still fails, the limit being ten times the floor.
+    """
     rng = np.random.default_rng(0)
     x = rng.uniform(0.5, 1.5, (6, 3))
     d = rng.standard_normal(x.shape) * 0.3  # a big step: the t^4 term is large
@@ -79,7 +83,8 @@ def test_the_floor_is_measured_on_the_reference_and_removed():
 
 def test_overflowing_output_is_never_a_pass():
     """Finite values near the float64 limit: the remainders overflow; the result says so, and no
-    NaN is compared."""
+    NaN is compared.
+    """
     x = np.ones((4, 3))
     f = np.full((4, 3), 1.5e308)
     K = sp.csr_matrix(np.full((12, 12), 1e300))
@@ -91,7 +96,8 @@ def test_overflowing_output_is_never_a_pass():
 
 def _mean_edge_probes(P, C, model, state="random"):
     """The case with probes of 1e-4 of the mean edge, as kits exported before per-node probe
-    lengths have them: on a sliver the cubic fit leaves far more than 1e-6 there."""
+    lengths have them: on a sliver the cubic fit leaves far more than 1e-6 there.
+    """
     from common.states import apply_state
     from common.tolerances import mean_edge_length
     from conformance.kit import PROBE_STEP, KitCase, probe_direction
@@ -120,7 +126,8 @@ def test_sliver_in_si_units_passes_a_correct_engine():
     """The reported false failure: the project's own MJED on a sliver mesh in SI units, state
     random. With the probes of older kits (1e-4 of the mean edge) the fit leaves 1.2e-4 for the
     exact tangent, above the former fixed limit 1e-6; calibrated on the oracle, the case passes.
-    With today's probes (1e-4 of each node's thinnest cell) the fit resolves the tangent there."""
+    With today's probes (1e-4 of each node's thinnest cell) the fit resolves the tangent there.
+    """
     from conformance import check_implementation
     from conformance.protocol import python_evaluator
     from conformance.run import run_check
@@ -219,7 +226,8 @@ def test_float32_output_is_recognised(tmp_path):
 @needs_oracle
 def test_garbage_near_1e300_fails_quietly_with_finite_figures(recwarn):
     """Finite garbage: a failure whose every figure is finite or null with its reason, no raw
-    warning, no 'consistent' finding drawn from a NaN, and results that are strict JSON."""
+    warning, no 'consistent' finding drawn from a NaN, and results that are strict JSON.
+    """
     import json
 
     from conformance import check_implementation
@@ -259,7 +267,8 @@ def test_the_small_corpus_is_hard(small_corpus):
 @needs_oracle
 def test_no_false_failure_on_the_small_corpus(small_corpus):
     """Every material of the registry and a user energy, on caps, slivers and a graded mesh:
-    a correct engine passes every case."""
+    a correct engine passes every case.
+    """
     from common.cases import DEFAULT_MATERIALS
     from conformance.corpus import corpus_engine, corpus_models, corpus_states, run_corpus
 
@@ -274,6 +283,7 @@ def test_no_false_failure_on_the_small_corpus(small_corpus):
 @needs_oracle
 def test_every_mutant_is_caught_on_the_small_corpus(small_corpus):
     import conformance_mutations
+
     from conformance.corpus import corpus_states, mutant_figure
 
     figure = mutant_figure(conformance_mutations, small_corpus, corpus_states(small=True)[-1])
@@ -296,9 +306,10 @@ def test_single_precision_tolerances_follow_the_case():
 
 @needs_oracle
 def test_a_kit_declares_single_precision(tmp_path):
-    """export --precision single writes the declaration; an engine writing float32 into the kit
+    """Export --precision single writes the declaration; an engine writing float32 into the kit
     (here MJED's values rounded to float32) passes 'at single precision'; the same values
-    checked with --precision double fail, named as float32 round-off."""
+    checked with --precision double fail, named as float32 round-off.
+    """
     import json
 
     from comparisons.cli import main
@@ -306,8 +317,21 @@ def test_a_kit_declares_single_precision(tmp_path):
     from conformance.kit import read_kit
 
     kit = tmp_path / "kit"
-    assert main(["export", str(kit), "--material", "NeoHookean", "--states", "random",
-                 "--precision", "single"]) == 0
+    assert (
+        main(
+            [
+                "export",
+                str(kit),
+                "--material",
+                "NeoHookean",
+                "--states",
+                "random",
+                "--precision",
+                "single",
+            ]
+        )
+        == 0
+    )
     assert json.load(open(kit / "manifest.json"))["precision"] == "single"
     for c in read_kit(str(kit)).cases:
         f, K, W = mjed_impl(c.input)
@@ -316,8 +340,10 @@ def test_a_kit_declares_single_precision(tmp_path):
     (run,) = (tmp_path / "s").iterdir()
     (case,) = json.load(open(run / "results.json"))["cases"]
     assert case["tolerances"]["precision"] == "single"
-    assert main(["check", str(kit), "--precision", "double", "--out", str(tmp_path / "d"),
-                 "--quiet"]) == 1
+    assert (
+        main(["check", str(kit), "--precision", "double", "--out", str(tmp_path / "d"), "--quiet"])
+        == 1
+    )
     (run,) = (tmp_path / "d").iterdir()
     (case,) = json.load(open(run / "results.json"))["cases"]
     assert case["findings"][0]["code"] == "single-precision"

@@ -1,5 +1,6 @@
 """mjed-verify check: compare an engine's forces and stiffness with the oracle, case by case, and
-diagnose each failure (docs/conventions.md)."""
+diagnose each failure (docs/conventions.md).
+"""
 
 from __future__ import annotations
 
@@ -25,17 +26,35 @@ def configure(parser) -> None:
     from common import options as opt
     from conformance.options import add_model_options
 
-    parser.add_argument("dir", metavar="DIR", nargs="?", help="a kit written by 'mjed-verify export' (optional with --command)")
-    parser.add_argument("--command", dest="engine_command", metavar="CMD",
-                        help="run CMD per case; {input} and {output} are replaced by the case's directories")
-    parser.add_argument("--timeout", type=float, default=60.0, help="time limit per case for --command, seconds (default 60)")
+    parser.add_argument(
+        "dir",
+        metavar="DIR",
+        nargs="?",
+        help="a kit written by 'mjed-verify export' (optional with --command)",
+    )
+    parser.add_argument(
+        "--command",
+        dest="engine_command",
+        metavar="CMD",
+        help="run CMD per case; {input} and {output} are replaced by the case's directories",
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=60.0,
+        help="time limit per case for --command, seconds (default 60)",
+    )
     add_model_options(parser)
     opt.add_out_option(parser, "reports")
     opt.add_json_option(parser)
-    parser.add_argument("--precision", choices=("auto", "double", "single"), default="auto",
-                        help="tolerances: 'double' (1e-10), 'single' (from float32 round-off and "
-                             "each case's conditioning) or 'auto' (the kit's declaration, else "
-                             "single for .f32 outputs)")
+    parser.add_argument(
+        "--precision",
+        choices=("auto", "double", "single"),
+        default="auto",
+        help="tolerances: 'double' (1e-10), 'single' (from float32 round-off and "
+        "each case's conditioning) or 'auto' (the kit's declaration, else "
+        "single for .f32 outputs)",
+    )
     parser.add_argument("--quiet", action="store_true", help="print only the summary line")
 
 
@@ -56,10 +75,18 @@ def run(args) -> int:
     if args.dir is not None:
         from conformance.kit import read_kit
 
-        given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (["param"] if args.param else [])
-        given += [k for k, default in (("mesh", "single-tet"), ("states", "all")) if getattr(args, k) != default]
+        given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (
+            ["param"] if args.param else []
+        )
+        given += [
+            k
+            for k, default in (("mesh", "single-tet"), ("states", "all"))
+            if getattr(args, k) != default
+        ]
         if given:
-            raise InputError(f"--{given[0]} is not used with a kit: the kit's manifest says what to compute")
+            raise InputError(
+                f"--{given[0]} is not used with a kit: the kit's manifest says what to compute"
+            )
         try:
             kit = read_kit(args.dir)
         except FormatError as exc:
@@ -76,7 +103,10 @@ def run(args) -> int:
     from conformance.oracle import oracle_available
 
     if not oracle_available():
-        print("mjed-verify check: the oracle needs dolfinx (Debian: apt install python3-dolfinx)", file=sys.stderr)
+        print(
+            "mjed-verify check: the oracle needs dolfinx (Debian: apt install python3-dolfinx)",
+            file=sys.stderr,
+        )
         return 3
     return _run(args, cases, input_errors)
 
@@ -93,17 +123,26 @@ def _run(args, cases, input_errors) -> int:
     if args.engine_command is not None:
         from conformance.command import command_evaluator
 
-        if args.dir is None:  # the inputs are written into the report directory, then run through the command
+        if (
+            args.dir is None
+        ):  # the inputs are written into the report directory, then run through the command
             write_kit(os.path.join(folder, "kit"), cases, command=command)
             base = os.path.join(folder, "kit")
         else:
             base = args.dir
         os.makedirs(os.path.join(folder, "outputs"))
-        evaluate = command_evaluator(args.engine_command, lambda c: os.path.join(base, "cases", c.case_id, "input"),
-                                     os.path.join(folder, "outputs"), args.timeout)
+        evaluate = command_evaluator(
+            args.engine_command,
+            lambda c: os.path.join(base, "cases", c.case_id, "input"),
+            os.path.join(folder, "outputs"),
+            args.timeout,
+        )
     else:
-        evaluate = lambda c: read_output(os.path.join(args.dir, "cases", c.case_id, "output"),  # noqa: E731
-                                         c.input.n_nodes, c.case_id)
+        evaluate = lambda c: read_output(
+            os.path.join(args.dir, "cases", c.case_id, "output"),  # noqa: E731
+            c.input.n_nodes,
+            c.case_id,
+        )
 
     fields = {}
 
@@ -119,10 +158,23 @@ def _run(args, cases, input_errors) -> int:
 
     # A bar on a terminal (a check of a large mesh runs for minutes); one line per case otherwise.
     bar = Progress(sum(c.role == "case" for c in cases), "check")
-    progress = None if args.quiet else (bar.advance if bar.enabled else
-                                        (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True)))
-    result = run_check(cases, evaluate, input_errors=input_errors, progress=progress,
-                       on_case=on_case, precision=args.precision)
+    progress = (
+        None
+        if args.quiet
+        else (
+            bar.advance
+            if bar.enabled
+            else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
+        )
+    )
+    result = run_check(
+        cases,
+        evaluate,
+        input_errors=input_errors,
+        progress=progress,
+        on_case=on_case,
+        precision=args.precision,
+    )
     bar.close()
     paths = write_report(folder, result, command=command, fields=fields)
     if not args.quiet:

@@ -1,4 +1,6 @@
-"""mjed-verify export DIR: write a conformance kit for an engine to compute (docs/conventions.md)."""
+"""mjed-verify export DIR: write a conformance kit for an engine to compute
+(docs/conventions.md).
+"""
 
 from __future__ import annotations
 
@@ -21,12 +23,19 @@ def configure(parser) -> None:
     from conformance.options import add_model_options
 
     add_model_options(parser)
-    parser.add_argument("--no-probes", action="store_true",
-                        help="leave out the perturbed states (no self-consistency test of the stiffness)")
-    parser.add_argument("--precision", choices=("double", "single"), default="double",
-                        help="the precision your engine computes in, declared in the kit: "
-                             "'single' (float32) gives tolerances from float32 round-off and "
-                             "each case's conditioning")
+    parser.add_argument(
+        "--no-probes",
+        action="store_true",
+        help="leave out the perturbed states (no self-consistency test of the stiffness)",
+    )
+    parser.add_argument(
+        "--precision",
+        choices=("double", "single"),
+        default="double",
+        help="the precision your engine computes in, declared in the kit: "
+        "'single' (float32) gives tolerances from float32 round-off and "
+        "each case's conditioning",
+    )
 
 
 def run(args) -> int:
@@ -35,11 +44,16 @@ def run(args) -> int:
     from conformance.options import cases_from_args, reproduce
 
     if os.path.exists(args.dir) and (not os.path.isdir(args.dir) or os.listdir(args.dir)):
-        raise InputError(f"{args.dir}: exists and is not an empty directory; export never writes into one")
+        raise InputError(
+            f"{args.dir}: exists and is not an empty directory; export never writes into one"
+        )
     cases = cases_from_args(args, probes=0 if args.no_probes else PROBES)
-    manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir),
-                         precision=args.precision)
+    manifest = write_kit(
+        args.dir, cases, command=reproduce(NAME, args, args.dir), precision=args.precision
+    )
     n_main = sum(e["role"] == "case" for e in manifest["cases"])
-    print(f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
-          f"compute each cases/<id>/output, then: mjed-verify check {args.dir}")
+    print(
+        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
+        f"compute each cases/<id>/output, then: mjed-verify check {args.dir}"
+    )
     return 0
