@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import tempfile
 from typing import List, Sequence, Tuple
@@ -27,6 +28,7 @@ __all__ = [
     "resolve_meshes",
     "resolve_states",
     "write_json",
+    "strict_json",
     "check_writable_destination",
     "add_allow_incomplete_option",
 ]
@@ -40,8 +42,11 @@ class InputError(ValueError):
 
 
 def add_material_option(parser: argparse.ArgumentParser, default: str = "all") -> None:
-    parser.add_argument("--material", default=default,
-                        help=f"'all', a material name, or a comma-separated list (default: {default})")
+    parser.add_argument(
+        "--material",
+        default=default,
+        help=f"'all', a material name, or a comma-separated list (default: {default})",
+    )
 
 
 def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: bool = True) -> None:
@@ -52,8 +57,12 @@ def add_mesh_option(parser: argparse.ArgumentParser, default: str, *, several: b
 
 
 def add_states_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--states", default="all",
-                        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, random")
+    parser.add_argument(
+        "--states",
+        default="all",
+        help="'all' or a comma-separated list of: rest, uniaxial, compression, shear, triaxial, "
+        "random",
+    )
 
 
 def add_json_option(parser: argparse.ArgumentParser) -> None:
@@ -61,7 +70,12 @@ def add_json_option(parser: argparse.ArgumentParser) -> None:
 
 
 def add_out_option(parser: argparse.ArgumentParser, default: str) -> None:
-    parser.add_argument("--out", metavar="DIR", default=default, help=f"directory for figures and tables (default: {default})")
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=default,
+        help=f"directory for figures and tables (default: {default})",
+    )
 
 
 def resolve_materials(spec: str):
@@ -125,24 +139,64 @@ def check_writable_destination(path: str, *, is_dir: bool) -> None:
             raise OSError("not a directory")
         tempfile.TemporaryFile(dir=probe).close()
     except OSError:
-        raise InputError(f"{path}: cannot write there ({probe} is not a writable directory)") from None
+        raise InputError(
+            f"{path}: cannot write there ({probe} is not a writable directory)"
+        ) from None
 
 
 def write_json(path: str, payload: dict) -> None:
-    """Write JSON, creating the directory (reports/ is not in a fresh clone)."""
+    """Write strict JSON (see :func:`strict_json`), creating the directory (reports/ is not in a
+    fresh clone).
+    """
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path, "w") as fh:
-        json.dump(payload, fh, indent=1, default=_jsonable)
+        json.dump(strict_json(payload), fh, indent=1, allow_nan=False)
 
 
-def _jsonable(obj):
-    """NumPy scalars and arrays as plain numbers and lists; anything else as its text."""
-    if hasattr(obj, "tolist"):
-        return obj.tolist()
-    return str(obj)
+#: At most this many non-finite values are listed one by one in "non_finite".
+_MAX_NOTES = 100
+
+
+def strict_json(payload: dict) -> dict:
+    """A copy of ``payload`` that any JSON parser reads: NaN and infinities (which Python would
+    write as the non-standard ``NaN`` and ``Infinity``) become null, and a top-level
+    ``"non_finite"`` list says where each was and what it was, e.g.
+    ``{"path": "data/runs/0/fps", "value": "inf"}``. NumPy scalars and arrays become numbers and
+    lists; any other object its text.
+    """
+    notes: List[dict] = []
+    count = [0]
+
+    def clean(obj, path: str):
+        if isinstance(obj, dict):
+            return {str(k): clean(v, f"{path}/{k}" if path else str(k)) for k, v in obj.items()}
+        if isinstance(obj, (list, tuple)):
+            return [clean(v, f"{path}/{i}") for i, v in enumerate(obj)]
+        if hasattr(obj, "tolist"):  # NumPy arrays and scalars
+            return clean(obj.tolist(), path)
+        if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
+            return obj
+        if isinstance(obj, float):
+            if math.isfinite(obj):
+                return obj
+            count[0] += 1
+            if len(notes) < _MAX_NOTES:
+                notes.append({"path": path, "value": repr(obj)})
+            return None
+        return str(obj)
+
+    out = clean(payload, "")
+    if count[0]:
+        if count[0] > len(notes):
+            notes.append({"path": "...", "value": f"{count[0] - len(notes)} more not listed"})
+        out["non_finite"] = notes
+    return out
 
 
 def add_allow_incomplete_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--allow-incomplete", action="store_true",
-                        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run was "
-                             "partial (a failed check still exits with 1)")
+    parser.add_argument(
+        "--allow-incomplete",
+        action="store_true",
+        help="exit with 0 instead of 3 when a target was missed, a study did not run or the run "
+        "was partial (a failed check still exits with 1)",
+    )

@@ -14,7 +14,14 @@ T = TypeVar("T")
 class Progress:
     """A one-line progress bar; silent unless the stream is a terminal (or forced)."""
 
-    def __init__(self, total: int, label: str, *, stream: Optional[TextIO] = None, enabled: Optional[bool] = None):
+    def __init__(
+        self,
+        total: int,
+        label: str,
+        *,
+        stream: Optional[TextIO] = None,
+        enabled: Optional[bool] = None,
+    ):
         self.total = max(int(total), 0)
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
@@ -29,7 +36,8 @@ class Progress:
         width = 24
         filled = int(width * self.done / self.total) if self.total else width
         elapsed = time.perf_counter() - self._t0
-        line = f"\r{self.label} [{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} {elapsed:5.1f}s {what[:40]:40s}"
+        bar = "#" * filled + "." * (width - filled)
+        line = f"\r{self.label} [{bar}] {self.done}/{self.total} {elapsed:5.1f}s {what[:40]:40s}"
         self.stream.write(line)
         self.stream.flush()
 
@@ -57,7 +65,9 @@ class StatusLine:
     Call it with a message; silent unless the stream is a terminal (or forced).
     """
 
-    def __init__(self, label: str, *, stream: Optional[TextIO] = None, enabled: Optional[bool] = None):
+    def __init__(
+        self, label: str, *, stream: Optional[TextIO] = None, enabled: Optional[bool] = None
+    ):
         self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = self.stream.isatty() if enabled is None else enabled

@@ -32,11 +32,22 @@ def status_class(result: StudyResult) -> str:
 
 
 def _checks_table(checks: Sequence[Check]) -> Table:
-    return Table(("check", "kind", "measured", "required", "verdict"),
-                 [(c.name + (f" ({c.note})" if c.note else ""), c.kind,
-                   "not measured" if c.measured is None else c.measured, f"{c.relation} {c.limit:g}",
-                   "not measured" if c.passed is None else ("met" if c.passed else ("FAIL" if c.kind == "tolerance" else "MISSED")))
-                  for c in checks], caption="What this study was held to")
+    return Table(
+        ("check", "kind", "measured", "required", "verdict"),
+        [
+            (
+                c.name + (f" ({c.note})" if c.note else ""),
+                c.kind,
+                "not measured" if c.measured is None else c.measured,
+                f"{c.relation} {c.limit:g}",
+                "not measured"
+                if c.passed is None
+                else ("met" if c.passed else ("FAIL" if c.kind == "tolerance" else "MISSED")),
+            )
+            for c in checks
+        ],
+        caption="What this study was held to",
+    )
 
 
 def study_blocks(r: StudyResult) -> List[Block]:
@@ -45,7 +56,11 @@ def study_blocks(r: StudyResult) -> List[Block]:
     if r.headline:
         out.append(Paragraph(r.headline))
     if r.not_covered:
-        out.append(Preformatted("Not covered by this run:\n" + "\n".join(f"- {item}" for item in r.not_covered)))
+        out.append(
+            Preformatted(
+                "Not covered by this run:\n" + "\n".join(f"- {item}" for item in r.not_covered)
+            )
+        )
     if r.protocol:
         out.append(Paragraph(f"Protocol: {r.protocol}"))
     if r.checks:
@@ -55,13 +70,26 @@ def study_blocks(r: StudyResult) -> List[Block]:
 
 def summary_blocks(results: Sequence[StudyResult]) -> List[Block]:
     """The summary: the verdict, every study's status and headline, and what was left out."""
-    out: List[Block] = [Paragraph(verdict_sentence(results)),
-                        Table(("study", "status", "what it found", "seconds"),
-                              [(r.title, status_label(r), r.reason if r.status is not Status.PASSED else r.headline,
-                                f"{r.seconds:.1f}") for r in results])]
+    out: List[Block] = [
+        Paragraph(verdict_sentence(results)),
+        Table(
+            ("study", "status", "what it found", "seconds"),
+            [
+                (
+                    r.title,
+                    status_label(r),
+                    r.reason if r.status is not Status.PASSED else r.headline,
+                    f"{r.seconds:.1f}",
+                )
+                for r in results
+            ],
+        ),
+    ]
     left_out = not_covered_lines(results)
     if left_out:
-        out.append(Preformatted("Not covered by this run:\n" + "\n".join(f"- {line}" for line in left_out)))
+        out.append(
+            Preformatted("Not covered by this run:\n" + "\n".join(f"- {line}" for line in left_out))
+        )
     return out
 
 
@@ -70,7 +98,9 @@ def _md_table(t: Table) -> List[str]:
     lines = [f"*{t.caption}*", ""] if t.caption else []
     lines.append("| " + " | ".join(t.headers) + " |")
     lines.append("|" + "|".join("---" for _ in t.headers) + "|")
-    lines.extend("| " + " | ".join(format_cell(c).replace("|", "\\|") for c in row) + " |" for row in t.rows)
+    lines.extend(
+        "| " + " | ".join(format_cell(c).replace("|", "\\|") for c in row) + " |" for row in t.rows
+    )
     return lines
 
 
@@ -96,25 +126,40 @@ def to_markdown(title: str, preamble: Sequence[str], results: Sequence[StudyResu
     out = [f"# {title}", ""]
     for p in preamble:
         out += [p, ""]
-    out += ["Contents:", ""] + [f"- [{r.title}](#{r.key}): **{status_label(r)}**" for r in results] + [""]
+    out += (
+        ["Contents:", ""]
+        + [f"- [{r.title}](#{r.key}): **{status_label(r)}**" for r in results]
+        + [""]
+    )
     out += [f"## {SUMMARY_TITLE}", ""] + _md_blocks(summary_blocks(results))
     for r in results:
-        out += [f'<a id="{r.key}"></a>', "", f"## {r.title}", "", f"**Status: {_status_line(r)}** ({r.seconds:.1f} s)", "",
-                f"Reproduce: `{r.command}`", ""]
+        out += [
+            f'<a id="{r.key}"></a>',
+            "",
+            f"## {r.title}",
+            "",
+            f"**Status: {_status_line(r)}** ({r.seconds:.1f} s)",
+            "",
+            f"Reproduce: `{r.command}`",
+            "",
+        ]
         out += _md_blocks(study_blocks(r))
     return "\n".join(out)
 
 
 # ----------------------------------------------------------------------------- HTML
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;
+     margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{border-bottom:2px solid #444}h2{margin-top:2em;border-bottom:1px solid #bbb}
-table{border-collapse:collapse;margin:0.8em 0;font-size:0.88em}td,th{border:1px solid #ccc;padding:2px 7px;text-align:right}
+table{border-collapse:collapse;margin:0.8em 0;font-size:0.88em}
+td,th{border:1px solid #ccc;padding:2px 7px;text-align:right}
 th{background:#f1f1f1}td:first-child,th:first-child{text-align:left}caption{text-align:left;font-style:italic}
 .status{display:inline-block;padding:1px 8px;border-radius:4px;font-weight:600}
 .passed{background:#d9f2d9}.partial,.target-missed,.not-run{background:#fbe7b5}.failed,.error{background:#f8d0d0}
 code,pre{background:#f6f6f6;font-size:0.9em}pre{padding:0.6em;overflow-x:auto;white-space:pre-wrap}
-figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:0.9em;color:#444}
+figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
+figcaption{font-size:0.9em;color:#444}
 nav li{margin:0.1em 0}.fail-cell{color:#b00;font-weight:600}
 """
 
@@ -156,7 +201,10 @@ def _html_blocks(blocks: Sequence[Block], run_dir: str) -> List[str]:
         elif isinstance(b, Table):
             out.append(_html_table(b))
         elif isinstance(b, Figure):
-            out.append(f"<figure>{_embed(run_dir, b.path)}<figcaption>{html.escape(b.caption)}</figcaption></figure>")
+            out.append(
+                f"<figure>{_embed(run_dir, b.path)}"
+                f"<figcaption>{html.escape(b.caption)}</figcaption></figure>"
+            )
         elif isinstance(b, Preformatted):
             out.append(f"<pre>{html.escape(b.text)}</pre>")
     return out
@@ -166,13 +214,23 @@ def _badge(r: StudyResult) -> str:
     return f"<span class='status {status_class(r)}'>{html.escape(status_label(r))}</span>"
 
 
-def to_html(title: str, preamble: Sequence[str], results: Sequence[StudyResult], run_dir: str) -> str:
+def to_html(
+    title: str, preamble: Sequence[str], results: Sequence[StudyResult], run_dir: str
+) -> str:
     """One HTML file with every figure embedded: it opens from disk, no server, no network."""
-    parts = [f"<!doctype html><html lang='en'><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]
+    parts = [
+        "<!doctype html><html lang='en'><head><meta "
+        f"charset='utf-8'><title>{html.escape(title)}</title>",
+        f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>",
+    ]
     parts += [f"<p>{html.escape(p)}</p>" for p in preamble]
-    parts.append(f"<nav><ul><li><a href='#{SUMMARY_KEY}'>{SUMMARY_TITLE}</a></li>" + "".join(
-        f"<li><a href='#{r.key}'>{html.escape(r.title)}</a> {_badge(r)}</li>" for r in results) + "</ul></nav>")
+    parts.append(
+        f"<nav><ul><li><a href='#{SUMMARY_KEY}'>{SUMMARY_TITLE}</a></li>"
+        + "".join(
+            f"<li><a href='#{r.key}'>{html.escape(r.title)}</a> {_badge(r)}</li>" for r in results
+        )
+        + "</ul></nav>"
+    )
     parts.append(f"<h2 id='{SUMMARY_KEY}'>{SUMMARY_TITLE}</h2>")
     parts += _html_blocks(summary_blocks(results), run_dir)
     for r in results:

@@ -21,7 +21,9 @@ PROGRAM = "mjed-verify"
 Value = Union[str, int, float, bool, None]
 
 
-def command(subcommand: str, *, prefix: Sequence[str] = (), comment: str = "", **options: Value) -> str:
+def command(
+    subcommand: str, *, prefix: Sequence[str] = (), comment: str = "", **options: Value
+) -> str:
     """``mjed-verify SUBCOMMAND --opt value ...`` with shell quoting.
 
     options: keyword ``snake_case`` becomes ``--kebab-case``; True gives a bare flag; None and
@@ -52,14 +54,20 @@ def material_option(materials: Iterable) -> tuple:
     materials = list(materials)
     names = [m.name for m in materials]
     custom = [m.name for m in materials if DEFAULT_MATERIALS.get(m.name) != m]
-    comment = f"custom parameters for {', '.join(custom)}: the command line uses those of common/cases.py" if custom else ""
+    comment = (
+        f"custom parameters for {', '.join(custom)}: the command line uses those of common/cases.py"
+        if custom
+        else ""
+    )
     if not custom and names == list(DEFAULT_MATERIALS):
         return "all", comment
     return ",".join(names), comment
 
 
 def mesh_option(labels: Iterable[str]) -> str:
-    """The --mesh value: 'all' for the default built-in set, else the labels (names or paths as given)."""
+    """The --mesh value: 'all' for the default built-in set, else the labels (names or paths as
+    given).
+    """
     from common.options import DEFAULT_MESHES
 
     labels = list(labels)

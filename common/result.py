@@ -27,8 +27,18 @@ from typing import Any, Iterable, Mapping, Optional, Sequence, Tuple
 
 from common.blocks import Block
 
-__all__ = ["Status", "Check", "StudyResult", "status_from_checks", "worst_status", "exit_code",
-           "EXIT_PASSED", "EXIT_FAILED", "EXIT_INPUT", "EXIT_INCOMPLETE"]
+__all__ = [
+    "Status",
+    "Check",
+    "StudyResult",
+    "status_from_checks",
+    "worst_status",
+    "exit_code",
+    "EXIT_PASSED",
+    "EXIT_FAILED",
+    "EXIT_INPUT",
+    "EXIT_INCOMPLETE",
+]
 
 EXIT_PASSED = 0
 EXIT_FAILED = 1
@@ -46,7 +56,13 @@ class Status(str, enum.Enum):
     ERROR = "error"
 
 
-_SEVERITY = {Status.PASSED: 0, Status.NOT_RUN: 1, Status.TARGET_MISSED: 2, Status.FAILED: 3, Status.ERROR: 4}
+_SEVERITY = {
+    Status.PASSED: 0,
+    Status.NOT_RUN: 1,
+    Status.TARGET_MISSED: 2,
+    Status.FAILED: 3,
+    Status.ERROR: 4,
+}
 
 
 @dataclass(frozen=True)
@@ -68,9 +84,13 @@ class Check:
 
     def __post_init__(self) -> None:
         if self.relation not in ("<=", ">="):
-            raise ValueError(f"Check {self.name!r}: relation must be '<=' or '>=', not {self.relation!r}")
+            raise ValueError(
+                f"Check {self.name!r}: relation must be '<=' or '>=', not {self.relation!r}"
+            )
         if self.kind not in ("tolerance", "target"):
-            raise ValueError(f"Check {self.name!r}: kind must be 'tolerance' or 'target', not {self.kind!r}")
+            raise ValueError(
+                f"Check {self.name!r}: kind must be 'tolerance' or 'target', not {self.kind!r}"
+            )
 
     @property
     def passed(self) -> Optional[bool]:
@@ -83,8 +103,15 @@ class Check:
         return m <= self.limit if self.relation == "<=" else m >= self.limit
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "measured": _finite_or_none(self.measured), "limit": self.limit,
-                "relation": self.relation, "kind": self.kind, "passed": self.passed, "note": self.note}
+        return {
+            "name": self.name,
+            "measured": _finite_or_none(self.measured),
+            "limit": self.limit,
+            "relation": self.relation,
+            "kind": self.kind,
+            "passed": self.passed,
+            "note": self.note,
+        }
 
 
 def status_from_checks(checks: Iterable[Check]) -> Status:
@@ -104,7 +131,8 @@ def status_from_checks(checks: Iterable[Check]) -> Status:
 class StudyResult:
     """A study's outcome: status, headline, what it was held to, how to reproduce it, its data.
 
-    key, title: the study's identity (e.g. "equivalence", "Equivalence: MJED against the UFL oracle").
+    key, title: the study's identity (e.g. "equivalence", "Equivalence: MJED against the UFL
+    oracle").
     status: one of :class:`Status`.
     headline: one line for a summary, with the figures that matter.
     command: the exact command line that reproduces this result (with every option that ran).
@@ -133,36 +161,78 @@ class StudyResult:
 
     def __post_init__(self) -> None:
         if not isinstance(self.status, Status):
-            raise TypeError(f"StudyResult {self.key!r}: status must be a Status, not {type(self.status).__name__}")
+            raise TypeError(
+                f"StudyResult {self.key!r}: status must be a Status, not "
+                f"{type(self.status).__name__}"
+            )
         object.__setattr__(self, "checks", tuple(self.checks))
         object.__setattr__(self, "not_covered", tuple(self.not_covered))
         object.__setattr__(self, "blocks", tuple(self.blocks))
-        if self.status in (Status.NOT_RUN, Status.ERROR, Status.FAILED, Status.TARGET_MISSED) and not self.reason:
-            raise ValueError(f"StudyResult {self.key!r}: a {self.status.value} result must say why (reason)")
+        if (
+            self.status in (Status.NOT_RUN, Status.ERROR, Status.FAILED, Status.TARGET_MISSED)
+            and not self.reason
+        ):
+            raise ValueError(
+                f"StudyResult {self.key!r}: a {self.status.value} result must say why (reason)"
+            )
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def from_checks(cls, key: str, title: str, checks: Sequence[Check], *, headline: str, command: str,
-                    reason: str = "", **kwargs) -> "StudyResult":
+    def from_checks(
+        cls,
+        key: str,
+        title: str,
+        checks: Sequence[Check],
+        *,
+        headline: str,
+        command: str,
+        reason: str = "",
+        **kwargs,
+    ) -> "StudyResult":
         """The status follows the checks; the reason defaults to the failed or missed ones."""
         status = status_from_checks(checks)
         if status is not Status.PASSED and not reason:
             bad = [c for c in checks if c.passed is False]
-            reason = f"{len(bad)} of {len(checks)} checks not met: " + "; ".join(_describe(c) for c in bad[:3])
+            reason = f"{len(bad)} of {len(checks)} checks not met: " + "; ".join(
+                _describe(c) for c in bad[:3]
+            )
             if len(bad) > 3:
                 reason += f"; and {len(bad) - 3} more"
-        return cls(key=key, title=title, status=status, headline=headline, command=command, checks=tuple(checks),
-                   reason=reason, **kwargs)
+        return cls(
+            key=key,
+            title=title,
+            status=status,
+            headline=headline,
+            command=command,
+            checks=tuple(checks),
+            reason=reason,
+            **kwargs,
+        )
 
     @classmethod
     def not_run(cls, key: str, title: str, reason: str, command: str) -> "StudyResult":
-        return cls(key=key, title=title, status=Status.NOT_RUN, headline=f"not run: {reason}", command=command,
-                   reason=reason)
+        return cls(
+            key=key,
+            title=title,
+            status=Status.NOT_RUN,
+            headline=f"not run: {reason}",
+            command=command,
+            reason=reason,
+        )
 
     @classmethod
-    def error(cls, key: str, title: str, reason: str, command: str, blocks: Sequence[Block] = ()) -> "StudyResult":
-        return cls(key=key, title=title, status=Status.ERROR, headline=f"error: {reason}", command=command,
-                   reason=reason, blocks=tuple(blocks))
+    def error(
+        cls, key: str, title: str, reason: str, command: str, blocks: Sequence[Block] = ()
+    ) -> "StudyResult":
+        return cls(
+            key=key,
+            title=title,
+            status=Status.ERROR,
+            headline=f"error: {reason}",
+            command=command,
+            reason=reason,
+            blocks=tuple(blocks),
+        )
 
     # ------------------------------------------------------------------ reading
     @property
@@ -176,17 +246,29 @@ class StudyResult:
 
     @property
     def complete_pass(self) -> bool:
-        """Passed, and nothing left out: the only case a summary may call 'passed' without qualification."""
+        """Passed, and nothing left out: the only case a summary may call 'passed' without
+        qualification.
+        """
         return self.status is Status.PASSED and not self.partial
 
     def with_seconds(self, seconds: float) -> "StudyResult":
         return replace(self, seconds=float(seconds))
 
     def to_dict(self) -> dict:
-        return {"key": self.key, "title": self.title, "status": self.status.value, "partial": self.partial,
-                "headline": self.headline, "command": self.command, "reason": self.reason,
-                "not_covered": list(self.not_covered), "protocol": self.protocol,
-                "checks": [c.to_dict() for c in self.checks], "seconds": self.seconds, "data": self.data}
+        return {
+            "key": self.key,
+            "title": self.title,
+            "status": self.status.value,
+            "partial": self.partial,
+            "headline": self.headline,
+            "command": self.command,
+            "reason": self.reason,
+            "not_covered": list(self.not_covered),
+            "protocol": self.protocol,
+            "checks": [c.to_dict() for c in self.checks],
+            "seconds": self.seconds,
+            "data": self.data,
+        }
 
 
 def worst_status(results: Iterable[StudyResult]) -> Status:
@@ -196,7 +278,8 @@ def worst_status(results: Iterable[StudyResult]) -> Status:
 
 def exit_code(results: Iterable[StudyResult], *, allow_incomplete: bool = False) -> int:
     """0 every study passed completely; 1 a check failed or a study raised; 3 a target missed,
-    a study not run or a partial run (0 instead when ``allow_incomplete``)."""
+    a study not run or a partial run (0 instead when ``allow_incomplete``).
+    """
     results = list(results)
     if not results:
         return EXIT_INCOMPLETE
@@ -209,7 +292,11 @@ def exit_code(results: Iterable[StudyResult], *, allow_incomplete: bool = False)
 
 
 def _describe(c: Check) -> str:
-    return f"{c.name}: {c.measured:.3g} (required {c.relation} {c.limit:g})" if c.measured is not None else c.name
+    return (
+        f"{c.name}: {c.measured:.3g} (required {c.relation} {c.limit:g})"
+        if c.measured is not None
+        else c.name
+    )
 
 
 def _finite_or_none(x: Optional[float]) -> Optional[float]:

@@ -10,6 +10,7 @@ from typing import Callable, Dict, Optional, Tuple
 
 import numpy as np
 
+from common.frames import mid_wall_frame
 from meshes import signed_volumes
 
 __all__ = [
@@ -93,6 +94,22 @@ def _quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
     )
 
 
+def _fibre_states() -> Tuple[np.ndarray, np.ndarray]:
+    """Deformation gradients (3, 3) of a stretch along the mid-wall fibre f0 (1.25) and of a shear
+    in the mid-wall fibre-sheet plane (x += 0.4 (s0 . X) f0; J = 1 since f0 is normal to s0).
+
+    The fibre frame turns through the wall (common/frames.py), so no homogeneous state follows the
+    fibre of every cell; these follow the mid-wall one, where an engine that ignores, transposes
+    or globalises the frame sees a fibre energy different from the true one, in force and in
+    stiffness alike.
+    """
+    R0 = mid_wall_frame()
+    f0, s0 = R0[:, 0], R0[:, 1]
+    return np.eye(3) + 0.25 * np.outer(f0, f0), np.eye(3) + 0.4 * np.outer(f0, s0)
+
+
+_FIBRE_STRETCH, _FIBRE_SHEAR = _fibre_states()
+
 #: name -> (description, function(X, cells) -> x)
 STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = {
     "rest": ("x = X", lambda X, cells: X.copy()),
@@ -105,6 +122,14 @@ STATES: Dict[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]] = 
     "triaxial": (
         "stretches 1.25, 0.9, 0.8: distinct principal stretches, J = 0.9",
         _affine(np.diag([1.25, 0.9, 0.8])),
+    ),
+    "fibre-stretch": (
+        "stretch 1.25 along the mid-wall fibre of the default frame field, J = 1.25",
+        _affine(_FIBRE_STRETCH),
+    ),
+    "fibre-shear": (
+        "shear 0.4 in the mid-wall fibre-sheet plane of the default frame field",
+        _affine(_FIBRE_SHEAR),
     ),
     "random": (
         "seeded smooth random field with a rotation, J > 0.2",

@@ -60,11 +60,21 @@ def format_result(result: StudyResult, *, details: bool = True) -> str:
     """The result as text: blocks (if ``details``), checks, what was left out, the verdict line."""
     lines: List[str] = format_blocks(result.blocks) if details else []
     if result.checks:
-        lines += _text_table(Table(("check", "kind", "measured", "required", "verdict"),
-                                   [(c.name, c.kind, c.measured if c.measured is not None else "not measured",
-                                     f"{c.relation} {c.limit:g}",
-                                     "not measured" if c.passed is None else ("met" if c.passed else "NOT MET"))
-                                    for c in result.checks]))
+        lines += _text_table(
+            Table(
+                ("check", "kind", "measured", "required", "verdict"),
+                [
+                    (
+                        c.name,
+                        c.kind,
+                        c.measured if c.measured is not None else "not measured",
+                        f"{c.relation} {c.limit:g}",
+                        "not measured" if c.passed is None else ("met" if c.passed else "NOT MET"),
+                    )
+                    for c in result.checks
+                ],
+            )
+        )
         lines.append("")
     if result.protocol:
         lines.append(f"protocol: {result.protocol}")

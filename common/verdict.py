@@ -41,7 +41,10 @@ def not_covered_lines(results: Sequence[StudyResult]) -> list:
         if r.status is Status.NOT_RUN:
             lines.append(f"{r.title}: not run: {r.reason}")
         lines += [f"{r.title}: {item}" for item in r.not_covered]
-        lines += [f"{r.title}: not measured: {c.name}" + (f" ({c.note})" if c.note else "") for c in r.unmeasured]
+        lines += [
+            f"{r.title}: not measured: {c.name}" + (f" ({c.note})" if c.note else "")
+            for c in r.unmeasured
+        ]
     return lines
 
 
@@ -53,8 +56,12 @@ def verdict_sentence(results: Sequence[StudyResult]) -> str:
         return f"Verdict: every check passed ({len(results)} studies, all run completely)."
     count = lambda *s: sum(r.status in s for r in results)  # noqa: E731
     parts = []
-    for n, what in ((count(Status.FAILED), "FAILED"), (count(Status.ERROR), "raised an ERROR"),
-                    (count(Status.TARGET_MISSED), "missed a target"), (count(Status.NOT_RUN), "NOT RUN")):
+    for n, what in (
+        (count(Status.FAILED), "FAILED"),
+        (count(Status.ERROR), "raised an ERROR"),
+        (count(Status.TARGET_MISSED), "missed a target"),
+        (count(Status.NOT_RUN), "NOT RUN"),
+    ):
         if n:
             parts.append(f"{n} {'study' if n == 1 else 'studies'} {what}")
     partial = sum(r.status is Status.PASSED and r.partial for r in results)
@@ -62,4 +69,7 @@ def verdict_sentence(results: Sequence[StudyResult]) -> str:
         parts.append(f"{partial} passed only partially (see what was not covered)")
     passed = sum(r.complete_pass for r in results)
     word = "FAILED" if exit_code(results) == EXIT_FAILED else "INCOMPLETE"
-    return f"Verdict: {word}: {'; '.join(parts)}; {passed} of {len(results)} studies passed completely."
+    return (
+        f"Verdict: {word}: {'; '.join(parts)}; {passed} of {len(results)} studies passed "
+        "completely."
+    )

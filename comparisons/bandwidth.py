@@ -32,8 +32,13 @@ class Bandwidth:
     best_s: float
 
     def to_dict(self) -> dict:
-        return {"bytes_per_s": self.bytes_per_s, "GB_per_s": self.bytes_per_s / 1e9, "kernel": self.kernel,
-                "array_bytes": self.array_bytes, "best_s": self.best_s}
+        return {
+            "bytes_per_s": self.bytes_per_s,
+            "GB_per_s": self.bytes_per_s / 1e9,
+            "kernel": self.kernel,
+            "array_bytes": self.array_bytes,
+            "best_s": self.best_s,
+        }
 
 
 def _copy_kernel() -> "tuple[Callable, str]":
@@ -52,9 +57,13 @@ def _copy_kernel() -> "tuple[Callable, str]":
 
 
 def measure_bandwidth(array_bytes: int = 64 * 2**20, repeats: int = 5) -> Bandwidth:
-    """Best-of-``repeats`` copy bandwidth of an ``array_bytes`` float64 array (bytes/s, read + write)."""
+    """Best-of-``repeats`` copy bandwidth of an ``array_bytes`` float64 array (bytes/s, read +
+    write).
+    """
     if array_bytes < 8 or repeats < 1:
-        raise ValueError(f"array_bytes must be >= 8 and repeats >= 1, got {array_bytes} and {repeats}")
+        raise ValueError(
+            f"array_bytes must be >= 8 and repeats >= 1, got {array_bytes} and {repeats}"
+        )
     n = array_bytes // 8
     src = np.ones(n)
     dst = np.zeros(n)  # touched now, so page faults are not timed
@@ -73,7 +82,8 @@ def measure_bandwidth(array_bytes: int = 64 * 2**20, repeats: int = 5) -> Bandwi
 def floor_bytes(n_nodes: int, n_cells: int, nnz: int, index_bytes: int = 4) -> int:
     """Bytes force + stiffness must move at least: written CSR values (nnz doubles) and force
     (3 n doubles); read positions (3 n doubles), connectivity (4 indices per cell) and rest
-    geometry (D: 12 doubles and V0: 1 double per cell)."""
+    geometry (D: 12 doubles and V0: 1 double per cell).
+    """
     written = 8 * nnz + 8 * 3 * n_nodes
     read = 8 * 3 * n_nodes + index_bytes * 4 * n_cells + 8 * 13 * n_cells
     return int(written + read)

@@ -8,8 +8,11 @@ W = W_iso(I1b, I2b) + U(J) the principal Cauchy stresses are
 
 with b_i = J^(-2/3) lambda_i^2 the principal values of the isochoric left Cauchy-Green tensor
 and W1, W2 the derivatives of W_iso. Neo-Hookean, St Venant-Kirchhoff and Ogden are not of
-that form and get their own lines. Uniaxial stress means sigma_2 = sigma_3 = 0: the lateral
-stretch is the root of sigma_2(lambda, t, t) = 0.
+that form and get their own lines. A material with no lines of its own whose declaration gives
+the decoupled classical form (mjed.materials.classical_forms.Decoupled, e.g. Yeoh, Gent) uses
+that form's W1, W2 and k0/2 (ln J)^2, so a new material of that form needs nothing here.
+Uniaxial stress means sigma_2 = sigma_3 = 0: the lateral stretch is the root of
+sigma_2(lambda, t, t) = 0.
 
 The discrete side prescribes x = F X on every node of a cube mesh. For a homogeneous F the
 nodal forces of interior nodes vanish and the forces on the face X = max add up to the first
@@ -26,8 +29,18 @@ from typing import Tuple
 import numpy as np
 from scipy.optimize import brentq
 
-from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
-from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials import (
+    ArrudaBoyce,
+    MooneyRivlin,
+    NeoHookean,
+    Ogden,
+    StVenantKirchhoff,
+    VerondaWestmann,
+    declarations,
+)
+from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials.classical_forms import Decoupled
+from mjed.materials.declaration import declaration_of
 
 __all__ = [
     "ISOTROPIC",
@@ -61,12 +74,42 @@ def _isochoric_I1(stretches: Stretches) -> float:
     return float(np.prod(lam) ** (-2.0 / 3.0) * (lam**2).sum())
 
 
+def _decoupled_form(material) -> "Decoupled | None":
+    """The declared classical form of ``material`` when it is the decoupled one, else None."""
+    try:
+        form = declaration_of(type(material)).classical(material)
+    except (LookupError, TypeError):  # not a declared material
+        return None
+    return form if isinstance(form, Decoupled) else None
+
+
+class _Named:
+    """The parameters of a decoupled form, read by attribute as its Psi reads them."""
+
+    def __init__(self, pairs):
+        self.__dict__.update({name: float(value) for name, value in pairs})
+
+
 @functools.singledispatch
 def _principal(material, s: Stretches) -> np.ndarray:
-    """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type."""
+    """Principal Cauchy stresses (3,) of ``material`` under F = diag(s), dispatched on its type;
+    without lines of its own, a declared decoupled form's Psi derivatives.
+    """
+    form = _decoupled_form(material)
+    if form is not None:
+        J = float(np.prod(s))
+        lam = np.asarray(s, dtype=float)
+        b = J ** (-2.0 / 3.0) * lam**2
+        I2b = b[0] * b[1] + b[1] * b[2] + b[0] * b[2]
+        with np.errstate(invalid="ignore", divide="ignore"):  # Psi itself may be undefined (Gent
+            # far beyond its lock, tried while bracketing the lateral stretch); W1, W2 are not
+            _, W1, W2, *_ = form.psi.function(_Named(form.parameters), b.sum(), I2b, np)
+        return _decoupled(float(W1), float(W2), form.k0 * np.log(J) / J, s)
     cls = type(material)
-    raise ValueError(f"no closed form for {cls.__qualname__}; isotropic materials with one: "
-                     f"{', '.join(t.__qualname__ for t in ISOTROPIC)}")
+    raise ValueError(
+        f"no closed form for {cls.__qualname__}; isotropic materials with one: "
+        f"{', '.join(t.__qualname__ for t in ISOTROPIC)}"
+    )
 
 
 @_principal.register
@@ -101,7 +144,10 @@ def _veronda_westmann(m: VerondaWestmann, s: Stretches) -> np.ndarray:
 def _arruda_boyce(m: ArrudaBoyce, s: Stretches) -> np.ndarray:
     J = float(np.prod(s))
     I1b = _isochoric_I1(s)
-    W1 = m.mu * sum(i * c * m.N ** (1 - i) * I1b ** (i - 1) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1))
+    W1 = m.mu * sum(
+        i * c * m.N ** (1 - i) * I1b ** (i - 1)
+        for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)
+    )
     return _decoupled(W1, 0.0, m.k0 * np.log(J) / J, s)
 
 
@@ -115,13 +161,20 @@ def _ogden(m: Ogden, s: Stretches) -> np.ndarray:
     return (m.mu / m.alpha * (p - p.mean()) + m.k0 * np.log(J)) / J
 
 
-#: The isotropic material types with a closed form.
-ISOTROPIC: Tuple[type, ...] = tuple(t for t in _principal.registry if t is not object)
+#: The isotropic material types with a closed form: their own lines, then the declared ones of
+#: the decoupled form.
+ISOTROPIC: Tuple[type, ...] = tuple(t for t in _principal.registry if t is not object) + tuple(
+    d.material
+    for d in declarations()
+    if d.material not in _principal.registry and isinstance(d.classical(d.default), Decoupled)
+)
 
 
 def has_closed_form(material) -> bool:
     """True when the material's type (or a base of it) has a closed form here."""
-    return _principal.dispatch(type(material)) is not _principal.dispatch(object)
+    if _principal.dispatch(type(material)) is not _principal.dispatch(object):
+        return True
+    return _decoupled_form(material) is not None
 
 
 def principal_cauchy(material, stretches: Stretches) -> np.ndarray:
@@ -136,7 +189,10 @@ def uniaxial_lateral_stretch(material, stretch: float) -> float:
     lateral = lambda t: principal_cauchy(material, (stretch, t, t))[1]
     lo, hi = 0.2, 3.0
     if not lateral(lo) < 0.0 < lateral(hi):
-        raise ValueError(f"{type(material).__name__}: no lateral stretch in ({lo}, {hi}) frees the sides at stretch {stretch}")
+        raise ValueError(
+            f"{type(material).__name__}: no lateral stretch in ({lo}, {hi}) frees the sides at "
+            f"stretch {stretch}"
+        )
     return float(brentq(lateral, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
 
 
@@ -160,7 +216,9 @@ class UniaxialResult:
         return asdict(self)
 
 
-def uniaxial_reaction_check(material, points: np.ndarray, cells: np.ndarray, stretch: float) -> UniaxialResult:
+def uniaxial_reaction_check(
+    material, points: np.ndarray, cells: np.ndarray, stretch: float
+) -> UniaxialResult:
     """Cube stretched along x in uniaxial stress: MJED's face reaction against sigma_11.
 
     points (n, 3) of an axis-aligned box mesh; cells (m, 4).
@@ -206,6 +264,9 @@ def uniaxial_checks(materials, label: str, points: np.ndarray, cells: np.ndarray
             continue
         for stretch in UNIAXIAL_STRETCHES:
             r = uniaxial_reaction_check(m, points, cells, stretch).to_dict()
-            r.update(mesh=label, passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL))
+            r.update(
+                mesh=label,
+                passed=bool(r["rel_err"] <= FORCE_TOL and r["lateral_reaction_rel"] <= FORCE_TOL),
+            )
             rows.append(r)
     return rows

@@ -29,7 +29,8 @@ about E = 6 kPa. The paper's DMA G0 = 770 Pa (and Mattei's E = 2.65 kPa) is soft
 it a 2.6 litre organ held only at the vena cava and ligament sags by more than 10 cm and the
 linearised implicit step at 0.3 s meets negative curvature in CG (the run stops with an
 IntegrationError); in the body the neighbouring organs carry much of that weight. Bulk:
-k0 = 20 kPa (Poisson ratio about 0.4; the paper gives none). Density 1000 kg/m^3 (liver ~1050). Prony: alpha = (0.235, 0.333),
+k0 = 20 kPa (Poisson ratio about 0.4; the paper gives none). Density 1000 kg/m^3 (liver ~1050).
+Prony: alpha = (0.235, 0.333),
 tau = (0.27, 0.03) s (paper Fig. 3). Porous: f_w = 0.5, K0 = 400 Pa, K_lim = 2200 Pa (paper
 Fig. 1 right). Permeability: the paper's kappa = 20 m^4/(N s) gives a diffusivity
 kappa K_lim = 4.4e4 m^2/s, which equilibrates a 10 cm organ in microseconds (its units are
@@ -39,15 +40,18 @@ and 0.15 s with porosity, as in the paper. Rayleigh damping r_M = r_K = 0.1 (SOF
 demo); with r_K = 0.01 the visco-hyperelastic run inverts cells at 0.3 s. Compressed-element
 regularisation (paper, section 2.3) on.
 
-Linear solver (``LiverParameters.solver``, a mjed.solvers.LinearSolverOptions). CG to a relative residual of 1e-5 (one linearised step: its own error, O(dt^2)
+Linear solver (``LiverParameters.solver``, a mjed.solvers.LinearSolverOptions). CG to a relative
+residual of 1e-5 (one linearised step: its own error, O(dt^2)
 in the positions, is far larger; the final amplitudes agree with a 1e-8 solve to about 1e-8 m),
 preconditioned by a single-precision sparse LU factorisation of the step matrix that is kept
 over the following steps and renewed after a solve that needs more than 20 iterations
-(``LinearSolverOptions(preconditioner="factorized", factor_precision="single")``, see mjed.integrator): about 7
+(``LinearSolverOptions(preconditioner="factorized", factor_precision="single")``, see
+mjed.integrator): about 7
 CG iterations per step instead of 200-250 with Jacobi, with 2-3 factorisations per 30-step run
 (each one also certifies that the step matrix is positive definite, redone in double precision
 before a step is refused). CG itself runs in double precision and still raises on
-non-convergence and on negative curvature. ``preconditioner="jacobi"`` is the paper's / SOFA's plain choice;
+non-convergence and on negative curvature. ``preconditioner="jacobi"`` is the paper's / SOFA's plain
+choice;
 ``solver="direct"`` (a factorisation every step) is a comparison point. The FPS table
 names the solver of each run.
 
@@ -67,17 +71,32 @@ import dataclasses
 import os
 import shlex
 import time
-from typing import Callable, Dict, List, Optional, Sequence
+import warnings
+from dataclasses import dataclass
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from common.options import InputError
 from common.result import StudyResult
-from comparisons.organ import Organ, fixed_nodes, load_organ
+from comparisons.organ import Organ, check_supports, fixed_nodes, load_organ, scale_of
+from mjed.errors import MeshWarning
 
-__all__ = ["LiverParameters", "MODELS", "PAPER_FPS", "TARGET_FPS", "COMPILED_TARGET_FPS", "PAPER_HYPERELASTIC_SHARE",
-           "BACKEND_AGREEMENT_TOL", "backend_force_field", "default_fixed_specs",
-           "run_liver", "liver_study", "numpy_force_field", "LIVER_SOLVER"]
+__all__ = [
+    "LiverParameters",
+    "MODELS",
+    "PAPER_FPS",
+    "TARGET_FPS",
+    "COMPILED_TARGET_FPS",
+    "PAPER_HYPERELASTIC_SHARE",
+    "BACKEND_AGREEMENT_TOL",
+    "backend_force_field",
+    "default_fixed_specs",
+    "run_liver",
+    "liver_study",
+    "numpy_force_field",
+    "LIVER_SOLVER",
+]
 from comparisons.liver_setup import (
     BACKEND_AGREEMENT_TOL,
     BACKENDS,
@@ -89,6 +108,7 @@ from comparisons.liver_setup import (
     TARGET_FPS,
     TERZAGHI_TOL,
     LiverParameters,
+    LiverStudyOptions,
     _backend_factories,
     backend_force_field,
     default_fixed_specs,
@@ -113,44 +133,96 @@ def run_liver(
     fix_orientation: bool = False,
     force_fields: Sequence[Callable] = (numpy_force_field,),
     organ: Optional[Organ] = None,
+    allow_disconnected: bool = False,
 ) -> Dict:
     """Run the liver simulations and write the figures; returns a JSON-serialisable dict.
 
-    Args:
-        mesh: a catalog name, a mesh file path, or (points, cells).
-        fixed: region specs (see comparisons.regions; in the mesh file's units and numbering);
-            default vena cava + ligament.
-        steps: steps of the dt runs (default 30, quick 6); the porous run covers the same
-            simulated time at its own step.
-        out: output directory (figures, .pvd + .vtu series).
-        quick: the coarse mesh (when ``mesh`` is the default) and few steps.
-        models: which of MODELS to run.
-        series: write the ParaView time series.
-        scale: metres per mesh unit (see comparisons.organ.scale_of).
-        fix_orientation: reorder negatively oriented cells (reported) instead of refusing them.
-        force_fields: factories of the hyperelastic force field (see backend_force_field);
-            every model runs once per factory. The figures show the first one's runs.
-        organ: an already loaded organ (then mesh, scale and fix_orientation are not used).
+    mesh: a catalog name, a mesh file path, or (points, cells), or ``organ`` already loaded
+    (then mesh, scale and fix_orientation are not used); fixed: region specs (see
+    comparisons.regions; in the mesh file's units and numbering), default vena cava +
+    ligament; steps: of the dt runs (default 30, quick 6; the porous run covers the same
+    time); out: figures and the .pvd + .vtu series; scale: metres per mesh unit;
+    force_fields: factories of the hyperelastic force field (see backend_force_field), every
+    model runs once per factory and the figures show the first one's runs; allow_disconnected:
+    accept a mesh in several parts each with a fixed node (warned). Raises InputError
+    on bad input (see liver_setup). A run the integrator stops (a step refused after its
+    substeps) ends there: its "error" holds the message and "passed" is False.
+    """
+    setup = liver_setup(
+        mesh,
+        fixed=fixed,
+        steps=steps,
+        quick=quick,
+        params=params,
+        models=models,
+        force_fields=force_fields,
+        organ=organ,
+        scale=scale,
+        fix_orientation=fix_orientation,
+        allow_disconnected=allow_disconnected,
+    )
+    os.makedirs(out, exist_ok=True)
+    runs, series_paths = _run_models(setup, params, out, series, progress)
+    figures, terzaghi, split = _run_figures(setup, params, runs, out)
+    result = _liver_record(setup, params, runs, figures, terzaghi, split, series_paths)
+    if json_path:
+        from common.options import write_json
 
-    Raises:
-        InputError: unknown mesh, a mesh without volume cells, a bad region spec, an empty
-            fixed set, bad step count.
+        write_json(json_path, result)
+    return result
 
-    A run that fails (the integrator refuses a step after its substeps) stops there; its
-    "error" holds the message and "passed" is False.
+
+@dataclass(frozen=True)
+class LiverSetup:
+    """A validated liver run: the organ, its supports, how long and what to run."""
+
+    organ: Organ
+    specs: List[str]
+    fixed: np.ndarray
+    steps: int
+    duration: float
+    models: Sequence[str]
+    force_fields: Sequence[Callable]
+    quick: bool
+    mesh_warnings: Tuple[str, ...] = ()
+
+
+def liver_setup(
+    mesh="liver",
+    *,
+    fixed=None,
+    steps=None,
+    quick=False,
+    params: LiverParameters = LiverParameters(),
+    models: Sequence[str] = MODELS,
+    force_fields: Sequence[Callable] = (numpy_force_field,),
+    organ: Optional[Organ] = None,
+    scale: float = 1.0,
+    fix_orientation: bool = False,
+    allow_disconnected: bool = False,
+) -> LiverSetup:
+    """Check every input of a liver run and load the organ (unless given); InputError if bad.
+
+    The supports are checked here, before any run (comparisons.organ.check_supports): a part
+    of the mesh that nothing holds would fall freely and the run would still complete.
     """
     if quick and mesh == "liver":
         mesh = "liver-coarse"
     if organ is None:
         organ = load_organ(mesh, scale=scale, fix_orientation=fix_orientation)
-    tet_mesh, label = organ.mesh, organ.label
     if not fixed:
         g = np.asarray(params.gravity)
         if not (g[0] == 0 and g[1] == 0 and g[2] < 0):
-            raise InputError(f"the default fixed regions (vena cava, ligament) assume a z-up organ; with gravity "
-                             f"{list(params.gravity)} give the supports with --fixed (box:, sphere:, nodes:FILE)")
+            raise InputError(
+                "the default fixed regions (vena cava, ligament) assume a z-up organ; with "
+                f"gravity {list(params.gravity)} give the supports with --fixed (box:, sphere:, "
+                "nodes:FILE)"
+            )
     specs = list(fixed) if fixed else default_fixed_specs(organ.file_points)
-    fixed_nodes_ = fixed_nodes(organ, specs)
+    nodes = fixed_nodes(organ, specs)
+    mesh_warnings = check_supports(organ, nodes, allow_disconnected=allow_disconnected)
+    for text in mesh_warnings:
+        warnings.warn(text, MeshWarning, stacklevel=2)
     if steps is None:
         steps = 6 if quick else 30
     if isinstance(steps, bool) or int(steps) != steps or steps < 1:
@@ -160,76 +232,148 @@ def run_liver(
         raise InputError(f"unknown liver model(s) {unknown}; known: {', '.join(MODELS)}")
     if not force_fields:
         raise InputError("give at least one force field (backend)")
-    duration = int(steps) * params.dt
-    os.makedirs(out, exist_ok=True)
+    return LiverSetup(
+        organ,
+        specs,
+        nodes,
+        int(steps),
+        int(steps) * params.dt,
+        tuple(models),
+        tuple(force_fields),
+        bool(quick),
+        tuple(mesh_warnings),
+    )
 
-    runs, figures, series_paths = [], [], []
-    for index, force_field in enumerate(force_fields):
-        for kind in models:
+
+def _run_models(setup: LiverSetup, params: LiverParameters, out: str, series: bool, progress):
+    """Every model once per force field; the first field's runs also write the series."""
+    runs, series_paths = [], []
+    mesh = setup.organ.mesh
+    for index, force_field in enumerate(setup.force_fields):
+        for kind in setup.models:
             writer = None
-            if series and index == 0:  # the other backends' trajectories are checked equal, not written again
-                writer = _SeriesWriter(os.path.join(out, f"liver_{kind}.pvd"), tet_mesh)
+            if series and index == 0:  # other backends are checked equal, not written again
+                writer = _SeriesWriter(os.path.join(out, f"liver_{kind}.pvd"), mesh)
                 series_paths.append(writer.path)
             try:
-                runs.append(simulate(kind, tet_mesh, params, fixed_nodes_, duration, force_field=force_field,
-                                     writer=writer, progress=progress))
+                runs.append(
+                    simulate(
+                        kind,
+                        mesh,
+                        params,
+                        setup.fixed,
+                        setup.duration,
+                        force_field=force_field,
+                        writer=writer,
+                        progress=progress,
+                    )
+                )
             finally:
                 if writer is not None:
                     writer.close()
-    first = [r for r in runs if r["backend"] == runs[0]["backend"]]
+    return runs, series_paths
 
-    from comparisons.liver_figures import plot_amplitudes, plot_porous_stress, plot_pressure, plot_step_split
+
+def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[Dict], out: str):
+    """The Terzaghi check and the run's figures (the first backend's runs are drawn)."""
+    from comparisons.liver_figures import (
+        plot_amplitudes,
+        plot_porous_stress,
+        plot_pressure,
+        plot_step_split,
+    )
     from comparisons.terzaghi import run_terzaghi
 
+    first = [r for r in runs if r["backend"] == runs[0]["backend"]]
     # The pressure solver's own check, beside the scenario that uses it.
     terzaghi = run_terzaghi(dt=0.004, figure=os.path.join(out, "terzaghi.png"))
-    figures += terzaghi["figures"]
+    figures = list(terzaghi["figures"])
     figures.append(plot_porous_stress(os.path.join(out, "fig1_left_porous_stress.png"), params))
-    figures.append(plot_amplitudes(os.path.join(out, "fig4_max_displacement.png"), first, label))
+    figures.append(
+        plot_amplitudes(os.path.join(out, "fig4_max_displacement.png"), first, setup.organ.label)
+    )
     split = step_split(runs)
     if split:
-        figures.append(plot_step_split(os.path.join(out, "step_time_split.png"), split, PAPER_HYPERELASTIC_SHARE))
+        figures.append(
+            plot_step_split(
+                os.path.join(out, "step_time_split.png"), split, PAPER_HYPERELASTIC_SHARE
+            )
+        )
     for r in runs:
         snap = r.pop("_pressure_snapshot", None)
         if snap is not None and snap[1] is not None and any(r is f for f in first):
-            figures.append(plot_pressure(os.path.join(out, "fig1_right_pressure.png"), tet_mesh, snap[2], snap[1], fixed_nodes_))
-    result = {
-        "mesh": label,
+            figures.append(
+                plot_pressure(
+                    os.path.join(out, "fig1_right_pressure.png"),
+                    setup.organ.mesh,
+                    snap[2],
+                    snap[1],
+                    setup.fixed,
+                )
+            )
+    return figures, terzaghi, split
+
+
+_FPS_KEYS = (
+    "model",
+    "backend",
+    "dt",
+    "fps",
+    "cpu_fps",
+    "paper_fps",
+    "solver",
+    "force_field",
+    "cg_iterations_mean",
+    "factorizations",
+    "steps",
+    "steps_split",
+    "substeps_total",
+    "inverted_cells_max",
+)
+
+
+def _fps_row(r: Dict) -> Dict:
+    row = {k: r[k] for k in _FPS_KEYS}
+    row.update(
+        target_fps=TARGET_FPS,
+        completed=r["error"] is None,
+        meets_target=bool(r["fps"] is not None and r["fps"] >= TARGET_FPS),
+    )
+    return row
+
+
+def _liver_record(
+    setup: LiverSetup, params: LiverParameters, runs, figures, terzaghi, split, series_paths
+) -> Dict:
+    """The JSON record of a liver run (results.json, --json)."""
+    organ, nodes = setup.organ, setup.fixed
+    worst_terzaghi = max(t["relative_l2_error"] for t in terzaghi["times"])
+    return {
+        "mesh": organ.label,
         "mesh_description": organ.describe(),
-        "n_nodes": tet_mesh.n_nodes,
-        "n_cells": tet_mesh.n_cells,
+        "n_nodes": organ.mesh.n_nodes,
+        "n_cells": organ.mesh.n_cells,
         "scale": organ.scale,
         "numbering": organ.numbering,
         "reoriented_cells": organ.reoriented,
         "unused_nodes": int(len(organ.unused_nodes)),
-        "fixed_regions": specs,
-        "n_fixed": int(len(fixed_nodes_)),
-        "fixed_node_ids": organ.node_ids[fixed_nodes_].tolist() if len(fixed_nodes_) <= 50 else None,
-        "quick": bool(quick),
-        "duration": duration,
+        "mesh_warnings": list(setup.mesh_warnings),
+        "fixed_regions": setup.specs,
+        "n_fixed": int(len(nodes)),
+        "fixed_node_ids": organ.node_ids[nodes].tolist() if len(nodes) <= 50 else None,
+        "quick": setup.quick,
+        "duration": setup.duration,
         "parameters": params.to_dict(),
         "runs": runs,
         "backends": list(dict.fromkeys(r["backend"] for r in runs)),
-        "fps_table": [{"model": r["model"], "backend": r["backend"], "dt": r["dt"], "fps": r["fps"], "cpu_fps": r["cpu_fps"],
-                       "paper_fps": r["paper_fps"],
-                       "target_fps": TARGET_FPS, "meets_target": bool(r["fps"] is not None and r["fps"] >= TARGET_FPS),
-                       "solver": r["solver"], "force_field": r["force_field"], "cg_iterations_mean": r["cg_iterations_mean"],
-                       "factorizations": r["factorizations"], "steps": r["steps"], "steps_split": r["steps_split"],
-                       "substeps_total": r["substeps_total"], "inverted_cells_max": r["inverted_cells_max"],
-                       "completed": r["error"] is None}
-                      for r in runs],
+        "fps_table": [_fps_row(r) for r in runs],
         "step_split": split,
         "backend_agreement": backend_agreement(runs),
         "terzaghi": terzaghi,
-        "passed": all(r["error"] is None for r in runs) and max(t["relative_l2_error"] for t in terzaghi["times"]) <= TERZAGHI_TOL,
+        "passed": all(r["error"] is None for r in runs) and worst_terzaghi <= TERZAGHI_TOL,
         "figures": figures,
         "series": series_paths,
     }
-    if json_path:
-        from common.options import write_json
-
-        write_json(json_path, result)
-    return result
 
 
 def step_split(runs: Sequence[Dict]) -> List[Dict]:
@@ -240,15 +384,22 @@ def step_split(runs: Sequence[Dict]) -> List[Dict]:
         total = seconds.sum()
         if r["steps"] == 0 or total <= 0:
             continue
-        rows.append({"model": r["model"], "backend": r["backend"], "ms_per_step": 1e3 * total / r["steps"],
-                     "shares": dict(zip(PHASES, (seconds / total).tolist()))})
+        rows.append(
+            {
+                "model": r["model"],
+                "backend": r["backend"],
+                "ms_per_step": 1e3 * total / r["steps"],
+                "shares": dict(zip(PHASES, (seconds / total).tolist())),
+            }
+        )
     return rows
 
 
 def backend_agreement(runs: Sequence[Dict]) -> List[Dict]:
     """Each later backend's run against the first backend's run of the same model: the largest
     difference of the maximum-displacement curves relative to the first's peak (None when the
-    two did not take the same steps)."""
+    two did not take the same steps).
+    """
     if not runs:
         return []
     reference = {r["model"]: r for r in runs if r["backend"] == runs[0]["backend"]}
@@ -257,13 +408,23 @@ def backend_agreement(runs: Sequence[Dict]) -> List[Dict]:
         ref = reference.get(r["model"])
         if ref is None or r["backend"] == ref["backend"]:
             continue
-        same = r["error"] is None and ref["error"] is None and len(r["max_displacement"]) == len(ref["max_displacement"])
+        same = (
+            r["error"] is None
+            and ref["error"] is None
+            and len(r["max_displacement"]) == len(ref["max_displacement"])
+        )
         diff = None
         if same:
             a, b = np.asarray(r["max_displacement"]), np.asarray(ref["max_displacement"])
             diff = float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
-        rows.append({"model": r["model"], "backend": r["backend"], "reference": ref["backend"],
-                     "relative_difference": diff})
+        rows.append(
+            {
+                "model": r["model"],
+                "backend": r["backend"],
+                "reference": ref["backend"],
+                "relative_difference": diff,
+            }
+        )
     return rows
 
 
@@ -271,50 +432,90 @@ def backend_agreement(runs: Sequence[Dict]) -> List[Dict]:
 KEY = "liver"
 TITLE = "The liver under gravity (paper Fig. 1, Fig. 2 left and Fig. 4)"
 _CAPTIONS = {
-    "fig1_left_porous_stress": "Fig. 1 left: porous volumetric stress sigma(J) before and after the tangent substitution below J0",
-    "fig1_right_pressure": "Fig. 1 right: fluid pressure in the liver at the time of its largest magnitude",
-    "fig4_max_displacement": "Fig. 4 (this study's scenario, Rayleigh damping as SOFA's liver demo): maximum displacement "
-                             "over time for the three models; ringed steps were taken in substeps",
-    "fig4_oscillations": "Fig. 4 as the paper describes it: the three models without Rayleigh damping, time steps from "
-                         "the paper's 0.3 s down; backward Euler's own damping grows with dt",
-    "fig4_decay_rate": "Decay rate of the oscillation against dt, with backward Euler's prediction on the frequency "
-                       "measured at the smallest dt",
-    "step_time_split": "Where a step's time goes (paper Fig. 2 left: the hyperelastic force and stiffness take about 60 %)",
+    "fig1_left_porous_stress": "Fig. 1 left: porous volumetric stress sigma(J) before and after "
+    "the tangent substitution below J0",
+    "fig1_right_pressure": "Fig. 1 right: fluid pressure in the liver at the time of its largest "
+    "magnitude",
+    "fig4_max_displacement": "Fig. 4 (this study's scenario, Rayleigh damping as SOFA's liver "
+    "demo): maximum displacement over time for the three models; ringed steps were taken in "
+    "substeps",
+    "fig4_oscillations": "Fig. 4 as the paper describes it: the three models without Rayleigh "
+    "damping, time steps from the paper's 0.3 s down; backward Euler's own damping grows with dt",
+    "fig4_decay_rate": "Decay rate of the oscillation against dt, with backward Euler's prediction "
+    "on the frequency measured at the smallest dt",
+    "step_time_split": "Where a step's time goes (paper Fig. 2 left: the hyperelastic force and "
+    "stiffness take about 60 %)",
     "terzaghi": "Terzaghi consolidation: the pressure solver against the series solution",
 }
 
 
-def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixed=None, steps=None, units=None,
-                  scale=None, fix_orientation=False, params: LiverParameters = LiverParameters(), models=MODELS,
-                  oscillation=True, full_oscillation=False, backends: Sequence[str] = BACKENDS,
-                  custom_force_fields: bool = False) -> str:
+def liver_command(opts: LiverStudyOptions) -> str:
     """The mjed-verify command that reproduces a liver study with these options.
 
     Options the command line cannot express (a Python-only parameter) are named after it.
     """
-    base, parts, python_only = LiverParameters(), ["mjed-verify", "liver"], []
-    if quick:
+    parts, python_only = ["mjed-verify", "liver"], []
+    if opts.quick:
         parts.append("--quick")
-    if not isinstance(mesh, tuple) and mesh != "liver":
-        parts += ["--mesh", str(mesh)]
-    elif isinstance(mesh, tuple):
+    if isinstance(opts.mesh, tuple):
         python_only.append("mesh given as arrays")
-    if units is not None:
-        parts += ["--units", units]
-    if scale is not None:
-        parts += ["--scale", f"{scale:g}"]
-    if fix_orientation:
+    elif opts.mesh != "liver":
+        parts += ["--mesh", str(opts.mesh)]
+    if opts.units is not None:
+        parts += ["--units", opts.units]
+    if opts.scale is not None:
+        parts += ["--scale", f"{opts.scale:g}"]
+    if opts.fix_orientation:
         parts.append("--fix-orientation")
-    for spec in fixed or ():
+    if opts.allow_disconnected:
+        parts.append("--allow-disconnected")
+    for spec in opts.fixed or ():
         parts += ["--fixed", spec]
-    if steps is not None:
-        parts += ["--steps", str(steps)]
-    if list(models) != list(MODELS):
-        parts += ["--models", ",".join(models)]
-    if custom_force_fields:
+    if opts.steps is not None:
+        parts += ["--steps", str(opts.steps)]
+    if list(opts.models) != list(MODELS):
+        parts += ["--models", ",".join(opts.models)]
+    if opts.force_fields is not None:
         python_only.append("force fields given as factories")
-    elif list(backends) != list(BACKENDS):
-        parts += ["--backends", ",".join(backends)]
+    elif list(opts.backends) != list(BACKENDS):
+        parts += ["--backends", ",".join(opts.backends)]
+    words, unexpressed = _parameter_words(opts.params)
+    parts += words + _switch_words(opts) + ["--out", opts.out_dir]
+    python_only += unexpressed
+    text = " ".join(_quote(p) for p in parts)
+    return text + (f"  (plus, from Python only: {'; '.join(python_only)})" if python_only else "")
+
+
+def _switch_words(opts: LiverStudyOptions) -> List[str]:
+    """The on/off options that differ from the defaults."""
+    return [
+        word
+        for on, word in (
+            (not opts.oscillation, "--no-oscillation"),
+            (opts.full_oscillation, "--full-oscillation"),
+            (not opts.series, "--no-series"),
+        )
+        if on
+    ]
+
+
+_PARAMETER_FLAGS = {
+    "dt": "--dt",
+    "dt_porous": "--dt-porous",
+    "density": "--density",
+    "rayleigh_mass": "--rayleigh-mass",
+    "rayleigh_stiffness": "--rayleigh-stiffness",
+    "kappa": "--kappa",
+    "max_halvings": "--max-halvings",
+    "max_volume_change": "--max-volume-change",
+}
+
+
+def _parameter_words(params: LiverParameters):
+    """The command-line words for the parameters that differ from the defaults, and the ones
+    only Python can set.
+    """
+    base, parts, python_only = LiverParameters(), [], []
     if params.material != base.material:
         parts += ["--material", type(params.material).__name__]
         for f in (fld.name for fld in dataclasses.fields(params.material)):
@@ -323,17 +524,17 @@ def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixe
                 parts += ["--param", f"{f}={v!r}"]
             elif v is not None and not isinstance(v, str):
                 python_only.append(f"material {f}")
-    flags = {"dt": "--dt", "dt_porous": "--dt-porous", "density": "--density", "rayleigh_mass": "--rayleigh-mass",
-             "rayleigh_stiffness": "--rayleigh-stiffness", "kappa": "--kappa", "max_halvings": "--max-halvings",
-             "max_volume_change": "--max-volume-change"}
-    for name, flag in flags.items():
+    for name, flag in _PARAMETER_FLAGS.items():
         if getattr(params, name) != getattr(base, name):
             parts += [flag, repr(getattr(params, name))]
     if params.gravity != base.gravity:
         parts += ["--gravity", ",".join(f"{g:g}" for g in params.gravity)]
     if params.allow_inverted:
         parts.append("--allow-inverted")
-    solver_flag = {dataclasses.replace(LIVER_SOLVER, preconditioner=p): p for p in ("jacobi", "block-jacobi", "factorized")}
+    solver_flag = {
+        dataclasses.replace(LIVER_SOLVER, preconditioner=p): p
+        for p in ("jacobi", "block-jacobi", "factorized")
+    }
     solver_flag[dataclasses.replace(LIVER_SOLVER, solver="direct")] = "direct"
     if params.solver != LIVER_SOLVER:
         if params.solver in solver_flag:
@@ -343,176 +544,370 @@ def liver_command(*, quick: bool, out_dir: str, series: bool, mesh="liver", fixe
     for name in ("prony_alphas", "prony_taus", "f_w", "K0", "K_lim", "regularize"):
         if getattr(params, name) != getattr(base, name):
             python_only.append(f"{name}={getattr(params, name)!r}")
-    if not oscillation:
-        parts.append("--no-oscillation")
-    if full_oscillation:
-        parts.append("--full-oscillation")
-    if not series:
-        parts.append("--no-series")
-    parts += ["--out", out_dir]
-    text = " ".join(_quote(p) for p in parts)
-    return text + (f"  (plus, from Python only: {'; '.join(python_only)})" if python_only else "")
+    return parts, python_only
 
 
 def _quote(text: str) -> str:
     return shlex.quote(text)
 
 
-def liver_study(*, quick: bool = False, out_dir: str = os.path.join("reports", "liver"), series: bool = True,
-                progress: Optional[Callable[[str], None]] = None, mesh="liver", fixed: Optional[Sequence[str]] = None,
-                steps: Optional[int] = None, units: Optional[str] = None, scale: Optional[float] = None,
-                fix_orientation: bool = False, params: LiverParameters = LiverParameters(),
-                models: Sequence[str] = MODELS, oscillation: bool = True, full_oscillation: bool = False,
-                backends: Sequence[str] = BACKENDS, force_fields: Optional[Sequence[Callable]] = None,
-                json_path: Optional[str] = None, relative_to: Optional[str] = None) -> StudyResult:
-    """The liver study as a typed result: the three runs, FPS, substeps, the step split, the
+def liver_study(*, progress: Optional[Callable[[str], None]] = None, **options) -> StudyResult:
+    """The liver study as a typed result: the runs, FPS, substeps, the step split, the
     oscillation study (Fig. 4 as the paper describes it) and the Terzaghi check.
 
-    Checks: Terzaghi's pressure error (tolerance 1 %), each run completing its steps
-    (tolerance), each run's FPS >= 25 (target), the compiled backend's >= 60 (target), each
-    later backend's trajectory equal to the first's (tolerance BACKEND_AGREEMENT_TOL). Every
-    model runs once per backend (``backends``, "numpy" and "numba"; a backend that cannot be
-    built here, Numba missing, is left out and said so), or per factory of ``force_fields``
-    (Python only; replaces ``backends``). The oscillation study is measured and
-    reported, not held to a threshold (a run it cannot complete is a finding, not a wrong
-    result). Default sizes keep the study near a minute on a 2-core machine: for the built-in
-    organ the oscillation study runs on the coarse liver over 3 s; ``full_oscillation`` runs it
-    on the paper-size liver over 5 s with one more step size (0.003 s). A user's mesh is used
-    as given in both cases.
-
-    relative_to: figure paths in the blocks are made relative to this directory (a report's
-    run directory); as written otherwise. Raises InputError on bad input (before any run).
+    options: the fields of :class:`LiverStudyOptions`. Checks: Terzaghi (1 %), each run
+    completing its steps, FPS >= 25 and >= 60 compiled (targets), each later backend's
+    trajectory equal to the first's (BACKEND_AGREEMENT_TOL). A backend that cannot be built
+    here is left out and said so. The oscillation study is reported, not held to a threshold:
+    on the built-in organ it runs on the coarse liver over 3 s, or with ``full_oscillation``
+    on the paper-size liver over 5 s down to dt 0.003 s; a user's mesh is used as given.
+    Raises InputError on bad input, before any run.
     """
-    from common.blocks import Figure, Paragraph, Table
-    from common.result import Check
-    from comparisons.organ import scale_of
-    from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
-
+    opts = LiverStudyOptions(**options)
     clock = time.perf_counter()
-    command = liver_command(quick=quick, out_dir=out_dir, series=series, mesh=mesh, fixed=fixed, steps=steps,
-                            units=units, scale=scale, fix_orientation=fix_orientation, params=params, models=models,
-                            oscillation=oscillation, full_oscillation=full_oscillation, backends=backends,
-                            custom_force_fields=force_fields is not None)
-    not_covered: List[str] = []
+    command = liver_command(opts)
+    force_fields, not_covered = opts.force_fields, []
     if force_fields is None:
-        force_fields, missing = _backend_factories(backends)
-        not_covered += missing
-    metres = scale_of(units, scale)
-    if quick and mesh == "liver":
-        mesh = "liver-coarse"
-    organ = load_organ(mesh, scale=metres, fix_orientation=fix_orientation)
-    data = run_liver(fixed=fixed, steps=steps, out=out_dir, quick=quick, params=params, models=models, series=series,
-                     progress=progress, force_fields=force_fields, organ=organ)
-    if quick:
-        not_covered.append("quick: coarse liver and 6 steps instead of the paper-size liver and 30 steps; oscillation "
-                           "study at dt 0.3, 0.1, 0.03 s over 1.5 s")
-    skipped = [m for m in MODELS if m not in models]
-    if skipped:
-        not_covered.append(f"models not run: {', '.join(skipped)}")
+        force_fields, not_covered = _backend_factories(opts.backends)
+    not_covered += _left_out(opts.quick, opts.models, opts.oscillation)
+    mesh = "liver-coarse" if opts.quick and opts.mesh == "liver" else opts.mesh
+    # The organ is read and validated once here; every run below uses this one.
+    organ = load_organ(
+        mesh, scale=scale_of(opts.units, opts.scale), fix_orientation=opts.fix_orientation
+    )
+    data = run_liver(
+        fixed=opts.fixed,
+        steps=opts.steps,
+        out=opts.out_dir,
+        quick=opts.quick,
+        params=opts.params,
+        models=opts.models,
+        series=opts.series,
+        progress=progress,
+        force_fields=force_fields,
+        organ=organ,
+        allow_disconnected=opts.allow_disconnected,
+    )
     osc = None
-    if oscillation:
-        # The built-in organ's oscillation study runs on the coarse liver by default (time), the
-        # paper-size one with --full-oscillation; a user's organ is always the user's.
-        builtin = organ.label in ("liver", "liver-coarse")
-        full = full_oscillation and not quick
-        if builtin:
-            wanted = "liver" if full else "liver-coarse"
-            osc_organ = organ if organ.label == wanted else load_organ(wanted)
-        else:
-            osc_organ = organ
-        if full:
-            dts, duration = (*OSCILLATION_DTS, 0.003), 5.0
-        else:
-            dts, duration = (OSCILLATION_DTS[:3], 1.5) if quick else (OSCILLATION_DTS, 3.0)
-        specs = list(fixed) if fixed and osc_organ is organ else default_fixed_specs(osc_organ.file_points)
-        osc = run_oscillations(osc_organ, fixed_nodes(osc_organ, specs), params, dts=dts, duration=duration,
-                               models=models, force_field=force_fields[0], out_dir=out_dir, progress=progress)
+    if opts.oscillation:
+        osc = _oscillation(organ, opts, force_fields[0], progress)
         data["oscillation"] = osc
         data["figures"] += osc["figures"]
+    data["protocol"] = protocol = _liver_protocol(data, osc, opts.full)
+    if opts.json_path:
+        from common.options import write_json
+
+        write_json(opts.json_path, data)
+    return StudyResult.from_checks(
+        KEY,
+        TITLE,
+        _liver_checks(data),
+        headline=_liver_headline(data, osc, opts.models),
+        command=command,
+        not_covered=not_covered,
+        protocol=protocol,
+        data=data,
+        blocks=_liver_blocks(data, opts.params, osc, opts.relative_to),
+        seconds=time.perf_counter() - clock,
+    )
+
+
+def _left_out(quick: bool, models: Sequence[str], oscillation: bool) -> List[str]:
+    """What a liver study with these options does not cover, in words."""
+    out = []
+    if quick:
+        out.append(
+            "quick: coarse liver and 6 steps instead of the paper-size liver and 30 steps; "
+            "oscillation study at dt 0.3, 0.1, 0.03 s over 1.5 s"
+        )
+    skipped = [m for m in MODELS if m not in models]
+    if skipped:
+        out.append(f"models not run: {', '.join(skipped)}")
+    if not oscillation:
+        out.append("oscillation study not run (--no-oscillation)")
+    return out
+
+
+def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -> Dict:
+    """Fig. 4 as the paper describes it: the models without damping, over several time steps.
+
+    The built-in organ's study runs on the coarse liver by default (time), the paper-size one
+    when ``full``; a user's organ is always the user's.
+    """
+    from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
+
+    if organ.label in ("liver", "liver-coarse"):
+        wanted = "liver" if opts.full else "liver-coarse"
+        osc_organ = organ if organ.label == wanted else load_organ(wanted)
     else:
-        not_covered.append("oscillation study not run (--no-oscillation)")
+        osc_organ = organ
+    if opts.full:
+        dts, duration = (*OSCILLATION_DTS, 0.003), 5.0
+    else:
+        dts, duration = (OSCILLATION_DTS[:3], 1.5) if opts.quick else (OSCILLATION_DTS, 3.0)
+    specs = (
+        list(opts.fixed)
+        if opts.fixed and osc_organ is organ
+        else default_fixed_specs(osc_organ.file_points)
+    )
+    return run_oscillations(
+        osc_organ,
+        fixed_nodes(osc_organ, specs),
+        opts.params,
+        dts=dts,
+        duration=duration,
+        models=opts.models,
+        force_field=force_field,
+        out_dir=opts.out_dir,
+        progress=progress,
+    )
+
+
+def _liver_checks(data: Dict) -> List:
+    """Terzaghi's tolerance, every run completing, the FPS targets and backend agreement."""
+    from common.result import Check
 
     tz_err = max(t["relative_l2_error"] for t in data["terzaghi"]["times"])
-    checks = [Check("Terzaghi consolidation: relative L2 pressure error, worst time factor", tz_err, TERZAGHI_TOL)]
-    for r in data["runs"]:
-        checks.append(Check(f"{r['model']} run completes its {r['steps_planned']} steps of {r['dt']:g} s (fraction done)",
-                            r["steps"] / r["steps_planned"], 1.0, ">=", note=r["error"] or ""))
-    for r in data["runs"]:
-        checks.append(Check(f"{r['model']} frames per second on {data['mesh']} ({r['force_field']})", r["fps"], TARGET_FPS,
-                            ">=", "target", note=f"paper {r['paper_fps']:g} FPS on a 2010 laptop"))
-    for r in data["runs"]:
-        if r["backend"] == "numba":
-            checks.append(Check(f"{r['model']} frames per second on {data['mesh']} with the compiled backend", r["fps"],
-                                COMPILED_TARGET_FPS, ">=", "target", note="the compiled backend's target on a 2-core machine"))
+    checks = [
+        Check(
+            "Terzaghi consolidation: relative L2 pressure error, worst time factor",
+            tz_err,
+            TERZAGHI_TOL,
+        )
+    ]
+    runs = data["runs"]
+    checks += [
+        Check(
+            f"{r['model']} run completes its {r['steps_planned']} steps of {r['dt']:g} s (fraction "
+            "done)",
+            r["steps"] / r["steps_planned"],
+            1.0,
+            ">=",
+            note=r["error"] or "",
+        )
+        for r in runs
+    ]
+    checks += [
+        Check(
+            f"{r['model']} frames per second on {data['mesh']} ({r['force_field']})",
+            r["fps"],
+            TARGET_FPS,
+            ">=",
+            "target",
+            note=f"paper {r['paper_fps']:g} FPS on a 2010 laptop",
+        )
+        for r in runs
+    ]
+    checks += [
+        Check(
+            f"{r['model']} frames per second on {data['mesh']} with the compiled backend",
+            r["fps"],
+            COMPILED_TARGET_FPS,
+            ">=",
+            "target",
+            note="the compiled backend's target on a 2-core machine",
+        )
+        for r in runs
+        if r["backend"] == "numba"
+    ]
     for a in data["backend_agreement"]:
-        checks.append(Check(f"{a['model']}: the {a['backend']} run's maximum displacement curve against the "
-                            f"{a['reference']} run's (largest difference / peak)", a["relative_difference"],
-                            BACKEND_AGREEMENT_TOL, note="" if a["relative_difference"] is not None
-                            else "not comparable: a run failed or took other steps"))
+        diff = a["relative_difference"]
+        checks.append(
+            Check(
+                f"{a['model']}: the {a['backend']} run's maximum displacement curve against the "
+                f"{a['reference']} run's (largest difference / peak)",
+                diff,
+                BACKEND_AGREEMENT_TOL,
+                note="" if diff is not None else "not comparable: a run failed or took other steps",
+            )
+        )
+    return checks
+
+
+def _liver_blocks(
+    data: Dict, params: LiverParameters, osc: Optional[Dict], relative_to: Optional[str]
+) -> List:
+    """The liver section of the report: setting, figures, tables and findings."""
+    from common.blocks import Figure, Paragraph
 
     def rel(path: str) -> str:
         return os.path.relpath(path, relative_to) if relative_to else path
 
-    blocks: List = [Paragraph(
-        f"Mesh {data['mesh_description']}, {data['n_fixed']} fixed nodes ({'; '.join(data['fixed_regions'])}), "
-        f"gravity {list(params.gravity)} m/s^2, material {type(params.material).__name__}, "
-        f"{data['duration']:g} s simulated. FPS are time steps per wall-clock second of stepping (assembly, "
-        f"solve, substeps included) on this machine; the linear solver: {LIVER_SOLVER.label() if params.solver == LIVER_SOLVER else params.solver.label()}. "
-        f"A step the integrator could not take whole was retried in halves (down to dt/{2 ** params.max_halvings}).")]
-    blocks += [Figure(rel(p), _CAPTIONS.get(os.path.splitext(os.path.basename(p))[0], os.path.basename(p)))
-               for p in data["figures"]]
-    blocks.append(Table(("model", "backend", "dt (s)", "steps", "steps in substeps", "substeps", "max inverted cells",
-                         "CG / step", "final max |u| (mm)", "FPS", "CPU FPS", "paper FPS", "target", "error"),
-                        [(r["model"], r["backend"], r["dt"], f"{r['steps']}/{r['steps_planned']}", r["steps_split"],
-                          r["substeps_total"], r["inverted_cells_max"], r["cg_iterations_mean"],
-                          1e3 * r["final_max_displacement"], r["fps"], r["cpu_fps"], r["paper_fps"], _fps_target(r),
-                          r["error"] or "") for r in data["runs"]],
-                        caption=f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, the "
-                                f"real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)"))
-    if data["backend_agreement"]:
-        blocks.append(Table(("model", "backend", "against", "max displacement curve: largest difference / peak"),
-                            [(a["model"], a["backend"], a["reference"], a["relative_difference"])
-                             for a in data["backend_agreement"]],
-                            caption=f"The backends give the same trajectory (tolerance {BACKEND_AGREEMENT_TOL:g}: the "
-                                    f"linear solve's own tolerance bounds the drift)"))
-    if data["step_split"]:
-        blocks.append(Table(("model", "backend", "ms / step", *PHASES),
-                            [(s["model"], s["backend"], s["ms_per_step"], *(f"{100 * s['shares'][p]:.0f} %" for p in PHASES))
-                             for s in data["step_split"]],
-                            caption=f"Where a step's time goes; the paper: hyperelastic about {100 * PAPER_HYPERELASTIC_SHARE:.0f} %"))
+    solver = LIVER_SOLVER if params.solver == LIVER_SOLVER else params.solver
+    blocks: List = [
+        Paragraph(
+            f"Mesh {data['mesh_description']}, {data['n_fixed']} fixed nodes "
+            f"({'; '.join(data['fixed_regions'])}), gravity {list(params.gravity)} m/s^2, material "
+            f"{type(params.material).__name__}, {data['duration']:g} s simulated. FPS are time "
+            "steps per wall-clock second of stepping (assembly, solve, substeps included) on this "
+            f"machine; the linear solver: {solver.label()}. A step the integrator could not take "
+            f"whole was retried in halves (down to dt/{2**params.max_halvings})."
+        )
+    ]
+    blocks += [
+        Figure(rel(p), _CAPTIONS.get(os.path.splitext(os.path.basename(p))[0], os.path.basename(p)))
+        for p in data["figures"]
+    ]
+    blocks += _run_tables(data)
     if osc is not None:
-        blocks.append(Table(("model", "dt (s)", "completed", "extrema", "first peak (mm)", "final (mm)", "period (s)",
-                             "decay rate (1/s)", "backward Euler rate (1/s)", "steps in substeps"),
-                            [(r["model"], r["dt"], "yes" if r["completed"] else "no: " + (r["error"] or "")[:90],
-                              r["extrema"], None if r["first_peak"] is None else 1e3 * r["first_peak"], 1e3 * r["final"],
-                              r["period"], r["decay_rate"], r["euler_decay_rate"], r["steps_split"]) for r in osc["table"]],
-                            caption=f"Oscillation study on {osc['mesh']}, no Rayleigh damping, {osc['duration']:g} s"))
-        blocks.append(Paragraph(oscillation_findings(osc)))
+        blocks += _oscillation_blocks(osc)
     if data.get("series"):
-        blocks.append(Paragraph("ParaView time series (displacement, J, pressure): " + ", ".join(rel(p) for p in data["series"])))
+        blocks.append(
+            Paragraph(
+                "ParaView time series (displacement, J, pressure): "
+                + ", ".join(rel(p) for p in data["series"])
+            )
+        )
+    return blocks
 
+
+#: The FPS table's columns: (header, value of a run record).
+_FPS_COLUMNS = (
+    ("model", lambda r: r["model"]),
+    ("backend", lambda r: r["backend"]),
+    ("dt (s)", lambda r: r["dt"]),
+    ("steps", lambda r: f"{r['steps']}/{r['steps_planned']}"),
+    ("steps in substeps", lambda r: r["steps_split"]),
+    ("substeps", lambda r: r["substeps_total"]),
+    ("max inverted cells", lambda r: r["inverted_cells_max"]),
+    ("CG / step", lambda r: r["cg_iterations_mean"]),
+    ("final max |u| (mm)", lambda r: 1e3 * r["final_max_displacement"]),
+    ("FPS", lambda r: r["fps"]),
+    ("CPU FPS", lambda r: r["cpu_fps"]),
+    ("paper FPS", lambda r: r["paper_fps"]),
+    ("target", lambda r: _fps_target(r)),
+    ("error", lambda r: r["error"] or ""),
+)
+
+
+def _run_tables(data: Dict) -> List:
+    """The FPS table, the backends' agreement and the step split."""
+    from common.blocks import Table
+
+    caption = (
+        f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, the "
+        f"real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)"
+    )
+    rows = [tuple(value(r) for _, value in _FPS_COLUMNS) for r in data["runs"]]
+    tables = [Table(tuple(h for h, _ in _FPS_COLUMNS), rows, caption=caption)]
+    if data["backend_agreement"]:
+        tables.append(_agreement_table(data["backend_agreement"]))
+    if data["step_split"]:
+        tables.append(_split_table(data["step_split"]))
+    return tables
+
+
+def _agreement_table(agreement: List[Dict]):
+    from common.blocks import Table
+
+    header = ("model", "backend", "against", "max displacement curve: largest difference / peak")
+    rows = [(a["model"], a["backend"], a["reference"], a["relative_difference"]) for a in agreement]
+    caption = (
+        f"The backends give the same trajectory (tolerance {BACKEND_AGREEMENT_TOL:g}: the "
+        "linear solve's own tolerance bounds the drift)"
+    )
+    return Table(header, rows, caption=caption)
+
+
+def _split_table(split: List[Dict]):
+    from common.blocks import Table
+
+    rows = [
+        (
+            s["model"],
+            s["backend"],
+            s["ms_per_step"],
+            *(f"{100 * s['shares'][p]:.0f} %" for p in PHASES),
+        )
+        for s in split
+    ]
+    caption = (
+        f"Where a step's time goes; the paper: hyperelastic about "
+        f"{100 * PAPER_HYPERELASTIC_SHARE:.0f} %"
+    )
+    return Table(("model", "backend", "ms / step", *PHASES), rows, caption=caption)
+
+
+def _oscillation_blocks(osc: Dict) -> List:
+    from common.blocks import Paragraph, Table
+
+    rows = [
+        (
+            r["model"],
+            r["dt"],
+            "yes" if r["completed"] else "no: " + (r["error"] or "")[:90],
+            r["extrema"],
+            None if r["first_peak"] is None else 1e3 * r["first_peak"],
+            1e3 * r["final"],
+            r["period"],
+            r["decay_rate"],
+            r["euler_decay_rate"],
+            r["steps_split"],
+        )
+        for r in osc["table"]
+    ]
+    return [
+        Table(
+            (
+                "model",
+                "dt (s)",
+                "completed",
+                "extrema",
+                "first peak (mm)",
+                "final (mm)",
+                "period (s)",
+                "decay rate (1/s)",
+                "backward Euler rate (1/s)",
+                "steps in substeps",
+            ),
+            rows,
+            caption=f"Oscillation study on {osc['mesh']}, no Rayleigh damping, {osc['duration']:g} "
+            "s",
+        ),
+        Paragraph(oscillation_findings(osc)),
+    ]
+
+
+def _liver_headline(data: Dict, osc: Optional[Dict], models: Sequence[str]) -> str:
     per_backend = []
     for b in data["backends"]:
         mine = [r for r in data["runs"] if r["backend"] == b]
-        fps = " / ".join("failed" if r["fps"] is None or r["error"] else f"{r['fps']:.0f}" for r in mine)
+        fps = " / ".join(
+            "failed" if r["fps"] is None or r["error"] else f"{r['fps']:.0f}" for r in mine
+        )
         per_backend.append(f"{fps} ({b})")
     split = sum(r["steps_split"] for r in data["runs"])
-    headline = (f"FPS on {data['mesh']}: {', '.join(per_backend)} for {', '.join(models)} (targets 25, compiled "
-                f"{COMPILED_TARGET_FPS:g}; paper 7.5 / 7 / 6); {split} step(s) taken in substeps; Terzaghi {100 * tz_err:.2f} %")
+    tz_err = max(t["relative_l2_error"] for t in data["terzaghi"]["times"])
+    headline = (
+        f"FPS on {data['mesh']}: {', '.join(per_backend)} for {', '.join(models)} (targets 25, "
+        f"compiled {COMPILED_TARGET_FPS:g}; paper 7.5 / 7 / 6); {split} step(s) taken in substeps; "
+        f"Terzaghi {100 * tz_err:.2f} %"
+    )
     if osc is not None:
-        headline += f"; oscillation amplitude order at dt {osc['amplitude_ordering_dt']:g} s: {' > '.join(osc['amplitude_ordering'])}"
-    protocol = (f"{len(data['runs'])} runs of {data['duration']:g} s on {data['mesh']} (backends: "
-                f"{', '.join(data['backends'])}); oscillation study with the {data['backends'][0]} backend "
-                + (f"on {osc['mesh']} over {osc['duration']:g} s at dt {', '.join(f'{d:g}' for d in osc['dts'])} s "
-                   f"({'the full version' if full_oscillation and not quick else 'default size; --full-oscillation runs it over 5 s with dt down to 0.003 s, on the paper-size liver for the built-in organ'})"
-                   if osc is not None else "not run"))
-    data["protocol"] = protocol
-    if json_path:
-        from common.options import write_json
+        headline += (
+            f"; oscillation amplitude order at dt {osc['amplitude_ordering_dt']:g} s: "
+            f"{' > '.join(osc['amplitude_ordering'])}"
+        )
+    return headline
 
-        write_json(json_path, data)
-    return StudyResult.from_checks(KEY, TITLE, checks, headline=headline, command=command, not_covered=not_covered,
-                                   protocol=protocol, data=data, blocks=blocks, seconds=time.perf_counter() - clock)
+
+def _liver_protocol(data: Dict, osc: Optional[Dict], full: bool) -> str:
+    text = (
+        f"{len(data['runs'])} runs of {data['duration']:g} s on {data['mesh']} (backends: "
+        f"{', '.join(data['backends'])}); oscillation study with the {data['backends'][0]} backend "
+    )
+    if osc is None:
+        return text + "not run"
+    size = (
+        "the full version"
+        if full
+        else "default size; --full-oscillation runs it over 5 s with dt down to 0.003 s, on the "
+        "paper-size liver for the built-in organ"
+    )
+    return (
+        text + f"on {osc['mesh']} over {osc['duration']:g} s at dt "
+        f"{', '.join(f'{d:g}' for d in osc['dts'])} s ({size})"
+    )
 
 
 def _fps_target(run: Dict) -> str:
@@ -530,7 +925,9 @@ def oscillation_findings(osc: Dict) -> str:
     for model in dict.fromkeys(r["model"] for r in rows):
         mine = sorted((r for r in rows if r["model"] == model), key=lambda r: r["dt"])
         done = [r for r in mine if r["completed"]]
-        rates = ", ".join(f"{r['decay_rate']:.2g}/s at {r['dt']:g} s" for r in done if r["decay_rate"] is not None)
+        rates = ", ".join(
+            f"{r['decay_rate']:.2g}/s at {r['dt']:g} s" for r in done if r["decay_rate"] is not None
+        )
         once = [f"{r['dt']:g}" for r in done if r["decay_rate"] is None and r["extrema"] > 0]
         none = [f"{r['dt']:g}" for r in done if r["extrema"] == 0]
         failed = [f"{r['dt']:g}" for r in mine if not r["completed"]]
@@ -546,5 +943,9 @@ def oscillation_findings(osc: Dict) -> str:
             text += f"; refused at dt {', '.join(failed)} s even in substeps"
         parts.append(text)
     order = " > ".join(osc["amplitude_ordering"])
-    return ("Findings. " + ". ".join(parts) + f". Peak amplitude at dt {osc['amplitude_ordering_dt']:g} s, largest "
-            f"first: {order} (the paper: visco > poro > hyper).")
+    return (
+        "Findings. "
+        + ". ".join(parts)
+        + f". Peak amplitude at dt {osc['amplitude_ordering_dt']:g} s, largest first: {order} (the "
+        "paper: visco > poro > hyper)."
+    )

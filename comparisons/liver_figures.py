@@ -6,9 +6,15 @@ from typing import Dict, Sequence
 
 import numpy as np
 
-__all__ = ["plot_porous_stress", "plot_amplitudes", "plot_pressure", "boundary_faces", "plot_step_split",
-           "plot_oscillations", "plot_decay"]
-
+__all__ = [
+    "plot_porous_stress",
+    "plot_amplitudes",
+    "plot_pressure",
+    "boundary_faces",
+    "plot_step_split",
+    "plot_oscillations",
+    "plot_decay",
+]
 
 
 def _pyplot():
@@ -22,7 +28,8 @@ def _pyplot():
 
 def _save(fig, path: str, *, tight: bool = True, **savefig) -> str:
     """Lay out (unless ``tight`` is False: a 3-D axes sets its own), write at 120 dpi, close
-    the figure (so a long study does not keep every figure in memory) and return the path."""
+    the figure (so a long study does not keep every figure in memory) and return the path.
+    """
     import matplotlib.pyplot as plt
 
     if tight:
@@ -41,7 +48,8 @@ def boundary_faces(cells: np.ndarray) -> np.ndarray:
 
 def plot_porous_stress(path: str, params) -> str:
     """Fig. 1 left: sigma(J) of the Hencky law and after substitution, for f_w = 0.8 (the
-    paper's value) and for the liver's f_w, both tangent choices."""
+    paper's value) and for the liver's f_w, both tangent choices.
+    """
     from mjed.porous import PorousVolume
 
     plt = _pyplot()
@@ -51,7 +59,14 @@ def plot_porous_stress(path: str, params) -> str:
         Jwide = np.linspace(max(0.0, 1 - f_w - 0.15), 1.5, 600)
         for tangent, style in (("paper", ":"), ("slope", "--")):
             law = PorousVolume(f_w, params.K0, params.K_lim, tangent=tangent)
-            ax.plot(Jwide, law.stress(Jwide), style, lw=2, label=f"substituted, J0 = {law.J0:.3f} ({tangent}, slope {law.tangent_slope:.0f} Pa)")
+            ax.plot(
+                Jwide,
+                law.stress(Jwide),
+                style,
+                lw=2,
+                label=f"substituted, J0 = {law.J0:.3f} ({tangent}, slope {law.tangent_slope:.0f} "
+                "Pa)",
+            )
             ax.plot([law.J0], [law.stress(law.J0)], "o", color="k", ms=4)
         ax.plot(J, law.hencky_stress(J), "-", color="k", lw=1, label="Hencky K0 f_w ln J*")
         ax.axvline(1 - f_w, color="grey", lw=0.5)
@@ -71,12 +86,23 @@ def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
     for r, marker in zip(runs, "osd^v"):
         rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS, paper {r['paper_fps']:g}"
         split = f"; {r['steps_split']} step(s) in substeps" if r.get("steps_split") else ""
-        line, = ax.plot(r["time"], 1e3 * np.asarray(r["max_displacement"]), f"-{marker}", ms=3,
-                        label=f"{r['model']} (dt = {r['dt']:g} s; {rate}{split})")
+        (line,) = ax.plot(
+            r["time"],
+            1e3 * np.asarray(r["max_displacement"]),
+            f"-{marker}",
+            ms=3,
+            label=f"{r['model']} (dt = {r['dt']:g} s; {rate}{split})",
+        )
         split_at = [k + 1 for k, n in enumerate(r.get("substeps", [])) if n > 1]
         if split_at:  # steps the integrator had to take in substeps: ringed
-            ax.plot(np.asarray(r["time"])[split_at], 1e3 * np.asarray(r["max_displacement"])[split_at], "o",
-                    ms=8, mfc="none", color=line.get_color())
+            ax.plot(
+                np.asarray(r["time"])[split_at],
+                1e3 * np.asarray(r["max_displacement"])[split_at],
+                "o",
+                ms=8,
+                mfc="none",
+                color=line.get_color(),
+            )
     ax.set_xlabel("time (s)")
     ax.set_ylabel("max displacement amplitude (mm)")
     ax.grid(alpha=0.3)
@@ -100,10 +126,14 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
     ax.add_collection3d(coll)
     ax.scatter(*x[fixed].T, s=2, c="k", label="fixed nodes")
     lo, hi = x.min(axis=0), x.max(axis=0)
-    ax.set_xlim(lo[0], hi[0]); ax.set_ylim(lo[1], hi[1]); ax.set_zlim(lo[2], hi[2])
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
     ax.set_box_aspect(hi - lo)
     ax.view_init(elev=20, azim=-70)
-    ax.set_xlabel("x (m)"); ax.set_ylabel("y (m)"); ax.set_zlabel("z (m)")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
     sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(-lim, lim))
     fig.colorbar(sm, ax=ax, shrink=0.7, pad=0.12, label="fluid pressure (Pa)")
     ax.legend(loc="upper left", fontsize=8)
@@ -112,7 +142,9 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
 
 
 def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str:
-    """Where a step's time goes, per run (model and backend; stacked shares), beside the paper's hyperelastic share."""
+    """Where a step's time goes, per run (model and backend; stacked shares), beside the paper's
+    hyperelastic share.
+    """
     plt = _pyplot()
     phases = list(split[0]["shares"])
     fig, ax = plt.subplots(figsize=(8, 1.2 + 0.7 * len(split)))
@@ -121,28 +153,62 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
         left = 0.0
         for k, phase in enumerate(phases):
             share = r["shares"][phase]
-            ax.barh(row, 100 * share, left=100 * left, color=colours[k], label=phase if row == 0 else None)
+            ax.barh(
+                row,
+                100 * share,
+                left=100 * left,
+                color=colours[k],
+                label=phase if row == 0 else None,
+            )
             if share >= 0.06:
-                ax.text(100 * (left + share / 2), row, f"{100 * share:.0f} %", ha="center", va="center", fontsize=8)
+                ax.text(
+                    100 * (left + share / 2),
+                    row,
+                    f"{100 * share:.0f} %",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                )
             left += share
     ax.axvline(100 * paper_share, color="k", ls="--", lw=1)
-    ax.text(100 * paper_share, -0.55, f" paper: hyperelastic about {100 * paper_share:.0f} %", fontsize=8, va="bottom")
+    ax.text(
+        100 * paper_share,
+        -0.55,
+        f" paper: hyperelastic about {100 * paper_share:.0f} %",
+        fontsize=8,
+        va="bottom",
+    )
     ax.set_yticks(range(len(split)))
-    ax.set_yticklabels([f"{r['model']}" + (f" ({r['backend']})" if "backend" in r else "") + f"\n{r['ms_per_step']:.1f} ms/step"
-                        for r in split], fontsize=8)
+    ax.set_yticklabels(
+        [
+            f"{r['model']}"
+            + (f" ({r['backend']})" if "backend" in r else "")
+            + f"\n{r['ms_per_step']:.1f} ms/step"
+            for r in split
+        ],
+        fontsize=8,
+    )
     ax.set_xlim(0, 100)
     ax.set_ylim(len(split) - 0.5, -0.8)  # first model on top, room above it for the paper's mark
     ax.set_xlabel("share of the step's wall-clock time (%)")
-    ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2 if len(split) == 3 else -0.11))
+    ax.legend(
+        fontsize=7,
+        ncol=3,
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.35 if len(split) < 3 else -0.2 if len(split) == 3 else -0.11),
+    )
     return _save(fig, path, bbox_inches="tight")
 
 
 def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
     """Fig. 4 as the paper describes it: max displacement over time, one panel per model,
-    one curve per time step (little damping: the oscillations show, and fade faster with dt)."""
+    one curve per time step (little damping: the oscillations show, and fade faster with dt).
+    """
     plt = _pyplot()
     models = list(dict.fromkeys(c["model"] for c in curves))
-    fig, axes = plt.subplots(1, len(models), figsize=(4.2 * len(models), 3.6), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(
+        1, len(models), figsize=(4.2 * len(models), 3.6), sharey=True, squeeze=False
+    )
     dts = sorted({c["dt"] for c in curves}, reverse=True)
     cmap = plt.get_cmap("viridis")
     for ax, model in zip(axes[0], models):
@@ -151,8 +217,16 @@ def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
                 continue
             colour = cmap(dts.index(c["dt"]) / max(1, len(dts) - 1))
             tag = " (failed)" if c["error"] else ""
-            ax.plot(c["time"], 1e3 * np.asarray(c["max_displacement"]), "-", color=colour, lw=1.2,
-                    marker="o" if c["dt"] >= 0.1 else None, ms=3, label=f"dt = {c['dt']:g} s{tag}")
+            ax.plot(
+                c["time"],
+                1e3 * np.asarray(c["max_displacement"]),
+                "-",
+                color=colour,
+                lw=1.2,
+                marker="o" if c["dt"] >= 0.1 else None,
+                ms=3,
+                label=f"dt = {c['dt']:g} s{tag}",
+            )
         ax.set_title(model, fontsize=10)
         ax.set_xlabel("time (s)")
         ax.grid(alpha=0.3)
@@ -168,12 +242,24 @@ def plot_decay(path: str, rows: Sequence[Dict]) -> str:
     fig, ax = plt.subplots(figsize=(6, 4))
     models = list(dict.fromkeys(r["model"] for r in rows))
     for model, marker in zip(models, "osd"):
-        pts = [(r["dt"], r["decay_rate"]) for r in rows if r["model"] == model and r["decay_rate"] is not None]
+        pts = [
+            (r["dt"], r["decay_rate"])
+            for r in rows
+            if r["model"] == model and r["decay_rate"] is not None
+        ]
         if pts:
             ax.loglog(*zip(*pts), f"-{marker}", label=f"{model}: measured")
-    theory = [(r["dt"], r["euler_decay_rate"]) for r in rows if r["model"] == models[0] and r["euler_decay_rate"]]
+    theory = [
+        (r["dt"], r["euler_decay_rate"])
+        for r in rows
+        if r["model"] == models[0] and r["euler_decay_rate"]
+    ]
     if theory:
-        ax.loglog(*zip(*theory), "k--", label="backward Euler on the measured frequency: ln(1 + (w dt)^2) / (2 dt)")
+        ax.loglog(
+            *zip(*theory),
+            "k--",
+            label="backward Euler on the measured frequency: ln(1 + (w dt)^2) / (2 dt)",
+        )
     ax.set_xlabel("time step dt (s)")
     ax.set_ylabel("decay rate of the oscillation (1/s)")
     ax.grid(alpha=0.3, which="both")

@@ -6,8 +6,9 @@ See comparisons.liver for the study and the reasons behind each figure.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, is_dataclass
-from typing import Callable, List, Optional, Sequence
+from typing import Any, Callable, List, Optional, Sequence
 
 import numpy as np
 
@@ -18,9 +19,22 @@ from mjed.materials import ArrudaBoyce
 from mjed.materials.base import Material
 from mjed.solvers import LinearSolverOptions
 
-__all__ = ["LiverParameters", "MODELS", "PAPER_FPS", "TARGET_FPS", "COMPILED_TARGET_FPS", "PAPER_HYPERELASTIC_SHARE",
-           "BACKEND_AGREEMENT_TOL", "TERZAGHI_TOL", "LIVER_SOLVER", "BACKENDS", "backend_force_field",
-           "numpy_force_field", "default_fixed_specs"]
+__all__ = [
+    "LiverParameters",
+    "LiverStudyOptions",
+    "MODELS",
+    "PAPER_FPS",
+    "TARGET_FPS",
+    "COMPILED_TARGET_FPS",
+    "PAPER_HYPERELASTIC_SHARE",
+    "BACKEND_AGREEMENT_TOL",
+    "TERZAGHI_TOL",
+    "LIVER_SOLVER",
+    "BACKENDS",
+    "backend_force_field",
+    "numpy_force_field",
+    "default_fixed_specs",
+]
 
 MODELS = ("hyperelastic", "visco-hyperelastic", "visco-poro-hyperelastic")
 #: The paper's frame rates (2010 laptop, Core Duo 2.8 GHz), and the real-time target.
@@ -37,12 +51,15 @@ PAPER_HYPERELASTIC_SHARE = 0.60
 #: Relative L2 pressure error allowed in the Terzaghi check (the same 1 % as tests/test_darcy.py).
 TERZAGHI_TOL = 1e-2
 #: The liver's linear solver (see the module docstring).
-LIVER_SOLVER = LinearSolverOptions(cg_tol=1e-5, preconditioner="factorized", refactor_iterations=20,
-                                   factor_precision="single")
+LIVER_SOLVER = LinearSolverOptions(
+    cg_tol=1e-5, preconditioner="factorized", refactor_iterations=20, factor_precision="single"
+)
 
 
-_BACKEND_LABELS = {"numpy": "NumPy MJED (mjed.HyperelasticForceField)",
-                   "numba": "compiled MJED (mjed.compiled.CompiledForceField, Numba)"}
+_BACKEND_LABELS = {
+    "numpy": "NumPy MJED (mjed.HyperelasticForceField)",
+    "numba": "compiled MJED (mjed.compiled.CompiledForceField, Numba)",
+}
 
 
 def backend_force_field(backend: str) -> Callable:
@@ -59,10 +76,13 @@ def backend_force_field(backend: str) -> Callable:
     def factory(mesh, material: Material, *, regularize: bool, allow_inverted: bool):
         import mjed
 
-        field = mjed.make_force_field(mesh, material, backend=backend, regularize=regularize,
-                                      allow_inverted=allow_inverted)
+        field = mjed.make_force_field(
+            mesh, material, backend=backend, regularize=regularize, allow_inverted=allow_inverted
+        )
         if backend != "numpy":
-            field.force_and_stiffness(mesh.points)  # compile / load the kernel now, not in the first step
+            field.force_and_stiffness(
+                mesh.points
+            )  # compile / load the kernel now, not in the first step
         return field
 
     factory.backend = backend
@@ -90,18 +110,30 @@ def _backend_factories(backends: Sequence[str]):
     factories, missing = [], []
     for b in dict.fromkeys(backends):
         if b == "numba" and not numba_available():
-            missing.append("the compiled (numba) backend: Numba is not installed (Debian: python3-numba)")
+            missing.append(
+                "the compiled (numba) backend: Numba is not installed (Debian: python3-numba)"
+            )
             continue
         factories.append(backend_force_field(b))
     if not factories:
-        raise InputError(f"none of the backends {list(backends)} can run here: {'; '.join(missing)}")
+        raise InputError(
+            f"none of the backends {list(backends)} can run here: {'; '.join(missing)}"
+        )
     return factories, missing
 
 
 def _positive(name: str, v, *, zero: bool = False) -> None:
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and (v >= 0 if zero else v > 0)
+    ok = (
+        isinstance(v, (int, float))
+        and not isinstance(v, bool)
+        and np.isfinite(v)
+        and (v >= 0 if zero else v > 0)
+    )
     if not ok:
-        raise ValueError(f"LiverParameters: parameter {name} must be finite and {'>= 0' if zero else '> 0'}, got {v!r}")
+        raise ValueError(
+            f"LiverParameters: parameter {name} must be finite and {'>= 0' if zero else '> 0'}, "
+            f"got {v!r}"
+        )
 
 
 @dataclass(frozen=True)
@@ -138,7 +170,10 @@ class LiverParameters:
 
     def __post_init__(self):
         if not isinstance(self.material, Material):
-            raise ValueError(f"LiverParameters: material must be one of mjed.materials, got {type(self.material).__name__}")
+            raise ValueError(
+                "LiverParameters: material must be one of mjed.materials, got "
+                f"{type(self.material).__name__}"
+            )
         for name in ("density", "K0", "K_lim", "dt"):
             _positive(name, getattr(self, name))
         if self.dt_porous is not None:
@@ -147,26 +182,45 @@ class LiverParameters:
             _positive(name, getattr(self, name), zero=True)
         g = tuple(self.gravity)
         if len(g) != 3 or not all(isinstance(c, (int, float)) and math.isfinite(c) for c in g):
-            raise ValueError(f"LiverParameters: parameter gravity must be 3 finite numbers (m/s^2), got {self.gravity!r}")
+            raise ValueError(
+                "LiverParameters: parameter gravity must be 3 finite numbers (m/s^2), got "
+                f"{self.gravity!r}"
+            )
         object.__setattr__(self, "gravity", tuple(float(c) for c in g))
         if not isinstance(self.solver, LinearSolverOptions):
-            raise ValueError(f"LiverParameters: parameter solver must be a LinearSolverOptions, got {self.solver!r}")
-        if self.max_volume_change is not None and not (isinstance(self.max_volume_change, (int, float))
-                                                       and math.isfinite(self.max_volume_change) and self.max_volume_change > 1):
-            raise ValueError(f"LiverParameters: parameter max_volume_change must be a factor > 1 or None, "
-                             f"got {self.max_volume_change!r}")
+            raise ValueError(
+                "LiverParameters: parameter solver must be a LinearSolverOptions, got "
+                f"{self.solver!r}"
+            )
+        if self.max_volume_change is not None and not (
+            isinstance(self.max_volume_change, (int, float))
+            and math.isfinite(self.max_volume_change)
+            and self.max_volume_change > 1
+        ):
+            raise ValueError(
+                "LiverParameters: parameter max_volume_change must be a factor > 1 or None, got "
+                f"{self.max_volume_change!r}"
+            )
         m = self.max_halvings
         if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m <= 10:
-            raise ValueError(f"LiverParameters: parameter max_halvings must be an integer in [0, 10], got {m!r}")
+            raise ValueError(
+                f"LiverParameters: parameter max_halvings must be an integer in [0, 10], got {m!r}"
+            )
         if self.allow_inverted:
             from mjed.inversion import inversion_blockers
 
             blockers = inversion_blockers(self.material)
             if blockers or not self.regularize:
-                why = (f"its energy term {blockers[0][0]} is not finite at {blockers[0][1]}" if blockers
-                       else "the regularisation is off")
-                raise ValueError(f"LiverParameters: allow_inverted needs the regularisation and an energy finite at "
-                                 f"J <= 0 (paper, section 2.3); {type(self.material).__name__} does not qualify: {why}")
+                why = (
+                    f"its energy term {blockers[0][0]} is not finite at {blockers[0][1]}"
+                    if blockers
+                    else "the regularisation is off"
+                )
+                raise ValueError(
+                    "LiverParameters: allow_inverted needs the regularisation and an energy "
+                    f"finite at J <= 0 (paper, section 2.3); {type(self.material).__name__} does "
+                    f"not qualify: {why}"
+                )
 
     @property
     def porous_dt(self) -> float:
@@ -218,7 +272,9 @@ def _models(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, force_f
     from mjed.porous import PorousVolume
     from mjed.viscous import Prony, ViscoHyperelasticForceField
 
-    solid = force_field(mesh, params.material, regularize=params.regularize, allow_inverted=params.allow_inverted)
+    solid = force_field(
+        mesh, params.material, regularize=params.regularize, allow_inverted=params.allow_inverted
+    )
     if kind == "hyperelastic":
         return [solid], params.dt, None
     visco = ViscoHyperelasticForceField(solid, prony=Prony(params.prony_alphas, params.prony_taus))
@@ -227,8 +283,48 @@ def _models(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, force_f
     # The porous solid U(J) and the fluid pressure are one volumetric model (sigma_p = sigma - P),
     # in parallel with the visco-hyperelastic network, so the Prony series does not relax them.
     law = PorousVolume(params.f_w, params.K0, params.K_lim)
-    fluid = FluidPressureForce(mesh, DarcyParameters(params.K_lim, params.kappa), solid=law, drained_nodes=fixed)
+    fluid = FluidPressureForce(
+        mesh, DarcyParameters(params.K_lim, params.kappa), solid=law, drained_nodes=fixed
+    )
     return [visco, fluid], params.porous_dt, fluid
 
 
 #: The phases of a step, in the order of the split figure.
+
+
+@dataclass(frozen=True)
+class LiverStudyOptions:
+    """What a liver study runs: the organ, its supports, the models, backends and outputs.
+
+    mesh: a catalog name, a mesh file or (points, cells); fixed: region specs (default: vena
+    cava and ligament); steps: time steps of each run (default 30, quick 6); units or scale:
+    the mesh's length unit; models: which of MODELS; backends: the MJED backends, or
+    force_fields: factories replacing them (Python only); oscillation / full_oscillation: the
+    Fig. 4 study and its long version; json_path: also write the data there; relative_to:
+    figure paths in the blocks are made relative to this directory (a report's run directory);
+    allow_disconnected: accept a mesh in several parts, each with a fixed node (warned).
+    """
+
+    quick: bool = False
+    out_dir: str = os.path.join("reports", "liver")
+    series: bool = True
+    mesh: Any = "liver"
+    fixed: Optional[Sequence[str]] = None
+    steps: Optional[int] = None
+    units: Optional[str] = None
+    scale: Optional[float] = None
+    fix_orientation: bool = False
+    params: LiverParameters = LiverParameters()
+    models: Sequence[str] = MODELS
+    oscillation: bool = True
+    full_oscillation: bool = False
+    backends: Sequence[str] = BACKENDS
+    force_fields: Optional[Sequence[Callable]] = None
+    json_path: Optional[str] = None
+    relative_to: Optional[str] = None
+    allow_disconnected: bool = False
+
+    @property
+    def full(self) -> bool:
+        """The long oscillation study (never with --quick)."""
+        return self.full_oscillation and not self.quick

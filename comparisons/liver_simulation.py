@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass, field
 from typing import Dict, List, Optional
 
 import numpy as np
@@ -15,7 +16,13 @@ from comparisons.liver_setup import PAPER_FPS, LiverParameters, _models, numpy_f
 
 __all__ = ["PHASES", "simulate"]
 
-PHASES = ("hyperelastic force + stiffness", "other forces", "building the system", "linear solve", "rest")
+PHASES = (
+    "hyperelastic force + stiffness",
+    "other forces",
+    "building the system",
+    "linear solve",
+    "rest",
+)
 
 
 def _phase_seconds(times) -> np.ndarray:
@@ -23,8 +30,52 @@ def _phase_seconds(times) -> np.ndarray:
     return np.array([times.models[0], sum(times.models[1:]), times.system, times.solve, times.rest])
 
 
-def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, duration: float, *,
-             force_field=numpy_force_field, writer=None, progress=None, dt: Optional[float] = None) -> Dict:
+@dataclass
+class Trajectory:
+    """What one run records step by step (lists start with the state at t = 0)."""
+
+    times: List[float] = field(default_factory=lambda: [0.0])
+    amplitude: List[float] = field(default_factory=lambda: [0.0])  # max nodal |u| [m]
+    cg: List[int] = field(default_factory=list)
+    substeps: List[int] = field(default_factory=list)
+    retries: List[list] = field(default_factory=list)
+    inverted: List[int] = field(default_factory=list)
+    p_max: List[float] = field(default_factory=lambda: [0.0])  # max |P| [Pa]
+    factorizations: int = 0
+    stepping: float = 0.0  # wall-clock seconds spent in the integrator's steps
+    cpu: float = 0.0  # CPU seconds of this process in those steps
+    phases: np.ndarray = field(default_factory=lambda: np.zeros(len(PHASES)))
+    best_P: tuple = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture
+
+    def add(self, integ, report, mesh, fluid, wall: float, cpu: float) -> None:
+        self.stepping += wall
+        self.cpu += cpu
+        self.phases += _phase_seconds(report.times)
+        self.times.append(integ.t)
+        self.amplitude.append(float(np.linalg.norm(integ.x - mesh.points, axis=1).max()))
+        self.cg.append(report.cg_iterations)
+        self.substeps.append(report.substeps)
+        self.retries.append(list(report.retries))
+        self.inverted.append(report.inverted_cells)
+        self.factorizations += report.factorizations
+        if fluid is not None:
+            self.p_max.append(float(np.abs(fluid.P).max()))
+            if self.p_max[-1] >= self.best_P[0]:
+                self.best_P = (self.p_max[-1], fluid.P.copy(), integ.x.copy())
+
+
+def simulate(
+    kind: str,
+    mesh,
+    params: LiverParameters,
+    fixed: np.ndarray,
+    duration: float,
+    *,
+    force_field=numpy_force_field,
+    writer=None,
+    progress=None,
+    dt: Optional[float] = None,
+) -> Dict:
     """One run of ``kind`` over ``duration`` seconds; a JSON-serialisable record.
 
     dt overrides the model's step (the oscillation study). A step the integrator refuses
@@ -37,16 +88,24 @@ def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, durati
     models, model_dt, fluid = _models(kind, mesh, params, fixed, force_field)
     dt = model_dt if dt is None else dt
     n_steps = max(1, int(round(duration / dt)))
-    integ = ImplicitEuler(mesh, models, params.density, dt=dt, gravity=params.gravity, fixed_nodes=fixed,
-                          rayleigh_mass=params.rayleigh_mass, rayleigh_stiffness=params.rayleigh_stiffness,
-                          solver=params.solver, max_halvings=params.max_halvings, allow_inverted=params.allow_inverted,
-                          max_volume_change=params.max_volume_change)
-    times, amplitude, cg, substeps, retries, inverted, p_max = [0.0], [0.0], [], [], [], [], [0.0]
-    factorizations, stepping, cpu = 0, 0.0, 0.0  # wall-clock and CPU seconds spent in the integrator's steps
-    phases = np.zeros(len(PHASES))
-    best_P = (0.0, None, None)  # (max |P|, P, x) for the Fig. 1 picture
+    integ = ImplicitEuler(
+        mesh,
+        models,
+        params.density,
+        dt=dt,
+        gravity=params.gravity,
+        fixed_nodes=fixed,
+        rayleigh_mass=params.rayleigh_mass,
+        rayleigh_stiffness=params.rayleigh_stiffness,
+        solver=params.solver,
+        max_halvings=params.max_halvings,
+        allow_inverted=params.allow_inverted,
+        max_volume_change=params.max_volume_change,
+    )
+    track = Trajectory()
+    pressure = (lambda: None) if fluid is None else (lambda: fluid.P)
     if writer is not None:
-        writer(0.0, integ.x, np.ones(mesh.n_cells), None if fluid is None else fluid.P)
+        writer(0.0, integ.x, np.ones(mesh.n_cells), pressure())
     error = None
     for _ in range(n_steps):
         t0, c0 = time.perf_counter(), time.process_time()
@@ -55,62 +114,69 @@ def simulate(kind: str, mesh, params: LiverParameters, fixed: np.ndarray, durati
         except IntegrationError as exc:  # recorded, and the run stops here (the study fails)
             error = str(exc)
             break
-        stepping += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        phases += _phase_seconds(report.times)
-        u = integ.x - mesh.points
-        times.append(integ.t)
-        amplitude.append(float(np.linalg.norm(u, axis=1).max()))
-        cg.append(report.cg_iterations)
-        substeps.append(report.substeps)
-        retries.append(list(report.retries))
-        inverted.append(report.inverted_cells)
-        factorizations += report.factorizations
-        if fluid is not None:
-            p_max.append(float(np.abs(fluid.P).max()))
-            if p_max[-1] >= best_P[0]:
-                best_P = (p_max[-1], fluid.P.copy(), integ.x.copy())
+        track.add(integ, report, mesh, fluid, time.perf_counter() - t0, time.process_time() - c0)
         if writer is not None:
-            writer(integ.t, integ.x, cell_jacobians(mesh, integ.x), None if fluid is None else fluid.P)
+            writer(integ.t, integ.x, cell_jacobians(mesh, integ.x), pressure())
         if progress is not None:
             split = f", {report.substeps} substeps" if report.substeps > 1 else ""
-            progress(f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * amplitude[-1]:.1f} mm, {report.cg_iterations} CG{split}")
-    done = len(cg)
+            progress(
+                f"{kind}: t = {integ.t:.2f} s, max |u| = {1e3 * track.amplitude[-1]:.1f} mm, "
+                f"{report.cg_iterations} CG{split}"
+            )
+    return _run_record(kind, dt, n_steps, error, track, params, force_field, fluid is not None)
+
+
+def _run_record(
+    kind: str,
+    dt: float,
+    n_steps: int,
+    error: Optional[str],
+    track: Trajectory,
+    params: LiverParameters,
+    force_field,
+    porous: bool,
+) -> Dict:
+    """The JSON record of one run."""
+    done, stepping, cpu = len(track.cg), track.stepping, track.cpu
+    label = getattr(
+        force_field, "label", getattr(force_field, "__qualname__", type(force_field).__name__)
+    )
     out = {
         "model": kind,
         "dt": dt,
         "steps": done,
         "steps_planned": n_steps,
         "error": error,
-        "time": times,
-        "max_displacement": amplitude,
-        "final_max_displacement": amplitude[-1],
-        "peak_max_displacement": max(amplitude),
-        "cg_iterations_mean": float(np.mean(cg)) if cg else None,
-        "cg_iterations": cg,
-        "substeps": substeps,
-        "steps_split": int(sum(s > 1 for s in substeps)),
-        "substeps_total": int(sum(substeps)),
-        "retries": retries,
-        "inverted_cells": inverted,
-        "inverted_cells_max": int(max(inverted)) if inverted else 0,
-        "factorizations": factorizations,
+        "time": track.times,
+        "max_displacement": track.amplitude,
+        "final_max_displacement": track.amplitude[-1],
+        "peak_max_displacement": max(track.amplitude),
+        "cg_iterations_mean": float(np.mean(track.cg)) if track.cg else None,
+        "cg_iterations": track.cg,
+        "substeps": track.substeps,
+        "steps_split": int(sum(s > 1 for s in track.substeps)),
+        "substeps_total": int(sum(track.substeps)),
+        "retries": track.retries,
+        "inverted_cells": track.inverted,
+        "inverted_cells_max": int(max(track.inverted)) if track.inverted else 0,
+        "factorizations": track.factorizations,
         "solver": params.solver.label(),
-        "force_field": getattr(force_field, "label", getattr(force_field, "__qualname__", type(force_field).__name__)),
+        "force_field": label,
         "backend": getattr(force_field, "backend", "custom"),
         "stepping_seconds": stepping,
         "fps": done / stepping if stepping > 0 else None,
         # Steps per CPU second of this process: what the run would reach with a core to itself
         # (the wall-clock FPS above also counts the time other jobs on a shared machine take).
         "cpu_fps": done / cpu if cpu > 0 else None,
-        "realtime_factor": done * dt / stepping if stepping > 0 else None,  # simulated s per wall s
+        "realtime_factor": done * dt / stepping if stepping > 0 else None,  # simulated s / wall s
         "paper_fps": PAPER_FPS[kind],
-        "phase_seconds": dict(zip(PHASES, phases.tolist())),
+        "phase_seconds": dict(zip(PHASES, track.phases.tolist())),
     }
-    if fluid is not None:
-        out["max_abs_pressure"] = p_max
-        out["_pressure_snapshot"] = best_P
+    if porous:
+        out["max_abs_pressure"] = track.p_max
+        out["_pressure_snapshot"] = track.best_P
     return out
+
 
 class _SeriesWriter:
     """A ParaView time series: one .vtu per step (meshio) under ``<stem>/`` and a .pvd index.
@@ -133,12 +199,23 @@ class _SeriesWriter:
         if P is not None:
             point_data["pressure"] = np.asarray(P, dtype=float)
         name = f"step_{len(self.entries):05d}.vtu"
-        meshio.write(os.path.join(self.folder, name),
-                     meshio.Mesh(self.mesh.points, [("tetra", self.mesh.cells)], point_data=point_data, cell_data={"J": [J]}))
+        meshio.write(
+            os.path.join(self.folder, name),
+            meshio.Mesh(
+                self.mesh.points,
+                [("tetra", self.mesh.cells)],
+                point_data=point_data,
+                cell_data={"J": [J]},
+            ),
+        )
         self.entries.append((t, f"{os.path.basename(self.folder)}/{name}"))
 
     def close(self) -> None:
-        rows = "\n".join(f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries)
+        rows = "\n".join(
+            f'    <DataSet timestep="{t:.6g}" part="0" file="{f}"/>' for t, f in self.entries
+        )
         with open(self.path, "w") as fh:
-            fh.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
-                     f"{rows}\n  </Collection>\n</VTKFile>\n")
+            fh.write(
+                '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n'
+                f"{rows}\n  </Collection>\n</VTKFile>\n"
+            )

@@ -17,7 +17,9 @@ from common.states import apply_state
 __all__ = ["sofa_tangent_errors"]
 
 
-def sofa_tangent_errors(mesh: mjed.TetMesh, material: mjed.materials.Ogden, states: Sequence[str]) -> Dict[str, float]:
+def sofa_tangent_errors(
+    mesh: mjed.TetMesh, material: mjed.materials.Ogden, states: Sequence[str]
+) -> Dict[str, float]:
     """||K_sofa - K_exact||_F / ||K_exact||_F for each state."""
     exact = mjed.HyperelasticForceField(mesh, replace(material, tangent="exact"))
     approx = mjed.HyperelasticForceField(mesh, replace(material, tangent="sofa"))

@@ -43,9 +43,27 @@ import numpy as np
 from mjed.fibre import FibreQuadratic
 from mjed.materials.base import Material
 from mjed.spectral import EigenPowerSum
-from mjed.terms import GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial, Term, Unity
+from mjed.terms import (
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    LogPolynomial,
+    Term,
+    Unity,
+)
 
-__all__ = ["TRANSCENDENTAL", "JACOBI_SWEEPS", "OpCount", "mjed_flops", "classical_flops", "source_flops", "mjed_source_flops", "model"]
+__all__ = [
+    "TRANSCENDENTAL",
+    "JACOBI_SWEEPS",
+    "OpCount",
+    "mjed_flops",
+    "classical_flops",
+    "source_flops",
+    "mjed_source_flops",
+    "model",
+]
 
 TRANSCENDENTAL = 20
 JACOBI_SWEEPS = 4
@@ -77,7 +95,11 @@ def _f_jpower(f: JPower) -> int:
     return 0 if f.p == 0.0 else T + 6
 
 
-_F_COST: Dict[type, Callable] = {JPower: _f_jpower, LogPolynomial: lambda f: T + 12, JLogJ: lambda f: T + 8}
+_F_COST: Dict[type, Callable] = {
+    JPower: _f_jpower,
+    LogPolynomial: lambda f: T + 12,
+    JLogJ: lambda f: T + 8,
+}
 
 # (value + stress, tangent coefficients) of each invariant type.
 _G_COST: Dict[type, Callable] = {
@@ -86,7 +108,8 @@ _G_COST: Dict[type, Callable] = {
     LinearI2: lambda g: (1 + 9 * 3, 2),
     GreenLagrangeQuadratic: lambda g: (4 + 9 * 6 + 4, 1),
     FibreQuadratic: lambda g: (27 * 3 + 27 * 2 + 27 + 81 * 3, 0),
-    # S from three powers; the exact tangent: three pair quotients, three diagonal limits, the scaling.
+    # S from three powers; the exact tangent: three pair quotients, three diagonal limits, the
+    # scaling.
     EigenPowerSum: lambda g: (3 * T + 6 + 9 * 9, 3 * 8 + 3 * 2 + 18),
 }
 
@@ -115,7 +138,7 @@ def mjed_flops(material: Material) -> OpCount:
     has_Sh = any(s and _varies(t.f) for s, t in zip(stressed, terms))
     has_h = any(_varies(t.f) for t in terms)
     need_eig = table.need_eig
-    n_exp = int(table.group_exp.sum())
+    n_exp = int((table.group_kind != 0).sum())  # groups with a function of their sum
     slots = list(zip(table.slot_kind.tolist(), table.slot_ident.tolist()))
     n_first = sum(1 for k, _ in slots if k == 0)
     n_second = sum(1 for k, _ in slots if k == 1)
@@ -130,7 +153,9 @@ def mjed_flops(material: Material) -> OpCount:
         term_cost += _lookup(t.f, _F_COST, "function of J")(t.f) + value + tangent + 6
         term_cost += 36 if not isinstance(t.g, Unity) else 0
         term_cost += 2 * len(t.g.tangent) + (18 if isinstance(t.g, EigenPowerSum) else 0)
-    groups_cost = len(groups) * (2 * 27 + 2 * n_plain_slots + 4) + n_exp * (T + 1 + MATMUL3 + 18 + APPLY_4)
+    groups_cost = len(groups) * (2 * 27 + 2 * n_plain_slots + 4) + n_exp * (
+        T + 1 + MATMUL3 + 18 + APPLY_4
+    )
     parts["terms"] = term_cost + groups_cost
     parts["force"] = APPLY_4 + MATMUL3 + 4 * 3 * 8
     per_cell = APPLY_4  # S D_a
@@ -150,14 +175,33 @@ def mjed_flops(material: Material) -> OpCount:
     return OpCount("mjed", parts)
 
 
-# ------------------------------------------------------------------ classical: from its generated source
+# ------------------------------------------------------------------ classical: from its generated
+# source
 # The part of the kernel a statement belongs to, by the name it assigns (the names of
 # reference_fem.classical_codegen); every other statement is the law's (W, S, CC).
-_CLASSICAL_PARTS = {"n": "kinematics", "D": "kinematics", "X": "kinematics", "F": "kinematics", "J": "kinematics",
-                    "C": "kinematics", "L": "kinematics", "idet": "kinematics", "Ci": "kinematics", "vol": "kinematics",
-                    "Sv": "force", "SD": "force", "force": "force", "CCv": "element matrix", "B": "element matrix",
-                    "CB": "element matrix", "g": "element matrix", "K": "element matrix", "ge": "assembly",
-                    "U": "assembly", "Dg": "assembly"}
+_CLASSICAL_PARTS = {
+    "n": "kinematics",
+    "D": "kinematics",
+    "X": "kinematics",
+    "F": "kinematics",
+    "J": "kinematics",
+    "C": "kinematics",
+    "L": "kinematics",
+    "idet": "kinematics",
+    "Ci": "kinematics",
+    "vol": "kinematics",
+    "Sv": "force",
+    "SD": "force",
+    "force": "force",
+    "CCv": "element matrix",
+    "B": "element matrix",
+    "CB": "element matrix",
+    "g": "element matrix",
+    "K": "element matrix",
+    "ge": "assembly",
+    "U": "assembly",
+    "Dg": "assembly",
+}
 _NAME = re.compile(r"[A-Za-z]+")
 
 
@@ -172,7 +216,8 @@ def _is_constant(node: ast.AST) -> bool:
 
 class _Flops(ast.NodeVisitor):
     """Flops of one statement by the module's rules (``**`` and math.* are libm calls, the
-    generic branch of a conditional expression, no index arithmetic)."""
+    generic branch of a conditional expression, no index arithmetic).
+    """
 
     def __init__(self) -> None:
         self.n = 0
@@ -199,12 +244,15 @@ class _Flops(ast.NodeVisitor):
         pass  # loads and stores; index arithmetic
 
 
-def source_flops(source: str, parts: Dict[str, str], default: str, skip: Tuple[str, ...] = ()) -> Dict[str, int]:
+def source_flops(
+    source: str, parts: Dict[str, str], default: str, skip: Tuple[str, ...] = ()
+) -> Dict[str, int]:
     """Flops per cell of a generated kernel module, by part: the statements of its loop over
     cells (every ``if`` taken but those whose condition is in ``skip``, the larger branch of an
     ``if``/``else``: the two orientations of an edge block's scatter), each put in the part
     named by ``parts`` for the name it assigns (``default`` for the others). Calls to compiled
-    helpers other than eigh3_sym (MJED's divided differences) count nothing."""
+    helpers other than eigh3_sym (MJED's divided differences) count nothing.
+    """
     function = ast.parse(source).body[-1]
     loop = next(node for node in function.body if isinstance(node, ast.For))
 
@@ -215,11 +263,17 @@ def source_flops(source: str, parts: Dict[str, str], default: str, skip: Tuple[s
                 continue
             if isinstance(st, ast.If):
                 body, other = walk(st.body), walk(st.orelse)
-                for part, n in (body if sum(body.values()) >= sum(other.values()) else other).items():
+                for part, n in (
+                    body if sum(body.values()) >= sum(other.values()) else other
+                ).items():
                     counts[part] = counts.get(part, 0) + n
                 continue
             target = st.targets[0] if isinstance(st, ast.Assign) else getattr(st, "target", None)
-            part = default if target is None else parts.get(_NAME.search(ast.unparse(target)).group(), default)
+            part = (
+                default
+                if target is None
+                else parts.get(_NAME.search(ast.unparse(target)).group(), default)
+            )
             flops = _Flops()
             flops.visit(st)
             counts[part] = counts.get(part, 0) + flops.n
@@ -230,7 +284,8 @@ def source_flops(source: str, parts: Dict[str, str], default: str, skip: Tuple[s
 
 def classical_flops(material: Material) -> OpCount:
     """The count of the compiled classical kernel of ``material``'s classical law, made from
-    its generated source (reference_fem.classical_codegen) by the module's rules."""
+    its generated source (reference_fem.classical_codegen) by the module's rules.
+    """
     from reference_fem.classical_codegen import classical_source
     from reference_fem.classical_compiled import lower_law
     from reference_fem.classical_materials import classical_law
@@ -244,7 +299,8 @@ def classical_flops(material: Material) -> OpCount:
 def mjed_source_flops(material: Material) -> int:
     """The generated MJED kernel's flops per cell counted from its source by the same rules
     as the classical kernel's (the regularised diagonal, off by default, left out): a check
-    of :func:`mjed_flops`, which is derived by hand from the terms."""
+    of :func:`mjed_flops`, which is derived by hand from the terms.
+    """
     from mjed.compiled.codegen import kernel_source
     from mjed.compiled.lowering import lower_groups
     from mjed.compiled.shape import kernel_shape
@@ -261,5 +317,10 @@ def model(material: Material) -> dict:
     declared terms (its parts explain where MJED's operations go; it over-counts the source).
     """
     m, c, src = mjed_flops(material), classical_flops(material), mjed_source_flops(material)
-    return {"mjed": m.to_dict(), "mjed_source": src, "classical": c.to_dict(), "predicted_ratio": c.total / src,
-            "hand_model_ratio": c.total / m.total}
+    return {
+        "mjed": m.to_dict(),
+        "mjed_source": src,
+        "classical": c.to_dict(),
+        "predicted_ratio": c.total / src,
+        "hand_model_ratio": c.total / m.total,
+    }

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Callable, Dict, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -38,7 +38,9 @@ __all__ = ["OSCILLATION_DTS", "oscillation_metrics", "euler_decay_rate", "run_os
 OSCILLATION_DTS = (0.3, 0.1, 0.03, 0.01)
 
 
-def oscillation_metrics(t: Sequence[float], a: Sequence[float], *, significant: float = 5e-3) -> Dict:
+def oscillation_metrics(
+    t: Sequence[float], a: Sequence[float], *, significant: float = 5e-3
+) -> Dict:
     """Extrema, period, decay rate and overshoot of one max-displacement curve a(t) (m, s).
 
     A swing between successive extrema counts only when it exceeds ``significant`` times the
@@ -48,8 +50,15 @@ def oscillation_metrics(t: Sequence[float], a: Sequence[float], *, significant: 
     t, a = np.asarray(t, dtype=float), np.asarray(a, dtype=float)
     d = np.diff(a)
     ext = np.flatnonzero(d[:-1] * d[1:] < 0) + 1  # strict changes of direction
-    out = {"extrema": 0, "first_peak": None, "period": None, "decay_rate": None,
-           "overshoot": None, "final": float(a[-1]), "peak": float(a.max())}
+    out = {
+        "extrema": 0,
+        "first_peak": None,
+        "period": None,
+        "decay_rate": None,
+        "overshoot": None,
+        "final": float(a[-1]),
+        "peak": float(a.max()),
+    }
     if len(ext) < 2:
         return out
     swings = np.abs(np.diff(a[ext]))
@@ -73,9 +82,46 @@ def euler_decay_rate(omega: float, dt: float) -> float:
     return float(np.log1p((omega * dt) ** 2) / (2.0 * dt))
 
 
-def run_oscillations(organ, fixed: np.ndarray, params, *, dts: Sequence[float] = OSCILLATION_DTS,
-                     duration: float = 3.0, models: Sequence[str], force_field, out_dir: str,
-                     progress: Optional[Callable[[str], None]] = None) -> Dict:
+#: What the oscillation study keeps of each run for its figure and results.json.
+_CURVE_KEYS = (
+    "model",
+    "dt",
+    "time",
+    "max_displacement",
+    "error",
+    "steps",
+    "steps_planned",
+    "steps_split",
+    "substeps_total",
+    "fps",
+)
+
+
+def _add_euler_rates(rows: List[Dict], models: Sequence[str], smallest: float) -> None:
+    """Backward Euler's own damping at each dt, on the frequency each model shows at the
+    smallest dt (added to the rows as omega_smallest_dt and euler_decay_rate).
+    """
+    for kind in models:
+        ref = next(r for r in rows if r["model"] == kind and r["dt"] == smallest)
+        omega = 2 * np.pi / ref["period"] if ref["period"] else None
+        for r in rows:
+            if r["model"] == kind:
+                r["omega_smallest_dt"] = omega
+                r["euler_decay_rate"] = euler_decay_rate(omega, r["dt"]) if omega else None
+
+
+def run_oscillations(
+    organ,
+    fixed: np.ndarray,
+    params,
+    *,
+    dts: Sequence[float] = OSCILLATION_DTS,
+    duration: float = 3.0,
+    models: Sequence[str],
+    force_field,
+    out_dir: str,
+    progress: Optional[Callable[[str], None]] = None,
+) -> Dict:
     """Every model at every dt without Rayleigh damping; curves, metrics, figures (see module)."""
     from comparisons.liver_figures import plot_decay, plot_oscillations
     from comparisons.liver_simulation import simulate
@@ -88,23 +134,33 @@ def run_oscillations(organ, fixed: np.ndarray, params, *, dts: Sequence[float] =
                 progress(f"oscillation study: {kind}, dt = {dt:g} s")
             run = simulate(kind, organ.mesh, light, fixed, duration, force_field=force_field, dt=dt)
             run.pop("_pressure_snapshot", None)
-            curves.append({k: run[k] for k in ("model", "dt", "time", "max_displacement", "error", "steps",
-                                               "steps_planned", "steps_split", "substeps_total", "fps")})
-            rows.append({"model": kind, "dt": dt, "completed": run["error"] is None, "error": run["error"],
-                         "steps_split": run["steps_split"], **oscillation_metrics(run["time"], run["max_displacement"])})
-    # Backward Euler's own damping, on the frequency each model shows at the smallest dt.
+            curves.append({k: run[k] for k in _CURVE_KEYS})
+            rows.append(
+                {
+                    "model": kind,
+                    "dt": dt,
+                    "completed": run["error"] is None,
+                    "error": run["error"],
+                    "steps_split": run["steps_split"],
+                    **oscillation_metrics(run["time"], run["max_displacement"]),
+                }
+            )
     smallest = min(dts)
-    for kind in models:
-        ref = next(r for r in rows if r["model"] == kind and r["dt"] == smallest)
-        omega = 2 * np.pi / ref["period"] if ref["period"] else None
-        for r in rows:
-            if r["model"] == kind:
-                r["omega_smallest_dt"] = omega
-                r["euler_decay_rate"] = euler_decay_rate(omega, r["dt"]) if omega else None
+    _add_euler_rates(rows, models, smallest)
     fine = {r["model"]: r for r in rows if r["dt"] == smallest}
     ordering = sorted(fine, key=lambda m: fine[m]["peak"], reverse=True)
-    figures = [plot_oscillations(os.path.join(out_dir, "fig4_oscillations.png"), curves, organ.label),
-               plot_decay(os.path.join(out_dir, "fig4_decay_rate.png"), rows)]
-    return {"mesh": organ.label, "dts": list(dts), "duration": duration, "rayleigh": [0.0, 0.0],
-            "curves": curves, "table": rows, "amplitude_ordering": ordering,
-            "amplitude_ordering_dt": smallest, "figures": figures}
+    figures = [
+        plot_oscillations(os.path.join(out_dir, "fig4_oscillations.png"), curves, organ.label),
+        plot_decay(os.path.join(out_dir, "fig4_decay_rate.png"), rows),
+    ]
+    return {
+        "mesh": organ.label,
+        "dts": list(dts),
+        "duration": duration,
+        "rayleigh": [0.0, 0.0],
+        "curves": curves,
+        "table": rows,
+        "amplitude_ordering": ordering,
+        "amplitude_ordering_dt": smallest,
+        "figures": figures,
+    }

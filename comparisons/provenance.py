@@ -39,9 +39,12 @@ def cpu_model() -> str:
 
 def git_commit(path: Path = _REPO) -> Dict[str, Any]:
     """{'commit': sha or None, 'dirty': bool or None} of the repository at ``path``."""
+
     def run(*args) -> Optional[str]:
         try:
-            out = subprocess.run(["git", "-C", str(path), *args], capture_output=True, text=True, timeout=10)
+            out = subprocess.run(
+                ["git", "-C", str(path), *args], capture_output=True, text=True, timeout=10
+            )
         except (OSError, subprocess.SubprocessError):
             return None
         return out.stdout.strip() if out.returncode == 0 else None
@@ -68,7 +71,9 @@ def provenance(*, with_dolfinx: bool = True) -> Dict[str, Any]:
         "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "cpu": cpu_model(),
         "logical_cores": os.cpu_count(),
-        "usable_cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "usable_cores": len(os.sched_getaffinity(0))
+        if hasattr(os, "sched_getaffinity")
+        else os.cpu_count(),
         "machine": platform.machine(),
         "os": platform.platform(),
         "python": sys.version.split()[0],
@@ -77,7 +82,10 @@ def provenance(*, with_dolfinx: bool = True) -> Dict[str, Any]:
         "dolfinx": None,
         "petsc4py": None,
         "petsc": None,
-        "threads_env": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+        "threads_env": {
+            k: os.environ.get(k)
+            for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+        },
     }
     if os.path.exists("/proc/meminfo"):
         with open("/proc/meminfo") as fh:
@@ -105,7 +113,8 @@ def provenance(*, with_dolfinx: bool = True) -> Dict[str, Any]:
 
 def provenance_study():
     """The record as a report section. It checks nothing, so it holds no check; a piece of the
-    stack that is not installed is recorded as 'not available', which is a fact, not a gap."""
+    stack that is not installed is recorded as 'not available', which is a fact, not a gap.
+    """
     import json
 
     from common.blocks import Paragraph, Table
@@ -119,12 +128,23 @@ def provenance_study():
     except Exception as exc:  # dolfinx missing: say so, the rest of the record stands
         info["oracle_stack"] = f"unavailable: {type(exc).__name__}: {exc}"
     json.dumps(info)  # the record must serialise as it is
-    commit = str(info.get("git_commit"))[:10] + (" (with uncommitted changes)" if info.get("git_dirty") else "")
+    commit = str(info.get("git_commit"))[:10] + (
+        " (with uncommitted changes)" if info.get("git_dirty") else ""
+    )
     return StudyResult(
-        key=KEY, title=TITLE, status=Status.PASSED, command="python -m comparisons.provenance",
+        key=KEY,
+        title=TITLE,
+        status=Status.PASSED,
+        command="python -m comparisons.provenance",
         headline=f"{info.get('cpu')}, {info.get('usable_cores')} usable cores; commit {commit}",
-        data=info, blocks=(Paragraph("The machine, the versions and the commit the numbers above were measured with."),
-                           Table(("item", "value"), _flat_rows(info))))
+        data=info,
+        blocks=(
+            Paragraph(
+                "The machine, the versions and the commit the numbers above were measured with."
+            ),
+            Table(("item", "value"), _flat_rows(info)),
+        ),
+    )
 
 
 def _flat_rows(info: dict, prefix: str = "") -> list:
@@ -136,7 +156,9 @@ def _flat_rows(info: dict, prefix: str = "") -> list:
         elif isinstance(v, bool):
             rows.append((prefix + k, "yes" if v else "no"))
         else:
-            rows.append((prefix + k, "not available" if v is None else str(v).replace("\x00", "").strip()))
+            rows.append(
+                (prefix + k, "not available" if v is None else str(v).replace("\x00", "").strip())
+            )
     return rows
 
 

@@ -35,12 +35,18 @@ def _numbers(spec: str, body: str, count: int) -> np.ndarray:
     except ValueError:
         raise InputError(f"region {spec!r}: expected {count} comma-separated numbers") from None
     if len(values) != count or not np.all(np.isfinite(values)):
-        raise InputError(f"region {spec!r}: expected {count} finite comma-separated numbers, got {len(values)}")
+        raise InputError(
+            f"region {spec!r}: expected {count} finite comma-separated numbers, got {len(values)}"
+        )
     return values
 
 
-def parse_region(spec: str, points: np.ndarray, node_ids: Optional[np.ndarray] = None,
-                 numbering: str = "0-based positions") -> np.ndarray:
+def parse_region(
+    spec: str,
+    points: np.ndarray,
+    node_ids: Optional[np.ndarray] = None,
+    numbering: str = "0-based positions",
+) -> np.ndarray:
     """Positions (k,) of the nodes of ``points`` (n, 3) that one spec selects (may be empty).
 
     node_ids: (n,) the id of each node in the mesh's own numbering (default 0..n-1), which
@@ -66,37 +72,72 @@ def parse_region(spec: str, points: np.ndarray, node_ids: Optional[np.ndarray] =
         if kind == "index" or node_ids is None:
             bad = idx[(idx < 0) | (idx >= len(points))]
             if bad.size:
-                raise InputError(f"region {spec!r}: node index {int(bad[0])} outside [0, {len(points)}) "
-                                 "(index:FILE takes 0-based positions)")
+                raise InputError(
+                    f"region {spec!r}: node index {int(bad[0])} outside [0, {len(points)}) "
+                    "(index:FILE takes 0-based positions)"
+                )
             return np.unique(idx)
         ids = np.asarray(node_ids, dtype=np.int64)
         order = np.argsort(ids, kind="stable")
         at = np.clip(np.searchsorted(ids[order], idx), 0, len(ids) - 1)
         missing = ids[order][at] != idx
         if missing.any():
-            raise InputError(f"region {spec!r}: node id {int(idx[missing][0])} is not in the mesh "
-                             f"({numbering}: {int(ids.min())} to {int(ids.max())}; index:FILE takes 0-based positions)")
+            raise InputError(
+                f"region {spec!r}: node id {int(idx[missing][0])} is not in the mesh ({numbering}: "
+                f"{int(ids.min())} to {int(ids.max())}; index:FILE takes 0-based positions)"
+            )
         return np.unique(order[at])
     raise InputError(f"region {spec!r}: unknown kind {kind!r}; use box, sphere, nodes or index")
+
+
+#: A node-number file larger than this is not a list of node numbers someone wrote.
+MAX_NODE_FILE_BYTES = 64 << 20
 
 
 def _integers(spec: str, path: Path) -> np.ndarray:
     if not path.is_file():
         raise InputError(f"region {spec!r}: no such file {path}")
-    text = " ".join(line.split("#", 1)[0] for line in path.read_text().splitlines())
+    if path.stat().st_size > MAX_NODE_FILE_BYTES:
+        raise InputError(
+            f"region {spec!r}: {path} is {path.stat().st_size} bytes, more than the "
+            f"{MAX_NODE_FILE_BYTES} a file of node numbers may hold"
+        )
     try:
-        return np.array([int(t) for t in text.replace(",", " ").split()], dtype=np.int64)
+        raw = path.read_text(encoding="utf-8")
+    except (UnicodeDecodeError, OSError) as exc:
+        why = "not a text file" if isinstance(exc, UnicodeDecodeError) else exc.strerror or str(exc)
+        raise InputError(
+            f"region {spec!r}: {path}: {why}; expected node numbers as text, "
+            "separated by spaces, commas or new lines ('#' starts a comment)"
+        ) from None
+    text = " ".join(line.split("#", 1)[0] for line in raw.splitlines())
+    try:
+        values = [int(t) for t in text.replace(",", " ").split()]
     except ValueError:
         raise InputError(f"region {spec!r}: {path} must hold integer node numbers") from None
+    big = [v for v in values if not -(2**63) <= v < 2**63]
+    if big:  # would overflow int64 (np.array raises OverflowError without naming the file)
+        raise InputError(
+            f"region {spec!r}: {path}: node number {big[0]} is too large to be a node of any mesh"
+        )
+    return np.array(values, dtype=np.int64)
 
 
-def select_nodes(specs: Iterable[str], points: np.ndarray, *, what: str = "fixed", node_ids: Optional[np.ndarray] = None,
-                 numbering: str = "0-based positions") -> np.ndarray:
+def select_nodes(
+    specs: Iterable[str],
+    points: np.ndarray,
+    *,
+    what: str = "fixed",
+    node_ids: Optional[np.ndarray] = None,
+    numbering: str = "0-based positions",
+) -> np.ndarray:
     """The union of the nodes the specs select (positions, sorted); InputError if it is empty."""
     specs = list(specs)
     if not specs:
         raise InputError(f"no {what} region given")
-    chosen = np.unique(np.concatenate([parse_region(s, points, node_ids, numbering) for s in specs]))
+    chosen = np.unique(
+        np.concatenate([parse_region(s, points, node_ids, numbering) for s in specs])
+    )
     if chosen.size == 0:
         lo, hi = points.min(axis=0), points.max(axis=0)
         raise InputError(

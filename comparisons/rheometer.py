@@ -52,8 +52,20 @@ from mjed.materials import StVenantKirchhoff
 from mjed.solvers import LinearSolverOptions
 from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients
 
-__all__ = ["KEY", "TITLE", "DISCRETE_TOL", "RheometerSpec", "TorsionSample", "run_rheometer", "sweep", "fit_harmonic",
-           "elastic_torque", "QUICK_SPEC", "rheometer_spec", "rheometer_study"]
+__all__ = [
+    "KEY",
+    "TITLE",
+    "DISCRETE_TOL",
+    "RheometerSpec",
+    "TorsionSample",
+    "run_rheometer",
+    "sweep",
+    "fit_harmonic",
+    "elastic_torque",
+    "QUICK_SPEC",
+    "rheometer_spec",
+    "rheometer_study",
+]
 
 KEY = "rheometer"
 TITLE = "Rheometer frequency sweep (paper Fig. 3)"
@@ -95,8 +107,13 @@ class RheometerSpec:
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         if not (-1.0 < self.poisson < 0.5):
             raise ValueError(f"poisson must lie in (-1, 0.5), got {self.poisson!r}")
-        for name, low in (("target_cells", 1), ("samples_per_period", 8), ("warmup_periods", 0),
-                          ("measured_periods", 1), ("n_frequencies", 1)):
+        for name, low in (
+            ("target_cells", 1),
+            ("samples_per_period", 8),
+            ("warmup_periods", 0),
+            ("measured_periods", 1),
+            ("n_frequencies", 1),
+        ):
             v = getattr(self, name)
             if int(v) != v or v < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
@@ -108,22 +125,33 @@ class RheometerSpec:
 
     @property
     def material(self) -> StVenantKirchhoff:
-        return StVenantKirchhoff(mu=self.G0, lam=2.0 * self.G0 * self.poisson / (1.0 - 2.0 * self.poisson))
+        return StVenantKirchhoff(
+            mu=self.G0, lam=2.0 * self.G0 * self.poisson / (1.0 - 2.0 * self.poisson)
+        )
 
     def omegas(self) -> np.ndarray:
-        """(n_frequencies,) angular frequencies (rad/s), omega tau_i from 0.1 to 10 for every term."""
+        """(n_frequencies,) angular frequencies (rad/s), omega tau_i from 0.1 to 10 for every
+        term.
+        """
         lo, hi = 0.1 / max(self.taus), 10.0 / min(self.taus)
-        return np.geomspace(lo, hi, self.n_frequencies) if self.n_frequencies > 1 else np.array([np.sqrt(lo * hi)])
+        return (
+            np.geomspace(lo, hi, self.n_frequencies)
+            if self.n_frequencies > 1
+            else np.array([np.sqrt(lo * hi)])
+        )
 
 
 #: A complete but small run (a few seconds).
-QUICK_SPEC = RheometerSpec(target_cells=300, samples_per_period=32, n_frequencies=5, measured_periods=1)
+QUICK_SPEC = RheometerSpec(
+    target_cells=300, samples_per_period=32, n_frequencies=5, measured_periods=1
+)
 
 
 @dataclass(frozen=True)
 class TorsionSample:
     """A sample between two plates normal to z: lower face (z = min) clamped, upper face
-    (z = max) rotated about the z axis through the origin."""
+    (z = max) rotated about the z axis through the origin.
+    """
 
     mesh: mjed.TetMesh
     bottom: np.ndarray
@@ -136,24 +164,39 @@ class TorsionSample:
         tol = 1e-9 * (z.max() - z.min())
         bottom, top = np.flatnonzero(z <= z.min() + tol), np.flatnonzero(z >= z.max() - tol)
         if len(bottom) < 3 or len(top) < 3:
-            raise ValueError(f"need at least 3 nodes on each plate, got {len(bottom)} (bottom) and {len(top)} (top)")
+            raise ValueError(
+                f"need at least 3 nodes on each plate, got {len(bottom)} (bottom) and {len(top)} "
+                "(top)"
+            )
         return cls(mesh, bottom, top)
 
     def rotation(self, theta: float) -> np.ndarray:
         """Displacement (k, 3) of the top nodes for a rigid rotation by theta about z."""
         X = self.mesh.points[self.top]
         c, s = np.cos(theta), np.sin(theta)
-        return np.c_[(c - 1.0) * X[:, 0] - s * X[:, 1], s * X[:, 0] + (c - 1.0) * X[:, 1], np.zeros(len(X))]
+        return np.c_[
+            (c - 1.0) * X[:, 0] - s * X[:, 1], s * X[:, 0] + (c - 1.0) * X[:, 1], np.zeros(len(X))
+        ]
 
     def torque(self, reaction: np.ndarray) -> float:
         """z-moment of the reactions (n, 3) on the top nodes, with rest lever arms."""
         X, R = self.mesh.points[self.top], reaction[self.top]
         return float(np.sum(X[:, 0] * R[:, 1] - X[:, 1] * R[:, 0]))
 
-    def integrator(self, model, dt: float, theta: Callable[[float], float], **options) -> ImplicitEuler:
+    def integrator(
+        self, model, dt: float, theta: Callable[[float], float], **options
+    ) -> ImplicitEuler:
         """Quasi-static (density 0) implicit Euler with the top following theta(t)."""
-        return ImplicitEuler(self.mesh, model, 0.0, dt=dt, gravity=None, fixed_nodes=self.bottom,
-                             prescribed=Prescribed(self.top, lambda t: self.rotation(theta(t))), **options)
+        return ImplicitEuler(
+            self.mesh,
+            model,
+            0.0,
+            dt=dt,
+            gravity=None,
+            fixed_nodes=self.bottom,
+            prescribed=Prescribed(self.top, lambda t: self.rotation(theta(t))),
+            **options,
+        )
 
 
 _SOLVER = dict(solver=LinearSolverOptions(cg_tol=1e-13, max_iterations=20000))
@@ -164,7 +207,9 @@ def elastic_torque(sample: TorsionSample, material, amplitude: float) -> float:
     torques = []
     for sign in (1.0, -1.0):
         field = mjed.HyperelasticForceField(sample.mesh, material)
-        report = sample.integrator(field, 1.0, lambda t, s=sign: s * amplitude * t, **_SOLVER).step()
+        report = sample.integrator(
+            field, 1.0, lambda t, s=sign: s * amplitude * t, **_SOLVER
+        ).step()
         torques.append(sample.torque(report.reaction))
     return 0.5 * (torques[0] - torques[1])
 
@@ -179,13 +224,21 @@ def fit_harmonic(t: np.ndarray, y: np.ndarray, omega: float, decays=(), n0: int 
         n0: step index of the first sample (the transients are normalised there).
     """
     k = np.arange(len(t))
-    cols = [np.sin(omega * t), np.cos(omega * t), np.ones_like(t), np.sin(2 * omega * t), np.cos(2 * omega * t)]
+    cols = [
+        np.sin(omega * t),
+        np.cos(omega * t),
+        np.ones_like(t),
+        np.sin(2 * omega * t),
+        np.cos(2 * omega * t),
+    ]
     cols += [np.power(d, k.astype(float)) for d in decays]
     coef, *_ = np.linalg.lstsq(np.column_stack(cols), y, rcond=None)
     return complex(coef[0], coef[1])
 
 
-def simulate_frequency(sample: TorsionSample, spec: RheometerSpec, omega: float, torque_elastic: float) -> dict:
+def simulate_frequency(
+    sample: TorsionSample, spec: RheometerSpec, omega: float, torque_elastic: float
+) -> dict:
     """One sinusoidal run at omega; G*/G0 from the fitted torque."""
     N = spec.samples_per_period
     dt = 2.0 * np.pi / (omega * N)
@@ -202,10 +255,21 @@ def simulate_frequency(sample: TorsionSample, spec: RheometerSpec, omega: float,
     _, b = prony_coefficients(spec.prony, dt)
     amplitude = fit_harmonic(t[n_warm:], torque[n_warm:], omega, decays=b)
     G = amplitude / (spec.amplitude * torque_elastic)
-    return {"omega": float(omega), "dt": dt, "G": G, "steps": len(torque), "cg_iterations_per_step": cg / len(torque)}
+    return {
+        "omega": float(omega),
+        "dt": dt,
+        "G": G,
+        "steps": len(torque),
+        "cg_iterations_per_step": cg / len(torque),
+    }
 
 
-def sweep(sample: TorsionSample, spec: RheometerSpec, omegas=None, progress: Optional[Callable[[str], None]] = None) -> dict:
+def sweep(
+    sample: TorsionSample,
+    spec: RheometerSpec,
+    omegas=None,
+    progress: Optional[Callable[[str], None]] = None,
+) -> dict:
     """The sweep on a given sample: moduli (Pa) and their errors against both references."""
     omegas = spec.omegas() if omegas is None else np.asarray(omegas, dtype=float)
     prony = spec.prony
@@ -216,27 +280,43 @@ def sweep(sample: TorsionSample, spec: RheometerSpec, omegas=None, progress: Opt
         cont = complex(prony.complex_modulus(omega))
         disc = complex(prony.discrete_modulus(omega, run["dt"]))
         G = run.pop("G")
-        rows.append({
-            **run,
-            "frequency_hz": float(omega / (2 * np.pi)),
-            "G_storage": spec.G0 * G.real, "G_loss": spec.G0 * G.imag,
-            "continuous": [spec.G0 * cont.real, spec.G0 * cont.imag],
-            "discrete": [spec.G0 * disc.real, spec.G0 * disc.imag],
-            "rel_err_continuous": [_rel(G.real, cont.real), _rel(G.imag, cont.imag)],
-            "rel_err_discrete": [_rel(G.real, disc.real), _rel(G.imag, disc.imag)],
-        })
+        rows.append(
+            {
+                **run,
+                "frequency_hz": float(omega / (2 * np.pi)),
+                "G_storage": spec.G0 * G.real,
+                "G_loss": spec.G0 * G.imag,
+                "continuous": [spec.G0 * cont.real, spec.G0 * cont.imag],
+                "discrete": [spec.G0 * disc.real, spec.G0 * disc.imag],
+                "rel_err_continuous": [_rel(G.real, cont.real), _rel(G.imag, cont.imag)],
+                "rel_err_discrete": [_rel(G.real, disc.real), _rel(G.imag, disc.imag)],
+            }
+        )
         if progress:
-            progress(f"omega = {omega:.3g} rad/s: G' = {spec.G0 * G.real:.2f} Pa, G'' = {spec.G0 * G.imag:.2f} Pa")
+            progress(
+                f"omega = {omega:.3g} rad/s: G' = {spec.G0 * G.real:.2f} Pa, G'' = "
+                f"{spec.G0 * G.imag:.2f} Pa"
+            )
     errors = {}
     for ref in ("continuous", "discrete"):
         e = np.array([r[f"rel_err_{ref}"] for r in rows])  # (n_freq, 2)
-        errors[ref] = {"mean": float(e.mean()), "max": float(e.max()),
-                       "mean_storage": float(e[:, 0].mean()), "mean_loss": float(e[:, 1].mean())}
+        errors[ref] = {
+            "mean": float(e.mean()),
+            "max": float(e.max()),
+            "mean_storage": float(e[:, 0].mean()),
+            "mean_loss": float(e[:, 1].mean()),
+        }
     return {"elastic_torque_per_radian": T_el, "frequencies": rows, "errors": errors}
 
 
-def run_rheometer(*, quick: bool = False, out: Optional[str] = None, json_path: Optional[str] = None,
-                  spec: Optional[RheometerSpec] = None, progress: Optional[Callable[[str], None]] = None) -> dict:
+def run_rheometer(
+    *,
+    quick: bool = False,
+    out: Optional[str] = None,
+    json_path: Optional[str] = None,
+    spec: Optional[RheometerSpec] = None,
+    progress: Optional[Callable[[str], None]] = None,
+) -> dict:
     """The whole study: gmsh cylinder, sweep, figure (if ``out``), JSON (if ``json_path``).
 
     Returns a JSON-serialisable dict: spec, mesh, elastic torque, per-frequency moduli and
@@ -253,8 +333,12 @@ def run_rheometer(*, quick: bool = False, out: Optional[str] = None, json_path: 
         "study": "rheometer",
         "spec": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(spec).items()},
         "lam": spec.material.lam,
-        "mesh": {"n_nodes": sample.mesh.n_nodes, "n_cells": sample.mesh.n_cells,
-                 "n_bottom": len(sample.bottom), "n_top": len(sample.top)},
+        "mesh": {
+            "n_nodes": sample.mesh.n_nodes,
+            "n_cells": sample.mesh.n_cells,
+            "n_bottom": len(sample.bottom),
+            "n_top": len(sample.top),
+        },
         **sweep(sample, spec, progress=progress),
     }
     figures = []
@@ -283,24 +367,36 @@ def plot_moduli(result: dict, path: str) -> str:
     w = np.array([r["omega"] for r in rows])
     fine = np.geomspace(w.min() / 1.5, w.max() * 1.5, 300)
     G = spec["G0"] * prony.complex_modulus(fine)
-    fig, (ax, ax_err) = plt.subplots(2, 1, figsize=(6.4, 6.4), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    fig, (ax, ax_err) = plt.subplots(
+        2, 1, figsize=(6.4, 6.4), sharex=True, gridspec_kw={"height_ratios": [2, 1]}
+    )
     ax.semilogx(fine, G.real, "-", color="C0", lw=1, label="G' generalised Maxwell")
     ax.semilogx(fine, G.imag, "-", color="C1", lw=1, label="G'' generalised Maxwell")
-    ax.semilogx(w, [r["discrete"][0] for r in rows], "+", color="k", ms=9, label="backward-Euler recursion (exact)")
+    ax.semilogx(
+        w,
+        [r["discrete"][0] for r in rows],
+        "+",
+        color="k",
+        ms=9,
+        label="backward-Euler recursion (exact)",
+    )
     ax.semilogx(w, [r["discrete"][1] for r in rows], "+", color="k", ms=9)
-    ax.semilogx(w, [r["G_storage"] for r in rows], "o", mfc="none", color="C0", label="G' simulated (mjed)")
-    ax.semilogx(w, [r["G_loss"] for r in rows], "s", mfc="none", color="C1", label="G'' simulated (mjed)")
+    ax.semilogx(
+        w, [r["G_storage"] for r in rows], "o", mfc="none", color="C0", label="G' simulated (mjed)"
+    )
+    ax.semilogx(
+        w, [r["G_loss"] for r in rows], "s", mfc="none", color="C1", label="G'' simulated (mjed)"
+    )
     for tau in spec["taus"]:
         ax.axvline(1.0 / tau, color="0.8", lw=0.8, zorder=0)
     ax.set_ylabel("modulus (Pa)")
-    ax.set_title(f"Simulated rheometer: StVK G0 = {spec['G0']:g} Pa, alpha = {tuple(spec['alphas'])}, tau = {tuple(spec['taus'])} s",
-                 fontsize=8)
+    ax.set_title(
+        f"Simulated rheometer: StVK G0 = {spec['G0']:g} Pa, alpha = {tuple(spec['alphas'])}, tau = "
+        f"{tuple(spec['taus'])} s",
+        fontsize=8,
+    )
     ax.legend(fontsize=7)
-    for j, (name, marker) in enumerate((("G'", "o"), ("G''", "s"))):
-        ax_err.loglog(w, [r["rel_err_continuous"][j] for r in rows], marker + "-", mfc="none", color="C2" if j == 0 else "C3",
-                      label=f"{name} vs continuous")
-        ax_err.loglog(w, [max(r["rel_err_discrete"][j], 1e-17) for r in rows], marker + "--", mfc="none",
-                      color="C2" if j == 0 else "C3", label=f"{name} vs discrete")
+    _plot_errors(ax_err, w, rows)
     ax_err.set_xlabel("angular frequency omega (rad/s)")
     ax_err.set_ylabel("relative error")
     ax_err.legend(fontsize=7, ncol=2)
@@ -310,13 +406,30 @@ def plot_moduli(result: dict, path: str) -> str:
     return path
 
 
+def _plot_errors(ax, w: np.ndarray, rows: list) -> None:
+    """The lower panel: each modulus' relative error against both references."""
+    for j, (name, marker) in enumerate((("G'", "o"), ("G''", "s"))):
+        colour = "C2" if j == 0 else "C3"
+        continuous = [r["rel_err_continuous"][j] for r in rows]
+        discrete = [max(r["rel_err_discrete"][j], 1e-17) for r in rows]  # zero on a log axis
+        ax.loglog(
+            w, continuous, marker + "-", mfc="none", color=colour, label=f"{name} vs continuous"
+        )
+        ax.loglog(w, discrete, marker + "--", mfc="none", color=colour, label=f"{name} vs discrete")
+
+
 #: The command-line options of ``mjed-verify dma`` that override a field of the spec.
-SPEC_OPTIONS = {"cells": "target_cells", "frequencies": "n_frequencies", "samples_per_period": "samples_per_period",
-                "amplitude": "amplitude"}
+SPEC_OPTIONS = {
+    "cells": "target_cells",
+    "frequencies": "n_frequencies",
+    "samples_per_period": "samples_per_period",
+    "amplitude": "amplitude",
+}
 
 
 def rheometer_spec(quick: bool = False, **overrides) -> RheometerSpec:
-    """The default (or quick) spec with the command-line overrides (keys of SPEC_OPTIONS; None = keep).
+    """The default (or quick) spec with the command-line overrides (keys of SPEC_OPTIONS; None =
+    keep).
 
     Raises:
         ValueError: an override out of range (the spec says which).
@@ -325,8 +438,14 @@ def rheometer_spec(quick: bool = False, **overrides) -> RheometerSpec:
     return replace(spec, **{SPEC_OPTIONS[k]: v for k, v in overrides.items() if v is not None})
 
 
-def rheometer_study(*, quick: bool = False, out_dir: Optional[str] = None, figure_root: Optional[str] = None,
-                    progress: Optional[Callable[[str], None]] = None, **overrides):
+def rheometer_study(
+    *,
+    quick: bool = False,
+    out_dir: Optional[str] = None,
+    figure_root: Optional[str] = None,
+    progress: Optional[Callable[[str], None]] = None,
+    **overrides,
+):
     """The rheometer study as a typed result.
 
     Args:
@@ -340,49 +459,106 @@ def rheometer_study(*, quick: bool = False, out_dir: Optional[str] = None, figur
         G' and G'' against the exact backward-Euler response, <= DISCRETE_TOL. ``data`` is the
         dict of :func:`run_rheometer` (spec, mesh, frequencies, errors, figures, elapsed_s).
     """
-    from common.blocks import Figure, Paragraph, Table
     from common.reproduce import command
     from common.result import Check, StudyResult
 
     spec = rheometer_spec(quick, **overrides)
     res = run_rheometer(spec=spec, out=out_dir, progress=progress)
-    cmd = command("dma", quick=quick, **overrides)
     e = res["errors"]
     full = rheometer_spec(False, **overrides)
     not_covered = []
     if quick and spec != full:
-        not_covered.append(f"quick: {spec.n_frequencies} frequencies, about {spec.target_cells} cells, "
-                           f"{spec.samples_per_period} steps per period and {spec.measured_periods} measured period(s) "
-                           f"instead of {full.n_frequencies}, {full.target_cells}, {full.samples_per_period} and "
-                           f"{full.measured_periods}")
-    check = Check("G', G'' against the exact backward-Euler response: largest relative error", e["discrete"]["max"],
-                  DISCRETE_TOL)
+        not_covered.append(
+            f"quick: {spec.n_frequencies} frequencies, about {spec.target_cells} cells, "
+            f"{spec.samples_per_period} steps per period and {spec.measured_periods} measured "
+            f"period(s) instead of {full.n_frequencies}, {full.target_cells}, "
+            f"{full.samples_per_period} and {full.measured_periods}"
+        )
+    check = Check(
+        "G', G'' against the exact backward-Euler response: largest relative error",
+        e["discrete"]["max"],
+        DISCRETE_TOL,
+    )
     if figure_root:  # the report's run directory is renamed when done: keep paths relative to it
         res["figures"] = [os.path.relpath(p, figure_root) for p in res["figures"]]
-    rows = [(f["frequency_hz"], f["omega"], f["G_storage"], f["continuous"][0], f["discrete"][0], f["G_loss"],
-             f["continuous"][1], f["discrete"][1], max(f["rel_err_discrete"])) for f in res["frequencies"]]
-    blocks = [Figure(p, "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
-                     "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's Fig. 3")
-              for p in res["figures"]]
-    blocks += [
-        Paragraph(f"A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: {2e3 * spec.radius:g} mm across "
-                  f"and {1e3 * spec.height:g} mm high ({res['mesh']['n_cells']} cells), lower face clamped, upper face "
-                  f"twisted by {spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
-                  f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps per period. The "
-                  "storage and loss moduli fitted from the torque are compared with the generalised Maxwell model and "
-                  "with the exact response of the backward-Euler Prony recursion."),
-        Table(("reference", "mean relative error", "max relative error"),
-              [("continuous generalised Maxwell", e["continuous"]["mean"], e["continuous"]["max"]),
-               ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"])],
-              caption="The gap to the continuous moduli is the time step's own error, not a check (the paper "
-                      "reports 5 % against experiment)."),
-        Table(("f (Hz)", "omega (rad/s)", "G' (Pa)", "G' Maxwell", "G' discrete", "G'' (Pa)", "G'' Maxwell",
-               "G'' discrete", "error vs discrete"), rows),
+    headline = (
+        f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max "
+        f"{100 * e['continuous']['max']:.1f} %; against the exact discrete response max "
+        f"{e['discrete']['max']:.1e}"
+    )
+    return StudyResult.from_checks(
+        KEY,
+        TITLE,
+        [check],
+        headline=headline,
+        command=command("dma", quick=quick, **overrides),
+        not_covered=tuple(not_covered),
+        data=res,
+        blocks=tuple(_blocks(spec, res)),
+        seconds=res["elapsed_s"],
+    )
+
+
+def _blocks(spec: RheometerSpec, res: dict) -> list:
+    """The figure, the set-up in words, the error summary and the per-frequency table."""
+    from common.blocks import Figure, Paragraph, Table
+
+    e = res["errors"]
+    caption = (
+        "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
+        "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's Fig. 3"
+    )
+    blocks: list = [Figure(p, caption) for p in res["figures"]]
+    blocks.append(
+        Paragraph(
+            "A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: "
+            f"{2e3 * spec.radius:g} mm across and {1e3 * spec.height:g} mm high "
+            f"({res['mesh']['n_cells']} cells), lower face clamped, upper face twisted by "
+            f"{spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
+            f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps "
+            "per period. The storage and loss moduli fitted from the torque are compared with the "
+            "generalised Maxwell model and with the exact response of the backward-Euler Prony "
+            "recursion."
+        )
+    )
+    blocks.append(
+        Table(
+            ("reference", "mean relative error", "max relative error"),
+            [
+                ("continuous generalised Maxwell", e["continuous"]["mean"], e["continuous"]["max"]),
+                ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"]),
+            ],
+            caption="The gap to the continuous moduli is the time step's own error, not a check "
+            "(the paper reports 5 % against experiment).",
+        )
+    )
+    rows = [
+        (
+            f["frequency_hz"],
+            f["omega"],
+            f["G_storage"],
+            f["continuous"][0],
+            f["discrete"][0],
+            f["G_loss"],
+            f["continuous"][1],
+            f["discrete"][1],
+            max(f["rel_err_discrete"]),
+        )
+        for f in res["frequencies"]
     ]
-    headline = (f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max {100 * e['continuous']['max']:.1f} %; "
-                f"against the exact discrete response max {e['discrete']['max']:.1e}")
-    return StudyResult.from_checks(KEY, TITLE, [check], headline=headline, command=cmd, not_covered=tuple(not_covered),
-                                   data=res, blocks=tuple(blocks), seconds=res["elapsed_s"])
+    header = (
+        "f (Hz)",
+        "omega (rad/s)",
+        "G' (Pa)",
+        "G' Maxwell",
+        "G' discrete",
+        "G'' (Pa)",
+        "G'' Maxwell",
+        "G'' discrete",
+        "error vs discrete",
+    )
+    blocks.append(Table(header, rows))
+    return blocks
 
 
 def _rel(value: float, reference: float) -> float:

@@ -15,7 +15,9 @@ import numpy as np
 __all__ = ["taylor_rates", "energy_force_rates", "force_stiffness_rates"]
 
 
-def taylor_rates(phi: Callable, dphi_v, x: np.ndarray, v: np.ndarray, eps0: float, n: int = 4) -> np.ndarray:
+def taylor_rates(
+    phi: Callable, dphi_v, x: np.ndarray, v: np.ndarray, eps0: float, n: int = 4
+) -> np.ndarray:
     """Rates log2(r(eps_i) / r(eps_{i+1})) for eps_i = eps0 / 2^i.
 
     Args:

@@ -1,5 +1,6 @@
 """Terzaghi's 1-D consolidation: the Darcy pressure solver coupled to the solid, against the
-series solution p(z, t) = sum_k (4 p0 / ((2k+1) pi)) sin((2k+1) pi z / 2h) exp(-((2k+1) pi / 2)^2 T_v).
+series solution p(z, t) = sum_k (4 p0 / ((2k+1) pi)) sin((2k+1) pi z / 2h) exp(-((2k+1) pi / 2)^2
+T_v).
 
 A column of height h on lateral rollers with a fixed base, loaded at t = 0 by a pressure p0 on
 its top, drained at the top (P = 0) and sealed elsewhere (zero flux). The solid is a
@@ -11,7 +12,8 @@ storage 1/K_lim, so (with dJ/J = d eps and eps = (P - p0)/M in 1-D):
 
 which is Terzaghi's problem with c_v = kappa / (1/K_lim + 1/M) and the initial pressure B p0:
 
-    P(z, t) = (4 B p0 / pi) sum_k (-1)^(k-1)/(2k-1) cos((2k-1) pi z / (2h)) exp(-(2k-1)^2 pi^2 c_v t / (4 h^2)).
+    P(z, t) = (4 B p0 / pi) sum_k (-1)^(k-1)/(2k-1) cos((2k-1) pi z / (2h)) exp(-(2k-1)^2 pi^2 c_v t
+    / (4 h^2)).
 
 Each time step solves the solid at fixed P (Newton), then advances P from the cells' change
 of J: the paper's semi-implicit scheme. ``coupling_iterations`` > 1 repeats the pair within
@@ -20,7 +22,7 @@ the step (fixed point), which makes the coupling implicit.
 
 from __future__ import annotations
 
-from typing import Dict, List, Optional
+from typing import Callable, Dict, List, Optional
 
 import numpy as np
 import scipy.sparse.linalg as spla
@@ -40,7 +42,12 @@ def column_mesh(h: float, n_layers: int, width: float = 0.1):
     z = np.linspace(0.0, h, n_layers + 1)
     corners = np.array([(0, 0), (1, 0), (1, 1), (0, 1)], dtype=float) * width
     points = np.array([(cx, cy, zz) for zz in z for cx, cy in corners])
-    hexes = np.array([[4 * k + i for i in range(4)] + [4 * (k + 1) + i for i in range(4)] for k in range(n_layers)])
+    hexes = np.array(
+        [
+            [4 * k + i for i in range(4)] + [4 * (k + 1) + i for i in range(4)]
+            for k in range(n_layers)
+        ]
+    )
     split = [(0, 1, 2, 6), (0, 2, 3, 6), (0, 3, 7, 6), (0, 7, 4, 6), (0, 4, 5, 6), (0, 5, 1, 6)]
     cells = np.concatenate([hexes[:, list(t)] for t in split])
     e = points[cells[:, 1:]] - points[cells[:, :1]]
@@ -49,7 +56,9 @@ def column_mesh(h: float, n_layers: int, width: float = 0.1):
     return points, cells
 
 
-def terzaghi_pressure(z: np.ndarray, t: float, h: float, c_v: float, p_init: float, n_terms: int = 400) -> np.ndarray:
+def terzaghi_pressure(
+    z: np.ndarray, t: float, h: float, c_v: float, p_init: float, n_terms: int = 400
+) -> np.ndarray:
     """The series solution, z measured from the sealed base, (len(z),)."""
     k = np.arange(1, n_terms + 1)
     a = (2 * k - 1) * np.pi / (2 * h)
@@ -79,50 +88,27 @@ def run_terzaghi(
     ||P - P_exact|| / ||P_exact|| along the column, and "figures" (the PNG, if written).
     """
     M = lam + 2.0 * mu
-    storage = 1.0 / K_lim + 1.0 / M
-    kappa = c_v * storage
+    kappa = c_v * (1.0 / K_lim + 1.0 / M)  # c_v = kappa / storage, storage = 1/K_lim + 1/M
     p0 = 1e-4 * M
     B = K_lim / (K_lim + M)
-
     X, T = column_mesh(h, n_layers)
     mesh = mjed.TetMesh(X, T)
     solid = mjed.HyperelasticForceField(mesh, NeoHookean(mu=mu, lam=lam))
     top = np.flatnonzero(np.isclose(X[:, 2], h))
     fluid = FluidPressureForce(mesh, DarcyParameters(K_lim, kappa), drained_nodes=top)
-
-    # Lateral rollers: only z moves; the base does not move at all.
-    free = np.zeros((len(X), 3), dtype=bool)
-    free[:, 2] = X[:, 2] > 0
-    free = free.ravel()
-    load = np.zeros((len(X), 3))
-    load[top, 2] = -p0 * 0.1 * 0.1 / len(top)  # the top face carries p0 evenly (4 corners)
-
-    x = X.copy()
-    results: List[Dict] = []
-    n_steps = int(round(max(times) / dt))
-    check_steps = {int(round(t / dt)): t for t in times}
-    for step in range(1, n_steps + 1):
-        P_start = fluid.P.copy()
-        for it in range(coupling_iterations):
-            for _newton in range(3):  # the solid is nearly linear: 3 Newton steps reach round-off
-                f_s, K_s = solid.force_and_stiffness(x)
-                f_p, K_p = fluid.force_and_stiffness(x)
-                r = (f_s + f_p + load).ravel()
-                K = (K_s + K_p).tocsr()[free][:, free]
-                dx = np.zeros(3 * len(X))
-                dx[free] = spla.spsolve(K.tocsc(), r[free])
-                x = x + dx.reshape(-1, 3)
-            if it < coupling_iterations - 1:  # trial pressure for the next pass (implicit coupling)
-                fluid.P = fluid.solver.step(P_start, fluid.J_accepted, cell_jacobians(mesh, x), dt)
-        fluid.P = P_start
-        fluid.accept_step(x, dt)
-        if step in check_steps:
-            t = check_steps[step]
-            nodes = np.flatnonzero(np.isclose(X[:, 0], 0) & np.isclose(X[:, 1], 0))
-            exact = terzaghi_pressure(X[nodes, 2], t, h, c_v, B * p0)
-            err = np.linalg.norm(fluid.P[nodes] - exact) / np.linalg.norm(exact)
-            results.append({"T_v": c_v * t / h**2, "relative_l2_error": float(err),
-                            "z": X[nodes, 2].tolist(), "P": fluid.P[nodes].tolist()})
+    free, load = _column_loads(X, top, p0)
+    results = _march(
+        solid,
+        fluid,
+        mesh,
+        load,
+        free,
+        dt,
+        times,
+        coupling_iterations,
+        lambda z, t: terzaghi_pressure(z, t, h, c_v, B * p0),
+        c_v / h**2,
+    )
     figures = [] if figure is None else [_plot(figure, results, h, c_v, B * p0)]
     for r in results:  # the profiles were only for the figure
         r.pop("z"), r.pop("P")
@@ -139,6 +125,86 @@ def run_terzaghi(
     }
 
 
+def _march(
+    solid,
+    fluid,
+    mesh,
+    load,
+    free,
+    dt: float,
+    times,
+    coupling_iterations: int,
+    exact: Callable,
+    tv_per_s: float,
+) -> List[Dict]:
+    """Step to max(times); at each of ``times`` compare P along one vertical edge with
+    ``exact(z, t)``: one dict per time (T_v, relative L2 error, and the profile z, P).
+    """
+    X = mesh.points
+    axis = np.flatnonzero(np.isclose(X[:, 0], 0) & np.isclose(X[:, 1], 0))
+    check_steps = {int(round(t / dt)): t for t in times}
+    results: List[Dict] = []
+    x = X.copy()
+    for step in range(1, int(round(max(times) / dt)) + 1):
+        x = _coupled_step(solid, fluid, mesh, x, load, free, dt, coupling_iterations)
+        if step in check_steps:
+            t = check_steps[step]
+            P_exact = exact(X[axis, 2], t)
+            err = np.linalg.norm(fluid.P[axis] - P_exact) / np.linalg.norm(P_exact)
+            results.append(
+                {
+                    "T_v": tv_per_s * t,
+                    "relative_l2_error": float(err),
+                    "z": X[axis, 2].tolist(),
+                    "P": fluid.P[axis].tolist(),
+                }
+            )
+    return results
+
+
+def _column_loads(X: np.ndarray, top: np.ndarray, p0: float):
+    """Free dofs (3n,) of the column on lateral rollers with a fixed base, and the nodal load
+    (n, 3) of the pressure p0 spread evenly over the top face's nodes.
+    """
+    free = np.zeros((len(X), 3), dtype=bool)
+    free[:, 2] = X[:, 2] > 0  # only z moves; the base does not move at all
+    load = np.zeros((len(X), 3))
+    load[top, 2] = -p0 * 0.1 * 0.1 / len(top)  # the 0.1 x 0.1 top face carries p0
+    return free.ravel(), load
+
+
+def _coupled_step(
+    solid,
+    fluid,
+    mesh,
+    x: np.ndarray,
+    load: np.ndarray,
+    free: np.ndarray,
+    dt: float,
+    coupling_iterations: int,
+) -> np.ndarray:
+    """One time step of the column; returns the new positions (n, 3).
+
+    Newton on the solid at the step's start pressure (with ``coupling_iterations`` > 1, trial
+    pressures in between), then the fluid step is accepted at the new positions.
+    """
+    P_start = fluid.P.copy()
+    for it in range(coupling_iterations):
+        for _newton in range(3):  # the solid is nearly linear: 3 Newton steps reach round-off
+            f_s, K_s = solid.force_and_stiffness(x)
+            f_p, K_p = fluid.force_and_stiffness(x)
+            r = (f_s + f_p + load).ravel()
+            K = (K_s + K_p).tocsr()[free][:, free]
+            dx = np.zeros(x.size)
+            dx[free] = spla.spsolve(K.tocsc(), r[free])
+            x = x + dx.reshape(-1, 3)
+        if it < coupling_iterations - 1:  # trial pressure for the next pass (implicit coupling)
+            fluid.P = fluid.solver.step(P_start, fluid.J_accepted, cell_jacobians(mesh, x), dt)
+    fluid.P = P_start
+    fluid.accept_step(x, dt)
+    return x
+
+
 def _plot(path: str, results: List[Dict], h: float, c_v: float, p_init: float) -> str:
     import matplotlib
 
@@ -149,9 +215,15 @@ def _plot(path: str, results: List[Dict], h: float, c_v: float, p_init: float) -
     zz = np.linspace(0.0, h, 200)
     for r in results:
         t = r["T_v"] * h**2 / c_v
-        line, = ax.plot(terzaghi_pressure(zz, t, h, c_v, p_init) / p_init, zz / h, "-", lw=1)
-        ax.plot(np.asarray(r["P"]) / p_init, np.asarray(r["z"]) / h, "o", ms=3, color=line.get_color(),
-                label=f"T_v = {r['T_v']:g}: error {100 * r['relative_l2_error']:.2f} %")
+        (line,) = ax.plot(terzaghi_pressure(zz, t, h, c_v, p_init) / p_init, zz / h, "-", lw=1)
+        ax.plot(
+            np.asarray(r["P"]) / p_init,
+            np.asarray(r["z"]) / h,
+            "o",
+            ms=3,
+            color=line.get_color(),
+            label=f"T_v = {r['T_v']:g}: error {100 * r['relative_l2_error']:.2f} %",
+        )
     ax.set_xlabel("P / P(t = 0+)")
     ax.set_ylabel("z / h (drained top at 1)")
     ax.set_title("Terzaghi: semi-implicit Darcy step (dots) vs series (lines)", fontsize=9)

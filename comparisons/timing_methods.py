@@ -46,7 +46,8 @@ class TimedMethod:
     "dolfinx" or "peer"; compiled: whether its element loop is compiled code.
     unavailable(): None, or why it cannot run on this installation.
     unsupported(material): None, or why it cannot compute this material's energy.
-    verified_by_construction: a sentence, for methods whose arrays are not compared."""
+    verified_by_construction: a sentence, for methods whose arrays are not compared.
+    """
 
     name: str
     label: str
@@ -93,7 +94,9 @@ def _mjed(backend: str) -> Builder:
 def _numba_missing() -> Optional[str]:
     from mjed.compiled import numba_available
 
-    return None if numba_available() else "Numba is not installed (Debian: python3-numba; PyPI: numba)"
+    return (
+        None if numba_available() else "Numba is not installed (Debian: python3-numba; PyPI: numba)"
+    )
 
 
 def _numba_kernel_refuses(material) -> Optional[str]:
@@ -130,9 +133,13 @@ def _dolfinx_missing() -> Optional[str]:
     return None if dolfinx_available() else "dolfinx is not installed (Debian: python3-dolfinx)"
 
 
-def _peer(module: str, adapter: str) -> Tuple[Builder, Callable[[], Optional[str]], Callable[[Any], Optional[str]]]:
+def _peer(
+    module: str, adapter: str
+) -> Tuple[Builder, Callable[[], Optional[str]], Callable[[Any], Optional[str]]]:
     """Builder, availability and support of a conformance adapter module with the checker's
-    interface: ``available() -> (ok, why)``, ``supports(model) -> (ok, why)``, Adapter(points, cells, model)."""
+    interface: ``available() -> (ok, why)``, ``supports(model) -> (ok, why)``, Adapter(points,
+    cells, model).
+    """
     import importlib
 
     def load():
@@ -156,14 +163,39 @@ def _peer(module: str, adapter: str) -> Tuple[Builder, Callable[[], Optional[str
 
 
 register(TimedMethod("mjed", "MJED (NumPy)", "mjed", False, _mjed("numpy")))
-register(TimedMethod("mjed-numba", "MJED (Numba)", "mjed", True, _mjed("numba"), _numba_missing, _numba_kernel_refuses))
+register(
+    TimedMethod(
+        "mjed-numba",
+        "MJED (Numba)",
+        "mjed",
+        True,
+        _mjed("numba"),
+        _numba_missing,
+        _numba_kernel_refuses,
+    )
+)
 register(TimedMethod("classical", "classical (NumPy)", "classical", False, _classical))
-register(TimedMethod("classical-numba", "classical (Numba)", "classical", True, _classical_numba, _numba_missing))
-register(TimedMethod("dolfinx", "dolfinx", "dolfinx", True, _dolfinx, _dolfinx_missing,
-                     verified_by_construction="dolfinx assembles the UFL oracle's own forms "
-                                              "(reference_fem/dolfinx_assembly.py), proven equal to MJED by the equivalence study"))
-for _name, _label, _module, _cls in (("felupe", "FElupe", "conformance.adapters.felupe", "FElupeAdapter"),
-                                     ("sfepy", "SfePy", "conformance.adapters.sfepy", "SfePyAdapter")):
+register(
+    TimedMethod(
+        "classical-numba", "classical (Numba)", "classical", True, _classical_numba, _numba_missing
+    )
+)
+register(
+    TimedMethod(
+        "dolfinx",
+        "dolfinx",
+        "dolfinx",
+        True,
+        _dolfinx,
+        _dolfinx_missing,
+        verified_by_construction="dolfinx assembles the UFL oracle's own forms "
+        "(reference_fem/dolfinx_assembly.py), proven equal to MJED by the equivalence study",
+    )
+)
+for _name, _label, _module, _cls in (
+    ("felupe", "FElupe", "conformance.adapters.felupe", "FElupeAdapter"),
+    ("sfepy", "SfePy", "conformance.adapters.sfepy", "SfePyAdapter"),
+):
     _b, _u, _s = _peer(_module, _cls)
     register(TimedMethod(_name, _label, "peer", False, _b, _u, _s))
 
@@ -172,7 +204,8 @@ for _name, _label, _module, _cls in (("felupe", "FElupe", "conformance.adapters.
 @dataclass(frozen=True)
 class Verification:
     """force_err, stiffness_err: relative errors against NumPy MJED (None when verified by
-    construction); passed; note: how it was verified or why it failed."""
+    construction); passed; note: how it was verified or why it failed.
+    """
 
     force_err: Optional[float]
     stiffness_err: Optional[float]
@@ -180,12 +213,22 @@ class Verification:
     note: str = ""
 
     def to_dict(self) -> dict:
-        return {"force_err": self.force_err, "stiffness_err": self.stiffness_err, "passed": self.passed,
-                "note": self.note}
+        return {
+            "force_err": self.force_err,
+            "stiffness_err": self.stiffness_err,
+            "passed": self.passed,
+            "note": self.note,
+        }
 
 
-def verify(method: TimedMethod, obj: Any, x: np.ndarray, reference: Tuple[np.ndarray, Any], force_scale: float,
-           tol: float) -> Verification:
+def verify(
+    method: TimedMethod,
+    obj: Any,
+    x: np.ndarray,
+    reference: Tuple[np.ndarray, Any],
+    force_scale: float,
+    tol: float,
+) -> Verification:
     """Compare ``obj``'s force and stiffness at x with the reference (NumPy MJED)."""
     from comparisons.equivalence import compare_arrays
 

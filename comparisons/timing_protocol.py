@@ -24,13 +24,22 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-__all__ = ["Protocol", "PROTOCOLS", "protocol", "time_batch", "calls_for", "relative_spread", "summary"]
+__all__ = [
+    "Protocol",
+    "PROTOCOLS",
+    "protocol",
+    "time_batch",
+    "calls_for",
+    "relative_spread",
+    "summary",
+]
 
 
 @dataclass(frozen=True)
 class Protocol:
     """name; calls: fixed calls per batch (None: enough for min_batch_s); rounds bounds;
-    spread: the stopping bound on the relative spread; budget_s: timed seconds per material."""
+    spread: the stopping bound on the relative spread; budget_s: timed seconds per material.
+    """
 
     name: str
     calls: Optional[int]
@@ -48,12 +57,17 @@ class Protocol:
 
     def describe(self) -> str:
         if self.calls is not None:
-            return (f"{self.name}: {self.calls} calls per measurement (mean), {self.max_rounds} interleaved rounds, "
-                    "median over the rounds (the paper's protocol)")
-        return (f"{self.name}: batches of at least {self.min_batch_s * 1e3:.0f} ms (mean per call), interleaved rounds "
-                f"until every measurement's relative spread (max - min)/median over its last 3 rounds is <= "
-                f"{100 * self.spread:.0f} % (at least {self.min_rounds}, at most {self.max_rounds} rounds, "
-                f"or {self.budget_s:.0f} s of timed calls per material); median over the rounds")
+            return (
+                f"{self.name}: {self.calls} calls per measurement (mean), {self.max_rounds} "
+                "interleaved rounds, median over the rounds (the paper's protocol)"
+            )
+        return (
+            f"{self.name}: batches of at least {self.min_batch_s * 1e3:.0f} ms (mean per call), "
+            "interleaved rounds until every measurement's relative spread (max - min)/median over "
+            f"its last 3 rounds is <= {100 * self.spread:.0f} % (at least {self.min_rounds}, at "
+            f"most {self.max_rounds} rounds, or {self.budget_s:.0f} s of timed calls per "
+            "material); median over the rounds"
+        )
 
     def should_stop(self, rounds: int, spreads: Sequence[float], elapsed_s: float) -> Optional[str]:
         """Why to stop after ``rounds`` rounds, or None to go on."""

@@ -1,6 +1,8 @@
-"""Check any implementation of hyperelastic forces and stiffness against the oracle, and say what is wrong.
+"""Check any implementation of hyperelastic forces and stiffness against the oracle, and say what is
+wrong.
 
-Three ways in (docs/conventions.md): a kit of files (``mjed-verify export`` / ``mjed-verify check DIR``),
+Three ways in (docs/conventions.md): a kit of files (``mjed-verify export`` / ``mjed-verify check
+DIR``),
 a command run per case (``mjed-verify check --command 'my_engine {input} {output}'``), and Python:
 
     from conformance import assert_matches_oracle
@@ -11,11 +13,29 @@ a command run per case (``mjed-verify check --command 'my_engine {input} {output
 """
 
 from conformance.diagnosis import Diagnosis
-from conformance.exchange import FORMAT_VERSION, EngineOutput, read_case_input, read_output, write_output
+from conformance.exchange import (
+    FORMAT_VERSION,
+    EngineOutput,
+    read_case_input,
+    read_output,
+    write_output,
+)
 from conformance.findings import Finding
 from conformance.protocol import Implementation, assert_matches_oracle, check_implementation
 from conformance.run import CheckRun
 from conformance.spec import CaseInput
 
-__all__ = ["CaseInput", "EngineOutput", "Implementation", "assert_matches_oracle", "check_implementation",
-           "CheckRun", "Diagnosis", "Finding", "FORMAT_VERSION", "read_case_input", "read_output", "write_output"]
+__all__ = [
+    "CaseInput",
+    "EngineOutput",
+    "Implementation",
+    "assert_matches_oracle",
+    "check_implementation",
+    "CheckRun",
+    "Diagnosis",
+    "Finding",
+    "FORMAT_VERSION",
+    "read_case_input",
+    "read_output",
+    "write_output",
+]

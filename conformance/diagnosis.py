@@ -6,6 +6,9 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
 1. conventions: sign of force and/or stiffness; component-major dof order; node offsets and
    permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
 2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
+   then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
+   transposed or a single frame, or the columns in another order
+   (:mod:`conformance.frame_hypotheses`);
 3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
    explains a stiffness error when the force is right (:mod:`conformance.tangent`);
 4. a different volumetric (J-only) energy, fitted per cell;
@@ -116,6 +119,7 @@ def diagnose(
     parts: Optional[Callable[[], Any]] = None,
     consistency: Optional[Consistency] = None,
     tol: Tolerances = DOUBLE,
+    frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
 ) -> Diagnosis:
     """Diagnose one case.
 
@@ -126,6 +130,8 @@ def diagnose(
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
         tol: the tolerances the case is held to (double precision by default).
+        frame_variants: a callable returning the oracle with mistaken frames
+            (:class:`conformance.frame_hypotheses.FrameVariant`; built only if needed).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -151,16 +157,17 @@ def diagnose(
                     "the force is wrong away from this state",
                     OBSERVED,
                     "force and stiffness match the oracle here, but the stiffness is not the "
-                    "derivative of the engine's "
-                    "own force at the probes: the force changes wrongly as the mesh deforms (check "
-                    "a deformed state, "
-                    "where the diagnosis can name the mistake)",
+                    "derivative of the engine's own force at the probes: the force changes wrongly "
+                    "as the mesh deforms (check a deformed state, where the diagnosis can name the "
+                    "mistake)",
                     {},
                 ),
             )
         return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
-    causes, partial = _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol)
+    causes, partial = _explain(
+        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol, frame_variants
+    )
     if causes:
         findings = causes + findings
     else:
@@ -170,9 +177,8 @@ def diagnose(
             "unexplained",
             PARTIAL if best else OBSERVED,
             "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
-            "unsymmetric K, "
-            "global factor, tangent parts, volumetric energy, localisation) brings the error "
-            "within tolerance"
+            "unsymmetric K, global factor, fibre frame where the model has one, tangent parts, "
+            "volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + (
                 "; the force is right and the stiffness is not the derivative of the engine's own "
@@ -209,9 +215,9 @@ def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
         "energy",
         "energy differs while force and stiffness match",
         FULL,
-        f"energy {W:.6e} J against {W_o:.6e} J (relative error {err.energy:.1e})"
-        f"{'; ' + words if words else ''}; as a constant density over the rest volume: "
-        f"{offset:.6g} Pa",
+        f"energy {W:.6e} J against {W_o:.6e} J (relative error "
+        f"{err.energy:.1e}){'; ' + words if words else ''}; as a constant density over the rest "
+        f"volume: {offset:.6g} Pa",
         {"energy": W, "oracle_energy": W_o, "offset_density": offset},
     )
 
@@ -324,7 +330,23 @@ def _finite_or_none(v: float) -> Optional[float]:
     return float(v) if np.isfinite(v) else None
 
 
-def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol: Tolerances):
+def _explain(
+    f,
+    K,
+    W,
+    f_o,
+    K_o,
+    W_o,
+    s,
+    err,
+    points,
+    cells,
+    x,
+    parts,
+    field_,
+    tol: Tolerances,
+    frame_variants=None,
+):
     """(causes that fully explain, partial explanations)."""
     full: List[Finding] = []
     partial: List[Finding] = []
@@ -360,7 +382,10 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, to
                 from scipy.sparse.linalg import norm as sparse_norm
 
                 skew = float(sparse_norm(K - K.T)) / 2 / max(float(sparse_norm(K)), 1e-300)
-                extra = f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part matches"
+                extra = (
+                    f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part "
+                    "matches"
+                )
                 if err.symmetry <= 1e-12:
                     continue  # a symmetric K: the correction is the identity
             judge(c.code, c.title, e, extra)
@@ -394,6 +419,11 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, to
         if full:
             return full, partial
 
+    if frame_variants is not None:
+        _frame_findings(f, K, W_o, frame_variants(), judge)
+        if full:
+            return full, partial
+
     # A localised error cannot be a global convention or a part of the tangent everywhere: test it
     # first (it is cheap; the fits below are not on large meshes).
     _locality_findings(f, K, f_o, K_o, s, cells, field_, tol, full, partial)
@@ -415,6 +445,18 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, to
                 return full, partial
 
     return full, partial
+
+
+def _frame_findings(
+    f: np.ndarray, K: sp.csr_matrix, W_o: float, variants: Sequence[Any], judge: Callable[..., None]
+) -> None:
+    """The engine against the oracle evaluated with each mistaken frame: a frame mistake is named
+    when the engine agrees with that variant (the error lives inside the energy, so it cannot be
+    undone on the output).
+    """
+    for v in variants:
+        e = errors(f, K, None, v.force, v.stiffness, W_o, v.scales)
+        judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
 
 
 def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
@@ -466,10 +508,9 @@ def _volumetric_findings(
     }
     text = (
         f"a per-cell change of the J-only energy U(J) leaves force error {fit.force_residual:.1e} "
-        "and stiffness "
-        f"error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
-        f"{np.median(fit.dU1):.4g} Pa and "
-        f"d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = {J1:.4g}"
+        f"and stiffness error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
+        f"{np.median(fit.dU1):.4g} Pa and d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = "
+        f"{J1:.4g}"
     )
     if fit.variant:
         text += f"; recognised: {fit.variant}"
@@ -526,8 +567,7 @@ def _locality_findings(
     }
     text = (
         f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, "
-        "stiffness error "
-        f"{kout:.1e}; see the per-node error field"
+        f"stiffness error {kout:.1e}; see the per-node error field"
     )
     if fout <= tol.force and kout <= tol.stiffness:
         full.append(

@@ -30,13 +30,15 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 from dataclasses import dataclass
-from typing import Any, Dict, Mapping, Optional
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.confine import ConfinementError, confined_path, read_confined
 from conformance.spec import (
     CaseInput,
     SpecError,
@@ -64,6 +66,15 @@ __all__ = [
 FORMAT_VERSION = 1
 CASE_FORMAT = "mjed-verify case"
 KIT_FORMAT = "mjed-verify conformance kit"
+
+#: Bounds on what is read from a kit or an engine's output, checked on the file's size before any
+#: byte is read (a hostile file must not be able to exhaust memory).
+MAX_INPUT_ARRAY_BYTES = 1 << 30  # one input array: 1 GiB, 40 million nodes
+MAX_JSON_BYTES = 64 << 20  # a case.json or a kit manifest (about 100 000 cases)
+MAX_DENSE_DOFS = 6000  # a dense stiffness of (3n)^2 values: 288 MB at this size; COO or CSR above
+#: COO or CSR entries allowed per cell: a cell's 12 x 12 element matrix written up to four times
+#: (an engine may write several contributions per cell unassembled; duplicates are summed).
+ENTRIES_PER_CELL = 4 * 144
 
 _DTYPES = {"<f8": np.dtype("<f8"), "<i8": np.dtype("<i8"), "<i4": np.dtype("<i4")}
 _STIFFNESS_LAYOUTS = {
@@ -104,31 +115,88 @@ def write_array(folder: str, filename: str, array: np.ndarray, dtype: str) -> Di
     return {"file": filename, "dtype": dtype, "shape": list(a.shape)}
 
 
-def read_array(folder: str, entry: Any, *, what: str, case: str) -> np.ndarray:
-    """Read the array of a manifest entry, checking its dtype, shape and file size."""
+def read_array(
+    folder: str, entry: Any, *, what: str, case: str, digests: Optional[Mapping[str, str]] = None
+) -> np.ndarray:
+    """Read the array of a manifest entry, checking its dtype, shape and file size.
+
+    The file must lie inside ``folder``; its size is compared with the declared shape before a
+    byte is read. digests: file name -> SHA-256, when given every file read must be listed and
+    match (the kit's ``input_sha256``).
+    """
+    where = f"case {case}: {os.path.join(folder, 'case.json')}"  # the file that declares it
     if not isinstance(entry, Mapping) or not {"file", "dtype", "shape"} <= set(entry):
-        raise FormatError(f"case {case}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
-    dtype = _DTYPES.get(entry["dtype"])
+        raise FormatError(f"{where}: array entry {what!r} needs 'file', 'dtype' and 'shape'")
+    code = entry["dtype"]
+    dtype = _DTYPES.get(code) if isinstance(code, str) else None
     if dtype is None:
+        raise FormatError(f"{where}: {what}: dtype {code!r} is not one of {', '.join(_DTYPES)}")
+    shape = _shape(entry["shape"], what, where)
+    count = math.prod(shape)  # Python ints: no silent overflow
+    nbytes = count * dtype.itemsize
+    if nbytes > MAX_INPUT_ARRAY_BYTES:
         raise FormatError(
-            f"case {case}: {what}: dtype {entry['dtype']!r} is not one of {', '.join(_DTYPES)}"
+            f"{where}: {what}: shape {list(shape)} needs {nbytes} bytes, more "
+            f"than the {MAX_INPUT_ARRAY_BYTES} an input array may hold"
         )
-    shape = tuple(int(s) for s in entry["shape"])
-    path = os.path.join(folder, str(entry["file"]))
-    return _read_raw(path, dtype, shape, case=case)
+    detail = f" ({count} values of {dtype.str} for shape {list(shape)})"
+    data = _read_file(
+        folder,
+        entry["file"],
+        f"case {case}",
+        expected=nbytes,
+        limit=nbytes,
+        digests=digests,
+        detail=detail,
+    )
+    return np.frombuffer(data, dtype=dtype).reshape(shape)
 
 
-def _read_raw(path: str, dtype: np.dtype, shape: tuple, *, case: str) -> np.ndarray:
-    if not os.path.isfile(path):
-        raise FormatError(f"case {case}: {path}: file missing")
-    count = int(np.prod(shape))
-    size = os.path.getsize(path)
-    if size != count * dtype.itemsize:
+def _shape(raw: Any, what: str, where: str) -> Tuple[int, ...]:
+    """A declared shape: a list of 1 to 3 non-negative integers (where: the case and its file)."""
+
+    def extent(s: Any) -> bool:
+        return isinstance(s, int) and not isinstance(s, bool) and 0 <= s <= 2**40
+
+    if not isinstance(raw, list) or not 1 <= len(raw) <= 3 or not all(extent(s) for s in raw):
+        shown = repr(raw) if len(repr(raw)) <= 60 else repr(raw)[:57] + "..."
         raise FormatError(
-            f"case {case}: {path}: {size} bytes, expected {count * dtype.itemsize} "
-            f"({count} values of {dtype.str} for shape {list(shape)})"
+            f"{where}: {what}: shape must be a list of 1 to 3 non-negative integers, got {shown}"
         )
-    return np.fromfile(path, dtype=dtype).reshape(shape)
+    return tuple(raw)
+
+
+def _read_file(
+    folder: str,
+    name: Any,
+    where: str,
+    *,
+    limit: int,
+    expected: Optional[int] = None,
+    digests: Optional[Mapping[str, str]] = None,
+    detail: str = "",
+    missing: str = "",
+) -> bytearray:
+    """The bytes of ``folder/name``, confined to ``folder``, regular, size-checked before reading;
+    with ``digests`` the file must be listed there and its bytes must match.
+    """
+    digest = None
+    if digests is not None:
+        if not isinstance(name, str) or name not in digests:
+            raise FormatError(
+                f"{where}: {os.path.join(folder, str(name))}: not listed in the "
+                "kit's input_sha256; every input file read must be hashed"
+            )
+        digest = digests[name]
+    try:
+        return read_confined(
+            folder, name, where, limit=limit, expected=expected, sha256=digest, missing=missing
+        )
+    except ConfinementError as exc:
+        text = str(exc)
+        if expected is not None and text.endswith(f"bytes, expected {expected}"):
+            text += detail
+        raise FormatError(text) from None
 
 
 # ------------------------------------------------------------------ case input
@@ -156,7 +224,7 @@ def write_case_input(
         **(dict(extra) if extra else {}),
     }
     with open(os.path.join(folder, "case.json"), "w") as fh:
-        json.dump(manifest, fh, indent=1)
+        json.dump(manifest, fh, indent=1, allow_nan=False)  # every value is checked finite
     with open(os.path.join(folder, "case.txt"), "w") as fh:
         fh.write(_case_text(manifest))
     return manifest
@@ -186,19 +254,35 @@ def _case_text(manifest: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def load_json(path: str, case: Optional[str] = None, hint: str = "") -> Dict[str, Any]:
-    """A JSON object from ``path``; FormatError naming the case (if any) and the file otherwise."""
-    where = (f"case {case}: " if case else "") + path
-    if not os.path.isfile(path):
-        raise FormatError(f"{where}: file missing{hint}")
+def load_json(
+    folder: str,
+    name: str,
+    case: Optional[str] = None,
+    hint: str = "",
+    *,
+    digests: Optional[Mapping[str, str]] = None,
+    limit: int = MAX_JSON_BYTES,
+) -> Dict[str, Any]:
+    """A JSON object from ``folder/name`` (confined, bounded, strict: no NaN or Infinity, no nesting
+    deeper than Python can parse); FormatError naming the case (if any) and the file otherwise.
+    """
+    path = os.path.join(folder, name)
+    where = f"case {case}" if case else "kit"
+    raw = _read_file(folder, name, where, limit=limit, digests=digests, missing=hint)
+    prefix = (f"case {case}: " if case else "") + path
     try:
-        with open(path) as fh:
-            data = json.load(fh)
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise FormatError(f"{where}: malformed JSON ({exc})") from None
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constant)
+    except (json.JSONDecodeError, UnicodeDecodeError, ValueError) as exc:
+        raise FormatError(f"{prefix}: malformed JSON ({exc})") from None
+    except RecursionError:
+        raise FormatError(f"{prefix}: malformed JSON (nested too deeply)") from None
     if not isinstance(data, dict):
-        raise FormatError(f"{where}: expected a JSON object")
+        raise FormatError(f"{prefix}: expected a JSON object")
     return data
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON value")
 
 
 def check_version(data: Mapping[str, Any], path: str, case: str, expected_format: str) -> None:
@@ -213,10 +297,16 @@ def check_version(data: Mapping[str, Any], path: str, case: str, expected_format
         )
 
 
-def read_case_input(folder: str, case: str = "?") -> CaseInput:
-    """Read back a case input directory (validated)."""
+def read_case_input(
+    folder: str, case: str = "?", *, digests: Optional[Mapping[str, str]] = None
+) -> CaseInput:
+    """Read back a case input directory (validated).
+
+    digests: the kit's ``input_sha256`` for this case; when given, case.json and every array
+    must be listed there, and the bytes read are the bytes hashed.
+    """
     path = os.path.join(folder, "case.json")
-    data = load_json(path, case)
+    data = load_json(folder, "case.json", case, digests=digests)
     check_version(data, path, case, CASE_FORMAT)
     arrays = data.get("arrays")
     if not isinstance(arrays, Mapping):
@@ -225,20 +315,41 @@ def read_case_input(folder: str, case: str = "?") -> CaseInput:
         for key in ("points", "cells", "positions"):
             if key not in arrays:
                 raise FormatError(f"case {case}: {path}: array {key!r} missing")
-        pts = read_array(folder, arrays["points"], what="points", case=case)
-        cells = read_array(folder, arrays["cells"], what="cells", case=case)
-        x = read_array(folder, arrays["positions"], what="positions", case=case)
+        pts, cells, x = (
+            read_array(folder, arrays[k], what=k, case=case, digests=digests)
+            for k in ("points", "cells", "positions")
+        )
         frame = (
-            read_array(folder, arrays["frame"], what="frame", case=case)
+            read_array(folder, arrays["frame"], what="frame", case=case, digests=digests)
             if "frame" in arrays
             else None
         )
+        _check_mesh_arrays(pts, cells, x, path, case)
         model = model_from_manifest(data.get("model"), frame, where=f"case {case}: {path}")
-        return CaseInput(str(data.get("case", case)), pts, cells, x, model)
-    except (SpecError, ValueError) as exc:
+        name = data.get("case", case)
+        return CaseInput(name if isinstance(name, str) else repr(name), pts, cells, x, model)
+    except (SpecError, ValueError, TypeError, OverflowError, RecursionError) as exc:
+        # TypeError and OverflowError: a field of the wrong JSON type or an absurd number
+        # reached a constructor; still bad input of this case, not a traceback.
         if isinstance(exc, FormatError):
             raise
-        raise FormatError(f"case {case}: {path}: {exc}") from None
+        kind = f"{type(exc).__name__}: " if isinstance(exc, (TypeError, RecursionError)) else ""
+        raise FormatError(f"case {case}: {path}: {kind}{exc}") from None
+
+
+def _check_mesh_arrays(
+    pts: np.ndarray, cells: np.ndarray, x: np.ndarray, path: str, case: str
+) -> None:
+    """Node indices within range and finite coordinates, before anything indexes with them."""
+    n = pts.shape[0] if pts.ndim == 2 else 0
+    if cells.size and (cells.min() < 0 or cells.max() >= n):
+        raise FormatError(
+            f"case {case}: {path}: cell node indices must lie in [0, {n}), "
+            f"found {int(cells.min())}..{int(cells.max())}"
+        )
+    for name, arr in (("points", pts), ("positions", x)):
+        if not np.all(np.isfinite(arr)):
+            raise FormatError(f"case {case}: {path}: {name} holds non-finite values (NaN or inf)")
 
 
 # ------------------------------------------------------------------ engine output
@@ -293,33 +404,49 @@ def write_output(
                 os.remove(path)
 
 
-def _count(path: str, itemsize: int, case: str) -> int:
-    size = os.path.getsize(path)
-    if size % itemsize:
-        raise FormatError(
-            f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values"
-        )
-    return size // itemsize
+def read_output(
+    folder: str,
+    n_nodes: int,
+    case: str,
+    *,
+    n_cells: Optional[int] = None,
+    within: Optional[str] = None,
+) -> EngineOutput:
+    """Read and validate an engine's output for a mesh of ``n_nodes`` nodes (``n_cells`` cells).
 
-
-def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
-    """Read and validate an engine's output for a mesh of ``n_nodes`` nodes.
+    Only regular files inside ``folder`` are read, and each file's size is compared with what the
+    mesh allows before it is read: 3n values of force, (3n)^2 of a dense stiffness (for at most
+    MAX_DENSE_DOFS dofs), at most ENTRIES_PER_CELL x n_cells COO or CSR entries (without
+    ``n_cells``: (3n)^2 entries). within: a directory ``folder`` must lie in once links are
+    followed (an engine could replace its output directory by a link elsewhere).
 
     Raises:
         FormatError naming the case and the file: missing or extra files, a wrong size
         (shape or node count), indices out of range, NaN or infinite values.
     """
+    where = f"case {case}"
+    if within is not None:
+        try:
+            confined_path(within, os.path.relpath(folder, within), f"{where}: output directory")
+        except ConfinementError as exc:
+            raise FormatError(str(exc)) from None
     if not os.path.isdir(folder):
-        raise FormatError(
-            f"case {case}: {folder}: output directory missing (the engine wrote nothing)"
-        )
+        raise FormatError(f"{where}: {folder}: output directory missing (the engine wrote nothing)")
     N = 3 * n_nodes
     precision = output_precision(folder)
     f64, i64 = np.dtype("<f8" if precision == "double" else "<f4"), np.dtype("<i8")
-    fpath = os.path.join(folder, _value_file("force.f64", precision))
-    if not os.path.isfile(fpath):
-        raise FormatError(f"case {case}: {fpath}: file missing (force, 3n = {N} float64 values)")
-    n_force = _count(fpath, f64.itemsize, case)
+    fsize = f64.itemsize
+    force_name = _value_file("force.f64", precision)
+    fpath = os.path.join(folder, force_name)
+    # the limit leaves room for a wrong node count, which the message below names
+    raw = _read_file(
+        folder,
+        force_name,
+        where,
+        limit=2 * fsize * N + 4096,
+        missing=f" (force, 3n = {N} {f64.name} values)",
+    )
+    n_force = _values(raw, fsize, fpath, case)
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
         if 2 * n_force == N and precision == "double":
@@ -327,58 +454,66 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
                 "; that is exactly 3n float32 values: a single-precision engine writes force.f32"
             )
         raise FormatError(
-            f"case {case}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
+            f"{where}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
         )
-    force = np.fromfile(fpath, dtype=f64).reshape(n_nodes, 3)
+    force = np.frombuffer(raw, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
     force = force.astype(np.float64)
 
+    # lexists: a link or special file in place of a stiffness is named for what it is
     present = [
         k
         for k, files in _STIFFNESS_LAYOUTS.items()
-        if os.path.isfile(os.path.join(folder, _value_file(files[0], precision)))
+        if os.path.lexists(os.path.join(folder, _value_file(files[0], precision)))
     ]
     if not present:
         raise FormatError(
-            f"case {case}: {folder}: no stiffness: write stiffness_rows.i64/stiffness_cols.i64/"
-            "stiffness_values.f64 (COO), stiffness_indptr.i64/stiffness_indices.i64/"
-            "stiffness_values.f64 (CSR) or stiffness.f64 (dense)"
+            f"{where}: {folder}: no stiffness: write stiffness_rows.i64/"
+            "stiffness_cols.i64/stiffness_values.f64 (COO), stiffness_indptr.i64/"
+            "stiffness_indices.i64/stiffness_values.f64 (CSR) or stiffness.f64 "
+            "(dense)"
         )
     if len(present) > 1:
         raise FormatError(
-            f"case {case}: {folder}: several stiffness layouts present ({', '.join(present)}); "
-            "write one"
+            f"{where}: {folder}: several stiffness layouts present "
+            f"({', '.join(present)}); write one"
         )
     layout = present[0]
-    paths = [os.path.join(folder, _value_file(f, precision)) for f in _STIFFNESS_LAYOUTS[layout]]
-    for p in paths:
-        if not os.path.isfile(p):
-            raise FormatError(
-                f"case {case}: {p}: file missing ({layout} stiffness needs "
-                f"{', '.join(_STIFFNESS_LAYOUTS[layout])})"
-            )
+    names = [_value_file(f, precision) for f in _STIFFNESS_LAYOUTS[layout]]
+    paths = [os.path.join(folder, f) for f in names]
+    need = f" ({layout} stiffness needs {', '.join(names)})"
     if layout == "dense":
-        count = _count(paths[0], f64.itemsize, case)
+        if N > MAX_DENSE_DOFS:
+            raise FormatError(
+                f"{where}: {paths[0]}: a dense stiffness of {N} dofs is too large "
+                f"to read (at most {MAX_DENSE_DOFS}); write it as COO or CSR"
+            )
+        raw = _read_file(folder, names[0], where, limit=2 * fsize * N * N + 4096, missing=need)
+        count = _values(raw, fsize, paths[0], case)
         if count != N * N:
             raise FormatError(
-                f"case {case}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} for {n_nodes} "
-                "nodes"
+                f"{where}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} "
+                f"for {n_nodes} nodes"
             )
-        dense = np.fromfile(paths[0], dtype=f64).reshape(N, N)
+        dense = np.frombuffer(raw, dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
-        dense = dense.astype(np.float64)
-        K = sp.csr_matrix(dense)
+        K = sp.csr_matrix(dense.astype(np.float64))
     else:
-        a, b = (np.fromfile(p, dtype=i64) for p in paths[:2])
-        vals = np.fromfile(paths[2], dtype=f64)
+        max_nnz = N * N if n_cells is None else min(4 * N * N, ENTRIES_PER_CELL * max(n_cells, 1))
+        limits = (8 * (N + 1) if layout == "csr" else 8 * max_nnz, 8 * max_nnz, fsize * max_nnz)
+        arrays = []
+        for name, path, limit, dt in zip(names, paths, limits, (i64, i64, f64)):
+            raw = _sparse_file(folder, name, where, limit, max_nnz, layout, need)
+            _values(raw, dt.itemsize, path, case)
+            arrays.append(np.frombuffer(raw, dtype=dt))
+        a, b, vals = arrays
         _require_finite(vals, paths[2], case)
         vals = vals.astype(np.float64)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
                 raise FormatError(
-                    f"case {case}: {folder}: COO arrays differ in length (rows {a.size}, cols "
-                    f"{b.size}, "
-                    f"values {vals.size})"
+                    f"{where}: {folder}: COO arrays differ in length (rows {a.size}, "
+                    f"cols {b.size}, values {vals.size})"
                 )
             for arr, p in ((a, paths[0]), (b, paths[1])):
                 _require_indices(arr, N, p, case)
@@ -392,21 +527,46 @@ def read_output(folder: str, n_nodes: int, case: str) -> EngineOutput:
                 or b.size != vals.size
             ):
                 raise FormatError(
-                    f"case {case}: {paths[0]}: not a CSR row pointer of {N} rows for {b.size} "
-                    f"column indices and {vals.size} values"
+                    f"{where}: {paths[0]}: not a CSR row pointer of {N} rows for "
+                    f"{b.size} column indices and {vals.size} values"
                 )
             _require_indices(b, N, paths[1], case)
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
     energy = None
-    epath = os.path.join(folder, _value_file("energy.f64", precision))
-    if os.path.isfile(epath):
-        if _count(epath, f64.itemsize, case) != 1:
-            raise FormatError(f"case {case}: {epath}: expected exactly one {f64.name} value")
-        raw = np.fromfile(epath, dtype=f64)
-        _require_finite(raw, epath, case)
-        energy = float(raw[0])
+    energy_name = _value_file("energy.f64", precision)
+    epath = os.path.join(folder, energy_name)
+    if os.path.lexists(epath):
+        raw = _read_file(folder, energy_name, where, limit=64)
+        if _values(raw, fsize, epath, case) != 1:
+            raise FormatError(f"{where}: {epath}: expected exactly one {f64.name} value")
+        e = np.frombuffer(raw, dtype=f64)
+        _require_finite(e, epath, case)
+        energy = float(e[0])
     return EngineOutput(force, sp.csr_matrix(K), energy, precision)
+
+
+def _sparse_file(
+    folder: str, name: str, where: str, limit: int, max_nnz: int, layout: str, need: str
+) -> bytearray:
+    try:
+        return _read_file(folder, name, where, limit=limit, missing=need)
+    except FormatError as exc:
+        if "more than the" in str(exc):  # say where the limit comes from
+            raise FormatError(
+                f"{exc}: at most {max_nnz} {layout} entries are read for this mesh "
+                f"({ENTRIES_PER_CELL} per cell)"
+            ) from None
+        raise
+
+
+def _values(raw, itemsize: int, path: str, case: str) -> int:
+    size = len(raw)
+    if size % itemsize:
+        raise FormatError(
+            f"case {case}: {path}: {size} bytes is not a whole number of {itemsize}-byte values"
+        )
+    return size // itemsize
 
 
 def _require_finite(a: np.ndarray, path: str, case: str) -> None:
@@ -439,11 +599,13 @@ def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
 
 
 def output_precision(folder: str) -> str:
-    """ "single" when the engine wrote its force as float32 (``force.f32``), else "double"."""
+    """The output's precision: "single" when the engine wrote its force as float32 (``force.f32``),
+    else "double".
+    """
     return (
         "single"
-        if os.path.isfile(os.path.join(folder, "force.f32"))
-        and not os.path.isfile(os.path.join(folder, "force.f64"))
+        if os.path.lexists(os.path.join(folder, "force.f32"))
+        and not os.path.lexists(os.path.join(folder, "force.f64"))
         else "double"
     )
 

@@ -114,7 +114,8 @@ def describe_permutation(q: np.ndarray) -> str:
         )
     moved = np.flatnonzero(q != np.arange(n))
     pairs = ", ".join(f"{a}->{q[a]}" for a in moved[:6])
-    return f"nodes permuted: {moved.size} of {n} nodes moved ({pairs}{', ...' if moved.size > 6 else ''})"
+    more = ", ..." if moved.size > 6 else ""
+    return f"nodes permuted: {moved.size} of {n} nodes moved ({pairs}{more})"
 
 
 def common_factor_name(ratio: float, mean_volume: float, uniform_volume: bool) -> str:

@@ -59,7 +59,14 @@ class OracleCache:
         key = _key(case)
         if key not in self._oracles:
             from reference_fem import UFLOracle
+            from reference_fem.user_energy import UserEnergy
 
+            if isinstance(case.model, UserEnergy):
+                # a user energy's symbolic work is unbounded by its length: compile it first
+                # in a child with a time and memory budget (SymbolicBudgetError, a ValueError)
+                from reference_fem.symbolic_budget import check_symbolic_budget
+
+                check_symbolic_budget(case.model)
             self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)

@@ -28,24 +28,38 @@ from typing import Any, Callable, Dict, Optional
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["PART_NAMES", "StiffnessParts", "PartsOracle", "volumetric_energy", "register_volumetric"]
+__all__ = [
+    "PART_NAMES",
+    "StiffnessParts",
+    "PartsOracle",
+    "volumetric_energy",
+    "register_volumetric",
+]
 
 #: Parts assembled separately, each a sparse (3n, 3n) matrix in input dof order.
-PART_NAMES = ("geometric_volumetric", "geometric", "material_volumetric", "material_normal_normal",
-              "material_normal_shear", "material_shear_shear")
+PART_NAMES = (
+    "geometric_volumetric",
+    "geometric",
+    "material_volumetric",
+    "material_normal_normal",
+    "material_normal_shear",
+    "material_shear_shear",
+)
 
 # Voigt components of C: which pairs (i, j) are independent unknowns, normal ones first.
 _VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 _NORMAL = (0, 1, 2)
 _SHEAR = (3, 4, 5)
 
-# Volumetric (J-only) energies per material type, typed from the formulas in docs/conventions.md.
+# Volumetric (J-only) energies per material type: the declared materials' and user energies'.
 _VOLUMETRIC: Dict[type, Callable[[Any, Any, Callable[[str], Any]], Any]] = {}
 
 
 def register_volumetric(cls: type):
-    """Decorator: ``fn(material, F, p) -> UFL`` gives the J-only terms of ``cls``'s energy (None if none);
-    ``p(name)`` is a parameter as it enters the form (a dolfinx Constant)."""
+    """Decorator: ``fn(material, F, p) -> UFL`` gives the J-only terms of ``cls``'s energy (None if
+    none);
+    ``p(name)`` is a parameter as it enters the form (a dolfinx Constant).
+    """
 
     def deco(fn):
         _VOLUMETRIC[cls] = fn
@@ -55,29 +69,16 @@ def register_volumetric(cls: type):
 
 
 def _register_builtin() -> None:
-    import ufl
+    from mjed.materials import declarations
+    from reference_fem.energies import UFLNamespace
 
-    from mjed import materials as M
+    def volumetric_of(formula):
+        if formula is None:  # e.g. St Venant-Kirchhoff: every term depends on E
+            return lambda m, F, p: None
+        return lambda m, F, p: formula(p, UFLNamespace(F))
 
-    @register_volumetric(M.StVenantKirchhoff)
-    def _svk(m, F, p):
-        return None  # every term depends on E; nothing is a function of J alone
-
-    @register_volumetric(M.NeoHookean)
-    def _nh(m, F, p):
-        J = ufl.det(F)
-        return -p("mu") * ufl.ln(J) + 0.5 * p("lam") * ufl.ln(J) ** 2
-
-    def _log_squared(m, F, p):
-        return 0.5 * p("k0") * ufl.ln(ufl.det(F)) ** 2
-
-    for cls in (M.MooneyRivlin, M.VerondaWestmann, M.ArrudaBoyce, M.Ogden):
-        register_volumetric(cls)(_log_squared)
-
-    @register_volumetric(M.Costa)
-    def _costa(m, F, p):
-        J = ufl.det(F)
-        return p("k0") * (J * ufl.ln(J) - J + 1.0)
+    for declaration in declarations():  # the J-only parts, as each material declares them
+        register_volumetric(declaration.material)(volumetric_of(declaration.volumetric))
 
     try:
         from reference_fem.user_energy import UserEnergy
@@ -125,9 +126,16 @@ def volumetric_user_energy(energy):
             params |= names & set(energy.params)
     if not kept:
         return None
-    with warnings.catch_warnings():  # e.g. -mu ln J alone is pre-stressed at rest; that is expected here
+    with (
+        warnings.catch_warnings()
+    ):  # e.g. -mu ln J alone is pre-stressed at rest; that is expected here
         warnings.simplefilter("ignore")
-        return UserEnergy(" ".join(kept), {k: energy.params[k] for k in sorted(params)}, None, energy.name + " (J-only)")
+        return UserEnergy(
+            " ".join(kept),
+            {k: energy.params[k] for k in sorted(params)},
+            None,
+            energy.name + " (J-only)",
+        )
 
 
 def volumetric_energy(model: Any, F, p: Callable[[str], Any]):
@@ -152,9 +160,9 @@ def _cholesky_factor(c):
     u00 = ufl.sqrt(c00)
     u01 = c01 / u00
     u02 = c02 / u00
-    u11 = ufl.sqrt(c11 - u01 ** 2)
+    u11 = ufl.sqrt(c11 - u01**2)
     u12 = (c12 - u01 * u02) / u11
-    u22 = ufl.sqrt(c22 - u02 ** 2 - u12 ** 2)
+    u22 = ufl.sqrt(c22 - u02**2 - u12**2)
     return ufl.as_matrix([[u00, u01, u02], [0.0, u11, u12], [0.0, 0.0, u22]])
 
 
@@ -179,8 +187,12 @@ class StiffnessParts:
         return self.parts[name]
 
     def total(self) -> sp.csr_matrix:
-        return (self.parts["geometric"] + self.parts["material_normal_normal"]
-                + self.parts["material_normal_shear"] + self.parts["material_shear_shear"]).tocsr()
+        return (
+            self.parts["geometric"]
+            + self.parts["material_normal_normal"]
+            + self.parts["material_normal_shear"]
+            + self.parts["material_shear_shear"]
+        ).tocsr()
 
 
 class PartsOracle:
@@ -194,8 +206,13 @@ class PartsOracle:
             :func:`conformance.oracle.energy_density`.
     """
 
-    def __init__(self, points: np.ndarray, cells: np.ndarray, model: Any,
-                 energy: Optional[Callable[..., Any]] = None):
+    def __init__(
+        self,
+        points: np.ndarray,
+        cells: np.ndarray,
+        model: Any,
+        energy: Optional[Callable[..., Any]] = None,
+    ):
         import ufl
 
         from reference_fem import compat
@@ -247,7 +264,9 @@ class PartsOracle:
         self._forms = {k: compat.compile_form(f) for k, f in forms.items()}
         self._mats = {k: compat.create_matrix(f) for k, f in self._forms.items()}
         n_owned = self._numbering.n_owned_dof_nodes
-        self._renumber = CSRRenumbering(self._numbering.input_dof_of_dof[: 3 * n_owned], 3 * X.shape[0])
+        self._renumber = CSRRenumbering(
+            self._numbering.input_dof_of_dof[: 3 * n_owned], 3 * X.shape[0]
+        )
 
     def parts(self, x: np.ndarray) -> StiffnessParts:
         """Every part at current positions ``x`` (n, 3)."""
@@ -264,13 +283,18 @@ class PartsOracle:
 
 
 class _Constants:
-    """p(name): the model's parameter as a dolfinx Constant; p.constant: the factory itself."""
+    """p(name): the model's parameter as a dolfinx Constant; p.value(name): as a float (what a
+    declared formula may read for a check); p.constant: the factory itself.
+    """
 
     def __init__(self, model: Any, constant: Callable[[Any], Any]):
         self.model, self.constant = model, constant
 
+    def value(self, name: str) -> float:
+        return float(getattr(self.model, name))
+
     def __call__(self, name: str):
-        return self.constant(float(getattr(self.model, name)))
+        return self.constant(self.value(name))
 
 
 def volumetric_energy_or_none(model: Any, F, constant: Callable[[Any], Any]):

@@ -60,8 +60,8 @@ def as_engine_output(
         W = result[2] if len(result) == 3 else None
     else:
         raise CaseError(
-            f"{where}: returned {type(result).__name__}; expected (force, stiffness[, energy]), "
-            "a mapping or an EngineOutput"
+            f"{where}: returned {type(result).__name__}; expected (force, stiffness[, energy]), a "
+            "mapping or an EngineOutput"
         )
     # float32 arrays: the engine computes in single precision (the check's "auto" precision).
     single = np.asarray(f).dtype == np.float32 or getattr(K, "dtype", None) == np.float32

@@ -1,11 +1,9 @@
 """The report of ``mjed-verify check``: a self-contained HTML page, Markdown, JSON, and per-node
-error
-fields as VTU files for ParaView (one per failing case, referenced from the report).
+error fields as VTU files for ParaView (one per failing case, referenced from the report).
 """
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Dict, List, Optional
 
@@ -101,9 +99,8 @@ def _case_table(run: CheckRun) -> Table:
         ],
         rows,
         caption="Relative errors against the oracle (tolerance 1e-10); 'K vs own force' is the "
-        "probes' "
-        "inconsistency beyond what the fit leaves for the oracle on the same probes, with "
-        "its limit on that case",
+        "probes' inconsistency beyond what the fit leaves for the oracle on the same probes, "
+        "with its limit on that case",
     )
 
 
@@ -114,6 +111,7 @@ def write_report(
 
     fields: case id -> VTU path relative to ``folder`` (written by the caller).
     """
+    from common.options import write_json
     from common.render import to_html, to_markdown
 
     # Each case is a typed result, so the report's summary says exactly what passed.
@@ -142,8 +140,7 @@ def write_report(
             blocks.append(
                 Paragraph(
                     f"Per-node error field for ParaView: {fields[o.case_id]} (point data "
-                    "node_error, "
-                    "force_error, force_oracle on the current positions)."
+                    "node_error, force_error, force_oracle on the current positions)."
                 )
             )
         failed = o.status == "failed"
@@ -190,13 +187,8 @@ def write_report(
         fh.write(to_html(title, preamble, results, folder))
     with open(paths["markdown"], "w") as fh:
         fh.write(to_markdown(title, preamble, results))
-    with open(paths["json"], "w") as fh:
-        json.dump(
-            {"command": command, **run.to_dict(), "fields": fields},
-            fh,
-            indent=1,
-            default=_json_default,
-        )
+    # strict JSON: a non-finite figure becomes null, listed with its value under "non_finite"
+    write_json(paths["json"], {"command": command, **run.to_dict(), "fields": fields})
     return paths
 
 
@@ -204,11 +196,3 @@ def _first_finding(d) -> str:
     """The named cause (or the first finding) of a diagnosis, as one line for the summary."""
     findings = d.causes or list(d.findings)
     return findings[0].text() if findings else "failed with no finding"
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o).__name__)

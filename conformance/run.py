@@ -22,6 +22,7 @@ from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes, probe_lengths
 from conformance.oracle import OracleCache
 from conformance.precision import U32
@@ -94,8 +95,7 @@ class CheckRun:
         failed = sum(o.status == "failed" for o in self.outcomes)
         return (
             f"{self.n_passed}/{len(self.outcomes) + len(self.input_errors)} cases passed, {failed} "
-            "failed, "
-            f"{bad} with bad input"
+            f"failed, {bad} with bad input"
         )
 
     def text(self) -> str:
@@ -213,6 +213,7 @@ def _run_check(
             parts=_lazy(lambda: cache.parts(ci)),
             consistency=cons if probes else None,
             tol=tol,
+            frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)

@@ -1,8 +1,9 @@
 """What an engine is asked to compute: a model (material or user energy) on a mesh at a state.
 
-A *model* is either one of the seven built-in materials of :mod:`mjed.materials` (its name and
+A *model* is either one of the declared materials of :mod:`mjed.materials` (its name and
 numeric parameters, plus a Costa fibre frame) or a user energy
-(:class:`reference_fem.user_energy.UserEnergy`: expression, parameters, optional fibre).
+(:class:`reference_fem.user_energy.UserEnergy`: expression, parameters, optional fibre or
+frame).
 :func:`model_to_manifest` and :func:`model_from_manifest` turn one into the ``"model"`` entry of
 the exchange format and back (docs/conventions.md, "Exchange format").
 """
@@ -17,15 +18,21 @@ from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
-from mjed import materials as M
+from mjed.materials import declarations
 from mjed.materials.base import Material
 
-__all__ = ["CaseInput", "MATERIAL_TYPES", "model_to_manifest", "model_from_manifest", "model_label",
-           "model_frame", "SpecError"]
+__all__ = [
+    "CaseInput",
+    "MATERIAL_TYPES",
+    "model_to_manifest",
+    "model_from_manifest",
+    "model_label",
+    "model_frame",
+    "SpecError",
+]
 
-#: The built-in materials, by the name written in a manifest (deserialisation registry).
-MATERIAL_TYPES: Dict[str, type] = {cls.__name__: cls for cls in (
-    M.StVenantKirchhoff, M.NeoHookean, M.MooneyRivlin, M.VerondaWestmann, M.ArrudaBoyce, M.Costa, M.Ogden)}
+#: The declared materials, by the name written in a manifest (deserialisation registry).
+MATERIAL_TYPES: Dict[str, type] = {d.name: d.material for d in declarations()}
 
 
 class SpecError(ValueError):
@@ -53,7 +60,10 @@ class CaseInput:
         cells = np.asarray(self.cells, dtype=np.int64)
         x = np.asarray(self.positions, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 3 or x.shape != pts.shape:
-            raise ValueError(f"case {self.case_id}: points {pts.shape} and positions {x.shape} must both be (n, 3)")
+            raise ValueError(
+                f"case {self.case_id}: points {pts.shape} and positions {x.shape} must both be (n, "
+                "3)"
+            )
         if cells.ndim != 2 or cells.shape[1] != 4:
             raise ValueError(f"case {self.case_id}: cells must be (m, 4), got {cells.shape}")
         for name, arr in (("points", pts), ("cells", cells), ("positions", x)):
@@ -80,25 +90,41 @@ def _user_energy_type() -> Optional[type]:
 @functools.singledispatch
 def model_to_manifest(model: Any) -> Dict[str, Any]:
     """The JSON entry of a model (arrays such as a per-cell frame are returned separately by
-    :func:`model_frame`). Raises TypeError for an object that is not a model."""
+    :func:`model_frame`). Raises TypeError for an object that is not a model.
+    """
     UE = _user_energy_type()
     if UE is not None and isinstance(model, UE):
         fibre = None if model.fibre is None else [float(v) for v in model.fibre]
-        return {"kind": "energy", "name": str(model.name), "expression": str(model.expression),
-                "parameters": {str(k): float(v) for k, v in dict(model.params).items()}, "fibre": fibre}
-    raise TypeError(f"not a model: {type(model).__name__} (expected an mjed material or a UserEnergy)")
+        return {
+            "kind": "energy",
+            "name": str(model.name),
+            "expression": str(model.expression),
+            "parameters": {str(k): float(v) for k, v in dict(model.params).items()},
+            "fibre": fibre,
+        }
+    raise TypeError(
+        f"not a model: {type(model).__name__} (expected an mjed material or a UserEnergy)"
+    )
 
 
 @model_to_manifest.register
 def _(model: Material) -> Dict[str, Any]:
-    params = {f.name: float(getattr(model, f.name)) for f in dataclasses.fields(model)
-              if isinstance(getattr(model, f.name), (int, float)) and not isinstance(getattr(model, f.name), bool)}
+    params = {
+        f.name: float(getattr(model, f.name))
+        for f in dataclasses.fields(model)
+        if isinstance(getattr(model, f.name), (int, float))
+        and not isinstance(getattr(model, f.name), bool)
+    }
     return {"kind": "material", "name": type(model).__name__, "parameters": params}
 
 
 def model_frame(model: Any) -> Optional[np.ndarray]:
-    """A Costa fibre frame (3, 3) or (m, 3, 3) (columns fibre, sheet, normal), else None."""
-    frame = getattr(model, "frame", None) if isinstance(model, Material) else None
+    """The fibre frame (3, 3) or (m, 3, 3) (columns fibre, sheet, normal) of Costa or of a user
+    energy with I4/I5, else None.
+    """
+    UE = _user_energy_type()
+    has_frame = isinstance(model, Material) or (UE is not None and isinstance(model, UE))
+    frame = getattr(model, "frame", None) if has_frame else None
     return None if frame is None else np.asarray(frame, dtype=np.float64)
 
 
@@ -120,7 +146,9 @@ def _parameters(entry: Mapping[str, Any], where: str) -> Dict[str, float]:
     return out
 
 
-def model_from_manifest(entry: Mapping[str, Any], frame: Optional[np.ndarray] = None, *, where: str = "manifest") -> Any:
+def model_from_manifest(
+    entry: Mapping[str, Any], frame: Optional[np.ndarray] = None, *, where: str = "manifest"
+) -> Any:
     """Rebuild the model of a manifest entry; ``where`` names the file in error messages.
 
     Raises:
@@ -133,7 +161,10 @@ def model_from_manifest(entry: Mapping[str, Any], frame: Optional[np.ndarray] = 
     if kind == "material":
         cls = MATERIAL_TYPES.get(entry.get("name"))
         if cls is None:
-            raise SpecError(f"{where}: unknown material {entry.get('name')!r}; known: {', '.join(MATERIAL_TYPES)}")
+            raise SpecError(
+                f"{where}: unknown material {entry.get('name')!r}; known: "
+                f"{', '.join(MATERIAL_TYPES)}"
+            )
         kwargs: Dict[str, Any] = dict(params)
         if frame is not None:
             kwargs["frame"] = frame
@@ -144,12 +175,18 @@ def model_from_manifest(entry: Mapping[str, Any], frame: Optional[np.ndarray] = 
     if kind == "energy":
         UE = _user_energy_type()
         if UE is None:
-            raise SpecError(f"{where}: user energies need reference_fem.user_energy, which is not installed")
+            raise SpecError(
+                f"{where}: user energies need reference_fem.user_energy, which is not installed"
+            )
         fibre = entry.get("fibre")
         try:
-            return UE(expression=str(entry.get("expression")), params=params,
-                      fibre=None if fibre is None else tuple(float(v) for v in fibre),
-                      name=str(entry.get("name", "energy")))
+            return UE(
+                expression=str(entry.get("expression")),
+                params=params,
+                fibre=None if fibre is None else tuple(float(v) for v in fibre),
+                name=str(entry.get("name", "energy")),
+                frame=frame,
+            )
         except (TypeError, ValueError) as exc:
             raise SpecError(f"{where}: {exc}") from None
     raise SpecError(f"{where}: model.kind must be 'material' or 'energy', not {kind!r}")

@@ -242,8 +242,8 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
     rel = float(np.linalg.norm(dU1 - k * basis) / np.linalg.norm(dU1))
     if rel < 1e-6:
         return (
-            f"k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = {k:.6g} Pa "
-            f"(fit over {distinct.size} distinct J values, relative residual {rel:.1e})"
+            f"k/2 (J-1)^2 used for the bulk term instead of k/2 (ln J)^2, k = {k:.6g} Pa (fit over "
+            f"{distinct.size} distinct J values, relative residual {rel:.1e})"
         )
     return ""
 

@@ -33,8 +33,114 @@ Expression = Tuple[str, Dict[str, float]]
 def energy_expression(model: Any) -> Optional[Expression]:
     """(formula in the user-energy syntax, parameters) of a model; None when the energy cannot
     be written in that syntax (Ogden's eigenvalues, Costa's frame).
+
+    A declared material without a formula of its own here (Yeoh, Gent, any added later) is
+    written from its declaration's energy (:func:`_declared_expression`).
     """
-    return None
+    return _declared_expression(model)
+
+
+class _NotScalar(Exception):
+    """The declared energy uses a matrix, the frame or eigenvalues: no scalar formula."""
+
+
+class _Sym:
+    """A formula in the user-energy syntax, built by running a declared energy on it."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    @staticmethod
+    def of(x: Any) -> "_Sym":
+        if isinstance(x, _Sym):
+            return x
+        if isinstance(x, (int, float)) and np.isfinite(x):
+            text = str(int(x)) if x == int(x) and abs(x) < 1e15 else repr(float(x))
+            return _Sym(text if x >= 0 else f"({text})")
+        raise _NotScalar(type(x).__name__)
+
+    def __add__(self, o):
+        return _Sym(f"({self.text} + {_Sym.of(o).text})")
+
+    def __radd__(self, o):
+        return _Sym(f"({_Sym.of(o).text} + {self.text})")
+
+    def __sub__(self, o):
+        return _Sym(f"({self.text} - {_Sym.of(o).text})")
+
+    def __rsub__(self, o):
+        return _Sym(f"({_Sym.of(o).text} - {self.text})")
+
+    def __mul__(self, o):
+        return _Sym(f"{self.text}/2") if o == 0.5 else _Sym(f"{self.text}*{_Sym.of(o).text}")
+
+    def __rmul__(self, o):
+        return _Sym(f"{self.text}/2") if o == 0.5 else _Sym(f"{_Sym.of(o).text}*{self.text}")
+
+    def __truediv__(self, o):
+        return _Sym(f"({self.text}/{_Sym.of(o).text})")
+
+    def __rtruediv__(self, o):
+        return _Sym(f"({_Sym.of(o).text}/{self.text})")
+
+    def __pow__(self, o):
+        return _Sym(f"{self.text}**{_Sym.of(o).text}")
+
+    def __neg__(self):
+        return _Sym(f"(-{self.text})")
+
+    def __eq__(self, o):  # a formula is never compared with a number (0.5 above)
+        return False
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+class _ScalarNamespace:
+    """The invariants as symbols; C, E, the frame and eigenvalues have no scalar formula."""
+
+    I1, I2, J, I1b, I2b = (_Sym(n) for n in ("I1", "I2", "J", "I1b", "I2b"))
+    lnJ = _Sym("ln(J)")
+
+    def exp(self, x: Any) -> _Sym:
+        return _Sym(f"exp({_Sym.of(x).text})")
+
+    def ln(self, x: Any) -> _Sym:
+        return _Sym(f"ln({_Sym.of(x).text})")
+
+    def __getattr__(self, name: str) -> Any:
+        raise _NotScalar(name)
+
+
+def _declared_expression(model: Any) -> Optional[Expression]:
+    """The declared energy of ``model``'s type written as a formula of its scalar invariants and
+    parameters (those it reads); None when it is not declared or not scalar.
+    """
+    import dataclasses
+
+    from mjed.materials.declaration import declaration_of
+
+    if not dataclasses.is_dataclass(model):
+        return None
+    try:
+        declared = declaration_of(type(model))
+    except LookupError:
+        return None
+    values = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    used: Dict[str, float] = {}
+
+    def p(name: str) -> _Sym:
+        value = values[name]
+        if not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise _NotScalar(name)
+        used[name] = float(value)
+        return _Sym(name)
+
+    p.value = lambda name: float(values[name])  # type: ignore[attr-defined]
+    try:
+        W = declared.energy(p, _ScalarNamespace())
+    except (_NotScalar, KeyError, TypeError, ValueError):
+        return None
+    return (W.text, used) if isinstance(W, _Sym) else None
 
 
 @energy_expression.register

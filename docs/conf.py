@@ -39,8 +39,13 @@ mathjax_path = "mathjax/MathJax.js?config=TeX-AMS_CHTML"
 # Only Sphinx's math elements are typeset (not code that happens to contain "\\("); MyST's
 # own MathJax settings are for MathJax 3 and would mark every section "ignore" for MathJax 2.
 mathjax2_config = {
-    "tex2jax": {"inlineMath": [["\\(", "\\)"]], "displayMath": [["\\[", "\\]"]], "processEscapes": True,
-                "ignoreClass": "document", "processClass": "math"},
+    "tex2jax": {
+        "inlineMath": [["\\(", "\\)"]],
+        "displayMath": [["\\[", "\\]"]],
+        "processEscapes": True,
+        "ignoreClass": "document",
+        "processClass": "math",
+    },
     "CommonHTML": {"linebreaks": {"automatic": True}},
     "messageStyle": "none",
 }

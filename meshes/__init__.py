@@ -47,4 +47,3 @@ def __getattr__(name: str) -> Any:
 
         return getattr(catalog, name)
     raise AttributeError(f"module 'meshes' has no attribute {name!r}")
-

@@ -58,8 +58,8 @@ def import_gmsh():
         import gmsh  # noqa: PLC0415 - optional dependency, imported on first use
     except ImportError as exc:  # pragma: no cover - depends on the machine
         raise ImportError(
-            "mesh generation needs the gmsh Python module (Debian: python3-gmsh, or "
-            "pip install gmsh); the committed meshes in meshes/data load without it"
+            "mesh generation needs the gmsh Python module (Debian: python3-gmsh, or pip install "
+            "gmsh); the committed meshes in meshes/data load without it"
         ) from exc
     return gmsh
 

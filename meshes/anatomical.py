@@ -54,30 +54,47 @@ def hanging_nodes(points: np.ndarray) -> np.ndarray:
     right = np.flatnonzero(x >= hi)
     left = np.flatnonzero(x <= lo)
     middle = np.flatnonzero((x >= mid_lo) & (x <= mid_hi))
-    chosen = [right[np.argmax(y[right])], left[np.argmax(y[left])], middle[np.argmax(y[middle] - z[middle])]]
+    chosen = [
+        right[np.argmax(y[right])],
+        left[np.argmax(y[left])],
+        middle[np.argmax(y[middle] - z[middle])],
+    ]
     return np.array(chosen, dtype=np.int64)
 
 
-def write_anatomical_liver(msh_path, ids_path, source: str = "liver-coarse", *, seed: int = 0) -> Tuple[Path, np.ndarray]:
+def write_anatomical_liver(
+    msh_path, ids_path, source: str = "liver-coarse", *, seed: int = 0
+) -> Tuple[Path, np.ndarray]:
     """Write the legacy gmsh file and the ids file; returns (msh path, the three node numbers)."""
     from meshes.formats.gmsh_ascii import write_gmsh_legacy
 
     points, cells, triangles, _ = anatomical_liver(source, seed=seed)
     path = write_gmsh_legacy(msh_path, points, cells, triangles=triangles)
     numbers = hanging_nodes(points) + 1  # the file numbers nodes 1..n in the order written
-    Path(ids_path).write_text("# nodes the liver hangs from, numbered as in " + Path(msh_path).name
-                              + " (gmsh node numbers)\n" + "\n".join(map(str, numbers.tolist())) + "\n")
+    Path(ids_path).write_text(
+        "# nodes the liver hangs from, numbered as in "
+        + Path(msh_path).name
+        + " (gmsh node numbers)\n"
+        + "\n".join(map(str, numbers.tolist()))
+        + "\n"
+    )
     return path, numbers
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m meshes.anatomical", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m meshes.anatomical", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("msh", help="the legacy gmsh file to write")
     parser.add_argument("ids", help="the file of the three node numbers to write")
-    parser.add_argument("--source", default="liver-coarse", help="catalog mesh to convert (default liver-coarse)")
+    parser.add_argument(
+        "--source", default="liver-coarse", help="catalog mesh to convert (default liver-coarse)"
+    )
     args = parser.parse_args(argv)
     path, numbers = write_anatomical_liver(args.msh, args.ids, args.source)
-    print(f"wrote {path} (legacy gmsh 1.0, cm, y up) and {args.ids} (node numbers {numbers.tolist()})")
+    print(
+        f"wrote {path} (legacy gmsh 1.0, cm, y up) and {args.ids} (node numbers {numbers.tolist()})"
+    )
     return 0
 
 

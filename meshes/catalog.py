@@ -19,10 +19,19 @@ from typing import Callable, Iterable, Optional, Sequence, Union
 import numpy as np
 
 from meshes.generate import single_tetrahedron, unit_cube
-from meshes.liver import liver
 from meshes.io import SUFFIXES, read_mesh, write_mesh
+from meshes.liver import liver
 
-__all__ = ["CatalogEntry", "names", "describe", "load", "resolve", "regenerate", "check_counts", "DATA_DIR"]
+__all__ = [
+    "CatalogEntry",
+    "names",
+    "describe",
+    "load",
+    "resolve",
+    "regenerate",
+    "check_counts",
+    "DATA_DIR",
+]
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 
@@ -57,32 +66,60 @@ class CatalogEntry:
 
 
 _ENTRIES: tuple[CatalogEntry, ...] = (
-    CatalogEntry("single-tet", "the reference tetrahedron (0,0,0), e_x, e_y, e_z", None, 1.0 / 6.0, single_tetrahedron),
     CatalogEntry(
-        "cube-small", "unit cube, ~500 Delaunay tetrahedra", "cube-small.msh", 1.0,
-        lambda: unit_cube(500), expected_cells=(500, 0.05),
+        "single-tet",
+        "the reference tetrahedron (0,0,0), e_x, e_y, e_z",
+        None,
+        1.0 / 6.0,
+        single_tetrahedron,
     ),
     CatalogEntry(
-        "cube-medium", "unit cube, ~3,000 Delaunay tetrahedra", "cube-medium.msh", 1.0,
-        lambda: unit_cube(3000), expected_cells=(3000, 0.05),
+        "cube-small",
+        "unit cube, ~500 Delaunay tetrahedra",
+        "cube-small.msh",
+        1.0,
+        lambda: unit_cube(500),
+        expected_cells=(500, 0.05),
+    ),
+    CatalogEntry(
+        "cube-medium",
+        "unit cube, ~3,000 Delaunay tetrahedra",
+        "cube-medium.msh",
+        1.0,
+        lambda: unit_cube(3000),
+        expected_cells=(3000, 0.05),
     ),
     # The paper's cube: ~20,700 tetrahedra on ~4,300 nodes. gmsh's Delaunay mesh of the
     # cube has ~4.75 cells per node at this size, so matching the cell count puts the
     # node count within about 1 % as well.
     CatalogEntry(
-        "cube-paper", "unit cube of the paper, ~20,700 tetrahedra and ~4,300 nodes", "cube-paper.npz", 1.0,
-        lambda: unit_cube(20700), expected_cells=(20700, 0.05), expected_nodes=(4300, 0.05),
+        "cube-paper",
+        "unit cube of the paper, ~20,700 tetrahedra and ~4,300 nodes",
+        "cube-paper.npz",
+        1.0,
+        lambda: unit_cube(20700),
+        expected_cells=(20700, 0.05),
+        expected_nodes=(4300, 0.05),
     ),
     # Liver-shaped organ (meshes/liver.py) at the paper's size, 1,240 vertices and 5,000
     # tetrahedra, and a coarse one for CI. The domain is the union of the tetrahedra (the
     # surface is curved), so domain_volume is the committed mesh's own volume.
     CatalogEntry(
-        "liver", "liver-shaped organ (metres), ~5,000 tetrahedra and ~1,240 nodes like the paper's", "liver.npz",
-        LIVER_VOLUME, lambda: liver(5000), expected_cells=(5000, 0.05), expected_nodes=(1240, 0.05),
+        "liver",
+        "liver-shaped organ (metres), ~5,000 tetrahedra and ~1,240 nodes like the paper's",
+        "liver.npz",
+        LIVER_VOLUME,
+        lambda: liver(5000),
+        expected_cells=(5000, 0.05),
+        expected_nodes=(1240, 0.05),
     ),
     CatalogEntry(
-        "liver-coarse", "liver-shaped organ (metres), ~600 tetrahedra, for CI", "liver-coarse.npz",
-        LIVER_COARSE_VOLUME, lambda: liver(600), expected_cells=(600, 0.05),
+        "liver-coarse",
+        "liver-shaped organ (metres), ~600 tetrahedra, for CI",
+        "liver-coarse.npz",
+        LIVER_COARSE_VOLUME,
+        lambda: liver(600),
+        expected_cells=(600, 0.05),
     ),
 )
 _BY_NAME = {e.name: e for e in _ENTRIES}
@@ -98,13 +135,17 @@ def describe(name: str) -> CatalogEntry:
     try:
         return _BY_NAME[name]
     except KeyError:
-        raise ValueError(f"unknown built-in mesh {name!r}; valid names: {', '.join(names())}") from None
+        raise ValueError(
+            f"unknown built-in mesh {name!r}; valid names: {', '.join(names())}"
+        ) from None
 
 
 def _read_file(path: Path) -> Mesh:
     if path.suffix == ".npz":
         with np.load(path, allow_pickle=False) as data:
-            return np.array(data["points"], dtype=np.float64), np.array(data["cells"], dtype=np.int64)
+            return np.array(data["points"], dtype=np.float64), np.array(
+                data["cells"], dtype=np.int64
+            )
     data = read_mesh(path)
     return np.array(data.points), np.array(data.cells)
 
@@ -138,7 +179,9 @@ def resolve(name_or_path: Union[str, os.PathLike]) -> tuple[np.ndarray, np.ndarr
     if key in _BY_NAME:
         return (*load(key), key)
     path = Path(key)
-    looks_like_path = path.exists() or path.suffix.lower() in SUFFIXES or os.sep in key or "/" in key
+    looks_like_path = (
+        path.exists() or path.suffix.lower() in SUFFIXES or os.sep in key or "/" in key
+    )
     if not looks_like_path:
         raise ValueError(
             f"unknown mesh {key!r}: not a built-in mesh ({', '.join(names())}) nor a mesh file "
@@ -151,11 +194,16 @@ def resolve(name_or_path: Union[str, os.PathLike]) -> tuple[np.ndarray, np.ndarr
 def check_counts(entry: CatalogEntry, points: np.ndarray, cells: np.ndarray) -> list[str]:
     """Messages for every expected count the mesh misses (empty if it meets them all)."""
     problems = []
-    for what, actual, expected in (("cells", len(cells), entry.expected_cells), ("nodes", len(points), entry.expected_nodes)):
+    for what, actual, expected in (
+        ("cells", len(cells), entry.expected_cells),
+        ("nodes", len(points), entry.expected_nodes),
+    ):
         if expected is not None:
             count, tol = expected
             if abs(actual / count - 1.0) > tol:
-                problems.append(f"{entry.name}: {actual} {what}, more than {100 * tol:g} % from {count}")
+                problems.append(
+                    f"{entry.name}: {actual} {what}, more than {100 * tol:g} % from {count}"
+                )
     return problems
 
 
@@ -186,15 +234,24 @@ def regenerate(which: Optional[Iterable[str]] = None, data_dir: Path = DATA_DIR)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m meshes.catalog", description="The built-in meshes.")
-    parser.add_argument("--regenerate", nargs="*", metavar="NAME", help="rebuild the committed files (all if no name)")
+    parser = argparse.ArgumentParser(
+        prog="python -m meshes.catalog", description="The built-in meshes."
+    )
+    parser.add_argument(
+        "--regenerate",
+        nargs="*",
+        metavar="NAME",
+        help="rebuild the committed files (all if no name)",
+    )
     args = parser.parse_args(argv)
     if args.regenerate is not None:
         for path in regenerate(args.regenerate or None):
             print(f"wrote {path}")
     for name in names():
         points, cells = load(name)
-        print(f"{name:12s} {len(points):7d} nodes {len(cells):7d} cells  {describe(name).description}")
+        print(
+            f"{name:12s} {len(points):7d} nodes {len(cells):7d} cells  {describe(name).description}"
+        )
     return 0
 
 

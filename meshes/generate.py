@@ -53,7 +53,9 @@ def _mesh_with_size(add_geometry: Callable[[object], None], size: float, seed: i
         return _gmsh.tetrahedra(gmsh)
 
 
-def _calibrated(add_geometry: Callable[[object], None], volume: float, target: int, seed: int) -> Mesh:
+def _calibrated(
+    add_geometry: Callable[[object], None], volume: float, target: int, seed: int
+) -> Mesh:
     """Search the mesh size whose mesh has about ``target`` cells and return that mesh.
 
     The cell count falls roughly like size^-3 but in steps, so the update

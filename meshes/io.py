@@ -40,13 +40,28 @@ from meshes.formats.gmsh_ascii import gmsh_version, read_gmsh_ascii, write_gmsh_
 from meshes.formats.raw import RawMesh
 from mjed.errors import MeshWarning
 
-__all__ = ["TetMeshData", "MeshReadWarning", "read_mesh", "write_mesh", "tet_mesh_from_meshio", "SUFFIXES",
-           "SURFACE_SUFFIXES", "surface_advice", "one_line_warnings"]
+__all__ = [
+    "TetMeshData",
+    "MeshReadWarning",
+    "read_mesh",
+    "write_mesh",
+    "tet_mesh_from_meshio",
+    "SUFFIXES",
+    "SURFACE_SUFFIXES",
+    "surface_advice",
+    "one_line_warnings",
+]
 
 PathLike = Union[str, os.PathLike]
 
 #: File suffix -> format read (meshio's reader name for the meshio ones).
-SUFFIXES: dict[str, str] = {".msh": "gmsh", ".vtk": "vtk", ".vtu": "vtu", ".mesh": "medit", ".inp": "abaqus"}
+SUFFIXES: dict[str, str] = {
+    ".msh": "gmsh",
+    ".vtk": "vtk",
+    ".vtu": "vtu",
+    ".mesh": "medit",
+    ".inp": "abaqus",
+}
 #: Surface formats: refused with the advice below.
 SURFACE_SUFFIXES = (".stl", ".obj", ".ply", ".off")
 
@@ -56,9 +71,11 @@ _HIGHER_ORDER_TETS = ("tetra10", "tetra20", "tetra35", "tetra56")
 _SURFACE_CELLS = ("triangle", "quad", "triangle6", "quad8", "quad9", "polygon")
 
 # How each meshio-read format numbers its nodes (ids = first + position in file order).
-_IMPLICIT_NUMBERING = {"vtk": (0, "VTK point indices (0-based, file order)"),
-                       "vtu": (0, "VTK point indices (0-based, file order)"),
-                       "medit": (1, "Medit vertex numbers (1-based, file order)")}
+_IMPLICIT_NUMBERING = {
+    "vtk": (0, "VTK point indices (0-based, file order)"),
+    "vtu": (0, "VTK point indices (0-based, file order)"),
+    "medit": (1, "Medit vertex numbers (1-based, file order)"),
+}
 
 
 class MeshReadWarning(MeshWarning):
@@ -68,9 +85,12 @@ class MeshReadWarning(MeshWarning):
 def surface_advice(path: Path) -> str:
     """What to do with a surface mesh: the gmsh commands that mesh its inside."""
     stem = path.with_suffix("")
-    return (f"a surface mesh holds no volume: MJED needs linear tetrahedra. Mesh the inside of the closed surface "
-            f"with gmsh: write {stem.name}.geo containing  Merge \"{path.name}\"; Surface Loop(1) = {{1}}; "
-            f"Volume(1) = {{1}};  then run  gmsh {stem.name}.geo -3 -o {stem.name}.msh")
+    return (
+        "a surface mesh holds no volume: MJED needs linear tetrahedra. Mesh the inside of the "
+        "closed surface "
+        f'with gmsh: write {stem.name}.geo containing  Merge "{path.name}"; Surface Loop(1) = '
+        f"{{1}}; Volume(1) = {{1}};  then run  gmsh {stem.name}.geo -3 -o {stem.name}.msh"
+    )
 
 
 @dataclass(frozen=True)
@@ -120,8 +140,10 @@ class TetMeshData:
         at = np.clip(np.searchsorted(sorted_ids, ids), 0, len(sorted_ids) - 1)
         missing = sorted_ids[at] != ids
         if missing.any():
-            raise ValueError(f"{what}: {int(ids[missing][0])} is not a node of {self.source or 'the mesh'} "
-                             f"({self.numbering}: {int(sorted_ids[0])} to {int(sorted_ids[-1])})")
+            raise ValueError(
+                f"{what}: {int(ids[missing][0])} is not a node of {self.source or 'the mesh'} "
+                f"({self.numbering}: {int(sorted_ids[0])} to {int(sorted_ids[-1])})"
+            )
         return order[at]
 
 
@@ -129,7 +151,9 @@ def _import_meshio():
     try:
         import meshio  # noqa: PLC0415 - optional dependency, imported on first use
     except ImportError as exc:  # pragma: no cover - depends on the machine
-        raise ImportError("reading and writing mesh files needs meshio (pip install meshio)") from exc
+        raise ImportError(
+            "reading and writing mesh files needs meshio (pip install meshio)"
+        ) from exc
     return meshio
 
 
@@ -142,7 +166,8 @@ def _format_of(path: Path) -> str:
     except KeyError:
         known = ", ".join(SUFFIXES)
         raise MeshReadError(
-            f"{path}: unknown mesh file type {path.suffix or '(no suffix)'!r}; supported volume meshes: {known}"
+            f"{path}: unknown mesh file type {path.suffix or '(no suffix)'!r}; supported volume "
+            f"meshes: {known}"
         ) from None
 
 
@@ -182,7 +207,10 @@ def read_mesh(path: PathLike) -> TetMeshData:
     if fmt == "abaqus":
         ids, numbering = _abaqus_node_labels(path), "Abaqus node labels"
     elif fmt == "gmsh":
-        ids, numbering = None, "file order, 0-based (binary gmsh read by meshio, which does not keep node tags)"
+        ids, numbering = (
+            None,
+            "file order, 0-based (binary gmsh read by meshio, which does not keep node tags)",
+        )
     else:
         first, numbering = _IMPLICIT_NUMBERING[fmt]
         ids = first + np.arange(len(raw.points), dtype=np.int64)
@@ -205,19 +233,27 @@ def _abaqus_node_labels(path: Path) -> np.ndarray:
     return np.array(labels, dtype=np.int64)
 
 
-def tet_mesh_from_meshio(mesh, source: str = "", *, node_ids=None, numbering: str = "0-based positions") -> TetMeshData:
+def tet_mesh_from_meshio(
+    mesh, source: str = "", *, node_ids=None, numbering: str = "0-based positions"
+) -> TetMeshData:
     """Keep the linear tetrahedra of a ``meshio.Mesh`` (see ``read_mesh``); all nodes are kept."""
     where = source or "mesh"
     points = np.asarray(mesh.points)
     if points.ndim != 2 or points.shape[1] != 3:
         dims = points.shape[1] if points.ndim == 2 else points.shape
         raise MeshReadError(f"{where}: points have {dims} coordinates, a tetrahedral mesh needs 3")
-    ids = np.arange(len(points), dtype=np.int64) if node_ids is None else np.asarray(node_ids, dtype=np.int64)
+    ids = (
+        np.arange(len(points), dtype=np.int64)
+        if node_ids is None
+        else np.asarray(node_ids, dtype=np.int64)
+    )
     if len(ids) != len(points):
         raise MeshReadError(f"{where}: {len(ids)} node labels for {len(points)} nodes")
     # meshio's cells are positions already; express them as ids for the common path.
     blocks = [(b.type, ids[np.asarray(b.data, dtype=np.int64)]) for b in mesh.cells]
-    return tet_mesh_from_raw(RawMesh(points.astype(np.float64), ids, numbering, blocks), source=source)
+    return tet_mesh_from_raw(
+        RawMesh(points.astype(np.float64), ids, numbering, blocks), source=source
+    )
 
 
 def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
@@ -226,10 +262,14 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
     points, ids = np.asarray(raw.points, dtype=np.float64), np.asarray(raw.node_ids, dtype=np.int64)
     if not np.isfinite(points).all():
         bad = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
-        raise MeshReadError(f"{where}: node {int(ids[bad])} has non-finite coordinates {points[bad].tolist()}")
+        raise MeshReadError(
+            f"{where}: node {int(ids[bad])} has non-finite coordinates {points[bad].tolist()}"
+        )
     uniq, counts = np.unique(ids, return_counts=True)
     if (counts > 1).any():
-        raise MeshReadError(f"{where}: node id {int(uniq[counts > 1][0])} is defined {int(counts.max())} times")
+        raise MeshReadError(
+            f"{where}: node id {int(uniq[counts > 1][0])} is defined {int(counts.max())} times"
+        )
 
     counts_by_type: dict[str, int] = {}
     tets = []
@@ -240,42 +280,58 @@ def tet_mesh_from_raw(raw: RawMesh, source: str = "") -> TetMeshData:
     higher = {t: counts_by_type[t] for t in _HIGHER_ORDER_TETS if counts_by_type.get(t)}
     if higher:
         raise MeshReadError(
-            f"{where}: higher-order tetrahedra ({_describe(higher)}) are not supported; "
-            "only linear 4-node tetrahedra are (re-mesh with element order 1)"
+            f"{where}: higher-order tetrahedra ({_describe(higher)}) are not supported; only "
+            "linear 4-node tetrahedra are (re-mesh with element order 1)"
         )
     n_tets = sum(len(b) for b in tets)
     if n_tets == 0:
         found = _describe(counts_by_type) if counts_by_type else "no cells at all"
         advice = ""
         if counts_by_type and set(counts_by_type) <= set(_SURFACE_CELLS) | {"line", "vertex"}:
-            advice = "; " + surface_advice(Path(where).with_suffix(".stl")).replace(".stl", ".stl (export the surface)")
+            advice = "; " + surface_advice(Path(where).with_suffix(".stl")).replace(
+                ".stl", ".stl (export the surface)"
+            )
         raise MeshReadError(f"{where}: no linear tetrahedra; found {found}{advice}")
 
     cell_ids = np.concatenate(tets)
+    if len(ids) == 0:
+        raise MeshReadError(f"{where}: {n_tets} tetrahedra but no nodes")
     order = np.argsort(ids, kind="stable")
     at = np.clip(np.searchsorted(ids[order], cell_ids), 0, len(ids) - 1)
     undefined = ids[order][at] != cell_ids
     if undefined.any():
         k = int(np.flatnonzero(undefined.any(axis=1))[0])
-        raise MeshReadError(f"{where}: tetrahedron {k} uses node id(s) {cell_ids[k][undefined[k]].tolist()} "
-                            f"that the file does not define")
+        raise MeshReadError(
+            f"{where}: tetrahedron {k} uses node id(s) {cell_ids[k][undefined[k]].tolist()} that "
+            "the file does not define"
+        )
     cells = order[at].astype(np.int64)
     s = np.sort(cells, axis=1)
     repeats = (s[:, 1:] == s[:, :-1]).any(axis=1)
     if repeats.any():
         k = int(np.flatnonzero(repeats)[0])
-        raise MeshReadError(f"{where}: tetrahedron {k} repeats a node: its node ids are {cell_ids[k].tolist()} "
-                            f"({int(repeats.sum())} such cell(s))")
+        raise MeshReadError(
+            f"{where}: tetrahedron {k} repeats a node: its node ids are {cell_ids[k].tolist()} "
+            f"({int(repeats.sum())} such cell(s))"
+        )
 
     used = np.zeros(len(points), dtype=bool)
     used[cells.ravel()] = True
     unused = np.flatnonzero(~used)
     dropped = {t: n for t, n in counts_by_type.items() if t != "tetra" and n}
     if dropped:
-        warnings.warn(f"{where}: kept {n_tets} tetrahedra, dropped {_describe(dropped)}", MeshReadWarning, stacklevel=3)
+        warnings.warn(
+            f"{where}: kept {n_tets} tetrahedra, dropped {_describe(dropped)}",
+            MeshReadWarning,
+            stacklevel=3,
+        )
     if unused.size:
-        warnings.warn(f"{where}: {unused.size} node(s) no tetrahedron uses are kept with their numbers "
-                      f"(ids {ids[unused][:5].tolist()}{' ...' if unused.size > 5 else ''})", MeshReadWarning, stacklevel=3)
+        warnings.warn(
+            f"{where}: {unused.size} node(s) no tetrahedron uses are kept with their numbers (ids "
+            f"{ids[unused][:5].tolist()}{' ...' if unused.size > 5 else ''})",
+            MeshReadWarning,
+            stacklevel=3,
+        )
     for a in (points, cells, ids, unused):
         a.setflags(write=False)
     return TetMeshData(points, cells, dropped, source, ids, raw.numbering, unused)
@@ -288,7 +344,8 @@ def _describe(counts: dict[str, int]) -> str:
 @contextmanager
 def one_line_warnings() -> Iterator[None]:
     """Within the block, mesh warnings print as one line ("MeshWarning: message"), without
-    the Python file name and source line that ``warnings`` adds by default."""
+    the Python file name and source line that ``warnings`` adds by default.
+    """
     original = warnings.formatwarning
 
     def fmt(message, category, filename, lineno, line=None):
@@ -327,13 +384,21 @@ def write_mesh(
     path = Path(path)
     fmt = SUFFIXES.get(path.suffix.lower())
     if fmt is None:
-        raise ValueError(f"{path}: cannot tell the mesh format from the suffix; use one of {', '.join(SUFFIXES)}")
+        raise ValueError(
+            f"{path}: cannot tell the mesh format from the suffix; use one of {', '.join(SUFFIXES)}"
+        )
     pts = np.asarray(points, dtype=np.float64)
     tets = np.asarray(cells)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise ValueError(f"points must have shape (n, 3), got {pts.shape}")
-    if tets.ndim != 2 or tets.shape[1] != 4 or (tets.size and (tets.min() < 0 or tets.max() >= len(pts))):
-        raise ValueError(f"cells must be (m, 4) indices into the {len(pts)} points, got shape {tets.shape}")
+    if (
+        tets.ndim != 2
+        or tets.shape[1] != 4
+        or (tets.size and (tets.min() < 0 or tets.max() >= len(pts)))
+    ):
+        raise ValueError(
+            f"cells must be (m, 4) indices into the {len(pts)} points, got shape {tets.shape}"
+        )
     tets = tets.astype(np.int64)
     if fmt == "gmsh" and msh_version == "1.0":
         return write_gmsh_legacy(path, pts, tets)

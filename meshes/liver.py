@@ -10,7 +10,8 @@ non-commercial), so the shape is built from two ellipsoids fused with OpenCASCAD
 
 Axes (metres): x from the patient's left (-) to right (+), y from anterior (-) to posterior
 (+), z upwards (gravity is -z). The result is about 29 x 16 x 13 cm and 2.6 litres: a large
-adult liver (1.5 to 2.5 litres is typical); the scale only sets the gravity load per stiffness. ``liver(5000)`` gives about the paper's mesh (1,240 vertices and
+adult liver (1.5 to 2.5 litres is typical); the scale only sets the gravity load per stiffness.
+``liver(5000)`` gives about the paper's mesh (1,240 vertices and
 5,000 tetrahedra); the catalog keeps that one and a coarse one for CI.
 """
 

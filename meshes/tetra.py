@@ -11,7 +11,9 @@ from mjed.mesh import flat_cells
 
 __all__ = ["signed_volumes", "orient_positively", "remove_unreferenced", "boundary_triangles"]
 
-_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])  # outward for positively oriented cells
+_FACES = np.array(
+    [(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)]
+)  # outward for positively oriented cells
 
 
 def signed_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -60,7 +62,9 @@ def orient_positively(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray
     return out, int(negative.sum())
 
 
-def remove_unreferenced(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+def remove_unreferenced(
+    points: np.ndarray, cells: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int]:
     """Drop the nodes no cell uses and renumber the rest 0..k-1, keeping their order.
 
     Args:
@@ -83,5 +87,7 @@ def remove_unreferenced(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarr
 def boundary_triangles(cells: np.ndarray) -> np.ndarray:
     """Faces (k, 3) that belong to exactly one cell, oriented outwards for positive cells."""
     faces = np.asarray(cells)[:, _FACES].reshape(-1, 3)
-    _, inverse, counts = np.unique(np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True)
+    _, inverse, counts = np.unique(
+        np.sort(faces, axis=1), axis=0, return_inverse=True, return_counts=True
+    )
     return faces[counts[inverse.ravel()] == 1]

@@ -9,16 +9,32 @@ This package depends on NumPy and SciPy only; it never imports dolfinx, UFL or P
 """
 
 from mjed import materials
+from mjed.backends import make_force_field
+from mjed.darcy import DarcyParameters, FluidPressureForce
 from mjed.errors import IntegrationError, InvertedElementError, MeshError, MeshWarning
 from mjed.forcefield import HyperelasticForceField
-from mjed.backends import make_force_field
 from mjed.integrator import ImplicitEuler, Prescribed, StepReport
-from mjed.viscous import Prony, ViscoHyperelasticForceField
 from mjed.mesh import TetMesh
 from mjed.porous import PorousVolume, with_porous_volume
-from mjed.darcy import DarcyParameters, FluidPressureForce
+from mjed.viscous import Prony, ViscoHyperelasticForceField
 
-__all__ = ["TetMesh", "HyperelasticForceField", "make_force_field", "MeshError", "MeshWarning", "InvertedElementError", "materials",
-           "ImplicitEuler", "Prescribed", "StepReport", "IntegrationError", "Prony", "ViscoHyperelasticForceField",
-           "PorousVolume", "with_porous_volume", "DarcyParameters", "FluidPressureForce"]
+__all__ = [
+    "TetMesh",
+    "HyperelasticForceField",
+    "make_force_field",
+    "MeshError",
+    "MeshWarning",
+    "InvertedElementError",
+    "materials",
+    "ImplicitEuler",
+    "Prescribed",
+    "StepReport",
+    "IntegrationError",
+    "Prony",
+    "ViscoHyperelasticForceField",
+    "PorousVolume",
+    "with_porous_volume",
+    "DarcyParameters",
+    "FluidPressureForce",
+]
 __version__ = "0.1.0"

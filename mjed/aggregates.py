@@ -5,9 +5,10 @@ For one group with u = sum_k f_k g_k (paper, eqs. 3-4):
     S-bar = sum_k f_k S_k,  S-hat = sum_k f'_k S_k,  h = sum_k f'_k g_k,  g2 = sum_k f''_k g_k,
 
 and, per declared tangent pair, the weight sum_k f_k beta_k (or gamma_k). A plain group
-contributes c u, an exponential group c e^u. Everything in the Hessian but the rank-one term
-c e^u du (x) du of an exponential group is linear in these sums, so all groups are folded
-into one :class:`Aggregates` record (each weighted by c or c e^u) before any 3x3 algebra.
+contributes c u, a group with a smooth function phi (e^u, ln(a + u), (a + u)^p) c phi(u).
+Everything in the Hessian but the rank-one term c phi''(u) du (x) du of such a group is
+linear in these sums, so all groups are folded into one :class:`Aggregates` record (each
+weighted by c or c phi'(u)) before any 3x3 algebra.
 Sums that no term feeds stay None, so e.g. St Venant-Kirchhoff (f = 1) never builds the
 volumetric coupling.
 """
@@ -25,9 +26,11 @@ from mjed.terms import TangentPair, Term, TermGroup
 
 __all__ = ["slot_key", "add_stress", "GroupSums", "Aggregates", "fold_groups"]
 
+
 def slot_key(pair: TangentPair) -> Tuple[str, Hashable]:
     """The key shared by all tangent pairs with the same kind and the same constant matrix
-    (per-cell matrices are keyed by identity)."""
+    (per-cell matrices are keyed by identity).
+    """
     if pair.kind == "spectral":
         return pair.kind, None
     m = pair.matrix
@@ -37,17 +40,18 @@ def slot_key(pair: TangentPair) -> Tuple[str, Hashable]:
 
 
 def add_optional(acc, value):
-    """acc + value where None stands for zero (so absent terms cost nothing)."""
+    """Acc + value where None stands for zero (so absent terms cost nothing)."""
     if value is None:
         return acc
     return value if acc is None else acc + value
 
 
 def add_stress(acc, value):
-    """acc + value for stresses, None standing for zero: each is component-major (3, 3, m) or
+    """Acc + value for stresses, None standing for zero: each is component-major (3, 3, m) or
     a constant (3, 3) matrix. A constant added to a per-cell stress is broadcast over the
     cells (NumPy alone would align (3, 3) with the trailing (3, m) axes: an error, or for
-    m = 3 a silently wrong sum)."""
+    m = 3 a silently wrong sum).
+    """
     if value is None:
         return acc
     if acc is None:
@@ -60,9 +64,10 @@ def add_stress(acc, value):
 
 
 def scale(s, A):
-    """s * A for a stress: s per cell, (m,) or scalar, and A component-major (3, 3, m), a
+    """S * A for a stress: s per cell, (m,) or scalar, and A component-major (3, 3, m), a
     constant (3, 3) matrix or a scalar. A scale of exactly 1.0 returns A itself (no copy:
-    the product would be A)."""
+    the product would be A).
+    """
     if np.ndim(s) == 0:
         return A if (s == 1.0 and np.ndim(A) > 0) else s * A
     if np.ndim(A) == 2:  # a constant matrix, the same in every cell
@@ -71,8 +76,9 @@ def scale(s, A):
 
 
 def scale_weight(s, w):
-    """s * w for a tangent weight: s per cell, (m,) or scalar, and w (m,), a float or, for a
-    spectral pair, (m, 3, 3) cell-major."""
+    """S * w for a tangent weight: s per cell, (m,) or scalar, and w (m,), a float or, for a
+    spectral pair, (m, 3, 3) cell-major.
+    """
     if np.ndim(s) == 0 or np.ndim(w) <= 1:
         return s * w
     return np.reshape(s, np.shape(s) + (1,) * (np.ndim(w) - 1)) * w
@@ -84,12 +90,13 @@ def scale_optional(s, A):
 
 class GroupSums:
     """Running sums of one group's terms: u, S-bar, h and, for the stiffness only (``tangent``),
-    S-hat, g2 and the tangent weights."""
+    S-hat, g2 and the tangent weights.
+    """
 
     def __init__(self, m: int, tangent: bool = True, value: bool = True):
         self.m = m
         self.tangent = tangent
-        self.value = value  # u is wanted (the energy, or an exponential group's e^u)
+        self.value = value  # u is wanted (the energy, or phi(u) of a non-plain group)
         self.u = np.zeros(m)
         self.S = None
         self.S_hat = None
@@ -123,13 +130,13 @@ class GroupSums:
 
 @dataclass(frozen=True)
 class Aggregates:
-    """All groups folded, each weighted by c (plain) or c e^u (exponential); None is zero.
+    """All groups folded, each weighted by c (plain) or c phi'(u); None is zero.
 
     energy: (m,) W per cell (not multiplied by the rest volume), or None if not asked.
     S: S-bar, component-major (3, 3, m) or a (3, 3) constant. S_hat: S-hat, the same.
     h: (m,). g2: (m,).
     weights: tangent-pair weights by :func:`slot_key`, each (m,) or a float.
-    rank_one: (c e^u (m,), du (3, 4, m)) of each exponential group.
+    rank_one: (c phi''(u) (m,), du (3, 4, m)) of each non-plain group.
     S_hat, g2, weights and rank_one are formed only when the stiffness is asked (else None,
     None, {} and ()).
     """
@@ -143,16 +150,21 @@ class Aggregates:
     rank_one: Tuple[Tuple[np.ndarray, np.ndarray], ...] = ()
 
 
-def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
-                du_of: Optional[Callable[[object, object, int], np.ndarray]] = None, *,
-                energy: bool = True) -> Aggregates:
+def fold_groups(
+    groups: Sequence[TermGroup],
+    kin: Kinematics,
+    J: np.ndarray,
+    du_of: Optional[Callable[[object, object, int], np.ndarray]] = None,
+    *,
+    energy: bool = True,
+) -> Aggregates:
     """Fold every group's sums into one :class:`Aggregates` record.
 
     Args:
         groups: the material's term groups.
         kin, J: the kinematics of every cell (m cells).
         du_of: given when the stiffness is asked: du_of(S, h, k) returns the gradient
-            F S D_a + h d_a (3, 4, m) of the k-th exponential group's u, for its rank-one
+            F S D_a + h d_a (3, 4, m) of the k-th non-plain group's u, for its rank-one
             term. Without it, only what the energy, the gradient and the stress need is
             formed (no S-hat, g2 or tangent coefficients: the force-only path).
         energy: also sum the energy (else Aggregates.energy is None and plain groups skip
@@ -164,15 +176,16 @@ def fold_groups(groups: Sequence[TermGroup], kin: Kinematics, J: np.ndarray,
     weights: Dict[Tuple[str, Hashable], object] = {}
     rank_one = []
     for group in groups:
-        sums = GroupSums(m, tangent=du_of is not None, value=energy or group.exponential)
+        sums = GroupSums(m, tangent=du_of is not None, value=energy or not group.plain)
         for term in group.terms:
             sums.add(term, kin, J)
-        if group.exponential:
-            c = group.coefficient * np.exp(sums.u)
+        if not group.plain:
+            phi, dphi, d2phi = group.function(sums.u)
+            c = group.coefficient * dphi  # the weight of every sum that is linear in u's
             if energy:
-                W += c
+                W += group.coefficient * phi
             if du_of is not None:
-                rank_one.append((c, du_of(sums.S, sums.h, len(rank_one))))
+                rank_one.append((group.coefficient * d2phi, du_of(sums.S, sums.h, len(rank_one))))
         else:
             c = group.coefficient
             if energy:

@@ -14,14 +14,25 @@ from mjed.kinematics import Kinematics
 from mjed.sparse import EDGES
 from mjed.workspace import Workspace
 
-__all__ = ["apply_matrix", "product", "edge_dot", "is_zero", "CellState", "stress_node_vectors", "first_piola", "cell_gradient"]
+__all__ = [
+    "apply_matrix",
+    "product",
+    "edge_dot",
+    "is_zero",
+    "CellState",
+    "stress_node_vectors",
+    "first_piola",
+    "cell_gradient",
+]
 
 
-def apply_matrix(A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None,
-                 tmp: Optional[np.ndarray] = None) -> np.ndarray:
+def apply_matrix(
+    A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None, tmp: Optional[np.ndarray] = None
+) -> np.ndarray:
     """A V per cell: A (3, 3, m), V (3, k, m) -> (3, k, m), out[i] = sum_j A[i, j] V[j].
 
-    tmp: optional (k, m) scratch."""
+    tmp: optional (k, m) scratch.
+    """
     if out is None:
         out = np.empty((3,) + V.shape[1:])
     if tmp is None:
@@ -34,7 +45,9 @@ def apply_matrix(A: np.ndarray, V: np.ndarray, out: Optional[np.ndarray] = None,
     return out
 
 
-def product(A: np.ndarray, B: np.ndarray, out: np.ndarray, tmp: Optional[np.ndarray] = None) -> np.ndarray:
+def product(
+    A: np.ndarray, B: np.ndarray, out: np.ndarray, tmp: Optional[np.ndarray] = None
+) -> np.ndarray:
     """A B per cell: A, B (3, 3, m) -> out (3, 3, m), entry by entry (faster than einsum here)."""
     if tmp is None:
         tmp = np.empty(A.shape[-1])
@@ -84,7 +97,9 @@ class CellState:
         self.Dt, self.ws, self.m = Dt, ws, m
         # F_ij = sum_a x_a,i D_a,j, formed component-major (the (m, 3, 3) copy only on demand).
         self.Ft = np.einsum("iam,jam->ijm", x_t, Dt, out=ws("Ft", (3, 3, m)))
-        self.kin = Kinematics(Ft=self.Ft, cof_out=ws("cof_t", (3, 3, m)), C_out=ws("C_t", (3, 3, m)))
+        self.kin = Kinematics(
+            Ft=self.Ft, cof_out=ws("cof_t", (3, 3, m)), C_out=ws("C_t", (3, 3, m))
+        )
         self.J = self.kin.J
         self._dJ: Optional[np.ndarray] = None
 
@@ -95,10 +110,15 @@ class CellState:
 
     def dJ(self) -> np.ndarray:
         """d_a = dJ/dx_a = cof(F) D_a, (3, 4, m), formed on first use (St Venant-Kirchhoff
-        never needs it)."""
+        never needs it).
+        """
         if self._dJ is None:
-            self._dJ = apply_matrix(self.kin.cof_t, self.Dt, out=self.ws("dJ", (3, 4, self.m)),
-                                    tmp=self.ws("tmp4", (4, self.m)))
+            self._dJ = apply_matrix(
+                self.kin.cof_t,
+                self.Dt,
+                out=self.ws("dJ", (3, 4, self.m)),
+                tmp=self.ws("tmp4", (4, self.m)),
+            )
         return self._dJ
 
 
@@ -144,7 +164,8 @@ def first_piola(state: CellState, S, h, out: np.ndarray) -> np.ndarray:
 def cell_gradient(state: CellState, S, h, DtV: np.ndarray, out: np.ndarray) -> np.ndarray:
     """V0 dW/dx_a = P (V0 D_a) for every node of every cell, written into ``out`` (3, 4, m);
     P from :func:`first_piola`, DtV (3, 4, m) the rest shape vectors times the rest volumes.
-    One 3x3 product per node, the least work for the force alone."""
+    One 3x3 product per node, the least work for the force alone.
+    """
     m = state.m
     P = first_piola(state, S, h, state.ws("P", (3, 3, m)))
     # Nodes 1..3 by the product; node 0 as minus their sum, since sum_a D_a = 0 (a P1 cell's

@@ -12,7 +12,8 @@ matrices are built once, as the paper keeps kappa constant "to decrease the comp
 cost"). Galerkin P1 in space, semi-implicit in time: implicit diffusion, explicit source
 from the change of each cell's J over the accepted step,
 
-    (M / K_lim + dt kappa L) P^{n+1} = (M / K_lim) P^n - s,    s_i = sum_c (V_c / 4) ln(J_c^{n+1} / J_c^n),
+    (M / K_lim + dt kappa L) P^{n+1} = (M / K_lim) P^n - s,    s_i = sum_c (V_c / 4) ln(J_c^{n+1} /
+    J_c^n),
 
 with M the P1 mass matrix (consistent, or lumped), L the P1 stiffness (Laplacian) matrix and
 ln(J^{n+1}/J^n) the exact integral over the step of dJ/dt / J; the cellwise source lands on
@@ -61,7 +62,8 @@ __all__ = [
 @dataclass(frozen=True)
 class DarcyParameters:
     """K_lim: the fluid's bulk modulus (Pa, > 0); kappa: permeability (m^4 / (N s), >= 0,
-    0 is undrained: no diffusion)."""
+    0 is undrained: no diffusion).
+    """
 
     K_lim: float
     kappa: float
@@ -70,9 +72,14 @@ class DarcyParameters:
         for name, lower, strict in (("K_lim", 0.0, True), ("kappa", 0.0, False)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
-                raise ValueError(f"DarcyParameters: parameter {name} must be a finite real number, got {v!r}")
+                raise ValueError(
+                    f"DarcyParameters: parameter {name} must be a finite real number, got {v!r}"
+                )
             if v < lower or (strict and v == lower):
-                raise ValueError(f"DarcyParameters: parameter {name} must be {'>' if strict else '>='} 0, got {v!r}")
+                raise ValueError(
+                    f"DarcyParameters: parameter {name} must be {'>' if strict else '>='} 0, got "
+                    f"{v!r}"
+                )
 
 
 # ------------------------------------------------------------------------- P1 matrices
@@ -93,7 +100,9 @@ def p1_mass_matrix(mesh: TetMesh, *, lumped: bool = False) -> sp.csr_matrix:
     """
     V = mesh.volumes
     if lumped:
-        diag = np.bincount(mesh.cells.ravel(), weights=np.repeat(V / 4.0, 4), minlength=mesh.n_nodes)
+        diag = np.bincount(
+            mesh.cells.ravel(), weights=np.repeat(V / 4.0, 4), minlength=mesh.n_nodes
+        )
         return sp.diags(diag, format="csr")
     local = (np.ones((4, 4)) + np.eye(4)) / 20.0
     return _scalar_assemble(mesh.cells, mesh.n_nodes, V[:, None, None] * local)
@@ -122,7 +131,10 @@ def cell_source(mesh: TetMesh, J_old: np.ndarray, J_new: np.ndarray) -> np.ndarr
             raise ValueError(f"{name} must have shape ({mesh.n_cells},), got {J.shape}")
         bad = np.flatnonzero(~(np.isfinite(J) & (J > 0)))
         if len(bad):
-            raise ValueError(f"{name}: {len(bad)} cell(s) with J <= 0 or non-finite; first is cell {bad[0]} (J = {J[bad[0]]!r})")
+            raise ValueError(
+                f"{name}: {len(bad)} cell(s) with J <= 0 or non-finite; first is cell {bad[0]} (J "
+                f"= {J[bad[0]]!r})"
+            )
     r = np.log(np.asarray(J_new) / np.asarray(J_old)) * (mesh.volumes / 4.0)
     return np.bincount(mesh.cells.ravel(), weights=np.repeat(r, 4), minlength=mesh.n_nodes)
 
@@ -141,15 +153,26 @@ class PressureSolver:
         M, L: the P1 mass and stiffness (Laplacian) matrices, CSR (n, n).
     """
 
-    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, drained_nodes=None, lumped_mass: bool = False):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        params: DarcyParameters,
+        *,
+        drained_nodes=None,
+        lumped_mass: bool = False,
+    ):
         if not isinstance(params, DarcyParameters):
             raise TypeError(f"params must be DarcyParameters, got {type(params).__name__}")
         self.mesh = mesh
         self.params = params
         n = mesh.n_nodes
-        drained = np.unique(np.asarray([] if drained_nodes is None else drained_nodes, dtype=np.int64).ravel())
+        drained = np.unique(
+            np.asarray([] if drained_nodes is None else drained_nodes, dtype=np.int64).ravel()
+        )
         if len(drained) and (drained.min() < 0 or drained.max() >= n):
-            raise ValueError(f"drained_nodes must lie in [0, {n}), got range [{drained.min()}, {drained.max()}]")
+            raise ValueError(
+                f"drained_nodes must lie in [0, {n}), got range [{drained.min()}, {drained.max()}]"
+            )
         self.drained = drained
         free = np.ones(n, dtype=bool)
         free[drained] = False
@@ -219,7 +242,8 @@ class _CallableJ(JFunction):
 @dataclass(frozen=True, eq=False)
 class _PressureCoupling(Material):
     """sum of V_c (-Pbar_c (J_c - 1) + U(J_c)): the fluid's energy at fixed P, plus the porous
-    solid's U when given, as one term group (one engine pass)."""
+    solid's U when given, as one term group (one engine pass).
+    """
 
     pressure: LinearJ
     solid: Optional[JFunction] = None
@@ -257,19 +281,36 @@ class FluidPressureForce:
         field: the :class:`mjed.HyperelasticForceField` of the coupling term (and U).
     """
 
-    def __init__(self, mesh: TetMesh, params: DarcyParameters, *, solid=None, drained_nodes=None,
-                 x0: Optional[np.ndarray] = None, lumped_mass: bool = False):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        params: DarcyParameters,
+        *,
+        solid=None,
+        drained_nodes=None,
+        x0: Optional[np.ndarray] = None,
+        lumped_mass: bool = False,
+    ):
         if solid is not None and not isinstance(solid, JFunction):
             if not callable(solid):
-                raise TypeError(f"solid must be a function of J returning (U, U', U''), got {type(solid).__name__}")
+                raise TypeError(
+                    "solid must be a function of J returning (U, U', U''), got "
+                    f"{type(solid).__name__}"
+                )
             solid = _CallableJ(solid)
         self.mesh = mesh
         self.solid = solid
-        self.solver = PressureSolver(mesh, params, drained_nodes=drained_nodes, lumped_mass=lumped_mass)
-        self._coefficient = np.zeros(mesh.n_cells)  # -Pbar_c, the LinearJ's array (rewritten in place)
+        self.solver = PressureSolver(
+            mesh, params, drained_nodes=drained_nodes, lumped_mass=lumped_mass
+        )
+        self._coefficient = np.zeros(
+            mesh.n_cells
+        )  # -Pbar_c, the LinearJ's array (rewritten in place)
         # J <= 0 is evaluated, not refused, as the fluid's terms stay finite there; the solid
         # force field of the same integrator is the one that refuses inverted cells.
-        self.field = HyperelasticForceField(mesh, _PressureCoupling(LinearJ(self._coefficient), solid), allow_inverted=True)
+        self.field = HyperelasticForceField(
+            mesh, _PressureCoupling(LinearJ(self._coefficient), solid), allow_inverted=True
+        )
         self.P = np.zeros(mesh.n_nodes)
         self._J = cell_jacobians(mesh, mesh.points if x0 is None else x0)
 
@@ -282,7 +323,9 @@ class FluidPressureForce:
     def P(self, value) -> None:
         P = np.array(value, dtype=float)
         if P.shape != (self.mesh.n_nodes,) or not np.all(np.isfinite(P)):
-            raise ValueError(f"P must be a finite array of shape ({self.mesh.n_nodes},), got shape {P.shape}")
+            raise ValueError(
+                f"P must be a finite array of shape ({self.mesh.n_nodes},), got shape {P.shape}"
+            )
         P.setflags(write=False)  # an in-place edit would bypass the coefficient update below
         self._P = P
         # Pbar_c, the mean of the cell's nodal pressures, is the exact cell integral of P1 P.
@@ -299,7 +342,8 @@ class FluidPressureForce:
 
     def save_history(self):
         """A copy of what accepted steps change (P and the accepted J), for restore_history:
-        the integrator rolls the fluid back when a step it split into substeps still fails."""
+        the integrator rolls the fluid back when a step it split into substeps still fails.
+        """
         return (self._P.copy(), self._J.copy())
 
     def restore_history(self, saved) -> None:

@@ -33,7 +33,13 @@ from mjed.sparse import EDGES
 from mjed.terms import IDENTITY, TermGroup
 from mjed.workspace import Workspace
 
-__all__ = ["TangentSlot", "tangent_slots", "MeshConstants", "edge_blocks", "edge_blocks_to_element_matrices"]
+__all__ = [
+    "TangentSlot",
+    "tangent_slots",
+    "MeshConstants",
+    "edge_blocks",
+    "edge_blocks_to_element_matrices",
+]
 
 _EA, _EB = EDGES[:, 0], EDGES[:, 1]
 
@@ -52,7 +58,9 @@ class TangentSlot:
         if kind == "spectral":  # eigenprojectors of C: nothing to precompute
             self.identity = False
             return
-        self.identity = matrix is IDENTITY or (matrix.shape == (3, 3) and np.array_equal(matrix, IDENTITY))
+        self.identity = matrix is IDENTITY or (
+            matrix.shape == (3, 3) and np.array_equal(matrix, IDENTITY)
+        )
         self.M_t = None if matrix.ndim == 2 else to_component_major(matrix)
         if self.identity:
             self.MD = Dt
@@ -75,7 +83,9 @@ class TangentSlot:
         return np.einsum("ikm,jkm->ijm", FM, Ft, out=ws(self.name + "FMF", (3, 3, m)))
 
 
-def tangent_slots(groups: Sequence[TermGroup], Dt: np.ndarray) -> Dict[Tuple[str, Hashable], TangentSlot]:
+def tangent_slots(
+    groups: Sequence[TermGroup], Dt: np.ndarray
+) -> Dict[Tuple[str, Hashable], TangentSlot]:
     """One slot per distinct (kind, matrix) of the groups' tangent pairs, by slot_key.
 
     Raises:
@@ -88,8 +98,8 @@ def tangent_slots(groups: Sequence[TermGroup], Dt: np.ndarray) -> Dict[Tuple[str
             for pair in term.g.tangent:
                 if pair.kind != "spectral" and pair.matrix.ndim == 3 and len(pair.matrix) != m:
                     raise ValueError(
-                        f"the material holds per-cell data (e.g. a Costa frame) for {len(pair.matrix)} cells, "
-                        f"but the mesh has {m} cells"
+                        "the material holds per-cell data (e.g. a Costa frame) for "
+                        f"{len(pair.matrix)} cells, but the mesh has {m} cells"
                     )
                 key = slot_key(pair)
                 if key not in slots:
@@ -113,8 +123,15 @@ class MeshConstants:
     DtV: np.ndarray
 
 
-def edge_blocks(mesh: MeshConstants, state: CellState, agg: Aggregates, *, regularize: bool, ws: Workspace,
-                out: Optional[np.ndarray] = None) -> np.ndarray:
+def edge_blocks(
+    mesh: MeshConstants,
+    state: CellState,
+    agg: Aggregates,
+    *,
+    regularize: bool,
+    ws: Workspace,
+    out: Optional[np.ndarray] = None,
+) -> np.ndarray:
     """The (3, 3, 6, m) edge blocks of every cell, multiplied by the rest volumes.
 
     Args:
@@ -150,7 +167,9 @@ def edge_blocks(mesh: MeshConstants, state: CellState, agg: Aggregates, *, regul
             continue
         G = G_of.get(id(slot.MD))  # slots of both kinds with the same M share F M D_a
         if G is None:
-            G = G_of[id(slot.MD)] = apply_matrix(Ft, slot.MD, out=ws(slot.name + "G", (3, 4, m)), tmp=tmp4)
+            G = G_of[id(slot.MD)] = apply_matrix(
+                Ft, slot.MD, out=ws(slot.name + "G", (3, 4, m)), tmp=tmp4
+            )
         Gw = ws(slot.name + "Gw", (3, 4, m))
         if slot.kind == "first":
             np.multiply(G, 2.0 * w, out=Gw)
@@ -158,7 +177,9 @@ def edge_blocks(mesh: MeshConstants, state: CellState, agg: Aggregates, *, regul
         else:
             np.multiply(G, w, out=Gw)
             outers.append((Gw, "b", G, "a"))
-            scaled.append((np.multiply(slot.DMD, w, out=ws(slot.name + "s", (6, m))), slot.FMFt(Ft, ws)))
+            scaled.append(
+                (np.multiply(slot.DMD, w, out=ws(slot.name + "s", (6, m))), slot.FMFt(Ft, ws))
+            )
 
     # regularisation (section 2.3): c v_a (x) v_b -> c [(1 - b) v_a (x) v_b + b (v_a . v_b) Id]
     b = np.clip(1.0 - kin.J, 0.0, 1.0) if regularize else None
@@ -183,8 +204,14 @@ def edge_blocks(mesh: MeshConstants, state: CellState, agg: Aggregates, *, regul
 
     # exponential groups: c e^u du (x) du, regularised like g2
     for k, (c, du) in enumerate(agg.rank_one):
-        outers.append((np.multiply(du, c if keep is None else c * keep, out=ws(f"du_s{k}", (3, 4, m))),
-                       "a", du, "b"))
+        outers.append(
+            (
+                np.multiply(du, c if keep is None else c * keep, out=ws(f"du_s{k}", (3, 4, m))),
+                "a",
+                du,
+                "b",
+            )
+        )
         if b is not None:
             edge_tmp = edge_dot(du, du, out=edge_tmp)
             edge_tmp *= c * b
@@ -200,7 +227,14 @@ def edge_blocks(mesh: MeshConstants, state: CellState, agg: Aggregates, *, regul
 
 
 # Skew part: component (r, c) gets sign * v[q].
-_SKEW = {(0, 1): (2, 1.0), (1, 0): (2, -1.0), (0, 2): (1, -1.0), (2, 0): (1, 1.0), (1, 2): (0, 1.0), (2, 1): (0, -1.0)}
+_SKEW = {
+    (0, 1): (2, 1.0),
+    (1, 0): (2, -1.0),
+    (0, 2): (1, -1.0),
+    (2, 0): (1, 1.0),
+    (1, 2): (0, 1.0),
+    (2, 1): (0, -1.0),
+}
 
 
 # The edges grouped by their first node a: edges e0..e1 are (a, a+1), ..., (a, 3).
@@ -210,11 +244,12 @@ _SEGMENTS = ((0, 0, 3), (1, 3, 5), (2, 5, 6))
 def _part(x: np.ndarray, where: str, k: int, a: int, e0: int, e1: int) -> np.ndarray:
     """Component k of a vector field on the edges e0..e1 that start at node a, (n, m) or
     broadcastable to it: per node at the edge's first ("a") or second ("b") node, per edge,
-    or per cell."""
+    or per cell.
+    """
     if where == "a":
         return x[k, a][None]
     if where == "b":
-        return x[k, a + 1:]
+        return x[k, a + 1 :]
     if where == "edge":
         return x[k, e0:e1]
     return x[k][None]
@@ -236,7 +271,11 @@ def _sum_components(outers, scaled, diag, skew, V0, out, tmp) -> np.ndarray:
                 t = tmp[: e1 - e0]
                 started = False
                 for u, uw, v, vw in outers:
-                    np.multiply(_part(u, uw, r, a, e0, e1), _part(v, vw, c, a, e0, e1), out=t if started else row)
+                    np.multiply(
+                        _part(u, uw, r, a, e0, e1),
+                        _part(v, vw, c, a, e0, e1),
+                        out=t if started else row,
+                    )
                     if started:
                         row += t
                     started = True
@@ -259,7 +298,9 @@ def _sum_components(outers, scaled, diag, skew, V0, out, tmp) -> np.ndarray:
     return K
 
 
-def _spectral_outers(theta: np.ndarray, kin, Dt: np.ndarray, ws: Workspace) -> List[Tuple[np.ndarray, np.ndarray]]:
+def _spectral_outers(
+    theta: np.ndarray, kin, Dt: np.ndarray, ws: Workspace
+) -> List[Tuple[np.ndarray, np.ndarray]]:
     """Edge blocks of sum_{n,l} theta_nl P_n H P_l, P_n = v_n v_n^T (eigenprojectors of C),
     as three outer products w_n (x) y_n.
 

@@ -22,14 +22,26 @@ import numpy as np
 
 from mjed.aggregates import fold_groups
 from mjed.cellwise import CellState, cell_gradient, stress_node_vectors
-from mjed.edge_blocks import MeshConstants, edge_blocks, edge_blocks_to_element_matrices, tangent_slots
+from mjed.edge_blocks import (
+    MeshConstants,
+    edge_blocks,
+    edge_blocks_to_element_matrices,
+    tangent_slots,
+)
 from mjed.evaluation import CellEvaluation, Evaluation, Want
 from mjed.layout import to_component_major
 from mjed.sparse import EDGES
 from mjed.terms import TermGroup
 from mjed.workspace import Workspace
 
-__all__ = ["EDGES", "MJEDEngine", "Evaluation", "CellEvaluation", "Want", "edge_blocks_to_element_matrices"]
+__all__ = [
+    "EDGES",
+    "MJEDEngine",
+    "Evaluation",
+    "CellEvaluation",
+    "Want",
+    "edge_blocks_to_element_matrices",
+]
 
 #: What an evaluation computes unless told otherwise.
 DEFAULT_WANT = Want.ENERGY | Want.GRADIENT | Want.STIFFNESS
@@ -48,7 +60,14 @@ class MJEDEngine:
     threads at once.
     """
 
-    def __init__(self, D: np.ndarray, volumes: np.ndarray, groups: Tuple[TermGroup, ...], *, regularize: bool = False):
+    def __init__(
+        self,
+        D: np.ndarray,
+        volumes: np.ndarray,
+        groups: Tuple[TermGroup, ...],
+        *,
+        regularize: bool = False,
+    ):
         self.D = D
         self.volumes = volumes
         self.groups = groups
@@ -63,8 +82,13 @@ class MJEDEngine:
     def n_cells(self) -> int:
         return len(self.D)
 
-    def evaluate(self, x_cells: np.ndarray, *, want: Want = DEFAULT_WANT,
-                 check_J: Optional[Callable[[np.ndarray], None]] = None) -> Evaluation:
+    def evaluate(
+        self,
+        x_cells: np.ndarray,
+        *,
+        want: Want = DEFAULT_WANT,
+        check_J: Optional[Callable[[np.ndarray], None]] = None,
+    ) -> Evaluation:
         """The quantities ``want`` names for every cell, cell-major (views of the engine's
         component-major arrays).
 
@@ -77,9 +101,14 @@ class MJEDEngine:
         x_t = np.ascontiguousarray(np.asarray(x_cells, dtype=np.float64).transpose(2, 1, 0))
         return self.evaluate_soa(x_t, want=want, check_J=check_J).public()
 
-    def evaluate_soa(self, x_t: np.ndarray, *, want: Want = DEFAULT_WANT,
-                     check_J: Optional[Callable[[np.ndarray], None]] = None,
-                     out: Optional[np.ndarray] = None) -> CellEvaluation:
+    def evaluate_soa(
+        self,
+        x_t: np.ndarray,
+        *,
+        want: Want = DEFAULT_WANT,
+        check_J: Optional[Callable[[np.ndarray], None]] = None,
+        out: Optional[np.ndarray] = None,
+    ) -> CellEvaluation:
         """As :meth:`evaluate`, in component-major layout.
 
         x_t: (3, 4, m) current positions, [k, a] = x_a,k of each cell (contiguous).
@@ -94,7 +123,8 @@ class MJEDEngine:
         stiffness = bool(want & Want.STIFFNESS)
         du_of = None
         if stiffness:
-            du_of = lambda S, h, k: stress_node_vectors(state, S, h, ws(f"du{k}", (3, 4, m)))  # noqa: E731
+            # noqa: E731
+            du_of = lambda S, h, k: stress_node_vectors(state, S, h, ws(f"du{k}", (3, 4, m)))
         agg = fold_groups(self.groups, state.kin, state.J, du_of, energy=bool(want & Want.ENERGY))
 
         V0 = self.volumes
@@ -112,7 +142,9 @@ class MJEDEngine:
 
     @staticmethod
     def _pk2(state: CellState, agg) -> np.ndarray:
-        """S = sum c f_k S_k + h J C^-1, (m, 3, 3); dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof / J."""
+        """S = sum c f_k S_k + h J C^-1, (m, 3, 3); dJ/dC = J C^-1 / 2 and J C^-1 = cof^T cof /
+        J.
+        """
         m = state.m
         if agg.S is None:
             S = np.zeros((m, 3, 3))
@@ -122,5 +154,7 @@ class MJEDEngine:
             S = np.ascontiguousarray(np.moveaxis(agg.S, -1, 0))
         if agg.h is not None:
             cof_t = state.kin.cof_t
-            S += (agg.h / state.J)[:, None, None] * np.moveaxis(np.einsum("kim,kjm->ijm", cof_t, cof_t), -1, 0)
+            S += (agg.h / state.J)[:, None, None] * np.moveaxis(
+                np.einsum("kim,kjm->ijm", cof_t, cof_t), -1, 0
+            )
         return S

@@ -1,6 +1,7 @@
 """Errors raised by mjed. All derive from ValueError so that callers who only care about
 "bad input" can catch one thing, except IntegrationError: a time step that fails during a run
-is not bad input, so it is a RuntimeError."""
+is not bad input, so it is a RuntimeError.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +13,9 @@ class MeshError(ValueError):
 
 
 class MeshWarning(UserWarning):
-    """The mesh is usable but something about it deserves attention (unused nodes, fixed orientation)."""
+    """The mesh is usable but something about it deserves attention (unused nodes, fixed
+    orientation).
+    """
 
 
 class InvertedElementError(ValueError):
@@ -30,8 +33,8 @@ class InvertedElementError(ValueError):
         more = f" and {len(cells) - 5} more" if len(cells) > 5 else ""
         where = f" {context}" if context else ""
         super().__init__(
-            f"{len(cells)} inverted or flattened cell(s){where}: {shown}{more}. "
-            "Pass allow_inverted=True to evaluate anyway (energies with ln J are then NaN)."
+            f"{len(cells)} inverted or flattened cell(s){where}: {shown}{more}. Pass "
+            "allow_inverted=True to evaluate anyway (energies with ln J are then NaN)."
         )
 
 
@@ -51,5 +54,7 @@ class IntegrationError(RuntimeError):
         self.time = float(time)
         self.reason = reason
         self.cells = cells
-        super().__init__(f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; "
-                         "the integrator kept the state of the last accepted step")
+        super().__init__(
+            f"time step {self.step} (t = {self.time:.6g} s) failed: {detail}; the integrator kept "
+            "the state of the last accepted step"
+        )

@@ -5,7 +5,8 @@
     dS/dC : H = R (B o (R^T H R)) R^T.
 
 The entrywise product is not of MJED's (gamma, B) form as it stands. Writing B as a signed sum
-of rank-one terms, B = sum_i s_i d_i d_i^T (s_i = +-1), gives B o X = sum_i s_i diag(d_i) X diag(d_i),
+of rank-one terms, B = sum_i s_i d_i d_i^T (s_i = +-1), gives B o X = sum_i s_i diag(d_i) X
+diag(d_i),
 so the tangent becomes three second-kind pairs with the constant matrices R diag(d_i) R^T.
 """
 
@@ -45,8 +46,8 @@ def signed_split(B: np.ndarray, method: str = "ldl") -> Tuple[np.ndarray, np.nda
             if pivots[k] == 0.0:
                 names = ("b_ff", "b_ss - b_fs^2/b_ff")
                 raise ValueError(
-                    f"Costa: the signed L D L^T split of B divides by zero: pivot {k + 1} ({names[k]}) is zero. "
-                    "Perturb the b parameters or use split='eigen'."
+                    f"Costa: the signed L D L^T split of B divides by zero: pivot {k + 1} "
+                    f"({names[k]}) is zero. Perturb the b parameters or use split='eigen'."
                 )
             L[k + 1 :, k] = A[k + 1 :, k] / pivots[k]
             A[k + 1 :, k + 1 :] -= np.outer(L[k + 1 :, k], A[k, k + 1 :])
@@ -56,7 +57,8 @@ def signed_split(B: np.ndarray, method: str = "ldl") -> Tuple[np.ndarray, np.nda
 
 def _frame_product(R: np.ndarray) -> "np.ndarray | None":
     """K (9, 9) with vec(R^T X R) = vec(X) K for a constant frame R (3, 3), K[ij, pq] = R_ip R_jq;
-    None for the identity frame (nothing to rotate)."""
+    None for the identity frame (nothing to rotate).
+    """
     if np.array_equal(R, np.eye(3)):
         return None
     return np.einsum("ip,jq->ijpq", R, R).reshape(9, 9)
@@ -64,7 +66,8 @@ def _frame_product(R: np.ndarray) -> "np.ndarray | None":
 
 def _to_frame(X: np.ndarray, R: np.ndarray) -> np.ndarray:
     """R^T X R for X (m, 3, 3): one (m, 9) x (9, 9) product for a constant R (a batched 3x3
-    matmul would loop per cell and dominate Costa's cost), a batched product per cell frame."""
+    matmul would loop per cell and dominate Costa's cost), a batched product per cell frame.
+    """
     if R.ndim == 3:
         return np.swapaxes(R, -1, -2) @ X @ R
     K = _frame_product(R)

@@ -16,7 +16,13 @@ from mjed.materials.base import Material
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 
-__all__ = ["HyperelasticForceField", "Want", "check_field_arguments", "checked_positions", "refuse_inverted"]
+__all__ = [
+    "HyperelasticForceField",
+    "Want",
+    "check_field_arguments",
+    "checked_positions",
+    "refuse_inverted",
+]
 
 
 class HyperelasticForceField:
@@ -42,13 +48,22 @@ class HyperelasticForceField:
     #: Which implementation this is (mjed.make_force_field chooses between backends).
     backend = "numpy"
 
-    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        material: Material,
+        *,
+        regularize: bool = False,
+        allow_inverted: bool = False,
+    ):
         check_field_arguments(mesh, material)
         self.mesh = mesh
         self.material = material
         self.regularize = bool(regularize)
         self.allow_inverted = bool(allow_inverted)
-        self.engine = MJEDEngine(mesh.D, mesh.volumes, material.decomposition(), regularize=self.regularize)
+        self.engine = MJEDEngine(
+            mesh.D, mesh.volumes, material.decomposition(), regularize=self.regularize
+        )
         self._pattern: "CSRPattern | None" = None
         # Scratch for the edge blocks of force_and_stiffness/stiffness, which consume them
         # at once: reusing it saves a fresh 432 bytes per cell (and its page faults) per call.
@@ -74,7 +89,9 @@ class HyperelasticForceField:
 
     def stiffness(self, x) -> sp.csr_matrix:
         """Tangent stiffness d2W/dx2, CSR (3n, 3n)."""
-        return self.assemble_stiffness(self.evaluate(x, want=Want.STIFFNESS, out=self._reused_blocks()).blocks)
+        return self.assemble_stiffness(
+            self.evaluate(x, want=Want.STIFFNESS, out=self._reused_blocks()).blocks
+        )
 
     def force_and_stiffness(self, x) -> Tuple[np.ndarray, sp.csr_matrix]:
         """Both at once, from a single evaluation of the kinematics."""
@@ -82,26 +99,34 @@ class HyperelasticForceField:
         return self.assemble_force(ev.gradient), self.assemble_stiffness(ev.blocks)
 
     def stress(self, x) -> np.ndarray:
-        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest volume)."""
+        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest
+        volume).
+        """
         return self.evaluate(x, want=Want.STRESS).pk2
 
     def force_stiffness_and_stress(self, x) -> Tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
         """Force (n, 3), stiffness CSR (3n, 3n) and S per cell (m, 3, 3), from one evaluation
-        (what a stress-history model needs when it accepts a step)."""
-        ev = self.evaluate(x, want=Want.GRADIENT | Want.STIFFNESS | Want.STRESS, out=self._reused_blocks())
+        (what a stress-history model needs when it accepts a step).
+        """
+        ev = self.evaluate(
+            x, want=Want.GRADIENT | Want.STIFFNESS | Want.STRESS, out=self._reused_blocks()
+        )
         return self.assemble_force(ev.gradient), self.assemble_stiffness(ev.blocks), ev.pk2
 
     def element_stiffness(self, x) -> np.ndarray:
         """Element stiffness matrices, (m, 12, 12), dof order (node 0: x, y, z, node 1: ...)."""
-        return edge_blocks_to_element_matrices(self.evaluate(x, want=Want.STIFFNESS).public().edge_blocks)
+        return edge_blocks_to_element_matrices(
+            self.evaluate(x, want=Want.STIFFNESS).public().edge_blocks
+        )
 
     def element_forces(self, x) -> np.ndarray:
         """Per-cell nodal forces -dW_e/dx_a, (m, 4, 3)."""
         return -np.ascontiguousarray(self.evaluate(x, want=Want.GRADIENT).public().gradient)
 
     # ---------------------------------------------------------------- the seam
-    def evaluate(self, x, *, want: Want = Want.ENERGY | Want.GRADIENT,
-                 out: "np.ndarray | None" = None) -> CellEvaluation:
+    def evaluate(
+        self, x, *, want: Want = Want.ENERGY | Want.GRADIENT, out: "np.ndarray | None" = None
+    ) -> CellEvaluation:
         """The per-cell quantities ``want`` names at positions x, component-major.
 
         Args:
@@ -125,13 +150,15 @@ class HyperelasticForceField:
 
     def assemble_force(self, gradient: np.ndarray) -> np.ndarray:
         """Nodal forces f = -sum_cells gradient, (n, 3), from a (3, 4, m) per-cell gradient
-        ([k, a, cell] = dW_cell/dx_a,k, the layout of CellEvaluation.gradient)."""
+        ([k, a, cell] = dW_cell/dx_a,k, the layout of CellEvaluation.gradient).
+        """
         f = self.pattern.assemble_vector_layout(gradient, VectorLayout.COMPONENT_MAJOR)
         return np.negative(f, out=f)
 
     def assemble_stiffness(self, blocks: np.ndarray) -> sp.csr_matrix:
         """CSR (3n, 3n) sum of (3, 3, 6, m) per-cell edge blocks (the layout of
-        CellEvaluation.blocks); the node blocks follow from translation invariance."""
+        CellEvaluation.blocks); the node blocks follow from translation invariance.
+        """
         return self.pattern.assemble_edge_blocks(blocks, BlockLayout.COMPONENT_MAJOR)
 
     # ---------------------------------------------------------------- internals
@@ -144,7 +171,8 @@ class HyperelasticForceField:
 
 def check_field_arguments(mesh, material) -> None:
     """TypeError unless mesh is an mjed.TetMesh and material an mjed material (every backend's
-    force field checks its arguments so)."""
+    force field checks its arguments so).
+    """
     if not isinstance(mesh, TetMesh):
         raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
     if not isinstance(material, Material):
@@ -152,16 +180,21 @@ def check_field_arguments(mesh, material) -> None:
 
 
 def checked_positions(x, n_nodes: int) -> np.ndarray:
-    """x as float64 (n_nodes, 3), or ValueError naming the shape or the first non-finite node."""
+    """X as float64 (n_nodes, 3), or ValueError naming the shape or the first non-finite node."""
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (n_nodes, 3):
         raise ValueError(f"positions must have shape ({n_nodes}, 3), got {x.shape}")
-    if np.isfinite(x.sum()):  # every entry finite (a NaN or inf would make the sum so): the common case
+    if np.isfinite(
+        x.sum()
+    ):  # every entry finite (a NaN or inf would make the sum so): the common case
         return x
     bad = ~np.isfinite(x).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{int(bad.sum())} node(s) with non-finite positions; first is node {i}: {x[i].tolist()}")
+        raise ValueError(
+            f"{int(bad.sum())} node(s) with non-finite positions; first is node {i}: "
+            f"{x[i].tolist()}"
+        )
     return x
 
 

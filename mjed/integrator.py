@@ -98,24 +98,55 @@ import numpy as np
 import scipy.sparse as sp
 
 from mjed.errors import IntegrationError, InvertedElementError
+from mjed.linear_system import FreeBlock, sum_same_pattern
 from mjed.mass import MASS_KINDS, mass_matrix
 from mjed.mesh import TetMesh
-from mjed.linear_system import FreeBlock, sum_same_pattern
-from mjed.solvers import (FACTOR_PRECISIONS, LINEAR_SOLVERS, PRECONDITIONERS, CGResult, LinearSolverOptions,
-                          NotPositiveDefiniteError, SPDFactor, block_jacobi_preconditioner, conjugate_gradient)
+from mjed.solvers import (
+    FACTOR_PRECISIONS,
+    LINEAR_SOLVERS,
+    PRECONDITIONERS,
+    CGResult,
+    LinearSolverOptions,
+    NotPositiveDefiniteError,
+    SPDFactor,
+    block_jacobi_preconditioner,
+    conjugate_gradient,
+)
 
-__all__ = ["ForceModel", "Prescribed", "StepReport", "StepTimes", "IntegratorState", "ImplicitEuler",
-           "LinearSolverOptions", "LINEAR_SOLVERS", "PRECONDITIONERS", "FACTOR_PRECISIONS", "RETRIED_REASONS"]
+__all__ = [
+    "ForceModel",
+    "Prescribed",
+    "StepReport",
+    "StepTimes",
+    "IntegratorState",
+    "ImplicitEuler",
+    "LinearSolverOptions",
+    "LINEAR_SOLVERS",
+    "PRECONDITIONERS",
+    "FACTOR_PRECISIONS",
+    "RETRIED_REASONS",
+]
 
 #: Newton stops with "newton_diverged" when the residual grows beyond this factor of the first.
 _DIVERGENCE_FACTOR = 1e8
 
 #: IntegrationError reasons that a smaller step may cure, so the step is retried in substeps.
 #: (A non-finite external load or prescribed displacement is the user's input: never retried.)
-RETRIED_REASONS = frozenset({
-    "inverted", "cg_negative_curvature", "cg_max_iterations", "cg_non_finite", "cg_preconditioner_indefinite",
-    "not_positive_definite", "direct_residual", "non_finite", "newton_diverged", "newton_max_iterations", "volume_jump",
-})
+RETRIED_REASONS = frozenset(
+    {
+        "inverted",
+        "cg_negative_curvature",
+        "cg_max_iterations",
+        "cg_non_finite",
+        "cg_preconditioner_indefinite",
+        "not_positive_definite",
+        "direct_residual",
+        "non_finite",
+        "newton_diverged",
+        "newton_max_iterations",
+        "volume_jump",
+    }
+)
 
 
 @runtime_checkable
@@ -142,7 +173,9 @@ class Prescribed:
         if nodes.size == 0:
             raise ValueError("Prescribed.nodes is empty")
         if not callable(self.displacement):
-            raise ValueError(f"Prescribed.displacement must be callable t -> (k, 3), got {self.displacement!r}")
+            raise ValueError(
+                f"Prescribed.displacement must be callable t -> (k, 3), got {self.displacement!r}"
+            )
         object.__setattr__(self, "nodes", nodes)
 
 
@@ -287,7 +320,9 @@ class ImplicitEuler:
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be an mjed.TetMesh, got {type(mesh).__name__}")
         if not isinstance(solver, LinearSolverOptions):
-            raise TypeError(f"solver must be an mjed.solvers.LinearSolverOptions, got {type(solver).__name__}")
+            raise TypeError(
+                f"solver must be an mjed.solvers.LinearSolverOptions, got {type(solver).__name__}"
+            )
         self.mesh = mesh
         self.models = _as_models(models)
         self.dt = _positive("dt", dt)
@@ -297,16 +332,26 @@ class ImplicitEuler:
         self.rayleigh_mass = _non_negative("rayleigh_mass", rayleigh_mass)
         self.rayleigh_stiffness = _non_negative("rayleigh_stiffness", rayleigh_stiffness)
         if int(newton_iterations) != newton_iterations or newton_iterations < 1:
-            raise ValueError(f"newton_iterations must be an integer >= 1, got {newton_iterations!r}")
+            raise ValueError(
+                f"newton_iterations must be an integer >= 1, got {newton_iterations!r}"
+            )
         self.newton_iterations = int(newton_iterations)
         self.newton_tol = _positive("newton_tol", newton_tol)
         self.solver = solver
-        if isinstance(max_halvings, bool) or int(max_halvings) != max_halvings or not 0 <= max_halvings <= 20:
+        if (
+            isinstance(max_halvings, bool)
+            or int(max_halvings) != max_halvings
+            or not 0 <= max_halvings <= 20
+        ):
             raise ValueError(f"max_halvings must be an integer in [0, 20], got {max_halvings!r}")
         self.max_halvings = int(max_halvings)
         self.allow_inverted = bool(allow_inverted)
-        if max_volume_change is not None and not (np.isfinite(max_volume_change) and max_volume_change > 1):
-            raise ValueError(f"max_volume_change must be a factor > 1 or None, got {max_volume_change!r}")
+        if max_volume_change is not None and not (
+            np.isfinite(max_volume_change) and max_volume_change > 1
+        ):
+            raise ValueError(
+                f"max_volume_change must be a factor > 1 or None, got {max_volume_change!r}"
+            )
         self.max_volume_change = None if max_volume_change is None else float(max_volume_change)
         self._factor: Optional[SPDFactor] = None  # the kept factorisation ("factorized")
         self.external_force = external_force
@@ -325,7 +370,10 @@ class ImplicitEuler:
         if isinstance(prescribed, tuple):
             prescribed = Prescribed(*prescribed)
         if prescribed is not None and not isinstance(prescribed, Prescribed):
-            raise ValueError(f"prescribed must be a Prescribed or (nodes, displacement), got {type(prescribed).__name__}")
+            raise ValueError(
+                "prescribed must be a Prescribed or (nodes, displacement), got "
+                f"{type(prescribed).__name__}"
+            )
         self.prescribed = prescribed
         prescribed_nodes = np.empty(0, dtype=np.int64)
         if prescribed is not None:
@@ -352,8 +400,11 @@ class ImplicitEuler:
         self._system = FreeBlock(self.M, self._free)  # A[free][:, free] without re-slicing K
         # Models whose accepted steps change them; a retry needs to roll each of them back.
         self._stateful = [m for m in self.models if hasattr(m, "accept_step")]
-        self._rollback = all(callable(getattr(m, "save_history", None)) and callable(getattr(m, "restore_history", None))
-                             for m in self._stateful)
+        self._rollback = all(
+            callable(getattr(m, "save_history", None))
+            and callable(getattr(m, "restore_history", None))
+            for m in self._stateful
+        )
 
     # ---------------------------------------------------------------- state
     @property
@@ -366,7 +417,9 @@ class ImplicitEuler:
         return 0.5 * float(v @ (self.M @ v))
 
     # ---------------------------------------------------------------- stepping
-    def run(self, n_steps: int, callback: Optional[Callable[["ImplicitEuler", StepReport], None]] = None) -> list:
+    def run(
+        self, n_steps: int, callback: Optional[Callable[["ImplicitEuler", StepReport], None]] = None
+    ) -> list:
         """Take n_steps steps; callback(integrator, report) after each. Returns the reports."""
         reports = []
         for _ in range(int(n_steps)):
@@ -385,7 +438,8 @@ class ImplicitEuler:
         step, t_end = self.steps + 1, self.t + self.dt
         start = (self.x, self.v, self.t)
         tally = _Tally(len(self.models))
-        saved: list = []  # the models' histories, saved at the first failure (nothing committed yet)
+        # the models' histories, saved at the first failure (nothing committed yet)
+        saved: list = []
         try:
             self._advance(self.dt, 0, step, tally, saved)
         except IntegrationError as exc:
@@ -394,18 +448,37 @@ class ImplicitEuler:
                 model.restore_history(history)
             if not tally.retries:
                 raise
-            smallest = self.dt / 2 ** self.max_halvings
+            smallest = self.dt / 2**self.max_halvings
             raise IntegrationError(
-                step, t_end, exc.reason,
-                f"{_detail(exc)}; retried in substeps down to dt/{2 ** self.max_halvings} = {smallest:.3g} s "
-                f"({len(tally.retries)} failed attempt(s): {', '.join(sorted(set(tally.retries)))})",
-                cells=exc.cells) from exc
+                step,
+                t_end,
+                exc.reason,
+                f"{_detail(exc)}; retried in substeps down to dt/{2**self.max_halvings} = "
+                f"{smallest:.3g} s ({len(tally.retries)} failed attempt(s): "
+                f"{', '.join(sorted(set(tally.retries)))})",
+                cells=exc.cells,
+            ) from exc
         self.t, self.steps = t_end, step  # the substeps' times add up to t_end up to rounding
-        times = StepTimes(tuple(float(s) for s in tally.model_seconds), tally.system_seconds, tally.solve_seconds,
-                          time.perf_counter() - clock)
-        return StepReport(step, t_end, tally.solves, tally.cg, tally.residual, tally.newton_residual,
-                          tally.reaction.reshape(-1, 3), tally.factorizations, tally.substeps, tuple(tally.retries),
-                          tally.inverted, times)
+        times = StepTimes(
+            tuple(float(s) for s in tally.model_seconds),
+            tally.system_seconds,
+            tally.solve_seconds,
+            time.perf_counter() - clock,
+        )
+        return StepReport(
+            step,
+            t_end,
+            tally.solves,
+            tally.cg,
+            tally.residual,
+            tally.newton_residual,
+            tally.reaction.reshape(-1, 3),
+            tally.factorizations,
+            tally.substeps,
+            tuple(tally.retries),
+            tally.inverted,
+            times,
+        )
 
     def _advance(self, dt: float, depth: int, step: int, tally: _Tally, saved: list) -> None:
         """Take dt from the current state, in halves (recursively) if it fails whole."""
@@ -440,15 +513,26 @@ class ImplicitEuler:
         v_ref = v0.copy()
         v_ref[self._constrained] = 0.0
         if self.prescribed is not None:
-            target = self.mesh.points[self._prescribed_nodes] + np.asarray(self.prescribed.displacement(t1), dtype=float)
+            target = self.mesh.points[self._prescribed_nodes] + np.asarray(
+                self.prescribed.displacement(t1), dtype=float
+            )
             if target.shape != (len(self._prescribed_nodes), 3) or not np.isfinite(target).all():
-                raise _input_error(step, t1, f"prescribed displacement at t={t1:g} is not a finite "
-                                             f"({len(self._prescribed_nodes)}, 3) array")
-            v_ref.reshape(-1, 3)[self._prescribed_nodes] = (target - self.x[self._prescribed_nodes]) / dt
+                raise _input_error(
+                    step,
+                    t1,
+                    f"prescribed displacement at t={t1:g} is not a finite "
+                    f"({len(self._prescribed_nodes)}, 3) array",
+                )
+            v_ref.reshape(-1, 3)[self._prescribed_nodes] = (
+                target - self.x[self._prescribed_nodes]
+            ) / dt
         u_e = np.zeros(n3)  # the first linearisation point is x0
 
         free = self._free
-        a_M, b_K = 1.0 + dt * self.rayleigh_mass, dt * dt + dt * self.rayleigh_stiffness  # A = a_M M + b_K K
+        a_M, b_K = (
+            1.0 + dt * self.rayleigh_mass,
+            dt * dt + dt * self.rayleigh_stiffness,
+        )  # A = a_M M + b_K K
         cg_total, r0_norm, newton_res, solves, factorizations = 0, 0.0, None, 0, 0
         for it in range(1, self.newton_iterations + 2):
             f, K = self._evaluate(x0 + u_e, step, t1, tally)
@@ -463,18 +547,28 @@ class ImplicitEuler:
                 # Here u_e = dt v_ref, so rhs is the nonlinear residual r(v_ref).
                 newton_res = r_norm / r0_norm if r0_norm > 0 else 0.0
                 if not np.isfinite(r_norm) or newton_res > _DIVERGENCE_FACTOR:
-                    raise IntegrationError(step, t1, "newton_diverged", f"Newton residual grew to {newton_res:.3g} times the first")
+                    raise IntegrationError(
+                        step,
+                        t1,
+                        "newton_diverged",
+                        f"Newton residual grew to {newton_res:.3g} times the first",
+                    )
                 if newton_res <= self.newton_tol:
                     reaction = np.where(self._constrained, -rhs / dt, 0.0)
                     break
                 if it > self.newton_iterations:
-                    raise IntegrationError(step, t1, "newton_max_iterations",
-                                           f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
-                                           f"after {self.newton_iterations} linear solves")
+                    raise IntegrationError(
+                        step,
+                        t1,
+                        "newton_max_iterations",
+                        f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
+                        f"after {self.newton_iterations} linear solves",
+                    )
             clock = time.perf_counter()
             A_ff = self._system(a_M, K, b_K)
             tally.system_seconds += time.perf_counter() - clock
-            # CG returns its first guess untouched for a zero right-hand side: only warm-start otherwise.
+            # CG returns its first guess untouched for a zero right-hand side: only warm-start
+            # otherwise.
             warm = self._warm if (it == 1 and r_norm > 0) else None
             clock = time.perf_counter()
             try:
@@ -487,7 +581,9 @@ class ImplicitEuler:
             dv = np.zeros(n3)
             dv[free] = res.x
             # Reaction: what the constraints must add for the constrained rows to balance too.
-            reaction = np.where(self._constrained, (a_M * (self.M @ dv) + b_K * (K @ dv) - rhs) / dt, 0.0)
+            reaction = np.where(
+                self._constrained, (a_M * (self.M @ dv) + b_K * (K @ dv) - rhs) / dt, 0.0
+            )
             v_ref = v_ref + dv
             u_e = dt * v_ref
             if it == 1:
@@ -497,7 +593,9 @@ class ImplicitEuler:
 
         x1 = x0 + dt * v_ref
         if not (np.isfinite(x1).all() and np.isfinite(v_ref).all()):
-            raise IntegrationError(step, t1, "non_finite", "the new positions or velocities are not finite")
+            raise IntegrationError(
+                step, t1, "non_finite", "the new positions or velocities are not finite"
+            )
         x1 = x1.reshape(-1, 3)
         J1 = self._jacobians(x1)
         inverted = self._inverted_cells(J1, step, t1)
@@ -530,8 +628,13 @@ class ImplicitEuler:
             nb = float(np.linalg.norm(b))
             residual = float(np.linalg.norm(b - A @ x)) / nb if nb > 0 else 0.0
             if not residual <= opts.cg_tol:  # held to the CG's tolerance (an ill-conditioned A)
-                raise IntegrationError(step, t1, "direct_residual",
-                                       f"the direct solve left a relative residual {residual:.3g} above cg_tol={opts.cg_tol:g}")
+                raise IntegrationError(
+                    step,
+                    t1,
+                    "direct_residual",
+                    f"the direct solve left a relative residual {residual:.3g} above "
+                    f"cg_tol={opts.cg_tol:g}",
+                )
             return CGResult(x, 0, True, "direct", residual), 1
         done = 0
         single = opts.factor_precision == "single"
@@ -544,23 +647,37 @@ class ImplicitEuler:
                 self._factor = self._factorize(A, step, t1, single=single)
                 done = 1
             apply = self._factor
-        res = conjugate_gradient(A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm, preconditioner=apply)
+        res = conjugate_gradient(
+            A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm, preconditioner=apply
+        )
         if opts.preconditioner == "factorized":
             if not res.converged and done == 0 and res.reason != "negative_curvature":
                 # A stale factorisation (an earlier step's A) may simply be too far off now.
                 spent = res.iterations
                 self._factor = self._factorize(A, step, t1, single=single)
                 done += 1
-                res = conjugate_gradient(A, b, tol=opts.cg_tol, max_iterations=opts.max_iterations, x0=warm,
-                                         preconditioner=self._factor)
-                res = CGResult(res.x, res.iterations + spent, res.converged, res.reason, res.residual)
+                res = conjugate_gradient(
+                    A,
+                    b,
+                    tol=opts.cg_tol,
+                    max_iterations=opts.max_iterations,
+                    x0=warm,
+                    preconditioner=self._factor,
+                )
+                res = CGResult(
+                    res.x, res.iterations + spent, res.converged, res.reason, res.residual
+                )
             if res.iterations > opts.refactor_iterations:
                 self._factor = None  # renewed at the next solve
         if not res.converged:
-            raise IntegrationError(step, t1, f"cg_{res.reason}",
-                                   f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
-                                   f"(relative residual {res.residual:.3g}, tolerance {opts.cg_tol:g}, "
-                                   f"{opts.preconditioner} preconditioner)")
+            raise IntegrationError(
+                step,
+                t1,
+                f"cg_{res.reason}",
+                f"CG stopped on {res.reason.replace('_', ' ')} after {res.iterations} iterations "
+                f"(relative residual {res.residual:.3g}, tolerance {opts.cg_tol:g}, "
+                f"{opts.preconditioner} preconditioner)",
+            )
         return res, done
 
     def _factorize(self, A: sp.csr_matrix, step: int, t1: float, single: bool = False) -> SPDFactor:
@@ -572,13 +689,17 @@ class ImplicitEuler:
         try:
             return SPDFactor(A)
         except NotPositiveDefiniteError as exc:
-            raise IntegrationError(step, t1, "not_positive_definite", f"the step matrix A: {exc}") from None
+            raise IntegrationError(
+                step, t1, "not_positive_definite", f"the step matrix A: {exc}"
+            ) from None
 
     def _evaluate(self, x: np.ndarray, step: int, t1: float, tally: _Tally):
         """Summed forces (3n,) and stiffness (3n, 3n) of all models at x (3n,)."""
         xs = x.reshape(-1, 3)
         if not np.isfinite(xs).all():
-            raise IntegrationError(step, t1, "non_finite", "a Newton iterate has non-finite positions")
+            raise IntegrationError(
+                step, t1, "non_finite", "a Newton iterate has non-finite positions"
+            )
         f_total, K_total = None, None
         for k, model in enumerate(self.models):
             clock = time.perf_counter()
@@ -599,19 +720,30 @@ class ImplicitEuler:
         # J = det(current edges) / det(rest edges), the rest determinant being 6 V > 0.
         xc = x[self.mesh.cells]  # (m, 4, 3)
         e = xc[:, 1:] - xc[:, :1]  # (m, 3, 3) edges from node 0
-        return np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (6.0 * self.mesh.volumes)
+        return np.einsum("mi,mi->m", e[:, 0], np.cross(e[:, 1], e[:, 2])) / (
+            6.0 * self.mesh.volumes
+        )
 
     def _inverted_cells(self, J: np.ndarray, step: int, t1: float) -> int:
-        """Cells with J <= 0: refused (IntegrationError) unless allow_inverted; returns their count."""
+        """Cells with J <= 0: refused (IntegrationError) unless allow_inverted; returns their
+        count.
+        """
         bad = np.flatnonzero(~(J > 0))
         if bad.size and not self.allow_inverted:
             shown = ", ".join(f"cell {c} (J={J[c]:.3g})" for c in bad[:5])
-            raise IntegrationError(step, t1, "inverted", f"{bad.size} cell(s) inverted at the new positions: {shown}",
-                                   cells=bad)
+            raise IntegrationError(
+                step,
+                t1,
+                "inverted",
+                f"{bad.size} cell(s) inverted at the new positions: {shown}",
+                cells=bad,
+            )
         return int(bad.size)
 
     def _check_volume_change(self, J1: np.ndarray, step: int, t1: float) -> None:
-        """A step changing some cell's volume by more than max_volume_change fails ("volume_jump")."""
+        """A step changing some cell's volume by more than max_volume_change fails
+        ("volume_jump").
+        """
         c = self.max_volume_change
         if c is None:
             return
@@ -621,9 +753,14 @@ class ImplicitEuler:
         bad = np.flatnonzero((ratio > c) | (ratio < 1.0 / c))
         if bad.size:
             worst = bad[np.argmax(np.abs(np.log(ratio[bad])))]
-            raise IntegrationError(step, t1, "volume_jump",
-                                   f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step "
-                                   f"(cell {worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})", cells=bad)
+            raise IntegrationError(
+                step,
+                t1,
+                "volume_jump",
+                f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step (cell "
+                f"{worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})",
+                cells=bad,
+            )
 
 
 def _detail(exc: IntegrationError) -> str:

@@ -7,7 +7,7 @@ function of J in its terms must give finite values (f, f', f'') at J = 0 and bel
 J^p with p < 0 (the isochoric J^(-2/3) of Mooney-Rivlin, Arruda-Boyce, Veronda-Westmann,
 Ogden; Costa's J^(-4/3)) is infinite at 0 and, for a non-integer p, undefined below; ln J
 (Neo-Hookean, and the volumetric (ln J)^2 terms of most laws) and Costa's J ln J are undefined
-for J <= 0. Of the seven materials of :mod:`mjed.materials`, only St Venant-Kirchhoff (no J
+for J <= 0. Of the declared materials of :mod:`mjed.materials`, only St Venant-Kirchhoff (no J
 factor at all) qualifies; the porous solid's U(J) (:class:`mjed.porous.PorousVolume`, linear
 below J0) qualifies as well.
 
@@ -22,6 +22,7 @@ from typing import Iterable, List, Tuple
 import numpy as np
 
 from mjed.materials.base import Material
+from mjed.terms import Log, Power
 
 __all__ = ["finite_when_inverted", "inversion_blockers", "SAMPLE_J"]
 
@@ -44,14 +45,24 @@ def inversion_blockers(material: Material) -> List[Tuple[str, str]]:
     blockers = []
     for f in _j_functions(material):
         with np.errstate(all="ignore"):
-            values = [np.broadcast_to(np.asarray(v, dtype=float), SAMPLE_J.shape) for v in f(SAMPLE_J.copy())]
+            values = [
+                np.broadcast_to(np.asarray(v, dtype=float), SAMPLE_J.shape)
+                for v in f(SAMPLE_J.copy())
+            ]
         finite = np.logical_and.reduce([np.isfinite(v) for v in values])
         if not finite.all():
             blockers.append((repr(f), f"J = {SAMPLE_J[np.flatnonzero(~finite)[0]]:g}"))
+    for group in material.decomposition():
+        fn = group.function
+        # ln(a + u) and a non-integer power of (a + u) are undefined where a + u <= 0, which an
+        # inverted cell can reach whatever its terms; e^u and integer powers are entire
+        if isinstance(fn, Log) or (isinstance(fn, Power) and float(fn.p) != int(fn.p)):
+            blockers.append((repr(fn), "a + u <= 0"))
     return blockers
 
 
 def finite_when_inverted(material: Material) -> bool:
     """True when every term of the material's energy (and its first two J derivatives) is
-    finite for J <= 0, so that inverted cells can be evaluated (with the regularisation)."""
+    finite for J <= 0, so that inverted cells can be evaluated (with the regularisation).
+    """
     return not inversion_blockers(material)

@@ -28,7 +28,7 @@ def deformation_gradient(x_cells: np.ndarray, D: np.ndarray) -> np.ndarray:
 
 
 def cofactor(F: np.ndarray) -> np.ndarray:
-    """cof F = dJ/dF = J F^-T, built from cross products so it stays finite at J <= 0.
+    """Cof F = dJ/dF = J F^-T, built from cross products so it stays finite at J <= 0.
 
     Args:
         F: (m, 3, 3).
@@ -57,8 +57,14 @@ class Kinematics:
         cof_out, C_out: optional (3, 3, m) buffers for cof_t and C_t (the engine reuses them).
     """
 
-    def __init__(self, F: "np.ndarray | None" = None, *, Ft: "np.ndarray | None" = None,
-                 cof_out: "np.ndarray | None" = None, C_out: "np.ndarray | None" = None):
+    def __init__(
+        self,
+        F: "np.ndarray | None" = None,
+        *,
+        Ft: "np.ndarray | None" = None,
+        cof_out: "np.ndarray | None" = None,
+        C_out: "np.ndarray | None" = None,
+    ):
         if F is None and Ft is None:
             raise ValueError("Kinematics needs F (m, 3, 3) or Ft (3, 3, m)")
         if F is not None:
@@ -91,7 +97,9 @@ class Kinematics:
 
     @cached_property
     def cof_t(self) -> np.ndarray:
-        """(3, 3, m) cof F, component-major: cof_ij = F_(i+1)(j+1) F_(i+2)(j+2) - F_(i+1)(j+2) F_(i+2)(j+1)."""
+        """(3, 3, m) cof F, component-major: cof_ij = F_(i+1)(j+1) F_(i+2)(j+2) - F_(i+1)(j+2)
+        F_(i+2)(j+1).
+        """
         A = self.Ft
         out = np.empty_like(A) if self._cof_out is None else self._cof_out
         for i in range(3):
@@ -110,7 +118,8 @@ class Kinematics:
     @cached_property
     def J(self) -> np.ndarray:
         """(m,) det F, expanded along F's first column (only that column of cof F is formed
-        unless cof_t is already there; the products are the same either way)."""
+        unless cof_t is already there; the products are the same either way).
+        """
         A = self.Ft
         if "cof_t" in self.__dict__:
             B = self.cof_t
@@ -127,7 +136,8 @@ class Kinematics:
     @cached_property
     def C_t(self) -> np.ndarray:
         """(3, 3, m) C = F^T F, component-major: the six distinct entries by row products
-        (about 3x faster than an einsum over the nine), mirrored."""
+        (about 3x faster than an einsum over the nine), mirrored.
+        """
         A = self.Ft
         out = np.empty_like(A) if self._C_out is None else self._C_out
         tmp = np.empty(A.shape[-1])
@@ -184,5 +194,6 @@ class Kinematics:
     def eig(self) -> "tuple[np.ndarray, np.ndarray]":
         """Eigenvalues (m, 3), ascending, and eigenvectors (m, 3, 3) (columns) of C, by the
         vectorised Jacobi method of mjed.eigen3 (as exact as LAPACK, several times faster
-        for many 3x3 matrices)."""
+        for many 3x3 matrices).
+        """
         return symmetric_eigh(self.C_t)

@@ -78,7 +78,9 @@ class FreeBlock:
         nnz = K.nnz
         # Each stored entry carries its own position (+1, so that none is zero); slicing keeps
         # stored entries, so the free block's data says where each of its entries came from.
-        where = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), K.indices, K.indptr), shape=K.shape)
+        where = sp.csr_matrix(
+            (np.arange(1, nnz + 1, dtype=np.float64), K.indices, K.indptr), shape=K.shape
+        )
         block = where[self.free][:, self.free]
         block.sort_indices()
         self._gather = block.data.astype(np.int64) - 1
@@ -87,7 +89,11 @@ class FreeBlock:
         self._indptr.setflags(write=False)
         self._indices.setflags(write=False)
         Mc = self.M.tocoo()
-        pos = np.asarray(where[Mc.row, Mc.col]).ravel().astype(np.int64) - 1 if Mc.nnz else np.empty(0, np.int64)
+        pos = (
+            np.asarray(where[Mc.row, Mc.col]).ravel().astype(np.int64) - 1
+            if Mc.nnz
+            else np.empty(0, np.int64)
+        )
         if (pos < 0).any():
             self._M_on_K = None
             return

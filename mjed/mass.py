@@ -14,7 +14,14 @@ import scipy.sparse as sp
 from mjed.mesh import TetMesh
 from mjed.sparse import element_dofs
 
-__all__ = ["MASS_KINDS", "cell_densities", "nodal_masses", "lumped_mass", "consistent_mass", "mass_matrix"]
+__all__ = [
+    "MASS_KINDS",
+    "cell_densities",
+    "nodal_masses",
+    "lumped_mass",
+    "consistent_mass",
+    "mass_matrix",
+]
 
 MASS_KINDS = ("lumped", "consistent")
 
@@ -29,7 +36,9 @@ def cell_densities(mesh: TetMesh, density) -> np.ndarray:
     if rho.ndim == 0:
         rho = np.full(mesh.n_cells, float(rho))
     if rho.shape != (mesh.n_cells,):
-        raise ValueError(f"density must be a scalar or have shape ({mesh.n_cells},), got shape {rho.shape}")
+        raise ValueError(
+            f"density must be a scalar or have shape ({mesh.n_cells},), got shape {rho.shape}"
+        )
     bad = ~(np.isfinite(rho) & (rho >= 0.0))
     if bad.any():
         c = int(np.flatnonzero(bad)[0])
@@ -40,7 +49,9 @@ def cell_densities(mesh: TetMesh, density) -> np.ndarray:
 def nodal_masses(mesh: TetMesh, density) -> np.ndarray:
     """Lumped mass of each node, (n,): a quarter of the mass of every cell around it."""
     cell_mass = cell_densities(mesh, density) * mesh.volumes
-    return np.bincount(mesh.cells.ravel(), weights=np.repeat(cell_mass / 4.0, 4), minlength=mesh.n_nodes)
+    return np.bincount(
+        mesh.cells.ravel(), weights=np.repeat(cell_mass / 4.0, 4), minlength=mesh.n_nodes
+    )
 
 
 def lumped_mass(mesh: TetMesh, density) -> sp.csr_matrix:

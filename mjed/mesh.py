@@ -73,8 +73,8 @@ class TetMesh:
         if flat.any():
             c = int(np.flatnonzero(flat)[0])
             raise MeshError(
-                f"{int(flat.sum())} degenerate (zero-volume) cell(s); first is cell {c} "
-                f"with nodes {cells[c].tolist()} and volume {signed[c]:.3e}"
+                f"{int(flat.sum())} degenerate (zero-volume) cell(s); first is cell {c} with nodes "
+                f"{cells[c].tolist()} and volume {signed[c]:.3e}"
             )
 
         negative = signed < 0
@@ -84,13 +84,17 @@ class TetMesh:
                 c = int(np.flatnonzero(negative)[0])
                 raise MeshError(
                     f"{self.n_reoriented} negatively oriented cell(s); first is cell {c} with "
-                    f"nodes {cells[c].tolist()} and signed volume {signed[c]:.3e}. "
-                    "Pass fix_orientation=True to swap two nodes of each such cell."
+                    f"nodes {cells[c].tolist()} and signed volume {signed[c]:.3e}. Pass "
+                    "fix_orientation=True to swap two nodes of each such cell."
                 )
             cells = cells.copy()
             cells[negative, 2], cells[negative, 3] = cells[negative, 3], cells[negative, 2].copy()
             signed, D = shape_vectors(points, cells)
-            warnings.warn(f"reoriented {self.n_reoriented} cell(s) by swapping two nodes", MeshWarning, stacklevel=2)
+            warnings.warn(
+                f"reoriented {self.n_reoriented} cell(s) by swapping two nodes",
+                MeshWarning,
+                stacklevel=2,
+            )
 
         used = np.zeros(len(points), dtype=bool)
         used[cells.ravel()] = True
@@ -98,8 +102,8 @@ class TetMesh:
         if len(self.unreferenced_nodes):
             k = self.unreferenced_nodes
             warnings.warn(
-                f"{len(k)} node(s) belong to no cell (first: {k[:5].tolist()}); "
-                "their rows of the stiffness matrix are empty",
+                f"{len(k)} node(s) belong to no cell (first: {k[:5].tolist()}); their rows of the "
+                "stiffness matrix are empty",
                 MeshWarning,
                 stacklevel=2,
             )
@@ -135,7 +139,10 @@ def _as_points(points) -> np.ndarray:
     bad = ~np.isfinite(p).all(axis=1)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise MeshError(f"{int(bad.sum())} node(s) with non-finite coordinates; first is node {i}: {p[i].tolist()}")
+        raise MeshError(
+            f"{int(bad.sum())} node(s) with non-finite coordinates; first is node {i}: "
+            f"{p[i].tolist()}"
+        )
     return p
 
 
@@ -146,7 +153,11 @@ def _as_cells(cells, n_points: int) -> np.ndarray:
     if len(c) == 0:
         raise MeshError("the mesh has no cells")
     if not np.issubdtype(c.dtype, np.integer):
-        if not (np.issubdtype(c.dtype, np.floating) and np.isfinite(c).all() and (c == np.round(c)).all()):
+        if not (
+            np.issubdtype(c.dtype, np.floating)
+            and np.isfinite(c).all()
+            and (c == np.round(c)).all()
+        ):
             raise MeshError(f"cells must hold integer node indices, got dtype {c.dtype}")
     c = c.astype(np.int64)
     out = (c < 0) | (c >= n_points)

@@ -33,6 +33,7 @@ attached to any material with :func:`with_porous_volume`.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Literal, Tuple
 
@@ -67,13 +68,18 @@ class PorousVolume(JFunction):
     def __post_init__(self):
         require_positive(self, "f_w", "K0", "K_lim")
         if self.f_w > 1.0:
-            raise ValueError(f"PorousVolume: parameter f_w must be <= 1 (a volume fraction), got {self.f_w!r}")
+            raise ValueError(
+                f"PorousVolume: parameter f_w must be <= 1 (a volume fraction), got {self.f_w!r}"
+            )
         if self.tangent not in ("paper", "slope"):
-            raise ValueError(f"PorousVolume: parameter tangent must be 'paper' or 'slope', got {self.tangent!r}")
+            raise ValueError(
+                f"PorousVolume: parameter tangent must be 'paper' or 'slope', got {self.tangent!r}"
+            )
         if not self.J0 < 1.0:
             raise ValueError(
-                f"PorousVolume: the substitution point J0 = {self.J0:.6g} must be < 1 (rest must be stress free); "
-                f"K0/K_lim = {self.K0 / self.K_lim:.6g} is too large for f_w = {self.f_w!r}"
+                f"PorousVolume: the substitution point J0 = {self.J0:.6g} must be < 1 (rest must "
+                f"be stress free); K0/K_lim = {self.K0 / self.K_lim:.6g} is too large for f_w = "
+                f"{self.f_w!r}"
             )
 
     # ------------------------------------------------------------------ the substitution point
@@ -90,7 +96,7 @@ class PorousVolume(JFunction):
 
     # ------------------------------------------------------------------ stresses
     def hencky_stress(self, J) -> np.ndarray:
-        """sigma = K0 f_w ln J* without substitution (NaN-free only for J > 1 - f_w)."""
+        """Sigma = K0 f_w ln J* without substitution (NaN-free only for J > 1 - f_w)."""
         J = np.asarray(J, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.K0 * self.f_w * np.log((self.f_w + J - 1.0) / self.f_w)
@@ -141,13 +147,21 @@ class PorousMaterial(Material):
 
     def __post_init__(self):
         if not isinstance(self.base, Material):
-            raise ValueError(f"PorousMaterial: parameter base must be an mjed material, got {type(self.base).__name__}")
+            raise ValueError(
+                "PorousMaterial: parameter base must be an mjed material, got "
+                f"{type(self.base).__name__}"
+            )
         if isinstance(self.base, PorousMaterial):
             raise ValueError("PorousMaterial: parameter base already has a porous volume")
         if not isinstance(self.porous, PorousVolume):
-            raise ValueError(f"PorousMaterial: parameter porous must be a PorousVolume, got {type(self.porous).__name__}")
+            raise ValueError(
+                "PorousMaterial: parameter porous must be a PorousVolume, got "
+                f"{type(self.porous).__name__}"
+            )
         if self.mode not in ("add", "replace"):
-            raise ValueError(f"PorousMaterial: parameter mode must be 'add' or 'replace', got {self.mode!r}")
+            raise ValueError(
+                f"PorousMaterial: parameter mode must be 'add' or 'replace', got {self.mode!r}"
+            )
         self.decomposition()  # a material whose volumetric part cannot be replaced fails here
 
     @property
@@ -165,13 +179,17 @@ class PorousMaterial(Material):
 class PorousSolid(Material):
     """The porous volumetric energy U(J) alone, as a material: the porous network of Kerdok's
     parallel networks, to be given its own force field next to the hyperelastic (or
-    visco-hyperelastic) one, so that a Prony series on the latter does not relax it."""
+    visco-hyperelastic) one, so that a Prony series on the latter does not relax it.
+    """
 
     porous: PorousVolume
 
     def __post_init__(self):
         if not isinstance(self.porous, PorousVolume):
-            raise ValueError(f"PorousSolid: parameter porous must be a PorousVolume, got {type(self.porous).__name__}")
+            raise ValueError(
+                "PorousSolid: parameter porous must be a PorousVolume, got "
+                f"{type(self.porous).__name__}"
+            )
 
     def decomposition(self) -> Tuple[TermGroup, ...]:
         return (TermGroup((Term(self.porous, Unity()),)),)
@@ -199,19 +217,24 @@ def _without_volumetric(group: TermGroup, material: str) -> TermGroup:
         if not isinstance(term.g, Unity):
             terms.append(term)
             continue
-        if group.exponential:
-            raise ValueError(f"with_porous_volume: {material} has a J-only term inside an exponential group; use mode='add'")
+        if not group.plain:
+            raise ValueError(
+                f"with_porous_volume: {material} has a J-only term inside a group with a function "
+                "of its sum (exp, log, power); use mode='add'"
+            )
         f1, df1, _ = term.f(np.ones(1))
         if abs(float(np.asarray(df1).ravel()[0])) > 0.0:
             raise ValueError(
-                f"with_porous_volume: {material}'s J-only term has a non-zero slope at J = 1 (it balances the "
-                "isochoric stress at rest), so it cannot be replaced; use mode='add'"
+                f"with_porous_volume: {material}'s J-only term has a non-zero slope at J = 1 (it "
+                "balances the isochoric stress at rest), so it cannot be replaced; use mode='add'"
             )
         terms.append(Term(_Constant(float(np.asarray(f1).ravel()[0])), Unity()))
-    return TermGroup(tuple(terms), group.exponential, group.coefficient)
+    return dataclasses.replace(group, terms=tuple(terms))
 
 
-def with_porous_volume(material: Material, porous: PorousVolume, *, mode: Literal["add", "replace"] = "add") -> PorousMaterial:
+def with_porous_volume(
+    material: Material, porous: PorousVolume, *, mode: Literal["add", "replace"] = "add"
+) -> PorousMaterial:
     """``material`` with the porous volumetric energy U(J).
 
     mode "add" (default, the paper's liver: Kerdok's parallel hyperelastic and porous
@@ -221,7 +244,12 @@ def with_porous_volume(material: Material, porous: PorousVolume, *, mode: Litera
     stationary at rest (NeoHookean).
     """
     if mode == "replace":
-        has_volumetric = any(isinstance(t.g, Unity) for g in material.decomposition() for t in g.terms)
+        has_volumetric = any(
+            isinstance(t.g, Unity) for g in material.decomposition() for t in g.terms
+        )
         if not has_volumetric:
-            raise ValueError(f"with_porous_volume: {material.name} has no J-only (volumetric) term to replace; use mode='add'")
+            raise ValueError(
+                f"with_porous_volume: {material.name} has no J-only (volumetric) term to replace; "
+                "use mode='add'"
+            )
     return PorousMaterial(material, porous, mode)

@@ -76,12 +76,22 @@ class LinearSolverOptions:
     factor_precision: str = "double"
 
     def __post_init__(self) -> None:
-        for name, allowed in (("solver", LINEAR_SOLVERS), ("preconditioner", PRECONDITIONERS),
-                              ("factor_precision", FACTOR_PRECISIONS)):
+        for name, allowed in (
+            ("solver", LINEAR_SOLVERS),
+            ("preconditioner", PRECONDITIONERS),
+            ("factor_precision", FACTOR_PRECISIONS),
+        ):
             if getattr(self, name) not in allowed:
-                raise ValueError(f"LinearSolverOptions.{name} must be one of {allowed}, got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"LinearSolverOptions.{name} must be one of {allowed}, got "
+                    f"{getattr(self, name)!r}"
+                )
         tol = self.cg_tol
-        if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (math.isfinite(tol) and tol > 0):
+        if (
+            isinstance(tol, bool)
+            or not isinstance(tol, (int, float))
+            or not (math.isfinite(tol) and tol > 0)
+        ):
             raise ValueError(f"LinearSolverOptions.cg_tol must be finite and > 0, got {tol!r}")
         object.__setattr__(self, "cg_tol", float(tol))
         for name in ("max_iterations", "refactor_iterations"):
@@ -95,8 +105,10 @@ class LinearSolverOptions:
         if self.solver == "direct":
             return f"direct sparse LU (SuperLU) every solve, residual <= {self.cg_tol:g}"
         if self.preconditioner == "factorized":
-            return (f"CG, kept {self.factor_precision}-precision sparse LU preconditioner (renewed after "
-                    f"> {self.refactor_iterations} iterations), rtol {self.cg_tol:g}")
+            return (
+                f"CG, kept {self.factor_precision}-precision sparse LU preconditioner (renewed "
+                f"after > {self.refactor_iterations} iterations), rtol {self.cg_tol:g}"
+            )
         return f"CG, {self.preconditioner} preconditioner, rtol {self.cg_tol:g}"
 
 
@@ -105,7 +117,8 @@ class CGResult:
     """x: the solution (or last iterate); iterations; converged; reason: "converged",
     "max_iterations", "negative_curvature" (p^T A p <= 0: A is not positive definite),
     "preconditioner_indefinite" (r^T z <= 0: the preconditioner is not positive definite) or
-    "non_finite"; residual: final ||b - A x|| / ||b||."""
+    "non_finite"; residual: final ||b - A x|| / ||b||.
+    """
 
     x: np.ndarray
     iterations: int
@@ -122,18 +135,20 @@ class NotPositiveDefiniteError(ValueError):
 
     def __init__(self, n_negative: int, n: int, detail: str = ""):
         self.n_negative, self.n = int(n_negative), int(n)
-        super().__init__(f"the matrix is not positive definite: {n_negative} of its {n} pivots are <= 0{detail}")
+        super().__init__(
+            f"the matrix is not positive definite: {n_negative} of its {n} pivots are <= 0{detail}"
+        )
 
 
 def jacobi_preconditioner(A) -> Preconditioner:
-    """z = r / diag(A); a non-positive diagonal entry is replaced by 1 (keeps z SPD in r)."""
+    """Z = r / diag(A); a non-positive diagonal entry is replaced by 1 (keeps z SPD in r)."""
     d = np.asarray(A.diagonal(), dtype=float)
     inv_d = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
     return lambda r: inv_d * r
 
 
 def block_jacobi_preconditioner(A, block: int = 3) -> Preconditioner:
-    """z = blockdiag(A)^-1 r with consecutive ``block`` x ``block`` diagonal blocks (the 3x3
+    """Z = blockdiag(A)^-1 r with consecutive ``block`` x ``block`` diagonal blocks (the 3x3
     node blocks of a dof = 3 node + component system whose constraints remove whole nodes).
 
     A block that is not positive definite is replaced by the Jacobi scaling of its diagonal
@@ -144,7 +159,9 @@ def block_jacobi_preconditioner(A, block: int = 3) -> Preconditioner:
     """
     n = A.shape[0]
     if n % block:
-        raise ValueError(f"block_jacobi_preconditioner: size {n} is not a multiple of the block size {block}")
+        raise ValueError(
+            f"block_jacobi_preconditioner: size {n} is not a multiple of the block size {block}"
+        )
     k = n // block
     rows = np.arange(n)
     # Entries (i, j) of each diagonal block, gathered from the sparse matrix in one go.
@@ -188,7 +205,12 @@ class SPDFactor:
         try:
             # Symmetric (A + A^T) minimum-degree ordering applied to rows and columns, diagonal
             # pivots only: U = D L^T, the pivots are D.
-            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+            lu = spla.splu(
+                A,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
+                options=dict(SymmetricMode=True),
+            )
         except RuntimeError as exc:  # "Factor is exactly singular"
             raise NotPositiveDefiniteError(1, n, f" (SuperLU: {exc})") from None
         pivots = lu.U.diagonal()
@@ -206,8 +228,15 @@ class SPDFactor:
         return self._lu.solve(np.asarray(b, dtype=self.dtype)).astype(np.float64)
 
 
-def conjugate_gradient(A, b: np.ndarray, *, tol: float = 1e-10, max_iterations: int = 1000, x0=None,
-                       preconditioner: Optional[Preconditioner] = None) -> CGResult:
+def conjugate_gradient(
+    A,
+    b: np.ndarray,
+    *,
+    tol: float = 1e-10,
+    max_iterations: int = 1000,
+    x0=None,
+    preconditioner: Optional[Preconditioner] = None,
+) -> CGResult:
     """Solve A x = b for a symmetric A by preconditioned CG.
 
     Args:

@@ -106,13 +106,18 @@ class CSRPattern:
     def _entry_positions(self) -> np.ndarray:
         """(P, 3, 3) position in the CSR data array of entry (r, c) of each node block, P in
         node-pattern order (row i, then sorted neighbour k): rows 3 i + r hold, for each
-        neighbour k, the three columns 3 k + c."""
+        neighbour k, the three columns 3 k + c.
+        """
         nodeptr, deg = self._nodeptr, self._deg
         rows = np.repeat(np.arange(self.n_nodes), deg)
         k = np.arange(len(rows)) - nodeptr[rows]
         pos0 = 9 * nodeptr[rows] + 3 * k
         row_len = 3 * deg[rows]
-        return pos0[:, None, None] + np.arange(3)[None, :, None] * row_len[:, None, None] + np.arange(3)[None, None, :]
+        return (
+            pos0[:, None, None]
+            + np.arange(3)[None, :, None] * row_len[:, None, None]
+            + np.arange(3)[None, None, :]
+        )
 
     def _expand_columns(self, node_cols: np.ndarray) -> np.ndarray:
         """CSR column indices of the 3x3-block expansion of the node pattern."""
@@ -123,7 +128,8 @@ class CSRPattern:
 
     def _block_positions(self, rows: np.ndarray, cols: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """Position in the CSR data array of entry (0, 0) of node block (rows, cols) and the
-        row length; entry (r, c) is at pos + r * row_len + c."""
+        row length; entry (r, c) is at pos + r * row_len + c.
+        """
         p = np.searchsorted(self._node_keys, rows * self.n_nodes + cols)
         k = p - self._nodeptr[rows]
         row_len = 3 * self._deg[rows]
@@ -134,7 +140,8 @@ class CSRPattern:
         """Index of every edge-block entry in the (3, 3, E) edge sums, for blocks stored with
         axes in ``layout`` order (m cell, e edge, r row, c column), e.g. "merc" for
         (m, 6, 3, 3) or "rcem" for (3, 3, 6, m) (named in mjed.layout.BlockLayout). Cached
-        per layout."""
+        per layout.
+        """
         if layout not in self._maps:
             if sorted(layout) != sorted("merc"):
                 raise ValueError(f"layout must be a permutation of 'merc', got {layout!r}")
@@ -145,7 +152,9 @@ class CSRPattern:
             # A flipped cell edge holds the block of (j, i): its (r, c) is the edge's (c, r).
             target = np.where(flip, c * 3 + r, r * 3 + c) * E + self.cell_edges[:, :, None, None]
             axes = ["merc".index(ax) for ax in layout]
-            self._maps[layout] = np.ascontiguousarray(np.transpose(target, axes)).ravel().astype(np.intp)
+            self._maps[layout] = (
+                np.ascontiguousarray(np.transpose(target, axes)).ravel().astype(np.intp)
+            )
         return self._maps[layout]
 
     def _edge_gather(self) -> Tuple[np.ndarray, np.ndarray]:
@@ -207,8 +216,12 @@ class CSRPattern:
             raise ValueError(f"values must be (m, 6) = {self.cell_edges.shape}, got {values.shape}")
         E, n = self.n_edges, self.n_nodes
         U = np.bincount(self.cell_edges.ravel(), weights=values.ravel(), minlength=E)
-        diag = np.bincount(self.edges[:, 0], weights=U, minlength=n) + np.bincount(self.edges[:, 1], weights=U, minlength=n)
-        src = self._node_source  # node-pattern order: 0..E-1 upper, E..2E-1 transposed, 2E.. diagonal
+        diag = np.bincount(self.edges[:, 0], weights=U, minlength=n) + np.bincount(
+            self.edges[:, 1], weights=U, minlength=n
+        )
+        src = (
+            self._node_source
+        )  # node-pattern order: 0..E-1 upper, E..2E-1 transposed, 2E.. diagonal
         data = np.concatenate([U, -diag])[np.where(src < E, src, src - E)]
         indptr = self._nodeptr.astype(self.indptr.dtype)
         indices = (self._node_keys % n).astype(self.indices.dtype)
@@ -217,22 +230,28 @@ class CSRPattern:
         return L
 
     def add_scalar_blocks(self, data: np.ndarray, L: sp.csr_matrix) -> None:
-        """data += the entries of L (x) Id, in place: data is the value array of a CSR matrix
-        with this pattern and L comes from :meth:`edge_scalar_matrix` (same node pattern)."""
+        """Data += the entries of L (x) Id, in place: data is the value array of a CSR matrix
+        with this pattern and L comes from :meth:`edge_scalar_matrix` (same node pattern).
+        """
         if L.nnz != len(self._node_keys) or len(data) != self.nnz:
-            raise ValueError(f"L must come from edge_scalar_matrix of this pattern ({len(self._node_keys)} entries, "
-                             f"got {L.nnz}) and data must have {self.nnz} entries (got {len(data)})")
+            raise ValueError(
+                f"L must come from edge_scalar_matrix of this pattern ({len(self._node_keys)} "
+                f"entries, got {L.nnz}) and data must have {self.nnz} entries (got {len(data)})"
+            )
         key = "diag"
         if key not in self._maps:
             pos = self._entry_positions()
-            self._maps[key] = np.ascontiguousarray(np.stack([pos[:, r, r] for r in range(3)], axis=1))  # (P, 3)
+            self._maps[key] = np.ascontiguousarray(
+                np.stack([pos[:, r, r] for r in range(3)], axis=1)
+            )  # (P, 3)
         data[self._maps[key]] += L.data[:, None]
 
     # ------------------------------------------------------------ general route
     @property
     def scatter(self) -> np.ndarray:
         """(m * 144,) position in the data array of each entry of (m, 12, 12) element
-        matrices, in C order (built on first use: 144 indices per cell)."""
+        matrices, in C order (built on first use: 144 indices per cell).
+        """
         if self._scatter is None:
             cells = self.cells
             m = len(cells)
@@ -252,13 +271,16 @@ class CSRPattern:
 
     def assemble_vector(self, element_vectors: np.ndarray) -> np.ndarray:
         """Sum (m, 4, 3) element vectors into an (n, 3) nodal array."""
-        out = np.bincount(self.force_scatter, weights=element_vectors.reshape(-1), minlength=self.n_dofs)
+        out = np.bincount(
+            self.force_scatter, weights=element_vectors.reshape(-1), minlength=self.n_dofs
+        )
         return out.reshape(-1, 3)
 
     def vector_map(self, layout: str = "mak") -> np.ndarray:
         """Global dof of each entry of element vectors stored with axes in ``layout`` order
         (m cell, a node, k component), e.g. "kam" for (3, 4, m) (named in
-        mjed.layout.VectorLayout). Cached."""
+        mjed.layout.VectorLayout). Cached.
+        """
         key = ("vec", layout)
         if key not in self._maps:
             if sorted(layout) != sorted("mak"):
@@ -271,24 +293,30 @@ class CSRPattern:
     def vector_scatter(self, layout: str = "mak") -> sp.csr_matrix:
         """The (3n, 12m) 0/1 matrix summing element vectors stored in ``layout`` order into
         nodal dofs. A sparse matrix-vector product with it is about twice as fast as a
-        weighted bincount (it reads each row's entries contiguously). Cached per layout."""
+        weighted bincount (it reads each row's entries contiguously). Cached per layout.
+        """
         key = ("scatter", layout)
         if key not in self._maps:
             dofs = self.vector_map(layout)
-            self._maps[key] = sp.csr_matrix((np.ones(len(dofs)), (dofs, np.arange(len(dofs)))),
-                                            shape=(self.n_dofs, len(dofs)))
+            self._maps[key] = sp.csr_matrix(
+                (np.ones(len(dofs)), (dofs, np.arange(len(dofs)))), shape=(self.n_dofs, len(dofs))
+            )
         return self._maps[key]
 
     def assemble_vector_layout(self, element_vectors: np.ndarray, layout: str) -> np.ndarray:
         """Like assemble_vector, for element vectors stored with axes in ``layout`` order."""
         if element_vectors.size != 12 * len(self.cells):
-            raise ValueError(f"element vectors must hold 12 values per cell ({12 * len(self.cells)}), "
-                             f"got shape {element_vectors.shape}")
+            raise ValueError(
+                f"element vectors must hold 12 values per cell ({12 * len(self.cells)}), got shape "
+                f"{element_vectors.shape}"
+            )
         return (self.vector_scatter(layout) @ element_vectors.reshape(-1)).reshape(-1, 3)
 
     def _csr(self, data: np.ndarray) -> sp.csr_matrix:
         # Each matrix gets its own copy of the index arrays (50 us on cube-paper), so a caller
         # may change it in place (eliminate_zeros, boundary rows) without touching the pattern.
-        K = sp.csr_matrix((data, self.indices.copy(), self.indptr.copy()), shape=self.shape, copy=False)
+        K = sp.csr_matrix(
+            (data, self.indices.copy(), self.indptr.copy()), shape=self.shape, copy=False
+        )
         K.has_sorted_indices = True
         return K

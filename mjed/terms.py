@@ -3,7 +3,11 @@
 A strain energy density is written as
 
     W = sum_groups c_w * sum_{k in w} f_k(J) g_k(C)          (plain group)
-      + sum_groups c_w * exp(sum_{k in w} f_k(J) g_k(C))     (exponential group)
+      + sum_groups c_w * phi_w(sum_{k in w} f_k(J) g_k(C))   (smooth function of the sum)
+
+with phi_w one of :class:`Exp` (e^u), :class:`Log` (ln(a + u)) or :class:`Power`
+((a + u)^p): a smooth function of a separable sum, whose Hessian is phi' times the sum's
+plus the rank-one phi'' du (x) du.
 
 A :class:`Term` pairs a function of J (:class:`JFunction`, which gives f, f', f'') with a
 function of C (:class:`InvariantFunction`, which gives g, S = 2 dg/dC and dS/dC). The
@@ -20,7 +24,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Literal, Sequence, Tuple, Union
+from typing import Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -39,6 +43,10 @@ __all__ = [
     "LinearI2",
     "GreenLagrangeQuadratic",
     "Term",
+    "SmoothFunction",
+    "Exp",
+    "Log",
+    "Power",
     "TermGroup",
 ]
 
@@ -128,7 +136,8 @@ class InvariantFunction(ABC):
 
     def stress(self, kin: Kinematics) -> Union[np.ndarray, None]:
         """S = 2 dg/dC, (m, 3, 3), or a (3, 3) constant when it is the same in every cell;
-        None when g does not depend on C."""
+        None when g does not depend on C.
+        """
         if type(self).stress_t is InvariantFunction.stress_t:
             return None  # neither form overridden: g does not depend on C
         S = self.stress_t(kin)
@@ -147,7 +156,7 @@ class InvariantFunction(ABC):
         return S if S is None or S.ndim == 2 else np.ascontiguousarray(np.moveaxis(S, 0, -1))
 
     def tangent_coefficients(self, kin: Kinematics) -> Sequence[Scalar]:
-        """beta or gamma for each entry of ``tangent``, each (m,) or a float."""
+        """Beta or gamma for each entry of ``tangent``, each (m,) or a float."""
         return ()
 
 
@@ -165,7 +174,7 @@ class Unity(InvariantFunction):
 
 
 def _scaled_identity_t(s, m: int) -> np.ndarray:
-    """s Id per cell, component-major (3, 3, m); s (m,) or a float."""
+    """S Id per cell, component-major (3, 3, m); s (m,) or a float."""
     out = np.zeros((3, 3, m))
     for i in range(3):
         out[i, i] = s
@@ -219,7 +228,9 @@ class LinearI2(InvariantFunction):
 
 @dataclass(frozen=True)
 class GreenLagrangeQuadratic(InvariantFunction):
-    """g = lam/2 (tr E)^2 + mu tr(E^2): S = lam tr(E) Id + 2 mu E; dS/dC : H = lam/2 tr(H) Id + mu H."""
+    """g = lam/2 (tr E)^2 + mu tr(E^2): S = lam tr(E) Id + 2 mu E; dS/dC : H = lam/2 tr(H) Id +
+    mu H.
+    """
 
     mu: float
     lam: float
@@ -250,10 +261,73 @@ class Term:
     g: InvariantFunction
 
 
+class SmoothFunction(ABC):
+    """phi(u) of a group's sum u, applied per cell."""
+
+    @abstractmethod
+    def __call__(self, u: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """phi(u), phi'(u), phi''(u), each (m,) like u."""
+
+
+@dataclass(frozen=True)
+class Exp(SmoothFunction):
+    """phi = e^u (a shift would only scale the group's coefficient)."""
+
+    def __call__(self, u):
+        e = np.exp(u)
+        return e, e, e
+
+
+@dataclass(frozen=True)
+class Log(SmoothFunction):
+    """phi = ln(shift + u); defined for shift + u > 0 (NaN beyond, as ln J for J <= 0)."""
+
+    shift: float = 0.0
+
+    def __call__(self, u):
+        a = self.shift + u
+        inv = 1.0 / a
+        if not np.all(a > 0.0):  # outside the domain the derivatives are NaN too, like ln itself
+            inv = np.where(a > 0.0, inv, np.nan)
+        with np.errstate(invalid="ignore"):
+            return np.log(a), inv, -inv * inv
+
+
+@dataclass(frozen=True)
+class Power(SmoothFunction):
+    """phi = (shift + u)^p for real p (shift + u > 0 unless p is an integer)."""
+
+    p: float
+    shift: float = 0.0
+
+    def __call__(self, u):
+        a = self.shift + u
+        ap2 = a ** (self.p - 2.0)
+        return ap2 * a * a, self.p * ap2 * a, self.p * (self.p - 1.0) * ap2
+
+
 @dataclass(frozen=True)
 class TermGroup:
-    """Terms whose products are summed; an exponential group contributes c exp(sum)."""
+    """Terms whose products are summed into u; the group contributes c u (plain) or
+    c phi(u) with ``function`` phi. ``exponential=True`` is the same as function=Exp().
+    """
 
     terms: Tuple[Term, ...]
     exponential: bool = False
     coefficient: float = 1.0
+    function: Optional[SmoothFunction] = None
+
+    def __post_init__(self):
+        if self.exponential and self.function not in (None, Exp()):
+            raise ValueError(f"TermGroup: exponential=True contradicts function={self.function!r}")
+        if self.function is not None and not isinstance(self.function, SmoothFunction):
+            raise TypeError(f"TermGroup: function must be a SmoothFunction, got {self.function!r}")
+        if self.exponential:
+            object.__setattr__(self, "function", Exp())
+        elif self.function == Exp():
+            object.__setattr__(self, "exponential", True)
+
+    @property
+    def plain(self) -> bool:
+        """The group contributes c u (no function of the sum)."""
+        return self.function is None

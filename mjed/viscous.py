@@ -66,7 +66,9 @@ class Prony:
         alphas = tuple(float(a) for a in np.atleast_1d(np.asarray(self.alphas, dtype=float)))
         taus = tuple(float(t) for t in np.atleast_1d(np.asarray(self.taus, dtype=float)))
         if len(alphas) != len(taus):
-            raise ValueError(f"alphas and taus must have equal lengths, got {len(alphas)} and {len(taus)}")
+            raise ValueError(
+                f"alphas and taus must have equal lengths, got {len(alphas)} and {len(taus)}"
+            )
         if not alphas:
             raise ValueError("a Prony series needs at least one term (alphas is empty)")
         for i, (a, t) in enumerate(zip(alphas, taus)):
@@ -101,7 +103,9 @@ class Prony:
         """
         w = np.asarray(omega, dtype=float)
         z = np.exp(-1j * w * dt)
-        return 1.0 - sum(a * (dt / tau) / (1.0 + dt / tau - z) for a, tau in zip(self.alphas, self.taus))
+        return 1.0 - sum(
+            a * (dt / tau) / (1.0 + dt / tau - z) for a, tau in zip(self.alphas, self.taus)
+        )
 
 
 def prony_coefficients(prony: Prony, dt: float) -> Tuple[np.ndarray, np.ndarray]:
@@ -122,7 +126,13 @@ class ViscousHistory:
 
 
 #: What the viscous field asks of its hyperelastic body.
-FIELD_METHODS = ("force", "stiffness", "force_and_stiffness", "stress", "force_stiffness_and_stress")
+FIELD_METHODS = (
+    "force",
+    "stiffness",
+    "force_and_stiffness",
+    "stress",
+    "force_stiffness_and_stress",
+)
 
 
 class ViscoHyperelasticForceField:
@@ -142,20 +152,38 @@ class ViscoHyperelasticForceField:
     relaxed at rest).
     """
 
-    def __init__(self, field, material: Optional[Material] = None, *, prony: Prony, dt: Optional[float] = None,
-                 regularize: bool = False, allow_inverted: bool = False):
+    def __init__(
+        self,
+        field,
+        material: Optional[Material] = None,
+        *,
+        prony: Prony,
+        dt: Optional[float] = None,
+        regularize: bool = False,
+        allow_inverted: bool = False,
+    ):
         if isinstance(field, TetMesh):
             if material is None:
-                raise ValueError("give a material with a mesh (or a hyperelastic force field alone)")
-            field = HyperelasticForceField(field, material, regularize=regularize, allow_inverted=allow_inverted)
+                raise ValueError(
+                    "give a material with a mesh (or a hyperelastic force field alone)"
+                )
+            field = HyperelasticForceField(
+                field, material, regularize=regularize, allow_inverted=allow_inverted
+            )
         elif material is not None:
             raise ValueError("material is given by the force field; do not pass it again")
         else:
             missing = [name for name in FIELD_METHODS if not callable(getattr(field, name, None))]
-            if missing or not isinstance(getattr(field, "mesh", None), TetMesh) or not hasattr(field, "pattern"):
-                raise TypeError(f"field must be a hyperelastic force field (mesh, pattern and {', '.join(FIELD_METHODS)}) "
-                                f"or a TetMesh; {type(field).__name__} lacks "
-                                f"{', '.join(missing) or 'a TetMesh mesh or a pattern'}")
+            if (
+                missing
+                or not isinstance(getattr(field, "mesh", None), TetMesh)
+                or not hasattr(field, "pattern")
+            ):
+                raise TypeError(
+                    "field must be a hyperelastic force field (mesh, pattern and "
+                    f"{', '.join(FIELD_METHODS)}) or a TetMesh; {type(field).__name__} lacks "
+                    f"{', '.join(missing) or 'a TetMesh mesh or a pattern'}"
+                )
         if not isinstance(prony, Prony):
             raise TypeError(f"prony must be a Prony, got {type(prony).__name__}")
         self.field = field
@@ -168,7 +196,9 @@ class ViscoHyperelasticForceField:
         # force_and_stiffness is already computed (used once, then dropped).
         self._cache: Optional[Tuple[np.ndarray, np.ndarray, sp.csr_matrix]] = None
         self._KQ: Optional[sp.csr_matrix] = None  # the history's stiffness, rebuilt when Q changes
-        self._Dt = np.ascontiguousarray(self.mesh.D.transpose(2, 1, 0))  # rest shape vectors (3, 4, m)
+        self._Dt = np.ascontiguousarray(
+            self.mesh.D.transpose(2, 1, 0)
+        )  # rest shape vectors (3, 4, m)
         self.dt: Optional[float] = None
         self._a = self._b = None
         if dt is not None:
@@ -206,7 +236,9 @@ class ViscoHyperelasticForceField:
         if saved is None:
             raise ValueError("no saved history: call save_history() first")
         if saved.gammas.shape != self.gammas.shape:
-            raise ValueError(f"saved history has shape {saved.gammas.shape}, expected {self.gammas.shape}")
+            raise ValueError(
+                f"saved history has shape {saved.gammas.shape}, expected {self.gammas.shape}"
+            )
         self.gammas = saved.gammas.copy()
         self.steps = saved.steps
         self._KQ = None
@@ -220,7 +252,8 @@ class ViscoHyperelasticForceField:
     def history_stiffness(self) -> sp.csr_matrix:
         """L_Q, (n, n) CSR: the tangent of the constant stress -Q is K_Q = L_Q (x) Id, blocks
         -V (D_a . Q D_b) Id (mjed.sparse.CSRPattern.edge_scalar_matrix); its force is
-        -K_Q x. Kept until the history or dt changes."""
+        -K_Q x. Kept until the history or dt changes.
+        """
         if self._KQ is None:
             # Component-major (cell axis last): each product runs over all cells at once, far
             # faster than an einsum over (m, 3, 3) matrices.
@@ -265,11 +298,13 @@ class ViscoHyperelasticForceField:
         return self.history_stiffness() @ x
 
     def _combine(self, K: sp.csr_matrix) -> sp.csr_matrix:
-        """c K + K_Q, in place in K (a fresh matrix with the field's pattern)."""
+        """C K + K_Q, in place in K (a fresh matrix with the field's pattern)."""
         pattern = self.field.pattern
         if K.nnz != pattern.nnz or not np.array_equal(K.indptr, pattern.indptr):
-            raise ValueError(f"the force field's stiffness does not have its pattern's structure ({K.nnz} entries, "
-                             f"pattern {pattern.nnz}); the viscous field adds its history in place")
+            raise ValueError(
+                f"the force field's stiffness does not have its pattern's structure ({K.nnz} "
+                f"entries, pattern {pattern.nnz}); the viscous field adds its history in place"
+            )
         K.data *= self._scale()
         pattern.add_scalar_blocks(K.data, self.history_stiffness())
         return K

@@ -14,7 +14,8 @@ over elements: CC as (m, 6, 6), B as (m, 6, 12), K_e = B^T (CC B) by batched mat
 geometry (mjed.mesh.TetMesh: D, V0) and the CSR scatter (mjed.sparse.CSRPattern) are shared
 with mjed; no MJED term code is used.
 
-Conventions (docs/conventions.md): f = -dW/dx (n, 3); K = d2W/dx2, CSR (3n, 3n), dof = 3 node + comp.
+Conventions (docs/conventions.md): f = -dW/dx (n, 3); K = d2W/dx2, CSR (3n, 3n), dof = 3 node +
+comp.
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ from reference_fem.classical_materials import VI, VJ, ClassicalLaw, classical_la
 __all__ = ["ClassicalGalerkin", "strain_displacement"]
 
 
-def strain_displacement(F: np.ndarray, D: np.ndarray, out: "np.ndarray | None" = None) -> np.ndarray:
+def strain_displacement(
+    F: np.ndarray, D: np.ndarray, out: "np.ndarray | None" = None
+) -> np.ndarray:
     """The Total Lagrangian B matrices of all nodes, stacked as (m, 6, 12).
 
     Column 3 a + k of cell m is B_a[:, k]: dE_eng = B @ dx_e with dx_e the (12,) element
@@ -40,7 +43,8 @@ def strain_displacement(F: np.ndarray, D: np.ndarray, out: "np.ndarray | None" =
     out: optional (m, 6, 12) array to write into.
     """
     m = len(F)
-    # F[:, :, VI] is (m, 3, 6) with [k, I] = F_k,i(I); D[:, :, VJ] is (m, 4, 6) with [a, I] = D_a,j(I).
+    # F[:, :, VI] is (m, 3, 6) with [k, I] = F_k,i(I); D[:, :, VJ] is (m, 4, 6) with [a, I] =
+    # D_a,j(I).
     Fi, Fj = np.swapaxes(F[:, :, VI], 1, 2), np.swapaxes(F[:, :, VJ], 1, 2)  # (m, 6, 3)
     Di, Dj = np.swapaxes(D[:, :, VI], 1, 2), np.swapaxes(D[:, :, VJ], 1, 2)  # (m, 6, 4)
     B = (np.empty((m, 6, 12)) if out is None else out).reshape(m, 6, 4, 3)
@@ -56,9 +60,8 @@ class ClassicalGalerkin:
     Args:
         points: (n, 3) rest positions.
         cells: (m, 4) positively oriented P1 tetrahedra.
-        material: an mjed material (StVenantKirchhoff, NeoHookean, MooneyRivlin,
-            VerondaWestmann, ArrudaBoyce, Costa, Ogden); dispatched on its type (classical_law) and
-            read through its attributes. Ogden's ``tangent`` option is ignored (always exact).
+        material: a declared mjed material (mjed.materials); its law is the form its declaration
+            gives (classical_law). Ogden's ``tangent`` option is ignored (always exact).
         fix_orientation: passed to mjed.TetMesh.
 
     ``points`` may also be an mjed.TetMesh, with ``cells=None``, to share one validated mesh.
@@ -76,7 +79,9 @@ class ClassicalGalerkin:
         self.material = material
         frame = getattr(material, "frame", None)
         if frame is not None and np.ndim(frame) == 3 and len(frame) != self.mesh.n_cells:
-            raise ValueError(f"Costa frame has {len(frame)} rotations for {self.mesh.n_cells} cells")
+            raise ValueError(
+                f"Costa frame has {len(frame)} rotations for {self.mesh.n_cells} cells"
+            )
         self.law: ClassicalLaw = classical_law(material)
         self._pattern: "CSRPattern | None" = None
         # Work arrays of force_and_stiffness / stiffness, kept between calls: the same memory
@@ -133,9 +138,11 @@ class ClassicalGalerkin:
         if not np.isfinite(x).all():
             raise ValueError("positions must be finite")
         F = np.swapaxes(x[self.mesh.cells], 1, 2) @ self.mesh.D  # F_ki = sum_a x_a,k D_a,i
-        J = (F[:, 0, 0] * (F[:, 1, 1] * F[:, 2, 2] - F[:, 1, 2] * F[:, 2, 1])
-             - F[:, 0, 1] * (F[:, 1, 0] * F[:, 2, 2] - F[:, 1, 2] * F[:, 2, 0])
-             + F[:, 0, 2] * (F[:, 1, 0] * F[:, 2, 1] - F[:, 1, 1] * F[:, 2, 0]))
+        J = (
+            F[:, 0, 0] * (F[:, 1, 1] * F[:, 2, 2] - F[:, 1, 2] * F[:, 2, 1])
+            - F[:, 0, 1] * (F[:, 1, 0] * F[:, 2, 2] - F[:, 1, 2] * F[:, 2, 0])
+            + F[:, 0, 2] * (F[:, 1, 0] * F[:, 2, 1] - F[:, 1, 1] * F[:, 2, 0])
+        )
         bad = np.flatnonzero(~(J > 0))
         if len(bad):
             raise InvertedElementError(bad, J[bad], context="at the given positions")
@@ -155,14 +162,17 @@ class ClassicalGalerkin:
 
     def _element_force_and_stiffness(self, x, reuse: bool = False):
         """reuse: write B, CC B and K_e into kept work arrays (K_e is then only valid until
-        the next call: for callers that assemble it at once)."""
+        the next call: for callers that assemble it at once).
+        """
         F, J = self._kinematics(x)
         S, CC = self.law.stress_and_tangent(np.swapaxes(F, 1, 2) @ F, J)
         D, V0 = self.mesh.D, self.mesh.volumes
         m = len(F)
         B = strain_displacement(F, D, out=self._buffer("B", (m, 6, 12), reuse))  # (m, 6, 12)
         CB = np.matmul(CC, B, out=self._buffer("CB", (m, 6, 12), reuse))
-        K = np.matmul(np.swapaxes(B, 1, 2), CB, out=self._buffer("K", (m, 12, 12), reuse))  # material part
+        K = np.matmul(
+            np.swapaxes(B, 1, 2), CB, out=self._buffer("K", (m, 12, 12), reuse)
+        )  # material part
         G = D @ S @ np.swapaxes(D, 1, 2)  # (m, 4, 4): D_a . S D_b
         K4 = K.reshape(m, 4, 3, 4, 3)
         for k in range(3):

@@ -37,22 +37,50 @@ The generated ``classical_cells`` takes the arguments of :data:`KERNEL_SIGNATURE
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
-from mjed.compiled.codegen import EDGES, Source, add, gather_cell, mul, scatter_edge_block, write_kernel_module
+from mjed.compiled.codegen import (
+    EDGES,
+    Source,
+    add,
+    gather_cell,
+    mul,
+    scatter_edge_block,
+    write_kernel_module,
+)
+from mjed.materials.classical_forms import IsochoricPsi
 
-__all__ = ["LawShape", "classical_source", "KERNEL_SIGNATURE", "LAWS", "PSIS"]
+__all__ = ["LawShape", "classical_source", "KERNEL_SIGNATURE", "LAWS"]
 
-#: The law kinds and the isochoric parts of the decoupled law.
+#: The law kinds.
 LAWS = ("svk", "neohooke", "decoupled", "ogden", "costa")
-PSIS = ("mooney", "veronda", "arruda")
 
 #: The arguments of the generated ``classical_cells``, in order.
-KERNEL_SIGNATURE = ("x", "cells", "D", "V0", "P", "Tt", "want_force", "want_stiffness", "cell_edges", "cell_flip",
-                    "U", "Dg", "src", "blkptr", "indptr", "force", "data", "J_out")
+KERNEL_SIGNATURE = (
+    "x",
+    "cells",
+    "D",
+    "V0",
+    "P",
+    "Tt",
+    "want_force",
+    "want_stiffness",
+    "cell_edges",
+    "cell_flip",
+    "U",
+    "Dg",
+    "src",
+    "blkptr",
+    "indptr",
+    "force",
+    "data",
+    "J_out",
+)
 
-_KERNEL_DOC = '''"""Energy, forces and stiffness of every cell by the classical Galerkin, for one law.
+_KERNEL_DOC = '''"""Energy, forces and stiffness of every cell by the classical Galerkin, for one
+law.
 
 x (n, 3) positions; cells (m, 4); D (m, 4, 3) rest shape vectors; V0 (m,) rest volumes;
 P (k,) the law's parameters (reference_fem.classical_compiled.lower_law); Tt (1 or m, 6, 6)
@@ -74,11 +102,14 @@ UPPER6 = [(I, K) for I in range(6) for K in range(I, 6)]
 @dataclass(frozen=True)
 class LawShape:
     """What changes the code of a classical kernel: the law kind (one of :data:`LAWS`), the
-    isochoric part of a decoupled law (one of :data:`PSIS`, else None) and whether Costa's
-    tensor is one per cell. The law's numbers stay arguments (P, Tt)."""
+    isochoric Psi of a decoupled law (a material's declared function, else None), the names
+    of the parameters that Psi reads, and whether Costa's tensor is one per cell. The law's
+    numbers stay arguments (P, Tt).
+    """
 
     law: str
-    psi: Optional[str] = None
+    psi: Optional[IsochoricPsi] = None
+    psi_parameters: Tuple[str, ...] = ()
     per_cell_T: bool = False
 
 
@@ -107,7 +138,7 @@ class _Classical:
     """Writes the kernel of one law shape; each method writes one part of the cell loop."""
 
     def __init__(self, shape: LawShape):
-        if shape.law not in LAWS or (shape.law == "decoupled") != (shape.psi in PSIS):
+        if shape.law not in LAWS or (shape.law == "decoupled") != (shape.psi is not None):
             raise ValueError(f"no classical kernel for {shape!r}")
         self.shape = shape
         self.src = Source()
@@ -124,19 +155,8 @@ class _Classical:
         elif law == "decoupled":
             s("k0 = P[0]")
             s("tk0 = 2.0 * k0")
-            if self.shape.psi == "arruda":  # a_i (I1b^i - 3^i): i a_i and i (i-1) a_i for the derivatives
-                for i in range(1, 6):
-                    s(f"a{i} = P[{1 + i}]")
-                    s(f"da{i} = {float(i)!r} * a{i}")
-                    if i > 1:
-                        s(f"dda{i} = {float(i * (i - 1))!r} * a{i}")
-                s("a3sum = " + " + ".join(f"a{i} * {3.0 ** i!r}" for i in range(1, 6)))
-            else:
-                s("c1, c2 = P[1], P[2]")
-                if self.shape.psi == "veronda":
-                    s("c12 = c1 * c2")
-                    s("c122 = c12 * c2")
-                    s("p2 = -0.5 * c12")
+            # hoists what depends on the parameters only
+            self.psi_calls, self.psi_cell = _declared_psi(s, self.shape)
         elif law == "ogden":
             s("c, q, r, alpha, k0 = P[0], P[1], P[2], P[3], P[4]")
             s("qm1 = q - 1.0")
@@ -158,7 +178,10 @@ class _Classical:
     def kinematics(self) -> None:
         s = self.src
         gather_cell(s)
-        s("J = F00 * (F11 * F22 - F12 * F21) - F01 * (F10 * F22 - F12 * F20) + F02 * (F10 * F21 - F11 * F20)")
+        s(
+            "J = F00 * (F11 * F22 - F12 * F21) - F01 * (F10 * F22 - F12 * F20) + F02 * (F10 * F21 "
+            "- F11 * F20)"
+        )
         s("J_out[e] = J")
         for i, j in VOIGT:
             s(f"{_c(i, j)} = F0{i} * F0{j} + F1{i} * F1{j} + F2{i} * F2{j}")
@@ -179,12 +202,17 @@ class _Classical:
 
     def odot(self) -> Sym6:
         """C^-1 (.) C^-1, (A_ik A_jl + A_il A_jk) / 2 for I = (i, j), K = (k, l); where both
-        products are the same it is that product (exact: 0.5 (p + p) = p)."""
+        products are the same it is that product (exact: 0.5 (p + p) = p).
+        """
         out = {}
         for I, K in UPPER6:
             (i, j), (k, l) = VOIGT[I], VOIGT[K]
             p1, p2 = sorted((_ci(i, k), _ci(j, l))), sorted((_ci(i, l), _ci(j, k)))
-            expr = f"{p1[0]} * {p1[1]}" if p1 == p2 else f"0.5 * ({p1[0]} * {p1[1]} + {p2[0]} * {p2[1]})"
+            expr = (
+                f"{p1[0]} * {p1[1]}"
+                if p1 == p2
+                else f"0.5 * ({p1[0]} * {p1[1]} + {p2[0]} * {p2[1]})"
+            )
             out[I, K] = self.src.let(f"od{I}{K}", expr)
         return out
 
@@ -204,13 +232,20 @@ class _Classical:
         for I, (i, j) in enumerate(VOIGT):
             s(f"E{I} = 0.5 * ({_c(i, j)} - 1.0)" if i == j else f"E{I} = 0.5 * {_c(i, j)}")
         s("trE = 0.5 * (C00 + C11 + C22) - 1.5")
-        W = s.let("W", "hlm * trE * trE + mu * (E0 * E0 + E1 * E1 + E2 * E2 + 2.0 * (E3 * E3 + E4 * E4 + E5 * E5))")
+        W = s.let(
+            "W",
+            "hlm * trE * trE + mu * (E0 * E0 + E1 * E1 + E2 * E2 + 2.0 * (E3 * E3 + E4 * E4 + E5 * "
+            "E5))",
+        )
         s("lt = lm * trE")
         return W, [f"tmu * E{I} + lt" if I < 3 else f"tmu * E{I}" for I in range(6)]
 
     def _svk_tangent(self) -> Sym6:
         # lm I (x) I + 2 mu II: constant, nine of 21 entries non-zero
-        return {(I, K): ("lm2mu" if I == K else "lm") if K < 3 else ("mu" if I == K else None) for I, K in UPPER6}
+        return {
+            (I, K): ("lm2mu" if I == K else "lm") if K < 3 else ("mu" if I == K else None)
+            for I, K in UPPER6
+        }
 
     def _neohooke_stress(self) -> Tuple[str, Vec6]:
         s = self.src
@@ -226,34 +261,33 @@ class _Classical:
         return {(I, K): add(mul("lm", ci[I], ci[K]), mul("sb", od[I, K])) for I, K in UPPER6}
 
     def _psi(self) -> Tuple[str, Expr, Expr, Expr]:
-        """Psi(I1b, I2b) and its non-zero derivatives Psi_1, Psi_2, Psi_11 (Psi_12 = Psi_22 = 0
-        for the three laws); returns the names of (Psi, Psi_1, Psi_2, Psi_11)."""
-        s, psi = self.src, self.shape.psi
-        if psi == "mooney":
-            s("psi_v = c1 * (I1b - 3.0) + c2 * (I2b - 3.0)")
-            return "psi_v", "c1", "c2", None
-        if psi == "veronda":
-            s("ex = math.exp(c2 * (I1b - 3.0))")
-            s("psi_v = c1 * (ex - 1.0) + p2 * (I2b - 3.0)")
-            return "psi_v", s.let("p1", "c12 * ex"), "p2", s.let("p11", "c122 * ex")
-        # Arruda-Boyce: the powers of I1b by products
-        s("b2 = I1b * I1b")
-        s("b3 = b2 * I1b")
-        s("b4 = b3 * I1b")
-        s("psi_v = a1 * I1b + a2 * b2 + a3 * b3 + a4 * b4 + a5 * (b4 * I1b) - a3sum")
-        s("p1 = da1 + da2 * I1b + da3 * b2 + da4 * b3 + da5 * b4")
-        s("p11 = dda2 + dda3 * I1b + dda4 * b2 + dda5 * b3")
-        return "psi_v", "p1", None, "p11"
+        """Psi(I1b, I2b) and its derivatives Psi_1, Psi_2, Psi_11 written into the cell loop
+        (the decoupled tangent below takes Psi_12 = Psi_22 = 0); returns their names.
+        """
+        s = self.src
+        for name, call in self.psi_calls:
+            s(f"{name} = {call}")
+        psi_v, p1, p2, p11, p12, p22 = self.psi_cell
+        if p12 is not None or p22 is not None:
+            raise NotImplementedError(
+                f"{self.shape.psi!r}: the compiled decoupled law needs Psi_12 = Psi_22 = 0"
+            )
+        return s.let("psi_v", psi_v), s.let("p1", p1), s.let("p2", p2), s.let("p11", p11)
 
     def _decoupled_stress(self) -> Tuple[str, Vec6]:
         """S_iso = J^(-2/3) Sb - tr/3 C^-1, Sb = 2 (Psi1 + I1b Psi2) I - 2 Psi2 Cb, plus
-        S_vol = k0 ln J C^-1."""
+        S_vol = k0 ln J C^-1.
+        """
         s = self.src
         s("I1 = C00 + C11 + C22")
         s("j23 = J ** (-2.0 / 3.0)")
         s("I1b = j23 * I1")
-        if self.shape.psi != "arruda":
-            s("I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C12 * C12 + C02 * C02)))")
+        reads = [e for e in self.psi_cell if e is not None] + [c for _, c in self.psi_calls]
+        if any("I2b" in e for e in reads):
+            s(
+                "I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C12 "
+                "* C12 + C02 * C02)))"
+            )
             s("I2b = j23 * j23 * I2")
         psi_v, p1, p2, p11 = self._psi()
         self.p2, self.p11 = p2, p11
@@ -264,7 +298,7 @@ class _Classical:
         m2 = s.let("m2", mul("-2.0", p2, "j23", "j23")) if p2 else None
         jSb = [add(mul(m2, cv[I]), sn if I < 3 else None) for I in range(6)]
         weights = ["1.0", "1.0", "1.0", "2.0", "2.0", "2.0"]
-        tr = s.let("tr", add(*[mul(weights[I], jSb[I], cv[I]) for I in range(6)]))
+        s.let("tr", add(*[mul(weights[I], jSb[I], cv[I]) for I in range(6)]))
         s("tr3 = tr * (1.0 / 3.0)")
         ci = self.ci()
         self.Siso = [s.let(f"Si{I}", add(jSb[I], neg(mul("tr3", ci[I])))) for I in range(6)]
@@ -275,29 +309,50 @@ class _Classical:
         """CC = P CCb P^T + 2/3 tr (C^-1 (.) C^-1 - C^-1 (x) C^-1 / 3) - 2/3 (C^-1 (x) S_iso +
         S_iso (x) C^-1) + k0 C^-1 (x) C^-1 - 2 k0 ln J C^-1 (.) C^-1, with P = Id - C^-1 (x) w,
         w = W o C / 3 (Voigt weights W), so P CCb P^T = CCb - C^-1 (x) v - v (x) C^-1
-        + (w . v) C^-1 (x) C^-1, v = CCb w: all rank-one updates."""
+        + (w . v) C^-1 (x) C^-1, v = CCb w: all rank-one updates.
+        """
         s = self.src
         p2, p11 = self.p2, self.p11
         # CCb = j43 [a I (x) I + 4 Psi22 Cb (x) Cb - 4 Psi2 II] (Psi12 = Psi22 = 0 here)
         s("j43 = j23 * j23")
         ja = s.let("ja", mul("4.0", "j43", add(p11, p2)))
-        jp = s.let("jp", mul("-4.0", "j43", p2)) if p2 else None  # -4 j43 Psi2 on the normal diagonal
-        hjp = s.let("hjp", mul("0.5", jp)) if jp else None  # and half of it on the shear one (II = 1/2)
+        jp = (
+            s.let("jp", mul("-4.0", "j43", p2)) if p2 else None
+        )  # -4 j43 Psi2 on the normal diagonal
+        hjp = (
+            s.let("hjp", mul("0.5", jp)) if jp else None
+        )  # and half of it on the shear one (II = 1/2)
         CCb: Sym6 = {}
         for I, K in UPPER6:
-            CCb[I, K] = s.let(f"Cb{I}{K}", add(ja if K < 3 else None, (jp if I < 3 else hjp) if I == K else None))
+            CCb[I, K] = s.let(
+                f"Cb{I}{K}", add(ja if K < 3 else None, (jp if I < 3 else hjp) if I == K else None)
+            )
         cv = [_c(i, j) for i, j in VOIGT]
-        w = [s.let(f"w{L}", mul("0.3333333333333333" if L < 3 else "0.6666666666666666", cv[L])) for L in range(6)]
+        w = [
+            s.let(f"w{L}", mul("0.3333333333333333" if L < 3 else "0.6666666666666666", cv[L]))
+            for L in range(6)
+        ]
         v = [s.let(f"v{I}", add(*[mul(cc(CCb, I, L), w[L]) for L in range(6)])) for I in range(6)]
         wv = add(*[mul(w[L], v[L]) for L in range(6)])
         s(f"alpha = {wv or '0.0'} - (2.0 / 9.0) * tr + k0")
         s("beta = (2.0 / 3.0) * tr - tk0 * L")
         ci = self.ci()
         # u = -(v + 2/3 S_iso): the coefficient of the symmetric outer product with C^-1
-        u = [s.let(f"u{I}", neg(add(v[I], mul("0.6666666666666666", self.Siso[I])))) for I in range(6)]
+        u = [
+            s.let(f"u{I}", neg(add(v[I], mul("0.6666666666666666", self.Siso[I]))))
+            for I in range(6)
+        ]
         od = self.odot()
-        return {(I, K): add(cc(CCb, I, K), mul(ci[I], u[K]), mul(u[I], ci[K]), mul("alpha", ci[I], ci[K]),
-                            mul("beta", od[I, K])) for I, K in UPPER6}
+        return {
+            (I, K): add(
+                cc(CCb, I, K),
+                mul(ci[I], u[K]),
+                mul(u[I], ci[K]),
+                mul("alpha", ci[I], ci[K]),
+                mul("beta", od[I, K]),
+            )
+            for I, K in UPPER6
+        }
 
     def _ogden_stress(self) -> Tuple[str, Vec6]:
         """S_iso = sum_i 2 w_i N_i (x) N_i, w_i = c P (q lam_i^(q-1) + r Sigma / lam_i)."""
@@ -305,7 +360,10 @@ class _Classical:
         s("eig = eigh3_sym(C00, C01, C02, C11, C12, C22)")
         s("lam0, lam1, lam2 = eig[0], eig[1], eig[2]")
         for i in range(3):  # N{i}{n}: component i of eigenvector n
-            s(", ".join(f"N{i}{n}" for n in range(3)) + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]")
+            s(
+                ", ".join(f"N{i}{n}" for n in range(3))
+                + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]"
+            )
         for n in range(3):
             s(f"lq{n} = lam{n} ** qm1")
             s(f"il{n} = 1.0 / lam{n}")
@@ -324,7 +382,9 @@ class _Classical:
         return W, [f"M{I}0 * tw0 + M{I}1 * tw1 + M{I}2 * tw2 + kL * {ci[I]}" for I in range(6)]
 
     def _ogden_tangent(self) -> Sym6:
-        """sum_ij 4 c P H_ij M_i (x) M_j + sum_{i<j} theta_ij G_ij (x) G_ij + the volumetric part."""
+        """sum_ij 4 c P H_ij M_i (x) M_j + sum_{i<j} theta_ij G_ij (x) G_ij + the volumetric
+        part.
+        """
         s = self.src
         s("c4 = 4.0 * cP")
         for n in range(3):
@@ -342,7 +402,7 @@ class _Classical:
         out = {(I, K): f"MH{I}0 * M{K}0 + MH{I}1 * M{K}1 + MH{I}2 * M{K}2" for I, K in UPPER6}
         for p, (i, j) in enumerate(((0, 1), (1, 2), (0, 2))):
             s(f"t = math.log(lam{i} / lam{j})")
-            s(f"ratio = qm1 if t == 0.0 else math.expm1(qm1 * t) / math.expm1(t)")
+            s("ratio = qm1 if t == 0.0 else math.expm1(qm1 * t) / math.expm1(t)")
             s(f"th{p} = 2.0 * cP * (q * lq{j} * il{j} * ratio - rs * il{i} * il{j})")
             for I, (k, l) in enumerate(VOIGT):
                 s(f"G{p}_{I} = N{k}{i} * N{l}{j} + N{k}{j} * N{l}{i}")
@@ -350,8 +410,15 @@ class _Classical:
         od = self.odot()
         ci = self.ci()
         s("mkL = -tk0 * L")
-        return {(I, K): add(out[I, K], *[f"tG{p}_{I} * G{p}_{K}" for p in range(3)], mul("k0", ci[I], ci[K]),
-                            mul("mkL", od[I, K])) for I, K in UPPER6}
+        return {
+            (I, K): add(
+                out[I, K],
+                *[f"tG{p}_{I} * G{p}_{K}" for p in range(3)],
+                mul("k0", ci[I], ci[K]),
+                mul("mkL", od[I, K]),
+            )
+            for I, K in UPPER6
+        }
 
     def _costa_stress(self) -> Tuple[str, Vec6]:
         """Q = 1/2 E : T : E, q = T : E; S = Psi_Q q + J Psi_J C^-1."""
@@ -359,7 +426,9 @@ class _Classical:
         if self.shape.per_cell_T:
             self._load_T("e")
         T = {ik: f"T{ik[0]}{ik[1]}" for ik in UPPER6}
-        for I, (i, j) in enumerate(VOIGT):  # engineering strain: the shear entries are 2 E_ij = C_ij
+        for I, (i, j) in enumerate(
+            VOIGT
+        ):  # engineering strain: the shear entries are 2 E_ij = C_ij
             s(f"ee{I} = 0.5 * ({_c(i, j)} - 1.0)" if i == j else f"ee{I} = {_c(i, j)}")
         for I in range(6):
             s(f"qv{I} = " + " + ".join(f"{cc(T, I, K)} * ee{K}" for K in range(6)))
@@ -382,8 +451,14 @@ class _Classical:
         s("cB = -2.0 * JpJ")
         od = self.odot()
         ci = self.ci()
-        return {(I, K): f"pQQ * qv{I} * qv{K} + JpQJ * (qv{I} * {ci[K]} + {ci[I]} * qv{K}) + pQ * T{I}{K} "
-                        f"+ cA * {ci[I]} * {ci[K]} + cB * {od[I, K]}" for I, K in UPPER6}
+        return {
+            (
+                I,
+                K,
+            ): f"pQQ * qv{I} * qv{K} + JpQJ * (qv{I} * {ci[K]} + {ci[I]} * qv{K}) + pQ * T{I}{K} "
+            f"+ cA * {ci[I]} * {ci[K]} + cB * {od[I, K]}"
+            for I, K in UPPER6
+        }
 
     # ---- the element: force, B, CC B, the blocks, the scatter
     def force(self, S: Vec6) -> None:
@@ -392,7 +467,10 @@ class _Classical:
         Sv = [s.let(f"Sv{I}", mul("vol", S[I])) for I in range(6)]
         for a in range(4):
             for i in range(3):
-                s(f"SD{a}{i} = " + (add(*[mul(Sv[_V[i, k]], f"D{a}{k}") for k in range(3)]) or "0.0"))
+                s(
+                    f"SD{a}{i} = "
+                    + (add(*[mul(Sv[_V[i, k]], f"D{a}{k}") for k in range(3)]) or "0.0")
+                )
         with s.block("if want_force:"):
             for a in range(4):
                 for k in range(3):
@@ -401,17 +479,31 @@ class _Classical:
     def stiffness(self, CC: Sym6) -> None:
         s = self.src
         CCv = {ik: s.let(f"CCv{ik[0]}{ik[1]}", mul("vol", CC[ik])) for ik in UPPER6}
-        for a in range(4):  # B_a[I, k] = D_a,j F_k,i + D_a,i F_k,j for I = (i, j) (once on the diagonal)
+        for a in range(
+            4
+        ):  # B_a[I, k] = D_a,j F_k,i + D_a,i F_k,j for I = (i, j) (once on the diagonal)
             for I, (i, j) in enumerate(VOIGT):
                 for k in range(3):
-                    s(f"B{a}_{I}{k} = " + (f"D{a}{i} * F{k}{i}" if i == j else f"D{a}{j} * F{k}{i} + D{a}{i} * F{k}{j}"))
+                    s(
+                        f"B{a}_{I}{k} = "
+                        + (
+                            f"D{a}{i} * F{k}{i}"
+                            if i == j
+                            else f"D{a}{j} * F{k}{i} + D{a}{i} * F{k}{j}"
+                        )
+                    )
         for b in range(4):  # CB_b = V0 CC B_b
             for I in range(6):
                 for l in range(3):
-                    s(f"CB{b}_{I}{l} = " + (add(*[mul(cc(CCv, I, L), f"B{b}_{L}{l}") for L in range(6)]) or "0.0"))
+                    s(
+                        f"CB{b}_{I}{l} = "
+                        + (add(*[mul(cc(CCv, I, L), f"B{b}_{L}{l}") for L in range(6)]) or "0.0")
+                    )
 
         def block(a: int, b: int, k: int, l: int) -> str:
-            return add(*[f"B{a}_{I}{k} * CB{b}_{I}{l}" for I in range(6)], f"g{a}{b}" if k == l else None)
+            return add(
+                *[f"B{a}_{I}{k} * CB{b}_{I}{l}" for I in range(6)], f"g{a}{b}" if k == l else None
+            )
 
         for a in range(4):
             for b in range(a, 4):
@@ -442,13 +534,157 @@ class _Classical:
                 with s.block("if want_stiffness:"):
                     self.stiffness(self.tangent())
 
-        write_kernel_module(s, "Classical Galerkin kernel generated by reference_fem.classical_codegen for one law; "
-                               f"do not edit.\n\nshape: {self.shape!r}",
-                            ["from mjed.compiled.kernels import JIT_OPTIONS, eigh3_sym, write_csr"], "classical_cells",
-                            KERNEL_SIGNATURE, _KERNEL_DOC, self.parameters, cell)
+        write_kernel_module(
+            s,
+            "Classical Galerkin kernel generated by reference_fem.classical_codegen for one law; "
+            f"do not edit.\n\nshape: {self.shape!r}",
+            ["from mjed.compiled.kernels import JIT_OPTIONS, eigh3_sym, write_csr"],
+            "classical_cells",
+            KERNEL_SIGNATURE,
+            _KERNEL_DOC,
+            self.parameters,
+            cell,
+        )
         return s.text()
 
 
+class _Sym:
+    """An expression of the generated source, written by evaluating a declared Psi on it.
+
+    ``const`` marks an expression of the parameters only: when it meets a per-cell one, it is
+    named before the loop (:class:`_Hoist`), so the loop computes no parameter arithmetic.
+    """
+
+    def __init__(self, text: str, const: bool, hoist: "_Hoist"):
+        self.text, self.const, self.hoist = text, const, hoist
+
+    def _wrap(self, other) -> "_Sym":
+        if isinstance(other, _Sym):
+            return other
+        # an int stays an int: I1b ** 2 is then formed by a product
+        text = repr(other) if isinstance(other, int) else repr(float(other))
+        return _Sym(text, True, self.hoist)
+
+    def _op(self, a, b, op: str) -> "_Sym":
+        a, b = self._wrap(a), self._wrap(b)
+        if op == "+" and a.text in ("0", "0.0"):  # what sum() starts from
+            return b
+        if a.const and b.const:
+            return _Sym(f"({a.text} {op} {b.text})", True, self.hoist)
+        text = f"({self.hoist(a)} {op} {self.hoist(b)})"
+        if op == "*" and not a.const and not b.const:  # a power of cell values, e.g. I1b^2:
+            return _Sym(self.hoist.cell(text), False, self.hoist)  # formed once, then reused
+        return _Sym(text, False, self.hoist)
+
+    def __add__(self, o):
+        return self._op(self, o, "+")
+
+    def __radd__(self, o):
+        return self._op(o, self, "+")
+
+    def __sub__(self, o):
+        return self._op(self, o, "-")
+
+    def __rsub__(self, o):
+        return self._op(o, self, "-")
+
+    def __mul__(self, o):
+        return self._op(self, o, "*")
+
+    def __rmul__(self, o):
+        return self._op(o, self, "*")
+
+    def __truediv__(self, o):
+        return self._op(self, o, "/")
+
+    def __rtruediv__(self, o):
+        return self._op(o, self, "/")
+
+    def __pow__(self, o):
+        return self._op(self, o, "**")
+
+    def __rpow__(self, o):
+        return self._op(o, self, "**")
+
+    def __neg__(self):
+        return self._op(0.0, self, "-")
+
+
+class _Hoist:
+    """Names a parameter-only expression before the loop (once per distinct text), and keeps
+    the per-cell function calls and products of cell values (``cell_lets``, written at the
+    top of the cell's Psi) so that one used by Psi and its derivatives is formed once.
+    """
+
+    def __init__(self, src: Source):
+        self.src, self.names = src, {}
+        self.cell_lets: List[Tuple[str, str]] = []
+
+    def cell(self, text: str) -> str:
+        """The name of a per-cell expression, assigned once in the cell."""
+        for name, known in self.cell_lets:
+            if known == text:
+                return name
+        name = f"pc{len(self.cell_lets)}"
+        self.cell_lets.append((name, text))
+        return name
+
+    def __call__(self, e: _Sym) -> str:
+        if not e.const or _SIMPLE_NAME.match(e.text):
+            return e.text
+        if e.text not in self.names:
+            self.names[e.text] = self.src.let(f"hp{len(self.names)}", e.text)
+        return self.names[e.text]
+
+
+_SIMPLE_NAME = re.compile(r"^-?([A-Za-z_][A-Za-z0-9_]*|[0-9.e+-]+)$")
+
+
+class _SourceMath:
+    """The m of a declared Psi for the source writer: m.exp, m.log write math.exp, math.log."""
+
+    def __init__(self, hoist: _Hoist):
+        self.hoist = hoist
+
+    def _call(self, name: str, x) -> _Sym:
+        x = x if isinstance(x, _Sym) else _Sym(repr(float(x)), True, self.hoist)
+        if x.const:
+            return _Sym(f"math.{name}({x.text})", True, self.hoist)
+        return _Sym(self.hoist.cell(f"math.{name}({x.text})"), False, self.hoist)
+
+    def exp(self, x):
+        return self._call("exp", x)
+
+    def log(self, x):
+        return self._call("log", x)
+
+
+def _declared_psi(src: Source, shape: LawShape) -> Tuple[List[Tuple[str, str]], Tuple[Expr, ...]]:
+    """Evaluate the shape's declared Psi on symbols: the parameters P[1], P[2], ... (read and
+    combined before the loop) and the per-cell I1b, I2b. Returns the cell's named function
+    calls (name, expression), to be written first, and the six cell expressions (Psi, Psi_1,
+    Psi_2, Psi_11, Psi_12, Psi_22), None where the declaration gives 0.
+    """
+    hoist = _Hoist(src)
+    names = {}
+    for k, name in enumerate(shape.psi_parameters, start=1):
+        names[name] = _Sym(src.let(f"prm_{name}", f"P[{k}]"), True, hoist)
+    params = type("PsiParameters", (), names)()
+    I1b, I2b = _Sym("I1b", False, hoist), _Sym("I2b", False, hoist)
+    out = shape.psi.function(params, I1b, I2b, _SourceMath(hoist))
+    exprs: List[Expr] = []
+    for e in out:
+        if isinstance(e, _Sym):
+            exprs.append(hoist(e) if e.const else e.text)
+        elif e == 0:
+            exprs.append(None)  # structurally zero: its terms are dropped
+        else:
+            exprs.append(repr(float(e)))
+    return hoist.cell_lets, tuple(exprs)
+
+
 def classical_source(shape: LawShape) -> str:
-    """The source of the classical kernel module for ``shape`` (its function ``classical_cells``)."""
+    """The source of the classical kernel module for ``shape`` (its function
+    ``classical_cells``).
+    """
     return _Classical(shape).module()

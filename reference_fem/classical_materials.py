@@ -12,9 +12,9 @@ invariants I1, I2, J and C^-1, the decoupled volumetric/isochoric split with the
 tensor P = II - 1/3 C^-1 (x) C for the isochoric laws, a spectral (eigenvalue) form for Ogden,
 and the Green-Lagrange strain in the fibre frame for Costa. It shares no code with the MJED
 term engine (mjed.terms, mjed.engine, mjed.fibre, mjed.spectral): it is the independent
-opponent MJED is compared against. From mjed it takes only the material types (to dispatch
-on, see :func:`classical_law`) and the constants that define a material (the Arruda-Boyce
-series coefficients).
+opponent MJED is compared against. From mjed it takes only each material's declared form of
+law (:mod:`mjed.materials.classical_forms`: which of these laws, with which parameters, and
+for the decoupled law the derivatives of its isochoric Psi), see :func:`classical_law`.
 
 Voigt order: I = 0..5 <-> (xx, yy, zz, xy, yz, xz). A symmetric tensor A is stored as the
 6-vector A[VI, VJ]. Fourth-order tensors with minor symmetries are stored as 6x6 matrices
@@ -29,8 +29,8 @@ import functools
 
 import numpy as np
 
-from mjed.materials import ArrudaBoyce, Costa, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
-from mjed.materials.isotropic import ARRUDA_BOYCE_COEFFICIENTS
+from mjed.materials import classical_forms as forms
+from mjed.materials.declaration import declaration_of
 
 __all__ = [
     "VI",
@@ -39,6 +39,7 @@ __all__ = [
     "voigt",
     "from_voigt",
     "classical_law",
+    "law_of_form",
     "ClassicalLaw",
 ]
 
@@ -63,12 +64,12 @@ def from_voigt(a: np.ndarray) -> np.ndarray:
 
 
 def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (x) b of two Voigt vectors, (..., 6, 6)."""
+    """A (x) b of two Voigt vectors, (..., 6, 6)."""
     return a[..., :, None] * b[..., None, :]
 
 
 def _sym_outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (x) b + b (x) a."""
+    """A (x) b + b (x) a."""
     o = _outer(a, b)
     return o + np.swapaxes(o, -1, -2)
 
@@ -149,7 +150,8 @@ class StVenantKirchhoffLaw(ClassicalLaw):
 
 class NeoHookeanLaw(ClassicalLaw):
     """Compressible neo-Hookean (Bonet & Wood 6.4.3):
-    S = mu (I - C^-1) + lam ln J C^-1, CC = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1."""
+    S = mu (I - C^-1) + lam ln J C^-1, CC = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1.
+    """
 
     def __init__(self, mu, lam):
         self.mu, self.lam = float(mu), float(lam)
@@ -168,7 +170,9 @@ class NeoHookeanLaw(ClassicalLaw):
         if not tangent:
             return S, None
         ci = voigt(Ci)
-        CC = self.lam * _outer(ci, ci) + (2.0 * (self.mu - self.lam * lnJ))[:, None, None] * _odot(Ci)
+        CC = self.lam * _outer(ci, ci) + (2.0 * (self.mu - self.lam * lnJ))[:, None, None] * _odot(
+            Ci
+        )
         return S, CC
 
 
@@ -179,12 +183,16 @@ def _log_volumetric(k0, J):
 
 
 def _volumetric(J, Ci, ci, dU, ddU, tangent):
-    """S_vol = J p C^-1, CC_vol = J (p + J p') C^-1 (x) C^-1 - 2 J p C^-1 (.) C^-1 (Holzapfel 6.166)."""
+    """S_vol = J p C^-1, CC_vol = J (p + J p') C^-1 (x) C^-1 - 2 J p C^-1 (.) C^-1 (Holzapfel
+    6.166).
+    """
     p = dU
     S = (J * p)[:, None, None] * Ci
     if not tangent:
         return S, None
-    CC = (J * (p + J * ddU))[:, None, None] * _outer(ci, ci) - (2.0 * J * p)[:, None, None] * _odot(Ci)
+    CC = (J * (p + J * ddU))[:, None, None] * _outer(ci, ci) - (2.0 * J * p)[:, None, None] * _odot(
+        Ci
+    )
     return S, CC
 
 
@@ -240,58 +248,52 @@ class DecoupledInvariantLaw(ClassicalLaw):
         j43 = (j23 * j23)[:, None, None]
         a = (4.0 * (p11 + 2.0 * I1b * p12 + p2 + I1b**2 * p22))[:, None, None]
         b = (-4.0 * (p12 + I1b * p22))[:, None, None]
-        CCb = j43 * (a * _IXI + b * _sym_outer(np.broadcast_to(_I_V, cbv.shape), cbv)
-                     + (4.0 * p22)[:, None, None] * _outer(cbv, cbv) - (4.0 * p2)[:, None, None] * _II)
+        CCb = j43 * (
+            a * _IXI
+            + b * _sym_outer(np.broadcast_to(_I_V, cbv.shape), cbv)
+            + (4.0 * p22)[:, None, None] * _outer(cbv, cbv)
+            - (4.0 * p2)[:, None, None] * _II
+        )
         # P : CCb : P^T with the Voigt contraction weights; P = II - 1/3 C^-1 (x) C.
-        Pw = np.broadcast_to(np.eye(6), CCb.shape) - _outer(ci, cv * WEIGHT) / 3.0  # P_v diag(WEIGHT)
+        Pw = (
+            np.broadcast_to(np.eye(6), CCb.shape) - _outer(ci, cv * WEIGHT) / 3.0
+        )  # P_v diag(WEIGHT)
         CC_iso = Pw @ CCb @ np.swapaxes(Pw, -1, -2)
         odot = _odot(Ci)
         cixci = _outer(ci, ci)
-        CC_iso += (2.0 / 3.0 * tr)[:, None, None] * (odot - cixci / 3.0) - (2.0 / 3.0) * _sym_outer(ci, S_iso)
+        CC_iso += (2.0 / 3.0 * tr)[:, None, None] * (odot - cixci / 3.0) - (2.0 / 3.0) * _sym_outer(
+            ci, S_iso
+        )
         return S, CC_iso + CC_vol
 
 
-class MooneyRivlinLaw(DecoupledInvariantLaw):
-    def __init__(self, c1, c2, k0):
-        self.c1, self.c2, self.k0 = float(c1), float(c2), float(k0)
+class DeclaredDecoupledLaw(DecoupledInvariantLaw):
+    """The decoupled law of a :class:`mjed.materials.classical_forms.Decoupled` form: Psi and
+    its derivatives are the form's function, evaluated with NumPy.
+    """
+
+    def __init__(self, form: forms.Decoupled):
+        self.form = form
+        self.k0 = float(form.k0)
+        self.parameters = _Named(form.parameters)
 
     def psi(self, I1b, I2b):
         z = np.zeros_like(I1b)
-        W = self.c1 * (I1b - 3.0) + self.c2 * (I2b - 3.0)
-        return W, z + self.c1, z + self.c2, z, z, z
+        return tuple(v + z for v in self.form.psi.function(self.parameters, I1b, I2b, np))
 
 
-class VerondaWestmannLaw(DecoupledInvariantLaw):
-    def __init__(self, c1, c2, k0):
-        self.c1, self.c2, self.k0 = float(c1), float(c2), float(k0)
+class _Named:
+    """Parameters read by attribute (p.mu) from (name, value) pairs."""
 
-    def psi(self, I1b, I2b):
-        c1, c2 = self.c1, self.c2
-        e = np.exp(c2 * (I1b - 3.0))
-        z = np.zeros_like(I1b)
-        W = c1 * (e - 1.0) - 0.5 * c1 * c2 * (I2b - 3.0)
-        return W, c1 * c2 * e, z - 0.5 * c1 * c2, c1 * c2 * c2 * e, z, z
-
-
-class ArrudaBoyceLaw(DecoupledInvariantLaw):
-    def __init__(self, mu, k0, N=8.0):
-        self.mu, self.k0, self.N = float(mu), float(k0), float(N)
-        self.coef = [self.mu * c * self.N ** (1 - i) for i, c in enumerate(ARRUDA_BOYCE_COEFFICIENTS, start=1)]
-
-    def psi(self, I1b, I2b):
-        z = np.zeros_like(I1b)
-        W, p1, p11 = z.copy(), z.copy(), z.copy()
-        for i, a in enumerate(self.coef, start=1):
-            W += a * (I1b**i - 3.0**i)
-            p1 += i * a * I1b ** (i - 1)
-            if i > 1:
-                p11 += i * (i - 1) * a * I1b ** (i - 2)
-        return W, p1, z, p11, z, z
+    def __init__(self, pairs):
+        for name, value in pairs:
+            setattr(self, name, float(value))
 
 
 def _power_divided_difference(a, b, p):
     """(a^p - b^p) / (a - b) for a, b > 0, continuous (= p b^(p-1)) at a = b and free of
-    cancellation near it: b^(p-1) expm1(p t) / expm1(t) with t = ln(a/b)."""
+    cancellation near it: b^(p-1) expm1(p t) / expm1(t) with t = ln(a/b).
+    """
     t = np.log(a / b)
     same = t == 0.0
     ts = np.where(same, 1.0, t)
@@ -358,9 +360,17 @@ class OgdenLaw(ClassicalLaw):
         CC = M @ (4.0 * H) @ np.swapaxes(M, 1, 2)
 
         i, j = np.array(_PAIRS).T
-        G = N[:, VI][:, :, i] * N[:, VJ][:, :, j] + N[:, VI][:, :, j] * N[:, VJ][:, :, i]  # (m, 6, 3)
-        theta = 2.0 * cP * (q * _power_divided_difference(lam[:, i], lam[:, j], q - 1.0)
-                            - r * sigma[:, None] * inv[:, i] * inv[:, j])
+        G = (
+            N[:, VI][:, :, i] * N[:, VJ][:, :, j] + N[:, VI][:, :, j] * N[:, VJ][:, :, i]
+        )  # (m, 6, 3)
+        theta = (
+            2.0
+            * cP
+            * (
+                q * _power_divided_difference(lam[:, i], lam[:, j], q - 1.0)
+                - r * sigma[:, None] * inv[:, i] * inv[:, j]
+            )
+        )
         CC += (G * theta[:, None, :]) @ np.swapaxes(G, 1, 2)
         return S, CC + CC_vol
 
@@ -415,60 +425,64 @@ class CostaLaw(ClassicalLaw):
         pQJ = -4.0 / 3.0 * e * j43 / J * (1.0 + j43 * Q)
         pJJ = e * (16.0 / 9.0 * Q * Q * j43 * j43 + 28.0 / 9.0 * Q * j43) / (J * J) + self.k0 / J
         s = lambda v: v[:, None, None]  # noqa: E731
-        CC = (s(pQQ) * _outer(q, q) + s(J * pQJ) * _sym_outer(q, ci) + s(pQ) * self.T
-              + s(J * (J * pJJ + pJ)) * _outer(ci, ci) - s(2.0 * J * pJ) * _odot(Ci))
+        CC = (
+            s(pQQ) * _outer(q, q)
+            + s(J * pQJ) * _sym_outer(q, ci)
+            + s(pQ) * self.T
+            + s(J * (J * pJJ + pJ)) * _outer(ci, ci)
+            - s(2.0 * J * pJ) * _odot(Ci)
+        )
         return S, CC
 
 
-@functools.singledispatch
 def classical_law(material) -> ClassicalLaw:
-    """The classical law of an mjed material, dispatched on its type (parameters read as
-    attributes). Adding a material means registering one function here::
-
-        @classical_law.register
-        def _(material: MyMaterial) -> ClassicalLaw: ...
+    """The classical law of a declared material: the law of the form its declaration gives
+    (``Declaration.classical``), built by :func:`law_of_form`.
 
     Raises:
-        TypeError: naming the type when no classical law is registered for it.
+        TypeError: naming the type when it is not declared, or when its form has no law here.
     """
-    cls = type(material)
+    try:
+        declaration = declaration_of(type(material))
+    except LookupError:
+        cls = type(material)
+        raise TypeError(
+            f"no classical law for material type {cls.__module__}.{cls.__qualname__}: "
+            "it is not declared (mjed.materials.declaration.declare, with its "
+            "classical form)"
+        ) from None
+    return law_of_form(declaration.classical(material))
+
+
+@functools.singledispatch
+def law_of_form(form) -> ClassicalLaw:
+    """The classical law of a form of :mod:`mjed.materials.classical_forms`, by its type."""
     raise TypeError(
-        f"no classical law for material type {cls.__module__}.{cls.__qualname__}; register one with "
-        "reference_fem.classical_materials.classical_law.register"
+        f"the classical element has no law for the form {type(form).__qualname__}; "
+        "register one with reference_fem.classical_materials.law_of_form.register"
     )
 
 
-@classical_law.register
-def _(material: StVenantKirchhoff) -> ClassicalLaw:
-    return StVenantKirchhoffLaw(material.mu, material.lam)
+@law_of_form.register
+def _(form: forms.GreenLagrangeQuadratic) -> ClassicalLaw:
+    return StVenantKirchhoffLaw(form.mu, form.lam)
 
 
-@classical_law.register
-def _(material: NeoHookean) -> ClassicalLaw:
-    return NeoHookeanLaw(material.mu, material.lam)
+@law_of_form.register
+def _(form: forms.CompressibleNeoHookean) -> ClassicalLaw:
+    return NeoHookeanLaw(form.mu, form.lam)
 
 
-@classical_law.register
-def _(material: MooneyRivlin) -> ClassicalLaw:
-    return MooneyRivlinLaw(material.c1, material.c2, material.k0)
+@law_of_form.register
+def _(form: forms.Decoupled) -> ClassicalLaw:
+    return DeclaredDecoupledLaw(form)
 
 
-@classical_law.register
-def _(material: VerondaWestmann) -> ClassicalLaw:
-    return VerondaWestmannLaw(material.c1, material.c2, material.k0)
+@law_of_form.register
+def _(form: forms.SpectralOgden) -> ClassicalLaw:
+    return OgdenLaw(form.mu, form.alpha, form.k0)
 
 
-@classical_law.register
-def _(material: ArrudaBoyce) -> ClassicalLaw:
-    return ArrudaBoyceLaw(material.mu, material.k0, material.N)
-
-
-@classical_law.register
-def _(material: Ogden) -> ClassicalLaw:
-    # The ``tangent`` option is ignored: the classical law is always the exact Hessian.
-    return OgdenLaw(material.mu, material.alpha, material.k0)
-
-
-@classical_law.register
-def _(material: Costa) -> ClassicalLaw:
-    return CostaLaw(material.a, material.k0, material.B, material.frame)
+@law_of_form.register
+def _(form: forms.FibreExponential) -> ClassicalLaw:
+    return CostaLaw(form.a, form.k0, form.B, form.frame)

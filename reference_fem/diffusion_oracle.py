@@ -40,11 +40,17 @@ def scalar_input_node_of_dof(mesh, Q, points: np.ndarray) -> np.ndarray:
     n_dofs = (hi - lo) + compat.num_ghosts(Q.dofmap.index_map)
     node = np.full(n_dofs, -1, dtype=np.int64)
     node[dofs] = input_of_geo[geo]
-    if np.any(node < 0) or np.any(node[dofs] != input_of_geo[geo]) or np.unique(node).size != n_dofs:
+    if (
+        np.any(node < 0)
+        or np.any(node[dofs] != input_of_geo[geo])
+        or np.unique(node).size != n_dofs
+    ):
         raise NumberingError("scalar P1 dofs and geometry nodes do not correspond one to one")
     err = np.abs(compat.dof_coordinates(Q)[:n_dofs] - points[node]).max()
     if not err <= 16 * np.finfo(np.float64).eps * max(1.0, np.abs(points).max()):
-        raise NumberingError(f"scalar dof coordinates differ from the input points (max |diff| = {err:.3g})")
+        raise NumberingError(
+            f"scalar dof coordinates differ from the input points (max |diff| = {err:.3g})"
+        )
     return node
 
 
@@ -70,4 +76,6 @@ def diffusion_matrices(points, cells) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
     renumber = CSRRenumbering(scalar_input_node_of_dof(mesh, Q, X), len(X))
     p, q = ufl.TrialFunction(Q), ufl.TestFunction(Q)
     dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})
-    return _assemble(p * q * dx, renumber), _assemble(ufl.inner(ufl.grad(p), ufl.grad(q)) * dx, renumber)
+    return _assemble(p * q * dx, renumber), _assemble(
+        ufl.inner(ufl.grad(p), ufl.grad(q)) * dx, renumber
+    )

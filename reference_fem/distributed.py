@@ -20,7 +20,15 @@ from typing import Any, Callable, Iterator, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["RankError", "abort_on_error", "on_root", "collective", "all_finite", "gather_rows", "gather_csr"]
+__all__ = [
+    "RankError",
+    "abort_on_error",
+    "on_root",
+    "collective",
+    "all_finite",
+    "gather_rows",
+    "gather_csr",
+]
 
 ROOT = 0
 
@@ -112,7 +120,9 @@ def gather_rows(comm, owned: np.ndarray) -> Optional[np.ndarray]:
     return np.concatenate(parts) if comm.rank == ROOT else None
 
 
-def gather_csr(comm, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray) -> Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def gather_csr(
+    comm, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
+) -> Optional[Tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Owned rows of a distributed CSR matrix (global column indices) stacked on rank 0.
 
     Args:

@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import Any, Tuple
 
 import numpy as np
-
 import ufl
 
 from reference_fem import compat
@@ -32,7 +31,8 @@ class DolfinxAssembly:
     Args:
         points: (n, 3) rest positions.
         cells: (m, 4) positively oriented P1 tetrahedra.
-        material: an mjed material (its type picks W, its attributes are the parameters); Costa only with
+        material: an mjed material (its type picks W, its attributes are the parameters); Costa only
+        with
             a constant frame (the timing study's default).
 
     Methods ``set_state``, ``assemble_residual``, ``assemble_jacobian`` and
@@ -44,7 +44,9 @@ class DolfinxAssembly:
         cells = check_cells(cells, X)
         frame = getattr(material, "frame", None)
         if frame is not None and np.ndim(frame) == 3:
-            raise ValueError("DolfinxAssembly: per-cell Costa frames are not supported; use a constant frame")
+            raise ValueError(
+                "DolfinxAssembly: per-cell Costa frames are not supported; use a constant frame"
+            )
         self._X = X
         self.n_nodes, self.n_cells = X.shape[0], cells.shape[0]
         comm = compat.comm_self()
@@ -63,7 +65,7 @@ class DolfinxAssembly:
         self._dof_nodes = self._numbering.input_node_of_dof_node
 
     def set_state(self, x) -> None:
-        """u = x - X in dolfinx's dof order; x (n, 3)."""
+        """U = x - X in dolfinx's dof order; x (n, 3)."""
         x = check_positions(x, self.n_nodes)
         self._u.x.array[:] = (x - self._X)[self._dof_nodes].ravel()
 

@@ -96,7 +96,9 @@ def _cell_lists(mesh, V) -> tuple:
     geo = compat.geometry_dofmap(mesh)
     dofs = compat.cell_dofs(V, 4)
     if geo.shape != dofs.shape:
-        raise NumberingError(f"geometry dofmap {geo.shape} and V dofmap {dofs.shape} differ in shape")
+        raise NumberingError(
+            f"geometry dofmap {geo.shape} and V dofmap {dofs.shape} differ in shape"
+        )
     return geo, dofs
 
 
@@ -108,8 +110,8 @@ def _check_cell_permutation(comm, input_cell_of_cell: np.ndarray, m: int) -> Non
         every = np.concatenate(comm.allgather(input_cell_of_cell))
     if every.shape != (m,) or not np.array_equal(np.sort(every), np.arange(m)):
         raise NumberingError(
-            f"original cell indices are not a permutation of the {m} input cells "
-            f"(dolfinx holds {every.size} cells)"
+            f"original cell indices are not a permutation of the {m} input cells (dolfinx holds "
+            f"{every.size} cells)"
         )
 
 
@@ -136,7 +138,9 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
 
     all_cells = compat.original_cell_index(mesh)
     if all_cells.shape != (geo.shape[0],):
-        raise NumberingError(f"{all_cells.size} original cell indices for {geo.shape[0]} local cells")
+        raise NumberingError(
+            f"{all_cells.size} original cell indices for {geo.shape[0]} local cells"
+        )
     input_cell_of_cell = all_cells[: compat.num_owned_cells(mesh)]  # owned cells come first
     _check_cell_permutation(mesh.comm, input_cell_of_cell, m)
 
@@ -144,7 +148,9 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
     input_node_of_dof_node[dofs] = input_of_geo[geo]
     # Every cell must agree (a dof node shared by cells maps to one input node), and with
     # ghost mode none every dof node on a rank belongs to one of its cells.
-    if np.any(input_node_of_dof_node < 0) or np.any(input_node_of_dof_node[dofs] != input_of_geo[geo]):
+    if np.any(input_node_of_dof_node < 0) or np.any(
+        input_node_of_dof_node[dofs] != input_of_geo[geo]
+    ):
         raise NumberingError("V dof nodes and geometry nodes do not correspond one to one")
     if np.unique(input_node_of_dof_node).size != n_dof_nodes:
         raise NumberingError("two V dof nodes map to the same input node")
@@ -157,14 +163,20 @@ def compute_numbering(mesh, V, points: np.ndarray, cells: np.ndarray) -> Numberi
 
     # The decisive check: positions seen by dolfinx are exactly the input points.
     if not np.array_equal(mesh.geometry.x[:, :3][geo], points[input_of_geo[geo]]):
-        raise NumberingError("mesh geometry does not match the input points through input_global_indices")
+        raise NumberingError(
+            "mesh geometry does not match the input points through input_global_indices"
+        )
     # Dof coordinates are recomputed by pushing the reference vertices forward (sums with
     # 0/1 weights in some order), so they may differ from the points by an ulp or two.
     dof_xyz = compat.dof_coordinates(V)[:n_dof_nodes]
     if n_dof_nodes:
         err = np.abs(dof_xyz - points[input_node_of_dof_node]).max()
         if not err <= 16 * np.finfo(np.float64).eps * max(1.0, np.abs(points).max()):
-            raise NumberingError(f"dof coordinates differ from the input points (max |diff| = {err:.3g})")
+            raise NumberingError(
+                f"dof coordinates differ from the input points (max |diff| = {err:.3g})"
+            )
 
     input_dof_of_dof = (3 * input_node_of_dof_node[:, None] + np.arange(3)).ravel()
-    return Numbering(n, input_node_of_dof_node, input_cell_of_cell, input_dof_of_dof, n_owned, start)
+    return Numbering(
+        n, input_node_of_dof_node, input_cell_of_cell, input_dof_of_dof, n_owned, start
+    )

@@ -53,7 +53,7 @@ _PAIR_ORDER = 4
 
 
 def _invariants(C):
-    """q = tr C / 3, and J2 = tr(D^2)/2, J3 = det D of the deviator D = C - q I."""
+    """Q = tr C / 3, and J2 = tr(D^2)/2, J3 = det D of the deviator D = C - q I."""
     q = ufl.tr(C) / 3.0
     D = C - q * ufl.Identity(3)
     return q, 0.5 * ufl.inner(D, D), ufl.det(D)
@@ -126,6 +126,7 @@ def sum_of_eigenvalue_powers(C, s):
     Args:
         C: symmetric positive definite 3x3 UFL expression.
         s: the exponent (alpha/2 for Ogden), a float or a UFL scalar (e.g. a Constant).
+
     Returns:
         scalar UFL expression.
     """
@@ -138,9 +139,13 @@ def sum_of_eigenvalue_powers(C, s):
     # Likewise, clamping r keeps acos and its derivative finite where the trigonometric
     # branch is not selected (|r| > 1 - DOUBLE_SWITCH), including |r| > 1 from rounding.
     bound = 1.0 - 0.5 * DOUBLE_SWITCH
-    trig = sum(li**s for li in _trig_eigenvalues(q, p, ufl.max_value(ufl.min_value(r, bound), -bound)))
+    trig = sum(
+        li**s for li in _trig_eigenvalues(q, p, ufl.max_value(ufl.min_value(r, bound), -bound))
+    )
     return ufl.conditional(
         ufl.lt(2.0 * J2, switch2),
         _isotropic_series(q, J2, J3, s),
-        ufl.conditional(ufl.gt(abs(r), 1.0 - DOUBLE_SWITCH), _double_series(q, J2, J3, p, r, s), trig),
+        ufl.conditional(
+            ufl.gt(abs(r), 1.0 - DOUBLE_SWITCH), _double_series(q, J2, J3, p, r, s), trig
+        ),
     )

@@ -28,7 +28,6 @@ from typing import Any, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-
 import ufl
 
 from reference_fem import compat
@@ -67,13 +66,17 @@ def porous_energy_density(J, f_w: float, K0: float, K_lim: float, tangent: str =
 
 def _bulk_overrides(material: Any, mode: str) -> dict:
     """Parameter overrides of the base material: none to add, k0 = 0 to replace its bulk term
-    (the material itself is not changed)."""
+    (the material itself is not changed).
+    """
     if mode == "add":
         return {}
     if mode != "replace":
         raise ValueError(f"mode must be 'add' or 'replace', got {mode!r}")
     if not hasattr(material, "k0"):
-        raise ValueError(f"replace mode needs a material with a bulk modulus k0, not {type(material).__qualname__}")
+        raise ValueError(
+            "replace mode needs a material with a bulk modulus k0, not "
+            f"{type(material).__qualname__}"
+        )
     return {"k0": 0.0}
 
 
@@ -90,7 +93,16 @@ class PorousOracle:
         with_pressure: include the -P J term; set P with :meth:`set_pressure`.
     """
 
-    def __init__(self, points, cells, *, porous: Any = None, base: Any = None, mode: str = "add", with_pressure: bool = False):
+    def __init__(
+        self,
+        points,
+        cells,
+        *,
+        porous: Any = None,
+        base: Any = None,
+        mode: str = "add",
+        with_pressure: bool = False,
+    ):
         self._X = check_points(points)
         self._cells = check_cells(cells, self._X)
         n = len(self._X)
@@ -107,14 +119,18 @@ class PorousOracle:
         if base is not None:
             W = W + strain_energy_density(base, F, overrides=_bulk_overrides(base, mode))
         if porous is None and base is None and not with_pressure:
-            raise ValueError("PorousOracle: nothing to assemble (no porous law, base material or pressure)")
+            raise ValueError(
+                "PorousOracle: nothing to assemble (no porous law, base material or pressure)"
+            )
         self._P = None
         if with_pressure:
             Q = compat.scalar_p1_space(self._mesh)
             self._P = compat.function(Q, "P")
             self._p_node = scalar_input_node_of_dof(self._mesh, Q, self._X)
             W = W - self._P * J  # the work of the Cauchy stress -P Id
-        dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": 1})  # integrand linear per cell: exact
+        dx = ufl.Measure(
+            "dx", domain=self._mesh, metadata={"quadrature_degree": 1}
+        )  # integrand linear per cell: exact
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
         K = ufl.derivative(R, self._u, ufl.TrialFunction(self._V))
@@ -126,7 +142,9 @@ class PorousOracle:
     def set_pressure(self, P) -> None:
         """Nodal pressure (n,) in input order."""
         if self._P is None:
-            raise ValueError("this oracle was built without the pressure term (with_pressure=False)")
+            raise ValueError(
+                "this oracle was built without the pressure term (with_pressure=False)"
+            )
         P = np.asarray(P, dtype=float)
         if P.shape != (len(self._X),):
             raise ValueError(f"pressure must have shape ({len(self._X)},), got {P.shape}")

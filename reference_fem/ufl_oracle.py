@@ -13,7 +13,6 @@ from typing import Any, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-
 import ufl
 
 from reference_fem import compat
@@ -21,7 +20,13 @@ from reference_fem.distributed import ROOT, all_finite, collective, gather_csr, 
 from reference_fem.energies import energy_formula, strain_energy_density
 from reference_fem.numbering import Numbering, build_mesh, compute_numbering
 from reference_fem.sparse_map import CSRRenumbering
-from reference_fem.validation import check_cells, check_frame, check_points, check_positions, signed_volumes
+from reference_fem.validation import (
+    check_cells,
+    check_frame,
+    check_points,
+    check_positions,
+    signed_volumes,
+)
 
 __all__ = ["UFLOracle", "QUADRATURE_DEGREE"]
 
@@ -41,7 +46,8 @@ class UFLOracle:
         points: (n, 3) rest positions X.
         cells: (m, 4) node indices of positively oriented P1 tetrahedra (input numbering).
         material: an object whose type has a registered UFL energy and whose attributes are
-            its parameters (see :func:`reference_fem.energies.register_energy`); a Costa ``frame`` may be None,
+            its parameters (see :func:`reference_fem.energies.register_energy`); a Costa ``frame``
+            may be None,
             an orthonormal (3, 3) frame or one per input cell (m, 3, 3).
         comm: MPI communicator; None for a serial oracle (MPI.COMM_SELF). With several
             ranks every rank constructs the oracle with the same material; the input and
@@ -65,14 +71,18 @@ class UFLOracle:
 
         self._mesh = build_mesh(self._X, self._cells, comm)
         self._V = compat.vector_p1_space(self._mesh)
-        self._numbering = collective(comm, compute_numbering, self._mesh, self._V, self._X, self._cells)
+        self._numbering = collective(
+            comm, compute_numbering, self._mesh, self._V, self._X, self._cells
+        )
 
         # Kinematics and energy, then let UFL differentiate.
         self._u = compat.function(self._V, "u")
         F = ufl.Identity(3) + ufl.grad(self._u)
         # Parameters as dolfinx Constants: the generated code is then the same for every
         # parameter set of a material type, so FFCx's cache is hit after the first build.
-        W = strain_energy_density(material, F, frame=self._cellwise_frame(), constant=self._constant)
+        W = strain_energy_density(
+            material, F, frame=self._cellwise_frame(), constant=self._constant
+        )
         dx = ufl.Measure("dx", domain=self._mesh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
         Pi = W * dx
         R = ufl.derivative(Pi, self._u, ufl.TestFunction(self._V))
@@ -89,7 +99,9 @@ class UFLOracle:
         self._A = compat.create_matrix(self._K)
         # Input dof of each global dof (owned blocks of ranks 0, 1, ... in order), on rank 0.
         n_owned = self._numbering.n_owned_dof_nodes
-        self._input_dof_of_global = gather_rows(comm, self._numbering.input_dof_of_dof[: 3 * n_owned])
+        self._input_dof_of_global = gather_rows(
+            comm, self._numbering.input_dof_of_dof[: 3 * n_owned]
+        )
         self._renumber = None
         if self.is_root:
             self._renumber = CSRRenumbering(self._input_dof_of_global, 3 * n)
@@ -159,7 +171,8 @@ class UFLOracle:
 
     def stiffness(self, x) -> Optional[sp.csr_matrix]:
         """Stiffness K = d2Pi/dx2 as scipy CSR (3n, 3n), dof index 3*node + component
-        (None off rank 0)."""
+        (None off rank 0).
+        """
         xx = self._set_state(x)
         return self._assemble_stiffness(xx)
 
@@ -174,8 +187,10 @@ class UFLOracle:
         return compat.constant(self._mesh, value)
 
     def _cellwise_frame(self):
-        """A fibre-frame material (Costa) with one rotation per cell: a DG0 tensor Function
-        holding them; else None (a constant frame is read from the material by the energy)."""
+        """A fibre-frame model (Costa, a user energy with I4/I5) with one rotation per cell: a
+        DG0 tensor Function holding them; else None (a constant frame is read from the material
+        by the energy).
+        """
         if not energy_formula(type(self._material)).takes_frame:
             return None
         frame = getattr(self._material, "frame", None)

@@ -14,8 +14,11 @@ The syntax (one Python-style arithmetic expression; nothing else is accepted):
 * calls of ``ln(x)`` (``log(x)`` is the same natural logarithm), ``exp(x)``, ``sqrt(x)``
   and ``pow(x, y)``, with positional arguments only;
 * the kinematic variables of :data:`VARIABLES` (C = F^T F, E = (C - I)/2, J = det F);
-  ``I4`` = a.C a and ``I5`` = a.C^2 a need a fibre direction a (the fibre vector given,
-  normalised to unit length);
+  ``I4`` = a.C a and ``I5`` = a.C^2 a use a fibre direction a: the ``fibre`` vector given
+  (normalised to unit length, the same in every cell), or the first column of ``frame``, a
+  fibre/sheet/normal frame per cell (m, 3, 3) or for the whole mesh (3, 3), the layout of
+  Costa's frame. With neither, the energy can be built but not evaluated: a conformance kit
+  gives it the mesh's helical field (common.frames), as it does Costa;
 * the named parameters (each must be used; each must be a finite real number).
 
 The expression is parsed with :mod:`ast` and checked against that whitelist before anything
@@ -128,12 +131,14 @@ _NODE_WORDS = {
 
 class EnergySyntaxError(ValueError):
     """An energy expression outside the accepted syntax; the message names the offending
-    text and its column (1-based)."""
+    text and its column (1-based).
+    """
 
 
 class PrestressWarning(UserWarning):
     """A user energy whose first Piola stress at rest is not zero (legal, but the force on
-    an undeformed mesh is then not zero)."""
+    an undeformed mesh is then not zero).
+    """
 
 
 # -- parsing --------------------------------------------------------------------------------
@@ -166,7 +171,11 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
     """Raise EnergySyntaxError unless every node of the tree is on the whitelist."""
     if isinstance(node, ast.Constant):
         if type(node.value) not in (int, float):  # bool, complex, str, bytes, None, Ellipsis
-            raise _refuse(expression, node, f"only real numbers are allowed, not a {type(node.value).__name__}")
+            raise _refuse(
+                expression,
+                node,
+                f"only real numbers are allowed, not a {type(node.value).__name__}",
+            )
         if not math.isfinite(float(node.value)):
             raise _refuse(expression, node, "number is not finite")
         return
@@ -179,20 +188,30 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
         return
     if isinstance(node, ast.BinOp):
         if type(node.op) not in _BINARY:
-            raise _refuse(expression, node, f"operator {type(node.op).__name__} is not allowed (only + - * / **)")
+            raise _refuse(
+                expression,
+                node,
+                f"operator {type(node.op).__name__} is not allowed (only + - * / **)",
+            )
         if isinstance(node.op, ast.Pow):
             p = _literal(node.right)
             if p is not None and abs(p) > MAX_LITERAL_EXPONENT:
                 raise _refuse(
-                    expression, node.right,
-                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, {MAX_LITERAL_EXPONENT:g}]",
+                    expression,
+                    node.right,
+                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, "
+                    f"{MAX_LITERAL_EXPONENT:g}]",
                 )
         _check_tree(expression, node.left, names)
         _check_tree(expression, node.right, names)
         return
     if isinstance(node, ast.UnaryOp):
         if type(node.op) not in _UNARY:
-            raise _refuse(expression, node, f"operator {type(node.op).__name__} is not allowed (only unary - and +)")
+            raise _refuse(
+                expression,
+                node,
+                f"operator {type(node.op).__name__} is not allowed (only unary - and +)",
+            )
         _check_tree(expression, node.operand, names)
         return
     if isinstance(node, ast.Call):
@@ -206,13 +225,17 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
                 raise _refuse(expression, arg, "starred arguments are not allowed")
         n = FUNCTIONS[node.func.id]
         if len(node.args) != n:
-            raise _refuse(expression, node, f"{node.func.id} takes {n} argument(s), got {len(node.args)}")
+            raise _refuse(
+                expression, node, f"{node.func.id} takes {n} argument(s), got {len(node.args)}"
+            )
         if node.func.id == "pow":
             p = _literal(node.args[1])
             if p is not None and abs(p) > MAX_LITERAL_EXPONENT:
                 raise _refuse(
-                    expression, node.args[1],
-                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, {MAX_LITERAL_EXPONENT:g}]",
+                    expression,
+                    node.args[1],
+                    f"exponent {p:g} is outside [-{MAX_LITERAL_EXPONENT:g}, "
+                    f"{MAX_LITERAL_EXPONENT:g}]",
                 )
         for arg in node.args:
             _check_tree(expression, arg, names)
@@ -223,12 +246,15 @@ def _check_tree(expression: str, node: ast.AST, names: frozenset) -> None:
 
 def _parse(expression: str, names: frozenset) -> ast.expr:
     if not isinstance(expression, str):
-        raise EnergySyntaxError(f"energy expression must be a string, got {type(expression).__name__}")
+        raise EnergySyntaxError(
+            f"energy expression must be a string, got {type(expression).__name__}"
+        )
     if not expression.strip():
         raise EnergySyntaxError("energy expression is empty")
     if len(expression) > MAX_EXPRESSION_LENGTH:
         raise EnergySyntaxError(
-            f"energy expression has {len(expression)} characters; at most {MAX_EXPRESSION_LENGTH} are accepted"
+            f"energy expression has {len(expression)} characters; at most {MAX_EXPRESSION_LENGTH} "
+            "are accepted"
         )
     if "\n" in expression or "\r" in expression:
         raise EnergySyntaxError("energy expression must be on one line")
@@ -236,7 +262,9 @@ def _parse(expression: str, names: frozenset) -> ast.expr:
         tree = ast.parse(expression.strip(), mode="eval")
     except SyntaxError as e:
         col = f" at column {e.offset}" if e.offset else ""
-        raise EnergySyntaxError(f"energy {expression!r}: not a valid expression{col} ({e.msg})") from None
+        raise EnergySyntaxError(
+            f"energy {expression!r}: not a valid expression{col} ({e.msg})"
+        ) from None
     except (RecursionError, MemoryError):
         raise EnergySyntaxError(f"energy {expression!r}: nested too deeply") from None
     expr = expression.strip()
@@ -250,7 +278,9 @@ def _parse(expression: str, names: frozenset) -> ast.expr:
 def _used_names(tree: ast.AST) -> frozenset:
     # Function names are ast.Name too (the callee); they are not variables or parameters.
     callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
-    return frozenset(n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in callees)
+    return frozenset(
+        n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in callees
+    )
 
 
 # -- evaluation of the checked tree on a backend -------------------------------------------
@@ -306,6 +336,7 @@ class _LazyKinematics(dict):
 
 def _numpy_variable(name: str, F: np.ndarray, a: Optional[np.ndarray], cache: Dict[str, Any]):
     """Variable ``name`` for F (m, 3, 3), real or complex; values (m,)."""
+
     def get(n):
         if n not in cache:
             cache[n] = _numpy_variable(n, F, a, cache)
@@ -330,10 +361,12 @@ def _numpy_variable(name: str, F: np.ndarray, a: Optional[np.ndarray], cache: Di
         return get("J") ** (-2.0 / 3.0) * get("I1")
     if name == "I2b":
         return get("J") ** (-4.0 / 3.0) * get("I2")
-    if name == "Ca":
-        return get("C") @ a
+    if name == "Ca":  # a is one direction (3,) or one per F (m, 3)
+        C = get("C")
+        return np.einsum("mij,mj->mi", C, np.broadcast_to(a, C.shape[:2]))
     if name == "I4":
-        return get("Ca") @ a
+        Ca = get("Ca")
+        return np.einsum("mi,mi->m", Ca, np.broadcast_to(a, Ca.shape))
     if name == "I5":
         Ca = get("Ca")
         return np.einsum("mi,mi->m", Ca, Ca)
@@ -380,7 +413,9 @@ _NUMPY = _Backend(ln=np.log, exp=np.exp, sqrt=np.sqrt)
 
 def _checked_params(params: Mapping[str, float]) -> Mapping[str, float]:
     if not isinstance(params, Mapping):
-        raise ValueError(f"user energy: params must be a mapping name -> value, got {type(params).__name__}")
+        raise ValueError(
+            f"user energy: params must be a mapping name -> value, got {type(params).__name__}"
+        )
     out = {}
     for name, value in params.items():
         if not isinstance(name, str) or not _PARAM_NAME.match(name):
@@ -392,11 +427,33 @@ def _checked_params(params: Mapping[str, float]) -> Mapping[str, float]:
         try:
             v = float(value)
         except (TypeError, ValueError):
-            raise ValueError(f"user energy: parameter {name} must be a real number, got {value!r}") from None
+            raise ValueError(
+                f"user energy: parameter {name} must be a real number, got {value!r}"
+            ) from None
         if not math.isfinite(v):
             raise ValueError(f"user energy: parameter {name} must be finite, got {value!r}")
         out[name] = v
     return types.MappingProxyType(dict(sorted(out.items())))
+
+
+def _checked_frame(frame) -> Optional[np.ndarray]:
+    """A read-only float64 copy of a (3, 3) or (m, 3, 3) orthonormal frame, or None."""
+    from reference_fem.validation import check_frame
+
+    if frame is None:
+        return None
+    try:
+        R = np.array(frame, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("user energy: frame must be an array of real numbers") from None
+    if R.ndim not in (2, 3) or R.shape[-2:] != (3, 3) or R.size == 0:
+        raise ValueError(f"user energy: frame must have shape (3, 3) or (m, 3, 3), got {R.shape}")
+    try:
+        check_frame(R, R.shape[0] if R.ndim == 3 else 1)  # finite and orthonormal, naming the cell
+    except ValueError as exc:
+        raise ValueError(f"user energy: {exc}") from None
+    R.setflags(write=False)
+    return R
 
 
 def _checked_fibre(fibre) -> Optional[Tuple[float, float, float]]:
@@ -422,22 +479,29 @@ class UserEnergy:
         params: name -> value (floats; stored as a read-only copy). Every parameter must
             appear in the expression and every name of the expression must be a variable or
             a parameter.
-        fibre: direction a of I4 and I5, 3 numbers (normalised before use); required
-            exactly when the expression uses I4 or I5.
+        fibre: direction a of I4 and I5, 3 numbers (normalised before use), the same in
+            every cell; only when the expression uses I4 or I5.
         name: a label for reports.
+        frame: instead of ``fibre``, fibre/sheet/normal frames as columns, (3, 3) or one per
+            cell (m, 3, 3), orthonormal; I4 and I5 use the first column, the fibre. Only when
+            the expression uses I4 or I5. With neither fibre nor frame such an energy is built
+            but refuses to be evaluated (:attr:`direction_missing`) until one is given, e.g. by
+            ``dataclasses.replace(energy, frame=...)``.
 
     Derived at construction (not compared): ``rest_energy`` W(I), ``rest_stress`` P(I)
     (3, 3), ``prestressed`` (see the module docstring).
 
     Raises:
         EnergySyntaxError: the expression is outside the accepted syntax.
-        ValueError: bad, missing or unused parameter, bad fibre, non-finite W or P at rest.
+        ValueError: bad, missing or unused parameter, bad fibre or frame, both given,
+            non-finite W or P at rest.
     """
 
     expression: str
     params: Mapping[str, float]
     fibre: Optional[Tuple[float, float, float]] = None
     name: str = "user energy"
+    frame: Optional[np.ndarray] = None
     _tree: ast.expr = field(init=False, repr=False, compare=False)
     rest_energy: float = field(init=False, repr=False, compare=False)
     rest_stress: np.ndarray = field(init=False, repr=False, compare=False)
@@ -447,6 +511,11 @@ class UserEnergy:
         params = _checked_params(self.params)
         object.__setattr__(self, "params", params)
         object.__setattr__(self, "fibre", _checked_fibre(self.fibre))
+        object.__setattr__(self, "frame", _checked_frame(self.frame))
+        if self.fibre is not None and self.frame is not None:
+            raise ValueError(
+                "user energy: give a fibre direction (fibre=) or a frame (frame=), not both"
+            )
         if not isinstance(self.name, str) or not self.name.strip():
             raise ValueError("user energy: name must be a non-empty string")
         tree = _parse(self.expression, frozenset(VARIABLES) | frozenset(params))
@@ -454,31 +523,89 @@ class UserEnergy:
         unused = sorted(set(params) - used)
         if unused:
             raise ValueError(
-                f"user energy {self.expression!r}: parameter(s) {', '.join(unused)} not used in the expression"
+                f"user energy {self.expression!r}: parameter(s) {', '.join(unused)} not used in "
+                "the expression"
             )
         needs_fibre = sorted(used & _FIBRE_VARIABLES)
-        if needs_fibre and self.fibre is None:
-            raise ValueError(f"user energy {self.expression!r}: {', '.join(needs_fibre)} need a fibre direction (fibre=)")
-        if self.fibre is not None and not needs_fibre:
-            raise ValueError(f"user energy {self.expression!r}: a fibre is given but neither I4 nor I5 is used")
+        if (self.fibre is not None or self.frame is not None) and not needs_fibre:
+            what = "fibre" if self.frame is None else "frame"
+            raise ValueError(
+                f"user energy {self.expression!r}: a {what} is given but neither I4 nor I5 is used"
+            )
         object.__setattr__(self, "_tree", tree)
         self._examine_rest()
 
+    def _key(self) -> tuple:
+        frame = None if self.frame is None else (self.frame.shape, self.frame.tobytes())
+        return (self.expression, tuple(self.params.items()), self.fibre, self.name, frame)
+
     def __hash__(self):
-        return hash((self.expression, tuple(self.params.items()), self.fibre, self.name))
+        return hash(self._key())
+
+    def __eq__(self, other):
+        # Written by hand: the generated one would compare the frame arrays elementwise.
+        if not isinstance(other, UserEnergy):
+            return NotImplemented
+        return self._key() == other._key()
+
+    @property
+    def uses_fibre(self) -> bool:
+        """True when the expression uses I4 or I5."""
+        return bool(_used_names(self._tree) & _FIBRE_VARIABLES)
+
+    @property
+    def direction_missing(self) -> bool:
+        """True when the expression uses I4 or I5 and neither a fibre nor a frame is given."""
+        return self.uses_fibre and self.fibre is None and self.frame is None
+
+    def directions(self, m: Optional[int] = None) -> Optional[np.ndarray]:
+        """The unit fibre of I4 and I5: (3,) for one direction, (m, 3) for a frame per cell; None
+        when the expression uses neither.
+
+        Raises:
+            ValueError: the direction is missing, or ``m`` differs from the frame's cell count.
+        """
+        if not self.uses_fibre:
+            return None
+        if self.direction_missing:
+            raise ValueError(
+                f"user energy {self.expression!r}: I4 and I5 need a fibre direction: "
+                "give fibre= or frame= (a conformance kit gives the mesh's helical "
+                "frame field)"
+            )
+        if self.frame is None:
+            return self.unit_fibre
+        if self.frame.ndim == 2:
+            return self.frame[:, 0]
+        if m is not None and m != self.frame.shape[0]:
+            raise ValueError(
+                f"user energy {self.expression!r}: {m} cells evaluated with a frame "
+                f"of {self.frame.shape[0]} cells"
+            )
+        return self.frame[:, :, 0]
 
     # -- the rest state ---------------------------------------------------------------------
     def _examine_rest(self) -> None:
         eye = np.eye(3)[None]
+        # W(I) and |P(I)| do not depend on the fibre's direction (I4 = I5 = 1 for every unit a);
+        # one direction serves: the first cell's, or x when none is given yet.
+        a = None
+        if self.uses_fibre:
+            missing = self.direction_missing
+            a = np.array([1.0, 0.0, 0.0]) if missing else self.directions().reshape(-1, 3)[0]
         with np.errstate(all="ignore"):
-            W0 = float(self.density(eye)[0])
-            P0 = self.first_piola(eye)[0]
+            W0 = float(self._density(eye, a)[0])
+            P0 = self._first_piola(eye, a)[0]
             stretch = np.diag([1.01, 1.0, 1.0])[None]
-            modulus = float(np.linalg.norm(self.first_piola(stretch)[0] - P0)) / 0.01
+            modulus = float(np.linalg.norm(self._first_piola(stretch, a)[0] - P0)) / 0.01
         if not math.isfinite(W0):
-            raise ValueError(f"user energy {self.expression!r}: W at rest (F = I) is not finite ({W0})")
+            raise ValueError(
+                f"user energy {self.expression!r}: W at rest (F = I) is not finite ({W0})"
+            )
         if not np.all(np.isfinite(P0)):
-            raise ValueError(f"user energy {self.expression!r}: the stress at rest (F = I) is not finite")
+            raise ValueError(
+                f"user energy {self.expression!r}: the stress at rest (F = I) is not finite"
+            )
         P0.setflags(write=False)
         object.__setattr__(self, "rest_energy", W0)
         object.__setattr__(self, "rest_stress", P0)
@@ -487,17 +614,21 @@ class UserEnergy:
         prestressed = norm > REST_STRESS_RTOL * scale
         object.__setattr__(self, "prestressed", bool(prestressed))
         if prestressed:
-            warnings.warn(PrestressWarning(self.rest_report()), stacklevel=4)  # the caller of UserEnergy(...)
+            warnings.warn(
+                PrestressWarning(self.rest_report()), stacklevel=4
+            )  # the caller of UserEnergy(...)
 
     def rest_report(self) -> str:
         """One sentence on the state at rest (energy and first Piola stress at F = I)."""
         norm = float(np.linalg.norm(self.rest_stress))
         if self.prestressed:
             return (
-                f"{self.name} ({self.expression}): the stress at rest is not zero (|P(I)| = {norm:.6g}); "
-                "forces on the undeformed mesh are not zero"
+                f"{self.name} ({self.expression}): the stress at rest is not zero (|P(I)| = "
+                f"{norm:.6g}); forces on the undeformed mesh are not zero"
             )
-        return f"{self.name} ({self.expression}): stress-free at rest; W(I) = {self.rest_energy:.6g}"
+        return (
+            f"{self.name} ({self.expression}): stress-free at rest; W(I) = {self.rest_energy:.6g}"
+        )
 
     # -- evaluations --------------------------------------------------------------------------
     @property
@@ -513,13 +644,19 @@ class UserEnergy:
         """The kinematic variables the expression uses."""
         return tuple(sorted(_used_names(self._tree) & set(VARIABLES)))
 
-    def evaluate(self, variable: Callable[[str], Any], ln: Callable, exp: Callable, sqrt: Callable,
-                 constant: Optional[Callable[[float], Any]] = None):
+    def evaluate(
+        self,
+        variable: Callable[[str], Any],
+        ln: Callable,
+        exp: Callable,
+        sqrt: Callable,
+        constant: Optional[Callable[[float], Any]] = None,
+    ):
         """W on any array or symbolic backend (how another library can run this energy).
 
         Args:
             variable: name in :data:`VARIABLES` -> its value on the backend (called once per
-                name the expression uses; I4/I5 with :attr:`unit_fibre`).
+                name the expression uses; I4/I5 with the fibre of :meth:`directions`).
             ln, exp, sqrt: the backend's functions (``log`` is ``ln``; ``pow`` is ``**``).
             constant: turns each parameter value into what enters the result (default: the float).
         """
@@ -534,29 +671,41 @@ class UserEnergy:
 
     def density(self, F: np.ndarray) -> np.ndarray:
         """W per unit rest volume for each F of ``F`` (m, 3, 3), real or complex; shape (m,).
+        With a frame per cell, F holds one gradient per cell of that frame.
 
-        Non-finite values (e.g. ln J with J <= 0) are returned as they come."""
+        Non-finite values (e.g. ln J with J <= 0) are returned as they come.
+        """
         F = np.asarray(F)
         if F.ndim != 3 or F.shape[1:] != (3, 3):
             raise ValueError(f"user energy: F must have shape (m, 3, 3), got {F.shape}")
+        return self._density(F, self.directions(F.shape[0]))
+
+    def _density(self, F: np.ndarray, a: Optional[np.ndarray]) -> np.ndarray:
+        """W (m,) for F (m, 3, 3) with unit fibre(s) a, (3,) or (m, 3), or None."""
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
-        a = self.unit_fibre
         W = self.evaluate(lambda n: _numpy_variable(n, F, a, internal), np.log, np.exp, np.sqrt)
         return np.broadcast_to(W, F.shape[:1]).copy()
 
     def first_piola(self, F: np.ndarray, h: float = 1e-30) -> np.ndarray:
         """P = dW/dF (m, 3, 3) by complex-step differentiation of :meth:`density`: each entry
-        is Im W(F + i h e_kl) / h, free of cancellation, so exact to round-off."""
+        is Im W(F + i h e_kl) / h, free of cancellation, so exact to round-off.
+        """
         F = np.asarray(F, dtype=np.float64)
+        return self._first_piola(F, self.directions(F.shape[0]), h)
+
+    def _first_piola(self, F: np.ndarray, a: Optional[np.ndarray], h: float = 1e-30) -> np.ndarray:
         m = F.shape[0]
         Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)  # (m, 9, 3, 3)
         Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
-        W = self.density(Fc.reshape(m * 9, 3, 3)).reshape(m, 9)
+        # Each cell's fibre once per perturbed copy of its F.
+        a9 = a if a is None or a.ndim == 1 else np.repeat(a, 9, axis=0)
+        W = self._density(Fc.reshape(m * 9, 3, 3), a9).reshape(m, 9)
         return (W.imag / h).reshape(m, 3, 3)
 
     def cell_energies(self, points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> np.ndarray:
         """V0 W(F) per P1 cell (m,): rest positions ``points`` (n, 3), ``cells`` (m, 4),
-        current positions ``x`` (n, 3)."""
+        current positions ``x`` (n, 3).
+        """
         X = np.asarray(points, dtype=np.float64)
         x = np.asarray(x, dtype=np.float64)
         cells = np.asarray(cells)
@@ -566,13 +715,28 @@ class UserEnergy:
         V0 = np.linalg.det(D0) / 6.0
         return V0 * self.density(F)
 
-    def ufl_density(self, F, constant: Optional[Callable[[Any], Any]] = None):
+    def ufl_density(
+        self, F, constant: Optional[Callable[[Any], Any]] = None, frame: Optional[Any] = None
+    ):
         """W(F) as a scalar UFL expression for a UFL 3x3 ``F``. ``constant`` (optional)
         turns each parameter value into what enters the form (the oracle makes dolfinx
-        Constants, so one compiled form serves every parameter set of one expression)."""
+        Constants, so one compiled form serves every parameter set of one expression).
+        ``frame`` (optional): a UFL 3x3 frame whose first column is the fibre, in place of the
+        energy's own (the oracle passes a per-cell frame as a DG0 tensor Function).
+        """
         import ufl
 
-        a = None if self.fibre is None else ufl.as_vector([float(v) for v in self.unit_fibre])
+        a = None
+        if frame is not None:
+            a = ufl.as_vector([frame[i, 0] for i in range(3)])
+        elif self.uses_fibre:
+            if self.frame is not None and self.frame.ndim == 3:
+                raise ValueError(
+                    f"user energy {self.expression!r}: a frame per cell needs a mesh; "
+                    "pass frame= as a UFL expression (UFLOracle does this with a DG0 "
+                    "tensor Function)"
+                )
+            a = ufl.as_vector([float(v) for v in self.directions()])
         internal: Dict[str, Any] = {}  # C and C a, shared by the variables
 
         def get(n: str):
@@ -619,7 +783,9 @@ def parse_fibre(text: str) -> Tuple[float, float, float]:
     try:
         values = tuple(float(p) for p in parts)
     except ValueError:
-        raise ValueError(f"--fibre {text!r}: expected three numbers separated by commas, e.g. 1,0,0") from None
+        raise ValueError(
+            f"--fibre {text!r}: expected three numbers separated by commas, e.g. 1,0,0"
+        ) from None
     if len(values) != 3:
         raise ValueError(f"--fibre {text!r}: expected three numbers, got {len(values)}")
     return values  # type: ignore[return-value]
@@ -630,7 +796,8 @@ def user_energy_from_cli(
 ) -> UserEnergy:
     """The energy of ``--energy EXPR --param NAME=VALUE ... [--fibre a,b,c]``.
 
-    A parameter given twice is refused (rather than silently keeping one of the values)."""
+    A parameter given twice is refused (rather than silently keeping one of the values).
+    """
     values: Dict[str, float] = {}
     for text in params:
         key, v = parse_param(text)

@@ -42,7 +42,9 @@ def check_cells(cells, points: np.ndarray) -> np.ndarray:
     T = np.ascontiguousarray(raw, dtype=np.int64)
     n = points.shape[0]
     if T.min() < 0 or T.max() >= n:
-        raise ValueError(f"cell node indices must lie in [0, {n}), got range [{T.min()}, {T.max()}]")
+        raise ValueError(
+            f"cell node indices must lie in [0, {n}), got range [{T.min()}, {T.max()}]"
+        )
     s = np.sort(T, axis=1)
     repeated = np.flatnonzero(np.any(s[:, 1:] == s[:, :-1], axis=1))
     if repeated.size:
@@ -56,8 +58,8 @@ def check_cells(cells, points: np.ndarray) -> np.ndarray:
     if bad.size:
         c = bad[0]
         raise ValueError(
-            f"{bad.size} cell(s) are not positively oriented or are degenerate "
-            f"(first: cell {c}, signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
+            f"{bad.size} cell(s) are not positively oriented or are degenerate (first: cell {c}, "
+            f"signed volume {vol[c]:.3g}); swap two nodes of inverted cells"
         )
     return T
 
@@ -68,12 +70,15 @@ def check_positions(x, n: int) -> np.ndarray:
     if a.shape != (n, 3):
         raise ValueError(f"positions must have shape ({n}, 3), got {a.shape}")
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"positions contain {np.count_nonzero(~np.isfinite(a))} non-finite value(s)")
+        raise ValueError(
+            f"positions contain {np.count_nonzero(~np.isfinite(a))} non-finite value(s)"
+        )
     return a
 
 
 def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
-    """A Costa frame: None, a (3, 3) or (m, 3, 3) orthonormal frame; returned as (m, 3, 3).
+    """A fibre frame (Costa, a user energy with I4/I5): None, a (3, 3) or (m, 3, 3) orthonormal
+    frame; returned as (m, 3, 3).
 
     Orthonormality (R^T R = I to ``tol``) is required; det R = -1 is allowed, since flipping
     the sign of a frame column leaves Q = sum B_ij Ef_ij^2 unchanged.
@@ -84,13 +89,13 @@ def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
     if R.shape == (3, 3):
         R = np.broadcast_to(R, (m, 3, 3))
     if R.shape != (m, 3, 3):
-        raise ValueError(f"Costa frame must have shape (3, 3) or ({m}, 3, 3), got {R.shape}")
+        raise ValueError(f"fibre frame must have shape (3, 3) or ({m}, 3, 3), got {R.shape}")
     if not np.all(np.isfinite(R)):
-        raise ValueError("Costa frame contains non-finite values")
+        raise ValueError("fibre frame contains non-finite values")
     err = np.abs(np.einsum("cki,ckj->cij", R, R) - np.eye(3)).reshape(m, 9).max(axis=1)
     if np.any(err > tol):
         c = int(np.argmax(err))
         raise ValueError(
-            f"Costa frame must be orthonormal (R^T R = I); cell {c}: max |R^T R - I| = {err[c]:.3g}"
+            f"fibre frame must be orthonormal (R^T R = I); cell {c}: max |R^T R - I| = {err[c]:.3g}"
         )
     return R

@@ -3,7 +3,8 @@
 Written from the paper's formulas (section 3.1) and nothing of mjed's:
 
     S_h = 2 dW/dC = F^-1 dW/dF            (W from reference_fem.energies, dW/dF by ufl.diff),
-    gamma_i^n = a_i S_h + b_i gamma_i^(n-1),  a_i = dt alpha_i / (dt + tau_i), b_i = tau_i / (dt + tau_i),
+    gamma_i^n = a_i S_h + b_i gamma_i^(n-1),  a_i = dt alpha_i / (dt + tau_i), b_i = tau_i / (dt +
+    tau_i),
     S_v = S_h - sum_i gamma_i^n,
     R[v] = int (F S_v) : grad v dx,        K = dR/du [du]  (UFL derivative, history fixed).
 
@@ -19,7 +20,6 @@ from typing import Any, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
-
 import ufl
 
 from reference_fem import compat
@@ -41,13 +41,18 @@ class ViscousUFLOracle:
         alphas, taus: the Prony series (read as plain numbers).
     """
 
-    def __init__(self, points, cells, material: Any, alphas: Sequence[float], taus: Sequence[float]):
+    def __init__(
+        self, points, cells, material: Any, alphas: Sequence[float], taus: Sequence[float]
+    ):
         self._X = check_points(points)
         self._cells = check_cells(cells, self._X)
         self._alphas = np.asarray(alphas, dtype=float).ravel()
         self._taus = np.asarray(taus, dtype=float).ravel()
         if self._alphas.shape != self._taus.shape or self._alphas.size == 0:
-            raise ValueError(f"alphas and taus must be non-empty and of equal length, got {alphas!r} and {taus!r}")
+            raise ValueError(
+                f"alphas and taus must be non-empty and of equal length, got {alphas!r} and "
+                f"{taus!r}"
+            )
         self._material = material
         self.n_nodes, self.n_cells = len(self._X), len(self._cells)
 
@@ -92,15 +97,23 @@ class ViscousUFLOracle:
             dt: the step size (> 0).
         """
         history = np.asarray(history, dtype=np.float64)
-        if history.shape != (self._alphas.size, self.n_cells, 3, 3) or not np.isfinite(history).all():
-            raise ValueError(f"history must be finite with shape ({self._alphas.size}, {self.n_cells}, 3, 3), got {history.shape}")
+        if (
+            history.shape != (self._alphas.size, self.n_cells, 3, 3)
+            or not np.isfinite(history).all()
+        ):
+            raise ValueError(
+                f"history must be finite with shape ({self._alphas.size}, {self.n_cells}, 3, 3), "
+                f"got {history.shape}"
+            )
         if not (np.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be finite and > 0, got {dt!r}")
         x = check_positions(x, self.n_nodes)
         self._u.x.array[:] = self._numbering.to_dof_order(x - self._X)
         compat.scatter_forward(self._u)
         for field, gamma in zip(self._history, history):
-            field.x.array.reshape(-1, 9)[self._cell_block] = gamma[self._numbering.input_cell_of_cell].reshape(-1, 9)
+            field.x.array.reshape(-1, 9)[self._cell_block] = gamma[
+                self._numbering.input_cell_of_cell
+            ].reshape(-1, 9)
             compat.scatter_forward(field)
         self._dt.value = float(dt)
 
@@ -110,5 +123,8 @@ class ViscousUFLOracle:
         compat.assemble_matrix_into(self._A, self._K)
         K = self._renumber(*self._A.getValuesCSR())
         if not (np.isfinite(residual).all() and np.isfinite(K.data).all()):
-            raise ValueError(f"viscous UFL oracle: non-finite force or stiffness for {type(self._material).__name__}")
+            raise ValueError(
+                "viscous UFL oracle: non-finite force or stiffness for "
+                f"{type(self._material).__name__}"
+            )
         return -self._numbering.to_input_order(residual), K

@@ -55,6 +55,15 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   touch "$stamp"
 fi
 
+# ruff, the lint and format gate of `make test` (pinned: a newer release may format differently).
+RUFF_PIN="ruff==0.17.6"
+ruff_stamp=.venv/.ruff-installed
+if [ ! -f "$ruff_stamp" ] || [ "$(cat "$ruff_stamp")" != "$RUFF_PIN" ]; then
+  echo "bootstrap: installing $RUFF_PIN (PyPI) into .venv for the lint gate" >&2
+  .venv/bin/python -m pip install --quiet "$RUFF_PIN" >&2
+  echo "$RUFF_PIN" > "$ruff_stamp"
+fi
+
 # FElupe, a third-party FE library the conformance adapters check (conformance/adapters/felupe.py;
 # its energies were read from this release), with tensortrax for FElupe's automatic
 # differentiation (Hyperelastic). Both pure Python on NumPy/SciPy: --no-deps keeps Debian's

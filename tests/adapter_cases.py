@@ -1,5 +1,6 @@
 """Shared by the adapter tests (tests/test_adapters_*.py): the meshes and states every
-third-party library is checked on, and the comparison with the UFL oracle."""
+third-party library is checked on, and the comparison with the UFL oracle.
+"""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ from typing import Dict, Iterator, Tuple
 import numpy as np
 import pytest
 
+from common.states import apply_state, state_names
+
 # The force scale of the equivalence study (rest state: f = 0 on both sides, so |f - f0| is
 # measured against mean edge x |K|), reused so that both checks mean the same thing.
 from common.tolerances import mean_edge_length as mean_edge
 from comparisons.equivalence import compare_arrays
-from common.states import apply_state, state_names
 
 #: The meshes of the adapter checks (the brief: the smallest and a ~500-cell one).
 ADAPTER_MESHES = ("single-tet", "cube-small")
@@ -34,7 +36,8 @@ def errors_in_every_state(adapter, oracle, points, cells) -> Iterator[Tuple[str,
     """(state, {"force", "stiffness", "energy_difference", "oracle_energy"}) for every state
     of common/states.py: relative force and stiffness errors as the equivalence study
     measures them, the library's total energy minus the oracle's (None if the adapter
-    computes none) and the oracle's energy."""
+    computes none) and the oracle's energy.
+    """
     scale = mean_edge(points, cells)
     for state in state_names():
         x = apply_state(state, points, cells)

@@ -10,19 +10,29 @@ code the diagnosis must name for each one.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Dict, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
 import mjed
+from common.cases import DEFAULT_MATERIALS
 from mjed.materials import MooneyRivlin
 from mjed.terms import JFunction, LogPolynomial, Term, TermGroup, Unity
 from reference_fem.classical import strain_displacement
 from reference_fem.classical_materials import classical_law
 
-__all__ = ["MUTATIONS", "EXPECTED", "broken_engine", "MATERIAL"]
+__all__ = [
+    "MUTATIONS",
+    "EXPECTED",
+    "broken_engine",
+    "MATERIAL",
+    "FRAME_MUTATIONS",
+    "FRAME_EXPECTED",
+    "FRAME_MATERIAL",
+    "broken_frame_engine",
+]
 
 #: The material every mutation is checked with (both volumetric and isochoric terms matter).
 MATERIAL = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
@@ -105,7 +115,7 @@ class _MooneyRivlinJMinusOne(mjed.materials.base.Material):
                 else t
                 for t in group.terms
             )
-            out.append(TermGroup(terms, group.exponential, group.coefficient))
+            out.append(replace(group, terms=terms))
         return tuple(out)
 
 
@@ -297,3 +307,37 @@ def _finite_difference_tangent(case, field, f, K, W):
 
 MUTATIONS["finite-difference tangent"] = _finite_difference_tangent
 EXPECTED["finite-difference tangent"] = "finite-difference"
+# -- Fibre-frame mistakes (issue 25) ---------------------------------------------------------------
+# Checked on Costa, whose energy depends on the frame, with the helical per-cell field the kit gives
+# it (common.frames). Each engine is MJED run with a frame other than the case's: the mistake sits
+# inside the energy, so force and stiffness are both wrong in every deformed state.
+
+#: The material of the frame mutations (no frame: the kit gives it the mesh's helical field).
+FRAME_MATERIAL = DEFAULT_MATERIALS["Costa"]
+
+#: Mutation -> the frame the engine uses, from the case's frame R (m, 3, 3).
+FRAME_MUTATIONS: Dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "frame-blind engine (identity frame)": lambda R: np.eye(3),
+    "transposed rotation": lambda R: np.swapaxes(R, -1, -2).copy(),
+    "global axes (one frame for the mesh)": lambda R: R.reshape(-1, 3, 3)[0].copy(),
+    "fibre and sheet columns swapped": lambda R: R[..., [1, 0, 2]].copy(),
+}
+
+FRAME_EXPECTED: Dict[str, str] = {
+    "frame-blind engine (identity frame)": "frame-ignored",
+    "transposed rotation": "frame-transposed",
+    "global axes (one frame for the mesh)": "frame-global",
+    "fibre and sheet columns swapped": "frame-columns",
+}
+
+
+def broken_frame_engine(mutation: str):
+    """An implementation (CaseInput -> (f, K, W)): MJED with the case's frame replaced as named."""
+    frame_of = FRAME_MUTATIONS[mutation]
+    exact = broken_engine("none")
+
+    def engine(case):
+        wrong = replace(case.model, frame=frame_of(np.asarray(case.model.frame)))
+        return exact(replace(case, model=wrong))
+
+    return engine

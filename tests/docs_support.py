@@ -1,4 +1,5 @@
-"""What the documentation tests share within one pytest process: executed tutorials and a built site.
+"""What the documentation tests share within one pytest process: executed tutorials and a built
+site.
 
 Each tutorial is executed once per test session (into a fresh temporary cache, so nothing
 from an earlier run is reused), by ``tests/test_tutorials.py`` or by the site build of
@@ -55,6 +56,22 @@ def built_site() -> Build:
         executed(script)
     out = session_dir() / "site"
     env = dict(os.environ, MJED_TUTORIAL_CACHE=str(tutorial_cache()))
-    proc = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-q", str(DOCS), str(out / "html"),
-                           "-d", str(out / "doctrees")], cwd=ROOT, env=env, capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sphinx",
+            "-b",
+            "html",
+            "-q",
+            str(DOCS),
+            str(out / "html"),
+            "-d",
+            str(out / "doctrees"),
+        ],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     return Build(out / "html", proc.returncode, proc.stdout + proc.stderr)

@@ -23,11 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from adapter_cases import ADAPTER_MESHES, errors_in_every_state, load_mesh, mesh_volume
+
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
-felupe = pytest.importorskip("felupe", reason="FElupe is not installed (scripts/bootstrap.sh installs felupe==11.3.0)")
+felupe = pytest.importorskip(
+    "felupe", reason="FElupe is not installed (scripts/bootstrap.sh installs felupe==11.3.0)"
+)
 pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
 pytestmark = pytest.mark.oracle
 
@@ -48,7 +50,9 @@ NH = DEFAULT_MATERIALS["NeoHookean"]
 
 
 def test_the_installed_felupe_is_the_checked_release():
-    assert felupe.__version__ == CHECKED_VERSION, "the energies in conformance/adapters/felupe.py were read from this release"
+    assert felupe.__version__ == CHECKED_VERSION, (
+        "the energies in conformance/adapters/felupe.py were read from this release"
+    )
 
 
 @pytest.mark.parametrize("mesh", ADAPTER_MESHES)
@@ -69,8 +73,13 @@ def test_neo_hooke_compressible_against_the_builtin_neohookean(mesh):
     "umat",
     [
         pytest.param(lambda: felupe.NeoHooke(mu=1200.0, bulk=3.0e4), id="NeoHooke"),
-        pytest.param(lambda: felupe.NeoHookeCompressible(mu=3448.2759, lmbda=31034.483), id="NeoHookeCompressible"),
-        pytest.param(lambda: felupe.LinearElasticLargeStrain(E=1.0e4, nu=0.3), id="LinearElasticLargeStrain"),
+        pytest.param(
+            lambda: felupe.NeoHookeCompressible(mu=3448.2759, lmbda=31034.483),
+            id="NeoHookeCompressible",
+        ),
+        pytest.param(
+            lambda: felupe.LinearElasticLargeStrain(E=1.0e4, nu=0.3), id="LinearElasticLargeStrain"
+        ),
     ],
 )
 def test_felupe_materials_against_the_oracle_of_their_stated_energy(mesh, umat):
@@ -92,7 +101,10 @@ def test_a_user_energy_written_as_felupe_writes_it_runs_felupe():
     points, cells = load_mesh("single-tet")
     x = points @ np.diag([1.1, 0.95, 1.0]).T
     adapter = FElupeAdapter(points, cells, e)
-    assert isinstance(adapter.library_material, felupe.NeoHooke) and adapter.library_material.bulk == 3.0e4
+    assert (
+        isinstance(adapter.library_material, felupe.NeoHooke)
+        and adapter.library_material.bulk == 3.0e4
+    )
     assert np.isclose(adapter.energy(x), e.cell_energies(points, cells, x).sum(), rtol=1e-13)
 
 
@@ -112,10 +124,14 @@ def test_unsupported_models_are_refused_with_the_reason():
 USER_ENERGIES = {
     "fibre-and-C12": UserEnergy(
         "c*C12**2 + k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c5*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2",
-        {"c": 500.0, "k1": 2.0e3, "k2": 0.7, "c5": 300.0, "mu": 1.0e3, "K": 1.0e4}, fibre=(1.0, 1.0, 0.5)),
+        {"c": 500.0, "k1": 2.0e3, "k2": 0.7, "c5": 300.0, "mu": 1.0e3, "K": 1.0e4},
+        fibre=(1.0, 1.0, 0.5),
+    ),
     "E-components-I2-I3": UserEnergy(
-        "mu*(E11**2+E22**2+E33**2+2*(E12**2+E13**2+E23**2)) + lam/2*(E11+E22+E33)**2 + c*(I2-3)**2 + d*(I3-1)**2",
-        {"mu": 3448.2759, "lam": 31034.483, "c": 50.0, "d": 100.0}),
+        "mu*(E11**2+E22**2+E33**2+2*(E12**2+E13**2+E23**2)) + lam/2*(E11+E22+E33)**2 + c*(I2-3)**2 "
+        "+ d*(I3-1)**2",
+        {"mu": 3448.2759, "lam": 31034.483, "c": 50.0, "d": 100.0},
+    ),
 }
 
 
@@ -129,7 +145,9 @@ def _autodiff():
 
 
 @pytest.mark.parametrize("mesh", ADAPTER_MESHES)
-@pytest.mark.parametrize("model", ["StVenantKirchhoff", "MooneyRivlin", "ArrudaBoyce", *USER_ENERGIES])
+@pytest.mark.parametrize(
+    "model", ["StVenantKirchhoff", "MooneyRivlin", "ArrudaBoyce", *USER_ENERGIES]
+)
 def test_felupe_automatic_differentiation_against_the_oracle(mesh, model):
     _autodiff()
     points, cells = load_mesh(mesh)
@@ -149,7 +167,8 @@ def test_felupe_automatic_differentiation_against_the_oracle(mesh, model):
 @pytest.mark.parametrize("mesh", ADAPTER_MESHES)
 def test_felupe_ogden_is_off_by_the_eigenvalue_perturbation_of_tensortrax(mesh):
     """The measured discrepancy (module docstring): above the 1e-10 tolerance, far below
-    any modelling error, in every state including rest."""
+    any modelling error, in every state including rest.
+    """
     _autodiff()
     points, cells = load_mesh(mesh)
     m = DEFAULT_MATERIALS["Ogden"]
@@ -160,7 +179,10 @@ def test_felupe_ogden_is_off_by_the_eigenvalue_perturbation_of_tensortrax(mesh):
     for state, err in errs.items():
         assert 1e-11 < err["force"] < 1e-8, (state, err)  # measured 8e-11 to 3e-10
         assert 1e-10 < err["stiffness"] < 1e-7, (state, err)  # measured 1.0e-9 to 1.8e-9
-        assert abs(err["energy_difference"]) < 1e-6 * energy_scale, (state, err)  # measured <= 5e-9 of the scale
+        assert abs(err["energy_difference"]) < 1e-6 * energy_scale, (
+            state,
+            err,
+        )  # measured <= 5e-9 of the scale
     # The cause: tensortrax's relative perturbation of C before eigh (sqrt of machine eps).
     from tensortrax.math.linalg._linalg_tensor import perturb
 
@@ -172,20 +194,31 @@ def test_felupe_ogden_is_off_by_the_eigenvalue_perturbation_of_tensortrax(mesh):
 
 def test_the_check_is_not_vacuous():
     """A 1e-6 change of FElupe's mu is far above the tolerance (so round-off agreement above
-    is a finding, not an artefact of a loose comparison)."""
+    is a finding, not an artefact of a loose comparison).
+    """
     points, cells = load_mesh("cube-small")
     oracle = UFLOracle(points, cells, NH)
-    shifted = FElupeAdapter(points, cells, felupe.NeoHookeCompressible(mu=NH.mu * (1 + 1e-6), lmbda=NH.lam))
+    shifted = FElupeAdapter(
+        points, cells, felupe.NeoHookeCompressible(mu=NH.mu * (1 + 1e-6), lmbda=NH.lam)
+    )
     errs = dict(errors_in_every_state(shifted, oracle, points, cells))
-    assert errs["random"]["force"] > 100 * FORCE_TOL and errs["random"]["stiffness"] > 100 * STIFFNESS_TOL
+    assert (
+        errs["random"]["force"] > 100 * FORCE_TOL
+        and errs["random"]["stiffness"] > 100 * STIFFNESS_TOL
+    )
 
 
 def test_felupe_through_the_python_protocol():
     """The adapter as an implementation of conformance/protocol.py, on FElupe's NeoHooke
-    written as a user energy (energy, force and stiffness all compared)."""
-    protocol = pytest.importorskip("conformance.protocol", reason="the Python protocol (conformance/protocol.py) is not here")
+    written as a user energy (energy, force and stiffness all compared).
+    """
+    protocol = pytest.importorskip(
+        "conformance.protocol", reason="the Python protocol (conformance/protocol.py) is not here"
+    )
     from conformance.adapters import LibraryImplementation
 
     energy = UserEnergy("mu/2*(I1b - 3) + bulk/2*(J - 1)**2", {"mu": 1200.0, "bulk": 3.0e4})
-    run = protocol.check_implementation(LibraryImplementation(FElupeAdapter), energy=energy, mesh="single-tet")
+    run = protocol.check_implementation(
+        LibraryImplementation(FElupeAdapter), energy=energy, mesh="single-tet"
+    )
     assert run.exit_code == 0, run.summary()

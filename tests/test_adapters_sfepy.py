@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from adapter_cases import ADAPTER_MESHES, errors_in_every_state, load_mesh
+
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
 
 pytest.importorskip("sfepy", reason="SfePy is not installed (Debian: python3-sfepy)")
@@ -32,20 +32,30 @@ import sfepy  # noqa: E402
 from common.cases import DEFAULT_MATERIALS  # noqa: E402
 from common.states import apply_state  # noqa: E402
 from conformance.adapters import Unsupported  # noqa: E402
-from conformance.adapters.sfepy import CHECKED_VERSION, SfePyAdapter, SfePyTerms, supports  # noqa: E402
+
+# noqa: E402
+from conformance.adapters.sfepy import CHECKED_VERSION, SfePyAdapter, SfePyTerms, supports
 from mjed import materials as M  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
 from reference_fem.user_energy import UserEnergy  # noqa: E402
 
 INVARIANT_SUMS = {
-    "neohook+mooney_rivlin+bulk_penalty": {"dw_tl_he_neohook": {"mu": 1200.0}, "dw_tl_he_mooney_rivlin": {"kappa": 800.0},
-                                           "dw_tl_bulk_penalty": {"K": 3.0e4}},
-    "genyeoh+bulk_penalty": {"dw_tl_he_genyeoh": {"K": 1000.0, "p": 3.0}, "dw_tl_bulk_penalty": {"K": 3.0e4}},
+    "neohook+mooney_rivlin+bulk_penalty": {
+        "dw_tl_he_neohook": {"mu": 1200.0},
+        "dw_tl_he_mooney_rivlin": {"kappa": 800.0},
+        "dw_tl_bulk_penalty": {"K": 3.0e4},
+    },
+    "genyeoh+bulk_penalty": {
+        "dw_tl_he_genyeoh": {"K": 1000.0, "p": 3.0},
+        "dw_tl_bulk_penalty": {"K": 3.0e4},
+    },
 }
 
 
 def test_the_installed_sfepy_is_the_checked_release():
-    assert sfepy.__version__ == CHECKED_VERSION, "the energies in conformance/adapters/sfepy.py were read from this release"
+    assert sfepy.__version__ == CHECKED_VERSION, (
+        "the energies in conformance/adapters/sfepy.py were read from this release"
+    )
 
 
 @pytest.mark.parametrize("mesh", ADAPTER_MESHES)
@@ -66,10 +76,17 @@ def test_a_user_energy_written_as_sfepy_terms_runs_those_terms():
     assert ok and "dw_tl_he_neohook + dw_tl_bulk_penalty" in why
     points, cells = load_mesh("single-tet")
     adapter = SfePyAdapter(points, cells, e)
-    assert adapter.terms.terms == {"dw_tl_he_neohook": {"mu": 1200.0}, "dw_tl_bulk_penalty": {"K": 3.0e4}}
+    assert adapter.terms.terms == {
+        "dw_tl_he_neohook": {"mu": 1200.0},
+        "dw_tl_bulk_penalty": {"K": 3.0e4},
+    }
     # Two terms sharing a parameter name get suffixes in the expression.
     both = SfePyTerms(INVARIANT_SUMS["genyeoh+bulk_penalty"]).energy()
-    assert both.expression == "K_0*(I1b-3)**p + K_1/2*(J-1)**2" and dict(both.params) == {"K_0": 1000.0, "K_1": 3.0e4, "p": 3.0}
+    assert both.expression == "K_0*(I1b-3)**p + K_1/2*(J-1)**2" and dict(both.params) == {
+        "K_0": 1000.0,
+        "K_1": 3.0e4,
+        "p": 3.0,
+    }
 
 
 def test_unsupported_models_are_refused_with_the_reason():
@@ -86,7 +103,8 @@ def test_unsupported_models_are_refused_with_the_reason():
 def _ogden_reference(points, cells, mu_sfepy, alpha):
     """Oracle force and stiffness of SfePy's documented Ogden energy mu/alpha (sum
     lambda_bar^alpha - 3): the project's Ogden (mu/alpha^2 ..., so mu = alpha mu_sfepy)
-    minus its k0/2 (ln J)^2 bulk term, both differentiated by UFL."""
+    minus its k0/2 (ln J)^2 bulk term, both differentiated by UFL.
+    """
     full = UFLOracle(points, cells, M.Ogden(mu=alpha * mu_sfepy, alpha=alpha, k0=1.0))
     bulk = UFLOracle(points, cells, UserEnergy("k0/2*ln(J)**2", {"k0": 1.0}))
 
@@ -101,27 +119,43 @@ def _ogden_reference(points, cells, mu_sfepy, alpha):
 @pytest.mark.parametrize("alpha", [2.0, 3.0, 5.0])
 def test_ogden_force_is_j_to_the_alpha_minus_2_over_3_times_the_documented_one(alpha):
     points, cells = load_mesh("single-tet")
-    adapter = SfePyAdapter(points, cells, SfePyTerms({"dw_tl_he_ogden": {"mu": 1000.0, "alpha": alpha}}))
+    adapter = SfePyAdapter(
+        points, cells, SfePyTerms({"dw_tl_he_ogden": {"mu": 1000.0, "alpha": alpha}})
+    )
     reference = _ogden_reference(points, cells, 1000.0, alpha)
-    for state, stretches in [("uniaxial", (1.3, 1.0, 1.0)), ("triaxial", (1.25, 0.9, 0.8)), ("shear", (1.0,))]:
+    for state, stretches in [
+        ("uniaxial", (1.3, 1.0, 1.0)),
+        ("triaxial", (1.25, 0.9, 0.8)),
+        ("shear", (1.0,)),
+    ]:
         x = apply_state(state, points, cells)
         J = float(np.prod(stretches))
         f, f0 = adapter.force(x), reference(x)[0]
         # The measured law, exact to round-off: SfePy's force = J^((alpha-2)/3) x the energy's.
-        assert np.linalg.norm(f - J ** ((alpha - 2) / 3) * f0) <= 1e-13 * np.linalg.norm(f0), (state, alpha)
+        assert np.linalg.norm(f - J ** ((alpha - 2) / 3) * f0) <= 1e-13 * np.linalg.norm(f0), (
+            state,
+            alpha,
+        )
         off = np.linalg.norm(f - f0) / np.linalg.norm(f0)
         if alpha == 2.0 or J == 1.0:
             assert off <= FORCE_TOL, (state, alpha, off)
         else:
-            assert off >= 0.03, (state, alpha, off)  # 3.5 % (triaxial, alpha 3) to 30 % (uniaxial, alpha 5)
+            assert off >= 0.03, (
+                state,
+                alpha,
+                off,
+            )  # 3.5 % (triaxial, alpha 3) to 30 % (uniaxial, alpha 5)
 
 
 @pytest.mark.parametrize("mesh", ADAPTER_MESHES)
 def test_ogden_tangent_is_not_the_derivative_of_its_force_when_j_is_not_1(mesh):
-    """alpha = 2, where SfePy's force is the documented energy's: its tangent still differs
-    from UFL's stiffness, and from a central difference of SfePy's own force, unless J = 1."""
+    """Alpha = 2, where SfePy's force is the documented energy's: its tangent still differs
+    from UFL's stiffness, and from a central difference of SfePy's own force, unless J = 1.
+    """
     points, cells = load_mesh(mesh)
-    adapter = SfePyAdapter(points, cells, SfePyTerms({"dw_tl_he_ogden": {"mu": 1000.0, "alpha": 2.0}}))
+    adapter = SfePyAdapter(
+        points, cells, SfePyTerms({"dw_tl_he_ogden": {"mu": 1000.0, "alpha": 2.0}})
+    )
     reference = _ogden_reference(points, cells, 1000.0, 2.0)
     rng = np.random.default_rng(1)
     for state in ("uniaxial", "compression", "triaxial", "random", "shear"):
@@ -138,5 +172,6 @@ def test_ogden_tangent_is_not_the_derivative_of_its_force_when_j_is_not_1(mesh):
         assert force_err <= FORCE_TOL, (state, force_err)
         if state == "shear":  # J = 1: exact
             assert stiff_err <= STIFFNESS_TOL and own <= 1e-7, (state, stiff_err, own)
-        else:  # measured: stiffness 6e-2 to 2.3e-1, asymmetry up to 1e-2, own-force Taylor 6e-2 to 1.7e-1
+        # measured: stiffness 6e-2 to 2.3e-1, asymmetry up to 1e-2, own-force Taylor 6e-2 to 1.7e-1
+        else:
             assert stiff_err >= 1e-2 and asym >= 1e-4 and own >= 1e-2, (state, stiff_err, asym, own)

@@ -18,8 +18,10 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 LAYERS = ("mjed", "meshes", "reference_fem", "common", "conformance", "comparisons")
 #: Third-party packages a layer must never import: mjed stays NumPy/SciPy (plus optional Numba).
-FORBIDDEN = {"mjed": ("dolfinx", "ufl", "petsc4py", "basix", "ffcx", "mpi4py"),
-             "common": ("dolfinx", "ufl", "petsc4py")}
+FORBIDDEN = {
+    "mjed": ("dolfinx", "ufl", "petsc4py", "basix", "ffcx", "mpi4py"),
+    "common": ("dolfinx", "ufl", "petsc4py"),
+}
 
 
 def module_files(root: pathlib.Path, packages=LAYERS) -> Dict[str, pathlib.Path]:
@@ -50,7 +52,7 @@ def imported_names(path: pathlib.Path) -> Set[str]:
 
 
 def import_graph(mods: Dict[str, pathlib.Path]) -> Dict[str, Set[str]]:
-    """module -> the project modules it imports (a name resolves to its longest module prefix)."""
+    """Module -> the project modules it imports (a name resolves to its longest module prefix)."""
 
     def resolve(name: str):
         while name and name not in mods:
@@ -136,9 +138,13 @@ def test_low_layers_do_not_import_the_oracle_stack(layer):
 
 def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
     """The two checks above can fail: a miniature tree with one of each."""
-    for pkg, files in {"common": {"a": "from conformance.b import x\n"},
-                       "conformance": {"b": "def f():\n    from conformance.c import y\n",
-                                       "c": "import conformance.b\n"}}.items():
+    for pkg, files in {
+        "common": {"a": "from conformance.b import x\n"},
+        "conformance": {
+            "b": "def f():\n    from conformance.c import y\n",
+            "c": "import conformance.b\n",
+        },
+    }.items():
         (tmp_path / pkg).mkdir()
         (tmp_path / pkg / "__init__.py").write_text("")
         for name, text in files.items():
@@ -146,3 +152,32 @@ def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
     g = import_graph(module_files(tmp_path, ("common", "conformance")))
     assert upward_imports(g, ("common", "conformance")) == ["common.a -> conformance.b"]
     assert cycles(g) == [["conformance.b", "conformance.c"]]
+
+
+#: A study driver longer than this mixes setup, measurement and presentation; split it.
+MAX_FUNCTION_LINES = 60
+
+
+def long_functions(root: pathlib.Path, package: str, limit: int = MAX_FUNCTION_LINES) -> List[str]:
+    """'file:function (lines)' for every function of ``package`` longer than ``limit`` lines
+    (from its ``def`` to its last line, docstring included).
+    """
+    out = []
+    for path in sorted((root / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > limit:
+                    out.append(f"{path.relative_to(root)}:{node.name} ({n})")
+    return out
+
+
+def test_no_function_of_the_studies_is_over_60_lines():
+    assert long_functions(ROOT, "comparisons") == []
+
+
+def test_the_length_check_finds_a_long_function(tmp_path):
+    (tmp_path / "pkg").mkdir()
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES))
+    (tmp_path / "pkg" / "m.py").write_text(f"def short():\n    return 1\n\n\ndef long():\n{body}\n")
+    assert long_functions(tmp_path, "pkg") == [f"pkg/m.py:long ({MAX_FUNCTION_LINES + 1})"]

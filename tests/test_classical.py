@@ -1,17 +1,18 @@
 """The classical Total Lagrangian FEM (reference_fem.classical) against MJED, against its own
 derivatives (Taylor rates, central differences of W and S) and, if dolfinx is there, against
-the UFL oracle."""
+the UFL oracle.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import MATERIALS as SHARED_MATERIALS
+from conftest import box_mesh, perturbed
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
-from conftest import MATERIALS as SHARED_MATERIALS
-from conftest import box_mesh, perturbed
 from mjed import materials as M
 from reference_fem.classical import ClassicalGalerkin, strain_displacement
 from reference_fem.classical_materials import VI, VJ, WEIGHT, classical_law, voigt
@@ -20,7 +21,7 @@ TOL = 1e-10
 
 
 def _rotations(n, seed):
-    """n proper rotations from QR of Gaussian matrices."""
+    """N proper rotations from QR of Gaussian matrices."""
     rng = np.random.default_rng(seed)
     Q, Rr = np.linalg.qr(rng.standard_normal((n, 3, 3)))
     Q = Q * np.sign(np.diagonal(Rr, axis1=1, axis2=2))[:, None, :]
@@ -69,7 +70,11 @@ def test_matches_mjed(name, state):
     ref = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), material)
     cl = ClassicalGalerkin(points, cells, material)
     f, K = cl.force_and_stiffness(x)
-    assert f.shape == (len(points), 3) and isinstance(K, sp.csr_matrix) and K.shape == (3 * len(points),) * 2
+    assert (
+        f.shape == (len(points), 3)
+        and isinstance(K, sp.csr_matrix)
+        and K.shape == (3 * len(points),) * 2
+    )
     assert _rel(f, ref.force(x)) <= TOL
     assert _rel(K, ref.stiffness(x)) <= TOL
     assert _rel(cl.element_stiffness(x), ref.element_stiffness(x)) <= TOL
@@ -116,7 +121,8 @@ def _random_C(n, seed, scale=0.25):
 
 def _sym_unit(I):
     """sym(e_i (x) e_j) for Voigt index I: the direction whose derivative is the (i, j) entry
-    of a symmetric-tensor gradient (both off-diagonal entries move by h/2)."""
+    of a symmetric-tensor gradient (both off-diagonal entries move by h/2).
+    """
     E = np.zeros((3, 3))
     i, j = VI[I], VJ[I]
     E[i, j] += 0.5
@@ -163,7 +169,13 @@ def test_ogden_tangent_at_repeated_eigenvalues(alpha, gap):
     """The divided differences at (near-)repeated eigenvalues of C, including C = l I."""
     law = classical_law(M.Ogden(1.0, alpha, 5.0))
     Q = _rotations(3, 21)
-    lam = np.array([[1.3, 1.3 * (1 + gap), 0.8], [1.1, 1.1 * (1 + gap), 1.1 * (1 - gap)], [0.9, 0.9, 0.9 * (1 + gap)]])
+    lam = np.array(
+        [
+            [1.3, 1.3 * (1 + gap), 0.8],
+            [1.1, 1.1 * (1 + gap), 1.1 * (1 - gap)],
+            [0.9, 0.9, 0.9 * (1 + gap)],
+        ]
+    )
     C = Q @ (lam[:, :, None] * np.eye(3)) @ np.swapaxes(Q, 1, 2)
     CC, CC_fd = _tangent_vs_fd(law, C, h=1e-5)
     assert np.isfinite(CC).all()
@@ -183,7 +195,9 @@ def test_strain_displacement_matrix(state):
     assert np.allclose(B @ dx.reshape(-1, 12, 1), (voigt(dE) * WEIGHT)[:, :, None], atol=1e-13)
     S = classical_law(MATERIALS["NeoHookean"]).stress(np.swapaxes(F, 1, 2) @ F)
     FSD = mesh.D @ np.swapaxes(F @ S, 1, 2)
-    assert np.allclose((np.swapaxes(B, 1, 2) @ voigt(S)[:, :, None]).reshape(-1, 4, 3), FSD, atol=1e-13)
+    assert np.allclose(
+        (np.swapaxes(B, 1, 2) @ voigt(S)[:, :, None]).reshape(-1, 4, 3), FSD, atol=1e-13
+    )
 
 
 def test_inverted_element_is_refused():
@@ -234,8 +248,10 @@ def test_classical_law_dispatches_on_the_material_type():
         pass
 
     C = np.diag([1.2, 0.9, 1.1])[None]
-    assert np.array_equal(classical_law(Softer(mu=1.0, lam=2.0)).stress(C),
-                          classical_law(M.NeoHookean(mu=1.0, lam=2.0)).stress(C))
+    assert np.array_equal(
+        classical_law(Softer(mu=1.0, lam=2.0)).stress(C),
+        classical_law(M.NeoHookean(mu=1.0, lam=2.0)).stress(C),
+    )
     Fake = type("NeoHookean", (), {"mu": 1.0, "lam": 2.0})  # the right name is not enough
     with pytest.raises(TypeError, match=r"no classical law for material type .*NeoHookean"):
         classical_law(Fake())

@@ -17,12 +17,20 @@ from reference_fem import compat, dolfinx_available
 from reference_fem.distributed import RankError, collective, gather_csr, gather_rows, on_root
 
 REPO = Path(__file__).resolve().parents[1]
-needs_dolfinx = pytest.mark.skipif(not dolfinx_available(), reason="dolfinx is not installed (Debian: python3-dolfinx)")
+needs_dolfinx = pytest.mark.skipif(
+    not dolfinx_available(), reason="dolfinx is not installed (Debian: python3-dolfinx)"
+)
 
 
 @pytest.mark.parametrize(
     "text, expected",
-    [("0.5.2", (0, 5, 2)), ("0.11.0.post0", (0, 11, 0)), ("0.10", (0, 10, 0)), ("0.9.0rc1", (0, 9, 0)), ("1.0.0.dev0", (1, 0, 0))],
+    [
+        ("0.5.2", (0, 5, 2)),
+        ("0.11.0.post0", (0, 11, 0)),
+        ("0.10", (0, 10, 0)),
+        ("0.9.0rc1", (0, 9, 0)),
+        ("1.0.0.dev0", (1, 0, 0)),
+    ],
 )
 def test_parse_version(text, expected):
     assert compat.parse_version(text) == expected
@@ -37,9 +45,21 @@ def test_parse_version_refuses_garbage(text):
 # Spellings that differ between releases; outside compat.py they mean a version branch or
 # a call that breaks on one of the releases.
 _RELEASE_SPECIFIC = [
-    r"__version__", r"dolfinx_version\(", r"VectorFunctionSpace", r"TensorFunctionSpace", r"fem\.functionspace",
-    r"VectorElement", r"basix\.ufl", r"geometry\.dofmap", r"dofmap\.list", r"\.input_global_indices\b(?!\()",
-    r"\.original_cell_index\b(?!\()", r"create_mesh\(", r"fem\.petsc", r"import dolfinx", r"from dolfinx",
+    r"__version__",
+    r"dolfinx_version\(",
+    r"VectorFunctionSpace",
+    r"TensorFunctionSpace",
+    r"fem\.functionspace",
+    r"VectorElement",
+    r"basix\.ufl",
+    r"geometry\.dofmap",
+    r"dofmap\.list",
+    r"\.input_global_indices\b(?!\()",
+    r"\.original_cell_index\b(?!\()",
+    r"create_mesh\(",
+    r"fem\.petsc",
+    r"import dolfinx",
+    r"from dolfinx",
 ]
 # Every module of reference_fem but the layer itself.
 _LAYERED = sorted(p.name for p in (REPO / "reference_fem").glob("*.py") if p.name != "compat.py")
@@ -50,7 +70,11 @@ def test_no_release_specific_calls_outside_compat(name):
     text = (REPO / "reference_fem" / name).read_text()
     code = "\n".join(line.split("#")[0] for line in text.splitlines())  # comments may name them
     code = re.sub(r'""".*?"""', "", code, flags=re.S)  # and so may docstrings
-    found = [p for p in _RELEASE_SPECIFIC if re.search(r"(?<!compat)" + p if p.startswith("\\.") else r"(?<!compat\.)" + p, code)]
+    found = [
+        p
+        for p in _RELEASE_SPECIFIC
+        if re.search(r"(?<!compat)" + p if p.startswith("\\.") else r"(?<!compat\.)" + p, code)
+    ]
     assert not found, f"reference_fem/{name} uses {found}; go through reference_fem.compat"
 
 
@@ -119,7 +143,10 @@ def test_accessors_on_the_installed_release():
     oci = compat.original_cell_index(mesh)
     assert np.array_equal(np.sort(oci), np.arange(m))
     assert np.array_equal(np.sort(igi[geo], axis=1), np.sort(cells[oci], axis=1))
-    assert compat.owned_range(V.dofmap.index_map) == (0, n) and compat.num_ghosts(V.dofmap.index_map) == 0
+    assert (
+        compat.owned_range(V.dofmap.index_map) == (0, n)
+        and compat.num_ghosts(V.dofmap.index_map) == 0
+    )
     assert compat.dof_coordinates(V).shape == (n, 3)
     S = compat.scalar_p1_space(mesh)
     assert S.dofmap.index_map_bs == S.dofmap.bs == 1 and compat.cell_dofs(S, 4).shape == (m, 4)
@@ -134,7 +161,6 @@ def test_accessors_on_the_installed_release():
 @pytest.mark.oracle
 def test_assembly_wrappers_give_the_volume_and_a_zero_sum_residual():
     import ufl
-
     from conftest import box_mesh
 
     points, cells = box_mesh(2, jitter=0.2)
@@ -144,7 +170,8 @@ def test_assembly_wrappers_give_the_volume_and_a_zero_sum_residual():
     one = compat.constant(mesh, 1.0)
     dx = ufl.dx(domain=mesh)
     assert np.isclose(compat.assemble_scalar_local(compat.compile_form(one * dx)), 1.0, rtol=1e-13)
-    # R = d/du int |I + grad u|^2 dx at u = 0 is 2 int div v dx: its entries sum to zero per component.
+    # R = d/du int |I + grad u|^2 dx at u = 0 is 2 int div v dx: its entries sum to zero per
+    # component.
     F = ufl.Identity(3) + ufl.grad(u)
     R = compat.compile_form(ufl.derivative(ufl.inner(F, F) * dx, u, ufl.TestFunction(V)))
     b = compat.create_vector(R)
@@ -156,7 +183,11 @@ def test_assembly_wrappers_give_the_volume_and_a_zero_sum_residual():
     compat.accumulate_ghosts(b)
     assert np.array_equal(first, b.array_r)
     assert np.allclose(first.reshape(-1, 3).sum(axis=0), 0.0, atol=1e-12)
-    K = compat.compile_form(ufl.derivative(ufl.derivative(ufl.inner(F, F) * dx, u, ufl.TestFunction(V)), u, ufl.TrialFunction(V)))
+    K = compat.compile_form(
+        ufl.derivative(
+            ufl.derivative(ufl.inner(F, F) * dx, u, ufl.TestFunction(V)), u, ufl.TrialFunction(V)
+        )
+    )
     A = compat.create_matrix(K)
     compat.assemble_matrix_into(A, K)
     compat.assemble_matrix_into(A, K)

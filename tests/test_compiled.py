@@ -1,5 +1,6 @@
 """The compiled (Numba) backend against the NumPy engine, for every material and both
-regularisation settings, plus its interface: backend choice, errors, no Numba at import."""
+regularisation settings, plus its interface: backend choice, errors, no Numba at import.
+"""
 
 from __future__ import annotations
 
@@ -8,13 +9,15 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, box_mesh, perturbed
 
 import mjed
-from conftest import MATERIALS, box_mesh, perturbed
 from mjed.compiled import numba_available
 
-needs_numba = pytest.mark.skipif(not numba_available(), reason="the compiled backend needs Numba "
-                                 "(Debian: python3-numba; PyPI: numba)")
+needs_numba = pytest.mark.skipif(
+    not numba_available(),
+    reason="the compiled backend needs Numba (Debian: python3-numba; PyPI: numba)",
+)
 
 
 def _rel(a, b):
@@ -65,8 +68,12 @@ def test_compiled_per_cell_costa_frame(cube, rng):
 
     R = Rotation.random(mesh.n_cells, random_state=3).as_matrix()
     base = MATERIALS["Costa"]
-    mat = type(base)(**{k: getattr(base, k) for k in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")},
-                     frame=R)
+    mat = type(base)(
+        **{
+            k: getattr(base, k) for k in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+        },
+        frame=R,
+    )
     f_r, K_r = mjed.make_force_field(mesh, mat).force_and_stiffness(x)
     f_c, K_c = mjed.make_force_field(mesh, mat, backend="numba").force_and_stiffness(x)
     assert _rel(f_c, f_r) < 1e-13 and abs(K_c - K_r).max() <= 1e-13 * abs(K_r).max()
@@ -80,7 +87,9 @@ def test_compiled_refuses_inverted_cells_like_the_engine(cube):
     field = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba")
     with pytest.raises(mjed.InvertedElementError):
         field.force_and_stiffness(x)
-    loose = mjed.make_force_field(mesh, MATERIALS["NeoHookean"], backend="numba", allow_inverted=True)
+    loose = mjed.make_force_field(
+        mesh, MATERIALS["NeoHookean"], backend="numba", allow_inverted=True
+    )
     f = loose.force(x)  # NaN where ln J appears, as documented
     assert not np.isfinite(f).all()
 
@@ -88,7 +97,9 @@ def test_compiled_refuses_inverted_cells_like_the_engine(cube):
 @needs_numba
 def test_compiled_refuses_a_term_kind_it_has_no_kernel_for(cube):
     mesh, _ = cube
-    porous = mjed.with_porous_volume(MATERIALS["NeoHookean"], mjed.PorousVolume(f_w=0.8, K0=1.0, K_lim=40.0))
+    porous = mjed.with_porous_volume(
+        MATERIALS["NeoHookean"], mjed.PorousVolume(f_w=0.8, K0=1.0, K_lim=40.0)
+    )
     with pytest.raises(NotImplementedError, match="PorousVolume.*backend='numpy'"):
         mjed.make_force_field(mesh, porous, backend="numba")
 
@@ -122,11 +133,15 @@ def test_missing_numba_gives_a_clear_error(cube, monkeypatch):
 def test_jacobi_eigen_decomposition_matches_lapack(rng):
     from mjed.compiled.kernels import eigh3
 
-    for A in [np.eye(3), np.diag([2.0, 2.0, 5.0])] + [rng.standard_normal((3, 3)) for _ in range(50)]:
+    for A in [np.eye(3), np.diag([2.0, 2.0, 5.0])] + [
+        rng.standard_normal((3, 3)) for _ in range(50)
+    ]:
         A = A + A.T if not np.allclose(A, np.diag(np.diag(A))) else A
         lam, V, scratch = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
         eigh3(A, lam, V, scratch)
-        assert np.allclose(np.sort(lam), np.linalg.eigvalsh(A), rtol=0, atol=1e-14 * np.abs(A).max())
+        assert np.allclose(
+            np.sort(lam), np.linalg.eigvalsh(A), rtol=0, atol=1e-14 * np.abs(A).max()
+        )
         assert np.abs(V.T @ V - np.eye(3)).max() < 1e-14
         assert np.abs(A @ V - V * lam).max() < 1e-14 * np.abs(A).max()
 
@@ -155,8 +170,12 @@ def test_viscous_field_on_the_compiled_backend_equals_numpy(cube):
     mesh, x = cube
     mat = MATERIALS["ArrudaBoyce"]
     prony = Prony((0.235, 0.333), (0.27, 0.03))
-    fields = [ViscoHyperelasticForceField(mjed.make_force_field(mesh, mat, backend=b), prony=prony, dt=0.02)
-              for b in ("numpy", "numba")]
+    fields = [
+        ViscoHyperelasticForceField(
+            mjed.make_force_field(mesh, mat, backend=b), prony=prony, dt=0.02
+        )
+        for b in ("numpy", "numba")
+    ]
     rng = np.random.default_rng(3)
     for step in range(3):
         xs = mesh.points + (step + 1) / 3 * (x - mesh.points) + 0.01 * rng.standard_normal(x.shape)
@@ -178,8 +197,10 @@ def test_a_view_or_read_only_positions_reuse_the_compiled_kernel(cube):
 
     mesh, x = cube
     mat = MATERIALS["NeoHookean"]
-    for field in (mjed.make_force_field(mesh, mat, backend="numba"),
-                  CompiledClassicalGalerkin(mesh.points, mesh.cells, mat)):
+    for field in (
+        mjed.make_force_field(mesh, mat, backend="numba"),
+        CompiledClassicalGalerkin(mesh.points, mesh.cells, mat),
+    ):
         f, K = field.force_and_stiffness(x)
         n_signatures = len(field._kernel.signatures)
         view = np.asfortranarray(x)

@@ -1,6 +1,7 @@
 """Both compiled kernels (MJED and the classical Galerkin) against the UFL oracle, to the
 equivalence study's tolerances (1e-10), for every material: per element on random single
-tetrahedra and assembled on the small cube in every state."""
+tetrahedra and assembled on the small cube in every state.
+"""
 
 from __future__ import annotations
 
@@ -10,15 +11,19 @@ import pytest
 pytest.importorskip("dolfinx", reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)")
 pytestmark = pytest.mark.oracle
 
+from conftest import perturbed, random_tetrahedron  # noqa: E402
+
 import mjed  # noqa: E402
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL  # noqa: E402
 from comparisons.equivalence import compare_arrays  # noqa: E402
-from conftest import MATERIALS, perturbed, random_tetrahedron  # noqa: E402
 from mjed.compiled import numba_available  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
 
 if not numba_available():
-    pytest.skip("the compiled backend needs Numba (Debian: python3-numba; PyPI: numba)", allow_module_level=True)
+    pytest.skip(
+        "the compiled backend needs Numba (Debian: python3-numba; PyPI: numba)",
+        allow_module_level=True,
+    )
 
 
 def _compiled(kind, mesh, material):
@@ -40,7 +45,9 @@ def test_compiled_per_element_against_oracle(material, kind, seed):
     f, K = field.force_and_stiffness(x)
     fe, ke, se = compare_arrays(f, K, oracle.force(x), oracle.stiffness(x), 0.1)
     assert fe <= FORCE_TOL and ke <= STIFFNESS_TOL and se <= 1e-12, (fe, ke, se)
-    assert np.isclose(field.energy(x), oracle.energy(x), rtol=1e-12, atol=1e-14 * abs(oracle.energy(x)))
+    assert np.isclose(
+        field.energy(x), oracle.energy(x), rtol=1e-12, atol=1e-14 * abs(oracle.energy(x))
+    )
 
 
 @pytest.mark.parametrize("kind", ["mjed", "classical"])

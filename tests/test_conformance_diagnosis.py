@@ -1,17 +1,18 @@
-"""The diagnosis' pure parts, without the oracle: consistency probes, convention corrections, localisation."""
+"""The diagnosis' pure parts, without the oracle: consistency probes, convention corrections,
+localisation.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import box_mesh
 
 from conformance.compare import scales
 from conformance.consistency import PROBE_TOL, consistency
 from conformance.diagnosis import diagnose
 from conformance.hypotheses import component_major_to_node_major, describe_permutation
-
-from conftest import box_mesh
 
 
 def quartic(x):
@@ -19,7 +20,9 @@ def quartic(x):
     flat = x.ravel()
     f = -(flat**3 + np.roll(flat, 1) + np.roll(flat, -1))
     n = flat.size
-    off = sp.diags([np.ones(n - 1), np.ones(n - 1)], [-1, 1]) + sp.csr_matrix(([1.0, 1.0], ([0, n - 1], [n - 1, 0])), shape=(n, n))
+    off = sp.diags([np.ones(n - 1), np.ones(n - 1)], [-1, 1]) + sp.csr_matrix(
+        ([1.0, 1.0], ([0, n - 1], [n - 1, 0])), shape=(n, n)
+    )
     K = sp.diags(3 * flat**2) + off
     W = float(np.sum(flat**4) / 4 + np.sum(flat * np.roll(flat, -1)))
     return f.reshape(x.shape), K.tocsr(), W
@@ -35,15 +38,22 @@ def test_consistency_of_an_exact_and_a_wrong_tangent():
     assert good.force_stiffness < 1e-8 and good.energy_force < 1e-8
     assert all(abs(r - 2) < 0.05 for r in good.rates_force)
     bad = consistency(x, f, 1.01 * K, W, probes)
-    assert bad.force_stiffness == pytest.approx(0.01 / 1.01, rel=1e-6) and bad.force_stiffness > PROBE_TOL  # relative to K d
+    assert (
+        bad.force_stiffness == pytest.approx(0.01 / 1.01, rel=1e-6)
+        and bad.force_stiffness > PROBE_TOL
+    )  # relative to K d
     assert all(abs(r - 1) < 0.1 for r in bad.rates_force)
-    assert consistency(x, f, K, W, probes[:1]).force_stiffness is None  # one probe: not measured, said so
+    assert (
+        consistency(x, f, K, W, probes[:1]).force_stiffness is None
+    )  # one probe: not measured, said so
 
 
 def test_permutation_words():
     assert "offset by +1" in describe_permutation((np.arange(10) + 1) % 10)
     assert "1-based" in describe_permutation((np.arange(10) + 1) % 10)
-    assert "nodes permuted: 2 of 10 nodes moved (3->4, 4->3)" in describe_permutation(np.array([0, 1, 2, 4, 3, 5, 6, 7, 8, 9]))
+    assert "nodes permuted: 2 of 10 nodes moved (3->4, 4->3)" in describe_permutation(
+        np.array([0, 1, 2, 4, 3, 5, 6, 7, 8, 9])
+    )
 
 
 def test_component_major_map():
@@ -60,22 +70,39 @@ def _synthetic(seed=0):
     dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(-1, 12)
     blocks = rng.standard_normal((len(cells), 12, 12))
     blocks = blocks @ np.swapaxes(blocks, 1, 2)
-    K = sp.csr_matrix((blocks.ravel(), (np.repeat(dofs, 12, axis=1).ravel(), np.tile(dofs, (1, 12)).ravel())),
-                      shape=(3 * n, 3 * n))
+    K = sp.csr_matrix(
+        (blocks.ravel(), (np.repeat(dofs, 12, axis=1).ravel(), np.tile(dofs, (1, 12)).ravel())),
+        shape=(3 * n, 3 * n),
+    )
     return points, cells, rng.standard_normal((n, 3)), K
 
 
-@pytest.mark.parametrize("mistake, code", [
-    (lambda f, K, cells: (-f, K), "force-sign"),
-    (lambda f, K, cells: (f, -K), "stiffness-sign"),
-    (lambda f, K, cells: (f.T.reshape(-1, 3), K), "dof-order-force"),
-    (lambda f, K, cells: (0.5 * f, 0.5 * K), "scale"),
-])
+@pytest.mark.parametrize(
+    "mistake, code",
+    [
+        (lambda f, K, cells: (-f, K), "force-sign"),
+        (lambda f, K, cells: (f, -K), "stiffness-sign"),
+        (lambda f, K, cells: (f.T.reshape(-1, 3), K), "dof-order-force"),
+        (lambda f, K, cells: (0.5 * f, 0.5 * K), "scale"),
+    ],
+)
 def test_conventions_named_without_the_oracle(mistake, code):
     points, cells, f_o, K_o = _synthetic()
     f, K = mistake(f_o, K_o, cells)
     s = scales(0.5, 0.0, f_o, K_o)
-    d = diagnose("synthetic", f=f, K=K, W=None, f_o=f_o, K_o=K_o, W_o=0.0, s=s, points=points, cells=cells, x=points)
+    d = diagnose(
+        "synthetic",
+        f=f,
+        K=K,
+        W=None,
+        f_o=f_o,
+        K_o=K_o,
+        W_o=0.0,
+        s=s,
+        points=points,
+        cells=cells,
+        x=points,
+    )
     assert d.verdict == "failed" and d.causes and d.causes[0].code == code, d.text()
 
 
@@ -83,16 +110,42 @@ def test_localised_error_lists_the_cell():
     points, cells, f_o, K_o = _synthetic(1)
     f = f_o.copy()
     f[cells[7]] += 1e-3
-    d = diagnose("synthetic", f=f, K=K_o, W=None, f_o=f_o, K_o=K_o, W_o=0.0, s=scales(0.5, 0.0, f_o, K_o),
-                 points=points, cells=cells, x=points)
+    d = diagnose(
+        "synthetic",
+        f=f,
+        K=K_o,
+        W=None,
+        f_o=f_o,
+        K_o=K_o,
+        W_o=0.0,
+        s=scales(0.5, 0.0, f_o, K_o),
+        points=points,
+        cells=cells,
+        x=points,
+    )
     (cause,) = d.causes
-    assert cause.code == "localised" and 7 in cause.figures["cells"] and len(cause.figures["nodes"]) == 4
+    assert (
+        cause.code == "localised"
+        and 7 in cause.figures["cells"]
+        and len(cause.figures["nodes"]) == 4
+    )
     assert d.node_error[cells[7]].min() > 0 and np.count_nonzero(d.node_error) == 4
 
 
 def test_nothing_claimed_for_noise():
     points, cells, f_o, K_o = _synthetic(2)
     f = f_o + np.random.default_rng(9).standard_normal(f_o.shape) * 1e-3
-    d = diagnose("synthetic", f=f, K=K_o, W=None, f_o=f_o, K_o=K_o, W_o=0.0, s=scales(0.5, 0.0, f_o, K_o),
-                 points=points, cells=cells, x=points)
+    d = diagnose(
+        "synthetic",
+        f=f,
+        K=K_o,
+        W=None,
+        f_o=f_o,
+        K_o=K_o,
+        W_o=0.0,
+        s=scales(0.5, 0.0, f_o, K_o),
+        points=points,
+        cells=cells,
+        x=points,
+    )
     assert not d.causes and d.findings[0].code == "unexplained"

@@ -1,4 +1,6 @@
-"""The exchange format: round trips, and every bad input named with its case and file (no oracle needed)."""
+"""The exchange format: round trips, and every bad input named with its case and file (no oracle
+needed).
+"""
 
 from __future__ import annotations
 
@@ -8,13 +10,12 @@ import os
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import box_mesh
 
 from comparisons.cli import main
 from conformance.exchange import FormatError, read_case_input, read_output, write_output
 from conformance.kit import build_cases, read_kit, write_kit
 from mjed import materials as M
-
-from conftest import box_mesh
 
 
 @pytest.fixture
@@ -53,7 +54,9 @@ def test_costa_frame_round_trip(tmp_path, mesh):
     R = np.linalg.qr(np.random.default_rng(1).standard_normal((3, 3)))[0]
     R *= np.sign(np.linalg.det(R))
     frames = np.repeat(R[None], len(cells), axis=0)
-    costa = M.Costa(a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5, frame=frames)
+    costa = M.Costa(
+        a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5, frame=frames
+    )
     cases = build_cases([costa], [mesh], ["shear"], probes=0)
     write_kit(str(tmp_path / "k"), cases)
     back = read_case_input(str(tmp_path / "k" / "cases" / cases[0].case_id / "input"))
@@ -92,15 +95,33 @@ def _bad(tmp_path, mutate, n=4):
 def test_bad_outputs_are_named(tmp_path):
     msgs = {
         "short": _bad(tmp_path / "a", lambda p, f, K: f[:-1].astype("<f8").tofile(p / "force.f64")),
-        "nan": _bad(tmp_path / "b", lambda p, f, K: np.where(np.arange(12).reshape(4, 3) == 5, np.nan, f)
-                    .astype("<f8").tofile(p / "force.f64")),
+        "nan": _bad(
+            tmp_path / "b",
+            lambda p, f, K: (
+                np.where(np.arange(12).reshape(4, 3) == 5, np.nan, f)
+                .astype("<f8")
+                .tofile(p / "force.f64")
+            ),
+        ),
         "missing": _bad(tmp_path / "c", lambda p, f, K: os.remove(p / "force.f64")),
-        "no stiffness": _bad(tmp_path / "d", lambda p, f, K: [os.remove(p / x) for x in
-                                                            ("stiffness_rows.i64", "stiffness_cols.i64")]),
-        "index": _bad(tmp_path / "e", lambda p, f, K: (sp.coo_matrix(K).row + 1).astype("<i8")
-                      .tofile(p / "stiffness_rows.i64")),
-        "two layouts": _bad(tmp_path / "f", lambda p, f, K: K.toarray().astype("<f8").tofile(p / "stiffness.f64")),
-        "energy": _bad(tmp_path / "g", lambda p, f, K: np.array([1.0, 2.0]).tofile(p / "energy.f64")),
+        "no stiffness": _bad(
+            tmp_path / "d",
+            lambda p, f, K: [
+                os.remove(p / x) for x in ("stiffness_rows.i64", "stiffness_cols.i64")
+            ],
+        ),
+        "index": _bad(
+            tmp_path / "e",
+            lambda p, f, K: (
+                (sp.coo_matrix(K).row + 1).astype("<i8").tofile(p / "stiffness_rows.i64")
+            ),
+        ),
+        "two layouts": _bad(
+            tmp_path / "f", lambda p, f, K: K.toarray().astype("<f8").tofile(p / "stiffness.f64")
+        ),
+        "energy": _bad(
+            tmp_path / "g", lambda p, f, K: np.array([1.0, 2.0]).tofile(p / "energy.f64")
+        ),
     }
     assert "force.f64: 9 values (3 nodes), expected 3n = 12 for 4 nodes" in msgs["short"]
     assert "force.f64: 1 non-finite value(s)" in msgs["nan"] and "flat index 5" in msgs["nan"]
@@ -130,7 +151,10 @@ def test_kit_read_back_and_bad_cases_isolated(kit):
         fh.write("{not json")
     k = read_kit(folder)
     assert set(k.errors) == {first, second}
-    assert f"case {first}: " in k.errors[first] and "positions.f64: changed since export" in k.errors[first]
+    assert (
+        f"case {first}: " in k.errors[first]
+        and "positions.f64: changed since export" in k.errors[first]
+    )
     assert "case.json" in k.errors[second]
     assert len(k.cases) == len(cases) - 2
 
@@ -159,22 +183,49 @@ def test_export_cli_refuses_non_empty_dir(tmp_path, capsys):
 
 def test_export_cli_writes_kit(tmp_path, capsys):
     target = tmp_path / "kit"
-    assert main(["export", str(target), "--material", "NeoHookean,Ogden", "--states", "rest,shear"]) == 0
+    assert (
+        main(["export", str(target), "--material", "NeoHookean,Ogden", "--states", "rest,shear"])
+        == 0
+    )
     k = read_kit(str(target))
-    assert sum(c.role == "case" for c in k.cases) == 4 and sum(c.role == "probe" for c in k.cases) == 16
+    assert (
+        sum(c.role == "case" for c in k.cases) == 4
+        and sum(c.role == "probe" for c in k.cases) == 16
+    )
     manifest = json.load(open(target / "manifest.json"))
-    assert manifest["format_version"] == 1 and manifest["created_by"].startswith("mjed-verify export")
+    assert manifest["format_version"] == 1 and manifest["created_by"].startswith(
+        "mjed-verify export"
+    )
 
 
 def test_export_user_energy(tmp_path):
     target = tmp_path / "kit"
-    assert main(["export", str(target), "--energy", "mu/2*(I1b-3) + K/2*(J-1)**2", "--param", "mu=1e3",
-                 "--param", "K=1e4", "--states", "uniaxial", "--no-probes"]) == 0
+    assert (
+        main(
+            [
+                "export",
+                str(target),
+                "--energy",
+                "mu/2*(I1b-3) + K/2*(J-1)**2",
+                "--param",
+                "mu=1e3",
+                "--param",
+                "K=1e4",
+                "--states",
+                "uniaxial",
+                "--no-probes",
+            ]
+        )
+        == 0
+    )
     (case,) = read_kit(str(target)).cases
     assert case.input.model.expression == "mu/2*(I1b-3) + K/2*(J-1)**2"
     assert dict(case.input.model.params) == {"mu": 1e3, "K": 1e4}
 
 
 def test_export_bad_energy_is_input_error(tmp_path, capsys):
-    assert main(["export", str(tmp_path / "k"), "--energy", "__import__('os')", "--states", "rest"]) == 2
+    assert (
+        main(["export", str(tmp_path / "k"), "--energy", "__import__('os')", "--states", "rest"])
+        == 2
+    )
     assert "--energy" in capsys.readouterr().err

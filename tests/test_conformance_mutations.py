@@ -8,6 +8,7 @@ import logging
 
 import pytest
 
+from mjed.materials import declarations
 from reference_fem import dolfinx_available
 
 pytestmark = [
@@ -124,18 +125,7 @@ def test_an_unexplained_error_is_called_so():
     assert not d.causes and d.findings[0].code == "unexplained", d.text()
 
 
-@pytest.mark.parametrize(
-    "material",
-    [
-        "StVenantKirchhoff",
-        "NeoHookean",
-        "MooneyRivlin",
-        "VerondaWestmann",
-        "ArrudaBoyce",
-        "Costa",
-        "Ogden",
-    ],
-)
+@pytest.mark.parametrize("material", [d.name for d in declarations()])
 @pytest.mark.parametrize(
     "mutation, part, coefficient",
     [

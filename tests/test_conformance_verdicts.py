@@ -347,3 +347,27 @@ def test_a_kit_declares_single_precision(tmp_path):
     (run,) = (tmp_path / "d").iterdir()
     (case,) = json.load(open(run / "results.json"))["cases"]
     assert case["findings"][0]["code"] == "single-precision"
+
+
+@needs_oracle
+@pytest.mark.parametrize("name", ["Yeoh", "Gent"])
+def test_materials_added_by_declaration_have_variant_energies(name):
+    """A material declared without a formula of its own in conformance.variants (Yeoh and Gent,
+    added by issue 24) gets its variants from its declared energy, written as a formula that, as
+    a user energy, is the material's energy (the oracle against MJED at a random state).
+    """
+    from common.states import apply_state
+    from conformance.oracle import OracleCache
+    from conformance.spec import CaseInput
+    from conformance.variants import energy_expression, variants
+    from reference_fem.user_energy import UserEnergy
+
+    m = default_material(name)
+    expr, params = energy_expression(m)
+    codes = {v.rewrite.code for v in variants(m)}
+    assert {"no-isochoric-I1", "power-I1", "bulk-J-1", "bulk-simo"} <= codes, codes
+    P, C, _ = meshes.resolve("cube-small")
+    x = apply_state("random", P, C)
+    W_user = OracleCache().reference(CaseInput("u", P, C, x, UserEnergy(expr, params))).energy
+    W_mjed = mjed.HyperelasticForceField(mjed.TetMesh(P, C), m).energy(x)
+    assert abs(W_user - W_mjed) <= 1e-10 * abs(W_mjed), (expr, W_user, W_mjed)

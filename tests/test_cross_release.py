@@ -1,5 +1,6 @@
 """The cross-release comparison itself: snapshots round-trip, differences are seen, missing
-stacks are reported and fail the check rather than pass it."""
+stacks are reported and fail the check rather than pass it.
+"""
 
 from __future__ import annotations
 
@@ -22,8 +23,16 @@ from comparisons.cross_release import (
 def _snapshot(rng, scale=1.0):
     K = sp.random(12, 12, density=0.4, format="csr", random_state=1)
     K = (K + K.T).tocsr() * scale
-    return {"meta": {"versions": {"dolfinx": "test"}, "mpi_ranks": 1, "cells_per_rank": [1]},
-            "cases": {"NeoHookean/random": {"energy": 2.5 * scale, "force": rng.standard_normal((4, 3)), "stiffness": K}}}
+    return {
+        "meta": {"versions": {"dolfinx": "test"}, "mpi_ranks": 1, "cells_per_rank": [1]},
+        "cases": {
+            "NeoHookean/random": {
+                "energy": 2.5 * scale,
+                "force": rng.standard_normal((4, 3)),
+                "stiffness": K,
+            }
+        },
+    }
 
 
 def test_snapshot_round_trip(tmp_path):
@@ -32,7 +41,10 @@ def test_snapshot_round_trip(tmp_path):
     back = load_snapshot(str(tmp_path / "s.npz"))
     assert back["meta"] == snap["meta"]
     diff = compare_snapshots(snap, back)
-    assert diff["passed"] and diff["energy_rel_diff"] == diff["force_rel_diff"] == diff["stiffness_rel_diff"] == 0.0
+    assert (
+        diff["passed"]
+        and diff["energy_rel_diff"] == diff["force_rel_diff"] == diff["stiffness_rel_diff"] == 0.0
+    )
 
 
 def test_compare_sees_each_quantity():
@@ -66,10 +78,34 @@ def test_missing_stacks_are_reported_and_fail_the_check(tmp_path):
 
 def test_provenance_summary(tmp_path):
     assert provenance_summary(str(tmp_path / "absent.json")) is None
-    versions = {"dolfinx": "0.5.2", "ufl": "2022.2.0", "petsc": "3.18.5", "numpy": "1.24.2", "python": "3.11", "mpi": "Open MPI"}
-    result = {"passed": True, "tolerance": TOLERANCE, "reference": "a", "missing": [{"label": "c", "reason": "x"}],
-              "errors": [], "stacks": [{"label": "a", "ranks": 1, "versions": versions}, {"label": "b", "ranks": 2, "versions": versions}],
-              "comparisons": [{"label": "b", "energy_rel_diff": 1e-15, "force_rel_diff": 3e-16, "stiffness_rel_diff": 2e-15, "passed": True}]}
+    versions = {
+        "dolfinx": "0.5.2",
+        "ufl": "2022.2.0",
+        "petsc": "3.18.5",
+        "numpy": "1.24.2",
+        "python": "3.11",
+        "mpi": "Open MPI",
+    }
+    result = {
+        "passed": True,
+        "tolerance": TOLERANCE,
+        "reference": "a",
+        "missing": [{"label": "c", "reason": "x"}],
+        "errors": [],
+        "stacks": [
+            {"label": "a", "ranks": 1, "versions": versions},
+            {"label": "b", "ranks": 2, "versions": versions},
+        ],
+        "comparisons": [
+            {
+                "label": "b",
+                "energy_rel_diff": 1e-15,
+                "force_rel_diff": 3e-16,
+                "stiffness_rel_diff": 2e-15,
+                "passed": True,
+            }
+        ],
+    }
     path = tmp_path / "xr.json"
     path.write_text(json.dumps(result))
     summary = provenance_summary(str(path))
@@ -79,40 +115,79 @@ def test_provenance_summary(tmp_path):
 
 # ----------------------------------------------------------------------------- the typed result
 def _check_result(*, comparisons=(1e-15,), missing=("modern-serial",), errors=()):
-    versions = {"dolfinx": "0.5.2", "ufl": "2022.2.0", "petsc": "3.18", "numpy": "1.24", "python": "3.11"}
+    versions = {
+        "dolfinx": "0.5.2",
+        "ufl": "2022.2.0",
+        "petsc": "3.18",
+        "numpy": "1.24",
+        "python": "3.11",
+    }
     labels = ["debian-serial"] + [f"debian-mpi{i + 2}" for i in range(len(comparisons))]
-    return {"tolerance": TOLERANCE, "reference": labels[0], "figures": [],
-            "stacks": [{"label": s, "python": "p", "ranks": 1, "versions": versions, "cells_per_rank": [1], "seconds": 1.0}
-                       for s in labels],
-            "comparisons": [{"label": s, "n_cases": 3, "energy_rel_diff": d, "force_rel_diff": d, "stiffness_rel_diff": d,
-                             "passed": d <= TOLERANCE} for s, d in zip(labels[1:], comparisons)],
-            "missing": [{"label": m, "reason": "/x/.venv-modern/bin/python does not exist"} for m in missing],
-            "errors": [{"label": e, "error": "snapshot failed"} for e in errors],
-            "passed": not errors and all(d <= TOLERANCE for d in comparisons) and len(comparisons) > 0}
+    return {
+        "tolerance": TOLERANCE,
+        "reference": labels[0],
+        "figures": [],
+        "stacks": [
+            {
+                "label": s,
+                "python": "p",
+                "ranks": 1,
+                "versions": versions,
+                "cells_per_rank": [1],
+                "seconds": 1.0,
+            }
+            for s in labels
+        ],
+        "comparisons": [
+            {
+                "label": s,
+                "n_cases": 3,
+                "energy_rel_diff": d,
+                "force_rel_diff": d,
+                "stiffness_rel_diff": d,
+                "passed": d <= TOLERANCE,
+            }
+            for s, d in zip(labels[1:], comparisons)
+        ],
+        "missing": [
+            {"label": m, "reason": "/x/.venv-modern/bin/python does not exist"} for m in missing
+        ],
+        "errors": [{"label": e, "error": "snapshot failed"} for e in errors],
+        "passed": not errors and all(d <= TOLERANCE for d in comparisons) and len(comparisons) > 0,
+    }
 
 
-@pytest.mark.parametrize("kwargs, status, code", [
-    (dict(), "passed", 3),  # the modern stack is not installed: partial
-    (dict(missing=()), "passed", 0),
-    (dict(comparisons=(1e-9,)), "failed", 1),
-    (dict(errors=("modern-serial",)), "failed", 1),
-    (dict(comparisons=()), "not run", 3),  # one stack only: nothing compared
-])
+@pytest.mark.parametrize(
+    "kwargs, status, code",
+    [
+        (dict(), "passed", 3),  # the modern stack is not installed: partial
+        (dict(missing=()), "passed", 0),
+        (dict(comparisons=(1e-9,)), "failed", 1),
+        (dict(errors=("modern-serial",)), "failed", 1),
+        (dict(comparisons=()), "not run", 3),  # one stack only: nothing compared
+    ],
+)
 def test_study_result_follows_the_policy(monkeypatch, kwargs, status, code):
-    from comparisons import cross_release
     from common.result import exit_code
+    from comparisons import cross_release
 
-    monkeypatch.setattr(cross_release, "cross_release_check", lambda stacks, quick: _check_result(**kwargs))
+    monkeypatch.setattr(
+        cross_release, "cross_release_check", lambda stacks, quick: _check_result(**kwargs)
+    )
     r = cross_release.cross_release_study(quick=False)
     assert r.status.value == status and exit_code([r]) == code
     if kwargs.get("missing", ("modern-serial",)):
-        assert any("modern-serial: not installed here" in s for s in r.not_covered) or "modern-serial" in r.reason
+        assert (
+            any("modern-serial: not installed here" in s for s in r.not_covered)
+            or "modern-serial" in r.reason
+        )
 
 
 def test_a_stack_that_is_not_installed_makes_the_command_exit_3(monkeypatch, tmp_path, capsys):
+    from conftest import parse_reproduce
+
     from comparisons import cross_release
     from comparisons.cli import main
-    from conftest import parse_reproduce
 
     missing = str(tmp_path / "no-venv" / "bin" / "python")
     monkeypatch.setattr(cross_release, "default_stacks", lambda: [("modern-serial", missing, 1)])
@@ -120,15 +195,22 @@ def test_a_stack_that_is_not_installed_makes_the_command_exit_3(monkeypatch, tmp
     assert main(["cross-release", "--quick", "--json", str(out)]) == 3
     written = json.loads(out.read_text())
     assert written["status"] == "not run" and "nothing was compared" in written["reason"]
-    assert "does not exist" in written["reason"] and written["data"]["missing"][0]["label"] == "modern-serial"
+    assert (
+        "does not exist" in written["reason"]
+        and written["data"]["missing"][0]["label"] == "modern-serial"
+    )
     assert parse_reproduce(written["command"])["quick"] is True
     assert "every check passed" not in capsys.readouterr().out
 
 
 def test_an_interpreter_without_dolfinx_is_a_missing_stack_not_an_error(tmp_path):
     fake = tmp_path / "python"
-    fake.write_text("#!/bin/sh\nexit 3\n")  # what the dolfinx probe returns when dolfinx cannot be imported
+    fake.write_text(
+        "#!/bin/sh\nexit 3\n"
+    )  # what the dolfinx probe returns when dolfinx cannot be imported
     fake.chmod(0o755)
-    result = cross_release_check([("nodolfinx-serial", str(fake), 1), ("nodolfinx-mpi2", str(fake), 2)])
+    result = cross_release_check(
+        [("nodolfinx-serial", str(fake), 1), ("nodolfinx-mpi2", str(fake), 2)]
+    )
     assert [m["label"] for m in result["missing"]] == ["nodolfinx-serial", "nodolfinx-mpi2"]
     assert "dolfinx cannot be imported" in result["missing"][0]["reason"] and not result["errors"]

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 import mjed
 from comparisons.taylor import taylor_rates
 from comparisons.terzaghi import run_terzaghi, terzaghi_pressure
-from conftest import box_mesh
 from mjed.darcy import (
     DarcyParameters,
     FluidPressureForce,
@@ -136,7 +136,8 @@ def test_terzaghi_series_sanity():
 
 def test_terzaghi_consolidation_within_one_percent():
     """The coupled semi-implicit column against the series (relative L2 <= 1e-2), and the
-    error falls with the time step (first order)."""
+    error falls with the time step (first order).
+    """
     coarse = run_terzaghi(n_layers=20, dt=0.004, times=(0.05, 0.2, 0.5))
     errors = [t["relative_l2_error"] for t in coarse["times"]]
     assert max(errors) <= 1e-2, errors
@@ -168,7 +169,8 @@ def test_porous_solid_plus_pressure_in_one_pass_matches_the_ufl_oracle(mesh):
 
 def test_linear_j_term_and_pressure_follow_assignment(mesh):
     """The pressure is the engine term -Pbar (J - 1): its derivatives, and the coefficient
-    rewritten when P is set (and only then: P is read-only in place)."""
+    rewritten when P is set (and only then: P is read-only in place).
+    """
     from mjed.darcy import LinearJ
 
     c = np.array([2.0, -3.0])
@@ -180,7 +182,10 @@ def test_linear_j_term_and_pressure_follow_assignment(mesh):
     fluid.P = np.full(mesh.n_nodes, 100.0)
     f100 = fluid.force_and_stiffness(x)[0]
     fluid.P = np.full(mesh.n_nodes, 200.0)
-    assert np.allclose(fluid.force_and_stiffness(x)[0], 2.0 * f100, rtol=1e-13) and np.abs(f100).max() > 0
+    assert (
+        np.allclose(fluid.force_and_stiffness(x)[0], 2.0 * f100, rtol=1e-13)
+        and np.abs(f100).max() > 0
+    )
     with pytest.raises(ValueError):
         fluid.P[0] = 1.0
     with pytest.raises(ValueError, match="P must be"):
@@ -195,7 +200,9 @@ def test_solid_may_be_any_function_of_j(mesh):
     law = PorousVolume(0.5, 400.0, 2200.0)
     x = _state(mesh)
     f, K = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=law).force_and_stiffness(x)
-    f2, K2 = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=lambda J: law(J)).force_and_stiffness(x)
+    f2, K2 = FluidPressureForce(
+        mesh, DarcyParameters(2200.0, 1e-3), solid=lambda J: law(J)
+    ).force_and_stiffness(x)
     assert np.array_equal(f, f2) and abs(K - K2).max() == 0.0
     with pytest.raises(TypeError, match="solid"):
         FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=1.0)

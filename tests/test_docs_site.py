@@ -30,16 +30,22 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from pathlib import Path
 
 import pytest
-
 from docs_support import DOCS, built_site, tutorial_runner
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-dev-shm-usage"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-dev-shm-usage",
+]
 
 # The toctree lists pages written in other branches by glob patterns; until they land,
 # Sphinx says the pattern matched nothing. Any other warning about a file of docs/ is a
@@ -60,13 +66,18 @@ function report(mathjaxReady) {
   const images = Array.from(document.images).map(img => ({src: img.src, complete: img.complete,
       w: img.naturalWidth, h: img.naturalHeight}));
   const links = Array.from(document.querySelectorAll('a[href]')).map(a => a.href);
-  const ids = Array.from(document.querySelectorAll('[id], a[name]')).map(e => e.id || e.getAttribute('name'));
-  done({ready: document.readyState, title: document.title, mathjaxReady, formulas, images, links, ids});
+  const ids = Array.from(document.querySelectorAll('[id], a[name]'))
+      .map(e => e.id || e.getAttribute('name'));
+  done({ready: document.readyState, title: document.title, mathjaxReady, formulas, images, links,
+        ids});
 }
 if (math.length === 0) { report(null); return; }
 const t0 = Date.now();
 (function wait() {
-  if (window.MathJax && MathJax.Hub && MathJax.isReady) { MathJax.Hub.Queue(() => report(true)); return; }
+  if (window.MathJax && MathJax.Hub && MathJax.isReady) {
+    MathJax.Hub.Queue(() => report(true));
+    return;
+  }
   if (Date.now() - t0 > 20000) { report(false); return; }
   setTimeout(wait, 50);
 })();
@@ -84,8 +95,11 @@ class WebDriver:
 
     def __init__(self, profile: str):
         self.port = _free_port()
-        self.proc = subprocess.Popen([CHROMEDRIVER, f"--port={self.port}"], stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL)
+        self.proc = subprocess.Popen(
+            [CHROMEDRIVER, f"--port={self.port}"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         self.base = f"http://127.0.0.1:{self.port}"
         deadline = time.time() + 20
         while True:
@@ -98,15 +112,27 @@ class WebDriver:
                 self.proc.kill()
                 raise RuntimeError("chromedriver did not start within 20 s")
             time.sleep(0.1)
-        caps = {"capabilities": {"alwaysMatch": {"browserName": "chrome", "goog:chromeOptions": {
-            "binary": CHROMIUM, "args": CHROMIUM_ARGS + [f"--user-data-dir={profile}"]}}}}
+        caps = {
+            "capabilities": {
+                "alwaysMatch": {
+                    "browserName": "chrome",
+                    "goog:chromeOptions": {
+                        "binary": CHROMIUM,
+                        "args": CHROMIUM_ARGS + [f"--user-data-dir={profile}"],
+                    },
+                }
+            }
+        }
         self.session = self._call("POST", "/session", caps)["value"]["sessionId"]
-        self._call("POST", f"/session/{self.session}/timeouts", {"script": 30000, "pageLoad": 30000})
+        self._call(
+            "POST", f"/session/{self.session}/timeouts", {"script": 30000, "pageLoad": 30000}
+        )
 
     def _call(self, method: str, path: str, body=None):
         data = None if body is None else json.dumps(body).encode()
-        req = urllib.request.Request(self.base + path, data=data, method=method,
-                                     headers={"Content-Type": "application/json"})
+        req = urllib.request.Request(
+            self.base + path, data=data, method=method, headers={"Content-Type": "application/json"}
+        )
         with urllib.request.urlopen(req, timeout=60) as resp:
             return json.loads(resp.read().decode())
 
@@ -114,7 +140,9 @@ class WebDriver:
         self._call("POST", f"/session/{self.session}/url", {"url": url})
 
     def run_async(self, script: str):
-        return self._call("POST", f"/session/{self.session}/execute/async", {"script": script, "args": []})["value"]
+        return self._call(
+            "POST", f"/session/{self.session}/execute/async", {"script": script, "args": []}
+        )["value"]
 
     def quit(self) -> None:
         try:
@@ -158,21 +186,36 @@ def browsed_pages():
     return base, pages
 
 
-needs_browser = pytest.mark.skipif(not (CHROMIUM and CHROMEDRIVER),
-                                   reason="Debian's chromium and chromium-driver are not installed "
-                                          "(scripts/bootstrap.sh installs them)")
+needs_browser = pytest.mark.skipif(
+    not (CHROMIUM and CHROMEDRIVER),
+    reason="Debian's chromium and chromium-driver are not installed (scripts/bootstrap.sh installs "
+    "them)",
+)
 
 
 def test_site_builds_without_warnings_about_its_pages():
     build = site()
-    own = [line for line in build.output.splitlines()
-           if line.startswith(f"{DOCS}/") and ("WARNING" in line or "ERROR" in line) and not TOLERATED.search(line)]
+    own = [
+        line
+        for line in build.output.splitlines()
+        if line.startswith(f"{DOCS}/")
+        and ("WARNING" in line or "ERROR" in line)
+        and not TOLERATED.search(line)
+    ]
     assert not own, "warnings about the site's pages:\n" + "\n".join(own)
-    for page in ("index.html", "getting_started.html", "generated/cli.html", "generated/api/mjed.html",
-                 "studies/timing.html", "_static/mathjax/MathJax.js"):
+    for page in (
+        "index.html",
+        "getting_started.html",
+        "generated/cli.html",
+        "generated/api/mjed.html",
+        "studies/timing.html",
+        "_static/mathjax/MathJax.js",
+    ):
         assert (build.html / page).is_file(), page
     for script in tutorial_runner.tutorial_scripts():
-        assert (build.html / "generated" / "tutorials" / f"{script.stem}.html").is_file(), script.name
+        assert (build.html / "generated" / "tutorials" / f"{script.stem}.html").is_file(), (
+            script.name
+        )
 
 
 def test_cli_reference_lists_every_subcommand_from_the_parser():
@@ -194,24 +237,38 @@ def test_every_page_loads():
 @needs_browser
 def test_every_figure_has_a_size():
     _, pages = browsed_pages()
-    broken = [(p, img["src"]) for p, r in pages.items() for img in r["images"]
-              if not (img["complete"] and img["w"] > 0 and img["h"] > 0)]
+    broken = [
+        (p, img["src"])
+        for p, r in pages.items()
+        for img in r["images"]
+        if not (img["complete"] and img["w"] > 0 and img["h"] > 0)
+    ]
     assert not broken, f"images that did not load: {broken}"
     for script in tutorial_runner.tutorial_scripts():
         page = pages[f"generated/tutorials/{script.stem}.html"]
         figures = [img for img in page["images"] if "/_images/" in img["src"]]
         assert figures, f"{script.name} shows no figure"
-        assert all(img["w"] > 100 and img["h"] > 100 for img in figures), f"{script.name}: a figure is tiny"
+        assert all(img["w"] > 100 and img["h"] > 100 for img in figures), (
+            f"{script.name}: a figure is tiny"
+        )
 
 
 @needs_browser
 def test_formulas_are_typeset_by_mathjax():
     _, pages = browsed_pages()
     with_math = {p: r for p, r in pages.items() if r["formulas"]}
-    assert "generated/tutorials/one_tetrahedron.html" in with_math, "the tutorials' formulas are missing"
+    assert "generated/tutorials/one_tetrahedron.html" in with_math, (
+        "the tutorials' formulas are missing"
+    )
     for page, r in with_math.items():
-        assert r["mathjaxReady"], f"{page}: MathJax did not load (it is served from _static/mathjax)"
-        bad = [f["tex"] for f in r["formulas"] if not f["rendered"] or f["width"] <= 0 or f["error"] or f["raw"]]
+        assert r["mathjaxReady"], (
+            f"{page}: MathJax did not load (it is served from _static/mathjax)"
+        )
+        bad = [
+            f["tex"]
+            for f in r["formulas"]
+            if not f["rendered"] or f["width"] <= 0 or f["error"] or f["raw"]
+        ]
         assert not bad, f"{page}: formulas not rendered: {bad}"
 
 
@@ -225,11 +282,16 @@ def test_internal_links_resolve():
             if not link.startswith(base):
                 continue
             parsed = urllib.parse.urlsplit(link)
-            target = urllib.parse.unquote(parsed.path[len(urllib.parse.urlsplit(base).path):]) or "index.html"
+            target = (
+                urllib.parse.unquote(parsed.path[len(urllib.parse.urlsplit(base).path) :])
+                or "index.html"
+            )
             if target.endswith("/"):
                 target += "index.html"
             if not (html / target).is_file():
                 broken.append((page, link, "no such file"))
-            elif parsed.fragment and target in pages and parsed.fragment not in pages[target]["ids"]:
+            elif (
+                parsed.fragment and target in pages and parsed.fragment not in pages[target]["ids"]
+            ):
                 broken.append((page, link, "no such anchor"))
     assert not broken, "broken internal links:\n" + "\n".join(map(str, broken))

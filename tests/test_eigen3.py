@@ -21,7 +21,9 @@ def _with_eigenvalues(rng, lam):
 
 
 CASES = {
-    "random symmetric": lambda rng: (lambda A: A + np.swapaxes(A, 1, 2))(rng.standard_normal((N, 3, 3))),
+    "random symmetric": lambda rng: (lambda A: A + np.swapaxes(A, 1, 2))(
+        rng.standard_normal((N, 3, 3))
+    ),
     "identity": lambda rng: np.broadcast_to(np.eye(3), (N, 3, 3)).copy(),
     "diagonal": lambda rng: np.einsum("mi,ij->mij", rng.uniform(0.1, 3.0, (N, 3)), np.eye(3)),
     "double eigenvalue": lambda rng: _with_eigenvalues(rng, [1.0, 1.0, 2.0]),
@@ -29,7 +31,9 @@ CASES = {
     "nearly double": lambda rng: _with_eigenvalues(rng, [0.5, 2.0, 2.0 + 1e-9]),
     "wide scales": lambda rng: _with_eigenvalues(rng, [1e-8, 1.0, 1e8]),
     "indefinite": lambda rng: _with_eigenvalues(rng, [-3.0, 0.0, 2.0]),
-    "rotations (C = Q^T Q, rest)": lambda rng: (lambda Q: np.swapaxes(Q, 1, 2) @ Q)(_rotations(rng, N)),
+    "rotations (C = Q^T Q, rest)": lambda rng: (lambda Q: np.swapaxes(Q, 1, 2) @ Q)(
+        _rotations(rng, N)
+    ),
 }
 
 

@@ -1,14 +1,15 @@
 """The engine's modules one by one: layout, workspace, cell-wise algebra, aggregation, edge
-blocks, the evaluation record and the force field's public seam (evaluate / assemble)."""
+blocks, the evaluation record and the force field's public seam (evaluate / assemble).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import MATERIALS, box_mesh, perturbed
 
 import mjed
-from conftest import MATERIALS, box_mesh, perturbed
 from mjed.aggregates import fold_groups
 from mjed.cellwise import CellState, apply_matrix, edge_dot, stress_node_vectors
 from mjed.edge_blocks import edge_blocks_to_element_matrices
@@ -38,8 +39,12 @@ def test_layout_names_are_the_axis_orders_the_pattern_reads(body):
     cell_major = np.ascontiguousarray(ev.gradient.transpose(2, 1, 0))  # (m, 4, 3)
     pattern = field.pattern
     # Same sums, added in another order: equal to round-off.
-    assert np.allclose(pattern.assemble_vector_layout(ev.gradient, VectorLayout.COMPONENT_MAJOR),
-                       pattern.assemble_vector_layout(cell_major, VectorLayout.CELL_MAJOR), rtol=0, atol=1e-14)
+    assert np.allclose(
+        pattern.assemble_vector_layout(ev.gradient, VectorLayout.COMPONENT_MAJOR),
+        pattern.assemble_vector_layout(cell_major, VectorLayout.CELL_MAJOR),
+        rtol=0,
+        atol=1e-14,
+    )
     blocks_cm = np.ascontiguousarray(ev.blocks.transpose(3, 2, 0, 1))  # (m, 6, 3, 3)
     K1 = pattern.assemble_edge_blocks(ev.blocks, BlockLayout.COMPONENT_MAJOR)
     K2 = pattern.assemble_edge_blocks(blocks_cm, BlockLayout.CELL_MAJOR)
@@ -95,7 +100,7 @@ def test_fold_groups_gives_the_energy_and_stress_of_the_material(body):
     W = 0.5 * mat.mu * (np.trace(C, axis1=1, axis2=2) - 3) - mat.mu * lnJ + 0.5 * mat.lam * lnJ**2
     assert np.allclose(agg.energy, W, rtol=1e-12, atol=1e-14)
     # S = mu I + h J C^-1 with h = dW/dJ at fixed C = (lam ln J - mu) / J.
-    S = mat.mu * np.eye(3) + ((mat.lam * lnJ - mat.mu))[:, None, None] * np.linalg.inv(C)
+    S = mat.mu * np.eye(3) + (mat.lam * lnJ - mat.mu)[:, None, None] * np.linalg.inv(C)
     S_engine = np.broadcast_to(agg.S, S.shape) + (agg.h * st.J)[:, None, None] * np.linalg.inv(C)
     assert np.allclose(S_engine, S, rtol=1e-12, atol=1e-12)
     assert agg.rank_one == ()  # no exponential group, and no stiffness asked
@@ -106,7 +111,9 @@ def test_fold_groups_rank_one_terms_only_when_asked(body):
     st = _state(mesh, x)
     groups = MATERIALS["VerondaWestmann"].decomposition()
     assert fold_groups(groups, st.kin, st.J).rank_one == ()
-    agg = fold_groups(groups, st.kin, st.J, lambda S, h, k: stress_node_vectors(st, S, h, np.empty((3, 4, st.m))))
+    agg = fold_groups(
+        groups, st.kin, st.J, lambda S, h, k: stress_node_vectors(st, S, h, np.empty((3, 4, st.m)))
+    )
     assert len(agg.rank_one) == 1 and agg.rank_one[0][1].shape == (3, 4, st.m)
 
 
@@ -118,7 +125,9 @@ def test_edge_blocks_are_the_derivative_of_the_gradient(body, name):
     K = edge_blocks_to_element_matrices(field.evaluate(x, want=Want.STIFFNESS).public().edge_blocks)
     scale = np.abs(K).max()
     assert np.allclose(K, np.swapaxes(K, 1, 2), rtol=0, atol=1e-13 * scale)
-    assert np.allclose(K.reshape(-1, 12, 4, 3).sum(axis=2), 0.0, atol=1e-13 * scale)  # translation invariance
+    assert np.allclose(
+        K.reshape(-1, 12, 4, 3).sum(axis=2), 0.0, atol=1e-13 * scale
+    )  # translation invariance
     c, h = 5, 1e-6
     for j in range(12):
         xp, xm = x.copy(), x.copy()
@@ -140,9 +149,15 @@ def test_evaluate_returns_what_is_asked_and_nothing_else(body):
     full = field.evaluate(x, want=Want.ENERGY | Want.GRADIENT | Want.STIFFNESS | Want.STRESS)
     assert full.energy.sum() == pytest.approx(field.energy(x), rel=1e-14)
     assert full.blocks.shape == (3, 3, 6, mesh.n_cells) and full.pk2.shape == (mesh.n_cells, 3, 3)
-    assert np.allclose(full.F, np.einsum("mai,maj->mij", x[mesh.cells], mesh.D), rtol=1e-14, atol=1e-14)
+    assert np.allclose(
+        full.F, np.einsum("mai,maj->mij", x[mesh.cells], mesh.D), rtol=1e-14, atol=1e-14
+    )
     pub = full.public()
-    assert np.shares_memory(pub.gradient, full.gradient) and pub.gradient.shape == (mesh.n_cells, 4, 3)
+    assert np.shares_memory(pub.gradient, full.gradient) and pub.gradient.shape == (
+        mesh.n_cells,
+        4,
+        3,
+    )
 
 
 def test_seam_assembles_the_same_force_and_stiffness(body):
@@ -240,7 +255,8 @@ def test_invariant_functions_may_give_either_stress_layout(body):
 
 
 def test_edge_scalar_assembly_equals_identity_blocks(rng):
-    # The history stiffness of the viscous field: blocks s Id, node blocks by translation invariance.
+    # The history stiffness of the viscous field: blocks s Id, node blocks by translation
+    # invariance.
     from mjed.sparse import CSRPattern
 
     points, cells = box_mesh(3, jitter=0.2)
@@ -268,8 +284,11 @@ def test_a_group_mixing_constant_and_per_cell_stresses_sums_them_per_cell(rng):
     from mjed.materials.base import Material
     from mjed.terms import I1Power, JPower, LogPolynomial, Term, TermGroup, Unity
 
-    terms = (Term(JPower(0.0), I1Power(500.0, 1)), Term(JPower(-2 / 3), I1Power(300.0, 1)),
-             Term(LogPolynomial(5000.0, -1000.0, 0.0), Unity()))
+    terms = (
+        Term(JPower(0.0), I1Power(500.0, 1)),
+        Term(JPower(-2 / 3), I1Power(300.0, 1)),
+        Term(LogPolynomial(5000.0, -1000.0, 0.0), Unity()),
+    )
 
     class OneGroup(Material):
         def decomposition(self):

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from common.options import InputError
 from comparisons.cli import main
 from comparisons.liver import MODELS, default_fixed_specs, run_liver
-from common.options import InputError
 from comparisons.regions import parse_region, select_nodes
 
 pytest.importorskip("meshio", reason="the ParaView series is written with meshio")
@@ -28,7 +28,9 @@ def test_three_models_run_and_write_their_outputs(quick_run):
     assert hyper["dt"] == 0.3 and poro["dt"] == 0.15 and poro["steps"] == 2 * hyper["steps"]
     for r in result["runs"]:
         amp = np.asarray(r["max_displacement"])
-        assert amp[0] == 0.0 and np.all(np.isfinite(amp)) and amp[-1] > 1e-3  # it sags under gravity
+        assert (
+            amp[0] == 0.0 and np.all(np.isfinite(amp)) and amp[-1] > 1e-3
+        )  # it sags under gravity
         assert r["fps"] > 0
     # The Prony series softens the response: the visco liver sags further than the elastic one.
     assert visco["final_max_displacement"] > hyper["final_max_displacement"]
@@ -36,14 +38,27 @@ def test_three_models_run_and_write_their_outputs(quick_run):
     for path in result["figures"] + result["series"]:
         assert (out / path.split("/")[-1]).is_file()
     assert len(result["figures"]) == 5 and len(result["series"]) == 3
-    assert result["passed"] and max(t["relative_l2_error"] for t in result["terzaghi"]["times"]) <= 1e-2
+    assert (
+        result["passed"]
+        and max(t["relative_l2_error"] for t in result["terzaghi"]["times"]) <= 1e-2
+    )
     for r in result["runs"]:  # substeps and where the time went, per step and per run
         assert len(r["substeps"]) == r["steps"] and r["substeps_total"] >= r["steps"]
-        assert set(r["phase_seconds"]) == {"hyperelastic force + stiffness", "other forces", "building the system",
-                                           "linear solve", "rest"}
+        assert set(r["phase_seconds"]) == {
+            "hyperelastic force + stiffness",
+            "other forces",
+            "building the system",
+            "linear solve",
+            "rest",
+        }
     split = {s["model"]: s["shares"] for s in result["step_split"]}
-    assert set(split) == set(MODELS) and all(abs(sum(v.values()) - 1) < 1e-12 for v in split.values())
-    assert split["hyperelastic"]["other forces"] == 0 and split["visco-poro-hyperelastic"]["other forces"] > 0
+    assert set(split) == set(MODELS) and all(
+        abs(sum(v.values()) - 1) < 1e-12 for v in split.values()
+    )
+    assert (
+        split["hyperelastic"]["other forces"] == 0
+        and split["visco-poro-hyperelastic"]["other forces"] > 0
+    )
     assert json.loads((out / "liver.json").read_text())["n_fixed"] == result["n_fixed"]
 
 
@@ -117,7 +132,8 @@ def test_mesh_without_volume_cells_and_bad_input_are_refused(tmp_path, capsys):
 
 def test_a_failing_run_is_reported_not_hidden(tmp_path):
     """A force field whose stiffness is indefinite at every state (forced: K negated) fails at
-    every substep: the run records the integrator's clear message and the study does not pass."""
+    every substep: the run records the integrator's clear message and the study does not pass.
+    """
     from comparisons.liver import numpy_force_field
 
     class Indefinite:
@@ -131,23 +147,51 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
     def broken(mesh, material, **kw):
         return Indefinite(numpy_force_field(mesh, material, **kw))
 
-    result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
-                       force_fields=[broken])
+    result = run_liver(
+        "liver-coarse",
+        steps=3,
+        out=str(tmp_path),
+        series=False,
+        models=["hyperelastic"],
+        force_fields=[broken],
+    )
     (run,) = result["runs"]
     assert not result["passed"] and run["steps"] == 0 < run["steps_planned"]
     assert run["error"].startswith("time step 1 (t = 0.3 s) failed:")
-    assert "retried in substeps down to dt/16 = 0.0187 s" in run["error"] and "kept the state" in run["error"]
-    assert main(["liver", "--quick", "--models", "hyperelastic", "--no-series", "--no-oscillation",
-                 "--out", str(tmp_path)]) == 3  # passed, but partial (quick, one model)
+    assert (
+        "retried in substeps down to dt/16 = 0.0187 s" in run["error"]
+        and "kept the state" in run["error"]
+    )
+    assert (
+        main(
+            [
+                "liver",
+                "--quick",
+                "--models",
+                "hyperelastic",
+                "--no-series",
+                "--no-oscillation",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 3
+    )  # passed, but partial (quick, one model)
 
 
 def test_a_soft_organ_survives_in_substeps(tmp_path):
-    """mu = 50 Pa: the 0.3 s linearised step is refused whole and taken in substeps, reported."""
+    """Mu = 50 Pa: the 0.3 s linearised step is refused whole and taken in substeps, reported."""
     from comparisons.liver import LiverParameters
     from mjed.materials import ArrudaBoyce
 
-    result = run_liver("liver-coarse", steps=3, out=str(tmp_path), series=False, models=["hyperelastic"],
-                       params=LiverParameters(material=ArrudaBoyce(mu=50.0, k0=500.0)))
+    result = run_liver(
+        "liver-coarse",
+        steps=3,
+        out=str(tmp_path),
+        series=False,
+        models=["hyperelastic"],
+        params=LiverParameters(material=ArrudaBoyce(mu=50.0, k0=500.0)),
+    )
     (run,) = result["runs"]
     assert run["error"] is None and run["steps"] == 3 and run["steps_split"] >= 1
     assert run["substeps_total"] > 3 and any(run["retries"])
@@ -156,7 +200,8 @@ def test_a_soft_organ_survives_in_substeps(tmp_path):
 
 def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     """Jacobi CG, the kept-factorisation preconditioner (the default) and the direct solve give
-    the same amplitudes to the CG tolerance; the FPS table says which solver ran."""
+    the same amplitudes to the CG tolerance; the FPS table says which solver ran.
+    """
     from comparisons.liver import LiverParameters
 
     runs = {}
@@ -164,11 +209,22 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
 
     from comparisons.liver import LIVER_SOLVER
 
-    for name, params in (("factorized", LiverParameters()),
-                         ("jacobi", LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, preconditioner="jacobi"))),
-                         ("direct", LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, solver="direct")))):
-        result = run_liver(quick=True, steps=3, out=str(tmp_path / name), params=params,
-                           models=["visco-poro-hyperelastic"], series=False)
+    for name, params in (
+        ("factorized", LiverParameters()),
+        (
+            "jacobi",
+            LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, preconditioner="jacobi")),
+        ),
+        ("direct", LiverParameters(solver=dataclasses.replace(LIVER_SOLVER, solver="direct"))),
+    ):
+        result = run_liver(
+            quick=True,
+            steps=3,
+            out=str(tmp_path / name),
+            params=params,
+            models=["visco-poro-hyperelastic"],
+            series=False,
+        )
         runs[name] = result
         assert result["passed"] and result["fps_table"][0]["solver"] == result["runs"][0]["solver"]
     amp = {k: np.asarray(r["runs"][0]["max_displacement"]) for k, r in runs.items()}
@@ -176,15 +232,26 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     for k in ("factorized", "jacobi"):
         np.testing.assert_allclose(amp[k], amp["direct"], rtol=0, atol=2e-6 * scale)  # CG rtol 1e-5
     fact, jac = runs["factorized"]["runs"][0], runs["jacobi"]["runs"][0]
-    assert "kept single-precision sparse LU" in fact["solver"] and "jacobi" in jac["solver"] and "direct" in runs["direct"]["runs"][0]["solver"]
+    assert (
+        "kept single-precision sparse LU" in fact["solver"]
+        and "jacobi" in jac["solver"]
+        and "direct" in runs["direct"]["runs"][0]["solver"]
+    )
     assert fact["factorizations"] >= 1 and jac["factorizations"] == 0
     assert fact["cg_iterations_mean"] < jac["cg_iterations_mean"] / 5
 
 
-@pytest.mark.parametrize("kwargs, word", [(dict(solver="cg"), "solver"), (dict(dt=0.0), "dt"),
-                                          (dict(gravity=(0.0, 9.81)), "gravity"), (dict(max_halvings=-1), "max_halvings"),
-                                          (dict(max_volume_change=1.0), "max_volume_change"),
-                                          (dict(allow_inverted=True), "ArrudaBoyce does not qualify")])
+@pytest.mark.parametrize(
+    "kwargs, word",
+    [
+        (dict(solver="cg"), "solver"),
+        (dict(dt=0.0), "dt"),
+        (dict(gravity=(0.0, 9.81)), "gravity"),
+        (dict(max_halvings=-1), "max_halvings"),
+        (dict(max_volume_change=1.0), "max_volume_change"),
+        (dict(allow_inverted=True), "ArrudaBoyce does not qualify"),
+    ],
+)
 def test_bad_liver_parameters_are_refused_by_name(kwargs, word):
     from comparisons.liver import LiverParameters
 

@@ -32,7 +32,14 @@ def assert_valid_tet_mesh(points: np.ndarray, cells: np.ndarray, volume: float) 
 
 
 def test_names_and_describe():
-    assert meshes.names() == ("single-tet", "cube-small", "cube-medium", "cube-paper", "liver", "liver-coarse")
+    assert meshes.names() == (
+        "single-tet",
+        "cube-small",
+        "cube-medium",
+        "cube-paper",
+        "liver",
+        "liver-coarse",
+    )
     with pytest.raises(ValueError, match="cube-paper"):
         meshes.describe("cube-huge")
 
@@ -228,9 +235,15 @@ def test_read_files_written_by_meshio(tmp_path, file_format):
     meshio = pytest.importorskip("meshio")
     suffix = {"gmsh22": ".msh", "gmsh": ".msh", "vtk": ".vtk", "vtu": ".vtu"}[file_format]
     path = tmp_path / f"m{suffix}"
-    meshio.write(str(path), meshio.Mesh(TWO_TETS_POINTS[:5], [("tetra", TWO_TETS_CELLS)]), file_format=file_format)
+    meshio.write(
+        str(path),
+        meshio.Mesh(TWO_TETS_POINTS[:5], [("tetra", TWO_TETS_CELLS)]),
+        file_format=file_format,
+    )
     data = meshes.read_mesh(path)
-    assert np.array_equal(data.points, TWO_TETS_POINTS[:5]) and np.array_equal(data.cells, TWO_TETS_CELLS)
+    assert np.array_equal(data.points, TWO_TETS_POINTS[:5]) and np.array_equal(
+        data.cells, TWO_TETS_CELLS
+    )
 
 
 def test_read_keeps_negative_orientation(tmp_path):
@@ -275,18 +288,26 @@ def test_mixed_triangles_and_tets(tmp_path):
     with pytest.warns(meshes.MeshReadWarning) as caught:
         data = meshes.read_mesh(path)
     messages = [str(w.message) for w in caught]
-    assert any("3 triangle" in m for m in messages) and any("1 node(s) no tetrahedron uses are kept" in m for m in messages)
+    assert any("3 triangle" in m for m in messages) and any(
+        "1 node(s) no tetrahedron uses are kept" in m for m in messages
+    )
     assert data.dropped == {"triangle": 3}
     # Node 5 is kept with its number: nothing is renumbered.
     assert data.unused_nodes.tolist() == [5] and data.node_ids.tolist() == [1, 2, 3, 4, 5, 6]
-    assert np.array_equal(data.points, TWO_TETS_POINTS) and np.array_equal(data.cells, TWO_TETS_CELLS)
+    assert np.array_equal(data.points, TWO_TETS_POINTS) and np.array_equal(
+        data.cells, TWO_TETS_CELLS
+    )
 
 
 def test_only_triangles_is_an_error(tmp_path):
     meshio = pytest.importorskip("meshio")
     path = tmp_path / "surface.vtu"
-    meshio.write(str(path), meshio.Mesh(REFERENCE_TET, [("triangle", np.array([[0, 1, 2], [0, 1, 3]]))]))
-    with pytest.raises(meshes.MeshReadError, match=r"surface\.vtu.*no linear tetrahedra.*2 triangle"):
+    meshio.write(
+        str(path), meshio.Mesh(REFERENCE_TET, [("triangle", np.array([[0, 1, 2], [0, 1, 3]]))])
+    )
+    with pytest.raises(
+        meshes.MeshReadError, match=r"surface\.vtu.*no linear tetrahedra.*2 triangle"
+    ):
         meshes.read_mesh(path)
 
 
@@ -316,8 +337,15 @@ def test_unreadable_file(tmp_path, suffix):
 def test_tetra10_refused(tmp_path):
     meshio = pytest.importorskip("meshio")
     path = tmp_path / "quadratic.msh"
-    points = np.vstack([REFERENCE_TET, (REFERENCE_TET[[0, 1, 2, 0, 0, 1]] + REFERENCE_TET[[1, 2, 0, 3, 2, 3]]) / 2])
-    meshio.write(str(path), meshio.Mesh(points, [("tetra10", np.arange(10)[None])]), file_format="gmsh22", binary=False)
+    points = np.vstack(
+        [REFERENCE_TET, (REFERENCE_TET[[0, 1, 2, 0, 0, 1]] + REFERENCE_TET[[1, 2, 0, 3, 2, 3]]) / 2]
+    )
+    meshio.write(
+        str(path),
+        meshio.Mesh(points, [("tetra10", np.arange(10)[None])]),
+        file_format="gmsh22",
+        binary=False,
+    )
     with pytest.raises(meshes.MeshReadError, match=r"quadratic\.msh.*higher-order.*tetra10"):
         meshes.read_mesh(path)
 

@@ -7,10 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 import mjed
 from mjed import materials as M
-from conftest import box_mesh
 
 TET = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 CELL = np.array([[0, 1, 2, 3]])
@@ -23,7 +23,11 @@ CELL = np.array([[0, 1, 2, 3]])
         (TET, CELL[:, :3], r"cells must have shape \(m, 4\)"),
         (TET, np.zeros((0, 4), dtype=int), "no cells"),
         (TET[:3], np.array([[0, 1, 2, 2]]), "at least 4 points"),
-        (np.where(np.arange(12).reshape(4, 3) == 7, np.nan, TET), CELL, "non-finite coordinates; first is node 2"),
+        (
+            np.where(np.arange(12).reshape(4, 3) == 7, np.nan, TET),
+            CELL,
+            "non-finite coordinates; first is node 2",
+        ),
         (np.where(np.arange(12).reshape(4, 3) == 3, np.inf, TET), CELL, "node 1"),
         (TET, np.array([[0, 1, 2, 4]]), r"cell 0 has node indices out of range \[0, 4\)"),
         (TET, np.array([[0, 1, 2, -1]]), "out of range"),
@@ -67,7 +71,9 @@ def test_fix_orientation_swaps_and_reports():
     mat = M.NeoHookean(1.0, 1.0)
     x = points * 1.1
     assert np.allclose(
-        mjed.HyperelasticForceField(mesh, mat).force(x), mjed.HyperelasticForceField(ref, mat).force(x), atol=1e-14
+        mjed.HyperelasticForceField(mesh, mat).force(x),
+        mjed.HyperelasticForceField(ref, mat).force(x),
+        atol=1e-14,
     )
 
 
@@ -101,10 +107,17 @@ def test_clean_mesh_is_silent():
         (lambda: M.VerondaWestmann(c1=1.0, c2=-1.0, k0=1.0), "c2"),
         (lambda: M.ArrudaBoyce(mu=1.0, k0=1.0, N=0.0), "N"),
         (lambda: M.ArrudaBoyce(mu=math.nan, k0=1.0), "mu"),
+        (lambda: M.Yeoh(c10=0.0, c20=0.1, c30=0.1, k0=1.0), "c10"),
+        (lambda: M.Yeoh(c10=1.0, c20=math.inf, c30=0.1, k0=1.0), "c20"),
+        (lambda: M.Yeoh(c10=1.0, c20=-0.1, c30=0.1, k0=-1.0), "k0"),
+        (lambda: M.Gent(mu=1.0, Jm=0.0, k0=1.0), "Jm"),
+        (lambda: M.Gent(mu=-1.0, Jm=5.0, k0=1.0), "mu"),
     ],
 )
 def test_invalid_parameters_name_the_parameter(factory, name):
-    with pytest.raises(ValueError, match=f"parameter{name}" if name.startswith("s?") else f"parameter {name}"):
+    with pytest.raises(
+        ValueError, match=f"parameter{name}" if name.startswith("s?") else f"parameter {name}"
+    ):
         factory()
 
 
@@ -119,10 +132,17 @@ def test_inverted_state_is_refused_with_the_cells_named():
     field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.NeoHookean(1.0, 1.0))
     x = points.copy()
     x[:, 2] *= -1.0  # mirror: every cell inverted
-    with pytest.raises(mjed.InvertedElementError, match="48 inverted or flattened cell.*cell 0 \\(J=-1\\)") as info:
+    with pytest.raises(
+        mjed.InvertedElementError, match="48 inverted or flattened cell.*cell 0 \\(J=-1\\)"
+    ) as info:
         field.force(x)
     assert len(info.value.cells) == 48
-    for method in (field.energy, field.stiffness, field.element_stiffness, field.force_and_stiffness):
+    for method in (
+        field.energy,
+        field.stiffness,
+        field.element_stiffness,
+        field.force_and_stiffness,
+    ):
         with pytest.raises(mjed.InvertedElementError):
             method(x)
 
@@ -132,11 +152,16 @@ def test_allow_inverted_evaluates():
     mesh = mjed.TetMesh(points, cells)
     x = points.copy()
     x[:, 2] *= -1.0
-    f = mjed.HyperelasticForceField(mesh, M.StVenantKirchhoff(1.0, 1.0), allow_inverted=True).force(x)
+    f = mjed.HyperelasticForceField(mesh, M.StVenantKirchhoff(1.0, 1.0), allow_inverted=True).force(
+        x
+    )
     assert np.isfinite(f).all()  # StVK has no ln J: finite through inversion
 
 
-@pytest.mark.parametrize("bad, message", [(np.zeros((5, 3)), r"shape \(8, 3\)"), ("nan", "non-finite positions; first is node 3")])
+@pytest.mark.parametrize(
+    "bad, message",
+    [(np.zeros((5, 3)), r"shape \(8, 3\)"), ("nan", "non-finite positions; first is node 3")],
+)
 def test_bad_positions(bad, message):
     points, cells = box_mesh(1)
     field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.NeoHookean(1.0, 1.0))

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import box_mesh, perturbed
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
-from conftest import box_mesh, perturbed
 from mjed import materials as M
 from mjed.fibre import signed_split
 from mjed.spectral import power_divided_differences
@@ -27,7 +27,9 @@ def test_signed_split_reconstructs_entrywise_product(B, method, rng):
     s, d = signed_split(B, method)
     assert np.allclose(np.einsum("i,ij,ik->jk", s, d, d), B, atol=1e-14)
     X = rng.standard_normal((3, 3))
-    assert np.allclose(sum(si * np.diag(di) @ X @ np.diag(di) for si, di in zip(s, d)), B * X, atol=1e-14)
+    assert np.allclose(
+        sum(si * np.diag(di) @ X @ np.diag(di) for si, di in zip(s, d)), B * X, atol=1e-14
+    )
 
 
 def test_ldl_split_refuses_zero_pivot():
@@ -51,7 +53,10 @@ def test_costa_frame_validation():
         M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=np.eye(4))
     points, cells = box_mesh(1)
     with pytest.raises(ValueError, match="per-cell data .* for 5 cells, but the mesh has 6 cells"):
-        mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=np.repeat(np.eye(3)[None], 5, axis=0)))
+        mjed.HyperelasticForceField(
+            mjed.TetMesh(points, cells),
+            M.Costa(1, 1, 1, 0, 1, 0, 0, 1, frame=np.repeat(np.eye(3)[None], 5, axis=0)),
+        )
 
 
 COSTA_B = dict(b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5)
@@ -66,10 +71,14 @@ def test_costa_frame_rotates_the_response(rng):
     rotated = mjed.TetMesh(points @ Q.T, cells)
     x = perturbed(points, rng, 0.05)
     f_ref = mjed.HyperelasticForceField(mesh, M.Costa(0.9, 3.0, **COSTA_B)).force(x)
-    f_rot = mjed.HyperelasticForceField(rotated, M.Costa(0.9, 3.0, **COSTA_B, frame=Q)).force(x @ Q.T)
+    f_rot = mjed.HyperelasticForceField(rotated, M.Costa(0.9, 3.0, **COSTA_B, frame=Q)).force(
+        x @ Q.T
+    )
     assert np.allclose(f_rot, f_ref @ Q.T, atol=1e-12 * np.abs(f_ref).max())
     per_cell = np.repeat(Q[None], len(cells), axis=0)
-    f_cells = mjed.HyperelasticForceField(rotated, M.Costa(0.9, 3.0, **COSTA_B, frame=per_cell)).force(x @ Q.T)
+    f_cells = mjed.HyperelasticForceField(
+        rotated, M.Costa(0.9, 3.0, **COSTA_B, frame=per_cell)
+    ).force(x @ Q.T)
     assert np.allclose(f_cells, f_rot, atol=1e-13 * np.abs(f_ref).max())
 
 
@@ -91,8 +100,13 @@ def test_ogden_reduces_to_invariants(alpha, rng):
     x = perturbed(points, rng, 0.06)
     ogden = mjed.HyperelasticForceField(mesh, M.Ogden(mu=1.2, alpha=alpha, k0=4.0))
     mu, k0 = 1.2, 4.0
-    # alpha = 2: mu/4 (I1b - 3); alpha = -2: mu/4 (I2b - 3). (alpha = 4 is checked against the oracle.)
-    equiv = M.MooneyRivlin(c1=mu / 4, c2=0.0, k0=k0) if alpha > 0 else M.MooneyRivlin(c1=0.0, c2=mu / 4, k0=k0)
+    # alpha = 2: mu/4 (I1b - 3); alpha = -2: mu/4 (I2b - 3). (alpha = 4 is checked against the
+    # oracle.)
+    equiv = (
+        M.MooneyRivlin(c1=mu / 4, c2=0.0, k0=k0)
+        if alpha > 0
+        else M.MooneyRivlin(c1=0.0, c2=mu / 4, k0=k0)
+    )
     ref = mjed.HyperelasticForceField(mesh, equiv)
     assert np.isclose(ogden.energy(x), ref.energy(x), rtol=1e-12)
     f0, K0 = ref.force_and_stiffness(x)
@@ -122,23 +136,47 @@ def test_ogden_sofa_tangent_is_not_the_hessian(rng):
     rel = abs(approx - exact).max() / abs(exact).max()
     assert 1e-6 < rel < 0.2
     # Same forces; and the approximation is exact at rest (H coaxial with C = Id).
-    assert np.allclose(approx_field.force(x), mjed.HyperelasticForceField(mesh, M.Ogden(1.0, 3.0, 5.0)).force(x))
-    assert abs(approx_field.stiffness(points) - mjed.HyperelasticForceField(mesh, M.Ogden(1.0, 3.0, 5.0)).stiffness(points)).max() < 1e-12
+    assert np.allclose(
+        approx_field.force(x), mjed.HyperelasticForceField(mesh, M.Ogden(1.0, 3.0, 5.0)).force(x)
+    )
+    assert (
+        abs(
+            approx_field.stiffness(points)
+            - mjed.HyperelasticForceField(mesh, M.Ogden(1.0, 3.0, 5.0)).stiffness(points)
+        ).max()
+        < 1e-12
+    )
 
 
 # ----------------------------------------------------------------------------- SOFA
 @pytest.mark.parametrize(
     "name, params, kwargs, expected",
     [
-        # SOFA examples/Component/SolidMechanics/FEM: the ParameterSets of its hyperelastic example scenes
+        # SOFA examples/Component/SolidMechanics/FEM: the ParameterSets of its hyperelastic example
+        # scenes
         ("ArrudaBoyce", "3448.2759 31034.483", {}, M.ArrudaBoyce(mu=3448.2759, k0=31034.483)),
-        ("StVenantKirchhoff", "3448.2759 31034.483", {}, M.StVenantKirchhoff(mu=3448.2759, lam=31034.483)),
+        (
+            "StVenantKirchhoff",
+            "3448.2759 31034.483",
+            {},
+            M.StVenantKirchhoff(mu=3448.2759, lam=31034.483),
+        ),
         ("NeoHookean", "3448.2759 31034.483", {}, M.NeoHookean(mu=3448.2759, lam=31034.483)),
         ("MooneyRivlin", "5000 7000 10", {}, M.MooneyRivlin(c1=5000, c2=7000, k0=10)),
         ("Ogden", "1500 500 5000", {}, M.Ogden(mu=1500, alpha=500, k0=5000)),
         # the MJED plugin's example and SOFA's scene test
-        ("StVenantKirchhoff", "5.0336e+04 2.4664e+06", {}, M.StVenantKirchhoff(mu=5.0336e4, lam=2.4664e6)),
-        ("MooneyRivlin", "151065.460 101709.668 1e07", {}, M.MooneyRivlin(c1=151065.46, c2=101709.668, k0=1e7)),
+        (
+            "StVenantKirchhoff",
+            "5.0336e+04 2.4664e+06",
+            {},
+            M.StVenantKirchhoff(mu=5.0336e4, lam=2.4664e6),
+        ),
+        (
+            "MooneyRivlin",
+            "151065.460 101709.668 1e07",
+            {},
+            M.MooneyRivlin(c1=151065.46, c2=101709.668, k0=1e7),
+        ),
         ("Ogden", [5000, 1500, 3], {"ogden_order": "mjed"}, M.Ogden(mu=1500, alpha=3, k0=5000)),
         ("VerondaWestman", [1.0, 2.0, 3.0], {}, M.VerondaWestmann(c1=1.0, c2=2.0, k0=3.0)),
     ],
@@ -149,15 +187,28 @@ def test_from_sofa(name, params, kwargs, expected):
 
 def test_from_sofa_costa():
     mat = M.from_sofa("Costa", "0.9 3 1 0.3 0.8 0.2 0.1 0.5")
-    assert (mat.a, mat.k0, mat.b_ff, mat.b_fs, mat.b_ss, mat.b_fn, mat.b_sn, mat.b_nn) == (0.9, 3, 1, 0.3, 0.8, 0.2, 0.1, 0.5)
+    assert (mat.a, mat.k0, mat.b_ff, mat.b_fs, mat.b_ss, mat.b_fn, mat.b_sn, mat.b_nn) == (
+        0.9,
+        3,
+        1,
+        0.3,
+        0.8,
+        0.2,
+        0.1,
+        0.5,
+    )
 
 
 def test_from_sofa_errors():
     with pytest.raises(ValueError, match=r"expects 3 parameters \[c1, c2, k0\], got 2"):
         M.from_sofa("MooneyRivlin", "1 2")
-    with pytest.raises(ValueError, match=r"ogden_order='mjed' expects 3 parameters \[k0, mu, alpha\]"):
+    with pytest.raises(
+        ValueError, match=r"ogden_order='mjed' expects 3 parameters \[k0, mu, alpha\]"
+    ):
         M.from_sofa("Ogden", "1 2", ogden_order="mjed")
-    with pytest.raises(ValueError, match="unknown SOFA material 'StableNeoHookean'; supported: StVenantKirchhoff"):
+    with pytest.raises(
+        ValueError, match="unknown SOFA material 'StableNeoHookean'; supported: StVenantKirchhoff"
+    ):
         M.from_sofa("StableNeoHookean", "1 2")
     with pytest.raises(ValueError, match="must hold numbers"):
         M.from_sofa("NeoHookean", "1 abc")
@@ -169,7 +220,9 @@ def test_sofa_tangent_error_report():
     from comparisons.ogden_tangent import sofa_tangent_errors
 
     points, cells = box_mesh(2, jitter=0.2)
-    errs = sofa_tangent_errors(mjed.TetMesh(points, cells), M.Ogden(1.0, 3.0, 5.0), ["rest", "triaxial", "random"])
+    errs = sofa_tangent_errors(
+        mjed.TetMesh(points, cells), M.Ogden(1.0, 3.0, 5.0), ["rest", "triaxial", "random"]
+    )
     assert errs["rest"] < 1e-14
     assert 1e-6 < errs["triaxial"] < 0.1 and 1e-6 < errs["random"] < 0.1
 
@@ -198,7 +251,10 @@ def test_costa_refuses_invalid_stiffness_parameters(change, message):
     with pytest.raises(ValueError, match="Costa: " + message):
         M.Costa(**{**COSTA_VALID, **change})
     # The SOFA route refuses them the same way.
-    values = [{**COSTA_VALID, **change}[n] for n in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")]
+    values = [
+        {**COSTA_VALID, **change}[n]
+        for n in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+    ]
     if all(isinstance(v, float) for v in values):
         with pytest.raises(ValueError, match="Costa: " + message):
             M.from_sofa("Costa", values)

@@ -19,7 +19,9 @@ from reference_fem import dolfinx_available
 
 pytestmark = [
     pytest.mark.oracle,
-    pytest.mark.skipif(not dolfinx_available(), reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)"),
+    pytest.mark.skipif(
+        not dolfinx_available(), reason="the UFL oracle needs dolfinx (Debian: python3-dolfinx)"
+    ),
 ]
 
 REPO = Path(__file__).resolve().parents[1]
@@ -38,7 +40,9 @@ def _launcher():
 def _mpirun(args, timeout=240):
     prefix, extra = _launcher()
     env = {**os.environ, **extra}
-    return subprocess.run(prefix + args, cwd=str(REPO), env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        prefix + args, cwd=str(REPO), env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def _verify_command():
@@ -51,7 +55,17 @@ def test_two_rank_oracle_equals_serial_oracle(tmp_path):
     from reference_fem.compat import comm_self
 
     out = tmp_path / "mpi.npz"
-    proc = _mpirun([sys.executable, "-m", "comparisons.cross_release", "snapshot", "--quick", "--out", str(out)])
+    proc = _mpirun(
+        [
+            sys.executable,
+            "-m",
+            "comparisons.cross_release",
+            "snapshot",
+            "--quick",
+            "--out",
+            str(out),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     parallel = load_snapshot(str(out))
     meta = parallel["meta"]
@@ -61,7 +75,10 @@ def test_two_rank_oracle_equals_serial_oracle(tmp_path):
     serial = take_snapshot(quick=True, comm=comm_self())
     diff = compare_snapshots(serial, parallel)
     assert diff["passed"], diff
-    assert max(diff["energy_rel_diff"], diff["force_rel_diff"], diff["stiffness_rel_diff"]) <= TOLERANCE
+    assert (
+        max(diff["energy_rel_diff"], diff["force_rel_diff"], diff["stiffness_rel_diff"])
+        <= TOLERANCE
+    )
     # Not vacuous: the comparison sees a change of one force entry by 1e-8 of the largest.
     case = next(iter(parallel["cases"].values()))
     case["force"][0, 0] += 1e-8 * abs(case["force"]).max()
@@ -71,14 +88,24 @@ def test_two_rank_oracle_equals_serial_oracle(tmp_path):
 def test_mpirun_equivalence_reports_what_a_serial_run_reports(tmp_path):
     from comparisons.cli import main
 
-    args = ["equivalence", "--material", "NeoHookean,Costa", "--mesh", "cube-small", "--states", "random,shear"]
+    args = [
+        "equivalence",
+        "--material",
+        "NeoHookean,Costa",
+        "--mesh",
+        "cube-small",
+        "--states",
+        "random,shear",
+    ]
     out = tmp_path / "mpi.json"
     proc = _mpirun(_verify_command() + args + ["--json", str(out)])
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.count("4/4 cases pass") == 1  # only rank 0 prints
     assert "oracle on 2 MPI ranks" in proc.stdout
     written = json.loads(out.read_text())
-    assert written["command"].startswith(f"mpirun -n {RANKS} mjed-verify equivalence")  # reproduces the run
+    assert written["command"].startswith(
+        f"mpirun -n {RANKS} mjed-verify equivalence"
+    )  # reproduces the run
     parallel = written["data"]
     assert parallel["mpi_ranks"] == RANKS
 
@@ -95,6 +122,8 @@ def test_mpirun_equivalence_reports_what_a_serial_run_reports(tmp_path):
 
 
 def test_mpirun_equivalence_refuses_bad_input_on_every_rank(tmp_path):
-    proc = _mpirun(_verify_command() + ["equivalence", "--mesh", str(tmp_path / "missing.msh")], timeout=120)
+    proc = _mpirun(
+        _verify_command() + ["equivalence", "--mesh", str(tmp_path / "missing.msh")], timeout=120
+    )
     assert proc.returncode == 2
     assert "missing.msh" in proc.stderr

@@ -1,13 +1,22 @@
 """The operation-count model: structure, not timings. It is derived from the declared terms
 (MJED) and the classical law, so declaring more terms must cost more, and each part must move
-with the term that causes it."""
+with the term that causes it.
+"""
 
 from __future__ import annotations
 
 import pytest
 
 from common.cases import DEFAULT_MATERIALS
-from comparisons.opcount import EIGEN, TRANSCENDENTAL, classical_flops, mjed_flops, mjed_source_flops, model, source_flops
+from comparisons.opcount import (
+    EIGEN,
+    TRANSCENDENTAL,
+    classical_flops,
+    mjed_flops,
+    mjed_source_flops,
+    model,
+    source_flops,
+)
 from mjed import materials as M
 from mjed.materials.base import Material
 from mjed.terms import InvariantFunction, JPower, Term, TermGroup
@@ -41,7 +50,10 @@ def test_mjed_count_follows_the_declared_terms():
     # St Venant-Kirchhoff has no J terms: no volumetric coupling, no d2J skew term.
     assert svk["terms"] < nh["terms"] + 200 and svk["edge blocks"] != nh["edge blocks"]
     # Assembly and the force do not depend on the material.
-    assert len({p["assembly"] for p in (nh, mr, vw, svk, og)}) == 1 and len({p["force"] for p in (nh, mr, svk)}) == 1
+    assert (
+        len({p["assembly"] for p in (nh, mr, vw, svk, og)}) == 1
+        and len({p["force"] for p in (nh, mr, svk)}) == 1
+    )
 
 
 def test_an_added_term_costs_more():

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import box_mesh
 
 import mjed
 from comparisons.taylor import energy_force_rates, force_stiffness_rates
-from conftest import box_mesh
 from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from mjed.porous import PorousVolume, with_porous_volume
 
@@ -88,7 +88,9 @@ def test_replace_mode_refusals():
 def test_rest_is_stress_free_and_taylor_rates(mode):
     X, T = box_mesh(2, jitter=0.2)
     mesh = mjed.TetMesh(X, T)
-    field = mjed.HyperelasticForceField(mesh, with_porous_volume(ArrudaBoyce(mu=770.0, k0=7500.0), LIVER, mode=mode))
+    field = mjed.HyperelasticForceField(
+        mesh, with_porous_volume(ArrudaBoyce(mu=770.0, k0=7500.0), LIVER, mode=mode)
+    )
     assert np.abs(field.force(X)).max() < 1e-9
     assert abs(field.energy(X)) < 1e-9
     x = _graded_state(X)
@@ -107,7 +109,9 @@ def test_replace_drops_only_the_bulk_term():
     no_bulk = mjed.HyperelasticForceField(mesh, MooneyRivlin(c1=300.0, c2=100.0, k0=1e-300))
     full = mjed.HyperelasticForceField(mesh, base)
     # add - replace = the base's bulk energy = full - (base without bulk)
-    assert np.isclose(added.energy(x) - replaced.energy(x), full.energy(x) - no_bulk.energy(x), rtol=1e-12)
+    assert np.isclose(
+        added.energy(x) - replaced.energy(x), full.energy(x) - no_bulk.energy(x), rtol=1e-12
+    )
 
 
 @pytest.mark.oracle
@@ -132,13 +136,20 @@ def test_porous_force_and_stiffness_match_the_ufl_oracle(mode, tangent):
     assert np.linalg.norm((K - K_o).toarray()) <= 1e-10 * np.linalg.norm(K_o.toarray())
     assert np.isclose(field.energy(x), oracle.energy(x), rtol=1e-12)
     # Not vacuous: a 1e-6 change of K0 is visible at this tolerance.
-    shifted = PorousOracle(X, T, porous=PorousVolume(0.5, 400.0 * (1 + 1e-6), 2200.0, tangent=tangent), base=base, mode=mode)
+    shifted = PorousOracle(
+        X,
+        T,
+        porous=PorousVolume(0.5, 400.0 * (1 + 1e-6), 2200.0, tangent=tangent),
+        base=base,
+        mode=mode,
+    )
     assert np.linalg.norm(f - shifted.force_and_stiffness(x)[0]) > 1e-10 * np.linalg.norm(f_o)
 
 
 def test_pressure_model_at_zero_pressure_carries_exactly_the_porous_solid():
     """FluidPressureForce(solid=...) at P = 0 is the porous solid alone: the coupling keeps the
-    solid's term and adds nothing else (the independent check of both is the UFL oracle)."""
+    solid's term and adds nothing else (the independent check of both is the UFL oracle).
+    """
     from mjed.darcy import DarcyParameters, FluidPressureForce
     from mjed.porous import PorousSolid
 
@@ -146,7 +157,9 @@ def test_pressure_model_at_zero_pressure_carries_exactly_the_porous_solid():
     mesh = mjed.TetMesh(X, T)
     x = _graded_state(X)
     f, K = mjed.HyperelasticForceField(mesh, PorousSolid(LIVER)).force_and_stiffness(x)
-    f_d, K_d = FluidPressureForce(mesh, DarcyParameters(2200.0, 1e-3), solid=LIVER).force_and_stiffness(x)
+    f_d, K_d = FluidPressureForce(
+        mesh, DarcyParameters(2200.0, 1e-3), solid=LIVER
+    ).force_and_stiffness(x)
     assert np.linalg.norm(f - f_d) <= 1e-12 * np.linalg.norm(f)
     assert abs(K - K_d).max() <= 1e-12 * abs(K).max()
     with pytest.raises(ValueError, match="porous"):

@@ -23,7 +23,8 @@ def _private(name: str) -> bool:
 
 def _own_private_names(tree: ast.AST) -> Set[str]:
     """Underscore names the module itself defines: functions, classes, methods, module
-    variables and attributes it assigns (self._x = ..., obj._x = ...)."""
+    variables and attributes it assigns (self._x = ..., obj._x = ...).
+    """
     names: Set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
@@ -48,16 +49,24 @@ def foreign_private_accesses(source: str, filename: str = "<module>") -> List[st
         elif isinstance(node, ast.ImportFrom):
             for alias in node.names:
                 if _private(alias.name):
-                    found.append(f"{filename}:{node.lineno}: from {node.module} import {alias.name}")
+                    found.append(
+                        f"{filename}:{node.lineno}: from {node.module} import {alias.name}"
+                    )
     return found
 
 
 def test_the_scan_finds_what_it_should():
     # It can fail: a foreign private attribute and a private import are reported ...
     bad = "from mjed.engine import _soa\n\ndef f(field):\n    return field._pattern\n"
-    assert foreign_private_accesses(bad) == ["<module>:1: from mjed.engine import _soa", "<module>:4: ._pattern"]
+    assert foreign_private_accesses(bad) == [
+        "<module>:1: from mjed.engine import _soa",
+        "<module>:4: ._pattern",
+    ]
     # ... while a module's own private attributes, on self or on another instance, are not.
-    good = "class A:\n    def __init__(self):\n        self._x = 1\n\n    def same(self, other):\n        return other._x\n"
+    good = (
+        "class A:\n    def __init__(self):\n        self._x = 1\n\n    def same(self, other):\n    "
+        "    return other._x\n"
+    )
     assert foreign_private_accesses(good) == []
 
 

@@ -1,20 +1,23 @@
 """Compressed-element regularisation (paper section 2.3): exact where J >= 1, and it removes
-the negative eigenvalues that stop CG on a cube compressed to half its height."""
+the negative eigenvalues that stop CG on a cube compressed to half its height.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, box_mesh
 
 import mjed
 from comparisons.regularization import negative_eigenvalues, run_study
-from conftest import MATERIALS, box_mesh
 from mjed.solvers import conjugate_gradient
 
 
 def _fields(material, points, cells):
     mesh = mjed.TetMesh(points, cells)
-    return mjed.HyperelasticForceField(mesh, material), mjed.HyperelasticForceField(mesh, material, regularize=True)
+    return mjed.HyperelasticForceField(mesh, material), mjed.HyperelasticForceField(
+        mesh, material, regularize=True
+    )
 
 
 def test_regularisation_is_exact_where_J_at_least_one(material):
@@ -44,7 +47,6 @@ def test_half_height_cube_study():
     # 3x3x3 box it happens to succeed: the outcome depends on the mesh, the report says which).
     pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
     import meshes
-
     from common.cases import DEFAULT_MATERIALS
 
     points, cells = meshes.load("cube-small")
@@ -79,18 +81,25 @@ def test_study_result_holds_the_invariants_and_reproduces(tmp_path):
     pytest.importorskip("meshio", reason="cube-small is stored as a gmsh file read with meshio")
     import json
 
-    from comparisons.cli import main
     from conftest import parse_reproduce
 
+    from comparisons.cli import main
+
     out = tmp_path / "reg.json"
-    assert main(["regularization", "--material", "NeoHookean,StVenantKirchhoff", "--json", str(out)]) == 0
+    assert (
+        main(["regularization", "--material", "NeoHookean,StVenantKirchhoff", "--json", str(out)])
+        == 0
+    )
     written = json.loads(out.read_text())
     assert written["status"] == "passed" and not written["partial"]
     assert [c["measured"] for c in written["checks"]][0] == 0.0  # forces untouched, to the bit
     assert written["data"]["mesh"] == "cube-small" and len(written["data"]["results"]) == 2
     args = parse_reproduce(written["command"])
-    assert (args["command"], args["material"], args["mesh"]) == ("regularization", "NeoHookean,StVenantKirchhoff",
-                                                                 "cube-small")
+    assert (args["command"], args["material"], args["mesh"]) == (
+        "regularization",
+        "NeoHookean,StVenantKirchhoff",
+        "cube-small",
+    )
 
 
 def test_a_force_changed_by_the_regularisation_fails_the_study(monkeypatch):
@@ -100,5 +109,7 @@ def test_a_force_changed_by_the_regularisation_fails_the_study(monkeypatch):
     from comparisons.cli import main
 
     real = regularization.run_study
-    monkeypatch.setattr(regularization, "run_study", lambda mesh, m: replace(real(mesh, m), force_change=1e-9))
+    monkeypatch.setattr(
+        regularization, "run_study", lambda mesh, m: replace(real(mesh, m), force_change=1e-9)
+    )
     assert main(["regularization", "--material", "NeoHookean", "--mesh", "single-tet"]) == 1

@@ -4,8 +4,16 @@ import math
 
 import pytest
 
-from common.result import (EXIT_FAILED, EXIT_INCOMPLETE, EXIT_PASSED, Check, Status, StudyResult,
-                                exit_code, status_from_checks)
+from common.result import (
+    EXIT_FAILED,
+    EXIT_INCOMPLETE,
+    EXIT_PASSED,
+    Check,
+    Status,
+    StudyResult,
+    exit_code,
+    status_from_checks,
+)
 
 
 def _result(checks, **kw):

@@ -5,29 +5,51 @@ errors (ValueError subclasses whose message names the problem), never a raw Inde
 LinAlgError or a silent NaN.
 """
 
+import json
+
 import numpy as np
 import pytest
+from conftest import box_mesh
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import mjed
-from conftest import box_mesh
 from mjed import materials as M
 from mjed.errors import InvertedElementError, MeshError
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 pos = st.floats(0.05, 20.0)
-materials = st.one_of(
-    st.builds(M.StVenantKirchhoff, mu=pos, lam=pos),
-    st.builds(M.NeoHookean, mu=pos, lam=pos),
-    st.builds(M.MooneyRivlin, c1=pos, c2=st.floats(0.0, 5.0), k0=pos),
-    st.builds(M.VerondaWestmann, c1=pos, c2=st.floats(0.05, 2.0), k0=pos),
-    st.builds(M.ArrudaBoyce, mu=pos, k0=pos, N=st.floats(2.0, 20.0)),
-    st.builds(M.Costa, a=pos, k0=pos, b_ff=st.floats(0.5, 5.0), b_fs=st.floats(0.0, 0.5), b_ss=st.floats(0.5, 5.0),
-              b_fn=st.floats(0.0, 0.5), b_sn=st.floats(0.0, 0.5), b_nn=st.floats(0.5, 5.0)),
-    st.builds(M.Ogden, mu=pos, alpha=st.sampled_from([-4.0, -2.0, 1.5, 2.0, 3.0, 5.0]), k0=pos),
-)
+#: Valid parameters of every declared material (test_every_declared_material_has_a_strategy).
+STRATEGIES = {
+    M.StVenantKirchhoff: st.builds(M.StVenantKirchhoff, mu=pos, lam=pos),
+    M.NeoHookean: st.builds(M.NeoHookean, mu=pos, lam=pos),
+    M.MooneyRivlin: st.builds(M.MooneyRivlin, c1=pos, c2=st.floats(0.0, 5.0), k0=pos),
+    M.VerondaWestmann: st.builds(M.VerondaWestmann, c1=pos, c2=st.floats(0.05, 2.0), k0=pos),
+    M.ArrudaBoyce: st.builds(M.ArrudaBoyce, mu=pos, k0=pos, N=st.floats(2.0, 20.0)),
+    M.Costa: st.builds(
+        M.Costa,
+        a=pos,
+        k0=pos,
+        b_ff=st.floats(0.5, 5.0),
+        b_fs=st.floats(0.0, 0.5),
+        b_ss=st.floats(0.5, 5.0),
+        b_fn=st.floats(0.0, 0.5),
+        b_sn=st.floats(0.0, 0.5),
+        b_nn=st.floats(0.5, 5.0),
+    ),
+    M.Ogden: st.builds(
+        M.Ogden, mu=pos, alpha=st.sampled_from([-4.0, -2.0, 1.5, 2.0, 3.0, 5.0]), k0=pos
+    ),
+    M.Yeoh: st.builds(M.Yeoh, c10=pos, c20=st.floats(-0.5, 0.5), c30=st.floats(0.0, 2.0), k0=pos),
+    # Jm above the largest I1b - 3 these states reach (beyond it Gent is undefined, by design)
+    M.Gent: st.builds(M.Gent, mu=pos, Jm=st.floats(10.0, 100.0), k0=pos),
+}
+materials = st.one_of(*STRATEGIES.values())
+
+
+def test_every_declared_material_has_a_strategy():
+    assert set(STRATEGIES) == {d.material for d in M.declarations()}
 
 
 @st.composite
@@ -48,7 +70,9 @@ def test_valid_input_gives_finite_symmetric_results(case, material):
     field = mjed.HyperelasticForceField(mesh, material)
     try:
         f, K = field.force_and_stiffness(x)
-    except InvertedElementError as exc:  # a legitimate answer for a folded state: it names the cells
+    except (
+        InvertedElementError
+    ) as exc:  # a legitimate answer for a folded state: it names the cells
         assert len(exc.cells) > 0 and "J" in str(exc)
         assume(False)
     assert f.shape == (mesh.n_nodes, 3) and np.isfinite(f).all()
@@ -87,9 +111,24 @@ def _corrupt(points, cells, how, rng):
 
 
 @SETTINGS
-@given(st.sampled_from(["nan point", "inf point", "index too large", "negative index", "repeated node", "flat cell",
-                        "three-node cells", "float cells", "no cells", "2-d points"]),
-       st.integers(0, 10_000), st.integers(1, 2))
+@given(
+    st.sampled_from(
+        [
+            "nan point",
+            "inf point",
+            "index too large",
+            "negative index",
+            "repeated node",
+            "flat cell",
+            "three-node cells",
+            "float cells",
+            "no cells",
+            "2-d points",
+        ]
+    ),
+    st.integers(0, 10_000),
+    st.integers(1, 2),
+)
 def test_invalid_meshes_raise_mesh_errors(how, seed, n):
     points, cells = box_mesh(n, jitter=0.2, seed=seed)
     points, cells = _corrupt(points, cells, how, np.random.default_rng(seed))
@@ -147,8 +186,21 @@ def test_invalid_positions_are_refused(kind, seed):
 
 @pytest.mark.oracle
 @settings(max_examples=15, deadline=None)
-@given(st.sampled_from(["nan point", "index too large", "negative index", "repeated node", "flat cell",
-                        "three-node cells", "no cells", "2-d points"]), st.integers(0, 10_000))
+@given(
+    st.sampled_from(
+        [
+            "nan point",
+            "index too large",
+            "negative index",
+            "repeated node",
+            "flat cell",
+            "three-node cells",
+            "no cells",
+            "2-d points",
+        ]
+    ),
+    st.integers(0, 10_000),
+)
 def test_the_oracle_refuses_invalid_meshes_with_our_errors(how, seed):
     pytest.importorskip("dolfinx")
     from reference_fem import UFLOracle
@@ -158,3 +210,53 @@ def test_the_oracle_refuses_invalid_meshes_with_our_errors(how, seed):
     with pytest.raises(ValueError) as info:
         UFLOracle(points, cells, M.NeoHookean(mu=1.0, lam=1.0))
     assert len(str(info.value)) > 10
+
+
+def _strict_load(path):
+    """json.load refusing the NaN and Infinity literals that Python writes by default."""
+
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    with open(path) as fh:
+        return json.load(fh, parse_constant=refuse)
+
+
+def test_results_are_written_as_strict_json_with_the_reason_for_each_null(tmp_path):
+    from common.options import write_json
+
+    path = tmp_path / "r.json"
+    write_json(
+        str(path),
+        {
+            "fps": float("inf"),
+            "runs": [{"err": np.float64("nan")}],
+            "field": np.array([1.0, -np.inf]),
+            "ok": 2.5,
+        },
+    )
+    data = _strict_load(path)
+    assert data["fps"] is None and data["runs"][0]["err"] is None and data["field"] == [1.0, None]
+    assert data["ok"] == 2.5
+    assert data["non_finite"] == [
+        {"path": "fps", "value": "inf"},
+        {"path": "runs/0/err", "value": "nan"},
+        {"path": "field/1", "value": "-inf"},
+    ]
+
+
+def test_the_check_report_json_is_strict(tmp_path):
+    from conformance.report import write_report
+    from conformance.run import CaseOutcome, CheckRun
+
+    run = CheckRun(
+        outcomes=[
+            CaseOutcome(
+                "c", "NeoHookean", "box", "rest", "bad input", message="m", seconds=float("nan")
+            )
+        ]
+    )
+    paths = write_report(str(tmp_path), run, command="mjed-verify check kit", fields={})
+    data = _strict_load(paths["json"])
+    assert data["cases"][0]["seconds"] is None
+    assert data["non_finite"] == [{"path": "cases/0/seconds", "value": "nan"}]

@@ -1,5 +1,6 @@
 """Linear solvers of the implicit schemes: preconditioned CG, the SPD factor and its inertia
-certificate, and the free block of the step matrix assembled from precomputed maps."""
+certificate, and the free block of the step matrix assembled from precomputed maps.
+"""
 
 from __future__ import annotations
 
@@ -7,18 +8,25 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from conftest import MATERIALS, box_mesh, perturbed
 
 import mjed
-from conftest import MATERIALS, box_mesh, perturbed
 from mjed.linear_system import FreeBlock, same_pattern, sum_same_pattern
 from mjed.mass import consistent_mass, lumped_mass
-from mjed.solvers import (NotPositiveDefiniteError, SPDFactor, block_jacobi_preconditioner, conjugate_gradient,
-                          jacobi_preconditioner)
+from mjed.solvers import (
+    NotPositiveDefiniteError,
+    SPDFactor,
+    block_jacobi_preconditioner,
+    conjugate_gradient,
+    jacobi_preconditioner,
+)
 
 
 @pytest.fixture(scope="module")
 def system():
-    """A stiffness K (CSR, mesh pattern), a lumped and a consistent mass, free dofs (bottom fixed)."""
+    """A stiffness K (CSR, mesh pattern), a lumped and a consistent mass, free dofs (bottom
+    fixed).
+    """
     mesh = mjed.TetMesh(*box_mesh(3, jitter=0.2))
     x = perturbed(mesh.points, np.random.default_rng(1), 0.03)
     K = mjed.HyperelasticForceField(mesh, MATERIALS["NeoHookean"]).stiffness(x)
@@ -58,12 +66,16 @@ def test_spd_factor_counts_the_negative_eigenvalues(system):
 
 
 # ---------------------------------------------------------------- preconditioned CG
-@pytest.mark.parametrize("make", [None, jacobi_preconditioner, block_jacobi_preconditioner, SPDFactor])
+@pytest.mark.parametrize(
+    "make", [None, jacobi_preconditioner, block_jacobi_preconditioner, SPDFactor]
+)
 def test_every_preconditioner_reaches_the_solution(system, make):
     A = _spd(system)
     x_true = np.random.default_rng(3).standard_normal(A.shape[0])
     b = A @ x_true
-    res = conjugate_gradient(A, b, tol=1e-12, max_iterations=5000, preconditioner=None if make is None else make(A))
+    res = conjugate_gradient(
+        A, b, tol=1e-12, max_iterations=5000, preconditioner=None if make is None else make(A)
+    )
     assert res.converged and res.reason == "converged" and res.residual <= 1e-12
     np.testing.assert_allclose(res.x, x_true, rtol=0, atol=1e-8 * np.abs(x_true).max())
 
@@ -72,7 +84,12 @@ def test_block_jacobi_inverts_the_node_blocks(system):
     A = _spd(system)
     r = np.random.default_rng(4).standard_normal(A.shape[0])
     dense = A.toarray()
-    expected = np.concatenate([np.linalg.solve(dense[i:i + 3, i:i + 3], r[i:i + 3]) for i in range(0, A.shape[0], 3)])
+    expected = np.concatenate(
+        [
+            np.linalg.solve(dense[i : i + 3, i : i + 3], r[i : i + 3])
+            for i in range(0, A.shape[0], 3)
+        ]
+    )
     np.testing.assert_allclose(block_jacobi_preconditioner(A)(r), expected, rtol=1e-12)
     with pytest.raises(ValueError, match="multiple of the block size"):
         block_jacobi_preconditioner(A[:-1, :-1])
@@ -115,7 +132,9 @@ def test_free_block_equals_the_sliced_sum(system, mass):
 
 def test_free_block_falls_back_when_the_mass_lies_outside_the_pattern(system):
     _, K, M, _, free = system
-    M_wide = sp.csr_matrix(M + sp.eye(M.shape[0], k=M.shape[0] - 1))  # a corner entry K does not store
+    M_wide = sp.csr_matrix(
+        M + sp.eye(M.shape[0], k=M.shape[0] - 1)
+    )  # a corner entry K does not store
     block = FreeBlock(M_wide, free)
     got = block(1.0, K, 0.5)
     assert not block.fast
@@ -138,9 +157,12 @@ def test_a_single_precision_factor_preconditions_but_its_pivots_see_the_rounded_
     exact = spla.spsolve(A.tocsc(), b)
     np.testing.assert_allclose(single(b), exact, rtol=0, atol=1e-4 * np.abs(exact).max())
     assert single(b).dtype == np.float64
-    res = conjugate_gradient(A, b, tol=1e-12, preconditioner=single)  # CG in double reaches any tolerance
+    res = conjugate_gradient(
+        A, b, tol=1e-12, preconditioner=single
+    )  # CG in double reaches any tolerance
     assert res.converged and res.iterations <= 4
-    # SPD in double precision, singular once rounded to single: why the integrator retries in double.
+    # SPD in double precision, singular once rounded to single: why the integrator retries in
+    # double.
     close = sp.csr_matrix(np.array([[1.0, 1.0 - 1e-10], [1.0 - 1e-10, 1.0]]))
     SPDFactor(close)
     with pytest.raises(NotPositiveDefiniteError):
@@ -152,14 +174,24 @@ def test_linear_solver_options_are_one_validated_frozen_object():
 
     from mjed.solvers import LinearSolverOptions
 
-    opts = LinearSolverOptions(cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single")
+    opts = LinearSolverOptions(
+        cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single"
+    )
     with pytest.raises(dataclasses.FrozenInstanceError):
         opts.cg_tol = 1.0
-    assert opts == LinearSolverOptions(cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single")
+    assert opts == LinearSolverOptions(
+        cg_tol=1e-6, max_iterations=50, preconditioner="factorized", factor_precision="single"
+    )
     assert "kept single-precision sparse LU" in opts.label() and "rtol 1e-06" in opts.label()
     assert "direct" in LinearSolverOptions(solver="direct").label()
-    for bad, word in [(dict(cg_tol=0.0), "cg_tol"), (dict(cg_tol=float("nan")), "cg_tol"), (dict(cg_tol=True), "cg_tol"),
-                      (dict(max_iterations=0), "max_iterations"), (dict(max_iterations=2.5), "max_iterations"),
-                      (dict(preconditioner="ilu"), "preconditioner"), (dict(solver="gmres"), "solver")]:
+    for bad, word in [
+        (dict(cg_tol=0.0), "cg_tol"),
+        (dict(cg_tol=float("nan")), "cg_tol"),
+        (dict(cg_tol=True), "cg_tol"),
+        (dict(max_iterations=0), "max_iterations"),
+        (dict(max_iterations=2.5), "max_iterations"),
+        (dict(preconditioner="ilu"), "preconditioner"),
+        (dict(solver="gmres"), "solver"),
+    ]:
         with pytest.raises(ValueError, match=f"LinearSolverOptions.{word}"):
             LinearSolverOptions(**bad)

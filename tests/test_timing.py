@@ -1,5 +1,6 @@
 """The timing study runs end to end on a tiny mesh (no timing assertions), the structured
-mesh generator, and the edge-block CSR assembly it relies on."""
+mesh generator, and the edge-block CSR assembly it relies on.
+"""
 
 from __future__ import annotations
 
@@ -15,8 +16,6 @@ from meshes.structured import cube_with_cells, structured_box
 from meshes.tetra import signed_volumes
 from mjed.engine import edge_blocks_to_element_matrices
 from mjed.sparse import CSRPattern, element_dofs
-
-
 
 
 # ------------------------------------------------------------------ structured meshes
@@ -37,7 +36,12 @@ def test_structured_box_is_conforming():
     # Every interior face is shared by exactly two cells, every boundary face by one,
     # and the boundary faces cover the box surface (2 triangles per boundary square).
     points, cells = structured_box(3)
-    faces = np.sort(np.concatenate([cells[:, [1, 2, 3]], cells[:, [0, 2, 3]], cells[:, [0, 1, 3]], cells[:, [0, 1, 2]]]), axis=1)
+    faces = np.sort(
+        np.concatenate(
+            [cells[:, [1, 2, 3]], cells[:, [0, 2, 3]], cells[:, [0, 1, 3]], cells[:, [0, 1, 2]]]
+        ),
+        axis=1,
+    )
     _, counts = np.unique(faces, axis=0, return_counts=True)
     assert set(counts.tolist()) == {1, 2}
     assert (counts == 1).sum() == 6 * 2 * 3 * 3
@@ -105,8 +109,14 @@ def tiny_study(tmp_path_factory):
     from comparisons.timing import timing_study
 
     out = tmp_path_factory.mktemp("timing")
-    result = timing_study("StVenantKirchhoff,NeoHookean", "single-tet", quick=True, out_dir=str(out), methods=FAST,
-                          memory=False)
+    result = timing_study(
+        "StVenantKirchhoff,NeoHookean",
+        "single-tet",
+        quick=True,
+        out_dir=str(out),
+        methods=FAST,
+        memory=False,
+    )
     return result, out
 
 
@@ -116,7 +126,9 @@ def test_study_result_statuses_checks_and_protocol(tiny_study):
     result, out = tiny_study
     assert result.key == "timing"
     assert result.status in (Status.PASSED, Status.TARGET_MISSED)
-    assert result.partial and any("quick" in n for n in result.not_covered)  # a quick run is never complete
+    assert result.partial and any(
+        "quick" in n for n in result.not_covered
+    )  # a quick run is never complete
     assert result.protocol.startswith("quick:")
     assert all(r["protocol"] == "quick" for r in result.data["results"])
     # every verification passed and is a tolerance; the speed comparisons are targets
@@ -124,8 +136,12 @@ def test_study_result_statuses_checks_and_protocol(tiny_study):
     assert tol and all(c.passed for c in tol) and all("classical" in c.name for c in tol)
     targets = [c for c in result.checks if c.kind == "target"]
     assert any("classical FEM (NumPy pair)" in c.name for c in targets)
-    assert any("paper's claim" in c.name and c.measured is None for c in targets)  # compiled pair not timed here
-    assert result.command.startswith("mjed-verify timing --material StVenantKirchhoff,NeoHookean --mesh single-tet")
+    assert any(
+        "paper's claim" in c.name and c.measured is None for c in targets
+    )  # compiled pair not timed here
+    assert result.command.startswith(
+        "mjed-verify timing --material StVenantKirchhoff,NeoHookean --mesh single-tet"
+    )
     assert "--quick" in result.command and "--no-memory" in result.command
     json.dumps(result.to_dict())  # JSON-serialisable as it stands
 
@@ -135,16 +151,28 @@ def test_study_data_schema_and_ratios_per_round(tiny_study):
     data = result.data
     assert data["mesh"]["name"] == "single-tet" and data["mesh"]["n_cells"] == 1
     combos = {(r["material"], r["method"], r["what"]) for r in data["results"]}
-    assert combos == {(m, meth, w) for m in ("StVenantKirchhoff", "NeoHookean") for meth in FAST
-                      for w in ("force+stiffness", "force", "stiffness")}
+    assert combos == {
+        (m, meth, w)
+        for m in ("StVenantKirchhoff", "NeoHookean")
+        for meth in FAST
+        for w in ("force+stiffness", "force", "stiffness")
+    }
     for r in data["results"]:
         assert 0 < r["min_s"] <= r["median_s"] <= r["max_s"] and r["calls_per_repeat"] >= 1
         assert r["stopped_by"] in ("spread", "budget", "rounds")
     for r in data["ratios"]:
         per = np.asarray(r["per_repeat"])
-        assert r["median"] == pytest.approx(np.median(per)) and r["min"] == per.min() and r["max"] == per.max()
+        assert (
+            r["median"] == pytest.approx(np.median(per))
+            and r["min"] == per.min()
+            and r["max"] == per.max()
+        )
         num, den = r["ratio"].split("/")
-        t = {x["method"]: x for x in data["results"] if x["material"] == r["material"] and x["what"] == r["what"]}
+        t = {
+            x["method"]: x
+            for x in data["results"]
+            if x["material"] == r["material"] and x["what"] == r["what"]
+        }
         assert t[num]["min_s"] / t[den]["max_s"] <= per.min() * (1 + 1e-12)
         assert per.max() <= t[num]["max_s"] / t[den]["min_s"] * (1 + 1e-12)
     assert {r["ratio"] for r in data["ratios"]} == {"classical/mjed"}
@@ -166,7 +194,9 @@ def test_study_blocks_and_figure(tiny_study):
 def test_paper_protocol_is_100_calls_by_3_rounds():
     from comparisons.timing import timing_study
 
-    result = timing_study("NeoHookean", "single-tet", protocol="paper", methods=FAST, memory=False, out_dir=None)
+    result = timing_study(
+        "NeoHookean", "single-tet", protocol="paper", methods=FAST, memory=False, out_dir=None
+    )
     assert result.protocol.startswith("paper: 100 calls")
     assert not result.not_covered
     for r in result.data["results"]:
@@ -174,9 +204,9 @@ def test_paper_protocol_is_100_calls_by_3_rounds():
 
 
 def test_a_plugged_in_peer_is_timed_only_when_it_matches():
+    import mjed as mj
     from comparisons import timing_methods as tm
     from comparisons.timing import timing_study
-    import mjed as mj
 
     class Wrong:
         def __init__(self, points, cells, material):
@@ -186,12 +216,25 @@ def test_a_plugged_in_peer_is_timed_only_when_it_matches():
             f, K = self.field.force_and_stiffness(x)
             return 1.001 * f, K
 
-    good = tm.register(tm.TimedMethod("test-good", "good peer", "peer", False,
-                                      lambda p, c, m: mj.HyperelasticForceField(mj.TetMesh(p, c), m)))
+    good = tm.register(
+        tm.TimedMethod(
+            "test-good",
+            "good peer",
+            "peer",
+            False,
+            lambda p, c, m: mj.HyperelasticForceField(mj.TetMesh(p, c), m),
+        )
+    )
     bad = tm.register(tm.TimedMethod("test-wrong", "wrong peer", "peer", False, Wrong))
     try:
-        result = timing_study("NeoHookean", "single-tet", quick=True, methods=["mjed", good.name, bad.name],
-                              memory=False, out_dir=None)
+        result = timing_study(
+            "NeoHookean",
+            "single-tet",
+            quick=True,
+            methods=["mjed", good.name, bad.name],
+            memory=False,
+            out_dir=None,
+        )
     finally:
         del tm.METHODS[good.name], tm.METHODS[bad.name]
     timed = {r["method"] for r in result.data["results"]}
@@ -199,14 +242,20 @@ def test_a_plugged_in_peer_is_timed_only_when_it_matches():
     skipped = {k["method"]: k["reason"] for k in result.data["skipped"]}
     assert "differs from NumPy MJED" in skipped[bad.name]
     # a peer that only has force_and_stiffness is timed on that alone
-    assert {r["what"] for r in result.data["results"] if r["method"] == good.name} == {"force+stiffness", "force", "stiffness"}
+    assert {r["what"] for r in result.data["results"] if r["method"] == good.name} == {
+        "force+stiffness",
+        "force",
+        "stiffness",
+    }
 
 
 def test_bad_study_input_is_refused():
     from comparisons.timing import timing_study
 
     with pytest.raises(ValueError, match="unknown method 'abaqus'"):
-        timing_study("NeoHookean", "single-tet", methods=["mjed", "abaqus"], out_dir=None, memory=False)
+        timing_study(
+            "NeoHookean", "single-tet", methods=["mjed", "abaqus"], out_dir=None, memory=False
+        )
     with pytest.raises(ValueError, match="must include 'mjed'"):
         timing_study("NeoHookean", "single-tet", methods=["classical"], out_dir=None, memory=False)
     with pytest.raises(ValueError, match="unknown protocol"):
@@ -223,8 +272,15 @@ def test_protocol_stopping_rules():
     assert budget.should_stop(3, [0.2], 0.0) is None
     assert budget.should_stop(3, [0.2], budget.budget_s + 1) == "budget"
     assert budget.should_stop(budget.max_rounds, [0.2], 0.0) == "rounds"
-    assert PROTOCOLS["paper"].should_stop(2, [0.0], 1e9) is None and PROTOCOLS["paper"].should_stop(3, [1.0], 0) == "rounds"
-    assert calls_for(PROTOCOLS["paper"], 1.0) == 100 and calls_for(budget, 0.001) == 20 and calls_for(budget, 5.0) == 1
+    assert (
+        PROTOCOLS["paper"].should_stop(2, [0.0], 1e9) is None
+        and PROTOCOLS["paper"].should_stop(3, [1.0], 0) == "rounds"
+    )
+    assert (
+        calls_for(PROTOCOLS["paper"], 1.0) == 100
+        and calls_for(budget, 0.001) == 20
+        and calls_for(budget, 5.0) == 1
+    )
     assert relative_spread([1.0, 2.0, 1.0, 1.1, 1.0]) == pytest.approx(0.1)
     assert relative_spread([1.0]) == float("inf")
 
@@ -234,7 +290,8 @@ def test_bandwidth_and_floor_sanity():
 
     bw = measure_bandwidth(8 * 2**20, repeats=2)
     assert 1e8 < bw.bytes_per_s < 1e13 and bw.array_bytes == 8 * 2**20
-    # the floor counts every byte once: CSR values + force written, positions + cells + geometry read
+    # the floor counts every byte once: CSR values + force written, positions + cells + geometry
+    # read
     assert floor_bytes(4, 1, 144) == 8 * 144 + 8 * 12 + 8 * 12 + 4 * 4 + 8 * 13
     assert floor_bytes(8, 2, 144) > floor_bytes(4, 1, 144)
     with pytest.raises(ValueError):
@@ -242,14 +299,20 @@ def test_bandwidth_and_floor_sanity():
 
 
 # ------------------------------------------------------------------ scaling and the command line
-@pytest.mark.skipif(not os.path.exists("/proc/self/clear_refs"), reason="peak memory needs Linux /proc")
+@pytest.mark.skipif(
+    not os.path.exists("/proc/self/clear_refs"), reason="peak memory needs Linux /proc"
+)
 def test_scaling_quick_runs_in_subprocesses(tmp_path):
     pytest.importorskip("matplotlib")
     from comparisons.timing import scaling_study
 
-    result = scaling_study(quick=True, sizes=[60, 400], methods=["mjed", "classical"], repeats=1, out_dir=str(tmp_path))
+    result = scaling_study(
+        quick=True, sizes=[60, 400], methods=["mjed", "classical"], repeats=1, out_dir=str(tmp_path)
+    )
     rows = result.data["rows"]
-    assert {(r["method"], r["n_cells"]) for r in rows} == {(m, n) for m in ("mjed", "classical") for n in (48, 384)}
+    assert {(r["method"], r["n_cells"]) for r in rows} == {
+        (m, n) for m in ("mjed", "classical") for n in (48, 384)
+    }
     for r in rows:
         assert r["seconds"] > 0 and r["peak_bytes"] >= 0
     assert set(result.data["stopped"]) == {"mjed", "classical"}
@@ -264,12 +327,29 @@ def test_timing_cli_json_exit_code_and_reproduce_line(tmp_path):
     from comparisons.cli import main
 
     path = tmp_path / "t.json"
-    code = main(["timing", "--quick", "--material", "NeoHookean", "--mesh", "single-tet", "--methods", "mjed,classical",
-                 "--no-memory", "--out", str(tmp_path / "out"), "--json", str(path)])
+    code = main(
+        [
+            "timing",
+            "--quick",
+            "--material",
+            "NeoHookean",
+            "--mesh",
+            "single-tet",
+            "--methods",
+            "mjed,classical",
+            "--no-memory",
+            "--out",
+            str(tmp_path / "out"),
+            "--json",
+            str(path),
+        ]
+    )
     payload = json.loads(path.read_text())
     assert code == 3  # a quick run is partial: never exit 0
     assert payload["key"] == "timing" and payload["partial"] is True
-    assert payload["command"] == ("mjed-verify timing --material NeoHookean --mesh single-tet --methods mjed,classical "
-                                  f"--protocol budget --quick --no-memory --out {tmp_path / 'out'} --json {path}")
+    assert payload["command"] == (
+        "mjed-verify timing --material NeoHookean --mesh single-tet --methods mjed,classical "
+        f"--protocol budget --quick --no-memory --out {tmp_path / 'out'} --json {path}"
+    )
     assert main(["timing", "--methods", "mjed,abaqus", "--mesh", "single-tet"]) == 2
     assert main(["timing", "--methods", "classical", "--mesh", "single-tet"]) == 2

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from docs_support import executed, tutorial_runner
 
 SCRIPTS = tutorial_runner.tutorial_scripts()
@@ -19,7 +18,13 @@ SCRIPTS = tutorial_runner.tutorial_scripts()
 
 def test_there_are_tutorials():
     names = {p.stem for p in SCRIPTS}
-    assert {"one_tetrahedron", "why_mjed_is_faster", "compressed_elements", "viscosity", "liver"} <= names
+    assert {
+        "one_tetrahedron",
+        "why_mjed_is_faster",
+        "compressed_elements",
+        "viscosity",
+        "liver",
+    } <= names
 
 
 @pytest.mark.parametrize("script", SCRIPTS, ids=[p.stem for p in SCRIPTS])
@@ -35,7 +40,10 @@ def test_tutorial_runs_with_its_asserts(script):
 
 def test_a_failing_assert_is_reported_with_the_tutorial_and_the_line(tmp_path):
     script = tmp_path / "broken.py"
-    script.write_text("# %% [markdown]\n# # Broken\n\n# %%\nvalue = 2 + 2\n\n# %%\nassert value == 5, 'four is not five'\n")
+    script.write_text(
+        "# %% [markdown]\n# # Broken\n\n# %%\nvalue = 2 + 2\n\n# %%\nassert value == 5, 'four is "
+        "not five'\n"
+    )
     run = tutorial_runner.ensure_executed(script, tmp_path / "cache")
     assert not run.ok
     assert "broken.py" in run.error and "line 8" in run.error
@@ -43,6 +51,8 @@ def test_a_failing_assert_is_reported_with_the_tutorial_and_the_line(tmp_path):
 
 
 def test_cells_and_markdown_are_parsed_with_their_lines():
-    cells = tutorial_runner.parse_cells("# %% [markdown]\n# # Title\n#\n# text\n\n# %%\nx = 1\n\n\n# %%\ny = 2\n")
+    cells = tutorial_runner.parse_cells(
+        "# %% [markdown]\n# # Title\n#\n# text\n\n# %%\nx = 1\n\n\n# %%\ny = 2\n"
+    )
     assert [(c.kind, c.line) for c in cells] == [("markdown", 2), ("code", 7), ("code", 11)]
     assert cells[0].text == "# Title\n\ntext"

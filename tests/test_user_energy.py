@@ -1,6 +1,7 @@
 """Energies the user writes (reference_fem/user_energy.py): the parser refuses everything
 outside its whitelist, every variable means what it says, and the UFL oracle built on a
-user energy agrees with the built-in materials it re-expresses."""
+user energy agrees with the built-in materials it re-expresses.
+"""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ import warnings
 
 import numpy as np
 import pytest
-
 from conftest import box_mesh, perturbed, random_tetrahedron
+
 from reference_fem.user_energy import (
     EnergySyntaxError,
     PrestressWarning,
@@ -35,7 +36,11 @@ def _random_F(rng, m=5, scale=0.2):
 @pytest.mark.parametrize(
     "expression, fragment",
     [
-        ("__import__('os').system('true')", "only calls of ln, log, exp, sqrt, pow are allowed: '__import__('os').system' at column 1"),
+        (
+            "__import__('os').system('true')",
+            "only calls of ln, log, exp, sqrt, pow are allowed: '__import__('os').system' at "
+            "column 1",
+        ),
         ("__import__('os')", "'__import__' at column 1"),
         ("mu.real", "attribute access"),
         ("(lambda: 1)()", "lambda"),
@@ -87,10 +92,20 @@ def test_parameters_and_fibre_are_checked():
         UserEnergy("mu*(I1-3)", {"mu": float("nan")})
     with pytest.raises(ValueError, match="is a variable or function name"):
         UserEnergy("J*(I1-3)", {"J": 1.0})
-    with pytest.raises(ValueError, match="need a fibre"):
-        UserEnergy("(I4-1)**2", {})
+    deferred = UserEnergy("(I4-1)**2", {})  # built; a kit gives it the mesh's frame field
+    assert deferred.direction_missing
+    with pytest.raises(ValueError, match="need a fibre direction"):
+        deferred.density(np.eye(3)[None])
     with pytest.raises(ValueError, match="neither I4 nor I5"):
         UserEnergy("I1-3", {}, fibre=(1.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="a frame is given but neither I4 nor I5"):
+        UserEnergy("I1-3", {}, frame=np.eye(3))
+    with pytest.raises(ValueError, match="not both"):
+        UserEnergy("(I4-1)**2", {}, fibre=(1.0, 0.0, 0.0), frame=np.eye(3))
+    with pytest.raises(ValueError, match="must be orthonormal"):
+        UserEnergy("(I4-1)**2", {}, frame=np.stack([np.eye(3), 2 * np.eye(3)]))
+    with pytest.raises(ValueError, match="shape"):
+        UserEnergy("(I4-1)**2", {}, frame=np.eye(3)[:2])
     with pytest.raises(ValueError, match="zero vector"):
         UserEnergy("(I4-1)**2", {}, fibre=(0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="not finite"):
@@ -102,7 +117,12 @@ def test_cli_strings():
     assert dict(e.params) == {"K": 1e4, "mu": 1e3}
     assert parse_param("c_1=-2.5") == ("c_1", -2.5)
     assert parse_fibre("1, 0,0") == (1.0, 0.0, 0.0)
-    for bad, match in [("mu", "NAME=VALUE"), ("mu=abc", "not a number"), ("1mu=2", "not a valid"), ("mu=inf", "finite")]:
+    for bad, match in [
+        ("mu", "NAME=VALUE"),
+        ("mu=abc", "not a number"),
+        ("1mu=2", "not a valid"),
+        ("mu=inf", "finite"),
+    ]:
         with pytest.raises(ValueError, match=match):
             parse_param(bad)
     with pytest.raises(ValueError, match="three numbers"):
@@ -137,9 +157,14 @@ def test_every_variable_against_its_definition(rng):
     I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
     a = np.array([1.0, 2.0, -2.0]) / 3.0
     expected = {
-        "I1": I1, "I2": I2, "I3": J**2, "J": J,
-        "I1b": J ** (-2 / 3) * I1, "I2b": J ** (-4 / 3) * I2,
-        "I4": np.einsum("i,mij,j->m", a, C, a), "I5": np.einsum("i,mij,mjk,k->m", a, C, C, a),
+        "I1": I1,
+        "I2": I2,
+        "I3": J**2,
+        "J": J,
+        "I1b": J ** (-2 / 3) * I1,
+        "I2b": J ** (-4 / 3) * I2,
+        "I4": np.einsum("i,mij,j->m", a, C, a),
+        "I5": np.einsum("i,mij,mjk,k->m", a, C, C, a),
     }
     for i in range(3):
         for j in range(3):
@@ -160,14 +185,19 @@ def test_functions_and_operators(rng):
     with pytest.warns(PrestressWarning):  # P(I) = (3 + 1 - 1 + 1/2 + 1/2) I
         e = UserEnergy("pow(J, 3) + exp(J-1) - log(J) + ln(J)**2 + sqrt(J) - -J/2 + +1", {})
     np.testing.assert_allclose(
-        e.density(F), J**3 + np.exp(J - 1) - np.log(J) + np.log(J) ** 2 + np.sqrt(J) + J / 2 + 1, rtol=1e-14
+        e.density(F),
+        J**3 + np.exp(J - 1) - np.log(J) + np.log(J) ** 2 + np.sqrt(J) + J / 2 + 1,
+        rtol=1e-14,
     )
 
 
 def test_first_piola_matches_a_finite_difference_of_the_energy(rng):
     """The complex-step P of a fibre energy (I4, I5) against central differences of W."""
-    e = UserEnergy("k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2",
-                   {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0}, fibre=(1.0, 1.0, 0.5))
+    e = UserEnergy(
+        "k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2",
+        {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0},
+        fibre=(1.0, 1.0, 0.5),
+    )
     F = _random_F(rng, m=3)
     P = e.first_piola(F)
     h = 1e-6
@@ -198,7 +228,9 @@ def test_cell_energies_sum_v0_w(rng):
     e = UserEnergy(NH, {"mu": 1.3, "lam": 2.1})
     D0 = (P[cells[0, 1:]] - P[cells[0, 0]]).T
     F = (x[cells[0, 1:]] - x[cells[0, 0]]).T @ np.linalg.inv(D0)
-    np.testing.assert_allclose(e.cell_energies(P, cells, x), abs(np.linalg.det(D0)) / 6 * e.density(F[None]), rtol=1e-14)
+    np.testing.assert_allclose(
+        e.cell_energies(P, cells, x), abs(np.linalg.det(D0)) / 6 * e.density(F[None]), rtol=1e-14
+    )
 
 
 # -- the UFL translation through the oracle ---------------------------------------------------
@@ -230,7 +262,10 @@ def _cube_small():
     [
         ("NeoHookean", NH),
         ("MooneyRivlin", "c1*(I1b-3) + c2*(I2b-3) + k0/2*ln(J)**2"),
-        ("StVenantKirchhoff", "lam/2*(E11+E22+E33)**2 + mu*(E11**2+E22**2+E33**2+2*(E12**2+E13**2+E23**2))"),
+        (
+            "StVenantKirchhoff",
+            "lam/2*(E11+E22+E33)**2 + mu*(E11**2+E22**2+E33**2+2*(E12**2+E13**2+E23**2))",
+        ),
     ],
 )
 def test_a_user_energy_equal_to_a_builtin_gives_the_builtin_oracle(builtin, expression):
@@ -239,8 +274,14 @@ def test_a_user_energy_equal_to_a_builtin_gives_the_builtin_oracle(builtin, expr
     UFLOracle = _oracle_class()
 
     mat = MATERIALS[builtin]
-    names = {"NeoHookean": ("mu", "lam"), "MooneyRivlin": ("c1", "c2", "k0"), "StVenantKirchhoff": ("mu", "lam")}
-    user = UserEnergy(expression, {n: getattr(mat, n) for n in names[builtin]}, name=f"{builtin} as an expression")
+    names = {
+        "NeoHookean": ("mu", "lam"),
+        "MooneyRivlin": ("c1", "c2", "k0"),
+        "StVenantKirchhoff": ("mu", "lam"),
+    }
+    user = UserEnergy(
+        expression, {n: getattr(mat, n) for n in names[builtin]}, name=f"{builtin} as an expression"
+    )
     points, cells = _cube_small()
     ref, mine = UFLOracle(points, cells, mat), UFLOracle(points, cells, user)
     from common.states import apply_state
@@ -252,7 +293,9 @@ def test_a_user_energy_equal_to_a_builtin_gives_the_builtin_oracle(builtin, expr
         assert _relative(f1, f0) < 1e-12, state
         assert _relative(K1, K0) < 1e-12, state
         assert abs(mine.energy(x) - ref.energy(x)) <= 1e-12 * abs(ref.energy(x))
-        np.testing.assert_allclose(user.cell_energies(points, cells, x).sum(), ref.energy(x), rtol=1e-12)
+        np.testing.assert_allclose(
+            user.cell_energies(points, cells, x).sum(), ref.energy(x), rtol=1e-12
+        )
     # Not vacuous: a 1e-6 change of one parameter is seen.
     p = dict(user.params)
     first = names[builtin][0]
@@ -265,15 +308,21 @@ def test_a_user_energy_equal_to_a_builtin_gives_the_builtin_oracle(builtin, expr
 @pytest.mark.oracle
 def test_a_fibre_energy_through_the_oracle_matches_finite_differences_of_w():
     """Force from UFL differentiation of an I4/I5 energy against central differences of the
-    NumPy energy sum(V0 W), node by node, on a jittered small box."""
+    NumPy energy sum(V0 W), node by node, on a jittered small box.
+    """
     UFLOracle = _oracle_class()
-    e = UserEnergy("k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2",
-                   {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0}, fibre=(1.0, 1.0, 0.5))
+    e = UserEnergy(
+        "k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2",
+        {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0},
+        fibre=(1.0, 1.0, 0.5),
+    )
     points, cells = box_mesh(2, jitter=0.2)
     x = perturbed(points, np.random.default_rng(3), 0.05)
     oracle = UFLOracle(points, cells, e)
     f = oracle.force(x)
-    assert abs(oracle.energy(x) - e.cell_energies(points, cells, x).sum()) <= 1e-12 * abs(oracle.energy(x))
+    assert abs(oracle.energy(x) - e.cell_energies(points, cells, x).sum()) <= 1e-12 * abs(
+        oracle.energy(x)
+    )
     h = 1e-6
     f_fd = np.zeros_like(f)
     for node in range(points.shape[0]):
@@ -281,7 +330,9 @@ def test_a_fibre_energy_through_the_oracle_matches_finite_differences_of_w():
             xp, xm = x.copy(), x.copy()
             xp[node, c] += h
             xm[node, c] -= h
-            f_fd[node, c] = -(e.cell_energies(points, cells, xp).sum() - e.cell_energies(points, cells, xm).sum()) / (2 * h)
+            f_fd[node, c] = -(
+                e.cell_energies(points, cells, xp).sum() - e.cell_energies(points, cells, xm).sum()
+            ) / (2 * h)
     assert np.linalg.norm(f - f_fd) <= 1e-7 * np.linalg.norm(f)
     # The stiffness is the derivative of the force: a directional central difference.
     K = oracle.stiffness(x)
@@ -299,3 +350,36 @@ def test_a_prestressed_energy_has_a_force_at_rest_in_the_oracle():
     f = UFLOracle(points, cells, e).force(points)
     # P(I) = p I: the boundary nodes are pulled, total force zero.
     assert np.linalg.norm(f) > 1.0 and np.allclose(f.sum(axis=0), 0.0, atol=1e-12)
+
+
+def test_a_frame_per_cell_gives_each_cell_its_own_fibre():
+    """I4 and I5 with a frame per cell (first column the fibre): NumPy and the oracle, cell by cell,
+    against energies built with that cell's fibre alone; equality and hashing see the frame.
+    """
+    import dataclasses
+
+    from common.frames import helix_frames
+
+    UFLOracle = _oracle_class()
+    expression = "k1/(2*k2)*(exp(k2*(I4-1)**2)-1) + c*(I5-1)**2 + mu/2*(I1b-3) + K/2*(J-1)**2"
+    params = {"k1": 2.0, "k2": 0.7, "c": 0.3, "mu": 1.0, "K": 5.0}
+    points, cells = box_mesh(2, jitter=0.2)
+    R = helix_frames(points, cells)
+    e = UserEnergy(expression, params, frame=R)
+    x = perturbed(points, np.random.default_rng(3), 0.05)
+    alone = [UserEnergy(expression, params, fibre=tuple(R[k][:, 0])) for k in range(len(cells))]
+    one_by_one = np.array([e_k.cell_energies(points, cells, x)[k] for k, e_k in enumerate(alone)])
+    np.testing.assert_allclose(e.cell_energies(points, cells, x), one_by_one, rtol=1e-13)
+    assert np.ptp(R[:, :, 0], axis=0).max() > 0.5  # the fibres really differ from cell to cell
+    oracle = UFLOracle(points, cells, e)
+    assert abs(oracle.energy(x) - one_by_one.sum()) <= 1e-12 * abs(one_by_one.sum())
+    h = 1e-6
+    d = np.random.default_rng(5).standard_normal(x.shape)
+    plus, minus = (e.cell_energies(points, cells, x + s * h * d).sum() for s in (1.0, -1.0))
+    dW = (plus - minus) / (2 * h)
+    assert abs(-np.vdot(oracle.force(x), d) - dW) <= 1e-7 * abs(dW)
+    same = dataclasses.replace(e, frame=R.copy())
+    assert same == e and hash(same) == hash(e)
+    assert dataclasses.replace(e, frame=np.swapaxes(R, 1, 2).copy()) != e
+    with pytest.raises(ValueError, match="cells evaluated with a frame of"):
+        e.density(np.eye(3)[None])

@@ -1,14 +1,15 @@
 """Prony visco-hyperelasticity: parameters, the history recursion against closed forms,
-derivatives at fixed history, and the UFL oracle of one viscous step."""
+derivatives at fixed history, and the UFL oracle of one viscous step.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, box_mesh, perturbed, random_tetrahedron
 
 import mjed
 from comparisons.taylor import force_stiffness_rates
-from conftest import MATERIALS, box_mesh, perturbed, random_tetrahedron
 from mjed.evaluation import Want
 from mjed.materials import StVenantKirchhoff
 from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients
@@ -31,7 +32,10 @@ PRONY = Prony((0.235, 0.333), (0.27, 0.03))
     ],
 )
 def test_invalid_prony_parameters_are_refused_by_name(alphas, taus, word):
-    with pytest.raises(ValueError, match=word.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]")):
+    with pytest.raises(
+        ValueError,
+        match=word.replace("(", r"\(").replace(")", r"\)").replace("[", r"\[").replace("]", r"\]"),
+    ):
         Prony(alphas, taus)
 
 
@@ -76,12 +80,15 @@ def test_step_relaxation_matches_the_discrete_closed_form_to_round_off():
 
 def test_ramp_and_hold_relaxation_converges_to_the_prony_closed_form():
     """Green-Lagrange strain ramped linearly (so S_h of StVK is linear in t) over t_r, then held:
-    sigma(t) / sigma_0 = alpha_inf + sum alpha_i (tau_i / t_r)(e^(-(t - t_r)/tau_i) - e^(-t/tau_i))."""
+    sigma(t) / sigma_0 = alpha_inf + sum alpha_i (tau_i / t_r)(e^(-(t - t_r)/tau_i) - e^(-t/tau_i)).
+    """
     P, cells = random_tetrahedron(np.random.default_rng(4))
     mat = StVenantKirchhoff(mu=770.0, lam=3000.0)
     mesh = mjed.TetMesh(P, cells)
     t_r, t_end, e0 = 0.1, 0.5, 0.3
-    S_final = mjed.HyperelasticForceField(mesh, mat).evaluate(_stretched(P, e0), want=Want.STRESS).pk2[0]
+    S_final = (
+        mjed.HyperelasticForceField(mesh, mat).evaluate(_stretched(P, e0), want=Want.STRESS).pk2[0]
+    )
 
     def error(dt):
         vf = ViscoHyperelasticForceField(mesh, mat, prony=PRONY, dt=dt)
@@ -92,7 +99,8 @@ def test_ramp_and_hold_relaxation_converges_to_the_prony_closed_form():
             S_v = vf.stress(x)[0]
             vf.accept_step(x)
         closed = PRONY.alpha_inf + sum(
-            al * tau / t_r * (np.exp(-(t_end - t_r) / tau) - np.exp(-t_end / tau)) for al, tau in zip(PRONY.alphas, PRONY.taus)
+            al * tau / t_r * (np.exp(-(t_end - t_r) / tau) - np.exp(-t_end / tau))
+            for al, tau in zip(PRONY.alphas, PRONY.taus)
         )
         return np.abs(S_v - closed * S_final).max() / np.abs(S_final).max()
 
@@ -139,7 +147,9 @@ def test_a_wrong_history_term_fails_the_taylor_test():
         @staticmethod
         def stiffness(y):
             a, _ = prony_coefficients(vf.prony, vf.dt)
-            return (1.0 - a.sum()) * mjed.HyperelasticForceField(mesh, MATERIALS["NeoHookean"]).stiffness(y)
+            return (1.0 - a.sum()) * mjed.HyperelasticForceField(
+                mesh, MATERIALS["NeoHookean"]
+            ).stiffness(y)
 
     assert force_stiffness_rates(WithoutHistoryStiffness, x, v, 1e-2).min() < 1.5
 
@@ -153,7 +163,9 @@ def test_zero_history_is_the_scaled_hyperelastic_body():
     x = perturbed(mesh.points, rng, 0.1)
     a, _ = prony_coefficients(PRONY, 0.05)
     f, K = vf.force_and_stiffness(x)
-    np.testing.assert_allclose(f, (1 - a.sum()) * field.force(x), rtol=1e-13, atol=1e-13 * np.abs(f).max())
+    np.testing.assert_allclose(
+        f, (1 - a.sum()) * field.force(x), rtol=1e-13, atol=1e-13 * np.abs(f).max()
+    )
     assert abs(K - (1 - a.sum()) * field.stiffness(x)).max() <= 1e-13 * abs(K).max()
 
 

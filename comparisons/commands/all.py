@@ -8,10 +8,13 @@ from common import options as opt
 
 NAME = "all"
 ORDER = 1
-HELP = "run every study and write reports/<run>/index.html (reports/latest points to the newest complete run)"
+HELP = (
+    "run every study and write reports/<run>/index.html (reports/latest points to the newest "
+    "complete run)"
+)
 EXAMPLES = """examples:
-  mjed-verify all                      # the full report on the built-in meshes (the README's main job)
-  mjed-verify all --quick              # a small report in about half a minute (partial: exits with 3)
+  mjed-verify all                      # the full report on the built-in meshes (the main job)
+  mjed-verify all --quick              # a small report in about half a minute (exits with 3)
   mjed-verify all --out /tmp/reports --material NeoHookean,Ogden
   mjed-verify all --only equivalence,rheometer   # the other studies are listed as NOT RUN
   xdg-open reports/latest/index.html   # opens from disk, figures embedded
@@ -25,10 +28,17 @@ def configure(parser) -> None:
     opt.add_mesh_option(parser, "all (quick: single-tet,cube-small)")
     opt.add_states_option(parser)
     opt.add_out_option(parser, "reports")
-    parser.add_argument("--quick", action="store_true",
-                        help="smaller meshes and fewer repeats: every section filled, but a partial run (exit code 3)")
-    parser.add_argument("--only", metavar="KEYS",
-                        help="comma-separated study keys to run; the others are reported as NOT RUN (exit code 3)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="smaller meshes and fewer repeats: every section filled, but a partial run (exit code "
+        "3)",
+    )
+    parser.add_argument(
+        "--only",
+        metavar="KEYS",
+        help="comma-separated study keys to run; the others are reported as NOT RUN (exit code 3)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     opt.add_allow_incomplete_option(parser)
 
@@ -59,14 +69,25 @@ def run(args) -> int:
 
     only = parse_only(args.only, study_keys())
     outcome = run_report(
-        args.out, report_studies(),
-        {"materials": materials, "meshes": mesh_list, "states": states, "show_progress": not args.no_progress},
-        quick=args.quick, only=only,
-        command_line=["mjed-verify", *sys.argv[1:]] if sys.argv[0].endswith("mjed-verify") else None,
+        args.out,
+        report_studies(),
+        {
+            "materials": materials,
+            "meshes": mesh_list,
+            "states": states,
+            "show_progress": not args.no_progress,
+        },
+        quick=args.quick,
+        only=only,
+        command_line=["mjed-verify", *sys.argv[1:]]
+        if sys.argv[0].endswith("mjed-verify")
+        else None,
     )
     where = outcome.run_dir + "/index.html"
     if not outcome.complete:
-        print(f"interrupted: partial report in {where}; reports/latest unchanged", file=sys.stderr)
+        print(
+            f"interrupted: partial report in {where}; {args.out}/latest unchanged", file=sys.stderr
+        )
         return outcome.exit_code()
     for r in outcome.results:
         print(f"  {r.title}: {status_label(r)}" + (f": {r.reason}" if r.reason else ""))

@@ -9,14 +9,18 @@ import sys
 
 NAME = "check"
 ORDER = 61
-HELP = "check an engine against the oracle (a kit it computed, or a command run per case) and diagnose failures"
+HELP = (
+    "check an engine against the oracle (a kit it computed, or a command run per case) and "
+    "diagnose failures"
+)
 EXAMPLES = """examples:
-  mjed-verify check kit/                                   # outputs already written into kit/cases/<id>/output
+  mjed-verify check kit/             # outputs already written into kit/cases/<id>/output
   mjed-verify check --command './my_engine {input} {output}' --material NeoHookean --mesh cube-small
   mjed-verify check kit/ --command './my_engine {input} {output}' --timeout 30
-  mjed-verify check --command 'julia engine.jl {input} {output}' --energy "mu/2*(I1b-3) + K/2*(J-1)**2" \\
-                    --param mu=1e3 --param K=1e4
-exit codes: 0 every case passes, 1 a case fails, 2 bad input (the other cases still run and are reported).
+  mjed-verify check --command 'julia engine.jl {input} {output}' \\
+                    --energy "mu/2*(I1b-3) + K/2*(J-1)**2" --param mu=1e3 --param K=1e4
+exit codes: 0 every case passes, 1 a case fails, 2 bad input (the other cases still run and are
+reported).
 The report (index.html, report.md, results.json, per-node error fields as .vtu) goes to a new
 directory under --out.
 """
@@ -111,39 +115,40 @@ def run(args) -> int:
     return _run(args, cases, input_errors)
 
 
-def _run(args, cases, input_errors) -> int:
+def _evaluator(args, cases, folder: str, command: str):
+    """Case -> engine output: the outputs in the kit, or the engine run on each case."""
     from conformance.exchange import read_output
     from conformance.kit import write_kit
+
+    if args.engine_command is None:
+        return lambda c: read_output(
+            c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells, within=args.dir
+        )
+    from conformance.command import command_evaluator
+
+    base = args.dir
+    if base is None:  # the inputs are written into the report directory, then run through it
+        base = os.path.join(folder, "kit")
+        write_kit(base, cases, command=command)
+    os.makedirs(os.path.join(folder, "outputs"))
+    # A kit's case carries the input directory its hashes were checked on: the engine gets
+    # exactly that one. Generated cases live in the report's own kit/.
+    return command_evaluator(
+        args.engine_command,
+        lambda c: c.input_dir or os.path.join(base, "cases", c.case_id, "input"),
+        os.path.join(folder, "outputs"),
+        args.timeout,
+    )
+
+
+def _run(args, cases, input_errors) -> int:
     from conformance.options import reproduce
     from conformance.report import new_report_dir, write_error_field, write_report
     from conformance.run import run_check
 
     folder = new_report_dir(args.out)
     command = reproduce(NAME, args, args.dir or "")
-    if args.engine_command is not None:
-        from conformance.command import command_evaluator
-
-        if (
-            args.dir is None
-        ):  # the inputs are written into the report directory, then run through the command
-            write_kit(os.path.join(folder, "kit"), cases, command=command)
-            base = os.path.join(folder, "kit")
-        else:
-            base = args.dir
-        os.makedirs(os.path.join(folder, "outputs"))
-        evaluate = command_evaluator(
-            args.engine_command,
-            lambda c: os.path.join(base, "cases", c.case_id, "input"),
-            os.path.join(folder, "outputs"),
-            args.timeout,
-        )
-    else:
-        evaluate = lambda c: read_output(
-            os.path.join(args.dir, "cases", c.case_id, "output"),  # noqa: E731
-            c.input.n_nodes,
-            c.case_id,
-        )
-
+    evaluate = _evaluator(args, cases, folder, command)
     fields = {}
 
     def on_case(case, out, ref, diag):

@@ -8,16 +8,22 @@ from common import options as opt
 
 NAME = "cross-release"
 ORDER = 90
-HELP = "compare the UFL oracle across dolfinx releases (.venv, .venv-modern) and process counts (1e-12)"
+HELP = (
+    "compare the UFL oracle across dolfinx releases (.venv, .venv-modern) and process counts "
+    "(1e-12)"
+)
 EXAMPLES = """examples:
   mjed-verify cross-release --quick
   mjed-verify cross-release --json reports/cross_release.json
-  (set up the second stack first: make bootstrap-modern; without it the run is partial and exits with 3)
+  (set up the second stack first: make bootstrap-modern; without it the run is partial and
+  exits with 3)
 """
 
 
 def configure(parser) -> None:
-    parser.add_argument("--quick", action="store_true", help="two materials and Costa with cell frames, one state")
+    parser.add_argument(
+        "--quick", action="store_true", help="two materials and Costa with cell frames, one state"
+    )
     opt.add_json_option(parser)
     opt.add_allow_incomplete_option(parser)
 

@@ -10,7 +10,7 @@ NAME = "equivalence"
 ORDER = 10
 HELP = "compare MJED with the UFL oracle for materials x meshes x states"
 EXAMPLES = """examples:
-  mjed-verify equivalence                                  # all materials, built-in meshes, all states
+  mjed-verify equivalence                          # all materials, built-in meshes, all states
   mjed-verify equivalence --material NeoHookean --mesh cube-small
   mjed-verify equivalence --material all --mesh cube-paper --json eq.json
   mjed-verify equivalence --mesh path/to/organ.msh --states rest,random
@@ -24,7 +24,9 @@ def configure(parser) -> None:
     opt.add_states_option(parser)
     opt.add_json_option(parser)
     opt.add_allow_incomplete_option(parser)
-    parser.add_argument("--quiet", action="store_true", help="print only the checks and the verdict, not every case")
+    parser.add_argument(
+        "--quiet", action="store_true", help="print only the checks and the verdict, not every case"
+    )
 
 
 def run(args) -> int:
@@ -36,7 +38,9 @@ def run(args) -> int:
     from comparisons.equivalence import equivalence_study
     from reference_fem import dolfinx_available
 
-    progress = None if args.quiet else (lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True))
+    progress = (
+        None if args.quiet else (lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True))
+    )
     if not dolfinx_available():  # the study says NOT RUN, with the reason
         return finish(equivalence_study(mesh_list, materials, states), args)
 
@@ -46,7 +50,11 @@ def run(args) -> int:
 
     comm = comm_world()
     if comm.size == 1:
-        return finish(equivalence_study(mesh_list, materials, states, progress=progress), args, details=not args.quiet)
+        return finish(
+            equivalence_study(mesh_list, materials, states, progress=progress),
+            args,
+            details=not args.quiet,
+        )
     from reference_fem.distributed import abort_on_error
 
     with abort_on_error(comm):  # an error on one rank must not leave the others waiting

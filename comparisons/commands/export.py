@@ -10,7 +10,7 @@ NAME = "export"
 ORDER = 60
 HELP = "write a conformance kit (meshes, models, positions of each case) for your engine to compute"
 EXAMPLES = """examples:
-  mjed-verify export kit/                                         # all materials, single-tet, all states
+  mjed-verify export kit/                          # all materials, single-tet, all states
   mjed-verify export kit/ --material NeoHookean --mesh cube-small --states uniaxial,random
   mjed-verify export kit/ --energy "mu/2*(I1b-3) + K/2*(J-1)**2" --param mu=1e3 --param K=1e4
 then: for each case of kit/manifest.json, read cases/<id>/input, write cases/<id>/output;
@@ -48,12 +48,15 @@ def run(args) -> int:
             f"{args.dir}: exists and is not an empty directory; export never writes into one"
         )
     cases = cases_from_args(args, probes=0 if args.no_probes else PROBES)
-    manifest = write_kit(
-        args.dir, cases, command=reproduce(NAME, args, args.dir), precision=args.precision
-    )
+    try:
+        manifest = write_kit(
+            args.dir, cases, command=reproduce(NAME, args, args.dir), precision=args.precision
+        )
+    except FileExistsError as exc:  # another export took the folder after the check above
+        raise InputError(str(exc)) from None
     n_main = sum(e["role"] == "case" for e in manifest["cases"])
     print(
-        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; "
-        f"compute each cases/<id>/output, then: mjed-verify check {args.dir}"
+        f"wrote {args.dir}: {n_main} cases + {len(manifest['cases']) - n_main} probes; compute "
+        f"each cases/<id>/output, then: mjed-verify check {args.dir}"
     )
     return 0

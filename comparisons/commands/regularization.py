@@ -24,7 +24,7 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     materials = opt.resolve_materials(args.material)
-    (label, points, cells), = opt.resolve_meshes(args.mesh, several=False)
+    ((label, points, cells),) = opt.resolve_meshes(args.mesh, several=False)
 
     from common.terminal import finish
     from comparisons.regularization import regularization_study

@@ -5,7 +5,8 @@ runs the registry (:mod:`comparisons.report.studies`) safely and renders what co
 
     from comparisons.report import run_report
     from comparisons.report.studies import report_studies
-    outcome = run_report("reports", report_studies(), {"materials": ..., "meshes": ..., "states": ...}, quick=True)
+    outcome = run_report("reports", report_studies(), {"materials": ..., "meshes": ..., "states":
+    ...}, quick=True)
     outcome.exit_code()  # the written policy: 0, 1 or 3 (130 if interrupted)
 """
 

@@ -29,9 +29,15 @@ def _equivalence(ctx: StudyContext) -> StudyResult:
     from common.progress import Progress
     from comparisons.equivalence import equivalence_study
 
-    bar = Progress(len(ctx.meshes) * len(ctx.materials) + 2, "equivalence", enabled=None if ctx.show_progress else False)
+    bar = Progress(
+        len(ctx.meshes) * len(ctx.materials) + 2,
+        "equivalence",
+        enabled=None if ctx.show_progress else False,
+    )
     try:
-        return equivalence_study(ctx.meshes, ctx.materials, ctx.states, quick=ctx.quick, progress=bar.advance)
+        return equivalence_study(
+            ctx.meshes, ctx.materials, ctx.states, quick=ctx.quick, progress=bar.advance
+        )
     finally:
         bar.close()
 
@@ -41,14 +47,22 @@ def _regularization(ctx: StudyContext) -> StudyResult:
     from comparisons.regularization import regularization_study
 
     points, cells, label = meshes.resolve("cube-small")
-    return _with_status(ctx, "regularization", regularization_study, label, points, cells, ctx.materials)
+    return _with_status(
+        ctx, "regularization", regularization_study, label, points, cells, ctx.materials
+    )
 
 
 def _rheometer(ctx: StudyContext) -> StudyResult:
     from comparisons.rheometer import rheometer_study
 
-    return _with_status(ctx, "rheometer", rheometer_study, quick=ctx.quick, out_dir=ctx.figure_path("rheometer"),
-                        figure_root=ctx.run_dir)
+    return _with_status(
+        ctx,
+        "rheometer",
+        rheometer_study,
+        quick=ctx.quick,
+        out_dir=ctx.figure_path("rheometer"),
+        figure_root=ctx.run_dir,
+    )
 
 
 def _cross_release(ctx: StudyContext) -> StudyResult:
@@ -62,21 +76,37 @@ def _timing(ctx: StudyContext) -> StudyResult:
 
     # The timing study times the materials of common/cases.py, chosen by name.
     names = [m.name for m in ctx.materials]
-    return _with_status(ctx, "timing", timing_study, names, "cube-small" if ctx.quick else "cube-paper",
-                        quick=ctx.quick, out_dir=ctx.figure_path("timing"))
+    return _with_status(
+        ctx,
+        "timing",
+        timing_study,
+        names,
+        "cube-small" if ctx.quick else "cube-paper",
+        quick=ctx.quick,
+        out_dir=ctx.figure_path("timing"),
+    )
 
 
 def _scaling(ctx: StudyContext) -> StudyResult:
     from comparisons.timing import scaling_study
 
-    return _with_status(ctx, "scaling", scaling_study, quick=ctx.quick, out_dir=ctx.figure_path("scaling"))
+    return _with_status(
+        ctx, "scaling", scaling_study, quick=ctx.quick, out_dir=ctx.figure_path("scaling")
+    )
 
 
 def _liver(ctx: StudyContext) -> StudyResult:
     from comparisons.liver import liver_study
 
-    return _with_status(ctx, "liver", liver_study, quick=ctx.quick, out_dir=ctx.figure_path("liver"),
-                        series=not ctx.quick, relative_to=ctx.run_dir)
+    return _with_status(
+        ctx,
+        "liver",
+        liver_study,
+        quick=ctx.quick,
+        out_dir=ctx.figure_path("liver"),
+        series=not ctx.quick,
+        relative_to=ctx.run_dir,
+    )
 
 
 def _provenance(ctx: StudyContext) -> StudyResult:
@@ -88,7 +118,15 @@ def _provenance(ctx: StudyContext) -> StudyResult:
 # ----------------------------------------------------------------------------- the registry
 def report_studies() -> Tuple[ReportStudy, ...]:
     """The report's studies in order; the summary comes first and is written by the runner."""
-    from comparisons import cross_release, equivalence, liver, provenance, regularization, rheometer, timing
+    from comparisons import (
+        cross_release,
+        equivalence,
+        liver,
+        provenance,
+        regularization,
+        rheometer,
+        timing,
+    )
 
     return (
         ReportStudy(equivalence.KEY, equivalence.TITLE, _equivalence),

@@ -38,7 +38,8 @@ class Unsupported(ValueError):
 
 class MeshAdapter(abc.ABC):
     """Validated mesh and the shared conversions of every adapter (subclasses implement
-    ``_evaluate(u, want_force, want_stiffness)`` with u = x - X of shape (n, 3))."""
+    ``_evaluate(u, want_force, want_stiffness)`` with u = x - X of shape (n, 3)).
+    """
 
     #: The library's name, for messages and reports.
     library = "library"
@@ -65,7 +66,7 @@ class MeshAdapter(abc.ABC):
         return check_positions(x, self.n_nodes) - self._X
 
     def force(self, x) -> np.ndarray:
-        """f = -dW/dx, shape (n, 3)."""
+        """F = -dW/dx, shape (n, 3)."""
         return self.force_and_stiffness(x, stiffness=False)[0]
 
     def stiffness(self, x) -> sp.csr_matrix:
@@ -82,7 +83,9 @@ class MeshAdapter(abc.ABC):
             K = sp.csr_matrix(K, dtype=np.float64)
             n3 = 3 * self.n_nodes
             if K.shape != (n3, n3):
-                raise RuntimeError(f"{self.library}: stiffness has shape {K.shape}, expected ({n3}, {n3})")
+                raise RuntimeError(
+                    f"{self.library}: stiffness has shape {K.shape}, expected ({n3}, {n3})"
+                )
             K.sum_duplicates()
             K.sort_indices()
             self._require_finite(K.data, "stiffness")
@@ -101,7 +104,8 @@ class LibraryImplementation:
     """An adapter class as an implementation of conformance/protocol.py: ``impl(case)`` with a
     case carrying ``points``, ``cells``, ``positions`` and ``model`` returns
     ``(force, stiffness, energy or None)``. One adapter is built per (mesh, model) and reused
-    for every state of it (the library's set-up is the slow part)."""
+    for every state of it (the library's set-up is the slow part).
+    """
 
     def __init__(self, adapter_class):
         self.adapter_class = adapter_class

@@ -51,8 +51,16 @@ from conformance.adapters import MeshAdapter, Unsupported
 from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff
 from reference_fem.user_energy import UserEnergy
 
-__all__ = ["FElupeAdapter", "available", "autodiff_available", "supports", "library_energy", "FELUPE_ENERGIES",
-           "CHECKED_VERSION", "CHECKED_TENSORTRAX"]
+__all__ = [
+    "FElupeAdapter",
+    "available",
+    "autodiff_available",
+    "supports",
+    "library_energy",
+    "FELUPE_ENERGIES",
+    "CHECKED_VERSION",
+    "CHECKED_TENSORTRAX",
+]
 
 #: The FElupe release whose source these energies were read from (scripts/bootstrap.sh pins it).
 CHECKED_VERSION = "11.3.0"
@@ -78,7 +86,11 @@ def available() -> Tuple[bool, str]:
     try:
         import felupe
     except Exception as e:  # ImportError, or a broken dependency
-        return False, f"FElupe is not installed ({e}); scripts/bootstrap.sh installs felupe=={CHECKED_VERSION}"
+        return (
+            False,
+            f"FElupe is not installed ({e}); scripts/bootstrap.sh installs "
+            f"felupe=={CHECKED_VERSION}",
+        )
     return True, felupe.__version__
 
 
@@ -99,8 +111,10 @@ def autodiff_available() -> Tuple[bool, str]:
     try:
         import tensortrax
     except Exception as e:
-        return False, (f"tensortrax is not installed ({e}); scripts/bootstrap.sh installs "
-                       f"tensortrax=={CHECKED_TENSORTRAX} for FElupe's automatic differentiation")
+        return False, (
+            f"tensortrax is not installed ({e}); scripts/bootstrap.sh installs "
+            f"tensortrax=={CHECKED_TENSORTRAX} for FElupe's automatic differentiation"
+        )
     return True, tensortrax.__version__
 
 
@@ -126,6 +140,7 @@ def _hyperelastic(fun, why: str, model) -> Tuple[Any, Any, str]:
 
 def _tensortrax_variable(C, a, tm):
     """Variable name -> its tensortrax value for C (3, 3, ...) (see user_energy.VARIABLES)."""
+
     def variable(name: str):
         if name[0] in "CE" and len(name) == 3:
             i, j = int(name[1]) - 1, int(name[2]) - 1
@@ -156,7 +171,7 @@ def _tensortrax_variable(C, a, tm):
 def _user_energy_function(energy: UserEnergy):
     """W(C) of a user energy in tensortrax operations, for FElupe's Hyperelastic."""
     tm = _tensortrax()
-    a = energy.unit_fibre
+    a = energy.directions()  # one direction: a frame per cell is refused by _match
 
     def fun(C):
         return energy.evaluate(_tensortrax_variable(C, a, tm), tm.log, tm.exp, tm.sqrt)
@@ -182,14 +197,20 @@ def _class_name(umat) -> str:
     for cls in (fe.NeoHookeCompressible, fe.NeoHooke):  # Volumetric derives from NeoHooke
         if isinstance(umat, cls):
             return cls.__name__
-    raise Unsupported(f"FElupe material {type(umat).__name__} is not one this adapter can state the energy of")
+    raise Unsupported(
+        f"FElupe material {type(umat).__name__} is not one this adapter can state the energy of"
+    )
 
 
 def _from_felupe_object(umat) -> Tuple[Any, UserEnergy, str]:
     fe = _felupe()
     if isinstance(umat, fe.LinearElasticLargeStrain):
         inner = umat.material  # a NeoHookeCompressible with the Lamé constants of (E, nu)
-        umat_used, why = inner, "LinearElasticLargeStrain is FElupe's NeoHookeCompressible with Lamé constants from (E, nu)"
+        umat_used, why = (
+            inner,
+            "LinearElasticLargeStrain is FElupe's NeoHookeCompressible with Lamé constants from "
+            "(E, nu)",
+        )
     else:
         umat_used, why = umat, f"FElupe's {type(umat).__name__}"
     kind = _class_name(umat_used)
@@ -210,33 +231,56 @@ def _match(model) -> Tuple[Any, UserEnergy, str]:
 
 @_match.register(UserEnergy)
 def _(model):
+    if model.direction_missing or (model.frame is not None and model.frame.ndim == 3):
+        raise Unsupported(
+            "FElupe: this adapter gives tensortrax one fibre direction for I4 and I5,"
+            " not one per cell; give the energy one fibre (--fibre X,Y,Z) to check "
+            "FElupe with it"
+        )
     fe = _felupe()
     names = tuple(sorted(model.params))
     text = _squash(model.expression)
     for kind, variants in FELUPE_ENERGIES.items():
         if variants.get(names) is not None and _squash(variants[names]) == text:
             p = dict(model.params)
-            umat = fe.NeoHookeCompressible(**p) if kind == "NeoHookeCompressible" else fe.NeoHooke(**p)
+            umat = (
+                fe.NeoHookeCompressible(**p) if kind == "NeoHookeCompressible" else fe.NeoHooke(**p)
+            )
             return umat, model, f"FElupe's {kind}: W = {variants[names]} (the same expression)"
-    listed = "; ".join(f"{e} (parameters {', '.join(k)})" for v in FELUPE_ENERGIES.values() for k, e in v.items())
+    listed = "; ".join(
+        f"{e} (parameters {', '.join(k)})" for v in FELUPE_ENERGIES.values() for k, e in v.items()
+    )
     ok, why = autodiff_available()
     if not ok:
-        raise Unsupported(f"FElupe: the energy {model.expression!r} is not one of FElupe's closed forms ({listed}), "
-                          f"and the automatic-differentiation route is unavailable: {why}")
-    return _hyperelastic(_user_energy_function(model), "FElupe's Hyperelastic (tensortrax automatic differentiation) "
-                         f"of the expression {model.expression}", model)
+        raise Unsupported(
+            f"FElupe: the energy {model.expression!r} is not one of FElupe's closed forms "
+            f"({listed}), and the automatic-differentiation route is unavailable: {why}"
+        )
+    return _hyperelastic(
+        _user_energy_function(model),
+        "FElupe's Hyperelastic (tensortrax automatic differentiation) of the expression "
+        f"{model.expression}",
+        model,
+    )
 
 
 @_match.register(NeoHookean)
 def _(model):
     fe = _felupe()
     umat = fe.NeoHookeCompressible(mu=model.mu, lmbda=model.lam)
-    energy = UserEnergy(FELUPE_ENERGIES["NeoHookeCompressible"][("lmbda", "mu")],
-                        {"mu": model.mu, "lmbda": model.lam}, name="FElupe NeoHookeCompressible")
-    return umat, energy, (
-        "FElupe's NeoHookeCompressible(mu, lmbda=lam): the same W up to the constant 3 mu/2 "
-        "(FElupe: mu (I1/2 - ln J) + lmbda/2 (ln J)^2), so equal forces and stiffness; "
-        "FElupe's total energy is larger by 3 mu/2 times the mesh volume"
+    energy = UserEnergy(
+        FELUPE_ENERGIES["NeoHookeCompressible"][("lmbda", "mu")],
+        {"mu": model.mu, "lmbda": model.lam},
+        name="FElupe NeoHookeCompressible",
+    )
+    return (
+        umat,
+        energy,
+        (
+            "FElupe's NeoHookeCompressible(mu, lmbda=lam): the same W up to the constant 3 mu/2 "
+            "(FElupe: mu (I1/2 - ln J) + lmbda/2 (ln J)^2), so equal forces and stiffness; "
+            "FElupe's total energy is larger by 3 mu/2 times the mesh volume"
+        ),
     )
 
 
@@ -245,8 +289,11 @@ def _(model):
     from felupe.constitution.tensortrax.models.hyperelastic import saint_venant_kirchhoff
 
     _tensortrax()
-    return _hyperelastic(lambda C: saint_venant_kirchhoff(C, mu=model.mu, lmbda=model.lam),
-                         "FElupe's Hyperelastic(saint_venant_kirchhoff, mu, lmbda=lam): the same W", model)
+    return _hyperelastic(
+        lambda C: saint_venant_kirchhoff(C, mu=model.mu, lmbda=model.lam),
+        "FElupe's Hyperelastic(saint_venant_kirchhoff, mu, lmbda=lam): the same W",
+        model,
+    )
 
 
 @_match.register(MooneyRivlin)
@@ -254,9 +301,12 @@ def _(model):
     from felupe.constitution.tensortrax.models.hyperelastic import mooney_rivlin
 
     bulk = _ln_j_bulk(model.k0)
-    return _hyperelastic(lambda C: mooney_rivlin(C, C10=model.c1, C01=model.c2) + bulk(C),
-                         "FElupe's Hyperelastic(mooney_rivlin, C10=c1, C01=c2) + k0/2 (ln J)^2 in tensortrax: the same W",
-                         model)
+    return _hyperelastic(
+        lambda C: mooney_rivlin(C, C10=model.c1, C01=model.c2) + bulk(C),
+        "FElupe's Hyperelastic(mooney_rivlin, C10=c1, C01=c2) + k0/2 (ln J)^2 in tensortrax: the "
+        "same W",
+        model,
+    )
 
 
 @_match.register(ArrudaBoyce)
@@ -265,9 +315,12 @@ def _(model):
 
     bulk = _ln_j_bulk(model.k0)
     limit = float(np.sqrt(model.N))  # FElupe's beta = 1 / limit^2 is the project's 1 / N
-    return _hyperelastic(lambda C: arruda_boyce(C, C1=model.mu, limit=limit) + bulk(C),
-                         "FElupe's Hyperelastic(arruda_boyce, C1=mu, limit=sqrt(N)) + k0/2 (ln J)^2 in tensortrax: "
-                         "the same W", model)
+    return _hyperelastic(
+        lambda C: arruda_boyce(C, C1=model.mu, limit=limit) + bulk(C),
+        "FElupe's Hyperelastic(arruda_boyce, C1=mu, limit=sqrt(N)) + k0/2 (ln J)^2 in tensortrax: "
+        "the same W",
+        model,
+    )
 
 
 @_match.register(Ogden)
@@ -275,9 +328,12 @@ def _(model):
     from felupe.constitution.tensortrax.models.hyperelastic import ogden
 
     bulk = _ln_j_bulk(model.k0)
-    return _hyperelastic(lambda C: ogden(C, mu=[0.5 * model.mu], alpha=[model.alpha]) + bulk(C),
-                         "FElupe's Hyperelastic(ogden, mu=[mu/2], alpha=[alpha]) (2 mu_i/alpha_i^2 convention) "
-                         "+ k0/2 (ln J)^2 in tensortrax: the same W", model)
+    return _hyperelastic(
+        lambda C: ogden(C, mu=[0.5 * model.mu], alpha=[model.alpha]) + bulk(C),
+        "FElupe's Hyperelastic(ogden, mu=[mu/2], alpha=[alpha]) (2 mu_i/alpha_i^2 convention) + "
+        "k0/2 (ln J)^2 in tensortrax: the same W",
+        model,
+    )
 
 
 def supports(model) -> Tuple[bool, str]:
@@ -290,7 +346,8 @@ def supports(model) -> Tuple[bool, str]:
 
 def library_energy(model):
     """The energy FElupe computes for ``model``, as a model the UFL oracle accepts: a
-    UserEnergy, or the built-in material itself when FElupe's W equals it (raises Unsupported)."""
+    UserEnergy, or the built-in material itself when FElupe's W equals it (raises Unsupported).
+    """
     return _match(model)[1]
 
 

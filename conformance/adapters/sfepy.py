@@ -78,7 +78,8 @@ def available() -> Tuple[bool, str]:
 @dataclass(frozen=True)
 class SfePyTerms:
     """A sum of SfePy total Lagrangian terms: ``{"dw_tl_he_neohook": {"mu": 1e3}, ...}``
-    (each term at most once; parameters as in :data:`SFEPY_TERMS`)."""
+    (each term at most once; parameters as in :data:`SFEPY_TERMS`).
+    """
 
     terms: Mapping[str, Mapping[str, float]]
 
@@ -89,9 +90,14 @@ class SfePyTerms:
         for name, params in self.terms.items():
             spec = SFEPY_TERMS.get(name)
             if spec is None:
-                raise ValueError(f"SfePyTerms: unknown term {name!r}; known: {', '.join(SFEPY_TERMS)}")
+                raise ValueError(
+                    f"SfePyTerms: unknown term {name!r}; known: {', '.join(SFEPY_TERMS)}"
+                )
             if set(params) != set(spec.params):
-                raise ValueError(f"SfePyTerms: {name} takes parameters {', '.join(spec.params)}, got {', '.join(params) or 'none'}")
+                raise ValueError(
+                    f"SfePyTerms: {name} takes parameters {', '.join(spec.params)}, got "
+                    f"{', '.join(params) or 'none'}"
+                )
             values = {k: float(params[k]) for k in spec.params}
             if not all(np.isfinite(list(values.values()))):
                 raise ValueError(f"SfePyTerms: {name} parameters must be finite, got {values}")
@@ -103,19 +109,24 @@ class SfePyTerms:
 
     def _names(self, term: str) -> Dict[str, str]:
         """Parameter name of each of the term's parameters in the summed expression (the
-        term's own name, suffixed with the term's position when two terms share a name)."""
+        term's own name, suffixed with the term's position when two terms share a name).
+        """
         seen = [p for t in self.terms for p in SFEPY_TERMS[t].params]
         index = list(self.terms).index(term)
         return {p: p if seen.count(p) == 1 else f"{p}_{index}" for p in SFEPY_TERMS[term].params}
 
     def energy(self) -> UserEnergy:
         """The total W as a UserEnergy (raises Unsupported for Ogden, which is a function of
-        the principal stretches, not of the invariants the expression syntax offers)."""
+        the principal stretches, not of the invariants the expression syntax offers).
+        """
         parts, params = [], {}
         for term, values in self.terms.items():
             spec = SFEPY_TERMS[term]
             if not spec.energy:
-                raise Unsupported(f"SfePy: {term} is not an expression of invariants; check it with a built-in material")
+                raise Unsupported(
+                    f"SfePy: {term} is not an expression of invariants; check it with a built-in "
+                    "material"
+                )
             names = self._names(term)
             text = spec.energy
             for p, q in names.items():  # whole-word renaming of the parameters
@@ -140,16 +151,24 @@ def _match(model) -> Tuple[SfePyTerms, str]:
             for combo in itertools.permutations(invariant, k):
                 template = SfePyTerms({t: {p: 1.0 for p in SFEPY_TERMS[t].params} for t in combo})
                 probe = template.energy()
-                if "".join(probe.expression.split()) == squashed and set(probe.params) == set(model.params):
-                    terms = {t: {p: model.params[n] for p, n in template._names(t).items()} for t in combo}
-                    return SfePyTerms(terms), "SfePy terms " + " + ".join(combo) + f": W = {probe.expression}"
+                if "".join(probe.expression.split()) == squashed and set(probe.params) == set(
+                    model.params
+                ):
+                    terms = {
+                        t: {p: model.params[n] for p, n in template._names(t).items()}
+                        for t in combo
+                    }
+                    return SfePyTerms(terms), "SfePy terms " + " + ".join(
+                        combo
+                    ) + f": W = {probe.expression}"
         raise Unsupported(
             f"SfePy: the energy {model.expression!r} is not a sum of SfePy's terms written as "
-            "SfePyTerms.energy() writes it: " + "; ".join(f"{t}: {s.energy}" for t, s in SFEPY_TERMS.items() if s.energy)
+            "SfePyTerms.energy() writes it: "
+            + "; ".join(f"{t}: {s.energy}" for t, s in SFEPY_TERMS.items() if s.energy)
         )
     raise Unsupported(
-        f"SfePy: no SfePy term sum matches {type(model).__name__} (SfePy's bulk terms are K/2 (J-1)^2, "
-        "not the (ln J)^2 of this project's materials); pass SfePyTerms or a UserEnergy"
+        f"SfePy: no SfePy term sum matches {type(model).__name__} (SfePy's bulk terms are K/2 "
+        "(J-1)^2, not the (ln J)^2 of this project's materials); pass SfePyTerms or a UserEnergy"
     )
 
 
@@ -185,8 +204,14 @@ class SfePyAdapter(MeshAdapter):
         self.model = model
         self.terms, self.match_reason = _match(model)
         n, m = self.points.shape[0], self.cells.shape[0]
-        mesh = Mesh.from_data("mesh", self.points.copy(), None, [self.cells.astype(np.int32)],
-                              [np.zeros(m, dtype=np.int32)], ["3_4"])
+        mesh = Mesh.from_data(
+            "mesh",
+            self.points.copy(),
+            None,
+            [self.cells.astype(np.int32)],
+            [np.zeros(m, dtype=np.int32)],
+            ["3_4"],
+        )
         omega = FEDomain("domain", mesh).create_region("Omega", "all")
         field = Field.from_args("displacement", np.float64, "vector", omega, approx_order=1)
         # Field node of each of our nodes (P1: one per vertex), checked on the coordinates.
@@ -198,14 +223,21 @@ class SfePyAdapter(MeshAdapter):
 
         u = FieldVariable("u", "unknown", field)
         v = FieldVariable("v", "test", field, primary_var_name="u")
-        values = {f"c{i}": np.array([[self.terms.terms[t][p] for p in SFEPY_TERMS[t].params]])
-                  for i, t in enumerate(self.terms.terms)}
+        values = {
+            f"c{i}": np.array([[self.terms.terms[t][p] for p in SFEPY_TERMS[t].params]])
+            for i, t in enumerate(self.terms.terms)
+        }
         mat = Material("m", **values)
         integral = Integral("i", order=1)
-        terms = [Term.new(f"{t}(m.c{i}, v, u)", integral, omega, m=mat, v=v, u=u)
-                 for i, t in enumerate(self.terms.terms)]
-        self._problem = Problem("mjed", equations=Equations([Equation("balance", sum(terms[1:], terms[0]))]),
-                                active_only=False)
+        terms = [
+            Term.new(f"{t}(m.c{i}, v, u)", integral, omega, m=mat, v=v, u=u)
+            for i, t in enumerate(self.terms.terms)
+        ]
+        self._problem = Problem(
+            "mjed",
+            equations=Equations([Equation("balance", sum(terms[1:], terms[0]))]),
+            active_only=False,
+        )
         self._problem.time_update()
         self._problem.update_materials()
         self._evaluator = self._problem.get_evaluator()

@@ -35,8 +35,15 @@ ROOT = tutorial_runner.ROOT
 API_PACKAGES = ("mjed", "reference_fem", "common", "comparisons", "meshes", "conformance")
 MATHJAX_SOURCE = Path("/usr/share/javascript/mathjax")
 # What MathJax 2's TeX-AMS_CHTML configuration loads (the fonts are CommonHTML's woff files).
-MATHJAX_PARTS = ("MathJax.js", "config/TeX-AMS_CHTML.js", "extensions", "jax/input/TeX", "jax/output/CommonHTML",
-                 "jax/element", "fonts/HTML-CSS/TeX/woff")
+MATHJAX_PARTS = (
+    "MathJax.js",
+    "config/TeX-AMS_CHTML.js",
+    "extensions",
+    "jax/input/TeX",
+    "jax/output/CommonHTML",
+    "jax/element",
+    "fonts/HTML-CSS/TeX/woff",
+)
 
 
 def generated_dir(app) -> Path:
@@ -79,15 +86,28 @@ def cli_page() -> str:
     from comparisons.cli import build_parser
 
     parser = build_parser()
-    out = ["# Command-line reference", "",
-           "Generated when the site is built, from the parsers themselves "
-           "(`comparisons.cli.build_parser()`); each subcommand is one module of "
-           "`comparisons/commands/`. Every subcommand refuses bad input before any work with exit "
-           "code 2 and exits with 1 when a check fails (see {doc}`../getting_started`).", "",
-           "```text", parser.format_help().rstrip(), "```", ""]
+    out = [
+        "# Command-line reference",
+        "",
+        "Generated when the site is built, from the parsers themselves "
+        "(`comparisons.cli.build_parser()`); each subcommand is one module of "
+        "`comparisons/commands/`. Every subcommand refuses bad input before any work with exit "
+        "code 2 and exits with 1 when a check fails (see {doc}`../getting_started`).",
+        "",
+        "```text",
+        parser.format_help().rstrip(),
+        "```",
+        "",
+    ]
     for name, sub in _subparsers(parser).items():
-        out += [f"## `mjed-verify {name}`", "", _md_text((sub.description or "").strip()), "",
-                "| option | default | meaning |", "|---|---|---|"]
+        out += [
+            f"## `mjed-verify {name}`",
+            "",
+            _md_text((sub.description or "").strip()),
+            "",
+            "| option | default | meaning |",
+            "|---|---|---|",
+        ]
         out += [f"| `{n}` | {'`' + d + '`' if d else ''} | {t} |" for n, d, t in _option_rows(sub)]
         out += ["", "```text", sub.format_help().rstrip(), "```", ""]
     return "\n".join(out)
@@ -97,8 +117,11 @@ def cli_page() -> str:
 def _modules(package: str) -> Tuple[List[str], List[Tuple[str, str]]]:
     """Importable modules of ``package`` and (module, reason) for those that fail to import."""
     pkg = importlib.import_module(package)
-    names = [package] + sorted(info.name for info in pkgutil.walk_packages(pkg.__path__, prefix=package + ".")
-                               if not info.name.rsplit(".", 1)[-1].startswith("__"))
+    names = [package] + sorted(
+        info.name
+        for info in pkgutil.walk_packages(pkg.__path__, prefix=package + ".")
+        if not info.name.rsplit(".", 1)[-1].startswith("__")
+    )
     good, bad = [], []
     for name in names:
         try:
@@ -117,14 +140,31 @@ def _is_package(name: str) -> bool:
 
 def api_page(package: str) -> str:
     good, bad = _modules(package)
-    out = [f"# `{package}`", "",
-           f"Generated from the docstrings (autodoc) when the site is built: {len(good)} modules.", ""]
+    out = [
+        f"# `{package}`",
+        "",
+        f"Generated from the docstrings (autodoc) when the site is built: {len(good)} modules.",
+        "",
+    ]
     if bad:
-        out += ["Not documented here because they could not be imported in the build's environment:", ""]
+        out += [
+            "Not documented here because they could not be imported in the build's environment:",
+            "",
+        ]
         out += [f"- `{name}`: {reason}" for name, reason in bad] + [""]
     for name in good:
-        out += [f"## `{name}`", "", "```{eval-rst}", f".. automodule:: {name}", "   :members:",
-                "   :show-inheritance:"] + (["   :ignore-module-all:"] if _is_package(name) else []) + ["```", ""]
+        out += (
+            [
+                f"## `{name}`",
+                "",
+                "```{eval-rst}",
+                f".. automodule:: {name}",
+                "   :members:",
+                "   :show-inheritance:",
+            ]
+            + (["   :ignore-module-all:"] if _is_package(name) else [])
+            + ["```", ""]
+        )
     return "\n".join(out)
 
 
@@ -149,15 +189,17 @@ def tutorial_page(script: Path, run: "tutorial_runner.Execution", target: Path) 
         shutil.copy2(png, fig_dir / png.name)
     body = (run.outdir / "page.md").read_text()
     body = body.replace("](fig", f"]({script.stem}/fig")
-    header = (f"```{{admonition}} Run it yourself\n"
-              f"This page is the executed file {{download}}`docs/tutorials/{script.name} </tutorials/{script.name}>` "
-              f"(jupytext percent format: `jupytext --to notebook` opens it in Jupyter). From the repository: "
-              f"`.venv/bin/python docs/tutorials/{script.name}`. Its `assert` lines are checked by "
-              f"`make test` (`tests/test_tutorials.py`); it ran in {run.seconds:.1f} s for this build.\n```\n\n")
+    header = (
+        "```{admonition} Run it yourself\nThis page is the executed file "
+        f"{{download}}`docs/tutorials/{script.name} </tutorials/{script.name}>` (jupytext percent "
+        "format: `jupytext --to notebook` opens it in Jupyter). From the repository: "
+        f"`.venv/bin/python docs/tutorials/{script.name}`. Its `assert` lines are checked by `make "
+        f"test` (`tests/test_tutorials.py`); it ran in {run.seconds:.1f} s for this build.\n```\n\n"
+    )
     lines = body.splitlines()
     # Put the admonition after the title (the first Markdown heading).
     idx = next((i for i, line in enumerate(lines) if line.startswith("# ")), -1)
-    page = "\n".join(lines[: idx + 1]) + "\n\n" + header + "\n".join(lines[idx + 1:]) + "\n"
+    page = "\n".join(lines[: idx + 1]) + "\n\n" + header + "\n".join(lines[idx + 1 :]) + "\n"
     (target / f"{script.stem}.md").write_text(page)
 
 
@@ -176,7 +218,10 @@ def generate(app) -> None:
     failures = []
     for script in scripts:
         run = tutorial_runner.ensure_executed(script, tutorial_cache(app))
-        LOG.info(f"tutorial {script.name}: {'reused' if run.reused else 'executed'} ({run.seconds:.1f} s)")
+        LOG.info(
+            f"tutorial {script.name}: {'reused' if run.reused else 'executed'} ({run.seconds:.1f} "
+            "s)"
+        )
         if not run.ok:
             failures.append(run.error)
             continue
@@ -196,7 +241,9 @@ def copy_mathjax(app, exception) -> None:
     if exception is not None or app.builder.format != "html":
         return
     if not (MATHJAX_SOURCE / "MathJax.js").exists():
-        raise ExtensionError(f"MathJax 2 not found at {MATHJAX_SOURCE} (Debian package libjs-mathjax)")
+        raise ExtensionError(
+            f"MathJax 2 not found at {MATHJAX_SOURCE} (Debian package libjs-mathjax)"
+        )
     dest = Path(app.outdir) / "_static" / "mathjax"
     for part in MATHJAX_PARTS:
         src, dst = MATHJAX_SOURCE / part, dest / part
@@ -210,7 +257,8 @@ def copy_mathjax(app, exception) -> None:
 # ---------------------------------------------------------------------------- docstrings
 def escape_bars(app, what, name, obj, options, lines) -> None:
     """The code's docstrings are plain text where |x| is an absolute value or ||A|| a norm;
-    reST would read them as substitution references (and emit links to nowhere)."""
+    reST would read them as substitution references (and emit links to nowhere).
+    """
     lines[:] = [line.replace("|", "\\|") for line in lines]
 
 

@@ -170,7 +170,9 @@ def _failure_message(script: Path, cell: Cell, exc: BaseException, output: str) 
     while tb is not None and tb.tb_frame.f_code.co_filename != str(script):
         tb = tb.tb_next
     text = "".join(traceback.format_exception(type(exc), exc, tb))
-    where = f"tutorial {script.name}: the cell starting at line {cell.line} raised {type(exc).__name__}"
+    where = (
+        f"tutorial {script.name}: the cell starting at line {cell.line} raised {type(exc).__name__}"
+    )
     tail = f"\n--- output of that cell ---\n{output.rstrip()}" if output.strip() else ""
     return f"{where}\n{text.rstrip()}{tail}"
 
@@ -192,7 +194,9 @@ def source_key(script: Path) -> str:
         base = ROOT / pkg
         if not base.is_dir():
             continue
-        for path in sorted(p for p in base.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        for path in sorted(
+            p for p in base.rglob("*") if p.is_file() and "__pycache__" not in p.parts
+        ):
             h.update(str(path.relative_to(ROOT)).encode())
             h.update(path.read_bytes())
     return h.hexdigest()
@@ -223,18 +227,37 @@ def ensure_executed(script: Path, cache_dir: Path, *, python: str = sys.executab
         return Execution(script, outdir, st["ok"], st["seconds"], st["error"], reused=True)
     outdir.mkdir(parents=True, exist_ok=True)
     (outdir / "key").unlink(missing_ok=True)
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    env = dict(
+        os.environ,
+        MPLBACKEND="Agg",
+        PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+    )
     with tempfile.TemporaryDirectory(prefix=f"tutorial-{script.stem}-") as cwd:
-        proc = subprocess.run([python, str(Path(__file__).resolve()), str(script), str(outdir.resolve())],
-                              cwd=cwd, env=env, capture_output=True, text=True)
+        proc = subprocess.run(
+            [python, str(Path(__file__).resolve()), str(script), str(outdir.resolve())],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            text=True,
+        )
     if proc.returncode != 0 and not status_path.exists():
         # The runner itself failed before a cell ran (import error of the runner, killed...).
-        _write_status(outdir, ok=False, seconds=0.0, error=f"tutorial {script.name}: runner exited with "
-                      f"{proc.returncode}\n{proc.stderr.strip()}")
+        _write_status(
+            outdir,
+            ok=False,
+            seconds=0.0,
+            error=f"tutorial {script.name}: runner exited with "
+            f"{proc.returncode}\n{proc.stderr.strip()}",
+        )
     st = json.loads(status_path.read_text())
     if st["ok"] != (proc.returncode == 0):
-        st = _write_status(outdir, ok=False, seconds=st["seconds"],
-                           error=f"tutorial {script.name}: runner exited with {proc.returncode}\n{proc.stderr.strip()}")
+        st = _write_status(
+            outdir,
+            ok=False,
+            seconds=st["seconds"],
+            error=f"tutorial {script.name}: runner exited with "
+            f"{proc.returncode}\n{proc.stderr.strip()}",
+        )
     (outdir / "key").write_text(key)
     return Execution(script, outdir, st["ok"], st["seconds"], st["error"], reused=False)
 

@@ -72,9 +72,11 @@ def my_engine(case, bulk="(J-1)^2"):
     P = mu * (F - FiT) + (J * dU)[:, None, None] * FiT
     # dP_iI/dF_jJ = mu d_ij d_IJ + (mu - J U') FiT_iJ FiT_jI + (J U' + J^2 U'') FiT_iI FiT_jJ
     eye = np.eye(3)
-    A = (mu * np.einsum("ij,IJ->iIjJ", eye, eye)[None]
-         + (mu - J * dU)[:, None, None, None, None] * np.einsum("miJ,mjI->miIjJ", FiT, FiT)
-         + (J * dU + J**2 * d2U)[:, None, None, None, None] * np.einsum("miI,mjJ->miIjJ", FiT, FiT))
+    A = (
+        mu * np.einsum("ij,IJ->iIjJ", eye, eye)[None]
+        + (mu - J * dU)[:, None, None, None, None] * np.einsum("miJ,mjI->miIjJ", FiT, FiT)
+        + (J * dU + J**2 * d2U)[:, None, None, None, None] * np.einsum("miI,mjJ->miIjJ", FiT, FiT)
+    )
     n = len(case.points)
     fe = -V0[:, None, None] * np.einsum("miI,maI->mai", P, D)
     force = np.zeros((n, 3))
@@ -97,7 +99,9 @@ def my_engine(case, bulk="(J-1)^2"):
 # %%
 from conformance import assert_matches_oracle, check_implementation
 
-run = check_implementation(my_engine, material="NeoHookean", mesh="cube-small", states=("shear", "uniaxial", "random"))
+run = check_implementation(
+    my_engine, material="NeoHookean", mesh="cube-small", states=("shear", "uniaxial", "random")
+)
 print(run.text())
 
 # %% [markdown]
@@ -132,8 +136,9 @@ from common.states import apply_state
 
 X, cells, _ = meshes.resolve("cube-small")
 x = apply_state("random", X, cells)
-J_cell = (np.linalg.det(np.swapaxes(x[cells[:, 1:]] - x[cells[:, :1]], 1, 2))
-          / np.linalg.det(np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)))
+J_cell = np.linalg.det(np.swapaxes(x[cells[:, 1:]] - x[cells[:, :1]], 1, 2)) / np.linalg.det(
+    np.swapaxes(X[cells[:, 1:]] - X[cells[:, :1]], 1, 2)
+)
 J = np.linspace(0.35, 2.4, 300)
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 3.8))
 ax0.plot(J, 0.5 * lam * (J - 1) ** 2, label="lam/2 (J-1)^2 (the engine)")
@@ -170,8 +175,12 @@ for o in run.outcomes:
 # material to round-off:
 
 # %%
-fixed = assert_matches_oracle(lambda case: my_engine(case, bulk="(ln J)^2"), material="NeoHookean",
-                              mesh="cube-small", states=("shear", "uniaxial", "random"))
+fixed = assert_matches_oracle(
+    lambda case: my_engine(case, bulk="(ln J)^2"),
+    material="NeoHookean",
+    mesh="cube-small",
+    states=("shear", "uniaxial", "random"),
+)
 print(fixed.summary())
 assert fixed.exit_code == 0
 
@@ -194,7 +203,9 @@ def my_engine_for(case):
     return my_engine(type(case)(case.case_id, case.points, case.cells, case.positions, Params()))
 
 
-as_written = assert_matches_oracle(my_engine_for, energy=penalty, mesh="cube-small", states=("uniaxial", "random"))
+as_written = assert_matches_oracle(
+    my_engine_for, energy=penalty, mesh="cube-small", states=("uniaxial", "random")
+)
 print(as_written.summary())
 
 # %% [markdown]
@@ -217,17 +228,33 @@ with open(os.path.join(workdir, "engine_functions.py"), "w") as fh:
     fh.write(inspect.getsource(shape_gradients) + "\n\n" + inspect.getsource(my_engine))
 script = os.path.join(workdir, "my_engine.py")
 with open(script, "w") as fh:
-    fh.write(textwrap.dedent("""\
+    fh.write(
+        textwrap.dedent("""\
         import sys
         from conformance import read_case_input, write_output
         from engine_functions import my_engine
         case = read_case_input(sys.argv[1])
         force, K, W = my_engine(case)
         write_output(sys.argv[2], force, K, W)
-    """))
+    """)
+    )
 
-cli = [sys.executable, "-m", "comparisons.cli", "check", "--command", f"{sys.executable} {script} {{input}} {{output}}",
-       "--material", "NeoHookean", "--mesh", "cube-small", "--states", "random", "--out", os.path.join(workdir, "reports")]
+cli = [
+    sys.executable,
+    "-m",
+    "comparisons.cli",
+    "check",
+    "--command",
+    f"{sys.executable} {script} {{input}} {{output}}",
+    "--material",
+    "NeoHookean",
+    "--mesh",
+    "cube-small",
+    "--states",
+    "random",
+    "--out",
+    os.path.join(workdir, "reports"),
+]
 done = subprocess.run(cli, capture_output=True, text=True)
 print(done.stdout)
 
@@ -240,4 +267,6 @@ print(done.stdout)
 assert done.returncode == 1, done.stderr
 assert "volumetric (J-only) energy differs from the oracle's [explains]" in done.stdout
 (report_dir,) = os.listdir(os.path.join(workdir, "reports"))
-assert os.path.isfile(os.path.join(workdir, "reports", report_dir, "fields", "NeoHookean.cube-small.random.vtu"))
+assert os.path.isfile(
+    os.path.join(workdir, "reports", report_dir, "fields", "NeoHookean.cube-small.random.vtu")
+)

@@ -9,7 +9,8 @@
 # $c\, v_a \otimes v_b$ of the $J$ terms (the $g_2\, d_a \otimes d_b$ term and the
 # exponential groups' $\nabla u \otimes \nabla u$) by
 #
-# $$c\,\big[(1 - b)\, v_a \otimes v_b + b\,(v_a \cdot v_b)\, I\big], \qquad b = \min(\max(1 - J, 0), 1),$$
+# $$c\,\big[(1 - b)\, v_a \otimes v_b + b\,(v_a \cdot v_b)\, I\big], \qquad b = \min(\max(1 - J, 0),
+# 1),$$
 #
 # which keeps the trace of each block and removes its indefinite part. `K` is then exact
 # only where $J \ge 1$. Here we squeeze a cube and count the negative eigenvalues of its
@@ -67,7 +68,9 @@ for (name, reg), c in counts.items():
 # %%
 half = list(ratios).index(0.5)
 assert all(counts[key][0] == 0 for key in counts), "no negative eigenvalue at rest"
-assert all(c[-1] > 0 for (name, reg), c in counts.items() if not reg), "squeezing makes K indefinite"
+assert all(c[-1] > 0 for (name, reg), c in counts.items() if not reg), (
+    "squeezing makes K indefinite"
+)
 assert all(max(counts[name, True]) == 0 for name in ("NeoHookean", "MooneyRivlin"))
 assert counts["StVenantKirchhoff", True] == counts["StVenantKirchhoff", False]
 assert (counts["NeoHookean", False][half], counts["MooneyRivlin", False][half]) == (73, 57)
@@ -85,8 +88,13 @@ import matplotlib.pyplot as plt
 
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(12, 4.2))
 for (name, reg), c in counts.items():
-    ax0.plot(ratios, c, marker="o" if reg else "x", ls="-" if reg else "--",
-             label=f"{name}, {'regularised' if reg else 'exact tangent'}")
+    ax0.plot(
+        ratios,
+        c,
+        marker="o" if reg else "x",
+        ls="-" if reg else "--",
+        label=f"{name}, {'regularised' if reg else 'exact tangent'}",
+    )
 ax0.invert_xaxis()
 ax0.set_xlabel("height ratio (J of every cell)")
 ax0.set_ylabel("negative eigenvalues of K")
@@ -94,9 +102,13 @@ ax0.legend(fontsize=7)
 x_half = squeezed(0.5)
 spectra = {}
 for reg in (False, True):
-    K = mjed.HyperelasticForceField(mesh, DEFAULT_MATERIALS["NeoHookean"], regularize=reg).stiffness(x_half)
+    K = mjed.HyperelasticForceField(
+        mesh, DEFAULT_MATERIALS["NeoHookean"], regularize=reg
+    ).stiffness(x_half)
     spectra[reg] = np.linalg.eigvalsh(K.toarray())
-    ax1.plot(spectra[reg][:150], marker=".", ls="none", label="regularised" if reg else "exact tangent")
+    ax1.plot(
+        spectra[reg][:150], marker=".", ls="none", label="regularised" if reg else "exact tangent"
+    )
 ax1.axhline(0.0, color="k", lw=0.5)
 ax1.set_yscale("symlog", linthresh=1.0)
 ax1.set_xlabel("eigenvalue index (ascending)")
@@ -104,5 +116,8 @@ ax1.set_ylabel("eigenvalue of K (N/m)")
 ax1.set_title("Neo-Hookean cube at half height: the 150 lowest eigenvalues", fontsize=9)
 ax1.legend(fontsize=8)
 fig.tight_layout()
-print(f"lowest eigenvalue: exact tangent {spectra[False][0]:.4g} N/m, regularised {spectra[True][0]:.4g} N/m")
+print(
+    f"lowest eigenvalue: exact tangent {spectra[False][0]:.4g} N/m, regularised "
+    f"{spectra[True][0]:.4g} N/m"
+)
 assert spectra[False][0] < 0 and spectra[True][0] > -1e-10 * np.abs(spectra[True]).max()

@@ -17,18 +17,29 @@ import numpy as np
 from comparisons.liver import run_liver
 
 result = run_liver(quick=True, out="liver_out")
-print(f"mesh {result['mesh']}: {result['n_nodes']} nodes, {result['n_cells']} cells, {result['n_fixed']} fixed nodes")
+print(
+    f"mesh {result['mesh']}: {result['n_nodes']} nodes, {result['n_cells']} cells, "
+    f"{result['n_fixed']} fixed nodes"
+)
 print(f"{'model':26s} {'dt':>5s} {'steps':>5s} {'final max |u|':>14s} {'CG/step':>8s} {'FPS':>6s}")
 for run in result["runs"]:
-    print(f"{run['model']:26s} {run['dt']:5.2f} {run['steps']:5d} {1e3 * run['final_max_displacement']:11.1f} mm "
-          f"{run['cg_iterations_mean']:8.1f} {run['fps']:6.0f}")
+    print(
+        f"{run['model']:26s} {run['dt']:5.2f} {run['steps']:5d} "
+        f"{1e3 * run['final_max_displacement']:11.1f} mm {run['cg_iterations_mean']:8.1f} "
+        f"{run['fps']:6.0f}"
+    )
 terzaghi = max(t["relative_l2_error"] for t in result["terzaghi"]["times"])
-print(f"Terzaghi consolidation check of the pressure solver: worst relative L2 error {100 * terzaghi:.2f} %")
+print(
+    "Terzaghi consolidation check of the pressure solver: worst relative L2 error "
+    f"{100 * terzaghi:.2f} %"
+)
 
 assert all(run["error"] is None and run["steps"] == run["steps_planned"] for run in result["runs"])
 assert result["passed"] and terzaghi <= 0.01
 final = {run["model"]: run["final_max_displacement"] for run in result["runs"]}
-assert final["visco-hyperelastic"] > final["hyperelastic"] > 0, "the Prony series softens the hanging organ"
+assert final["visco-hyperelastic"] > final["hyperelastic"] > 0, (
+    "the Prony series softens the hanging organ"
+)
 
 # %% [markdown]
 # (The frame rates printed are those of this run on a shared machine; they are not asserted.
@@ -54,7 +65,10 @@ import meshio
 
 series = {}
 for pvd in sorted(Path("liver_out").glob("liver_*.pvd")):
-    steps = [(float(d.get("timestep")), pvd.parent / d.get("file")) for d in ET.parse(pvd).iter("DataSet")]
+    steps = [
+        (float(d.get("timestep")), pvd.parent / d.get("file"))
+        for d in ET.parse(pvd).iter("DataSet")
+    ]
     series[pvd.stem.removeprefix("liver_")] = steps
     print(f"{pvd}: {len(steps)} time steps, t = {steps[0][0]:g} ... {steps[-1][0]:g} s")
 
@@ -82,7 +96,12 @@ poro = series["visco-poro-hyperelastic"]
 frames = [meshio.read(path) for _, path in poro]
 points = frames[0].points
 cells = frames[0].cells_dict["tetra"]
-faces = np.sort(np.concatenate([cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]], cells[:, [1, 2, 3]]]), axis=1)
+faces = np.sort(
+    np.concatenate(
+        [cells[:, [0, 1, 2]], cells[:, [0, 1, 3]], cells[:, [0, 2, 3]], cells[:, [1, 2, 3]]]
+    ),
+    axis=1,
+)
 unique, counts = np.unique(faces, axis=0, return_counts=True)
 surface = unique[counts == 1]
 print(f"surface: {len(surface)} triangles")
@@ -100,7 +119,9 @@ def draw(ax, xyz, values, label, cmap):
     tri = xyz[surface]
     face_values = values[surface].mean(axis=1)
     norm = plt.Normalize(face_values.min(), face_values.max())
-    poly = Poly3DCollection(tri, facecolors=plt.get_cmap(cmap)(norm(face_values)), edgecolor="k", linewidths=0.1)
+    poly = Poly3DCollection(
+        tri, facecolors=plt.get_cmap(cmap)(norm(face_values)), edgecolor="k", linewidths=0.1
+    )
     ax.add_collection3d(poly)
     lo, hi = xyz.min(axis=0), xyz.max(axis=0)
     ax.set_xlim(lo[0], hi[0])
@@ -119,10 +140,14 @@ def draw(ax, xyz, values, label, cmap):
 fig = plt.figure(figsize=(13, 5))
 ax0 = fig.add_subplot(1, 2, 1, projection="3d")
 draw(ax0, points + u_last, 1e3 * np.linalg.norm(u_last, axis=1), "|u| (mm)", "viridis")
-ax0.set_title(f"visco-poro-hyperelastic, t = {poro[-1][0]:g} s: displacement (deformed shape)", fontsize=9)
+ax0.set_title(
+    f"visco-poro-hyperelastic, t = {poro[-1][0]:g} s: displacement (deformed shape)", fontsize=9
+)
 ax1 = fig.add_subplot(1, 2, 2, projection="3d")
 draw(ax1, points + frames[peak].point_data["displacement"], P, "fluid pressure P (Pa)", "coolwarm")
-ax1.set_title(f"fluid pressure at its peak, t = {poro[peak][0]:g} s (black: fixed, drained nodes)", fontsize=9)
+ax1.set_title(
+    f"fluid pressure at its peak, t = {poro[peak][0]:g} s (black: fixed, drained nodes)", fontsize=9
+)
 fig.tight_layout()
 
 # %% [markdown]
@@ -134,7 +159,9 @@ fig.tight_layout()
 # %%
 fig, ax = plt.subplots(figsize=(6.4, 3.6))
 for run in result["runs"]:
-    ax.plot(run["time"], 1e3 * np.array(run["max_displacement"]), marker="o", ms=3, label=run["model"])
+    ax.plot(
+        run["time"], 1e3 * np.array(run["max_displacement"]), marker="o", ms=3, label=run["model"]
+    )
 ax.set_xlabel("time (s)")
 ax.set_ylabel("max displacement (mm)")
 ax.legend(fontsize=8)

@@ -23,7 +23,9 @@ from reference_fem.classical import ClassicalGalerkin, strain_displacement
 np.set_printoptions(precision=4, suppress=False, linewidth=100)
 
 material = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
-X = np.array([[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.2, 1.1]])  # rest positions (m)
+X = np.array(
+    [[0.0, 0.0, 0.0], [1.0, 0.1, 0.0], [0.2, 0.9, 0.1], [0.1, 0.2, 1.1]]
+)  # rest positions (m)
 cells = np.array([[0, 1, 2, 3]])
 mesh = mjed.TetMesh(X, cells)
 
@@ -42,9 +44,9 @@ x = X @ F0.T + 0.03 * rng.standard_normal((4, 3)) + np.array([0.3, -0.1, 0.2])
 # $C = F^T F$, $I_1 = \operatorname{tr} C$, $I_2 = \tfrac12 (I_1^2 - \operatorname{tr} C^2)$.
 
 # %%
-edges = X[1:] - X[0]                        # rows X_a - X_0, a = 1..3
+edges = X[1:] - X[0]  # rows X_a - X_0, a = 1..3
 V0 = np.linalg.det(edges) / 6.0
-grads = np.linalg.inv(edges)                # columns: gradients of N_1, N_2, N_3
+grads = np.linalg.inv(edges)  # columns: gradients of N_1, N_2, N_3
 D = np.vstack([-grads.sum(axis=1), grads.T])  # (4, 3): D_0 = -(D_1 + D_2 + D_3)
 F = sum(np.outer(x[a], D[a]) for a in range(4))
 J = np.linalg.det(F)
@@ -89,18 +91,37 @@ for group in material.decomposition():
         S_g = term.g.stress(kin)
         # None when g is constant; a stress equal in every cell may come back as one (3, 3).
         S_g = np.zeros((3, 3)) if S_g is None else np.asarray(S_g).reshape(-1, 3, 3)[0]
-        pairs = [(p.kind, float(np.squeeze(c)), np.asarray(p.matrix))
-                 for p, c in zip(term.g.tangent, term.g.tangent_coefficients(kin))]
-        terms.append(dict(name=f"{type(term.f).__name__} x {type(term.g).__name__}", c=group.coefficient,
-                          f=f, df=df, d2f=d2f, g=g, S_g=S_g, pairs=pairs))
+        pairs = [
+            (p.kind, float(np.squeeze(c)), np.asarray(p.matrix))
+            for p, c in zip(term.g.tangent, term.g.tangent_coefficients(kin))
+        ]
+        terms.append(
+            dict(
+                name=f"{type(term.f).__name__} x {type(term.g).__name__}",
+                c=group.coefficient,
+                f=f,
+                df=df,
+                d2f=d2f,
+                g=g,
+                S_g=S_g,
+                pairs=pairs,
+            )
+        )
 
 for t in terms:
-    print(f"{t['name']}: f = {t['f']:.6g}, f' = {t['df']:.6g}, f'' = {t['d2f']:.6g}, g = {t['g']:.6g}")
+    print(
+        f"{t['name']}: f = {t['f']:.6g}, f' = {t['df']:.6g}, f'' = {t['d2f']:.6g}, g = {t['g']:.6g}"
+    )
     if t["S_g"].any():
-        print("    S_g = 2 dg/dC (Pa) =", np.array2string(t["S_g"], precision=5, prefix="    S_g = 2 dg/dC (Pa) ="))
+        print(
+            "    S_g = 2 dg/dC (Pa) =",
+            np.array2string(t["S_g"], precision=5, prefix="    S_g = 2 dg/dC (Pa) ="),
+        )
     for kind, coef, M in t["pairs"]:
         label = "beta" if kind == "first" else "gamma"
-        print(f"    {kind} pair: {label} = {coef:.6g}, matrix = identity: {np.allclose(M, np.eye(3))}")
+        print(
+            f"    {kind} pair: {label} = {coef:.6g}, matrix = identity: {np.allclose(M, np.eye(3))}"
+        )
 
 # The energy is the sum of the products, and must equal the material's W (per unit volume).
 W_terms = sum(t["c"] * t["f"] * t["g"] for t in terms)
@@ -110,7 +131,9 @@ field = mjed.HyperelasticForceField(mesh, material)
 print(f"W from the terms = {W_terms:.10g} J/m^3, from the formula = {W_formula:.10g}")
 assert abs(W_terms - W_formula) < 1e-12 * abs(W_formula)
 assert abs(V0 * W_terms - field.energy(x)) < 1e-12 * abs(field.energy(x))
-assert [len(t["pairs"]) for t in terms] == [0, 2, 0], "I1 term: no pair; I2 term: one first + one second pair"
+assert [len(t["pairs"]) for t in terms] == [0, 2, 0], (
+    "I1 term: no pair; I2 term: one first + one second pair"
+)
 
 # %% [markdown]
 # ## Forces
@@ -122,17 +145,19 @@ assert [len(t["pairs"]) for t in terms] == [0, 2, 0], "I1 term: no pair; I2 term
 
 # %%
 cof = J * np.linalg.inv(F).T
-j = D @ cof.T                               # rows j_a
+j = D @ cof.T  # rows j_a
 force_hand = np.zeros((4, 3))
 S_hand = np.zeros((3, 3))
 for t in terms:
-    s = D @ (F @ t["S_g"]).T                # rows s_a
+    s = D @ (F @ t["S_g"]).T  # rows s_a
     force_hand -= V0 * t["c"] * (t["df"] * t["g"] * j + t["f"] * s)
     S_hand += t["c"] * (t["f"] * t["S_g"] + t["df"] * t["g"] * J * np.linalg.inv(C))
 force_mjed = field.force(x)
 print("force by hand (N):\n", force_hand)
 assert np.abs(force_hand - force_mjed).max() < 1e-12 * np.abs(force_mjed).max()
-assert np.abs(force_hand.sum(axis=0)).max() < 1e-12 * np.abs(force_hand).max(), "forces must balance"
+assert np.abs(force_hand.sum(axis=0)).max() < 1e-12 * np.abs(force_hand).max(), (
+    "forces must balance"
+)
 
 # %% [markdown]
 # ## The six edge blocks
@@ -143,7 +168,8 @@ assert np.abs(force_hand.sum(axis=0)).max() < 1e-12 * np.abs(force_hand).max(), 
 # $$K_{ab} = f'' g\, j_a \otimes j_b + \frac{f' g}{J}\,(j_a \otimes j_b - j_b \otimes j_a)
 #   + f'\,(j_a \otimes s_b + s_a \otimes j_b)
 #   + f\Big[(D_a \cdot S_g D_b)\,I + \sum_{\text{first}} 2\beta\,(F A D_a)\otimes(F A D_b)
-#   + \sum_{\text{second}} \gamma\,\big((D_a\cdot B D_b)\,F B F^T + (F B D_b)\otimes(F B D_a)\big)\Big].$$
+# + \sum_{\text{second}} \gamma\,\big((D_a\cdot B D_b)\,F B F^T + (F B D_b)\otimes(F B
+# D_a)\big)\Big].$$
 #
 # The first two terms are the derivatives of $J$, the middle one couples $J$ and $g$, the
 # bracket is $g$'s own Hessian: its geometric part and one product per tangent pair. Only
@@ -159,8 +185,11 @@ def edge_pieces(t, a, b):
     s = D @ (F @ t["S_g"]).T
     scale = t["c"] * V0
     pieces = {
-        "J-J": scale * (t["d2f"] * t["g"] * np.outer(j[a], j[b])
-                        + t["df"] * t["g"] / J * (np.outer(j[a], j[b]) - np.outer(j[b], j[a]))),
+        "J-J": scale
+        * (
+            t["d2f"] * t["g"] * np.outer(j[a], j[b])
+            + t["df"] * t["g"] / J * (np.outer(j[a], j[b]) - np.outer(j[b], j[a]))
+        ),
         "J-g": scale * t["df"] * (np.outer(j[a], s[b]) + np.outer(s[a], j[b])),
         "geometric": scale * t["f"] * (D[a] @ t["S_g"] @ D[b]) * np.eye(3),
     }
@@ -168,8 +197,12 @@ def edge_pieces(t, a, b):
         if kind == "first":
             pieces["(beta, A)"] = scale * t["f"] * 2 * coef * np.outer(F @ M @ D[a], F @ M @ D[b])
         else:
-            pieces["(gamma, B)"] = scale * t["f"] * coef * ((D[a] @ M @ D[b]) * (F @ M @ F.T)
-                                                            + np.outer(F @ M @ D[b], F @ M @ D[a]))
+            pieces["(gamma, B)"] = (
+                scale
+                * t["f"]
+                * coef
+                * ((D[a] @ M @ D[b]) * (F @ M @ F.T) + np.outer(F @ M @ D[b], F @ M @ D[a]))
+            )
     return pieces
 
 
@@ -195,7 +228,10 @@ for e, blk in blocks.items():
 K_mjed_hand = assemble(blocks)
 K_mjed = field.element_stiffness(x)[0]
 rel_hand = np.abs(K_mjed_hand - K_mjed).max() / np.abs(K_mjed).max()
-print(f"hand edge blocks vs HyperelasticForceField.element_stiffness: max rel. difference {rel_hand:.2e}")
+print(
+    "hand edge blocks vs HyperelasticForceField.element_stiffness: max rel. difference "
+    f"{rel_hand:.2e}"
+)
 assert rel_hand < 1e-12
 
 # %% [markdown]
@@ -237,12 +273,16 @@ assert np.abs(K_classical_hand - K_classical).max() < 1e-12 * np.abs(K_classical
 rel = np.linalg.norm(K_mjed - K_classical) / np.linalg.norm(K_classical)
 sym = np.abs(K_mjed - K_mjed.T).max() / np.abs(K_mjed).max()
 print(f"||K_MJED - K_classical||_F / ||K_classical||_F = {rel:.2e}")
-translations = np.kron(np.ones((4, 1)), np.eye(3))      # (12, 3): rigid translations
-print(f"symmetry error of K_MJED: {sym:.2e}; |K t| / |K| for the translations: "
-      f"{np.abs(K_mjed @ translations).max() / np.abs(K_mjed).max():.1e}")
+translations = np.kron(np.ones((4, 1)), np.eye(3))  # (12, 3): rigid translations
+print(
+    f"symmetry error of K_MJED: {sym:.2e}; |K t| / |K| for the translations: "
+    f"{np.abs(K_mjed @ translations).max() / np.abs(K_mjed).max():.1e}"
+)
 assert rel < 1e-13, f"MJED and classical element matrices differ: {rel:.2e}"
 assert sym < 1e-13
-assert np.abs(K_mjed @ translations).max() < 1e-13 * np.abs(K_mjed).max(), "translations are zero modes"
+assert np.abs(K_mjed @ translations).max() < 1e-13 * np.abs(K_mjed).max(), (
+    "translations are zero modes"
+)
 
 # %% [markdown]
 # ## Where each term lands in the matrix
@@ -270,7 +310,9 @@ for t in terms:
             norms.append(values)
 norms = np.array(norms)
 print("Frobenius norm of each piece in each edge block (N/m):")
-print("\n".join(f"  {r:<24s}" + " ".join(f"{v:9.1f}" for v in vals) for r, vals in zip(rows, norms)))
+print(
+    "\n".join(f"  {r:<24s}" + " ".join(f"{v:9.1f}" for v in vals) for r, vals in zip(rows, norms))
+)
 assert "Unity: (beta, A)" not in rows and "I1Power: (beta, A)" not in rows
 assert {"LinearI2: (beta, A)", "LinearI2: (gamma, B)"} <= set(rows)
 

@@ -4,7 +4,8 @@
 # The paper's visco-hyperelastic model (its section 3.1) relaxes the hyperelastic second
 # Piola-Kirchhoff stress $S_h$ by a Prony series,
 #
-# $$\frac{G(t)}{G_0} = \alpha_\infty + \sum_i \alpha_i\, e^{-t/\tau_i}, \qquad \alpha_\infty = 1 - \sum_i \alpha_i,$$
+# $$\frac{G(t)}{G_0} = \alpha_\infty + \sum_i \alpha_i\, e^{-t/\tau_i}, \qquad \alpha_\infty = 1 -
+# \sum_i \alpha_i,$$
 #
 # integrated by backward Euler: $S_v = S_h - \sum_i \gamma_i$ with the history
 # $\gamma_i^n = a_i S_h^n + b_i \gamma_i^{n-1}$, $a_i = \Delta t\,\alpha_i/(\Delta t + \tau_i)$,
@@ -45,7 +46,9 @@ def relaxation(dt, t_end=0.6):
     for _ in range(int(round(t_end / dt))):
         f_v = visco.force(x)
         ratios.append(np.vdot(f_v, f_h) / np.vdot(f_h, f_h))  # the force is kappa f_h
-        assert np.abs(f_v - ratios[-1] * f_h).max() < 1e-12 * np.abs(f_h).max(), "S_v must stay parallel to S_h"
+        assert np.abs(f_v - ratios[-1] * f_h).max() < 1e-12 * np.abs(f_h).max(), (
+            "S_v must stay parallel to S_h"
+        )
         visco.accept_step(x)
     return np.array(ratios)
 
@@ -54,7 +57,7 @@ dt = 0.005
 simulated = relaxation(dt)
 n = np.arange(1, len(simulated) + 1)
 _, b = prony_coefficients(prony, dt)
-discrete = 1.0 - sum(a_i * (1.0 - b_i ** n) for a_i, b_i in zip(prony.alphas, b))
+discrete = 1.0 - sum(a_i * (1.0 - b_i**n) for a_i, b_i in zip(prony.alphas, b))
 t = (n - 1) * dt  # step n sees the history accumulated up to t = (n - 1) dt
 continuous = prony.relaxation(t)
 err_discrete = np.abs(simulated - discrete).max()
@@ -70,7 +73,9 @@ for step in (0.01, 0.005, 0.0025):
 order = np.log2(errs[0.005] / errs[0.0025])
 print(f"observed order of convergence to the continuous relaxation: {order:.2f}")
 assert 0.8 < order < 1.2, "backward Euler is first order"
-assert np.all(np.diff(simulated) < 0) and simulated[-1] > prony.alpha_inf, "relaxes monotonically towards alpha_inf"
+assert np.all(np.diff(simulated) < 0) and simulated[-1] > prony.alpha_inf, (
+    "relaxes monotonically towards alpha_inf"
+)
 
 # %%
 import matplotlib.pyplot as plt
@@ -104,15 +109,26 @@ from comparisons.rheometer import run_rheometer
 
 result = run_rheometer(quick=True)
 print(f"cylinder: {result['mesh']['n_cells']} cells; {len(result['frequencies'])} frequencies")
-print(f"{'omega':>8} {'G_sim':>8} {'G_disc':>8} {'G_cont':>8} | {'G_sim':>8} {'G_disc':>8} {'G_cont':>8}")
+print(
+    f"{'omega':>8} {'G_sim':>8} {'G_disc':>8} {'G_cont':>8} | {'G_sim':>8} {'G_disc':>8} "
+    f"{'G_cont':>8}"
+)
 for r in result["frequencies"]:
-    print(f"{r['omega']:8.3g} {r['G_storage']:8.2f} {r['discrete'][0]:8.2f} {r['continuous'][0]:8.2f} | "
-          f"{r['G_loss']:8.2f} {r['discrete'][1]:8.2f} {r['continuous'][1]:8.2f}")
+    print(
+        f"{r['omega']:8.3g} {r['G_storage']:8.2f} {r['discrete'][0]:8.2f} "
+        f"{r['continuous'][0]:8.2f} | {r['G_loss']:8.2f} {r['discrete'][1]:8.2f} "
+        f"{r['continuous'][1]:8.2f}"
+    )
 e_d, e_c = result["errors"]["discrete"], result["errors"]["continuous"]
 print(f"relative error against the discrete response: mean {e_d['mean']:.1e}, max {e_d['max']:.1e}")
-print(f"relative error against the continuous moduli: mean {100 * e_c['mean']:.1f} %, max {100 * e_c['max']:.1f} %")
+print(
+    f"relative error against the continuous moduli: mean {100 * e_c['mean']:.1f} %, max "
+    f"{100 * e_c['max']:.1f} %"
+)
 assert e_d["max"] < 1e-7, "the simulation must reproduce the discrete recursion"
-assert e_c["max"] < 0.1, "backward Euler at 32 steps per period stays within 10 % of the continuous moduli"
+assert e_c["max"] < 0.1, (
+    "backward Euler at 32 steps per period stays within 10 % of the continuous moduli"
+)
 
 # %%
 w = np.array([r["omega"] for r in result["frequencies"]])
@@ -121,10 +137,20 @@ G = G0 * prony.complex_modulus(fine)
 fig, ax = plt.subplots(figsize=(6.4, 4))
 ax.semilogx(fine, G.real, "C0-", lw=1, label="G' generalised Maxwell")
 ax.semilogx(fine, G.imag, "C1-", lw=1, label="G'' generalised Maxwell")
-ax.semilogx(w, [r["discrete"][0] for r in result["frequencies"]], "k+", ms=10, label="discrete recursion (exact)")
+ax.semilogx(
+    w,
+    [r["discrete"][0] for r in result["frequencies"]],
+    "k+",
+    ms=10,
+    label="discrete recursion (exact)",
+)
 ax.semilogx(w, [r["discrete"][1] for r in result["frequencies"]], "k+", ms=10)
-ax.semilogx(w, [r["G_storage"] for r in result["frequencies"]], "C0o", mfc="none", label="G' simulated")
-ax.semilogx(w, [r["G_loss"] for r in result["frequencies"]], "C1s", mfc="none", label="G'' simulated")
+ax.semilogx(
+    w, [r["G_storage"] for r in result["frequencies"]], "C0o", mfc="none", label="G' simulated"
+)
+ax.semilogx(
+    w, [r["G_loss"] for r in result["frequencies"]], "C1s", mfc="none", label="G'' simulated"
+)
 ax.set_xlabel("angular frequency (rad/s)")
 ax.set_ylabel("modulus (Pa)")
 ax.legend(fontsize=8)

@@ -27,7 +27,15 @@ from common.cases import DEFAULT_MATERIALS
 from meshes.structured import structured_box
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial, Unity
+from mjed.terms import (
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    LogPolynomial,
+    Unity,
+)
 from reference_fem.classical import ClassicalGalerkin
 
 # %% [markdown]
@@ -43,21 +51,29 @@ from reference_fem.classical import ClassicalGalerkin
 # | $F = \sum_a x_a \otimes D_a$ | 63 | both |
 # | $C = F^T F$ | 45 | both (MJED: when some $g$ depends on $C$) |
 # | $\operatorname{cof} F$, $J$ | 32 | both (MJED: when some $f$ is not constant) |
-# | a term's $f, f', f''$ | `JPower` 5 + pow, `LogPolynomial` 11 + log, `JLogJ` 7 + log, constant 0 | both |
+# | a term's $f, f', f''$ | `JPower` 5 + pow, `LogPolynomial` 11 + log, `JLogJ` 7 + log, constant 0
+# | both |
 # | a term's $g$, $S_g$, pair coefficients | by kind, table in `g_cost` below | both |
-# | folding a term into the group sums $u, h, g_2, \bar S, \hat S$ and the pair weights | 2 per scalar, 18 per stress, 2 per pair | MJED |
+# | folding a term into the group sums $u, h, g_2, \bar S, \hat S$ and the pair weights | 2 per
+# scalar, 18 per stress, 2 per pair | MJED |
 # | force $F \bar S D_a + h\, d_a$, times $V_0$ | 105 + 84 + 12 | MJED |
 # | geometric $(D_a \cdot \bar S D_b)\,I$ | 96 | MJED |
-# | one tangent pair slot: $G_a = F M D_a$, weights, one outer product per edge | 60 + 12 + 6 x 18 | MJED |
+# | one tangent pair slot: $G_a = F M D_a$, weights, one outer product per edge | 60 + 12 + 6 x 18 |
+# MJED |
 # | second kind: also $F M F^T$ and $(D_a\cdot M D_b)\,F M F^T$ per edge | 45 + 6 + 6 x 18 | MJED |
-# | spectral slot (Ogden): eigenvector products, three outer products per edge | 753 + 3 x 6 x 18 | MJED |
-# | $J$ couplings: $\hat S$ terms (two outer products) or $g_2$ alone (one) | 105 + 24 + 2 x 108, or 12 + 108 | MJED |
+# | spectral slot (Ogden): eigenvector products, three outer products per edge | 753 + 3 x 6 x 18 |
+# MJED |
+# | $J$ couplings: $\hat S$ terms (two outer products) or $g_2$ alone (one) | 105 + 24 + 2 x 108, or
+# 12 + 108 | MJED |
 # | $h\,\partial^2 J$ (skew, from precomputed $D_a \times D_b$) | 144 | MJED |
-# | exponential group: $e^u$, its gradient and rank-one outer product | 3 + exp + 189 + 12 + 108 | MJED |
+# | exponential group: $e^u$, its gradient and rank-one outer product | 3 + exp + 189 + 12 + 108 |
+# MJED |
 # | summing the 54 block numbers, times $V_0$ | 54 + 18 | MJED |
-# | $S$ and $\mathbb{C}$ of the law, per term (36 entries, as the classical code forms them) | see `classical_term` below | classical |
+# | $S$ and $\mathbb{C}$ of the law, per term (36 entries, as the classical code forms them) | see
+# `classical_term` below | classical |
 # | $B$ ($6\times 12$), $\mathbb{C} B$, $B^T(\mathbb{C}B)$ | 180 + 792 + 1584 | classical |
-# | geometric $D S D^T$ into the diagonal of each $3\times 3$ block, times $V_0$ | 140 + 48 + 144 | classical |
+# | geometric $D S D^T$ into the diagonal of each $3\times 3$ block, times $V_0$ | 140 + 48 + 144 |
+# classical |
 # | force $-V_0 F S D_a$ | 117 | classical |
 #
 # The model is a count of the arithmetic the two codes write, not of what a CPU executes
@@ -129,7 +145,11 @@ def _(g: GreenLagrangeQuadratic):
 
 @g_cost.register
 def _(g: FibreQuadratic):
-    return (12 + 90 + 26 + 90 + 9 + 90 + 9, 0, 0)  # E, R^T E R, g, (again) R^T E R, B o Ef, R (.) R^T, 2x
+    return (
+        12 + 90 + 26 + 90 + 9 + 90 + 9,
+        0,
+        0,
+    )  # E, R^T E R, g, (again) R^T E R, B o Ef, R (.) R^T, 2x
 
 
 @g_cost.register
@@ -160,8 +180,14 @@ def mjed_count(material) -> Count:
         c.add("terms: f, g, S", gl, gs, min(ge, 1 - c.eig))  # one eigensolve per cell at most
         const_f = isinstance(t.f, JPower) and t.f.p == 0
         has_S = not isinstance(t.g, Unity)
-        c.add("folding", 2 + (0 if const_f else 4) + (18 if has_S else 0) + (18 if has_S and not const_f else 0)
-              + 2 * len(t.g.tangent))
+        c.add(
+            "folding",
+            2
+            + (0 if const_f else 4)
+            + (18 if has_S else 0)
+            + (18 if has_S and not const_f else 0)
+            + 2 * len(t.g.tangent),
+        )
         has["S"] |= has_S
         has["S_hat"] |= has_S and not const_f
         has["h"] |= not const_f
@@ -178,7 +204,10 @@ def mjed_count(material) -> Count:
         if kind == "spectral":
             c.add("edge blocks: tangent pairs", 753 + 3 * 108)
         else:
-            c.add("edge blocks: tangent pairs", 60 + 12 + 108 + ((45 + 6 + 108) if kind == "second" else 0))
+            c.add(
+                "edge blocks: tangent pairs",
+                60 + 12 + 108 + ((45 + 6 + 108) if kind == "second" else 0),
+            )
     if has["S_hat"]:
         c.add("edge blocks: J couplings", 105 + 24 + 216)
     elif has["g2"]:
@@ -227,11 +256,15 @@ rows = []
 for name, material in DEFAULT_MATERIALS.items():
     m, k = mjed_count(material), classical_count(material)
     rows.append((name, m, k))
-    print(f"{name:18s} MJED {m.flops:5d} flops + {m.special} special + {m.eig} eig | classical {k.flops:5d} flops "
-          f"+ {k.special} special + {k.eig} eig | ratio {k.flops / m.flops:4.2f}")
+    print(
+        f"{name:18s} MJED {m.flops:5d} flops + {m.special} special + {m.eig} eig | classical "
+        f"{k.flops:5d} flops + {k.special} special + {k.eig} eig | ratio {k.flops / m.flops:4.2f}"
+    )
 
 assert all(m.flops > 0 and k.flops > 0 for _, m, k in rows)
-assert all(k.flops > m.flops for _, m, k in rows), "the model must find MJED cheaper for every material"
+assert all(k.flops > m.flops for _, m, k in rows), (
+    "the model must find MJED cheaper for every material"
+)
 fixed = 180 + 792 + 1584
 cheap = [name for name, m, k in rows if m.flops < fixed]
 print("materials whose whole MJED count is below the classical B-products alone:", ", ".join(cheap))
@@ -275,10 +308,15 @@ for name, material in DEFAULT_MATERIALS.items():
     # Same numbers first: timing two methods only makes sense if they compute the same thing.
     assert np.abs(f_m - f_c).max() <= 1e-10 * np.abs(f_c).max(), name
     assert abs(K_m - K_c).max() <= 1e-10 * abs(K_c).max(), name
-    measured[name] = (median_time(lambda: field_.force_and_stiffness(x)),
-                      median_time(lambda: classical.force_and_stiffness(x)))
+    measured[name] = (
+        median_time(lambda: field_.force_and_stiffness(x)),
+        median_time(lambda: classical.force_and_stiffness(x)),
+    )
     t_m, t_c = measured[name]
-    print(f"{name:18s} MJED {1e3 * t_m:6.1f} ms  classical {1e3 * t_c:6.1f} ms  measured ratio {t_c / t_m:4.2f}")
+    print(
+        f"{name:18s} MJED {1e3 * t_m:6.1f} ms  classical {1e3 * t_c:6.1f} ms  measured ratio "
+        f"{t_c / t_m:4.2f}"
+    )
 assert all(t > 0 for pair in measured.values() for t in pair)
 
 # %% [markdown]
@@ -301,14 +339,25 @@ import matplotlib.pyplot as plt
 names = [r[0] for r in rows]
 fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(14, 4.8), gridspec_kw={"width_ratios": [1.5, 1]})
 ypos = np.arange(len(names))
-for offset, idx, label, cmap in ((-0.2, 1, "MJED", plt.cm.Blues), (0.2, 2, "classical", plt.cm.Oranges)):
+for offset, idx, label, cmap in (
+    (-0.2, 1, "MJED", plt.cm.Blues),
+    (0.2, 2, "classical", plt.cm.Oranges),
+):
     left = np.zeros(len(names))
     parts = sorted({p for r in rows for p in r[idx].parts})
     for i, p in enumerate(parts):
         vals = np.array([r[idx].parts.get(p, 0) for r in rows])
         if vals.any():
-            ax0.barh(ypos + offset, vals, left=left, height=0.38, label=f"{label}: {p}",
-                     color=cmap(0.35 + 0.6 * i / max(1, len(parts) - 1)), edgecolor="white", linewidth=0.3)
+            ax0.barh(
+                ypos + offset,
+                vals,
+                left=left,
+                height=0.38,
+                label=f"{label}: {p}",
+                color=cmap(0.35 + 0.6 * i / max(1, len(parts) - 1)),
+                edgecolor="white",
+                linewidth=0.3,
+            )
             left += vals
 ax0.set_yticks(ypos)
 ax0.set_yticklabels(names)

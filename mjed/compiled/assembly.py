@@ -25,8 +25,12 @@ class CompiledAssembly:
         self.cell_flip = np.ascontiguousarray(pattern.cell_flip, dtype=np.bool_)
         self.indptr = np.ascontiguousarray(pattern.indptr, dtype=np.int64)
         edges = np.ascontiguousarray(pattern.edges, dtype=np.int64)
-        self.src, self.blkptr = kernels.block_sources(self.indptr, np.ascontiguousarray(pattern.indices, dtype=np.int64),
-                                                      edges, pattern.n_nodes)
+        self.src, self.blkptr = kernels.block_sources(
+            self.indptr,
+            np.ascontiguousarray(pattern.indices, dtype=np.int64),
+            edges,
+            pattern.n_nodes,
+        )
         self.U = np.zeros((pattern.n_edges, 3, 3))
         self.Dg = np.zeros((pattern.n_nodes, 3, 3))
 
@@ -36,7 +40,8 @@ class CompiledAssembly:
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """The CSR matrix of ``data`` with this pattern; it owns its index arrays (as the NumPy
-        engine's matrices do), so a caller may change it in place."""
+        engine's matrices do), so a caller may change it in place.
+        """
         p = self.pattern
         K = sp.csr_matrix((data, p.indices.copy(), p.indptr.copy()), shape=p.shape, copy=False)
         K.has_sorted_indices = True

@@ -21,8 +21,9 @@ def require_numba() -> ModuleType:
     """The kernels module, importing Numba; BackendUnavailable if Numba is missing or broken."""
     if not numba_available():
         raise BackendUnavailable(
-            "the 'numba' backend needs Numba, which is not installed: on Debian 12 `apt-get install python3-numba`, "
-            "elsewhere `pip install numba`; or use backend='numpy'")
+            "the 'numba' backend needs Numba, which is not installed: on Debian 12 `apt-get "
+            "install python3-numba`, elsewhere `pip install numba`; or use backend='numpy'"
+        )
     try:
         from mjed.compiled import kernels
     except ImportError as exc:  # e.g. a Numba built for another NumPy

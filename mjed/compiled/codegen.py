@@ -14,11 +14,13 @@ The algebra is the NumPy engine's (mjed/engine.py, mjed/edge_blocks.py), per cel
 - kinematics: F = sum_a x_a (x) D_a, cof(F), J, C = F^T F, I1, I2, ln J, eigen-pairs of C;
 - each term: f, f', f'' and g, S = 2 dg/dC, the tangent coefficients (or theta);
 - each group: u, h_g, g2_g, S_g, S-hat_g, theta_g and the slot weights, folded in with weight
-  c (plain) or c e^u (exponential; then du_a = (F S_g + h_g cof) D_a);
+  c (plain) or c phi'(u) for a function phi of the sum (e^u, ln(a + u), (a + u)^p; then also
+  the rank-one c phi''(u) du_a (x) du_b, du_a = (F S_g + h_g cof) D_a);
 - force: -V0 (F S-bar D_a + h d_a), d_a = cof D_a;
 - the six edge blocks (D_a . S-bar D_b) Id + first-kind 2 w (F A D_a)(x)(F A D_b) +
   second-kind w ((F B D_b)(x)(F B D_a) + (D_a . B D_b) F B F^T) + spectral outers +
-  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c e^u du_a (x) du_b + h [F (D_a x D_b)]_x,
+  d_a (x) (F S-hat D_b + g2 d_b) + F S-hat D_a (x) d_b + c phi'' du_a (x) du_b
+  + h [F (D_a x D_b)]_x,
   all scaled by V0, and the node blocks by translation invariance (K_aa = -sum_b K_ab);
   the blocks are added into the mesh-edge sums U and node sums Dg, then every CSR entry is
   written once, in order (:func:`mjed.compiled.kernels.write_csr`): half the scattered
@@ -43,12 +45,41 @@ from typing import Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
 from mjed.compiled.shape import KernelShape, TermShape
 
-__all__ = ["kernel_source", "KERNEL_SIGNATURE", "gather_cell", "scatter_edge_block", "write_kernel_module"]
+__all__ = [
+    "kernel_source",
+    "KERNEL_SIGNATURE",
+    "gather_cell",
+    "scatter_edge_block",
+    "write_kernel_module",
+]
 
 #: The arguments of the generated ``mjed_cells``, in order (see its docstring).
-KERNEL_SIGNATURE = ("x", "cells", "D", "V0", "jpar", "gpar", "gmat", "group_coef", "slot_M", "regularize",
-                    "want_force", "want_stiffness", "want_stress", "cell_edges", "cell_flip", "U", "Dg", "src",
-                    "blkptr", "indptr", "force", "data", "J_out", "stress_out")
+KERNEL_SIGNATURE = (
+    "x",
+    "cells",
+    "D",
+    "V0",
+    "jpar",
+    "gpar",
+    "gmat",
+    "group_coef",
+    "slot_M",
+    "regularize",
+    "want_force",
+    "want_stiffness",
+    "want_stress",
+    "cell_edges",
+    "cell_flip",
+    "U",
+    "Dg",
+    "src",
+    "blkptr",
+    "indptr",
+    "force",
+    "data",
+    "J_out",
+    "stress_out",
+)
 
 _KERNEL_DOC = '''"""Energy, forces, stiffness and stress of every cell by MJED, for one term shape.
 
@@ -63,7 +94,14 @@ and S = 2 dW/dC per cell into stress_out (m, 3, 3) (when wanted). Returns the to
 """'''
 EDGES = ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))  # mjed.sparse.EDGES
 # The opposite edge (c, d) of each edge (a, b), ordered so that (a, b, c, d) is an even permutation.
-_OPPOSITE = {(0, 1): (2, 3), (0, 2): (3, 1), (0, 3): (1, 2), (1, 2): (0, 3), (1, 3): (2, 0), (2, 3): (0, 1)}
+_OPPOSITE = {
+    (0, 1): (2, 3),
+    (0, 2): (3, 1),
+    (0, 3): (1, 2),
+    (1, 2): (0, 3),
+    (1, 3): (2, 0),
+    (2, 3): (0, 1),
+}
 ONE = "1.0"  # an expression known to be exactly one (dropped from products)
 Expr = Optional[str]  # None: structurally zero
 
@@ -140,11 +178,12 @@ def _is_zero(s: Sym) -> bool:
     return all(v is None for v in s.values())
 
 
-
-# ------------------------------------------------------------------ pieces shared with other generators
+# ------------------------------------------------------------------ pieces shared with other
+# generators
 def gather_cell(s: Source) -> None:
     """Write the loads of cell e (node numbers n_a, rest shape vectors D_a, positions X_a) and
-    F = sum_a x_a (x) D_a as scalar locals (also used by reference_fem.classical_codegen)."""
+    F = sum_a x_a (x) D_a as scalar locals (also used by reference_fem.classical_codegen).
+    """
     s("n0, n1, n2, n3 = cells[e, 0], cells[e, 1], cells[e, 2], cells[e, 3]")
     for a in range(4):
         s(f"D{a}0, D{a}1, D{a}2 = D[e, {a}, 0], D[e, {a}, 1], D[e, {a}, 2]")
@@ -157,7 +196,8 @@ def gather_cell(s: Source) -> None:
 def scatter_edge_block(s: Source, k: int, block: str) -> None:
     """Write the addition of the 3x3 block of cell edge k (locals ``{block}{r}{c}``) into its
     mesh-edge sum U, transposed when the cell edge runs against the mesh edge (the orientation
-    is decided once per block, not per entry)."""
+    is decided once per block, not per entry).
+    """
     s(f"ge = cell_edges[e, {k}]")
     with s.block(f"if cell_flip[e, {k}]:"):
         for r in range(3):
@@ -205,8 +245,11 @@ class _Kernel:
                 s(f"tmu_{t} = 2.0 * mu_{t}")
             elif term.g == "fibre":
                 for i in range(3):
-                    s(", ".join(f"B{t}_{i}{j}" for j in range(3)) + " = " +
-                      ", ".join(f"gpar[{t}, {3 * i + j}]" for j in range(3)))
+                    s(
+                        ", ".join(f"B{t}_{i}{j}" for j in range(3))
+                        + " = "
+                        + ", ".join(f"gpar[{t}, {3 * i + j}]" for j in range(3))
+                    )
                 for p in range(len(term.slots)):
                     s(f"sg{t}_{p} = gpar[{t}, {9 + p}]")
                 if not self.shape.per_cell_R:
@@ -217,16 +260,26 @@ class _Kernel:
                 s(f"c2q_{t} = 2.0 * c_{t} * qe_{t}")
                 if term.coaxial:
                     s(f"hp_{t} = 0.5 * (qm1_{t} - 1.0)")
-        for g in range(len(self.shape.groups)):
-            s(f"gc_{g} = group_coef[{g}]")
+        for g, (_, _, function) in enumerate(self.shape.groups):
+            s(f"gc_{g} = group_coef[{g}, 0]")
+            if function in ("log", "power"):
+                s(f"ga_{g} = group_coef[{g}, 1]")
+            if function == "power":
+                s(f"gp_{g} = group_coef[{g}, 2]")
+                s(f"gpm2_{g} = gp_{g} - 2.0")
+                s(f"gcp_{g} = gc_{g} * gp_{g}")
+                s(f"gcpp_{g} = gcp_{g} * (gp_{g} - 1.0)")
         for sl, (kind, ident) in enumerate(self.shape.slots):
             if kind != "spectral" and not ident and not self.shape.per_cell_M:
                 self._load3(f"M{sl}_", f"slot_M[{sl}, 0")
 
     def _load3(self, prefix: str, base: str) -> None:
         for i in range(3):
-            self.src(", ".join(f"{prefix}{i}{j}" for j in range(3)) + " = " +
-                     ", ".join(f"{base}, {i}, {j}]" for j in range(3)))
+            self.src(
+                ", ".join(f"{prefix}{i}{j}" for j in range(3))
+                + " = "
+                + ", ".join(f"{base}, {i}, {j}]" for j in range(3))
+            )
 
     # ---- kinematics
     def kinematics(self) -> None:
@@ -244,7 +297,10 @@ class _Kernel:
         s("I1 = C00 + C11 + C22")
         terms = self.shape.terms
         if any(t.g == "linear_i2" for t in terms):
-            s("I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C02 * C02 + C12 * C12)))")
+            s(
+                "I2 = 0.5 * (I1 * I1 - (C00 * C00 + C11 * C11 + C22 * C22 + 2.0 * (C01 * C01 + C02 "
+                "* C02 + C12 * C12)))"
+            )
         if any(t.j in ("logpoly", "jlogj") for t in terms):
             s("L = math.log(J)")
         if any(t.g in ("green_lagrange", "fibre") for t in terms):
@@ -254,7 +310,10 @@ class _Kernel:
             s("eig = eigh3_sym(C00, C01, C02, C11, C12, C22)")
             s("lam0, lam1, lam2 = eig[0], eig[1], eig[2]")
             for i in range(3):
-                s(", ".join(f"V{i}{n}" for n in range(3)) + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]")
+                s(
+                    ", ".join(f"V{i}{n}" for n in range(3))
+                    + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]"
+                )
 
     def I1_power(self, n: int) -> str:
         """I1^n by products, formed once per cell."""
@@ -272,14 +331,22 @@ class _Kernel:
             return ONE, None, None
         if term.j == "power":
             s(f"Jq_{t} = J ** qm2_{t}")
-            return (s.let(f"f_{t}", f"Jq_{t} * J * J"), s.let(f"df_{t}", f"q_{t} * Jq_{t} * J"),
-                    s.let(f"d2f_{t}", f"qq1_{t} * Jq_{t}"))
+            return (
+                s.let(f"f_{t}", f"Jq_{t} * J * J"),
+                s.let(f"df_{t}", f"q_{t} * Jq_{t} * J"),
+                s.let(f"d2f_{t}", f"qq1_{t} * Jq_{t}"),
+            )
         if term.j == "logpoly":
-            return (s.let(f"f_{t}", f"(a2_{t} * L + a1_{t}) * L + a0_{t}"),
-                    s.let(f"df_{t}", f"(2.0 * a2_{t} * L + a1_{t}) / J"),
-                    s.let(f"d2f_{t}", f"(2.0 * a2_{t} * (1.0 - L) - a1_{t}) / (J * J)"))
-        return (s.let(f"f_{t}", f"k_{t} * (J * L - J + 1.0) + kc_{t}"), s.let(f"df_{t}", f"k_{t} * L"),
-                s.let(f"d2f_{t}", f"k_{t} / J"))
+            return (
+                s.let(f"f_{t}", f"(a2_{t} * L + a1_{t}) * L + a0_{t}"),
+                s.let(f"df_{t}", f"(2.0 * a2_{t} * L + a1_{t}) / J"),
+                s.let(f"d2f_{t}", f"(2.0 * a2_{t} * (1.0 - L) - a1_{t}) / (J * J)"),
+            )
+        return (
+            s.let(f"f_{t}", f"k_{t} * (J * L - J + 1.0) + kc_{t}"),
+            s.let(f"df_{t}", f"k_{t} * L"),
+            s.let(f"d2f_{t}", f"k_{t} / J"),
+        )
 
     def g_function(self, t: int, term: TermShape) -> Tuple[Expr, Sym, List[Expr], Sym]:
         """g, S, the coefficient of each tangent pair, theta (spectral; else zero)."""
@@ -292,34 +359,59 @@ class _Kernel:
             if n == 1:
                 value = s.let(f"g_{t}", f"c_{t} * I1")
                 d = s.let(f"s_{t}", f"2.0 * c_{t}")
-                return value, {ij: (d if ij[0] == ij[1] else None) for ij in PAIRS6}, [], _sym_zero()
+                return (
+                    value,
+                    {ij: (d if ij[0] == ij[1] else None) for ij in PAIRS6},
+                    [],
+                    _sym_zero(),
+                )
             value = s.let(f"g_{t}", f"c_{t} * {self.I1_power(n)}")
             d = s.let(f"s_{t}", f"c2n_{t} * {self.I1_power(n - 1)}")
             coef = s.let(f"b_{t}", f"c2nn_{t}" + (f" * {self.I1_power(n - 2)}" if n > 2 else ""))
-            return value, {ij: (d if ij[0] == ij[1] else None) for ij in PAIRS6}, [coef], _sym_zero()
+            return (
+                value,
+                {ij: (d if ij[0] == ij[1] else None) for ij in PAIRS6},
+                [coef],
+                _sym_zero(),
+            )
         if g == "linear_i2":
-            S = {(i, j): (f"tc_{t} * (I1 - C{i}{j})" if i == j else f"mtc_{t} * C{i}{j}") for i, j in PAIRS6}
-            return s.let(f"g_{t}", f"c_{t} * I2"), _sym_let(s, f"S{t}_", S), [f"tc_{t}", f"mtc_{t}"], _sym_zero()
+            S = {
+                (i, j): (f"tc_{t} * (I1 - C{i}{j})" if i == j else f"mtc_{t} * C{i}{j}")
+                for i, j in PAIRS6
+            }
+            return (
+                s.let(f"g_{t}", f"c_{t} * I2"),
+                _sym_let(s, f"S{t}_", S),
+                [f"tc_{t}", f"mtc_{t}"],
+                _sym_zero(),
+            )
         if g == "green_lagrange":
             s(f"trE_{t} = 0.5 * I1 - 1.5")
             EE = "E00 * E00 + E11 * E11 + E22 * E22 + 2.0 * (E01 * E01 + E02 * E02 + E12 * E12)"
             value = s.let(f"g_{t}", f"hl_{t} * trE_{t} * trE_{t} + mu_{t} * ({EE})")
-            S = {(i, j): (f"tmu_{t} * E{i}{j} + lm_{t} * trE_{t}" if i == j else f"tmu_{t} * E{i}{j}")
-                 for i, j in PAIRS6}
+            S = {
+                (i, j): (
+                    f"tmu_{t} * E{i}{j} + lm_{t} * trE_{t}" if i == j else f"tmu_{t} * E{i}{j}"
+                )
+                for i, j in PAIRS6
+            }
             return value, _sym_let(s, f"S{t}_", S), [f"hl_{t}", f"mu_{t}"], _sym_zero()
         if g == "fibre":
             return self._fibre(t, term)
         return self._eigen(t, term)
 
     def _fibre(self, t: int, term: TermShape) -> Tuple[Expr, Sym, List[Expr], Sym]:
-        """g = sum B_ij (R^T E R)_ij^2, S = 2 R (B o R^T E R) R^T (mjed/fibre.py)."""
+        """G = sum B_ij (R^T E R)_ij^2, S = 2 R (B o R^T E R) R^T (mjed/fibre.py)."""
         s = self.src
         R = f"R{t}_"
         if self.shape.per_cell_R:
             self._load3(R, f"gmat[{t}, e")
         for i in range(3):  # W = E R
             for j in range(3):
-                s(f"W{t}_{i}{j} = " + " + ".join(f"E{''.join(map(str, sym(i, k)))} * {R}{k}{j}" for k in range(3)))
+                s(
+                    f"W{t}_{i}{j} = "
+                    + " + ".join(f"E{''.join(map(str, sym(i, k)))} * {R}{k}{j}" for k in range(3))
+                )
         terms = []
         for i in range(3):  # Ef = R^T W; P = B o Ef; g = sum P o Ef
             for j in range(3):
@@ -330,18 +422,25 @@ class _Kernel:
         for i in range(3):  # Q = P R^T
             for j in range(3):
                 s(f"Q{t}_{i}{j} = " + " + ".join(f"P{t}_{i}{k} * {R}{j}{k}" for k in range(3)))
-        S = {(i, j): "2.0 * (" + " + ".join(f"{R}{i}{k} * Q{t}_{k}{j}" for k in range(3)) + ")" for i, j in PAIRS6}
+        S = {
+            (i, j): "2.0 * (" + " + ".join(f"{R}{i}{k} * Q{t}_{k}{j}" for k in range(3)) + ")"
+            for i, j in PAIRS6
+        }
         coefs = [f"sg{t}_{p}" for p in range(len(term.slots))]
         return value, _sym_let(s, f"S{t}_", S), coefs, _sym_zero()
 
     def _eigen(self, t: int, term: TermShape) -> Tuple[Expr, Sym, List[Expr], Sym]:
-        """g = c sum lam_n^q (mjed/spectral.py); theta only when the stiffness is wanted."""
+        """G = c sum lam_n^q (mjed/spectral.py); theta only when the stiffness is wanted."""
         s = self.src
         for n in range(3):
             s(f"lp{t}_{n} = lam{n} ** qm1_{t}")
         value = s.let(f"g_{t}", f"c_{t} * (lp{t}_0 * lam0 + lp{t}_1 * lam1 + lp{t}_2 * lam2)")
-        S = {(i, j): f"c2q_{t} * (" + " + ".join(f"V{i}{n} * lp{t}_{n} * V{j}{n}" for n in range(3)) + ")"
-             for i, j in PAIRS6}
+        S = {
+            (i, j): f"c2q_{t} * ("
+            + " + ".join(f"V{i}{n} * lp{t}_{n} * V{j}{n}" for n in range(3))
+            + ")"
+            for i, j in PAIRS6
+        }
         S = _sym_let(s, f"S{t}_", S)
         theta = {ij: f"th{t}_{ij[0]}{ij[1]}" for ij in PAIRS6}
         for ij in PAIRS6:  # defined on every path (the force-only pass leaves them at zero)
@@ -366,9 +465,17 @@ class _Kernel:
         s = self.src
         shape = self.shape
         n_slots = len(shape.slots)
-        tot = {"h": [], "g2": [], "St": {ij: [] for ij in PAIRS6}, "Sh": {ij: [] for ij in PAIRS6},
-               "th": {ij: [] for ij in PAIRS6}, "w": [[] for _ in range(n_slots)], "energy": [], "exp": []}
-        for gi, (start, stop, exponential) in enumerate(shape.groups):
+        tot = {
+            "h": [],
+            "g2": [],
+            "St": {ij: [] for ij in PAIRS6},
+            "Sh": {ij: [] for ij in PAIRS6},
+            "th": {ij: [] for ij in PAIRS6},
+            "w": [[] for _ in range(n_slots)],
+            "energy": [],
+            "exp": [],
+        }
+        for gi, (start, stop, function) in enumerate(shape.groups):
             u, hg, g2g = [], [], []
             Sg = {ij: [] for ij in PAIRS6}
             Shg = {ij: [] for ij in PAIRS6}
@@ -388,12 +495,7 @@ class _Kernel:
                 for slot, coef in zip(term.slots, coefs):
                     wg[slot].append(mul(f, coef))
             u_g = s.let(f"u_{gi}", add(*u))
-            if exponential:
-                sc = s.let(f"sc_{gi}", f"gc_{gi} * math.exp({u_g or '0.0'})")
-                tot["energy"].append(sc)
-            else:
-                sc = f"gc_{gi}"
-                tot["energy"].append(mul(sc, u_g))
+            sc, rank_one = self._group_function(gi, function, u_g or "0.0", tot["energy"])
             hg_e = s.let(f"hg_{gi}", add(*hg))
             tot["h"].append(mul(sc, hg_e))
             tot["g2"].append(mul(sc, s.let(f"g2g_{gi}", add(*g2g))))
@@ -404,15 +506,47 @@ class _Kernel:
                 tot["th"][ij].append(mul(sc, s.let(f"thg{gi}_{ij[0]}{ij[1]}", add(*thg[ij]))))
             for sl in range(n_slots):
                 tot["w"][sl].append(mul(sc, s.let(f"wg{gi}_{sl}", add(*wg[sl]))))
-            if exponential:
-                tot["exp"].append((gi, sc, Sg_n, hg_e))
-        out = {"h": s.let("h", add(*tot["h"])), "g2": s.let("g2", add(*tot["g2"])),
-               "St": _sym_let(s, "St", {ij: add(*tot["St"][ij]) for ij in PAIRS6}),
-               "Sh": _sym_let(s, "Sh", {ij: add(*tot["Sh"][ij]) for ij in PAIRS6}),
-               "th": _sym_let(s, "th", {ij: add(*tot["th"][ij]) for ij in PAIRS6}),
-               "w": [s.let(f"w_{sl}", add(*tot["w"][sl])) for sl in range(n_slots)], "exp": tot["exp"]}
+            if rank_one is not None:
+                tot["exp"].append((gi, rank_one, Sg_n, hg_e))
+        out = {
+            "h": s.let("h", add(*tot["h"])),
+            "g2": s.let("g2", add(*tot["g2"])),
+            "St": _sym_let(s, "St", {ij: add(*tot["St"][ij]) for ij in PAIRS6}),
+            "Sh": _sym_let(s, "Sh", {ij: add(*tot["Sh"][ij]) for ij in PAIRS6}),
+            "th": _sym_let(s, "th", {ij: add(*tot["th"][ij]) for ij in PAIRS6}),
+            "w": [s.let(f"w_{sl}", add(*tot["w"][sl])) for sl in range(n_slots)],
+            "exp": tot["exp"],
+        }
         s(f"energy += V0[e] * ({add(*tot['energy']) or '0.0'})")
         return out
+
+    def _group_function(
+        self, gi: int, function: str, u: str, energy: List[Expr]
+    ) -> Tuple[str, Expr]:
+        """Append c phi(u) to ``energy``; return the names of c phi'(u) (the weight of the
+        group's linear sums) and c phi''(u) (its rank-one term; None for a plain group).
+        """
+        s = self.src
+        if function == "plain":
+            energy.append(mul(f"gc_{gi}", u))
+            return f"gc_{gi}", None
+        if function == "exp":  # phi = phi' = phi''
+            sc = s.let(f"sc_{gi}", f"gc_{gi} * math.exp({u})")
+            energy.append(sc)
+            return sc, sc
+        if function == "log":  # ln(a + u): 1 / (a + u), -1 / (a + u)^2; NaN where a + u <= 0
+            s(f"ag_{gi} = ga_{gi} + {u}")
+            s(f"ia_{gi} = 1.0 / ag_{gi} if ag_{gi} > 0.0 else math.nan")
+            energy.append(f"gc_{gi} * math.log(ag_{gi})")
+            sc = s.let(f"sc_{gi}", f"gc_{gi} * ia_{gi}")
+            return sc, s.let(f"rc_{gi}", f"-sc_{gi} * ia_{gi}")
+        if function == "power":  # (a + u)^p: p (a + u)^(p-1), p (p-1) (a + u)^(p-2)
+            s(f"pa_{gi} = ga_{gi} + {u}")
+            s(f"pb_{gi} = pa_{gi} ** gpm2_{gi}")
+            energy.append(f"gc_{gi} * pb_{gi} * pa_{gi} * pa_{gi}")
+            sc = s.let(f"sc_{gi}", f"gcp_{gi} * pb_{gi} * pa_{gi}")
+            return sc, s.let(f"rc_{gi}", f"gcpp_{gi} * pb_{gi}")
+        raise ValueError(f"no code for a group function {function!r}")
 
     # ---- helpers on per-cell matrices
     def _apply(self, prefix: str, M, node_vec: str = "D") -> Dict[Tuple[int, int], str]:
@@ -429,7 +563,9 @@ class _Kernel:
         out = {}
         for i in range(3):
             for j in range(3):
-                out[i, j] = self.src.let(f"{prefix}{i}{j}", add(*[mul(f"F{i}{k}", S[sym(k, j)]) for k in range(3)]))
+                out[i, j] = self.src.let(
+                    f"{prefix}{i}{j}", add(*[mul(f"F{i}{k}", S[sym(k, j)]) for k in range(3)])
+                )
         return out
 
     def force_and_stress(self, q: dict) -> None:
@@ -455,7 +591,7 @@ class _Kernel:
         # Every edge-block term is scaled by V0 through one of its per-cell factors (a few
         # multiplications per cell instead of one per block entry).
         s("vol = V0[e]")
-        h = s.let("hv", mul(q["h"], "vol"))
+        s.let("hv", mul(q["h"], "vol"))
         g2 = s.let("g2v", mul(q["g2"], "vol"))
         St = _sym_let(s, "Stv", {ij: mul(q["St"][ij], "vol") for ij in PAIRS6})
         Sh = _sym_let(s, "Shv", {ij: mul(q["Sh"][ij], "vol") for ij in PAIRS6})
@@ -476,7 +612,9 @@ class _Kernel:
             g2k = s.let("g2k", mul(g2, "keep"))
             for b in range(4):
                 for c in range(3):
-                    vb[b, c] = s.let(f"vb{b}{c}", add(FSh[b, c] if FSh else None, mul(g2k, f"dJ{b}{c}")))
+                    vb[b, c] = s.let(
+                        f"vb{b}{c}", add(FSh[b, c] if FSh else None, mul(g2k, f"dJ{b}{c}"))
+                    )
         slot_terms = self._slots(w)
         spectral = self._spectral_cell(th) if not _is_zero(th) else None
         exp_terms = self._exp_groups(exp)
@@ -485,24 +623,44 @@ class _Kernel:
                 s(f"rg{k} = 0.0")
             with s.block("if regularize:"):
                 for k, (a, b) in enumerate(EDGES):
-                    reg = [mul(g2, "breg", f"(dJ{a}0 * dJ{b}0 + dJ{a}1 * dJ{b}1 + dJ{a}2 * dJ{b}2)")]
+                    reg = [
+                        mul(g2, "breg", f"(dJ{a}0 * dJ{b}0 + dJ{a}1 * dJ{b}1 + dJ{a}2 * dJ{b}2)")
+                    ]
                     for gi, sc, _, _ in exp:
-                        reg.append(mul(sc, "breg", f"(du{gi}_{a}0 * du{gi}_{b}0 + du{gi}_{a}1 * du{gi}_{b}1"
-                                                   f" + du{gi}_{a}2 * du{gi}_{b}2)"))
+                        reg.append(
+                            mul(
+                                sc,
+                                "breg",
+                                f"(du{gi}_{a}0 * du{gi}_{b}0 + du{gi}_{a}1 * du{gi}_{b}1"
+                                f" + du{gi}_{a}2 * du{gi}_{b}2)",
+                            )
+                        )
                     s(f"rg{k} = {add(*reg)}")
-        # h d2J/dx_a dx_b = h V0 [F (D_a x D_b)]_x, and on a P1 cell D_a x D_b = (X_d - X_c) / (6 V0)
+        # h d2J/dx_a dx_b = h V0 [F (D_a x D_b)]_x, and on a P1 cell D_a x D_b = (X_d - X_c) / (6
+        # V0)
         # for (a, b, c, d) an even permutation, so F (D_a x D_b) = (x_d - x_c) / (6 V0): the term
         # is (h / 6) [x_d - x_c]_x, six operations per edge instead of 24 (V0 cancels).
         h6 = s.let("h6", f"{q['h']} * (1.0 / 6.0)" if q["h"] else None)
         for k, (a, b) in enumerate(EDGES):
-            diag = add(mul(f"D{a}0", SD[b, 0]), mul(f"D{a}1", SD[b, 1]), mul(f"D{a}2", SD[b, 2])) if SD else None
+            diag = (
+                add(mul(f"D{a}0", SD[b, 0]), mul(f"D{a}1", SD[b, 1]), mul(f"D{a}2", SD[b, 2]))
+                if SD
+                else None
+            )
             diag = s.let(f"dg{k}", add(diag, f"rg{k}" if regularised else None))
             skew = None
             if h6 is not None:
                 c_, d_ = _OPPOSITE[a, b]
                 for i in range(3):
                     s(f"qk{i} = h6 * (X{d_}{i} - X{c_}{i})")
-                skew = {(0, 1): "qk2", (1, 0): "-qk2", (0, 2): "-qk1", (2, 0): "qk1", (1, 2): "qk0", (2, 1): "-qk0"}
+                skew = {
+                    (0, 1): "qk2",
+                    (1, 0): "-qk2",
+                    (0, 2): "-qk1",
+                    (2, 0): "qk1",
+                    (1, 2): "qk0",
+                    (2, 1): "-qk0",
+                }
             sp = spectral(k, a, b) if spectral else None
             for r in range(3):
                 for c in range(3):
@@ -522,7 +680,8 @@ class _Kernel:
 
     def _slots(self, w: Sequence[Expr]) -> list:
         """Per-cell vectors of the first- and second-kind slots; returns one function per
-        slot giving its term of entry (r, c) of edge k = (a, b)."""
+        slot giving its term of entry (r, c) of edge k = (a, b).
+        """
         s = self.src
         fns = []
         for sl, (kind, ident) in enumerate(self.shape.slots):
@@ -534,10 +693,13 @@ class _Kernel:
             else:
                 if self.shape.per_cell_M:
                     self._load3(f"M{sl}_", f"slot_M[{sl}, e")
-                M = (lambda p: (lambda i, k: f"{p}{i}{k}"))(f"M{sl}_")
+                M = (lambda p: lambda i, k: f"{p}{i}{k}")(f"M{sl}_")
                 MD = self._apply(f"MD{sl}_", M)
-            G = self._apply(f"G{sl}_", lambda i, k: f"F{i}{k}", node_vec=f"MD{sl}_") if not ident else \
-                self._apply(f"G{sl}_", lambda i, k: f"F{i}{k}")
+            G = (
+                self._apply(f"G{sl}_", lambda i, k: f"F{i}{k}", node_vec=f"MD{sl}_")
+                if not ident
+                else self._apply(f"G{sl}_", lambda i, k: f"F{i}{k}")
+            )
             if kind == "first":  # 2 w G_a (x) G_b
                 tw = s.let(f"tw{sl}", f"2.0 * {w[sl]}")
                 for a in range(4):
@@ -545,8 +707,13 @@ class _Kernel:
                         s(f"tG{sl}_{a}{i} = {tw} * {G[a, i]}")
                 fns.append((lambda sl: lambda k, a, b, r, c: f"tG{sl}_{a}{r} * G{sl}_{b}{c}")(sl))
             else:  # w (G_b (x) G_a + (D_a . M D_b) F M F^T)
-                FM = {(i, j): s.let(f"FM{sl}_{i}{j}", add(*[mul(f"F{i}{k}", M(k, j)) for k in range(3)]))
-                      for i in range(3) for j in range(3)}
+                FM = {
+                    (i, j): s.let(
+                        f"FM{sl}_{i}{j}", add(*[mul(f"F{i}{k}", M(k, j)) for k in range(3)])
+                    )
+                    for i in range(3)
+                    for j in range(3)
+                }
                 for i, j in PAIRS6:
                     s(f"FMF{sl}_{i}{j} = " + " + ".join(f"{FM[i, k]} * F{j}{k}" for k in range(3)))
                 for a in range(4):
@@ -555,13 +722,22 @@ class _Kernel:
                 for k, (a, b) in enumerate(EDGES):
                     dmd = " + ".join(f"D{a}{i} * {MD[b, i]}" for i in range(3))
                     s(f"wd{sl}_{k} = {w[sl]} * ({dmd})")
-                fns.append((lambda sl: lambda k, a, b, r, c:
-                            f"wG{sl}_{b}{r} * G{sl}_{a}{c} + wd{sl}_{k} * FMF{sl}_{''.join(map(str, sym(r, c)))}")(sl))
+                fns.append(
+                    (
+                        lambda sl: (
+                            lambda k, a, b, r, c: (
+                                f"wG{sl}_{b}{r} * G{sl}_{a}{c} + wd{sl}_{k} * "
+                                f"FMF{sl}_{''.join(map(str, sym(r, c)))}"
+                            )
+                        )
+                    )(sl)
+                )
         return fns
 
     def _spectral_cell(self, th: Sym):
         """F v_n, v_n . D_a and z[a, n, c] = sum_l theta_nl (v_l . D_a)(F v_l)_c; returns the
-        function giving the 3x3 spectral term of edge k = (a, b)."""
+        function giving the 3x3 spectral term of edge k = (a, b).
+        """
         s = self.src
         for n in range(3):
             for i in range(3):
@@ -570,8 +746,10 @@ class _Kernel:
                 s(f"cn{n}{a} = V0{n} * D{a}0 + V1{n} * D{a}1 + V2{n} * D{a}2")
         for n in range(3):
             for a in range(4):
-                s(f"tc{n}{a}_0, tc{n}{a}_1, tc{n}{a}_2 = " + ", ".join(
-                    f"{th[sym(n, l)]} * cn{l}{a}" for l in range(3)))
+                s(
+                    f"tc{n}{a}_0, tc{n}{a}_1, tc{n}{a}_2 = "
+                    + ", ".join(f"{th[sym(n, l)]} * cn{l}{a}" for l in range(3))
+                )
                 for c in range(3):
                     s(f"z{a}{n}{c} = " + " + ".join(f"tc{n}{a}_{l} * wn{l}{c}" for l in range(3)))
 
@@ -580,28 +758,38 @@ class _Kernel:
                 s(f"rs{n} = " + " + ".join(f"tc{n}{a}_{l} * cn{l}{b}" for l in range(3)))
                 for c in range(3):
                     s(f"y{n}{c} = cn{n}{b} * z{a}{n}{c} + rs{n} * wn{n}{c}")
-            return {(r, c): "(" + " + ".join(f"wn{n}{r} * y{n}{c}" for n in range(3)) + ")"
-                    for r in range(3) for c in range(3)}
+            return {
+                (r, c): "(" + " + ".join(f"wn{n}{r} * y{n}{c}" for n in range(3)) + ")"
+                for r in range(3)
+                for c in range(3)
+            }
 
         return block
 
     def _exp_groups(self, groups) -> list:
-        """du_a = (F S_g + h_g cof) D_a of each exponential group; returns one function per
-        group giving its term c e^u keep du_a[r] du_b[c]."""
+        """du_a = (F S_g + h_g cof) D_a of each group with a function of its sum; returns one
+        function per group giving its term c phi''(u) keep du_a[r] du_b[c].
+        """
         s = self.src
         fns = []
         for gi, sc, Sg, hg in groups:
             FSg = self._F_times_sym(f"FSg{gi}_", Sg)
-            M = {(i, j): s.let(f"Mu{gi}_{i}{j}", add(FSg[i, j], mul(hg, f"cf{i}{j}"))) for i in range(3)
-                 for j in range(3)}
+            M = {
+                (i, j): s.let(f"Mu{gi}_{i}{j}", add(FSg[i, j], mul(hg, f"cf{i}{j}")))
+                for i in range(3)
+                for j in range(3)
+            }
             self._apply(f"du{gi}_", lambda i, k: M[i, k])
             s(f"sk{gi} = {sc} * keep")
-            fns.append((lambda gi: lambda a, b, r, c: f"sk{gi} * du{gi}_{a}{r} * du{gi}_{b}{c}")(gi))
+            fns.append(
+                (lambda gi: lambda a, b, r, c: f"sk{gi} * du{gi}_{a}{r} * du{gi}_{b}{c}")(gi)
+            )
         return fns
 
     def _scatter(self) -> None:
         """Edge blocks into the mesh-edge sums U (transposed when the cell edge runs against the
-        mesh edge), node blocks K_aa = -sum_b K_ab into Dg."""
+        mesh edge), node blocks K_aa = -sum_b K_ab into Dg.
+        """
         s = self.src
         for k in range(len(EDGES)):
             scatter_edge_block(s, k, f"K{k}_")
@@ -637,21 +825,40 @@ class _Kernel:
             with s.block("if want_stiffness:"):
                 self.stiffness(q)
 
-        write_kernel_module(s, f"MJED kernel generated by mjed.compiled.codegen for one kernel shape; do not edit.\n\n"
-                               f"shape: {shape!r}",
-                            ["from mjed.compiled.kernels import JIT_OPTIONS, divided_differences, eigh3_sym, write_csr",
-                             "from mjed.compiled.scratch import local_matrix, local_vector"],
-                            "mjed_cells", KERNEL_SIGNATURE, _KERNEL_DOC, before_loop, cell)
+        write_kernel_module(
+            s,
+            f"MJED kernel generated by mjed.compiled.codegen for one kernel shape; do not edit.\n\n"
+            f"shape: {shape!r}",
+            [
+                "from mjed.compiled.kernels import JIT_OPTIONS, divided_differences, eigh3_sym, "
+                "write_csr",
+                "from mjed.compiled.scratch import local_matrix, local_vector",
+            ],
+            "mjed_cells",
+            KERNEL_SIGNATURE,
+            _KERNEL_DOC,
+            before_loop,
+            cell,
+        )
         return s.text()
 
 
-def write_kernel_module(s: Source, title: str, imports: Sequence[str], name: str, signature: Sequence[str], doc: str,
-                        before_loop: Callable[[], None], cell: Callable[[], None]) -> None:
+def write_kernel_module(
+    s: Source,
+    title: str,
+    imports: Sequence[str],
+    name: str,
+    signature: Sequence[str],
+    doc: str,
+    before_loop: Callable[[], None],
+    cell: Callable[[], None],
+) -> None:
     """Write a kernel module: its docstring ``title``, the imports, and one compiled function
     ``name(*signature)`` with docstring ``doc`` that runs ``before_loop`` (parameters read
     once), clears the assembly sums U and Dg when the stiffness is wanted, writes ``cell``
     (the body of the loop over cells e, which adds to ``energy``) and finally the CSR data
-    (also used by reference_fem.classical_codegen)."""
+    (also used by reference_fem.classical_codegen).
+    """
     for line in f'"""{title}'.splitlines():
         s(line)
     s('"""')

@@ -1,5 +1,6 @@
 """CompiledForceField: MJED forces and stiffness from the compiled kernel, same API as
-:class:`mjed.HyperelasticForceField`."""
+:class:`mjed.HyperelasticForceField`.
+"""
 
 from __future__ import annotations
 
@@ -22,10 +23,11 @@ __all__ = ["CompiledForceField", "kernel_positions"]
 
 
 def kernel_positions(x, n_nodes: int) -> np.ndarray:
-    """x checked (mjed.forcefield.checked_positions) and as a C-contiguous, writeable float64
+    """X checked (mjed.forcefield.checked_positions) and as a C-contiguous, writeable float64
     (n_nodes, 3) array: Numba compiles one specialisation per array layout and per read-only
     flag (each several seconds), so a view or a read-only array from the caller is copied
-    rather than handed to a compiled kernel."""
+    rather than handed to a compiled kernel.
+    """
     x = checked_positions(x, n_nodes)
     if not (x.flags.c_contiguous and x.flags.writeable):
         x = np.array(x, order="C")
@@ -53,7 +55,14 @@ class CompiledForceField:
 
     backend = "numba"
 
-    def __init__(self, mesh: TetMesh, material: Material, *, regularize: bool = False, allow_inverted: bool = False):
+    def __init__(
+        self,
+        mesh: TetMesh,
+        material: Material,
+        *,
+        regularize: bool = False,
+        allow_inverted: bool = False,
+    ):
         check_field_arguments(mesh, material)
         self._k = require_numba()
         self.mesh = mesh
@@ -89,7 +98,9 @@ class CompiledForceField:
         return f, K
 
     def stress(self, x) -> np.ndarray:
-        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest volume)."""
+        """Second Piola-Kirchhoff stress S = 2 dW/dC per cell, (m, 3, 3) (Pa, per unit rest
+        volume).
+        """
         return self._run(x, force=False, stiffness=False, stress=True)[3]
 
     def force_stiffness_and_stress(self, x) -> Tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
@@ -104,9 +115,31 @@ class CompiledForceField:
         f = np.zeros((self.mesh.n_nodes, 3)) if force else np.zeros((0, 3))
         data = np.zeros(self.pattern.nnz) if stiffness else np.zeros(0)
         S = np.empty((self.mesh.n_cells if stress else 0, 3, 3))
-        energy = self._kernel(x, self._cells, self._D, self._V0, t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M,
-                              self.regularize, force, stiffness, stress, *self._assembly.arguments(), f, data, self._J, S)
+        energy = self._kernel(
+            x,
+            self._cells,
+            self._D,
+            self._V0,
+            t.jpar,
+            t.gpar,
+            t.gmat,
+            t.group_coef,
+            t.slot_M,
+            self.regularize,
+            force,
+            stiffness,
+            stress,
+            *self._assembly.arguments(),
+            f,
+            data,
+            self._J,
+            S,
+        )
         if not self.allow_inverted:
             refuse_inverted(self._J)
-        return (float(energy), (f if force else None), (self._assembly.matrix(data) if stiffness else None),
-                (S if stress else None))
+        return (
+            float(energy),
+            (f if force else None),
+            (self._assembly.matrix(data) if stiffness else None),
+            (S if stress else None),
+        )

@@ -37,7 +37,8 @@ def _rotation(app, aqq, apq, arp, arq):
     |s| = |b| / w, w = sqrt(2 rho m). This is Golub and Van Loan's rotation (t = tan of the
     smaller angle, sign of theta = d / b) with the two divisions and two square roots of
     theta, t and c folded into one division and two square roots (a rotation is a chain of
-    dependent divisions and roots, so their number sets its latency)."""
+    dependent divisions and roots, so their number sets its latency).
+    """
     d = aqq - app
     b = 2.0 * apq
     rho = math.sqrt(d * d + b * b)
@@ -54,8 +55,14 @@ def _rotation(app, aqq, apq, arp, arq):
 @njit(**_JIT)
 def _rotate_columns(c, s, x0p, x0q, x1p, x1q, x2p, x2q):
     """Columns p and q of a 3x3 matrix (x_ip, x_iq) after the rotation (c, s)."""
-    return (c * x0p - s * x0q, s * x0p + c * x0q, c * x1p - s * x1q, s * x1p + c * x1q,
-            c * x2p - s * x2q, s * x2p + c * x2q)
+    return (
+        c * x0p - s * x0q,
+        s * x0p + c * x0q,
+        c * x1p - s * x1q,
+        s * x1p + c * x1q,
+        c * x2p - s * x2q,
+        s * x2p + c * x2q,
+    )
 
 
 @njit(**_JIT)
@@ -65,7 +72,8 @@ def eigh3_sym(a00, a01, a02, a11, a12, a22):
 
     Returns (lam0, lam1, lam2, V00, V01, V02, V10, V11, V12, V20, V21, V22), V[:, n] the
     eigenvector of lam_n (unsorted). Entries of physical magnitude are assumed (d^2 + b^2 of
-    a rotation must not overflow or underflow), as they are for C = F^T F."""
+    a rotation must not overflow or underflow), as they are for C = F^T F.
+    """
     v00, v01, v02, v10, v11, v12, v20, v21, v22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     tol = (1e-17 * (abs(a00) + abs(a11) + abs(a22) + 1e-300)) ** 2
     for _sweep in range(60):
@@ -90,7 +98,8 @@ def eigh3_sym(a00, a01, a02, a11, a12, a22):
 def eigh3(A, lam, V, a):
     """eigh3_sym on arrays: eigenvalues lam (3,) and eigenvectors V (3, 3) (columns) of the
     symmetric A (3, 3) (upper triangle read; A is not changed). a: unused scratch, kept for
-    the callers' signature."""
+    the callers' signature.
+    """
     r = eigh3_sym(A[0, 0], A[0, 1], A[0, 2], A[1, 1], A[1, 2], A[2, 2])
     for i in range(3):
         lam[i] = r[i]
@@ -135,14 +144,14 @@ def block_sources(indptr, indices, edges, n_nodes):
     return src, blkptr
 
 
-
 @njit(**_JIT)
 def write_csr(U, Dg, src, blkptr, indptr, data):
     """Write every CSR entry once, in order, from the edge sums U and the node blocks Dg.
 
     The three rows of a node's blocks have the same length L (its block row), so entry (r, c)
     of block kk is at indptr[3 i] + r L + 3 kk + c; the source of a block is decided once
-    per block, not per entry (a third faster than branching in the inner loop)."""
+    per block, not per entry (a third faster than branching in the inner loop).
+    """
     n = blkptr.shape[0] - 1
     for i in range(n):
         p0 = indptr[3 * i]
@@ -166,8 +175,6 @@ def write_csr(U, Dg, src, blkptr, indptr, data):
                         data[p + r * L + c] = U[ge, c, r]
 
 
-
-
 # ------------------------------------------------------------------ the spectral tangent
 @njit(**_JIT)
 def divided_differences(lam, lp, p, theta):
@@ -177,7 +184,8 @@ def divided_differences(lam, lp, p, theta):
     rounding error is below 1e-13 relative there); closer ones use
     lam_l^(p-1) expm1(p log1p(x))/x, x = (lam_n - lam_l)/lam_l, which has no cancellation,
     as mjed.spectral.power_divided_differences does for every pair. Three transcendental
-    calls per close pair instead of per pair keeps the spectral tangent affordable."""
+    calls per close pair instead of per pair keeps the spectral tangent affordable.
+    """
     for n in range(3):
         theta[n, n] = p * lp[n] / lam[n]
         for l in range(n + 1, 3):

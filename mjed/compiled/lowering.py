@@ -28,15 +28,36 @@ import numpy as np
 
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import (IDENTITY, GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial,
-                        TermGroup, Unity)
+from mjed.terms import (
+    IDENTITY,
+    Exp,
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    Log,
+    LogPolynomial,
+    Power,
+    TermGroup,
+    Unity,
+)
 
-__all__ = ["J_KINDS", "G_KINDS", "SLOT_KINDS", "TermTable", "lower_groups"]
+__all__ = ["J_KINDS", "G_KINDS", "SLOT_KINDS", "GROUP_KINDS", "TermTable", "lower_groups"]
 
 #: Codes of the functions of J (the kernel branches on them).
 J_KINDS = {JPower: 0, LogPolynomial: 1, JLogJ: 2}
 #: Codes of the invariant functions.
-G_KINDS = {Unity: 0, I1Power: 1, LinearI2: 2, GreenLagrangeQuadratic: 3, FibreQuadratic: 4, EigenPowerSum: 5}
+G_KINDS = {
+    Unity: 0,
+    I1Power: 1,
+    LinearI2: 2,
+    GreenLagrangeQuadratic: 3,
+    FibreQuadratic: 4,
+    EigenPowerSum: 5,
+}
+#: Codes of the function of a group's sum (0: a plain group, no function).
+GROUP_KINDS = {Exp: 1, Log: 2, Power: 3}
 #: Codes of the tangent pair kinds.
 SLOT_KINDS = {"first": 0, "second": 1, "spectral": 2}
 
@@ -49,7 +70,9 @@ class TermTable:
 
     jkind (T,), jpar (T, 3); gkind (T,), gpar (T, 12), gmat (T, 1 or m, 3, 3) (frames);
     npair (T,), tslot (T, 3) slot of each tangent pair (-1 unused); group_start (G + 1,),
-    group_exp (G,) 1 for exponential groups, group_coef (G,); slot_kind (S,), slot_ident (S,)
+    group_kind (G,) 0 for a plain group, else the code of its function (:data:`GROUP_KINDS`),
+    group_coef (G, 3): the coefficient c, then the function's shift a and exponent p (ln(a + u),
+    (a + u)^p; zero when unused); slot_kind (S,), slot_ident (S,)
     1 when the slot's matrix is the identity, slot_M (S, 1 or m, 3, 3); need_eig: a term reads
     the eigen-decomposition of C.
     """
@@ -62,7 +85,7 @@ class TermTable:
     npair: np.ndarray
     tslot: np.ndarray
     group_start: np.ndarray
-    group_exp: np.ndarray
+    group_kind: np.ndarray
     group_coef: np.ndarray
     slot_kind: np.ndarray
     slot_ident: np.ndarray
@@ -105,15 +128,33 @@ def _glq(g: GreenLagrangeQuadratic):
 
 def _fibre(g: FibreQuadratic):
     # B (9 entries), then the signs of the split (one per tangent pair).
-    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(g.R, float)
+    return list(np.asarray(g.B, float).ravel()) + [float(s) for s in g.signs], np.asarray(
+        g.R, float
+    )
 
 
 def _eigen(g: EigenPowerSum):
     return [g.c, g.q, 0.0 if g.tangent_mode == "exact" else 1.0], None
 
 
-_G_PARAMS: Dict[type, Callable] = {Unity: _no_params, I1Power: _i1power, LinearI2: _lineari2,
-                                   GreenLagrangeQuadratic: _glq, FibreQuadratic: _fibre, EigenPowerSum: _eigen}
+def _group_row(group: TermGroup) -> Tuple[int, List[float]]:
+    """(kind code, [c, shift, p]) of a group."""
+    fn = group.function
+    if fn is None:
+        return 0, [float(group.coefficient), 0.0, 0.0]
+    kind = _kind_of(fn, GROUP_KINDS, "function of a group's sum")
+    shift = float(getattr(fn, "shift", 0.0))
+    return kind, [float(group.coefficient), shift, float(getattr(fn, "p", 0.0))]
+
+
+_G_PARAMS: Dict[type, Callable] = {
+    Unity: _no_params,
+    I1Power: _i1power,
+    LinearI2: _lineari2,
+    GreenLagrangeQuadratic: _glq,
+    FibreQuadratic: _fibre,
+    EigenPowerSum: _eigen,
+}
 
 
 def _kind_of(obj, table: Dict[type, object], what: str):
@@ -121,8 +162,9 @@ def _kind_of(obj, table: Dict[type, object], what: str):
         if cls in table:
             return table[cls]
     raise NotImplementedError(
-        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; "
-        f"it supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material.")
+        f"the compiled (numba) backend has no kernel for the {what} {type(obj).__name__}; it "
+        f"supports {', '.join(c.__name__ for c in table)}. Use backend='numpy' for this material."
+    )
 
 
 # ------------------------------------------------------------------ lowering
@@ -132,7 +174,7 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
     rows_j, rows_g, mats, tslots, npair = [], [], [], [], []
     slots: Dict[Tuple[str, object], int] = {}
     slot_list: List[Tuple[str, np.ndarray]] = []
-    group_start, group_exp, group_coef = [0], [], []
+    group_start, group_kind, group_coef = [0], [], []
     need_eig = False
     for group in groups:
         for term in group.terms:
@@ -146,8 +188,10 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
             mats.append(R)
             pairs = term.g.tangent
             if len(pairs) > MAX_PAIRS:
-                raise NotImplementedError(f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
-                                          f"kernel takes at most {MAX_PAIRS}")
+                raise NotImplementedError(
+                    f"{type(term.g).__name__} declares {len(pairs)} tangent pairs; the compiled "
+                    f"kernel takes at most {MAX_PAIRS}"
+                )
             row = [-1] * MAX_PAIRS
             for p, pair in enumerate(pairs):
                 key = _slot_key(pair)
@@ -158,8 +202,9 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
             tslots.append(row)
             npair.append(len(pairs))
         group_start.append(len(rows_j))
-        group_exp.append(1 if group.exponential else 0)
-        group_coef.append(float(group.coefficient))
+        kind, row = _group_row(group)
+        group_kind.append(kind)
+        group_coef.append(row)
 
     T = len(rows_j)
     jkind = np.array([k for k, _ in rows_j], dtype=np.int64)
@@ -176,10 +221,22 @@ def lower_groups(groups: Tuple[TermGroup, ...], D: np.ndarray) -> TermTable:
         if R is not None:
             gmat[t] = R
     slot_kind, slot_ident, slot_M = _slot_arrays(slot_list, m)
-    return TermTable(jkind, jpar, gkind, gpar, gmat, np.array(npair, dtype=np.int64),
-                     np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS), np.array(group_start, dtype=np.int64),
-                     np.array(group_exp, dtype=np.int64), np.array(group_coef, dtype=float),
-                     slot_kind, slot_ident, slot_M, bool(need_eig))
+    return TermTable(
+        jkind,
+        jpar,
+        gkind,
+        gpar,
+        gmat,
+        np.array(npair, dtype=np.int64),
+        np.array(tslots, dtype=np.int64).reshape(T, MAX_PAIRS),
+        np.array(group_start, dtype=np.int64),
+        np.array(group_kind, dtype=np.int64),
+        np.array(group_coef, dtype=float).reshape(-1, 3),
+        slot_kind,
+        slot_ident,
+        slot_M,
+        bool(need_eig),
+    )
 
 
 def _slot_key(pair) -> Tuple[str, object]:

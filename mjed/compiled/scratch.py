@@ -25,8 +25,9 @@ def _stack_doubles(typingctx, n0, n1):
     n = n0.literal_value * n1.literal_value
 
     def codegen(context, builder, signature, args):
-        return cgutils.alloca_once(builder, context.get_value_type(types.float64),
-                                   size=context.get_constant(types.intp, n))
+        return cgutils.alloca_once(
+            builder, context.get_value_type(types.float64), size=context.get_constant(types.intp, n)
+        )
 
     return types.CPointer(types.float64)(n0, n1), codegen
 

@@ -21,18 +21,32 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Tuple
 
-from mjed.compiled.lowering import G_KINDS, J_KINDS, SLOT_KINDS, TermTable
+from mjed.compiled.lowering import G_KINDS, GROUP_KINDS, J_KINDS, SLOT_KINDS, TermTable
 from mjed.fibre import FibreQuadratic
 from mjed.spectral import EigenPowerSum
-from mjed.terms import GreenLagrangeQuadratic, I1Power, JLogJ, JPower, LinearI2, LogPolynomial, Unity
+from mjed.terms import (
+    GreenLagrangeQuadratic,
+    I1Power,
+    JLogJ,
+    JPower,
+    LinearI2,
+    LogPolynomial,
+    Unity,
+)
 
 __all__ = ["TermShape", "KernelShape", "kernel_shape"]
 
 _J_NAMES = {J_KINDS[JPower]: "power", J_KINDS[LogPolynomial]: "logpoly", J_KINDS[JLogJ]: "jlogj"}
-_G_NAMES = {G_KINDS[Unity]: "unity", G_KINDS[I1Power]: "i1power", G_KINDS[LinearI2]: "linear_i2",
-            G_KINDS[GreenLagrangeQuadratic]: "green_lagrange", G_KINDS[FibreQuadratic]: "fibre",
-            G_KINDS[EigenPowerSum]: "eigen"}
+_G_NAMES = {
+    G_KINDS[Unity]: "unity",
+    G_KINDS[I1Power]: "i1power",
+    G_KINDS[LinearI2]: "linear_i2",
+    G_KINDS[GreenLagrangeQuadratic]: "green_lagrange",
+    G_KINDS[FibreQuadratic]: "fibre",
+    G_KINDS[EigenPowerSum]: "eigen",
+}
 _SLOT_NAMES = {code: name for name, code in SLOT_KINDS.items()}
+_GROUP_NAMES = {0: "plain", **{code: cls.__name__.lower() for cls, code in GROUP_KINDS.items()}}
 
 
 @dataclass(frozen=True)
@@ -40,7 +54,8 @@ class TermShape:
     """One term f(J) g(C): j in {"one", "power", "logpoly", "jlogj"}; g in {"unity",
     "i1power", "linear_i2", "green_lagrange", "fibre", "eigen"}; n the exponent of I1^n (0
     for other g); coaxial: the eigen tangent is SOFA's approximation; slots: the slot of each
-    tangent pair, in the order of the invariant function's declaration."""
+    tangent pair, in the order of the invariant function's declaration.
+    """
 
     j: str
     g: str
@@ -51,12 +66,14 @@ class TermShape:
 
 @dataclass(frozen=True)
 class KernelShape:
-    """terms; groups as (first term, end term, exponential); slots as (kind, identity),
+    """terms; groups as (first term, end term, function), function in {"plain", "exp", "log",
+    "power"} (its shift and exponent are numbers, not structure); slots as (kind, identity),
     kind in {"first", "second", "spectral"}; per_cell_M / per_cell_R: the slot matrices /
-    fibre frames are one per cell."""
+    fibre frames are one per cell.
+    """
 
     terms: Tuple[TermShape, ...]
-    groups: Tuple[Tuple[int, int, bool], ...]
+    groups: Tuple[Tuple[int, int, str], ...]
     slots: Tuple[Tuple[str, bool], ...]
     per_cell_M: bool
     per_cell_R: bool
@@ -78,12 +95,19 @@ def kernel_shape(table: TermTable) -> KernelShape:
         if g == "i1power":
             n = int(table.gpar[t, 1])
             if n != table.gpar[t, 1] or n < 1:
-                raise NotImplementedError(f"I1Power with exponent {table.gpar[t, 1]!r}: the compiled kernel needs an "
-                                          "integer n >= 1")
+                raise NotImplementedError(
+                    f"I1Power with exponent {table.gpar[t, 1]!r}: the compiled kernel needs an "
+                    "integer n >= 1"
+                )
         coaxial = g == "eigen" and table.gpar[t, 2] == 1.0
         slots = tuple(int(s) for s in table.tslot[t, : int(table.npair[t])])
         terms.append(TermShape(j, g, n, bool(coaxial), slots))
     starts = [int(s) for s in table.group_start]
-    groups = tuple((starts[i], starts[i + 1], bool(table.group_exp[i])) for i in range(len(starts) - 1))
+    groups = tuple(
+        (starts[i], starts[i + 1], _GROUP_NAMES[int(table.group_kind[i])])
+        for i in range(len(starts) - 1)
+    )
     slots = tuple((_SLOT_NAMES[int(k)], bool(i)) for k, i in zip(table.slot_kind, table.slot_ident))
-    return KernelShape(tuple(terms), groups, slots, table.slot_M.shape[1] > 1, table.gmat.shape[1] > 1)
+    return KernelShape(
+        tuple(terms), groups, slots, table.slot_M.shape[1] > 1, table.gmat.shape[1] > 1
+    )

@@ -50,7 +50,10 @@ def cache_directory() -> Path:
     candidates = [Path(env)] if env else []
     xdg = os.environ.get("XDG_CACHE_HOME")
     candidates.append((Path(xdg) if xdg else Path.home() / ".cache") / "mjed" / "kernels")
-    candidates.append(Path(tempfile.gettempdir()) / f"mjed-kernels-{os.getuid() if hasattr(os, 'getuid') else 'user'}")
+    candidates.append(
+        Path(tempfile.gettempdir())
+        / f"mjed-kernels-{os.getuid() if hasattr(os, 'getuid') else 'user'}"
+    )
     for path in candidates:
         try:
             path.mkdir(mode=0o700, parents=True, exist_ok=True)
@@ -58,8 +61,10 @@ def cache_directory() -> Path:
             continue
         if os.access(path, os.W_OK):
             return path
-    raise OSError(f"no writable directory for generated kernels (tried {', '.join(map(str, candidates))}); "
-                  "set MJED_KERNEL_CACHE")
+    raise OSError(
+        f"no writable directory for generated kernels (tried {', '.join(map(str, candidates))}); "
+        "set MJED_KERNEL_CACHE"
+    )
 
 
 def _digest(paths: Sequence[Path]) -> str:
@@ -99,7 +104,8 @@ def kernel_module(shape: KernelShape) -> ModuleType:
 
 def _write_if_changed(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` unless it already holds exactly that (its modification time,
-    which Numba's cache index checks, then stays the same)."""
+    which Numba's cache index checks, then stays the same).
+    """
     try:
         if path.read_text() == text:
             return

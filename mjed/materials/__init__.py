@@ -1,30 +1,32 @@
-"""Hyperelastic materials, each declared as its MJED terms.
+"""Hyperelastic materials, one file each, each declared once.
 
-Every material is a frozen dataclass of its parameters, validated on construction, with a
-``decomposition()`` method returning its term groups (see :mod:`mjed.terms`). The strain
-energies (zero at rest) are:
+A material's file holds its parameters (a frozen dataclass, validated on construction), its
+MJED terms (``decomposition()``, see :mod:`mjed.terms`), its formula, its default
+parameters, its energy written from the formula for the oracle and the form of its law for
+the classical element, all in one :class:`mjed.materials.declaration.Declaration`. Every
+registry of the suite (oracle, classical element, compiled kernels, command-line names,
+exchange format, SOFA names, the docs table) is read from :func:`declarations`. The energies
+(zero at rest) are listed in docs/conventions.md, "The materials".
 
-    StVenantKirchhoff   lam/2 (tr E)^2 + mu tr(E^2)
-    NeoHookean          mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2
-    MooneyRivlin        c1 (I1b - 3) + c2 (I2b - 3) + k0/2 (ln J)^2
-    VerondaWestmann     c1 (exp(c2 (I1b - 3)) - 1) - c1 c2/2 (I2b - 3) + k0/2 (ln J)^2
-    ArrudaBoyce         mu sum_i c_i N^(1-i) (I1b^i - 3^i) + k0/2 (ln J)^2
-    Costa               a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum B_ij (R^T E R)_ij^2
-    Ogden               mu/alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2
+Importing this package declares the built-in materials, in this order.
 """
 
-from mjed.materials.isotropic import (
-    ArrudaBoyce,
-    MooneyRivlin,
-    NeoHookean,
-    StVenantKirchhoff,
-    VerondaWestmann,
-    Ogden,
-    ARRUDA_BOYCE_COEFFICIENTS,
-)
-from mjed.materials.anisotropic import Costa
-from mjed.materials.sofa import from_sofa
+# isort: off
+# The import order is the declaration order: the order of the docs table, of --material all
+# and of every table a study prints. Keep it by hand (isort would sort it by file name).
 from mjed.materials.base import Material
+from mjed.materials.st_venant_kirchhoff import StVenantKirchhoff
+from mjed.materials.neo_hookean import NeoHookean
+from mjed.materials.mooney_rivlin import MooneyRivlin
+from mjed.materials.veronda_westmann import VerondaWestmann
+from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS, ArrudaBoyce
+from mjed.materials.costa import Costa
+from mjed.materials.ogden import Ogden
+from mjed.materials.yeoh import Yeoh
+from mjed.materials.gent import Gent
+from mjed.materials.declaration import Declaration, declaration_of, declarations
+from mjed.materials.sofa import from_sofa
+# isort: on
 
 __all__ = [
     "Material",
@@ -35,6 +37,11 @@ __all__ = [
     "ArrudaBoyce",
     "Costa",
     "Ogden",
+    "Yeoh",
+    "Gent",
+    "Declaration",
+    "declarations",
+    "declaration_of",
     "from_sofa",
     "ARRUDA_BOYCE_COEFFICIENTS",
 ]

@@ -1,39 +1,38 @@
 """Import of SOFA material declarations (materialName + ParameterSet).
 
 SOFA's hyperelastic force fields take a material name and a flat list of reals whose order
-depends on the material (SOFA_PARAMETER_ORDER below). Ogden's order changed in SOFA's December 2025
-rewrite: [mu, alpha, k0] since then ("sofa"), [k0, mu, alpha] in the MJED plugin and older
-SOFA ("mjed").
+depends on the material (:func:`sofa_parameter_order`, from the declarations). Ogden's order
+changed in SOFA's December 2025 rewrite: [mu, alpha, k0] since then ("sofa"), [k0, mu, alpha]
+in the MJED plugin and older SOFA ("mjed").
 """
 
 from __future__ import annotations
 
 from typing import Callable, Dict, Sequence, Tuple, Union
 
-from mjed.materials.anisotropic import Costa
 from mjed.materials.base import Material
-from mjed.materials.isotropic import ArrudaBoyce, MooneyRivlin, NeoHookean, Ogden, StVenantKirchhoff, VerondaWestmann
+from mjed.materials.declaration import declarations
+from mjed.materials.ogden import Ogden
 
-__all__ = ["from_sofa", "SOFA_PARAMETER_ORDER"]
+__all__ = ["from_sofa", "sofa_parameter_order"]
 
-_COSTA = ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
 
-#: SOFA material name -> (class, parameter names in ParameterSet order).
-SOFA_PARAMETER_ORDER: Dict[str, Tuple[Callable[..., Material], Tuple[str, ...]]] = {
-    "StVenantKirchhoff": (StVenantKirchhoff, ("mu", "lam")),
-    "NeoHookean": (NeoHookean, ("mu", "lam")),
-    "MooneyRivlin": (MooneyRivlin, ("c1", "c2", "k0")),
-    "VerondaWestman": (VerondaWestmann, ("c1", "c2", "k0")),
-    "ArrudaBoyce": (ArrudaBoyce, ("mu", "k0")),
-    "Costa": (Costa, _COSTA),
-    "Ogden": (Ogden, ("mu", "alpha", "k0")),
-}
+def sofa_parameter_order() -> Dict[str, Tuple[Callable[..., Material], Tuple[str, ...]]]:
+    """SOFA material name -> (class, parameter names in ParameterSet order), read from the
+    declarations when asked (so it holds every material declared by then, whatever the order
+    in which their files were imported).
+    """
+    return {d.sofa[0]: (d.material, d.sofa[1]) for d in declarations() if d.sofa is not None}
+
+
 _OGDEN_MJED_ORDER = ("k0", "mu", "alpha")
 #: Other spellings accepted for a SOFA name.
 _SOFA_ALIASES = {"VerondaWestmann": "VerondaWestman"}
 
 
-def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order: str = "sofa") -> Material:
+def from_sofa(
+    name: str, parameter_set: Union[str, Sequence[float]], ogden_order: str = "sofa"
+) -> Material:
     """The material a SOFA scene declares.
 
     Args:
@@ -48,11 +47,12 @@ def from_sofa(name: str, parameter_set: Union[str, Sequence[float]], ogden_order
             parameters), non-numeric values, or parameters the material refuses.
     """
     key = _SOFA_ALIASES.get(name, name)
-    if key not in SOFA_PARAMETER_ORDER:
-        raise ValueError(f"unknown SOFA material {name!r}; supported: {', '.join(SOFA_PARAMETER_ORDER)}")
+    order_table = sofa_parameter_order()
+    if key not in order_table:
+        raise ValueError(f"unknown SOFA material {name!r}; supported: {', '.join(order_table)}")
     if ogden_order not in ("sofa", "mjed"):
         raise ValueError(f"ogden_order must be 'sofa' or 'mjed', got {ogden_order!r}")
-    cls, order = SOFA_PARAMETER_ORDER[key]
+    cls, order = order_table[key]
     if cls is Ogden and ogden_order == "mjed":
         order = _OGDEN_MJED_ORDER
     values = _parse(parameter_set, key)
@@ -70,4 +70,6 @@ def _parse(parameter_set, name: str) -> Tuple[float, ...]:
     try:
         return tuple(float(v) for v in items)
     except (TypeError, ValueError):
-        raise ValueError(f"SOFA {name}: ParameterSet must hold numbers, got {parameter_set!r}") from None
+        raise ValueError(
+            f"SOFA {name}: ParameterSet must hold numbers, got {parameter_set!r}"
+        ) from None

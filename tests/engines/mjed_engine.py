@@ -1,5 +1,5 @@
 """A command-line engine for the conformance tests: reads a case input directory, writes the output
-with MJED, optionally with one mistake (--mistake force-sign|crash|hang|nan|short).
+with MJED, optionally with one mistake (--mistake force-sign|crash|hang|nan|short|ignore-frame).
 
     python tests/engines/mjed_engine.py INPUT OUTPUT [--mistake NAME]
 """
@@ -28,7 +28,12 @@ def main() -> int:
         return 139
     if a.mistake == "hang":
         time.sleep(600)
-    field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+    model = case.model
+    if a.mistake == "ignore-frame":  # never reads frame.f64: global x, y, z as fibre, sheet, normal
+        import dataclasses
+
+        model = dataclasses.replace(model, frame=None)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), model)
     f, K = field.force_and_stiffness(case.positions)
     W = field.energy(case.positions)
     if a.mistake == "force-sign":
