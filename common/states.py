@@ -6,14 +6,21 @@ are taken about the mesh's centroid so that they do not depend on where the mesh
 
 from __future__ import annotations
 
-from typing import Callable, Dict, Tuple
+from typing import Callable, Dict, Optional, Tuple
 
 import numpy as np
 
 from common.frames import mid_wall_frame
 from meshes import signed_volumes
 
-__all__ = ["STATES", "state_names", "apply_state", "smooth_random", "min_volume_ratio"]
+__all__ = [
+    "STATES",
+    "state_names",
+    "apply_state",
+    "smooth_random",
+    "min_volume_ratio",
+    "max_stretch",
+]
 
 
 def _affine(A: np.ndarray) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -29,13 +36,29 @@ def min_volume_ratio(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
     return float((signed_volumes(x, cells) / signed_volumes(X, cells)).min())
 
 
+def max_stretch(X: np.ndarray, x: np.ndarray, cells: np.ndarray) -> float:
+    """Largest principal stretch (singular value of F) over the cells; X, x (n, 3), cells (m, 4)."""
+    from mjed.mesh import shape_vectors
+
+    _, D = shape_vectors(X, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    return float(np.linalg.svd(F, compute_uv=False)[:, 0].max())
+
+
 def smooth_random(
-    X: np.ndarray, cells: np.ndarray, *, seed: int = 0, min_J: float = 0.2
+    X: np.ndarray,
+    cells: np.ndarray,
+    *,
+    seed: int = 0,
+    min_J: float = 0.2,
+    stretch_limit: Optional[float] = None,
 ) -> np.ndarray:
     """A seeded smooth random deformation: a rotation of X plus a sum of sine modes.
 
     The amplitude starts at 15 % of the mesh size and is halved until every cell keeps
-    J > min_J, so the state is always admissible and reproducible for a given seed.
+    J > min_J (and, with ``stretch_limit``, no principal stretch above it: on a cap or a
+    sliver a smooth field strains the thin cell far more than the mesh), so the state is always
+    admissible and reproducible for a given seed.
     """
     rng = np.random.default_rng(seed)
     c = X.mean(axis=0)
@@ -51,7 +74,8 @@ def smooth_random(
     scale = 0.15
     for _ in range(30):
         x = c + (X - c + scale * size * u) @ R.T
-        if min_volume_ratio(X, x, cells) > min_J:
+        stretched_ok = stretch_limit is None or max_stretch(X, x, cells) <= stretch_limit
+        if min_volume_ratio(X, x, cells) > min_J and stretched_ok:
             return x
         scale *= 0.5
     raise RuntimeError(

@@ -26,8 +26,8 @@ from typing import Any, Callable, List, Optional, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.compare import ENERGY_TOL, FORCE_TOL, STIFFNESS_TOL, Errors, Scales, errors
-from conformance.consistency import ENERGY_PROBE_TOL, PROBE_TOL, Consistency
+from conformance.compare import DOUBLE, Errors, Scales, Tolerances, errors
+from conformance.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.hypotheses import common_factor_name, convention_corrections, scale_corrections
 
@@ -48,6 +48,7 @@ class Diagnosis:
     findings: Sequence[Finding]
     node_error: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     consistency: Optional[Consistency] = None
+    tolerances: Tolerances = DOUBLE
 
     @property
     def passed(self) -> bool:
@@ -60,9 +61,11 @@ class Diagnosis:
     def text(self) -> str:
         e = self.errors
         energy = "not given" if e.energy is None else f"{e.energy:.2e}"
+        at = " at single precision" if self.tolerances.precision == "single" else ""
         lines = [
-            f"case {self.case_id}: {self.verdict.upper()} (relative errors: force {e.force:.2e}, "
-            f"stiffness {e.stiffness:.2e}, energy {energy}; tolerance {FORCE_TOL:g})"
+            f"case {self.case_id}: {self.verdict.upper()}{at} (relative errors: "
+            f"force {e.force:.2e}, "
+            f"stiffness {e.stiffness:.2e}, energy {energy}; {self.tolerances.text()})"
         ]
         lines += [f"  - {f.text()}" for f in self.findings]
         return "\n".join(lines)
@@ -74,6 +77,7 @@ class Diagnosis:
             "errors": self.errors.to_dict(),
             "findings": [f.to_dict() for f in self.findings],
             "consistency": None if self.consistency is None else self.consistency.to_dict(),
+            "tolerances": self.tolerances.to_dict(),
         }
 
 
@@ -83,15 +87,16 @@ def node_error_field(
     """(n,) per-node error: sqrt(|f_a - f_o,a|^2 / s_f^2 + ||rows of node a of K - K_o||^2 /
     s_K^2).
     """
-    df2 = np.sum((f - f_o) ** 2, axis=1) / s.force**2 if s.force > 0 else np.zeros(len(f))
-    D = sp.csr_matrix(K - K_o)
-    row2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
-    dk2 = row2 / s.stiffness**2 if s.stiffness > 0 else row2
+    # Divided before squaring: forces of 1e160 (an exponential energy on a sliver) stay finite.
+    df = (f - f_o) / s.force if s.force > 0 else f - f_o
+    df2 = np.sum(df**2, axis=1)
+    D = sp.csr_matrix(K - K_o) / (s.stiffness if s.stiffness > 0 else 1.0)
+    dk2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
     return np.sqrt(df2 + dk2)
 
 
-def _within(e: Errors) -> bool:
-    return e.force <= FORCE_TOL and e.stiffness <= STIFFNESS_TOL
+def _within(e: Errors, tol: Tolerances) -> bool:
+    return tol.within(e, energy=False)
 
 
 def _evidence(e: Errors) -> str:
@@ -113,6 +118,7 @@ def diagnose(
     x: np.ndarray,
     parts: Optional[Callable[[], Any]] = None,
     consistency: Optional[Consistency] = None,
+    tol: Tolerances = DOUBLE,
     frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
 ) -> Diagnosis:
     """Diagnose one case.
@@ -123,6 +129,7 @@ def diagnose(
         points, cells, x: the mesh and the current positions.
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
+        tol: the tolerances the case is held to (double precision by default).
         frame_variants: a callable returning the oracle with mistaken frames
             (:class:`conformance.frame_hypotheses.FrameVariant`; built only if needed).
     """
@@ -133,13 +140,14 @@ def diagnose(
     findings: List[Finding] = []
     if consistency is not None:
         findings += _consistency_findings(consistency)
-    inconsistent = any(x_.code.startswith("inconsistent") for x_ in findings)
-    if err.passed and not inconsistent:
-        return Diagnosis(case_id, "passed", err, findings, field_, consistency)
-    if _within(
-        err
-    ):  # force and stiffness right: only the energy (or the engine's consistency) is off
-        if err.energy is not None and err.energy > ENERGY_TOL:
+    inconsistent = any(
+        x_.code.startswith("inconsistent") or x_.code == "consistency-not-measured"
+        for x_ in findings
+    )
+    if tol.within(err) and not inconsistent:
+        return Diagnosis(case_id, "passed", err, findings, field_, consistency, tol)
+    if _within(err, tol):  # force and stiffness right: only the energy (or the consistency) is off
+        if err.energy is not None and err.energy > tol.energy:
             findings.insert(0, _energy_finding(W, W_o, err, _rest_volumes(points, cells).sum()))
         if inconsistent and consistency is not None and consistency.stiffness_consistent is False:
             findings.insert(
@@ -155,10 +163,10 @@ def diagnose(
                     {},
                 ),
             )
-        return Diagnosis(case_id, "failed", err, findings, field_, consistency)
+        return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
     causes, partial = _explain(
-        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants
+        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol, frame_variants
     )
     if causes:
         findings = causes + findings
@@ -174,14 +182,15 @@ def diagnose(
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + (
                 "; the force is right and the stiffness is not the derivative of the engine's own "
-                "force (below): the mistake is in the tangent alone"
-                if inconsistent and err.force <= FORCE_TOL
+                "force (below): "
+                "the mistake is in the tangent alone"
+                if inconsistent and err.force <= tol.force
                 else ""
             ),
             {"force": err.force, "stiffness": err.stiffness},
         )
         findings = [unexplained] + findings
-    return Diagnosis(case_id, "failed", err, findings, field_, consistency)
+    return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
 
 def _rest_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -214,46 +223,130 @@ def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
 
 
 def _consistency_findings(c: Consistency) -> List[Finding]:
+    """What the probes show, each figure with the limit it was held to on this case."""
     out = []
+    if c.non_finite:
+        out.append(
+            Finding(
+                "consistency-not-measured",
+                "the engine's self-consistency could not be measured",
+                OBSERVED,
+                c.note + "; the case cannot pass on figures that are not finite",
+                {},
+            )
+        )
     if c.force_stiffness is not None:
-        rates = ", ".join(f"{r:.2f}" for r in c.rates_force)
-        if c.force_stiffness > PROBE_TOL:
+        rates = ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_force)
+        if c.stiffness_excess is not None:
+            calib = (
+                f"the oracle's exact tangent leaves {c.stiffness_floor:.1e} on the same probes, so "
+                "the part "
+                f"not explained by the fit is {c.stiffness_excess:.1e} (limit "
+                f"{c.stiffness_limit:.1e} = "
+                f"max({PROBE_TOL:g}, {FLOOR_FACTOR:g} x that floor))"
+            )
+        else:
+            calib = f"not calibrated by the oracle (limit {c.stiffness_limit:.1e})"
+        figures = {
+            "inconsistency": c.force_stiffness,
+            "floor": c.stiffness_floor,
+            "excess": c.stiffness_excess,
+            "limit": c.stiffness_limit,
+        }
+        if c.stiffness_consistent is False:
             out.append(
                 Finding(
                     "inconsistent-stiffness",
                     "stiffness is not the derivative of the engine's own force",
                     OBSERVED,
                     f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
-                    f"direction (limit {PROBE_TOL:g}); Taylor rates {rates} (2 when consistent)",
-                    {"inconsistency": c.force_stiffness, "rates": list(c.rates_force)},
+                    f"direction; {calib}; Taylor rates {rates} (2 when consistent)",
+                    {**figures, "rates": [_finite_or_none(r) for r in c.rates_force]},
                 )
             )
-        else:
+        elif c.stiffness_limit > RESOLUTION:
+            out.append(
+                Finding(
+                    "consistency-unresolved",
+                    "the probes do not resolve the tangent on this case",
+                    OBSERVED,
+                    f"round-off and the fit leave {c.stiffness_floor:.1e} of K d over the "
+                    f"probes' step (limit {c.stiffness_limit:.1e} would be above {RESOLUTION:g}): "
+                    "no "
+                    "verdict on the engine's own consistency",
+                    figures,
+                )
+            )
+        elif c.stiffness_consistent is True:
             out.append(
                 Finding(
                     "consistent-stiffness",
                     "stiffness is the derivative of the engine's own force",
                     OBSERVED,
-                    f"relative inconsistency {c.force_stiffness:.1e} (limit {PROBE_TOL:g}); Taylor "
-                    f"rates {rates}",
-                    {"inconsistency": c.force_stiffness},
+                    f"relative inconsistency {c.force_stiffness:.1e}; {calib}; Taylor rates "
+                    f"{rates}",
+                    figures,
                 )
             )
-    if c.energy_force is not None and c.energy_force > ENERGY_PROBE_TOL:
+    if c.energy_force is not None and c.force_consistent is None:
+        out.append(
+            Finding(
+                "energy-consistency-unresolved",
+                "the probes do not resolve the force against the energy",
+                OBSERVED,
+                f"round-off of the energies leaves {c.energy_floor or 0.0:.1e} of the energy "
+                "change "
+                f"over the probes' step (limit {c.energy_limit:.1e}): no verdict on whether the "
+                "force is minus the derivative of the engine's energy",
+                {"floor": c.energy_floor, "limit": c.energy_limit},
+            )
+        )
+    if c.force_consistent is False:
+        calib = (
+            ""
+            if c.energy_excess is None
+            else f"; beyond the oracle's {c.energy_floor:.1e} on the same probes: "
+            f"{c.energy_excess:.1e}"
+        )
         out.append(
             Finding(
                 "inconsistent-force",
                 "force is not minus the derivative of the engine's own energy",
                 OBSERVED,
-                f"relative inconsistency {c.energy_force:.1e} (limit {ENERGY_PROBE_TOL:g}); Taylor "
-                "rates " + ", ".join(f"{r:.2f}" for r in c.rates_energy),
-                {"inconsistency": c.energy_force},
+                f"relative inconsistency {c.energy_force:.1e}{calib} (limit "
+                f"{c.energy_limit:.1e}); Taylor rates "
+                + ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_energy),
+                {
+                    "inconsistency": c.energy_force,
+                    "excess": c.energy_excess,
+                    "limit": c.energy_limit,
+                },
             )
         )
     return out
 
 
-def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, frame_variants=None):
+def _finite_or_none(v: float) -> Optional[float]:
+    return float(v) if np.isfinite(v) else None
+
+
+def _explain(
+    f,
+    K,
+    W,
+    f_o,
+    K_o,
+    W_o,
+    s,
+    err,
+    points,
+    cells,
+    x,
+    parts,
+    field_,
+    tol: Tolerances,
+    frame_variants=None,
+):
     """(causes that fully explain, partial explanations)."""
     full: List[Finding] = []
     partial: List[Finding] = []
@@ -273,7 +366,7 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, fr
             **(figures or {}),
         }
         text = _evidence(corrected_errors) + (f"; {extra}" if extra else "")
-        if _within(corrected_errors):
+        if _within(corrected_errors, tol):
             full.append(Finding(code, title, FULL, text, figs))
         elif figs["residual"] < 0.1 * worst:
             partial.append(
@@ -333,12 +426,12 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, fr
 
     # A localised error cannot be a global convention or a part of the tangent everywhere: test it
     # first (it is cheap; the fits below are not on large meshes).
-    _locality_findings(f, K, f_o, K_o, s, cells, field_, full, partial)
+    _locality_findings(f, K, f_o, K_o, s, cells, field_, tol, full, partial)
     if full:
         return full, partial
 
-    if parts is not None and err.force <= FORCE_TOL:
-        _tangent_findings(K, K_o, parts(), err, full, partial)
+    if parts is not None and err.force <= tol.force:
+        _tangent_findings(K, K_o, parts(), err, tol, full, partial)
         if full:
             return full, partial
 
@@ -346,7 +439,7 @@ def _explain(f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, fr
         p = parts()
         if p["geometric_volumetric"] is not None:
             _volumetric_findings(
-                points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, full, partial
+                points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, tol, full, partial
             )
             if full:
                 return full, partial
@@ -366,12 +459,12 @@ def _frame_findings(
         judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
 
 
-def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
+def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
     from conformance.tangent import candidate_parts, describe_coefficient, fit_parts
 
     D = (K - K_o).tocsr()
     cands = candidate_parts(parts, K_o)
-    ok, best = fit_parts(D, K_o, cands, STIFFNESS_TOL)
+    ok, best = fit_parts(D, K_o, cands, tol.stiffness)
     fit = ok or best
     if fit is None:
         return
@@ -396,7 +489,9 @@ def _tangent_findings(K, K_o, parts, err: Errors, full, partial) -> None:
         )
 
 
-def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full, partial) -> None:
+def _volumetric_findings(
+    points, cells, x, df, D, s: Scales, worst: float, tol: Tolerances, full, partial
+) -> None:
     from conformance.tangent import fit_volumetric
 
     fit = fit_volumetric(points, cells, x, df, D, s.force, s.stiffness)
@@ -423,18 +518,21 @@ def _volumetric_findings(points, cells, x, df, D, s: Scales, worst: float, full,
         text += (
             "; the state has a single J, so the form of U cannot be identified from this case alone"
         )
+    force_ok = np.linalg.norm(df) / s.force <= tol.force
     title = (
         "volumetric (J-only) tangent differs (the force matches)"
-        if np.linalg.norm(df) / s.force <= FORCE_TOL
+        if force_ok
         else "volumetric (J-only) energy differs from the oracle's"
     )
-    if fit.force_residual <= FORCE_TOL and fit.stiffness_residual <= STIFFNESS_TOL:
+    if fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness:
         full.append(Finding("volumetric", title, FULL, text, figs))
     elif figs["residual"] < 0.1 * worst:
         partial.append(Finding("volumetric", title, PARTIAL, text, figs))
 
 
-def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) -> None:
+def _locality_findings(
+    f, K, f_o, K_o, s: Scales, cells, field_, tol: Tolerances, full, partial
+) -> None:
     n = field_.size
     total = float(np.sum(field_**2))
     if total == 0:
@@ -471,7 +569,7 @@ def _locality_findings(f, K, f_o, K_o, s: Scales, cells, field_, full, partial) 
         f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, "
         f"stiffness error {kout:.1e}; see the per-node error field"
     )
-    if fout <= FORCE_TOL and kout <= STIFFNESS_TOL:
+    if fout <= tol.force and kout <= tol.stiffness:
         full.append(
             Finding(
                 "localised",

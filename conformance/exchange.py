@@ -18,6 +18,12 @@ little-endian, dof = 3 * node + component):
   are summed); CSR ``stiffness_indptr.i64`` (3n + 1), ``stiffness_indices.i64``,
   ``stiffness_values.f64``; or dense ``stiffness.f64`` (9 n^2 values, row-major);
 - ``energy.f64``: 1 value, the total strain energy (optional).
+
+An engine that computes in single precision may write its values as little-endian float32
+instead, in files ending ``.f32`` (``force.f32``, ``stiffness_values.f32`` or ``stiffness.f32``,
+``energy.f32``); the output is then marked single precision and judged as such
+(:mod:`conformance.precision`). Arrays written in the wrong byte order, or float32 values in a
+``.f64`` file, are refused with the likely cause named.
 """
 
 from __future__ import annotations
@@ -91,6 +97,7 @@ class EngineOutput:
     force: np.ndarray
     stiffness: sp.csr_matrix
     energy: Optional[float] = None
+    precision: str = "double"  # "single" when the engine wrote float32 (.f32) values
 
 
 def sha256_of(path: str) -> str:
@@ -353,8 +360,13 @@ def write_output(
     energy: Optional[float] = None,
     *,
     layout: str = "coo",
+    precision: str = "double",
 ) -> None:
-    """Write an engine's result in the format (for Python engines and the tests)."""
+    """Write an engine's result in the format (for Python engines and the tests); precision
+    "single" writes the floating-point arrays as float32 ``.f32`` files.
+    """
+    if precision not in ("double", "single"):
+        raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     os.makedirs(folder, exist_ok=True)
     write_array(folder, "force.f64", np.asarray(force).reshape(-1), "<f8")
     if layout == "dense":
@@ -384,6 +396,12 @@ def write_output(
         raise ValueError(f"unknown stiffness layout {layout!r}; use coo, csr or dense")
     if energy is not None:
         write_array(folder, "energy.f64", np.array([float(energy)]), "<f8")
+    if precision == "single":  # the same arrays rounded to float32, under their .f32 names
+        for name in sorted(os.listdir(folder)):
+            if name.endswith(".f64"):
+                path = os.path.join(folder, name)
+                np.fromfile(path, dtype="<f8").astype("<f4").tofile(path[:-4] + ".f32")
+                os.remove(path)
 
 
 def read_output(
@@ -415,30 +433,38 @@ def read_output(
     if not os.path.isdir(folder):
         raise FormatError(f"{where}: {folder}: output directory missing (the engine wrote nothing)")
     N = 3 * n_nodes
-    f64, i64 = np.dtype("<f8"), np.dtype("<i8")
-    fpath = os.path.join(folder, "force.f64")
+    precision = output_precision(folder)
+    f64, i64 = np.dtype("<f8" if precision == "double" else "<f4"), np.dtype("<i8")
+    fsize = f64.itemsize
+    force_name = _value_file("force.f64", precision)
+    fpath = os.path.join(folder, force_name)
     # the limit leaves room for a wrong node count, which the message below names
     raw = _read_file(
         folder,
-        "force.f64",
+        force_name,
         where,
-        limit=16 * N + 4096,
-        missing=f" (force, 3n = {N} float64 values)",
+        limit=2 * fsize * N + 4096,
+        missing=f" (force, 3n = {N} {f64.name} values)",
     )
-    n_force = _values(raw, 8, fpath, case)
+    n_force = _values(raw, fsize, fpath, case)
     if n_force != N:
         hint = f" ({n_force // 3} nodes)" if n_force % 3 == 0 else ""
+        if 2 * n_force == N and precision == "double":
+            hint += (
+                "; that is exactly 3n float32 values: a single-precision engine writes force.f32"
+            )
         raise FormatError(
             f"{where}: {fpath}: {n_force} values{hint}, expected 3n = {N} for {n_nodes} nodes"
         )
     force = np.frombuffer(raw, dtype=f64).reshape(n_nodes, 3)
     _require_finite(force, fpath, case)
+    force = force.astype(np.float64)
 
     # lexists: a link or special file in place of a stiffness is named for what it is
     present = [
         k
         for k, files in _STIFFNESS_LAYOUTS.items()
-        if os.path.lexists(os.path.join(folder, files[0]))
+        if os.path.lexists(os.path.join(folder, _value_file(files[0], precision)))
     ]
     if not present:
         raise FormatError(
@@ -453,7 +479,7 @@ def read_output(
             f"({', '.join(present)}); write one"
         )
     layout = present[0]
-    names = _STIFFNESS_LAYOUTS[layout]
+    names = [_value_file(f, precision) for f in _STIFFNESS_LAYOUTS[layout]]
     paths = [os.path.join(folder, f) for f in names]
     need = f" ({layout} stiffness needs {', '.join(names)})"
     if layout == "dense":
@@ -462,8 +488,8 @@ def read_output(
                 f"{where}: {paths[0]}: a dense stiffness of {N} dofs is too large "
                 f"to read (at most {MAX_DENSE_DOFS}); write it as COO or CSR"
             )
-        raw = _read_file(folder, names[0], where, limit=16 * N * N + 4096, missing=need)
-        count = _values(raw, 8, paths[0], case)
+        raw = _read_file(folder, names[0], where, limit=2 * fsize * N * N + 4096, missing=need)
+        count = _values(raw, fsize, paths[0], case)
         if count != N * N:
             raise FormatError(
                 f"{where}: {paths[0]}: {count} values, expected (3n)^2 = {N * N} "
@@ -471,17 +497,18 @@ def read_output(
             )
         dense = np.frombuffer(raw, dtype=f64).reshape(N, N)
         _require_finite(dense, paths[0], case)
-        K = sp.csr_matrix(dense)
+        K = sp.csr_matrix(dense.astype(np.float64))
     else:
         max_nnz = N * N if n_cells is None else min(4 * N * N, ENTRIES_PER_CELL * max(n_cells, 1))
-        limits = (8 * (N + 1) if layout == "csr" else 8 * max_nnz, 8 * max_nnz, 8 * max_nnz)
+        limits = (8 * (N + 1) if layout == "csr" else 8 * max_nnz, 8 * max_nnz, fsize * max_nnz)
         arrays = []
         for name, path, limit, dt in zip(names, paths, limits, (i64, i64, f64)):
             raw = _sparse_file(folder, name, where, limit, max_nnz, layout, need)
-            _values(raw, 8, path, case)
+            _values(raw, dt.itemsize, path, case)
             arrays.append(np.frombuffer(raw, dtype=dt))
         a, b, vals = arrays
         _require_finite(vals, paths[2], case)
+        vals = vals.astype(np.float64)
         if layout == "coo":
             if not (a.size == b.size == vals.size):
                 raise FormatError(
@@ -507,14 +534,16 @@ def read_output(
             K = sp.csr_matrix((vals, b, a), shape=(N, N))
             K.sum_duplicates()
     energy = None
-    epath = os.path.join(folder, "energy.f64")
+    energy_name = _value_file("energy.f64", precision)
+    epath = os.path.join(folder, energy_name)
     if os.path.lexists(epath):
-        raw = _read_file(folder, "energy.f64", where, limit=64)
-        if _values(raw, 8, epath, case) != 1:
-            raise FormatError(f"{where}: {epath}: expected exactly one float64 value")
-        energy = float(np.frombuffer(raw, dtype=f64)[0])
-        _require_finite(np.array([energy]), epath, case)
-    return EngineOutput(force, sp.csr_matrix(K), energy)
+        raw = _read_file(folder, energy_name, where, limit=64)
+        if _values(raw, fsize, epath, case) != 1:
+            raise FormatError(f"{where}: {epath}: expected exactly one {f64.name} value")
+        e = np.frombuffer(raw, dtype=f64)
+        _require_finite(e, epath, case)
+        energy = float(e[0])
+    return EngineOutput(force, sp.csr_matrix(K), energy, precision)
 
 
 def _sparse_file(
@@ -541,6 +570,9 @@ def _values(raw, itemsize: int, path: str, case: str) -> int:
 
 
 def _require_finite(a: np.ndarray, path: str, case: str) -> None:
+    swapped = byte_order_problem(a, path)
+    if swapped:
+        raise FormatError(f"case {case}: {swapped}")
     bad = ~np.isfinite(a)
     if bad.any():
         first = int(np.flatnonzero(bad.ravel())[0])
@@ -552,7 +584,59 @@ def _require_finite(a: np.ndarray, path: str, case: str) -> None:
 
 def _require_indices(idx: np.ndarray, N: int, path: str, case: str) -> None:
     if idx.size and (idx.min() < 0 or idx.max() >= N):
+        swapped = idx.byteswap()
+        if swapped.min() >= 0 and swapped.max() < N:
+            raise FormatError(
+                f"case {case}: {path}: indices out of range as little-endian int64 but all in "
+                f"[0, {N}) with their bytes reversed: written big-endian (the format is "
+                "little-endian '<i8'; e.g. a big-endian machine, Java's DataOutputStream or "
+                "NumPy '>i8')"
+            )
         raise FormatError(
             f"case {case}: {path}: indices must lie in [0, {N}) (0-based dofs 3*node+component), "
             f"found {int(idx.min())}..{int(idx.max())}"
         )
+
+
+def output_precision(folder: str) -> str:
+    """The output's precision: "single" when the engine wrote its force as float32 (``force.f32``),
+    else "double".
+    """
+    return (
+        "single"
+        if os.path.lexists(os.path.join(folder, "force.f32"))
+        and not os.path.lexists(os.path.join(folder, "force.f64"))
+        else "double"
+    )
+
+
+def _value_file(name: str, precision: str) -> str:
+    """The file of a floating-point array at the output's precision (index files keep .i64)."""
+    return name[:-4] + ".f32" if precision == "single" and name.endswith(".f64") else name
+
+
+def _plausible(a: np.ndarray) -> float:
+    """Fraction of the non-zero values that are finite and within 1e-100..1e100 in magnitude."""
+    nz = a[a != 0]
+    if nz.size == 0:
+        return 1.0
+    with np.errstate(all="ignore"):
+        m = np.abs(nz)
+        return float(np.mean(np.isfinite(m) & (m > 1e-100) & (m < 1e100)))
+
+
+def byte_order_problem(a: np.ndarray, path: str) -> str:
+    """Words naming a byte-order mistake when ``a`` (read little-endian) looks like big-endian
+    floats: implausible as read (NaN, inf, 1e-300 or 1e300 magnitudes), plausible with its bytes
+    reversed. "" otherwise. a: any float array as read from ``path``.
+    """
+    if a.size == 0 or _plausible(a) > 0.9:
+        return ""
+    if _plausible(a.byteswap()) < 0.999:
+        return ""
+    return (
+        f"{path}: the values are implausible as little-endian {a.dtype.name} (NaN, inf or "
+        "magnitudes beyond 1e+-100) and plausible with their bytes reversed: written big-endian "
+        "(the format is little-endian; e.g. a big-endian machine, Java's DataOutputStream, "
+        "MATLAB fwrite with 'b', or NumPy '>f8')"
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Dict
 
@@ -33,10 +34,24 @@ class Finding:
         return f"{self.title} [{self.strength}]: {self.evidence}"
 
     def to_dict(self) -> dict:
+        """Strict JSON: non-finite figures become null, listed under ``not_finite``."""
+        figures = {k: _finite(v) for k, v in self.figures.items()}
+        bad = [k for k, v in self.figures.items() if _finite(v) is None and v is not None]
+        if bad:
+            figures["not_finite"] = bad
         return {
             "code": self.code,
             "title": self.title,
             "strength": self.strength,
             "evidence": self.evidence,
-            "figures": dict(self.figures),
+            "figures": figures,
         }
+
+
+def _finite(v: Any) -> Any:
+    """A float that is NaN or infinite -> None; lists element-wise; anything else unchanged."""
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    return v

@@ -179,6 +179,19 @@ def convention_corrections(
             "K is not symmetric: its symmetric part is right",
             lambda f, K, W: (f, (0.5 * (K + K.T)).tocsr(), W),
         ),
+        Correction(
+            "one-triangle",
+            "only one triangle of the symmetric K written (upper or lower "
+            "storage read as a full matrix)",
+            lambda f, K, W: (f, _full_from_triangle(K), W),
+        ),
+        Correction(
+            "both-triangles",
+            "both triangles summed: every off-diagonal entry counted "
+            "twice "
+            "(a full K added to its transpose, the diagonal once)",
+            lambda f, K, W: (f, (0.5 * (K + sp.diags(K.diagonal()))).tocsr(), W),
+        ),
     ]
     for k in (1, -1, 2, -2):
         q = (np.arange(n) + k) % n
@@ -201,6 +214,16 @@ def convention_corrections(
             )
         )
     return out
+
+
+def _full_from_triangle(K: sp.csr_matrix) -> sp.csr_matrix:
+    """K + K^T - diag K when one strict triangle of K is empty, else K unchanged (then the
+    correction explains nothing and is not named). K: (3n, 3n).
+    """
+    K = sp.csr_matrix(K)
+    if sp.tril(K, -1).count_nonzero() and sp.triu(K, 1).count_nonzero():
+        return K
+    return (K + K.T - sp.diags(K.diagonal())).tocsr()
 
 
 def scale_corrections(f_o, K_o, f_e, K_e, W_o, W_e) -> List[Tuple[str, str, float, Output]]:

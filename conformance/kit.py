@@ -8,7 +8,8 @@ Layout of a kit directory (docs/conventions.md, "Exchange format")::
     cases/<case id>/output/            where the engine writes (force.f64, stiffness..., energy.f64)
 
 Each primary case has PROBES probe cases: the same model and mesh at x + eps_k d with
-eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-4 of the mean edge length. The check
+eps_k = eps_0 / 2^k, d a seeded random direction, eps_0 = 1e-4 of the mean edge length at each
+node, or of the smallest height of the node's cells if smaller (:func:`probe_lengths`). The check
 uses them for a Taylor test of the engine's stiffness against its own forces (and of its forces
 against its own energy), which needs no oracle.
 
@@ -24,7 +25,7 @@ import json
 import os
 import re
 from dataclasses import dataclass
-from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -105,14 +106,34 @@ def probe_direction(points: np.ndarray, seed: int) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1).max()
 
 
+StateSpec = Union[str, Tuple[str, Callable[[np.ndarray, np.ndarray], np.ndarray]]]
+
+
+def probe_lengths(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(n,) per node, the length its probe displacement is a fraction of: the mean edge, or the
+    smallest height of the cells around the node when smaller. A step of 1e-4 of the mean edge
+    is a strain of 10 % in a cap of quality 1e-3, where no fit can resolve the tangent; scaled
+    by each node's own cells, every cell is strained by about 1e-4, the large cells of a graded
+    mesh as much as its tiny ones. points (n, 3), cells (m, 4) [length unit of points].
+    """
+    from meshes.hard import heights
+
+    out = np.full(len(points), mean_edge_length(points, cells))
+    h = np.repeat(heights(points, cells), 4)
+    np.minimum.at(out, np.asarray(cells).ravel(), h)
+    return out
+
+
 def build_cases(
     models: Sequence[Any],
     meshes: Sequence[Tuple[str, np.ndarray, np.ndarray]],
-    states: Sequence[str],
+    states: Sequence[StateSpec],
     *,
     probes: int = PROBES,
 ) -> List[KitCase]:
     """Every model x mesh x state, each followed by its probes (seeded, reproducible).
+
+    A state is a name of :data:`common.states.STATES` or a pair (name, function(X, cells) -> x).
 
     A model whose energy needs material directions and has none (Costa without a frame, a user
     energy using I4/I5 without a fibre) is given the mesh's helical frame field
@@ -120,9 +141,13 @@ def build_cases(
     from cell to cell and an engine that ignores or mis-rotates it fails.
     """
     out: List[KitCase] = []
+    named = [
+        (s, lambda X, c, s=s: apply_state(s, X, c)) if isinstance(s, str) else s for s in states
+    ]
+    states = [name for name, _ in named]
     for mesh_label, points, cells in meshes:
-        h = mean_edge_length(np.asarray(points, dtype=float), np.asarray(cells))
-        xs = {s: apply_state(s, np.asarray(points, dtype=float), np.asarray(cells)) for s in states}
+        h = probe_lengths(np.asarray(points, dtype=float), np.asarray(cells))[:, None]
+        xs = {name: fn(np.asarray(points, dtype=float), np.asarray(cells)) for name, fn in named}
         for given in models:
             model = with_default_frame(given, points, cells)
             for k_state, state in enumerate(states):
@@ -161,11 +186,18 @@ def build_cases(
 EXPORT_LOCK = ".mjed-verify-export-in-progress"
 
 
-def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Dict[str, Any]:
+def write_kit(
+    folder: str, cases: Sequence[KitCase], *, command: str = "", precision: str = "double"
+) -> Dict[str, Any]:
     """Write the kit into ``folder``, which must not exist or be empty (nothing is overwritten).
+
+    precision: the engine's declared precision, "double" or "single" (float32), kept in the
+    manifest; ``check`` then holds every case to that precision's tolerances.
 
     Raises FileExistsError when the folder is not empty or another export is writing into it.
     """
+    if precision not in ("double", "single"):
+        raise ValueError(f"precision must be 'double' or 'single', not {precision!r}")
     not_empty = f"{folder}: exists and is not an empty directory; export writes only into a new one"
     if os.path.exists(folder) and (not os.path.isdir(folder) or os.listdir(folder)):
         raise FileExistsError(not_empty)
@@ -181,12 +213,14 @@ def write_kit(folder: str, cases: Sequence[KitCase], *, command: str = "") -> Di
     if os.listdir(folder) != [EXPORT_LOCK]:  # an export finished between the check and the claim
         os.remove(lock)
         raise FileExistsError(not_empty)
-    manifest = _write_cases(folder, cases, command)
+    manifest = _write_cases(folder, cases, command, precision)
     os.remove(lock)
     return manifest
 
 
-def _write_cases(folder: str, cases: Sequence[KitCase], command: str) -> Dict[str, Any]:
+def _write_cases(
+    folder: str, cases: Sequence[KitCase], command: str, precision: str
+) -> Dict[str, Any]:
     entries = []
     for c in cases:
         rel_in = f"cases/{c.case_id}/input"
@@ -216,6 +250,7 @@ def _write_cases(folder: str, cases: Sequence[KitCase], command: str) -> Dict[st
         "format_version": FORMAT_VERSION,
         "created_by": command,
         "conventions": "docs/conventions.md",
+        "precision": precision,
         "cases": entries,
     }
     with open(os.path.join(folder, "manifest.json"), "w") as fh:
@@ -235,6 +270,7 @@ class KitManifest:
     cases: Tuple[KitCase, ...]
     entries: Mapping[str, Mapping[str, Any]]
     errors: Mapping[str, str]
+    precision: str = "auto"  # declared by the manifest ("double" or "single"), else "auto"
 
 
 #: All the input arrays of a kit together (each case holds its own copy in memory).
@@ -299,7 +335,10 @@ def read_kit(folder: str) -> KitManifest:
             continue
         total += sum(a.nbytes for a in (case.input.points, case.input.cells, case.input.positions))
         cases.append(case)
-    return KitManifest(folder, tuple(cases), entries, errors)
+    precision = data.get("precision", "auto")
+    if precision not in ("double", "single", "auto"):
+        raise FormatError(f"{path}: 'precision' must be 'double' or 'single', not {precision!r}")
+    return KitManifest(folder, tuple(cases), entries, errors, precision)
 
 
 class _Recording(dict):

@@ -7,13 +7,16 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass
-from typing import Any, Dict, Tuple
+from typing import Any, Dict, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.compare import Scales, Tolerances
+from conformance.consistency import ReferenceProbes
 from conformance.energy import energy_density
 from conformance.parts import PartsOracle
+from conformance.precision import sensitivity_of, single_tolerances
 from conformance.spec import CaseInput, model_frame, model_to_manifest
 
 __all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
@@ -68,6 +71,53 @@ class OracleCache:
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def column_derivatives(self, case: CaseInput, step: np.ndarray) -> sp.csr_matrix:
+        """G (3n, 3n): column j is the derivative of the oracle's K column j along dof j, by a
+        forward difference of step ``step[j]`` [m] (3n oracle stiffness assemblies: small
+        meshes only).
+        """
+        oracle = self._oracles[_key(case)]
+        x = np.asarray(case.positions, dtype=np.float64).ravel()
+        K0 = sp.csc_matrix(oracle.stiffness(case.positions))
+        cols = []
+        for j in range(x.size):
+            y = x.copy()
+            y[j] += step[j]
+            Kj = sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))
+            cols.append((Kj[:, j] - K0[:, j]) / step[j])
+        return sp.hstack(cols).tocsr()
+
+    def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
+        """The case's tolerances at single precision (:mod:`conformance.precision`), measured by
+        the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
+        perturbed mesh, not kept).
+        """
+        from reference_fem import UFLOracle
+
+        def evaluate(points: np.ndarray, positions: np.ndarray):
+            oracle = UFLOracle(points, case.cells, case.model)
+            f, K = oracle.force_and_stiffness(positions)
+            return float(oracle.energy(positions)), f, sp.csr_matrix(K)
+
+        sens = sensitivity_of(
+            evaluate, case.points, case.positions, (ref.energy, ref.force, ref.stiffness), s
+        )
+        return single_tolerances(sens)
+
+    def probes(
+        self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]
+    ) -> ReferenceProbes:
+        """The oracle's force and energy at the probes of ``case`` (same mesh and model), with
+        ``ref`` at the base state: what calibrates the engine's self-consistency test.
+
+        Raises:
+            ValueError: the oracle cannot evaluate a probe (e.g. a user energy not finite there).
+        """
+        oracle = self._oracles[_key(case)]
+        forces = tuple(np.asarray(oracle.force(p.positions)) for p in probes)
+        energies = tuple(float(oracle.energy(p.positions)) for p in probes)
+        return ReferenceProbes(ref.force, ref.stiffness, ref.energy, forces, energies)
 
     def parts(self, case: CaseInput):
         """:class:`conformance.parts.StiffnessParts` at the case's positions."""

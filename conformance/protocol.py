@@ -63,6 +63,9 @@ def as_engine_output(
             f"{where}: returned {type(result).__name__}; expected (force, stiffness[, energy]), a "
             "mapping or an EngineOutput"
         )
+    # float32 arrays: the engine computes in single precision (the check's "auto" precision).
+    single = np.asarray(f).dtype == np.float32 or getattr(K, "dtype", None) == np.float32
+    precision = "single" if single else "double"
     f = np.asarray(f, dtype=np.float64)
     N = 3 * n_nodes
     if f.size != N:
@@ -88,7 +91,7 @@ def as_engine_output(
         W = float(W)
         if not np.isfinite(W):
             raise CaseError(f"{where}: energy is not finite ({W})")
-    return EngineOutput(f, K, W)
+    return EngineOutput(f, K, W, precision)
 
 
 def python_evaluator(impl: Callable[[CaseInput], Any]) -> Callable[[KitCase], EngineOutput]:
@@ -159,15 +162,19 @@ def check_implementation(
     mesh: Any = "single-tet",
     states: Sequence[str] = ("uniaxial", "shear", "random"),
     probes: bool = True,
+    precision: str = "auto",
 ) -> CheckRun:
     """Run ``impl`` on every model x mesh x state (with probes) and diagnose each case.
 
     mesh: a built-in name, a file path, a (points, cells) pair, or a list of them.
+    precision: "double", "single" or "auto" (single when ``impl`` returns float32 arrays).
     """
+    if precision not in ("auto", "double", "single"):
+        raise ValueError(f"precision must be 'auto', 'double' or 'single', not {precision!r}")
     cases = build_cases(
         resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0
     )
-    return run_check(cases, python_evaluator(impl))
+    return run_check(cases, python_evaluator(impl), precision=precision)
 
 
 def assert_matches_oracle(

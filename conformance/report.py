@@ -64,7 +64,11 @@ def _case_table(run: CheckRun) -> Table:
             rows.append([o.case_id, o.status, "-", "-", "-", "-", "-", o.message[:120]])
             continue
         c = d.consistency
-        cons = "-" if c is None or c.force_stiffness is None else float(c.force_stiffness)
+        cons = (
+            "-"
+            if c is None or c.stiffness_statistic is None
+            else f"{c.stiffness_statistic:.1e} (limit {c.stiffness_limit:.0e})"
+        )
         cause = "; ".join(f.title for f in d.causes) or (
             "" if d.passed else next((f.title for f in d.findings if f.code == "unexplained"), "")
         )
@@ -95,7 +99,8 @@ def _case_table(run: CheckRun) -> Table:
         ],
         rows,
         caption="Relative errors against the oracle (tolerance 1e-10); 'K vs own force' is the "
-        "probes' inconsistency (limit 1e-6)",
+        "probes' inconsistency beyond what the fit leaves for the oracle on the same probes, "
+        "with its limit on that case",
     )
 
 

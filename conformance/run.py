@@ -9,18 +9,23 @@ The engine is reached through an *evaluator*: ``evaluate(kit_case) -> EngineOutp
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+import warnings
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Dict, List, Optional, Sequence
+
+import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
-from conformance.compare import scales
-from conformance.consistency import Consistency, consistency
+from conformance.compare import DOUBLE, scales
+from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
 from conformance.exchange import EngineOutput, FormatError
+from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.frame_hypotheses import frame_variants
-from conformance.kit import KitCase, primary_and_probes
+from conformance.kit import KitCase, primary_and_probes, probe_lengths
 from conformance.oracle import OracleCache
+from conformance.precision import U32
 
 __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
@@ -112,7 +117,17 @@ class CheckRun:
         }
 
 
-def run_check(
+def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> CheckRun:
+    """:func:`_run_check` with NumPy's floating-point warnings silenced: every figure is checked
+    for finiteness and a non-finite one is said in the verdict, so no raw RuntimeWarning reaches
+    the terminal.
+    """
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return _run_check(cases, evaluate, **options)
+
+
+def _run_check(
     cases: Sequence[KitCase],
     evaluate: Evaluator,
     *,
@@ -120,8 +135,13 @@ def run_check(
     input_errors: Optional[Dict[str, str]] = None,
     progress: Optional[Callable[[str], None]] = None,
     on_case: Optional[Callable[..., None]] = None,
+    precision: str = "auto",
 ) -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
+
+    precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
+    case's conditioning, :mod:`conformance.precision`) or "auto": single for an output the
+    engine wrote in float32, double otherwise.
 
     on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
     its per-node error field).
@@ -156,11 +176,6 @@ def run_check(
                 probe_results.append((p.input.positions, po.force, po.energy))
             except FormatError as exc:
                 probe_errors.append(str(exc))
-        cons = (
-            consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
-            if not probe_errors
-            else Consistency(None, None, note="; ".join(probe_errors))
-        )
         try:
             ref = cache.reference(ci)
         except (
@@ -175,7 +190,14 @@ def run_check(
                 )
             )
             continue
+        single = precision == "single" or (precision == "auto" and out.precision == "single")
+        cons = (
+            Consistency(None, None, note="; ".join(probe_errors))
+            if probe_errors
+            else _self_consistency(cache, ci, ref, out, probes, probe_results, single)
+        )
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
+        tol = cache.single_precision(ci, ref, s) if single else DOUBLE
         diag = diagnose(
             case.case_id,
             f=out.force,
@@ -190,8 +212,63 @@ def run_check(
             x=ci.positions,
             parts=_lazy(lambda: cache.parts(ci)),
             consistency=cons if probes else None,
+            tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
+        # Force and stiffness wrong against the oracle, and no correction named: which energy,
+        # or which tangent, is it? (A failure by the probes alone is not about the energy.)
+        if tol.capped and not diag.passed:
+            diag = replace(
+                diag,
+                findings=[
+                    *diag.findings,
+                    Finding(
+                        "beyond-single-precision",
+                        "this case is beyond what float32 resolves",
+                        OBSERVED,
+                        tol.basis,
+                        {"capped": list(tol.capped)},
+                    ),
+                ],
+            )
+        unexplained = (
+            not diag.passed
+            and not diag.causes
+            and not diag.tolerances.within(diag.errors, energy=False)
+        )
+        if unexplained:
+            diag = _variant_reading(diag, cache, ci, out, s)
+        if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
+            diag = _finite_difference_reading(diag, cache, ci, out, ref)
+        # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
+        # only for a force as inexact as float32 storage alone makes it (a float32 value carries
+        # a relative error of u / sqrt(3) on average): a small exact-looking error is a mistake.
+        nf = safe_norm(ref.force)
+        inexact = nf == 0 or diag.errors.force * s.force >= U32 / 4 * nf
+        if not single and unexplained and not diag.causes and inexact:
+            tol32 = cache.single_precision(ci, ref, s)
+            if tol32.within(diag.errors):
+                cons32 = (
+                    _self_consistency(cache, ci, ref, out, probes, probe_results, True)
+                    if probes and not probe_errors
+                    else None
+                )
+                diag32 = diagnose(
+                    case.case_id,
+                    f=out.force,
+                    K=out.stiffness,
+                    W=out.energy,
+                    f_o=ref.force,
+                    K_o=ref.stiffness,
+                    W_o=ref.energy,
+                    s=s,
+                    points=ci.points,
+                    cells=ci.cells,
+                    x=ci.positions,
+                    consistency=cons32,
+                    tol=tol32,
+                )
+                diag = _single_precision_reading(diag, diag32)
         status = diag.verdict
         message = ""
         if probe_errors:
@@ -208,6 +285,129 @@ def run_check(
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run
+
+
+def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
+    """Nothing explained the failure: does the engine compute a variant of the energy
+    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances.
+    """
+    from conformance.compare import errors
+    from conformance.variants import match_variant
+
+    def evaluate(model):
+        ref = cache.reference(replace(ci, model=model))
+        return ref.force, ref.stiffness
+
+    tol = diag.tolerances
+
+    def within(fv, Kv) -> bool:
+        return tol.within(errors(out.force, out.stiffness, None, fv, Kv, 0.0, s), energy=False)
+
+    found = match_variant(ci.model, out.force, out.stiffness, within, evaluate)
+    if found is None:
+        return diag
+    v, (fv, Kv) = found
+    e = errors(out.force, out.stiffness, None, fv, Kv, 0.0, s)
+    finding = Finding(
+        "energy-variant",
+        f"your engine matches W' = {v.expression}",
+        FULL,
+        f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
+        f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
+        {
+            "variant": v.rewrite.code,
+            "expression": v.expression,
+            "residual": max(e.force, e.stiffness),
+        },
+    )
+    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
+
+
+#: Largest mesh (nodes) on which a finite-difference tangent is looked for: 3n oracle assemblies.
+FD_MAX_NODES = 400
+
+
+def _finite_difference_reading(
+    diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, ref
+) -> Diagnosis:
+    """The force is right and nothing explains the stiffness: is it forward differences of the
+    force? Its error is then (h / 2) x the derivative of each column along its own dof; the
+    fitted h is named when that accounts for nearly all of the error (99 %).
+    """
+    from conformance.tangent import fit_finite_difference
+
+    if ci.n_nodes > FD_MAX_NODES:
+        return diag
+    step = 1e-6 * np.repeat(probe_lengths(ci.points, ci.cells), 3)
+    G = cache.column_derivatives(ci, step)
+    fit = fit_finite_difference((out.stiffness - ref.stiffness).tocsr(), G, ref.stiffness)
+    if fit is None or fit.explained < 0.99 or fit.step <= 0:
+        return diag
+    finding = Finding(
+        "finite-difference",
+        "a finite-difference tangent: forward differences of the force "
+        f"with a step h = {fit.step:.2e} m",
+        PARTIAL,
+        f"K - K_oracle = (h/2) x the derivative of each column of K along its own dof, the leading "
+        f"error of -(f(x + h e_j) - f(x)) / h, accounts for {100 * fit.explained:.2f} % of the "
+        f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off of the "
+        "differences)",
+        {"step": fit.step, "explained": fit.explained, "residual": fit.residual},
+    )
+    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
+
+
+def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
+    """A case failed at double precision and ``diag32``, the same case judged as a float32
+    engine's, passes: the failure is named as float32 round-off, first, with what the probes
+    show at that precision; the double-precision verdict stands.
+    """
+    if not diag32.passed:
+        return diag
+    e, tol = diag.errors, diag32.tolerances
+    finding = Finding(
+        "single-precision",
+        "the errors are single-precision (float32) round-off",
+        FULL,
+        f"force {e.force:.1e}, stiffness {e.stiffness:.1e} are within what float32 leaves on this "
+        f"case ({tol.text()}; {tol.basis}): an engine computing in float32 passes with "
+        "--precision single "
+        '(or "precision": "single" in the kit, or .f32 output files)',
+        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness},
+    )
+    return replace(diag, findings=[finding, *diag32.findings], consistency=diag32.consistency)
+
+
+def _self_consistency(
+    cache: OracleCache,
+    ci,
+    ref,
+    out: EngineOutput,
+    probes: Sequence[KitCase],
+    probe_results: list,
+    single: bool,
+) -> Consistency:
+    """The engine's Taylor test, calibrated by the oracle at the same probes (its floor on this
+    case); uncalibrated, and said so, when the oracle cannot evaluate a probe.
+    """
+    try:
+        reference = cache.probes(ci, ref, [p.input for p in probes]) if probes else None
+    except ValueError as exc:
+        c = consistency(ci.positions, out.force, out.stiffness, out.energy, probe_results)
+        return replace(
+            c,
+            note=(c.note + "; " if c.note else "") + f"not calibrated: the oracle cannot evaluate "
+            f"a probe ({exc})",
+        )
+    return consistency(
+        ci.positions,
+        out.force,
+        out.stiffness,
+        out.energy,
+        probe_results,
+        reference,
+        roundoff=U32 if single else 2.0**-53,
+    )
 
 
 def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:

@@ -33,6 +33,8 @@ __all__ = [
     "VolumetricFit",
     "fit_volumetric",
     "describe_coefficient",
+    "FiniteDifferenceFit",
+    "fit_finite_difference",
 ]
 
 
@@ -244,3 +246,36 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
             f"{distinct.size} distinct J values, relative residual {rel:.1e})"
         )
     return ""
+
+
+# ------------------------------------------------------------------ finite-difference tangent
+@dataclass(frozen=True)
+class FiniteDifferenceFit:
+    """step: the step h [m] a forward-difference tangent with this error would have used;
+    explained: the fraction of ||K - K_o||_F the fit accounts for; residual: what is left,
+    relative to ||K_o||_F.
+    """
+
+    step: float
+    explained: float
+    residual: float
+
+
+def fit_finite_difference(
+    D: sp.csr_matrix, G: sp.csr_matrix, K_o: sp.csr_matrix
+) -> Optional[FiniteDifferenceFit]:
+    """Fit D = K - K_o as (h / 2) G, the leading error of a tangent built column by column from
+    forward differences of the force: -(f(x + h e_j) - f(x)) / h = K e_j + (h / 2) G e_j + O(h^2),
+    G e_j the derivative of K's column j along e_j (third derivatives of the energy).
+
+    D, G, K_o: (3n, 3n). None when G is zero (a quadratic energy: forward differences exact).
+    """
+    gg = float(G.multiply(G).sum())
+    if gg == 0.0:
+        return None
+    c = float(G.multiply(D).sum()) / gg
+    R = D - c * G
+    nD = float(sparse_norm(D))
+    left = float(sparse_norm(R))
+    explained = 1.0 - left / nD if nD > 0 else 0.0
+    return FiniteDifferenceFit(2.0 * c, explained, left / float(sparse_norm(K_o)))

@@ -241,6 +241,72 @@ def broken_engine(mutation: str):
     return engine
 
 
+# ---------------------------------------------------------------- issue 21: kinematics and storage
+class _MooneyRivlinPowers(mjed.materials.base.Material):
+    """MooneyRivlin whose I1 term carries J^p instead of J^(-2/3) (p = 0: no isochoric factor)."""
+
+    def __init__(self, m: MooneyRivlin, p: float):
+        self.m, self.p = m, p
+
+    def decomposition(self):
+        from mjed.terms import I1Power, JPower
+
+        out = []
+        for group in self.m.decomposition():
+            terms = tuple(
+                Term(JPower(self.p), t.g) if isinstance(t.g, I1Power) else t for t in group.terms
+            )
+            out.append(TermGroup(terms, group.exponential, group.coefficient))
+        return tuple(out)
+
+
+def _with_material(material):
+    def mutate(case, field, f, K, W):
+        variant = mjed.HyperelasticForceField(field.mesh, material(case.model))
+        f2, K2 = variant.force_and_stiffness(case.positions)
+        return f2, K2.copy(), variant.energy(case.positions)
+
+    return mutate
+
+
+MUTATIONS.update(
+    {
+        "I1 without its isochoric factor": _with_material(lambda m: _MooneyRivlinPowers(m, 0.0)),
+        "J^(-1/3) on I1": _with_material(lambda m: _MooneyRivlinPowers(m, -1.0 / 3.0)),
+        "one triangle of K": lambda case, field, f, K, W: (f, sp.triu(K).tocsr(), W),
+        "both triangles summed": lambda case, field, f, K, W: (
+            f,
+            (2 * K - sp.diags(K.diagonal())).tocsr(),
+            W,
+        ),
+    }
+)
+EXPECTED.update(
+    {
+        "I1 without its isochoric factor": "energy-variant",
+        "J^(-1/3) on I1": "energy-variant",
+        "one triangle of K": "one-triangle",
+        "both triangles summed": "both-triangles",
+    }
+)
+
+
+def _finite_difference_tangent(case, field, f, K, W):
+    """K column by column from forward differences of the force, step 1e-6 of the mean edge."""
+    from common.tolerances import mean_edge_length
+
+    h = 1e-6 * mean_edge_length(case.points, case.cells)
+    x = case.positions.ravel()
+    cols = []
+    for j in range(x.size):
+        y = x.copy()
+        y[j] += h
+        cols.append(sp.csc_matrix(-(field.force(y.reshape(-1, 3)).ravel() - f.ravel()) / h).T)
+    return f, sp.hstack(cols).tocsr(), W
+
+
+MUTATIONS["finite-difference tangent"] = _finite_difference_tangent
+EXPECTED["finite-difference tangent"] = "finite-difference"
 # -- Fibre-frame mistakes (issue 25) ---------------------------------------------------------------
 # Checked on Costa, whose energy depends on the frame, with the helical per-cell field the kit gives
 # it (common.frames). Each engine is MJED run with a frame other than the case's: the mistake sits

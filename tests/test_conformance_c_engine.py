@@ -131,3 +131,84 @@ def test_c_engine_refusal_is_bad_input(tmp_path):
     )
     msg = _results(tmp_path / "r")["cases"][0]["message"]
     assert "exit code 2" in msg and "only NeoHookean is implemented, not Ogden" in msg
+
+
+def test_c_engine_in_single_precision(tmp_path):
+    """Built with -DSINGLE the engine computes in float and writes .f32 files: it passes at single
+    precision; checked at double precision it is told its error is float32 round-off; with its
+    sign mistake it still fails at single precision, the mistake named.
+    """
+    exe = _compile(tmp_path, "-DSINGLE")
+    args = [
+        "--material",
+        "NeoHookean",
+        "--mesh",
+        "cube-small",
+        "--states",
+        "uniaxial,random",
+        "--quiet",
+    ]
+    assert (
+        main(
+            ["check", "--command", f"{exe} {{input}} {{output}}", "--out", str(tmp_path / "s")]
+            + args
+        )
+        == 0
+    )
+    res = _results(tmp_path / "s")
+    assert all(c["tolerances"]["precision"] == "single" for c in res["cases"])
+    assert max(c["errors"]["stiffness"] for c in res["cases"]) > 1e-8  # really float32 arithmetic
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--precision",
+                "double",
+                "--out",
+                str(tmp_path / "d"),
+            ]
+            + args
+        )
+        == 1
+    )
+    res = _results(tmp_path / "d")
+    assert all(c["findings"][0]["code"] == "single-precision" for c in res["cases"])
+    wrong = _compile(tmp_path, "-DSINGLE", "-DMISTAKE")
+    assert (
+        main(
+            ["check", "--command", f"{wrong} {{input}} {{output}}", "--out", str(tmp_path / "m")]
+            + args
+        )
+        == 1
+    )
+    res = _results(tmp_path / "m")
+    assert all(
+        c["status"] == "failed" and c["findings"][0]["code"] == "force-sign" for c in res["cases"]
+    )
+
+
+def test_c_engine_writing_one_triangle_is_named(tmp_path):
+    exe = _compile(tmp_path, "-DUPPER")
+    assert (
+        main(
+            [
+                "check",
+                "--command",
+                f"{exe} {{input}} {{output}}",
+                "--material",
+                "NeoHookean",
+                "--mesh",
+                "cube-small",
+                "--states",
+                "random",
+                "--out",
+                str(tmp_path / "r"),
+                "--quiet",
+            ]
+        )
+        == 1
+    )
+    (case,) = _results(tmp_path / "r")["cases"]
+    assert case["findings"][0]["code"] == "one-triangle"

@@ -51,6 +51,14 @@ def configure(parser) -> None:
     add_model_options(parser)
     opt.add_out_option(parser, "reports")
     opt.add_json_option(parser)
+    parser.add_argument(
+        "--precision",
+        choices=("auto", "double", "single"),
+        default="auto",
+        help="tolerances: 'double' (1e-10), 'single' (from float32 round-off and "
+        "each case's conditioning) or 'auto' (the kit's declaration, else "
+        "single for .f32 outputs)",
+    )
     parser.add_argument("--quiet", action="store_true", help="print only the summary line")
 
 
@@ -88,6 +96,8 @@ def run(args) -> int:
         except FormatError as exc:
             raise InputError(str(exc)) from None
         cases, input_errors = list(kit.cases), dict(kit.errors)
+        if args.precision == "auto":
+            args.precision = kit.precision
     else:
         from conformance.kit import PROBES
         from conformance.options import cases_from_args
@@ -149,12 +159,28 @@ def _run(args, cases, input_errors) -> int:
         write_error_field(os.path.join(folder, rel), case, out.force, ref.force, diag.node_error)
         fields[case.case_id] = rel
 
+    from common.progress import Progress
+
+    # A bar on a terminal (a check of a large mesh runs for minutes); one line per case otherwise.
+    bar = Progress(sum(c.role == "case" for c in cases), "check")
     progress = (
-        None if args.quiet else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
+        None
+        if args.quiet
+        else (
+            bar.advance
+            if bar.enabled
+            else (lambda cid: print(f"  ... {cid}", file=sys.stderr, flush=True))
+        )
     )
     result = run_check(
-        cases, evaluate, input_errors=input_errors, progress=progress, on_case=on_case
+        cases,
+        evaluate,
+        input_errors=input_errors,
+        progress=progress,
+        on_case=on_case,
+        precision=args.precision,
     )
+    bar.close()
     paths = write_report(folder, result, command=command, fields=fields)
     if not args.quiet:
         print(result.text())

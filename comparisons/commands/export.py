@@ -28,6 +28,14 @@ def configure(parser) -> None:
         action="store_true",
         help="leave out the perturbed states (no self-consistency test of the stiffness)",
     )
+    parser.add_argument(
+        "--precision",
+        choices=("double", "single"),
+        default="double",
+        help="the precision your engine computes in, declared in the kit: "
+        "'single' (float32) gives tolerances from float32 round-off and "
+        "each case's conditioning",
+    )
 
 
 def run(args) -> int:
@@ -41,7 +49,9 @@ def run(args) -> int:
         )
     cases = cases_from_args(args, probes=0 if args.no_probes else PROBES)
     try:
-        manifest = write_kit(args.dir, cases, command=reproduce(NAME, args, args.dir))
+        manifest = write_kit(
+            args.dir, cases, command=reproduce(NAME, args, args.dir), precision=args.precision
+        )
     except FileExistsError as exc:  # another export took the folder after the check above
         raise InputError(str(exc)) from None
     n_main = sum(e["role"] == "case" for e in manifest["cases"])

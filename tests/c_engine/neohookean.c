@@ -7,6 +7,9 @@
  * as COO triplets (element matrices, duplicates summed by the reader) and energy.f64.
  * W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2;  f = -dPi/dx;  K = d2Pi/dx2;  dof = 3*node + c.
  * Compiled with -DMISTAKE it returns +dPi/dx instead of the force (a sign mistake to be caught).
+ * Compiled with -DSINGLE it computes in float (as GPU and real-time engines do) and writes its
+ * values as float32 (force.f32, stiffness_values.f32, energy.f32).
+ * Compiled with -DUPPER it writes only the upper triangle of K (a storage mistake).
  */
 #include <errno.h>
 #include <math.h>
@@ -15,6 +18,16 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+
+#ifdef SINGLE
+typedef float real;
+#define EXT ".f32"
+#define LOG logf
+#else
+typedef double real;
+#define EXT ".f64"
+#define LOG log
+#endif
 
 static void die(const char *msg, const char *arg) {
     fprintf(stderr, "neohookean: %s%s\n", msg, arg ? arg : "");
@@ -40,13 +53,13 @@ static void write_raw(const char *dir, const char *name, const void *buf, size_t
     fclose(fp);
 }
 
-static double det3(const double A[3][3]) {
+static real det3(const real A[3][3]) {
     return A[0][0] * (A[1][1] * A[2][2] - A[1][2] * A[2][1]) - A[0][1] * (A[1][0] * A[2][2] - A[1][2] * A[2][0])
          + A[0][2] * (A[1][0] * A[2][1] - A[1][1] * A[2][0]);
 }
 
-static void inv3(const double A[3][3], double B[3][3]) {
-    double d = det3(A);
+static void inv3(const real A[3][3], real B[3][3]) {
+    real d = det3(A);
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++) {
             int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
@@ -81,20 +94,23 @@ int main(int argc, char **argv) {
     if (strcmp(name, "NeoHookean")) die("only NeoHookean is implemented, not ", name);
     if (n <= 0 || m <= 0 || isnan(mu) || isnan(lam)) die("case.txt lacks n_nodes, n_cells, mu or lam", NULL);
 
-    double *X = read_raw(in, "points.f64", 3 * n, 8);
-    double *x = read_raw(in, "positions.f64", 3 * n, 8);
+    double *X64 = read_raw(in, "points.f64", 3 * n, 8);
+    double *x64 = read_raw(in, "positions.f64", 3 * n, 8);
+    real *X = malloc(3 * n * sizeof(real)), *x = malloc(3 * n * sizeof(real));
+    for (long k = 0; k < 3 * n; k++) { X[k] = (real)X64[k]; x[k] = (real)x64[k]; }
     int64_t *cells = read_raw(in, "cells.i64", 4 * m, 8);
-    double *f = calloc(3 * n, sizeof(double));
+    real *f = calloc(3 * n, sizeof(real));
     int64_t *rows = malloc(144 * m * sizeof(int64_t)), *cols = malloc(144 * m * sizeof(int64_t));
-    double *vals = malloc(144 * m * sizeof(double));
-    double energy = 0.0;
+    real *vals = malloc(144 * m * sizeof(real));
+    real energy = 0.0, rmu = (real)mu, rlam = (real)lam;
 
+    long e = 0; /* entries written so far */
     for (long c = 0; c < m; c++) {
         const int64_t *v = cells + 4 * c;
-        double E[3][3], Einv[3][3], D[4][3], F[3][3] = {{0}}, Fi[3][3], FiT[3][3];
+        real E[3][3], Einv[3][3], D[4][3], F[3][3] = {{0}}, Fi[3][3], FiT[3][3];
         for (int i = 0; i < 3; i++)
             for (int k = 0; k < 3; k++) E[k][i] = X[3 * v[i + 1] + k] - X[3 * v[0] + k]; /* columns X_a - X_0 */
-        double V0 = det3(E) / 6.0;
+        real V0 = det3(E) / (real)6;
         inv3(E, Einv);
         for (int k = 0; k < 3; k++) {
             D[0][k] = 0.0;
@@ -106,20 +122,20 @@ int main(int argc, char **argv) {
         for (int a = 0; a < 4; a++) /* F = sum_a x_a (x) D_a */
             for (int k = 0; k < 3; k++)
                 for (int i = 0; i < 3; i++) F[k][i] += x[3 * v[a] + k] * D[a][i];
-        double J = det3(F), lnJ = log(J), I1 = 0.0;
+        real J = det3(F), lnJ = LOG(J), I1 = 0.0;
         inv3(F, Fi);
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++) {
                 FiT[i][j] = Fi[j][i];
                 I1 += F[i][j] * F[i][j];
             }
-        energy += V0 * (0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ * lnJ);
-        double P[3][3]; /* first Piola-Kirchhoff: mu F + (lam ln J - mu) F^-T */
+        energy += V0 * ((real)0.5 * rmu * (I1 - (real)3) - rmu * lnJ + (real)0.5 * rlam * lnJ * lnJ);
+        real P[3][3]; /* first Piola-Kirchhoff: rmu F + (rlam ln J - rmu) F^-T */
         for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) P[i][j] = mu * F[i][j] + (lam * lnJ - mu) * FiT[i][j];
+            for (int j = 0; j < 3; j++) P[i][j] = rmu * F[i][j] + (rlam * lnJ - rmu) * FiT[i][j];
         for (int a = 0; a < 4; a++)
             for (int i = 0; i < 3; i++) {
-                double g = 0.0; /* dPi/dx_a,i = V0 sum_I P_iI D_a,I */
+                real g = 0.0; /* dPi/dx_a,i = V0 sum_I P_iI D_a,I */
                 for (int I = 0; I < 3; I++) g += P[i][I] * D[a][I];
 #ifdef MISTAKE
                 f[3 * v[a] + i] += V0 * g;
@@ -127,19 +143,22 @@ int main(int argc, char **argv) {
                 f[3 * v[a] + i] -= V0 * g;
 #endif
             }
-        /* dP_iI/dF_jJ = mu d_ij d_IJ + lam FiT_iI FiT_jJ - (lam ln J - mu) FiT_iJ FiT_jI */
-        long e = 144 * c;
+        /* dP_iI/dF_jJ = rmu d_ij d_IJ + rlam FiT_iI FiT_jJ - (rlam ln J - rmu) FiT_iJ FiT_jI */
         for (int a = 0; a < 4; a++)
             for (int i = 0; i < 3; i++)
                 for (int b = 0; b < 4; b++)
                     for (int j = 0; j < 3; j++) {
-                        double s = 0.0;
+                        real s = 0.0;
                         for (int I = 0; I < 3; I++)
                             for (int Jj = 0; Jj < 3; Jj++) {
-                                double A = lam * FiT[i][I] * FiT[j][Jj] - (lam * lnJ - mu) * FiT[i][Jj] * FiT[j][I];
-                                if (i == j && I == Jj) A += mu;
+                                real A = rlam * FiT[i][I] * FiT[j][Jj]
+                                         - (rlam * lnJ - rmu) * FiT[i][Jj] * FiT[j][I];
+                                if (i == j && I == Jj) A += rmu;
                                 s += D[a][I] * A * D[b][Jj];
                             }
+#ifdef UPPER
+                        if (3 * v[a] + i > 3 * v[b] + j) continue; /* the mistake: upper triangle only */
+#endif
                         rows[e] = 3 * v[a] + i;
                         cols[e] = 3 * v[b] + j;
                         vals[e] = V0 * s;
@@ -147,10 +166,11 @@ int main(int argc, char **argv) {
                     }
     }
     if (mkdir(out, 0755) != 0 && errno != EEXIST) die("cannot create ", out);
-    write_raw(out, "force.f64", f, 3 * n, 8);
-    write_raw(out, "stiffness_rows.i64", rows, 144 * m, 8);
-    write_raw(out, "stiffness_cols.i64", cols, 144 * m, 8);
-    write_raw(out, "stiffness_values.f64", vals, 144 * m, 8);
-    write_raw(out, "energy.f64", &energy, 1, 8);
+    long nnz = e;
+    write_raw(out, "force" EXT, f, 3 * n, sizeof(real));
+    write_raw(out, "stiffness_rows.i64", rows, nnz, 8);
+    write_raw(out, "stiffness_cols.i64", cols, nnz, 8);
+    write_raw(out, "stiffness_values" EXT, vals, nnz, sizeof(real));
+    write_raw(out, "energy" EXT, &energy, 1, sizeof(real));
     return 0;
 }

@@ -1,0 +1,278 @@
+"""Which energy does the engine compute? Variant energies evaluated through the oracle.
+
+When no correction explains a failure, the case's energy is written as a formula (the
+materials' formulas of docs/conventions.md, or the user's own) and rewritten the way engines
+get it wrong: an invariant without its isochoric factor, the wrong power of J in it, I2 taken
+as tr(C^2), the bulk term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2. Each variant
+is a user energy (:class:`reference_fem.user_energy.UserEnergy`), so the oracle differentiates
+it exactly as it does the built-in energies; a variant whose force and stiffness agree with the
+engine's within the case's tolerances is named: "your engine matches W' = ...".
+
+The rewrites are generic (they act on the invariants of any formula), not one per mutation:
+adding a family is one line of :data:`REWRITES`.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import warnings
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from mjed import materials as M
+
+__all__ = ["REWRITES", "Variant", "energy_expression", "variants", "match_variant"]
+
+Expression = Tuple[str, Dict[str, float]]
+
+
+@functools.singledispatch
+def energy_expression(model: Any) -> Optional[Expression]:
+    """(formula in the user-energy syntax, parameters) of a model; None when the energy cannot
+    be written in that syntax (Ogden's eigenvalues, Costa's frame).
+
+    A declared material without a formula of its own here (Yeoh, Gent, any added later) is
+    written from its declaration's energy (:func:`_declared_expression`).
+    """
+    return _declared_expression(model)
+
+
+class _NotScalar(Exception):
+    """The declared energy uses a matrix, the frame or eigenvalues: no scalar formula."""
+
+
+class _Sym:
+    """A formula in the user-energy syntax, built by running a declared energy on it."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    @staticmethod
+    def of(x: Any) -> "_Sym":
+        if isinstance(x, _Sym):
+            return x
+        if isinstance(x, (int, float)) and np.isfinite(x):
+            text = str(int(x)) if x == int(x) and abs(x) < 1e15 else repr(float(x))
+            return _Sym(text if x >= 0 else f"({text})")
+        raise _NotScalar(type(x).__name__)
+
+    def __add__(self, o):
+        return _Sym(f"({self.text} + {_Sym.of(o).text})")
+
+    def __radd__(self, o):
+        return _Sym(f"({_Sym.of(o).text} + {self.text})")
+
+    def __sub__(self, o):
+        return _Sym(f"({self.text} - {_Sym.of(o).text})")
+
+    def __rsub__(self, o):
+        return _Sym(f"({_Sym.of(o).text} - {self.text})")
+
+    def __mul__(self, o):
+        return _Sym(f"{self.text}/2") if o == 0.5 else _Sym(f"{self.text}*{_Sym.of(o).text}")
+
+    def __rmul__(self, o):
+        return _Sym(f"{self.text}/2") if o == 0.5 else _Sym(f"{_Sym.of(o).text}*{self.text}")
+
+    def __truediv__(self, o):
+        return _Sym(f"({self.text}/{_Sym.of(o).text})")
+
+    def __rtruediv__(self, o):
+        return _Sym(f"({_Sym.of(o).text}/{self.text})")
+
+    def __pow__(self, o):
+        return _Sym(f"{self.text}**{_Sym.of(o).text}")
+
+    def __neg__(self):
+        return _Sym(f"(-{self.text})")
+
+    def __eq__(self, o):  # a formula is never compared with a number (0.5 above)
+        return False
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+class _ScalarNamespace:
+    """The invariants as symbols; C, E, the frame and eigenvalues have no scalar formula."""
+
+    I1, I2, J, I1b, I2b = (_Sym(n) for n in ("I1", "I2", "J", "I1b", "I2b"))
+    lnJ = _Sym("ln(J)")
+
+    def exp(self, x: Any) -> _Sym:
+        return _Sym(f"exp({_Sym.of(x).text})")
+
+    def ln(self, x: Any) -> _Sym:
+        return _Sym(f"ln({_Sym.of(x).text})")
+
+    def __getattr__(self, name: str) -> Any:
+        raise _NotScalar(name)
+
+
+def _declared_expression(model: Any) -> Optional[Expression]:
+    """The declared energy of ``model``'s type written as a formula of its scalar invariants and
+    parameters (those it reads); None when it is not declared or not scalar.
+    """
+    import dataclasses
+
+    from mjed.materials.declaration import declaration_of
+
+    if not dataclasses.is_dataclass(model):
+        return None
+    try:
+        declared = declaration_of(type(model))
+    except LookupError:
+        return None
+    values = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    used: Dict[str, float] = {}
+
+    def p(name: str) -> _Sym:
+        value = values[name]
+        if not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise _NotScalar(name)
+        used[name] = float(value)
+        return _Sym(name)
+
+    p.value = lambda name: float(values[name])  # type: ignore[attr-defined]
+    try:
+        W = declared.energy(p, _ScalarNamespace())
+    except (_NotScalar, KeyError, TypeError, ValueError):
+        return None
+    return (W.text, used) if isinstance(W, _Sym) else None
+
+
+@energy_expression.register
+def _(m: M.StVenantKirchhoff) -> Expression:
+    trE2 = "(E11**2 + E22**2 + E33**2 + 2*(E12**2 + E13**2 + E23**2))"
+    return f"lam/2*(E11 + E22 + E33)**2 + mu*{trE2}", {"mu": m.mu, "lam": m.lam}
+
+
+@energy_expression.register
+def _(m: M.NeoHookean) -> Expression:
+    return "mu/2*(I1 - 3) - mu*ln(J) + lam/2*ln(J)**2", {"mu": m.mu, "lam": m.lam}
+
+
+@energy_expression.register
+def _(m: M.MooneyRivlin) -> Expression:
+    return "c1*(I1b - 3) + c2*(I2b - 3) + k0/2*ln(J)**2", {"c1": m.c1, "c2": m.c2, "k0": m.k0}
+
+
+@energy_expression.register
+def _(m: M.VerondaWestmann) -> Expression:
+    return (
+        "c1*(exp(c2*(I1b - 3)) - 1) - c1*c2/2*(I2b - 3) + k0/2*ln(J)**2",
+        {"c1": m.c1, "c2": m.c2, "k0": m.k0},
+    )
+
+
+@energy_expression.register
+def _(m: M.ArrudaBoyce) -> Expression:
+    c = ("1/2", "1/20", "11/1050", "19/7000", "519/673750")
+    series = " + ".join(f"{ci}*N**{1 - i}*(I1b**{i} - 3**{i})" for i, ci in enumerate(c, start=1))
+    return f"mu*({series}) + k0/2*ln(J)**2", {"mu": m.mu, "k0": m.k0, "N": m.N}
+
+
+def _user(m) -> Optional[Expression]:
+    """A user energy's own formula (one with a fibre is left out: variants keep no fibre)."""
+    return None if m.fibre is not None else (m.expression, dict(m.params))
+
+
+@dataclass(frozen=True)
+class Rewrite:
+    """code; words: the mistake; pattern: a regular expression on the formula; replacement."""
+
+    code: str
+    words: str
+    pattern: str
+    replacement: str
+
+
+#: The mistake families, each a rewrite of the formula's invariants or of its bulk term.
+REWRITES: Tuple[Rewrite, ...] = (
+    Rewrite(
+        "no-isochoric-I1", "I1 used where the isochoric I1b = J^(-2/3) I1 belongs", r"\bI1b\b", "I1"
+    ),
+    Rewrite(
+        "no-isochoric-I2", "I2 used where the isochoric I2b = J^(-4/3) I2 belongs", r"\bI2b\b", "I2"
+    ),
+    Rewrite(
+        "power-I1",
+        "J^(-1/3) I1 used for I1b = J^(-2/3) I1 (the power of J halved)",
+        r"\bI1b\b",
+        "(J**(-1/3)*I1)",
+    ),
+    Rewrite(
+        "power-I2",
+        "J^(-2/3) I2 used for I2b = J^(-4/3) I2 (the power of J halved)",
+        r"\bI2b\b",
+        "(J**(-2/3)*I2)",
+    ),
+    Rewrite(
+        "I2-as-trC2", "tr(C^2) used for I2 = (I1^2 - tr(C^2)) / 2", r"\bI2\b", "(I1**2 - 2*I2)"
+    ),
+    Rewrite("isochoric-I1", "the isochoric I1b used where the formula has I1", r"\bI1\b", "I1b"),
+    Rewrite(
+        "bulk-J-1", "k/2 (J-1)^2 for the bulk term k/2 (ln J)^2", r"ln\(J\)\*\*2", "(J - 1)**2"
+    ),
+    Rewrite(
+        "bulk-simo",
+        "k/4 (J^2 - 1 - 2 ln J) for the bulk term k/2 (ln J)^2",
+        r"/2\*ln\(J\)\*\*2",
+        "/4*(J**2 - 1 - 2*ln(J))",
+    ),
+)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """rewrite: the mistake; expression: the rewritten formula; model: the user energy."""
+
+    rewrite: Rewrite
+    expression: str
+    model: Any
+
+
+def variants(model: Any) -> List[Variant]:
+    """The variant energies of ``model`` (an empty list when its energy has no formula)."""
+    from reference_fem.user_energy import UserEnergy
+
+    base = _user(model) if isinstance(model, UserEnergy) else energy_expression(model)
+    if base is None:
+        return []
+    expr, params = base
+    out = []
+    for rw in REWRITES:
+        new = re.sub(rw.pattern, rw.replacement, expr)
+        if new == expr:
+            continue
+        try:
+            with warnings.catch_warnings():  # a variant is often pre-stressed: that is the point
+                warnings.simplefilter("ignore")
+                energy = UserEnergy(new, params, name=f"variant-{rw.code}")
+        except ValueError:  # not finite at rest, or a parameter no longer used
+            continue
+        out.append(Variant(rw, new, energy))
+    return out
+
+
+def match_variant(
+    model: Any,
+    f: np.ndarray,
+    K,
+    within: Callable[[np.ndarray, Any], bool],
+    evaluate: Callable[[Any], Tuple[np.ndarray, Any]],
+) -> Optional[Tuple[Variant, Any]]:
+    """The first variant of ``model`` whose oracle force and stiffness the engine's (f (n, 3),
+    K (3n, 3n)) match: ``within(f_v, K_v)`` judges; ``evaluate(variant model)`` gives the
+    oracle's (f_v, K_v). Returns (variant, (f_v, K_v)) or None.
+    """
+    for v in variants(model):
+        try:
+            fv, Kv = evaluate(v.model)
+        except ValueError:  # the variant is not finite at this state
+            continue
+        if within(fv, Kv):
+            return v, (fv, Kv)
+    return None
