@@ -62,8 +62,9 @@ __all__ = [
     "write_kernel_module",
 ]
 
-#: The arguments of the generated ``mjed_cells``, in order (see its docstring).
-KERNEL_SIGNATURE = (
+#: The arguments every generated cell loop starts with: positions, mesh, rest geometry, the
+#: material's term tables, and what to compute (the targets add their own outputs after them).
+CELL_INPUTS = (
     "x",
     "cells",
     "D",
@@ -77,6 +78,10 @@ KERNEL_SIGNATURE = (
     "want_force",
     "want_stiffness",
     "want_stress",
+)
+
+#: The arguments of the generated ``mjed_cells``, in order (see its docstring).
+KERNEL_SIGNATURE = CELL_INPUTS + (
     "cell_edges",
     "cell_flip",
     "U",
@@ -987,20 +992,7 @@ class ParallelTarget(Target):
 
 
 #: The arguments of the generated mjed_cell_range after (lo, hi).
-_RANGE_ARGS = (
-    "x",
-    "cells",
-    "D",
-    "V0",
-    "jpar",
-    "gpar",
-    "gmat",
-    "group_coef",
-    "slot_M",
-    "regularize",
-    "want_force",
-    "want_stiffness",
-    "want_stress",
+_RANGE_ARGS = CELL_INPUTS + (
     "cell_edges",
     "cell_flip",
     "U",

@@ -40,25 +40,12 @@ import textwrap
 
 import numpy as np
 
-from mjed.compiled.codegen import EDGES, PAIRS6, Source, Target, node_block_sum
+from mjed.compiled.codegen import CELL_INPUTS, EDGES, PAIRS6, Source, Target, node_block_sum
 
 __all__ = ["CudaTarget", "CUDA_SIGNATURE", "block_map", "fp32_source"]
 
 #: The arguments of the generated CUDA ``mjed_cells``, in order.
-CUDA_SIGNATURE = (
-    "x",
-    "cells",
-    "D",
-    "V0",
-    "jpar",
-    "gpar",
-    "gmat",
-    "group_coef",
-    "slot_M",
-    "regularize",
-    "want_force",
-    "want_stiffness",
-    "want_stress",
+CUDA_SIGNATURE = CELL_INPUTS + (
     "blk",
     "rowlen",
     "force",
