@@ -127,6 +127,26 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> 
         return _run_check(cases, evaluate, **options)
 
 
+def _diagnose(case_id: str, ci, out, ref, s, **options):
+    """:func:`conformance.diagnosis.diagnose` of an engine's output against the oracle's at one
+    case's positions; options: consistency, tol, parts, frame_variants.
+    """
+    return diagnose(
+        case_id,
+        f=out.force,
+        K=out.stiffness,
+        W=out.energy,
+        f_o=ref.force,
+        K_o=ref.stiffness,
+        W_o=ref.energy,
+        s=s,
+        points=ci.points,
+        cells=ci.cells,
+        x=ci.positions,
+        **options,
+    )
+
+
 def _run_check(
     cases: Sequence[KitCase],
     evaluate: Evaluator,
@@ -198,18 +218,12 @@ def _run_check(
         )
         s = scales(mean_edge_length(ci.points, ci.cells), ref.energy, ref.force, ref.stiffness)
         tol = cache.single_precision(ci, ref, s) if single else DOUBLE
-        diag = diagnose(
+        diag = _diagnose(
             case.case_id,
-            f=out.force,
-            K=out.stiffness,
-            W=out.energy,
-            f_o=ref.force,
-            K_o=ref.stiffness,
-            W_o=ref.energy,
-            s=s,
-            points=ci.points,
-            cells=ci.cells,
-            x=ci.positions,
+            ci,
+            out,
+            ref,
+            s,
             parts=_lazy(lambda: cache.parts(ci)),
             consistency=cons if probes else None,
             tol=tol,
@@ -253,18 +267,12 @@ def _run_check(
                     if probes and not probe_errors
                     else None
                 )
-                diag32 = diagnose(
+                diag32 = _diagnose(
                     case.case_id,
-                    f=out.force,
-                    K=out.stiffness,
-                    W=out.energy,
-                    f_o=ref.force,
-                    K_o=ref.stiffness,
-                    W_o=ref.energy,
-                    s=s,
-                    points=ci.points,
-                    cells=ci.cells,
-                    x=ci.positions,
+                    ci,
+                    out,
+                    ref,
+                    s,
                     consistency=cons32,
                     tol=tol32,
                 )
