@@ -1,7 +1,7 @@
 """Which energy does the engine compute? Variant energies evaluated through the oracle.
 
 When no correction explains a failure, the case's energy is written as a formula (the
-materials' formulas of docs/conventions.md, or the user's own) and rewritten the way engines
+material's declared energy, or the user's own) and rewritten the way engines
 get it wrong: an invariant without its isochoric factor, the wrong power of J in it, I2 taken
 as tr(C^2), the bulk term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2. Each variant
 is a user energy (:class:`reference_fem.user_energy.UserEnergy`), so the oracle differentiates
@@ -34,8 +34,9 @@ def energy_expression(model: Any) -> Optional[Expression]:
     """(formula in the user-energy syntax, parameters) of a model; None when the energy cannot
     be written in that syntax (Ogden's eigenvalues, Costa's frame).
 
-    A declared material without a formula of its own here (Yeoh, Gent, any added later) is
-    written from its declaration's energy (:func:`_declared_expression`).
+    A declared material is written from its declaration's energy (:func:`_declared_expression`),
+    the one the oracle differentiates; only St Venant-Kirchhoff, whose declared energy reads the
+    matrix E, has its formula written out here in E's components.
     """
     return _declared_expression(model)
 
@@ -147,31 +148,6 @@ def _declared_expression(model: Any) -> Optional[Expression]:
 def _(m: M.StVenantKirchhoff) -> Expression:
     trE2 = "(E11**2 + E22**2 + E33**2 + 2*(E12**2 + E13**2 + E23**2))"
     return f"lam/2*(E11 + E22 + E33)**2 + mu*{trE2}", {"mu": m.mu, "lam": m.lam}
-
-
-@energy_expression.register
-def _(m: M.NeoHookean) -> Expression:
-    return "mu/2*(I1 - 3) - mu*ln(J) + lam/2*ln(J)**2", {"mu": m.mu, "lam": m.lam}
-
-
-@energy_expression.register
-def _(m: M.MooneyRivlin) -> Expression:
-    return "c1*(I1b - 3) + c2*(I2b - 3) + k0/2*ln(J)**2", {"c1": m.c1, "c2": m.c2, "k0": m.k0}
-
-
-@energy_expression.register
-def _(m: M.VerondaWestmann) -> Expression:
-    return (
-        "c1*(exp(c2*(I1b - 3)) - 1) - c1*c2/2*(I2b - 3) + k0/2*ln(J)**2",
-        {"c1": m.c1, "c2": m.c2, "k0": m.k0},
-    )
-
-
-@energy_expression.register
-def _(m: M.ArrudaBoyce) -> Expression:
-    c = ("1/2", "1/20", "11/1050", "19/7000", "519/673750")
-    series = " + ".join(f"{ci}*N**{1 - i}*(I1b**{i} - 3**{i})" for i, ci in enumerate(c, start=1))
-    return f"mu*({series}) + k0/2*ln(J)**2", {"mu": m.mu, "k0": m.k0, "N": m.N}
 
 
 def _user(m) -> Optional[Expression]:
