@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
 from mjed.compiled.codegen import (
+    ASSEMBLY_ARGS,
     EDGES,
     Source,
     add,
@@ -67,17 +68,7 @@ KERNEL_SIGNATURE = (
     "Tt",
     "want_force",
     "want_stiffness",
-    "cell_edges",
-    "cell_flip",
-    "U",
-    "Dg",
-    "src",
-    "blkptr",
-    "indptr",
-    "force",
-    "data",
-    "J_out",
-)
+) + ASSEMBLY_ARGS
 
 _KERNEL_DOC = '''"""Energy, forces and stiffness of every cell by the classical Galerkin, for one
 law.

@@ -52,6 +52,8 @@ from mjed.compiled.shape import KernelShape, TermShape
 __all__ = [
     "kernel_source",
     "KERNEL_SIGNATURE",
+    "CELL_INPUTS",
+    "ASSEMBLY_ARGS",
     "PARALLEL_SIGNATURE",
     "Target",
     "SERIAL",
@@ -80,8 +82,10 @@ CELL_INPUTS = (
     "want_stress",
 )
 
-#: The arguments of the generated ``mjed_cells``, in order (see its docstring).
-KERNEL_SIGNATURE = CELL_INPUTS + (
+#: The arguments through which a serial kernel assembles: the cells' edges and their
+#: orientation, the per-edge and per-node block sums, the CSR scatter map, and the outputs
+#: (force, CSR values, J per cell). The classical kernel assembles through the same ones.
+ASSEMBLY_ARGS = (
     "cell_edges",
     "cell_flip",
     "U",
@@ -92,8 +96,10 @@ KERNEL_SIGNATURE = CELL_INPUTS + (
     "force",
     "data",
     "J_out",
-    "stress_out",
 )
+
+#: The arguments of the generated ``mjed_cells``, in order (see its docstring).
+KERNEL_SIGNATURE = CELL_INPUTS + ASSEMBLY_ARGS + ("stress_out",)
 
 _KERNEL_DOC = '''"""Energy, forces, stiffness and stress of every cell by MJED, for one term shape.
 
