@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any, Dict
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # the figures read the studies' typed records
+    from comparisons.timing_data import ScalingData, TimingData
 
 __all__ = ["plot_fig2", "plot_scaling"]
 
@@ -39,18 +42,16 @@ def _plain_log_ticks(axis) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def plot_fig2(result: Dict[str, Any], path: str) -> str:
+def plot_fig2(result: "TimingData", path: str) -> str:
     """Grouped bars per material: median force+stiffness time of each method (min-max as
     error bars; methods not timed for a material leave a gap), log scale so that a 5x gap
     and a 50x gap both read. Returns ``path``.
     """
     plt = _pyplot()
-    methods = result["settings"]["methods"]
-    labels = result["settings"].get("labels", {})
-    mats = list(dict.fromkeys(r["material"] for r in result["results"]))
-    res = {
-        (r["material"], r["method"]): r for r in result["results"] if r["what"] == "force+stiffness"
-    }
+    methods = result.settings.methods
+    labels = result.settings.labels
+    mats = result.materials
+    res = {(r.material, r.method): r for r in result.results if r.what == "force+stiffness"}
     fig, ax = plt.subplots(figsize=(max(7.0, 1.6 * len(mats) + 2), 4.4))
     width = 0.84 / max(1, len(methods))
     xs = np.arange(len(mats))
@@ -58,9 +59,9 @@ def plot_fig2(result: Dict[str, Any], path: str) -> str:
         have = [i for i, m in enumerate(mats) if (m, method) in res]
         if not have:
             continue
-        med = np.array([res[(mats[i], method)]["median_s"] * 1e3 for i in have])
-        lo = med - np.array([res[(mats[i], method)]["min_s"] * 1e3 for i in have])
-        hi = np.array([res[(mats[i], method)]["max_s"] * 1e3 for i in have]) - med
+        med = np.array([res[(mats[i], method)].median_s * 1e3 for i in have])
+        lo = med - np.array([res[(mats[i], method)].min_s * 1e3 for i in have])
+        hi = np.array([res[(mats[i], method)].max_s * 1e3 for i in have]) - med
         pos = xs[have] + (k - (len(methods) - 1) / 2) * width
         ax.bar(
             pos,
@@ -85,10 +86,10 @@ def plot_fig2(result: Dict[str, Any], path: str) -> str:
     ax.set_xticks(xs)
     ax.set_xticklabels([m.replace("VenantKirchhoff", "VK") for m in mats], rotation=20, ha="right")
     ax.set_ylabel("force + stiffness per call (ms, log)")
-    mesh = result["mesh"]
+    mesh = result.mesh
     ax.set_title(
-        f"Assembly time on {mesh['name']} ({mesh['n_cells']:,} tets, {mesh['n_nodes']:,} nodes), "
-        f"{result['settings'].get('protocol', '')} protocol",
+        f"Assembly time on {mesh.name} ({mesh.n_cells:,} tets, {mesh.n_nodes:,} nodes), "
+        f"{result.settings.protocol} protocol",
         fontsize=10,
     )
     ax.legend(fontsize=7, ncol=2)
@@ -99,25 +100,25 @@ def plot_fig2(result: Dict[str, Any], path: str) -> str:
     return path
 
 
-def plot_scaling(result: Dict[str, Any], path: str) -> str:
+def plot_scaling(result: "ScalingData", path: str) -> str:
     """Time per cell and peak memory per cell against the cell count, log-log."""
     plt = _pyplot()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    methods = list(dict.fromkeys(r["method"] for r in result["rows"]))
+    methods = list(dict.fromkeys(r.method for r in result.rows))
     for method in methods:
-        rows = [r for r in result["rows"] if r["method"] == method]
-        n = [r["n_cells"] for r in rows]
-        label = result["settings"].get("labels", {}).get(method, method)
+        rows = [r for r in result.rows if r.method == method]
+        n = [r.n_cells for r in rows]
+        label = result.settings.labels.get(method, method)
         a1.loglog(
             n,
-            [r["seconds_per_cell"] * 1e6 for r in rows],
+            [r.seconds_per_cell * 1e6 for r in rows],
             "o-",
             label=label,
             color=_COLOURS.get(method),
         )
         a2.loglog(
             n,
-            [r["peak_bytes_per_cell"] for r in rows],
+            [r.peak_bytes_per_cell for r in rows],
             "o-",
             label=label,
             color=_COLOURS.get(method),
@@ -130,7 +131,7 @@ def plot_scaling(result: Dict[str, Any], path: str) -> str:
     for a in (a1, a2):
         a.grid(which="both", alpha=0.3)
         a.legend(fontsize=8)
-    fig.suptitle(f"Scaling, {result['material']}, structured cube", fontsize=10)
+    fig.suptitle(f"Scaling, {result.material}, structured cube", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)

@@ -589,7 +589,7 @@ def _timing_result(
 
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_fig2.png")
-        data.figures.append(figures_timing.plot_fig2(data.to_dict(), path))
+        data.figures.append(figures_timing.plot_fig2(data, path))
     return StudyResult.from_checks(
         KEY,
         TITLE,
@@ -887,7 +887,7 @@ def _scaling_result(
 
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_scaling.png")
-        data.figures.append(figures_timing.plot_scaling(data.to_dict(), path))
+        data.figures.append(figures_timing.plot_scaling(data, path))
     protocol = (
         "each (method, size) in a fresh process: build, one call (peak memory), then the best of "
         f"{s.repeats} timed calls; a method stops growing after a size that took over "
