@@ -226,6 +226,17 @@ def test_cli_reference_lists_every_subcommand_from_the_parser():
         assert f"mjed-verify {name}" in text, name
 
 
+def test_conventions_shows_a_row_per_declared_material():
+    """The table the build writes from the declarations is on the page, under its heading."""
+    from mjed.materials import declarations
+
+    text = (site().html / "conventions.html").read_text()
+    table = text[text.index("The materials") :]
+    table = table[: table.index("</table>")]
+    for declaration in declarations():
+        assert f'<span class="pre">{declaration.name}</span>' in table, declaration.name
+
+
 @needs_browser
 def test_every_page_loads():
     _, pages = browsed_pages()

@@ -4,14 +4,15 @@ is refused with an error naming it.
 Everywhere: the oracle (its UFL energy, the J-only part for the diagnosis), the classical
 element (its law, NumPy and the compiled kernel's shape), the compiled MJED kernel (its term
 table and shape), the checker and the exchange format (names, manifest round trip), the
-command line's names and defaults, the test parameter sets and the table of
-docs/conventions.md. Nothing here lists the materials: a new declaration is covered by
-being declared.
+command line's names and defaults, the test parameter sets and the table that the site
+build writes into docs/conventions.md. Nothing here lists the materials: a new declaration is
+covered by being declared.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,13 @@ from conftest import MATERIALS, random_tetrahedron
 
 import mjed
 from mjed.materials import declarations
-from mjed.materials.declaration import Declaration, declaration_of, declare, docs_table
+from mjed.materials.declaration import (
+    Declaration,
+    declaration_of,
+    declare,
+    docs_table,
+    docs_table_row,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DECLARED = {d.name: d for d in declarations()}
@@ -128,14 +135,20 @@ def test_every_declared_material_has_test_parameters(declared):
     assert type(MATERIALS[declared.name]) is declared.material
 
 
-def test_docs_table_is_the_declarations():
+def test_docs_table_is_generated_from_the_declarations():
+    """conventions.md pastes no row: it includes the table the site build writes from the
+    declarations (tests/test_docs_site.py reads the built page).
+    """
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    import site_generation
+
     text = (ROOT / "docs" / "conventions.md").read_text()
-    assert docs_table() in text, (
-        "docs/conventions.md's materials table differs from the declarations; "
-        "paste mjed.materials.declaration.docs_table() there"
-    )
-    for name in DECLARED:
-        assert text.count(f"| `{name}` |") == 1
+    assert f"```{{include}} generated/{site_generation.MATERIALS_TABLE}\n```" in text
+    table = site_generation.materials_table()
+    assert table.startswith(docs_table())
+    for name, declaration in DECLARED.items():
+        assert f"| `{name}` |" not in text, f"conventions.md pastes a row of {name}"
+        assert table.count(docs_table_row(declaration)) == 1, name
 
 
 def _yeoh_fields():

@@ -4,6 +4,9 @@ At ``builder-inited`` (before Sphinx reads the sources) it writes into ``docs/ge
 (git-ignored):
 
 - ``cli.md``: the command-line reference, from ``comparisons.cli.build_parser()``;
+- ``materials.inc``: the materials table of conventions.md (which includes it), from the
+  material declarations (``mjed.materials.declaration.docs_table()``); not a page of its own,
+  hence the suffix Sphinx does not read;
 - ``api/<package>.md``: one autodoc page per package (mjed, reference_fem, common, comparisons,
   meshes, and conformance when it exists), one section per module;
 - ``tutorials/<name>.md`` and its figures: each ``docs/tutorials/*.py`` executed by
@@ -207,6 +210,7 @@ def generate(app) -> None:
     gen = generated_dir(app)
     (gen / "api").mkdir(parents=True, exist_ok=True)
     _write_if_changed(gen / "cli.md", cli_page())
+    _write_if_changed(gen / MATERIALS_TABLE, materials_table())
     for package in api_packages():
         _write_if_changed(gen / "api" / f"{package}.md", api_page(package))
     tut_target = gen / "tutorials"
@@ -234,6 +238,18 @@ def _write_if_changed(path: Path, text: str) -> None:
     # Unchanged files keep their time stamp, so Sphinx does not re-read them.
     if not path.exists() or path.read_text() != text:
         path.write_text(text)
+
+
+# ---------------------------------------------------------------------------- materials
+#: The materials table, relative to the generated folder (conventions.md includes it).
+MATERIALS_TABLE = "materials.inc"
+
+
+def materials_table() -> str:
+    """The table of every declared material: written at each build, so it cannot fall behind."""
+    from mjed.materials.declaration import docs_table
+
+    return docs_table() + "\n"
 
 
 # ---------------------------------------------------------------------------- MathJax

@@ -170,7 +170,8 @@ def declaration_of(material_type: type) -> Declaration:
     )
 
 
-#: The header of the materials table in docs/conventions.md; :func:`docs_table_row` gives its rows.
+#: The header of the materials table (docs/conventions.md, written by the site build); its
+#: rows: :func:`docs_table_row`.
 DOCS_TABLE_HEADER = ("| material | parameters | W | J-only part |", "|---|---|---|---|")
 
 
