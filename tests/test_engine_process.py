@@ -39,7 +39,11 @@ def _assert_ended(path, count: int) -> None:
     """The processes that wrote their pid into ``path`` (``count`` of them) are all gone."""
     pids = _pids(path)
     assert len(pids) == count
-    time.sleep(0.1)  # reaped by their new parent
+    # A killed process needs a moment to become a zombie on a loaded machine: poll, do not
+    # guess one sleep; one still running after 5 s was not ended.
+    deadline = time.monotonic() + 5
+    while [p for p in pids if _alive(p)] and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert not [p for p in pids if _alive(p)]
 
 
@@ -174,8 +178,10 @@ def test_sigterm_to_check_ends_the_engine_it_is_running(tmp_path):
     ]
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
-    while not pidfile.exists() and time.monotonic() < deadline:
+    # The pid written, not only the file created: a signal between the two would leave no pid.
+    while time.monotonic() < deadline and not (pidfile.exists() and pidfile.read_text().strip()):
         time.sleep(0.05)
+    assert pidfile.exists(), "the engine did not start within 60 s"
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 130
     assert "interrupted" in proc.stderr.read()
