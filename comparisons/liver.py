@@ -73,7 +73,7 @@ import shlex
 import time
 import warnings
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -97,6 +97,13 @@ __all__ = [
     "numpy_force_field",
     "LIVER_SOLVER",
 ]
+from comparisons.liver_data import (
+    BackendAgreement,
+    LiverData,
+    LiverRun,
+    OscillationData,
+    StepSplit,
+)
 from comparisons.liver_setup import (
     BACKEND_AGREEMENT_TOL,
     BACKENDS,
@@ -134,8 +141,8 @@ def run_liver(
     force_fields: Sequence[Callable] = (numpy_force_field,),
     organ: Optional[Organ] = None,
     allow_disconnected: bool = False,
-) -> Dict:
-    """Run the liver simulations and write the figures; returns a JSON-serialisable dict.
+) -> LiverData:
+    """Run the liver simulations and write the figures; returns their LiverData.
 
     mesh: a catalog name, a mesh file path, or (points, cells), or ``organ`` already loaded
     (then mesh, scale and fix_orientation are not used); fixed: region specs (see
@@ -146,7 +153,7 @@ def run_liver(
     model runs once per factory and the figures show the first one's runs; allow_disconnected:
     accept a mesh in several parts each with a fixed node (warned). Raises InputError
     on bad input (see liver_setup). A run the integrator stops (a step refused after its
-    substeps) ends there: its "error" holds the message and "passed" is False.
+    substeps) ends there: its ``error`` holds the message and ``passed`` is False.
     """
     setup = liver_setup(
         mesh,
@@ -168,7 +175,7 @@ def run_liver(
     if json_path:
         from common.options import write_json
 
-        write_json(json_path, result)
+        write_json(json_path, result.to_dict())
     return result
 
 
@@ -274,7 +281,7 @@ def _run_models(setup: LiverSetup, params: LiverParameters, out: str, series: bo
     return runs, series_paths
 
 
-def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[Dict], out: str):
+def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[LiverRun], out: str):
     """The Terzaghi check and the run's figures (the first backend's runs are drawn)."""
     from comparisons.liver_figures import (
         plot_amplitudes,
@@ -284,7 +291,7 @@ def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[Dict], o
     )
     from comparisons.terzaghi import run_terzaghi
 
-    first = [r for r in runs if r["backend"] == runs[0]["backend"]]
+    first = [r for r in runs if r.backend == runs[0].backend]
     # The pressure solver's own check, beside the scenario that uses it.
     terzaghi = run_terzaghi(dt=0.004, figure=os.path.join(out, "terzaghi.png"))
     figures = list(terzaghi["figures"])
@@ -299,132 +306,93 @@ def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[Dict], o
                 os.path.join(out, "step_time_split.png"), split, PAPER_HYPERELASTIC_SHARE
             )
         )
-    for r in runs:
-        snap = r.pop("_pressure_snapshot", None)
-        if snap is not None and snap[1] is not None and any(r is f for f in first):
+    for r in first:
+        snap = r.pressure_snapshot
+        if snap is not None:
             figures.append(
                 plot_pressure(
                     os.path.join(out, "fig1_right_pressure.png"),
                     setup.organ.mesh,
-                    snap[2],
-                    snap[1],
+                    snap.positions,
+                    snap.pressure,
                     setup.fixed,
                 )
             )
     return figures, terzaghi, split
 
 
-_FPS_KEYS = (
-    "model",
-    "backend",
-    "dt",
-    "fps",
-    "cpu_fps",
-    "paper_fps",
-    "solver",
-    "force_field",
-    "cg_iterations_mean",
-    "factorizations",
-    "steps",
-    "steps_split",
-    "substeps_total",
-    "inverted_cells_max",
-)
-
-
-def _fps_row(r: Dict) -> Dict:
-    row = {k: r[k] for k in _FPS_KEYS}
-    row.update(
-        target_fps=TARGET_FPS,
-        completed=r["error"] is None,
-        meets_target=bool(r["fps"] is not None and r["fps"] >= TARGET_FPS),
-    )
-    return row
-
-
 def _liver_record(
     setup: LiverSetup, params: LiverParameters, runs, figures, terzaghi, split, series_paths
-) -> Dict:
-    """The JSON record of a liver run (results.json, --json)."""
+) -> LiverData:
+    """The record of a liver run (its to_dict() goes to results.json and --json)."""
     organ, nodes = setup.organ, setup.fixed
-    worst_terzaghi = max(t["relative_l2_error"] for t in terzaghi["times"])
-    return {
-        "mesh": organ.label,
-        "mesh_description": organ.describe(),
-        "n_nodes": organ.mesh.n_nodes,
-        "n_cells": organ.mesh.n_cells,
-        "scale": organ.scale,
-        "numbering": organ.numbering,
-        "reoriented_cells": organ.reoriented,
-        "unused_nodes": int(len(organ.unused_nodes)),
-        "mesh_warnings": list(setup.mesh_warnings),
-        "fixed_regions": setup.specs,
-        "n_fixed": int(len(nodes)),
-        "fixed_node_ids": organ.node_ids[nodes].tolist() if len(nodes) <= 50 else None,
-        "quick": setup.quick,
-        "duration": setup.duration,
-        "parameters": params.to_dict(),
-        "runs": runs,
-        "backends": list(dict.fromkeys(r["backend"] for r in runs)),
-        "fps_table": [_fps_row(r) for r in runs],
-        "step_split": split,
-        "backend_agreement": backend_agreement(runs),
-        "terzaghi": terzaghi,
-        "passed": all(r["error"] is None for r in runs) and worst_terzaghi <= TERZAGHI_TOL,
-        "figures": figures,
-        "series": series_paths,
-    }
+    return LiverData(
+        mesh=organ.label,
+        mesh_description=organ.describe(),
+        n_nodes=organ.mesh.n_nodes,
+        n_cells=organ.mesh.n_cells,
+        scale=organ.scale,
+        numbering=organ.numbering,
+        reoriented_cells=organ.reoriented,
+        unused_nodes=int(len(organ.unused_nodes)),
+        mesh_warnings=setup.mesh_warnings,
+        fixed_regions=setup.specs,
+        n_fixed=int(len(nodes)),
+        fixed_node_ids=organ.node_ids[nodes].tolist() if len(nodes) <= 50 else None,
+        quick=setup.quick,
+        duration=setup.duration,
+        parameters=params.to_dict(),
+        runs=runs,
+        step_split=split,
+        backend_agreement=backend_agreement(runs),
+        terzaghi=terzaghi,
+        figures=figures,
+        series=series_paths,
+    )
 
 
-def step_split(runs: Sequence[Dict]) -> List[Dict]:
+def step_split(runs: Sequence[LiverRun]) -> List[StepSplit]:
     """Share of each phase in the steps of each completed run (the paper's Fig. 2, left)."""
     rows = []
     for r in runs:
-        seconds = np.array([r["phase_seconds"][p] for p in PHASES])
+        seconds = np.array([r.phase_seconds[p] for p in PHASES])
         total = seconds.sum()
-        if r["steps"] == 0 or total <= 0:
+        if r.steps == 0 or total <= 0:
             continue
         rows.append(
-            {
-                "model": r["model"],
-                "backend": r["backend"],
-                "ms_per_step": 1e3 * total / r["steps"],
-                "shares": dict(zip(PHASES, (seconds / total).tolist())),
-            }
+            StepSplit(
+                model=r.model,
+                backend=r.backend,
+                ms_per_step=1e3 * total / r.steps,
+                shares=dict(zip(PHASES, (seconds / total).tolist())),
+            )
         )
     return rows
 
 
-def backend_agreement(runs: Sequence[Dict]) -> List[Dict]:
+def backend_agreement(runs: Sequence[LiverRun]) -> List[BackendAgreement]:
     """Each later backend's run against the first backend's run of the same model: the largest
     difference of the maximum-displacement curves relative to the first's peak (None when the
     two did not take the same steps).
     """
     if not runs:
         return []
-    reference = {r["model"]: r for r in runs if r["backend"] == runs[0]["backend"]}
+    reference = {r.model: r for r in runs if r.backend == runs[0].backend}
     rows = []
     for r in runs:
-        ref = reference.get(r["model"])
-        if ref is None or r["backend"] == ref["backend"]:
+        ref = reference.get(r.model)
+        if ref is None or r.backend == ref.backend:
             continue
         same = (
-            r["error"] is None
-            and ref["error"] is None
-            and len(r["max_displacement"]) == len(ref["max_displacement"])
+            r.error is None
+            and ref.error is None
+            and len(r.max_displacement) == len(ref.max_displacement)
         )
         diff = None
         if same:
-            a, b = np.asarray(r["max_displacement"]), np.asarray(ref["max_displacement"])
+            a, b = np.asarray(r.max_displacement), np.asarray(ref.max_displacement)
             diff = float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
-        rows.append(
-            {
-                "model": r["model"],
-                "backend": r["backend"],
-                "reference": ref["backend"],
-                "relative_difference": diff,
-            }
-        )
+        rows.append(BackendAgreement(r.model, r.backend, ref.backend, diff))
     return rows
 
 
@@ -591,13 +559,13 @@ def liver_study(*, progress: Optional[Callable[[str], None]] = None, **options) 
     osc = None
     if opts.oscillation:
         osc = _oscillation(organ, opts, force_fields[0], progress)
-        data["oscillation"] = osc
-        data["figures"] += osc["figures"]
-    data["protocol"] = protocol = _liver_protocol(data, osc, opts.full)
+        data = dataclasses.replace(data, oscillation=osc, figures=data.figures + osc.figures)
+    protocol = _liver_protocol(data, osc, opts.full)
+    data = dataclasses.replace(data, protocol=protocol)
     if opts.json_path:
         from common.options import write_json
 
-        write_json(opts.json_path, data)
+        write_json(opts.json_path, data.to_dict())
     return StudyResult.from_checks(
         KEY,
         TITLE,
@@ -606,7 +574,7 @@ def liver_study(*, progress: Optional[Callable[[str], None]] = None, **options) 
         command=command,
         not_covered=not_covered,
         protocol=protocol,
-        data=data,
+        data=data.to_dict(),
         blocks=_liver_blocks(data, opts.params, osc, opts.relative_to),
         seconds=time.perf_counter() - clock,
     )
@@ -628,7 +596,7 @@ def _left_out(quick: bool, models: Sequence[str], oscillation: bool) -> List[str
     return out
 
 
-def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -> Dict:
+def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -> OscillationData:
     """Fig. 4 as the paper describes it: the models without damping, over several time steps.
 
     The built-in organ's study runs on the coarse liver by default (time), the paper-size one
@@ -663,59 +631,57 @@ def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -
     )
 
 
-def _liver_checks(data: Dict) -> List:
+def _liver_checks(data: LiverData) -> List:
     """Terzaghi's tolerance, every run completing, the FPS targets and backend agreement."""
     from common.result import Check
 
-    tz_err = max(t["relative_l2_error"] for t in data["terzaghi"]["times"])
     checks = [
         Check(
             "Terzaghi consolidation: relative L2 pressure error, worst time factor",
-            tz_err,
+            data.terzaghi_error,
             TERZAGHI_TOL,
         )
     ]
-    runs = data["runs"]
+    runs = data.runs
     checks += [
         Check(
-            f"{r['model']} run completes its {r['steps_planned']} steps of {r['dt']:g} s (fraction "
-            "done)",
-            r["steps"] / r["steps_planned"],
+            f"{r.model} run completes its {r.steps_planned} steps of {r.dt:g} s (fraction done)",
+            r.steps / r.steps_planned,
             1.0,
             ">=",
-            note=r["error"] or "",
+            note=r.error or "",
         )
         for r in runs
     ]
     checks += [
         Check(
-            f"{r['model']} frames per second on {data['mesh']} ({r['force_field']})",
-            r["fps"],
+            f"{r.model} frames per second on {data.mesh} ({r.force_field})",
+            r.fps,
             TARGET_FPS,
             ">=",
             "target",
-            note=f"paper {r['paper_fps']:g} FPS on a 2010 laptop",
+            note=f"paper {r.paper_fps:g} FPS on a 2010 laptop",
         )
         for r in runs
     ]
     checks += [
         Check(
-            f"{r['model']} frames per second on {data['mesh']} with the compiled backend",
-            r["fps"],
+            f"{r.model} frames per second on {data.mesh} with the compiled backend",
+            r.fps,
             COMPILED_TARGET_FPS,
             ">=",
             "target",
             note="the compiled backend's target on a 2-core machine",
         )
         for r in runs
-        if r["backend"] == "numba"
+        if r.backend == "numba"
     ]
-    for a in data["backend_agreement"]:
-        diff = a["relative_difference"]
+    for a in data.backend_agreement:
+        diff = a.relative_difference
         checks.append(
             Check(
-                f"{a['model']}: the {a['backend']} run's maximum displacement curve against the "
-                f"{a['reference']} run's (largest difference / peak)",
+                f"{a.model}: the {a.backend} run's maximum displacement curve against the "
+                f"{a.reference} run's (largest difference / peak)",
                 diff,
                 BACKEND_AGREEMENT_TOL,
                 note="" if diff is not None else "not comparable: a run failed or took other steps",
@@ -725,7 +691,10 @@ def _liver_checks(data: Dict) -> List:
 
 
 def _liver_blocks(
-    data: Dict, params: LiverParameters, osc: Optional[Dict], relative_to: Optional[str]
+    data: LiverData,
+    params: LiverParameters,
+    osc: Optional[OscillationData],
+    relative_to: Optional[str],
 ) -> List:
     """The liver section of the report: setting, figures, tables and findings."""
     from common.blocks import Figure, Paragraph
@@ -736,9 +705,9 @@ def _liver_blocks(
     solver = LIVER_SOLVER if params.solver == LIVER_SOLVER else params.solver
     blocks: List = [
         Paragraph(
-            f"Mesh {data['mesh_description']}, {data['n_fixed']} fixed nodes "
-            f"({'; '.join(data['fixed_regions'])}), gravity {list(params.gravity)} m/s^2, material "
-            f"{type(params.material).__name__}, {data['duration']:g} s simulated. FPS are time "
+            f"Mesh {data.mesh_description}, {data.n_fixed} fixed nodes "
+            f"({'; '.join(data.fixed_regions)}), gravity {list(params.gravity)} m/s^2, material "
+            f"{type(params.material).__name__}, {data.duration:g} s simulated. FPS are time "
             "steps per wall-clock second of stepping (assembly, solve, substeps included) on this "
             f"machine; the linear solver: {solver.label()}. A step the integrator could not take "
             f"whole was retried in halves (down to dt/{2**params.max_halvings})."
@@ -746,41 +715,41 @@ def _liver_blocks(
     ]
     blocks += [
         Figure(rel(p), _CAPTIONS.get(os.path.splitext(os.path.basename(p))[0], os.path.basename(p)))
-        for p in data["figures"]
+        for p in data.figures
     ]
     blocks += _run_tables(data)
     if osc is not None:
         blocks += _oscillation_blocks(osc)
-    if data.get("series"):
+    if data.series:
         blocks.append(
             Paragraph(
                 "ParaView time series (displacement, J, pressure): "
-                + ", ".join(rel(p) for p in data["series"])
+                + ", ".join(rel(p) for p in data.series)
             )
         )
     return blocks
 
 
-#: The FPS table's columns: (header, value of a run record).
+#: The FPS table's columns: (header, value of a run).
 _FPS_COLUMNS = (
-    ("model", lambda r: r["model"]),
-    ("backend", lambda r: r["backend"]),
-    ("dt (s)", lambda r: r["dt"]),
-    ("steps", lambda r: f"{r['steps']}/{r['steps_planned']}"),
-    ("steps in substeps", lambda r: r["steps_split"]),
-    ("substeps", lambda r: r["substeps_total"]),
-    ("max inverted cells", lambda r: r["inverted_cells_max"]),
-    ("CG / step", lambda r: r["cg_iterations_mean"]),
-    ("final max |u| (mm)", lambda r: 1e3 * r["final_max_displacement"]),
-    ("FPS", lambda r: r["fps"]),
-    ("CPU FPS", lambda r: r["cpu_fps"]),
-    ("paper FPS", lambda r: r["paper_fps"]),
+    ("model", lambda r: r.model),
+    ("backend", lambda r: r.backend),
+    ("dt (s)", lambda r: r.dt),
+    ("steps", lambda r: f"{r.steps}/{r.steps_planned}"),
+    ("steps in substeps", lambda r: r.steps_split),
+    ("substeps", lambda r: r.substeps_total),
+    ("max inverted cells", lambda r: r.inverted_cells_max),
+    ("CG / step", lambda r: r.cg_iterations_mean),
+    ("final max |u| (mm)", lambda r: 1e3 * r.final_max_displacement),
+    ("FPS", lambda r: r.fps),
+    ("CPU FPS", lambda r: r.cpu_fps),
+    ("paper FPS", lambda r: r.paper_fps),
     ("target", lambda r: _fps_target(r)),
-    ("error", lambda r: r["error"] or ""),
+    ("error", lambda r: r.error or ""),
 )
 
 
-def _run_tables(data: Dict) -> List:
+def _run_tables(data: LiverData) -> List:
     """The FPS table, the backends' agreement and the step split."""
     from common.blocks import Table
 
@@ -788,20 +757,20 @@ def _run_tables(data: Dict) -> List:
         f"Frames per second and substeps, per backend (targets: {TARGET_FPS:g} FPS, the "
         f"real-time bar; {COMPILED_TARGET_FPS:g} FPS for the compiled backend)"
     )
-    rows = [tuple(value(r) for _, value in _FPS_COLUMNS) for r in data["runs"]]
+    rows = [tuple(value(r) for _, value in _FPS_COLUMNS) for r in data.runs]
     tables = [Table(tuple(h for h, _ in _FPS_COLUMNS), rows, caption=caption)]
-    if data["backend_agreement"]:
-        tables.append(_agreement_table(data["backend_agreement"]))
-    if data["step_split"]:
-        tables.append(_split_table(data["step_split"]))
+    if data.backend_agreement:
+        tables.append(_agreement_table(data.backend_agreement))
+    if data.step_split:
+        tables.append(_split_table(data.step_split))
     return tables
 
 
-def _agreement_table(agreement: List[Dict]):
+def _agreement_table(agreement: Sequence[BackendAgreement]):
     from common.blocks import Table
 
     header = ("model", "backend", "against", "max displacement curve: largest difference / peak")
-    rows = [(a["model"], a["backend"], a["reference"], a["relative_difference"]) for a in agreement]
+    rows = [(a.model, a.backend, a.reference, a.relative_difference) for a in agreement]
     caption = (
         f"The backends give the same trajectory (tolerance {BACKEND_AGREEMENT_TOL:g}: the "
         "linear solve's own tolerance bounds the drift)"
@@ -809,15 +778,15 @@ def _agreement_table(agreement: List[Dict]):
     return Table(header, rows, caption=caption)
 
 
-def _split_table(split: List[Dict]):
+def _split_table(split: Sequence[StepSplit]):
     from common.blocks import Table
 
     rows = [
         (
-            s["model"],
-            s["backend"],
-            s["ms_per_step"],
-            *(f"{100 * s['shares'][p]:.0f} %" for p in PHASES),
+            s.model,
+            s.backend,
+            s.ms_per_step,
+            *(f"{100 * s.shares[p]:.0f} %" for p in PHASES),
         )
         for s in split
     ]
@@ -828,23 +797,23 @@ def _split_table(split: List[Dict]):
     return Table(("model", "backend", "ms / step", *PHASES), rows, caption=caption)
 
 
-def _oscillation_blocks(osc: Dict) -> List:
+def _oscillation_blocks(osc: OscillationData) -> List:
     from common.blocks import Paragraph, Table
 
     rows = [
         (
-            r["model"],
-            r["dt"],
-            "yes" if r["completed"] else "no: " + (r["error"] or "")[:90],
-            r["extrema"],
-            None if r["first_peak"] is None else 1e3 * r["first_peak"],
-            1e3 * r["final"],
-            r["period"],
-            r["decay_rate"],
-            r["euler_decay_rate"],
-            r["steps_split"],
+            r.model,
+            r.dt,
+            "yes" if r.completed else "no: " + (r.error or "")[:90],
+            r.extrema,
+            None if r.first_peak is None else 1e3 * r.first_peak,
+            1e3 * r.final,
+            r.period,
+            r.decay_rate,
+            r.euler_decay_rate,
+            r.steps_split,
         )
-        for r in osc["table"]
+        for r in osc.table
     ]
     return [
         Table(
@@ -861,40 +830,37 @@ def _oscillation_blocks(osc: Dict) -> List:
                 "steps in substeps",
             ),
             rows,
-            caption=f"Oscillation study on {osc['mesh']}, no Rayleigh damping, {osc['duration']:g} "
-            "s",
+            caption=f"Oscillation study on {osc.mesh}, no Rayleigh damping, {osc.duration:g} s",
         ),
         Paragraph(oscillation_findings(osc)),
     ]
 
 
-def _liver_headline(data: Dict, osc: Optional[Dict], models: Sequence[str]) -> str:
+def _liver_headline(data: LiverData, osc: Optional[OscillationData], models: Sequence[str]) -> str:
     per_backend = []
-    for b in data["backends"]:
-        mine = [r for r in data["runs"] if r["backend"] == b]
-        fps = " / ".join(
-            "failed" if r["fps"] is None or r["error"] else f"{r['fps']:.0f}" for r in mine
-        )
+    for b in data.backends:
+        mine = [r for r in data.runs if r.backend == b]
+        fps = " / ".join("failed" if r.fps is None or r.error else f"{r.fps:.0f}" for r in mine)
         per_backend.append(f"{fps} ({b})")
-    split = sum(r["steps_split"] for r in data["runs"])
-    tz_err = max(t["relative_l2_error"] for t in data["terzaghi"]["times"])
+    split = sum(r.steps_split for r in data.runs)
+    tz_err = data.terzaghi_error
     headline = (
-        f"FPS on {data['mesh']}: {', '.join(per_backend)} for {', '.join(models)} (targets 25, "
+        f"FPS on {data.mesh}: {', '.join(per_backend)} for {', '.join(models)} (targets 25, "
         f"compiled {COMPILED_TARGET_FPS:g}; paper 7.5 / 7 / 6); {split} step(s) taken in substeps; "
         f"Terzaghi {100 * tz_err:.2f} %"
     )
     if osc is not None:
         headline += (
-            f"; oscillation amplitude order at dt {osc['amplitude_ordering_dt']:g} s: "
-            f"{' > '.join(osc['amplitude_ordering'])}"
+            f"; oscillation amplitude order at dt {osc.amplitude_ordering_dt:g} s: "
+            f"{' > '.join(osc.amplitude_ordering)}"
         )
     return headline
 
 
-def _liver_protocol(data: Dict, osc: Optional[Dict], full: bool) -> str:
+def _liver_protocol(data: LiverData, osc: Optional[OscillationData], full: bool) -> str:
     text = (
-        f"{len(data['runs'])} runs of {data['duration']:g} s on {data['mesh']} (backends: "
-        f"{', '.join(data['backends'])}); oscillation study with the {data['backends'][0]} backend "
+        f"{len(data.runs)} runs of {data.duration:g} s on {data.mesh} (backends: "
+        f"{', '.join(data.backends)}); oscillation study with the {data.backends[0]} backend "
     )
     if osc is None:
         return text + "not run"
@@ -905,33 +871,33 @@ def _liver_protocol(data: Dict, osc: Optional[Dict], full: bool) -> str:
         "paper-size liver for the built-in organ"
     )
     return (
-        text + f"on {osc['mesh']} over {osc['duration']:g} s at dt "
-        f"{', '.join(f'{d:g}' for d in osc['dts'])} s ({size})"
+        text + f"on {osc.mesh} over {osc.duration:g} s at dt "
+        f"{', '.join(f'{d:g}' for d in osc.dts)} s ({size})"
     )
 
 
-def _fps_target(run: Dict) -> str:
+def _fps_target(run: LiverRun) -> str:
     """The FPS target(s) of a run, met or missed."""
-    if run["fps"] is None:
+    if run.fps is None:
         return "not measured"
-    targets = [TARGET_FPS] + ([COMPILED_TARGET_FPS] if run["backend"] == "numba" else [])
-    return ", ".join(f"{t:g}: {'met' if run['fps'] >= t else 'missed'}" for t in targets)
+    targets = [TARGET_FPS] + ([COMPILED_TARGET_FPS] if run.backend == "numba" else [])
+    return ", ".join(f"{t:g}: {'met' if run.fps >= t else 'missed'}" for t in targets)
 
 
-def oscillation_findings(osc: Dict) -> str:
+def oscillation_findings(osc: OscillationData) -> str:
     """What the oscillation study found, in words (from the measured table, whatever it is)."""
-    rows = osc["table"]
+    rows = osc.table
     parts = []
-    for model in dict.fromkeys(r["model"] for r in rows):
-        mine = sorted((r for r in rows if r["model"] == model), key=lambda r: r["dt"])
-        done = [r for r in mine if r["completed"]]
+    for model in dict.fromkeys(r.model for r in rows):
+        mine = sorted((r for r in rows if r.model == model), key=lambda r: r.dt)
+        done = [r for r in mine if r.completed]
         rates = ", ".join(
-            f"{r['decay_rate']:.2g}/s at {r['dt']:g} s" for r in done if r["decay_rate"] is not None
+            f"{r.decay_rate:.2g}/s at {r.dt:g} s" for r in done if r.decay_rate is not None
         )
-        once = [f"{r['dt']:g}" for r in done if r["decay_rate"] is None and r["extrema"] > 0]
-        none = [f"{r['dt']:g}" for r in done if r["extrema"] == 0]
-        failed = [f"{r['dt']:g}" for r in mine if not r["completed"]]
-        peaks = ", ".join(f"{1e3 * r['peak']:.0f} mm at {r['dt']:g} s" for r in done)
+        once = [f"{r.dt:g}" for r in done if r.decay_rate is None and r.extrema > 0]
+        none = [f"{r.dt:g}" for r in done if r.extrema == 0]
+        failed = [f"{r.dt:g}" for r in mine if not r.completed]
+        peaks = ", ".join(f"{1e3 * r.peak:.0f} mm at {r.dt:g} s" for r in done)
         text = f"{model}: peak {peaks}"
         if rates:
             text += f"; oscillation decay {rates}"
@@ -942,10 +908,10 @@ def oscillation_findings(osc: Dict) -> str:
         if failed:
             text += f"; refused at dt {', '.join(failed)} s even in substeps"
         parts.append(text)
-    order = " > ".join(osc["amplitude_ordering"])
+    order = " > ".join(osc.amplitude_ordering)
     return (
         "Findings. "
         + ". ".join(parts)
-        + f". Peak amplitude at dt {osc['amplitude_ordering_dt']:g} s, largest first: {order} (the "
+        + f". Peak amplitude at dt {osc.amplitude_ordering_dt:g} s, largest first: {order} (the "
         "paper: visco > poro > hyper)."
     )

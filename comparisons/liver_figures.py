@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Dict, Sequence
+from typing import Sequence
 
 import numpy as np
+
+from comparisons.liver_data import LiverRun, OscillationCurve, OscillationRow, StepSplit
 
 __all__ = [
     "plot_porous_stress",
@@ -79,25 +81,25 @@ def plot_porous_stress(path: str, params) -> str:
     return _save(fig, path)
 
 
-def plot_amplitudes(path: str, runs: Sequence[Dict], label: str) -> str:
+def plot_amplitudes(path: str, runs: Sequence[LiverRun], label: str) -> str:
     """Fig. 4: the maximum nodal displacement over time, the models on one axes as in the paper."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     for r, marker in zip(runs, "osd^v"):
-        rate = "failed" if r["error"] else f"{r['fps']:.0f} FPS, paper {r['paper_fps']:g}"
-        split = f"; {r['steps_split']} step(s) in substeps" if r.get("steps_split") else ""
+        rate = "failed" if r.error else f"{r.fps:.0f} FPS, paper {r.paper_fps:g}"
+        split = f"; {r.steps_split} step(s) in substeps" if r.steps_split else ""
         (line,) = ax.plot(
-            r["time"],
-            1e3 * np.asarray(r["max_displacement"]),
+            r.time,
+            1e3 * np.asarray(r.max_displacement),
             f"-{marker}",
             ms=3,
-            label=f"{r['model']} (dt = {r['dt']:g} s; {rate}{split})",
+            label=f"{r.model} (dt = {r.dt:g} s; {rate}{split})",
         )
-        split_at = [k + 1 for k, n in enumerate(r.get("substeps", [])) if n > 1]
+        split_at = [k + 1 for k, n in enumerate(r.substeps) if n > 1]
         if split_at:  # steps the integrator had to take in substeps: ringed
             ax.plot(
-                np.asarray(r["time"])[split_at],
-                1e3 * np.asarray(r["max_displacement"])[split_at],
+                np.asarray(r.time)[split_at],
+                1e3 * np.asarray(r.max_displacement)[split_at],
                 "o",
                 ms=8,
                 mfc="none",
@@ -141,18 +143,18 @@ def plot_pressure(path: str, mesh, x: np.ndarray, P: np.ndarray, fixed: np.ndarr
     return _save(fig, path, tight=False)
 
 
-def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str:
+def plot_step_split(path: str, split: Sequence[StepSplit], paper_share: float) -> str:
     """Where a step's time goes, per run (model and backend; stacked shares), beside the paper's
     hyperelastic share.
     """
     plt = _pyplot()
-    phases = list(split[0]["shares"])
+    phases = list(split[0].shares)
     fig, ax = plt.subplots(figsize=(8, 1.2 + 0.7 * len(split)))
     colours = plt.get_cmap("tab10").colors
     for row, r in enumerate(split):
         left = 0.0
         for k, phase in enumerate(phases):
-            share = r["shares"][phase]
+            share = r.shares[phase]
             ax.barh(
                 row,
                 100 * share,
@@ -180,12 +182,7 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
     )
     ax.set_yticks(range(len(split)))
     ax.set_yticklabels(
-        [
-            f"{r['model']}"
-            + (f" ({r['backend']})" if "backend" in r else "")
-            + f"\n{r['ms_per_step']:.1f} ms/step"
-            for r in split
-        ],
+        [f"{r.model} ({r.backend})\n{r.ms_per_step:.1f} ms/step" for r in split],
         fontsize=8,
     )
     ax.set_xlim(0, 100)
@@ -200,32 +197,32 @@ def plot_step_split(path: str, split: Sequence[Dict], paper_share: float) -> str
     return _save(fig, path, bbox_inches="tight")
 
 
-def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
+def plot_oscillations(path: str, curves: Sequence[OscillationCurve], label: str) -> str:
     """Fig. 4 as the paper describes it: max displacement over time, one panel per model,
     one curve per time step (little damping: the oscillations show, and fade faster with dt).
     """
     plt = _pyplot()
-    models = list(dict.fromkeys(c["model"] for c in curves))
+    models = list(dict.fromkeys(c.model for c in curves))
     fig, axes = plt.subplots(
         1, len(models), figsize=(4.2 * len(models), 3.6), sharey=True, squeeze=False
     )
-    dts = sorted({c["dt"] for c in curves}, reverse=True)
+    dts = sorted({c.dt for c in curves}, reverse=True)
     cmap = plt.get_cmap("viridis")
     for ax, model in zip(axes[0], models):
         for c in curves:
-            if c["model"] != model:
+            if c.model != model:
                 continue
-            colour = cmap(dts.index(c["dt"]) / max(1, len(dts) - 1))
-            tag = " (failed)" if c["error"] else ""
+            colour = cmap(dts.index(c.dt) / max(1, len(dts) - 1))
+            tag = " (failed)" if c.error else ""
             ax.plot(
-                c["time"],
-                1e3 * np.asarray(c["max_displacement"]),
+                c.time,
+                1e3 * np.asarray(c.max_displacement),
                 "-",
                 color=colour,
                 lw=1.2,
-                marker="o" if c["dt"] >= 0.1 else None,
+                marker="o" if c.dt >= 0.1 else None,
                 ms=3,
-                label=f"dt = {c['dt']:g} s{tag}",
+                label=f"dt = {c.dt:g} s{tag}",
             )
         ax.set_title(model, fontsize=10)
         ax.set_xlabel("time (s)")
@@ -236,23 +233,17 @@ def plot_oscillations(path: str, curves: Sequence[Dict], label: str) -> str:
     return _save(fig, path)
 
 
-def plot_decay(path: str, rows: Sequence[Dict]) -> str:
+def plot_decay(path: str, rows: Sequence[OscillationRow]) -> str:
     """Measured decay rate of the oscillation against dt, with backward Euler's prediction."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
-    models = list(dict.fromkeys(r["model"] for r in rows))
+    models = list(dict.fromkeys(r.model for r in rows))
     for model, marker in zip(models, "osd"):
-        pts = [
-            (r["dt"], r["decay_rate"])
-            for r in rows
-            if r["model"] == model and r["decay_rate"] is not None
-        ]
+        pts = [(r.dt, r.decay_rate) for r in rows if r.model == model and r.decay_rate is not None]
         if pts:
             ax.loglog(*zip(*pts), f"-{marker}", label=f"{model}: measured")
     theory = [
-        (r["dt"], r["euler_decay_rate"])
-        for r in rows
-        if r["model"] == models[0] and r["euler_decay_rate"]
+        (r.dt, r.euler_decay_rate) for r in rows if r.model == models[0] and r.euler_decay_rate
     ]
     if theory:
         ax.loglog(

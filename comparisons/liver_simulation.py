@@ -8,21 +8,14 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional
+from typing import List, Optional
 
 import numpy as np
 
-from comparisons.liver_setup import PAPER_FPS, LiverParameters, _models, numpy_force_field
+from comparisons.liver_data import PHASES, LiverRun, PressureSnapshot
+from comparisons.liver_setup import LiverParameters, _models, numpy_force_field
 
 __all__ = ["PHASES", "simulate"]
-
-PHASES = (
-    "hyperelastic force + stiffness",
-    "other forces",
-    "building the system",
-    "linear solve",
-    "rest",
-)
 
 
 def _phase_seconds(times) -> np.ndarray:
@@ -75,11 +68,11 @@ def simulate(
     writer=None,
     progress=None,
     dt: Optional[float] = None,
-) -> Dict:
-    """One run of ``kind`` over ``duration`` seconds; a JSON-serialisable record.
+) -> LiverRun:
+    """One run of ``kind`` over ``duration`` seconds (its record; ``to_dict()`` for JSON).
 
     dt overrides the model's step (the oscillation study). A step the integrator refuses
-    (after its substeps) ends the run: "error" holds the message.
+    (after its substeps) ends the run: ``error`` holds the message.
     """
     from mjed.darcy import cell_jacobians
     from mjed.errors import IntegrationError
@@ -135,47 +128,37 @@ def _run_record(
     params: LiverParameters,
     force_field,
     porous: bool,
-) -> Dict:
-    """The JSON record of one run."""
-    done, stepping, cpu = len(track.cg), track.stepping, track.cpu
+) -> LiverRun:
+    """The record of one run (the derived figures, FPS included, are LiverRun's properties)."""
     label = getattr(
         force_field, "label", getattr(force_field, "__qualname__", type(force_field).__name__)
     )
-    out = {
-        "model": kind,
-        "dt": dt,
-        "steps": done,
-        "steps_planned": n_steps,
-        "error": error,
-        "time": track.times,
-        "max_displacement": track.amplitude,
-        "final_max_displacement": track.amplitude[-1],
-        "peak_max_displacement": max(track.amplitude),
-        "cg_iterations_mean": float(np.mean(track.cg)) if track.cg else None,
-        "cg_iterations": track.cg,
-        "substeps": track.substeps,
-        "steps_split": int(sum(s > 1 for s in track.substeps)),
-        "substeps_total": int(sum(track.substeps)),
-        "retries": track.retries,
-        "inverted_cells": track.inverted,
-        "inverted_cells_max": int(max(track.inverted)) if track.inverted else 0,
-        "factorizations": track.factorizations,
-        "solver": params.solver.label(),
-        "force_field": label,
-        "backend": getattr(force_field, "backend", "custom"),
-        "stepping_seconds": stepping,
-        "fps": done / stepping if stepping > 0 else None,
+    snapshot = None
+    if porous and track.best_P[1] is not None:
+        snapshot = PressureSnapshot(*track.best_P)
+    return LiverRun(
+        model=kind,
+        dt=dt,
+        steps_planned=n_steps,
+        error=error,
+        time=track.times,
+        max_displacement=track.amplitude,
+        cg_iterations=track.cg,
+        substeps=track.substeps,
+        retries=track.retries,
+        inverted_cells=track.inverted,
+        factorizations=track.factorizations,
+        solver=params.solver.label(),
+        force_field=label,
+        backend=getattr(force_field, "backend", "custom"),
+        stepping_seconds=track.stepping,
         # Steps per CPU second of this process: what the run would reach with a core to itself
-        # (the wall-clock FPS above also counts the time other jobs on a shared machine take).
-        "cpu_fps": done / cpu if cpu > 0 else None,
-        "realtime_factor": done * dt / stepping if stepping > 0 else None,  # simulated s / wall s
-        "paper_fps": PAPER_FPS[kind],
-        "phase_seconds": dict(zip(PHASES, track.phases.tolist())),
-    }
-    if porous:
-        out["max_abs_pressure"] = track.p_max
-        out["_pressure_snapshot"] = track.best_P
-    return out
+        # (the wall-clock FPS also counts the time other jobs on a shared machine take).
+        cpu_fps=len(track.cg) / track.cpu if track.cpu > 0 else None,
+        phase_seconds=dict(zip(PHASES, track.phases.tolist())),
+        max_abs_pressure=track.p_max if porous else None,
+        pressure_snapshot=snapshot,
+    )
 
 
 class _SeriesWriter:

@@ -28,9 +28,16 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Callable, Dict, List, Optional, Sequence
+from typing import Callable, List, Optional, Sequence
 
 import numpy as np
+
+from comparisons.liver_data import (
+    OscillationCurve,
+    OscillationData,
+    OscillationMetrics,
+    OscillationRow,
+)
 
 __all__ = ["OSCILLATION_DTS", "oscillation_metrics", "euler_decay_rate", "run_oscillations"]
 
@@ -40,7 +47,7 @@ OSCILLATION_DTS = (0.3, 0.1, 0.03, 0.01)
 
 def oscillation_metrics(
     t: Sequence[float], a: Sequence[float], *, significant: float = 5e-3
-) -> Dict:
+) -> OscillationMetrics:
     """Extrema, period, decay rate and overshoot of one max-displacement curve a(t) (m, s).
 
     A swing between successive extrema counts only when it exceeds ``significant`` times the
@@ -50,31 +57,35 @@ def oscillation_metrics(
     t, a = np.asarray(t, dtype=float), np.asarray(a, dtype=float)
     d = np.diff(a)
     ext = np.flatnonzero(d[:-1] * d[1:] < 0) + 1  # strict changes of direction
-    out = {
-        "extrema": 0,
-        "first_peak": None,
-        "period": None,
-        "decay_rate": None,
-        "overshoot": None,
-        "final": float(a[-1]),
-        "peak": float(a.max()),
-    }
+    out = OscillationMetrics(
+        extrema=0,
+        first_peak=None,
+        period=None,
+        decay_rate=None,
+        overshoot=None,
+        final=float(a[-1]),
+        peak=float(a.max()),
+    )
     if len(ext) < 2:
         return out
     swings = np.abs(np.diff(a[ext]))
     keep = swings > significant * abs(a[-1])
     if not keep.any():
         return out
-    out["extrema"] = int(keep.sum() + 1)
     maxima = [k for k in ext if d[k - 1] > 0]
-    out["first_peak"] = float(a[maxima[0]])
-    out["overshoot"] = float(a[maxima[0]] / a[-1]) if a[-1] > 0 else None
     mids = 0.5 * (t[ext][1:] + t[ext][:-1])
-    out["period"] = float(2.0 * np.mean(np.diff(t[ext])[keep]))
+    decay_rate = None
     if keep.sum() >= 2:
         slope = np.polyfit(mids[keep], np.log(swings[keep]), 1)[0]
-        out["decay_rate"] = float(-slope)
-    return out
+        decay_rate = float(-slope)
+    return dataclasses.replace(
+        out,
+        extrema=int(keep.sum() + 1),
+        first_peak=float(a[maxima[0]]),
+        overshoot=float(a[maxima[0]] / a[-1]) if a[-1] > 0 else None,
+        period=float(2.0 * np.mean(np.diff(t[ext])[keep])),
+        decay_rate=decay_rate,
+    )
 
 
 def euler_decay_rate(omega: float, dt: float) -> float:
@@ -82,32 +93,27 @@ def euler_decay_rate(omega: float, dt: float) -> float:
     return float(np.log1p((omega * dt) ** 2) / (2.0 * dt))
 
 
-#: What the oscillation study keeps of each run for its figure and results.json.
-_CURVE_KEYS = (
-    "model",
-    "dt",
-    "time",
-    "max_displacement",
-    "error",
-    "steps",
-    "steps_planned",
-    "steps_split",
-    "substeps_total",
-    "fps",
-)
-
-
-def _add_euler_rates(rows: List[Dict], models: Sequence[str], smallest: float) -> None:
-    """Backward Euler's own damping at each dt, on the frequency each model shows at the
-    smallest dt (added to the rows as omega_smallest_dt and euler_decay_rate).
+def _with_euler_rates(
+    rows: List[OscillationRow], models: Sequence[str], smallest: float
+) -> List[OscillationRow]:
+    """The rows with backward Euler's own damping at each dt, on the frequency each model shows
+    at the smallest dt (omega_smallest_dt and euler_decay_rate).
     """
+    out = list(rows)
     for kind in models:
-        ref = next(r for r in rows if r["model"] == kind and r["dt"] == smallest)
-        omega = 2 * np.pi / ref["period"] if ref["period"] else None
-        for r in rows:
-            if r["model"] == kind:
-                r["omega_smallest_dt"] = omega
-                r["euler_decay_rate"] = euler_decay_rate(omega, r["dt"]) if omega else None
+        ref = next(r for r in out if r.model == kind and r.dt == smallest)
+        omega = 2 * np.pi / ref.period if ref.period else None
+        out = [
+            dataclasses.replace(
+                r,
+                omega_smallest_dt=omega,
+                euler_decay_rate=euler_decay_rate(omega, r.dt) if omega else None,
+            )
+            if r.model == kind
+            else r
+            for r in out
+        ]
+    return out
 
 
 def run_oscillations(
@@ -121,7 +127,7 @@ def run_oscillations(
     force_field,
     out_dir: str,
     progress: Optional[Callable[[str], None]] = None,
-) -> Dict:
+) -> OscillationData:
     """Every model at every dt without Rayleigh damping; curves, metrics, figures (see module)."""
     from comparisons.liver_figures import plot_decay, plot_oscillations
     from comparisons.liver_simulation import simulate
@@ -133,34 +139,25 @@ def run_oscillations(
             if progress is not None:
                 progress(f"oscillation study: {kind}, dt = {dt:g} s")
             run = simulate(kind, organ.mesh, light, fixed, duration, force_field=force_field, dt=dt)
-            run.pop("_pressure_snapshot", None)
-            curves.append({k: run[k] for k in _CURVE_KEYS})
-            rows.append(
-                {
-                    "model": kind,
-                    "dt": dt,
-                    "completed": run["error"] is None,
-                    "error": run["error"],
-                    "steps_split": run["steps_split"],
-                    **oscillation_metrics(run["time"], run["max_displacement"]),
-                }
-            )
+            curves.append(OscillationCurve.of_run(run))
+            metrics = oscillation_metrics(run.time, run.max_displacement)
+            rows.append(OscillationRow.of_run(run, metrics))
     smallest = min(dts)
-    _add_euler_rates(rows, models, smallest)
-    fine = {r["model"]: r for r in rows if r["dt"] == smallest}
-    ordering = sorted(fine, key=lambda m: fine[m]["peak"], reverse=True)
+    rows = _with_euler_rates(rows, models, smallest)
+    fine = {r.model: r for r in rows if r.dt == smallest}
+    ordering = sorted(fine, key=lambda m: fine[m].peak, reverse=True)
     figures = [
         plot_oscillations(os.path.join(out_dir, "fig4_oscillations.png"), curves, organ.label),
         plot_decay(os.path.join(out_dir, "fig4_decay_rate.png"), rows),
     ]
-    return {
-        "mesh": organ.label,
-        "dts": list(dts),
-        "duration": duration,
-        "rayleigh": [0.0, 0.0],
-        "curves": curves,
-        "table": rows,
-        "amplitude_ordering": ordering,
-        "amplitude_ordering_dt": smallest,
-        "figures": figures,
-    }
+    return OscillationData(
+        mesh=organ.label,
+        dts=tuple(dts),
+        duration=duration,
+        rayleigh=(0.0, 0.0),
+        curves=tuple(curves),
+        table=tuple(rows),
+        amplitude_ordering=tuple(ordering),
+        amplitude_ordering_dt=smallest,
+        figures=tuple(figures),
+    )

@@ -10,6 +10,7 @@ import pytest
 from common.options import InputError
 from comparisons.cli import main
 from comparisons.liver import MODELS, default_fixed_specs, run_liver
+from comparisons.liver_data import LiverData
 from comparisons.regions import parse_region, select_nodes
 
 pytest.importorskip("meshio", reason="the ParaView series is written with meshio")
@@ -23,35 +24,32 @@ def quick_run(tmp_path_factory):
 
 def test_three_models_run_and_write_their_outputs(quick_run):
     result, out = quick_run
-    assert result["mesh"] == "liver-coarse" and [r["model"] for r in result["runs"]] == list(MODELS)
-    hyper, visco, poro = result["runs"]
-    assert hyper["dt"] == 0.3 and poro["dt"] == 0.15 and poro["steps"] == 2 * hyper["steps"]
-    for r in result["runs"]:
-        amp = np.asarray(r["max_displacement"])
+    assert result.mesh == "liver-coarse" and [r.model for r in result.runs] == list(MODELS)
+    hyper, visco, poro = result.runs
+    assert hyper.dt == 0.3 and poro.dt == 0.15 and poro.steps == 2 * hyper.steps
+    for r in result.runs:
+        amp = np.asarray(r.max_displacement)
         assert (
             amp[0] == 0.0 and np.all(np.isfinite(amp)) and amp[-1] > 1e-3
         )  # it sags under gravity
-        assert r["fps"] > 0
+        assert r.fps > 0
     # The Prony series softens the response: the visco liver sags further than the elastic one.
-    assert visco["final_max_displacement"] > hyper["final_max_displacement"]
-    assert max(abs(p) for p in poro["max_abs_pressure"]) > 0  # the fluid responds
-    for path in result["figures"] + result["series"]:
+    assert visco.final_max_displacement > hyper.final_max_displacement
+    assert max(abs(p) for p in poro.max_abs_pressure) > 0  # the fluid responds
+    for path in result.figures + result.series:
         assert (out / path.split("/")[-1]).is_file()
-    assert len(result["figures"]) == 5 and len(result["series"]) == 3
-    assert (
-        result["passed"]
-        and max(t["relative_l2_error"] for t in result["terzaghi"]["times"]) <= 1e-2
-    )
-    for r in result["runs"]:  # substeps and where the time went, per step and per run
-        assert len(r["substeps"]) == r["steps"] and r["substeps_total"] >= r["steps"]
-        assert set(r["phase_seconds"]) == {
+    assert len(result.figures) == 5 and len(result.series) == 3
+    assert result.passed and result.terzaghi_error <= 1e-2
+    for r in result.runs:  # substeps and where the time went, per step and per run
+        assert len(r.substeps) == r.steps and r.substeps_total >= r.steps
+        assert set(r.phase_seconds) == {
             "hyperelastic force + stiffness",
             "other forces",
             "building the system",
             "linear solve",
             "rest",
         }
-    split = {s["model"]: s["shares"] for s in result["step_split"]}
+    split = {s.model: s.shares for s in result.step_split}
     assert set(split) == set(MODELS) and all(
         abs(sum(v.values()) - 1) < 1e-12 for v in split.values()
     )
@@ -59,7 +57,7 @@ def test_three_models_run_and_write_their_outputs(quick_run):
         split["hyperelastic"]["other forces"] == 0
         and split["visco-poro-hyperelastic"]["other forces"] > 0
     )
-    assert json.loads((out / "liver.json").read_text())["n_fixed"] == result["n_fixed"]
+    assert LiverData.from_dict(json.loads((out / "liver.json").read_text())) == result
 
 
 def test_series_holds_displacement_J_and_pressure(quick_run):
@@ -70,13 +68,13 @@ def test_series_holds_displacement_J_and_pressure(quick_run):
     result, out = quick_run
     pvd = out / "liver_visco-poro-hyperelastic.pvd"
     files = re.findall(r'file="([^"]+)"', pvd.read_text())
-    assert len(files) == result["runs"][2]["steps"] + 1
+    assert len(files) == result.runs[2].steps + 1
     last = meshio.read(out / files[-1])
     assert set(last.point_data) == {"displacement", "pressure"} and "J" in last.cell_data
     assert last.point_data["displacement"].shape == last.points.shape
     assert np.all(last.cell_data["J"][0] > 0)
     amplitude = np.linalg.norm(last.point_data["displacement"], axis=1).max()
-    assert amplitude == pytest.approx(result["runs"][2]["final_max_displacement"], rel=1e-12)
+    assert amplitude == pytest.approx(result.runs[2].final_max_displacement, rel=1e-12)
 
 
 def test_default_fixed_region_is_not_empty_on_both_liver_meshes():
@@ -155,12 +153,12 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
         models=["hyperelastic"],
         force_fields=[broken],
     )
-    (run,) = result["runs"]
-    assert not result["passed"] and run["steps"] == 0 < run["steps_planned"]
-    assert run["error"].startswith("time step 1 (t = 0.3 s) failed:")
+    (run,) = result.runs
+    assert not result.passed and run.steps == 0 < run.steps_planned
+    assert run.error.startswith("time step 1 (t = 0.3 s) failed:")
     assert (
-        "retried in substeps down to dt/16 = 0.0187 s" in run["error"]
-        and "kept the state" in run["error"]
+        "retried in substeps down to dt/16 = 0.0187 s" in run.error
+        and "kept the state" in run.error
     )
     assert (
         main(
@@ -192,10 +190,10 @@ def test_a_soft_organ_survives_in_substeps(tmp_path):
         models=["hyperelastic"],
         params=LiverParameters(material=ArrudaBoyce(mu=50.0, k0=500.0)),
     )
-    (run,) = result["runs"]
-    assert run["error"] is None and run["steps"] == 3 and run["steps_split"] >= 1
-    assert run["substeps_total"] > 3 and any(run["retries"])
-    assert result["fps_table"][0]["steps_split"] == run["steps_split"]
+    (run,) = result.runs
+    assert run.error is None and run.steps == 3 and run.steps_split >= 1
+    assert run.substeps_total > 3 and any(run.retries)
+    assert result.to_dict()["fps_table"][0]["steps_split"] == run.steps_split
 
 
 def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
@@ -226,19 +224,19 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
             series=False,
         )
         runs[name] = result
-        assert result["passed"] and result["fps_table"][0]["solver"] == result["runs"][0]["solver"]
-    amp = {k: np.asarray(r["runs"][0]["max_displacement"]) for k, r in runs.items()}
+        assert result.passed and result.to_dict()["fps_table"][0]["solver"] == result.runs[0].solver
+    amp = {k: np.asarray(r.runs[0].max_displacement) for k, r in runs.items()}
     scale = amp["direct"].max()
     for k in ("factorized", "jacobi"):
         np.testing.assert_allclose(amp[k], amp["direct"], rtol=0, atol=2e-6 * scale)  # CG rtol 1e-5
-    fact, jac = runs["factorized"]["runs"][0], runs["jacobi"]["runs"][0]
+    fact, jac = runs["factorized"].runs[0], runs["jacobi"].runs[0]
     assert (
-        "kept single-precision sparse LU" in fact["solver"]
-        and "jacobi" in jac["solver"]
-        and "direct" in runs["direct"]["runs"][0]["solver"]
+        "kept single-precision sparse LU" in fact.solver
+        and "jacobi" in jac.solver
+        and "direct" in runs["direct"].runs[0].solver
     )
-    assert fact["factorizations"] >= 1 and jac["factorizations"] == 0
-    assert fact["cg_iterations_mean"] < jac["cg_iterations_mean"] / 5
+    assert fact.factorizations >= 1 and jac.factorizations == 0
+    assert fact.cg_iterations_mean < jac.cg_iterations_mean / 5
 
 
 @pytest.mark.parametrize(

@@ -14,7 +14,8 @@ import pytest
 from common.result import Status
 from comparisons.cli import main
 from comparisons.commands import liver as liver_command_module
-from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, liver_study
+from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, PHASES, liver_study
+from comparisons.liver_data import LiverData, LiverRun, OscillationData
 from comparisons.oscillation import euler_decay_rate, oscillation_metrics
 from mjed.compiled import numba_available
 
@@ -64,24 +65,23 @@ def test_a_liver_hung_from_three_nodes_y_up_in_cm_completes_with_substeps(
     assert (
         data["key"] == "liver" and data["status"] in ("passed", "target missed") and data["partial"]
     )
-    runs = data["data"]["runs"]
+    liver = LiverData.from_dict(data["data"])  # the --json file read back, every key checked
+    runs = liver.runs
     backends = ["numpy", "numba"] if numba_available() else ["numpy"]
-    assert [(r["backend"], r["model"]) for r in runs] == [(b, m) for b in backends for m in MODELS]
+    assert [(r.backend, r.model) for r in runs] == [(b, m) for b in backends for m in MODELS]
     # Every backend follows the same trajectory (the compiled one is checked against NumPy's).
-    agreement = data["data"]["backend_agreement"]
+    agreement = liver.backend_agreement
     assert len(agreement) == len(MODELS) * (len(backends) - 1)
     assert all(
-        a["relative_difference"] is not None and a["relative_difference"] <= BACKEND_AGREEMENT_TOL
+        a.relative_difference is not None and a.relative_difference <= BACKEND_AGREEMENT_TOL
         for a in agreement
     )
     for r in runs:
-        assert r["error"] is None and r["steps"] == r["steps_planned"] and r["fps"] > 0
-    assert sum(r["steps_split"] for r in runs) >= 1 and runs[0]["substeps"][0] > 1
-    assert (
-        data["data"]["fixed_node_ids"] == sorted(numbers.tolist()) and data["data"]["scale"] == 0.01
-    )
+        assert r.error is None and r.steps == r.steps_planned and r.fps > 0
+    assert sum(r.steps_split for r in runs) >= 1 and runs[0].substeps[0] > 1
+    assert liver.fixed_node_ids == tuple(sorted(numbers.tolist())) and liver.scale == 0.01
     # It hangs: the sag is along -y, in metres.
-    assert 0.02 < runs[0]["final_max_displacement"] < 0.3
+    assert 0.02 < runs[0].final_max_displacement < 0.3
     assert code == 3  # complete for what it ran, but partial: six steps, no oscillation study
     assert (
         "split" in out
@@ -106,7 +106,8 @@ def test_units_and_scale_mean_the_same_and_not_both(organ_files, tmp_path):
     params = LiverParameters(gravity=(0.0, -9.81, 0.0))
     a = liver_study(out_dir=str(tmp_path / "a"), units="cm", params=params, **common)
     b = liver_study(out_dir=str(tmp_path / "b"), scale=0.01, params=params, **common)
-    assert a.data["runs"][0]["max_displacement"] == b.data["runs"][0]["max_displacement"]
+    first = [LiverData.from_dict(r.data).runs[0] for r in (a, b)]
+    assert first[0].max_displacement == first[1].max_displacement
     assert (
         main(
             [
@@ -340,9 +341,8 @@ def test_backends_option_and_a_missing_numba(tmp_path, monkeypatch, capsys):
         oscillation=False,
         backends=["numpy"],
     )
-    assert [r["backend"] for r in one.data["runs"]] == ["numpy"] and one.data[
-        "backend_agreement"
-    ] == []
+    one_data = LiverData.from_dict(one.data)
+    assert [r.backend for r in one_data.runs] == ["numpy"] and one_data.backend_agreement == ()
     assert "--backends numpy" in one.command
     assert main(["liver", "--quick", "--backends", "numpy,fortran", "--out", str(tmp_path)]) == 2
     assert "--backends" in capsys.readouterr().err
@@ -358,7 +358,7 @@ def test_backends_option_and_a_missing_numba(tmp_path, monkeypatch, capsys):
         steps=1,
         oscillation=False,
     )
-    assert [r["backend"] for r in res.data["runs"]] == ["numpy"]
+    assert [r.backend for r in LiverData.from_dict(res.data).runs] == ["numpy"]
     assert any("Numba is not installed" in n for n in res.not_covered) and res.partial
 
 
@@ -366,13 +366,10 @@ def test_oscillation_metrics_recover_a_known_damped_oscillation():
     t = np.linspace(0.0, 4.0, 801)
     a = 0.05 + 0.02 * np.exp(-1.5 * t) * np.cos(2 * np.pi * t / 0.4)
     m = oscillation_metrics(t, a)
-    assert m["period"] == pytest.approx(0.4, rel=1e-2) and m["decay_rate"] == pytest.approx(
-        1.5, rel=2e-2
-    )
-    assert m["extrema"] > 10 and m["final"] == pytest.approx(a[-1])
-    assert (
-        oscillation_metrics(t, 0.05 * (1 - np.exp(-3 * t)))["decay_rate"] is None
-    )  # overdamped: no swings
+    assert m.period == pytest.approx(0.4, rel=1e-2) and m.decay_rate == pytest.approx(1.5, rel=2e-2)
+    assert m.extrema > 10 and m.final == pytest.approx(a[-1])
+    overdamped = oscillation_metrics(t, 0.05 * (1 - np.exp(-3 * t)))
+    assert overdamped.decay_rate is None and overdamped.extrema == 0  # no swings
 
 
 def test_backward_euler_decay_rate_matches_the_scheme_on_an_oscillator():
@@ -400,37 +397,66 @@ def test_the_oscillation_study_sizes(monkeypatch, tmp_path, full, quick, mesh, e
 
     def fake(organ, fixed, params, *, dts, duration, **kw):
         seen.update(label=organ.label, dts=tuple(dts), duration=duration)
-        return {
-            "mesh": organ.label,
-            "dts": list(dts),
-            "duration": duration,
-            "table": [],
-            "amplitude_ordering": [],
-            "amplitude_ordering_dt": min(dts),
-            "figures": [],
-            "curves": [],
-        }
+        return OscillationData(
+            mesh=organ.label,
+            dts=tuple(dts),
+            duration=duration,
+            rayleigh=(0.0, 0.0),
+            curves=(),
+            table=(),
+            amplitude_ordering=(),
+            amplitude_ordering_dt=min(dts),
+            figures=(),
+        )
 
     monkeypatch.setattr(oscillation_module, "run_oscillations", fake)
-    monkeypatch.setattr(
-        liver_module,
-        "run_liver",
-        lambda **kw: {
-            "runs": [],
-            "terzaghi": {"times": [{"relative_l2_error": 0.0}]},
-            "figures": [],
-            "step_split": [],
-            "fps_table": [],
-            "backends": ["numpy"],
-            "backend_agreement": [],
-            "mesh_description": "",
-            "n_fixed": 0,
-            "fixed_regions": [],
-            "duration": 0.0,
-            "mesh": "m",
-            "series": [],
-        },
-    )
+    monkeypatch.setattr(liver_module, "run_liver", lambda **kw: _stub_liver_data())
     result = liver_study(quick=quick, out_dir=str(tmp_path), full_oscillation=full, mesh=mesh)
     assert (seen["label"], seen["dts"], seen["duration"]) == expected
     assert ("the full version" in result.protocol) == (full and not quick)
+
+
+def _stub_liver_data() -> LiverData:
+    """A liver study of one hyperelastic run that took no step (for stubbing run_liver)."""
+    run = LiverRun(
+        model="hyperelastic",
+        dt=0.3,
+        steps_planned=1,
+        error=None,
+        time=(0.0,),
+        max_displacement=(0.0,),
+        cg_iterations=(),
+        substeps=(),
+        retries=(),
+        inverted_cells=(),
+        factorizations=0,
+        solver="direct",
+        force_field="stub",
+        backend="numpy",
+        stepping_seconds=0.0,
+        cpu_fps=None,
+        phase_seconds=dict.fromkeys(PHASES, 0.0),
+    )
+    return LiverData(
+        mesh="m",
+        mesh_description="m",
+        n_nodes=4,
+        n_cells=1,
+        scale=1.0,
+        numbering="0-based positions",
+        reoriented_cells=0,
+        unused_nodes=0,
+        mesh_warnings=(),
+        fixed_regions=(),
+        n_fixed=0,
+        fixed_node_ids=(),
+        quick=False,
+        duration=0.3,
+        parameters={},
+        runs=(run,),
+        step_split=(),
+        backend_agreement=(),
+        terzaghi={"times": [{"relative_l2_error": 0.0}], "figures": []},
+        figures=(),
+        series=(),
+    )

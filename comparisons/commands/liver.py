@@ -348,6 +348,7 @@ def liver_options(args) -> dict:
 def run(args) -> int:
     from common.result import exit_code
     from comparisons.liver import liver_study
+    from comparisons.liver_data import LiverData
     from meshes.io import one_line_warnings
 
     kwargs = liver_options(args)
@@ -357,14 +358,14 @@ def run(args) -> int:
 
     with one_line_warnings():
         result = liver_study(progress=progress, **kwargs)
-    data = result.data
+    data = LiverData.from_dict(result.data)
     print(
-        f"liver under gravity on {data['mesh_description']}, {data['n_fixed']} fixed, "
-        f"{data['duration']:g} s simulated"
+        f"liver under gravity on {data.mesh_description}, {data.n_fixed} fixed, "
+        f"{data.duration:g} s simulated"
     )
-    _print_runs(data["runs"])
+    _print_runs(data.runs)
     _print_findings(data)
-    for path in data["figures"] + data["series"]:
+    for path in data.figures + data.series:
         print(f"  wrote {path}")
     left_out = list(result.not_covered) + [f"not measured: {c.name}" for c in result.unmeasured]
     partial = f" (partial: {'; '.join(left_out)})" if result.partial else ""
@@ -383,44 +384,42 @@ def _print_runs(runs) -> None:
         f"{'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}"
     )
     for r in runs:
-        steps = f"{r['steps']}/{r['steps_planned']}"
-        cg = r["cg_iterations_mean"]
+        steps = f"{r.steps}/{r.steps_planned}"
+        cg = r.cg_iterations_mean
         cg = f"{cg:7.1f}" if cg is not None else f"{'-':>7s}"
-        fps = f"{r['fps']:6.1f} {r['cpu_fps']:7.1f}" if r["fps"] else f"{'-':>6s} {'-':>7s}"
+        fps = f"{r.fps:6.1f} {r.cpu_fps:7.1f}" if r.fps else f"{'-':>6s} {'-':>7s}"
         print(
-            f"  {r['model']:26s} {r['backend']:7s} {r['dt']:6.3g} {steps:>7s} "
-            f"{r['steps_split']:5d} {r['substeps_total']:8d} {r['inverted_cells_max']:8d} "
-            f"{1e3 * r['final_max_displacement']:18.2f} {cg} {fps} {r['paper_fps']:5.1f}"
+            f"  {r.model:26s} {r.backend:7s} {r.dt:6.3g} {steps:>7s} "
+            f"{r.steps_split:5d} {r.substeps_total:8d} {r.inverted_cells_max:8d} "
+            f"{1e3 * r.final_max_displacement:18.2f} {cg} {fps} {r.paper_fps:5.1f}"
         )
-        if r["error"]:
-            print(f"    FAILED: {r['error']}")
+        if r.error:
+            print(f"    FAILED: {r.error}")
     if runs:
-        fields = "; ".join(dict.fromkeys(f"{r['backend']}: {r['force_field']}" for r in runs))
-        print(f"  linear solver: {runs[0]['solver']}; force fields: {fields}")
+        fields = "; ".join(dict.fromkeys(f"{r.backend}: {r.force_field}" for r in runs))
+        print(f"  linear solver: {runs[0].solver}; force fields: {fields}")
 
 
 def _print_findings(data) -> None:
     """Backend agreement, the step split, the oscillation findings and Terzaghi."""
     from comparisons.liver import PAPER_HYPERELASTIC_SHARE, oscillation_findings
 
-    for a in data["backend_agreement"]:
-        d = a["relative_difference"]
+    for a in data.backend_agreement:
+        d = a.relative_difference
         diff = "not comparable" if d is None else f"{d:.1e}"
         print(
-            f"  {a['model']}: {a['backend']} trajectory against {a['reference']}: largest "
+            f"  {a.model}: {a.backend} trajectory against {a.reference}: largest "
             f"difference / peak {diff}"
         )
-    for s in data["step_split"]:
-        shares = ", ".join(f"{p} {100 * v:.0f} %" for p, v in s["shares"].items())
-        print(
-            f"  step split, {s['model']}, {s['backend']} ({s['ms_per_step']:.1f} ms/step): {shares}"
-        )
-    if data["step_split"]:
+    for s in data.step_split:
+        shares = ", ".join(f"{p} {100 * v:.0f} %" for p, v in s.shares.items())
+        print(f"  step split, {s.model}, {s.backend} ({s.ms_per_step:.1f} ms/step): {shares}")
+    if data.step_split:
         share = 100 * PAPER_HYPERELASTIC_SHARE
         print(f"  (the paper: hyperelastic force + stiffness about {share:.0f} % of a step)")
-    if "oscillation" in data:
-        print("  " + oscillation_findings(data["oscillation"]))
+    if data.oscillation is not None:
+        print("  " + oscillation_findings(data.oscillation))
     tz = ", ".join(
-        f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in data["terzaghi"]["times"]
+        f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in data.terzaghi["times"]
     )
     print(f"  Terzaghi check of the pressure step (relative L2 error of P, tolerance 1 %): {tz}")

@@ -9,7 +9,9 @@
 # cells) and 6 steps of 0.3 s (the full study: `mjed-verify liver`).
 #
 # The run writes its figures and one ParaView time series per model into `liver_out/` in
-# the working directory.
+# the working directory, and returns a `comparisons.liver_data.LiverData`: one `LiverRun` per
+# model (times in s, displacements in m), read by attribute; `result.to_dict()` is the JSON
+# form the report writes to `results.json`, and `LiverData.from_dict` reads it back.
 
 # %%
 import numpy as np
@@ -18,25 +20,25 @@ from comparisons.liver import run_liver
 
 result = run_liver(quick=True, out="liver_out")
 print(
-    f"mesh {result['mesh']}: {result['n_nodes']} nodes, {result['n_cells']} cells, "
-    f"{result['n_fixed']} fixed nodes"
+    f"mesh {result.mesh}: {result.n_nodes} nodes, {result.n_cells} cells, "
+    f"{result.n_fixed} fixed nodes"
 )
 print(f"{'model':26s} {'dt':>5s} {'steps':>5s} {'final max |u|':>14s} {'CG/step':>8s} {'FPS':>6s}")
-for run in result["runs"]:
+for run in result.runs:
     print(
-        f"{run['model']:26s} {run['dt']:5.2f} {run['steps']:5d} "
-        f"{1e3 * run['final_max_displacement']:11.1f} mm {run['cg_iterations_mean']:8.1f} "
-        f"{run['fps']:6.0f}"
+        f"{run.model:26s} {run.dt:5.2f} {run.steps:5d} "
+        f"{1e3 * run.final_max_displacement:11.1f} mm {run.cg_iterations_mean:8.1f} "
+        f"{run.fps:6.0f}"
     )
-terzaghi = max(t["relative_l2_error"] for t in result["terzaghi"]["times"])
+terzaghi = result.terzaghi_error
 print(
     "Terzaghi consolidation check of the pressure solver: worst relative L2 error "
     f"{100 * terzaghi:.2f} %"
 )
 
-assert all(run["error"] is None and run["steps"] == run["steps_planned"] for run in result["runs"])
-assert result["passed"] and terzaghi <= 0.01
-final = {run["model"]: run["final_max_displacement"] for run in result["runs"]}
+assert all(run.error is None and run.steps == run.steps_planned for run in result.runs)
+assert result.passed and terzaghi <= 0.01
+final = {run.model: run.final_max_displacement for run in result.runs}
 assert final["visco-hyperelastic"] > final["hyperelastic"] > 0, (
     "the Prony series softens the hanging organ"
 )
@@ -72,12 +74,12 @@ for pvd in sorted(Path("liver_out").glob("liver_*.pvd")):
     series[pvd.stem.removeprefix("liver_")] = steps
     print(f"{pvd}: {len(steps)} time steps, t = {steps[0][0]:g} ... {steps[-1][0]:g} s")
 
-runs = {run["model"]: run for run in result["runs"]}
+runs = {run.model: run for run in result.runs}
 for model, steps in series.items():
     last = meshio.read(steps[-1][1])
     u = last.point_data["displacement"]
-    assert len(steps) == runs[model]["steps"] + 1, "one file per step plus the initial state"
-    assert abs(np.linalg.norm(u, axis=1).max() - runs[model]["final_max_displacement"]) < 1e-12
+    assert len(steps) == runs[model].steps + 1, "one file per step plus the initial state"
+    assert abs(np.linalg.norm(u, axis=1).max() - runs[model].final_max_displacement) < 1e-12
     assert np.linalg.norm(u, axis=1).min() == 0.0, "the fixed nodes do not move"
 
 # %% [markdown]
@@ -158,10 +160,8 @@ fig.tight_layout()
 
 # %%
 fig, ax = plt.subplots(figsize=(6.4, 3.6))
-for run in result["runs"]:
-    ax.plot(
-        run["time"], 1e3 * np.array(run["max_displacement"]), marker="o", ms=3, label=run["model"]
-    )
+for run in result.runs:
+    ax.plot(run.time, 1e3 * np.array(run.max_displacement), marker="o", ms=3, label=run.model)
 ax.set_xlabel("time (s)")
 ax.set_ylabel("max displacement (mm)")
 ax.legend(fontsize=8)

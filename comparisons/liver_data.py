@@ -1,0 +1,809 @@
+"""What the liver study records, as typed records.
+
+``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run,
+``comparisons.liver.run_liver`` a :class:`LiverData` holding them, and the oscillation study
+(``comparisons.oscillation``) an :class:`OscillationData`. The checks, tables, figures and the
+command line read them by attribute; ``to_dict()`` gives the JSON form written to
+``results.json`` and ``--json`` (the keys are the field names, plus the derived values listed
+in each record), and ``from_dict()`` reads it back, refusing a missing, unexpected or bad key
+by name. Times are in seconds, lengths in metres, pressures in pascals, frame rates in steps
+per second.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
+
+__all__ = [
+    "PHASES",
+    "PressureSnapshot",
+    "LiverRun",
+    "StepSplit",
+    "BackendAgreement",
+    "OscillationMetrics",
+    "OscillationCurve",
+    "OscillationRow",
+    "OscillationData",
+    "LiverData",
+]
+
+#: The phases of a step, in the order of the split figure and of ``phase_seconds``.
+PHASES = (
+    "hyperelastic force + stiffness",
+    "other forces",
+    "building the system",
+    "linear solve",
+    "rest",
+)
+
+
+# ----------------------------------------------------------------------------- validation
+def _bad(obj, key: str, want: str, got) -> ValueError:
+    text = repr(got)
+    text = text if len(text) <= 120 else text[:117] + "..."
+    return ValueError(f"{type(obj).__name__}: key {key!r} must be {want}, got {text}")
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _is_count(v) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0
+
+
+def _set(obj, key: str, value) -> None:
+    object.__setattr__(obj, key, value)
+
+
+def _real(obj, key: str, *, positive: bool = False, optional: bool = False) -> None:
+    """A number (> 0 when ``positive``; None allowed when ``optional``), stored as a float."""
+    v = getattr(obj, key)
+    if v is None and optional:
+        return
+    if not _is_real(v) or (positive and not (math.isfinite(v) and v > 0)):
+        want = "a finite number > 0" if positive else "a number"
+        raise _bad(obj, key, want + (" or None" if optional else ""), v)
+    _set(obj, key, float(v))
+
+
+def _count(obj, key: str) -> None:
+    """An integer >= 0, stored as an int."""
+    v = getattr(obj, key)
+    if not _is_count(v):
+        raise _bad(obj, key, "an integer >= 0", v)
+    _set(obj, key, int(v))
+
+
+def _text(obj, key: str, *, optional: bool = False) -> None:
+    v = getattr(obj, key)
+    if not (isinstance(v, str) or (optional and v is None)):
+        raise _bad(obj, key, "a string" + (" or None" if optional else ""), v)
+
+
+def _flag(obj, key: str) -> None:
+    if not isinstance(getattr(obj, key), (bool, np.bool_)):
+        raise _bad(obj, key, "true or false", getattr(obj, key))
+    _set(obj, key, bool(getattr(obj, key)))
+
+
+def _items(obj, key: str, ok, want: str, convert, *, optional: bool = False) -> None:
+    """A list of items that pass ``ok``, stored as a tuple of ``convert(item)``."""
+    v = getattr(obj, key)
+    if v is None and optional:
+        return
+    if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, (Sequence, np.ndarray)):
+        raise _bad(obj, key, f"a list of {want}", v)
+    for i, item in enumerate(v):
+        if not ok(item):
+            raise _bad(obj, f"{key}[{i}]", want, item)
+    _set(obj, key, tuple(convert(item) for item in v))
+
+
+def _reals(obj, key: str, *, optional: bool = False) -> None:
+    _items(obj, key, _is_real, "numbers", float, optional=optional)
+
+
+def _counts(obj, key: str, *, optional: bool = False) -> None:
+    _items(obj, key, _is_count, "integers >= 0", int, optional=optional)
+
+
+def _texts(obj, key: str) -> None:
+    _items(obj, key, lambda s: isinstance(s, str), "strings", str)
+
+
+def _per_phase(obj, key: str) -> None:
+    """A mapping of each of PHASES (in that order) to a number, stored as a dict of floats."""
+    v = getattr(obj, key)
+    if not isinstance(v, Mapping) or list(v) != list(PHASES):
+        raise _bad(obj, key, f"an object with the keys {list(PHASES)}", v)
+    for phase, x in v.items():
+        if not _is_real(x):
+            raise _bad(obj, f"{key}[{phase!r}]", "a number", x)
+    _set(obj, key, {phase: float(x) for phase, x in v.items()})
+
+
+def _model(obj, key: str = "model") -> None:
+    if getattr(obj, key) not in MODELS:
+        raise _bad(obj, key, f"one of {list(MODELS)}", getattr(obj, key))
+
+
+def _json_keys(cls) -> Tuple[str, ...]:
+    """The fields of ``cls`` that are written to JSON (not those marked ``json=False``)."""
+    return tuple(f.name for f in dataclasses.fields(cls) if f.metadata.get("json", True))
+
+
+def _from_json(cls, data, derived: Sequence[str] = (), **parsed):
+    """``cls`` from its JSON object: every field key must be there (those with a default may
+    be left out), the ``derived`` keys too (they are recomputed, not read), no other key;
+    ``parsed`` gives the values of nested records already read. ValueError names the key.
+    """
+    name = cls.__name__
+    if not isinstance(data, Mapping):
+        raise ValueError(f"{name}: expected a JSON object, got {type(data).__name__}")
+    optional = {
+        f.name
+        for f in dataclasses.fields(cls)
+        if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
+    }
+    keys = _json_keys(cls)
+    for key in (*keys, *derived):
+        if key not in data and key not in optional:
+            raise ValueError(f"{name}: missing key {key!r}")
+    unexpected = [k for k in data if k not in keys and k not in derived]
+    if unexpected:
+        raise ValueError(f"{name}: unexpected key {unexpected[0]!r}")
+    values = {k: data[k] for k in keys if k in data}
+    values.update(parsed)
+    return cls(**values)
+
+
+def _nested(cls, items, where: str) -> tuple:
+    """A list of ``cls`` records from their JSON objects; errors say which one (``where[i]``)."""
+    if isinstance(items, (str, Mapping)) or not isinstance(items, Sequence):
+        raise ValueError(f"key {where!r} must be a list of objects, got {items!r}")
+    out = []
+    for i, item in enumerate(items):
+        try:
+            out.append(cls.from_dict(item))
+        except ValueError as exc:
+            raise ValueError(f"{where}[{i}]: {exc}") from None
+    return tuple(out)
+
+
+# ----------------------------------------------------------------------------- one run
+@dataclass(frozen=True)
+class PressureSnapshot:
+    """The fluid pressure at the step of its largest magnitude (Fig. 1 right; not in JSON).
+
+    max_abs_pressure: max |P| then (Pa); pressure: (n,) nodal P (Pa); positions: (n, 3) the
+    nodes then (m).
+    """
+
+    max_abs_pressure: float
+    pressure: np.ndarray
+    positions: np.ndarray
+
+
+@dataclass(frozen=True)
+class LiverRun:
+    """One run of one liver model (``comparisons.liver_simulation.simulate``).
+
+    model: one of MODELS. dt: the time step (s). steps_planned: the steps asked for.
+    error: why the integrator stopped the run (a step refused after its substeps), or None.
+    time (s) and max_displacement (max nodal |u|, m): one entry per state, the first at t = 0.
+    cg_iterations, substeps (1: taken whole), retries (the reasons a step was split) and
+    inverted_cells: one entry per step taken. factorizations: preconditioner factorisations
+    over the run. solver, force_field, backend: what ran (labels). stepping_seconds: the
+    wall-clock seconds of the integrator's steps; cpu_fps: steps per CPU second of this
+    process (None when none was measured). phase_seconds: the seconds of the steps by PHASES.
+    max_abs_pressure: max nodal |P| (Pa) per state, porous runs only. pressure_snapshot: the
+    pressure field for Fig. 1 right (porous runs; not written to JSON).
+
+    Derived (properties, also written to JSON): steps, final_max_displacement,
+    peak_max_displacement, cg_iterations_mean, steps_split, substeps_total,
+    inverted_cells_max, fps, realtime_factor and paper_fps.
+    """
+
+    model: str
+    dt: float
+    steps_planned: int
+    error: Optional[str]
+    time: Tuple[float, ...]
+    max_displacement: Tuple[float, ...]
+    cg_iterations: Tuple[int, ...]
+    substeps: Tuple[int, ...]
+    retries: Tuple[Tuple[str, ...], ...]
+    inverted_cells: Tuple[int, ...]
+    factorizations: int
+    solver: str
+    force_field: str
+    backend: str
+    stepping_seconds: float
+    cpu_fps: Optional[float]
+    phase_seconds: Dict[str, float]
+    max_abs_pressure: Optional[Tuple[float, ...]] = None
+    pressure_snapshot: Optional[PressureSnapshot] = field(
+        default=None, compare=False, repr=False, metadata={"json": False}
+    )
+
+    def __post_init__(self) -> None:
+        _model(self)
+        _real(self, "dt", positive=True)
+        _text(self, "error", optional=True)
+        for key in ("solver", "force_field", "backend"):
+            _text(self, key)
+        for key in ("steps_planned", "factorizations"):
+            _count(self, key)
+        for key in ("time", "max_displacement"):
+            _reals(self, key)
+        _reals(self, "max_abs_pressure", optional=True)
+        for key in ("cg_iterations", "substeps", "inverted_cells"):
+            _counts(self, key)
+        _items(self, "retries", _is_reasons, "lists of strings", lambda r: tuple(map(str, r)))
+        _real(self, "stepping_seconds")
+        _real(self, "cpu_fps", optional=True)
+        _per_phase(self, "phase_seconds")
+        self._check_lengths()
+
+    def _check_lengths(self) -> None:
+        """One entry per step (cg_iterations, ...) and one more per state (time, ...)."""
+        n = len(self.cg_iterations)
+        per_state = ["time", "max_displacement"]
+        per_state += [] if self.max_abs_pressure is None else ["max_abs_pressure"]
+        for key in per_state:
+            if len(getattr(self, key)) != n + 1:
+                raise _bad(
+                    self,
+                    key,
+                    f"{n + 1} values (the steps taken, plus t = 0)",
+                    len(getattr(self, key)),
+                )
+        for key in ("substeps", "retries", "inverted_cells"):
+            if len(getattr(self, key)) != n:
+                raise _bad(self, key, f"{n} values (one per step taken)", len(getattr(self, key)))
+        if n > self.steps_planned:
+            raise _bad(self, "steps_planned", f">= the {n} steps taken", self.steps_planned)
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def steps(self) -> int:
+        """The steps taken (fewer than steps_planned when the run stopped)."""
+        return len(self.cg_iterations)
+
+    @property
+    def final_max_displacement(self) -> float:
+        """Max nodal |u| at the last state (m)."""
+        return self.max_displacement[-1]
+
+    @property
+    def peak_max_displacement(self) -> float:
+        """Largest max nodal |u| over the run (m)."""
+        return max(self.max_displacement)
+
+    @property
+    def cg_iterations_mean(self) -> Optional[float]:
+        """Mean CG iterations per step (None when no step was taken)."""
+        return float(np.mean(self.cg_iterations)) if self.cg_iterations else None
+
+    @property
+    def steps_split(self) -> int:
+        """Steps taken in substeps."""
+        return int(sum(s > 1 for s in self.substeps))
+
+    @property
+    def substeps_total(self) -> int:
+        return int(sum(self.substeps))
+
+    @property
+    def inverted_cells_max(self) -> int:
+        return int(max(self.inverted_cells)) if self.inverted_cells else 0
+
+    @property
+    def fps(self) -> Optional[float]:
+        """Steps per wall-clock second of stepping (None when nothing was timed)."""
+        s = self.stepping_seconds
+        return self.steps / s if s > 0 else None
+
+    @property
+    def realtime_factor(self) -> Optional[float]:
+        """Simulated seconds per wall-clock second of stepping."""
+        s = self.stepping_seconds
+        return self.steps * self.dt / s if s > 0 else None
+
+    @property
+    def paper_fps(self) -> float:
+        """The paper's frame rate for this model (2010 laptop)."""
+        return PAPER_FPS[self.model]
+
+    @property
+    def completed(self) -> bool:
+        """The integrator took every step (no error)."""
+        return self.error is None
+
+    # ------------------------------------------------------------------ JSON
+    _DERIVED = (
+        "steps",
+        "final_max_displacement",
+        "peak_max_displacement",
+        "cg_iterations_mean",
+        "steps_split",
+        "substeps_total",
+        "inverted_cells_max",
+        "fps",
+        "realtime_factor",
+        "paper_fps",
+    )
+
+    def to_dict(self) -> dict:
+        """The run's JSON record (keys in the order results.json has always had them)."""
+        out = {
+            "model": self.model,
+            "dt": self.dt,
+            "steps": self.steps,
+            "steps_planned": self.steps_planned,
+            "error": self.error,
+            "time": list(self.time),
+            "max_displacement": list(self.max_displacement),
+            "final_max_displacement": self.final_max_displacement,
+            "peak_max_displacement": self.peak_max_displacement,
+            "cg_iterations_mean": self.cg_iterations_mean,
+            "cg_iterations": list(self.cg_iterations),
+            "substeps": list(self.substeps),
+            "steps_split": self.steps_split,
+            "substeps_total": self.substeps_total,
+            "retries": [list(r) for r in self.retries],
+            "inverted_cells": list(self.inverted_cells),
+            "inverted_cells_max": self.inverted_cells_max,
+            "factorizations": self.factorizations,
+            "solver": self.solver,
+            "force_field": self.force_field,
+            "backend": self.backend,
+            "stepping_seconds": self.stepping_seconds,
+            "fps": self.fps,
+            "cpu_fps": self.cpu_fps,
+            "realtime_factor": self.realtime_factor,
+            "paper_fps": self.paper_fps,
+            "phase_seconds": dict(self.phase_seconds),
+        }
+        if self.max_abs_pressure is not None:
+            out["max_abs_pressure"] = list(self.max_abs_pressure)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "LiverRun":
+        """The run from its JSON record; ValueError names a missing, unexpected or bad key."""
+        return _from_json(cls, data, cls._DERIVED)
+
+    def fps_row(self) -> dict:
+        """The run's row of the JSON ``fps_table``."""
+        keys = ("model", "backend", "dt", "fps", "cpu_fps", "paper_fps", "solver", "force_field")
+        keys += ("cg_iterations_mean", "factorizations", "steps", "steps_split")
+        keys += ("substeps_total", "inverted_cells_max")
+        row = {k: getattr(self, k) for k in keys}
+        row.update(
+            target_fps=TARGET_FPS,
+            completed=self.completed,
+            meets_target=bool(self.fps is not None and self.fps >= TARGET_FPS),
+        )
+        return row
+
+
+def _is_reasons(r) -> bool:
+    return isinstance(r, (list, tuple)) and all(isinstance(s, str) for s in r)
+
+
+# ----------------------------------------------------------------------------- across runs
+@dataclass(frozen=True)
+class StepSplit:
+    """Where the steps of one completed run went: ms_per_step (milliseconds of wall clock per
+    step) and shares (the fraction of the stepping time of each of PHASES, summing to 1).
+    """
+
+    model: str
+    backend: str
+    ms_per_step: float
+    shares: Dict[str, float]
+
+    def __post_init__(self) -> None:
+        _model(self)
+        _text(self, "backend")
+        _real(self, "ms_per_step", positive=True)
+        _per_phase(self, "shares")
+
+    def to_dict(self) -> dict:
+        return {
+            "model": self.model,
+            "backend": self.backend,
+            "ms_per_step": self.ms_per_step,
+            "shares": dict(self.shares),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "StepSplit":
+        return _from_json(cls, data)
+
+
+@dataclass(frozen=True)
+class BackendAgreement:
+    """A later backend's run against the reference backend's run of the same model: the
+    largest difference of their max-displacement curves over the reference's peak
+    (dimensionless; None when the two did not take the same steps).
+    """
+
+    model: str
+    backend: str
+    reference: str
+    relative_difference: Optional[float]
+
+    def __post_init__(self) -> None:
+        _model(self)
+        _text(self, "backend")
+        _text(self, "reference")
+        _real(self, "relative_difference", optional=True)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "BackendAgreement":
+        return _from_json(cls, data)
+
+
+# ----------------------------------------------------------------------------- oscillation
+@dataclass(frozen=True)
+class OscillationMetrics:
+    """What one max-displacement curve shows (``comparisons.oscillation.oscillation_metrics``).
+
+    extrema: the significant extrema (0: no oscillation); first_peak: the first maximum (m);
+    period (s); decay_rate: of the swings between extrema (1/s; None with fewer than two
+    swings); overshoot: first peak over the final value; final and peak: the last and the
+    largest value (m). None where the curve does not show it.
+    """
+
+    extrema: int
+    first_peak: Optional[float]
+    period: Optional[float]
+    decay_rate: Optional[float]
+    overshoot: Optional[float]
+    final: float
+    peak: float
+
+    def __post_init__(self) -> None:
+        _check_metrics(self)
+
+
+def _check_metrics(obj) -> None:
+    """The fields of OscillationMetrics, on it or on an OscillationRow."""
+    _count(obj, "extrema")
+    for key in ("first_peak", "period", "decay_rate", "overshoot"):
+        _real(obj, key, optional=True)
+    _real(obj, "final")
+    _real(obj, "peak")
+
+
+@dataclass(frozen=True)
+class OscillationCurve:
+    """One run of the oscillation study, as its figure and results.json keep it (a part of
+    its :class:`LiverRun`): time (s), max_displacement (m), fps (steps per second).
+    """
+
+    model: str
+    dt: float
+    time: Tuple[float, ...]
+    max_displacement: Tuple[float, ...]
+    error: Optional[str]
+    steps: int
+    steps_planned: int
+    steps_split: int
+    substeps_total: int
+    fps: Optional[float]
+
+    def __post_init__(self) -> None:
+        _model(self)
+        _real(self, "dt", positive=True)
+        _reals(self, "time")
+        _reals(self, "max_displacement")
+        _text(self, "error", optional=True)
+        for key in ("steps", "steps_planned", "steps_split", "substeps_total"):
+            _count(self, key)
+        _real(self, "fps", optional=True)
+        if len(self.time) != len(self.max_displacement):
+            raise _bad(
+                self,
+                "max_displacement",
+                f"{len(self.time)} values (one per time)",
+                len(self.max_displacement),
+            )
+
+    @classmethod
+    def of_run(cls, run: LiverRun) -> "OscillationCurve":
+        return cls(**{k: getattr(run, k) for k in _json_keys(cls)})
+
+    def to_dict(self) -> dict:
+        out = dataclasses.asdict(self)
+        out.update(time=list(self.time), max_displacement=list(self.max_displacement))
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationCurve":
+        return _from_json(cls, data)
+
+
+@dataclass(frozen=True)
+class OscillationRow:
+    """One (model, dt) of the oscillation study: whether it completed (``error`` None), its
+    steps taken in substeps, its curve's :class:`OscillationMetrics` (the same fields: lengths
+    in m, times in s, rates in 1/s) and backward Euler's decay rate at this dt
+    (``euler_decay_rate``, 1/s) on the angular frequency the model shows at the smallest dt
+    (``omega_smallest_dt``, rad/s; both None when it does not oscillate there).
+    """
+
+    model: str
+    dt: float
+    error: Optional[str]
+    steps_split: int
+    extrema: int
+    first_peak: Optional[float]
+    period: Optional[float]
+    decay_rate: Optional[float]
+    overshoot: Optional[float]
+    final: float
+    peak: float
+    omega_smallest_dt: Optional[float]
+    euler_decay_rate: Optional[float]
+
+    def __post_init__(self) -> None:
+        _model(self)
+        _real(self, "dt", positive=True)
+        _text(self, "error", optional=True)
+        _count(self, "steps_split")
+        _check_metrics(self)
+        _real(self, "omega_smallest_dt", optional=True)
+        _real(self, "euler_decay_rate", optional=True)
+
+    @classmethod
+    def of_run(cls, run: LiverRun, metrics: OscillationMetrics) -> "OscillationRow":
+        """The row of one run and its curve's metrics, before the Euler rates are known."""
+        return cls(
+            model=run.model,
+            dt=run.dt,
+            error=run.error,
+            steps_split=run.steps_split,
+            **dataclasses.asdict(metrics),
+            omega_smallest_dt=None,
+            euler_decay_rate=None,
+        )
+
+    @property
+    def completed(self) -> bool:
+        return self.error is None
+
+    def to_dict(self) -> dict:
+        out = {"model": self.model, "dt": self.dt, "completed": self.completed}
+        out.update({k: getattr(self, k) for k in _json_keys(type(self))[2:]})
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationRow":
+        return _from_json(cls, data, ("completed",))
+
+
+@dataclass(frozen=True)
+class OscillationData:
+    """The oscillation study (paper Fig. 4 as described): every model at every dt (s) over
+    ``duration`` (s) on ``mesh`` without Rayleigh damping (``rayleigh``: r_M in 1/s, r_K in
+    s, both 0); the curves, one metrics row per run, the models by peak amplitude at
+    ``amplitude_ordering_dt`` (largest first) and the figures written.
+    """
+
+    mesh: str
+    dts: Tuple[float, ...]
+    duration: float
+    rayleigh: Tuple[float, ...]
+    curves: Tuple[OscillationCurve, ...]
+    table: Tuple[OscillationRow, ...]
+    amplitude_ordering: Tuple[str, ...]
+    amplitude_ordering_dt: float
+    figures: Tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        _text(self, "mesh")
+        _reals(self, "dts")
+        _real(self, "duration", positive=True)
+        _reals(self, "rayleigh")
+        _items(self, "curves", lambda c: isinstance(c, OscillationCurve), "OscillationCurve", _same)
+        _items(self, "table", lambda r: isinstance(r, OscillationRow), "OscillationRow", _same)
+        _texts(self, "amplitude_ordering")
+        _real(self, "amplitude_ordering_dt", positive=True)
+        _texts(self, "figures")
+
+    def to_dict(self) -> dict:
+        return {
+            "mesh": self.mesh,
+            "dts": list(self.dts),
+            "duration": self.duration,
+            "rayleigh": list(self.rayleigh),
+            "curves": [c.to_dict() for c in self.curves],
+            "table": [r.to_dict() for r in self.table],
+            "amplitude_ordering": list(self.amplitude_ordering),
+            "amplitude_ordering_dt": self.amplitude_ordering_dt,
+            "figures": list(self.figures),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationData":
+        """The study from its JSON object; ValueError names a missing, unexpected or bad key."""
+        nested = {}
+        if isinstance(data, Mapping):
+            for key, kind in (("curves", OscillationCurve), ("table", OscillationRow)):
+                if key in data:
+                    nested[key] = _nested(kind, data[key], key)
+        return _from_json(cls, data, **nested)
+
+
+def _same(x):
+    return x
+
+
+# ----------------------------------------------------------------------------- the study
+@dataclass(frozen=True)
+class LiverData:
+    """A liver study (``comparisons.liver.run_liver``; ``liver_study`` adds the oscillation
+    study and the protocol).
+
+    The organ: mesh (its label), mesh_description, n_nodes, n_cells, scale (metres per mesh
+    unit), numbering (of its node ids), reoriented_cells, unused_nodes (counts) and the
+    mesh_warnings. Its supports: fixed_regions (specs), n_fixed, fixed_node_ids (in the
+    file's numbering; None when more than 50). quick; duration: simulated seconds of each run;
+    parameters: ``LiverParameters.to_dict()`` of the runs. runs: every model once per backend,
+    the reference backend first; step_split and backend_agreement over them; terzaghi: the
+    Terzaghi check's record (``comparisons.terzaghi.run_terzaghi``); figures and series: the
+    files written. oscillation, protocol: None until ``liver_study`` sets them.
+
+    Derived (properties, also written to JSON): backends, fps_table and passed.
+    """
+
+    mesh: str
+    mesh_description: str
+    n_nodes: int
+    n_cells: int
+    scale: float
+    numbering: str
+    reoriented_cells: int
+    unused_nodes: int
+    mesh_warnings: Tuple[str, ...]
+    fixed_regions: Tuple[str, ...]
+    n_fixed: int
+    fixed_node_ids: Optional[Tuple[int, ...]]
+    quick: bool
+    duration: float
+    parameters: Dict[str, Any]
+    runs: Tuple[LiverRun, ...]
+    step_split: Tuple[StepSplit, ...]
+    backend_agreement: Tuple[BackendAgreement, ...]
+    terzaghi: Dict[str, Any]
+    figures: Tuple[str, ...]
+    series: Tuple[str, ...]
+    oscillation: Optional[OscillationData] = None
+    protocol: Optional[str] = None
+
+    def __post_init__(self) -> None:
+        for key in ("mesh", "mesh_description", "numbering"):
+            _text(self, key)
+        for key in ("n_nodes", "n_cells", "reoriented_cells", "unused_nodes", "n_fixed"):
+            _count(self, key)
+        _real(self, "scale", positive=True)
+        _real(self, "duration", positive=True)
+        _flag(self, "quick")
+        for key in ("mesh_warnings", "fixed_regions", "figures", "series"):
+            _texts(self, key)
+        _counts(self, "fixed_node_ids", optional=True)
+        for key, kind in (
+            ("runs", LiverRun),
+            ("step_split", StepSplit),
+            ("backend_agreement", BackendAgreement),
+        ):
+            _items(self, key, lambda x, k=kind: isinstance(x, k), kind.__name__, _same)
+        self._check_records()
+
+    def _check_records(self) -> None:
+        """Check the parameters (an object), terzaghi (its "times") and the optional parts."""
+        if not isinstance(self.parameters, Mapping):
+            raise _bad(self, "parameters", "an object (LiverParameters.to_dict())", self.parameters)
+        times = self.terzaghi.get("times") if isinstance(self.terzaghi, Mapping) else None
+        ok = isinstance(times, Sequence) and all(
+            isinstance(t, Mapping) and _is_real(t.get("relative_l2_error")) for t in times
+        )
+        if not (ok and times):
+            raise _bad(
+                self, "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
+            )
+        if not (self.oscillation is None or isinstance(self.oscillation, OscillationData)):
+            raise _bad(self, "oscillation", "an OscillationData or None", self.oscillation)
+        _text(self, "protocol", optional=True)
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def backends(self) -> Tuple[str, ...]:
+        """The backends that ran, the reference (first) one first."""
+        return tuple(dict.fromkeys(r.backend for r in self.runs))
+
+    @property
+    def terzaghi_error(self) -> float:
+        """The Terzaghi check's worst relative L2 pressure error over its times."""
+        return max(t["relative_l2_error"] for t in self.terzaghi["times"])
+
+    @property
+    def passed(self) -> bool:
+        """Every run completed and the Terzaghi check is within TERZAGHI_TOL."""
+        return all(r.error is None for r in self.runs) and self.terzaghi_error <= TERZAGHI_TOL
+
+    # ------------------------------------------------------------------ JSON
+    _DERIVED = ("backends", "fps_table", "passed")
+
+    def to_dict(self) -> dict:
+        """The study's JSON record (results.json, --json), keys in their historical order."""
+        ids = self.fixed_node_ids
+        out = {
+            "mesh": self.mesh,
+            "mesh_description": self.mesh_description,
+            "n_nodes": self.n_nodes,
+            "n_cells": self.n_cells,
+            "scale": self.scale,
+            "numbering": self.numbering,
+            "reoriented_cells": self.reoriented_cells,
+            "unused_nodes": self.unused_nodes,
+            "mesh_warnings": list(self.mesh_warnings),
+            "fixed_regions": list(self.fixed_regions),
+            "n_fixed": self.n_fixed,
+            "fixed_node_ids": None if ids is None else list(ids),
+            "quick": self.quick,
+            "duration": self.duration,
+            "parameters": dict(self.parameters),
+        }
+        out.update(
+            runs=[r.to_dict() for r in self.runs],
+            backends=list(self.backends),
+            fps_table=[r.fps_row() for r in self.runs],
+            step_split=[s.to_dict() for s in self.step_split],
+            backend_agreement=[a.to_dict() for a in self.backend_agreement],
+            terzaghi=dict(self.terzaghi),
+            passed=self.passed,
+            figures=list(self.figures),
+            series=list(self.series),
+        )
+        if self.oscillation is not None:
+            out["oscillation"] = self.oscillation.to_dict()
+        if self.protocol is not None:
+            out["protocol"] = self.protocol
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> "LiverData":
+        """The study from its JSON record (e.g. a StudyResult's ``data``, or ``["data"]`` of a
+        --json file); ValueError names a missing, unexpected or bad key, nested ones with their
+        place (``runs[1]: LiverRun: key 'dt' ...``).
+        """
+        nested: Dict[str, Any] = {}
+        if isinstance(data, Mapping):
+            for key, kind in (
+                ("runs", LiverRun),
+                ("step_split", StepSplit),
+                ("backend_agreement", BackendAgreement),
+            ):
+                if key in data:
+                    nested[key] = _nested(kind, data[key], key)
+            if data.get("oscillation") is not None:
+                try:
+                    nested["oscillation"] = OscillationData.from_dict(data["oscillation"])
+                except ValueError as exc:
+                    raise ValueError(f"oscillation: {exc}") from None
+        return _from_json(cls, data, cls._DERIVED, **nested)
