@@ -32,13 +32,22 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
+
+from comparisons.cross_release_data import (
+    CrossReleaseResult,
+    MissingStack,
+    SnapshotDiff,
+    StackComparison,
+    StackError,
+    StackRun,
+)
 
 __all__ = [
     "TOLERANCE",
@@ -50,6 +59,8 @@ __all__ = [
     "mpirun_command",
     "default_stacks",
     "cross_release_check",
+    "CrossReleaseResult",
+    "SnapshotDiff",
     "format_check",
     "provenance_summary",
     "cross_release_study",
@@ -174,7 +185,7 @@ def _rel(diff: float, ref: float) -> float:
     return diff / ref if ref > 0 else diff
 
 
-def compare_snapshots(a: dict, b: dict, tol: float = TOLERANCE) -> dict:
+def compare_snapshots(a: dict, b: dict, tol: float = TOLERANCE) -> SnapshotDiff:
     """Worst relative differences of snapshot ``b`` from the reference ``a``, per quantity.
 
     Raises:
@@ -200,11 +211,11 @@ def compare_snapshots(a: dict, b: dict, tol: float = TOLERANCE) -> dict:
         worst["stiffness"] = max(
             worst["stiffness"], _rel(float(dK), float(sp.linalg.norm(ca["stiffness"])))
         )
-    return {
-        "n_cases": len(a["cases"]),
+    return SnapshotDiff(
+        n_cases=len(a["cases"]),
         **{f"{k}_rel_diff": v for k, v in worst.items()},
-        "passed": bool(max(worst.values()) <= tol),
-    }
+        passed=bool(max(worst.values()) <= tol),
+    )
 
 
 # -- running snapshots on other interpreters and under mpirun ------------------------------
@@ -285,92 +296,100 @@ def cross_release_check(
     *,
     quick: bool = True,
     timeout: float = 900.0,
-) -> dict:
+) -> CrossReleaseResult:
     """Snapshots on every available stack, each compared with the first that ran.
 
-    Returns a JSON-serialisable dict: {"tolerance", "reference", "stacks": [{label, python,
-    ranks, versions, cells_per_rank, seconds}], "comparisons": [{label, energy_rel_diff,
-    force_rel_diff, stiffness_rel_diff, passed}], "missing": [{label, reason}], "passed",
-    "figures": []}. ``passed`` is False if any comparison fails, if a stack that exists
-    fails to run, or if fewer than two snapshots could be taken. A stack whose interpreter is
-    absent or cannot import dolfinx is listed under "missing" (not installed), not as an error.
+    Returns:
+        The stacks that ran (versions, cells per rank, seconds), their comparisons with the
+        first, the stacks missing here and those that failed; its ``passed`` is False if any
+        comparison fails, if a stack that exists fails to run, or if fewer than two snapshots
+        could be taken. A stack whose interpreter is absent or cannot import dolfinx is listed
+        under ``missing`` (not installed), not as an error. ``to_dict()`` gives the JSON.
     """
     stacks = list(default_stacks() if stacks is None else stacks)
-    result = {
-        "tolerance": TOLERANCE,
-        "reference": None,
-        "stacks": [],
-        "comparisons": [],
-        "missing": [],
-        "errors": [],
-        "figures": [],
-    }
     with tempfile.TemporaryDirectory() as tmp:
-        snaps = _snapshots(stacks, result, tmp, quick, timeout)
-    if snaps:
-        ref_label, ref = snaps[0]
-        result["reference"] = ref_label
-        for label, snap in snaps[1:]:
-            result["comparisons"].append({"label": label, **compare_snapshots(ref, snap)})
-    result["passed"] = bool(
-        len(snaps) >= 2 and not result["errors"] and all(c["passed"] for c in result["comparisons"])
+        runs = _snapshots(stacks, tmp, quick, timeout)
+    reference, comparisons = None, []
+    if runs.snapshots:
+        reference, ref = runs.snapshots[0]
+        comparisons = [
+            StackComparison(label, compare_snapshots(ref, snap))
+            for label, snap in runs.snapshots[1:]
+        ]
+    return CrossReleaseResult(
+        tolerance=TOLERANCE,
+        reference=reference,
+        stacks=tuple(runs.ran),
+        comparisons=tuple(comparisons),
+        missing=tuple(runs.missing),
+        errors=tuple(runs.errors),
     )
-    return result
 
 
-def _snapshots(stacks, result: dict, tmp: str, quick: bool, timeout: float) -> list:
-    """(label, snapshot) of every stack that ran; missing and failed stacks go into result."""
-    snaps = []
+@dataclass
+class _Runs:
+    """What the snapshot loop found: the stacks that ran with their snapshots, the others."""
+
+    ran: List[StackRun] = field(default_factory=list)
+    snapshots: List[Tuple[str, dict]] = field(default_factory=list)
+    missing: List[MissingStack] = field(default_factory=list)
+    errors: List[StackError] = field(default_factory=list)
+
+
+def _snapshots(stacks, tmp: str, quick: bool, timeout: float) -> _Runs:
+    """The snapshot of every stack that runs; the missing and the failed stacks, listed."""
+    runs = _Runs()
     missing: Dict[str, Optional[str]] = {}
     for i, (label, python, ranks) in enumerate(stacks):
         if python not in missing:
             missing[python] = _why_missing(python, timeout)
         if missing[python]:
-            result["missing"].append({"label": label, "reason": missing[python]})
+            runs.missing.append(MissingStack(label, missing[python]))
             continue
         out = os.path.join(tmp, f"{i}.npz")
         t0 = time.perf_counter()
         try:
             _run_snapshot(python, ranks, out, quick, timeout)
         except (RuntimeError, FileNotFoundError, subprocess.TimeoutExpired) as exc:
-            result["errors"].append({"label": label, "error": str(exc)})
+            runs.errors.append(StackError(label, str(exc)))
             continue
         snap = load_snapshot(out)
         meta = snap["meta"]
-        result["stacks"].append(
-            {
-                "label": label,
-                "python": python,
-                "ranks": ranks,
-                "versions": meta["versions"],
-                "cells_per_rank": meta["cells_per_rank"],
-                "seconds": round(time.perf_counter() - t0, 1),
-            }
+        runs.ran.append(
+            StackRun(
+                label=label,
+                python=python,
+                ranks=ranks,
+                versions=meta["versions"],
+                cells_per_rank=meta["cells_per_rank"],
+                seconds=round(time.perf_counter() - t0, 1),
+            )
         )
-        snaps.append((label, snap))
-    return snaps
+        runs.snapshots.append((label, snap))
+    return runs
 
 
-def format_check(result: dict) -> str:
+def format_check(result: CrossReleaseResult) -> str:
     """A few lines of text for the check's result."""
     lines = []
-    for s in result["stacks"]:
-        v = s["versions"]
+    for s in result.stacks:
+        v = s.versions
         lines.append(
-            f"  {s['label']:<14} dolfinx {v['dolfinx']:<13} ufl {v['ufl']:<10} petsc "
-            f"{v['petsc']:<7} numpy {v['numpy']:<7} cells per rank {s['cells_per_rank']} "
-            f"({s['seconds']} s)"
+            f"  {s.label:<14} dolfinx {v['dolfinx']:<13} ufl {v['ufl']:<10} petsc "
+            f"{v['petsc']:<7} numpy {v['numpy']:<7} cells per rank {list(s.cells_per_rank)} "
+            f"({s.seconds} s)"
         )
-    for c in result["comparisons"]:
+    for c in result.comparisons:
+        d = c.diff
         lines.append(
-            f"  {c['label']} vs {result['reference']}: energy {c['energy_rel_diff']:.1e}, force "
-            f"{c['force_rel_diff']:.1e}, stiffness {c['stiffness_rel_diff']:.1e} "
-            f"({'pass' if c['passed'] else 'FAIL'}, tolerance {result['tolerance']:g})"
+            f"  {c.label} vs {result.reference}: energy {d.energy_rel_diff:.1e}, force "
+            f"{d.force_rel_diff:.1e}, stiffness {d.stiffness_rel_diff:.1e} "
+            f"({'pass' if d.passed else 'FAIL'}, tolerance {result.tolerance:g})"
         )
-    for m in result["missing"]:
-        lines.append(f"  NOT RUN: {m['label']}: {m['reason']}")
-    for e in result["errors"]:
-        lines.append(f"  ERROR: {e['label']}: {e['error']}")
+    for m in result.missing:
+        lines.append(f"  NOT RUN: {m.label}: {m.reason}")
+    for e in result.errors:
+        lines.append(f"  ERROR: {e.label}: {e.error}")
     return "\n".join(lines)
 
 
@@ -379,27 +398,27 @@ def provenance_summary(path: Optional[str] = None) -> Optional[dict]:
 
     Reads the JSON that ``.ci/run`` and ``make cross-release`` write (default
     ``reports/cross_release.json``); None if there is none (the check was not run here).
+
+    Raises:
+        common.json_fields.RecordError: the file is not a check's result (names the file and
+            the key).
     """
     path = str(REPO / "reports" / "cross_release.json") if path is None else path
     if not os.path.exists(path):
         return None
     with open(path) as fh:
-        result = json.load(fh)
+        result = CrossReleaseResult.from_dict(json.load(fh), source=path)
     keys = ("dolfinx", "ufl", "petsc", "numpy", "python", "mpi")
-    worst = {
-        c["label"]: max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"])
-        for c in result["comparisons"]
-    }
     return {
-        "passed": result["passed"],
-        "tolerance": result["tolerance"],
-        "reference": result["reference"],
+        "passed": result.passed,
+        "tolerance": result.tolerance,
+        "reference": result.reference,
         "stacks": [
-            {"label": s["label"], "ranks": s["ranks"], **{k: s["versions"].get(k) for k in keys}}
-            for s in result["stacks"]
+            {"label": s.label, "ranks": s.ranks, **{k: s.versions.get(k) for k in keys}}
+            for s in result.stacks
         ],
-        "worst_rel_diff": worst,
-        "not_run": [m["label"] for m in result["missing"]] + [e["label"] for e in result["errors"]],
+        "worst_rel_diff": {c.label: c.diff.worst for c in result.comparisons},
+        "not_run": list(result.not_run),
     }
 
 
@@ -412,7 +431,8 @@ def cross_release_study(
     checks (TOLERANCE), and a stack that exists but fails to run is a failed check. A stack
     that is not installed here is listed under not_covered (a partial run); with fewer than two
     snapshots nothing is compared and the study is NOT RUN. ``quick`` keeps three cases; the
-    result says so. ``data`` is the dict of :func:`cross_release_check`.
+    result says so. ``data`` is the JSON form (``to_dict()``) of :func:`cross_release_check`'s
+    :class:`CrossReleaseResult`.
     """
     from common.reproduce import command
     from common.result import StudyResult
@@ -425,12 +445,15 @@ def cross_release_study(
     not_covered = _left_out(res, quick)
     blocks = _blocks(res)
     seconds = time.perf_counter() - t0
-    if len(res["stacks"]) < 2 and not res["errors"]:
-        ran = ", ".join(s["label"] for s in res["stacks"]) or "none"
-        missing = "; ".join(not_covered[: len(res["missing"])]) or "no stack given"
+    if len(res.stacks) < 2 and not res.errors:
+        ran = ", ".join(s.label for s in res.stacks) or "none"
+        missing = "; ".join(not_covered[: len(res.missing)]) or "no stack given"
         why = f"fewer than two stacks ran (ran: {ran}), nothing was compared; {missing}"
         return replace(
-            StudyResult.not_run(KEY, TITLE, why, cmd), data=res, blocks=blocks, seconds=seconds
+            StudyResult.not_run(KEY, TITLE, why, cmd),
+            data=res.to_dict(),
+            blocks=blocks,
+            seconds=seconds,
         )
     return StudyResult.from_checks(
         KEY,
@@ -439,18 +462,18 @@ def cross_release_study(
         headline=_headline(res),
         command=cmd,
         not_covered=tuple(not_covered),
-        data=res,
+        data=res.to_dict(),
         blocks=blocks,
         seconds=seconds,
     )
 
 
-def _left_out(res: dict, quick: bool) -> List[str]:
+def _left_out(res: CrossReleaseResult, quick: bool) -> List[str]:
     """The stacks not installed here, and the quick selection, in words."""
     out = [
-        f"{m['label']}: not installed here ({m['reason']}; make bootstrap-modern installs the "
+        f"{m.label}: not installed here ({m.reason}; make bootstrap-modern installs the "
         "modern stack)"
-        for m in res["missing"]
+        for m in res.missing
     ]
     if quick:
         n_quick, n_full = len(snapshot_cases(True)), len(snapshot_cases(False))
@@ -458,23 +481,16 @@ def _left_out(res: dict, quick: bool) -> List[str]:
     return out
 
 
-def _blocks(res: dict) -> tuple:
+def _blocks(res: CrossReleaseResult) -> tuple:
     from common.blocks import Paragraph, Preformatted, Table
 
     versions = ("dolfinx", "ufl", "petsc", "numpy", "python")
     stacks = [
-        (s["label"], s["ranks"], *(s["versions"].get(v) for v in versions), s["seconds"])
-        for s in res["stacks"]
+        (s.label, s.ranks, *(s.versions.get(v) for v in versions), s.seconds) for s in res.stacks
     ]
     diffs = [
-        (
-            c["label"],
-            c["energy_rel_diff"],
-            c["force_rel_diff"],
-            c["stiffness_rel_diff"],
-            c["passed"],
-        )
-        for c in res["comparisons"]
+        (c.label, *(value for _, value in c.diff.by_quantity()), c.diff.passed)
+        for c in res.comparisons
     ]
     return (
         Paragraph(
@@ -484,45 +500,40 @@ def _blocks(res: dict) -> tuple:
         ),
         Table(("stack", "ranks", *versions, "seconds"), stacks),
         Table(
-            (f"against {res['reference']}", "energy", "force", "stiffness", "verdict"),
+            (f"against {res.reference}", "energy", "force", "stiffness", "verdict"),
             diffs,
-            caption="Relative differences of the oracle's results "
-            f"(tolerance {res['tolerance']:g})",
+            caption=f"Relative differences of the oracle's results (tolerance {res.tolerance:g})",
         ),
         Preformatted(format_check(res)),
     )
 
 
-def _checks(res: dict) -> list:
+def _checks(res: CrossReleaseResult) -> list:
     """A failed stack is a failed check; every comparison is three tolerance checks."""
     from common.result import Check
 
-    errors = "; ".join(e["label"] for e in res["errors"])
+    errors = "; ".join(e.label for e in res.errors)
     checks = [
-        Check("stacks that exist but failed to run", float(len(res["errors"])), 0.0, note=errors)
+        Check("stacks that exist but failed to run", float(len(res.errors)), 0.0, note=errors)
     ]
-    for c in res["comparisons"]:
+    for c in res.comparisons:
         checks += [
             Check(
-                f"{c['label']} against {res['reference']}: {q} relative difference",
-                c[f"{q}_rel_diff"],
-                res["tolerance"],
+                f"{c.label} against {res.reference}: {q} relative difference",
+                value,
+                res.tolerance,
             )
-            for q in ("energy", "force", "stiffness")
+            for q, value in c.diff.by_quantity()
         ]
     return checks
 
 
-def _headline(res: dict) -> str:
-    diffs = [
-        max(c["energy_rel_diff"], c["force_rel_diff"], c["stiffness_rel_diff"])
-        for c in res["comparisons"]
-    ]
-    worst = max(diffs, default=float("nan"))
-    labels = ", ".join(s["label"] for s in res["stacks"])
+def _headline(res: CrossReleaseResult) -> str:
+    worst = max((c.diff.worst for c in res.comparisons), default=float("nan"))
+    labels = ", ".join(s.label for s in res.stacks)
     return (
-        f"{len(res['stacks'])} stacks ran ({labels}); largest relative difference {worst:.1e} "
-        f"(tolerance {res['tolerance']:g})"
+        f"{len(res.stacks)} stacks ran ({labels}); largest relative difference {worst:.1e} "
+        f"(tolerance {res.tolerance:g})"
     )
 
 
@@ -558,13 +569,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.command == "compare":
         print(
             json.dumps(
-                compare_snapshots(load_snapshot(args.reference), load_snapshot(args.other)),
+                compare_snapshots(
+                    load_snapshot(args.reference), load_snapshot(args.other)
+                ).to_dict(),
                 indent=1,
             )
         )
         return 0
     # The same verdict as `mjed-verify cross-release` (exit 3 when a stack is missing); the
-    # JSON keeps the raw check, which provenance_summary reads.
+    # JSON keeps the raw check (CrossReleaseResult.to_dict()), which provenance_summary reads.
     from common.result import exit_code
     from common.terminal import format_result
 

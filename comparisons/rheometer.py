@@ -41,22 +41,34 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import asdict, dataclass, replace
-from typing import Callable, Optional, Tuple
+from dataclasses import dataclass, replace
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 
 import mjed
+from comparisons.rheometer_data import (
+    ErrorSummary,
+    FrequencyRow,
+    FrequencyRun,
+    RheometerResult,
+    RheometerSpec,
+    SampleMesh,
+    Sweep,
+    SweepErrors,
+)
 from mjed.integrator import ImplicitEuler, Prescribed
-from mjed.materials import StVenantKirchhoff
 from mjed.solvers import LinearSolverOptions
-from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients
+from mjed.viscous import ViscoHyperelasticForceField, prony_coefficients
 
 __all__ = [
     "KEY",
     "TITLE",
     "DISCRETE_TOL",
     "RheometerSpec",
+    "RheometerResult",
+    "FrequencyRow",
+    "Sweep",
     "TorsionSample",
     "run_rheometer",
     "sweep",
@@ -73,72 +85,6 @@ TITLE = "Rheometer frequency sweep (paper Fig. 3)"
 #: The sweep must reproduce the exact backward-Euler transfer function to this relative error
 #: (what is left is O(amplitude^2) geometric nonlinearity and round-off, about 1e-10).
 DISCRETE_TOL = 1e-7
-
-
-@dataclass(frozen=True)
-class RheometerSpec:
-    """Parameters of the study (SI units).
-
-    radius, height: the sample (m); target_cells: tetrahedra of the gmsh cylinder.
-    G0 (Pa), poisson: St Venant-Kirchhoff's mu = G0 and lam from Poisson's ratio.
-    alphas, taus: the Prony series. amplitude: theta0 (rad).
-    samples_per_period: time steps per period (dt = 2 pi / (omega N)).
-    warmup_periods, measured_periods: periods integrated before and during the fit.
-    n_frequencies: omega log-spaced from 0.1 / max(tau) to 10 / min(tau).
-    """
-
-    radius: float = 0.010
-    height: float = 0.004
-    target_cells: int = 1000
-    G0: float = 770.0
-    poisson: float = 0.45
-    alphas: Tuple[float, ...] = (0.235, 0.333)
-    taus: Tuple[float, ...] = (0.27, 0.03)
-    amplitude: float = 1e-6
-    samples_per_period: int = 64
-    warmup_periods: int = 1
-    measured_periods: int = 2
-    n_frequencies: int = 13
-
-    def __post_init__(self):
-        for name in ("radius", "height", "G0", "amplitude"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        if not (-1.0 < self.poisson < 0.5):
-            raise ValueError(f"poisson must lie in (-1, 0.5), got {self.poisson!r}")
-        for name, low in (
-            ("target_cells", 1),
-            ("samples_per_period", 8),
-            ("warmup_periods", 0),
-            ("measured_periods", 1),
-            ("n_frequencies", 1),
-        ):
-            v = getattr(self, name)
-            if int(v) != v or v < low:
-                raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
-        self.prony  # validates alphas and taus
-
-    @property
-    def prony(self) -> Prony:
-        return Prony(self.alphas, self.taus)
-
-    @property
-    def material(self) -> StVenantKirchhoff:
-        return StVenantKirchhoff(
-            mu=self.G0, lam=2.0 * self.G0 * self.poisson / (1.0 - 2.0 * self.poisson)
-        )
-
-    def omegas(self) -> np.ndarray:
-        """(n_frequencies,) angular frequencies (rad/s), omega tau_i from 0.1 to 10 for every
-        term.
-        """
-        lo, hi = 0.1 / max(self.taus), 10.0 / min(self.taus)
-        return (
-            np.geomspace(lo, hi, self.n_frequencies)
-            if self.n_frequencies > 1
-            else np.array([np.sqrt(lo * hi)])
-        )
 
 
 #: A complete but small run (a few seconds).
@@ -238,7 +184,7 @@ def fit_harmonic(t: np.ndarray, y: np.ndarray, omega: float, decays=(), n0: int 
 
 def simulate_frequency(
     sample: TorsionSample, spec: RheometerSpec, omega: float, torque_elastic: float
-) -> dict:
+) -> FrequencyRun:
     """One sinusoidal run at omega; G*/G0 from the fitted torque."""
     N = spec.samples_per_period
     dt = 2.0 * np.pi / (omega * N)
@@ -255,13 +201,13 @@ def simulate_frequency(
     _, b = prony_coefficients(spec.prony, dt)
     amplitude = fit_harmonic(t[n_warm:], torque[n_warm:], omega, decays=b)
     G = amplitude / (spec.amplitude * torque_elastic)
-    return {
-        "omega": float(omega),
-        "dt": dt,
-        "G": G,
-        "steps": len(torque),
-        "cg_iterations_per_step": cg / len(torque),
-    }
+    return FrequencyRun(
+        omega=float(omega),
+        dt=dt,
+        G=G,
+        steps=len(torque),
+        cg_iterations_per_step=cg / len(torque),
+    )
 
 
 def sweep(
@@ -269,44 +215,43 @@ def sweep(
     spec: RheometerSpec,
     omegas=None,
     progress: Optional[Callable[[str], None]] = None,
-) -> dict:
+) -> Sweep:
     """The sweep on a given sample: moduli (Pa) and their errors against both references."""
     omegas = spec.omegas() if omegas is None else np.asarray(omegas, dtype=float)
-    prony = spec.prony
     T_el = elastic_torque(sample, spec.material, spec.amplitude) / spec.amplitude
     rows = []
     for omega in omegas:
-        run = simulate_frequency(sample, spec, omega, T_el)
-        cont = complex(prony.complex_modulus(omega))
-        disc = complex(prony.discrete_modulus(omega, run["dt"]))
-        G = run.pop("G")
-        rows.append(
-            {
-                **run,
-                "frequency_hz": float(omega / (2 * np.pi)),
-                "G_storage": spec.G0 * G.real,
-                "G_loss": spec.G0 * G.imag,
-                "continuous": [spec.G0 * cont.real, spec.G0 * cont.imag],
-                "discrete": [spec.G0 * disc.real, spec.G0 * disc.imag],
-                "rel_err_continuous": [_rel(G.real, cont.real), _rel(G.imag, cont.imag)],
-                "rel_err_discrete": [_rel(G.real, disc.real), _rel(G.imag, disc.imag)],
-            }
-        )
+        row = _frequency_row(spec, simulate_frequency(sample, spec, omega, T_el))
+        rows.append(row)
         if progress:
             progress(
-                f"omega = {omega:.3g} rad/s: G' = {spec.G0 * G.real:.2f} Pa, G'' = "
-                f"{spec.G0 * G.imag:.2f} Pa"
+                f"omega = {omega:.3g} rad/s: G' = {row.G_storage:.2f} Pa, G'' = {row.G_loss:.2f} Pa"
             )
-    errors = {}
-    for ref in ("continuous", "discrete"):
-        e = np.array([r[f"rel_err_{ref}"] for r in rows])  # (n_freq, 2)
-        errors[ref] = {
-            "mean": float(e.mean()),
-            "max": float(e.max()),
-            "mean_storage": float(e[:, 0].mean()),
-            "mean_loss": float(e[:, 1].mean()),
-        }
-    return {"elastic_torque_per_radian": T_el, "frequencies": rows, "errors": errors}
+    errors = SweepErrors(
+        continuous=ErrorSummary.of(np.array([r.rel_err_continuous for r in rows])),
+        discrete=ErrorSummary.of(np.array([r.rel_err_discrete for r in rows])),
+    )
+    return Sweep(elastic_torque_per_radian=T_el, frequencies=tuple(rows), errors=errors)
+
+
+def _frequency_row(spec: RheometerSpec, run: FrequencyRun) -> FrequencyRow:
+    """One run's moduli (Pa) beside the continuous and the discrete references at its dt."""
+    G, omega = run.G, run.omega
+    cont = complex(spec.prony.complex_modulus(omega))
+    disc = complex(spec.prony.discrete_modulus(omega, run.dt))
+    return FrequencyRow(
+        omega=omega,
+        dt=run.dt,
+        steps=run.steps,
+        cg_iterations_per_step=run.cg_iterations_per_step,
+        frequency_hz=float(omega / (2 * np.pi)),
+        G_storage=spec.G0 * G.real,
+        G_loss=spec.G0 * G.imag,
+        continuous=(spec.G0 * cont.real, spec.G0 * cont.imag),
+        discrete=(spec.G0 * disc.real, spec.G0 * disc.imag),
+        rel_err_continuous=(_rel(G.real, cont.real), _rel(G.imag, cont.imag)),
+        rel_err_discrete=(_rel(G.real, disc.real), _rel(G.imag, disc.imag)),
+    )
 
 
 def run_rheometer(
@@ -316,12 +261,13 @@ def run_rheometer(
     json_path: Optional[str] = None,
     spec: Optional[RheometerSpec] = None,
     progress: Optional[Callable[[str], None]] = None,
-) -> dict:
+) -> RheometerResult:
     """The whole study: gmsh cylinder, sweep, figure (if ``out``), JSON (if ``json_path``).
 
-    Returns a JSON-serialisable dict: spec, mesh, elastic torque, per-frequency moduli and
-    errors, the mean/max relative errors against the continuous and the discrete moduli,
-    the figure paths and the elapsed time.
+    Returns:
+        The spec, the mesh's counts, the elastic torque, the per-frequency moduli and errors,
+        the mean/max relative errors against the continuous and the discrete moduli, the figure
+        paths and the elapsed time; its ``to_dict()`` is what ``json_path`` receives.
     """
     import meshes
 
@@ -329,44 +275,37 @@ def run_rheometer(
     t0 = time.perf_counter()
     points, cells = meshes.cylinder(spec.radius, spec.height, spec.target_cells)
     sample = TorsionSample.from_arrays(points, cells)
-    result = {
-        "study": "rheometer",
-        "spec": {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(spec).items()},
-        "lam": spec.material.lam,
-        "mesh": {
-            "n_nodes": sample.mesh.n_nodes,
-            "n_cells": sample.mesh.n_cells,
-            "n_bottom": len(sample.bottom),
-            "n_top": len(sample.top),
-        },
-        **sweep(sample, spec, progress=progress),
-    }
+    mesh = SampleMesh(
+        n_nodes=sample.mesh.n_nodes,
+        n_cells=sample.mesh.n_cells,
+        n_bottom=len(sample.bottom),
+        n_top=len(sample.top),
+    )
+    result = RheometerResult.of(spec, mesh, sweep(sample, spec, progress=progress))
     figures = []
     if out:
         os.makedirs(out, exist_ok=True)
         figures.append(plot_moduli(result, os.path.join(out, "rheometer_moduli.png")))
-    result["figures"] = figures
-    result["elapsed_s"] = time.perf_counter() - t0
+    result = replace(result, figures=tuple(figures), elapsed_s=time.perf_counter() - t0)
     if json_path:
         from common.options import write_json
 
-        write_json(json_path, result)
+        write_json(json_path, result.to_dict())
     return result
 
 
-def plot_moduli(result: dict, path: str) -> str:
+def plot_moduli(result: RheometerResult, path: str) -> str:
     """Fig. 3 style: G' and G'' against omega on a log axis; errors in a second panel."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    spec = result["spec"]
-    prony = Prony(tuple(spec["alphas"]), tuple(spec["taus"]))
-    rows = result["frequencies"]
-    w = np.array([r["omega"] for r in rows])
+    spec = result.spec
+    rows = result.frequencies
+    w = np.array([r.omega for r in rows])
     fine = np.geomspace(w.min() / 1.5, w.max() * 1.5, 300)
-    G = spec["G0"] * prony.complex_modulus(fine)
+    G = spec.G0 * spec.prony.complex_modulus(fine)
     fig, (ax, ax_err) = plt.subplots(
         2, 1, figsize=(6.4, 6.4), sharex=True, gridspec_kw={"height_ratios": [2, 1]}
     )
@@ -374,25 +313,25 @@ def plot_moduli(result: dict, path: str) -> str:
     ax.semilogx(fine, G.imag, "-", color="C1", lw=1, label="G'' generalised Maxwell")
     ax.semilogx(
         w,
-        [r["discrete"][0] for r in rows],
+        [r.discrete[0] for r in rows],
         "+",
         color="k",
         ms=9,
         label="backward-Euler recursion (exact)",
     )
-    ax.semilogx(w, [r["discrete"][1] for r in rows], "+", color="k", ms=9)
+    ax.semilogx(w, [r.discrete[1] for r in rows], "+", color="k", ms=9)
     ax.semilogx(
-        w, [r["G_storage"] for r in rows], "o", mfc="none", color="C0", label="G' simulated (mjed)"
+        w, [r.G_storage for r in rows], "o", mfc="none", color="C0", label="G' simulated (mjed)"
     )
     ax.semilogx(
-        w, [r["G_loss"] for r in rows], "s", mfc="none", color="C1", label="G'' simulated (mjed)"
+        w, [r.G_loss for r in rows], "s", mfc="none", color="C1", label="G'' simulated (mjed)"
     )
-    for tau in spec["taus"]:
+    for tau in spec.taus:
         ax.axvline(1.0 / tau, color="0.8", lw=0.8, zorder=0)
     ax.set_ylabel("modulus (Pa)")
     ax.set_title(
-        f"Simulated rheometer: StVK G0 = {spec['G0']:g} Pa, alpha = {tuple(spec['alphas'])}, tau = "
-        f"{tuple(spec['taus'])} s",
+        f"Simulated rheometer: StVK G0 = {spec.G0:g} Pa, alpha = {spec.alphas}, tau = "
+        f"{spec.taus} s",
         fontsize=8,
     )
     ax.legend(fontsize=7)
@@ -406,12 +345,12 @@ def plot_moduli(result: dict, path: str) -> str:
     return path
 
 
-def _plot_errors(ax, w: np.ndarray, rows: list) -> None:
+def _plot_errors(ax, w: np.ndarray, rows: Sequence[FrequencyRow]) -> None:
     """The lower panel: each modulus' relative error against both references."""
     for j, (name, marker) in enumerate((("G'", "o"), ("G''", "s"))):
         colour = "C2" if j == 0 else "C3"
-        continuous = [r["rel_err_continuous"][j] for r in rows]
-        discrete = [max(r["rel_err_discrete"][j], 1e-17) for r in rows]  # zero on a log axis
+        continuous = [r.rel_err_continuous[j] for r in rows]
+        discrete = [max(r.rel_err_discrete[j], 1e-17) for r in rows]  # zero on a log axis
         ax.loglog(
             w, continuous, marker + "-", mfc="none", color=colour, label=f"{name} vs continuous"
         )
@@ -457,14 +396,14 @@ def rheometer_study(
     Returns:
         A :class:`common.result.StudyResult`. One tolerance: the largest relative error of
         G' and G'' against the exact backward-Euler response, <= DISCRETE_TOL. ``data`` is the
-        dict of :func:`run_rheometer` (spec, mesh, frequencies, errors, figures, elapsed_s).
+        JSON form (``to_dict()``) of :func:`run_rheometer`'s :class:`RheometerResult`.
     """
     from common.reproduce import command
     from common.result import Check, StudyResult
 
     spec = rheometer_spec(quick, **overrides)
     res = run_rheometer(spec=spec, out=out_dir, progress=progress)
-    e = res["errors"]
+    e = res.errors
     full = rheometer_spec(False, **overrides)
     not_covered = []
     if quick and spec != full:
@@ -476,15 +415,15 @@ def rheometer_study(
         )
     check = Check(
         "G', G'' against the exact backward-Euler response: largest relative error",
-        e["discrete"]["max"],
+        e.discrete.max,
         DISCRETE_TOL,
     )
     if figure_root:  # the report's run directory is renamed when done: keep paths relative to it
-        res["figures"] = [os.path.relpath(p, figure_root) for p in res["figures"]]
+        res = replace(res, figures=tuple(os.path.relpath(p, figure_root) for p in res.figures))
     headline = (
-        f"against Maxwell mean {100 * e['continuous']['mean']:.1f} %, max "
-        f"{100 * e['continuous']['max']:.1f} %; against the exact discrete response max "
-        f"{e['discrete']['max']:.1e}"
+        f"against Maxwell mean {100 * e.continuous.mean:.1f} %, max "
+        f"{100 * e.continuous.max:.1f} %; against the exact discrete response max "
+        f"{e.discrete.max:.1e}"
     )
     return StudyResult.from_checks(
         KEY,
@@ -493,27 +432,27 @@ def rheometer_study(
         headline=headline,
         command=command("dma", quick=quick, **overrides),
         not_covered=tuple(not_covered),
-        data=res,
+        data=res.to_dict(),
         blocks=tuple(_blocks(spec, res)),
-        seconds=res["elapsed_s"],
+        seconds=res.elapsed_s,
     )
 
 
-def _blocks(spec: RheometerSpec, res: dict) -> list:
+def _blocks(spec: RheometerSpec, res: RheometerResult) -> list:
     """The figure, the set-up in words, the error summary and the per-frequency table."""
     from common.blocks import Figure, Paragraph, Table
 
-    e = res["errors"]
+    e = res.errors
     caption = (
         "G' and G'' of the simulated rheometer (markers) against the continuous generalised "
         "Maxwell moduli and the exact backward-Euler response (lines), as in the paper's Fig. 3"
     )
-    blocks: list = [Figure(p, caption) for p in res["figures"]]
+    blocks: list = [Figure(p, caption) for p in res.figures]
     blocks.append(
         Paragraph(
             "A simulated rheometer twists a visco-hyperelastic cylinder sinusoidally: "
             f"{2e3 * spec.radius:g} mm across and {1e3 * spec.height:g} mm high "
-            f"({res['mesh']['n_cells']} cells), lower face clamped, upper face twisted by "
+            f"({res.mesh.n_cells} cells), lower face clamped, upper face twisted by "
             f"{spec.amplitude:g} rad; St Venant-Kirchhoff G0 = {spec.G0:g} Pa with Prony alphas "
             f"{spec.alphas} and taus {spec.taus} s; {spec.samples_per_period} backward-Euler steps "
             "per period. The storage and loss moduli fitted from the torque are compared with the "
@@ -525,8 +464,8 @@ def _blocks(spec: RheometerSpec, res: dict) -> list:
         Table(
             ("reference", "mean relative error", "max relative error"),
             [
-                ("continuous generalised Maxwell", e["continuous"]["mean"], e["continuous"]["max"]),
-                ("exact discrete (backward Euler)", e["discrete"]["mean"], e["discrete"]["max"]),
+                ("continuous generalised Maxwell", e.continuous.mean, e.continuous.max),
+                ("exact discrete (backward Euler)", e.discrete.mean, e.discrete.max),
             ],
             caption="The gap to the continuous moduli is the time step's own error, not a check "
             "(the paper reports 5 % against experiment).",
@@ -534,17 +473,17 @@ def _blocks(spec: RheometerSpec, res: dict) -> list:
     )
     rows = [
         (
-            f["frequency_hz"],
-            f["omega"],
-            f["G_storage"],
-            f["continuous"][0],
-            f["discrete"][0],
-            f["G_loss"],
-            f["continuous"][1],
-            f["discrete"][1],
-            max(f["rel_err_discrete"]),
+            f.frequency_hz,
+            f.omega,
+            f.G_storage,
+            f.continuous[0],
+            f.discrete[0],
+            f.G_loss,
+            f.continuous[1],
+            f.discrete[1],
+            max(f.rel_err_discrete),
         )
-        for f in res["frequencies"]
+        for f in res.frequencies
     ]
     header = (
         "f (Hz)",

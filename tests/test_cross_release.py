@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from common.json_fields import RecordError
+from common.options import write_json
 from comparisons.cross_release import (
     TOLERANCE,
     compare_snapshots,
@@ -17,6 +19,14 @@ from comparisons.cross_release import (
     load_snapshot,
     provenance_summary,
     save_snapshot,
+)
+from comparisons.cross_release_data import (
+    CrossReleaseResult,
+    MissingStack,
+    SnapshotDiff,
+    StackComparison,
+    StackError,
+    StackRun,
 )
 
 
@@ -41,10 +51,7 @@ def test_snapshot_round_trip(tmp_path):
     back = load_snapshot(str(tmp_path / "s.npz"))
     assert back["meta"] == snap["meta"]
     diff = compare_snapshots(snap, back)
-    assert (
-        diff["passed"]
-        and diff["energy_rel_diff"] == diff["force_rel_diff"] == diff["stiffness_rel_diff"] == 0.0
-    )
+    assert diff == SnapshotDiff(1, 0.0, 0.0, 0.0, passed=True)
 
 
 def test_compare_sees_each_quantity():
@@ -59,7 +66,8 @@ def test_compare_sees_each_quantity():
         else:
             case["stiffness"] = case["stiffness"] * (1 + 1e-11)
         diff = compare_snapshots(a, b)
-        assert not diff["passed"] and diff[f"{what}_rel_diff"] > TOLERANCE, what
+        assert not diff.passed and dict(diff.by_quantity())[what] > TOLERANCE, what
+        assert diff.worst == dict(diff.by_quantity())[what]
 
 
 def test_compare_refuses_different_cases():
@@ -71,9 +79,19 @@ def test_compare_refuses_different_cases():
 
 def test_missing_stacks_are_reported_and_fail_the_check(tmp_path):
     result = cross_release_check([("nowhere", str(tmp_path / "bin" / "python"), 1)])
-    assert result["missing"] and "does not exist" in result["missing"][0]["reason"]
-    assert result["passed"] is False and result["comparisons"] == []
-    json.dumps(result)  # JSON-serialisable as it is
+    assert isinstance(result, CrossReleaseResult)
+    assert result.missing and "does not exist" in result.missing[0].reason
+    assert result.passed is False and result.comparisons == () and result.reference is None
+    assert json.loads(json.dumps(result.to_dict())) == {
+        "tolerance": TOLERANCE,
+        "reference": None,
+        "stacks": [],
+        "comparisons": [],
+        "missing": [{"label": "nowhere", "reason": result.missing[0].reason}],
+        "errors": [],
+        "figures": [],
+        "passed": False,
+    }
 
 
 def test_provenance_summary(tmp_path):
@@ -86,29 +104,20 @@ def test_provenance_summary(tmp_path):
         "python": "3.11",
         "mpi": "Open MPI",
     }
-    result = {
-        "passed": True,
-        "tolerance": TOLERANCE,
-        "reference": "a",
-        "missing": [{"label": "c", "reason": "x"}],
-        "errors": [],
-        "stacks": [
-            {"label": "a", "ranks": 1, "versions": versions},
-            {"label": "b", "ranks": 2, "versions": versions},
-        ],
-        "comparisons": [
-            {
-                "label": "b",
-                "energy_rel_diff": 1e-15,
-                "force_rel_diff": 3e-16,
-                "stiffness_rel_diff": 2e-15,
-                "passed": True,
-            }
-        ],
-    }
+    result = CrossReleaseResult(
+        tolerance=TOLERANCE,
+        reference="a",
+        stacks=(
+            StackRun("a", "/v/bin/python", 1, versions, (510,), 3.1),
+            StackRun("b", "/v/bin/python", 2, versions, (255, 255), 5.2),
+        ),
+        comparisons=(StackComparison("b", SnapshotDiff(3, 1e-15, 3e-16, 2e-15, passed=True)),),
+        missing=(MissingStack("c", "x"),),
+    )
     path = tmp_path / "xr.json"
-    path.write_text(json.dumps(result))
+    write_json(str(path), result.to_dict())
     summary = provenance_summary(str(path))
+    assert summary["passed"] is True and summary["reference"] == "a"
     assert summary["worst_rel_diff"] == {"b": 2e-15} and summary["not_run"] == ["c"]
     assert summary["stacks"][1]["ranks"] == 2 and summary["stacks"][0]["dolfinx"] == "0.5.2"
 
@@ -123,38 +132,19 @@ def _check_result(*, comparisons=(1e-15,), missing=("modern-serial",), errors=()
         "python": "3.11",
     }
     labels = ["debian-serial"] + [f"debian-mpi{i + 2}" for i in range(len(comparisons))]
-    return {
-        "tolerance": TOLERANCE,
-        "reference": labels[0],
-        "figures": [],
-        "stacks": [
-            {
-                "label": s,
-                "python": "p",
-                "ranks": 1,
-                "versions": versions,
-                "cells_per_rank": [1],
-                "seconds": 1.0,
-            }
-            for s in labels
-        ],
-        "comparisons": [
-            {
-                "label": s,
-                "n_cases": 3,
-                "energy_rel_diff": d,
-                "force_rel_diff": d,
-                "stiffness_rel_diff": d,
-                "passed": d <= TOLERANCE,
-            }
+    return CrossReleaseResult(
+        tolerance=TOLERANCE,
+        reference=labels[0],
+        stacks=tuple(StackRun(s, "p", 1, versions, (1,), 1.0) for s in labels),
+        comparisons=tuple(
+            StackComparison(s, SnapshotDiff(3, d, d, d, passed=d <= TOLERANCE))
             for s, d in zip(labels[1:], comparisons)
-        ],
-        "missing": [
-            {"label": m, "reason": "/x/.venv-modern/bin/python does not exist"} for m in missing
-        ],
-        "errors": [{"label": e, "error": "snapshot failed"} for e in errors],
-        "passed": not errors and all(d <= TOLERANCE for d in comparisons) and len(comparisons) > 0,
-    }
+        ),
+        missing=tuple(
+            MissingStack(m, "/x/.venv-modern/bin/python does not exist") for m in missing
+        ),
+        errors=tuple(StackError(e, "snapshot failed") for e in errors),
+    )
 
 
 @pytest.mark.parametrize(
@@ -212,5 +202,105 @@ def test_an_interpreter_without_dolfinx_is_a_missing_stack_not_an_error(tmp_path
     result = cross_release_check(
         [("nodolfinx-serial", str(fake), 1), ("nodolfinx-mpi2", str(fake), 2)]
     )
-    assert [m["label"] for m in result["missing"]] == ["nodolfinx-serial", "nodolfinx-mpi2"]
-    assert "dolfinx cannot be imported" in result["missing"][0]["reason"] and not result["errors"]
+    assert [m.label for m in result.missing] == ["nodolfinx-serial", "nodolfinx-mpi2"]
+    assert "dolfinx cannot be imported" in result.missing[0].reason and not result.errors
+
+
+# ----------------------------------------------------------------------------- the records
+def test_result_json_keeps_the_check_s_keys_and_reads_back():
+    result = _check_result(comparisons=(1e-15, 2e-9), errors=("modern-mpi2",))
+    payload = json.loads(json.dumps(result.to_dict()))
+    assert list(payload) == [
+        "tolerance",
+        "reference",
+        "stacks",
+        "comparisons",
+        "missing",
+        "errors",
+        "figures",
+        "passed",
+    ]
+    assert list(payload["stacks"][0]) == [
+        "label",
+        "python",
+        "ranks",
+        "versions",
+        "cells_per_rank",
+        "seconds",
+    ]
+    assert payload["comparisons"][1] == {
+        "label": "debian-mpi3",
+        "n_cases": 3,
+        "energy_rel_diff": 2e-9,
+        "force_rel_diff": 2e-9,
+        "stiffness_rel_diff": 2e-9,
+        "passed": False,
+    }
+    assert payload["missing"] == [
+        {"label": "modern-serial", "reason": "/x/.venv-modern/bin/python does not exist"}
+    ]
+    assert payload["errors"] == [{"label": "modern-mpi2", "error": "snapshot failed"}]
+    assert payload["passed"] is False and payload["reference"] == "debian-serial"
+    assert CrossReleaseResult.from_dict(payload) == result
+    assert _check_result(missing=()).passed and not _check_result(comparisons=()).passed
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda p: p.pop("errors"), "xr.json: missing key 'errors'"),
+        (lambda p: p["stacks"][1].pop("ranks"), "xr.json: stacks/1: missing key 'ranks'"),
+        (
+            lambda p: p["comparisons"][0].pop("force_rel_diff"),
+            "xr.json: comparisons/0: missing key 'force_rel_diff'",
+        ),
+        (lambda p: p["missing"][0].pop("reason"), "xr.json: missing/0: missing key 'reason'"),
+        (
+            lambda p: p["stacks"][0].update(cells_per_rank=[1.5]),
+            "xr.json: stacks/0/cells_per_rank/0: expected an integer, got 1.5",
+        ),
+        (
+            lambda p: p["comparisons"][0].update(passed="yes"),
+            "xr.json: comparisons/0/passed: expected true or false, got 'yes'",
+        ),
+        (
+            lambda p: p.update(passed=False),
+            "xr.json: passed: False contradicts the comparisons and errors",
+        ),
+        (
+            lambda p: p.update(reference="modern-serial"),
+            "xr.json: CrossReleaseResult: reference 'modern-serial' is not the first stack that "
+            "ran ('debian-serial')",
+        ),
+        (
+            lambda p: p["stacks"][1].update(ranks=0),
+            "xr.json: stacks/1: StackRun 'debian-mpi2': ranks must be >= 1, got 0",
+        ),
+    ],
+)
+def test_result_from_dict_names_what_is_wrong(change, message):
+    payload = json.loads(json.dumps(_check_result(missing=("modern-serial",)).to_dict()))
+    assert payload["passed"] is True
+    change(payload)
+    with pytest.raises(RecordError) as info:
+        CrossReleaseResult.from_dict(payload, source="xr.json")
+    assert str(info.value) == message
+
+
+def test_provenance_summary_names_the_file_of_a_broken_result(tmp_path):
+    payload = _check_result().to_dict()
+    del payload["comparisons"][0]["stiffness_rel_diff"]
+    path = tmp_path / "cross_release.json"
+    path.write_text(json.dumps(payload))
+    with pytest.raises(RecordError, match=f"^{path}: comparisons/0: missing key 'stiffness_rel"):
+        provenance_summary(str(path))
+
+
+def test_comparisons_must_follow_the_stacks_that_ran():
+    result = _check_result(comparisons=(1e-15, 1e-15))
+    with pytest.raises(ValueError, match="do not match the stacks after the reference"):
+        CrossReleaseResult(
+            result.tolerance, result.reference, result.stacks, result.comparisons[:1]
+        )
+    with pytest.raises(ValueError, match="n_cases must be an integer >= 0"):
+        SnapshotDiff(-1, 0.0, 0.0, 0.0, passed=True)

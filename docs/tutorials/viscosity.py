@@ -103,35 +103,38 @@ fig.tight_layout()
 # approaches as $\omega\Delta t \to 0$, and the exact steady state of the discrete recursion,
 # $1 - \sum_i \alpha_i h_i/(1 + h_i - e^{-i\omega\Delta t})$ with $h_i = \Delta t/\tau_i$, which the
 # simulation must match up to the geometric nonlinearity of the small rotation and round-off.
+# It returns a typed `RheometerResult` (`comparisons.rheometer_data`): the spec, the mesh's
+# counts, one `FrequencyRow` per frequency (moduli in Pa) and the error summaries; its
+# `to_dict()` is the JSON that `mjed-verify dma --json` holds under `data`.
 
 # %%
 from comparisons.rheometer import run_rheometer
 
 result = run_rheometer(quick=True)
-print(f"cylinder: {result['mesh']['n_cells']} cells; {len(result['frequencies'])} frequencies")
+print(f"cylinder: {result.mesh.n_cells} cells; {len(result.frequencies)} frequencies")
 print(
     f"{'omega':>8} {'G_sim':>8} {'G_disc':>8} {'G_cont':>8} | {'G_sim':>8} {'G_disc':>8} "
     f"{'G_cont':>8}"
 )
-for r in result["frequencies"]:
+for r in result.frequencies:
     print(
-        f"{r['omega']:8.3g} {r['G_storage']:8.2f} {r['discrete'][0]:8.2f} "
-        f"{r['continuous'][0]:8.2f} | {r['G_loss']:8.2f} {r['discrete'][1]:8.2f} "
-        f"{r['continuous'][1]:8.2f}"
+        f"{r.omega:8.3g} {r.G_storage:8.2f} {r.discrete[0]:8.2f} "
+        f"{r.continuous[0]:8.2f} | {r.G_loss:8.2f} {r.discrete[1]:8.2f} "
+        f"{r.continuous[1]:8.2f}"
     )
-e_d, e_c = result["errors"]["discrete"], result["errors"]["continuous"]
-print(f"relative error against the discrete response: mean {e_d['mean']:.1e}, max {e_d['max']:.1e}")
+e_d, e_c = result.errors.discrete, result.errors.continuous
+print(f"relative error against the discrete response: mean {e_d.mean:.1e}, max {e_d.max:.1e}")
 print(
-    f"relative error against the continuous moduli: mean {100 * e_c['mean']:.1f} %, max "
-    f"{100 * e_c['max']:.1f} %"
+    f"relative error against the continuous moduli: mean {100 * e_c.mean:.1f} %, max "
+    f"{100 * e_c.max:.1f} %"
 )
-assert e_d["max"] < 1e-7, "the simulation must reproduce the discrete recursion"
-assert e_c["max"] < 0.1, (
+assert e_d.max < 1e-7, "the simulation must reproduce the discrete recursion"
+assert e_c.max < 0.1, (
     "backward Euler at 32 steps per period stays within 10 % of the continuous moduli"
 )
 
 # %%
-w = np.array([r["omega"] for r in result["frequencies"]])
+w = np.array([r.omega for r in result.frequencies])
 fine = np.geomspace(w.min() / 1.5, w.max() * 1.5, 300)
 G = G0 * prony.complex_modulus(fine)
 fig, ax = plt.subplots(figsize=(6.4, 4))
@@ -139,18 +142,14 @@ ax.semilogx(fine, G.real, "C0-", lw=1, label="G' generalised Maxwell")
 ax.semilogx(fine, G.imag, "C1-", lw=1, label="G'' generalised Maxwell")
 ax.semilogx(
     w,
-    [r["discrete"][0] for r in result["frequencies"]],
+    [r.discrete[0] for r in result.frequencies],
     "k+",
     ms=10,
     label="discrete recursion (exact)",
 )
-ax.semilogx(w, [r["discrete"][1] for r in result["frequencies"]], "k+", ms=10)
-ax.semilogx(
-    w, [r["G_storage"] for r in result["frequencies"]], "C0o", mfc="none", label="G' simulated"
-)
-ax.semilogx(
-    w, [r["G_loss"] for r in result["frequencies"]], "C1s", mfc="none", label="G'' simulated"
-)
+ax.semilogx(w, [r.discrete[1] for r in result.frequencies], "k+", ms=10)
+ax.semilogx(w, [r.G_storage for r in result.frequencies], "C0o", mfc="none", label="G' simulated")
+ax.semilogx(w, [r.G_loss for r in result.frequencies], "C1s", mfc="none", label="G'' simulated")
 ax.set_xlabel("angular frequency (rad/s)")
 ax.set_ylabel("modulus (Pa)")
 ax.legend(fontsize=8)

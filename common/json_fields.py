@@ -1,0 +1,145 @@
+"""Reading a study's JSON back into its typed record, field by field, with errors that say where.
+
+The studies write their records with ``to_dict()`` through :func:`common.options.write_json`;
+a record's ``from_dict()`` reads one back through :class:`JSONFields`, which checks each field's
+presence and type and names the source (a file, or a label) and the key path on any error, e.g.
+``reports/cross_release.json: stacks/1: missing key 'ranks'``. Keys a record does not read
+(``non_finite``, which ``write_json`` adds) are ignored.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, Dict, List, Optional, TypeVar
+
+__all__ = ["RecordError", "JSONFields"]
+
+T = TypeVar("T")
+
+
+class RecordError(ValueError):
+    """A JSON payload that is not the record it should be (the message names source and key)."""
+
+
+class JSONFields:
+    """One JSON object, the source it was read from and its key path in that source.
+
+    Args:
+        obj: the parsed JSON object (a dict).
+        source: where the payload came from (a file name, or a label such as "<dict>").
+        path: the key path of ``obj`` in the payload ("" at the top, "stacks/0" below).
+
+    Raises:
+        RecordError: ``obj`` is not a JSON object.
+    """
+
+    def __init__(self, obj: Any, source: str, path: str = "") -> None:
+        self.obj: Dict[str, Any] = obj
+        self.source = source
+        self.path = path
+        if not isinstance(obj, dict):
+            raise RecordError(f"{self.where}: expected a JSON object, got {type(obj).__name__}")
+
+    @property
+    def where(self) -> str:
+        """The source and the key path, for messages ("xr.json: stacks/0")."""
+        return f"{self.source}: {self.path}" if self.path else self.source
+
+    def _path(self, key: str) -> str:
+        return f"{self.path}/{key}" if self.path else key
+
+    def error(self, key: str, what: str) -> RecordError:
+        """An error about ``key`` of this object, naming the source and the key path."""
+        return RecordError(f"{self.source}: {self._path(key)}: {what}")
+
+    def get(self, key: str) -> Any:
+        """The value at ``key``, which must be present."""
+        if key not in self.obj:
+            raise RecordError(f"{self.where}: missing key {key!r}")
+        return self.obj[key]
+
+    def number(self, key: str) -> float:
+        """A float; null reads as NaN (``write_json`` writes NaN and infinities as null)."""
+        return _number(self.get(key), lambda what: self.error(key, what))
+
+    def integer(self, key: str) -> int:
+        value = self.get(key)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"expected an integer, got {value!r}")
+        return value
+
+    def text(self, key: str) -> str:
+        value = self.get(key)
+        if not isinstance(value, str):
+            raise self.error(key, f"expected a string, got {value!r}")
+        return value
+
+    def optional_text(self, key: str) -> Optional[str]:
+        return None if self.get(key) is None else self.text(key)
+
+    def flag(self, key: str) -> bool:
+        value = self.get(key)
+        if not isinstance(value, bool):
+            raise self.error(key, f"expected true or false, got {value!r}")
+        return value
+
+    def array(self, key: str) -> list:
+        value = self.get(key)
+        if not isinstance(value, list):
+            raise self.error(key, f"expected a list, got {type(value).__name__}")
+        return value
+
+    def numbers(self, key: str, length: Optional[int] = None) -> List[float]:
+        """A list of floats (of ``length`` entries when given); null entries read as NaN."""
+        values = self.array(key)
+        if length is not None and len(values) != length:
+            raise self.error(key, f"expected {length} numbers, got {len(values)}")
+        return [
+            _number(v, lambda what, i=i: self.error(f"{key}/{i}", what))
+            for i, v in enumerate(values)
+        ]
+
+    def integers(self, key: str) -> List[int]:
+        values = self.array(key)
+        for i, v in enumerate(values):
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise self.error(f"{key}/{i}", f"expected an integer, got {v!r}")
+        return values
+
+    def texts(self, key: str) -> List[str]:
+        values = self.array(key)
+        for i, v in enumerate(values):
+            if not isinstance(v, str):
+                raise self.error(f"{key}/{i}", f"expected a string, got {v!r}")
+        return values
+
+    def mapping(self, key: str) -> Dict[str, Any]:
+        """A JSON object taken as it is (a copy), for free-form fields such as versions."""
+        return dict(self.object(key).obj)
+
+    def build(self, record_type: Callable[..., T], **fields: Any) -> T:
+        """``record_type(**fields)``, a refusal by its validation naming this object's place."""
+        try:
+            return record_type(**fields)
+        except RecordError:
+            raise
+        except (TypeError, ValueError) as exc:
+            raise RecordError(f"{self.where}: {exc}") from None
+
+    def object(self, key: str) -> "JSONFields":
+        return JSONFields(self.get(key), self.source, self._path(key))
+
+    def objects(self, key: str) -> List["JSONFields"]:
+        """The list at ``key``, each entry a JSON object."""
+        return [
+            JSONFields(v, self.source, self._path(f"{key}/{i}"))
+            for i, v in enumerate(self.array(key))
+        ]
+
+
+def _number(value: Any, error) -> float:
+    if value is None:
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise error(f"expected a number, got {value!r}")
+    return float(value)
