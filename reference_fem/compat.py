@@ -133,7 +133,8 @@ def stack_versions() -> Dict[str, Any]:
         "ufl": getattr(ufl, "__version__", "unknown"),
         "petsc": ".".join(str(v) for v in PETSc.Sys.getVersion()),
         "numpy": np.__version__,
-        "mpi": MPI.Get_library_version().splitlines()[0].strip(),
+        # MPI libraries end the version string with a NUL byte, which JSON would keep.
+        "mpi": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
     }
     for name in ("ffcx", "basix", "dolfinx_solver"):
         try:

@@ -194,3 +194,14 @@ def test_assembly_wrappers_give_the_volume_and_a_zero_sum_residual():
     indptr, indices, data = A.getValuesCSR()
     S = sp.csr_matrix((data, indices, indptr))
     assert abs(S - S.T).max() < 1e-14 and np.allclose(S.sum(axis=1), 0.0, atol=1e-12)
+
+
+@needs_dolfinx
+def test_stack_versions_are_printable_text():
+    """Every version is one printable line (the MPI library's string ends with a NUL byte,
+    which used to reach the cross-release JSON).
+    """
+    versions = compat.stack_versions()
+    assert {"python", "dolfinx", "ufl", "petsc", "numpy", "mpi"} <= set(versions)
+    for name, text in versions.items():
+        assert isinstance(text, str) and text.isprintable() and text, (name, text)
