@@ -20,11 +20,17 @@ Every figure is the best of interleaved rounds (each round times every method on
 rotated order), so drift and other work on the machine hit them alike; the spread over the
 rounds is printed with it.
 
-GPU: the cuda backend (mjed.cuda) timed on the device, kernel only (positions already on
-the device, forces and CSR values left there), FP64 and FP32, force only and force +
-stiffness, in tets per second on structured cubes of 1e4 to 1e6 tets, with the GB/s it
-achieves against the device's copy bandwidth measured in the same run. Without a CUDA
-device the section prints "not run: no GPU" (and never times the simulator).
+GPU (comparisons.gpu_bench): MJED (mjed.cuda) and the classical element generated and
+compiled the same way (reference_fem.classical_cuda) timed on the device, positions, forces
+and CSR values left there, FP64 and FP32, force only and force + stiffness, in tets per
+second on structured cubes of 1e4 to 1e7 tets (a size that does not fit the device memory is
+skipped with the bytes it needs), with the GB/s each achieves against the device's copy
+bandwidth measured in the same run; the compiled CPU backend on all cores of the same
+machine at up to 1e6 tets for the GPU/CPU ratio; one line per target (met or missed, with
+the figure). Without a CUDA device the section prints "not run: no GPU" and no target is
+judged (and it never times the simulator).
+
+    python -m comparisons.hardware_bench --json gpu.json         # on the GPU machine
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ import time
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
+
+from comparisons.gpu_bench import DEFAULT_SIZES as DEFAULT_GPU_SIZES
 
 __all__ = ["measure_peak_flops", "cpu_figures", "gpu_figures", "main"]
 
@@ -287,93 +295,20 @@ def gpu_status() -> Optional[str]:
 
 def gpu_figures(
     material_name: str = "NeoHookean",
-    sizes: Sequence[int] = (10_000, 100_000, 1_000_000),
-    repeats: int = 20,
-    copy_bytes: int = 2**29,
-) -> dict:
-    """Tets per second of the cuda backend, kernel only, per size, dtype and quantity, and
-    the device's copy bandwidth (a device-to-device copy of ``copy_bytes``).
+    sizes: Sequence[int] = DEFAULT_GPU_SIZES,
+    *,
+    min_time: float = 0.25,
+    copy_bytes: int = 2**30,
+    cpu: bool = True,
+    say=lambda s: None,
+):
+    """The GPU figures (comparisons.gpu_bench.GpuFigures): MJED and the classical element on
+    the device per size, precision and quantity, the copy bandwidth, the compiled CPU backend
+    for the ratio and the targets (see comparisons.gpu_bench).
     """
-    from numba import cuda
+    from comparisons.gpu_bench import measure
 
-    import mjed
-    from meshes.structured import cube_with_cells
-
-    try:
-        name = cuda.get_current_device().name
-    except AttributeError:  # Numba's CUDA simulator (the tests' smoke run of this code path)
-        name = "Numba CUDA simulator"
-    out = {"device": name.decode() if isinstance(name, bytes) else str(name), "sizes": []}
-    out["copy_GBs"] = _device_copy_bandwidth(copy_bytes)
-    material = _material(material_name)
-    for target in sizes:
-        points, cells = cube_with_cells(target)
-        out["sizes"].append(_device_row(mjed.TetMesh(points, cells), material, repeats))
-    return out
-
-
-def _device_copy_bandwidth(copy_bytes: int) -> float:
-    """GB/s (read + write) of a device-to-device copy of ``copy_bytes``, best of five."""
-    from numba import cuda
-
-    n_copy = max(1, copy_bytes // 8)
-    a = cuda.device_array(n_copy)
-    b = cuda.device_array(n_copy)
-    a.copy_to_device(np.ones(n_copy))
-    best = _best_device_time(lambda: b.copy_to_device(a), 5)
-    return 2 * 8 * n_copy / best / 1e9
-
-
-def _best_device_time(call, repeats: int) -> float:
-    """Best wall time of ``call`` over ``repeats``, the device synchronised around each."""
-    from numba import cuda
-
-    best = np.inf
-    for _ in range(repeats):
-        cuda.synchronize()
-        t0 = time.perf_counter()
-        call()
-        cuda.synchronize()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
-def _device_row(mesh, material, repeats: int) -> dict:
-    """Force and force + stiffness in FP64 and FP32 on one mesh: seconds, tets/s, GB/s."""
-    from numba import cuda
-
-    import mjed
-
-    x = mesh.points * [1.05, 0.98, 0.99]
-    row = {"cells": mesh.n_cells, "nodes": mesh.n_nodes}
-    for dtype in (np.float64, np.float32):
-        field = mjed.make_force_field(mesh, material, backend="cuda", dtype=dtype)
-        x_d = cuda.to_device(np.asarray(x, dtype=dtype))
-        out = (
-            cuda.device_array((mesh.n_nodes, 3), dtype=dtype),
-            cuda.device_array(field.pattern.nnz, dtype=dtype),
-        )
-        isz = np.dtype(dtype).itemsize
-        for quantity, stiff in (("f", False), ("f+K", True)):
-
-            def call(stiff=stiff):
-                field.device_force_and_stiffness(x_d, force=True, stiffness=stiff, out=out)
-
-            call()  # compiled and loaded before the clock starts
-            best = _best_device_time(call, repeats)
-            # Bytes the call must move: positions in, forces out, per-cell geometry and
-            # connectivity in, and with the stiffness its values and the scatter map.
-            moved = (
-                isz * (2 * 3 * mesh.n_nodes + 13 * mesh.n_cells)
-                + 4 * 4 * mesh.n_cells
-                + (isz * field.pattern.nnz + 4 * 16 * mesh.n_cells if stiff else 0)
-            )
-            row[f"{np.dtype(dtype).name} {quantity}"] = {
-                "s": best,
-                "tets_per_s": mesh.n_cells / best,
-                "GBs": moved / best / 1e9,
-            }
-    return row
+    return measure(material_name, sizes, min_time=min_time, copy_bytes=copy_bytes, cpu=cpu, say=say)
 
 
 # ------------------------------------------------------------------ printing
@@ -406,18 +341,45 @@ def _print_cpu(fig: dict) -> None:
         print(f"  {k:<40s} {v:6.2f}x")
 
 
-def _print_gpu(status: Optional[str], fig: Optional[dict]) -> None:
-    if status is not None:
-        print(f"GPU: {status}")
-        return
-    print(f"GPU: {fig['device']}, copy bandwidth {fig['copy_GBs']:.0f} GB/s")
-    for row in fig["sizes"]:
-        for k, v in row.items():
-            if isinstance(v, dict):
-                print(
-                    f"  {row['cells']:>9d} tets  {k:<12s} {v['tets_per_s']:.3e} tets/s  "
-                    f"{v['GBs']:7.1f} GB/s"
-                )
+def _print_gpu(fig) -> None:
+    from comparisons.gpu_bench import print_figures
+
+    print_figures(fig)
+
+
+def _add_gpu_options(ap: argparse.ArgumentParser) -> None:
+    ap.add_argument(
+        "--gpu-sizes",
+        default=",".join(str(s) for s in DEFAULT_GPU_SIZES),
+        help="tets of the GPU cubes (default 1e4 to 1e7; a size that does not fit the device "
+        "memory is skipped, saying why)",
+    )
+    ap.add_argument(
+        "--gpu-min-time",
+        type=float,
+        default=0.25,
+        help="seconds of repeated calls per GPU figure (default 0.25; at least 3 calls)",
+    )
+    ap.add_argument("--no-gpu", action="store_true", help="skip the GPU section")
+
+
+def _gpu_section(args, material_name: str) -> dict:
+    """Run (or say why not) and print the GPU section; its record as a dict for --json."""
+    from comparisons.gpu_bench import not_run
+
+    status = "not run: --no-gpu" if args.no_gpu else gpu_status()
+    sizes = [int(float(s)) for s in args.gpu_sizes.split(",") if s]
+    if status is None:
+        fig = gpu_figures(
+            material_name,
+            sizes,
+            min_time=args.gpu_min_time,
+            say=lambda s: print(f"  GPU: {s}", file=sys.stderr, flush=True),
+        )
+    else:
+        fig = not_run(status, material_name)
+    _print_gpu(fig)
+    return fig.to_dict()
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -435,8 +397,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         help=f"comma-separated, of {', '.join(_material_names())}",
     )
     ap.add_argument("--rounds", type=int, default=7, help="interleaved timing rounds (default 7)")
-    ap.add_argument("--gpu-sizes", default="10000,100000,1000000", help="tets of the GPU cubes")
-    ap.add_argument("--no-gpu", action="store_true", help="skip the GPU section")
+    _add_gpu_options(ap)
     ap.add_argument("--json", help="also write the figures to this file")
     args = ap.parse_args(argv)
     names = [s for s in args.materials.split(",") if s]
@@ -460,12 +421,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         fig = cpu_figures(args.mesh, name, rounds=args.rounds)
         figures["cpu"].append(fig)
         _print_cpu(fig)
-    status = "not run: --no-gpu" if args.no_gpu else gpu_status()
-    gpu = None
-    if status is None:
-        gpu = gpu_figures(names[0], [int(s) for s in args.gpu_sizes.split(",") if s])
-    figures["gpu"] = gpu if gpu is not None else {"status": status}
-    _print_gpu(status, gpu)
+    figures["gpu"] = _gpu_section(args, names[0])
     figures["load_after"] = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(
         f"load average {figures['load_after']:.2f} after (a load above the core count means other "

@@ -32,7 +32,14 @@ through :func:`mjed.compiled.specialise.generated_module`, so both kernels are c
 the same compiler with the same options and cached the same way.
 
 The generated ``classical_cells`` takes the arguments of :data:`KERNEL_SIGNATURE`
-(documented in its docstring). Pure Python; no Numba.
+(documented in its docstring). The cell body is written for a target, as MJED's is
+(:class:`mjed.compiled.codegen.Target`): the serial CPU kernel above
+(:class:`ClassicalTarget`), or the CUDA kernels ``classical_cells`` and ``classical_force``
+of :data:`CUDA_SIGNATURE` (:class:`ClassicalCudaTarget`, built on
+:class:`mjed.cuda.codegen.CudaTarget`: one thread per cell, the force and every block added
+by atomics straight into the CSR values through the per-mesh block map, FP64 or FP32;
+launched by reference_fem.classical_cuda). The two targets differ only in how a cell's
+energy, force and blocks leave it. Pure Python; no Numba.
 """
 
 from __future__ import annotations
@@ -45,15 +52,25 @@ from mjed.compiled.codegen import (
     ASSEMBLY_ARGS,
     EDGES,
     Source,
+    Target,
     add,
     gather_cell,
     mul,
     scatter_edge_block,
     write_kernel_module,
 )
+from mjed.cuda.codegen import CudaTarget, add_block, row_lengths, write_cuda_module
 from mjed.materials.classical_forms import IsochoricPsi
 
-__all__ = ["LawShape", "classical_source", "KERNEL_SIGNATURE", "LAWS"]
+__all__ = [
+    "LawShape",
+    "classical_source",
+    "KERNEL_SIGNATURE",
+    "CUDA_SIGNATURE",
+    "LAWS",
+    "ClassicalTarget",
+    "ClassicalCudaTarget",
+]
 
 #: The law kinds.
 LAWS = ("svk", "neohooke", "decoupled", "ogden", "costa")
@@ -128,10 +145,11 @@ def _ci(i: int, j: int) -> str:
 class _Classical:
     """Writes the kernel of one law shape; each method writes one part of the cell loop."""
 
-    def __init__(self, shape: LawShape):
+    def __init__(self, shape: LawShape, target: "ClassicalTarget" = None):
         if shape.law not in LAWS or (shape.law == "decoupled") != (shape.psi is not None):
             raise ValueError(f"no classical kernel for {shape!r}")
         self.shape = shape
+        self.target = SERIAL_CLASSICAL if target is None else target
         self.src = Source()
 
     # ---- parameters, read once before the loop
@@ -465,7 +483,9 @@ class _Classical:
         with s.block("if want_force:"):
             for a in range(4):
                 for k in range(3):
-                    s(f"force[n{a}, {k}] -= F{k}0 * SD{a}0 + F{k}1 * SD{a}1 + F{k}2 * SD{a}2")
+                    self.target.add_force(
+                        s, a, k, f"F{k}0 * SD{a}0 + F{k}1 * SD{a}1 + F{k}2 * SD{a}2"
+                    )
 
     def stiffness(self, CC: Sym6) -> None:
         s = self.src
@@ -499,44 +519,121 @@ class _Classical:
         for a in range(4):
             for b in range(a, 4):
                 s(f"g{a}{b} = D{a}0 * SD{b}0 + D{a}1 * SD{b}1 + D{a}2 * SD{b}2")
-        for kk, (a, b) in enumerate(EDGES):  # edge blocks into the mesh-edge sums U
+        self.target.before_blocks(s)
+        for kk, (a, b) in enumerate(EDGES):  # edge blocks, then out of the cell
             for k in range(3):
                 for l in range(3):
                     s(f"K{k}{l} = {block(a, b, k, l)}")
-            scatter_edge_block(s, kk, "K")
+            self.target.edge_block(s, kk, a, b)
         for a in range(4):  # node blocks: symmetric, six entries
             for k in range(3):
                 for l in range(k, 3):
                     s(f"K{k}{l} = {block(a, a, k, l)}")
-            for k in range(3):
-                for l in range(3):
-                    s(f"Dg[n{a}, {k}, {l}] += K{min(k, l)}{max(k, l)}")
+            self.target.node_block(s, a)
 
     # ---- the module
-    def module(self) -> str:
+    def cell(self) -> None:
+        """Write the body of the loop over cells e (everything one cell contributes)."""
         s = self.src
+        self.kinematics()
+        W, S = self.stress()
+        self.target.add_energy(s, f"vol * {W}")
+        with s.block("if want_force or want_stiffness:"):
+            self.force(S)
+            with s.block("if want_stiffness:"):
+                self.stiffness(self.tangent())
 
-        def cell() -> None:
-            self.kinematics()
-            W, S = self.stress()
-            s(f"energy += vol * {W}")
-            with s.block("if want_force or want_stiffness:"):
-                self.force(S)
-                with s.block("if want_stiffness:"):
-                    self.stiffness(self.tangent())
+    def module(self) -> str:
+        self.target.module(self)
+        return self.src.text()
 
+
+# ------------------------------------------------------------------ targets
+class ClassicalTarget(Target):
+    """The serial CPU kernel ``classical_cells`` of :data:`KERNEL_SIGNATURE`: MJED's serial
+    target (:class:`mjed.compiled.codegen.Target`: energy and force added in the loop), with
+    the classical element's blocks added into the mesh-edge sums U (each edge block,
+    transposed when the cell edge runs against the mesh edge) and the node sums Dg (each node
+    block, formed by the element), then every CSR entry written once.
+    """
+
+    def before_blocks(self, s: Source) -> None:
+        """Anything the block writes need once per cell (nothing here)."""
+
+    def edge_block(self, s: Source, k: int, a: int, b: int) -> None:
+        """The block (a, b) of cell edge k, locals K{r}{c}, out of the cell."""
+        scatter_edge_block(s, k, "K")
+
+    def node_block(self, s: Source, a: int) -> None:
+        """The node block (a, a), symmetric, locals K{r}{c} for r <= c, out of the cell."""
+        for k in range(3):
+            for l in range(3):
+                s(f"Dg[n{a}, {k}, {l}] += K{min(k, l)}{max(k, l)}")
+
+    def module(self, writer: "_Classical") -> None:
         write_kernel_module(
-            s,
+            writer.src,
             "Classical Galerkin kernel generated by reference_fem.classical_codegen for one law; "
-            f"do not edit.\n\nshape: {self.shape!r}",
+            f"do not edit.\n\nshape: {writer.shape!r}",
             ["from mjed.compiled.kernels import JIT_OPTIONS, eigh3_sym, write_csr"],
             "classical_cells",
             KERNEL_SIGNATURE,
             _KERNEL_DOC,
-            self.parameters,
-            cell,
+            writer.parameters,
+            writer.cell,
         )
-        return s.text()
+
+
+SERIAL_CLASSICAL = ClassicalTarget()
+
+#: The arguments of the generated CUDA ``classical_cells`` and ``classical_force``, in order
+#: (the launch order of mjed.cuda.launch.CellLauncher).
+CUDA_SIGNATURE = (
+    "x",
+    "cells",
+    "D",
+    "V0",
+    "P",
+    "Tt",
+    "want_force",
+    "want_stiffness",
+    "blk",
+    "rowlen",
+    "force",
+    "data",
+    "J_out",
+    "E_out",
+)
+
+
+class ClassicalCudaTarget(CudaTarget):
+    """The CUDA kernels ``classical_cells`` and ``classical_force`` of :data:`CUDA_SIGNATURE`
+    in ``dtype``: the MJED CUDA target (:class:`mjed.cuda.codegen.CudaTarget`: one thread per
+    cell, E_out[e] = its energy, the force by atomic adds, FP32 by the same source rewrite),
+    each block added straight into the CSR values through the per-mesh block map: the edge
+    block (a, b) and its transpose at (b, a), the node block (a, a); 144 atomic adds per cell,
+    as MJED's kernel.
+    """
+
+    def before_blocks(self, s: Source) -> None:
+        row_lengths(s)
+
+    def edge_block(self, s: Source, k: int, a: int, b: int) -> None:
+        add_block(s, a, b, lambda r, c: f"K{r}{c}")
+        add_block(s, b, a, lambda r, c: f"K{c}{r}")
+
+    def node_block(self, s: Source, a: int) -> None:
+        add_block(s, a, a, lambda r, c: f"K{min(r, c)}{max(r, c)}")
+
+    def module(self, writer: "_Classical") -> None:
+        write_cuda_module(
+            writer,
+            f"Classical Galerkin CUDA kernel ({self.dtype.name}) generated by "
+            "reference_fem.classical_codegen for one law; do not edit.",
+            ("classical_cells", "classical_force"),
+            CUDA_SIGNATURE,
+            self.dtype,
+        )
 
 
 class _Sym:
@@ -674,8 +771,8 @@ def _declared_psi(src: Source, shape: LawShape) -> Tuple[List[Tuple[str, str]], 
     return hoist.cell_lets, tuple(exprs)
 
 
-def classical_source(shape: LawShape) -> str:
-    """The source of the classical kernel module for ``shape`` (its function
-    ``classical_cells``).
+def classical_source(shape: LawShape, target: ClassicalTarget = None) -> str:
+    """The source of the classical kernel module for ``shape``: the serial CPU kernel (its
+    function ``classical_cells``), or the module of ``target`` (:class:`ClassicalCudaTarget`).
     """
-    return _Classical(shape).module()
+    return _Classical(shape, target).module()

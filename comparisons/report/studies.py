@@ -42,6 +42,12 @@ def _equivalence(ctx: StudyContext) -> StudyResult:
         bar.close()
 
 
+def _gpu(ctx: StudyContext) -> StudyResult:
+    from comparisons.gpu_study import gpu_study
+
+    return gpu_study()
+
+
 def _regularization(ctx: StudyContext) -> StudyResult:
     import meshes
     from comparisons.regularization import regularization_study
@@ -121,6 +127,7 @@ def report_studies() -> Tuple[ReportStudy, ...]:
     from comparisons import (
         cross_release,
         equivalence,
+        gpu_study,
         liver,
         provenance,
         regularization,
@@ -132,6 +139,7 @@ def report_studies() -> Tuple[ReportStudy, ...]:
         ReportStudy(equivalence.KEY, equivalence.TITLE, _equivalence),
         ReportStudy(timing.KEY, timing.TITLE, _timing),
         ReportStudy(timing.SCALING_KEY, timing.SCALING_TITLE, _scaling),
+        ReportStudy(gpu_study.KEY, gpu_study.TITLE, _gpu),
         ReportStudy(regularization.KEY, regularization.TITLE, _regularization),
         ReportStudy(rheometer.KEY, rheometer.TITLE, _rheometer),
         ReportStudy(liver.KEY, liver.TITLE, _liver),

@@ -1,0 +1,180 @@
+"""What every one-thread-per-cell kernel of the cuda backend needs around it: the mesh and the
+CSR block map on the device, the launch, the zeroing of the outputs and the reduction of J
+and the energy (:class:`CellLauncher`).
+
+A kernel launched here takes ``(x, cells, D, V0, *head, *flags, blk, rowlen, force, data,
+J_out, E_out, *tail)``: the positions and the rest geometry, its own numbers (``head``: the
+MJED term tables, or the classical law's parameters), what to form (``flags``), the block
+map of the CSR pattern (:func:`mjed.cuda.codegen.block_map`), the outputs and any further
+ones (``tail``: the MJED stress). The MJED field (:mod:`mjed.cuda.forcefield`) and the
+classical element on the GPU (reference_fem.classical_cuda) both run through it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from mjed.cuda.availability import require_cuda
+from mjed.forcefield import refuse_inverted
+from mjed.mesh import TetMesh
+from mjed.sparse import CSRPattern
+
+__all__ = ["BlockLayout", "CellLauncher", "THREADS_PER_BLOCK", "launcher_for"]
+
+#: Threads per block of the cell kernels (one thread per cell).
+THREADS_PER_BLOCK = 128
+
+
+@dataclass(frozen=True)
+class BlockLayout:
+    """The host side of a mesh's CSR assembly on the device: the pattern, the block map
+    (m, 16) and the row length per node (:func:`mjed.cuda.codegen.block_map`). Built once per
+    mesh; launchers of several dtypes (and several fields) of one mesh may share it.
+    """
+
+    pattern: CSRPattern
+    blk: np.ndarray
+    rowlen: np.ndarray
+
+    @classmethod
+    def of(cls, mesh: TetMesh) -> "BlockLayout":
+        from mjed.cuda.codegen import block_map
+
+        pattern = CSRPattern(mesh.cells, mesh.n_nodes)
+        blk, rowlen = block_map(mesh.cells, pattern.indptr, pattern.indices, mesh.n_nodes)
+        return cls(pattern, blk, rowlen)
+
+
+class CellLauncher:
+    """The device side of one mesh in ``dtype``: cells, D, V0, the block map of the CSR
+    pattern (:class:`mjed.sparse.CSRPattern`), J and the energy per cell, copied or allocated
+    once; :meth:`launch` runs a cell kernel and checks J. Fields of one mesh and dtype (the
+    MJED and the classical one, say) may share one launcher, hence its device arrays;
+    ``layout`` shares the host side between dtypes.
+    """
+
+    def __init__(self, mesh: TetMesh, dtype=np.float64, layout: Optional[BlockLayout] = None):
+        cuda = require_cuda()
+        from mjed.cuda.kernels import reduce_kernels
+
+        self.cuda = cuda
+        self.mesh = mesh
+        self.dtype = dt = np.dtype(dtype)
+        self._min_sum, self._zero = reduce_kernels()
+        self.layout = layout = BlockLayout.of(mesh) if layout is None else layout
+        self.pattern = p = layout.pattern
+        if p.shape[0] != 3 * mesh.n_nodes or len(layout.blk) != mesh.n_cells:
+            raise ValueError("CellLauncher: the block layout is not this mesh's")
+        #: the integer type of the connectivity and the block map on the device
+        self.index = np.int32 if max(p.nnz, 3 * mesh.n_nodes) < 2**31 else np.int64
+        blk, rowlen = layout.blk, layout.rowlen
+        to = cuda.to_device
+        self.cells = to(np.ascontiguousarray(mesh.cells, dtype=self.index))
+        self.D = to(np.ascontiguousarray(mesh.D, dtype=dt))
+        self.V0 = to(np.ascontiguousarray(mesh.volumes, dtype=dt))
+        self.blk = to(np.ascontiguousarray(blk, dtype=self.index))
+        self.rowlen = to(np.ascontiguousarray(rowlen, dtype=self.index))
+        self.J = cuda.device_array(mesh.n_cells, dtype=dt)
+        self.E = cuda.device_array(mesh.n_cells, dtype=dt)
+        self._reduced = cuda.device_array(2, dtype=np.float64)
+        self.empty_force = cuda.device_array((0, 3), dtype=dt)
+        self.empty_data = cuda.device_array(0, dtype=dt)
+        self.blocks = max(1, -(-mesh.n_cells // THREADS_PER_BLOCK))
+
+    def to_device(self, a) -> object:
+        """A host array on the device, in this launcher's dtype."""
+        return self.cuda.to_device(np.ascontiguousarray(a, dtype=self.dtype))
+
+    def launch(
+        self,
+        kernel,
+        x_d,
+        head: tuple,
+        flags: tuple,
+        *,
+        force: bool,
+        stiffness: bool,
+        allow_inverted: bool,
+        out: Optional[tuple] = None,
+        tail: tuple = (),
+    ):
+        """Run ``kernel`` over the cells (see the module docstring for its arguments) into
+        fresh force (n, 3) and CSR values (nnz,), zeroed, or into ``out`` = (f, data).
+        Returns (energy, f, data); raises InvertedElementError, naming the cells, for J <= 0
+        unless ``allow_inverted``.
+        """
+        cuda, m, n = self.cuda, self.mesh.n_cells, self.mesh.n_nodes
+        if out is not None:
+            f, data = out
+        else:
+            f = cuda.device_array((n, 3), dtype=self.dtype) if force else self.empty_force
+            data = (
+                cuda.device_array(self.pattern.nnz, dtype=self.dtype)
+                if stiffness
+                else self.empty_data
+            )
+        if force:
+            self._zero_array(f.reshape(3 * n))
+        if stiffness:
+            self._zero_array(data)
+        if m:
+            kernel[self.blocks, THREADS_PER_BLOCK](
+                x_d,
+                self.cells,
+                self.D,
+                self.V0,
+                *head,
+                *flags,
+                self.blk,
+                self.rowlen,
+                f,
+                data,
+                self.J,
+                self.E,
+                *tail,
+            )
+        J_min, energy = self._reduce()
+        if not allow_inverted and not J_min > 0.0:
+            refuse_inverted(self.J.copy_to_host())  # names the cells
+        return energy, f, data
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """The CSR matrix of host ``data`` (nnz,) with this mesh's pattern (owning its indices)."""
+        p = self.pattern
+        K = sp.csr_matrix(
+            (np.asarray(data, dtype=np.float64), p.indices.copy(), p.indptr.copy()),
+            shape=p.shape,
+            copy=False,
+        )
+        K.has_sorted_indices = True
+        return K
+
+    def _zero_array(self, a) -> None:
+        if a.shape[0]:
+            self._zero[max(1, min(1024, -(-a.shape[0] // 256))), 256](a)
+
+    def _reduce(self) -> Tuple[float, float]:
+        """(min J, sum of the cell energies) over the cells, on the device."""
+        m = self.mesh.n_cells
+        if m == 0:
+            return np.inf, 0.0
+        self._reduced.copy_to_device(np.array([np.inf, 0.0]))
+        self._min_sum[max(1, min(256, -(-m // 256))), 256](self.J, self.E, self._reduced)
+        J_min, energy = self._reduced.copy_to_host()
+        return float(J_min), float(energy)
+
+
+def launcher_for(mesh: TetMesh, dtype, launcher: Optional[CellLauncher]) -> CellLauncher:
+    """``launcher`` when given (checked to be of ``mesh`` and ``dtype``), else a new one."""
+    if launcher is None:
+        return CellLauncher(mesh, dtype)
+    if launcher.mesh is not mesh or launcher.dtype != np.dtype(dtype):
+        raise ValueError(
+            f"the launcher given is of another mesh or dtype ({launcher.dtype.name}, asked "
+            f"{np.dtype(dtype).name}): pass one built for this mesh and dtype"
+        )
+    return launcher
