@@ -649,8 +649,9 @@ class _Sym:
     def _wrap(self, other) -> "_Sym":
         if isinstance(other, _Sym):
             return other
-        # an int stays an int: I1b ** 2 is then formed by a product
-        text = repr(other) if isinstance(other, int) else repr(float(other))
+        # a float literal, ints too: int64 * float32 is float64 to Numba (integer powers are
+        # products, see _integer_power)
+        text = repr(float(other))
         return _Sym(text, True, self.hoist)
 
     def _op(self, a, b, op: str) -> "_Sym":
@@ -689,7 +690,20 @@ class _Sym:
         return self._op(o, self, "/")
 
     def __pow__(self, o):
+        if isinstance(o, int) and not isinstance(o, bool):
+            return self._integer_power(o)
         return self._op(self, o, "**")
+
+    def _integer_power(self, k: int) -> "_Sym":
+        """The integer power x ** k as products (1 / x ** -k for k < 0): Numba types
+        float32 ** int64 as float64, which would put double arithmetic in the FP32 CUDA kernel.
+        """
+        if k < 0:
+            return self._op(1.0, self._integer_power(-k), "/")
+        result = self._wrap(1.0)
+        for _ in range(k):
+            result = self if result.text == "1.0" else self._op(result, self, "*")
+        return result
 
     def __rpow__(self, o):
         return self._op(o, self, "**")

@@ -40,41 +40,32 @@ def main(names) -> dict:
     from mjed.compiled.shape import kernel_shape
     from mjed.cuda import kernels
 
-    def signature(dtype):
+    def signature(dtype, table):
+        """The kernel's argument types as CudaForceField launches it (CellLauncher.launch):
+        the material's numbers typed from its lowered table, so a change of their layout
+        (group_coef became 2-D with Yeoh and Gent) cannot leave this list behind.
+        """
         f = nt.float64 if dtype == np.float64 else nt.float32
         a = lambda t, nd: nt.Array(t, nd, "C")  # noqa: E731
         i = nt.int32
-        return (
-            a(f, 2),
-            a(i, 2),
-            a(f, 3),
-            a(f, 1),
-            a(f, 2),
-            a(f, 2),
-            a(f, 4),
-            a(f, 1),
-            a(f, 4),
-            nt.boolean,
-            nt.boolean,
-            nt.boolean,
-            nt.boolean,
-            a(i, 2),
-            a(i, 1),
-            a(f, 2),
-            a(f, 1),
-            a(f, 1),
-            a(f, 1),
-            a(f, 3),
+        numbers = tuple(
+            a(f, np.ndim(v))
+            for v in (table.jpar, table.gpar, table.gmat, table.group_coef, table.slot_M)
         )
+        head = (a(f, 2), a(i, 2), a(f, 3), a(f, 1))  # x, cells, D, V0
+        flags = (nt.boolean,) * 4  # regularize, want force, stiffness, stress
+        tail = (a(i, 2), a(i, 1), a(f, 2), a(f, 1), a(f, 1), a(f, 1), a(f, 3))
+        return head + numbers + flags + tail
 
     out = {"nvvm": True, "kernels": []}
     for name in names:
-        shape = kernel_shape(lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3))))
+        table = lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3)))
+        shape = kernel_shape(table)
         for dtype in (np.float64, np.float32):
             module = kernels.cuda_module(shape, dtype)
             for kernel in ("mjed_cells", "mjed_force"):
                 ptx, _ = cuda.compile_ptx(
-                    getattr(module, kernel).py_func, signature(dtype), cc=(8, 0)
+                    getattr(module, kernel).py_func, signature(dtype, table), cc=(8, 0)
                 )
                 out["kernels"].append(
                     {
@@ -87,6 +78,7 @@ def main(names) -> dict:
                         "entry": ".entry" in ptx,
                     }
                 )
+    out["kernels"] += classical_kernels(names)
     from mjed.cuda import solvers
 
     i32, f64 = nt.int32[:], nt.float64[:]
@@ -102,6 +94,50 @@ def main(names) -> dict:
     ):
         ptx, _ = cuda.compile_ptx(fn.py_func, sig, cc=(8, 0))
         out["kernels"].append({"material": fn.py_func.__name__, "entry": ".entry" in ptx})
+    return out
+
+
+def classical_kernels(names) -> list:
+    """The classical element's CUDA kernels (reference_fem.classical_cuda), as the MJED ones."""
+    from conftest import MATERIALS
+    from numba import cuda
+    from numba import types as nt
+
+    from mjed.compiled.specialise import generated_module
+    from reference_fem import classical_materials as cm
+    from reference_fem.classical_codegen import ClassicalCudaTarget, classical_source
+    from reference_fem.classical_compiled import lower_law
+
+    out = []
+    for name in names:
+        shape, params, tensor = lower_law(cm.classical_law(MATERIALS[name]))
+        for dtype in (np.float64, np.float32):
+            f = nt.float64 if dtype == np.float64 else nt.float32
+            a = lambda t, nd: nt.Array(t, nd, "C")  # noqa: E731
+            i = nt.int32
+            signature = (
+                (a(f, 2), a(i, 2), a(f, 3), a(f, 1))  # x, cells, D, V0
+                + (a(f, np.ndim(params)), a(f, np.ndim(tensor)))
+                + (nt.boolean, nt.boolean)  # want force, stiffness
+                + (a(i, 2), a(i, 1), a(f, 2), a(f, 1), a(f, 1), a(f, 1))
+            )
+            target = ClassicalCudaTarget(np.dtype(dtype))
+            module = generated_module(
+                classical_source(shape, target), f"classical_cuda_{np.dtype(dtype).name}"
+            )
+            for kernel in ("classical_cells", "classical_force"):
+                ptx, _ = cuda.compile_ptx(getattr(module, kernel).py_func, signature, cc=(8, 0))
+                out.append(
+                    {
+                        "material": name,
+                        "kernel": kernel,
+                        "dtype": np.dtype(dtype).name,
+                        "f64": ptx.count(".f64"),
+                        "f32": ptx.count(".f32"),
+                        "atomics": ptx.count("atom."),
+                        "entry": ".entry" in ptx,
+                    }
+                )
     return out
 
 

@@ -45,11 +45,11 @@ def ptx():
 
 def test_every_kernel_compiles_to_ptx(ptx):
     kernels = [k for k in ptx["kernels"] if "dtype" in k]
-    assert len(kernels) == 4 * len(MATERIALS) and all(k["entry"] for k in ptx["kernels"])
+    # MJED and the classical element, cells and force kernels, FP64 and FP32
+    assert len(kernels) == 8 * len(MATERIALS) and all(k["entry"] for k in ptx["kernels"])
     for k in kernels:
-        if (
-            k["kernel"] == "mjed_cells"
-        ):  # every block entry and force component, straight into memory
+        if k["kernel"] in ("mjed_cells", "classical_cells"):
+            # every block entry and force component, straight into memory
             assert k["atomics"] >= 144 + 12
         else:  # the force kernel has no stiffness code left
             assert 12 <= k["atomics"] < 144

@@ -64,6 +64,8 @@ CUDA_SIGNATURE = CELL_INPUTS + (
 )
 
 _MATH = ("sqrt", "log", "exp", "expm1", "log1p")
+# math.nan / math.inf: a float64 constant in one branch of a conditional makes it float64.
+_CONSTANT = re.compile(r"(?<![\w.])(math\.(?:nan|inf))(?![\w.])")
 _FLOAT = re.compile(r"(?<![\w.])((?:\d+\.\d*|\.\d+)(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
 
 
@@ -72,6 +74,7 @@ def fp32_source(code: str) -> str:
     f32_f( (see the module docstring).
     """
     code = _FLOAT.sub(r"f32(\1)", code)
+    code = _CONSTANT.sub(r"f32(\1)", code)
     for name in _MATH:
         code = code.replace(f"math.{name}(", f"f32_{name}(")
     return code
