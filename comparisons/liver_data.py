@@ -5,20 +5,22 @@
 (``comparisons.oscillation``) an :class:`OscillationData`. The checks, tables, figures and the
 command line read them by attribute; ``to_dict()`` gives the JSON form written to
 ``results.json`` and ``--json`` (the keys are the field names, plus the derived values listed
-in each record), and ``from_dict()`` reads it back, refusing a missing, unexpected or bad key
-by name. Times are in seconds, lengths in metres, pressures in pascals, frame rates in steps
-per second.
+in each record), and ``from_dict()`` reads it back (``common.json_fields``), refusing a missing,
+unexpected or bad key by name and place. Each record checks its fields on construction
+(``common.record_fields``). Times are in seconds, lengths in metres, pressures in pascals, frame
+rates in steps per second.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from common.json_fields import JSONFields, json_keys, read_record
+from common.record_fields import RecordFields, is_real
 from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
 
 __all__ = [
@@ -42,140 +44,6 @@ PHASES = (
     "linear solve",
     "rest",
 )
-
-
-# ----------------------------------------------------------------------------- validation
-def _bad(obj, key: str, want: str, got) -> ValueError:
-    text = repr(got)
-    text = text if len(text) <= 120 else text[:117] + "..."
-    return ValueError(f"{type(obj).__name__}: key {key!r} must be {want}, got {text}")
-
-
-def _is_real(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-
-
-def _is_count(v) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0
-
-
-def _set(obj, key: str, value) -> None:
-    object.__setattr__(obj, key, value)
-
-
-def _real(obj, key: str, *, positive: bool = False, optional: bool = False) -> None:
-    """A number (> 0 when ``positive``; None allowed when ``optional``), stored as a float."""
-    v = getattr(obj, key)
-    if v is None and optional:
-        return
-    if not _is_real(v) or (positive and not (math.isfinite(v) and v > 0)):
-        want = "a finite number > 0" if positive else "a number"
-        raise _bad(obj, key, want + (" or None" if optional else ""), v)
-    _set(obj, key, float(v))
-
-
-def _count(obj, key: str) -> None:
-    """An integer >= 0, stored as an int."""
-    v = getattr(obj, key)
-    if not _is_count(v):
-        raise _bad(obj, key, "an integer >= 0", v)
-    _set(obj, key, int(v))
-
-
-def _text(obj, key: str, *, optional: bool = False) -> None:
-    v = getattr(obj, key)
-    if not (isinstance(v, str) or (optional and v is None)):
-        raise _bad(obj, key, "a string" + (" or None" if optional else ""), v)
-
-
-def _flag(obj, key: str) -> None:
-    if not isinstance(getattr(obj, key), (bool, np.bool_)):
-        raise _bad(obj, key, "true or false", getattr(obj, key))
-    _set(obj, key, bool(getattr(obj, key)))
-
-
-def _items(obj, key: str, ok, want: str, convert, *, optional: bool = False) -> None:
-    """A list of items that pass ``ok``, stored as a tuple of ``convert(item)``."""
-    v = getattr(obj, key)
-    if v is None and optional:
-        return
-    if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, (Sequence, np.ndarray)):
-        raise _bad(obj, key, f"a list of {want}", v)
-    for i, item in enumerate(v):
-        if not ok(item):
-            raise _bad(obj, f"{key}[{i}]", want, item)
-    _set(obj, key, tuple(convert(item) for item in v))
-
-
-def _reals(obj, key: str, *, optional: bool = False) -> None:
-    _items(obj, key, _is_real, "numbers", float, optional=optional)
-
-
-def _counts(obj, key: str, *, optional: bool = False) -> None:
-    _items(obj, key, _is_count, "integers >= 0", int, optional=optional)
-
-
-def _texts(obj, key: str) -> None:
-    _items(obj, key, lambda s: isinstance(s, str), "strings", str)
-
-
-def _per_phase(obj, key: str) -> None:
-    """A mapping of each of PHASES (in that order) to a number, stored as a dict of floats."""
-    v = getattr(obj, key)
-    if not isinstance(v, Mapping) or list(v) != list(PHASES):
-        raise _bad(obj, key, f"an object with the keys {list(PHASES)}", v)
-    for phase, x in v.items():
-        if not _is_real(x):
-            raise _bad(obj, f"{key}[{phase!r}]", "a number", x)
-    _set(obj, key, {phase: float(x) for phase, x in v.items()})
-
-
-def _model(obj, key: str = "model") -> None:
-    if getattr(obj, key) not in MODELS:
-        raise _bad(obj, key, f"one of {list(MODELS)}", getattr(obj, key))
-
-
-def _json_keys(cls) -> Tuple[str, ...]:
-    """The fields of ``cls`` that are written to JSON (not those marked ``json=False``)."""
-    return tuple(f.name for f in dataclasses.fields(cls) if f.metadata.get("json", True))
-
-
-def _from_json(cls, data, derived: Sequence[str] = (), **parsed):
-    """``cls`` from its JSON object: every field key must be there (those with a default may
-    be left out), the ``derived`` keys too (they are recomputed, not read), no other key;
-    ``parsed`` gives the values of nested records already read. ValueError names the key.
-    """
-    name = cls.__name__
-    if not isinstance(data, Mapping):
-        raise ValueError(f"{name}: expected a JSON object, got {type(data).__name__}")
-    optional = {
-        f.name
-        for f in dataclasses.fields(cls)
-        if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
-    }
-    keys = _json_keys(cls)
-    for key in (*keys, *derived):
-        if key not in data and key not in optional:
-            raise ValueError(f"{name}: missing key {key!r}")
-    unexpected = [k for k in data if k not in keys and k not in derived]
-    if unexpected:
-        raise ValueError(f"{name}: unexpected key {unexpected[0]!r}")
-    values = {k: data[k] for k in keys if k in data}
-    values.update(parsed)
-    return cls(**values)
-
-
-def _nested(cls, items, where: str) -> tuple:
-    """A list of ``cls`` records from their JSON objects; errors say which one (``where[i]``)."""
-    if isinstance(items, (str, Mapping)) or not isinstance(items, Sequence):
-        raise ValueError(f"key {where!r} must be a list of objects, got {items!r}")
-    out = []
-    for i, item in enumerate(items):
-        try:
-            out.append(cls.from_dict(item))
-        except ValueError as exc:
-            raise ValueError(f"{where}[{i}]: {exc}") from None
-    return tuple(out)
 
 
 # ----------------------------------------------------------------------------- one run
@@ -235,42 +103,40 @@ class LiverRun:
     )
 
     def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _text(self, "error", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.real("dt", positive=True)
+        f.text("error", optional=True)
         for key in ("solver", "force_field", "backend"):
-            _text(self, key)
+            f.text(key)
         for key in ("steps_planned", "factorizations"):
-            _count(self, key)
+            f.count(key)
         for key in ("time", "max_displacement"):
-            _reals(self, key)
-        _reals(self, "max_abs_pressure", optional=True)
+            f.reals(key)
+        f.reals("max_abs_pressure", optional=True)
         for key in ("cg_iterations", "substeps", "inverted_cells"):
-            _counts(self, key)
-        _items(self, "retries", _is_reasons, "lists of strings", lambda r: tuple(map(str, r)))
-        _real(self, "stepping_seconds")
-        _real(self, "cpu_fps", optional=True)
-        _per_phase(self, "phase_seconds")
-        self._check_lengths()
+            f.counts(key)
+        f.items("retries", _is_reasons, "lists of strings", lambda r: tuple(map(str, r)))
+        f.real("stepping_seconds")
+        f.real("cpu_fps", optional=True)
+        f.reals_by_key("phase_seconds", PHASES)
+        self._check_lengths(f)
 
-    def _check_lengths(self) -> None:
+    def _check_lengths(self, f: RecordFields) -> None:
         """One entry per step (cg_iterations, ...) and one more per state (time, ...)."""
         n = len(self.cg_iterations)
         per_state = ["time", "max_displacement"]
         per_state += [] if self.max_abs_pressure is None else ["max_abs_pressure"]
         for key in per_state:
             if len(getattr(self, key)) != n + 1:
-                raise _bad(
-                    self,
-                    key,
-                    f"{n + 1} values (the steps taken, plus t = 0)",
-                    len(getattr(self, key)),
+                raise f.refusal(
+                    key, f"{n + 1} values (the steps taken, plus t = 0)", len(getattr(self, key))
                 )
         for key in ("substeps", "retries", "inverted_cells"):
             if len(getattr(self, key)) != n:
-                raise _bad(self, key, f"{n} values (one per step taken)", len(getattr(self, key)))
+                raise f.refusal(key, f"{n} values (one per step taken)", len(getattr(self, key)))
         if n > self.steps_planned:
-            raise _bad(self, "steps_planned", f">= the {n} steps taken", self.steps_planned)
+            raise f.refusal("steps_planned", f">= the {n} steps taken", self.steps_planned)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -378,9 +244,15 @@ class LiverRun:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "LiverRun":
-        """The run from its JSON record; ValueError names a missing, unexpected or bad key."""
-        return _from_json(cls, data, cls._DERIVED)
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "LiverRun":
+        """The run from its JSON record; RecordError (a ValueError) names a missing, unexpected
+        or bad key.
+        """
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "LiverRun":
+        return f.dataclass(cls, derived=cls._DERIVED)
 
     def fps_row(self) -> dict:
         """The run's row of the JSON ``fps_table``."""
@@ -413,10 +285,11 @@ class StepSplit:
     shares: Dict[str, float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _text(self, "backend")
-        _real(self, "ms_per_step", positive=True)
-        _per_phase(self, "shares")
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.text("backend")
+        f.real("ms_per_step", positive=True)
+        f.reals_by_key("shares", PHASES)
 
     def to_dict(self) -> dict:
         return {
@@ -427,8 +300,12 @@ class StepSplit:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "StepSplit":
-        return _from_json(cls, data)
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "StepSplit":
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "StepSplit":
+        return f.dataclass(cls)
 
 
 @dataclass(frozen=True)
@@ -444,17 +321,22 @@ class BackendAgreement:
     relative_difference: Optional[float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _text(self, "backend")
-        _text(self, "reference")
-        _real(self, "relative_difference", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.text("backend")
+        f.text("reference")
+        f.real("relative_difference", optional=True)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "BackendAgreement":
-        return _from_json(cls, data)
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "BackendAgreement":
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "BackendAgreement":
+        return f.dataclass(cls)
 
 
 # ----------------------------------------------------------------------------- oscillation
@@ -477,16 +359,16 @@ class OscillationMetrics:
     peak: float
 
     def __post_init__(self) -> None:
-        _check_metrics(self)
+        _check_metrics(RecordFields(self))
 
 
-def _check_metrics(obj) -> None:
+def _check_metrics(f: RecordFields) -> None:
     """The fields of OscillationMetrics, on it or on an OscillationRow."""
-    _count(obj, "extrema")
+    f.count("extrema")
     for key in ("first_peak", "period", "decay_rate", "overshoot"):
-        _real(obj, key, optional=True)
-    _real(obj, "final")
-    _real(obj, "peak")
+        f.real(key, optional=True)
+    f.real("final")
+    f.real("peak")
 
 
 @dataclass(frozen=True)
@@ -507,17 +389,17 @@ class OscillationCurve:
     fps: Optional[float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _reals(self, "time")
-        _reals(self, "max_displacement")
-        _text(self, "error", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.real("dt", positive=True)
+        f.reals("time")
+        f.reals("max_displacement")
+        f.text("error", optional=True)
         for key in ("steps", "steps_planned", "steps_split", "substeps_total"):
-            _count(self, key)
-        _real(self, "fps", optional=True)
+            f.count(key)
+        f.real("fps", optional=True)
         if len(self.time) != len(self.max_displacement):
-            raise _bad(
-                self,
+            raise f.refusal(
                 "max_displacement",
                 f"{len(self.time)} values (one per time)",
                 len(self.max_displacement),
@@ -525,7 +407,7 @@ class OscillationCurve:
 
     @classmethod
     def of_run(cls, run: LiverRun) -> "OscillationCurve":
-        return cls(**{k: getattr(run, k) for k in _json_keys(cls)})
+        return cls(**{k: getattr(run, k) for k in json_keys(cls)})
 
     def to_dict(self) -> dict:
         out = dataclasses.asdict(self)
@@ -533,8 +415,13 @@ class OscillationCurve:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationCurve":
-        return _from_json(cls, data)
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationCurve":
+        """The curve from its JSON object; RecordError names a missing, unexpected or bad key."""
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "OscillationCurve":
+        return f.dataclass(cls)
 
 
 @dataclass(frozen=True)
@@ -561,13 +448,14 @@ class OscillationRow:
     euler_decay_rate: Optional[float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _text(self, "error", optional=True)
-        _count(self, "steps_split")
-        _check_metrics(self)
-        _real(self, "omega_smallest_dt", optional=True)
-        _real(self, "euler_decay_rate", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.real("dt", positive=True)
+        f.text("error", optional=True)
+        f.count("steps_split")
+        _check_metrics(f)
+        f.real("omega_smallest_dt", optional=True)
+        f.real("euler_decay_rate", optional=True)
 
     @classmethod
     def of_run(cls, run: LiverRun, metrics: OscillationMetrics) -> "OscillationRow":
@@ -588,12 +476,17 @@ class OscillationRow:
 
     def to_dict(self) -> dict:
         out = {"model": self.model, "dt": self.dt, "completed": self.completed}
-        out.update({k: getattr(self, k) for k in _json_keys(type(self))[2:]})
+        out.update({k: getattr(self, k) for k in json_keys(type(self))[2:]})
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationRow":
-        return _from_json(cls, data, ("completed",))
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationRow":
+        """The row from its JSON object; RecordError names a missing, unexpected or bad key."""
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "OscillationRow":
+        return f.dataclass(cls, derived=("completed",))
 
 
 @dataclass(frozen=True)
@@ -615,15 +508,16 @@ class OscillationData:
     figures: Tuple[str, ...]
 
     def __post_init__(self) -> None:
-        _text(self, "mesh")
-        _reals(self, "dts")
-        _real(self, "duration", positive=True)
-        _reals(self, "rayleigh")
-        _items(self, "curves", lambda c: isinstance(c, OscillationCurve), "OscillationCurve", _same)
-        _items(self, "table", lambda r: isinstance(r, OscillationRow), "OscillationRow", _same)
-        _texts(self, "amplitude_ordering")
-        _real(self, "amplitude_ordering_dt", positive=True)
-        _texts(self, "figures")
+        f = RecordFields(self)
+        f.text("mesh")
+        f.reals("dts")
+        f.real("duration", positive=True)
+        f.reals("rayleigh")
+        f.records("curves", OscillationCurve)
+        f.records("table", OscillationRow)
+        f.texts("amplitude_ordering")
+        f.real("amplitude_ordering_dt", positive=True)
+        f.texts("figures")
 
     def to_dict(self) -> dict:
         return {
@@ -639,18 +533,20 @@ class OscillationData:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationData":
-        """The study from its JSON object; ValueError names a missing, unexpected or bad key."""
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationData":
+        """The study from its JSON object; RecordError names a missing, unexpected or bad key
+        with its place (``<dict>: table/0: OscillationRow: key 'period' ...``).
+        """
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "OscillationData":
+        """The study from its JSON object as read by ``f`` (e.g. nested in the liver's)."""
         nested = {}
-        if isinstance(data, Mapping):
-            for key, kind in (("curves", OscillationCurve), ("table", OscillationRow)):
-                if key in data:
-                    nested[key] = _nested(kind, data[key], key)
-        return _from_json(cls, data, **nested)
-
-
-def _same(x):
-    return x
+        for key, kind in (("curves", OscillationCurve), ("table", OscillationRow)):
+            if key in f.obj:
+                nested[key] = f.records(key, kind)
+        return f.dataclass(cls, **nested)
 
 
 # ----------------------------------------------------------------------------- the study
@@ -696,39 +592,36 @@ class LiverData:
     protocol: Optional[str] = None
 
     def __post_init__(self) -> None:
+        f = RecordFields(self)
         for key in ("mesh", "mesh_description", "numbering"):
-            _text(self, key)
+            f.text(key)
         for key in ("n_nodes", "n_cells", "reoriented_cells", "unused_nodes", "n_fixed"):
-            _count(self, key)
-        _real(self, "scale", positive=True)
-        _real(self, "duration", positive=True)
-        _flag(self, "quick")
+            f.count(key)
+        f.real("scale", positive=True)
+        f.real("duration", positive=True)
+        f.flag("quick")
         for key in ("mesh_warnings", "fixed_regions", "figures", "series"):
-            _texts(self, key)
-        _counts(self, "fixed_node_ids", optional=True)
-        for key, kind in (
-            ("runs", LiverRun),
-            ("step_split", StepSplit),
-            ("backend_agreement", BackendAgreement),
-        ):
-            _items(self, key, lambda x, k=kind: isinstance(x, k), kind.__name__, _same)
-        self._check_records()
+            f.texts(key)
+        f.counts("fixed_node_ids", optional=True)
+        for key, kind in _NESTED:
+            f.records(key, kind)
+        self._check_records(f)
 
-    def _check_records(self) -> None:
+    def _check_records(self, f: RecordFields) -> None:
         """Check the parameters (an object), terzaghi (its "times") and the optional parts."""
         if not isinstance(self.parameters, Mapping):
-            raise _bad(self, "parameters", "an object (LiverParameters.to_dict())", self.parameters)
+            raise f.refusal("parameters", "an object (LiverParameters.to_dict())", self.parameters)
         times = self.terzaghi.get("times") if isinstance(self.terzaghi, Mapping) else None
         ok = isinstance(times, Sequence) and all(
-            isinstance(t, Mapping) and _is_real(t.get("relative_l2_error")) for t in times
+            isinstance(t, Mapping) and is_real(t.get("relative_l2_error")) for t in times
         )
         if not (ok and times):
-            raise _bad(
-                self, "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
+            raise f.refusal(
+                "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
             )
         if not (self.oscillation is None or isinstance(self.oscillation, OscillationData)):
-            raise _bad(self, "oscillation", "an OscillationData or None", self.oscillation)
-        _text(self, "protocol", optional=True)
+            raise f.refusal("oscillation", "an OscillationData or None", self.oscillation)
+        f.text("protocol", optional=True)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -787,23 +680,26 @@ class LiverData:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "LiverData":
+    def from_dict(cls, data: Any, source: str = "<dict>") -> "LiverData":
         """The study from its JSON record (e.g. a StudyResult's ``data``, or ``["data"]`` of a
-        --json file); ValueError names a missing, unexpected or bad key, nested ones with their
-        place (``runs[1]: LiverRun: key 'dt' ...``).
+        --json file, read from ``source``); RecordError (a ValueError) names a missing,
+        unexpected or bad key, nested ones with their place (``<dict>: runs/1: LiverRun: key
+        'dt' ...``).
         """
+        return read_record(cls, data, source)
+
+    @classmethod
+    def from_fields(cls, f: JSONFields) -> "LiverData":
         nested: Dict[str, Any] = {}
-        if isinstance(data, Mapping):
-            for key, kind in (
-                ("runs", LiverRun),
-                ("step_split", StepSplit),
-                ("backend_agreement", BackendAgreement),
-            ):
-                if key in data:
-                    nested[key] = _nested(kind, data[key], key)
-            if data.get("oscillation") is not None:
-                try:
-                    nested["oscillation"] = OscillationData.from_dict(data["oscillation"])
-                except ValueError as exc:
-                    raise ValueError(f"oscillation: {exc}") from None
-        return _from_json(cls, data, cls._DERIVED, **nested)
+        for key, kind in _NESTED:
+            if key in f.obj:
+                nested[key] = f.records(key, kind)
+        if f.obj.get("oscillation") is not None:
+            nested["oscillation"] = OscillationData.from_fields(
+                f.object("oscillation", "OscillationData")
+            )
+        return f.dataclass(cls, derived=cls._DERIVED, **nested)
+
+
+#: The lists of records a LiverData holds: its key, the record type.
+_NESTED = (("runs", LiverRun), ("step_split", StepSplit), ("backend_agreement", BackendAgreement))
