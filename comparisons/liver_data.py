@@ -1,12 +1,12 @@
 """What the liver study records, as typed records.
 
-``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run,
-``comparisons.liver.run_liver`` a :class:`LiverData` holding them, and the oscillation study
-(``comparisons.oscillation``) an :class:`OscillationData`. The checks, tables, figures and the
-command line read them by attribute; ``to_dict()`` gives the JSON form written to
-``results.json`` and ``--json`` (the keys are the field names, plus the derived values listed
-in each record), and ``from_dict()`` reads it back (``common.json_fields``), refusing a missing,
-unexpected or bad key by name and place. Each record checks its fields on construction
+``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run and
+``comparisons.liver.run_liver`` a :class:`LiverData` holding them (with the oscillation study's
+``comparisons.oscillation_data.OscillationData`` once ``liver_study`` adds it). The checks,
+tables, figures and the command line read them by attribute; ``to_dict()`` gives the JSON form
+written to ``results.json`` and ``--json`` (the keys are the field names, plus the derived values
+listed in each record), and ``from_dict()`` reads it back (``common.json_fields``), refusing a
+missing, unexpected or bad key by name and place. Each record checks its fields on construction
 (``common.record_fields``). Times are in seconds, lengths in metres, pressures in pascals, frame
 rates in steps per second.
 """
@@ -19,9 +19,10 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from common.json_fields import JSONFields, json_keys, read_record
+from common.json_fields import JSONFields, read_record
 from common.record_fields import RecordFields, is_real
 from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
+from comparisons.oscillation_data import OscillationData
 
 __all__ = [
     "PHASES",
@@ -29,10 +30,6 @@ __all__ = [
     "LiverRun",
     "StepSplit",
     "BackendAgreement",
-    "OscillationMetrics",
-    "OscillationCurve",
-    "OscillationRow",
-    "OscillationData",
     "LiverData",
 ]
 
@@ -337,216 +334,6 @@ class BackendAgreement:
     @classmethod
     def from_fields(cls, f: JSONFields) -> "BackendAgreement":
         return f.dataclass(cls)
-
-
-# ----------------------------------------------------------------------------- oscillation
-@dataclass(frozen=True)
-class OscillationMetrics:
-    """What one max-displacement curve shows (``comparisons.oscillation.oscillation_metrics``).
-
-    extrema: the significant extrema (0: no oscillation); first_peak: the first maximum (m);
-    period (s); decay_rate: of the swings between extrema (1/s; None with fewer than two
-    swings); overshoot: first peak over the final value; final and peak: the last and the
-    largest value (m). None where the curve does not show it.
-    """
-
-    extrema: int
-    first_peak: Optional[float]
-    period: Optional[float]
-    decay_rate: Optional[float]
-    overshoot: Optional[float]
-    final: float
-    peak: float
-
-    def __post_init__(self) -> None:
-        _check_metrics(RecordFields(self))
-
-
-def _check_metrics(f: RecordFields) -> None:
-    """The fields of OscillationMetrics, on it or on an OscillationRow."""
-    f.count("extrema")
-    for key in ("first_peak", "period", "decay_rate", "overshoot"):
-        f.real(key, optional=True)
-    f.real("final")
-    f.real("peak")
-
-
-@dataclass(frozen=True)
-class OscillationCurve:
-    """One run of the oscillation study, as its figure and results.json keep it (a part of
-    its :class:`LiverRun`): time (s), max_displacement (m), fps (steps per second).
-    """
-
-    model: str
-    dt: float
-    time: Tuple[float, ...]
-    max_displacement: Tuple[float, ...]
-    error: Optional[str]
-    steps: int
-    steps_planned: int
-    steps_split: int
-    substeps_total: int
-    fps: Optional[float]
-
-    def __post_init__(self) -> None:
-        f = RecordFields(self)
-        f.one_of("model", MODELS)
-        f.real("dt", positive=True)
-        f.reals("time")
-        f.reals("max_displacement")
-        f.text("error", optional=True)
-        for key in ("steps", "steps_planned", "steps_split", "substeps_total"):
-            f.count(key)
-        f.real("fps", optional=True)
-        if len(self.time) != len(self.max_displacement):
-            raise f.refusal(
-                "max_displacement",
-                f"{len(self.time)} values (one per time)",
-                len(self.max_displacement),
-            )
-
-    @classmethod
-    def of_run(cls, run: LiverRun) -> "OscillationCurve":
-        return cls(**{k: getattr(run, k) for k in json_keys(cls)})
-
-    def to_dict(self) -> dict:
-        out = dataclasses.asdict(self)
-        out.update(time=list(self.time), max_displacement=list(self.max_displacement))
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationCurve":
-        """The curve from its JSON object; RecordError names a missing, unexpected or bad key."""
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "OscillationCurve":
-        return f.dataclass(cls)
-
-
-@dataclass(frozen=True)
-class OscillationRow:
-    """One (model, dt) of the oscillation study: whether it completed (``error`` None), its
-    steps taken in substeps, its curve's :class:`OscillationMetrics` (the same fields: lengths
-    in m, times in s, rates in 1/s) and backward Euler's decay rate at this dt
-    (``euler_decay_rate``, 1/s) on the angular frequency the model shows at the smallest dt
-    (``omega_smallest_dt``, rad/s; both None when it does not oscillate there).
-    """
-
-    model: str
-    dt: float
-    error: Optional[str]
-    steps_split: int
-    extrema: int
-    first_peak: Optional[float]
-    period: Optional[float]
-    decay_rate: Optional[float]
-    overshoot: Optional[float]
-    final: float
-    peak: float
-    omega_smallest_dt: Optional[float]
-    euler_decay_rate: Optional[float]
-
-    def __post_init__(self) -> None:
-        f = RecordFields(self)
-        f.one_of("model", MODELS)
-        f.real("dt", positive=True)
-        f.text("error", optional=True)
-        f.count("steps_split")
-        _check_metrics(f)
-        f.real("omega_smallest_dt", optional=True)
-        f.real("euler_decay_rate", optional=True)
-
-    @classmethod
-    def of_run(cls, run: LiverRun, metrics: OscillationMetrics) -> "OscillationRow":
-        """The row of one run and its curve's metrics, before the Euler rates are known."""
-        return cls(
-            model=run.model,
-            dt=run.dt,
-            error=run.error,
-            steps_split=run.steps_split,
-            **dataclasses.asdict(metrics),
-            omega_smallest_dt=None,
-            euler_decay_rate=None,
-        )
-
-    @property
-    def completed(self) -> bool:
-        return self.error is None
-
-    def to_dict(self) -> dict:
-        out = {"model": self.model, "dt": self.dt, "completed": self.completed}
-        out.update({k: getattr(self, k) for k in json_keys(type(self))[2:]})
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationRow":
-        """The row from its JSON object; RecordError names a missing, unexpected or bad key."""
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "OscillationRow":
-        return f.dataclass(cls, derived=("completed",))
-
-
-@dataclass(frozen=True)
-class OscillationData:
-    """The oscillation study (paper Fig. 4 as described): every model at every dt (s) over
-    ``duration`` (s) on ``mesh`` without Rayleigh damping (``rayleigh``: r_M in 1/s, r_K in
-    s, both 0); the curves, one metrics row per run, the models by peak amplitude at
-    ``amplitude_ordering_dt`` (largest first) and the figures written.
-    """
-
-    mesh: str
-    dts: Tuple[float, ...]
-    duration: float
-    rayleigh: Tuple[float, ...]
-    curves: Tuple[OscillationCurve, ...]
-    table: Tuple[OscillationRow, ...]
-    amplitude_ordering: Tuple[str, ...]
-    amplitude_ordering_dt: float
-    figures: Tuple[str, ...]
-
-    def __post_init__(self) -> None:
-        f = RecordFields(self)
-        f.text("mesh")
-        f.reals("dts")
-        f.real("duration", positive=True)
-        f.reals("rayleigh")
-        f.records("curves", OscillationCurve)
-        f.records("table", OscillationRow)
-        f.texts("amplitude_ordering")
-        f.real("amplitude_ordering_dt", positive=True)
-        f.texts("figures")
-
-    def to_dict(self) -> dict:
-        return {
-            "mesh": self.mesh,
-            "dts": list(self.dts),
-            "duration": self.duration,
-            "rayleigh": list(self.rayleigh),
-            "curves": [c.to_dict() for c in self.curves],
-            "table": [r.to_dict() for r in self.table],
-            "amplitude_ordering": list(self.amplitude_ordering),
-            "amplitude_ordering_dt": self.amplitude_ordering_dt,
-            "figures": list(self.figures),
-        }
-
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationData":
-        """The study from its JSON object; RecordError names a missing, unexpected or bad key
-        with its place (``<dict>: table/0: OscillationRow: key 'period' ...``).
-        """
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "OscillationData":
-        """The study from its JSON object as read by ``f`` (e.g. nested in the liver's)."""
-        nested = {}
-        for key, kind in (("curves", OscillationCurve), ("table", OscillationRow)):
-            if key in f.obj:
-                nested[key] = f.records(key, kind)
-        return f.dataclass(cls, **nested)
 
 
 # ----------------------------------------------------------------------------- the study

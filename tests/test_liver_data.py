@@ -10,16 +10,12 @@ import json
 import numpy as np
 import pytest
 
-from comparisons.liver_data import (
-    PHASES,
-    BackendAgreement,
-    LiverData,
-    LiverRun,
+from comparisons.liver_data import PHASES, BackendAgreement, LiverData, LiverRun, StepSplit
+from comparisons.oscillation_data import (
     OscillationCurve,
     OscillationData,
     OscillationMetrics,
     OscillationRow,
-    StepSplit,
 )
 
 #: The keys of a run's JSON record, in results.json's order (a porous run adds max_abs_pressure).
