@@ -6,18 +6,20 @@ presence and type and names the source (a file, or a label) and the key path on 
 ``reports/cross_release.json: stacks/1: missing key 'ranks'``. Keys a record does not read
 (``non_finite``, which ``write_json`` adds) are ignored, except by :meth:`JSONFields.dataclass`,
 which reads every field of a dataclass as it is (its construction checks the values, see
-:mod:`common.record_fields`) and refuses any other key.
+:mod:`common.record_fields`) and refuses any other key; a record read that way gets its
+``from_dict`` and ``from_fields`` from :class:`JSONRecord`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, TypeVar
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Type, TypeVar
 
-__all__ = ["RecordError", "JSONFields", "json_keys", "read_record"]
+__all__ = ["RecordError", "JSONFields", "JSONRecord", "json_keys"]
 
 T = TypeVar("T")
+R = TypeVar("R", bound="JSONRecord")
 
 
 class RecordError(ValueError):
@@ -184,11 +186,30 @@ class JSONFields:
         )
 
 
-def read_record(record_type: Any, payload: Any, source: str = "<dict>") -> Any:
-    """``record_type.from_fields`` of ``payload`` read from ``source`` (a record's
-    ``from_dict``), messages about the object naming the record.
+class JSONRecord:
+    """The reading back of a dataclass record whose JSON holds its fields as they are (a base
+    of the record's class; it adds no field).
+
+    ``from_fields`` is :meth:`JSONFields.dataclass` with the record's ``_DERIVED`` keys (the
+    values its JSON adds and it computes); a record holding nested records overrides it and
+    reads them with :meth:`JSONFields.records`.
     """
-    return record_type.from_fields(JSONFields(payload, source, record=record_type.__name__))
+
+    _DERIVED: Tuple[str, ...] = ()
+
+    @classmethod
+    def from_dict(cls: Type[R], payload: Any, source: str = "<dict>") -> R:
+        """The record from its JSON object, read from ``source`` (a file name or a label).
+
+        Raises:
+            RecordError: (a ValueError) a key missing, unexpected or bad, named with the source,
+                the key path and the record (``<dict>: runs/1: LiverRun: missing key 'dt'``).
+        """
+        return cls.from_fields(JSONFields(payload, source, record=cls.__name__))
+
+    @classmethod
+    def from_fields(cls: Type[R], f: JSONFields) -> R:
+        return f.dataclass(cls, derived=cls._DERIVED)
 
 
 def json_keys(record_type: Any) -> Tuple[str, ...]:

@@ -19,7 +19,7 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from common.json_fields import JSONFields, read_record
+from common.json_fields import JSONFields, JSONRecord
 from common.record_fields import RecordFields, is_real
 from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
 from comparisons.oscillation_data import OscillationData
@@ -58,7 +58,7 @@ class PressureSnapshot:
 
 
 @dataclass(frozen=True)
-class LiverRun:
+class LiverRun(JSONRecord):
     """One run of one liver model (``comparisons.liver_simulation.simulate``).
 
     model: one of MODELS. dt: the time step (s). steps_planned: the steps asked for.
@@ -240,17 +240,6 @@ class LiverRun:
             out["max_abs_pressure"] = list(self.max_abs_pressure)
         return out
 
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "LiverRun":
-        """The run from its JSON record; RecordError (a ValueError) names a missing, unexpected
-        or bad key.
-        """
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "LiverRun":
-        return f.dataclass(cls, derived=cls._DERIVED)
-
     def fps_row(self) -> dict:
         """The run's row of the JSON ``fps_table``."""
         keys = ("model", "backend", "dt", "fps", "cpu_fps", "paper_fps", "solver", "force_field")
@@ -271,7 +260,7 @@ def _is_reasons(r) -> bool:
 
 # ----------------------------------------------------------------------------- across runs
 @dataclass(frozen=True)
-class StepSplit:
+class StepSplit(JSONRecord):
     """Where the steps of one completed run went: ms_per_step (milliseconds of wall clock per
     step) and shares (the fraction of the stepping time of each of PHASES, summing to 1).
     """
@@ -296,17 +285,9 @@ class StepSplit:
             "shares": dict(self.shares),
         }
 
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "StepSplit":
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "StepSplit":
-        return f.dataclass(cls)
-
 
 @dataclass(frozen=True)
-class BackendAgreement:
+class BackendAgreement(JSONRecord):
     """A later backend's run against the reference backend's run of the same model: the
     largest difference of their max-displacement curves over the reference's peak
     (dimensionless; None when the two did not take the same steps).
@@ -327,18 +308,10 @@ class BackendAgreement:
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
 
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "BackendAgreement":
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "BackendAgreement":
-        return f.dataclass(cls)
-
 
 # ----------------------------------------------------------------------------- the study
 @dataclass(frozen=True)
-class LiverData:
+class LiverData(JSONRecord):
     """A liver study (``comparisons.liver.run_liver``; ``liver_study`` adds the oscillation
     study and the protocol).
 
@@ -351,7 +324,8 @@ class LiverData:
     Terzaghi check's record (``comparisons.terzaghi.run_terzaghi``); figures and series: the
     files written. oscillation, protocol: None until ``liver_study`` sets them.
 
-    Derived (properties, also written to JSON): backends, fps_table and passed.
+    Derived (properties, also written to JSON): backends, fps_table and passed. ``from_dict``
+    reads the JSON record back (a StudyResult's ``data``, or ``["data"]`` of a --json file).
     """
 
     mesh: str
@@ -465,15 +439,6 @@ class LiverData:
         if self.protocol is not None:
             out["protocol"] = self.protocol
         return out
-
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "LiverData":
-        """The study from its JSON record (e.g. a StudyResult's ``data``, or ``["data"]`` of a
-        --json file, read from ``source``); RecordError (a ValueError) names a missing,
-        unexpected or bad key, nested ones with their place (``<dict>: runs/1: LiverRun: key
-        'dt' ...``).
-        """
-        return read_record(cls, data, source)
 
     @classmethod
     def from_fields(cls, f: JSONFields) -> "LiverData":

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Optional, Tuple
+from typing import Optional, Tuple
 
-from common.json_fields import JSONFields, json_keys, read_record
+from common.json_fields import JSONFields, JSONRecord, json_keys
 from common.record_fields import RecordFields
 from comparisons.liver_setup import MODELS
 
@@ -54,7 +54,7 @@ def _check_metrics(f: RecordFields) -> None:
 
 
 @dataclass(frozen=True)
-class OscillationCurve:
+class OscillationCurve(JSONRecord):
     """One run of the oscillation study, as its figure and results.json keep it (a part of
     its ``LiverRun``): time (s), max_displacement (m), fps (steps per second).
     """
@@ -97,18 +97,9 @@ class OscillationCurve:
         out.update(time=list(self.time), max_displacement=list(self.max_displacement))
         return out
 
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationCurve":
-        """The curve from its JSON object; RecordError names a missing, unexpected or bad key."""
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "OscillationCurve":
-        return f.dataclass(cls)
-
 
 @dataclass(frozen=True)
-class OscillationRow:
+class OscillationRow(JSONRecord):
     """One (model, dt) of the oscillation study: whether it completed (``error`` None), its
     steps taken in substeps, its curve's :class:`OscillationMetrics` (the same fields: lengths
     in m, times in s, rates in 1/s) and backward Euler's decay rate at this dt
@@ -159,23 +150,16 @@ class OscillationRow:
     def completed(self) -> bool:
         return self.error is None
 
+    _DERIVED = ("completed",)
+
     def to_dict(self) -> dict:
         out = {"model": self.model, "dt": self.dt, "completed": self.completed}
         out.update({k: getattr(self, k) for k in json_keys(type(self))[2:]})
         return out
 
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationRow":
-        """The row from its JSON object; RecordError names a missing, unexpected or bad key."""
-        return read_record(cls, data, source)
-
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "OscillationRow":
-        return f.dataclass(cls, derived=("completed",))
-
 
 @dataclass(frozen=True)
-class OscillationData:
+class OscillationData(JSONRecord):
     """The oscillation study (paper Fig. 4 as described): every model at every dt (s) over
     ``duration`` (s) on ``mesh`` without Rayleigh damping (``rayleigh``: r_M in 1/s, r_K in
     s, both 0); the curves, one metrics row per run, the models by peak amplitude at
@@ -216,13 +200,6 @@ class OscillationData:
             "amplitude_ordering_dt": self.amplitude_ordering_dt,
             "figures": list(self.figures),
         }
-
-    @classmethod
-    def from_dict(cls, data: Any, source: str = "<dict>") -> "OscillationData":
-        """The study from its JSON object; RecordError names a missing, unexpected or bad key
-        with its place (``<dict>: table/0: OscillationRow: key 'period' ...``).
-        """
-        return read_record(cls, data, source)
 
     @classmethod
     def from_fields(cls, f: JSONFields) -> "OscillationData":

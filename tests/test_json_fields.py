@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-from common.json_fields import JSONFields, RecordError, json_keys, read_record
+from common.json_fields import JSONFields, JSONRecord, RecordError, json_keys
 
 PAYLOAD = {
     "n": 3,
@@ -69,7 +69,7 @@ def test_a_record_s_own_validation_is_named_too():
 
 
 @dataclasses.dataclass(frozen=True)
-class Row:
+class Row(JSONRecord):
     label: str
     x: float = 0.0
     cache: Any = dataclasses.field(default=None, metadata={"json": False})
@@ -78,9 +78,7 @@ class Row:
         if not isinstance(self.label, str):
             raise ValueError(f"Row: key 'label' must be a string, got {self.label!r}")
 
-    @classmethod
-    def from_fields(cls, f: JSONFields) -> "Row":
-        return f.dataclass(cls, derived=("twice",))
+    _DERIVED = ("twice",)
 
 
 def test_a_dataclass_reads_its_fields_and_refuses_any_other_key():
@@ -89,7 +87,7 @@ def test_a_dataclass_reads_its_fields_and_refuses_any_other_key():
         "rows", Row
     )
     assert rows == (Row("a", 2.0),)
-    assert read_record(Row, {"label": "b", "twice": 0.0}) == Row("b")  # x has a default
+    assert Row.from_dict({"label": "b", "twice": 0.0}) == Row("b")  # x has a default
 
     def refusal(payload):
         with pytest.raises(RecordError) as info:
@@ -108,4 +106,4 @@ def test_a_dataclass_reads_its_fields_and_refuses_any_other_key():
     assert refusal([[]]) == "t.json: rows/0: Row: expected a JSON object, got list"
     assert refusal("a") == "t.json: rows: expected a list, got str"
     with pytest.raises(RecordError, match="^<dict>: Row: expected a JSON object, got list$"):
-        read_record(Row, [])
+        Row.from_dict([])
