@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 from typing import Any, Dict, Mapping, Optional, Tuple
 
 from common.json_fields import JSONFields
+from common.record_fields import RecordFields
 
 __all__ = [
     "QUANTITIES",
@@ -47,11 +48,9 @@ class SnapshotDiff:
     passed: bool
 
     def __post_init__(self) -> None:
-        if isinstance(self.n_cases, bool) or int(self.n_cases) != self.n_cases or self.n_cases < 0:
-            raise ValueError(f"SnapshotDiff: n_cases must be an integer >= 0, got {self.n_cases!r}")
-        object.__setattr__(self, "n_cases", int(self.n_cases))
-        if not isinstance(self.passed, bool):
-            raise ValueError(f"SnapshotDiff: passed must be a bool, got {self.passed!r}")
+        f = RecordFields(self)
+        f.count("n_cases")
+        f.flag("passed")
 
     def by_quantity(self) -> Tuple[Tuple[str, float], ...]:
         """(quantity, relative difference) for energy, force and stiffness."""
@@ -90,11 +89,10 @@ class StackRun:
     seconds: float
 
     def __post_init__(self) -> None:
-        if isinstance(self.ranks, bool) or int(self.ranks) != self.ranks or self.ranks < 1:
-            raise ValueError(f"StackRun {self.label!r}: ranks must be >= 1, got {self.ranks!r}")
-        object.__setattr__(self, "ranks", int(self.ranks))
-        object.__setattr__(self, "versions", dict(self.versions))
-        object.__setattr__(self, "cells_per_rank", tuple(int(n) for n in self.cells_per_rank))
+        f = RecordFields(self, name=f"StackRun {self.label!r}")
+        f.count("ranks", minimum=1)
+        f.mapping("versions")
+        f.counts("cells_per_rank")
 
     def to_dict(self) -> Dict[str, Any]:
         return {
@@ -178,10 +176,16 @@ class CrossReleaseResult:
     figures: Tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in ("stacks", "comparisons", "missing", "errors", "figures"):
-            object.__setattr__(self, name, tuple(getattr(self, name)))
-        if not (self.tolerance > 0):
-            raise ValueError(f"CrossReleaseResult: tolerance must be > 0, got {self.tolerance!r}")
+        f = RecordFields(self)
+        for name, kind in (
+            ("stacks", StackRun),
+            ("comparisons", StackComparison),
+            ("missing", MissingStack),
+            ("errors", StackError),
+        ):
+            f.records(name, kind)
+        f.texts("figures")
+        f.real("tolerance", positive=True)
         first = self.stacks[0].label if self.stacks else None
         if self.reference != first:
             raise ValueError(

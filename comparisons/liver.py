@@ -101,7 +101,6 @@ from comparisons.liver_data import (
     BackendAgreement,
     LiverData,
     LiverRun,
-    OscillationData,
     StepSplit,
 )
 from comparisons.liver_setup import (
@@ -122,6 +121,7 @@ from comparisons.liver_setup import (
     numpy_force_field,
 )
 from comparisons.liver_simulation import PHASES, _SeriesWriter, simulate
+from comparisons.oscillation_data import OscillationData
 
 
 def run_liver(

@@ -1,25 +1,28 @@
 """What the liver study records, as typed records.
 
-``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run,
-``comparisons.liver.run_liver`` a :class:`LiverData` holding them, and the oscillation study
-(``comparisons.oscillation``) an :class:`OscillationData`. The checks, tables, figures and the
-command line read them by attribute; ``to_dict()`` gives the JSON form written to
-``results.json`` and ``--json`` (the keys are the field names, plus the derived values listed
-in each record), and ``from_dict()`` reads it back, refusing a missing, unexpected or bad key
-by name. Times are in seconds, lengths in metres, pressures in pascals, frame rates in steps
-per second.
+``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run and
+``comparisons.liver.run_liver`` a :class:`LiverData` holding them (with the oscillation study's
+``comparisons.oscillation_data.OscillationData`` once ``liver_study`` adds it). The checks,
+tables, figures and the command line read them by attribute; ``to_dict()`` gives the JSON form
+written to ``results.json`` and ``--json`` (the keys are the field names, plus the derived values
+listed in each record), and ``from_dict()`` reads it back (``common.json_fields``), refusing a
+missing, unexpected or bad key by name and place. Each record checks its fields on construction
+(``common.record_fields``). Times are in seconds, lengths in metres, pressures in pascals, frame
+rates in steps per second.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
 from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from common.json_fields import JSONFields, JSONRecord
+from common.record_fields import RecordFields, is_real
 from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
+from comparisons.oscillation_data import OscillationData
 
 __all__ = [
     "PHASES",
@@ -27,10 +30,6 @@ __all__ = [
     "LiverRun",
     "StepSplit",
     "BackendAgreement",
-    "OscillationMetrics",
-    "OscillationCurve",
-    "OscillationRow",
-    "OscillationData",
     "LiverData",
 ]
 
@@ -42,140 +41,6 @@ PHASES = (
     "linear solve",
     "rest",
 )
-
-
-# ----------------------------------------------------------------------------- validation
-def _bad(obj, key: str, want: str, got) -> ValueError:
-    text = repr(got)
-    text = text if len(text) <= 120 else text[:117] + "..."
-    return ValueError(f"{type(obj).__name__}: key {key!r} must be {want}, got {text}")
-
-
-def _is_real(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-
-
-def _is_count(v) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 0
-
-
-def _set(obj, key: str, value) -> None:
-    object.__setattr__(obj, key, value)
-
-
-def _real(obj, key: str, *, positive: bool = False, optional: bool = False) -> None:
-    """A number (> 0 when ``positive``; None allowed when ``optional``), stored as a float."""
-    v = getattr(obj, key)
-    if v is None and optional:
-        return
-    if not _is_real(v) or (positive and not (math.isfinite(v) and v > 0)):
-        want = "a finite number > 0" if positive else "a number"
-        raise _bad(obj, key, want + (" or None" if optional else ""), v)
-    _set(obj, key, float(v))
-
-
-def _count(obj, key: str) -> None:
-    """An integer >= 0, stored as an int."""
-    v = getattr(obj, key)
-    if not _is_count(v):
-        raise _bad(obj, key, "an integer >= 0", v)
-    _set(obj, key, int(v))
-
-
-def _text(obj, key: str, *, optional: bool = False) -> None:
-    v = getattr(obj, key)
-    if not (isinstance(v, str) or (optional and v is None)):
-        raise _bad(obj, key, "a string" + (" or None" if optional else ""), v)
-
-
-def _flag(obj, key: str) -> None:
-    if not isinstance(getattr(obj, key), (bool, np.bool_)):
-        raise _bad(obj, key, "true or false", getattr(obj, key))
-    _set(obj, key, bool(getattr(obj, key)))
-
-
-def _items(obj, key: str, ok, want: str, convert, *, optional: bool = False) -> None:
-    """A list of items that pass ``ok``, stored as a tuple of ``convert(item)``."""
-    v = getattr(obj, key)
-    if v is None and optional:
-        return
-    if isinstance(v, (str, bytes, Mapping)) or not isinstance(v, (Sequence, np.ndarray)):
-        raise _bad(obj, key, f"a list of {want}", v)
-    for i, item in enumerate(v):
-        if not ok(item):
-            raise _bad(obj, f"{key}[{i}]", want, item)
-    _set(obj, key, tuple(convert(item) for item in v))
-
-
-def _reals(obj, key: str, *, optional: bool = False) -> None:
-    _items(obj, key, _is_real, "numbers", float, optional=optional)
-
-
-def _counts(obj, key: str, *, optional: bool = False) -> None:
-    _items(obj, key, _is_count, "integers >= 0", int, optional=optional)
-
-
-def _texts(obj, key: str) -> None:
-    _items(obj, key, lambda s: isinstance(s, str), "strings", str)
-
-
-def _per_phase(obj, key: str) -> None:
-    """A mapping of each of PHASES (in that order) to a number, stored as a dict of floats."""
-    v = getattr(obj, key)
-    if not isinstance(v, Mapping) or list(v) != list(PHASES):
-        raise _bad(obj, key, f"an object with the keys {list(PHASES)}", v)
-    for phase, x in v.items():
-        if not _is_real(x):
-            raise _bad(obj, f"{key}[{phase!r}]", "a number", x)
-    _set(obj, key, {phase: float(x) for phase, x in v.items()})
-
-
-def _model(obj, key: str = "model") -> None:
-    if getattr(obj, key) not in MODELS:
-        raise _bad(obj, key, f"one of {list(MODELS)}", getattr(obj, key))
-
-
-def _json_keys(cls) -> Tuple[str, ...]:
-    """The fields of ``cls`` that are written to JSON (not those marked ``json=False``)."""
-    return tuple(f.name for f in dataclasses.fields(cls) if f.metadata.get("json", True))
-
-
-def _from_json(cls, data, derived: Sequence[str] = (), **parsed):
-    """``cls`` from its JSON object: every field key must be there (those with a default may
-    be left out), the ``derived`` keys too (they are recomputed, not read), no other key;
-    ``parsed`` gives the values of nested records already read. ValueError names the key.
-    """
-    name = cls.__name__
-    if not isinstance(data, Mapping):
-        raise ValueError(f"{name}: expected a JSON object, got {type(data).__name__}")
-    optional = {
-        f.name
-        for f in dataclasses.fields(cls)
-        if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
-    }
-    keys = _json_keys(cls)
-    for key in (*keys, *derived):
-        if key not in data and key not in optional:
-            raise ValueError(f"{name}: missing key {key!r}")
-    unexpected = [k for k in data if k not in keys and k not in derived]
-    if unexpected:
-        raise ValueError(f"{name}: unexpected key {unexpected[0]!r}")
-    values = {k: data[k] for k in keys if k in data}
-    values.update(parsed)
-    return cls(**values)
-
-
-def _nested(cls, items, where: str) -> tuple:
-    """A list of ``cls`` records from their JSON objects; errors say which one (``where[i]``)."""
-    if isinstance(items, (str, Mapping)) or not isinstance(items, Sequence):
-        raise ValueError(f"key {where!r} must be a list of objects, got {items!r}")
-    out = []
-    for i, item in enumerate(items):
-        try:
-            out.append(cls.from_dict(item))
-        except ValueError as exc:
-            raise ValueError(f"{where}[{i}]: {exc}") from None
-    return tuple(out)
 
 
 # ----------------------------------------------------------------------------- one run
@@ -193,7 +58,7 @@ class PressureSnapshot:
 
 
 @dataclass(frozen=True)
-class LiverRun:
+class LiverRun(JSONRecord):
     """One run of one liver model (``comparisons.liver_simulation.simulate``).
 
     model: one of MODELS. dt: the time step (s). steps_planned: the steps asked for.
@@ -235,42 +100,40 @@ class LiverRun:
     )
 
     def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _text(self, "error", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.real("dt", positive=True)
+        f.text("error", optional=True)
         for key in ("solver", "force_field", "backend"):
-            _text(self, key)
+            f.text(key)
         for key in ("steps_planned", "factorizations"):
-            _count(self, key)
+            f.count(key)
         for key in ("time", "max_displacement"):
-            _reals(self, key)
-        _reals(self, "max_abs_pressure", optional=True)
+            f.reals(key)
+        f.reals("max_abs_pressure", optional=True)
         for key in ("cg_iterations", "substeps", "inverted_cells"):
-            _counts(self, key)
-        _items(self, "retries", _is_reasons, "lists of strings", lambda r: tuple(map(str, r)))
-        _real(self, "stepping_seconds")
-        _real(self, "cpu_fps", optional=True)
-        _per_phase(self, "phase_seconds")
-        self._check_lengths()
+            f.counts(key)
+        f.items("retries", _is_reasons, "lists of strings", lambda r: tuple(map(str, r)))
+        f.real("stepping_seconds")
+        f.real("cpu_fps", optional=True)
+        f.reals_by_key("phase_seconds", PHASES)
+        self._check_lengths(f)
 
-    def _check_lengths(self) -> None:
+    def _check_lengths(self, f: RecordFields) -> None:
         """One entry per step (cg_iterations, ...) and one more per state (time, ...)."""
         n = len(self.cg_iterations)
         per_state = ["time", "max_displacement"]
         per_state += [] if self.max_abs_pressure is None else ["max_abs_pressure"]
         for key in per_state:
             if len(getattr(self, key)) != n + 1:
-                raise _bad(
-                    self,
-                    key,
-                    f"{n + 1} values (the steps taken, plus t = 0)",
-                    len(getattr(self, key)),
+                raise f.refusal(
+                    key, f"{n + 1} values (the steps taken, plus t = 0)", len(getattr(self, key))
                 )
         for key in ("substeps", "retries", "inverted_cells"):
             if len(getattr(self, key)) != n:
-                raise _bad(self, key, f"{n} values (one per step taken)", len(getattr(self, key)))
+                raise f.refusal(key, f"{n} values (one per step taken)", len(getattr(self, key)))
         if n > self.steps_planned:
-            raise _bad(self, "steps_planned", f">= the {n} steps taken", self.steps_planned)
+            raise f.refusal("steps_planned", f">= the {n} steps taken", self.steps_planned)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -377,11 +240,6 @@ class LiverRun:
             out["max_abs_pressure"] = list(self.max_abs_pressure)
         return out
 
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "LiverRun":
-        """The run from its JSON record; ValueError names a missing, unexpected or bad key."""
-        return _from_json(cls, data, cls._DERIVED)
-
     def fps_row(self) -> dict:
         """The run's row of the JSON ``fps_table``."""
         keys = ("model", "backend", "dt", "fps", "cpu_fps", "paper_fps", "solver", "force_field")
@@ -402,7 +260,7 @@ def _is_reasons(r) -> bool:
 
 # ----------------------------------------------------------------------------- across runs
 @dataclass(frozen=True)
-class StepSplit:
+class StepSplit(JSONRecord):
     """Where the steps of one completed run went: ms_per_step (milliseconds of wall clock per
     step) and shares (the fraction of the stepping time of each of PHASES, summing to 1).
     """
@@ -413,10 +271,11 @@ class StepSplit:
     shares: Dict[str, float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _text(self, "backend")
-        _real(self, "ms_per_step", positive=True)
-        _per_phase(self, "shares")
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.text("backend")
+        f.real("ms_per_step", positive=True)
+        f.reals_by_key("shares", PHASES)
 
     def to_dict(self) -> dict:
         return {
@@ -426,13 +285,9 @@ class StepSplit:
             "shares": dict(self.shares),
         }
 
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "StepSplit":
-        return _from_json(cls, data)
-
 
 @dataclass(frozen=True)
-class BackendAgreement:
+class BackendAgreement(JSONRecord):
     """A later backend's run against the reference backend's run of the same model: the
     largest difference of their max-displacement curves over the reference's peak
     (dimensionless; None when the two did not take the same steps).
@@ -444,218 +299,19 @@ class BackendAgreement:
     relative_difference: Optional[float]
 
     def __post_init__(self) -> None:
-        _model(self)
-        _text(self, "backend")
-        _text(self, "reference")
-        _real(self, "relative_difference", optional=True)
+        f = RecordFields(self)
+        f.one_of("model", MODELS)
+        f.text("backend")
+        f.text("reference")
+        f.real("relative_difference", optional=True)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
 
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "BackendAgreement":
-        return _from_json(cls, data)
-
-
-# ----------------------------------------------------------------------------- oscillation
-@dataclass(frozen=True)
-class OscillationMetrics:
-    """What one max-displacement curve shows (``comparisons.oscillation.oscillation_metrics``).
-
-    extrema: the significant extrema (0: no oscillation); first_peak: the first maximum (m);
-    period (s); decay_rate: of the swings between extrema (1/s; None with fewer than two
-    swings); overshoot: first peak over the final value; final and peak: the last and the
-    largest value (m). None where the curve does not show it.
-    """
-
-    extrema: int
-    first_peak: Optional[float]
-    period: Optional[float]
-    decay_rate: Optional[float]
-    overshoot: Optional[float]
-    final: float
-    peak: float
-
-    def __post_init__(self) -> None:
-        _check_metrics(self)
-
-
-def _check_metrics(obj) -> None:
-    """The fields of OscillationMetrics, on it or on an OscillationRow."""
-    _count(obj, "extrema")
-    for key in ("first_peak", "period", "decay_rate", "overshoot"):
-        _real(obj, key, optional=True)
-    _real(obj, "final")
-    _real(obj, "peak")
-
-
-@dataclass(frozen=True)
-class OscillationCurve:
-    """One run of the oscillation study, as its figure and results.json keep it (a part of
-    its :class:`LiverRun`): time (s), max_displacement (m), fps (steps per second).
-    """
-
-    model: str
-    dt: float
-    time: Tuple[float, ...]
-    max_displacement: Tuple[float, ...]
-    error: Optional[str]
-    steps: int
-    steps_planned: int
-    steps_split: int
-    substeps_total: int
-    fps: Optional[float]
-
-    def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _reals(self, "time")
-        _reals(self, "max_displacement")
-        _text(self, "error", optional=True)
-        for key in ("steps", "steps_planned", "steps_split", "substeps_total"):
-            _count(self, key)
-        _real(self, "fps", optional=True)
-        if len(self.time) != len(self.max_displacement):
-            raise _bad(
-                self,
-                "max_displacement",
-                f"{len(self.time)} values (one per time)",
-                len(self.max_displacement),
-            )
-
-    @classmethod
-    def of_run(cls, run: LiverRun) -> "OscillationCurve":
-        return cls(**{k: getattr(run, k) for k in _json_keys(cls)})
-
-    def to_dict(self) -> dict:
-        out = dataclasses.asdict(self)
-        out.update(time=list(self.time), max_displacement=list(self.max_displacement))
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationCurve":
-        return _from_json(cls, data)
-
-
-@dataclass(frozen=True)
-class OscillationRow:
-    """One (model, dt) of the oscillation study: whether it completed (``error`` None), its
-    steps taken in substeps, its curve's :class:`OscillationMetrics` (the same fields: lengths
-    in m, times in s, rates in 1/s) and backward Euler's decay rate at this dt
-    (``euler_decay_rate``, 1/s) on the angular frequency the model shows at the smallest dt
-    (``omega_smallest_dt``, rad/s; both None when it does not oscillate there).
-    """
-
-    model: str
-    dt: float
-    error: Optional[str]
-    steps_split: int
-    extrema: int
-    first_peak: Optional[float]
-    period: Optional[float]
-    decay_rate: Optional[float]
-    overshoot: Optional[float]
-    final: float
-    peak: float
-    omega_smallest_dt: Optional[float]
-    euler_decay_rate: Optional[float]
-
-    def __post_init__(self) -> None:
-        _model(self)
-        _real(self, "dt", positive=True)
-        _text(self, "error", optional=True)
-        _count(self, "steps_split")
-        _check_metrics(self)
-        _real(self, "omega_smallest_dt", optional=True)
-        _real(self, "euler_decay_rate", optional=True)
-
-    @classmethod
-    def of_run(cls, run: LiverRun, metrics: OscillationMetrics) -> "OscillationRow":
-        """The row of one run and its curve's metrics, before the Euler rates are known."""
-        return cls(
-            model=run.model,
-            dt=run.dt,
-            error=run.error,
-            steps_split=run.steps_split,
-            **dataclasses.asdict(metrics),
-            omega_smallest_dt=None,
-            euler_decay_rate=None,
-        )
-
-    @property
-    def completed(self) -> bool:
-        return self.error is None
-
-    def to_dict(self) -> dict:
-        out = {"model": self.model, "dt": self.dt, "completed": self.completed}
-        out.update({k: getattr(self, k) for k in _json_keys(type(self))[2:]})
-        return out
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationRow":
-        return _from_json(cls, data, ("completed",))
-
-
-@dataclass(frozen=True)
-class OscillationData:
-    """The oscillation study (paper Fig. 4 as described): every model at every dt (s) over
-    ``duration`` (s) on ``mesh`` without Rayleigh damping (``rayleigh``: r_M in 1/s, r_K in
-    s, both 0); the curves, one metrics row per run, the models by peak amplitude at
-    ``amplitude_ordering_dt`` (largest first) and the figures written.
-    """
-
-    mesh: str
-    dts: Tuple[float, ...]
-    duration: float
-    rayleigh: Tuple[float, ...]
-    curves: Tuple[OscillationCurve, ...]
-    table: Tuple[OscillationRow, ...]
-    amplitude_ordering: Tuple[str, ...]
-    amplitude_ordering_dt: float
-    figures: Tuple[str, ...]
-
-    def __post_init__(self) -> None:
-        _text(self, "mesh")
-        _reals(self, "dts")
-        _real(self, "duration", positive=True)
-        _reals(self, "rayleigh")
-        _items(self, "curves", lambda c: isinstance(c, OscillationCurve), "OscillationCurve", _same)
-        _items(self, "table", lambda r: isinstance(r, OscillationRow), "OscillationRow", _same)
-        _texts(self, "amplitude_ordering")
-        _real(self, "amplitude_ordering_dt", positive=True)
-        _texts(self, "figures")
-
-    def to_dict(self) -> dict:
-        return {
-            "mesh": self.mesh,
-            "dts": list(self.dts),
-            "duration": self.duration,
-            "rayleigh": list(self.rayleigh),
-            "curves": [c.to_dict() for c in self.curves],
-            "table": [r.to_dict() for r in self.table],
-            "amplitude_ordering": list(self.amplitude_ordering),
-            "amplitude_ordering_dt": self.amplitude_ordering_dt,
-            "figures": list(self.figures),
-        }
-
-    @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "OscillationData":
-        """The study from its JSON object; ValueError names a missing, unexpected or bad key."""
-        nested = {}
-        if isinstance(data, Mapping):
-            for key, kind in (("curves", OscillationCurve), ("table", OscillationRow)):
-                if key in data:
-                    nested[key] = _nested(kind, data[key], key)
-        return _from_json(cls, data, **nested)
-
-
-def _same(x):
-    return x
-
 
 # ----------------------------------------------------------------------------- the study
 @dataclass(frozen=True)
-class LiverData:
+class LiverData(JSONRecord):
     """A liver study (``comparisons.liver.run_liver``; ``liver_study`` adds the oscillation
     study and the protocol).
 
@@ -668,7 +324,8 @@ class LiverData:
     Terzaghi check's record (``comparisons.terzaghi.run_terzaghi``); figures and series: the
     files written. oscillation, protocol: None until ``liver_study`` sets them.
 
-    Derived (properties, also written to JSON): backends, fps_table and passed.
+    Derived (properties, also written to JSON): backends, fps_table and passed. ``from_dict``
+    reads the JSON record back (a StudyResult's ``data``, or ``["data"]`` of a --json file).
     """
 
     mesh: str
@@ -696,39 +353,36 @@ class LiverData:
     protocol: Optional[str] = None
 
     def __post_init__(self) -> None:
+        f = RecordFields(self)
         for key in ("mesh", "mesh_description", "numbering"):
-            _text(self, key)
+            f.text(key)
         for key in ("n_nodes", "n_cells", "reoriented_cells", "unused_nodes", "n_fixed"):
-            _count(self, key)
-        _real(self, "scale", positive=True)
-        _real(self, "duration", positive=True)
-        _flag(self, "quick")
+            f.count(key)
+        f.real("scale", positive=True)
+        f.real("duration", positive=True)
+        f.flag("quick")
         for key in ("mesh_warnings", "fixed_regions", "figures", "series"):
-            _texts(self, key)
-        _counts(self, "fixed_node_ids", optional=True)
-        for key, kind in (
-            ("runs", LiverRun),
-            ("step_split", StepSplit),
-            ("backend_agreement", BackendAgreement),
-        ):
-            _items(self, key, lambda x, k=kind: isinstance(x, k), kind.__name__, _same)
-        self._check_records()
+            f.texts(key)
+        f.counts("fixed_node_ids", optional=True)
+        for key, kind in _NESTED:
+            f.records(key, kind)
+        self._check_records(f)
 
-    def _check_records(self) -> None:
+    def _check_records(self, f: RecordFields) -> None:
         """Check the parameters (an object), terzaghi (its "times") and the optional parts."""
         if not isinstance(self.parameters, Mapping):
-            raise _bad(self, "parameters", "an object (LiverParameters.to_dict())", self.parameters)
+            raise f.refusal("parameters", "an object (LiverParameters.to_dict())", self.parameters)
         times = self.terzaghi.get("times") if isinstance(self.terzaghi, Mapping) else None
         ok = isinstance(times, Sequence) and all(
-            isinstance(t, Mapping) and _is_real(t.get("relative_l2_error")) for t in times
+            isinstance(t, Mapping) and is_real(t.get("relative_l2_error")) for t in times
         )
         if not (ok and times):
-            raise _bad(
-                self, "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
+            raise f.refusal(
+                "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
             )
         if not (self.oscillation is None or isinstance(self.oscillation, OscillationData)):
-            raise _bad(self, "oscillation", "an OscillationData or None", self.oscillation)
-        _text(self, "protocol", optional=True)
+            raise f.refusal("oscillation", "an OscillationData or None", self.oscillation)
+        f.text("protocol", optional=True)
 
     # ------------------------------------------------------------------ derived
     @property
@@ -787,23 +441,17 @@ class LiverData:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "LiverData":
-        """The study from its JSON record (e.g. a StudyResult's ``data``, or ``["data"]`` of a
-        --json file); ValueError names a missing, unexpected or bad key, nested ones with their
-        place (``runs[1]: LiverRun: key 'dt' ...``).
-        """
+    def from_fields(cls, f: JSONFields) -> "LiverData":
         nested: Dict[str, Any] = {}
-        if isinstance(data, Mapping):
-            for key, kind in (
-                ("runs", LiverRun),
-                ("step_split", StepSplit),
-                ("backend_agreement", BackendAgreement),
-            ):
-                if key in data:
-                    nested[key] = _nested(kind, data[key], key)
-            if data.get("oscillation") is not None:
-                try:
-                    nested["oscillation"] = OscillationData.from_dict(data["oscillation"])
-                except ValueError as exc:
-                    raise ValueError(f"oscillation: {exc}") from None
-        return _from_json(cls, data, cls._DERIVED, **nested)
+        for key, kind in _NESTED:
+            if key in f.obj:
+                nested[key] = f.records(key, kind)
+        if f.obj.get("oscillation") is not None:
+            nested["oscillation"] = OscillationData.from_fields(
+                f.object("oscillation", "OscillationData")
+            )
+        return f.dataclass(cls, derived=cls._DERIVED, **nested)
+
+
+#: The lists of records a LiverData holds: its key, the record type.
+_NESTED = (("runs", LiverRun), ("step_split", StepSplit), ("backend_agreement", BackendAgreement))

@@ -6,7 +6,8 @@ from typing import Sequence
 
 import numpy as np
 
-from comparisons.liver_data import LiverRun, OscillationCurve, OscillationRow, StepSplit
+from comparisons.liver_data import LiverRun, StepSplit
+from comparisons.oscillation_data import OscillationCurve, OscillationRow
 
 __all__ = [
     "plot_porous_stress",

@@ -32,7 +32,7 @@ from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
-from comparisons.liver_data import (
+from comparisons.oscillation_data import (
     OscillationCurve,
     OscillationData,
     OscillationMetrics,

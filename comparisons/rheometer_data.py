@@ -19,6 +19,7 @@ from typing import Any, Dict, Tuple
 import numpy as np
 
 from common.json_fields import JSONFields
+from common.record_fields import RecordFields
 from mjed.materials import StVenantKirchhoff
 from mjed.viscous import Prony
 
@@ -63,12 +64,12 @@ class RheometerSpec:
     n_frequencies: int = 13
 
     def __post_init__(self):
+        f = RecordFields(self)
         for name in ("radius", "height", "G0", "amplitude"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+            f.real(name, positive=True)
+        f.real("poisson")
         if not (-1.0 < self.poisson < 0.5):
-            raise ValueError(f"poisson must lie in (-1, 0.5), got {self.poisson!r}")
+            raise f.refusal("poisson", "a number in (-1, 0.5)", self.poisson)
         for name, low in (
             ("target_cells", 1),
             ("samples_per_period", 8),
@@ -76,9 +77,7 @@ class RheometerSpec:
             ("measured_periods", 1),
             ("n_frequencies", 1),
         ):
-            v = getattr(self, name)
-            if int(v) != v or v < low:
-                raise ValueError(f"{name} must be an integer >= {low}, got {v!r}")
+            f.count(name, minimum=low)
         self.prony  # validates alphas and taus
 
     @property
@@ -176,18 +175,14 @@ class FrequencyRow:
     rel_err_discrete: Pair
 
     def __post_init__(self) -> None:
+        f = RecordFields(self)
         for name in ("omega", "dt", "frequency_hz"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"FrequencyRow: {name} must be finite and > 0, got {v!r}")
-        if isinstance(self.steps, bool) or int(self.steps) != self.steps or self.steps < 1:
-            raise ValueError(f"FrequencyRow: steps must be an integer >= 1, got {self.steps!r}")
-        object.__setattr__(self, "steps", int(self.steps))
+            f.real(name, positive=True)
+        f.count("steps", minimum=1)
         for name in ("continuous", "discrete", "rel_err_continuous", "rel_err_discrete"):
-            pair = tuple(float(v) for v in getattr(self, name))
-            if len(pair) != 2:
-                raise ValueError(f"FrequencyRow: {name} must hold (G', G''), got {pair!r}")
-            object.__setattr__(self, name, pair)
+            f.reals(name)
+            if len(getattr(self, name)) != 2:
+                raise f.refusal(name, "2 numbers (G', G'')", getattr(self, name))
 
     def to_dict(self) -> Dict[str, Any]:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
@@ -264,7 +259,7 @@ class Sweep:
     errors: SweepErrors
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "frequencies", tuple(self.frequencies))
+        RecordFields(self).records("frequencies", FrequencyRow)
         if not self.frequencies:
             raise ValueError("Sweep: no frequencies")
 
@@ -279,11 +274,9 @@ class SampleMesh:
     n_top: int
 
     def __post_init__(self) -> None:
+        f = RecordFields(self)
         for name in ("n_nodes", "n_cells", "n_bottom", "n_top"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v < 1:
-                raise ValueError(f"SampleMesh: {name} must be an integer >= 1, got {v!r}")
-            object.__setattr__(self, name, int(v))
+            f.count(name, minimum=1)
 
     @classmethod
     def from_fields(cls, f: JSONFields) -> "SampleMesh":
@@ -310,8 +303,9 @@ class RheometerResult:
     elapsed_s: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "frequencies", tuple(self.frequencies))
-        object.__setattr__(self, "figures", tuple(self.figures))
+        f = RecordFields(self)
+        f.records("frequencies", FrequencyRow)
+        f.texts("figures")
         if len(self.frequencies) != self.spec.n_frequencies:
             raise ValueError(
                 f"RheometerResult: {len(self.frequencies)} frequency rows for "

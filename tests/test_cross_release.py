@@ -274,7 +274,7 @@ def test_result_json_keeps_the_check_s_keys_and_reads_back():
         ),
         (
             lambda p: p["stacks"][1].update(ranks=0),
-            "xr.json: stacks/1: StackRun 'debian-mpi2': ranks must be >= 1, got 0",
+            "xr.json: stacks/1: StackRun 'debian-mpi2': key 'ranks' must be an integer >= 1, got 0",
         ),
     ],
 )
@@ -302,5 +302,5 @@ def test_comparisons_must_follow_the_stacks_that_ran():
         CrossReleaseResult(
             result.tolerance, result.reference, result.stacks, result.comparisons[:1]
         )
-    with pytest.raises(ValueError, match="n_cases must be an integer >= 0"):
+    with pytest.raises(ValueError, match="key 'n_cases' must be an integer >= 0"):
         SnapshotDiff(-1, 0.0, 0.0, 0.0, passed=True)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
 import pytest
 
-from common.json_fields import JSONFields, RecordError
+from common.json_fields import JSONFields, JSONRecord, RecordError, json_keys
 
 PAYLOAD = {
     "n": 3,
@@ -64,3 +66,44 @@ def test_a_record_s_own_validation_is_named_too():
     assert rows[1].build(record, value=2) == 2
     with pytest.raises(RecordError, match="^xr.json: expected a JSON object, got list$"):
         JSONFields([], "xr.json")
+
+
+@dataclasses.dataclass(frozen=True)
+class Row(JSONRecord):
+    label: str
+    x: float = 0.0
+    cache: Any = dataclasses.field(default=None, metadata={"json": False})
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.label, str):
+            raise ValueError(f"Row: key 'label' must be a string, got {self.label!r}")
+
+    _DERIVED = ("twice",)
+
+
+def test_a_dataclass_reads_its_fields_and_refuses_any_other_key():
+    assert json_keys(Row) == ("label", "x")
+    rows = JSONFields({"rows": [{"label": "a", "x": 2.0, "twice": 4.0}]}, "t.json").records(
+        "rows", Row
+    )
+    assert rows == (Row("a", 2.0),)
+    assert Row.from_dict({"label": "b", "twice": 0.0}) == Row("b")  # x has a default
+
+    def refusal(payload):
+        with pytest.raises(RecordError) as info:
+            JSONFields({"rows": payload}, "t.json").records("rows", Row)
+        return str(info.value)
+
+    assert refusal([{"x": 1.0, "twice": 2.0}]) == "t.json: rows/0: Row: missing key 'label'"
+    assert refusal([{"label": "a"}]) == "t.json: rows/0: Row: missing key 'twice'"
+    assert (
+        refusal([{"label": "a", "twice": 0, "cache": 1}])
+        == "t.json: rows/0: Row: unexpected key 'cache'"
+    )
+    assert refusal([{"label": 1, "twice": 0}]) == (
+        "t.json: rows/0: Row: key 'label' must be a string, got 1"
+    )
+    assert refusal([[]]) == "t.json: rows/0: Row: expected a JSON object, got list"
+    assert refusal("a") == "t.json: rows: expected a list, got str"
+    with pytest.raises(RecordError, match="^<dict>: Row: expected a JSON object, got list$"):
+        Row.from_dict([])

@@ -15,8 +15,9 @@ from common.result import Status
 from comparisons.cli import main
 from comparisons.commands import liver as liver_command_module
 from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, PHASES, liver_study
-from comparisons.liver_data import LiverData, LiverRun, OscillationData
+from comparisons.liver_data import LiverData, LiverRun
 from comparisons.oscillation import euler_decay_rate, oscillation_metrics
+from comparisons.oscillation_data import OscillationData
 from mjed.compiled import numba_available
 
 pytest.importorskip("meshio")

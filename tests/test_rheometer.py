@@ -270,9 +270,14 @@ def test_record_from_dict_refuses_wrong_values_and_names_them():
     refused(lambda p: p.update(lam=1.0), "dma.json: lam: 1.0 is not the spec's")
     refused(lambda p: p["frequencies"][0].update(steps="192"), "frequencies/0/steps: expected an")
     refused(lambda p: p["frequencies"][1]["discrete"].append(1.0), "frequencies/1/discrete: exp")
-    refused(lambda p: p["spec"].update(samples_per_period=4), "dma.json: spec: samples_per_per")
+    refused(
+        lambda p: p["spec"].update(samples_per_period=4),
+        "dma.json: spec: RheometerSpec: key 'samples_per_per",
+    )
     refused(lambda p: p["frequencies"].pop(), "dma.json: RheometerResult: 1 frequency rows for")
-    refused(lambda p: p["frequencies"][0].update(dt=0.0), "frequencies/0: FrequencyRow: dt must")
+    refused(
+        lambda p: p["frequencies"][0].update(dt=0.0), "frequencies/0: FrequencyRow: key 'dt' must"
+    )
     refused(lambda p: p.update(figures="a.png"), "dma.json: figures: expected a list")
 
 
@@ -297,11 +302,11 @@ def test_records_are_frozen_and_validated_on_construction():
     record = _record()
     with pytest.raises(FrozenInstanceError):
         record.elapsed_s = 0.0
-    with pytest.raises(ValueError, match="continuous must hold"):
+    with pytest.raises(ValueError, match="key 'continuous' must be 2 numbers"):
         replace(record.frequencies[0], continuous=(1.0,))
-    with pytest.raises(ValueError, match="steps must be an integer"):
+    with pytest.raises(ValueError, match="key 'steps' must be an integer >= 1"):
         replace(record.frequencies[0], steps=0)
     with pytest.raises(ValueError, match="1 frequency rows for n_frequencies = 2"):
         replace(record, frequencies=record.frequencies[:1])
-    with pytest.raises(ValueError, match="n_cells must be an integer >= 1"):
+    with pytest.raises(ValueError, match="key 'n_cells' must be an integer >= 1"):
         replace(record.mesh, n_cells=0)
