@@ -31,7 +31,11 @@ __all__ = [
     "TERZAGHI_TOL",
     "LIVER_SOLVER",
     "BACKENDS",
+    "KNOWN_BACKENDS",
+    "GPU_BACKENDS",
     "backend_force_field",
+    "run_solver",
+    "device_synchronizer",
     "numpy_force_field",
     "default_fixed_specs",
 ]
@@ -59,60 +63,151 @@ LIVER_SOLVER = LinearSolverOptions(
 _BACKEND_LABELS = {
     "numpy": "NumPy MJED (mjed.HyperelasticForceField)",
     "numba": "compiled MJED (mjed.compiled.CompiledForceField, Numba)",
+    "cuda": "MJED on the GPU (mjed.cuda.CudaForceField, FP64; implicit Euler's CG on the device)",
+    "cuda-fp32": "MJED on the GPU in single precision (mjed.cuda.CudaForceField, FP32; implicit "
+    "Euler's CG on the device in FP64)",
 }
+#: mjed.make_force_field's backend and options of each backend name of the study.
+_BACKEND_FIELDS = {
+    "numpy": ("numpy", {}),
+    "numba": ("numba", {}),
+    "cuda": ("cuda", {"dtype": np.float64}),
+    "cuda-fp32": ("cuda", {"dtype": np.float32}),
+}
+#: The backends on the GPU: their runs solve each step by the device CG (``solver="cuda-cg"``).
+GPU_BACKENDS = ("cuda", "cuda-fp32")
 
 
 def backend_force_field(backend: str) -> Callable:
     """The factory (mesh, material, *, regularize, allow_inverted) -> force field of
-    ``mjed.make_force_field(..., backend=backend)``, with ``backend`` and ``label`` attributes.
+    ``mjed.make_force_field(..., backend=...)``, with ``backend`` and ``label`` attributes, and
+    ``linear_solver`` (the run's LinearSolverOptions from the study's, see :func:`run_solver`)
+    and ``synchronize`` (waits for the device; :func:`simulate` calls it before stopping a
+    step's clock).
 
-    The compiled field is evaluated once at rest when built, so its kernel is compiled (or
-    loaded from Numba's cache) before any step is timed. Raises ValueError for an unknown
-    backend; building a "numba" field without Numba raises mjed.compiled.BackendUnavailable.
+    The compiled and the GPU fields are evaluated once at rest when built, so their kernels
+    are compiled (or loaded from Numba's cache) before any step is timed; for the GPU also the
+    device CG's kernels. Raises ValueError for an unknown backend; building a "numba" field
+    without Numba, or a "cuda" one without a CUDA device, raises
+    mjed.compiled.BackendUnavailable.
     """
     if backend not in _BACKEND_LABELS:
         raise ValueError(f"unknown backend {backend!r}; choose from {', '.join(_BACKEND_LABELS)}")
+    kind, options = _BACKEND_FIELDS[backend]
+    gpu = backend in GPU_BACKENDS
 
     def factory(mesh, material: Material, *, regularize: bool, allow_inverted: bool):
         import mjed
 
         field = mjed.make_force_field(
-            mesh, material, backend=backend, regularize=regularize, allow_inverted=allow_inverted
+            mesh,
+            material,
+            backend=kind,
+            regularize=regularize,
+            allow_inverted=allow_inverted,
+            **options,
         )
         if backend != "numpy":
             field.force_and_stiffness(
                 mesh.points
             )  # compile / load the kernel now, not in the first step
+        if gpu:
+            _warm_device_solver()
         return field
 
     factory.backend = backend
-    factory.label = _BACKEND_LABELS[backend]
+    factory.label = _BACKEND_LABELS[backend] + (_simulated_note() if gpu else "")
+    factory.linear_solver = _device_solver if gpu else (lambda options: options)
+    factory.synchronize = _synchronize_device if gpu else (lambda: None)
     factory.__qualname__ = f"backend_force_field({backend!r})"
     return factory
 
 
+def run_solver(force_field, params: LiverParameters) -> LinearSolverOptions:
+    """The linear solver of a run with this force field: ``params.solver``, or for a GPU
+    backend the device CG (Jacobi, the only preconditioner it runs) to the same relative
+    residual and iteration cap, so that the system never waits on a host factorisation.
+    A factory without ``linear_solver`` (given from Python) runs ``params.solver``.
+    """
+    choose = getattr(force_field, "linear_solver", None)
+    return params.solver if choose is None else choose(params.solver)
+
+
+def device_synchronizer(force_field) -> Callable[[], None]:
+    """What waits for the force field's device to finish (a no-op off the GPU)."""
+    return getattr(force_field, "synchronize", None) or (lambda: None)
+
+
+def _device_solver(options: LinearSolverOptions) -> LinearSolverOptions:
+    return LinearSolverOptions(
+        solver="cuda-cg", cg_tol=options.cg_tol, max_iterations=options.max_iterations
+    )
+
+
+def _synchronize_device() -> None:
+    """Wait for every kernel and copy on the device: a step's clock stops after its work."""
+    from numba import cuda
+
+    cuda.synchronize()
+
+
+def _simulated_note() -> str:
+    from mjed.cuda import simulated
+
+    return " on Numba's CUDA simulator (not a GPU: its FPS mean nothing)" if simulated() else ""
+
+
+def _warm_device_solver() -> None:
+    """Compile the device CG's kernels (a 2 x 2 system taking two iterations) before any step
+    is timed: Numba compiles a kernel at its first launch.
+    """
+    import scipy.sparse as sp
+
+    from mjed.cuda.solvers import device_conjugate_gradient
+
+    A = sp.csr_matrix(np.array([[4.0, 1.0], [1.0, 3.0]]))
+    device_conjugate_gradient(A, np.array([1.0, 2.0]), tol=1e-14, max_iterations=4)
+
+
 #: The default force field: NumPy MJED (mjed.HyperelasticForceField).
 numpy_force_field = backend_force_field("numpy")
-#: The backends the study runs by default (every backend of mjed.make_force_field), the
+#: The backends the study runs by default (every CPU backend of mjed.make_force_field), the
 #: reference (first) one first.
 BACKENDS = MJED_BACKENDS
+#: Every backend the study can run (``--backends``): the defaults and the GPU ones.
+KNOWN_BACKENDS = tuple(_BACKEND_LABELS)
+
+
+def _unavailable(backend: str) -> Optional[str]:
+    """Why ``backend`` cannot run here, or None."""
+    from mjed.compiled import numba_available
+
+    if backend == "numba" and not numba_available():
+        return "the compiled (numba) backend: Numba is not installed (Debian: python3-numba)"
+    if backend in GPU_BACKENDS:
+        from mjed.cuda import BackendUnavailable, require_cuda
+
+        try:
+            require_cuda()
+        except BackendUnavailable as exc:
+            return f"the {backend} backend: not run: no GPU ({exc})"
+    return None
 
 
 def _backend_factories(backends: Sequence[str]):
-    """The factories of ``backends`` that can be built here, and what was left out (and why)."""
-    from mjed.compiled import numba_available
-
+    """The factories of ``backends`` that can be built here, and what was left out (and why):
+    a backend that cannot run is named, never replaced by another.
+    """
     if not backends:
-        raise InputError("give at least one backend (numpy, numba)")
+        raise InputError(f"give at least one backend ({', '.join(_BACKEND_LABELS)})")
     unknown = [b for b in backends if b not in _BACKEND_LABELS]
     if unknown:
         raise InputError(f"unknown backend(s) {unknown}; known: {', '.join(_BACKEND_LABELS)}")
     factories, missing = [], []
     for b in dict.fromkeys(backends):
-        if b == "numba" and not numba_available():
-            missing.append(
-                "the compiled (numba) backend: Numba is not installed (Debian: python3-numba)"
-            )
+        why = _unavailable(b)
+        if why is not None:
+            missing.append(why)
             continue
         factories.append(backend_force_field(b))
     if not factories:

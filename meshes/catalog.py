@@ -40,6 +40,7 @@ Mesh = tuple[np.ndarray, np.ndarray]
 # Volumes of the committed liver meshes (sum of their cell volumes, m^3).
 LIVER_VOLUME = 0.0026228471254736785
 LIVER_COARSE_VOLUME = 0.002521563071231272
+LIVER_100K_VOLUME = 0.00264942196438805
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,17 @@ _ENTRIES: tuple[CatalogEntry, ...] = (
         lambda: liver(5000),
         expected_cells=(5000, 0.05),
         expected_nodes=(1240, 0.05),
+    ),
+    # The same organ at about 100,000 tetrahedra (18,827 nodes): the GPU's scale
+    # (scripts/gpu_session.sh runs the liver study on it). Committed (1.4 MB), so that a
+    # machine without gmsh loads it.
+    CatalogEntry(
+        "liver-100k",
+        "liver-shaped organ (metres), ~100,000 tetrahedra and ~18,800 nodes, for the GPU",
+        "liver-100k.npz",
+        LIVER_100K_VOLUME,
+        lambda: liver(100_000),
+        expected_cells=(100_000, 0.05),
     ),
     CatalogEntry(
         "liver-coarse",

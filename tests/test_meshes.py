@@ -38,6 +38,7 @@ def test_names_and_describe():
         "cube-medium",
         "cube-paper",
         "liver",
+        "liver-100k",
         "liver-coarse",
     )
     with pytest.raises(ValueError, match="cube-paper"):

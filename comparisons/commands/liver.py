@@ -28,6 +28,7 @@ EXAMPLES = """examples:
   mjed-verify liver --material ArrudaBoyce --sofa-parameters "2000 20000" --dt 0.1 \\
                     --rayleigh-mass 0.05
   mjed-verify liver --mesh organ.msh --fix-orientation  # reorder inverted cells (counted)
+  mjed-verify liver --backends cuda,numba --no-series  # the GPU (FP64) beside the compiled kernel
 
 meshes (--mesh): built-in liver, liver-coarse, or a volume mesh file: gmsh .msh (legacy 1.0
 $NOD/$ELM, 2.2, 4.1), .vtk, .vtu, Medit .mesh, Abaqus .inp. Surface files (.stl, .obj) are
@@ -168,9 +169,11 @@ def _run_options(parser) -> None:
     group.add_argument(
         "--backends",
         default="numpy,numba",
-        help="comma-separated MJED backends, each running every model: numpy (the NumPy engine) "
-        "and numba (the compiled kernel; left out, and said so, without Numba). Default: both; the "
-        "first is the reference the others are checked against and the one the figures show",
+        help="comma-separated MJED backends, each running every model: numpy (the NumPy engine), "
+        "numba (the compiled kernel; left out, and said so, without Numba), cuda and cuda-fp32 "
+        "(the kernel on an NVIDIA GPU in FP64 or FP32, each step solved by CG on the device; "
+        "left out, 'not run: no GPU', without one). Default: numpy,numba; the first is the "
+        "reference the others are checked against and the one the figures show",
     )
     group.add_argument(
         "--quick", action="store_true", help="coarse liver mesh, 6 steps, a short oscillation study"
@@ -260,7 +263,8 @@ def material_from_options(
 
 def _models_and_backends(args):
     """The --models and --backends lists (InputError naming a backend that does not exist)."""
-    from comparisons.liver import BACKENDS, MODELS
+    from comparisons.liver import MODELS
+    from comparisons.liver_setup import KNOWN_BACKENDS
 
     models = (
         list(MODELS)
@@ -268,11 +272,11 @@ def _models_and_backends(args):
         else [m.strip() for m in args.models.split(",") if m.strip()]
     )
     backends = [b.strip() for b in args.backends.split(",") if b.strip()]
-    unknown = [b for b in backends if b not in BACKENDS]
+    unknown = [b for b in backends if b not in KNOWN_BACKENDS]
     if unknown or not backends:
         raise opt.InputError(
             f"--backends {args.backends!r}: expected a comma-separated list of "
-            f"{', '.join(BACKENDS)}"
+            f"{', '.join(KNOWN_BACKENDS)}"
         )
     return models, backends
 
@@ -379,7 +383,7 @@ def run(args) -> int:
 def _print_runs(runs) -> None:
     """One line per run: steps, substeps, displacement, CG, frame rates."""
     print(
-        f"  {'model':26s} {'backend':7s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} "
+        f"  {'model':26s} {'backend':9s} {'dt (s)':>6s} {'steps':>7s} {'split':>5s} "
         f"{'substeps':>8s} {'inverted':>8s} {'final max |u| (mm)':>18s} {'CG/step':>7s} "
         f"{'FPS':>6s} {'CPU FPS':>7s} {'paper':>5s}"
     )
@@ -389,7 +393,7 @@ def _print_runs(runs) -> None:
         cg = f"{cg:7.1f}" if cg is not None else f"{'-':>7s}"
         fps = f"{r.fps:6.1f} {r.cpu_fps:7.1f}" if r.fps else f"{'-':>6s} {'-':>7s}"
         print(
-            f"  {r.model:26s} {r.backend:7s} {r.dt:6.3g} {steps:>7s} "
+            f"  {r.model:26s} {r.backend:9s} {r.dt:6.3g} {steps:>7s} "
             f"{r.steps_split:5d} {r.substeps_total:8d} {r.inverted_cells_max:8d} "
             f"{1e3 * r.final_max_displacement:18.2f} {cg} {fps} {r.paper_fps:5.1f}"
         )
@@ -397,7 +401,8 @@ def _print_runs(runs) -> None:
             print(f"    FAILED: {r.error}")
     if runs:
         fields = "; ".join(dict.fromkeys(f"{r.backend}: {r.force_field}" for r in runs))
-        print(f"  linear solver: {runs[0].solver}; force fields: {fields}")
+        solvers = "; ".join(dict.fromkeys(r.solver for r in runs))
+        print(f"  linear solver: {solvers}; force fields: {fields}")
 
 
 def _print_findings(data) -> None:
