@@ -171,5 +171,5 @@ def test_a_step_is_timed_until_the_device_is_done():
     run = simulate(
         "hyperelastic", TetMesh(points, cells), LiverParameters(), fixed, 0.6, force_field=factory
     )
-    assert run["steps"] == 2 and len(calls) == 2
-    assert run["stepping_seconds"] >= 0.1 and run["fps"] <= 20.0
+    assert run.steps == 2 and len(calls) == 2
+    assert run.stepping_seconds >= 0.1 and run.fps <= 20.0
