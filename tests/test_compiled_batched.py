@@ -15,6 +15,7 @@ from conftest import MATERIALS, box_mesh, perturbed
 
 import mjed
 from mjed.compiled import CompiledForceField, numba_available
+from mjed.compiled.batched import DEFAULT_BATCH
 
 pytestmark = pytest.mark.skipif(
     not numba_available(),
@@ -82,9 +83,10 @@ def test_batched_parallel_equals_parallel_kernel_and_numpy(name, regularize, cub
     )
 
 
-@pytest.mark.parametrize("batch", [1, 5, 256])
+@pytest.mark.parametrize("batch", [1, 5, DEFAULT_BATCH, 256])
 def test_any_batch_size(batch, cube):
-    # one lane; a batch that divides nothing; a batch larger than the mesh (one padded batch)
+    # one lane; a batch that divides nothing; the default; a batch larger than the mesh (one
+    # padded batch)
     mesh, x = cube
     mat = MATERIALS["NeoHookean"]
     _same(

@@ -19,7 +19,9 @@ vectoriser cannot do (or only by gather instructions); so each batch runs in thr
    and writes only ``sout[l + k B]``: energy, J, the gradient, the stress, the six edge blocks
    and the four node blocks (their six sums). What to compute is a constant of each lanes
    function (one with the stiffness, one force only, one stress only) so no flag tested per
-   cell is left in the loop; ``regularize`` stays an argument (its branch becomes a select);
+   cell is left in the loop; ``regularize`` stays an argument (LLVM if-converts its branch);
+   the edge blocks leave the lanes in the orientation of their mesh edge (a select per lane),
+   so the scatter pass adds them without the one-cell kernel's branch per edge;
    ln J, J^p, e^u are ``llvm.log``/``llvm.pow``/``llvm.exp`` intrinsics, which the vectoriser
    keeps inside the vector loop as one scalar libm call per lane (Numba 0.56 as Debian ships
    it has no SVML, so there is no vector version);
@@ -29,8 +31,11 @@ vectoriser cannot do (or only by gather instructions); so each batch runs in thr
    results bit for bit, and its parallel form those of the parallel kernel).
 
 The last batch of a range is padded with copies of its last cell (computed, never scattered).
-The per-batch scratch is ``(rows in + rows out) B`` doubles, about 130 rows: 8 KB for B = 8,
-in L1 cache with the vectoriser's spills.
+The per-batch scratch is ``(rows in + rows out) B`` doubles, about 130 rows: 17 KB for the
+default B = 16, in L1 cache with the vectoriser's spills. Measured (docs/studies/timing.md):
+the lanes functions are packed AVX-512 arithmetic, and force + stiffness is 1.04x
+(Neo-Hookean) to 1.78x (Costa) faster than one cell at a time on cube-paper; the additions
+into the shared sums, scalar in both kernels, are then most of the time.
 """
 
 from __future__ import annotations
@@ -56,7 +61,7 @@ from mjed.compiled.shape import KernelShape
 __all__ = ["BatchTarget", "batched_source", "DEFAULT_BATCH"]
 
 #: Cells per batch (lanes) by default: see docs/studies/timing.md for the measured choice.
-DEFAULT_BATCH = 8
+DEFAULT_BATCH = 16
 
 #: The lanes functions: (name suffix, want_force, want_stiffness, want_stress).
 _VARIANTS = (("k", True, True, False), ("f", True, False, False), ("s", False, False, True))

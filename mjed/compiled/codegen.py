@@ -35,10 +35,11 @@ the regularised part of the diagonal is formed only when asked for.
 
 The generated module defines ``mjed_cells`` with the arguments of :data:`KERNEL_SIGNATURE`
 (documented in its docstring). The cell body is written for a :class:`Target`, which says how
-a cell's energy, force and blocks leave it and writes the module around the body: the serial
-kernel (the default), the parallel driver over coloured slabs (:data:`PARALLEL`,
-:data:`PARALLEL_SIGNATURE`) and the CUDA kernel (mjed.cuda.codegen.CudaTarget) share it, so a
-new kind of term is written once for the three. Pure Python; no Numba.
+a cell's inputs reach it and its energy, force and blocks leave it and writes the module
+around the body: the serial kernel (the default), the parallel driver over coloured slabs
+(:data:`PARALLEL`, :data:`PARALLEL_SIGNATURE`), the cell-batched kernel
+(mjed.compiled.batched.BatchTarget) and the CUDA kernel (mjed.cuda.codegen.CudaTarget) share
+it, so a new kind of term is written once for the four. Pure Python; no Numba.
 """
 
 from __future__ import annotations
