@@ -7,7 +7,10 @@
 CPU: force + stiffness and force alone on one mesh by the NumPy engine, the compiled kernel
 on one thread and the compiled kernel on all of Numba's threads (CompiledForceField with
 parallel=True; its force + stiffness also on one thread, which measures its cell order
-without the threads), in nanoseconds per cell, against two floors measured in the same run:
+without the threads), and both again cell-batched (``batch=B``, mjed.compiled.batched: the
+cell body over B cells at once, one per SIMD lane; B is mjed.compiled.batched.DEFAULT_BATCH,
+cpu_figures(batch=...) for another), in nanoseconds per cell, against two floors measured in
+the same run:
 
 - the bandwidth floor (comparisons.bandwidth): the bytes force + stiffness must move at
   least, over the copy bandwidth of this machine (one thread, and all threads);
@@ -151,7 +154,11 @@ def _rounds(
 
 
 def cpu_figures(
-    mesh_name: str, material_name: str, rounds: int = 7, min_batch_s: float = 0.05
+    mesh_name: str,
+    material_name: str,
+    rounds: int = 7,
+    min_batch_s: float = 0.05,
+    batch: Optional[int] = None,
 ) -> dict:
     """The CPU figures of one material on one mesh (see the module docstring)."""
     import numba
@@ -166,7 +173,7 @@ def cpu_figures(
     h = (mesh.volumes.mean() * 6) ** (1 / 3)
     x = points * [1.08, 0.97, 0.98] + 0.02 * h * rng.standard_normal(points.shape)
     threads = numba.get_num_threads()
-    fields = _checked_fields(mesh, material, x)
+    fields = _checked_fields(mesh, material, x, batch)
     calls = {}
     for name, field in fields.items():
         calls[f"{name} f+K"] = (lambda fl: lambda: fl.force_and_stiffness(x))(field)
@@ -190,30 +197,50 @@ def cpu_figures(
         out["timings"][name] = dict(t, ns_per_cell=t["best_s"] / m * 1e9, ms=t["best_s"] * 1e3)
         if name.endswith("f+K") and not name.startswith("numpy"):
             out["timings"][name]["Gflops"] = flops * m / t["best_s"] / 1e9
-    tf = {k: v["best_s"] for k, v in timed.items()}
-    out["ratios"] = {
-        "numpy / numba-serial, f+K": tf["numpy f+K"] / tf["numba-serial f+K"],
-        "numpy / numba-parallel, f+K": tf["numpy f+K"] / tf["numba-parallel f+K"],
-        "numba-serial / numba-parallel, f+K": tf["numba-serial f+K"] / tf["numba-parallel f+K"],
-        "numba-serial / numba-parallel, f": tf["numba-serial f"] / tf["numba-parallel f"],
-    }
+    out["ratios"] = _cpu_ratios({k: v["best_s"] for k, v in timed.items()})
     out["colours"] = fields["numba-parallel"].schedule.n_colours
+    out["batch"] = fields["numba-batched"].batch
     return out
 
 
-def _checked_fields(mesh, material, x: np.ndarray) -> dict:
-    """The NumPy, serial and parallel fields, the compiled two checked against NumPy's force
-    and stiffness at x before anything is timed.
+def _cpu_ratios(tf: Dict[str, float]) -> Dict[str, float]:
+    """Speed-ups from one run's best times (a / b: how many times faster b is than a)."""
+    pairs = [
+        ("numpy", "numba-serial", "f+K"),
+        ("numpy", "numba-parallel", "f+K"),
+        ("numba-serial", "numba-parallel", "f+K"),
+        ("numba-serial", "numba-parallel", "f"),
+        ("numpy", "numba-batched", "f+K"),
+        ("numpy", "numba-batched-parallel", "f+K"),
+        ("numba-serial", "numba-batched", "f+K"),
+        ("numba-serial", "numba-batched", "f"),
+        ("numba-parallel", "numba-batched-parallel", "f+K"),
+        ("numba-parallel", "numba-batched-parallel", "f"),
+    ]
+    return {f"{a} / {b}, {q}": tf[f"{a} {q}"] / tf[f"{b} {q}"] for a, b, q in pairs}
+
+
+def _checked_fields(mesh, material, x: np.ndarray, batch: Optional[int] = None) -> dict:
+    """The NumPy, serial and parallel fields, and the serial and parallel cell-batched ones
+    (``batch`` cells per batch, default mjed.compiled.batched.DEFAULT_BATCH), the compiled
+    ones checked against NumPy's force and stiffness at x before anything is timed.
     """
     import mjed
+    from mjed.compiled.batched import DEFAULT_BATCH
 
+    b = DEFAULT_BATCH if batch is None else batch
+    numba = dict(backend="numba")
     fields = {
         "numpy": mjed.make_force_field(mesh, material),
-        "numba-serial": mjed.make_force_field(mesh, material, backend="numba"),
-        "numba-parallel": mjed.make_force_field(mesh, material, backend="numba", parallel=True),
+        "numba-serial": mjed.make_force_field(mesh, material, **numba),
+        "numba-parallel": mjed.make_force_field(mesh, material, **numba, parallel=True),
+        "numba-batched": mjed.make_force_field(mesh, material, **numba, batch=b),
+        "numba-batched-parallel": mjed.make_force_field(
+            mesh, material, **numba, batch=b, parallel=True
+        ),
     }
     f_ref, K_ref = fields["numpy"].force_and_stiffness(x)
-    for name in ("numba-serial", "numba-parallel"):
+    for name in list(fields)[1:]:
         f, K = fields[name].force_and_stiffness(x)
         if not (
             np.abs(f - f_ref).max() <= 1e-12 * np.abs(f_ref).max()

@@ -20,7 +20,8 @@ def make_force_field(mesh, material, backend: str = "numpy", **options):
     backend: "numpy" (:class:`mjed.HyperelasticForceField`, NumPy and SciPy only), "numba"
     (:class:`mjed.compiled.CompiledForceField`) or "cuda" (:class:`mjed.cuda.CudaForceField`).
     The returned object's ``backend`` attribute names it. options: ``regularize``,
-    ``allow_inverted`` (every backend); ``parallel``, ``slabs`` (numba: all cores);
+    ``allow_inverted`` (every backend); ``parallel``, ``slabs`` (numba: all cores); ``batch``
+    (numba: cells per batch of the cell-batched, SIMD kernel; 0, the default, one at a time);
     ``dtype`` (cuda: np.float64, the default, or np.float32).
 
     Raises ValueError for an unknown backend and mjed.compiled.BackendUnavailable when the

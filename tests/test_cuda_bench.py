@@ -28,9 +28,17 @@ def test_benchmark_prints_cpu_figures_and_no_gpu_figure(tmp_path, capsys):
     figures = json.loads(out.read_text())
     cpu = figures["cpu"][0]
     assert cpu["material"] == "NeoHookean" and cpu["flops_per_cell"] > 0
-    for name in ("numpy f+K", "numba-serial f+K", "numba-parallel f+K", "numba-parallel f"):
+    for name in (
+        "numpy f+K",
+        "numba-serial f+K",
+        "numba-parallel f+K",
+        "numba-parallel f",
+        "numba-batched f+K",
+        "numba-batched-parallel f+K",
+    ):
         assert cpu["timings"][name]["ns_per_cell"] > 0 and name in text
     assert all(v > 0 for v in cpu["floors_ns_per_cell"].values())
+    assert cpu["ratios"]["numba-serial / numba-batched, f+K"] > 0 and cpu["batch"] >= 1
     if not cuda_available():
         gpu = figures["gpu"]
         assert "GPU: not run: no GPU" in text and gpu["status"] == hardware_bench.gpu_status()

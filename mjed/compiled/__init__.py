@@ -38,8 +38,11 @@ All cores: ``CompiledForceField(mesh, material, parallel=True)`` (or ``make_forc
 backend="numba", parallel=True)``) runs the same cell body from a parallel driver: slabs of
 cells coloured so that no two slabs of a colour share a node run on Numba's threads, the
 colours one after the other (:mod:`mjed.compiled.schedule`, and the argument for colouring in
-:class:`mjed.compiled.codegen.ParallelTarget`). The default stays one thread. The same
-generator writes the CUDA kernel of :mod:`mjed.cuda` (a third target).
+:class:`mjed.compiled.codegen.ParallelTarget`). The default stays one thread.
+``CompiledForceField(mesh, material, batch=16)`` runs the cell body over 16 cells at once,
+one per SIMD lane (:mod:`mjed.compiled.batched`; serial or with ``parallel=True``); the
+default stays one cell at a time. The same generator writes the CUDA kernel of
+:mod:`mjed.cuda` (a fourth target).
 
 Importing :mod:`mjed` or this package does not import Numba; building a compiled field does,
 and raises :class:`BackendUnavailable` with the reason when Numba is missing. Terms without a

@@ -35,10 +35,11 @@ the regularised part of the diagonal is formed only when asked for.
 
 The generated module defines ``mjed_cells`` with the arguments of :data:`KERNEL_SIGNATURE`
 (documented in its docstring). The cell body is written for a :class:`Target`, which says how
-a cell's energy, force and blocks leave it and writes the module around the body: the serial
-kernel (the default), the parallel driver over coloured slabs (:data:`PARALLEL`,
-:data:`PARALLEL_SIGNATURE`) and the CUDA kernel (mjed.cuda.codegen.CudaTarget) share it, so a
-new kind of term is written once for the three. Pure Python; no Numba.
+a cell's inputs reach it and its energy, force and blocks leave it and writes the module
+around the body: the serial kernel (the default), the parallel driver over coloured slabs
+(:data:`PARALLEL`, :data:`PARALLEL_SIGNATURE`), the cell-batched kernel
+(mjed.compiled.batched.BatchTarget) and the CUDA kernel (mjed.cuda.codegen.CudaTarget) share
+it, so a new kind of term is written once for the four. Pure Python; no Numba.
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ __all__ = [
     "scatter_edge_block",
     "node_block_sum",
     "write_kernel_module",
+    "write_parallel_driver",
+    "RANGE_ARGS",
 ]
 
 #: The arguments every generated cell loop starts with: positions, mesh, rest geometry, the
@@ -306,24 +309,28 @@ class _Kernel:
                 self._load3(f"M{sl}_", f"slot_M[{sl}, 0")
 
     def _load3(self, prefix: str, base: str) -> None:
+        """prefix{i}{j} = base, i, j] (a per-cell base, one indexed by e, is read through the
+        target's ``cell_input``).
+        """
+        read = self.target.cell_input if base.endswith(", e") else str
         for i in range(3):
             self.src(
                 ", ".join(f"{prefix}{i}{j}" for j in range(3))
                 + " = "
-                + ", ".join(f"{base}, {i}, {j}]" for j in range(3))
+                + ", ".join(read(f"{base}, {i}, {j}]") for j in range(3))
             )
 
     # ---- kinematics
     def kinematics(self) -> None:
         s = self.src
-        gather_cell(s)
+        self.target.gather(s)
         for i in range(3):
             i1, i2 = (i + 1) % 3, (i + 2) % 3
             for j in range(3):
                 j1, j2 = (j + 1) % 3, (j + 2) % 3
                 s(f"cf{i}{j} = F{i1}{j1} * F{i2}{j2} - F{i1}{j2} * F{i2}{j1}")
         s("J = F00 * cf00 + F10 * cf10 + F20 * cf20")
-        s(f"J_out[{self.target.out}] = J")
+        self.target.cell_output(s, "J_out", "", "J")
         for i, j in PAIRS6:
             s(f"C{i}{j} = F0{i} * F0{j} + F1{i} * F1{j} + F2{i} * F2{j}")
         s("I1 = C00 + C11 + C22")
@@ -339,13 +346,15 @@ class _Kernel:
             for i, j in PAIRS6:
                 s(f"E{i}{j} = 0.5 * (C{i}{j} - 1.0)" if i == j else f"E{i}{j} = 0.5 * C{i}{j}")
         if self.shape.need_eig:
-            s("eig = eigh3_sym(C00, C01, C02, C11, C12, C22)")
-            s("lam0, lam1, lam2 = eig[0], eig[1], eig[2]")
-            for i in range(3):
-                s(
-                    ", ".join(f"V{i}{n}" for n in range(3))
-                    + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]"
-                )
+            names = ["lam0", "lam1", "lam2"] + [f"V{i}{n}" for i in range(3) for n in range(3)]
+            with self.target.hoisted(s, names) as h:
+                h("eig = eigh3_sym(C00, C01, C02, C11, C12, C22)")
+                h("lam0, lam1, lam2 = eig[0], eig[1], eig[2]")
+                for i in range(3):
+                    h(
+                        ", ".join(f"V{i}{n}" for n in range(3))
+                        + f" = eig[{3 + 3 * i}], eig[{4 + 3 * i}], eig[{5 + 3 * i}]"
+                    )
 
     def I1_power(self, n: int) -> str:
         """I1^n by products, formed once per cell."""
@@ -464,8 +473,9 @@ class _Kernel:
     def _eigen(self, t: int, term: TermShape) -> Tuple[Expr, Sym, List[Expr], Sym]:
         """G = c sum lam_n^q (mjed/spectral.py); theta only when the stiffness is wanted."""
         s = self.src
-        for n in range(3):
-            s(f"lp{t}_{n} = lam{n} ** qm1_{t}")
+        with self.target.hoisted(s, [f"lp{t}_{n}" for n in range(3)]) as h:
+            for n in range(3):
+                h(f"lp{t}_{n} = lam{n} ** qm1_{t}")
         value = s.let(f"g_{t}", f"c_{t} * (lp{t}_0 * lam0 + lp{t}_1 * lam1 + lp{t}_2 * lam2)")
         S = {
             (i, j): f"c2q_{t} * ("
@@ -485,10 +495,11 @@ class _Kernel:
                     s(f"{theta[n, l]} = c2q_{t} * (qm1_{t} * rc{t}_{n} * rc{t}_{l})")
             else:
                 dd = [f"dd{t}_{n}{l}" for n, l in PAIRS6]
-                s(
-                    f"{', '.join(dd)} = divided_differences_sym(lam0, lam1, lam2, lp{t}_0, "
-                    f"lp{t}_1, lp{t}_2, qm1_{t})"
-                )
+                with self.target.hoisted(s, dd, condition="want_stiffness") as h:
+                    h(
+                        f"{', '.join(dd)} = divided_differences_sym(lam0, lam1, lam2, lp{t}_0, "
+                        f"lp{t}_1, lp{t}_2, qm1_{t})"
+                    )
                 for (n, l), name in zip(PAIRS6, dd):
                     s(f"{theta[n, l]} = c2q_{t} * {name}")
         return value, S, [], theta
@@ -550,7 +561,9 @@ class _Kernel:
             "w": [s.let(f"w_{sl}", add(*tot["w"][sl])) for sl in range(n_slots)],
             "exp": tot["exp"],
         }
-        self.target.add_energy(s, f"V0[e] * ({add(*tot['energy']) or '0.0'})")
+        self.target.add_energy(
+            s, f"{self.target.cell_input('V0[e]')} * ({add(*tot['energy']) or '0.0'})"
+        )
         return out
 
     def _group_function(
@@ -609,9 +622,8 @@ class _Kernel:
             for i in range(3):
                 for j in range(3):
                     jcof = mul(hJ, f"(cf0{i} * cf0{j} + cf1{i} * cf1{j} + cf2{i} * cf2{j})")
-                    s(
-                        f"stress_out[{self.target.out}, {i}, {j}] = "
-                        f"{add(St[sym(i, j)], jcof) or '0.0'}"
+                    self.target.cell_output(
+                        s, "stress_out", f", {i}, {j}", add(St[sym(i, j)], jcof) or "0.0"
                     )
         with s.block("if want_force:"):
             FS = self._F_times_sym("FS", St)
@@ -619,14 +631,15 @@ class _Kernel:
                 for i in range(3):
                     grad = add(mul(h, f"dJ{a}{i}"), *[mul(FS[i, j], f"D{a}{j}") for j in range(3)])
                     if grad is not None:
-                        self.target.add_force(s, a, i, f"V0[e] * ({grad})")
+                        v0 = self.target.cell_input("V0[e]")
+                        self.target.add_force(s, a, i, f"{v0} * ({grad})")
 
     # ---- stiffness: per-cell vectors, six edge blocks, node blocks, scatter
     def stiffness(self, q: dict) -> None:
         s = self.src
         # Every edge-block term is scaled by V0 through one of its per-cell factors (a few
         # multiplications per cell instead of one per block entry).
-        s("vol = V0[e]")
+        s(f"vol = {self.target.cell_input('V0[e]')}")
         s.let("hv", mul(q["h"], "vol"))
         g2 = s.let("g2v", mul(q["g2"], "vol"))
         St = _sym_let(s, "Stv", {ij: mul(q["St"][ij], "vol") for ij in PAIRS6})
@@ -858,6 +871,29 @@ class Target:
     #: the index expression of the cell in the per-cell outputs (J_out, stress_out)
     out = "e"
 
+    def gather(self, s: Source) -> None:
+        """Read cell e: node numbers, rest shape vectors, positions and F (gather_cell)."""
+        gather_cell(s)
+
+    def cell_input(self, expr: str) -> str:
+        """The expression reading ``expr``, a per-cell input indexed by e (V0[e], a per-cell
+        frame entry), in the cell body.
+        """
+        return expr
+
+    def cell_output(self, s: Source, array: str, index: str, expr: str) -> None:
+        """Write ``expr`` into a per-cell output (J_out, stress_out) at the cell, then ``index``."""
+        s(f"{array}[{self.out}{index}] = {expr}")
+
+    @contextmanager
+    def hoisted(self, s: Source, names: Sequence[str], condition: str = "") -> Iterator[Source]:
+        """Where to write a computation of ``names`` that a target may move out of the cell
+        body (calls that are not plain arithmetic: the eigen-decomposition, powers of the
+        eigenvalues, divided differences; ``condition``: a flag already tested around it).
+        Here: in place.
+        """
+        yield s
+
     def add_energy(self, s: Source, expr: str) -> None:
         s(f"energy += {expr}")
 
@@ -968,37 +1004,44 @@ class ParallelTarget(Target):
         ):
             s(line)
         s("@njit(**JIT_OPTIONS)")
-        with s.block(f"def mjed_cell_range(lo, hi, {', '.join(_RANGE_ARGS)}):"):
+        with s.block(f"def mjed_cell_range(lo, hi, {', '.join(RANGE_ARGS)}):"):
             s('"""The cells lo to hi - 1 of mjed_cells (schedule order); returns their energy."""')
             kernel.parameters()
             s("energy_k = 0.0")
             with s.block("for e in range(lo, hi):"):
                 kernel.cell()
             s("return energy_k")
-        s("")
-        s("")
-        s("@njit(parallel=True, **JIT_OPTIONS)")
-        with s.block(f"def mjed_cells({', '.join(PARALLEL_SIGNATURE)}):"):
-            for line in _PARALLEL_DOC.splitlines():
-                s(line)
-            with s.block("if want_stiffness:"):
-                s("zero_sums_parallel(U, Dg)")
-            s("energy = 0.0")
-            with s.block("for colour in range(colour_ptr.shape[0] - 1):"):
-                s("energy_c = 0.0")
-                with s.block("for chunk in prange(colour_ptr[colour], colour_ptr[colour + 1]):"):
-                    s(
-                        "energy_c += mjed_cell_range(chunk_ptr[chunk], chunk_ptr[chunk + 1], "
-                        f"{', '.join(_RANGE_ARGS)})"
-                    )
-                s("energy += energy_c")
-            with s.block("if want_stiffness:"):
-                s("write_csr_parallel(U, Dg, src, blkptr, indptr, data)")
-            s("return energy")
+        write_parallel_driver(s)
+
+
+def write_parallel_driver(s: Source) -> None:
+    """The parallel ``mjed_cells`` (:data:`PARALLEL_SIGNATURE`): the chunks of each colour in a
+    ``prange``, each chunk by ``mjed_cell_range(lo, hi, *RANGE_ARGS)``, then the CSR write.
+    """
+    s("")
+    s("")
+    s("@njit(parallel=True, **JIT_OPTIONS)")
+    with s.block(f"def mjed_cells({', '.join(PARALLEL_SIGNATURE)}):"):
+        for line in _PARALLEL_DOC.splitlines():
+            s(line)
+        with s.block("if want_stiffness:"):
+            s("zero_sums_parallel(U, Dg)")
+        s("energy = 0.0")
+        with s.block("for colour in range(colour_ptr.shape[0] - 1):"):
+            s("energy_c = 0.0")
+            with s.block("for chunk in prange(colour_ptr[colour], colour_ptr[colour + 1]):"):
+                s(
+                    "energy_c += mjed_cell_range(chunk_ptr[chunk], chunk_ptr[chunk + 1], "
+                    f"{', '.join(RANGE_ARGS)})"
+                )
+            s("energy += energy_c")
+        with s.block("if want_stiffness:"):
+            s("write_csr_parallel(U, Dg, src, blkptr, indptr, data)")
+        s("return energy")
 
 
 #: The arguments of the generated mjed_cell_range after (lo, hi).
-_RANGE_ARGS = CELL_INPUTS + (
+RANGE_ARGS = CELL_INPUTS + (
     "cell_edges",
     "cell_flip",
     "U",

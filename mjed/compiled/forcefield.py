@@ -56,6 +56,10 @@ class CompiledForceField:
             with the serial classical kernel like for like. Sets ``OMP_WAIT_POLICY=PASSIVE``
             unless it is set (see mjed.compiled.kernels.prefer_passive_wait).
         slabs: slabs of the parallel schedule (default: 4 per thread of Numba's at construction).
+        batch: cells per batch of the cell-batched kernel (:mod:`mjed.compiled.batched`: the
+            same cell body over ``batch`` cells at once, one per SIMD lane), serial or with
+            ``parallel``; 0 (the default) for the kernel that runs one cell at a time. Same
+            results (bit for bit: the same operations, added in the same order).
 
     Raises:
         BackendUnavailable: Numba is not installed.
@@ -73,6 +77,7 @@ class CompiledForceField:
         allow_inverted: bool = False,
         parallel: bool = False,
         slabs: Optional[int] = None,
+        batch: int = 0,
     ):
         check_field_arguments(mesh, material)
         self._k = require_numba()
@@ -83,7 +88,11 @@ class CompiledForceField:
         self.table = lower_groups(material.decomposition(), mesh.D)
         self.shape = kernel_shape(self.table)
         self.parallel = bool(parallel)
-        self._kernel = kernel_module(self.shape, parallel=self.parallel).mjed_cells
+        if batch < 0:
+            raise ValueError(f"batch must be >= 0, got {batch}")
+        self.batch = int(batch)
+        module = kernel_module(self.shape, parallel=self.parallel, batch=self.batch)
+        self._kernel = module.mjed_cells
         self.pattern = CSRPattern(mesh.cells, mesh.n_nodes)
         self._cells = np.ascontiguousarray(mesh.cells, dtype=np.int64)
         self._D = np.ascontiguousarray(mesh.D, dtype=np.float64)

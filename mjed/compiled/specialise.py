@@ -97,10 +97,16 @@ def generated_module(source: str, prefix: str, helpers: Sequence[Path] = ()) -> 
     return module
 
 
-def kernel_module(shape: KernelShape, parallel: bool = False) -> ModuleType:
+def kernel_module(shape: KernelShape, parallel: bool = False, batch: int = 0) -> ModuleType:
     """The module of the MJED kernel of ``shape`` (its function ``mjed_cells``): serial, or
-    parallel over cells (:data:`mjed.compiled.codegen.PARALLEL`).
+    parallel over cells (:data:`mjed.compiled.codegen.PARALLEL`); with ``batch`` > 0, the
+    cell-batched kernel of that many lanes (:mod:`mjed.compiled.batched`).
     """
+    if batch:
+        from mjed.compiled.batched import batched_source
+
+        prefix = f"mjed_batch{batch}" + ("_parallel" if parallel else "")
+        return generated_module(batched_source(shape, batch, parallel), prefix)
     if parallel:
         return generated_module(kernel_source(shape, PARALLEL), "mjed_parallel")
     return generated_module(kernel_source(shape), "mjed_kernel")

@@ -1,0 +1,148 @@
+"""The cell-batched compiled kernel (CompiledForceField(batch=B), mjed.compiled.batched)
+against the kernel that runs one cell at a time and the NumPy engine, serial and parallel.
+
+The batched kernel runs the same generated cell body, the same operations in the same order
+(no fastmath), and adds into the sums in cell order: its results must equal the one-cell
+kernel's bit for bit, and the NumPy engine's to round-off. The meshes' cell counts (162) are
+not multiples of the batches, so the last batch of every range is a padded one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import MATERIALS, box_mesh, perturbed
+
+import mjed
+from mjed.compiled import CompiledForceField, numba_available
+from mjed.compiled.batched import DEFAULT_BATCH
+
+pytestmark = pytest.mark.skipif(
+    not numba_available(),
+    reason="the compiled backend needs Numba (Debian: python3-numba; PyPI: numba)",
+)
+
+
+def _rel(a, b):
+    return np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b))
+
+
+@pytest.fixture(scope="module")
+def cube():
+    points, cells = box_mesh(3, jitter=0.3)
+    x = perturbed(points, np.random.default_rng(7), 0.06)
+    return mjed.TetMesh(points, cells), x
+
+
+def _same(field, one_cell, ref, x):
+    """The batched field equals one_cell exactly and ref (NumPy) to round-off, every output."""
+    f, K, S = field.force_stiffness_and_stress(x)
+    f1, K1, S1 = one_cell.force_stiffness_and_stress(x)
+    assert np.array_equal(f, f1) and np.array_equal(S, S1)
+    assert np.array_equal(K.indptr, K1.indptr) and np.array_equal(K.indices, K1.indices)
+    assert np.array_equal(K.data, K1.data)
+    assert field.energy(x) == one_cell.energy(x)
+    f_r, K_r = ref.force_and_stiffness(x)
+    assert _rel(f, f_r) < 1e-13
+    assert abs(K - K_r).max() <= 1e-13 * abs(K_r).max()
+    assert field.energy(x) == pytest.approx(ref.energy(x), rel=1e-13)
+    assert _rel(S, ref.stress(x)) < 1e-13
+    # the single-purpose entry points (other lanes functions) agree with the combined one
+    assert np.array_equal(field.force(x), f) and np.array_equal(field.stress(x), S)
+    assert abs(field.stiffness(x) - K).max() == 0.0
+
+
+@pytest.mark.parametrize("regularize", [False, True])
+def test_batched_equals_one_cell_kernel_and_numpy(material, regularize, cube):
+    mesh, x = cube
+    opts = dict(regularize=regularize)
+    field = CompiledForceField(mesh, material, batch=8, **opts)
+    assert field.batch == 8
+    _same(
+        field,
+        CompiledForceField(mesh, material, **opts),
+        mjed.make_force_field(mesh, material, **opts),
+        x,
+    )
+
+
+@pytest.mark.parametrize("regularize", [False, True])
+@pytest.mark.parametrize("name", ("NeoHookean", "Ogden", "Costa"))
+def test_batched_parallel_equals_parallel_kernel_and_numpy(name, regularize, cube):
+    # slabs=5: several colours and slabs of unequal sizes, none a multiple of the batch
+    mesh, x = cube
+    material = MATERIALS[name]
+    opts = dict(regularize=regularize, parallel=True, slabs=5)
+    field = CompiledForceField(mesh, material, batch=8, **opts)
+    assert field.parallel and field.schedule.n_colours >= 2
+    _same(
+        field,
+        CompiledForceField(mesh, material, **opts),
+        mjed.make_force_field(mesh, material, regularize=regularize),
+        x,
+    )
+
+
+@pytest.mark.parametrize("batch", [1, 5, DEFAULT_BATCH, 256])
+def test_any_batch_size(batch, cube):
+    # one lane; a batch that divides nothing; the default; a batch larger than the mesh (one
+    # padded batch)
+    mesh, x = cube
+    mat = MATERIALS["NeoHookean"]
+    _same(
+        CompiledForceField(mesh, mat, batch=batch, regularize=True),
+        CompiledForceField(mesh, mat, regularize=True),
+        mjed.make_force_field(mesh, mat, regularize=True),
+        x,
+    )
+
+
+def test_batched_per_cell_frame(cube):
+    from scipy.spatial.transform import Rotation
+
+    mesh, x = cube
+    R = Rotation.random(mesh.n_cells, random_state=3).as_matrix()
+    base = MATERIALS["Costa"]
+    mat = type(base)(
+        **{
+            k: getattr(base, k) for k in ("a", "k0", "b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+        },
+        frame=R,
+    )
+    _same(
+        CompiledForceField(mesh, mat, batch=8),
+        CompiledForceField(mesh, mat),
+        mjed.make_force_field(mesh, mat),
+        x,
+    )
+
+
+def test_batched_refuses_inverted_cells_naming_them(cube):
+    mesh, _ = cube
+    y = mesh.points.copy()
+    y[mesh.cells[5, 0]] = y[mesh.cells[5, 1:]].mean(axis=0) * 2 - y[mesh.cells[5, 0]]  # flip cell 5
+    for parallel in (False, True):
+        field = mjed.make_force_field(
+            mesh, MATERIALS["NeoHookean"], backend="numba", batch=8, parallel=parallel
+        )
+        with pytest.raises(mjed.InvertedElementError, match="cell 5 "):
+            field.force(y)
+
+
+def test_batch_must_not_be_negative(cube):
+    mesh, _ = cube
+    with pytest.raises(ValueError, match="batch"):
+        CompiledForceField(mesh, MATERIALS["NeoHookean"], batch=-1)
+
+
+def test_batched_ogden_with_sofas_coaxial_tangent(cube):
+    # the other eigen tangent: its powers of the eigenvalues stay in the lanes (one libm call
+    # per lane), the exact one's divided differences are computed in the gather pass
+    mesh, x = cube
+    mat = mjed.materials.Ogden(mu=1.0, alpha=3.0, k0=5.0, tangent="sofa")
+    _same(
+        CompiledForceField(mesh, mat, batch=8, regularize=True),
+        CompiledForceField(mesh, mat, regularize=True),
+        mjed.make_force_field(mesh, mat, regularize=True),
+        x,
+    )
