@@ -59,7 +59,13 @@ from mjed.compiled.codegen import (
     scatter_edge_block,
     write_kernel_module,
 )
-from mjed.cuda.codegen import CudaTarget, add_block, row_lengths, write_cuda_module
+from mjed.cuda.codegen import (
+    CUDA_ASSEMBLY_ARGS,
+    CudaTarget,
+    add_block,
+    row_lengths,
+    write_cuda_module,
+)
 from mjed.materials.classical_forms import IsochoricPsi
 
 __all__ = [
@@ -75,17 +81,12 @@ __all__ = [
 #: The law kinds.
 LAWS = ("svk", "neohooke", "decoupled", "ogden", "costa")
 
+#: What every classical cell kernel starts with: positions, connectivity, shape gradients,
+#: volumes, the law's parameters and tensor, and what to compute.
+CLASSICAL_INPUTS = ("x", "cells", "D", "V0", "P", "Tt", "want_force", "want_stiffness")
+
 #: The arguments of the generated ``classical_cells``, in order.
-KERNEL_SIGNATURE = (
-    "x",
-    "cells",
-    "D",
-    "V0",
-    "P",
-    "Tt",
-    "want_force",
-    "want_stiffness",
-) + ASSEMBLY_ARGS
+KERNEL_SIGNATURE = CLASSICAL_INPUTS + ASSEMBLY_ARGS
 
 _KERNEL_DOC = '''"""Energy, forces and stiffness of every cell by the classical Galerkin, for one
 law.
@@ -588,22 +589,7 @@ SERIAL_CLASSICAL = ClassicalTarget()
 
 #: The arguments of the generated CUDA ``classical_cells`` and ``classical_force``, in order
 #: (the launch order of mjed.cuda.launch.CellLauncher).
-CUDA_SIGNATURE = (
-    "x",
-    "cells",
-    "D",
-    "V0",
-    "P",
-    "Tt",
-    "want_force",
-    "want_stiffness",
-    "blk",
-    "rowlen",
-    "force",
-    "data",
-    "J_out",
-    "E_out",
-)
+CUDA_SIGNATURE = CLASSICAL_INPUTS + CUDA_ASSEMBLY_ARGS
 
 
 class ClassicalCudaTarget(CudaTarget):

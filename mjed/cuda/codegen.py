@@ -44,6 +44,7 @@ from mjed.compiled.codegen import CELL_INPUTS, EDGES, PAIRS6, Source, Target, no
 
 __all__ = [
     "CudaTarget",
+    "CUDA_ASSEMBLY_ARGS",
     "CUDA_SIGNATURE",
     "add_block",
     "block_map",
@@ -52,16 +53,13 @@ __all__ = [
     "write_cuda_module",
 ]
 
+#: What every CUDA cell kernel (MJED's and the classical element's) takes after its own
+#: inputs, in the launch order of mjed.cuda.launch.CellLauncher: the block map, the row
+#: lengths, the outputs (force, CSR values) and the per-cell J and energy.
+CUDA_ASSEMBLY_ARGS = ("blk", "rowlen", "force", "data", "J_out", "E_out")
+
 #: The arguments of the generated CUDA ``mjed_cells``, in order.
-CUDA_SIGNATURE = CELL_INPUTS + (
-    "blk",
-    "rowlen",
-    "force",
-    "data",
-    "J_out",
-    "E_out",
-    "stress_out",
-)
+CUDA_SIGNATURE = CELL_INPUTS + CUDA_ASSEMBLY_ARGS + ("stress_out",)
 
 _MATH = ("sqrt", "log", "exp", "expm1", "log1p")
 # math.nan / math.inf: a float64 constant in one branch of a conditional makes it float64.
