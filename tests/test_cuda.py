@@ -11,16 +11,13 @@ fast it is: that needs a GPU (docs/studies/timing.md, the GPU section).
 
 from __future__ import annotations
 
-import json
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import MATERIALS, box_mesh
+from cuda_support import run_on_simulator
 
 import mjed
 from mjed.compiled import numba_available
@@ -41,23 +38,7 @@ FP64_TOL = {"force": 1e-13, "stiffness": 1e-13, "stress": 1e-13, "energy": 1e-12
 
 @pytest.fixture(scope="module")
 def simulated():
-    env = dict(
-        os.environ,
-        NUMBA_ENABLE_CUDASIM="1",
-        PYTHONPATH=os.pathsep.join(
-            [str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]
-        ),
-    )
-    out = subprocess.run(
-        [sys.executable, str(ROOT / "tests" / "cuda_simulated.py"), *sorted(MATERIALS)],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=ROOT,
-        timeout=1200,
-    )
-    assert out.returncode == 0, out.stderr[-4000:]
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_on_simulator([str(ROOT / "tests" / "cuda_simulated.py"), *sorted(MATERIALS)])
 
 
 @needs_numba

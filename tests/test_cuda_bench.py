@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 
 import pytest
+from cuda_support import run_on_simulator
 
 from mjed.compiled import numba_available
 
@@ -53,12 +54,6 @@ def _simulated_section(sizes: str) -> dict:
     """The GPU section measured on Numba's CUDA simulator in a subprocess (it must be chosen
     before Numba is imported): its record as JSON and its printed text.
     """
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[1]
     code = (
         "import json; from comparisons.hardware_bench import gpu_figures; "
         "from comparisons.gpu_bench import print_figures; "
@@ -66,12 +61,7 @@ def _simulated_section(sizes: str) -> dict:
         "lines = []; print_figures(fig, lines.append); "
         "print(json.dumps({'figures': fig.to_dict(), 'text': lines}))"
     )
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1", PYTHONPATH=str(root))
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=root, timeout=900
-    )
-    assert out.returncode == 0, out.stderr[-3000:]
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_on_simulator(["-c", code], timeout=900)
 
 
 def test_gpu_section_code_path_runs_on_the_simulator():

@@ -10,15 +10,12 @@ it runs in a subprocess (tests/cuda_classical_simulated.py).
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import MATERIALS
+from cuda_support import run_on_simulator
 
 from mjed.compiled import numba_available
 
@@ -37,23 +34,9 @@ FP32_TOL = {"force": 1e-5, "stiffness": 1e-5, "energy": 1e-5}
 
 @pytest.fixture(scope="module")
 def simulated():
-    env = dict(
-        os.environ,
-        NUMBA_ENABLE_CUDASIM="1",
-        PYTHONPATH=os.pathsep.join(
-            [str(ROOT), str(ROOT / "tests"), os.environ.get("PYTHONPATH", "")]
-        ),
+    return run_on_simulator(
+        [str(ROOT / "tests" / "cuda_classical_simulated.py"), *sorted(MATERIALS)]
     )
-    out = subprocess.run(
-        [sys.executable, str(ROOT / "tests" / "cuda_classical_simulated.py"), *sorted(MATERIALS)],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=ROOT,
-        timeout=1200,
-    )
-    assert out.returncode == 0, out.stderr[-4000:]
-    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 @needs_numba

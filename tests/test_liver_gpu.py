@@ -7,14 +7,11 @@ run's trajectory.
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cuda_support import run_on_simulator
 
 from comparisons.cli import main
 from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, liver_study
@@ -87,21 +84,7 @@ def test_gpu_backend_without_a_device_is_left_out_saying_why(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory):
     out = tmp_path_factory.mktemp("liver_cuda")
-    env = dict(
-        os.environ,
-        NUMBA_ENABLE_CUDASIM="1",
-        PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-    )
-    ran = subprocess.run(
-        [sys.executable, str(ROOT / "tests" / "liver_cuda_simulated.py"), str(out)],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=ROOT,
-        timeout=1200,
-    )
-    assert ran.returncode == 0, ran.stderr[-4000:]
-    return json.loads(ran.stdout.strip().splitlines()[-1])
+    return run_on_simulator([str(ROOT / "tests" / "liver_cuda_simulated.py"), str(out)])
 
 
 needs_numba = pytest.mark.skipif(
