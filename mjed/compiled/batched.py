@@ -51,6 +51,7 @@ from mjed.compiled.codegen import (
     RANGE_ARGS,
     Source,
     Target,
+    deformation_gradient,
     gather_cell,
     kernel_source,
     node_block_sum,
@@ -112,9 +113,7 @@ class BatchTarget(Target):
             for i in range(3):
                 s(f"D{a}{i} = {self._input(f'D[e, {a}, {i}]', f'D{a}{i}')}")
                 s(f"X{a}{i} = {self._input(f'x[n{a}, {i}]', f'X{a}{i}')}")
-        for i in range(3):
-            for j in range(3):
-                s(f"F{i}{j} = " + " + ".join(f"X{a}{i} * D{a}{j}" for a in range(4)))
+        deformation_gradient(s)
 
     def cell_input(self, expr: str) -> str:
         return self._input(expr, expr)

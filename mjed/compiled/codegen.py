@@ -220,6 +220,11 @@ def gather_cell(s: Source) -> None:
     for a in range(4):
         s(f"D{a}0, D{a}1, D{a}2 = D[e, {a}, 0], D[e, {a}, 1], D[e, {a}, 2]")
         s(f"X{a}0, X{a}1, X{a}2 = x[n{a}, 0], x[n{a}, 1], x[n{a}, 2]")
+    deformation_gradient(s)
+
+
+def deformation_gradient(s: Source) -> None:
+    """Write F = sum_a X_a (x) D_a (F00 .. F22) from the scalar locals X_ai and D_aj."""
     for i in range(3):
         for j in range(3):
             s(f"F{i}{j} = " + " + ".join(f"X{a}{i} * D{a}{j}" for a in range(4)))
