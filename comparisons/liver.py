@@ -294,7 +294,7 @@ def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[LiverRun
     first = [r for r in runs if r.backend == runs[0].backend]
     # The pressure solver's own check, beside the scenario that uses it.
     terzaghi = run_terzaghi(dt=0.004, figure=os.path.join(out, "terzaghi.png"))
-    figures = list(terzaghi["figures"])
+    figures = list(terzaghi.figures)
     figures.append(plot_porous_stress(os.path.join(out, "fig1_left_porous_stress.png"), params))
     figures.append(
         plot_amplitudes(os.path.join(out, "fig4_max_displacement.png"), first, setup.organ.label)

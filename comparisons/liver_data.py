@@ -15,14 +15,15 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Dict, Mapping, Optional, Sequence, Tuple
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
 from common.json_fields import JSONFields, JSONRecord
-from common.record_fields import RecordFields, is_real
+from common.record_fields import RecordFields
 from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
 from comparisons.oscillation_data import OscillationData
+from comparisons.terzaghi_data import TerzaghiResult
 
 __all__ = [
     "PHASES",
@@ -346,7 +347,7 @@ class LiverData(JSONRecord):
     runs: Tuple[LiverRun, ...]
     step_split: Tuple[StepSplit, ...]
     backend_agreement: Tuple[BackendAgreement, ...]
-    terzaghi: Dict[str, Any]
+    terzaghi: TerzaghiResult
     figures: Tuple[str, ...]
     series: Tuple[str, ...]
     oscillation: Optional[OscillationData] = None
@@ -369,17 +370,11 @@ class LiverData(JSONRecord):
         self._check_records(f)
 
     def _check_records(self, f: RecordFields) -> None:
-        """Check the parameters (an object), terzaghi (its "times") and the optional parts."""
+        """Check the parameters (an object), terzaghi and the optional parts."""
         if not isinstance(self.parameters, Mapping):
             raise f.refusal("parameters", "an object (LiverParameters.to_dict())", self.parameters)
-        times = self.terzaghi.get("times") if isinstance(self.terzaghi, Mapping) else None
-        ok = isinstance(times, Sequence) and all(
-            isinstance(t, Mapping) and is_real(t.get("relative_l2_error")) for t in times
-        )
-        if not (ok and times):
-            raise f.refusal(
-                "terzaghi", 'an object whose "times" give relative_l2_error', self.terzaghi
-            )
+        if not isinstance(self.terzaghi, TerzaghiResult):
+            raise f.refusal("terzaghi", "a TerzaghiResult", self.terzaghi)
         if not (self.oscillation is None or isinstance(self.oscillation, OscillationData)):
             raise f.refusal("oscillation", "an OscillationData or None", self.oscillation)
         f.text("protocol", optional=True)
@@ -393,7 +388,7 @@ class LiverData(JSONRecord):
     @property
     def terzaghi_error(self) -> float:
         """The Terzaghi check's worst relative L2 pressure error over its times."""
-        return max(t["relative_l2_error"] for t in self.terzaghi["times"])
+        return self.terzaghi.worst_error
 
     @property
     def passed(self) -> bool:
@@ -429,7 +424,7 @@ class LiverData(JSONRecord):
             fps_table=[r.fps_row() for r in self.runs],
             step_split=[s.to_dict() for s in self.step_split],
             backend_agreement=[a.to_dict() for a in self.backend_agreement],
-            terzaghi=dict(self.terzaghi),
+            terzaghi=self.terzaghi.to_dict(),
             passed=self.passed,
             figures=list(self.figures),
             series=list(self.series),
@@ -446,6 +441,7 @@ class LiverData(JSONRecord):
         for key, kind in _NESTED:
             if key in f.obj:
                 nested[key] = f.records(key, kind)
+        nested["terzaghi"] = TerzaghiResult.from_fields(f.object("terzaghi", "TerzaghiResult"))
         if f.obj.get("oscillation") is not None:
             nested["oscillation"] = OscillationData.from_fields(
                 f.object("oscillation", "OscillationData")

@@ -28,6 +28,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 import mjed
+from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
 from mjed.darcy import DarcyParameters, FluidPressureForce, cell_jacobians
 from mjed.materials import NeoHookean
 
@@ -78,14 +79,14 @@ def run_terzaghi(
     c_v: float = 1.0,
     h: float = 1.0,
     figure: Optional[str] = None,
-) -> Dict:
+) -> TerzaghiResult:
     """Run the coupled column and compare P with the series at ``times`` (= T_v when c_v = h = 1).
 
     Args:
         figure: optional PNG path for the pressure profiles against the series.
 
-    Returns a JSON-serialisable dict: parameters, per time the relative L2 (nodal) error
-    ||P - P_exact|| / ||P_exact|| along the column, and "figures" (the PNG, if written).
+    Returns the parameters and, per time, the relative L2 (nodal) error
+    ||P - P_exact|| / ||P_exact|| along the column, and the figure (the PNG, if written).
     """
     M = lam + 2.0 * mu
     kappa = c_v * (1.0 / K_lim + 1.0 / M)  # c_v = kappa / storage, storage = 1/K_lim + 1/M
@@ -109,20 +110,19 @@ def run_terzaghi(
         lambda z, t: terzaghi_pressure(z, t, h, c_v, B * p0),
         c_v / h**2,
     )
-    figures = [] if figure is None else [_plot(figure, results, h, c_v, B * p0)]
-    for r in results:  # the profiles were only for the figure
-        r.pop("z"), r.pop("P")
-    return {
-        "figures": figures,
-        "n_layers": n_layers,
-        "dt": dt,
-        "coupling_iterations": coupling_iterations,
-        "B": B,
-        "c_v": c_v,
-        "K_lim": K_lim,
-        "constrained_modulus": M,
-        "times": results,
-    }
+    figures = () if figure is None else (_plot(figure, results, h, c_v, B * p0),)
+    return TerzaghiResult(
+        figures=figures,
+        n_layers=n_layers,
+        dt=dt,
+        coupling_iterations=coupling_iterations,
+        B=B,
+        c_v=c_v,
+        K_lim=K_lim,
+        constrained_modulus=M,
+        # the profiles (z, P) were only for the figure
+        times=tuple(TerzaghiTime(r["T_v"], r["relative_l2_error"]) for r in results),
+    )
 
 
 def _march(

@@ -139,10 +139,10 @@ def test_terzaghi_consolidation_within_one_percent():
     error falls with the time step (first order).
     """
     coarse = run_terzaghi(n_layers=20, dt=0.004, times=(0.05, 0.2, 0.5))
-    errors = [t["relative_l2_error"] for t in coarse["times"]]
-    assert max(errors) <= 1e-2, errors
+    errors = [t.relative_l2_error for t in coarse.times]
+    assert max(errors) <= 1e-2 and coarse.worst_error == max(errors), errors
     fine = run_terzaghi(n_layers=20, dt=0.002, times=(0.05,))
-    assert fine["times"][0]["relative_l2_error"] < 0.7 * errors[0]
+    assert fine.times[0].relative_l2_error < 0.7 * errors[0]
 
 
 @pytest.mark.oracle

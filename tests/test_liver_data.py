@@ -17,6 +17,7 @@ from comparisons.oscillation_data import (
     OscillationMetrics,
     OscillationRow,
 )
+from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
 
 #: The keys of a run's JSON record, in results.json's order (a porous run adds max_abs_pressure).
 RUN_KEYS = [
@@ -123,6 +124,45 @@ def an_oscillation() -> OscillationData:
     )
 
 
+def a_terzaghi() -> TerzaghiResult:
+    return TerzaghiResult(
+        figures=("terzaghi.png",),
+        n_layers=20,
+        dt=0.004,
+        coupling_iterations=1,
+        B=0.4,
+        c_v=1.0,
+        K_lim=2000.0,
+        constrained_modulus=4000.0,
+        times=(TerzaghiTime(0.05, 0.005), TerzaghiTime(0.2, 0.002)),
+    )
+
+
+def test_terzaghi_record_round_trip_worst_error_and_refusals():
+    record = a_terzaghi()
+    data = record.to_dict()
+    assert list(data) == [
+        "figures",
+        "n_layers",
+        "dt",
+        "coupling_iterations",
+        "B",
+        "c_v",
+        "K_lim",
+        "constrained_modulus",
+        "times",
+    ]
+    assert TerzaghiResult.from_dict(json.loads(json.dumps(data))) == record
+    assert record.worst_error == 0.005
+    with pytest.raises(ValueError, match="TerzaghiTime: key 'relative_l2_error' must be a number"):
+        TerzaghiTime(0.1, -1e-3)
+    with pytest.raises(ValueError, match="TerzaghiResult: key 'n_layers' must be an integer >= 1"):
+        TerzaghiResult(**{**vars(record), "n_layers": 0})
+    data["times"][1]["T_v"] = "late"
+    with pytest.raises(ValueError, match="times/1: TerzaghiTime: key 'T_v'"):
+        TerzaghiResult.from_dict(data)
+
+
 def a_study(**changes) -> LiverData:
     numba = a_run(backend="numba", max_displacement=[0.0, 0.02, 0.030001])
     values = dict(
@@ -144,7 +184,7 @@ def a_study(**changes) -> LiverData:
         runs=(a_run(), numba),
         step_split=(StepSplit("hyperelastic", "numpy", 250.0, dict.fromkeys(PHASES, 0.2)),),
         backend_agreement=(BackendAgreement("hyperelastic", "numba", "numpy", 3e-5),),
-        terzaghi={"times": [{"T_v": 0.1, "relative_l2_error": 0.005}], "figures": []},
+        terzaghi=a_terzaghi(),
         figures=("fig4_max_displacement.png",),
         series=(),
         oscillation=an_oscillation(),
@@ -281,8 +321,11 @@ def test_a_study_read_back_names_the_bad_key_and_where_it_is():
     with pytest.raises(ValueError, match="LiverData: missing key 'n_fixed'"):
         LiverData.from_dict(data)
     data = a_study().to_dict()
-    data["terzaghi"] = {"times": []}
-    with pytest.raises(ValueError, match="key 'terzaghi'"):
+    data["terzaghi"]["times"] = []
+    with pytest.raises(ValueError, match="terzaghi: TerzaghiResult: key 'times' must be at least"):
+        LiverData.from_dict(data)
+    data["terzaghi"] = {"times": [{"T_v": 0.1, "relative_l2_error": 0.005}], "figures": []}
+    with pytest.raises(ValueError, match="terzaghi: TerzaghiResult: missing key 'n_layers'"):
         LiverData.from_dict(data)
     with pytest.raises(ValueError, match="LiverData: expected a JSON object, got list"):
         LiverData.from_dict([])

@@ -18,6 +18,7 @@ from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, PHASES, liver_study
 from comparisons.liver_data import LiverData, LiverRun
 from comparisons.oscillation import euler_decay_rate, oscillation_metrics
 from comparisons.oscillation_data import OscillationData
+from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
 from mjed.compiled import numba_available
 
 pytest.importorskip("meshio")
@@ -457,7 +458,7 @@ def _stub_liver_data() -> LiverData:
         runs=(run,),
         step_split=(),
         backend_agreement=(),
-        terzaghi={"times": [{"relative_l2_error": 0.0}], "figures": []},
+        terzaghi=TerzaghiResult((), 1, 0.1, 1, 0.5, 1.0, 1.0, 1.0, (TerzaghiTime(0.1, 0.0),)),
         figures=(),
         series=(),
     )

@@ -424,7 +424,5 @@ def _print_findings(data) -> None:
         print(f"  (the paper: hyperelastic force + stiffness about {share:.0f} % of a step)")
     if data.oscillation is not None:
         print("  " + oscillation_findings(data.oscillation))
-    tz = ", ".join(
-        f"T_v {t['T_v']:g}: {100 * t['relative_l2_error']:.2f} %" for t in data.terzaghi["times"]
-    )
+    tz = ", ".join(f"T_v {t.T_v:g}: {100 * t.relative_l2_error:.2f} %" for t in data.terzaghi.times)
     print(f"  Terzaghi check of the pressure step (relative L2 error of P, tolerance 1 %): {tz}")
