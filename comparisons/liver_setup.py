@@ -36,6 +36,7 @@ __all__ = [
     "backend_force_field",
     "run_solver",
     "device_synchronizer",
+    "run_integrator",
     "numpy_force_field",
     "default_fixed_specs",
 ]
@@ -82,8 +83,9 @@ def backend_force_field(backend: str) -> Callable:
     """The factory (mesh, material, *, regularize, allow_inverted) -> force field of
     ``mjed.make_force_field(..., backend=...)``, with ``backend`` and ``label`` attributes, and
     ``linear_solver`` (the run's LinearSolverOptions from the study's, see :func:`run_solver`)
-    and ``synchronize`` (waits for the device; :func:`simulate` calls it before stopping a
-    step's clock).
+    ``synchronize`` (waits for the device; :func:`simulate` calls it before stopping a
+    step's clock) and ``integrator`` (:func:`run_integrator`: for the GPU, the step on the
+    device where the model allows).
 
     The compiled and the GPU fields are evaluated once at rest when built, so their kernels
     are compiled (or loaded from Numba's cache) before any step is timed; for the GPU also the
@@ -119,6 +121,7 @@ def backend_force_field(backend: str) -> Callable:
     factory.label = _BACKEND_LABELS[backend] + (_simulated_note() if gpu else "")
     factory.linear_solver = _device_solver if gpu else (lambda options: options)
     factory.synchronize = _synchronize_device if gpu else (lambda: None)
+    factory.integrator = _device_integrator if gpu else _host_integrator
     factory.__qualname__ = f"backend_force_field({backend!r})"
     return factory
 
@@ -131,6 +134,31 @@ def run_solver(force_field, params: LiverParameters) -> LinearSolverOptions:
     """
     choose = getattr(force_field, "linear_solver", None)
     return params.solver if choose is None else choose(params.solver)
+
+
+def run_integrator(force_field, mesh, models, density, **options):
+    """The implicit Euler integrator of a run: for a GPU backend the step on the device
+    (mjed.cuda.integrator.implicit_euler: the hyperelastic model; the visco and porous models,
+    whose histories are updated on the host, get the host-built step with the device CG), else
+    mjed.integrator.ImplicitEuler. Returns (integrator, where: one line saying where the step
+    is built, or "" off the GPU).
+    """
+    make = getattr(force_field, "integrator", None) or _host_integrator
+    return make(mesh, models, density, **options)
+
+
+def _host_integrator(mesh, models, density, **options):
+    from mjed.integrator import ImplicitEuler
+
+    return ImplicitEuler(mesh, models, density, **options), ""
+
+
+def _device_integrator(mesh, models, density, **options):
+    from mjed.cuda.integrator import device_refusal, implicit_euler
+
+    integ = implicit_euler(mesh, models, density, **options)
+    why = device_refusal(models, options["solver"])
+    return integ, "step on the device" if why is None else f"step built on the host: {why}"
 
 
 def device_synchronizer(force_field) -> Callable[[], None]:

@@ -118,6 +118,7 @@ __all__ = [
     "Prescribed",
     "StepReport",
     "StepTimes",
+    "StepTally",
     "IntegratorState",
     "ImplicitEuler",
     "LinearSolverOptions",
@@ -239,8 +240,10 @@ class IntegratorState:
 
 
 @dataclass
-class _Tally:
-    """What the substeps of one step add up to (mutable, private to a step)."""
+class StepTally:
+    """What the substeps of one step add up to (mutable, one per step; what a step's _single
+    fills in).
+    """
 
     n_models: int
     substeps: int = 0
@@ -291,6 +294,9 @@ class ImplicitEuler:
     Nodes that no cell uses (``mesh.unreferenced_nodes``: a mesh read with its numbering kept)
     carry no mass and no force, so their motion is undefined: they are held where they are,
     like fixed nodes, and listed in ``idle_nodes``.
+
+    Attributes read by a step (set once): ``M`` the mass matrix, ``gravity_force`` (n, 3) M g,
+    ``constrained`` (3n,) the mask of the fixed, idle and prescribed dofs, ``prescribed_nodes``.
     """
 
     def __init__(
@@ -358,12 +364,12 @@ class ImplicitEuler:
         n = mesh.n_nodes
 
         # Gravity as a body force: M g is exact for P1 with a constant g, lumped or consistent.
-        self._f_gravity = np.zeros((n, 3))
+        self.gravity_force = np.zeros((n, 3))
         if gravity is not None:
             g = np.asarray(gravity, dtype=np.float64)
             if g.shape != (3,) or not np.isfinite(g).all():
                 raise ValueError(f"gravity must be 3 finite numbers or None, got {gravity!r}")
-            self._f_gravity = (self.M @ np.tile(g, n)).reshape(n, 3)
+            self.gravity_force = (self.M @ np.tile(g, n)).reshape(n, 3)
 
         self.fixed_nodes = _node_set("fixed_nodes", fixed_nodes, n)
         self.idle_nodes = np.asarray(mesh.unreferenced_nodes, dtype=np.int64)
@@ -381,13 +387,13 @@ class ImplicitEuler:
             both = np.intersect1d(prescribed_nodes, self.fixed_nodes)
             if both.size:
                 raise ValueError(f"node(s) {both[:5].tolist()} are both fixed and prescribed")
-        self._prescribed_nodes = prescribed_nodes
+        self.prescribed_nodes = prescribed_nodes
         constrained = np.zeros((n, 3), dtype=bool)
         constrained[self.fixed_nodes] = True
         constrained[self.idle_nodes] = True
         constrained[prescribed_nodes] = True
-        self._constrained = constrained.ravel()  # (3n,)
-        self._free = np.flatnonzero(~self._constrained)
+        self.constrained = constrained.ravel()  # (3n,)
+        self._free = np.flatnonzero(~self.constrained)
         if self._free.size == 0:
             raise ValueError("every node is constrained: nothing to integrate")
 
@@ -416,6 +422,10 @@ class ImplicitEuler:
         v = self.v.ravel()
         return 0.5 * float(v @ (self.M @ v))
 
+    def max_displacement(self) -> float:
+        """The largest nodal displacement |x_a - X_a| from the rest positions."""
+        return float(np.linalg.norm(self.x - self.mesh.points, axis=1).max())
+
     # ---------------------------------------------------------------- stepping
     def run(
         self, n_steps: int, callback: Optional[Callable[["ImplicitEuler", StepReport], None]] = None
@@ -436,14 +446,14 @@ class ImplicitEuler:
         """
         clock = time.perf_counter()
         step, t_end = self.steps + 1, self.t + self.dt
-        start = (self.x, self.v, self.t)
-        tally = _Tally(len(self.models))
+        start = self._checkpoint()
+        tally = StepTally(len(self.models))
         # the models' histories, saved at the first failure (nothing committed yet)
         saved: list = []
         try:
             self._advance(self.dt, 0, step, tally, saved)
         except IntegrationError as exc:
-            self.x, self.v, self.t = start
+            self._restore(start)
             for model, history in saved:
                 model.restore_history(history)
             if not tally.retries:
@@ -480,7 +490,7 @@ class ImplicitEuler:
             times,
         )
 
-    def _advance(self, dt: float, depth: int, step: int, tally: _Tally, saved: list) -> None:
+    def _advance(self, dt: float, depth: int, step: int, tally: StepTally, saved: list) -> None:
         """Take dt from the current state, in halves (recursively) if it fails whole."""
         try:
             self._single(dt, step, tally)
@@ -495,7 +505,7 @@ class ImplicitEuler:
             for _ in range(2):
                 self._advance(0.5 * dt, depth + 1, step, tally, saved)
 
-    def _single(self, dt: float, step: int, tally: _Tally) -> None:
+    def _single(self, dt: float, step: int, tally: StepTally) -> None:
         """One backward Euler step of size dt from the current state; commits it on success."""
         t1 = self.t + dt
         for model in self.models:
@@ -503,28 +513,17 @@ class ImplicitEuler:
                 model.prepare_step(dt)
         n3 = 3 * self.mesh.n_nodes
         x0, v0 = self.x.ravel(), self.v.ravel()
-        f_ext = self._f_gravity.ravel().copy()
-        if self.external_force is not None:
-            f_ext += _finite_load(self.external_force(t1), self.mesh.n_nodes, step, t1)
+        f_ext = self.external_forces(step, t1)
 
         # Velocity of the constrained dofs over the step: zero for fixed nodes, whatever reaches
         # the prescribed positions at t1 for the others (measured from the actual positions, so
         # that no drift accumulates).
         v_ref = v0.copy()
-        v_ref[self._constrained] = 0.0
+        v_ref[self.constrained] = 0.0
         if self.prescribed is not None:
-            target = self.mesh.points[self._prescribed_nodes] + np.asarray(
-                self.prescribed.displacement(t1), dtype=float
-            )
-            if target.shape != (len(self._prescribed_nodes), 3) or not np.isfinite(target).all():
-                raise _input_error(
-                    step,
-                    t1,
-                    f"prescribed displacement at t={t1:g} is not a finite "
-                    f"({len(self._prescribed_nodes)}, 3) array",
-                )
-            v_ref.reshape(-1, 3)[self._prescribed_nodes] = (
-                target - self.x[self._prescribed_nodes]
+            target = self.prescribed_positions(step, t1)
+            v_ref.reshape(-1, 3)[self.prescribed_nodes] = (
+                target - self.x[self.prescribed_nodes]
             ) / dt
         u_e = np.zeros(n3)  # the first linearisation point is x0
 
@@ -545,25 +544,10 @@ class ImplicitEuler:
                 r0_norm = r_norm
             else:
                 # Here u_e = dt v_ref, so rhs is the nonlinear residual r(v_ref).
-                newton_res = r_norm / r0_norm if r0_norm > 0 else 0.0
-                if not np.isfinite(r_norm) or newton_res > _DIVERGENCE_FACTOR:
-                    raise IntegrationError(
-                        step,
-                        t1,
-                        "newton_diverged",
-                        f"Newton residual grew to {newton_res:.3g} times the first",
-                    )
+                newton_res = self.newton_residual(it, r_norm, r0_norm, step, t1)
                 if newton_res <= self.newton_tol:
-                    reaction = np.where(self._constrained, -rhs / dt, 0.0)
+                    reaction = np.where(self.constrained, -rhs / dt, 0.0)
                     break
-                if it > self.newton_iterations:
-                    raise IntegrationError(
-                        step,
-                        t1,
-                        "newton_max_iterations",
-                        f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
-                        f"after {self.newton_iterations} linear solves",
-                    )
             clock = time.perf_counter()
             A_ff = self._system(a_M, K, b_K)
             tally.system_seconds += time.perf_counter() - clock
@@ -582,7 +566,7 @@ class ImplicitEuler:
             dv[free] = res.x
             # Reaction: what the constraints must add for the constrained rows to balance too.
             reaction = np.where(
-                self._constrained, (a_M * (self.M @ dv) + b_K * (K @ dv) - rhs) / dt, 0.0
+                self.constrained, (a_M * (self.M @ dv) + b_K * (K @ dv) - rhs) / dt, 0.0
             )
             v_ref = v_ref + dv
             u_e = dt * v_ref
@@ -598,8 +582,7 @@ class ImplicitEuler:
             )
         x1 = x1.reshape(-1, 3)
         J1 = self._jacobians(x1)
-        inverted = self._inverted_cells(J1, step, t1)
-        self._check_volume_change(J1, step, t1)
+        inverted = self.check_jacobians(self._J, J1, step, t1)
         for k, model in enumerate(self.models):
             if hasattr(model, "accept_step"):
                 clock = time.perf_counter()
@@ -615,7 +598,70 @@ class ImplicitEuler:
         tally.reaction = reaction
         tally.inverted = inverted
 
+    # ---------------------------------------------------------------- a step's pieces
+    # (public so that an integrator running the same step elsewhere, mjed.cuda.integrator's on
+    # the device, shares them)
+    def external_forces(self, step: int, t1: float) -> np.ndarray:
+        """(3n,) f_ext at t1: gravity plus the external load (checked finite)."""
+        f_ext = self.gravity_force.ravel().copy()
+        if self.external_force is not None:
+            f_ext += _finite_load(self.external_force(t1), self.mesh.n_nodes, step, t1)
+        return f_ext
+
+    def prescribed_positions(self, step: int, t1: float) -> np.ndarray:
+        """(k, 3) positions of the prescribed nodes at t1 (checked finite)."""
+        k = len(self.prescribed_nodes)
+        target = self.mesh.points[self.prescribed_nodes] + np.asarray(
+            self.prescribed.displacement(t1), dtype=float
+        )
+        if target.shape != (k, 3) or not np.isfinite(target).all():
+            raise _input_error(
+                step,
+                t1,
+                f"prescribed displacement at t={t1:g} is not a finite ({k}, 3) array",
+            )
+        return target
+
+    def newton_residual(self, it: int, r_norm: float, r0_norm: float, step: int, t1: float):
+        """||r|| / ||r_0|| at Newton iteration it > 1; raises IntegrationError when it has
+        diverged, or when it is above newton_tol after the last solve allowed.
+        """
+        newton_res = r_norm / r0_norm if r0_norm > 0 else 0.0
+        if not np.isfinite(r_norm) or newton_res > _DIVERGENCE_FACTOR:
+            raise IntegrationError(
+                step,
+                t1,
+                "newton_diverged",
+                f"Newton residual grew to {newton_res:.3g} times the first",
+            )
+        if newton_res > self.newton_tol and it > self.newton_iterations:
+            raise IntegrationError(
+                step,
+                t1,
+                "newton_max_iterations",
+                f"Newton residual {newton_res:.3g} above newton_tol={self.newton_tol:g} "
+                f"after {self.newton_iterations} linear solves",
+            )
+        return newton_res
+
+    def check_jacobians(self, J0: np.ndarray, J1: np.ndarray, step: int, t1: float) -> int:
+        """The checks of the new J1 (J0: at the step's start): inverted cells (refused unless
+        allow_inverted) and the volume change; returns the number of inverted cells.
+        """
+        inverted = self._inverted_cells(J1, step, t1)
+        self._check_volume_change(J0, J1, step, t1)
+        return inverted
+
     # ---------------------------------------------------------------- internals
+    def _checkpoint(self) -> tuple:
+        """What :meth:`step` restores when the step fails: the accepted state (arrays that a
+        step replaces and never writes into, so references suffice).
+        """
+        return self.x, self.v, self.t, self._J
+
+    def _restore(self, saved: tuple) -> None:
+        self.x, self.v, self.t, self._J = saved
+
     def _solve(self, A: sp.csr_matrix, b: np.ndarray, warm, step: int, t1: float):
         """Solve A x = b on the free dofs; returns (CGResult, factorisations done).
 
@@ -705,7 +751,7 @@ class ImplicitEuler:
                 step, t1, "not_positive_definite", f"the step matrix A: {exc}"
             ) from None
 
-    def _evaluate(self, x: np.ndarray, step: int, t1: float, tally: _Tally):
+    def _evaluate(self, x: np.ndarray, step: int, t1: float, tally: StepTally):
         """Summed forces (3n,) and stiffness (3n, 3n) of all models at x (3n,)."""
         xs = x.reshape(-1, 3)
         if not np.isfinite(xs).all():
@@ -752,16 +798,16 @@ class ImplicitEuler:
             )
         return int(bad.size)
 
-    def _check_volume_change(self, J1: np.ndarray, step: int, t1: float) -> None:
-        """A step changing some cell's volume by more than max_volume_change fails
-        ("volume_jump").
+    def _check_volume_change(self, J0: np.ndarray, J1: np.ndarray, step: int, t1: float) -> None:
+        """A step changing some cell's volume (J0 at its start, J1 at its end) by more than
+        max_volume_change fails ("volume_jump").
         """
         c = self.max_volume_change
         if c is None:
             return
-        both = (self._J > 0) & (J1 > 0)  # inverted cells are counted (or refused) elsewhere
+        both = (J0 > 0) & (J1 > 0)  # inverted cells are counted (or refused) elsewhere
         ratio = np.ones_like(J1)
-        ratio[both] = J1[both] / self._J[both]
+        ratio[both] = J1[both] / J0[both]
         bad = np.flatnonzero((ratio > c) | (ratio < 1.0 / c))
         if bad.size:
             worst = bad[np.argmax(np.abs(np.log(ratio[bad])))]
@@ -770,7 +816,7 @@ class ImplicitEuler:
                 t1,
                 "volume_jump",
                 f"{bad.size} cell(s) changed volume by more than a factor {c:g} in one step (cell "
-                f"{worst}: J {self._J[worst]:.3g} -> {J1[worst]:.3g})",
+                f"{worst}: J {J0[worst]:.3g} -> {J1[worst]:.3g})",
                 cells=bad,
             )
 

@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["FreeBlock", "same_pattern", "sum_same_pattern"]
+__all__ = ["FreeBlock", "same_pattern", "sum_same_pattern", "values_on_pattern"]
 
 
 def same_pattern(A: sp.csr_matrix, B: sp.csr_matrix) -> bool:
@@ -35,6 +35,27 @@ def sum_same_pattern(A: sp.csr_matrix, B) -> sp.csr_matrix:
     if sp.isspmatrix_csr(B) and same_pattern(A, B):
         return sp.csr_matrix((A.data + B.data, A.indices, A.indptr), shape=A.shape)
     return sp.csr_matrix(A + B)
+
+
+def values_on_pattern(M, indptr, indices, shape) -> Optional[np.ndarray]:
+    """M's entries laid on the CSR pattern (indptr, indices) of ``shape``: the (nnz,) array
+    ``m`` with which ``a * m + b * K.data`` are the values of a M + b K for any K of that
+    pattern; None when some entry of M lies outside the pattern.
+    """
+    indices = np.asarray(indices)
+    nnz = len(indices)
+    where = sp.csr_matrix((np.arange(1, nnz + 1, dtype=np.float64), indices, indptr), shape=shape)
+    Mc = sp.csr_matrix(M).tocoo()
+    pos = (
+        np.asarray(where[Mc.row, Mc.col]).ravel().astype(np.int64) - 1
+        if Mc.nnz
+        else np.empty(0, np.int64)
+    )
+    if (pos < 0).any():
+        return None
+    on_pattern = np.zeros(nnz)
+    np.add.at(on_pattern, pos, Mc.data)
+    return on_pattern
 
 
 class FreeBlock:
@@ -88,18 +109,7 @@ class FreeBlock:
         # Shared by every block returned from now on: read-only, so no consumer can corrupt them.
         self._indptr.setflags(write=False)
         self._indices.setflags(write=False)
-        Mc = self.M.tocoo()
-        pos = (
-            np.asarray(where[Mc.row, Mc.col]).ravel().astype(np.int64) - 1
-            if Mc.nnz
-            else np.empty(0, np.int64)
-        )
-        if (pos < 0).any():
-            self._M_on_K = None
-            return
-        M_on_K = np.zeros(nnz)
-        np.add.at(M_on_K, pos, Mc.data)
-        self._M_on_K = M_on_K
+        self._M_on_K = values_on_pattern(self.M, K.indptr, K.indices, K.shape)
 
 
 class _Pattern:

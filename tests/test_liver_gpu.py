@@ -2,7 +2,7 @@
 they are left out saying "not run: no GPU", never replaced by another backend; on Numba's CUDA
 simulator (tests/liver_cuda_simulated.py, in a subprocess) the study runs end to end with the
 force field and the implicit Euler solve on the (simulated) device, and follows the NumPy
-run's trajectory.
+run's trajectory (the hyperelastic step entirely on the device: mjed.cuda.integrator).
 """
 
 from __future__ import annotations
@@ -106,6 +106,11 @@ def test_liver_command_runs_every_model_on_the_simulated_gpu(simulated):
         gpu = r["backend"] != "numpy"
         assert ("CG on the GPU" in r["solver"]) == gpu
         assert ("CUDA simulator (not a GPU" in r["force_field"]) == gpu
+        # the hyperelastic step on the device; the visco and porous histories keep theirs on
+        # the host (mjed.cuda.integrator.device_refusal), saying so
+        on_device = gpu and r["model"] == "hyperelastic"
+        assert ("; step on the device" in r["solver"]) == on_device, r["solver"]
+        assert ("step built on the host: " in r["solver"]) == (gpu and not on_device)
     assert "FP32" in run["runs"][-1]["force_field"]
     agreement = run["agreement"]
     assert len(agreement) == 2 * len(MODELS)
@@ -118,6 +123,7 @@ def test_liver_command_runs_every_model_on_the_simulated_gpu(simulated):
 def test_gpu_trajectories_follow_the_numpy_engine(simulated):
     tight = simulated["tight"]
     assert [r["backend"] for r in tight["runs"]] == ["numpy", "cuda", "cuda-fp32"]
+    assert all("step on the device" in r["solver"] for r in tight["runs"][1:])
     assert all(r["steps"] == 3 and r["error"] is None for r in tight["runs"])
     assert min(tight["peak"]) > 1e-3  # the box sags by millimetres: the comparison means something
     diff = {a["backend"]: a["relative_difference"] for a in tight["agreement"]}

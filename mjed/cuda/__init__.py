@@ -16,7 +16,13 @@ Without a GPU they run on Numba's CUDA simulator when ``NUMBA_ENABLE_CUDASIM=1``
 before Numba is imported (tests/test_cuda.py does so, in a subprocess), and compile to PTX
 wherever a CUDA toolkit's NVVM is found (tests/test_cuda_ptx.py); otherwise building a field
 raises :class:`BackendUnavailable` saying why. Importing :mod:`mjed` or this package does not
-import Numba. Speed on a GPU: still to be measured (docs/studies/timing.md).
+import Numba.
+
+Implicit Euler with the whole step on the device (forces, CSR values, the step matrix, the
+right-hand side, the constraints, CG and the update):
+:class:`mjed.cuda.integrator.DeviceImplicitEuler`, or
+:func:`mjed.cuda.integrator.implicit_euler`, which gives it where the models allow and the
+host integrator otherwise. Speed on a GPU: still to be measured (docs/studies/timing.md).
 """
 
 from mjed.compiled.availability import BackendUnavailable

@@ -8,23 +8,25 @@ products reduced by one atomic add per thread of a grid-stride loop. The CSR val
 straight from :meth:`mjed.cuda.CudaForceField.device_force_and_stiffness`, whose pattern is
 the field's (``field.pattern``), so that the stiffness never leaves the device.
 
-:class:`mjed.integrator.ImplicitEuler` uses it with ``LinearSolverOptions(solver="cuda-cg")``;
-it still forms its step matrix on the host and copies it here at each solve
-(docs/studies/timing.md, what is left). Each iteration reads two scalars back to the host
-(p.Ap, then r.r and r.z together), a few microseconds per iteration on a GPU. Importing this
-module imports numba.cuda.
+:class:`mjed.integrator.ImplicitEuler` uses it with ``LinearSolverOptions(solver="cuda-cg")``,
+forming its step matrix on the host and copying it here at each solve;
+:class:`mjed.cuda.integrator.DeviceImplicitEuler` forms the matrix on the device and solves
+through :class:`DeviceCG` (work vectors kept, solution left on the device). Each iteration
+reads two pairs of scalars back to the host (p.Ap, then r.r and r.z together: 32 bytes), a few
+microseconds per iteration on a GPU. Importing this module imports numba.cuda.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Tuple
 
 import numpy as np
 from numba import cuda
 
 from mjed.solvers import CGResult
 
-__all__ = ["DeviceCSR", "device_conjugate_gradient"]
+__all__ = ["DeviceCG", "DeviceCSR", "device_conjugate_gradient"]
 
 _THREADS = 128
 
@@ -65,6 +67,14 @@ def _dots(a, b, c, out):
         s1 += a[i] * c[i]
     cuda.atomic.add(out, 0, s0)
     cuda.atomic.add(out, 1, s1)
+
+
+@cuda.jit
+def _clear(out):
+    """Out[:] = 0 (one thread: out is a few scalars)."""
+    if cuda.grid(1) == 0:
+        for i in range(out.shape[0]):
+            out[i] = 0.0
 
 
 @cuda.jit
@@ -119,6 +129,60 @@ class DeviceCSR:
         return cls(A.indptr, A.indices, A.data)
 
 
+class DeviceCG:
+    """The work vectors of Jacobi-preconditioned CG on systems of size n, kept on the device
+    between solves (:meth:`solve` allocates nothing).
+    """
+
+    def __init__(self, n: int):
+        self.n = n
+        self.blocks = max(1, -(-n // _THREADS))
+        self.reduce_blocks = max(1, min(self.blocks, 256))
+        self.r, self.z, self.p, self.Ap, self.dinv = (cuda.device_array(n) for _ in range(5))
+        self.sums = cuda.device_array(2)
+
+    def _dots(self, a, u, v) -> Tuple[float, float]:
+        """(a.u, a.v): the only numbers an iteration reads back (16 bytes)."""
+        _clear[1, 1](self.sums)
+        _dots[self.reduce_blocks, _THREADS](a, u, v, self.sums)
+        s = self.sums.copy_to_host()
+        return float(s[0]), float(s[1])
+
+    def solve(self, M: "DeviceCSR", b, x, nb: float, *, tol: float, max_iterations: int):
+        """Solve M x = b in place: b and x (the first guess, then the solution) are device
+        arrays (n,); nb = ||b|| > 0. Returns (iterations, converged, reason, residual) with the
+        semantics of :func:`mjed.solvers.conjugate_gradient`.
+        """
+        blocks, r, z, p, Ap, dinv = self.blocks, self.r, self.z, self.p, self.Ap, self.dinv
+        _jacobi[blocks, _THREADS](M.indptr, M.indices, M.data, dinv)
+        _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, x, Ap)
+        _residual_start[blocks, _THREADS](b, Ap, dinv, r, z)
+        rr, rz = self._dots(r, r, z)
+        res = math.sqrt(rr) / nb
+        if res <= tol:
+            return 0, True, "converged", res
+        p.copy_to_device(z)
+        for k in range(1, max_iterations + 1):
+            if not (rz > 0.0):
+                reason = "non_finite" if not math.isfinite(rz) else "preconditioner_indefinite"
+                return k, False, reason, res
+            _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, p, Ap)
+            pAp, _ = self._dots(p, Ap, Ap)
+            if not math.isfinite(pAp):
+                return k, False, "non_finite", res
+            if pAp <= 0.0:
+                return k, False, "negative_curvature", res
+            alpha = rz / pAp
+            _step[blocks, _THREADS](x, r, p, Ap, dinv, z, alpha)
+            rr, rz_new = self._dots(r, r, z)
+            res = math.sqrt(rr) / nb
+            if res <= tol:
+                return k, True, "converged", res
+            _direction[blocks, _THREADS](z, p, rz_new / rz)
+            rz = rz_new
+        return max_iterations, False, "max_iterations", res
+
+
 def device_conjugate_gradient(
     A, b, *, tol: float = 1e-10, max_iterations: int = 1000, x0=None
 ) -> CGResult:
@@ -140,43 +204,8 @@ def device_conjugate_gradient(
     x_host = np.zeros(n) if x0 is None else np.array(x0, dtype=np.float64)
     if nb == 0.0:
         return CGResult(x_host, 0, True, "converged", 0.0)
-    blocks = max(1, -(-n // _THREADS))
-    reduce_blocks = max(1, min(blocks, 256))
-    b_d, x = cuda.to_device(b), cuda.to_device(x_host)
-    r, z, p, Ap, dinv = (cuda.device_array(n) for _ in range(5))
-    sums = cuda.device_array(2)
-    zero2 = np.zeros(2)
-    _jacobi[blocks, _THREADS](M.indptr, M.indices, M.data, dinv)
-    _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, x, Ap)
-    _residual_start[blocks, _THREADS](b_d, Ap, dinv, r, z)
-
-    def dots(a, u, v):
-        sums.copy_to_device(zero2)
-        _dots[reduce_blocks, _THREADS](a, u, v, sums)
-        s = sums.copy_to_host()
-        return float(s[0]), float(s[1])
-
-    rr, rz = dots(r, r, z)
-    res = math.sqrt(rr) / nb
-    if res <= tol:
-        return CGResult(x.copy_to_host(), 0, True, "converged", res)
-    p.copy_to_device(z)
-    for k in range(1, max_iterations + 1):
-        if not (rz > 0.0):
-            reason = "non_finite" if not math.isfinite(rz) else "preconditioner_indefinite"
-            return CGResult(x.copy_to_host(), k, False, reason, res)
-        _spmv[blocks, _THREADS](M.indptr, M.indices, M.data, p, Ap)
-        pAp, _ = dots(p, Ap, Ap)
-        if not math.isfinite(pAp):
-            return CGResult(x.copy_to_host(), k, False, "non_finite", res)
-        if pAp <= 0.0:
-            return CGResult(x.copy_to_host(), k, False, "negative_curvature", res)
-        alpha = rz / pAp
-        _step[blocks, _THREADS](x, r, p, Ap, dinv, z, alpha)
-        rr, rz_new = dots(r, r, z)
-        res = math.sqrt(rr) / nb
-        if res <= tol:
-            return CGResult(x.copy_to_host(), k, True, "converged", res)
-        _direction[blocks, _THREADS](z, p, rz_new / rz)
-        rz = rz_new
-    return CGResult(x.copy_to_host(), max_iterations, False, "max_iterations", res)
+    x = cuda.to_device(x_host)
+    iterations, converged, reason, res = DeviceCG(n).solve(
+        M, cuda.to_device(b), x, nb, tol=tol, max_iterations=max_iterations
+    )
+    return CGResult(x.copy_to_host(), iterations, converged, reason, res)
