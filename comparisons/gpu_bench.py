@@ -1,5 +1,5 @@
 """The GPU section of the hardware benchmark (comparisons.hardware_bench): MJED and the
-classical element on the device, the figures of issue 23 as typed records.
+classical element on the device, the GPU figures of docs/studies/timing.md as typed records.
 
 For each size (structured cubes, meshes.structured.cube_with_cells, 1e4 to 1e7 tets by
 default), each precision (FP64, FP32), each method (MJED: mjed.cuda.CudaForceField; the
@@ -59,7 +59,7 @@ MEMORY_SHARE = 0.9
 
 @dataclass(frozen=True)
 class Target:
-    """A target of issue 23: tets/s of ``method`` ``quantity`` in ``dtype`` at the size
+    """A target of the GPU benchmark: tets/s of ``method`` ``quantity`` in ``dtype`` at the size
     closest to ``cells`` (within a factor 1.5), for ``material``.
     """
 

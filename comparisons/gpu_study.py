@@ -25,7 +25,7 @@ from comparisons.gpu_bench import GpuFigures
 __all__ = ["KEY", "TITLE", "COMMAND", "figures_path", "load_gpu_figures", "gpu_study"]
 
 KEY = "gpu"
-TITLE = "GPU speed: MJED and the classical element on the device (issue 23)"
+TITLE = "GPU speed: MJED and the classical element on the device"
 DEFAULT_PATH = Path(__file__).resolve().parents[1] / "docs" / "studies" / "gpu_figures.json"
 COMMAND = "python -m comparisons.hardware_bench --json docs/studies/gpu_figures.json"
 
