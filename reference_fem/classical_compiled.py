@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from mjed.compiled.assembly import CompiledAssembly
 from mjed.compiled.availability import require_numba
 from mjed.compiled.forcefield import kernel_positions
+from mjed.compiled.schedule import cell_schedule
 from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
@@ -117,6 +118,21 @@ class CompiledClassicalGalerkin:
 
         self._assembly = CompiledAssembly(self.pattern, kernels)
         self._J = np.empty(self.mesh.n_cells)
+        # the cells in the order of the MJED kernel's (Morton order of their centroids), so
+        # that the comparison of the two stays like for like (mjed.compiled.CompiledForceField)
+        sch = self._order = cell_schedule(self.mesh.points, self.mesh.cells, 1)
+        self._cells, self._D, self._V0 = (
+            sch.permute(self._cells),
+            sch.permute(self._D),
+            sch.permute(self._V0),
+        )
+        if self.shape.per_cell_T:
+            self.tensor = sch.permute(self.tensor)
+        a = self._assembly
+        self._assembly_args = (
+            sch.permute(a.cell_edges),
+            sch.permute(a.cell_flip),
+        ) + a.arguments()[2:]
 
     def energy(self, x) -> float:
         return self._run(x, False, False)[0]
@@ -144,12 +160,13 @@ class CompiledClassicalGalerkin:
             self.tensor,
             force,
             stiffness,
-            *self._assembly.arguments(),
+            *self._assembly_args,
             f,
             data,
             self._J,
         )
-        refuse_inverted(self._J)
+        if not (self._J > 0).all():
+            refuse_inverted(self._order.unpermute(self._J))
         return (
             float(energy),
             (f if force else None),

@@ -95,6 +95,43 @@ def test_compiled_refuses_inverted_cells_like_the_engine(cube):
 
 
 @needs_numba
+def test_serial_kernels_run_the_cells_in_morton_order_and_answer_in_the_callers(cube):
+    # The serial compiled fields (one cell at a time, batched, and the classical element) visit
+    # the cells in the Morton order of their centroids (locality of the assembly sums); the
+    # cells named by a refusal, J and S per cell stay in the caller's order. On a shuffled
+    # mesh that order is far from the caller's.
+    from mjed.darcy import cell_jacobians
+    from reference_fem.classical_compiled import CompiledClassicalGalerkin
+
+    mesh0, x = cube
+    cells = mesh0.cells[np.random.default_rng(1).permutation(mesh0.n_cells)]
+    mesh = mjed.TetMesh(mesh0.points, cells)
+    mat = MATERIALS["NeoHookean"]
+    ref = mjed.make_force_field(mesh, mat)
+    y = mesh.points.copy()
+    y[cells[5, 0]] = y[cells[5, 1:]].mean(axis=0) * 2 - y[cells[5, 0]]  # flip cell 5
+    bad = np.flatnonzero(cell_jacobians(mesh, y) <= 0)
+    assert 5 in bad
+    fields = [
+        mjed.make_force_field(mesh, mat, backend="numba"),
+        mjed.make_force_field(mesh, mat, backend="numba", batch=8),
+        CompiledClassicalGalerkin(mesh, None, mat),
+    ]
+    for field in fields:
+        order = (field.schedule if hasattr(field, "schedule") else field._order).cell_id
+        assert np.array_equal(np.sort(order), np.arange(mesh.n_cells))
+        assert not np.array_equal(order, np.arange(mesh.n_cells))
+        with pytest.raises(mjed.InvertedElementError) as err:
+            field.force(y)
+        assert np.array_equal(err.value.cells, bad)
+    for field in fields[:2]:
+        assert _rel(field.stress(x), ref.stress(x)) < 1e-13
+        f, K = field.force_and_stiffness(x)
+        f_r, K_r = ref.force_and_stiffness(x)
+        assert _rel(f, f_r) < 1e-13 and abs(K - K_r).max() <= 1e-13 * abs(K_r).max()
+
+
+@needs_numba
 def test_compiled_refuses_a_term_kind_it_has_no_kernel_for(cube):
     mesh, _ = cube
     porous = mjed.with_porous_volume(
