@@ -31,12 +31,18 @@ StepReport's reaction); to the device, an external load (8 bytes per dof, only w
 check copies J back to name the cells, as the host does. docs/studies/timing.md ("Implicit
 Euler on the device") counts the bytes for the 100k-tet liver against the host-built step.
 
-The step stays on the device for one force model with ``device_force_and_stiffness`` (a
+The step stays on the device for one body with ``device_force_and_stiffness`` (a
 :class:`mjed.cuda.CudaForceField`, FP64 or FP32: f and K are read in their dtype, every
-other quantity is FP64) and no step hooks, solved by ``solver="cuda-cg"``. Anything else
-(the viscous field, whose Prony history is updated on the host at each accepted step; the
-porous fluid pressure; several models; another solver) is refused by this class with the
-reason (:func:`device_refusal`); :func:`implicit_euler` then gives the host integrator.
+other quantity is FP64), alone or as the body of a
+:class:`mjed.viscous.ViscoHyperelasticForceField`, optionally with the porous model's
+:class:`mjed.darcy.FluidPressureForce`, solved by ``solver="cuda-cg"``: the Prony history, the
+fluid pressure and its Darcy update live on the device (:mod:`mjed.cuda.device_models`; the
+sums of f and K are then float64; what they add per step crossing to the host: 32 bytes for
+the viscous stress kernel, 48 + 32 per Darcy CG iteration for the fluid), and
+:meth:`DeviceImplicitEuler.sync_models` copies them back into the host models. Anything else
+(a viscous field over a NumPy body, another U(J), several bodies, another solver) is refused
+by this class with the reason (:func:`device_refusal`); :func:`implicit_euler` then gives the
+host integrator.
 Importing this module does not import Numba; building the integrator does.
 """
 
