@@ -138,10 +138,10 @@ def run_solver(force_field, params: LiverParameters) -> LinearSolverOptions:
 
 def run_integrator(force_field, mesh, models, density, **options):
     """The implicit Euler integrator of a run: for a GPU backend the step on the device
-    (mjed.cuda.integrator.implicit_euler: the hyperelastic model; the visco and porous models,
-    whose histories are updated on the host, get the host-built step with the device CG), else
-    mjed.integrator.ImplicitEuler. Returns (integrator, where: one line saying where the step
-    is built, or "" off the GPU).
+    (mjed.cuda.integrator.implicit_euler: all three models, the viscous history and the fluid
+    pressure kept on the device by mjed.cuda.device_models; models it refuses get the
+    host-built step with the device CG, saying why), else mjed.integrator.ImplicitEuler.
+    Returns (integrator, where: one line saying where the step is built, or "" off the GPU).
     """
     make = getattr(force_field, "integrator", None) or _host_integrator
     return make(mesh, models, density, **options)

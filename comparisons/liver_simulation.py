@@ -59,6 +59,10 @@ class Trajectory:
         self.inverted.append(report.inverted_cells)
         self.factorizations += report.factorizations
         if fluid is not None:
+            if hasattr(integ, "sync_models"):
+                # P lives on the device (mjed.cuda.device_models): read back for the record,
+                # after the step's clock stopped ((n + m) x 8 bytes a frame)
+                integ.sync_models(fluid)
             self.p_max.append(float(np.abs(fluid.P).max()))
             if self.p_max[-1] >= self.best_P[0]:
                 self.best_P = (self.p_max[-1], fluid.P.copy(), integ.x.copy())

@@ -100,15 +100,21 @@ def _failure(mesh, field, **options) -> dict:
 
 def _fallback(mesh, field) -> dict:
     """Which integrator implicit_euler gives, and why the host one."""
+    from conftest import MATERIALS
+
+    import mjed
     from mjed.cuda.integrator import device_refusal, implicit_euler
     from mjed.solvers import LinearSolverOptions
     from mjed.viscous import Prony, ViscoHyperelasticForceField
 
     visco = ViscoHyperelasticForceField(field, prony=Prony((0.3,), (0.1,)))
+    numpy_body = mjed.HyperelasticForceField(field.mesh, MATERIALS["NeoHookean"])
+    visco_numpy = ViscoHyperelasticForceField(numpy_body, prony=Prony((0.3,), (0.1,)))
     device_cg = LinearSolverOptions(solver="cuda-cg")
     cases = {
         "cuda": (field, device_cg),
         "visco": (visco, device_cg),
+        "visco_numpy": (visco_numpy, device_cg),
         "host_cg": (field, LinearSolverOptions()),
         "two_models": ([field, field], device_cg),
     }

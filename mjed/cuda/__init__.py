@@ -19,7 +19,8 @@ raises :class:`BackendUnavailable` saying why. Importing :mod:`mjed` or this pac
 import Numba.
 
 Implicit Euler with the whole step on the device (forces, CSR values, the step matrix, the
-right-hand side, the constraints, CG and the update):
+right-hand side, the constraints, CG and the update; the viscous history and the porous
+model's fluid pressure in :mod:`mjed.cuda.device_models`):
 :class:`mjed.cuda.integrator.DeviceImplicitEuler`, or
 :func:`mjed.cuda.integrator.implicit_euler`, which gives it where the models allow and the
 host integrator otherwise. Speed on a GPU: still to be measured (docs/studies/timing.md).

@@ -115,6 +115,24 @@ class CudaForceField:
         energy, f, data, _ = self._launch(x_device, force, stiffness, False, out)
         return energy, (f if force else None), (data if stiffness else None)
 
+    def device_stress(self, x_device, *, out=None):
+        """S = 2 dW/dC per cell (m, 3, 3) as a device array of ``dtype``, from positions on the
+        device (n, 3) of ``dtype``; out: a device array (m, 3, 3) to reuse. Nothing crosses but
+        the minimum J and the energy (16 bytes). Returns (energy, S); raises
+        InvertedElementError as the host methods.
+        """
+        m = self.mesh.n_cells
+        S = self._cuda.device_array((m, 3, 3), dtype=self.dtype) if out is None else out
+        energy, _, _, S = self._launch(x_device, False, False, True, None, S)
+        return energy, S
+
+    @property
+    def launcher(self):
+        """The :class:`mjed.cuda.launch.CellLauncher` of this field: the mesh (cells, D, V0)
+        and the CSR block map (blk, rowlen) on the device, in ``dtype``.
+        """
+        return self._launcher
+
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """The CSR matrix of host ``data`` (nnz,) with this field's pattern (owning its indices)."""
         return self._launcher.matrix(data)
@@ -132,9 +150,12 @@ class CudaForceField:
             S.copy_to_host().astype(np.float64) if stress else None,
         )
 
-    def _launch(self, x_d, force: bool, stiffness: bool, stress: bool, out):
+    def _launch(self, x_d, force: bool, stiffness: bool, stress: bool, out, S=None):
         m = self.mesh.n_cells
-        S = self._cuda.device_array((m, 3, 3), dtype=self.dtype) if stress else self._empty_stress
+        if S is None:
+            S = self._empty_stress
+            if stress:
+                S = self._cuda.device_array((m, 3, 3), dtype=self.dtype)
         energy, f, data = self._launcher.launch(
             self._kernel if stiffness else self._force_kernel,
             x_d,

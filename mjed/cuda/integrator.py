@@ -31,12 +31,18 @@ StepReport's reaction); to the device, an external load (8 bytes per dof, only w
 check copies J back to name the cells, as the host does. docs/studies/timing.md ("Implicit
 Euler on the device") counts the bytes for the 100k-tet liver against the host-built step.
 
-The step stays on the device for one force model with ``device_force_and_stiffness`` (a
+The step stays on the device for one body with ``device_force_and_stiffness`` (a
 :class:`mjed.cuda.CudaForceField`, FP64 or FP32: f and K are read in their dtype, every
-other quantity is FP64) and no step hooks, solved by ``solver="cuda-cg"``. Anything else
-(the viscous field, whose Prony history is updated on the host at each accepted step; the
-porous fluid pressure; several models; another solver) is refused by this class with the
-reason (:func:`device_refusal`); :func:`implicit_euler` then gives the host integrator.
+other quantity is FP64), alone or as the body of a
+:class:`mjed.viscous.ViscoHyperelasticForceField`, optionally with the porous model's
+:class:`mjed.darcy.FluidPressureForce`, solved by ``solver="cuda-cg"``: the Prony history, the
+fluid pressure and its Darcy update live on the device (:mod:`mjed.cuda.device_models`; the
+sums of f and K are then float64; what they add per step crossing to the host: 32 bytes for
+the viscous stress kernel, 48 + 32 per Darcy CG iteration for the fluid), and
+:meth:`DeviceImplicitEuler.sync_models` copies them back into the host models. Anything else
+(a viscous field over a NumPy body, another U(J), several bodies, another solver) is refused
+by this class with the reason (:func:`device_refusal`); :func:`implicit_euler` then gives the
+host integrator.
 Importing this module does not import Numba; building the integrator does.
 """
 
@@ -57,22 +63,16 @@ __all__ = ["DeviceImplicitEuler", "device_refusal", "implicit_euler"]
 
 
 def device_refusal(models, solver: LinearSolverOptions) -> Optional[str]:
-    """Why a step with these force models and this solver cannot stay on the device, or None."""
+    """Why a step with these force models and this solver cannot stay on the device, or None
+    (:func:`mjed.cuda.device_models.device_plan`).
+    """
+    from mjed.cuda.device_models import device_plan
+
     models = (models,) if hasattr(models, "force_and_stiffness") else tuple(models)
     if solver.solver != "cuda-cg":
         return f"the linear solver is {solver.solver!r}, not the device CG ('cuda-cg')"
-    if len(models) != 1:
-        return (
-            f"{len(models)} force models (the viscous field and the fluid pressure of the "
-            "porous model keep their history on the host)"
-        )
-    model = models[0]
-    name = type(model).__name__
-    if any(hasattr(model, hook) for hook in ("prepare_step", "accept_step")):
-        return f"the force model {name} updates a history on the host at each step"
-    if not callable(getattr(model, "device_force_and_stiffness", None)):
-        return f"the force model {name} has no device_force_and_stiffness (not a CudaForceField)"
-    return None
+    plan = device_plan(models)
+    return plan if isinstance(plan, str) else None
 
 
 def implicit_euler(mesh, models, density, **options):
@@ -108,13 +108,16 @@ class DeviceImplicitEuler(ImplicitEuler):
         from mjed.cuda.availability import require_cuda
 
         self._cuda = cuda = require_cuda()
-        from mjed.cuda import step_kernels
+        from mjed.cuda import model_kernels, step_kernels
 
-        self._k = step_kernels
+        self._k, self._model_kernels = step_kernels, model_kernels
         n3, m = 3 * mesh.n_nodes, mesh.n_cells
         # the state, set by ImplicitEuler.__init__ through the properties below
         self._x_d, self._v_d, self._J_d = (cuda.device_array(k) for k in (n3, n3, m))
         super().__init__(mesh, models, density, **options)
+        from mjed.cuda.device_models import device_plan
+
+        self._plan = device_plan(self.models)
         self._allocate()
 
     # ---------------------------------------------------------------- the state, on the device
@@ -142,6 +145,22 @@ class DeviceImplicitEuler(ImplicitEuler):
     def _J(self, value) -> None:
         self._J_d.copy_to_device(np.ascontiguousarray(value, dtype=np.float64))
 
+    @property
+    def device_models(self) -> tuple:
+        """The models whose state lives on the device (:mod:`mjed.cuda.device_models`: the
+        viscous history, the fluid pressure), in the order of ``models``.
+        """
+        return self._extras
+
+    def sync_models(self, *models) -> None:
+        """Copy the device state of the given host models (all by default) into them: the
+        viscous field's history (``gammas``, ``steps``), the fluid's ``P`` and accepted J. Until
+        then the host models hold the state they had when the integrator was built.
+        """
+        for adapter in self._extras:
+            if not models or any(adapter.model is m for m in models):
+                adapter.sync()
+
     def max_displacement(self) -> float:
         """The largest nodal |x_a - X_a|, reduced on the device (8 bytes back)."""
         k, out = self._k, self._sums
@@ -152,9 +171,11 @@ class DeviceImplicitEuler(ImplicitEuler):
     # ---------------------------------------------------------------- set-up
     def _allocate(self) -> None:
         """Everything a step needs on the device, once per integrator."""
+        from mjed.cuda.device_models import DeviceFluid, DeviceViscous, Geometry
         from mjed.cuda.solvers import DeviceCG, DeviceCSR
 
-        cuda, mesh, field = self._cuda, self.mesh, self.models[0]
+        cuda, mesh, plan = self._cuda, self.mesh, self._plan
+        field = plan.field
         n, n3, m = mesh.n_nodes, 3 * mesh.n_nodes, mesh.n_cells
         p = field.pattern
         mass = values_on_pattern(self.M, p.indptr, p.indices, p.shape)
@@ -174,6 +195,26 @@ class DeviceImplicitEuler(ImplicitEuler):
         self._dofs, self._dofs_host = cuda.to_device(dofs.astype(index)), dofs
         self._nodes = cuda.to_device(self.prescribed_nodes.astype(index))
         self._cells = cuda.to_device(np.ascontiguousarray(mesh.cells, dtype=index))
+        # the viscous history and the fluid pressure, on the device; with either, the step reads
+        # the summed force and stiffness in float64 (as the host sums them)
+        self._viscous = self._fluid = None
+        extras = []
+        if plan.viscous is not None or plan.fluid is not None:
+            geometry = Geometry(field, cuda)
+            if plan.viscous is not None:
+                self._viscous = DeviceViscous(plan.viscous, field, geometry, cuda)
+                extras.append((plan.body_index, self._viscous))
+            if plan.fluid is not None:
+                self._fluid = DeviceFluid(plan.fluid, geometry, cuda)
+                extras.append((plan.fluid_index, self._fluid))
+        self._extras = tuple(adapter for _, adapter in sorted(extras, key=lambda e: e[0]))
+        if self._extras and field.dtype != np.float64:
+            self._f_tot, self._K_tot = cuda.device_array(n3), cuda.device_array(p.nnz)
+        else:
+            self._f_tot, self._K_tot = self._f.reshape(-1), self._K
+        # a retry rolls the device histories back (ImplicitEuler's rollback of its models)
+        self._stateful = list(self._extras)
+        self._rollback = True
         self._six_volume = cuda.to_device(6.0 * mesh.volumes)
         self._X_d = cuda.to_device(np.ascontiguousarray(mesh.points, dtype=np.float64).ravel())
         self._vref, self._ue, self._rhs, self._b, self._dv = (
@@ -215,6 +256,8 @@ class DeviceImplicitEuler(ImplicitEuler):
         """
         k, T, rows = self._k, self._k.THREADS, self._rows
         t1 = self.t + dt
+        if self._viscous is not None:
+            self._viscous.prepare_step(dt)
         if self.external_force is not None or not self._fext_is_gravity:
             # a load: the only per-step upload of a vector (or gravity back, the load removed)
             self._fext.copy_to_device(self.external_forces(step, t1))
@@ -230,12 +273,12 @@ class DeviceImplicitEuler(ImplicitEuler):
             self._evaluate_device(it, step, t1, tally)
             clock = time.perf_counter()
             k.right_hand_side[rows, T](
-                self._A.indptr, self._A.indices, self._mass, self._K, self._f.reshape(-1),
+                self._A.indptr, self._A.indices, self._mass, self._K_tot, self._f_tot,
                 self._fext, self._vref, self._v_d, self._ue, self._constrained_d, dt, a_M,
                 c_stiff, self._rhs, self._b,
             )  # fmt: skip
             k.clear[1, 1](self._sums)
-            k.norm_and_non_finite[self._reduce_grid, T](self._b, self._f.reshape(-1), self._sums)
+            k.norm_and_non_finite[self._reduce_grid, T](self._b, self._f_tot, self._sums)
             rr, bad = self._scalars()
             tally.system_seconds += time.perf_counter() - clock
             if bad:
@@ -250,7 +293,7 @@ class DeviceImplicitEuler(ImplicitEuler):
                     break
             clock = time.perf_counter()
             k.system_matrix[rows, T](
-                self._A.indptr, self._A.indices, self._mass, self._K, self._constrained_d, a_M,
+                self._A.indptr, self._A.indices, self._mass, self._K_tot, self._constrained_d, a_M,
                 b_K, self._A.data,
             )  # fmt: skip
             tally.system_seconds += time.perf_counter() - clock
@@ -296,12 +339,60 @@ class DeviceImplicitEuler(ImplicitEuler):
                     step, t1, "non_finite", "a Newton iterate has non-finite positions"
                 )
         clock = time.perf_counter()
+        plan = self._plan
         try:
             self._field.device_force_and_stiffness(self._xe, out=(self._f, self._K))
         except InvertedElementError as exc:
             raise IntegrationError(step, t1, "inverted", str(exc), cells=exc.cells) from exc
         finally:
-            tally.model_seconds[0] += time.perf_counter() - clock
+            tally.model_seconds[plan.body_index] += time.perf_counter() - clock
+        if not self._extras:
+            return
+        # the viscous scale c = 1 - sum a_i, into the float64 sums; then the history's and the
+        # fluid's force and stiffness added by their kernels
+        clock = time.perf_counter()
+        c = 1.0 if self._viscous is None else self._viscous.scale
+        if c != 1.0 or self._K_tot is not self._K:
+            n3, nnz = self._f_tot.shape[0], self._K_tot.shape[0]
+            mk = self._model_kernels
+            f = self._f.reshape(-1)
+            mk.scale_into[max(1, -(-n3 // k.THREADS)), k.THREADS](f, c, self._f_tot)
+            mk.scale_into[max(1, -(-nnz // k.THREADS)), k.THREADS](self._K, c, self._K_tot)
+        if self._viscous is not None:
+            self._viscous.add(self._x_d, self._ue, self._f_tot, self._K_tot)
+        tally.model_seconds[plan.body_index] += time.perf_counter() - clock
+        if self._fluid is not None:
+            clock = time.perf_counter()
+            self._fluid.add(self._x_d, self._ue, self._f_tot, self._K_tot)
+            tally.model_seconds[plan.fluid_index] += time.perf_counter() - clock
+
+    def _accept_models(self, dt: float, step: int, t1: float, tally: StepTally) -> None:
+        """The viscous history and the fluid pressure after the accepted step ending at x1:
+        each computed (pending), then all committed, so that a failure changes none.
+        """
+        if not self._extras:
+            return
+        plan, k = self._plan, self._k
+        if self._viscous is not None:
+            clock = time.perf_counter()
+            n3 = self._x1.shape[0]
+            self._model_kernels.cast_into[max(1, -(-n3 // k.THREADS)), k.THREADS](
+                self._x1, self._xe.reshape(-1)
+            )
+            try:
+                self._viscous.advance(self._xe, dt)
+            except InvertedElementError as exc:
+                raise IntegrationError(step, t1, "inverted", str(exc), cells=exc.cells) from exc
+            finally:
+                tally.model_seconds[plan.body_index] += time.perf_counter() - clock
+        if self._fluid is not None:
+            clock = time.perf_counter()
+            try:
+                self._fluid.advance(self._J1, dt, step, t1)
+            finally:
+                tally.model_seconds[plan.fluid_index] += time.perf_counter() - clock
+        for adapter in self._extras:
+            adapter.commit()
 
     def _solve_device(self, it: int, r_norm: float, step: int, t1: float):
         """CG on the device for dv (into self._dv); returns (iterations, residual)."""
@@ -337,7 +428,7 @@ class DeviceImplicitEuler(ImplicitEuler):
         if count:
             k = self._k
             k.reaction[max(1, -(-count // k.THREADS)), k.THREADS](
-                self._dofs, self._A.indptr, self._A.indices, self._mass, self._K, a, b,
+                self._dofs, self._A.indptr, self._A.indices, self._mass, self._K_tot, a, b,
                 self._dv, self._rhs, dt, self._reaction,
             )  # fmt: skip
             out[self._dofs_host] = self._reaction.copy_to_host()[:count]
@@ -360,6 +451,7 @@ class DeviceImplicitEuler(ImplicitEuler):
         inverted, jumps = (int(s) for s in self._scalars())
         if (inverted and not self.allow_inverted) or jumps:  # the host's checks name the cells
             self.check_jacobians(self._J, self._J1.copy_to_host(), step, t1)
+        self._accept_models(dt, step, t1, tally)
         self._x_d, self._x1 = self._x1, self._x_d
         self._v_d, self._vref = self._vref, self._v_d
         self._J_d, self._J1 = self._J1, self._J_d
