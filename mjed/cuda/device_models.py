@@ -272,7 +272,7 @@ class DeviceFluid:
 
         Raises:
             ValueError: as the host (:func:`mjed.darcy.cell_source`) for a J <= 0.
-            IntegrationError: the Darcy CG did not converge (reason "pressure_cg_...").
+            IntegrationError: the Darcy CG did not converge (its reason ``pressure_cg_<why>``).
         """
         from mjed.darcy import cell_source
         from mjed.errors import IntegrationError
