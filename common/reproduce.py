@@ -26,11 +26,13 @@ def command(
 ) -> str:
     """``mjed-verify SUBCOMMAND --opt value ...`` with shell quoting.
 
-    options: keyword ``snake_case`` becomes ``--kebab-case``; True gives a bare flag; None and
-        False are left out (they are the parser's defaults); other values are quoted.
-    prefix: words before the program (e.g. ``("mpirun", "-n", "2")``).
-    comment: appended as a shell comment (``# ...``) when something cannot be spelled as an
-        option (a material with parameters the command line cannot set).
+    Args:
+        subcommand: the subcommand (words separated by spaces).
+        prefix: words before the program (e.g. ``("mpirun", "-n", "2")``).
+        comment: appended as a shell comment (``# ...``) when something cannot be spelled as an
+            option (a material with parameters the command line cannot set).
+        **options: keyword ``snake_case`` becomes ``--kebab-case``; True gives a bare flag; None
+            and False are left out (they are the parser's defaults); other values are quoted.
     """
     words = [*prefix, PROGRAM, *subcommand.split()]
     for key, value in options.items():

@@ -131,19 +131,20 @@ def status_from_checks(checks: Iterable[Check]) -> Status:
 class StudyResult:
     """A study's outcome: status, headline, what it was held to, how to reproduce it, its data.
 
-    key, title: the study's identity (e.g. "equivalence", "Equivalence: MJED against the UFL
-    oracle").
-    status: one of :class:`Status`.
-    headline: one line for a summary, with the figures that matter.
-    command: the exact command line that reproduces this result (with every option that ran).
-    checks: the tolerances and targets, each with its measured figure.
-    not_covered: what this run left out, in words ("quick sizes: cube-small instead of
-        cube-paper"); non-empty makes the result partial.
-    reason: why it failed, was not run or raised (empty when passed).
-    protocol: how the numbers were produced when that matters for reading them (e.g. the
-        timing protocol: calls per measurement, repeats, stopping rule).
-    data: the study's numbers, JSON-serialisable (written to results.json and --json).
-    blocks: the study's presentation (paragraphs, tables, figures) for the report.
+    - key, title: the study's identity (e.g. "equivalence", "Equivalence: MJED against the
+      UFL oracle").
+    - status: one of :class:`Status`.
+    - headline: one line for a summary, with the figures that matter.
+    - command: the exact command line that reproduces this result (with every option that
+      ran).
+    - checks: the tolerances and targets, each with its measured figure.
+    - not_covered: what this run left out, in words ("quick sizes: cube-small instead of
+      cube-paper"); non-empty makes the result partial.
+    - reason: why it failed, was not run or raised (empty when passed).
+    - protocol: how the numbers were produced when that matters for reading them (e.g. the
+      timing protocol: calls per measurement, repeats, stopping rule).
+    - data: the study's numbers, JSON-serialisable (written to results.json and --json).
+    - blocks: the study's presentation (paragraphs, tables, figures) for the report.
     """
 
     key: str

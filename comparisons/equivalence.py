@@ -1,6 +1,6 @@
 """The equivalence harness: MJED against the UFL Galerkin oracle, case by case.
 
-A case is one material on one mesh in one deformation state. The errors are
+A case is one material on one mesh in one deformation state. The errors are::
 
     force_rel_err     = ||f_mjed - f_oracle||_2 / ||f_oracle||_2
     stiffness_rel_err = ||K_mjed - K_oracle||_F / ||K_oracle||_F
@@ -90,11 +90,11 @@ def run_cases(
     Args:
         meshes: (label, points (n, 3), cells (m, 4)) triples, or (label, mjed.TetMesh) pairs
             (already validated: the study builds each mesh once and passes it on).
-        materials: material instances.
+        materials: material instances. A material that needs a fibre frame and has none
+            (Costa) gets the mesh's helical field (:func:`common.frames.with_default_frame`),
+            the frames the conformance kit exports: MJED is held to what the kit asks of other
+            engines.
         states: names from common.states.
-        A material that needs a fibre frame and has none (Costa) gets the mesh's helical field
-        (:func:`common.frames.with_default_frame`), the frames the conformance kit exports:
-        MJED is held to what the kit asks of other engines.
         oracle_factory: (points, cells, material) -> object with force(x), stiffness(x);
             defaults to reference_fem.UFLOracle (distributed over ``comm`` if given).
         comm: MPI communicator for an oracle distributed over several ranks. Every rank

@@ -80,7 +80,7 @@ GPU_BACKENDS = ("cuda", "cuda-fp32")
 
 
 def backend_force_field(backend: str) -> Callable:
-    """The factory (mesh, material, *, regularize, allow_inverted) -> force field of
+    """The factory ``(mesh, material, *, regularize, allow_inverted)`` -> force field of
     ``mjed.make_force_field(..., backend=...)``, with ``backend`` and ``label`` attributes, and
     ``linear_solver`` (the run's LinearSolverOptions from the study's, see :func:`run_solver`)
     ``synchronize`` (waits for the device; :func:`simulate` calls it before stopping a

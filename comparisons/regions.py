@@ -1,6 +1,6 @@
 """Node selection by region, for boundary conditions given on the command line.
 
-Specs (coordinates in the mesh file's own units, before any --units/--scale):
+Specs (coordinates in the mesh file's own units, before any --units/--scale)::
 
     box:XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX     nodes inside the axis-aligned box (bounds included)
     sphere:CX,CY,CZ,R                     nodes within distance R of the centre

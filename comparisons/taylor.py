@@ -1,7 +1,9 @@
 """Taylor remainder tests: derivative checks that need no oracle.
 
-For a smooth map phi with derivative dphi, the remainder
+For a smooth map phi with derivative dphi, the remainder ::
+
     r(eps) = || phi(x + eps v) - phi(x) - eps dphi(x) v ||
+
 falls like eps^2. Halving eps four times and reading log2 of successive ratios gives the
 convergence rate; a wrong derivative gives rate 1 (or 0).
 """

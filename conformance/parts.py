@@ -177,7 +177,7 @@ class StiffnessParts:
     """The oracle's stiffness split into parts (scipy CSR, (3n, 3n), input dof order).
 
     geometric + material_normal_normal + material_normal_shear + material_shear_shear = K;
-    the *_volumetric parts are those of the J-only energy terms (None when the energy has
+    the ``*_volumetric`` parts are those of the J-only energy terms (None when the energy has
     none or no split is known), the isochoric ones the differences.
     """
 

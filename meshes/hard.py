@@ -21,11 +21,12 @@ Mesh = Tuple[np.ndarray, np.ndarray]
 
 _EDGES = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)])
 
-#: How one vertex of a cell is moved to make it bad (the other three stay):
-#: cap    toward the centroid of the opposite face (the vertex nearly on the face's inside);
-#: sliver toward the midpoint of an edge of the opposite face (four nearly coplanar vertices
-#:        with two nearly crossing edges);
-#: wedge  toward another vertex of the cell (one short edge).
+#: How one vertex of a cell is moved to make it bad (the other three stay)::
+#:
+#:     cap    toward the centroid of the opposite face (the vertex nearly on the face's inside);
+#:     sliver toward the midpoint of an edge of the opposite face (four nearly coplanar vertices
+#:            with two nearly crossing edges);
+#:     wedge  toward another vertex of the cell (one short edge).
 DEGENERACIES = ("cap", "sliver", "wedge")
 
 

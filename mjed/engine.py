@@ -1,11 +1,12 @@
 """The generic MJED engine: a material's term groups in, per-cell forces and edge blocks out.
 
-One evaluation runs four concerns, each in its own module:
+One evaluation runs four concerns, each in its own module::
 
     mjed.cellwise     the cells at x: F, its strain measures, d_a = cof(F) D_a, F S D_a + h d_a
     mjed.aggregates   the term groups folded into one record (S-bar, S-hat, h, g2, weights)
     mjed.edge_blocks  the six 3x3 edge blocks from that record
     mjed.workspace    the work arrays reused between calls
+
 and returns a :class:`mjed.evaluation.CellEvaluation`.
 
 Layout (why it is fast): the 3x3 algebra runs on component-major arrays whose cell axis is
@@ -111,9 +112,12 @@ class MJEDEngine:
     ) -> CellEvaluation:
         """As :meth:`evaluate`, in component-major layout.
 
-        x_t: (3, 4, m) current positions, [k, a] = x_a,k of each cell (contiguous).
-        out: optional (3, 3, 6, m) float64 array the edge blocks are written to (a caller
-            that consumes the blocks at once can reuse one buffer between calls).
+        Args:
+            x_t: (3, 4, m) current positions, [k, a] = x_a,k of each cell (contiguous).
+            want: as for :meth:`evaluate`.
+            check_J: as for :meth:`evaluate`.
+            out: optional (3, 3, 6, m) float64 array the edge blocks are written to (a caller
+                that consumes the blocks at once can reuse one buffer between calls).
         """
         const, ws = self.constants, self.workspace
         m = self.n_cells

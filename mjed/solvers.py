@@ -53,19 +53,19 @@ FACTOR_PRECISIONS = ("double", "single")
 class LinearSolverOptions:
     """How an implicit scheme solves its linear system each step (validated on construction).
 
-    solver: "cg" (preconditioned conjugate gradients), "direct" (a sparse factorisation of
-        every system; its residual is still held to ``cg_tol``) or "cuda-cg" (Jacobi CG on an
-        NVIDIA GPU, :func:`mjed.cuda.solvers.device_conjugate_gradient`: the system is copied
-        to the device at each solve; needs the "jacobi" preconditioner, Numba's CUDA target and
-        a device).
-    cg_tol: relative residual ||b - A x|| / ||b|| to reach, > 0.
-    max_iterations: CG's iteration cap, an integer >= 1.
-    preconditioner: "jacobi", "block-jacobi" or "factorized" (a kept sparse factorisation of
-        an earlier system, see mjed.integrator), for "cg" only.
-    refactor_iterations: with "factorized", a solve needing more CG iterations than this
-        renews the factorisation at the next solve.
-    factor_precision: "double" or "single" precision of the "factorized" preconditioner's
-        factorisation (the direct solver always factorises in double precision).
+    - solver: "cg" (preconditioned conjugate gradients), "direct" (a sparse factorisation of
+      every system; its residual is still held to ``cg_tol``) or "cuda-cg" (Jacobi CG on an
+      NVIDIA GPU, :func:`mjed.cuda.solvers.device_conjugate_gradient`: the system is copied
+      to the device at each solve; needs the "jacobi" preconditioner, Numba's CUDA target and
+      a device).
+    - cg_tol: relative residual ||b - A x|| / ||b|| to reach, > 0.
+    - max_iterations: CG's iteration cap, an integer >= 1.
+    - preconditioner: "jacobi", "block-jacobi" or "factorized" (a kept sparse factorisation
+      of an earlier system, see mjed.integrator), for "cg" only.
+    - refactor_iterations: with "factorized", a solve needing more CG iterations than this
+      renews the factorisation at the next solve.
+    - factor_precision: "double" or "single" precision of the "factorized" preconditioner's
+      factorisation (the direct solver always factorises in double precision).
 
     Raises:
         ValueError: naming the field and the accepted values.

@@ -1,8 +1,8 @@
 """The classical "standard FEM" MJED is compared against: Total Lagrangian P1 tetrahedra.
 
-Per element (Zienkiewicz & Taylor vol. 2, Bonet & Wood), with F = sum_a x_a (x) D_a, C = F^T F:
+Per element (Zienkiewicz & Taylor vol. 2, Bonet & Wood), with F = sum_a x_a (x) D_a, C = F^T F::
 
-    S = 2 dW/dC, CC = 2 dS/dC (6x6 Voigt)        from :mod:`reference_fem.classical_materials`
+    S = 2 dW/dC, CC = 2 dS/dC (6x6 Voigt)        from reference_fem.classical_materials
     B_a (6x3): engineering Green-Lagrange strain rate per node velocity,
                dE_eng = sum_a B_a dx_a, rows (xx, yy, zz, 2xy, 2yz, 2xz):
                B_a[(i, j), k] = D_a,j F_ki + D_a,i F_kj (halved for i = j)

@@ -1,6 +1,6 @@
 """Constitutive laws of the classical ("standard FEM") formulation, written from W directly.
 
-Each law maps the right Cauchy-Green tensor C (with J = det F) of a batch of cells to
+Each law maps the right Cauchy-Green tensor C (with J = det F) of a batch of cells to::
 
     W(C)                        strain energy per unit rest volume,
     S  = 2 dW/dC                second Piola-Kirchhoff stress, (m, 3, 3),
@@ -203,9 +203,13 @@ class DecoupledInvariantLaw(ClassicalLaw):
     S_iso = J^(-2/3) DEV(Sb) = J^(-2/3) Sb - 1/3 (J^(-2/3) Sb : C) C^-1;
     CC_iso = P : CCb : P^T + 2/3 tr P~ - 2/3 (C^-1 (x) S_iso + S_iso (x) C^-1), with
     P = II - 1/3 C^-1 (x) C, P~ = C^-1 (.) C^-1 - 1/3 C^-1 (x) C^-1, tr = J^(-2/3) Sb : C, and
-    CCb = J^(-4/3) [4 (Psi11 + 2 I1b Psi12 + Psi2 + I1b^2 Psi22) I (x) I
-                    - 4 (Psi12 + I1b Psi22) (I (x) Cb + Cb (x) I) + 4 Psi22 Cb (x) Cb - 4 Psi2 II]
-    (Holzapfel 6.5-6.6). Subclasses give psi(I1b, I2b) -> (Psi, Psi1, Psi2, Psi11, Psi12, Psi22).
+    (Holzapfel 6.5-6.6)::
+
+        CCb = J^(-4/3) [4 (Psi11 + 2 I1b Psi12 + Psi2 + I1b^2 Psi22) I (x) I
+                        - 4 (Psi12 + I1b Psi22) (I (x) Cb + Cb (x) I)
+                        + 4 Psi22 Cb (x) Cb - 4 Psi2 II]
+
+    Subclasses give psi(I1b, I2b) -> (Psi, Psi1, Psi2, Psi11, Psi12, Psi22).
     """
 
     k0: float
@@ -309,11 +313,13 @@ class OgdenLaw(ClassicalLaw):
     the eigenvalues of C (eigenvectors N_i, M_i = N_i (x) N_i).
 
     The isochoric part is a function of the eigenvalues, W_iso = c (P Sigma - 3) with
-    P = (lam_1 lam_2 lam_3)^r = J^(-alpha/3), r = -alpha/6, Sigma = sum lam_k^q. Spectral form:
-    S_iso = sum_i 2 w_i M_i, w_i = dW/dlam_i = c P (q lam_i^(q-1) + r Sigma / lam_i);
-    CC_iso = sum_ij 4 w_ij M_i (x) M_j + sum_{i<j} theta_ij G_ij (x) G_ij,
-    G_ij = N_i (x) N_j + N_j (x) N_i, theta_ij = 2 (w_i - w_j) / (lam_i - lam_j)
-           = 2 c P (q DD(lam^(q-1))_ij - r Sigma / (lam_i lam_j)),
+    P = (lam_1 lam_2 lam_3)^r = J^(-alpha/3), r = -alpha/6, Sigma = sum lam_k^q. Spectral form::
+
+        S_iso = sum_i 2 w_i M_i, w_i = dW/dlam_i = c P (q lam_i^(q-1) + r Sigma / lam_i);
+        CC_iso = sum_ij 4 w_ij M_i (x) M_j + sum_{i<j} theta_ij G_ij (x) G_ij,
+        G_ij = N_i (x) N_j + N_j (x) N_i, theta_ij = 2 (w_i - w_j) / (lam_i - lam_j)
+               = 2 c P (q DD(lam^(q-1))_ij - r Sigma / (lam_i lam_j)),
+
     with DD the divided difference of a power, evaluated without cancellation at (near-)repeated
     eigenvalues. The volumetric part goes through the C^-1 formulas.
     """
@@ -381,7 +387,8 @@ class CostaLaw(ClassicalLaw):
     Q is a quadratic form in E: in the fibre frame dQ/dEf = 2 B o Ef (entrywise), so
     d2Q/dEf dEf = T_f with T_f,pqrs = 2 B_pq II_pqrs; T = R R T_f R^T R^T is pushed to the global
     axes once (per cell if the frame is per cell). Then Q = 1/2 E : T : E, q = dQ/dE = T : E and,
-    with Psi(J, Q),
+    with Psi(J, Q)::
+
         S  = Psi_Q q + J Psi_J C^-1,
         CC = Psi_QQ q (x) q + J Psi_QJ (q (x) C^-1 + C^-1 (x) q) + Psi_Q T
              + J (J Psi_JJ + Psi_J) C^-1 (x) C^-1 - 2 J Psi_J C^-1 (.) C^-1.

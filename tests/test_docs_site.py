@@ -32,7 +32,7 @@ import urllib.parse
 import urllib.request
 
 import pytest
-from docs_support import DOCS, built_site, tutorial_runner
+from docs_support import DOCS, ROOT, built_site, tutorial_runner
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 CHROMEDRIVER = shutil.which("chromedriver")
@@ -49,7 +49,8 @@ CHROMIUM_ARGS = [
 
 # The toctree lists pages written in other branches by glob patterns; until they land,
 # Sphinx says the pattern matched nothing. Any other warning about a file of docs/ is a
-# defect (warnings about the code's docstrings name the Python file instead).
+# defect, and so is one about the code's docstrings (they name the Python file, or, for a
+# module attribute, only "docstring of module.NAME").
 TOLERATED = re.compile(r"toctree glob pattern '[^']*' didn't match any documents")
 
 # Runs in the page once it has loaded: waits for MathJax (if the page has math), then reports.
@@ -193,16 +194,26 @@ needs_browser = pytest.mark.skipif(
 )
 
 
-def test_site_builds_without_warnings_about_its_pages():
-    build = site()
-    own = [
+def _own_warnings(output: str) -> list:
+    """The warning and error lines of a build's output about the project's own files.
+
+    Those about a page of docs/ or a Python file of the repository (both start with the
+    repository's path) and those about a module attribute's docstring (autodoc names no file
+    for it: "docstring of module.NAME:line: ..."), less the TOLERATED message.
+    """
+    return [
         line
-        for line in build.output.splitlines()
-        if line.startswith(f"{DOCS}/")
+        for line in output.splitlines()
+        if line.startswith((f"{DOCS}/", f"{ROOT}/", "docstring of "))
         and ("WARNING" in line or "ERROR" in line)
         and not TOLERATED.search(line)
     ]
-    assert not own, "warnings about the site's pages:\n" + "\n".join(own)
+
+
+def test_site_builds_without_warnings_about_its_pages():
+    build = site()
+    own = _own_warnings(build.output)
+    assert not own, "warnings about the site's pages or the code's docstrings:\n" + "\n".join(own)
     for page in (
         "index.html",
         "getting_started.html",

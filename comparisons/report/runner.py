@@ -1,6 +1,7 @@
 """Run the studies into a new run directory and publish it as reports/latest when complete.
 
 Safety rules, in order of importance:
+
 - a run never writes into an existing run directory, so the previous complete report survives
   whatever happens to this one;
 - the run is assembled in ``<reports>/.partial-<name>`` and renamed when its report is written;

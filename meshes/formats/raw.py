@@ -14,11 +14,11 @@ __all__ = ["RawMesh"]
 class RawMesh:
     """Nodes and cell blocks as written in a file.
 
-    points: (n, 3) float64 coordinates in file order.
-    node_ids: (n,) int64, the id of each node in the file's own numbering.
-    numbering: what the ids are, in words (e.g. "gmsh node tags").
-    blocks: [(cell type, (k, nodes) int64 node *ids*)], in file order; cell types use meshio's
-        names ("tetra", "triangle", "tetra10", ...).
+    - points: (n, 3) float64 coordinates in file order.
+    - node_ids: (n,) int64, the id of each node in the file's own numbering.
+    - numbering: what the ids are, in words (e.g. "gmsh node tags").
+    - blocks: [(cell type, (k, nodes) int64 node *ids*)], in file order; cell types use
+      meshio's names ("tetra", "triangle", "tetra10", ...).
     """
 
     points: np.ndarray
