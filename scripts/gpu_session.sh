@@ -26,6 +26,8 @@
 #   pack   $OUT/results.tar.xz: the logs, check JSONs and figures; $OUT/kits-cube-small.tar.xz:
 #          the GPU-filled cube-small kits (inputs and outputs), for `mjed-verify check` elsewhere
 #
+# Afterwards: copy $OUT/hardware_bench.json to docs/studies/gpu_figures.json (the report's gpu
+# section reads it) and write the figures into docs/studies/timing.md with the device and date.
 # No dolfinx on the GPU machine: unpack kits-cube-small.tar.xz on a machine with the oracle and
 #   mjed-verify check kits/cube-small-float64 && mjed-verify check kits/cube-small-float32
 set -u
