@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import mjed
 from mjed import materials as M
 
 # One parameter set per material, chosen so that every term of each energy matters (and a
@@ -79,6 +80,19 @@ def random_tetrahedron(rng):
 
 def perturbed(points, rng, scale=0.08):
     return points + scale * rng.standard_normal(points.shape)
+
+
+def deformed_cube(n: int = 3, *, seed: int = 7, scale: float = 0.06):
+    """A jittered n x n x n box (a TetMesh) and positions perturbed from its rest points: the
+    compiled kernels' tests' mesh.
+    """
+    points, cells = box_mesh(n, jitter=0.3)
+    return mjed.TetMesh(points, cells), perturbed(points, np.random.default_rng(seed), scale)
+
+
+def relative_difference(a, b) -> float:
+    """||a - b|| / ||b||, Frobenius, of two arrays."""
+    return np.linalg.norm(np.asarray(a) - np.asarray(b)) / np.linalg.norm(np.asarray(b))
 
 
 @pytest.fixture(params=sorted(MATERIALS))
