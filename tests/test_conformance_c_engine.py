@@ -46,26 +46,19 @@ def _results(out):
     return json.load(open(os.path.join(out, run, "results.json")))
 
 
+def _check(exe, out, *options):
+    """``mjed-verify check --command 'EXE {input} {output}' --out OUT --quiet OPTIONS``: its exit
+    code and its results.json.
+    """
+    argv = ["check", "--command", f"{exe} {{input}} {{output}}", "--out", str(out), "--quiet"]
+    code = main(argv + list(options))
+    return code, _results(out)
+
+
 def test_c_engine_passes(tmp_path):
     exe = _compile(tmp_path)
-    assert (
-        main(
-            [
-                "check",
-                "--command",
-                f"{exe} {{input}} {{output}}",
-                "--material",
-                "NeoHookean",
-                "--mesh",
-                "cube-small",
-                "--out",
-                str(tmp_path / "r"),
-                "--quiet",
-            ]
-        )
-        == 0
-    )
-    res = _results(tmp_path / "r")
+    code, res = _check(exe, tmp_path / "r", "--material", "NeoHookean", "--mesh", "cube-small")
+    assert code == 0
     assert len(res["cases"]) == len(state_names())
     assert all(c["status"] == "passed" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) < 1e-12
@@ -83,24 +76,11 @@ def test_c_engine_files_mode(tmp_path):
 
 def test_c_engine_mistake_is_named(tmp_path):
     exe = _compile(tmp_path, "-DMISTAKE")
-    assert (
-        main(
-            [
-                "check",
-                "--command",
-                f"{exe} {{input}} {{output}}",
-                "--material",
-                "NeoHookean",
-                "--states",
-                "uniaxial,random",
-                "--out",
-                str(tmp_path / "r"),
-                "--quiet",
-            ]
-        )
-        == 1
+    code, res = _check(
+        exe, tmp_path / "r", "--material", "NeoHookean", "--states", "uniaxial,random"
     )
-    for case in _results(tmp_path / "r")["cases"]:
+    assert code == 1
+    for case in res["cases"]:
         assert (
             case["findings"][0]["code"] == "force-sign"
             and case["findings"][0]["strength"] == "explains"
@@ -112,24 +92,9 @@ def test_c_engine_refusal_is_bad_input(tmp_path):
     case.
     """
     exe = _compile(tmp_path)
-    assert (
-        main(
-            [
-                "check",
-                "--command",
-                f"{exe} {{input}} {{output}}",
-                "--material",
-                "Ogden",
-                "--states",
-                "rest",
-                "--out",
-                str(tmp_path / "r"),
-                "--quiet",
-            ]
-        )
-        == 2
-    )
-    msg = _results(tmp_path / "r")["cases"][0]["message"]
+    code, res = _check(exe, tmp_path / "r", "--material", "Ogden", "--states", "rest")
+    assert code == 2
+    msg = res["cases"][0]["message"]
     assert "exit code 2" in msg and "only NeoHookean is implemented, not Ogden" in msg
 
 
@@ -139,51 +104,17 @@ def test_c_engine_in_single_precision(tmp_path):
     sign mistake it still fails at single precision, the mistake named.
     """
     exe = _compile(tmp_path, "-DSINGLE")
-    args = [
-        "--material",
-        "NeoHookean",
-        "--mesh",
-        "cube-small",
-        "--states",
-        "uniaxial,random",
-        "--quiet",
-    ]
-    assert (
-        main(
-            ["check", "--command", f"{exe} {{input}} {{output}}", "--out", str(tmp_path / "s")]
-            + args
-        )
-        == 0
-    )
-    res = _results(tmp_path / "s")
+    args = ["--material", "NeoHookean", "--mesh", "cube-small", "--states", "uniaxial,random"]
+    code, res = _check(exe, tmp_path / "s", *args)
+    assert code == 0
     assert all(c["tolerances"]["precision"] == "single" for c in res["cases"])
     assert max(c["errors"]["stiffness"] for c in res["cases"]) > 1e-8  # really float32 arithmetic
-    assert (
-        main(
-            [
-                "check",
-                "--command",
-                f"{exe} {{input}} {{output}}",
-                "--precision",
-                "double",
-                "--out",
-                str(tmp_path / "d"),
-            ]
-            + args
-        )
-        == 1
-    )
-    res = _results(tmp_path / "d")
+    code, res = _check(exe, tmp_path / "d", "--precision", "double", *args)
+    assert code == 1
     assert all(c["findings"][0]["code"] == "single-precision" for c in res["cases"])
     wrong = _compile(tmp_path, "-DSINGLE", "-DMISTAKE")
-    assert (
-        main(
-            ["check", "--command", f"{wrong} {{input}} {{output}}", "--out", str(tmp_path / "m")]
-            + args
-        )
-        == 1
-    )
-    res = _results(tmp_path / "m")
+    code, res = _check(wrong, tmp_path / "m", *args)
+    assert code == 1
     assert all(
         c["status"] == "failed" and c["findings"][0]["code"] == "force-sign" for c in res["cases"]
     )
@@ -191,24 +122,16 @@ def test_c_engine_in_single_precision(tmp_path):
 
 def test_c_engine_writing_one_triangle_is_named(tmp_path):
     exe = _compile(tmp_path, "-DUPPER")
-    assert (
-        main(
-            [
-                "check",
-                "--command",
-                f"{exe} {{input}} {{output}}",
-                "--material",
-                "NeoHookean",
-                "--mesh",
-                "cube-small",
-                "--states",
-                "random",
-                "--out",
-                str(tmp_path / "r"),
-                "--quiet",
-            ]
-        )
-        == 1
+    code, res = _check(
+        exe,
+        tmp_path / "r",
+        "--material",
+        "NeoHookean",
+        "--mesh",
+        "cube-small",
+        "--states",
+        "random",
     )
-    (case,) = _results(tmp_path / "r")["cases"]
+    assert code == 1
+    (case,) = res["cases"]
     assert case["findings"][0]["code"] == "one-triangle"
