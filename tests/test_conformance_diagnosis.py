@@ -77,20 +77,10 @@ def _synthetic(seed=0):
     return points, cells, rng.standard_normal((n, 3)), K
 
 
-@pytest.mark.parametrize(
-    "mistake, code",
-    [
-        (lambda f, K, cells: (-f, K), "force-sign"),
-        (lambda f, K, cells: (f, -K), "stiffness-sign"),
-        (lambda f, K, cells: (f.T.reshape(-1, 3), K), "dof-order-force"),
-        (lambda f, K, cells: (0.5 * f, 0.5 * K), "scale"),
-    ],
-)
-def test_conventions_named_without_the_oracle(mistake, code):
-    points, cells, f_o, K_o = _synthetic()
-    f, K = mistake(f_o, K_o, cells)
+def _diagnose_synthetic(points, cells, f, K, f_o, K_o):
+    """The diagnosis of (f, K) against (f_o, K_o) at rest positions, without energies."""
     s = scales(0.5, 0.0, f_o, K_o)
-    d = diagnose(
+    return diagnose(
         "synthetic",
         f=f,
         K=K,
@@ -103,6 +93,21 @@ def test_conventions_named_without_the_oracle(mistake, code):
         cells=cells,
         x=points,
     )
+
+
+@pytest.mark.parametrize(
+    "mistake, code",
+    [
+        (lambda f, K, cells: (-f, K), "force-sign"),
+        (lambda f, K, cells: (f, -K), "stiffness-sign"),
+        (lambda f, K, cells: (f.T.reshape(-1, 3), K), "dof-order-force"),
+        (lambda f, K, cells: (0.5 * f, 0.5 * K), "scale"),
+    ],
+)
+def test_conventions_named_without_the_oracle(mistake, code):
+    points, cells, f_o, K_o = _synthetic()
+    f, K = mistake(f_o, K_o, cells)
+    d = _diagnose_synthetic(points, cells, f, K, f_o, K_o)
     assert d.verdict == "failed" and d.causes and d.causes[0].code == code, d.text()
 
 
@@ -110,19 +115,7 @@ def test_localised_error_lists_the_cell():
     points, cells, f_o, K_o = _synthetic(1)
     f = f_o.copy()
     f[cells[7]] += 1e-3
-    d = diagnose(
-        "synthetic",
-        f=f,
-        K=K_o,
-        W=None,
-        f_o=f_o,
-        K_o=K_o,
-        W_o=0.0,
-        s=scales(0.5, 0.0, f_o, K_o),
-        points=points,
-        cells=cells,
-        x=points,
-    )
+    d = _diagnose_synthetic(points, cells, f, K_o, f_o, K_o)
     (cause,) = d.causes
     assert (
         cause.code == "localised"
@@ -135,17 +128,5 @@ def test_localised_error_lists_the_cell():
 def test_nothing_claimed_for_noise():
     points, cells, f_o, K_o = _synthetic(2)
     f = f_o + np.random.default_rng(9).standard_normal(f_o.shape) * 1e-3
-    d = diagnose(
-        "synthetic",
-        f=f,
-        K=K_o,
-        W=None,
-        f_o=f_o,
-        K_o=K_o,
-        W_o=0.0,
-        s=scales(0.5, 0.0, f_o, K_o),
-        points=points,
-        cells=cells,
-        x=points,
-    )
+    d = _diagnose_synthetic(points, cells, f, K_o, f_o, K_o)
     assert not d.causes and d.findings[0].code == "unexplained"
