@@ -79,11 +79,12 @@ def main(names) -> dict:
                     }
                 )
     out["kernels"] += classical_kernels(names)
-    from mjed.cuda import solvers
+    from mjed.cuda import solvers, step_kernels
 
     i32, f64 = nt.int32[:], nt.float64[:]
     for fn, sig in (
-        (kernels._zero, (nt.float64[:],)),
+        (step_kernels.fill_zero, (nt.float64[:],)),
+        (step_kernels.clear, (nt.float64[:],)),
         (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),
         (solvers._spmv, (i32, i32, f64, f64, f64)),
         (solvers._jacobi, (i32, i32, f64, f64)),

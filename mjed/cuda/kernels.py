@@ -1,6 +1,6 @@
-"""The CUDA modules: the generated cell kernel of a shape (one per dtype) and two small
-fixed kernels (zeroing an array; the minimum J and the energy sum). Importing this module
-imports numba.cuda.
+"""The CUDA modules: the generated cell kernel of a shape (one per dtype) and the two small
+fixed kernels a launch uses (the minimum J and the energy sum; zeroing an array, which is
+:func:`mjed.cuda.step_kernels.fill_zero`). Importing this module imports numba.cuda.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from mjed.compiled.codegen import kernel_source
 from mjed.compiled.shape import KernelShape
 from mjed.compiled.specialise import generated_module
 from mjed.cuda.codegen import CudaTarget
+from mjed.cuda.step_kernels import fill_zero
 
 __all__ = ["cuda_module", "reduce_kernels"]
 
@@ -26,14 +27,6 @@ def cuda_module(shape: KernelShape, dtype=np.float64) -> ModuleType:
     """
     target = CudaTarget(dtype)
     return generated_module(kernel_source(shape, target), f"mjed_cuda_{target.dtype.name}")
-
-
-@cuda.jit
-def _zero(a):
-    """a[:] = 0, grid-stride."""
-    start, stride = cuda.grid(1), cuda.gridsize(1)
-    for i in range(start, a.shape[0], stride):
-        a[i] = 0
 
 
 @cuda.jit
@@ -56,4 +49,4 @@ def _min_and_sum(J, E, out):
 @lru_cache(maxsize=None)
 def reduce_kernels():
     """(min_and_sum, zero): the fixed kernels."""
-    return _min_and_sum, _zero
+    return _min_and_sum, fill_zero

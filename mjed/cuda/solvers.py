@@ -24,6 +24,7 @@ from typing import Tuple
 import numpy as np
 from numba import cuda
 
+from mjed.cuda.step_kernels import clear
 from mjed.solvers import CGResult
 
 __all__ = ["DeviceCG", "DeviceCSR", "device_conjugate_gradient"]
@@ -67,14 +68,6 @@ def _dots(a, b, c, out):
         s1 += a[i] * c[i]
     cuda.atomic.add(out, 0, s0)
     cuda.atomic.add(out, 1, s1)
-
-
-@cuda.jit
-def _clear(out):
-    """Out[:] = 0 (one thread: out is a few scalars)."""
-    if cuda.grid(1) == 0:
-        for i in range(out.shape[0]):
-            out[i] = 0.0
 
 
 @cuda.jit
@@ -143,7 +136,7 @@ class DeviceCG:
 
     def _dots(self, a, u, v) -> Tuple[float, float]:
         """(a.u, a.v): the only numbers an iteration reads back (16 bytes)."""
-        _clear[1, 1](self.sums)
+        clear[1, 1](self.sums)
         _dots[self.reduce_blocks, _THREADS](a, u, v, self.sums)
         s = self.sums.copy_to_host()
         return float(s[0]), float(s[1])

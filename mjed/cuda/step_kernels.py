@@ -47,10 +47,12 @@ def clear(out):
 
 @cuda.jit
 def fill_zero(a):
-    """A = 0, one thread per entry."""
-    i = cuda.grid(1)
-    if i < a.shape[0]:
-        a[i] = 0.0
+    """A = 0, grid-stride: one thread per entry, or fewer threads each taking several (the
+    force field's launcher caps its blocks).
+    """
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, a.shape[0], stride):
+        a[i] = 0
 
 
 @cuda.jit
