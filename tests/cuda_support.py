@@ -14,7 +14,18 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def max_relative(a, b) -> float:
+    """Max |a - b| / max |b| (max |a| where b is all zero): how far a device result is from the
+    host's.
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    scale = np.abs(b).max()
+    return float(np.abs(a - b).max() / scale) if scale > 0 else float(np.abs(a).max())
 
 
 def run_on_simulator(args: Sequence[str], *, timeout: float = 1200) -> dict:

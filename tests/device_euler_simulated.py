@@ -12,12 +12,7 @@ import json
 import os
 
 import numpy as np
-
-
-def _rel(a, b) -> float:
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    scale = np.abs(b).max()
-    return float(np.abs(a - b).max() / scale) if scale > 0 else float(np.abs(a).max())
+from cuda_support import max_relative
 
 
 class _Counted:
@@ -47,9 +42,9 @@ def _pair(mesh, field, steps: int, **options) -> dict:
     rh, rd = host.run(steps), dev.run(steps)
     u = host.x - mesh.points
     return {
-        "x": _rel(dev.x - mesh.points, u),
-        "v": _rel(dev.v, host.v),
-        "reaction": max(_rel(a.reaction, b.reaction) for a, b in zip(rd, rh)),
+        "x": max_relative(dev.x - mesh.points, u),
+        "v": max_relative(dev.v, host.v),
+        "reaction": max(max_relative(a.reaction, b.reaction) for a, b in zip(rd, rh)),
         "max_displacement": abs(dev.max_displacement() - host.max_displacement())
         / host.max_displacement(),
         "peak": host.max_displacement(),
@@ -91,7 +86,7 @@ def _failure(mesh, field, **options) -> dict:
         integ.run(1)
         error["after"] = integ.x.tolist()
         out[name] = error
-    out["after"] = _rel(
+    out["after"] = max_relative(
         np.array(out["device"].pop("after")) - mesh.points,
         np.array(out["host"].pop("after")) - mesh.points,
     )
