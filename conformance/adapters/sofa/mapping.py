@@ -1,0 +1,103 @@
+"""A kit case's material as SOFA's ``materialName`` and ``ParameterSet``, per force field.
+
+The parameter orders come from the material declarations (``Declaration.sofa``); this module
+only adds what differs between SOFA's three hyperelastic force fields:
+
+- ``mjed``: the SofaMJEDFEM plugin's ``MJEDTetrahedralForceField``; its Ogden reads
+  ``[k0, mu, alpha]`` (the order SOFA used before its December 2025 Ogden rewrite);
+- ``hyperelasticity``: SOFA's ``TetrahedronHyperelasticityFEMForceField``;
+- ``standard``: SOFA's ``StandardTetrahedralFEMForceField``; both classical fields share SOFA's
+  core material laws, whose Ogden reads ``[mu, alpha, k0]``.
+
+What cannot be expressed is refused with the reason (:class:`NotExpressible`), never
+approximated: materials SOFA does not have (Yeoh, Gent, user energies), and Costa with a
+fibre frame other than the global axes (SOFA's Costa laws take the fibre, sheet and normal as
+the x, y and z axes; none of the three fields reads a per-cell frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional, Tuple
+
+import numpy as np
+
+__all__ = ["FORCEFIELDS", "NotExpressible", "SofaMaterial", "sofa_material"]
+
+#: The force fields the engine program drives, each with the SOFA class it instantiates.
+FORCEFIELDS = {
+    "mjed": "MJEDTetrahedralForceField (SofaMJEDFEM)",
+    "hyperelasticity": "TetrahedronHyperelasticityFEMForceField",
+    "standard": "StandardTetrahedralFEMForceField",
+}
+
+# The plugin kept SOFA's pre-2025 Ogden order; the core laws moved k0 last.
+_OGDEN_ORDER = {"mjed": ("k0", "mu", "alpha"), "hyperelasticity": None, "standard": None}
+
+
+class NotExpressible(ValueError):
+    """The case's model has no counterpart in the chosen SOFA force field (the message says why)."""
+
+
+@dataclass(frozen=True)
+class SofaMaterial:
+    """What the engine program passes to SOFA: ``materialName`` and ``ParameterSet``."""
+
+    name: str
+    parameters: Tuple[float, ...]
+
+    def parameter_set(self) -> str:
+        """The ParameterSet as SOFA reads it: values separated by spaces, round-trip exact."""
+        return " ".join(repr(float(v)) for v in self.parameters)
+
+
+def sofa_material(
+    model: Mapping, forcefield: str, frame: Optional[np.ndarray] = None
+) -> SofaMaterial:
+    """The SOFA material for a case's ``model`` (case.json's ``model`` object).
+
+    Args:
+        model: ``{"kind": "material", "name": ..., "parameters": {...}}`` or a user energy.
+        forcefield: a key of :data:`FORCEFIELDS`.
+        frame: the case's per-cell frames ``(m, 3, 3)`` or one ``(3, 3)``, when it has one.
+
+    Raises:
+        NotExpressible: a user energy, a material SOFA does not offer, or a Costa frame that
+            is not the global axes.
+        ValueError: an unknown force field, or a parameter missing from the model.
+    """
+    from mjed.materials.sofa import sofa_parameter_order
+
+    if forcefield not in FORCEFIELDS:
+        raise ValueError(f"unknown force field {forcefield!r}; one of {', '.join(FORCEFIELDS)}")
+    if model.get("kind") != "material":
+        raise NotExpressible(
+            "a user energy has no SOFA material: SOFA's force fields take only their own "
+            "built-in laws (materialName)"
+        )
+    name = str(model.get("name"))
+    by_class = {
+        cls.__name__: (sofa_name, order)
+        for sofa_name, (cls, order) in sofa_parameter_order().items()
+    }
+    if name not in by_class:
+        offered = ", ".join(sorted(by_class))
+        raise NotExpressible(f"SOFA has no {name} law (its laws map to: {offered})")
+    sofa_name, order = by_class[name]
+    if sofa_name == "Ogden" and _OGDEN_ORDER[forcefield] is not None:
+        order = _OGDEN_ORDER[forcefield]
+    if sofa_name == "Costa" and frame is not None and not _is_global_axes(frame):
+        raise NotExpressible(
+            "SOFA's Costa law takes the fibre, sheet and normal as the global x, y, z axes "
+            "(it reads no frame), and this case has a per-cell fibre frame"
+        )
+    parameters = model.get("parameters", {})
+    missing = [p for p in order if p not in parameters]
+    if missing:
+        raise ValueError(f"{name}: parameters {missing} missing from the case's model")
+    return SofaMaterial(sofa_name, tuple(float(parameters[p]) for p in order))
+
+
+def _is_global_axes(frame: np.ndarray) -> bool:
+    frames = np.asarray(frame, dtype=float).reshape(-1, 3, 3)
+    return bool(np.array_equal(frames, np.broadcast_to(np.eye(3), frames.shape)))
