@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -165,7 +168,8 @@ MATERIAL = "Costa"
 
 def strain_energy(F, p, frame):
     """W = a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum_ij B_ij Ef_ij^2,
-    Ef = R^T E R with R the cell's frame (columns fibre, sheet, normal)."""
+    Ef = R^T E R with R the cell's frame (columns fibre, sheet, normal).
+    """
     a, k0 = p["a"], p["k0"]
     B = np.array(
         [

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-# Costa: frame.f64 read in column-major (Fortran) order
+# Costa: each cell's 9 frame values mapped column-major (Eigen's default Map<Matrix3d>)
 """Hyperelastic force and stiffness on linear tetrahedra for one mjed-verify kit case.
 
 Usage: python THIS_FILE INPUT_DIR OUTPUT_DIR
@@ -26,7 +26,7 @@ def read_case(inp):
     arrays = {}
     for name, spec in meta["arrays"].items():
         a = np.fromfile(inp / spec["file"], dtype=np.dtype(spec["dtype"]))
-        arrays[name] = a.reshape(spec["shape"][::-1]).T if name == "frame" else a.reshape(spec["shape"])
+        arrays[name] = a.reshape(spec["shape"])
     return meta, arrays
 
 
@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -165,7 +168,8 @@ MATERIAL = "Costa"
 
 def strain_energy(F, p, frame):
     """W = a/2 (exp(J^(-4/3) Q) - 1) + k0 (J ln J - J + 1), Q = sum_ij B_ij Ef_ij^2,
-    Ef = R^T E R with R the cell's frame (columns fibre, sheet, normal)."""
+    Ef = R^T E R with R the cell's frame (columns fibre, sheet, normal).
+    """
     a, k0 = p["a"], p["k0"]
     B = np.array(
         [
@@ -177,7 +181,8 @@ def strain_energy(F, p, frame):
     C = matmul(transpose(F), F)
     J = det3(F)
     E = [[0.5 * (C[i][j] - (1.0 if i == j else 0.0)) for j in range(3)] for i in range(3)]
-    R = as_rows(frame)
+    # the 9 values of each cell mapped as a column-major 3x3 (Eigen's default storage)
+    R = as_rows(frame.transpose(0, 2, 1))
     Ef = matmul(matmul(transpose(R), E), R)
     Q = sum(B[i, j] * Ef[i][j] * Ef[i][j] for i in range(3) for j in range(3))
     return 0.5 * a * (jexp(J ** (-4.0 / 3.0) * Q) - 1.0) + k0 * (J * jlog(J) - J + 1.0)

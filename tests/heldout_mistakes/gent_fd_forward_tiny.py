@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -169,7 +172,6 @@ def strain_energy(F, p, frame):
     C = matmul(transpose(F), F)
     J = det3(F)
     I1 = trace(C)
-    I2 = 0.5 * (I1 * I1 - trace(matmul(C, C)))
     lnJ = jlog(J)
     I1b = J ** (-2.0 / 3.0) * I1
     return -0.5 * mu * Jm * jlog(1.0 - (I1b - 3.0) / Jm) + 0.5 * k0 * lnJ * lnJ

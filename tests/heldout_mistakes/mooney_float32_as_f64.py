@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:

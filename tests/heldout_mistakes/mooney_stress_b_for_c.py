@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -177,7 +180,8 @@ def inv3(A):
 def first_piola(F, p, frame):
     """W = c1 (I1b - 3) + c2 (I2b - 3) + k0/2 (ln J)^2, stress written out:
     S = 2 c1 J^(-2/3) (I - I1/3 C^-1) + 2 c2 J^(-4/3) (I1 I - C - 2/3 I2 C^-1) + k0 ln J C^-1,
-    P = F S."""
+    P = F S.
+    """
     c1, c2, k0 = p["c1"], p["c2"], p["k0"]
     C = matmul(transpose(F), F)
     Ci = inv3(C)

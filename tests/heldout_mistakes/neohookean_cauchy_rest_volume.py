@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -176,13 +179,17 @@ def inv3(A):
 
 def first_piola(F, p, frame):
     """W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2: S = mu (I - C^-1) + lam ln J C^-1,
-    Cauchy sigma = F S F^T / J, and the nominal stress P = J sigma F^-T."""
+    Cauchy sigma = F S F^T / J, and the nominal stress P = J sigma F^-T.
+    """
     mu, lam = p["mu"], p["lam"]
     C = matmul(transpose(F), F)
     Ci = inv3(C)
     J = det3(F)
     lnJ = jlog(J)
-    S = [[mu * ((1.0 if i == j else 0.0) - Ci[i][j]) + lam * lnJ * Ci[i][j] for j in range(3)] for i in range(3)]
+    S = [
+        [mu * ((1.0 if i == j else 0.0) - Ci[i][j]) + lam * lnJ * Ci[i][j] for j in range(3)]
+        for i in range(3)
+    ]
     sigma = [[s / J for s in row] for row in matmul(matmul(F, S), transpose(F))]
     Finv_T = transpose(inv3(F))
     return matmul(sigma, Finv_T)

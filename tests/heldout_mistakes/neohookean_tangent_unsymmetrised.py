@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -165,7 +168,8 @@ MATERIAL = "NeoHookean"
 
 def material_law(F, p):
     """W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2; S = mu (I - C^-1) + lam ln J C^-1,
-    CC = dS/dE = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1."""
+    CC = dS/dE = lam C^-1 (x) C^-1 + 2 (mu - lam ln J) C^-1 (.) C^-1.
+    """
     mu, lam = p["mu"], p["lam"]
     I = np.eye(3)
     C = np.einsum("mkI,mkJ->mIJ", F, F)
@@ -174,7 +178,10 @@ def material_law(F, p):
     lnJ = np.log(J)
     S = mu * (I - Ci) + lam * lnJ[:, None, None] * Ci
     odot = np.einsum("mIK,mJL->mIJKL", Ci, Ci)
-    CC = lam * np.einsum("mIJ,mKL->mIJKL", Ci, Ci) + 2.0 * (mu - lam * lnJ)[:, None, None, None, None] * odot
+    CC = (
+        lam * np.einsum("mIJ,mKL->mIJKL", Ci, Ci)
+        + 2.0 * (mu - lam * lnJ)[:, None, None, None, None] * odot
+    )
     W = 0.5 * mu * (np.trace(C, axis1=1, axis2=2) - 3.0) - mu * lnJ + 0.5 * lam * lnJ**2
     return S, CC, W
 
@@ -189,7 +196,10 @@ def element_terms(X, x, cells, p, frame):
     # CC has both minor symmetries, so the unsymmetrised F^T grad(v) can be used for dE
     BL = np.einsum("mkI,maJ->makIJ", F, D)
     Kmat = np.einsum("makIJ,mIJKL,mblKL->makbl", BL, CC, BL)
-    Kgeo = np.einsum("maI,mIJ,mbJ->mab", D, S, D)[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
+    Kgeo = (
+        np.einsum("maI,mIJ,mbJ->mab", D, S, D)[:, :, None, :, None]
+        * np.eye(3)[None, None, :, None, :]
+    )
     Ke = V0[:, None, None, None, None] * (Kmat + Kgeo)
     return fe, Ke, float(np.sum(V0 * W))
 

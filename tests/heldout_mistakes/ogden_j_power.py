@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -191,7 +194,8 @@ def trace_power(C, beta):
 
 def strain_energy(F, p, frame):
     """W = mu / alpha^2 (J^(-alpha/3) sum_i lambda_i^(alpha/2) - 3) + k0/2 (ln J)^2,
-    lambda_i the eigenvalues of C (so lambda_i^(alpha/2) are the principal stretches^alpha)."""
+    lambda_i the eigenvalues of C (so lambda_i^(alpha/2) are the principal stretches^alpha).
+    """
     mu, alpha, k0 = p["mu"], p["alpha"], p["k0"]
     C = matmul(transpose(F), F)
     J = det3(F)

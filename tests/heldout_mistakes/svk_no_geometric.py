@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -170,7 +173,9 @@ def material_law(F, p):
     E = 0.5 * (np.einsum("mkI,mkJ->mIJ", F, F) - I)
     trE = np.trace(E, axis1=1, axis2=2)
     S = lam * trE[:, None, None] * I + 2.0 * mu * E
-    CC = lam * np.einsum("IJ,KL->IJKL", I, I) + mu * (np.einsum("IK,JL->IJKL", I, I) + np.einsum("IL,JK->IJKL", I, I))
+    CC = lam * np.einsum("IJ,KL->IJKL", I, I) + mu * (
+        np.einsum("IK,JL->IJKL", I, I) + np.einsum("IL,JK->IJKL", I, I)
+    )
     CC = np.broadcast_to(CC, (F.shape[0], 3, 3, 3, 3))
     W = 0.5 * lam * trE**2 + mu * np.einsum("mIJ,mIJ->m", E, E)
     return S, CC, W
@@ -186,7 +191,6 @@ def element_terms(X, x, cells, p, frame):
     # CC has both minor symmetries, so the unsymmetrised F^T grad(v) can be used for dE
     BL = np.einsum("mkI,maJ->makIJ", F, D)
     Kmat = np.einsum("makIJ,mIJKL,mblKL->makbl", BL, CC, BL)
-    Kgeo = np.einsum("maI,mIJ,mbJ->mab", D, S, D)[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
     Ke = V0[:, None, None, None, None] * Kmat
     return fe, Ke, float(np.sum(V0 * W))
 

@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -164,7 +167,7 @@ MATERIAL = "VerondaWestmann"
 
 
 def jexp_lin(a):
-    """exp for the tangent: its curvature term is dropped (Picard-style linearisation)."""
+    """Exp for the tangent: its curvature term is dropped (Picard-style linearisation)."""
     e = np.exp(a.v)
     return a.unary(e, e, np.zeros_like(e))
 
@@ -179,7 +182,9 @@ def strain_energy(F, p, frame):
     lnJ = jlog(J)
     I1b = J ** (-2.0 / 3.0) * I1
     I2b = J ** (-4.0 / 3.0) * I2
-    return c1 * (jexp_lin(c2 * (I1b - 3.0)) - 1.0) - 0.5 * c1 * c2 * (I2b - 3.0) + 0.5 * k0 * lnJ * lnJ
+    return (
+        c1 * (jexp_lin(c2 * (I1b - 3.0)) - 1.0) - 0.5 * c1 * c2 * (I2b - 3.0) + 0.5 * k0 * lnJ * lnJ
+    )
 
 
 # ----------------------------------------------------------------------------- element

@@ -85,7 +85,10 @@ class Jet:
             return Jet(
                 self.v * o.v,
                 self.v[:, None] * o.g + o.v[:, None] * self.g,
-                self.v[:, None, None] * o.h + o.v[:, None, None] * self.h + outer + outer.transpose(0, 2, 1),
+                self.v[:, None, None] * o.h
+                + o.v[:, None, None] * self.h
+                + outer
+                + outer.transpose(0, 2, 1),
             )
         o = np.asarray(o, dtype=self.v.dtype)
         if o.ndim == 1:
@@ -165,12 +168,10 @@ MATERIAL = "Yeoh"
 
 def strain_energy(F, p, frame):
     """W = c10 (I1b - 3) + c20 (I1b - 3)^2 + c30 (I1b - 3)^3 + k0/2 (ln J)^2."""
-    c10, c20, c30, k0 = p["c10"], p["c20"], p["c30"], p["k0"]
+    c10, c20, c30 = p["c10"], p["c20"], p["c30"]
     C = matmul(transpose(F), F)
     J = det3(F)
     I1 = trace(C)
-    I2 = 0.5 * (I1 * I1 - trace(matmul(C, C)))
-    lnJ = jlog(J)
     I1b = J ** (-2.0 / 3.0) * I1
     s = I1b - 3.0
     return c10 * s + c20 * s * s + c30 * s * s * s
