@@ -181,7 +181,7 @@ def score(entry: dict, results, rc: int, seconds: float, tail: str) -> dict:
         )
     row["cases"] = per_case
     first = next((pc for pc in per_case if pc["score"] != "passed"), None)
-    row["cause"] = f"{first['cause_code']}: {first['cause']}" if first else ""
+    row["cause"] = f"{first['cause_code']}: {first['cause']} ({first['strength']})" if first else ""
     if entry["family"] == "correct":
         row["score"] = "pass" if cases and not failing and rc == 0 else "FAIL"
     elif not failing:
