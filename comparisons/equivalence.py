@@ -17,14 +17,16 @@ from dataclasses import asdict, dataclass
 from functools import partial
 from typing import Callable, Iterator, List, Optional, Sequence
 
-import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import norm as sparse_norm
-
 import mjed
 from common.frames import with_default_frame
 from common.states import apply_state
-from common.tolerances import FORCE_TOL, STIFFNESS_TOL, SYMMETRY_TOL, mean_edge_length
+from common.tolerances import (
+    FORCE_TOL,
+    STIFFNESS_TOL,
+    SYMMETRY_TOL,
+    compare_arrays,
+    mean_edge_length,
+)
 from mjed.materials.base import Material
 
 __all__ = [
@@ -55,20 +57,6 @@ class CaseResult:
 
     def to_dict(self) -> dict:
         return asdict(self)
-
-
-def compare_arrays(f_m, K_m, f_o, K_o, force_scale: float) -> tuple:
-    """(force_rel_err, stiffness_rel_err, symmetry_err) of MJED (f_m, K_m) against the oracle."""
-    K_m = sp.csr_matrix(K_m)
-    K_o = sp.csr_matrix(K_o)
-    nK = sparse_norm(K_o)
-    f_ref = max(float(np.linalg.norm(f_o)), force_scale * nK)
-    df = float(np.linalg.norm(np.asarray(f_m) - np.asarray(f_o)))
-    force_err = df / f_ref if f_ref > 0 else df
-    stiff_err = float(sparse_norm(K_m - K_o)) / nK if nK > 0 else float(sparse_norm(K_m))
-    nKm = sparse_norm(K_m)
-    sym_err = float(sparse_norm(K_m - K_m.T)) / nKm if nKm > 0 else 0.0
-    return force_err, stiff_err, sym_err
 
 
 def _tet_meshes(meshes: Sequence[tuple]) -> List[tuple]:
