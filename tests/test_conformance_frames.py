@@ -225,7 +225,7 @@ def test_mjed_passes_the_costa_kit_with_its_frames_on_every_state(cube):
 @needs_oracle
 @pytest.mark.oracle
 def test_the_equivalence_study_uses_the_kits_frames(cube):
-    from comparisons.equivalence import run_cases
+    from comparisons.equivalence.study import run_cases
     from reference_fem import UFLOracle
 
     points, cells = cube

@@ -183,7 +183,7 @@ def _ogden_tangent(
     """
     from dataclasses import replace
 
-    from comparisons.ogden_tangent import sofa_tangent_errors
+    from comparisons.equivalence.ogden_tangent import sofa_tangent_errors
 
     ogden = next((m for m in materials if isinstance(m, mjed.materials.Ogden)), None)
     if ogden is None:
@@ -303,7 +303,7 @@ def equivalence_study(
 
 def _measure(meshes, materials, states, oracle_factory, progress, comm):
     """Run every case, then (rank 0 only) the uniaxial closed form and the Ogden table."""
-    from comparisons.closed_form import uniaxial_checks
+    from comparisons.equivalence.closed_form import uniaxial_checks
 
     cases = list(
         run_cases(
@@ -472,7 +472,7 @@ def _blocks(m: EquivalenceMeasurements, states: Sequence[str]) -> list:
 
 def _uniaxial_blocks(m: EquivalenceMeasurements) -> list:
     from common.blocks import Paragraph, Table
-    from comparisons.closed_form import UNIAXIAL_STRETCHES
+    from comparisons.equivalence.closed_form import UNIAXIAL_STRETCHES
 
     text = (
         f"Uniaxial stress closed form on {', '.join(m.boxes)} at stretches "

@@ -1,6 +1,6 @@
 """The liver study's set-up: its models, parameters, constants and force-field backends.
 
-See comparisons.liver for the study and the reasons behind each figure.
+See comparisons.liver.study for the study and the reasons behind each figure.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any, Callable, List, Optional, Sequence
 import numpy as np
 
 from common.options import InputError
-from comparisons.regions import relative_box
+from comparisons.liver.regions import relative_box
 from mjed.backends import BACKENDS as MJED_BACKENDS
 from mjed.materials import ArrudaBoyce
 from mjed.materials.base import Material

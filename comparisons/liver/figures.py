@@ -6,8 +6,8 @@ from typing import Sequence
 
 import numpy as np
 
-from comparisons.liver_data import LiverRun, StepSplit
-from comparisons.oscillation_data import OscillationCurve, OscillationRow
+from comparisons.liver.oscillation_records import OscillationCurve, OscillationRow
+from comparisons.liver.records import LiverRun, StepSplit
 
 __all__ = [
     "plot_porous_stress",

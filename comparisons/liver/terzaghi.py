@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 import mjed
-from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
+from comparisons.liver.terzaghi_records import TerzaghiResult, TerzaghiTime
 from mjed.darcy import DarcyParameters, FluidPressureForce, cell_jacobians
 from mjed.materials import NeoHookean
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any, Dict, List, Optional, Tuple
 
-from comparisons.bandwidth import Bandwidth
-from comparisons.timing_methods import Verification
+from comparisons.timing.bandwidth import Bandwidth
+from comparisons.timing.methods import Verification
 
 __all__ = [
     "MeshInfo",

@@ -1,4 +1,4 @@
-"""What the Terzaghi consolidation check records (``comparisons.terzaghi.run_terzaghi``), as
+"""What the Terzaghi consolidation check records (``comparisons.liver.terzaghi.run_terzaghi``), as
 typed records.
 
 The liver study keeps it in ``LiverData.terzaghi`` (key ``terzaghi`` of its ``results.json``);
@@ -40,7 +40,7 @@ class TerzaghiTime(JSONRecord):
 
 @dataclass(frozen=True)
 class TerzaghiResult(JSONRecord):
-    """The coupled column against the series solution (``comparisons.terzaghi``).
+    """The coupled column against the series solution (``comparisons.liver.terzaghi``).
 
     figures: the PNG of the pressure profiles (none when not asked for); n_layers, dt (s),
     coupling_iterations: the discretisation; B: Skempton's coefficient K_lim / (K_lim + M);

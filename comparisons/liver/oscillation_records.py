@@ -1,9 +1,9 @@
 """What the liver's oscillation study records, as typed records.
 
-``comparisons.oscillation`` measures each max-displacement curve into an
+``comparisons.liver.oscillation`` measures each max-displacement curve into an
 :class:`OscillationMetrics` and returns the study as an :class:`OscillationData`: one
 :class:`OscillationCurve` and one :class:`OscillationRow` per (model, dt). ``liver_study`` keeps
-it in ``LiverData.oscillation`` (``comparisons.liver_data``, which imports this module, not the
+it in ``LiverData.oscillation`` (``comparisons.liver.records``, which imports this module, not the
 other way round). ``to_dict()`` gives the JSON form (the key ``oscillation`` of the liver's
 ``results.json``), ``from_dict()`` reads it back, refusing a missing, unexpected or bad key by
 name. Times are in seconds, lengths in metres, rates in 1/s, frame rates in steps per second.
@@ -17,14 +17,15 @@ from typing import Optional, Tuple
 
 from common.json_fields import JSONFields, JSONRecord, json_keys
 from common.record_fields import RecordFields
-from comparisons.liver_setup import MODELS
+from comparisons.liver.setup import MODELS
 
 __all__ = ["OscillationMetrics", "OscillationCurve", "OscillationRow", "OscillationData"]
 
 
 @dataclass(frozen=True)
 class OscillationMetrics:
-    """What one max-displacement curve shows (``comparisons.oscillation.oscillation_metrics``).
+    """What one max-displacement curve shows
+    (``comparisons.liver.oscillation.oscillation_metrics``).
 
     extrema: the significant extrema (0: no oscillation); first_peak: the first maximum (m);
     period (s); decay_rate: of the swings between extrema (1/s; None with fewer than two
@@ -89,7 +90,7 @@ class OscillationCurve(JSONRecord):
 
     @classmethod
     def of_run(cls, run) -> "OscillationCurve":
-        """The curve of one ``comparisons.liver_data.LiverRun`` (its fields of the same names)."""
+        """The curve of one ``comparisons.liver.records.LiverRun`` (its fields of those names)."""
         return cls(**{k: getattr(run, k) for k in json_keys(cls)})
 
     def to_dict(self) -> dict:
@@ -133,7 +134,7 @@ class OscillationRow(JSONRecord):
 
     @classmethod
     def of_run(cls, run, metrics: OscillationMetrics) -> "OscillationRow":
-        """The row of one ``comparisons.liver_data.LiverRun`` and its curve's metrics, before
+        """The row of one ``comparisons.liver.records.LiverRun`` and its curve's metrics, before
         the Euler rates are known.
         """
         return cls(

@@ -40,7 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg  # noqa: F401  (sp.linalg.norm)
 
-from comparisons.cross_release_data import (
+from comparisons.cross_release.records import (
     CrossReleaseResult,
     MissingStack,
     SnapshotDiff,

@@ -47,7 +47,7 @@ from typing import Callable, Optional, Sequence
 import numpy as np
 
 import mjed
-from comparisons.rheometer_data import (
+from comparisons.rheometer.records import (
     ErrorSummary,
     FrequencyRow,
     FrequencyRun,

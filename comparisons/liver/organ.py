@@ -140,7 +140,7 @@ def fixed_nodes(organ: Organ, specs: Sequence[str]) -> np.ndarray:
 
     Raises InputError when they select every node: nothing would be left to move.
     """
-    from comparisons.regions import select_nodes
+    from comparisons.liver.regions import select_nodes
 
     chosen = select_nodes(
         specs, organ.file_points, node_ids=organ.node_ids, numbering=organ.numbering

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:  # the figures read the studies' typed records
-    from comparisons.timing_data import ScalingData, TimingData
+    from comparisons.timing.records import ScalingData, TimingData
 
 __all__ = ["plot_fig2", "plot_scaling"]
 

@@ -1,8 +1,9 @@
 """What the liver study records, as typed records.
 
-``comparisons.liver_simulation.simulate`` returns one :class:`LiverRun` per run and
-``comparisons.liver.run_liver`` a :class:`LiverData` holding them (with the oscillation study's
-``comparisons.oscillation_data.OscillationData`` once ``liver_study`` adds it). The checks,
+``comparisons.liver.simulation.simulate`` returns one :class:`LiverRun` per run and
+``comparisons.liver.study.run_liver`` a :class:`LiverData` holding them (with the oscillation
+study's ``comparisons.liver.oscillation_records.OscillationData`` once ``liver_study`` adds
+it). The checks,
 tables, figures and the command line read them by attribute; ``to_dict()`` gives the JSON form
 written to ``results.json`` and ``--json`` (the keys are the field names, plus the derived values
 listed in each record), and ``from_dict()`` reads it back (``common.json_fields``), refusing a
@@ -21,9 +22,9 @@ import numpy as np
 
 from common.json_fields import JSONFields, JSONRecord
 from common.record_fields import RecordFields
-from comparisons.liver_setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
-from comparisons.oscillation_data import OscillationData
-from comparisons.terzaghi_data import TerzaghiResult
+from comparisons.liver.oscillation_records import OscillationData
+from comparisons.liver.setup import MODELS, PAPER_FPS, TARGET_FPS, TERZAGHI_TOL
+from comparisons.liver.terzaghi_records import TerzaghiResult
 
 __all__ = [
     "PHASES",
@@ -60,7 +61,7 @@ class PressureSnapshot:
 
 @dataclass(frozen=True)
 class LiverRun(JSONRecord):
-    """One run of one liver model (``comparisons.liver_simulation.simulate``).
+    """One run of one liver model (``comparisons.liver.simulation.simulate``).
 
     model: one of MODELS. dt: the time step (s). steps_planned: the steps asked for.
     error: why the integrator stopped the run (a step refused after its substeps), or None.
@@ -313,7 +314,7 @@ class BackendAgreement(JSONRecord):
 # ----------------------------------------------------------------------------- the study
 @dataclass(frozen=True)
 class LiverData(JSONRecord):
-    """A liver study (``comparisons.liver.run_liver``; ``liver_study`` adds the oscillation
+    """A liver study (``comparisons.liver.study.run_liver``; ``liver_study`` adds the oscillation
     study and the protocol).
 
     The organ: mesh (its label), mesh_description, n_nodes, n_cells, scale (metres per mesh
@@ -322,7 +323,7 @@ class LiverData(JSONRecord):
     file's numbering; None when more than 50). quick; duration: simulated seconds of each run;
     parameters: ``LiverParameters.to_dict()`` of the runs. runs: every model once per backend,
     the reference backend first; step_split and backend_agreement over them; terzaghi: the
-    Terzaghi check's record (``comparisons.terzaghi.run_terzaghi``); figures and series: the
+    Terzaghi check's record (``comparisons.liver.terzaghi.run_terzaghi``); figures and series: the
     files written. oscillation, protocol: None until ``liver_study`` sets them.
 
     Derived (properties, also written to JSON): backends, fps_table and passed. ``from_dict``

@@ -1,6 +1,6 @@
 """One run of one liver model: implicit Euler steps, timed by phase, with a ParaView series.
 
-See comparisons.liver for the study that calls it.
+See comparisons.liver.study for the study that calls it.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from typing import List, Optional
 
 import numpy as np
 
-from comparisons.liver_data import PHASES, LiverRun, PressureSnapshot
-from comparisons.liver_setup import (
+from comparisons.liver.records import PHASES, LiverRun, PressureSnapshot
+from comparisons.liver.setup import (
     LiverParameters,
     _models,
     device_synchronizer,

@@ -32,7 +32,7 @@ from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
-from comparisons.oscillation_data import (
+from comparisons.liver.oscillation_records import (
     OscillationCurve,
     OscillationData,
     OscillationMetrics,
@@ -129,8 +129,8 @@ def run_oscillations(
     progress: Optional[Callable[[str], None]] = None,
 ) -> OscillationData:
     """Every model at every dt without Rayleigh damping; curves, metrics, figures (see module)."""
-    from comparisons.liver_figures import plot_decay, plot_oscillations
-    from comparisons.liver_simulation import simulate
+    from comparisons.liver.figures import plot_decay, plot_oscillations
+    from comparisons.liver.simulation import simulate
 
     light = dataclasses.replace(params, rayleigh_mass=0.0, rayleigh_stiffness=0.0)
     curves, rows = [], []

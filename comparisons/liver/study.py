@@ -13,10 +13,10 @@ Recorded: the maximum nodal displacement over time (Fig. 4), frames per second o
 (Fig. 1 right), and a ParaView time series per run (.pvd + .vtu, displacement and pressure
 on the nodes, J on the cells).
 
-The user's organ (``comparisons.organ``): any mesh file the readers take (gmsh 1.0 to 4.1, VTK,
-Medit, Abaqus), its length unit (``--units``/``--scale``: positions are converted to metres,
-region specs stay in the file's units), its node numbering (``--fixed nodes:FILE`` lists node
-ids as the file numbers them), gravity in any direction, the time step, the material (any of
+The user's organ (``comparisons.liver.organ``): any mesh file the readers take (gmsh 1.0 to 4.1,
+VTK, Medit, Abaqus), its length unit (``--units``/``--scale``: positions are converted to metres,
+region specs stay in the file's units), its node numbering (``--fixed nodes:FILE`` lists node ids as
+the file numbers them), gravity in any direction, the time step, the material (any of
 mjed.materials, by parameters or a SOFA ParameterSet), density and Rayleigh damping.
 
 Steps that fail (inverted cells, CG on negative curvature or its iteration cap) are retried in
@@ -79,7 +79,7 @@ import numpy as np
 
 from common.options import InputError
 from common.result import StudyResult
-from comparisons.organ import Organ, check_supports, fixed_nodes, load_organ, scale_of
+from comparisons.liver.organ import Organ, check_supports, fixed_nodes, load_organ, scale_of
 from mjed.errors import MeshWarning
 
 __all__ = [
@@ -97,13 +97,14 @@ __all__ = [
     "numpy_force_field",
     "LIVER_SOLVER",
 ]
-from comparisons.liver_data import (
+from comparisons.liver.oscillation_records import OscillationData
+from comparisons.liver.records import (
     BackendAgreement,
     LiverData,
     LiverRun,
     StepSplit,
 )
-from comparisons.liver_setup import (
+from comparisons.liver.setup import (
     BACKEND_AGREEMENT_TOL,
     BACKENDS,
     COMPILED_TARGET_FPS,
@@ -120,8 +121,7 @@ from comparisons.liver_setup import (
     default_fixed_specs,
     numpy_force_field,
 )
-from comparisons.liver_simulation import PHASES, _SeriesWriter, simulate
-from comparisons.oscillation_data import OscillationData
+from comparisons.liver.simulation import PHASES, _SeriesWriter, simulate
 
 
 def run_liver(
@@ -146,7 +146,7 @@ def run_liver(
 
     mesh: a catalog name, a mesh file path, or (points, cells), or ``organ`` already loaded
     (then mesh, scale and fix_orientation are not used); fixed: region specs (see
-    comparisons.regions; in the mesh file's units and numbering), default vena cava +
+    comparisons.liver.regions; in the mesh file's units and numbering), default vena cava +
     ligament; steps: of the dt runs (default 30, quick 6; the porous run covers the same
     time); out: figures and the .pvd + .vtu series; scale: metres per mesh unit;
     force_fields: factories of the hyperelastic force field (see backend_force_field), every
@@ -210,7 +210,7 @@ def liver_setup(
 ) -> LiverSetup:
     """Check every input of a liver run and load the organ (unless given); InputError if bad.
 
-    The supports are checked here, before any run (comparisons.organ.check_supports): a part
+    The supports are checked here, before any run (comparisons.liver.organ.check_supports): a part
     of the mesh that nothing holds would fall freely and the run would still complete.
     """
     if quick and mesh == "liver":
@@ -283,13 +283,13 @@ def _run_models(setup: LiverSetup, params: LiverParameters, out: str, series: bo
 
 def _run_figures(setup: LiverSetup, params: LiverParameters, runs: List[LiverRun], out: str):
     """The Terzaghi check and the run's figures (the first backend's runs are drawn)."""
-    from comparisons.liver_figures import (
+    from comparisons.liver.figures import (
         plot_amplitudes,
         plot_porous_stress,
         plot_pressure,
         plot_step_split,
     )
-    from comparisons.terzaghi import run_terzaghi
+    from comparisons.liver.terzaghi import run_terzaghi
 
     first = [r for r in runs if r.backend == runs[0].backend]
     # The pressure solver's own check, beside the scenario that uses it.
@@ -602,7 +602,7 @@ def _oscillation(organ: Organ, opts: LiverStudyOptions, force_field, progress) -
     The built-in organ's study runs on the coarse liver by default (time), the paper-size one
     when ``full``; a user's organ is always the user's.
     """
-    from comparisons.oscillation import OSCILLATION_DTS, run_oscillations
+    from comparisons.liver.oscillation import OSCILLATION_DTS, run_oscillations
 
     if organ.label in ("liver", "liver-coarse"):
         wanted = "liver" if opts.full else "liver-coarse"

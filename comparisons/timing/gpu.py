@@ -1,4 +1,4 @@
-"""The GPU section of the hardware benchmark (comparisons.hardware_bench): MJED and the
+"""The GPU section of the hardware benchmark (comparisons.timing.hardware): MJED and the
 classical element on the device, the GPU figures of docs/studies/timing.md as typed records.
 
 For each size (structured cubes, meshes.structured.cube_with_cells, 1e4 to 1e7 tets by
@@ -254,7 +254,8 @@ def moved_bytes(cells: int, nodes: int, nnz: int, dtype: str, stiffness: bool) -
     """Bytes a call must move at least: positions read, forces written (3 n values each),
     D and V0 read (13 per cell), J and E written (2 per cell), the connectivity read; with
     the stiffness the CSR values written once and the block map (16 per cell) and row
-    lengths read (comparisons.bandwidth.floor_bytes counts the same, without J, E and the map).
+    lengths read (comparisons.timing.bandwidth.floor_bytes counts the same, without J, E and
+    the map).
     """
     isz, idx = np.dtype(dtype).itemsize, _index_bytes(nodes, nnz)
     out = isz * (6 * nodes + 15 * cells) + idx * 4 * cells

@@ -1,12 +1,12 @@
 """What the cross-release check measures, as typed records.
 
-:func:`comparisons.cross_release.compare_snapshots` gives a :class:`SnapshotDiff`;
-:func:`comparisons.cross_release.cross_release_check` gives a :class:`CrossReleaseResult`: the
+:func:`comparisons.cross_release.study.compare_snapshots` gives a :class:`SnapshotDiff`;
+:func:`comparisons.cross_release.study.cross_release_check` gives a :class:`CrossReleaseResult`: the
 stacks that ran (:class:`StackRun`), each compared with the first (:class:`StackComparison`),
 and those not installed (:class:`MissingStack`) or that failed (:class:`StackError`). The
 study's checks, tables and text read them by attribute; ``to_dict()`` is the JSON written by
 ``--json`` (the keys as before these records existed), and ``from_dict()`` reads it back (as
-:func:`comparisons.cross_release.provenance_summary` does), naming the file and the key of
+:func:`comparisons.cross_release.study.provenance_summary` does), naming the file and the key of
 anything missing or mistyped. Differences are relative (dimensionless), times in seconds.
 """
 

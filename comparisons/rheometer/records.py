@@ -2,12 +2,12 @@
 
 :class:`RheometerSpec` is the study's input; the sweep builds one :class:`FrequencyRow` per
 frequency, summarises their errors in :class:`SweepErrors` and returns a :class:`Sweep`;
-:func:`comparisons.rheometer.run_rheometer` wraps it with the spec, the mesh and the figures in a
-:class:`RheometerResult`. The checks, tables, figures and tutorial read them by attribute;
-``to_dict()`` gives the JSON written to ``--json`` and ``results.json`` (keys as before this
-module existed: the field names, pairs as two-element lists), and ``from_dict()`` reads it back,
-naming the file and the key of anything missing or mistyped. Units are SI: moduli in Pa,
-angular frequencies in rad/s, times in s, torque in N m.
+:func:`comparisons.rheometer.study.run_rheometer` wraps it with the spec, the mesh and the figures
+in a :class:`RheometerResult`. The checks, tables, figures and tutorial read them by attribute;
+``to_dict()`` gives the JSON written to ``--json`` and ``results.json`` (keys as before this module
+existed: the field names, pairs as two-element lists), and ``from_dict()`` reads it back, naming the
+file and the key of anything missing or mistyped. Units are SI: moduli in Pa, angular frequencies in
+rad/s, times in s, torque in N m.
 """
 
 from __future__ import annotations
@@ -247,7 +247,7 @@ class SweepErrors:
 
 @dataclass(frozen=True)
 class Sweep:
-    """What :func:`comparisons.rheometer.sweep` measures on one sample.
+    """What :func:`comparisons.rheometer.study.sweep` measures on one sample.
 
     elastic_torque_per_radian: the sample's elastic torque per radian of twist (N m / rad),
     the normalisation of G*; frequencies: one row per omega, in sweep order; errors: their

@@ -1,9 +1,9 @@
 """The report's GPU section: the figures of the hardware benchmark's GPU section
-(comparisons.gpu_bench) when a JSON of them is present, "not run: no GPU" otherwise.
+(comparisons.timing.gpu) when a JSON of them is present, "not run: no GPU" otherwise.
 
 The figures are measured on a machine with an NVIDIA GPU by
 
-    python -m comparisons.hardware_bench --json docs/studies/gpu_figures.json
+    python -m comparisons.timing.hardware --json docs/studies/gpu_figures.json
 
 and read from that file (or from ``$MJED_GPU_FIGURES``); the report never measures them
 itself and says so, naming the device and the date they were measured on. A file holding
@@ -20,14 +20,14 @@ from typing import List, Optional
 
 from common.blocks import Paragraph, Table
 from common.result import Check, StudyResult
-from comparisons.gpu_bench import GpuFigures
+from comparisons.timing.gpu import GpuFigures
 
 __all__ = ["KEY", "TITLE", "COMMAND", "figures_path", "load_gpu_figures", "gpu_study"]
 
 KEY = "gpu"
 TITLE = "GPU speed: MJED and the classical element on the device"
 DEFAULT_PATH = Path(__file__).resolve().parents[1] / "docs" / "studies" / "gpu_figures.json"
-COMMAND = "python -m comparisons.hardware_bench --json docs/studies/gpu_figures.json"
+COMMAND = "python -m comparisons.timing.hardware --json docs/studies/gpu_figures.json"
 
 
 def figures_path() -> Path:

@@ -6,7 +6,7 @@ from typing import List, Optional, Sequence
 
 from common.blocks import Figure, Paragraph, Table
 from common.result import Check
-from comparisons.timing_data import MEMORY_NOTE, ScalingData, TimingData
+from comparisons.timing.records import MEMORY_NOTE, ScalingData, TimingData
 
 __all__ = ["timing_blocks", "timing_headline", "scaling_blocks", "scaling_headline"]
 
@@ -149,9 +149,10 @@ def _ratios_table(data: TimingData) -> Table:
         ),
         rows,
         caption="Force+stiffness ratios, median [min, max] of per-round ratios (> 1: MJED faster), "
-        "and the operation-count model of the two compiled kernels (comparisons/opcount.py, both "
-        "counted from their generated sources; MJED's count derived by hand from its terms in "
-        "brackets): measured/model near 1 means the ratio is explained by the arithmetic",
+        "and the operation-count model of the two compiled kernels "
+        "(comparisons/timing/opcount.py, both counted from their generated sources; MJED's "
+        "count derived by hand from its terms in brackets): measured/model near 1 means the "
+        "ratio is explained by the arithmetic",
     )
 
 

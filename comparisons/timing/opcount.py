@@ -14,7 +14,7 @@ compiled kernels as they are written, at a generic state with distinct eigenvalu
 - a libm call (log, exp, pow, expm1, log1p) counts ``TRANSCENDENTAL`` = 20 flops, about its
   cost in multiply-adds on x86-64;
 - comparisons, branches, integer index arithmetic, loads and stores count nothing (the
-  bandwidth floor of comparisons/bandwidth.py is about memory);
+  bandwidth floor of comparisons/timing/bandwidth.py is about memory);
 - the 3x3 eigen-decomposition (Jacobi) counts ``JACOBI_SWEEPS`` = 4 sweeps of 3 rotations;
 - assembly counts the additions into the per-edge and per-node sums; the ordered write of
   the CSR array is a copy and counts nothing.

@@ -1,16 +1,16 @@
 """The timing study (paper, Fig. 2) and the scaling study, each returning a StudyResult.
 
 ``timing_study`` times force+stiffness, force and stiffness on one mesh and one state for
-each material and each method of :mod:`comparisons.timing_methods`: MJED and the classical
+each material and each method of :mod:`comparisons.timing.methods`: MJED and the classical
 Galerkin, each in NumPy and compiled (Numba), dolfinx's compiled assembly, and the peer
 libraries (FElupe, SfePy) where their energy matches. Before a method is timed its result is
 compared with NumPy MJED's (proven equal to the UFL oracle); a method that does not match is
 not timed. The like-for-like answer to Fig. 2 is the compiled pair: compiled classical over
-compiled MJED, set beside the operation-count model of :mod:`comparisons.opcount`. Each
+compiled MJED, set beside the operation-count model of :mod:`comparisons.timing.opcount`. Each
 force+stiffness time is also set against the floor implied by the bytes the result must move
-at this machine's copy bandwidth (:mod:`comparisons.bandwidth`).
+at this machine's copy bandwidth (:mod:`comparisons.timing.bandwidth`).
 
-How measurements are repeated is the protocol (:mod:`comparisons.timing_protocol`): the
+How measurements are repeated is the protocol (:mod:`comparisons.timing.protocol`): the
 default ``budget`` protocol stops repeating once the spread is small; ``paper`` is the paper's
 100 calls x 3 repeats. Ratios are formed within each round, then summarised (median, range).
 
@@ -38,7 +38,9 @@ from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tupl
 import numpy as np
 
 from common.result import Check, StudyResult
-from comparisons.timing_data import (
+from comparisons.timing.protocol import calls_for, relative_spread, summary, time_batch
+from comparisons.timing.protocol import protocol as get_protocol
+from comparisons.timing.records import (
     Floor,
     MemoryRecord,
     MeshInfo,
@@ -53,8 +55,6 @@ from comparisons.timing_data import (
     TimingSettings,
     Verified,
 )
-from comparisons.timing_protocol import calls_for, relative_spread, summary, time_batch
-from comparisons.timing_protocol import protocol as get_protocol
 
 KEY = "timing"
 TITLE = "Timing: MJED and the classical FEM, NumPy and compiled, dolfinx and peers (paper Fig. 2)"
@@ -145,7 +145,7 @@ def _names(materials: "str | Iterable[str]") -> List[str]:
 
 
 def check_methods(methods: "str | Sequence[str]") -> Tuple[str, ...]:
-    from comparisons.timing_methods import get
+    from comparisons.timing.methods import get
 
     if isinstance(methods, str):
         methods = [m.strip() for m in methods.split(",") if m.strip()]
@@ -241,7 +241,7 @@ def _memory_worker(spec: Dict[str, Any]) -> Dict[str, Any]:
     and one force+stiffness call, then ``repeats`` timed calls.
     """
     from common.cases import default_material
-    from comparisons.timing_methods import get
+    from comparisons.timing.methods import get
 
     method = get(spec["method"])
     points, cells = _load_mesh(spec["mesh"])
@@ -284,7 +284,7 @@ def measure_memory(
     env["PYTHONPATH"] = root + os.pathsep + env.get("PYTHONPATH", "")
     try:
         proc = subprocess.run(
-            [sys.executable, "-m", "comparisons.timing", json.dumps(spec)],
+            [sys.executable, "-m", "comparisons.timing.study", json.dumps(spec)],
             capture_output=True,
             text=True,
             timeout=timeout,
@@ -344,7 +344,7 @@ def timing_study(
         out_dir: where the figure goes (None: no figure).
         progress: called with one line per material and round.
         protocol: "budget" (default) or "paper" (100 calls x 3 repeats); see timing_protocol.
-        methods: names of comparisons.timing_methods; must include "mjed".
+        methods: names of comparisons.timing.methods; must include "mjed".
         memory: measure peak memory in subprocesses (all materials under "paper", else one).
         command: the command line that ran (default: the equivalent mjed-verify command).
     """
@@ -372,7 +372,7 @@ def timing_study(
 
 def _timing_setup(mesh: str, quick: bool, protocol: str, methods: Sequence[str]) -> TimingSetup:
     """Load the mesh once, form the timing state, and sort the methods into runnable or not."""
-    from comparisons.timing_methods import get
+    from comparisons.timing.methods import get
 
     proto = get_protocol("quick" if quick and protocol == "budget" else protocol)
     points, cells = _load_mesh(mesh)
@@ -392,9 +392,9 @@ def _timing_setup(mesh: str, quick: bool, protocol: str, methods: Sequence[str])
 
 def _timing_data(setup: TimingSetup, methods: Sequence[str], quick: bool, say) -> TimingData:
     """The record of this run, with the mesh, the bandwidth floor and the settings filled in."""
-    from comparisons.bandwidth import floor_bytes, measure_bandwidth
     from comparisons.provenance import provenance
-    from comparisons.timing_methods import get
+    from comparisons.timing.bandwidth import floor_bytes, measure_bandwidth
+    from comparisons.timing.methods import get
     from mjed.sparse import CSRPattern
 
     pattern = CSRPattern(setup.cells, len(setup.points))
@@ -431,7 +431,7 @@ def _build_methods(name: str, setup: TimingSetup, data: TimingData):
     the ones that may be timed (name -> object); the others are recorded as skipped.
     """
     from common.cases import default_material
-    from comparisons.timing_methods import get, verify
+    from comparisons.timing.methods import get, verify
 
     material = default_material(name)
     objs: Dict[str, Any] = {}
@@ -510,7 +510,7 @@ def _time_material(name: str, setup: TimingSetup, data: TimingData, samples: _Sa
 def _summarise(data: TimingData, samples: _Samples, names: Sequence[str], protocol: str) -> None:
     """Medians and ranges per call, per-round ratios of the PAIRS, and the op-count model."""
     from common.cases import default_material
-    from comparisons.opcount import model
+    from comparisons.timing.opcount import model
 
     for (name, m, w), v in samples.times.items():
         s = summary(v)
@@ -580,26 +580,26 @@ def _timing_result(
     seconds: float,
 ) -> StudyResult:
     """Checks, figure and report blocks of a measured run."""
-    from comparisons import timing_blocks
+    from comparisons.timing import blocks
 
     checks = timing_checks(data, names, setup.mesh)
     data.targets = [_target_dict(c) for c in checks if c.kind == "target"]
     if out_dir:
-        from comparisons import figures_timing
+        from comparisons.timing import figures
 
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_fig2.png")
-        data.figures.append(figures_timing.plot_fig2(data, path))
+        data.figures.append(figures.plot_fig2(data, path))
     return StudyResult.from_checks(
         KEY,
         TITLE,
         checks,
-        headline=timing_blocks.timing_headline(data),
+        headline=blocks.timing_headline(data),
         command=cmd,
         not_covered=tuple(setup.not_covered),
         protocol=setup.protocol.describe(),
         data=data.to_dict(),
-        blocks=timing_blocks.timing_blocks(data, checks),
+        blocks=blocks.timing_blocks(data, checks),
         seconds=seconds,
     )
 
@@ -775,7 +775,7 @@ def scaling_study(
     """
     from common.cases import default_material
     from comparisons.provenance import provenance
-    from comparisons.timing_methods import get
+    from comparisons.timing.methods import get
 
     t_start = time.perf_counter()
     default_material(material)  # raises on an unknown name
@@ -811,7 +811,7 @@ def _measure_sizes(data: ScalingData, say) -> None:
     """Every (size, method) in a fresh process, smallest first; a method stops growing after a
     failure or a size over the time budget, and ``data.stopped`` says why.
     """
-    from comparisons.timing_methods import get
+    from comparisons.timing.methods import get
 
     s = data.settings
     for m in s.methods:
@@ -864,8 +864,8 @@ def _scaling_result(
     data: ScalingData, out_dir: Optional[str], cmd: str, seconds: float
 ) -> StudyResult:
     """Checks, figure and report blocks of a measured scaling run."""
-    from comparisons import timing_blocks
-    from comparisons.timing_methods import get
+    from comparisons.timing import blocks
+    from comparisons.timing.methods import get
 
     s = data.settings
     largest = max((r.n_cells for r in data.rows), default=0)
@@ -883,11 +883,11 @@ def _scaling_result(
     checks = _flatness_checks(data.rows)
     data.targets = [_target_dict(c) for c in checks]
     if out_dir and data.rows:
-        from comparisons import figures_timing
+        from comparisons.timing import figures
 
         os.makedirs(out_dir, exist_ok=True)
         path = os.path.join(out_dir, "timing_scaling.png")
-        data.figures.append(figures_timing.plot_scaling(data, path))
+        data.figures.append(figures.plot_scaling(data, path))
     protocol = (
         "each (method, size) in a fresh process: build, one call (peak memory), then the best of "
         f"{s.repeats} timed calls; a method stops growing after a size that took over "
@@ -897,12 +897,12 @@ def _scaling_result(
         SCALING_KEY,
         f"{SCALING_TITLE}: force+stiffness from {smallest:,} to {largest:,} cells",
         checks,
-        headline=timing_blocks.scaling_headline(data),
+        headline=blocks.scaling_headline(data),
         command=cmd,
         not_covered=tuple(not_covered),
         protocol=protocol,
         data=data.to_dict(),
-        blocks=timing_blocks.scaling_blocks(data, checks),
+        blocks=blocks.scaling_blocks(data, checks),
         seconds=seconds,
     )
 

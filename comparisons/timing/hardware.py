@@ -1,8 +1,8 @@
 """MJED at the hardware's limit: the figures of one run, printed (docs/studies/timing.md).
 
-    python -m comparisons.hardware_bench                       # cube-paper, NeoHookean
-    python -m comparisons.hardware_bench --materials NeoHookean,Ogden --mesh cube-medium
-    python -m comparisons.hardware_bench --json figures.json
+    python -m comparisons.timing.hardware                       # cube-paper, NeoHookean
+    python -m comparisons.timing.hardware --materials NeoHookean,Ogden --mesh cube-medium
+    python -m comparisons.timing.hardware --json figures.json
 
 CPU: force + stiffness and force alone on one mesh by the NumPy engine, the compiled kernel
 on one thread and the compiled kernel on all of Numba's threads (CompiledForceField with
@@ -12,10 +12,10 @@ cell body over B cells at once, one per SIMD lane; B is mjed.compiled.batched.DE
 cpu_figures(batch=...) for another), in nanoseconds per cell, against two floors measured in
 the same run:
 
-- the bandwidth floor (comparisons.bandwidth): the bytes force + stiffness must move at
+- the bandwidth floor (comparisons.timing.bandwidth): the bytes force + stiffness must move at
   least, over the copy bandwidth of this machine (one thread, and all threads);
 - the compute floor: the kernel's flops per cell, counted from its generated source
-  (comparisons.opcount.mjed_source_flops), over this machine's measured peak: the flop rate
+  (comparisons.timing.opcount.mjed_source_flops), over this machine's measured peak: the flop rate
   of a vectorised polynomial kernel (Horner, 64 flops per element on an array in L1 cache,
   every lane and FMA unit busy), on one thread and on all.
 
@@ -23,7 +23,7 @@ Every figure is the best of interleaved rounds (each round times every method on
 rotated order), so drift and other work on the machine hit them alike; the spread over the
 rounds is printed with it.
 
-GPU (comparisons.gpu_bench): MJED (mjed.cuda) and the classical element generated and
+GPU (comparisons.timing.gpu): MJED (mjed.cuda) and the classical element generated and
 compiled the same way (reference_fem.classical_cuda) timed on the device, positions, forces
 and CSR values left there, FP64 and FP32, force only and force + stiffness, in tets per
 second on structured cubes of 1e4 to 1e7 tets (a size that does not fit the device memory is
@@ -33,7 +33,7 @@ machine at up to 1e6 tets for the GPU/CPU ratio; one line per target (met or mis
 the figure). Without a CUDA device the section prints "not run: no GPU" and no target is
 judged (and it never times the simulator).
 
-    python -m comparisons.hardware_bench --json gpu.json         # on the GPU machine
+    python -m comparisons.timing.hardware --json gpu.json         # on the GPU machine
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from comparisons.gpu_bench import DEFAULT_SIZES as DEFAULT_GPU_SIZES
+from comparisons.timing.gpu import DEFAULT_SIZES as DEFAULT_GPU_SIZES
 
 __all__ = ["measure_peak_flops", "cpu_figures", "gpu_figures", "main"]
 
@@ -252,8 +252,8 @@ def _checked_fields(mesh, material, x: np.ndarray, batch: Optional[int] = None) 
 
 def _cpu_floors(material, threads: int, n: int, m: int, nnz: int) -> dict:
     """Bandwidth and compute floors per cell, on one thread and on all of them."""
-    from comparisons.bandwidth import floor_bytes, measure_bandwidth
-    from comparisons.opcount import mjed_source_flops
+    from comparisons.timing.bandwidth import floor_bytes, measure_bandwidth
+    from comparisons.timing.opcount import mjed_source_flops
 
     bw1 = measure_bandwidth().bytes_per_s
     bw_all = _parallel_bandwidth(threads)
@@ -329,11 +329,11 @@ def gpu_figures(
     cpu: bool = True,
     say=lambda s: None,
 ):
-    """The GPU figures (comparisons.gpu_bench.GpuFigures): MJED and the classical element on
+    """The GPU figures (comparisons.timing.gpu.GpuFigures): MJED and the classical element on
     the device per size, precision and quantity, the copy bandwidth, the compiled CPU backend
-    for the ratio and the targets (see comparisons.gpu_bench).
+    for the ratio and the targets (see comparisons.timing.gpu).
     """
-    from comparisons.gpu_bench import measure
+    from comparisons.timing.gpu import measure
 
     return measure(material_name, sizes, min_time=min_time, copy_bytes=copy_bytes, cpu=cpu, say=say)
 
@@ -369,7 +369,7 @@ def _print_cpu(fig: dict) -> None:
 
 
 def _print_gpu(fig) -> None:
-    from comparisons.gpu_bench import print_figures
+    from comparisons.timing.gpu import print_figures
 
     print_figures(fig)
 
@@ -392,7 +392,7 @@ def _add_gpu_options(ap: argparse.ArgumentParser) -> None:
 
 def _gpu_section(args, material_name: str) -> dict:
     """Run (or say why not) and print the GPU section; its record as a dict for --json."""
-    from comparisons.gpu_bench import not_run
+    from comparisons.timing.gpu import not_run
 
     status = "not run: --no-gpu" if args.no_gpu else gpu_status()
     sizes = [int(float(s)) for s in args.gpu_sizes.split(",") if s]
@@ -411,7 +411,7 @@ def _gpu_section(args, material_name: str) -> dict:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(
-        prog="python -m comparisons.hardware_bench",
+        prog="python -m comparisons.timing.hardware",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
