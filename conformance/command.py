@@ -15,9 +15,8 @@ import shlex
 from typing import Callable, List
 
 from conformance.engine_process import run_engine
-from conformance.exchange import EngineOutput, read_output
+from conformance.exchange import CaseError, EngineOutput, read_output
 from conformance.kit import KitCase
-from conformance.run import CaseError
 
 __all__ = ["command_words", "command_evaluator", "STDERR_TAIL"]
 

@@ -52,6 +52,7 @@ __all__ = [
     "CASE_FORMAT",
     "KIT_FORMAT",
     "FormatError",
+    "CaseError",
     "EngineOutput",
     "write_array",
     "read_array",
@@ -86,6 +87,12 @@ _STIFFNESS_LAYOUTS = {
 
 class FormatError(ValueError):
     """A file that does not follow the format; the message names the case and the file."""
+
+
+class CaseError(FormatError):
+    """One case could not be evaluated: bad output, a crash or a time limit (message names the
+    case).
+    """
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from common.tolerances import mean_edge_length
 from conformance.compare import DOUBLE, scales
 from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
-from conformance.exchange import EngineOutput, FormatError
+from conformance.exchange import CaseError, EngineOutput, FormatError
 from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes, probe_lengths
@@ -31,12 +31,6 @@ __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
 
 Evaluator = Callable[[KitCase], EngineOutput]
-
-
-class CaseError(FormatError):
-    """One case could not be evaluated: bad output, a crash or a time limit (message names the
-    case).
-    """
 
 
 @dataclass(frozen=True)
