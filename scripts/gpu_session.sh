@@ -91,8 +91,8 @@ kit() {
 compare_kits() {
     "$PY" - "$1" "$2" <<'EOF'
 import sys, numpy as np
-from conformance.exchange import read_output
-from conformance.kit import read_kit
+from conformance.kit.exchange import read_output
+from conformance.kit.cases import read_kit
 gpu, cpu = read_kit(sys.argv[1]), read_kit(sys.argv[2])
 worst = {}
 for g, c in zip(gpu.cases, cpu.cases):

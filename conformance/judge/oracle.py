@@ -12,12 +12,12 @@ from typing import Any, Dict, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.compare import Scales, Tolerances
-from conformance.consistency import ReferenceProbes
-from conformance.energy import energy_density
-from conformance.parts import PartsOracle
-from conformance.precision import sensitivity_of, single_tolerances
-from conformance.spec import CaseInput, model_frame, model_to_manifest
+from conformance.judge.compare import Scales, Tolerances
+from conformance.judge.consistency import ReferenceProbes
+from conformance.judge.energy import energy_density
+from conformance.judge.parts import PartsOracle
+from conformance.judge.precision import sensitivity_of, single_tolerances
+from conformance.kit.spec import CaseInput, model_frame, model_to_manifest
 
 __all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
 
@@ -89,8 +89,8 @@ class OracleCache:
         return sp.hstack(cols).tocsr()
 
     def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
-        """The case's tolerances at single precision (:mod:`conformance.precision`), measured by
-        the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
+        """The case's tolerances at single precision (:mod:`conformance.judge.precision`), measured
+        by the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
         perturbed mesh, not kept).
         """
         from reference_fem import UFLOracle
@@ -120,7 +120,7 @@ class OracleCache:
         return ReferenceProbes(ref.force, ref.stiffness, ref.energy, forces, energies)
 
     def parts(self, case: CaseInput):
-        """:class:`conformance.parts.StiffnessParts` at the case's positions."""
+        """:class:`conformance.judge.parts.StiffnessParts` at the case's positions."""
         key = _key(case)
         if key not in self._parts:
             self._parts[key] = PartsOracle(case.points, case.cells, case.model)

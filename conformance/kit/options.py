@@ -59,7 +59,7 @@ def resolve_models(args, *, material_default: str = "all") -> list:
 
 
 def cases_from_args(args, *, probes: int) -> List:
-    from conformance.kit import build_cases
+    from conformance.kit.cases import build_cases
 
     models = resolve_models(args)
     meshes = opt.resolve_meshes(args.mesh)

@@ -30,7 +30,7 @@ from typing import Callable
 
 import numpy as np
 
-from conformance.compare import Errors, Scales, Tolerances, errors
+from conformance.judge.compare import Errors, Scales, Tolerances, errors
 
 __all__ = ["U32", "SAFETY", "CAP", "single_tolerances", "sensitivity_of", "perturbed"]
 

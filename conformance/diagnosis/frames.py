@@ -34,8 +34,8 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
 from common.tolerances import mean_edge_length
-from conformance.compare import Scales, scales
-from conformance.spec import CaseInput
+from conformance.judge.compare import Scales, scales
+from conformance.kit.spec import CaseInput
 
 __all__ = ["FrameVariant", "frame_models", "frame_variants"]
 
@@ -51,7 +51,7 @@ class FrameVariant:
     """The oracle with a mistaken frame, at the case's positions.
 
     code, title: the mistake; force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]: the variant
-    oracle's values; scales: its error denominators (:func:`conformance.compare.scales`).
+    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`).
     """
 
     code: str
@@ -106,7 +106,7 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
 def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     """The oracle at ``case.positions`` for each frame mistake of the case's model.
 
-    cache: a :class:`conformance.oracle.OracleCache` (one oracle per variant frame, reused
+    cache: a :class:`conformance.judge.oracle.OracleCache` (one oracle per variant frame, reused
     across the states and probes of the same mesh). Raises what the oracle raises.
     """
     h = mean_edge_length(case.points, case.cells)

@@ -3,7 +3,7 @@
 The template is split like a POSIX shell command line (``shlex``; no pipes or redirections: wrap
 them in a script), then ``{input}`` and ``{output}`` are replaced in each word by the case's input
 directory and a fresh output directory. The engine runs through
-:func:`conformance.engine_process.run_engine`: its own session, a time limit, bounded output, and
+:func:`conformance.engine.process.run_engine`: its own session, a time limit, bounded output, and
 its whole process tree ended after the case. A non-zero exit, a time limit or a missing output is
 an error for that case only, reported with the tail of the engine's stderr.
 """
@@ -14,9 +14,9 @@ import os
 import shlex
 from typing import Callable, List
 
-from conformance.engine_process import run_engine
-from conformance.exchange import CaseError, EngineOutput, read_output
-from conformance.kit import KitCase
+from conformance.engine.process import run_engine
+from conformance.kit.cases import KitCase
+from conformance.kit.exchange import CaseError, EngineOutput, read_output
 
 __all__ = ["command_words", "command_evaluator", "STDERR_TAIL"]
 

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL
-from conformance.consistency import safe_norm
+from conformance.judge.consistency import safe_norm
 
 __all__ = [
     "FORCE_TOL",

@@ -13,7 +13,7 @@ __all__ = ["energy_density"]
 
 def energy_density(model: Any, F, frame=None, constant: Optional[Callable[[Any], Any]] = None):
     """W(F) per unit rest volume in UFL, for a built-in material or a user energy."""
-    from conformance.spec import _user_energy_type
+    from conformance.kit.spec import _user_energy_type
 
     UE = _user_energy_type()
     if UE is not None and isinstance(model, UE):

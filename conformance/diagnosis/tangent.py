@@ -3,7 +3,7 @@
 Two fits, both linear least squares whose residual is the evidence:
 
 1. **Tangent parts.** The stiffness error D = K - K_o is fitted by c_1 P_1 (+ c_2 P_2) over the
-   oracle's parts (:mod:`conformance.parts`): geometric / material, volumetric / isochoric and
+   oracle's parts (:mod:`conformance.judge.parts`): geometric / material, volumetric / isochoric and
    the Voigt blocks of the material part. The smallest set of parts whose fit leaves less than
    the tolerance is named, with its coefficients (c = -1: part missing, c = +1: part doubled).
 2. **Volumetric energy.** If the engine's J-only energy U differs from the oracle's, then per

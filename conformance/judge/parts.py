@@ -203,7 +203,7 @@ class PartsOracle:
         model: a material of :mod:`mjed.materials` or a user energy (anything the energy
             function accepts).
         energy: ``(model, F, frame, constant) -> UFL`` W(F) per unit rest volume; by default
-            :func:`conformance.oracle.energy_density`.
+            :func:`conformance.judge.oracle.energy_density`.
     """
 
     def __init__(
@@ -220,7 +220,7 @@ class PartsOracle:
         from reference_fem.sparse_map import CSRRenumbering
 
         if energy is None:
-            from conformance.energy import energy_density as energy
+            from conformance.judge.energy import energy_density as energy
         X = np.ascontiguousarray(points, dtype=np.float64)
         cells = np.ascontiguousarray(cells, dtype=np.int64)
         self._X = X

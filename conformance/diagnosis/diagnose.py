@@ -8,13 +8,13 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
 2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
    then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
    transposed or a single frame, or the columns in another order
-   (:mod:`conformance.frame_hypotheses`);
+   (:mod:`conformance.diagnosis.frames`);
 3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
-   explains a stiffness error when the force is right (:mod:`conformance.tangent`);
+   explains a stiffness error when the force is right (:mod:`conformance.diagnosis.tangent`);
 4. a different volumetric (J-only) energy, fitted per cell;
 5. localisation: the error confined to a few nodes (and the cells they span).
 
-The engine's own consistency (probes, :mod:`conformance.consistency`) is reported as an
+The engine's own consistency (probes, :mod:`conformance.judge.consistency`) is reported as an
 observed fact. When nothing explains the error the diagnosis says so.
 """
 
@@ -26,10 +26,14 @@ from typing import Any, Callable, List, Optional, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.compare import DOUBLE, Errors, Scales, Tolerances, errors
-from conformance.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
-from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
-from conformance.hypotheses import common_factor_name, convention_corrections, scale_corrections
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.hypotheses import (
+    common_factor_name,
+    convention_corrections,
+    scale_corrections,
+)
+from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
+from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
 
 __all__ = ["Diagnosis", "diagnose", "node_error_field"]
 
@@ -125,13 +129,13 @@ def diagnose(
 
     Args:
         f, K, W: the engine's force (n, 3), stiffness (3n, 3n), energy or None.
-        f_o, K_o, W_o: the oracle's; s: the error scales (:func:`conformance.compare.scales`).
+        f_o, K_o, W_o: the oracle's; s: the error scales (:func:`conformance.judge.compare.scales`).
         points, cells, x: the mesh and the current positions.
         parts: a callable returning the oracle's stiffness parts (built only if needed).
         consistency: the probes' result, if any.
         tol: the tolerances the case is held to (double precision by default).
         frame_variants: a callable returning the oracle with mistaken frames
-            (:class:`conformance.frame_hypotheses.FrameVariant`; built only if needed).
+            (:class:`conformance.diagnosis.frames.FrameVariant`; built only if needed).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -460,7 +464,7 @@ def _frame_findings(
 
 
 def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
-    from conformance.tangent import candidate_parts, describe_coefficient, fit_parts
+    from conformance.diagnosis.tangent import candidate_parts, describe_coefficient, fit_parts
 
     D = (K - K_o).tocsr()
     cands = candidate_parts(parts, K_o)
@@ -492,7 +496,7 @@ def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial
 def _volumetric_findings(
     points, cells, x, df, D, s: Scales, worst: float, tol: Tolerances, full, partial
 ) -> None:
-    from conformance.tangent import fit_volumetric
+    from conformance.diagnosis.tangent import fit_volumetric
 
     fit = fit_volumetric(points, cells, x, df, D, s.force, s.stiffness)
     if fit is None:

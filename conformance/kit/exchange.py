@@ -22,7 +22,7 @@ little-endian, dof = 3 * node + component):
 An engine that computes in single precision may write its values as little-endian float32
 instead, in files ending ``.f32`` (``force.f32``, ``stiffness_values.f32`` or ``stiffness.f32``,
 ``energy.f32``); the output is then marked single precision and judged as such
-(:mod:`conformance.precision`). Arrays written in the wrong byte order, or float32 values in a
+(:mod:`conformance.judge.precision`). Arrays written in the wrong byte order, or float32 values in a
 ``.f64`` file, are refused with the likely cause named.
 """
 
@@ -38,8 +38,8 @@ from typing import Any, Dict, Mapping, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.confine import ConfinementError, confined_path, read_confined
-from conformance.spec import (
+from conformance.kit.confine import ConfinementError, confined_path, read_confined
+from conformance.kit.spec import (
     CaseInput,
     SpecError,
     model_frame,

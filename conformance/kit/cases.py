@@ -32,14 +32,14 @@ import numpy as np
 from common.frames import with_default_frame
 from common.states import apply_state
 from common.tolerances import mean_edge_length
-from conformance.confine import (
+from conformance.kit.confine import (
     MAX_CASE_ID,
     ConfinementError,
     check_case_id,
     confined_path,
     read_confined,
 )
-from conformance.exchange import (
+from conformance.kit.exchange import (
     FORMAT_VERSION,
     KIT_FORMAT,
     MAX_INPUT_ARRAY_BYTES,
@@ -50,7 +50,7 @@ from conformance.exchange import (
     sha256_of,
     write_case_input,
 )
-from conformance.spec import CaseInput, model_label
+from conformance.kit.spec import CaseInput, model_label
 
 __all__ = [
     "KitCase",
@@ -92,7 +92,7 @@ class KitCase:
 
 def case_id(model: Any, mesh: str, state: str) -> str:
     raw = f"{model_label(model)}.{os.path.splitext(os.path.basename(mesh))[0]}.{state}"
-    # one safe path component (conformance.confine.check_case_id): no '..', no leading dot
+    # one safe path component (conformance.kit.confine.check_case_id): no '..', no leading dot
     safe = re.sub(r"\.{2,}", ".", re.sub(r"[^A-Za-z0-9_.+-]", "_", raw)).lstrip(".")
     return safe[: MAX_CASE_ID - 8]  # room for a probe's "~probeK"
 

@@ -15,7 +15,7 @@ t^4, t^5, ... terms, whose size grows with the energy's higher derivatives along
 round-off of the differences. On a sliver (a cell whose height is a few hundredths of its
 edges) a step of 1e-4 of the mean edge is a strain of several 1e-3 in that cell, and the fit
 leaves up to 2e-4 for an exactly consistent engine (kits now scale each node's step by its
-thinnest cell, :func:`conformance.kit.probe_lengths`, but older kits do not, and round-off
+thinnest cell, :func:`conformance.kit.cases.probe_lengths`, but older kits do not, and round-off
 remains). A fixed limit cannot be calibrated for every mesh and state, so each case is
 calibrated:
 
