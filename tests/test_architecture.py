@@ -249,6 +249,25 @@ def test_the_layout_checks_find_a_crossing(tmp_path):
     ]
 
 
+def test_a_kit_is_read_in_one_place():
+    """Only ``conformance.kit.read`` opens a kit (its manifest and the cases it lists; the writer
+    writes one): the rest get its ``Kit``. The confined reader and the JSON loader are used
+    inside the kit stage only.
+    """
+    mods = module_files(ROOT, ("conformance", "comparisons"))
+    outside = {m: p for m, p in mods.items() if not m.startswith("conformance.kit.")}
+    readers = ("conformance.kit.confine", "conformance.kit.exchange.load_json")
+    bad = [
+        f"{m} -> {n}"
+        for m, p in outside.items()
+        for n in imported_names(p)
+        if n.startswith(readers)
+    ]
+    assert bad == []
+    manifest = [m for m, p in mods.items() if '"manifest.json"' in p.read_text()]
+    assert sorted(manifest) == ["conformance.kit.read", "conformance.kit.write"]
+
+
 #: A study driver longer than this mixes setup, measurement and presentation; split it.
 MAX_FUNCTION_LINES = 60
 

@@ -36,8 +36,8 @@ def mjed_impl(case):
 
 def _compute_kit(folder):
     """Play the user's engine on a kit: write every case's output (COO) with MJED."""
-    from conformance.kit.cases import read_kit
     from conformance.kit.exchange import write_output
+    from conformance.kit.read import read_kit
 
     for c in read_kit(folder).cases:
         f, K, W = mjed_impl(c.input)

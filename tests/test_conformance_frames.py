@@ -123,8 +123,10 @@ def test_a_frame_mistake_shows_in_force_and_stiffness_of_the_fibre_states(cube, 
 
 
 def test_the_kit_exports_the_frame_hashed_and_reads_it_back(tmp_path, cube):
-    from conformance.kit.cases import build_cases, read_kit, write_kit
+    from conformance.kit.cases import build_cases
     from conformance.kit.exchange import FormatError
+    from conformance.kit.read import read_kit
+    from conformance.kit.write import write_kit
 
     points, cells = cube
     cases = build_cases(
@@ -292,7 +294,9 @@ FIBRE_PARAMS = {"mu": 1.0e3, "K": 1.0e4, "k1": 2.0e3, "k2": 0.7, "c": 300.0}
 
 
 def test_a_fibre_energy_without_a_direction_gets_the_field_in_the_kit(tmp_path, cube):
-    from conformance.kit.cases import build_cases, read_kit, write_kit
+    from conformance.kit.cases import build_cases
+    from conformance.kit.read import read_kit
+    from conformance.kit.write import write_kit
     from reference_fem.user_energy import UserEnergy
 
     points, cells = cube

@@ -313,8 +313,8 @@ def test_a_kit_declares_single_precision(tmp_path):
     import json
 
     from comparisons.cli import main
-    from conformance.kit.cases import read_kit
     from conformance.kit.exchange import write_output
+    from conformance.kit.read import read_kit
 
     kit = tmp_path / "kit"
     assert (

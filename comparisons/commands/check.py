@@ -77,7 +77,7 @@ def run(args) -> int:
     if args.timeout <= 0:
         raise InputError(f"--timeout must be > 0, got {args.timeout}")
     if args.dir is not None:
-        from conformance.kit.cases import read_kit
+        from conformance.kit.read import read_kit
 
         given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (
             ["param"] if args.param else []
@@ -117,8 +117,8 @@ def run(args) -> int:
 
 def _evaluator(args, cases, folder: str, command: str):
     """Case -> engine output: the outputs in the kit, or the engine run on each case."""
-    from conformance.kit.cases import write_kit
     from conformance.kit.exchange import read_output
+    from conformance.kit.write import write_kit
 
     if args.engine_command is None:
         return lambda c: read_output(

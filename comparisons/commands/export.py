@@ -40,8 +40,9 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     from common.options import InputError
-    from conformance.kit.cases import PROBES, write_kit
+    from conformance.kit.cases import PROBES
     from conformance.kit.options import cases_from_args, reproduce
+    from conformance.kit.write import write_kit
 
     if os.path.exists(args.dir) and (not os.path.isdir(args.dir) or os.listdir(args.dir)):
         raise InputError(

@@ -130,7 +130,7 @@ class MJEDBackendEngine:
 
 def _fill_kit(engine: MJEDBackendEngine, kit: str, say: Callable[[str], None]) -> int:
     """Write every case's output of the kit; 0, or 1 when some case failed (named)."""
-    from conformance.kit.cases import read_kit
+    from conformance.kit.read import read_kit
 
     manifest = read_kit(kit)
     if engine.precision == "single" and manifest.precision == "double":
