@@ -17,26 +17,20 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
-from conformance.compare import DOUBLE, scales
-from conformance.consistency import Consistency, consistency, safe_norm
-from conformance.diagnosis import Diagnosis, diagnose
-from conformance.exchange import EngineOutput, FormatError
-from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
-from conformance.frame_hypotheses import frame_variants
-from conformance.kit import KitCase, primary_and_probes, probe_lengths
-from conformance.oracle import OracleCache
-from conformance.precision import U32
+from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.frames import frame_variants
+from conformance.judge.compare import DOUBLE, scales
+from conformance.judge.consistency import Consistency, consistency, safe_norm
+from conformance.judge.oracle import OracleCache
+from conformance.judge.precision import U32
+from conformance.kit.cases import KitCase, primary_and_probes, probe_lengths
+from conformance.kit.exchange import CaseError, EngineOutput, FormatError
 
 __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
 
 Evaluator = Callable[[KitCase], EngineOutput]
-
-
-class CaseError(FormatError):
-    """One case could not be evaluated: bad output, a crash or a time limit (message names the
-    case).
-    """
 
 
 @dataclass(frozen=True)
@@ -128,8 +122,8 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> 
 
 
 def _diagnose(case_id: str, ci, out, ref, s, **options):
-    """:func:`conformance.diagnosis.diagnose` of an engine's output against the oracle's at one
-    case's positions; options: consistency, tol, parts, frame_variants.
+    """:func:`conformance.diagnosis.diagnose.diagnose` of an engine's output against the oracle's at
+    one case's positions; options: consistency, tol, parts, frame_variants.
     """
     return diagnose(
         case_id,
@@ -160,7 +154,7 @@ def _run_check(
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
 
     precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
-    case's conditioning, :mod:`conformance.precision`) or "auto": single for an output the
+    case's conditioning, :mod:`conformance.judge.precision`) or "auto": single for an output the
     engine wrote in float32, double otherwise.
 
     on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
@@ -297,10 +291,11 @@ def _run_check(
 
 def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
     """Nothing explained the failure: does the engine compute a variant of the energy
-    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances.
+    (:mod:`conformance.diagnosis.variants`)? Named first when one matches within the case's
+    tolerances.
     """
-    from conformance.compare import errors
-    from conformance.variants import match_variant
+    from conformance.diagnosis.variants import match_variant
+    from conformance.judge.compare import errors
 
     def evaluate(model):
         ref = cache.reference(replace(ci, model=model))
@@ -342,7 +337,7 @@ def _finite_difference_reading(
     force? Its error is then (h / 2) x the derivative of each column along its own dof; the
     fitted h is named when that accounts for nearly all of the error (99 %).
     """
-    from conformance.tangent import fit_finite_difference
+    from conformance.diagnosis.tangent import fit_finite_difference
 
     if ci.n_nodes > FD_MAX_NODES:
         return diag
@@ -431,6 +426,6 @@ def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:
 
 
 def _model_name(model: Any) -> str:
-    from conformance.spec import model_label
+    from conformance.kit.spec import model_label
 
     return model_label(model)

@@ -9,10 +9,10 @@ import pytest
 import scipy.sparse as sp
 from conftest import box_mesh
 
-from conformance.compare import scales
-from conformance.consistency import PROBE_TOL, consistency
-from conformance.diagnosis import diagnose
-from conformance.hypotheses import component_major_to_node_major, describe_permutation
+from conformance.diagnosis.diagnose import diagnose
+from conformance.diagnosis.hypotheses import component_major_to_node_major, describe_permutation
+from conformance.judge.compare import scales
+from conformance.judge.consistency import PROBE_TOL, consistency
 
 
 def quartic(x):
