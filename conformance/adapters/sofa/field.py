@@ -6,8 +6,8 @@ one run of the engine program on a case folder it writes itself. The time of a r
 SOFA starting and building its scene, so SOFA's own calls are timed inside the program:
 ``self_timed(x, calls)`` returns the median seconds of ``addForce`` as an explicit solver calls
 it, of ``addForce`` plus ``addKToMatrix`` as an implicit solver with an assembled matrix calls
-them, and of one ``addDForce`` (what a CG iteration calls), measured by ``std::chrono::steady_clock`` around the
-C++ calls, one thread.
+them, and of one ``addDForce`` (what a CG iteration calls), measured by
+``std::chrono::steady_clock`` around the C++ calls, one thread.
 """
 
 from __future__ import annotations
