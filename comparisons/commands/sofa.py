@@ -39,6 +39,8 @@ def configure(parser) -> None:
     )
     parser.add_argument("--calls", type=int, default=10, help="timed calls per method (median)")
     parser.add_argument("--quick", action="store_true", help="small meshes (a partial run)")
+    parser.add_argument("--skip-checks", action="store_true", help="time only (a partial run)")
+    parser.add_argument("--skip-timing", action="store_true", help="check only (a partial run)")
     opt.add_json_option(parser)
     opt.add_allow_incomplete_option(parser)
 

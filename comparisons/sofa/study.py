@@ -31,6 +31,8 @@ def sofa_study(
     materials: Optional[Sequence[str]] = None,
     forcefields: Sequence[str] = FORCEFIELDS,
     timing_calls: int = 10,
+    checks_on: bool = True,
+    timing_on: bool = True,
     progress: Callable[[str], None] = lambda s: None,
     command: str = "mjed-verify sofa",
 ) -> StudyResult:
@@ -45,13 +47,13 @@ def sofa_study(
     names = list(materials or sofa_materials())
     verdicts: List[SofaVerdict] = []
     with tempfile.TemporaryDirectory(prefix="mjed-sofa-meshes-") as tmp:
-        for label, mesh in check_meshes(Path(tmp), plugin_meshes, quick):
+        for label, mesh in check_meshes(Path(tmp), plugin_meshes, quick) if checks_on else ():
             for ff in forcefields:
                 for name in names:
                     v = check_one(ff, name, label, mesh, program)
                     progress(f"check {ff} {name} on {label}: {v.passed}/{v.cases} passed")
                     verdicts.append(v)
-    timings = _timings(names, forcefields, quick, timing_calls, progress)
+    timings = _timings(names, forcefields, quick, timing_calls, progress) if timing_on else []
     checks = [
         Check(
             f"cases failed, SOFA {v.forcefield} {v.material} on {v.mesh}",
@@ -82,6 +84,15 @@ def sofa_study(
         if quick
         else (),
     )
+
+
+def _left_out(quick: bool, checks_on: bool, timing_on: bool):
+    if quick:
+        yield "quick: cube-small instead of cube-paper, one plugin mesh, the liver not timed"
+    if not checks_on:
+        yield "no checks (--skip-checks)"
+    if not timing_on:
+        yield "no timing (--skip-timing)"
 
 
 def _timings(names, forcefields, quick, calls, progress) -> List[SofaTiming]:
