@@ -11,7 +11,12 @@ with ``force_and_stiffness(x)`` (and optionally ``force(x)``, ``stiffness(x)``) 
 - ``classical``, ``classical-numba``: the classical Galerkin, NumPy and compiled;
 - ``dolfinx``: dolfinx's compiled assembly of the oracle's own forms;
 - ``felupe``, ``sfepy``: the peer libraries through conformance/adapters (matched energies;
-  a material whose energy the library cannot state is refused with the adapter's reason).
+  a material whose energy the library cannot state is refused with the adapter's reason);
+- ``sofa-mjed``, ``sofa-classical``: SOFA's own MJEDTetrahedralForceField (SofaMJEDFEM) and
+  TetrahedronHyperelasticityFEMForceField, through the engine program of
+  conformance/adapters/sofa (not run, with how to build it, where it is missing). Their
+  objects time themselves (``self_timed``): SOFA's calls are timed inside its process, so the
+  study records those medians instead of timing a process start per call.
 
 Verification: before a method is timed its force and stiffness at the timing state are
 compared with NumPy MJED's (which the equivalence study proves equal to the UFL oracle to
@@ -192,6 +197,51 @@ register(
         "(reference_fem/dolfinx_assembly.py), proven equal to MJED by the equivalence study",
     )
 )
+
+
+def _sofa(forcefield: str) -> Builder:
+    def build(points, cells, material):
+        from conformance.adapters.sofa.field import SofaField
+
+        return SofaField(points, cells, material, forcefield)
+
+    return build
+
+
+def _sofa_missing() -> Optional[str]:
+    from conformance.adapters.sofa.field import available
+
+    return available()
+
+
+def _sofa_refuses(forcefield: str) -> Callable[[Any], Optional[str]]:
+    def unsupported(material) -> Optional[str]:
+        from dataclasses import fields
+
+        from conformance.adapters.sofa.mapping import NotExpressible, sofa_material
+
+        model = {
+            "kind": "material",
+            "name": type(material).__name__,
+            "parameters": {f.name: getattr(material, f.name) for f in fields(material)},
+        }
+        try:
+            sofa_material(model, forcefield, getattr(material, "frame", None))
+        except NotExpressible as why:
+            return str(why)
+        return None
+
+    return unsupported
+
+
+for _name, _label, _ff in (
+    ("sofa-mjed", "SOFA MJEDTetrahedralForceField", "mjed"),
+    ("sofa-classical", "SOFA TetrahedronHyperelasticityFEMForceField", "hyperelasticity"),
+):
+    register(
+        TimedMethod(_name, _label, "peer", True, _sofa(_ff), _sofa_missing, _sofa_refuses(_ff))
+    )
+
 for _name, _label, _module, _cls in (
     ("felupe", "FElupe", "conformance.adapters.felupe", "FElupeAdapter"),
     ("sfepy", "SfePy", "conformance.adapters.sfepy", "SfePyAdapter"),
