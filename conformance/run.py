@@ -26,6 +26,7 @@ from conformance.frame_hypotheses import frame_variants
 from conformance.kit import KitCase, primary_and_probes, probe_lengths
 from conformance.oracle import OracleCache
 from conformance.precision import U32
+from conformance.roundoff_signature import signature as roundoff_signature
 
 __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
@@ -261,7 +262,11 @@ def _run_check(
         inexact = nf == 0 or diag.errors.force * s.force >= U32 / 4 * nf
         if not single and unexplained and not diag.causes and inexact:
             tol32 = cache.single_precision(ci, ref, s)
-            if tol32.within(diag.errors):
+            sig = roundoff_signature(out.force, out.stiffness, ref.force, ref.stiffness)
+            if tol32.within(diag.errors) and not sig.float32_like:
+                # Small enough for float32, but not float32's signature: a systematic error.
+                diag = _systematic_reading(diag, sig, tol32)
+            elif tol32.within(diag.errors):
                 cons32 = (
                     _self_consistency(cache, ci, ref, out, probes, probe_results, True)
                     if probes and not probe_errors
@@ -276,7 +281,7 @@ def _run_check(
                     consistency=cons32,
                     tol=tol32,
                 )
-                diag = _single_precision_reading(diag, diag32)
+                diag = _single_precision_reading(diag, diag32, sig)
         status = diag.verdict
         message = ""
         if probe_errors:
@@ -365,7 +370,22 @@ def _finite_difference_reading(
     return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
-def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
+def _systematic_reading(diag: Diagnosis, sig, tol32) -> Diagnosis:
+    """The errors are as small as float32's, but they keep the balance laws: a systematic
+    mistake, said so (never float32 round-off); the other findings stand.
+    """
+    finding = Finding(
+        "systematic-small",
+        "a small systematic error, not float32 round-off",
+        OBSERVED,
+        f"force {diag.errors.force:.1e}, stiffness {diag.errors.stiffness:.1e} are below what "
+        f"float32 leaves on this case ({tol32.text()}), but {sig.text()}",
+        sig.to_dict(),
+    )
+    return replace(diag, findings=[*diag.findings, finding])
+
+
+def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis, sig=None) -> Diagnosis:
     """A case failed at double precision and ``diag32``, the same case judged as a float32
     engine's, passes: the failure is named as float32 round-off, first, with what the probes
     show at that precision; the double-precision verdict stands.
@@ -378,10 +398,15 @@ def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
         "the errors are single-precision (float32) round-off",
         FULL,
         f"force {e.force:.1e}, stiffness {e.stiffness:.1e} are within what float32 leaves on this "
-        f"case ({tol.text()}; {tol.basis}): an engine computing in float32 passes with "
-        "--precision single "
+        f"case ({tol.text()}; {tol.basis}), and "
+        + ("they look like float32's" if sig is None else sig.text())
+        + ": an engine computing in float32 passes with --precision single "
         '(or "precision": "single" in the kit, or .f32 output files)',
-        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness},
+        {
+            "single_force_tol": tol.force,
+            "single_stiffness_tol": tol.stiffness,
+            **({} if sig is None else sig.to_dict()),
+        },
     )
     return replace(diag, findings=[finding, *diag32.findings], consistency=diag32.consistency)
 
