@@ -52,7 +52,7 @@ class OracleCache:
     """UFL oracles and stiffness-part oracles, built once per (mesh, model)."""
 
     def __init__(self) -> None:
-        self._oracles: Dict[Tuple[str, str], Any] = {}
+        self._oracles: Dict[Tuple[str, ...], Any] = {}
         self._parts: Dict[Tuple[str, str], Any] = {}
 
     def reference(self, case: CaseInput) -> Reference:
@@ -71,6 +71,25 @@ class OracleCache:
         oracle = self._oracles[key]
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
+        """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
+        the diagnosis builds: one term of the energy, a mistaken kinematic); ``key`` names it
+        (one oracle per (mesh, key), reused across states).
+        """
+        k = (*_key(case), "variant:" + key)
+        if k not in self._oracles:
+            from reference_fem import UFLOracle
+
+            self._oracles[k] = UFLOracle(case.points, case.cells, model)
+        oracle = self._oracles[k]
+        f, K = oracle.force_and_stiffness(case.positions)
+        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def stiffness_at(self, case: CaseInput, positions: np.ndarray) -> sp.csr_matrix:
+        """The oracle's stiffness of the case's mesh and model at other ``positions`` (n, 3)."""
+        self.reference(case)  # builds the oracle if needed
+        return sp.csr_matrix(self._oracles[_key(case)].stiffness(positions))
 
     def column_derivatives(self, case: CaseInput, step: np.ndarray) -> sp.csr_matrix:
         """G (3n, 3n): column j is the derivative of the oracle's K column j along dof j, by a

@@ -17,6 +17,7 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
+from conformance import oracle_readings
 from conformance.compare import DOUBLE, scales
 from conformance.consistency import Consistency, consistency, safe_norm
 from conformance.diagnosis import Diagnosis, diagnose
@@ -252,7 +253,7 @@ def _run_check(
             and not diag.tolerances.within(diag.errors, energy=False)
         )
         if unexplained:
-            diag = _variant_reading(diag, cache, ci, out, s)
+            diag = oracle_readings.read(diag, cache, ci, out, ref, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
@@ -298,42 +299,6 @@ def _run_check(
         if on_case is not None:
             on_case(case, out, ref, diag)
     return run
-
-
-def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
-    """Nothing explained the failure: does the engine compute a variant of the energy
-    (:mod:`conformance.variants`)? Named first when one matches within the case's tolerances.
-    """
-    from conformance.compare import errors
-    from conformance.variants import match_variant
-
-    def evaluate(model):
-        ref = cache.reference(replace(ci, model=model))
-        return ref.force, ref.stiffness
-
-    tol = diag.tolerances
-
-    def within(fv, Kv) -> bool:
-        return tol.within(errors(out.force, out.stiffness, None, fv, Kv, 0.0, s), energy=False)
-
-    found = match_variant(ci.model, out.force, out.stiffness, within, evaluate)
-    if found is None:
-        return diag
-    v, (fv, Kv) = found
-    e = errors(out.force, out.stiffness, None, fv, Kv, 0.0, s)
-    finding = Finding(
-        "energy-variant",
-        f"your engine matches W' = {v.expression}",
-        FULL,
-        f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
-        f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
-        {
-            "variant": v.rewrite.code,
-            "expression": v.expression,
-            "residual": max(e.force, e.stiffness),
-        },
-    )
-    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
 #: Largest mesh (nodes) on which a finite-difference tangent is looked for: 3n oracle assemblies.
