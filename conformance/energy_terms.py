@@ -34,6 +34,7 @@ __all__ = [
     "model_frame_of",
     "split_terms",
     "symbolic",
+    "symbolic_domain",
     "term_parameters",
 ]
 
@@ -261,7 +262,6 @@ def _is_integer_literal(e) -> bool:
 
 def j_power_exponents(W) -> List[str]:
     """The distinct non-integer exponents of J (as printed) in the UFL expression W."""
-    from ufl.algorithms import expr_equals  # noqa: F401  (UFL present)
     from ufl.classes import Determinant, Power
     from ufl.corealg.traversal import unique_pre_traversal
 
@@ -295,21 +295,41 @@ def _scale_j_powers(W, r: float, only: Optional[str]):
     return map_expr_dag(Rewrite(), W)
 
 
-def symbolic(model: Any, spec: Spec, constant: Optional[Callable[[Any], Any]] = None):
-    """(W, entered, F) of ``model`` as ``spec`` says on a symbolic P1 tetrahedron (plain UFL, no
-    mesh, nothing compiled): to count and label the terms, or to tell whether a variant changes
-    the formula at all. ``constant`` as in :func:`build` (None: parameters as plain numbers).
+_SYMBOLIC: list = []
+
+
+def symbolic_domain():
+    """One symbolic UFL mesh of P1 tetrahedra (for :func:`symbolic`)."""
+    return _symbolic_objects()[0]
+
+
+def _symbolic_objects():
+    """(domain, displacement, per-cell frame): created once, so that two symbolic builds of
+    one formula print alike.
     """
     import ufl
 
-    cell = ufl.tetrahedron
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1))
-    u = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.VectorElement("Lagrange", cell, 1)))
+    if not _SYMBOLIC:
+        cell = ufl.tetrahedron
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1))
+        u = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.VectorElement("Lagrange", cell, 1)))
+        R = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.TensorElement("DG", cell, 0)))
+        _SYMBOLIC.extend([domain, u, R])
+    return tuple(_SYMBOLIC)
+
+
+def symbolic(model: Any, spec: Spec, constant: Optional[Callable[[Any], Any]] = None):
+    """(W, entered, F) of ``model`` as ``spec`` says on a symbolic P1 tetrahedron (plain UFL, no
+    mesh, nothing compiled): to count and label the terms, or to tell whether a variant changes
+    the formula at all. ``constant`` as in :func:`build` (None: parameters as plain numbers;
+    "symbol": a new UFL symbol for each).
+    """
+    import ufl
+
+    domain, u, cell_frame = _symbolic_objects()
     F = ufl.Identity(3) + ufl.grad(u)
-    frame = None
     R = model_frame_of(model)
-    if R is not None and R.ndim == 3:
-        frame = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.TensorElement("DG", cell, 0)))
+    frame = cell_frame if R is not None and R.ndim == 3 else None
     if constant == "symbol":
 
         def constant(v):

@@ -21,8 +21,11 @@ no eigenvalues in it) is not evaluated.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, List, Tuple
+
+import numpy as np
 
 from conformance.energy_terms import Spec, has_formula, j_power_exponents
 
@@ -47,8 +50,39 @@ def _formula_text(model: Any, spec: Spec) -> str:
     """
     from conformance.energy_terms import symbolic
 
-    W, _, _ = symbolic(model, spec)
-    return str(W)
+    W, _, _ = symbolic(model, spec, _Symbols(model))
+    # UFL numbers the free indices of each build anew: renumber them in order of appearance.
+    seen: dict = {}
+    return re.sub(
+        r"i_\{?(\d+)\}?", lambda m: "i" + str(seen.setdefault(m.group(1), len(seen))), str(W)
+    )
+
+
+class _Symbols:
+    """Parameters as UFL symbols, the same objects for every build of one model (the k-th
+    parameter read is the k-th symbol), so that two builds print alike where they agree, and a
+    power of J with a parameter in it (Ogden's J^(-alpha/3)) is never taken for an integer.
+    """
+
+    _pools: dict = {}
+
+    def __init__(self, model: Any):
+        self.pool = _Symbols._pools.setdefault(type(model).__name__, [])
+        self.k = 0
+
+    def __call__(self, v):
+        import ufl
+
+        from conformance.energy_terms import symbolic_domain
+
+        shape = np.shape(v)
+        while len(self.pool) <= self.k:
+            self.pool.append({})
+        slot = self.pool[self.k]
+        if shape not in slot:
+            slot[shape] = ufl.Constant(symbolic_domain(), shape=shape)
+        self.k += 1
+        return slot[shape]
 
 
 def _uses_frame(model: Any) -> bool:
@@ -163,5 +197,10 @@ def _exponents(model: Any) -> List[str]:
     """
     from conformance.energy_terms import symbolic
 
-    W, _, _ = symbolic(model, Spec())
-    return j_power_exponents(W)
+    W, entered, _ = symbolic(model, Spec(), _Symbols(model))
+    out = []
+    for e in j_power_exponents(W):
+        for c, name in entered:  # the symbols printed as the parameters' names
+            e = re.sub(re.escape(str(c)) + r"(?![\d}])", name, e)
+        out.append(e)
+    return out

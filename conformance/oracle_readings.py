@@ -169,65 +169,67 @@ def _params(model: Any) -> dict:
     return out
 
 
-def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
-    from conformance.kinematic_variants import kinematic_variants
-
+def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
+    """The candidates the engine matches: each is (evaluate () -> Reference, code, title, words,
+    figures); a candidate the oracle cannot evaluate at this state (ValueError) is skipped.
+    """
     found = []
-    for v in kinematic_variants(ci.model):
+    for evaluate, code, title, words, figures in candidates:
         try:
-            r = _evaluate(cache, ci, v.spec)
+            r = evaluate()
         except ValueError:  # not finite at this state, or not a formula the oracle takes
             continue
         e = errors(out.force, out.stiffness, None, r.force, r.stiffness, 0.0, s)
         if tol.within(e, energy=False):
-            found.append(
-                Reading(
-                    Finding(
-                        f"kinematic-{v.code}",
-                        f"your engine matches the energy with {v.title}",
-                        FULL,
-                        f"against that energy, differentiated by the oracle: force error "
-                        f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
-                        {"variant": v.code, "residual": max(e.force, e.stiffness)},
-                    ),
-                    r.force,
-                    r.stiffness,
-                )
+            evidence = (
+                f"{words}against that energy, differentiated by the oracle: force error "
+                f"{e.force:.1e}, stiffness error {e.stiffness:.1e}"
             )
+            figs = {**figures, "residual": max(e.force, e.stiffness)}
+            found.append(Reading(Finding(code, title, FULL, evidence, figs), r.force, r.stiffness))
     return found
+
+
+def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The kinematic variants of :mod:`conformance.kinematic_variants` that the engine matches."""
+    from conformance.kinematic_variants import kinematic_variants
+
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda v=v: _evaluate(cache, ci, v.spec),
+                f"kinematic-{v.code}",
+                f"your engine matches the energy with {v.title}",
+                "",
+                {"variant": v.code},
+            )
+            for v in kinematic_variants(ci.model)
+        ),
+    )
 
 
 def _formula_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
     """The rewritten formulas of :mod:`conformance.variants` that the engine matches."""
     from conformance.variants import variants
 
-    found = []
-    for v in variants(ci.model):
-        try:
-            r = cache.reference(replace(ci, model=v.model))
-        except ValueError:  # the variant is not finite at this state
-            continue
-        e = errors(out.force, out.stiffness, None, r.force, r.stiffness, 0.0, s)
-        if tol.within(e, energy=False):
-            found.append(
-                Reading(
-                    Finding(
-                        "energy-variant",
-                        f"your engine matches W' = {v.expression}",
-                        FULL,
-                        f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
-                        f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
-                        {
-                            "variant": v.rewrite.code,
-                            "expression": v.expression,
-                            "residual": max(e.force, e.stiffness),
-                        },
-                    ),
-                    r.force,
-                    r.stiffness,
-                )
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda v=v: cache.reference(replace(ci, model=v.model)),
+                "energy-variant",
+                f"your engine matches W' = {v.expression}",
+                f"{v.rewrite.words}: ",
+                {"variant": v.rewrite.code, "expression": v.expression},
             )
-    return found
+            for v in variants(ci.model)
+        ),
+    )
 
 
 def _same(a: Reading, b: Reading, s: Scales) -> bool:
