@@ -308,29 +308,37 @@ FD_MAX_NODES = 400
 def _finite_difference_reading(
     diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, ref
 ) -> Diagnosis:
-    """The force is right and nothing explains the stiffness: is it forward differences of the
-    force? Its error is then (h / 2) x the derivative of each column along its own dof; the
-    fitted h is named when that accounts for nearly all of the error (99 %).
+    """The force is right and nothing explains the stiffness: is it differences of the force?
+    The scheme (forward, backward, central), the step rule (absolute, relative) and the step are
+    fitted (:func:`conformance.tangent.fit_finite_difference`) and named when they account for
+    nearly all of the error (99 %).
     """
     from conformance.tangent import fit_finite_difference
 
     if ci.n_nodes > FD_MAX_NODES:
         return diag
-    step = 1e-6 * np.repeat(probe_lengths(ci.points, ci.cells), 3)
-    G = cache.column_derivatives(ci, step)
-    fit = fit_finite_difference((out.stiffness - ref.stiffness).tocsr(), G, ref.stiffness)
-    if fit is None or fit.explained < 0.99 or fit.step <= 0:
+    step = 1e-3 * np.repeat(probe_lengths(ci.points, ci.cells), 3)
+    G1, G2 = cache.column_derivatives(ci, step)
+    D = (out.stiffness - ref.stiffness).tocsr()
+    fit = fit_finite_difference(D, G1, G2, ref.stiffness, ci.positions)
+    if fit is None or fit.explained < 0.99:
         return diag
     finding = Finding(
         "finite-difference",
-        "a finite-difference tangent: forward differences of the force "
-        f"with a step h = {fit.step:.2e} m",
+        f"a finite-difference tangent: {fit.words()}",
         PARTIAL,
-        f"K - K_oracle = (h/2) x the derivative of each column of K along its own dof, the leading "
-        f"error of -(f(x + h e_j) - f(x)) / h, accounts for {100 * fit.explained:.2f} % of the "
-        f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off of the "
-        "differences)",
-        {"step": fit.step, "explained": fit.explained, "residual": fit.residual},
+        f"K - K_oracle is the leading error of that scheme (the derivative of each column of K "
+        f"along its own dof, times the step), fitted with one unknown: it accounts for "
+        f"{100 * fit.explained:.2f} % of the stiffness error (left: {fit.residual:.1e}, the "
+        "higher orders and round-off of the differences); the force matches",
+        {
+            "step": fit.step,
+            "scheme": fit.scheme,
+            "rule": fit.rule,
+            "symmetrised": fit.symmetrised,
+            "explained": fit.explained,
+            "residual": fit.residual,
+        },
     )
     return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 

@@ -508,3 +508,46 @@ FAMILY: Dict[str, Tuple[str, Callable, str]] = {
         "systematic-small",
     ),
 }
+
+
+def _difference_tangent(scheme: str, eps: float):
+    """MJED's force, and K from differences of it: "central" with a step h = eps [m],
+    "forward" with a relative step h_j = eps |x_j| (eps where x_j = 0).
+    """
+
+    def engine(case):
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+        f = field.force(case.positions)
+        x = case.positions.ravel()
+        cols = []
+        for j in range(x.size):
+            h = eps if scheme == "central" or x[j] == 0 else eps * abs(x[j])
+            y = x.copy()
+            y[j] += h
+            fp = field.force(y.reshape(-1, 3)).ravel()
+            if scheme == "central":
+                y[j] -= 2 * h
+                fm = field.force(y.reshape(-1, 3)).ravel()
+                col = -(fp - fm) / (2 * h)
+            else:
+                col = -(fp - f.ravel()) / h
+            cols.append(sp.csc_matrix(col).T)
+        return f, sp.hstack(cols).tocsr(), field.energy(case.positions)
+
+    return engine
+
+
+FAMILY.update(
+    {
+        "central differences, absolute step": (
+            "NeoHookean",
+            _difference_tangent("central", 1e-4),
+            "finite-difference",
+        ),
+        "forward differences, relative step": (
+            "Ogden",
+            _difference_tangent("forward", 1e-6),
+            "finite-difference",
+        ),
+    }
+)

@@ -248,6 +248,14 @@ def test_family_mistake_is_named(family_runs, name):
     if expected == "systematic-small":  # small, systematic, not identified: said so, honestly
         assert codes[0] == "unexplained" and expected in codes and not d.causes, d.text()
         return
+    if expected == "finite-difference":  # no correction makes it exact: named first, with h
+        assert codes[0] == expected and not d.causes, d.text()
+        figs = d.findings[0].figures
+        scheme, rule = name.split(" differences")[0], figs["rule"]
+        assert figs["scheme"] == scheme and figs["explained"] > 0.99, d.text()
+        assert rule == ("absolute" if scheme == "central" else "relative"), d.text()
+        assert figs["step"] == pytest.approx(1e-4 if scheme == "central" else 1e-6, rel=0.05)
+        return
     assert d.causes and d.causes[0].code == expected, d.text()
     assert d.causes[0].figures["residual"] <= 1e-10
 
