@@ -14,8 +14,16 @@ Errors are relative, in double precision:
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
 
-__all__ = ["FORCE_TOL", "STIFFNESS_TOL", "SYMMETRY_TOL", "mean_edge_length"]
+__all__ = [
+    "FORCE_TOL",
+    "STIFFNESS_TOL",
+    "SYMMETRY_TOL",
+    "compare_arrays",
+    "mean_edge_length",
+]
 
 #: Two double-precision discretisations of one energy agree to round-off times the
 #: conditioning of a few thousand cells; 1e-10 leaves three decades of margin over what the
@@ -35,3 +43,17 @@ def mean_edge_length(points: np.ndarray, cells: np.ndarray) -> float:
     i, j = np.triu_indices(4, k=1)
     X = points[cells]
     return float(np.linalg.norm(X[:, i] - X[:, j], axis=2).mean())
+
+
+def compare_arrays(f_m, K_m, f_o, K_o, force_scale: float) -> tuple:
+    """(force_rel_err, stiffness_rel_err, symmetry_err) of MJED (f_m, K_m) against the oracle."""
+    K_m = sp.csr_matrix(K_m)
+    K_o = sp.csr_matrix(K_o)
+    nK = sparse_norm(K_o)
+    f_ref = max(float(np.linalg.norm(f_o)), force_scale * nK)
+    df = float(np.linalg.norm(np.asarray(f_m) - np.asarray(f_o)))
+    force_err = df / f_ref if f_ref > 0 else df
+    stiff_err = float(sparse_norm(K_m - K_o)) / nK if nK > 0 else float(sparse_norm(K_m))
+    nKm = sparse_norm(K_m)
+    sym_err = float(sparse_norm(K_m - K_m.T)) / nKm if nKm > 0 else 0.0
+    return force_err, stiff_err, sym_err

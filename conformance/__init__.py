@@ -12,18 +12,18 @@ a command run per case (``mjed-verify check --command 'my_engine {input} {output
 (force (n, 3), stiffness (3n, 3n)[, energy]).
 """
 
-from conformance.diagnosis import Diagnosis
-from conformance.exchange import (
+from conformance.diagnosis.diagnose import Diagnosis
+from conformance.diagnosis.findings import Finding
+from conformance.kit.exchange import (
     FORMAT_VERSION,
     EngineOutput,
     read_case_input,
     read_output,
     write_output,
 )
-from conformance.findings import Finding
+from conformance.kit.spec import CaseInput
 from conformance.protocol import Implementation, assert_matches_oracle, check_implementation
 from conformance.run import CheckRun
-from conformance.spec import CaseInput
 
 __all__ = [
     "CaseInput",

@@ -34,7 +34,7 @@ import numpy as np
 
 from common.cases import DEFAULT_MATERIALS
 from common.states import apply_state, smooth_random
-from conformance.kit import build_cases
+from conformance.kit.cases import build_cases
 from conformance.run import CheckRun, run_check
 
 __all__ = [

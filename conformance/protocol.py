@@ -1,6 +1,6 @@
 """The Python way in: a small protocol for an implementation, and a pytest-friendly assertion.
 
-An implementation is any callable taking a :class:`conformance.spec.CaseInput` (rest points,
+An implementation is any callable taking a :class:`conformance.kit.spec.CaseInput` (rest points,
 cells, current positions, model) and returning the force (n, 3), the stiffness (3n, 3n, dense
 or scipy sparse) and optionally the energy: as an :class:`EngineOutput`, a tuple
 ``(force, stiffness)`` / ``(force, stiffness, energy)``, or a mapping with those keys.
@@ -20,10 +20,10 @@ from typing import Any, Callable, Iterable, Mapping, Protocol, Sequence, Union, 
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.exchange import EngineOutput
-from conformance.kit import KitCase, build_cases
+from conformance.kit.cases import KitCase, build_cases
+from conformance.kit.exchange import EngineOutput
+from conformance.kit.spec import CaseInput
 from conformance.run import CaseError, CheckRun, run_check
-from conformance.spec import CaseInput
 
 __all__ = [
     "Implementation",

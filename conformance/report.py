@@ -11,7 +11,7 @@ import numpy as np
 
 from common.blocks import Paragraph, Preformatted, Table
 from common.result import Status, StudyResult
-from conformance.kit import KitCase
+from conformance.kit.cases import KitCase
 from conformance.run import CheckRun
 
 __all__ = ["write_report", "write_error_field", "new_report_dir"]

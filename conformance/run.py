@@ -17,28 +17,22 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
-from conformance import oracle_readings
-from conformance.compare import DOUBLE, scales
-from conformance.consistency import Consistency, consistency, safe_norm
-from conformance.diagnosis import Diagnosis, diagnose
-from conformance.exchange import EngineOutput, FormatError
-from conformance.findings import FULL, OBSERVED, PARTIAL, Finding
-from conformance.frame_hypotheses import frame_variants
-from conformance.kit import KitCase, primary_and_probes, probe_lengths
-from conformance.oracle import OracleCache
-from conformance.precision import U32
-from conformance.roundoff_signature import signature as roundoff_signature
+from conformance.diagnosis import readings
+from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.roundoff import signature as roundoff_signature
+from conformance.judge.compare import DOUBLE, scales
+from conformance.judge.consistency import Consistency, consistency, safe_norm
+from conformance.judge.oracle import OracleCache
+from conformance.judge.precision import U32
+from conformance.kit.cases import KitCase, primary_and_probes, probe_lengths
+from conformance.kit.exchange import CaseError, EngineOutput, FormatError
 
 __all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
 
 
 Evaluator = Callable[[KitCase], EngineOutput]
-
-
-class CaseError(FormatError):
-    """One case could not be evaluated: bad output, a crash or a time limit (message names the
-    case).
-    """
 
 
 @dataclass(frozen=True)
@@ -130,8 +124,8 @@ def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> 
 
 
 def _diagnose(case_id: str, ci, out, ref, s, **options):
-    """:func:`conformance.diagnosis.diagnose` of an engine's output against the oracle's at one
-    case's positions; options: consistency, tol, parts, frame_variants.
+    """:func:`conformance.diagnosis.diagnose.diagnose` of an engine's output against the oracle's at
+    one case's positions; options: consistency, tol, parts, frame_variants.
     """
     return diagnose(
         case_id,
@@ -162,7 +156,7 @@ def _run_check(
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
 
     precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
-    case's conditioning, :mod:`conformance.precision`) or "auto": single for an output the
+    case's conditioning, :mod:`conformance.judge.precision`) or "auto": single for an output the
     engine wrote in float32, double otherwise.
 
     on_case(case, output, reference, diagnosis) is called for every compared case (e.g. to write
@@ -253,7 +247,7 @@ def _run_check(
             and not diag.tolerances.within(diag.errors, energy=False)
         )
         if unexplained:
-            diag = oracle_readings.read(diag, cache, ci, out, ref, s)
+            diag = readings.read(diag, cache, ci, out, ref, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
@@ -310,10 +304,10 @@ def _finite_difference_reading(
 ) -> Diagnosis:
     """The force is right and nothing explains the stiffness: is it differences of the force?
     The scheme (forward, backward, central), the step rule (absolute, relative) and the step are
-    fitted (:func:`conformance.tangent.fit_finite_difference`) and named when they account for
-    nearly all of the error (99 %).
+    fitted (:func:`conformance.diagnosis.tangent.fit_finite_difference`) and named when they
+    account for nearly all of the error (99 %).
     """
-    from conformance.tangent import fit_finite_difference
+    from conformance.diagnosis.tangent import fit_finite_difference
 
     if ci.n_nodes > FD_MAX_NODES:
         return diag
@@ -429,6 +423,6 @@ def _lazy(make: Callable[[], Any]) -> Callable[[], Any]:
 
 
 def _model_name(model: Any) -> str:
-    from conformance.spec import model_label
+    from conformance.kit.spec import model_label
 
     return model_label(model)

@@ -13,7 +13,7 @@
 # out) and seconds; the script exits 1 if any step failed. $OUT holds at most 7 files.
 #
 #   env    the machine: nvidia-smi, Python, NumPy, Numba, whether the oracle (dolfinx) is here
-#   bench  python -m comparisons.hardware_bench --json $OUT/hardware_bench.json (CPU and GPU)
+#   bench  python -m comparisons.timing.hardware --json $OUT/hardware_bench.json (CPU and GPU)
 #   kits   conformance kits on cube-paper, every material and state, filled by the cuda
 #          backend in FP64 and FP32 (python -m conformance.adapters.mjed_backend --kit) and
 #          by the compiled CPU kernel; each GPU kit against the CPU one (max relative
@@ -67,7 +67,7 @@ EOF
 }
 
 step_bench() {
-    "$PY" -m comparisons.hardware_bench --json "$OUT/hardware_bench.json"
+    "$PY" -m comparisons.timing.hardware --json "$OUT/hardware_bench.json"
 }
 
 have_oracle() { "$PY" -c "import dolfinx" 2>/dev/null; }
@@ -91,8 +91,8 @@ kit() {
 compare_kits() {
     "$PY" - "$1" "$2" <<'EOF'
 import sys, numpy as np
-from conformance.exchange import read_output
-from conformance.kit import read_kit
+from conformance.kit.exchange import read_output
+from conformance.kit.cases import read_kit
 gpu, cpu = read_kit(sys.argv[1]), read_kit(sys.argv[2])
 worst = {}
 for g, c in zip(gpu.cases, cpu.cases):

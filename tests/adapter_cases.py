@@ -14,7 +14,7 @@ from common.states import apply_state, state_names
 # The force scale of the equivalence study (rest state: f = 0 on both sides, so |f - f0| is
 # measured against mean edge x |K|), reused so that both checks mean the same thing.
 from common.tolerances import mean_edge_length as mean_edge
-from comparisons.equivalence import compare_arrays
+from comparisons.equivalence.study import compare_arrays
 
 #: The meshes of the adapter checks (the brief: the smallest and a ~500-cell one).
 ADAPTER_MESHES = ("single-tet", "cube-small")

@@ -8,25 +8,13 @@ import pytest
 import mjed
 from mjed import materials as M
 
-# One parameter set per material, chosen so that every term of each energy matters (and a
-# second one where the sign of a parameter changes the kernel or the split). Every declared
-# material must have one: tests/test_material_declarations.py checks it.
+# The parameter sets of every declared material, read from its declaration (``examples``:
+# chosen so that every term of the energy matters, and a second set where the sign of a
+# parameter changes the kernel or the split); a declaration without examples gives its default.
 MATERIALS = {
-    "StVenantKirchhoff": M.StVenantKirchhoff(mu=1.3, lam=2.1),
-    "NeoHookean": M.NeoHookean(mu=1.3, lam=2.1),
-    "MooneyRivlin": M.MooneyRivlin(c1=0.7, c2=0.4, k0=5.0),
-    "VerondaWestmann": M.VerondaWestmann(c1=0.8, c2=1.2, k0=5.0),
-    "ArrudaBoyce": M.ArrudaBoyce(mu=1.0, k0=5.0),
-    "Costa": M.Costa(a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5),
-    "CostaIndefinite": M.Costa(
-        a=0.9, k0=3.0, b_ff=1.0, b_fs=0.9, b_ss=0.5, b_fn=0.2, b_sn=0.1, b_nn=0.5
-    ),
-    "Ogden": M.Ogden(mu=1.0, alpha=3.0, k0=5.0),
-    "OgdenNegative": M.Ogden(mu=1.0, alpha=-2.0, k0=5.0),
-    "Yeoh": M.Yeoh(c10=0.6, c20=-0.15, c30=0.2, k0=5.0),
-    # Jm above the largest I1b - 3 of the test states (about 20, on the perturbed box of
-    # test_engine_modules), close enough that the logarithm bends: 1 - (I1b - 3)/Jm falls to 0.3
-    "Gent": M.Gent(mu=1.2, Jm=30.0, k0=5.0),
+    label: example
+    for d in M.declarations()
+    for label, example in (dict(d.examples) or {d.name: d.default}).items()
 }
 
 

@@ -41,7 +41,7 @@ def _runs(data) -> list:
 def main(out: str) -> dict:
     assert os.environ.get("NUMBA_ENABLE_CUDASIM") == "1", "run with NUMBA_ENABLE_CUDASIM=1"
     from comparisons.cli import main as cli
-    from comparisons.liver import LIVER_SOLVER, LiverParameters, liver_study
+    from comparisons.liver.study import LIVER_SOLVER, LiverParameters, liver_study
     from meshes.structured import structured_box
 
     points, cells = structured_box(2, (0.1, 0.1, 0.1))  # 48 cells, 27 nodes, 10 cm

@@ -154,6 +154,120 @@ def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
     assert cycles(g) == [["conformance.b", "conformance.c"]]
 
 
+#: Inside the applications, one package per study and one per stage of a check. A study uses
+#: only itself and what the application shares (``comparisons.provenance``); the report and the
+#: command line above them gather the studies.
+STUDIES = ("equivalence", "timing", "regularization", "rheometer", "liver", "cross_release")
+#: The stages of a check and what each may import of the others. The diagnosis reads the
+#: judge's figures and never runs an engine (``conformance.engine``) or the check runner
+#: (``conformance.run``); nothing below the top (``run``, ``protocol``, ``report``, ``corpus``,
+#: the adapters) imports it.
+STAGES = {
+    "kit": (),
+    "engine": ("kit",),
+    "judge": ("kit",),
+    "diagnosis": ("kit", "judge"),
+}
+
+
+def inner_package(module: str, app: str):
+    """``comparisons.liver.records`` -> ``liver`` (``comparisons.provenance`` -> ``provenance``):
+    the package or module of ``app`` that ``module`` is in; None for ``app`` itself.
+    """
+    parts = module.split(".")
+    return parts[1] if parts[0] == app and len(parts) > 1 else None
+
+
+def crossings(graph: Dict[str, Set[str]], app: str, allowed: Dict[str, tuple]) -> List[str]:
+    """'a -> b' for every import from a package of ``app`` listed in ``allowed`` into another
+    module of ``app`` that is not in that package, nor in one it may import.
+    """
+    bad = []
+    for mod, targets in graph.items():
+        src = inner_package(mod, app)
+        if src not in allowed:
+            continue
+        for t in targets:
+            if t.split(".")[0] != app:
+                continue
+            dst = inner_package(t, app)
+            if dst != src and dst not in allowed[src]:
+                bad.append(f"{mod} -> {t}")
+    return sorted(bad)
+
+
+def test_a_study_imports_no_other_study(graph):
+    shared = ("provenance",)
+    assert crossings(graph, "comparisons", {s: shared for s in STUDIES}) == []
+
+
+def test_every_study_is_a_package():
+    for study in STUDIES:
+        assert (ROOT / "comparisons" / study / "__init__.py").is_file(), study
+        assert (ROOT / "comparisons" / study / "study.py").is_file(), study
+
+
+def test_a_stage_of_a_check_imports_only_the_stages_below_it(graph):
+    assert crossings(graph, "conformance", STAGES) == []
+
+
+def test_common_imports_neither_application(graph):
+    bad = [
+        f"{m} -> {t}"
+        for m, ts in graph.items()
+        if m.split(".")[0] == "common"
+        for t in ts
+        if t.split(".")[0] in ("comparisons", "conformance")
+    ]
+    assert bad == []
+
+
+def test_the_layout_checks_find_a_crossing(tmp_path):
+    """A study that imports another study, a diagnosis that imports the engine runner."""
+    files = {
+        "comparisons/liver/study.py": "from comparisons.timing.records import T\n",
+        "comparisons/timing/records.py": "from comparisons.provenance import p\n",
+        "comparisons/provenance.py": "",
+        "conformance/diagnosis/diagnose.py": "def f():\n    import conformance.engine.process\n",
+        "conformance/engine/process.py": "",
+        "conformance/judge/compare.py": "from conformance.kit.spec import s\n",
+        "conformance/kit/spec.py": "",
+    }
+    for rel, text in files.items():
+        path = tmp_path / rel
+        for parent in reversed(path.relative_to(tmp_path).parents[:-1]):
+            (tmp_path / parent).mkdir(exist_ok=True)
+            (tmp_path / parent / "__init__.py").touch()
+        path.write_text(text)
+    g = import_graph(module_files(tmp_path, ("comparisons", "conformance")))
+    studies = {s: ("provenance",) for s in ("liver", "timing")}
+    assert crossings(g, "comparisons", studies) == [
+        "comparisons.liver.study -> comparisons.timing.records"
+    ]
+    assert crossings(g, "conformance", STAGES) == [
+        "conformance.diagnosis.diagnose -> conformance.engine.process"
+    ]
+
+
+def test_a_kit_is_read_in_one_place():
+    """Only ``conformance.kit.read`` opens a kit (its manifest and the cases it lists; the writer
+    writes one): the rest get its ``Kit``. The confined reader and the JSON loader are used
+    inside the kit stage only.
+    """
+    mods = module_files(ROOT, ("conformance", "comparisons"))
+    outside = {m: p for m, p in mods.items() if not m.startswith("conformance.kit.")}
+    readers = ("conformance.kit.confine", "conformance.kit.exchange.load_json")
+    bad = [
+        f"{m} -> {n}"
+        for m, p in outside.items()
+        for n in imported_names(p)
+        if n.startswith(readers)
+    ]
+    assert bad == []
+    manifest = [m for m, p in mods.items() if '"manifest.json"' in p.read_text()]
+    assert sorted(manifest) == ["conformance.kit.read", "conformance.kit.write"]
+
+
 #: A study driver longer than this mixes setup, measurement and presentation; split it.
 MAX_FUNCTION_LINES = 60
 

@@ -12,7 +12,7 @@ from conftest import MATERIALS as SHARED_MATERIALS
 from conftest import box_mesh, perturbed
 
 import mjed
-from comparisons.taylor import energy_force_rates, force_stiffness_rates
+from comparisons.equivalence.taylor import energy_force_rates, force_stiffness_rates
 from mjed import materials as M
 from reference_fem.classical import ClassicalGalerkin, strain_displacement
 from reference_fem.classical_materials import VI, VJ, WEIGHT, classical_law, voigt

@@ -6,7 +6,7 @@ from conftest import box_mesh
 
 import mjed.materials as M
 from common.cases import DEFAULT_MATERIALS
-from comparisons.closed_form import (
+from comparisons.equivalence.closed_form import (
     ISOTROPIC,
     has_closed_form,
     principal_cauchy,

@@ -15,7 +15,7 @@ from conftest import perturbed, random_tetrahedron  # noqa: E402
 
 import mjed  # noqa: E402
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL  # noqa: E402
-from comparisons.equivalence import compare_arrays  # noqa: E402
+from comparisons.equivalence.study import compare_arrays  # noqa: E402
 from mjed.compiled import numba_available  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
 

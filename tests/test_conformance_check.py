@@ -36,8 +36,8 @@ def mjed_impl(case):
 
 def _compute_kit(folder):
     """Play the user's engine on a kit: write every case's output (COO) with MJED."""
-    from conformance.exchange import write_output
-    from conformance.kit import read_kit
+    from conformance.kit.exchange import write_output
+    from conformance.kit.read import read_kit
 
     for c in read_kit(folder).cases:
         f, K, W = mjed_impl(c.input)
@@ -109,7 +109,7 @@ def test_files_mode_failure_exit_1_with_diagnosis_and_vtu(tmp_path, capsys):
         == 0
     )
     _compute_kit(kit)
-    from conformance.exchange import read_output, write_output
+    from conformance.kit.exchange import read_output, write_output
 
     out = os.path.join(kit, "cases", "MooneyRivlin.cube-small.shear", "output")
     o = read_output(out, 186, "x")
@@ -306,7 +306,7 @@ def test_user_energy_checked_through_the_helper():
 
 
 def _as(engine, case, model):
-    from conformance.spec import CaseInput
+    from conformance.kit.spec import CaseInput
 
     return engine(CaseInput(case.case_id, case.points, case.cells, case.positions, model))
 
@@ -318,8 +318,8 @@ def test_stiffness_parts_sum_to_the_oracle(name):
     import meshes
     from common.cases import DEFAULT_MATERIALS
     from common.states import apply_state
-    from conformance.oracle import OracleCache
-    from conformance.spec import CaseInput
+    from conformance.judge.oracle import OracleCache
+    from conformance.kit.spec import CaseInput
 
     pts, cells, _ = meshes.resolve("single-tet")
     case = CaseInput("x", pts, cells, apply_state("random", pts, cells), DEFAULT_MATERIALS[name])
@@ -339,10 +339,10 @@ def test_user_energy_tangent_split_names_the_volumetric_part():
 
     import meshes
     from common.states import apply_state
-    from conformance.oracle import OracleCache
-    from conformance.parts import volumetric_user_energy
+    from conformance.judge.oracle import OracleCache
+    from conformance.judge.parts import volumetric_user_energy
+    from conformance.kit.spec import CaseInput
     from conformance.protocol import check_implementation
-    from conformance.spec import CaseInput
     from reference_fem.user_energy import UserEnergy
 
     energy = UserEnergy("mu/2*(I1b-3) + K/2*(J-1)**2", {"mu": 1e3, "K": 1e4})

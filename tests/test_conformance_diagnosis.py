@@ -9,10 +9,10 @@ import pytest
 import scipy.sparse as sp
 from conftest import box_mesh
 
-from conformance.compare import scales
-from conformance.consistency import PROBE_TOL, consistency
-from conformance.diagnosis import diagnose
-from conformance.hypotheses import component_major_to_node_major, describe_permutation
+from conformance.diagnosis.diagnose import diagnose
+from conformance.diagnosis.hypotheses import component_major_to_node_major, describe_permutation
+from conformance.judge.compare import scales
+from conformance.judge.consistency import PROBE_TOL, consistency
 
 
 def quartic(x):
@@ -151,7 +151,7 @@ def test_float32_signature_tells_rounding_from_a_small_systematic_error():
     """
     import dataclasses
 
-    from conformance.roundoff_signature import signature
+    from conformance.diagnosis.roundoff import signature
     from mjed.materials import MooneyRivlin
 
     m = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
@@ -168,8 +168,8 @@ def test_coupled_terms_are_ambiguous_not_named():
     """Two terms with the same force and stiffness on the cases fitted: the fit agrees, names
     neither, and says which terms it cannot tell apart.
     """
-    from conformance.oracle_readings import term_reading
-    from conformance.term_fit import TermCase
+    from conformance.diagnosis.readings import term_reading
+    from conformance.diagnosis.term_fit import TermCase
 
     f_o, K_o = _mjed(__import__("mjed").materials.MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4))
     third = (0.25 * f_o, 0.25 * K_o)
@@ -189,8 +189,8 @@ def test_coupled_terms_are_ambiguous_not_named():
 
 
 def test_two_distinct_readings_are_both_shown_as_ambiguous():
-    from conformance.findings import FULL, Finding
-    from conformance.oracle_readings import Reading, merge_readings
+    from conformance.diagnosis.findings import FULL, Finding
+    from conformance.diagnosis.readings import Reading, merge_readings
 
     f_o, K_o = _mjed(__import__("mjed").materials.NeoHookean(mu=1000.0, lam=5000.0))
     s = scales(0.5, 0.0, f_o, K_o)

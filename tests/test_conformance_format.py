@@ -13,8 +13,10 @@ import scipy.sparse as sp
 from conftest import box_mesh
 
 from comparisons.cli import main
-from conformance.exchange import FormatError, read_case_input, read_output, write_output
-from conformance.kit import build_cases, read_kit, write_kit
+from conformance.kit.cases import build_cases
+from conformance.kit.exchange import FormatError, read_case_input, read_output, write_output
+from conformance.kit.read import read_kit
+from conformance.kit.write import write_kit
 from mjed import materials as M
 
 

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 import meshes
 import mjed
 from common.cases import default_material
-from conformance.consistency import PROBE_TOL, ReferenceProbes, consistency
+from conformance.judge.consistency import PROBE_TOL, ReferenceProbes, consistency
 from meshes.hard import degrade, quality
 from reference_fem import dolfinx_available
 
@@ -100,8 +100,8 @@ def _mean_edge_probes(P, C, model, state="random"):
     """
     from common.states import apply_state
     from common.tolerances import mean_edge_length
-    from conformance.kit import PROBE_STEP, KitCase, probe_direction
-    from conformance.spec import CaseInput
+    from conformance.kit.cases import PROBE_STEP, KitCase, probe_direction
+    from conformance.kit.spec import CaseInput
 
     x = apply_state(state, P, C)
     d = probe_direction(P, seed=1000) * (PROBE_STEP * mean_edge_length(P, C))
@@ -175,7 +175,7 @@ def test_sliver_still_fails_an_inconsistent_tangent():
 
 
 def _write_mjed_output(folder, case_input, **kw):
-    from conformance.exchange import write_output
+    from conformance.kit.exchange import write_output
 
     f, K, W = mjed_impl(case_input)
     write_output(str(folder), f, K, W, **kw)
@@ -183,7 +183,7 @@ def _write_mjed_output(folder, case_input, **kw):
 
 
 def _small_case():
-    from conformance.kit import build_cases
+    from conformance.kit.cases import build_cases
 
     P, C, _ = meshes.resolve("single-tet")
     (case,) = build_cases([default_material("NeoHookean")], [("one", P, C)], ["shear"], probes=0)
@@ -192,7 +192,7 @@ def _small_case():
 
 def test_big_endian_output_is_named_as_such(tmp_path):
     """Arrays written big-endian: BAD INPUT naming the file and the likely cause."""
-    from conformance.exchange import FormatError, read_output
+    from conformance.kit.exchange import FormatError, read_output
 
     ci = _small_case()
     _write_mjed_output(tmp_path, ci)
@@ -209,7 +209,7 @@ def test_big_endian_output_is_named_as_such(tmp_path):
 
 def test_float32_output_is_recognised(tmp_path):
     """.f32 files are read as a single-precision output; float32 values in a .f64 file are named."""
-    from conformance.exchange import FormatError, read_output
+    from conformance.kit.exchange import FormatError, read_output
 
     ci = _small_case()
     f, K, W = _write_mjed_output(tmp_path / "single", ci, precision="single")
@@ -294,8 +294,8 @@ def test_every_mutant_is_caught_on_the_small_corpus(small_corpus):
 
 def test_single_precision_tolerances_follow_the_case():
     """100 x max(u, sensitivity), capped at 1e-2 where float32 cannot resolve the case (said)."""
-    from conformance.compare import Errors
-    from conformance.precision import CAP, U32, single_tolerances
+    from conformance.judge.compare import Errors
+    from conformance.judge.precision import CAP, U32, single_tolerances
 
     well = single_tolerances(Errors(1e-9, 5.6e-7, None, 0.0))
     assert well.force == pytest.approx(100 * U32) and well.stiffness == pytest.approx(5.6e-5)
@@ -313,8 +313,8 @@ def test_a_kit_declares_single_precision(tmp_path):
     import json
 
     from comparisons.cli import main
-    from conformance.exchange import write_output
-    from conformance.kit import read_kit
+    from conformance.kit.exchange import write_output
+    from conformance.kit.read import read_kit
 
     kit = tmp_path / "kit"
     assert (
@@ -352,14 +352,14 @@ def test_a_kit_declares_single_precision(tmp_path):
 @needs_oracle
 @pytest.mark.parametrize("name", ["Yeoh", "Gent"])
 def test_materials_added_by_declaration_have_variant_energies(name):
-    """A material declared without a formula of its own in conformance.variants (Yeoh and Gent,
-    added by issue 24) gets its variants from its declared energy, written as a formula that, as
-    a user energy, is the material's energy (the oracle against MJED at a random state).
+    """A material declared without a formula of its own in conformance.diagnosis.variants (Yeoh and
+    Gent, added by issue 24) gets its variants from its declared energy, written as a formula that,
+    as a user energy, is the material's energy (the oracle against MJED at a random state).
     """
     from common.states import apply_state
-    from conformance.oracle import OracleCache
-    from conformance.spec import CaseInput
-    from conformance.variants import energy_expression, variants
+    from conformance.diagnosis.variants import energy_expression, variants
+    from conformance.judge.oracle import OracleCache
+    from conformance.kit.spec import CaseInput
     from reference_fem.user_energy import UserEnergy
 
     m = default_material(name)

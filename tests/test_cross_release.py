@@ -12,21 +12,21 @@ import scipy.sparse as sp
 
 from common.json_fields import RecordError
 from common.options import write_json
-from comparisons.cross_release import (
-    TOLERANCE,
-    compare_snapshots,
-    cross_release_check,
-    load_snapshot,
-    provenance_summary,
-    save_snapshot,
-)
-from comparisons.cross_release_data import (
+from comparisons.cross_release.records import (
     CrossReleaseResult,
     MissingStack,
     SnapshotDiff,
     StackComparison,
     StackError,
     StackRun,
+)
+from comparisons.cross_release.study import (
+    TOLERANCE,
+    compare_snapshots,
+    cross_release_check,
+    load_snapshot,
+    provenance_summary,
+    save_snapshot,
 )
 
 
@@ -159,7 +159,7 @@ def _check_result(*, comparisons=(1e-15,), missing=("modern-serial",), errors=()
 )
 def test_study_result_follows_the_policy(monkeypatch, kwargs, status, code):
     from common.result import exit_code
-    from comparisons import cross_release
+    from comparisons.cross_release import study as cross_release
 
     monkeypatch.setattr(
         cross_release, "cross_release_check", lambda stacks, quick: _check_result(**kwargs)
@@ -176,8 +176,8 @@ def test_study_result_follows_the_policy(monkeypatch, kwargs, status, code):
 def test_a_stack_that_is_not_installed_makes_the_command_exit_3(monkeypatch, tmp_path, capsys):
     from conftest import parse_reproduce
 
-    from comparisons import cross_release
     from comparisons.cli import main
+    from comparisons.cross_release import study as cross_release
 
     missing = str(tmp_path / "no-venv" / "bin" / "python")
     monkeypatch.setattr(cross_release, "default_stacks", lambda: [("modern-serial", missing, 1)])

@@ -1,7 +1,7 @@
-"""The hardware benchmark command (comparisons.hardware_bench): it runs end to end on a small
+"""The hardware benchmark command (comparisons.timing.hardware): it runs end to end on a small
 mesh, checks every backend's answer before timing it, and without a GPU prints "not run: no
 GPU" for the GPU section instead of a figure and judges no target; the GPU section
-(comparisons.gpu_bench) runs on Numba's CUDA simulator on a tiny cube, every row present.
+(comparisons.timing.gpu) runs on Numba's CUDA simulator on a tiny cube, every row present.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ pytestmark = pytest.mark.skipif(
 
 
 def test_benchmark_prints_cpu_figures_and_no_gpu_figure(tmp_path, capsys):
-    from comparisons import hardware_bench
+    from comparisons.timing import hardware as hardware_bench
     from mjed.cuda import cuda_available
 
     out = tmp_path / "figures.json"
@@ -55,8 +55,8 @@ def _simulated_section(sizes: str) -> dict:
     before Numba is imported): its record as JSON and its printed text.
     """
     code = (
-        "import json; from comparisons.hardware_bench import gpu_figures; "
-        "from comparisons.gpu_bench import print_figures; "
+        "import json; from comparisons.timing.hardware import gpu_figures; "
+        "from comparisons.timing.gpu import print_figures; "
         f"fig = gpu_figures(sizes=({sizes}), min_time=0.0, copy_bytes=2**12); "
         "lines = []; print_figures(fig, lines.append); "
         "print(json.dumps({'figures': fig.to_dict(), 'text': lines}))"
@@ -67,7 +67,7 @@ def _simulated_section(sizes: str) -> dict:
 def test_gpu_section_code_path_runs_on_the_simulator():
     # The GPU section only runs on a device; its code path is exercised here on Numba's CUDA
     # simulator (figures meaningless, structure checked) on one tiny cube.
-    from comparisons.gpu_bench import DTYPES, METHODS, QUANTITIES, GpuFigures
+    from comparisons.timing.gpu import DTYPES, METHODS, QUANTITIES, GpuFigures
 
     run = _simulated_section("48,")
     fig = GpuFigures.from_dict(run["figures"])
@@ -91,7 +91,7 @@ def test_gpu_section_code_path_runs_on_the_simulator():
 
 
 def test_cube_counts_are_the_built_cube_s():
-    from comparisons.gpu_bench import cube_counts
+    from comparisons.timing.gpu import cube_counts
     from meshes.structured import cube_with_cells
     from mjed.sparse import CSRPattern
 
@@ -106,7 +106,7 @@ def test_cube_counts_are_the_built_cube_s():
 
 
 def test_a_size_that_does_not_fit_is_skipped_saying_why(monkeypatch):
-    from comparisons import gpu_bench
+    from comparisons.timing import gpu as gpu_bench
 
     monkeypatch.setattr(gpu_bench, "_free_memory", lambda: 1e9)  # 1 GB free
     size, mesh, _ = gpu_bench.measure_size(10_000_000, None, set(), 1.0, 0.0)
@@ -116,7 +116,7 @@ def test_a_size_that_does_not_fit_is_skipped_saying_why(monkeypatch):
 
 
 def test_targets_are_judged_on_their_figures_and_never_on_the_simulator():
-    from comparisons.gpu_bench import TARGETS, GpuSize, GpuTiming, judge
+    from comparisons.timing.gpu import TARGETS, GpuSize, GpuTiming, judge
 
     def size(cells, tets_per_s):
         timings = tuple(
@@ -136,14 +136,14 @@ def test_targets_are_judged_on_their_figures_and_never_on_the_simulator():
 
 
 def test_benchmark_never_times_the_simulator(monkeypatch):
-    from comparisons import hardware_bench
+    from comparisons.timing import hardware as hardware_bench
 
     monkeypatch.setenv("NUMBA_ENABLE_CUDASIM", "1")
     assert "simulator" in hardware_bench.gpu_status()
 
 
 def test_benchmark_refuses_an_unknown_material():
-    from comparisons import hardware_bench
+    from comparisons.timing import hardware as hardware_bench
 
     with pytest.raises(SystemExit) as exc:
         hardware_bench.main(["--materials", "Rubber"])

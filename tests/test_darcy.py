@@ -7,8 +7,8 @@ import pytest
 from conftest import box_mesh
 
 import mjed
-from comparisons.taylor import taylor_rates
-from comparisons.terzaghi import run_terzaghi, terzaghi_pressure
+from comparisons.equivalence.taylor import taylor_rates
+from comparisons.liver.terzaghi import run_terzaghi, terzaghi_pressure
 from mjed.darcy import (
     DarcyParameters,
     FluidPressureForce,

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from conformance.engine_process import HEAD_BYTES, TAIL_BYTES, run_engine
+from conformance.engine.process import HEAD_BYTES, TAIL_BYTES, run_engine
 
 linux_only = pytest.mark.skipif(
     not os.path.isdir("/proc/self"), reason="the process scan reads /proc"

@@ -18,7 +18,7 @@ import mjed  # noqa: E402
 from common.cases import DEFAULT_MATERIALS  # noqa: E402
 from common.states import state_names  # noqa: E402
 from common.tolerances import FORCE_TOL, STIFFNESS_TOL  # noqa: E402
-from comparisons.equivalence import compare_arrays, run_cases  # noqa: E402
+from comparisons.equivalence.study import compare_arrays, run_cases  # noqa: E402
 from reference_fem import UFLOracle  # noqa: E402
 
 

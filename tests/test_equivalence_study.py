@@ -18,7 +18,7 @@ from common.cases import DEFAULT_MATERIALS
 from common.result import Status, exit_code
 from common.states import state_names
 from comparisons.cli import main
-from comparisons.equivalence import equivalence_study
+from comparisons.equivalence.study import equivalence_study
 
 
 class _ScaledMJED:
@@ -68,7 +68,7 @@ def test_a_case_off_by_1e_6_fails_and_is_named():
 
 
 def test_a_nan_error_fails_whatever_its_place(monkeypatch):
-    from comparisons import equivalence
+    from comparisons.equivalence import study as equivalence
 
     real = equivalence.compare_arrays
     monkeypatch.setattr(equivalence, "compare_arrays", lambda *a: (float("nan"),) + real(*a)[1:])
@@ -153,7 +153,7 @@ def test_a_material_the_command_line_cannot_set_is_said_in_a_comment():
 def test_sofa_ogden_tangent_table_has_an_exact_control_row_and_inexact_others():
     # alpha 2 makes the spectral power linear in C: the coaxial tangent is then exact, a row
     # that would catch a table comparing the wrong matrices; the others differ once deformed.
-    from comparisons.equivalence import OGDEN_TANGENT_ALPHAS, _ogden_tangent
+    from comparisons.equivalence.study import OGDEN_TANGENT_ALPHAS, _ogden_tangent
     from meshes import catalog
 
     points, cells, label = catalog.resolve("single-tet")

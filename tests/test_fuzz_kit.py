@@ -29,8 +29,9 @@ from hypothesis import strategies as st
 
 import mjed
 from comparisons.cli import main
-from conformance.exchange import write_output
-from conformance.kit import build_cases, write_kit
+from conformance.kit.cases import build_cases
+from conformance.kit.exchange import write_output
+from conformance.kit.write import write_kit
 from mjed import materials as M
 from reference_fem import dolfinx_available
 

@@ -1,5 +1,5 @@
-"""The report's GPU section (comparisons.gpu_study): the hardware benchmark's GPU figures when
-a JSON of them is present, "not run: no GPU" otherwise; a target is judged only on a device's
+"""The report's GPU section (comparisons.timing.gpu_section): the hardware benchmark's GPU figures
+when a JSON of them is present, "not run: no GPU" otherwise; a target is judged only on a device's
 figures, never on a run without one or on the simulator.
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 import json
 
 from common.result import Status
-from comparisons.gpu_bench import GpuFigures, GpuSize, GpuTiming, Verification, judge, not_run
-from comparisons.gpu_study import KEY, gpu_study
+from comparisons.timing.gpu import GpuFigures, GpuSize, GpuTiming, Verification, judge, not_run
+from comparisons.timing.gpu_section import KEY, gpu_study
 
 
 def _figures(tets_per_s: float, simulated: bool = False) -> GpuFigures:

@@ -17,8 +17,10 @@ import pytest
 from conftest import box_mesh
 
 from comparisons.cli import main
-from conformance.exchange import ENTRIES_PER_CELL, FormatError, read_output, write_output
-from conformance.kit import build_cases, read_kit, write_kit
+from conformance.kit.cases import build_cases
+from conformance.kit.exchange import ENTRIES_PER_CELL, FormatError, read_output, write_output
+from conformance.kit.read import read_kit
+from conformance.kit.write import write_kit
 from mjed import materials as M
 from reference_fem import dolfinx_available
 
@@ -398,7 +400,7 @@ def test_a_user_energy_past_the_symbolic_budget_is_refused_for_its_cases(
 
 # ---------------------------------------------------------------- concurrent exports
 def test_an_export_into_a_folder_another_export_holds_is_refused(tmp_path, monkeypatch):
-    from conformance.kit import EXPORT_LOCK
+    from conformance.kit.write import EXPORT_LOCK
 
     cases = _kit(tmp_path, name="other")[1]
     folder = tmp_path / "kit"

@@ -9,9 +9,9 @@ import pytest
 
 from common.options import InputError
 from comparisons.cli import main
-from comparisons.liver import MODELS, default_fixed_specs, run_liver
-from comparisons.liver_data import LiverData
-from comparisons.regions import parse_region, select_nodes
+from comparisons.liver.records import LiverData
+from comparisons.liver.regions import parse_region, select_nodes
+from comparisons.liver.study import MODELS, default_fixed_specs, run_liver
 
 pytest.importorskip("meshio", reason="the ParaView series is written with meshio")
 
@@ -132,7 +132,7 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
     """A force field whose stiffness is indefinite at every state (forced: K negated) fails at
     every substep: the run records the integrator's clear message and the study does not pass.
     """
-    from comparisons.liver import numpy_force_field
+    from comparisons.liver.study import numpy_force_field
 
     class Indefinite:
         def __init__(self, inner):
@@ -179,7 +179,7 @@ def test_a_failing_run_is_reported_not_hidden(tmp_path):
 
 def test_a_soft_organ_survives_in_substeps(tmp_path):
     """Mu = 50 Pa: the 0.3 s linearised step is refused whole and taken in substeps, reported."""
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
     from mjed.materials import ArrudaBoyce
 
     result = run_liver(
@@ -200,12 +200,12 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     """Jacobi CG, the kept-factorisation preconditioner (the default) and the direct solve give
     the same amplitudes to the CG tolerance; the FPS table says which solver ran.
     """
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
 
     runs = {}
     import dataclasses
 
-    from comparisons.liver import LIVER_SOLVER
+    from comparisons.liver.study import LIVER_SOLVER
 
     for name, params in (
         ("factorized", LiverParameters()),
@@ -251,7 +251,7 @@ def test_the_solver_options_change_the_cost_not_the_motion(tmp_path):
     ],
 )
 def test_bad_liver_parameters_are_refused_by_name(kwargs, word):
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
 
     with pytest.raises(ValueError, match=word):
         LiverParameters(**kwargs)

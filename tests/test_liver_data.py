@@ -10,14 +10,14 @@ import json
 import numpy as np
 import pytest
 
-from comparisons.liver_data import PHASES, BackendAgreement, LiverData, LiverRun, StepSplit
-from comparisons.oscillation_data import (
+from comparisons.liver.oscillation_records import (
     OscillationCurve,
     OscillationData,
     OscillationMetrics,
     OscillationRow,
 )
-from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
+from comparisons.liver.records import PHASES, BackendAgreement, LiverData, LiverRun, StepSplit
+from comparisons.liver.terzaghi_records import TerzaghiResult, TerzaghiTime
 
 #: The keys of a run's JSON record, in results.json's order (a porous run adds max_abs_pressure).
 RUN_KEYS = [
@@ -199,10 +199,10 @@ def test_simulate_returns_a_typed_run_whose_json_keeps_its_keys():
     """One real step: simulate gives a LiverRun (not a dict), its derived figures follow from
     the per-step lists, and its JSON form has exactly the historical keys, read back equal.
     """
-    from comparisons.liver import default_fixed_specs
-    from comparisons.liver_setup import LiverParameters
-    from comparisons.liver_simulation import simulate
-    from comparisons.organ import fixed_nodes, load_organ
+    from comparisons.liver.organ import fixed_nodes, load_organ
+    from comparisons.liver.setup import LiverParameters
+    from comparisons.liver.simulation import simulate
+    from comparisons.liver.study import default_fixed_specs
 
     organ = load_organ("liver-coarse")
     fixed = fixed_nodes(organ, default_fixed_specs(organ.file_points))
@@ -348,7 +348,7 @@ def test_records_are_frozen_and_refuse_inconsistent_values_on_construction():
 
 
 def test_oscillation_metrics_are_typed():
-    from comparisons.oscillation import oscillation_metrics
+    from comparisons.liver.oscillation import oscillation_metrics
 
     t = np.linspace(0.0, 2.0, 201)
     m = oscillation_metrics(t, 0.05 * (1 - np.exp(-3 * t)))

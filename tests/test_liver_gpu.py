@@ -14,14 +14,14 @@ import pytest
 from cuda_support import run_on_simulator
 
 from comparisons.cli import main
-from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, liver_study
-from comparisons.liver_setup import (
+from comparisons.liver.setup import (
     KNOWN_BACKENDS,
     LIVER_SOLVER,
     LiverParameters,
     backend_force_field,
     run_solver,
 )
+from comparisons.liver.study import BACKEND_AGREEMENT_TOL, MODELS, liver_study
 from meshes.structured import structured_box
 from mjed.compiled import numba_available
 
@@ -139,7 +139,7 @@ def test_a_step_is_timed_until_the_device_is_done():
     """
     import time
 
-    from comparisons.liver_simulation import simulate
+    from comparisons.liver.simulation import simulate
     from mjed import TetMesh
 
     calls = []

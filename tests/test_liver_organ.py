@@ -14,11 +14,11 @@ import pytest
 from common.result import Status
 from comparisons.cli import main
 from comparisons.commands import liver as liver_command_module
-from comparisons.liver import BACKEND_AGREEMENT_TOL, MODELS, PHASES, liver_study
-from comparisons.liver_data import LiverData, LiverRun
-from comparisons.oscillation import euler_decay_rate, oscillation_metrics
-from comparisons.oscillation_data import OscillationData
-from comparisons.terzaghi_data import TerzaghiResult, TerzaghiTime
+from comparisons.liver.oscillation import euler_decay_rate, oscillation_metrics
+from comparisons.liver.oscillation_records import OscillationData
+from comparisons.liver.records import LiverData, LiverRun
+from comparisons.liver.study import BACKEND_AGREEMENT_TOL, MODELS, PHASES, liver_study
+from comparisons.liver.terzaghi_records import TerzaghiResult, TerzaghiTime
 from mjed.compiled import numba_available
 
 pytest.importorskip("meshio")
@@ -103,7 +103,7 @@ def test_units_and_scale_mean_the_same_and_not_both(organ_files, tmp_path):
         oscillation=False,
         models=["hyperelastic"],
     )
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
 
     params = LiverParameters(gravity=(0.0, -9.81, 0.0))
     a = liver_study(out_dir=str(tmp_path / "a"), units="cm", params=params, **common)
@@ -130,7 +130,7 @@ def test_units_and_scale_mean_the_same_and_not_both(organ_files, tmp_path):
 
 def test_nodes_files_use_the_mesh_files_numbering_and_index_files_positions(organ_files):
     from common.options import InputError
-    from comparisons.organ import fixed_nodes, load_organ
+    from comparisons.liver.organ import fixed_nodes, load_organ
 
     folder, path, numbers = organ_files
     organ = load_organ(str(path), scale=0.01)
@@ -159,7 +159,7 @@ def test_nodes_files_use_the_mesh_files_numbering_and_index_files_positions(orga
 )
 def test_a_binary_or_absurd_node_file_is_a_clear_error(organ_files, tmp_path, content, words):
     from common.options import InputError
-    from comparisons.organ import fixed_nodes, load_organ
+    from comparisons.liver.organ import fixed_nodes, load_organ
 
     organ = load_organ(str(organ_files[1]), scale=0.01)
     bad = tmp_path / "ids.bin"
@@ -192,8 +192,8 @@ def _two_cubes(gap: float):
 
 def test_a_part_of_the_mesh_that_nothing_holds_is_refused(tmp_path):
     from common.options import InputError
-    from comparisons.liver import run_liver
-    from comparisons.organ import load_organ
+    from comparisons.liver.organ import load_organ
+    from comparisons.liver.study import run_liver
 
     organ = load_organ(_two_cubes(0.5))
     with pytest.raises(
@@ -214,7 +214,7 @@ def test_a_part_of_the_mesh_that_nothing_holds_is_refused(tmp_path):
 
 def test_a_mesh_in_several_held_parts_needs_the_option_and_names_duplicated_nodes(tmp_path):
     from common.options import InputError
-    from comparisons.organ import check_supports, fixed_nodes, load_organ
+    from comparisons.liver.organ import check_supports, fixed_nodes, load_organ
 
     organ = load_organ(_two_cubes(0.0))
     both = fixed_nodes(organ, ["box:-1,-1,-1,0.1,2,2", "box:1.9,-1,-1,3,2,2"])
@@ -287,7 +287,7 @@ def test_the_study_result_and_its_reproduce_command(tmp_path):
     """
     import argparse
 
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
     from mjed.materials import NeoHookean
 
     params = LiverParameters(
@@ -392,8 +392,8 @@ def test_backward_euler_decay_rate_matches_the_scheme_on_an_oscillator():
 )
 def test_the_oscillation_study_sizes(monkeypatch, tmp_path, full, quick, mesh, expected):
     """Which organ, steps and duration the oscillation study uses (the runs themselves stubbed)."""
-    import comparisons.liver as liver_module
-    import comparisons.oscillation as oscillation_module
+    import comparisons.liver.oscillation as oscillation_module
+    import comparisons.liver.study as liver_module
 
     seen = {}
 

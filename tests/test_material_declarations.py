@@ -53,7 +53,7 @@ def test_command_line_names_and_defaults(declared):
 
 
 def test_exchange_format_round_trip(declared):
-    from conformance.spec import MATERIAL_TYPES, model_from_manifest, model_to_manifest
+    from conformance.kit.spec import MATERIAL_TYPES, model_from_manifest, model_to_manifest
 
     assert MATERIAL_TYPES[declared.name] is declared.material
     entry = model_to_manifest(declared.default)
@@ -104,7 +104,7 @@ def test_oracle_has_its_energy_and_its_volumetric_part(declared):
     pytest.importorskip("ufl", reason="the oracle's energies are UFL")
     import ufl
 
-    from conformance.parts import volumetric_energy
+    from conformance.judge.parts import volumetric_energy
     from reference_fem.energies import energy_formula, strain_energy_density
 
     assert energy_formula(declared.material).material_type is declared.material
@@ -182,7 +182,7 @@ def test_a_classical_law_that_is_no_known_form_is_refused():
 
 def test_a_declaration_is_refused_twice_and_an_undeclared_type_everywhere():
     from common.cases import default_material
-    from conformance.spec import SpecError, model_from_manifest
+    from conformance.kit.spec import SpecError, model_from_manifest
     from reference_fem.classical_materials import classical_law
 
     with pytest.raises(ValueError, match="Yeoh is already declared"):

@@ -174,7 +174,7 @@ def test_the_surface_advice_meshes_a_closed_surface(tmp_path, organ):
     """
     gmsh = pytest.importorskip("gmsh")
     meshio = pytest.importorskip("meshio")
-    from comparisons.liver_figures import boundary_faces
+    from comparisons.liver.figures import boundary_faces
 
     points, cells = organ
     tri = boundary_faces(cells)

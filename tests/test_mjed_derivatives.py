@@ -11,7 +11,7 @@ import pytest
 from conftest import box_mesh, perturbed, random_tetrahedron
 
 import mjed
-from comparisons.taylor import energy_force_rates, force_stiffness_rates
+from comparisons.equivalence.taylor import energy_force_rates, force_stiffness_rates
 from mjed.materials.base import Material
 from mjed.terms import I1Power, JPower, LinearI2, Log, LogPolynomial, Power, Term, TermGroup, Unity
 
@@ -40,7 +40,7 @@ def test_a_wrong_derivative_fails_the_taylor_test(jittered_field, rng):
     # The check must be able to fail: a stiffness off by 1 % gives rate ~1.
     x = perturbed(jittered_field.mesh.points, rng)
     v = rng.standard_normal(x.shape)
-    from comparisons.taylor import taylor_rates
+    from comparisons.equivalence.taylor import taylor_rates
 
     Kv = 1.01 * (jittered_field.stiffness(x) @ v.ravel()).reshape(v.shape)
     rates = taylor_rates(jittered_field.force, -Kv, x, v, eps0=1e-4)

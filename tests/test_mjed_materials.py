@@ -7,7 +7,7 @@ import pytest
 from conftest import box_mesh, perturbed
 
 import mjed
-from comparisons.taylor import energy_force_rates, force_stiffness_rates
+from comparisons.equivalence.taylor import energy_force_rates, force_stiffness_rates
 from mjed import materials as M
 from mjed.fibre import signed_split
 from mjed.spectral import power_divided_differences
@@ -217,7 +217,7 @@ def test_from_sofa_errors():
 
 
 def test_sofa_tangent_error_report():
-    from comparisons.ogden_tangent import sofa_tangent_errors
+    from comparisons.equivalence.ogden_tangent import sofa_tangent_errors
 
     points, cells = box_mesh(2, jitter=0.2)
     errs = sofa_tangent_errors(

@@ -29,7 +29,7 @@ RANKS = 2
 
 
 def _launcher():
-    from comparisons.cross_release import mpirun_command
+    from comparisons.cross_release.study import mpirun_command
 
     try:
         return mpirun_command(sys.executable, RANKS)
@@ -51,7 +51,12 @@ def _verify_command():
 
 
 def test_two_rank_oracle_equals_serial_oracle(tmp_path):
-    from comparisons.cross_release import TOLERANCE, compare_snapshots, load_snapshot, take_snapshot
+    from comparisons.cross_release.study import (
+        TOLERANCE,
+        compare_snapshots,
+        load_snapshot,
+        take_snapshot,
+    )
     from reference_fem.compat import comm_self
 
     out = tmp_path / "mpi.npz"
@@ -59,7 +64,7 @@ def test_two_rank_oracle_equals_serial_oracle(tmp_path):
         [
             sys.executable,
             "-m",
-            "comparisons.cross_release",
+            "comparisons.cross_release.study",
             "snapshot",
             "--quick",
             "--out",

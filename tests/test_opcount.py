@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from common.cases import DEFAULT_MATERIALS
-from comparisons.opcount import (
+from comparisons.timing.opcount import (
     EIGEN,
     TRANSCENDENTAL,
     classical_flops,

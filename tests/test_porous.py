@@ -7,7 +7,7 @@ import pytest
 from conftest import box_mesh
 
 import mjed
-from comparisons.taylor import energy_force_rates, force_stiffness_rates
+from comparisons.equivalence.taylor import energy_force_rates, force_stiffness_rates
 from mjed.materials import ArrudaBoyce, MooneyRivlin, NeoHookean, StVenantKirchhoff
 from mjed.porous import PorousVolume, with_porous_volume
 

@@ -9,7 +9,7 @@ import pytest
 from conftest import MATERIALS, box_mesh
 
 import mjed
-from comparisons.regularization import negative_eigenvalues, run_study
+from comparisons.regularization.study import negative_eigenvalues, run_study
 from mjed.solvers import conjugate_gradient
 
 
@@ -105,8 +105,8 @@ def test_study_result_holds_the_invariants_and_reproduces(tmp_path):
 def test_a_force_changed_by_the_regularisation_fails_the_study(monkeypatch):
     from dataclasses import replace
 
-    from comparisons import regularization
     from comparisons.cli import main
+    from comparisons.regularization import study as regularization
 
     real = regularization.run_study
     monkeypatch.setattr(

@@ -418,7 +418,7 @@ def test_all_quick_timing_and_liver_sections_are_their_studies_results(tmp_path)
     """The report runs timing and liver through their own study functions (no ERROR), and
     each section's reproduce line names the material that ran.
     """
-    from comparisons.liver_data import LiverData
+    from comparisons.liver.records import LiverData
 
     pytest.importorskip("dolfinx")
     code = main(

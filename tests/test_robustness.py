@@ -19,37 +19,24 @@ from mjed.errors import InvertedElementError, MeshError
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
-pos = st.floats(0.05, 20.0)
-#: Valid parameters of every declared material (test_every_declared_material_has_a_strategy).
+
+def parameter_strategy(valid):
+    """A declared range: ``(low, high)`` draws floats in it, a list draws one of its values."""
+    return st.sampled_from(valid) if isinstance(valid, list) else st.floats(*valid)
+
+
+#: Valid parameters of every declared material, from the ranges its declaration gives.
 STRATEGIES = {
-    M.StVenantKirchhoff: st.builds(M.StVenantKirchhoff, mu=pos, lam=pos),
-    M.NeoHookean: st.builds(M.NeoHookean, mu=pos, lam=pos),
-    M.MooneyRivlin: st.builds(M.MooneyRivlin, c1=pos, c2=st.floats(0.0, 5.0), k0=pos),
-    M.VerondaWestmann: st.builds(M.VerondaWestmann, c1=pos, c2=st.floats(0.05, 2.0), k0=pos),
-    M.ArrudaBoyce: st.builds(M.ArrudaBoyce, mu=pos, k0=pos, N=st.floats(2.0, 20.0)),
-    M.Costa: st.builds(
-        M.Costa,
-        a=pos,
-        k0=pos,
-        b_ff=st.floats(0.5, 5.0),
-        b_fs=st.floats(0.0, 0.5),
-        b_ss=st.floats(0.5, 5.0),
-        b_fn=st.floats(0.0, 0.5),
-        b_sn=st.floats(0.0, 0.5),
-        b_nn=st.floats(0.5, 5.0),
-    ),
-    M.Ogden: st.builds(
-        M.Ogden, mu=pos, alpha=st.sampled_from([-4.0, -2.0, 1.5, 2.0, 3.0, 5.0]), k0=pos
-    ),
-    M.Yeoh: st.builds(M.Yeoh, c10=pos, c20=st.floats(-0.5, 0.5), c30=st.floats(0.0, 2.0), k0=pos),
-    # Jm above the largest I1b - 3 these states reach (beyond it Gent is undefined, by design)
-    M.Gent: st.builds(M.Gent, mu=pos, Jm=st.floats(10.0, 100.0), k0=pos),
+    d.material: st.builds(d.material, **{n: parameter_strategy(r) for n, r in d.ranges.items()})
+    for d in M.declarations()
 }
 materials = st.one_of(*STRATEGIES.values())
 
 
-def test_every_declared_material_has_a_strategy():
-    assert set(STRATEGIES) == {d.material for d in M.declarations()}
+@pytest.mark.parametrize("declared", M.declarations(), ids=lambda d: d.name)
+def test_the_ends_of_every_declared_range_are_valid(declared):
+    for end in (0, -1):
+        declared.material(**{n: r[end] for n, r in declared.ranges.items()})
 
 
 @st.composite

@@ -106,7 +106,7 @@ FAST = ["mjed", "classical"]
 @pytest.fixture(scope="module")
 def tiny_study(tmp_path_factory):
     pytest.importorskip("matplotlib")
-    from comparisons.timing import timing_study
+    from comparisons.timing.study import timing_study
 
     out = tmp_path_factory.mktemp("timing")
     result = timing_study(
@@ -192,7 +192,7 @@ def test_study_blocks_and_figure(tiny_study):
 
 
 def test_paper_protocol_is_100_calls_by_3_rounds():
-    from comparisons.timing import timing_study
+    from comparisons.timing.study import timing_study
 
     result = timing_study(
         "NeoHookean", "single-tet", protocol="paper", methods=FAST, memory=False, out_dir=None
@@ -205,8 +205,8 @@ def test_paper_protocol_is_100_calls_by_3_rounds():
 
 def test_a_plugged_in_peer_is_timed_only_when_it_matches():
     import mjed as mj
-    from comparisons import timing_methods as tm
-    from comparisons.timing import timing_study
+    from comparisons.timing import methods as tm
+    from comparisons.timing.study import timing_study
 
     class Wrong:
         def __init__(self, points, cells, material):
@@ -250,7 +250,7 @@ def test_a_plugged_in_peer_is_timed_only_when_it_matches():
 
 
 def test_bad_study_input_is_refused():
-    from comparisons.timing import timing_study
+    from comparisons.timing.study import timing_study
 
     with pytest.raises(ValueError, match="unknown method 'abaqus'"):
         timing_study(
@@ -264,7 +264,7 @@ def test_bad_study_input_is_refused():
 
 # ------------------------------------------------------------------ protocol and bandwidth
 def test_protocol_stopping_rules():
-    from comparisons.timing_protocol import PROTOCOLS, calls_for, relative_spread
+    from comparisons.timing.protocol import PROTOCOLS, calls_for, relative_spread
 
     budget = PROTOCOLS["budget"]
     assert budget.should_stop(1, [0.0], 0.0) is None  # fewer than min_rounds
@@ -286,7 +286,7 @@ def test_protocol_stopping_rules():
 
 
 def test_bandwidth_and_floor_sanity():
-    from comparisons.bandwidth import floor_bytes, measure_bandwidth
+    from comparisons.timing.bandwidth import floor_bytes, measure_bandwidth
 
     bw = measure_bandwidth(8 * 2**20, repeats=2)
     assert 1e8 < bw.bytes_per_s < 1e13 and bw.array_bytes == 8 * 2**20
@@ -304,7 +304,7 @@ def test_bandwidth_and_floor_sanity():
 )
 def test_scaling_quick_runs_in_subprocesses(tmp_path):
     pytest.importorskip("matplotlib")
-    from comparisons.timing import scaling_study
+    from comparisons.timing.study import scaling_study
 
     result = scaling_study(
         quick=True, sizes=[60, 400], methods=["mjed", "classical"], repeats=1, out_dir=str(tmp_path)

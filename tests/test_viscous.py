@@ -9,7 +9,7 @@ import pytest
 from conftest import MATERIALS, box_mesh, perturbed, random_tetrahedron
 
 import mjed
-from comparisons.taylor import force_stiffness_rates
+from comparisons.equivalence.taylor import force_stiffness_rates
 from mjed.evaluation import Want
 from mjed.materials import StVenantKirchhoff
 from mjed.viscous import Prony, ViscoHyperelasticForceField, prony_coefficients

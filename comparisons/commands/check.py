@@ -28,7 +28,7 @@ directory under --out.
 
 def configure(parser) -> None:
     from common import options as opt
-    from conformance.options import add_model_options
+    from conformance.kit.options import add_model_options
 
     parser.add_argument(
         "dir",
@@ -64,8 +64,8 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     from common.options import InputError
-    from conformance.command import command_words
-    from conformance.exchange import FormatError
+    from conformance.engine.command import command_words
+    from conformance.kit.exchange import FormatError
 
     if args.dir is None and args.engine_command is None:
         raise InputError("give a kit DIR, a --command, or both")
@@ -77,7 +77,7 @@ def run(args) -> int:
     if args.timeout <= 0:
         raise InputError(f"--timeout must be > 0, got {args.timeout}")
     if args.dir is not None:
-        from conformance.kit import read_kit
+        from conformance.kit.read import read_kit
 
         given = [k for k in ("material", "energy", "fibre") if getattr(args, k) is not None] + (
             ["param"] if args.param else []
@@ -99,12 +99,12 @@ def run(args) -> int:
         if args.precision == "auto":
             args.precision = kit.precision
     else:
-        from conformance.kit import PROBES
-        from conformance.options import cases_from_args
+        from conformance.kit.cases import PROBES
+        from conformance.kit.options import cases_from_args
 
         cases, input_errors = cases_from_args(args, probes=PROBES), {}
 
-    from conformance.oracle import oracle_available
+    from conformance.judge.oracle import oracle_available
 
     if not oracle_available():
         print(
@@ -117,14 +117,14 @@ def run(args) -> int:
 
 def _evaluator(args, cases, folder: str, command: str):
     """Case -> engine output: the outputs in the kit, or the engine run on each case."""
-    from conformance.exchange import read_output
-    from conformance.kit import write_kit
+    from conformance.kit.exchange import read_output
+    from conformance.kit.write import write_kit
 
     if args.engine_command is None:
         return lambda c: read_output(
             c.output_dir, c.input.n_nodes, c.case_id, n_cells=c.input.n_cells, within=args.dir
         )
-    from conformance.command import command_evaluator
+    from conformance.engine.command import command_evaluator
 
     base = args.dir
     if base is None:  # the inputs are written into the report directory, then run through it
@@ -142,7 +142,7 @@ def _evaluator(args, cases, folder: str, command: str):
 
 
 def _run(args, cases, input_errors) -> int:
-    from conformance.options import reproduce
+    from conformance.kit.options import reproduce
     from conformance.report import new_report_dir, write_error_field, write_report
     from conformance.run import run_check
 

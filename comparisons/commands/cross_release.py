@@ -30,7 +30,7 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     from common.terminal import finish
-    from comparisons.cross_release import cross_release_study
+    from comparisons.cross_release.study import cross_release_study
 
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
     return finish(cross_release_study(quick=args.quick, progress=progress), args)

@@ -44,7 +44,7 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     from common.terminal import finish
-    from comparisons.rheometer import SPEC_OPTIONS, rheometer_spec, rheometer_study
+    from comparisons.rheometer.study import SPEC_OPTIONS, rheometer_spec, rheometer_study
 
     overrides = {k: getattr(args, k) for k in SPEC_OPTIONS}
     try:

@@ -35,7 +35,7 @@ def run(args) -> int:
     mesh_list = opt.resolve_meshes(args.mesh)
 
     from common.terminal import finish
-    from comparisons.equivalence import equivalence_study
+    from comparisons.equivalence.study import equivalence_study
     from reference_fem import dolfinx_available
 
     progress = (

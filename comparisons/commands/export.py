@@ -20,7 +20,7 @@ then: for each case of kit/manifest.json, read cases/<id>/input, write cases/<id
 
 def configure(parser) -> None:
     parser.add_argument("dir", metavar="DIR", help="a new or empty directory for the kit")
-    from conformance.options import add_model_options
+    from conformance.kit.options import add_model_options
 
     add_model_options(parser)
     parser.add_argument(
@@ -40,8 +40,9 @@ def configure(parser) -> None:
 
 def run(args) -> int:
     from common.options import InputError
-    from conformance.kit import PROBES, write_kit
-    from conformance.options import cases_from_args, reproduce
+    from conformance.kit.cases import PROBES
+    from conformance.kit.options import cases_from_args, reproduce
+    from conformance.kit.write import write_kit
 
     if os.path.exists(args.dir) and (not os.path.isdir(args.dir) or os.listdir(args.dir)):
         raise InputError(

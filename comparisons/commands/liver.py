@@ -1,6 +1,6 @@
 """mjed-verify liver: the liver under gravity, three models (paper Fig. 1, Fig. 2 left and Fig. 4).
 
-This module only parses options, calls comparisons.liver.liver_study and prints its result.
+This module only parses options, calls comparisons.liver.study.liver_study and prints its result.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def material_from_options(
 ):
     """The material the options describe, or None for the liver's default."""
     from common.cases import default_material
-    from comparisons.liver import LiverParameters
+    from comparisons.liver.study import LiverParameters
     from mjed.materials import from_sofa
 
     if name is None:
@@ -263,8 +263,8 @@ def material_from_options(
 
 def _models_and_backends(args):
     """The --models and --backends lists (InputError naming a backend that does not exist)."""
-    from comparisons.liver import MODELS
-    from comparisons.liver_setup import KNOWN_BACKENDS
+    from comparisons.liver.setup import KNOWN_BACKENDS
+    from comparisons.liver.study import MODELS
 
     models = (
         list(MODELS)
@@ -296,7 +296,7 @@ _PARAMETER_NAMES = (
 
 def _liver_parameters(args):
     """The LiverParameters of the command line (InputError when a value is refused)."""
-    from comparisons.liver import LIVER_SOLVER, LiverParameters
+    from comparisons.liver.study import LIVER_SOLVER, LiverParameters
 
     changes: Dict[str, object] = {}
     if args.solver != "factorized":
@@ -323,7 +323,7 @@ def _liver_parameters(args):
 
 def liver_options(args) -> dict:
     """The liver_study keyword arguments of the parsed command line (InputError on bad input)."""
-    from comparisons.organ import scale_of
+    from comparisons.liver.organ import scale_of
 
     models, backends = _models_and_backends(args)
     if args.steps is not None and args.steps < 1:
@@ -351,8 +351,8 @@ def liver_options(args) -> dict:
 
 def run(args) -> int:
     from common.result import exit_code
-    from comparisons.liver import liver_study
-    from comparisons.liver_data import LiverData
+    from comparisons.liver.records import LiverData
+    from comparisons.liver.study import liver_study
     from meshes.io import one_line_warnings
 
     kwargs = liver_options(args)
@@ -407,7 +407,7 @@ def _print_runs(runs) -> None:
 
 def _print_findings(data) -> None:
     """Backend agreement, the step split, the oscillation findings and Terzaghi."""
-    from comparisons.liver import PAPER_HYPERELASTIC_SHARE, oscillation_findings
+    from comparisons.liver.study import PAPER_HYPERELASTIC_SHARE, oscillation_findings
 
     for a in data.backend_agreement:
         d = a.relative_difference

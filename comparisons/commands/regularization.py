@@ -27,7 +27,7 @@ def run(args) -> int:
     ((label, points, cells),) = opt.resolve_meshes(args.mesh, several=False)
 
     from common.terminal import finish
-    from comparisons.regularization import regularization_study
+    from comparisons.regularization.study import regularization_study
 
     progress = lambda msg: print(f"  ... {msg}", file=sys.stderr, flush=True)  # noqa: E731
     return finish(regularization_study(label, points, cells, materials, progress=progress), args)

@@ -1,6 +1,6 @@
 """mjed-verify timing: force and stiffness assembly time (paper Fig. 2), NumPy and compiled
 MJED and classical FEM, dolfinx and peer libraries; or --scaling. Parses options, runs the
-study (comparisons.timing), prints its result.
+study (comparisons.timing.study), prints its result.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ dolfinx not installed, --quick).
 
 
 def configure(parser) -> None:
-    from comparisons.timing import DEFAULT_METHODS, SCALING_METHODS
-    from comparisons.timing_protocol import PROTOCOLS
+    from comparisons.timing.protocol import PROTOCOLS
+    from comparisons.timing.study import DEFAULT_METHODS, SCALING_METHODS
 
     opt.add_material_option(parser)
     opt.add_mesh_option(parser, "cube-paper", several=False)
@@ -71,7 +71,7 @@ def configure(parser) -> None:
 
 
 def _methods(spec, default):
-    from comparisons.timing import check_methods
+    from comparisons.timing.study import check_methods
 
     try:
         return check_methods(spec if spec is not None else default)
@@ -102,7 +102,7 @@ def _progress(msg: str) -> None:
 
 def _run_scaling(args):
     from common.cases import default_material
-    from comparisons.timing import SCALING_METHODS, scaling_command, scaling_study
+    from comparisons.timing.study import SCALING_METHODS, scaling_command, scaling_study
 
     try:
         default_material(args.scaling_material)
@@ -122,7 +122,7 @@ def _run_scaling(args):
 
 def _run_timing(args):
     from common.cases import DEFAULT_MATERIALS
-    from comparisons.timing import DEFAULT_METHODS, timing_command, timing_study
+    from comparisons.timing.study import DEFAULT_METHODS, timing_command, timing_study
 
     materials = opt.resolve_materials(args.material)
     ((label, _, _),) = opt.resolve_meshes(args.mesh, several=False)

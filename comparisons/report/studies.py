@@ -27,7 +27,7 @@ def _with_status(ctx: StudyContext, label: str, study, *args, **kwargs):
 # ----------------------------------------------------------------------------- the studies
 def _equivalence(ctx: StudyContext) -> StudyResult:
     from common.progress import Progress
-    from comparisons.equivalence import equivalence_study
+    from comparisons.equivalence.study import equivalence_study
 
     bar = Progress(
         len(ctx.meshes) * len(ctx.materials) + 2,
@@ -43,14 +43,14 @@ def _equivalence(ctx: StudyContext) -> StudyResult:
 
 
 def _gpu(ctx: StudyContext) -> StudyResult:
-    from comparisons.gpu_study import gpu_study
+    from comparisons.timing.gpu_section import gpu_study
 
     return gpu_study()
 
 
 def _regularization(ctx: StudyContext) -> StudyResult:
     import meshes
-    from comparisons.regularization import regularization_study
+    from comparisons.regularization.study import regularization_study
 
     points, cells, label = meshes.resolve("cube-small")
     return _with_status(
@@ -59,7 +59,7 @@ def _regularization(ctx: StudyContext) -> StudyResult:
 
 
 def _rheometer(ctx: StudyContext) -> StudyResult:
-    from comparisons.rheometer import rheometer_study
+    from comparisons.rheometer.study import rheometer_study
 
     return _with_status(
         ctx,
@@ -72,13 +72,13 @@ def _rheometer(ctx: StudyContext) -> StudyResult:
 
 
 def _cross_release(ctx: StudyContext) -> StudyResult:
-    from comparisons.cross_release import cross_release_study
+    from comparisons.cross_release.study import cross_release_study
 
     return _with_status(ctx, "cross-release", cross_release_study, quick=ctx.quick)
 
 
 def _timing(ctx: StudyContext) -> StudyResult:
-    from comparisons.timing import timing_study
+    from comparisons.timing.study import timing_study
 
     # The timing study times the materials of common/cases.py, chosen by name.
     names = [m.name for m in ctx.materials]
@@ -94,7 +94,7 @@ def _timing(ctx: StudyContext) -> StudyResult:
 
 
 def _scaling(ctx: StudyContext) -> StudyResult:
-    from comparisons.timing import scaling_study
+    from comparisons.timing.study import scaling_study
 
     return _with_status(
         ctx, "scaling", scaling_study, quick=ctx.quick, out_dir=ctx.figure_path("scaling")
@@ -102,7 +102,7 @@ def _scaling(ctx: StudyContext) -> StudyResult:
 
 
 def _liver(ctx: StudyContext) -> StudyResult:
-    from comparisons.liver import liver_study
+    from comparisons.liver.study import liver_study
 
     return _with_status(
         ctx,
@@ -124,16 +124,14 @@ def _provenance(ctx: StudyContext) -> StudyResult:
 # ----------------------------------------------------------------------------- the registry
 def report_studies() -> Tuple[ReportStudy, ...]:
     """The report's studies in order; the summary comes first and is written by the runner."""
-    from comparisons import (
-        cross_release,
-        equivalence,
-        gpu_study,
-        liver,
-        provenance,
-        regularization,
-        rheometer,
-        timing,
-    )
+    from comparisons import provenance
+    from comparisons.cross_release import study as cross_release
+    from comparisons.equivalence import study as equivalence
+    from comparisons.liver import study as liver
+    from comparisons.regularization import study as regularization
+    from comparisons.rheometer import study as rheometer
+    from comparisons.timing import gpu_section as gpu_study
+    from comparisons.timing import study as timing
 
     return (
         ReportStudy(equivalence.KEY, equivalence.TITLE, _equivalence),

@@ -16,7 +16,7 @@ what a GPU session does, scripts/gpu_session.sh)::
 ``--backend`` is one of mjed.backends.ALL_BACKENDS (numpy, numba, cuda; default numpy) and
 ``--dtype`` the arithmetic, float64 (default) or float32, which only the cuda backend offers.
 A float32 field's results are written as float32 ``.f32`` files, which declare the output
-single precision: the check then judges it at single precision (conformance.precision). A
+single precision: the check then judges it at single precision (conformance.judge.precision). A
 kit's own declaration comes first, so float32 refuses to fill a kit exported with
 ``--precision double`` (the default): it would be judged, and failed, at double precision. The
 stiffness is written in CSR, the force field's own pattern; the energy too. The field is
@@ -46,7 +46,7 @@ DTYPES = {"float64": np.float64, "float32": np.float32}
 class MJEDBackendEngine:
     """Computes cases of the exchange format with ``mjed.make_force_field(backend=...)``.
 
-    ``engine(case)`` for a :class:`conformance.spec.CaseInput` returns (force (n, 3),
+    ``engine(case)`` for a :class:`conformance.kit.spec.CaseInput` returns (force (n, 3),
     stiffness CSR (3n, 3n), energy) in float64 (a float32 field's values, exactly); one field
     is kept per mesh and material. ``precision`` is "single" for float32, else "double".
 
@@ -122,7 +122,7 @@ class MJEDBackendEngine:
         """Compute ``case`` and write its output directory (float32 ``.f32`` files for
         float32).
         """
-        from conformance.exchange import write_output
+        from conformance.kit.exchange import write_output
 
         f, K, W = self(case)
         write_output(folder, f, K, W, layout="csr", precision=self.precision)
@@ -130,7 +130,7 @@ class MJEDBackendEngine:
 
 def _fill_kit(engine: MJEDBackendEngine, kit: str, say: Callable[[str], None]) -> int:
     """Write every case's output of the kit; 0, or 1 when some case failed (named)."""
-    from conformance.kit import read_kit
+    from conformance.kit.read import read_kit
 
     manifest = read_kit(kit)
     if engine.precision == "single" and manifest.precision == "double":
@@ -189,7 +189,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     if args.kit is not None:
         return _fill_kit(engine, args.kit, print)
-    from conformance.exchange import read_case_input
+    from conformance.kit.exchange import read_case_input
 
     try:
         engine.write(read_case_input(args.input), args.output)

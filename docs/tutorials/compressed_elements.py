@@ -21,7 +21,7 @@ import numpy as np
 
 import mjed
 from common.cases import DEFAULT_MATERIALS
-from comparisons.regularization import negative_eigenvalues
+from comparisons.regularization.study import negative_eigenvalues
 from meshes import load
 
 mesh_data = load("cube-small")

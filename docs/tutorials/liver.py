@@ -9,14 +9,14 @@
 # cells) and 6 steps of 0.3 s (the full study: `mjed-verify liver`).
 #
 # The run writes its figures and one ParaView time series per model into `liver_out/` in
-# the working directory, and returns a `comparisons.liver_data.LiverData`: one `LiverRun` per
+# the working directory, and returns a `comparisons.liver.records.LiverData`: one `LiverRun` per
 # model (times in s, displacements in m), read by attribute; `result.to_dict()` is the JSON
 # form the report writes to `results.json`, and `LiverData.from_dict` reads it back.
 
 # %%
 import numpy as np
 
-from comparisons.liver import run_liver
+from comparisons.liver.study import run_liver
 
 result = run_liver(quick=True, out="liver_out")
 print(

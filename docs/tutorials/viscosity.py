@@ -103,12 +103,12 @@ fig.tight_layout()
 # approaches as $\omega\Delta t \to 0$, and the exact steady state of the discrete recursion,
 # $1 - \sum_i \alpha_i h_i/(1 + h_i - e^{-i\omega\Delta t})$ with $h_i = \Delta t/\tau_i$, which the
 # simulation must match up to the geometric nonlinearity of the small rotation and round-off.
-# It returns a typed `RheometerResult` (`comparisons.rheometer_data`): the spec, the mesh's
+# It returns a typed `RheometerResult` (`comparisons.rheometer.records`): the spec, the mesh's
 # counts, one `FrequencyRow` per frequency (moduli in Pa) and the error summaries; its
 # `to_dict()` is the JSON that `mjed-verify dma --json` holds under `data`.
 
 # %%
-from comparisons.rheometer import run_rheometer
+from comparisons.rheometer.study import run_rheometer
 
 result = run_rheometer(quick=True)
 print(f"cylinder: {result.mesh.n_cells} cells; {len(result.frequencies)} frequencies")

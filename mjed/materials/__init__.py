@@ -8,40 +8,33 @@ registry of the suite (oracle, classical element, compiled kernels, command-line
 exchange format, SOFA names, the docs table) is read from :func:`declarations`. The energies
 (zero at rest) are listed in docs/conventions.md, "The materials".
 
-Importing this package declares the built-in materials, in this order.
+Importing this package declares the built-in materials: every module of this folder other than
+the machinery below is a material's file, found and imported here (no list to edit), and the
+names in its ``__all__`` are this package's. :func:`declarations` gives them in their declared
+``order``.
 """
 
-# isort: off
-# The import order is the declaration order: the order of the docs table, of --material all
-# and of every table a study prints. Keep it by hand (isort would sort it by file name).
+import importlib
+import pkgutil
+
 from mjed.materials.base import Material
-from mjed.materials.st_venant_kirchhoff import StVenantKirchhoff
-from mjed.materials.neo_hookean import NeoHookean
-from mjed.materials.mooney_rivlin import MooneyRivlin
-from mjed.materials.veronda_westmann import VerondaWestmann
-from mjed.materials.arruda_boyce import ARRUDA_BOYCE_COEFFICIENTS, ArrudaBoyce
-from mjed.materials.costa import Costa
-from mjed.materials.ogden import Ogden
-from mjed.materials.yeoh import Yeoh
-from mjed.materials.gent import Gent
 from mjed.materials.declaration import Declaration, declaration_of, declarations
 from mjed.materials.sofa import from_sofa
-# isort: on
 
-__all__ = [
-    "Material",
-    "StVenantKirchhoff",
-    "NeoHookean",
-    "MooneyRivlin",
-    "VerondaWestmann",
-    "ArrudaBoyce",
-    "Costa",
-    "Ogden",
-    "Yeoh",
-    "Gent",
-    "Declaration",
-    "declarations",
-    "declaration_of",
-    "from_sofa",
-    "ARRUDA_BOYCE_COEFFICIENTS",
-]
+#: The modules of this folder that are machinery, not a material.
+MACHINERY = ("base", "classical_forms", "declaration", "sofa")
+
+__all__ = ["Material", "Declaration", "declarations", "declaration_of", "from_sofa"]
+
+
+def _declare_the_materials_of_this_folder() -> None:
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
+        if info.name in MACHINERY or info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        for name in module.__all__:
+            globals()[name] = getattr(module, name)
+            __all__.append(name)
+
+
+_declare_the_materials_of_this_folder()

@@ -82,5 +82,8 @@ declare(
         ),
         aliases=("ab",),
         sofa=("ArrudaBoyce", ("mu", "k0")),
+        order=50,
+        ranges={"mu": (0.05, 20.0), "k0": (0.05, 20.0), "N": (2.0, 20.0)},
+        examples={"ArrudaBoyce": ArrudaBoyce(mu=1.0, k0=5.0)},
     )
 )

@@ -162,5 +162,25 @@ declare(
         volumetric_formula="k0 (J ln J - J + 1)",
         classical=lambda m: forms.FibreExponential(m.a, m.k0, m.B, m.frame),
         sofa=("Costa", ("a", "k0") + _B_NAMES),
+        order=60,
+        ranges={
+            "a": (0.05, 20.0),
+            "k0": (0.05, 20.0),
+            "b_ff": (0.5, 5.0),
+            "b_fs": (0.0, 0.5),
+            "b_ss": (0.5, 5.0),
+            "b_fn": (0.0, 0.5),
+            "b_sn": (0.0, 0.5),
+            "b_nn": (0.5, 5.0),
+        },
+        # CostaIndefinite: a B whose signed L D L^T split has a negative pivot
+        examples={
+            "Costa": Costa(
+                a=0.9, k0=3.0, b_ff=1.0, b_fs=0.3, b_ss=0.8, b_fn=0.2, b_sn=0.1, b_nn=0.5
+            ),
+            "CostaIndefinite": Costa(
+                a=0.9, k0=3.0, b_ff=1.0, b_fs=0.9, b_ss=0.5, b_fn=0.2, b_sn=0.1, b_nn=0.5
+            ),
+        },
     )
 )

@@ -12,7 +12,12 @@ A :class:`Declaration` holds everything the suite needs to know about one materi
 - ``volumetric`` (and ``volumetric_formula``): its J-only part, the same way, or None;
 - ``classical``: the classical element's form of the law (:mod:`mjed.materials.classical_forms`),
   from which the classical element builds S and its tangent;
-- ``aliases`` (command-line spellings) and ``sofa`` (SOFA's name and ParameterSet order).
+- ``aliases`` (command-line spellings) and ``sofa`` (SOFA's name and ParameterSet order);
+- ``order``: its place in the declaration order (the docs table, ``--material all``, every
+  study's tables);
+- ``ranges``: each parameter's valid range for the tests to draw from, ``(low, high)`` or a list
+  of the values to choose among; ``examples``: named parameter sets that make every term of
+  the energy matter (the tests' fixtures; the default when none is given).
 
 :func:`declare` checks a declaration and registers it (a missing or ill-typed piece is an
 error naming the material and the piece); :func:`declarations` lists them in declaration
@@ -23,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Callable, Dict, Optional, Protocol, Tuple
+from typing import Any, Callable, Dict, Mapping, Optional, Protocol, Tuple
 
 from mjed.materials import classical_forms
 from mjed.materials.base import Material
@@ -89,6 +94,9 @@ class Declaration:
     notes: str = ""
     aliases: Tuple[str, ...] = ()
     sofa: Optional[Tuple[str, Tuple[str, ...]]] = None
+    order: int = 1000
+    ranges: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    examples: Mapping[str, Material] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         who = getattr(self.material, "__name__", repr(self.material))
@@ -122,8 +130,29 @@ class Declaration:
                 f"declaration of {who}: classical must return a form of "
                 f"mjed.materials.classical_forms ({known}), got {form!r}"
             )
+        fields = {f.name for f in dataclasses.fields(self.material)}
+        required = {
+            f.name
+            for f in dataclasses.fields(self.material)
+            if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        }
+        if not required <= set(self.ranges) <= fields:
+            raise TypeError(
+                f"declaration of {who}: ranges must give every parameter without a default "
+                f"({sorted(required)}) and name only parameters ({sorted(fields)}), "
+                f"got {sorted(self.ranges)}"
+            )
+        for name, rng in self.ranges.items():
+            interval = isinstance(rng, tuple) and len(rng) == 2 and rng[0] < rng[1]
+            if not (interval or (isinstance(rng, list) and rng)):
+                raise TypeError(
+                    f"declaration of {who}: range of {name} must be (low, high) or a list of "
+                    f"values, got {rng!r}"
+                )
+        for label, example in self.examples.items():
+            if type(example) is not self.material:
+                raise TypeError(f"declaration of {who}: example {label} must be a {who}")
         if self.sofa is not None:
-            fields = {f.name for f in dataclasses.fields(self.material)}
             unknown = [n for n in self.sofa[1] if n not in fields]
             if unknown:
                 raise TypeError(
@@ -151,8 +180,8 @@ def declare(declaration: Declaration) -> Declaration:
 
 
 def declarations() -> Tuple[Declaration, ...]:
-    """Every declared material, in declaration order."""
-    return tuple(_DECLARATIONS.values())
+    """Every declared material, in declaration order (``order``, then the order declared)."""
+    return tuple(sorted(_DECLARATIONS.values(), key=lambda d: d.order))
 
 
 def declaration_of(material_type: type) -> Declaration:

@@ -68,5 +68,11 @@ declare(
         classical=lambda m: forms.Decoupled(
             forms.IsochoricPsi(psi), (("mu", m.mu), ("Jm", m.Jm)), m.k0
         ),
+        order=90,
+        ranges={"mu": (0.05, 20.0), "Jm": (10.0, 100.0), "k0": (0.05, 20.0)},
+        # Jm above the largest I1b - 3 the test states reach (about 20, on the perturbed box of
+        # test_engine_modules), close enough that the logarithm bends (1 - (I1b - 3)/Jm to 0.3);
+        # beyond it Gent is undefined, by design
+        examples={"Gent": Gent(mu=1.2, Jm=30.0, k0=5.0)},
     )
 )

@@ -72,5 +72,8 @@ declare(
         ),
         aliases=("mr",),
         sofa=("MooneyRivlin", ("c1", "c2", "k0")),
+        order=30,
+        ranges={"c1": (0.05, 20.0), "c2": (0.0, 5.0), "k0": (0.05, 20.0)},
+        examples={"MooneyRivlin": MooneyRivlin(c1=0.7, c2=0.4, k0=5.0)},
     )
 )

@@ -56,5 +56,8 @@ declare(
         classical=lambda m: forms.CompressibleNeoHookean(m.mu, m.lam),
         aliases=("nh",),
         sofa=("NeoHookean", ("mu", "lam")),
+        order=20,
+        ranges={"mu": (0.05, 20.0), "lam": (0.05, 20.0)},
+        examples={"NeoHookean": NeoHookean(mu=1.3, lam=2.1)},
     )
 )

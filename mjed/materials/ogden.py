@@ -75,5 +75,12 @@ declare(
         # the ``tangent`` option is the engine's: the classical law is always the exact Hessian
         classical=lambda m: forms.SpectralOgden(m.mu, m.alpha, m.k0),
         sofa=("Ogden", ("mu", "alpha", "k0")),
+        order=70,
+        ranges={"mu": (0.05, 20.0), "alpha": [-4.0, -2.0, 1.5, 2.0, 3.0, 5.0], "k0": (0.05, 20.0)},
+        # OgdenNegative: a negative alpha changes the kernel
+        examples={
+            "Ogden": Ogden(mu=1.0, alpha=3.0, k0=5.0),
+            "OgdenNegative": Ogden(mu=1.0, alpha=-2.0, k0=5.0),
+        },
     )
 )

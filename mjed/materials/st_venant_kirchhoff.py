@@ -42,5 +42,8 @@ declare(
         classical=lambda m: forms.GreenLagrangeQuadratic(m.mu, m.lam),
         aliases=("stvk", "svk"),
         sofa=("StVenantKirchhoff", ("mu", "lam")),
+        order=10,
+        ranges={"mu": (0.05, 20.0), "lam": (0.05, 20.0)},
+        examples={"StVenantKirchhoff": StVenantKirchhoff(mu=1.3, lam=2.1)},
     )
 )

@@ -81,5 +81,8 @@ declare(
         ),
         aliases=("vw", "verondawestman"),
         sofa=("VerondaWestman", ("c1", "c2", "k0")),
+        order=40,
+        ranges={"c1": (0.05, 20.0), "c2": (0.05, 2.0), "k0": (0.05, 20.0)},
+        examples={"VerondaWestmann": VerondaWestmann(c1=0.8, c2=1.2, k0=5.0)},
     )
 )

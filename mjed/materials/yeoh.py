@@ -77,5 +77,8 @@ declare(
         classical=lambda m: forms.Decoupled(
             forms.IsochoricPsi(psi), (("c10", m.c10), ("c20", m.c20), ("c30", m.c30)), m.k0
         ),
+        order=80,
+        ranges={"c10": (0.05, 20.0), "c20": (-0.5, 0.5), "c30": (0.0, 2.0), "k0": (0.05, 20.0)},
+        examples={"Yeoh": Yeoh(c10=0.6, c20=-0.15, c30=0.2, k0=5.0)},
     )
 )

@@ -20,7 +20,7 @@ def main() -> int:
     p.add_argument("--mistake", default="none")
     a = p.parse_args()
     import mjed
-    from conformance.exchange import read_case_input, write_output
+    from conformance.kit.exchange import read_case_input, write_output
 
     case = read_case_input(a.input)
     if a.mistake == "crash":

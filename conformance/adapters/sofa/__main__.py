@@ -50,6 +50,7 @@ def run_case(
     input_dir: Path,
     output_dir: Path,
     regularize: bool = False,
+    as_material: Optional[str] = None,
     program: Optional[Path] = None,
 ) -> int:
     """Compute one case with SOFA; returns the exit code (see the module's docstring)."""
@@ -59,7 +60,9 @@ def run_case(
         return EXIT_NOT_BUILT
     case = json.loads((input_dir / "case.json").read_text())
     try:
-        material = sofa_material(case["model"], forcefield, _case_frame(input_dir, case))
+        material = sofa_material(
+            case["model"], forcefield, _case_frame(input_dir, case), as_material
+        )
     except NotExpressible as why:
         print(
             f"sofa adapter: {case.get('case')}: not expressible in "
@@ -102,6 +105,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         action="store_true",
         help="SOFA's matrixRegularization (K is then not the exact Hessian)",
     )
+    case.add_argument(
+        "--as-material",
+        metavar="NAME",
+        help="read a user-energy case as this material (its parameters named as the "
+        "material's), e.g. Costa written in the global axes",
+    )
     case.add_argument("input", type=Path)
     case.add_argument("output", type=Path)
     make = sub.add_parser("build", help="compile the engine program against a SOFA build")
@@ -114,7 +123,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(argv)
 
     if args.command == "case":
-        return run_case(args.forcefield, args.input, args.output, args.regularize)
+        return run_case(args.forcefield, args.input, args.output, args.regularize, args.as_material)
     if args.command == "build":
         try:
             print(build(args.sofa))

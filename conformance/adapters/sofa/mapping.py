@@ -18,11 +18,11 @@ the x, y and z axes; none of the three fields reads a per-cell frame).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping, Optional, Tuple
+from typing import Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["FORCEFIELDS", "NotExpressible", "SofaMaterial", "sofa_material"]
+__all__ = ["FORCEFIELDS", "NotExpressible", "SofaMaterial", "costa_in_global_axes", "sofa_material"]
 
 #: The force fields the engine program drives, each with the SOFA class it instantiates.
 FORCEFIELDS = {
@@ -52,7 +52,10 @@ class SofaMaterial:
 
 
 def sofa_material(
-    model: Mapping, forcefield: str, frame: Optional[np.ndarray] = None
+    model: Mapping,
+    forcefield: str,
+    frame: Optional[np.ndarray] = None,
+    as_material: Optional[str] = None,
 ) -> SofaMaterial:
     """The SOFA material for a case's ``model`` (case.json's ``model`` object).
 
@@ -60,6 +63,9 @@ def sofa_material(
         model: ``{"kind": "material", "name": ..., "parameters": {...}}`` or a user energy.
         forcefield: a key of :data:`FORCEFIELDS`.
         frame: the case's per-cell frames ``(m, 3, 3)`` or one ``(3, 3)``, when it has one.
+        as_material: for a user energy, the material it writes out (its parameters named as
+            that material's): how a law SOFA evaluates in fixed axes, such as Costa in the
+            global frame, is checked against the energy written in those axes.
 
     Raises:
         NotExpressible: a user energy, a material SOFA does not offer, or a Costa frame that
@@ -70,6 +76,8 @@ def sofa_material(
 
     if forcefield not in FORCEFIELDS:
         raise ValueError(f"unknown force field {forcefield!r}; one of {', '.join(FORCEFIELDS)}")
+    if as_material is not None and model.get("kind") == "energy":
+        model = {"kind": "material", "name": as_material, "parameters": model.get("parameters")}
     if model.get("kind") != "material":
         raise NotExpressible(
             "a user energy has no SOFA material: SOFA's force fields take only their own "
@@ -101,3 +109,27 @@ def sofa_material(
 def _is_global_axes(frame: np.ndarray) -> bool:
     frames = np.asarray(frame, dtype=float).reshape(-1, 3, 3)
     return bool(np.array_equal(frames, np.broadcast_to(np.eye(3), frames.shape)))
+
+
+def costa_in_global_axes(parameters: Mapping[str, float]) -> Tuple[str, Dict[str, float]]:
+    """Costa's energy written out in the global axes, as a user energy (expression, parameters).
+
+    SOFA's Costa law has no frame: fibre, sheet and normal are x, y and z. Checked as this user
+    energy (``--energy``), with the case read back as Costa by the adapter (``--as-material
+    Costa``), SOFA's law meets the oracle on the same formula as the declaration's, with
+    ``R = I``: ``Q = sum_ij B_ij E_ij^2`` counts each off-diagonal pair twice.
+    """
+    axes = "fsn"
+    terms = []
+    for i in range(3):
+        for j in range(3):
+            name = "b_" + "".join(sorted((axes[i], axes[j]), key=axes.index))
+            # the declaration's names are b_ff, b_fs, b_ss, b_fn, b_sn, b_nn
+            name = {"b_sf": "b_fs", "b_nf": "b_fn", "b_ns": "b_sn"}.get(name, name)
+            terms.append(f"{name}*E{i + 1}{j + 1}**2")
+    q = " + ".join(terms)
+    expression = f"a/2*(exp(J**(-4/3)*({q})) - 1) + k0*(J*ln(J) - J + 1)"
+    return expression, {k: float(parameters[k]) for k in ("a", "k0") + _COSTA_B}
+
+
+_COSTA_B = ("b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")

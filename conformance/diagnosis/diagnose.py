@@ -1,0 +1,586 @@
+"""The diagnosis of one case: verdict, relative errors, and the mistake that explains a failure.
+
+Order of the tests (each named cause must bring force and stiffness within tolerance of the
+oracle once corrected; otherwise it is reported as partly explaining, with the residual):
+
+1. conventions: sign of force and/or stiffness; component-major dof order; node offsets and
+   permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
+2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
+   then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
+   transposed or a single frame, or the columns in another order
+   (:mod:`conformance.diagnosis.frames`);
+3. the part of the tangent (geometric / material, volumetric / isochoric, Voigt blocks) that
+   explains a stiffness error when the force is right (:mod:`conformance.diagnosis.tangent`);
+4. a different volumetric (J-only) energy, fitted per cell;
+5. localisation: the error confined to a few nodes (and the cells they span).
+
+The engine's own consistency (probes, :mod:`conformance.judge.consistency`) is reported as an
+observed fact. When nothing explains the error the diagnosis says so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, List, Optional, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.hypotheses import (
+    common_factor_name,
+    convention_corrections,
+    scale_corrections,
+)
+from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
+from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
+
+__all__ = ["Diagnosis", "diagnose", "node_error_field"]
+
+SIGN_CODES = ("force-sign", "stiffness-sign", "both-signs")
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """case_id, verdict ("passed" / "failed"), errors, findings (named causes first), and
+    node_error: (n,) per-node relative error (force and stiffness rows), for ParaView.
+    """
+
+    case_id: str
+    verdict: str
+    errors: Errors
+    findings: Sequence[Finding]
+    node_error: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    consistency: Optional[Consistency] = None
+    tolerances: Tolerances = DOUBLE
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict == "passed"
+
+    @property
+    def causes(self) -> List[Finding]:
+        return [f for f in self.findings if f.strength == FULL]
+
+    def text(self) -> str:
+        e = self.errors
+        energy = "not given" if e.energy is None else f"{e.energy:.2e}"
+        at = " at single precision" if self.tolerances.precision == "single" else ""
+        lines = [
+            f"case {self.case_id}: {self.verdict.upper()}{at} (relative errors: "
+            f"force {e.force:.2e}, "
+            f"stiffness {e.stiffness:.2e}, energy {energy}; {self.tolerances.text()})"
+        ]
+        lines += [f"  - {f.text()}" for f in self.findings]
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {
+            "case": self.case_id,
+            "verdict": self.verdict,
+            "errors": self.errors.to_dict(),
+            "findings": [f.to_dict() for f in self.findings],
+            "consistency": None if self.consistency is None else self.consistency.to_dict(),
+            "tolerances": self.tolerances.to_dict(),
+        }
+
+
+def node_error_field(
+    f: np.ndarray, K: sp.csr_matrix, f_o: np.ndarray, K_o: sp.csr_matrix, s: Scales
+) -> np.ndarray:
+    """(n,) per-node error: sqrt(|f_a - f_o,a|^2 / s_f^2 + ||rows of node a of K - K_o||^2 /
+    s_K^2).
+    """
+    # Divided before squaring: forces of 1e160 (an exponential energy on a sliver) stay finite.
+    df = (f - f_o) / s.force if s.force > 0 else f - f_o
+    df2 = np.sum(df**2, axis=1)
+    D = sp.csr_matrix(K - K_o) / (s.stiffness if s.stiffness > 0 else 1.0)
+    dk2 = np.asarray(D.multiply(D).sum(axis=1)).ravel().reshape(-1, 3).sum(axis=1)
+    return np.sqrt(df2 + dk2)
+
+
+def _within(e: Errors, tol: Tolerances) -> bool:
+    return tol.within(e, energy=False)
+
+
+def _evidence(e: Errors) -> str:
+    return f"after the correction: force error {e.force:.1e}, stiffness error {e.stiffness:.1e}"
+
+
+def diagnose(
+    case_id: str,
+    *,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    W: Optional[float],
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    W_o: float,
+    s: Scales,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    parts: Optional[Callable[[], Any]] = None,
+    consistency: Optional[Consistency] = None,
+    tol: Tolerances = DOUBLE,
+    frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
+) -> Diagnosis:
+    """Diagnose one case.
+
+    Args:
+        f, K, W: the engine's force (n, 3), stiffness (3n, 3n), energy or None.
+        f_o, K_o, W_o: the oracle's; s: the error scales (:func:`conformance.judge.compare.scales`).
+        points, cells, x: the mesh and the current positions.
+        parts: a callable returning the oracle's stiffness parts (built only if needed).
+        consistency: the probes' result, if any.
+        tol: the tolerances the case is held to (double precision by default).
+        frame_variants: a callable returning the oracle with mistaken frames
+            (:class:`conformance.diagnosis.frames.FrameVariant`; built only if needed).
+    """
+    K = sp.csr_matrix(K)
+    K_o = sp.csr_matrix(K_o)
+    err = errors(f, K, W, f_o, K_o, W_o, s)
+    field_ = node_error_field(f, K, f_o, K_o, s)
+    findings: List[Finding] = []
+    if consistency is not None:
+        findings += _consistency_findings(consistency)
+    inconsistent = any(
+        x_.code.startswith("inconsistent") or x_.code == "consistency-not-measured"
+        for x_ in findings
+    )
+    if tol.within(err) and not inconsistent:
+        return Diagnosis(case_id, "passed", err, findings, field_, consistency, tol)
+    if _within(err, tol):  # force and stiffness right: only the energy (or the consistency) is off
+        if err.energy is not None and err.energy > tol.energy:
+            findings.insert(0, _energy_finding(W, W_o, err, _rest_volumes(points, cells).sum()))
+        if inconsistent and consistency is not None and consistency.stiffness_consistent is False:
+            findings.insert(
+                0,
+                Finding(
+                    "force-wrong-nearby",
+                    "the force is wrong away from this state",
+                    OBSERVED,
+                    "force and stiffness match the oracle here, but the stiffness is not the "
+                    "derivative of the engine's own force at the probes: the force changes wrongly "
+                    "as the mesh deforms (check a deformed state, where the diagnosis can name the "
+                    "mistake)",
+                    {},
+                ),
+            )
+        return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
+
+    causes, partial = _explain(
+        f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol, frame_variants
+    )
+    if causes:
+        findings = causes + findings
+    else:
+        best = sorted(partial, key=lambda p: p.figures.get("residual", np.inf))[:2]
+        unexplained = Finding(
+            "unexplained",
+            "unexplained",
+            PARTIAL if best else OBSERVED,
+            "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
+            "unsymmetric K, global factor, fibre frame where the model has one, tangent parts, "
+            "volumetric energy, localisation) brings the error within tolerance"
+            + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
+            + (
+                "; the force is right and the stiffness is not the derivative of the engine's own "
+                "force (below): "
+                "the mistake is in the tangent alone"
+                if inconsistent and err.force <= tol.force
+                else ""
+            ),
+            {"force": err.force, "stiffness": err.stiffness},
+        )
+        findings = [unexplained] + findings
+    return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
+
+
+def _rest_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) rest cell volumes [m^3]."""
+    return (
+        np.abs(np.linalg.det(np.swapaxes(points[cells][:, 1:] - points[cells][:, :1], 1, 2))) / 6.0
+    )
+
+
+def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
+    ratio = W / W_o if W_o else float("nan")
+    words = (
+        "sign flipped"
+        if abs(ratio + 1) < 1e-9
+        else (f"engine/oracle ratio {ratio:.6g}" if W_o else "")
+    )
+    # Force and stiffness agree, so a difference that is a constant density (e.g. W without its '-
+    # 3')
+    # is the likely reading: say what density it would be, as a figure, not as a claim.
+    offset = (W - W_o) / volume
+    return Finding(
+        "energy",
+        "energy differs while force and stiffness match",
+        FULL,
+        f"energy {W:.6e} J against {W_o:.6e} J (relative error "
+        f"{err.energy:.1e}){'; ' + words if words else ''}; as a constant density over the rest "
+        f"volume: {offset:.6g} Pa",
+        {"energy": W, "oracle_energy": W_o, "offset_density": offset},
+    )
+
+
+def _consistency_findings(c: Consistency) -> List[Finding]:
+    """What the probes show, each figure with the limit it was held to on this case."""
+    out = []
+    if c.non_finite:
+        out.append(
+            Finding(
+                "consistency-not-measured",
+                "the engine's self-consistency could not be measured",
+                OBSERVED,
+                c.note + "; the case cannot pass on figures that are not finite",
+                {},
+            )
+        )
+    if c.force_stiffness is not None:
+        rates = ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_force)
+        if c.stiffness_excess is not None:
+            calib = (
+                f"the oracle's exact tangent leaves {c.stiffness_floor:.1e} on the same probes, so "
+                "the part "
+                f"not explained by the fit is {c.stiffness_excess:.1e} (limit "
+                f"{c.stiffness_limit:.1e} = "
+                f"max({PROBE_TOL:g}, {FLOOR_FACTOR:g} x that floor))"
+            )
+        else:
+            calib = f"not calibrated by the oracle (limit {c.stiffness_limit:.1e})"
+        figures = {
+            "inconsistency": c.force_stiffness,
+            "floor": c.stiffness_floor,
+            "excess": c.stiffness_excess,
+            "limit": c.stiffness_limit,
+        }
+        if c.stiffness_consistent is False:
+            out.append(
+                Finding(
+                    "inconsistent-stiffness",
+                    "stiffness is not the derivative of the engine's own force",
+                    OBSERVED,
+                    f"||df/dx d + K d|| / ||K d|| = {c.force_stiffness:.1e} along a random "
+                    f"direction; {calib}; Taylor rates {rates} (2 when consistent)",
+                    {**figures, "rates": [_finite_or_none(r) for r in c.rates_force]},
+                )
+            )
+        elif c.stiffness_limit > RESOLUTION:
+            out.append(
+                Finding(
+                    "consistency-unresolved",
+                    "the probes do not resolve the tangent on this case",
+                    OBSERVED,
+                    f"round-off and the fit leave {c.stiffness_floor:.1e} of K d over the "
+                    f"probes' step (limit {c.stiffness_limit:.1e} would be above {RESOLUTION:g}): "
+                    "no "
+                    "verdict on the engine's own consistency",
+                    figures,
+                )
+            )
+        elif c.stiffness_consistent is True:
+            out.append(
+                Finding(
+                    "consistent-stiffness",
+                    "stiffness is the derivative of the engine's own force",
+                    OBSERVED,
+                    f"relative inconsistency {c.force_stiffness:.1e}; {calib}; Taylor rates "
+                    f"{rates}",
+                    figures,
+                )
+            )
+    if c.energy_force is not None and c.force_consistent is None:
+        out.append(
+            Finding(
+                "energy-consistency-unresolved",
+                "the probes do not resolve the force against the energy",
+                OBSERVED,
+                f"round-off of the energies leaves {c.energy_floor or 0.0:.1e} of the energy "
+                "change "
+                f"over the probes' step (limit {c.energy_limit:.1e}): no verdict on whether the "
+                "force is minus the derivative of the engine's energy",
+                {"floor": c.energy_floor, "limit": c.energy_limit},
+            )
+        )
+    if c.force_consistent is False:
+        calib = (
+            ""
+            if c.energy_excess is None
+            else f"; beyond the oracle's {c.energy_floor:.1e} on the same probes: "
+            f"{c.energy_excess:.1e}"
+        )
+        out.append(
+            Finding(
+                "inconsistent-force",
+                "force is not minus the derivative of the engine's own energy",
+                OBSERVED,
+                f"relative inconsistency {c.energy_force:.1e}{calib} (limit "
+                f"{c.energy_limit:.1e}); Taylor rates "
+                + ", ".join("-" if not np.isfinite(r) else f"{r:.2f}" for r in c.rates_energy),
+                {
+                    "inconsistency": c.energy_force,
+                    "excess": c.energy_excess,
+                    "limit": c.energy_limit,
+                },
+            )
+        )
+    return out
+
+
+def _finite_or_none(v: float) -> Optional[float]:
+    return float(v) if np.isfinite(v) else None
+
+
+def _explain(
+    f,
+    K,
+    W,
+    f_o,
+    K_o,
+    W_o,
+    s,
+    err,
+    points,
+    cells,
+    x,
+    parts,
+    field_,
+    tol: Tolerances,
+    frame_variants=None,
+):
+    """(causes that fully explain, partial explanations)."""
+    full: List[Finding] = []
+    partial: List[Finding] = []
+    worst = max(err.force, err.stiffness)
+
+    def judge(
+        code: str,
+        title: str,
+        corrected_errors: Errors,
+        extra: str = "",
+        figures: Optional[dict] = None,
+    ):
+        figs = {
+            "force_after": corrected_errors.force,
+            "stiffness_after": corrected_errors.stiffness,
+            "residual": max(corrected_errors.force, corrected_errors.stiffness),
+            **(figures or {}),
+        }
+        text = _evidence(corrected_errors) + (f"; {extra}" if extra else "")
+        if _within(corrected_errors, tol):
+            full.append(Finding(code, title, FULL, text, figs))
+        elif figs["residual"] < 0.1 * worst:
+            partial.append(
+                Finding(code, title, PARTIAL, text + " (residual above tolerance)", figs)
+            )
+
+    for c in convention_corrections(f_o, K_o, f, K):
+        out = c.apply(f, K, W)
+        if out is not None:
+            e = errors(*out[:2], None, f_o, K_o, W_o, s)
+            extra = ""
+            if c.code == "unsymmetric":
+                from scipy.sparse.linalg import norm as sparse_norm
+
+                skew = float(sparse_norm(K - K.T)) / 2 / max(float(sparse_norm(K)), 1e-300)
+                extra = (
+                    f"antisymmetric part ||K - K^T||/2 = {skew:.1e} of ||K||; symmetric part "
+                    "matches"
+                )
+                if err.symmetry <= 1e-12:
+                    continue  # a symmetric K: the correction is the identity
+            judge(c.code, c.title, e, extra)
+    if full:
+        return full, partial
+    # Two convention mistakes at once: a sign flip on top of a reordering (each pair is one more
+    # correction, named only if together they bring the error within tolerance).
+    signs = [c for c in convention_corrections(f_o, K_o, f, K) if c.code in SIGN_CODES]
+    for sign in signs:
+        f1, K1, W1 = sign.apply(f, K, W)
+        for c in convention_corrections(f_o, K_o, f1, K1):
+            if c.code in SIGN_CODES or c.code == "unsymmetric":
+                continue
+            out = c.apply(f1, K1, W1)
+            judge(
+                f"{c.code}+{sign.code}",
+                f"{c.title}, and {sign.title}",
+                errors(*out[:2], None, f_o, K_o, W_o, s),
+            )
+    if full:
+        return full, partial
+
+    V0 = _rest_volumes(points, cells)
+    uniform = bool(np.ptp(V0) <= 1e-9 * V0.mean())
+    for code, which, ratio, out in scale_corrections(f_o, K_o, f, K, W_o, W):
+        e = errors(*out[:2], None, f_o, K_o, W_o, s)
+        name = common_factor_name(ratio, float(V0.mean()), uniform)
+        judge(
+            code, f"{which} scaled: {name}", e, f"engine / oracle = {ratio:.6g}", {"ratio": ratio}
+        )
+        if full:
+            return full, partial
+
+    if frame_variants is not None:
+        _frame_findings(f, K, W_o, frame_variants(), judge)
+        if full:
+            return full, partial
+
+    # A localised error cannot be a global convention or a part of the tangent everywhere: test it
+    # first (it is cheap; the fits below are not on large meshes).
+    _locality_findings(f, K, f_o, K_o, s, cells, field_, tol, full, partial)
+    if full:
+        return full, partial
+
+    if parts is not None and err.force <= tol.force:
+        _tangent_findings(K, K_o, parts(), err, tol, full, partial)
+        if full:
+            return full, partial
+
+    if parts is not None:
+        p = parts()
+        if p["geometric_volumetric"] is not None:
+            _volumetric_findings(
+                points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, tol, full, partial
+            )
+            if full:
+                return full, partial
+
+    return full, partial
+
+
+def _frame_findings(
+    f: np.ndarray, K: sp.csr_matrix, W_o: float, variants: Sequence[Any], judge: Callable[..., None]
+) -> None:
+    """The engine against the oracle evaluated with each mistaken frame: a frame mistake is named
+    when the engine agrees with that variant (the error lives inside the energy, so it cannot be
+    undone on the output).
+    """
+    for v in variants:
+        e = errors(f, K, None, v.force, v.stiffness, W_o, v.scales)
+        judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
+
+
+def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
+    from conformance.diagnosis.tangent import candidate_parts, describe_coefficient, fit_parts
+
+    D = (K - K_o).tocsr()
+    cands = candidate_parts(parts, K_o)
+    ok, best = fit_parts(D, K_o, cands, tol.stiffness)
+    fit = ok or best
+    if fit is None:
+        return
+    words = " and ".join(describe_coefficient(n, c) for n, c in zip(fit.names, fit.coefficients))
+    figs = {
+        "parts": list(fit.names),
+        "coefficients": list(fit.coefficients),
+        "residual": fit.residual,
+    }
+    text = (
+        "K - K_oracle = "
+        + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(fit.names, fit.coefficients))
+        + f" leaves a stiffness error of {fit.residual:.1e}; the force matches"
+    )
+    if ok is not None:
+        full.append(
+            Finding("tangent-part", f"tangent error in one part: {words}", FULL, text, figs)
+        )
+    elif fit.residual < 0.1 * err.stiffness:
+        partial.append(
+            Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs)
+        )
+
+
+def _volumetric_findings(
+    points, cells, x, df, D, s: Scales, worst: float, tol: Tolerances, full, partial
+) -> None:
+    from conformance.diagnosis.tangent import fit_volumetric
+
+    fit = fit_volumetric(points, cells, x, df, D, s.force, s.stiffness)
+    if fit is None:
+        return
+    J1 = float(np.median(fit.J))
+    figs = {
+        "force_after": fit.force_residual,
+        "stiffness_after": fit.stiffness_residual,
+        "residual": max(fit.force_residual, fit.stiffness_residual),
+        "variant": fit.variant,
+        "dU1_median": float(np.median(fit.dU1)),
+        "dU2_median": float(np.median(fit.dU2)),
+    }
+    text = (
+        f"a per-cell change of the J-only energy U(J) leaves force error {fit.force_residual:.1e} "
+        f"and stiffness error {fit.stiffness_residual:.1e}; fitted engine-minus-oracle dU/dJ "
+        f"{np.median(fit.dU1):.4g} Pa and d2U/dJ2 {np.median(fit.dU2):.4g} Pa at the median J = "
+        f"{J1:.4g}"
+    )
+    if fit.variant:
+        text += f"; recognised: {fit.variant}"
+    elif np.unique(np.round(fit.J, 12)).size < 3:
+        text += (
+            "; the state has a single J, so the form of U cannot be identified from this case alone"
+        )
+    force_ok = np.linalg.norm(df) / s.force <= tol.force
+    title = (
+        "volumetric (J-only) tangent differs (the force matches)"
+        if force_ok
+        else "volumetric (J-only) energy differs from the oracle's"
+    )
+    if fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness:
+        full.append(Finding("volumetric", title, FULL, text, figs))
+    elif figs["residual"] < 0.1 * worst:
+        partial.append(Finding("volumetric", title, PARTIAL, text, figs))
+
+
+def _locality_findings(
+    f, K, f_o, K_o, s: Scales, cells, field_, tol: Tolerances, full, partial
+) -> None:
+    n = field_.size
+    total = float(np.sum(field_**2))
+    if total == 0:
+        return
+    order = np.argsort(field_)[::-1]
+    cum = np.cumsum(field_[order] ** 2) / total
+    limit = max(4, int(0.05 * n))
+    k = int(np.searchsorted(cum, 1.0 - 1e-20)) + 1
+    if k > limit or 2 * k > n:
+        return  # not localised: the error is on most of the mesh
+    nodes = np.sort(order[:k])
+    mask = np.ones(n, dtype=bool)
+    mask[nodes] = False
+    dofs = np.flatnonzero(np.repeat(mask, 3))
+    from scipy.sparse.linalg import norm as sparse_norm
+
+    fout = float(np.linalg.norm((f - f_o)[mask])) / s.force
+    kout = float(sparse_norm((K - K_o).tocsr()[dofs][:, dofs])) / s.stiffness
+    in_set = np.isin(cells, nodes).all(axis=1)
+    cell_ids = np.flatnonzero(in_set)
+    where = f"nodes {', '.join(map(str, nodes[:12]))}{' ...' if nodes.size > 12 else ''}"
+    if cell_ids.size:
+        where += (
+            f" (cells {', '.join(map(str, cell_ids[:8]))}{' ...' if cell_ids.size > 8 else ''})"
+        )
+    figs = {
+        "nodes": nodes.tolist(),
+        "cells": cell_ids.tolist(),
+        "force_outside": fout,
+        "stiffness_outside": kout,
+        "residual": max(fout, kout),
+    }
+    text = (
+        f"the error is confined to {k} of {n} nodes: {where}; elsewhere force error {fout:.1e}, "
+        f"stiffness error {kout:.1e}; see the per-node error field"
+    )
+    if fout <= tol.force and kout <= tol.stiffness:
+        full.append(
+            Finding(
+                "localised",
+                f"error localised to {nodes.size} node(s)"
+                + (f" / {cell_ids.size} cell(s)" if cell_ids.size else ""),
+                FULL,
+                text,
+                figs,
+            )
+        )

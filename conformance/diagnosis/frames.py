@@ -1,0 +1,135 @@
+"""Fibre-frame mistakes as oracle variants: what the oracle gives with the frame an engine
+probably used instead of the one in the kit.
+
+A frame mistake cannot be undone on the engine's output the way a sign or a dof order can: the
+error lives inside the energy. So the hypothesis is tested the other way round: the oracle is
+evaluated with the mistaken frame, and the mistake is named when the engine agrees with that
+variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"):
+
+- ``frame-ignored``: the identity frame (fibre, sheet and normal taken as the global x, y, z, as
+  an engine that never reads frame.f64 does);
+- ``frame-transposed``: each cell's R^T for R (rows read as the fibre, sheet and normal, or the
+  global-to-material rotation used as material-to-global; also what a column-major reader
+  of the row-major file gets);
+- ``frame-global``: one frame for the whole mesh, the first cell's (the material axes held
+  fixed in space instead of following the field: an engine that reads frame.f64 as one
+  (3, 3) rotation);
+- ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
+  hypothesis per order of the three columns.
+
+Two mistakes that predict the same force and stiffness cannot be told apart (for an energy of
+I4 and I5, which sees only the fibre column, two column orders with the same first column):
+only the first of them is kept.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from dataclasses import dataclass
+from typing import Any, List, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
+
+from common.tolerances import mean_edge_length
+from conformance.judge.compare import Scales, scales
+from conformance.kit.spec import CaseInput
+
+__all__ = ["FrameVariant", "frame_models", "frame_variants"]
+
+_COLUMNS = ("fibre", "sheet", "normal")
+
+#: Two variants whose force and stiffness differ by less than this (relative) are the same
+#: prediction: round-off of one oracle, far below any frame mistake (1e-3 or more).
+_SAME_PREDICTION = 1e-12
+
+
+@dataclass(frozen=True)
+class FrameVariant:
+    """The oracle with a mistaken frame, at the case's positions.
+
+    code, title: the mistake; force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]: the variant
+    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`).
+    """
+
+    code: str
+    title: str
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+    scales: Scales
+
+
+def _frame_of(model: Any) -> "np.ndarray | None":
+    """The model's frame (3, 3) or (m, 3, 3), or None (no frame, or a model without one)."""
+    frame = getattr(model, "frame", None)
+    return None if frame is None else np.asarray(frame, dtype=np.float64)
+
+
+def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
+    """(code, title, model with the mistaken frame) for each frame mistake that differs from the
+    model's own frame; empty for a model without a frame or with the identity.
+    """
+    R = _frame_of(model)
+    if R is None:
+        return []
+    eye = np.eye(3)
+    candidates = [
+        ("frame-ignored", "fibre frame ignored: global x, y, z used as fibre, sheet, normal", eye),
+        (
+            "frame-transposed",
+            "fibre frame transposed: R^T used for R (rows read as fibre, sheet, normal)",
+            np.ascontiguousarray(np.swapaxes(R, -1, -2)),
+        ),
+        (
+            "frame-global",
+            "one frame for the whole mesh (the first cell's), not each cell's frame",
+            R[0] if R.ndim == 3 else R,
+        ),
+    ]
+    for order in itertools.permutations(range(3)):
+        if order != (0, 1, 2):
+            used = ", ".join(_COLUMNS[k] for k in order)
+            title = (
+                f"frame columns in another order: the {used} columns used as fibre, sheet, normal"
+            )
+            candidates.append(("frame-columns", title, np.ascontiguousarray(R[..., list(order)])))
+    out = []
+    for code, title, variant in candidates:
+        if np.array_equal(np.broadcast_to(variant, R.shape), R):
+            continue  # the same frame as the model's: no mistake to tell apart
+        out.append((code, title, dataclasses.replace(model, frame=variant)))
+    return out
+
+
+def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
+    """The oracle at ``case.positions`` for each frame mistake of the case's model.
+
+    cache: a :class:`conformance.judge.oracle.OracleCache` (one oracle per variant frame, reused
+    across the states and probes of the same mesh). Raises what the oracle raises.
+    """
+    h = mean_edge_length(case.points, case.cells)
+    out: List[FrameVariant] = []
+    for code, title, model in frame_models(case.model):
+        variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
+        ref = cache.reference(variant)
+        if any(_same_prediction(v, ref.force, ref.stiffness) for v in out):
+            continue
+        out.append(
+            FrameVariant(
+                code,
+                title,
+                ref.force,
+                ref.stiffness,
+                scales(h, ref.energy, ref.force, ref.stiffness),
+            )
+        )
+    return out
+
+
+def _same_prediction(v: FrameVariant, f: np.ndarray, K: sp.spmatrix) -> bool:
+    """True when force f (n, 3) and stiffness K (3n, 3n) equal the variant's to round-off."""
+    df = float(np.linalg.norm(f - v.force)) / max(v.scales.force, 1e-300)
+    dK = float(sparse_norm(sp.csr_matrix(K) - v.stiffness)) / max(v.scales.stiffness, 1e-300)
+    return max(df, dK) <= _SAME_PREDICTION

@@ -1,0 +1,147 @@
+"""The oracle's values for a case: energy, force and stiffness from the UFL oracle, and the parts of
+its stiffness for the diagnosis. One oracle per (mesh, model), reused across states and probes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from typing import Any, Dict, Sequence, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.judge.compare import Scales, Tolerances
+from conformance.judge.consistency import ReferenceProbes
+from conformance.judge.energy import energy_density
+from conformance.judge.parts import PartsOracle
+from conformance.judge.precision import sensitivity_of, single_tolerances
+from conformance.kit.spec import CaseInput, model_frame, model_to_manifest
+
+__all__ = ["Reference", "OracleCache", "energy_density", "oracle_available"]
+
+
+def oracle_available() -> bool:
+    from reference_fem import dolfinx_available
+
+    return dolfinx_available()
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]."""
+
+    energy: float
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+
+
+def _key(case: CaseInput) -> Tuple[str, str]:
+    h = hashlib.sha256()
+    for a in (case.points, case.cells):
+        h.update(np.ascontiguousarray(a).tobytes())
+    frame = model_frame(case.model)
+    model = json.dumps(model_to_manifest(case.model), sort_keys=True)
+    if frame is not None:
+        model += hashlib.sha256(np.ascontiguousarray(frame).tobytes()).hexdigest()
+    return h.hexdigest(), model
+
+
+class OracleCache:
+    """UFL oracles and stiffness-part oracles, built once per (mesh, model)."""
+
+    def __init__(self) -> None:
+        self._oracles: Dict[Tuple[str, ...], Any] = {}
+        self._parts: Dict[Tuple[str, str], Any] = {}
+
+    def reference(self, case: CaseInput) -> Reference:
+        key = _key(case)
+        if key not in self._oracles:
+            from reference_fem import UFLOracle
+            from reference_fem.user_energy import UserEnergy
+
+            if isinstance(case.model, UserEnergy):
+                # a user energy's symbolic work is unbounded by its length: compile it first
+                # in a child with a time and memory budget (SymbolicBudgetError, a ValueError)
+                from reference_fem.symbolic_budget import check_symbolic_budget
+
+                check_symbolic_budget(case.model)
+            self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
+        oracle = self._oracles[key]
+        f, K = oracle.force_and_stiffness(case.positions)
+        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
+        """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
+        the diagnosis builds: one term of the energy, a mistaken kinematic); ``key`` names it
+        (one oracle per (mesh, key), reused across states).
+        """
+        k = (*_key(case), "variant:" + key)
+        if k not in self._oracles:
+            from reference_fem import UFLOracle
+
+            self._oracles[k] = UFLOracle(case.points, case.cells, model)
+        oracle = self._oracles[k]
+        f, K = oracle.force_and_stiffness(case.positions)
+        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def column_derivatives(
+        self, case: CaseInput, step: np.ndarray
+    ) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
+        """(G1, G2), each (3n, 3n): column j is the first (second) derivative of the oracle's K
+        column j along dof j, by central differences of step ``step[j]`` [m] (6n oracle
+        stiffness assemblies: small meshes only).
+        """
+        self.reference(case)  # builds the oracle if needed
+        oracle = self._oracles[_key(case)]
+        x = np.asarray(case.positions, dtype=np.float64).ravel()
+        K0 = sp.csc_matrix(oracle.stiffness(case.positions))
+        first, second = [], []
+        for j in range(x.size):
+            cols = []
+            for sign in (1.0, -1.0):
+                y = x.copy()
+                y[j] += sign * step[j]
+                cols.append(sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))[:, j])
+            first.append((cols[0] - cols[1]) / (2.0 * step[j]))
+            second.append((cols[0] - 2.0 * K0[:, j] + cols[1]) / step[j] ** 2)
+        return sp.hstack(first).tocsr(), sp.hstack(second).tocsr()
+
+    def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
+        """The case's tolerances at single precision (:mod:`conformance.judge.precision`), measured
+        by the oracle on the case's coordinates carrying float32 round-off (one more oracle, on the
+        perturbed mesh, not kept).
+        """
+        from reference_fem import UFLOracle
+
+        def evaluate(points: np.ndarray, positions: np.ndarray):
+            oracle = UFLOracle(points, case.cells, case.model)
+            f, K = oracle.force_and_stiffness(positions)
+            return float(oracle.energy(positions)), f, sp.csr_matrix(K)
+
+        sens = sensitivity_of(
+            evaluate, case.points, case.positions, (ref.energy, ref.force, ref.stiffness), s
+        )
+        return single_tolerances(sens)
+
+    def probes(
+        self, case: CaseInput, ref: Reference, probes: Sequence[CaseInput]
+    ) -> ReferenceProbes:
+        """The oracle's force and energy at the probes of ``case`` (same mesh and model), with
+        ``ref`` at the base state: what calibrates the engine's self-consistency test.
+
+        Raises:
+            ValueError: the oracle cannot evaluate a probe (e.g. a user energy not finite there).
+        """
+        oracle = self._oracles[_key(case)]
+        forces = tuple(np.asarray(oracle.force(p.positions)) for p in probes)
+        energies = tuple(float(oracle.energy(p.positions)) for p in probes)
+        return ReferenceProbes(ref.force, ref.stiffness, ref.energy, forces, energies)
+
+    def parts(self, case: CaseInput):
+        """:class:`conformance.judge.parts.StiffnessParts` at the case's positions."""
+        key = _key(case)
+        if key not in self._parts:
+            self._parts[key] = PartsOracle(case.points, case.cells, case.model)
+        return self._parts[key].parts(case.positions)

@@ -1,0 +1,270 @@
+#!/usr/bin/env python3
+"""Run the held-out corpus of mistaken engines through `mjed-verify check` and score the diagnosis.
+
+    python tests/heldout_mistakes/run_corpus.py [--out DIR] [--states S] [--jobs N] [ENGINE ...]
+
+For each material of the manifest a kit is exported once (`mjed-verify export`, mesh cube-small,
+states uniaxial and random by default, with probes); each engine is then checked against its
+material's kit with `mjed-verify check KIT --command 'python ENGINE {input} {output}' --json`.
+
+Scores, per engine (from the check's results.json):
+
+- correct engines (family "correct"): "pass" when every case passes (at single precision for
+  the float32 control), else "FAIL";
+- mistaken engines: "PASSED" (the worst outcome: a mistake let through) when every case passes;
+  otherwise each failing case's *named cause* is the diagnosis' headline, its first finding,
+  unless that is "unexplained" or a mere observation (a consistency figure). A case is
+  "named" when that cause's title or evidence contains one of the manifest's `match` keywords
+  (case-insensitive; "a&b" needs both), "wrongly named" when it names another cause, and
+  "unexplained" when it names none. The engine is "wrongly named" if any failing case is,
+  "named" if every failing case is named, else "unexplained" (the table shows how many of its
+  failing cases were named).
+
+Prints a table and writes OUT/summary.json. Exit code 0 unless a correct engine fails or a
+mistaken engine passes (the diagnosis' naming rate is reported, not enforced).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+
+try:
+    import tomllib
+except ImportError:  # Python < 3.11
+    import tomli as tomllib
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+MESH = "cube-small"
+STATES = "uniaxial,random"
+# headline findings that observe rather than explain
+NOT_A_CAUSE_STRENGTHS = {"observed"}
+NOT_A_CAUSE_CODES = {"unexplained"}
+
+
+def mjed_verify() -> list:
+    exe = Path(sys.executable).with_name("mjed-verify")
+    if exe.exists():
+        return [str(exe)]
+    found = shutil.which("mjed-verify")
+    if found:
+        return [found]
+    return [sys.executable, "-m", "mjed.cli"]
+
+
+def load_manifest(path: Path = HERE / "manifest.toml") -> list:
+    return tomllib.loads(path.read_text())["engine"]
+
+
+def kit_key(entry: dict) -> tuple:
+    """(material, precision): an engine declaring float32 gets a kit exported --precision single."""
+    return entry["material"], entry.get("precision", "double")
+
+
+def export_kits(keys, out: Path, states: str) -> dict:
+    kits = {}
+    for material, precision in sorted(set(keys)):
+        kit = out / "kits" / (material if precision == "double" else f"{material}-{precision}")
+        if kit.exists():
+            shutil.rmtree(kit)
+        cmd = mjed_verify() + ["export", str(kit), "--material", material, "--mesh", MESH]
+        cmd += ["--states", states, "--precision", precision]
+        subprocess.run(cmd, check=True, cwd=ROOT, capture_output=True, text=True)
+        kits[material, precision] = kit
+    return kits
+
+
+def run_engine(entry: dict, kit: Path, out: Path, timeout: int = 120) -> dict:
+    name = Path(entry["file"]).stem
+    report_json = out / "json" / f"{name}.json"
+    report_json.parent.mkdir(parents=True, exist_ok=True)
+    engine = HERE / entry["file"]
+    command = f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
+    cmd = mjed_verify() + [
+        "check",
+        str(kit),
+        "--command",
+        command,
+        "--timeout",
+        str(timeout),
+        "--out",
+        str(out / "reports" / name),
+        "--json",
+        str(report_json),
+        "--quiet",
+    ]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    seconds = time.monotonic() - t0
+    results = json.loads(report_json.read_text()) if report_json.exists() else None
+    return score(
+        entry, results, proc.returncode, seconds, proc.stdout[-2000:] + proc.stderr[-2000:]
+    )
+
+
+def keyword_match(text: str, keywords) -> bool:
+    text = text.lower()
+    return any(all(part.strip().lower() in text for part in kw.split("&")) for kw in keywords)
+
+
+def named_cause(case: dict):
+    """The diagnosis' headline: its first finding, unless that says "unexplained" or is only an
+    observation (a consistency figure). A headline that "partly explains" still names a cause
+    (the finite-difference finding is always reported so, no correction making it exact).
+    """
+    findings = case.get("findings", [])
+    if not findings:
+        return None
+    first = findings[0]
+    if first.get("code") in NOT_A_CAUSE_CODES or first.get("strength") in NOT_A_CAUSE_STRENGTHS:
+        return None
+    return first
+
+
+def score(entry: dict, results, rc: int, seconds: float, tail: str) -> dict:
+    row = {
+        "engine": entry["file"],
+        "material": entry["material"],
+        "family": entry["family"],
+        "tag": entry["tag"],
+        "exit_code": rc,
+        "seconds": round(seconds, 1),
+        "cases": [],
+    }
+    if results is None:
+        row.update(
+            verdict="no results",
+            score="FAIL" if entry["family"] == "correct" else "error",
+            cause="",
+            detail=tail,
+        )
+        return row
+    cases = results.get("cases", [])
+    passed = [
+        c
+        for c in cases
+        if str(c.get("verdict", "")).startswith("passed") or c.get("status") == "passed"
+    ]
+    failing = [c for c in cases if c not in passed]
+    row["verdict"] = f"{len(passed)}/{len(cases)} passed"
+    per_case = []
+    for c in cases:
+        cause = named_cause(c) if c in failing else None
+        if c in passed:
+            s = "passed"
+        elif cause is None:
+            s = "unexplained"
+        else:
+            text = " ".join(str(cause.get(k, "")) for k in ("code", "title", "evidence"))
+            s = "named" if keyword_match(text, entry["match"]) else "wrongly named"
+        per_case.append(
+            {
+                "case": c["case"],
+                "status": c.get("status"),
+                "verdict": c.get("verdict"),
+                "errors": c.get("errors"),
+                "score": s,
+                "cause_code": cause.get("code") if cause else "unexplained",
+                "cause": (cause.get("title") if cause else "unexplained"),
+                "strength": cause.get("strength") if cause else "",
+                "findings": [(f.get("code"), f.get("strength")) for f in c.get("findings", [])],
+            }
+        )
+    row["cases"] = per_case
+    first = next((pc for pc in per_case if pc["score"] != "passed"), None)
+    row["cause"] = f"{first['cause_code']}: {first['cause']} ({first['strength']})" if first else ""
+    if entry["family"] == "correct":
+        row["score"] = "pass" if cases and not failing and rc == 0 else "FAIL"
+    elif not failing:
+        row["score"] = "PASSED"
+    else:
+        scores = [pc["score"] for pc in per_case if pc["score"] != "passed"]
+        n_named = scores.count("named")
+        if "wrongly named" in scores:
+            row["score"] = "wrongly named"
+        elif n_named == len(scores):
+            row["score"] = "named"
+        else:
+            row["score"] = "unexplained"
+        row["named_cases"] = f"{n_named}/{len(scores)}"
+    return row
+
+
+def run_corpus(out: Path, states: str = STATES, only=(), jobs: int = 1, entries=None) -> dict:
+    entries = entries if entries is not None else load_manifest()
+    if only:
+        wanted = {Path(o).name for o in only} | {Path(o).stem for o in only}
+        entries = [e for e in entries if e["file"] in wanted or Path(e["file"]).stem in wanted]
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.monotonic()
+    kits = export_kits([kit_key(e) for e in entries], out, states)
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        rows = list(pool.map(lambda e: run_engine(e, kits[kit_key(e)], out), entries))
+    mistakes = [r for r in rows if r["family"] != "correct"]
+    counts = {
+        k: sum(r["score"] == k for r in mistakes)
+        for k in ("named", "wrongly named", "unexplained", "PASSED", "error")
+    }
+    controls = {r["engine"]: r["score"] for r in rows if r["family"] == "correct"}
+    summary = {
+        "mesh": MESH,
+        "states": states,
+        "engines": len(rows),
+        "mistakes": len(mistakes),
+        "counts": counts,
+        "controls": controls,
+        "seconds": round(time.monotonic() - t0, 1),
+        "rows": rows,
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def print_table(summary: dict) -> None:
+    rows = summary["rows"]
+    w = max(len(r["engine"]) for r in rows)
+    head = f"{'engine':<{w}}  {'family':<17} {'verdict':<12} {'score':<14} {'named':<6}"
+    print(head + " first named cause (strength)")
+    for r in rows:
+        print(
+            f"{r['engine']:<{w}}  {r['family']:<17} {r.get('verdict', ''):<12} {r['score']:<14} "
+            f"{r.get('named_cases', ''):<6} {r.get('cause', '')[:110]}"
+        )
+    c = summary["counts"]
+    print(
+        f"\n{summary['mistakes']} mistakes: {c['named']} named, "
+        f"{c['wrongly named']} wrongly named, {c['unexplained']} unexplained, "
+        f"{c['PASSED']} passed (missed), {c['error']} errors; "
+        f"controls: {summary['controls']}; {summary['seconds']} s"
+    )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("engines", nargs="*", help="engine files or names (default: all)")
+    ap.add_argument("--out", type=Path, default=ROOT / "reports" / "heldout_mistakes")
+    ap.add_argument("--states", default=STATES)
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    args = ap.parse_args(argv)
+    summary = run_corpus(args.out, args.states, args.engines, args.jobs)
+    print_table(summary)
+    print(f"summary: {args.out / 'summary.json'}")
+    bad = (
+        summary["counts"]["PASSED"]
+        + summary["counts"]["error"]
+        + sum(v != "pass" for v in summary["controls"].values())
+    )
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
