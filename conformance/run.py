@@ -164,6 +164,7 @@ def _run_check(
     """
     cache = OracleCache() if cache is None else cache
     run = CheckRun(input_errors=dict(input_errors or {}))
+    kept_terms: Dict[str, list] = {}  # model -> [(outcome index, labels, TermCase)]
     for case, probes in primary_and_probes(cases):
         t0 = time.perf_counter()
         ci = case.input
@@ -247,7 +248,18 @@ def _run_check(
             and not diag.tolerances.within(diag.errors, energy=False)
         )
         if unexplained:
-            diag = readings.read(diag, cache, ci, out, ref, s)
+            model_key = _model_name(ci.model)
+            diag = readings.read(
+                diag,
+                cache,
+                ci,
+                out,
+                ref,
+                s,
+                keep_terms=lambda tc, k=model_key: kept_terms.setdefault(k, []).append(
+                    (len(run.outcomes), *tc)
+                ),
+            )
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
@@ -292,7 +304,26 @@ def _run_check(
         )
         if on_case is not None:
             on_case(case, out, ref, diag)
+    _kit_term_fit(run, kept_terms)
     return run
+
+
+def _kit_term_fit(run: CheckRun, kept: Dict[str, list]) -> None:
+    """The term fit over all failed cases of one model in the kit: where a case alone could not
+    tell its terms apart (or nothing explained it), and the fit over the kit agrees on every one
+    of them, its reading is given to each (:func:`conformance.diagnosis.readings.kit_term_reading`).
+    """
+    for entries in kept.values():
+        if len(entries) < 2:
+            continue
+        idx = [i for i, *_ in entries]
+        found = readings.kit_term_reading(
+            [o.diagnosis for o in (run.outcomes[i] for i in idx)], entries
+        )
+        if found is None:
+            continue
+        for i, diag in zip(idx, found):
+            run.outcomes[i] = replace(run.outcomes[i], diagnosis=diag)
 
 
 #: Largest mesh (nodes) on which a finite-difference tangent is looked for: 3n oracle assemblies.

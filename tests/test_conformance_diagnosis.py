@@ -203,3 +203,50 @@ def test_two_distinct_readings_are_both_shown_as_ambiguous():
     lead, a, b = merge_readings([reading("a", 1.0), reading("b", 1.0 + 1e-6)], s)
     assert lead.code == "ambiguous" and lead.figures["codes"] == ["a", "b"]
     assert a.title.startswith("(ambiguous)") and b.title.startswith("(ambiguous)")
+
+
+def test_the_kit_fit_separates_what_one_case_cannot():
+    """Case A cannot tell its last two terms apart (the same force and stiffness); case B can.
+    The fit over both names the third term, tripled, and gives the reading to both cases.
+    """
+    from dataclasses import dataclass, field
+
+    import mjed
+    from conformance.diagnosis.findings import OBSERVED, Finding
+    from conformance.diagnosis.readings import kit_term_reading, term_reading
+    from conformance.diagnosis.term_fit import TermCase
+
+    M = mjed.materials
+    P, Q, R = (
+        _mjed(M.NeoHookean(mu=1000.0, lam=5000.0)),
+        _mjed(M.MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)),
+        _mjed(M.StVenantKirchhoff(mu=3000.0, lam=9000.0)),
+    )
+
+    def case(terms, coefficients):
+        f = sum(c * t[0] for c, t in zip(coefficients, terms))
+        K = sum(c * t[1] for c, t in zip(coefficients, terms))
+        fs, Ks = float(np.linalg.norm(f)), float(sp.linalg.norm(K))
+        return TermCase([t[0] for t in terms], [t[1] for t in terms], f, K, fs, Ks, 1e-10, 1e-10)
+
+    labels = [("a",), ("b",), ("c",)]
+    params = {"a": 1.0, "b": 2.0, "c": 5.0}
+    A, B = case([P, Q, Q], (1, 1, 3)), case([P, Q, R], (1, 1, 3))
+    alone = term_reading(labels, [A], params, 1.0)
+    assert alone.finding.code == "term-coefficients-ambiguous"
+
+    @dataclass(frozen=True)
+    class D:
+        findings: list = field(default_factory=list)
+
+        @property
+        def causes(self):
+            return [f for f in self.findings if f.strength == "explains"]
+
+    diagnoses = [D([alone.finding]), D([Finding("unexplained", "unexplained", OBSERVED, "")])]
+    entries = [(0, labels, A, params), (1, labels, B, params)]
+    a, b = kit_term_reading(diagnoses, entries)
+    for d in (a, b):
+        (first,) = d.findings
+        assert first.code == "term-coefficients" and first.figures["cases"] == 2
+        assert "the c term tripled" in first.title or "c: its terms tripled" in first.title

@@ -2,8 +2,8 @@
 energies, once no correction of the output explains a failure:
 
 1. the energy's terms with other coefficients (:mod:`conformance.diagnosis.term_fit`);
-2. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`);
-3. a rewritten formula (:mod:`conformance.diagnosis.variants`).
+2. a rewritten formula (:mod:`conformance.diagnosis.variants`);
+3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`).
 
 Every hypothesis is tried (none stops the others), and a cause is named only when it brings the
 engine's force and stiffness within the case's tolerance. Readings that predict the same force
@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["Reading", "read", "term_case", "merge_readings"]
+__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading"]
 
 #: Two predictions closer than this (relative, force and stiffness) are the same reading.
 _SAME = 1e-9
@@ -287,7 +287,8 @@ def read(
 ):
     """``diag`` (a failed case that nothing explained) with what the energy hypotheses find:
     named causes first (the 'unexplained' finding dropped), a partial reading otherwise.
-    keep_terms(labels_and_case) receives the case's term system, for a fit over the kit.
+    keep_terms((labels, TermCase, parameters)) receives the case's term system, for a fit over
+    the kit (:func:`kit_term_reading`).
     """
     tol = diag.tolerances
     worst = max(diag.errors.force, diag.errors.stiffness)
@@ -298,7 +299,7 @@ def read(
     if tc is not None:
         labels, case = tc
         if keep_terms is not None:
-            keep_terms(tc)
+            keep_terms((*tc, _params(ci.model)))
         r = term_reading(labels, [case], _params(ci.model), worst)
         if r is not None:
             bucket = {FULL: full, PARTIAL: None, OBSERVED: None}[r.finding.strength]
@@ -308,8 +309,10 @@ def read(
                 partial.append(r.finding)
             else:
                 observed.append(r.finding)
-    full += _kinematic_readings(cache, ci, out, s, tol)
+    # The rewritten formulas first: where a kinematic variant is the same energy, the formula
+    # says it exactly (W' = ...) and the kinematic reading follows as "equivalently".
     full += _formula_readings(cache, ci, out, s, tol)
+    full += _kinematic_readings(cache, ci, out, s, tol)
     if not full and not partial and not observed:
         return diag
     causes = merge_readings(full, s)
@@ -317,3 +320,38 @@ def read(
     if causes:
         return replace(diag, findings=[*causes, *observed, *rest])
     return replace(diag, findings=[*observed, *partial, *rest])
+
+
+def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
+    """The term fit over several failed cases of one model (``entries``: (index, labels,
+    TermCase, parameters) as :func:`read` kept them; ``diagnoses``: the cases' diagnoses, in
+    that order). Only for cases that no cause explains on their own, or whose terms they could
+    not tell apart; returns their new diagnoses (None when the fit over the kit does not agree
+    or names nothing).
+    """
+    open_ = [
+        j
+        for j, d in enumerate(diagnoses)
+        if not d.causes or any(f.code == "term-coefficients-ambiguous" for f in d.findings)
+    ]
+    if not open_ or len(entries) < 2:
+        return None
+    labels = entries[0][1]
+    if any(e[1] != labels for e in entries):
+        return None
+    cases = [e[2] for e in entries]
+    r = term_reading(labels, cases, entries[0][3], float("inf"), "the kit's failed cases")
+    if r is None or r.finding.strength != FULL:
+        return None
+    out = []
+    for j, d in enumerate(diagnoses):
+        if j not in open_:
+            out.append(d)
+            continue
+        rest = [
+            f
+            for f in d.findings
+            if f.code not in ("unexplained", "term-coefficients-ambiguous", "systematic-small")
+        ]
+        out.append(replace(d, findings=[r.finding, *rest]))
+    return out
