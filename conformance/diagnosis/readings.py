@@ -313,13 +313,20 @@ def read(
     # says it exactly (W' = ...) and the kinematic reading follows as "equivalently".
     full += _formula_readings(cache, ci, out, s, tol)
     full += _kinematic_readings(cache, ci, out, s, tol)
-    if not full and not partial and not observed:
-        return diag
     causes = merge_readings(full, s)
-    rest = [f for f in diag.findings if not (causes and f.code == "unexplained")]
     if causes:
+        rest = [f for f in diag.findings if f.code != "unexplained"]
         return replace(diag, findings=[*causes, *observed, *rest])
-    return replace(diag, findings=[*observed, *partial, *rest])
+    tried = (
+        "; nor the energy's terms refitted"
+        + ("" if tc is not None else " (no formula to split)")
+        + ", its kinematic variants or its rewritten formulas (evaluated by the oracle)"
+    )
+    head = [
+        replace(f, evidence=f.evidence + tried) for f in diag.findings if f.code == "unexplained"
+    ]
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*head, *observed, *partial, *rest])
 
 
 def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
