@@ -102,3 +102,12 @@ def parse_reproduce(line: str) -> dict:
     words = shlex.split(line, comments=True)
     assert words[0] == "mjed-verify", line
     return vars(build_parser().parse_args(words[1:]))
+
+
+def pytest_report_header(config):
+    """One loud line when SOFA's engine program is missing: its checks are then skipped."""
+    from conformance.adapters.sofa import find_program, how_to_build
+
+    if find_program() is None:
+        return f"SOFA checks SKIPPED: {how_to_build()}"
+    return f"SOFA checks: engine program {find_program()}"

@@ -157,7 +157,15 @@ def test_the_checks_find_a_planted_upward_import_and_cycle(tmp_path):
 #: Inside the applications, one package per study and one per stage of a check. A study uses
 #: only itself and what the application shares (``comparisons.provenance``); the report and the
 #: command line above them gather the studies.
-STUDIES = ("equivalence", "timing", "regularization", "rheometer", "liver", "cross_release")
+STUDIES = (
+    "equivalence",
+    "timing",
+    "regularization",
+    "rheometer",
+    "liver",
+    "cross_release",
+    "sofa",
+)
 #: The stages of a check and what each may import of the others. The diagnosis reads the
 #: judge's figures and never runs an engine (``conformance.engine``) or the check runner
 #: (``conformance.run``); nothing below the top (``run``, ``protocol``, ``report``, ``corpus``,

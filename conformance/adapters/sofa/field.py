@@ -4,10 +4,10 @@
 project's conventions (f = -dPi/dx (n, 3), K = d2Pi/dx2 CSR, dof 3 node + component), each call
 one run of the engine program on a case folder it writes itself. The time of a run is mostly
 SOFA starting and building its scene, so SOFA's own calls are timed inside the program:
-``self_timed(x, calls)`` returns the median seconds of ``addForce`` and of ``addForce`` plus
-``addKToMatrix`` (as an implicit solver with an assembled matrix calls them) and of one
-``addDForce`` (what a CG iteration calls), measured by ``std::chrono::steady_clock`` around the
-C++ calls, one thread.
+``self_timed(x, calls)`` returns the median seconds of ``addForce`` as an explicit solver calls
+it, of ``addForce`` plus ``addKToMatrix`` as an implicit solver with an assembled matrix calls
+them, and of one ``addDForce`` (what a CG iteration calls), measured by
+``std::chrono::steady_clock`` around the C++ calls, one thread.
 """
 
 from __future__ import annotations
@@ -108,7 +108,8 @@ class SofaField:
 
     def self_timed(self, x: np.ndarray, calls: int) -> Dict[str, float]:
         """Median seconds per call over ``calls`` repetitions inside SOFA's process:
-        ``force`` (addForce), ``force+stiffness`` (addForce then addKToMatrix) and
+        ``force`` (explicit addForce), ``force+stiffness`` (implicit addForce then
+        addKToMatrix) and
         ``dforce`` (one addDForce).
         """
         with tempfile.TemporaryDirectory(prefix="mjed-sofa-time-") as tmp:
@@ -118,7 +119,7 @@ class SofaField:
                 t = json.loads(timing.read_text())
         return {
             "force": t["add_force_s"],
-            "force+stiffness": t["add_force_s"] + t["add_k_to_matrix_s"],
+            "force+stiffness": t["implicit_add_force_and_k_to_matrix_s"],
             "dforce": t["add_dforce_s"],
         }
 

@@ -15,8 +15,10 @@
 // stiffness K = d2Pi/dx2 as COO triplets, exactly as SOFA's 3-argument addKToMatrix emits
 // them with kFactor = -1 (SOFA's matrix is kFactor * df/dx and df/dx = -K). Nothing is
 // symmetrised, summed or corrected here: what the checker judges is SOFA's output.
-// With --time N it also times N repetitions of addForce, of addKToMatrix (which rebuilds the
-// tangent after each addForce) and of addDForce, one thread, and writes their medians.
+// With --time N it also times N repetitions of an explicit addForce, of an implicit addForce
+// followed by addKToMatrix (force and assembled tangent, as an implicit solver with a direct
+// linear solver calls them) and of one addDForce (a CG iteration), one thread, and writes the
+// medians.
 
 #include <SofaMJEDFEM/config.h>  // before the plugin's header: it uses the export macro
 #include <SofaMJEDFEM/MJEDTetrahedralForceField.h>
@@ -250,9 +252,12 @@ void set_positions(Scene& s, const std::vector<double>& x)
         pos[a] = Coord(x[3 * a], x[3 * a + 1], x[3 * a + 2]);
 }
 
-VecDeriv force(Scene& s)
+// implicit: as an implicit solver calls it. SOFA's StandardTetrahedralFEMForceField builds its
+// tangent inside addForce only then, and addKToMatrix assembles what addForce left.
+VecDeriv force(Scene& s, bool implicit = true)
 {
     sofa::core::MechanicalParams mparams;
+    mparams.setImplicit(implicit);
     sofa::core::objectmodel::Data<VecDeriv> f;
     f.setValue(VecDeriv(s.state->getSize(), Vec3Types::Deriv()));
     s.forcefield->addForce(&mparams, f, *s.state->read(sofa::core::vec_id::read_access::position),
@@ -294,16 +299,17 @@ void time_calls(Scene& s, const Case& c, const Options& o)
     {
         set_positions(s, c.positions);
         auto t0 = clock::now();
-        force(s);  // also marks the tangent as out of date in all three force fields
+        force(s, false);  // an explicit solver's call: the force alone
         auto t1 = clock::now();
+        force(s, true);  // an implicit solver's: the force, and the tangent marked out of date
         k.clear();
-        stiffness(s, k);  // rebuilds the tangent, then assembles it
+        stiffness(s, k);  // (re)builds the tangent where it is lazy, then assembles it
         auto t2 = clock::now();
         df.setValue(VecDeriv(c.n_nodes, Vec3Types::Deriv()));
         s.forcefield->addDForce(&mparams, df, dx);
         auto t3 = clock::now();
         t_force.push_back(std::chrono::duration<double>(t1 - t0).count());
-        t_stiffness.push_back(std::chrono::duration<double>(t2 - t1).count());
+        t_stiffness.push_back(std::chrono::duration<double>(t2 - t1).count());  // f + K
         t_dforce.push_back(std::chrono::duration<double>(t3 - t2).count());
     }
     std::ofstream out(o.timing_json);
@@ -311,7 +317,7 @@ void time_calls(Scene& s, const Case& c, const Options& o)
     out << "{\"forcefield\": \"" << o.forcefield << "\", \"material\": \"" << o.material
         << "\", \"n_cells\": " << c.n_cells << ", \"n_nodes\": " << c.n_nodes
         << ", \"repeats\": " << o.repeats << ", \"add_force_s\": " << median(t_force)
-        << ", \"add_k_to_matrix_s\": " << median(t_stiffness)
+        << ", \"implicit_add_force_and_k_to_matrix_s\": " << median(t_stiffness)
         << ", \"add_dforce_s\": " << median(t_dforce) << "}\n";
     if (!out) throw Failure("cannot write " + o.timing_json);
 }
