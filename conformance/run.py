@@ -17,9 +17,11 @@ import numpy as np
 
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
+from conformance.diagnosis import readings
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -162,6 +164,7 @@ def _run_check(
     """
     cache = OracleCache() if cache is None else cache
     run = CheckRun(input_errors=dict(input_errors or {}))
+    kept_terms: Dict[str, list] = {}  # model -> [(outcome index, labels, TermCase)]
     for case, probes in primary_and_probes(cases):
         t0 = time.perf_counter()
         ci = case.input
@@ -245,7 +248,18 @@ def _run_check(
             and not diag.tolerances.within(diag.errors, energy=False)
         )
         if unexplained:
-            diag = _variant_reading(diag, cache, ci, out, s)
+            model_key = _model_name(ci.model)
+            diag = readings.read(
+                diag,
+                cache,
+                ci,
+                out,
+                ref,
+                s,
+                keep_terms=lambda tc, k=model_key: kept_terms.setdefault(k, []).append(
+                    (len(run.outcomes), *tc)
+                ),
+            )
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
@@ -255,7 +269,11 @@ def _run_check(
         inexact = nf == 0 or diag.errors.force * s.force >= U32 / 4 * nf
         if not single and unexplained and not diag.causes and inexact:
             tol32 = cache.single_precision(ci, ref, s)
-            if tol32.within(diag.errors):
+            sig = roundoff_signature(out.force, out.stiffness, ref.force, ref.stiffness)
+            if tol32.within(diag.errors) and not sig.float32_like:
+                # Small enough for float32, but not float32's signature: a systematic error.
+                diag = _systematic_reading(diag, sig, tol32)
+            elif tol32.within(diag.errors):
                 cons32 = (
                     _self_consistency(cache, ci, ref, out, probes, probe_results, True)
                     if probes and not probe_errors
@@ -270,7 +288,7 @@ def _run_check(
                     consistency=cons32,
                     tol=tol32,
                 )
-                diag = _single_precision_reading(diag, diag32)
+                diag = _single_precision_reading(diag, diag32, sig)
         status = diag.verdict
         message = ""
         if probe_errors:
@@ -286,44 +304,26 @@ def _run_check(
         )
         if on_case is not None:
             on_case(case, out, ref, diag)
+    _kit_term_fit(run, kept_terms)
     return run
 
 
-def _variant_reading(diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, s) -> Diagnosis:
-    """Nothing explained the failure: does the engine compute a variant of the energy
-    (:mod:`conformance.diagnosis.variants`)? Named first when one matches within the case's
-    tolerances.
+def _kit_term_fit(run: CheckRun, kept: Dict[str, list]) -> None:
+    """The term fit over all failed cases of one model in the kit: where a case alone could not
+    tell its terms apart (or nothing explained it), and the fit over the kit agrees on every one
+    of them, its reading is given to each (:func:`conformance.diagnosis.readings.kit_term_reading`).
     """
-    from conformance.diagnosis.variants import match_variant
-    from conformance.judge.compare import errors
-
-    def evaluate(model):
-        ref = cache.reference(replace(ci, model=model))
-        return ref.force, ref.stiffness
-
-    tol = diag.tolerances
-
-    def within(fv, Kv) -> bool:
-        return tol.within(errors(out.force, out.stiffness, None, fv, Kv, 0.0, s), energy=False)
-
-    found = match_variant(ci.model, out.force, out.stiffness, within, evaluate)
-    if found is None:
-        return diag
-    v, (fv, Kv) = found
-    e = errors(out.force, out.stiffness, None, fv, Kv, 0.0, s)
-    finding = Finding(
-        "energy-variant",
-        f"your engine matches W' = {v.expression}",
-        FULL,
-        f"{v.rewrite.words}: against that energy, differentiated by the oracle, "
-        f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
-        {
-            "variant": v.rewrite.code,
-            "expression": v.expression,
-            "residual": max(e.force, e.stiffness),
-        },
-    )
-    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
+    for entries in kept.values():
+        if len(entries) < 2:
+            continue
+        idx = [i for i, *_ in entries]
+        found = readings.kit_term_reading(
+            [o.diagnosis for o in (run.outcomes[i] for i in idx)], entries
+        )
+        if found is None:
+            continue
+        for i, diag in zip(idx, found):
+            run.outcomes[i] = replace(run.outcomes[i], diagnosis=diag)
 
 
 #: Largest mesh (nodes) on which a finite-difference tangent is looked for: 3n oracle assemblies.
@@ -333,34 +333,57 @@ FD_MAX_NODES = 400
 def _finite_difference_reading(
     diag: Diagnosis, cache: OracleCache, ci, out: EngineOutput, ref
 ) -> Diagnosis:
-    """The force is right and nothing explains the stiffness: is it forward differences of the
-    force? Its error is then (h / 2) x the derivative of each column along its own dof; the
-    fitted h is named when that accounts for nearly all of the error (99 %).
+    """The force is right and nothing explains the stiffness: is it differences of the force?
+    The scheme (forward, backward, central), the step rule (absolute, relative) and the step are
+    fitted (:func:`conformance.diagnosis.tangent.fit_finite_difference`) and named when they
+    account for nearly all of the error (99 %).
     """
     from conformance.diagnosis.tangent import fit_finite_difference
 
     if ci.n_nodes > FD_MAX_NODES:
         return diag
-    step = 1e-6 * np.repeat(probe_lengths(ci.points, ci.cells), 3)
-    G = cache.column_derivatives(ci, step)
-    fit = fit_finite_difference((out.stiffness - ref.stiffness).tocsr(), G, ref.stiffness)
-    if fit is None or fit.explained < 0.99 or fit.step <= 0:
+    step = 1e-3 * np.repeat(probe_lengths(ci.points, ci.cells), 3)
+    G1, G2 = cache.column_derivatives(ci, step)
+    D = (out.stiffness - ref.stiffness).tocsr()
+    fit = fit_finite_difference(D, G1, G2, ref.stiffness, ci.positions)
+    if fit is None or fit.explained < 0.99:
         return diag
     finding = Finding(
         "finite-difference",
-        "a finite-difference tangent: forward differences of the force "
-        f"with a step h = {fit.step:.2e} m",
+        f"a finite-difference tangent: {fit.words()}",
         PARTIAL,
-        f"K - K_oracle = (h/2) x the derivative of each column of K along its own dof, the leading "
-        f"error of -(f(x + h e_j) - f(x)) / h, accounts for {100 * fit.explained:.2f} % of the "
-        f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off of the "
-        "differences)",
-        {"step": fit.step, "explained": fit.explained, "residual": fit.residual},
+        f"K - K_oracle is the leading error of that scheme (the derivative of each column of K "
+        f"along its own dof, times the step), fitted with one unknown: it accounts for "
+        f"{100 * fit.explained:.2f} % of the stiffness error (left: {fit.residual:.1e}, the "
+        "higher orders and round-off of the differences); the force matches",
+        {
+            "step": fit.step,
+            "scheme": fit.scheme,
+            "rule": fit.rule,
+            "symmetrised": fit.symmetrised,
+            "explained": fit.explained,
+            "residual": fit.residual,
+        },
     )
     return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
-def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
+def _systematic_reading(diag: Diagnosis, sig, tol32) -> Diagnosis:
+    """The errors are as small as float32's, but they keep the balance laws: a systematic
+    mistake, said so (never float32 round-off); the other findings stand.
+    """
+    finding = Finding(
+        "systematic-small",
+        "a small systematic error, not float32 round-off",
+        OBSERVED,
+        f"force {diag.errors.force:.1e}, stiffness {diag.errors.stiffness:.1e} are below what "
+        f"float32 leaves on this case ({tol32.text()}), but {sig.text()}",
+        sig.to_dict(),
+    )
+    return replace(diag, findings=[*diag.findings, finding])
+
+
+def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis, sig=None) -> Diagnosis:
     """A case failed at double precision and ``diag32``, the same case judged as a float32
     engine's, passes: the failure is named as float32 round-off, first, with what the probes
     show at that precision; the double-precision verdict stands.
@@ -373,10 +396,15 @@ def _single_precision_reading(diag: Diagnosis, diag32: Diagnosis) -> Diagnosis:
         "the errors are single-precision (float32) round-off",
         FULL,
         f"force {e.force:.1e}, stiffness {e.stiffness:.1e} are within what float32 leaves on this "
-        f"case ({tol.text()}; {tol.basis}): an engine computing in float32 passes with "
-        "--precision single "
+        f"case ({tol.text()}; {tol.basis}), and "
+        + ("they look like float32's" if sig is None else sig.text())
+        + ": an engine computing in float32 passes with --precision single "
         '(or "precision": "single" in the kit, or .f32 output files)',
-        {"single_force_tol": tol.force, "single_stiffness_tol": tol.stiffness},
+        {
+            "single_force_tol": tol.force,
+            "single_stiffness_tol": tol.stiffness,
+            **({} if sig is None else sig.to_dict()),
+        },
     )
     return replace(diag, findings=[finding, *diag32.findings], consistency=diag32.consistency)
 

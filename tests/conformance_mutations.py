@@ -341,3 +341,213 @@ def broken_frame_engine(mutation: str):
         return exact(replace(case, model=wrong))
 
     return engine
+
+
+# -- Families of mistakes (issue 29) ---------------------------------------------------------------
+# Engines written without the diagnosis: MJED run with parameters read wrongly, MJED terms with
+# another power, or the project's declared energy handed to UFL with a mistaken kinematic (a type
+# registered here, its formula rewritten by hand). Each is checked on its own material; FAMILY
+# says the material, the engine and the finding code the diagnosis must name first.
+
+
+def _mjed_with(material_of):
+    """An engine (CaseInput -> (f, K, W)): MJED on the material ``material_of(case.model)``."""
+
+    def engine(case):
+        field = mjed.HyperelasticForceField(
+            mjed.TetMesh(case.points, case.cells), material_of(case.model)
+        )
+        f, K = field.force_and_stiffness(case.positions)
+        return f, K, field.energy(case.positions)
+
+    return engine
+
+
+class _OgdenTerms(mjed.materials.base.Material):
+    """Ogden's MJED terms with the power of J and of the eigenvalues of C chosen: J^(p) sum
+    lambda_i^(q) (Ogden: p = -alpha/3, q = alpha/2).
+    """
+
+    def __init__(self, m, p: float, q: float):
+        self.m, self.p, self.q = m, p, q
+
+    def decomposition(self):
+        from mjed.spectral import EigenPowerSum
+        from mjed.terms import JPower
+
+        c = self.m.mu / self.m.alpha**2
+        return (
+            TermGroup(
+                (
+                    Term(JPower(self.p), EigenPowerSum(c, self.q)),
+                    Term(LogPolynomial(0.5 * self.m.k0, 0.0, -3.0 * c), Unity()),
+                )
+            ),
+        )
+
+
+def _ufl_engine(make_model):
+    """An engine that hands ``make_model(case.model)`` to the UFL oracle (one per mesh)."""
+    from reference_fem import UFLOracle
+
+    oracles: dict = {}
+
+    def engine(case):
+        key = (case.points.tobytes(), case.cells.tobytes())
+        if key not in oracles:
+            oracles[key] = UFLOracle(case.points, case.cells, make_model(case.model))
+        o = oracles[key]
+        f, K = o.force_and_stiffness(case.positions)
+        return f, K, o.energy(case.positions)
+
+    return engine
+
+
+def _costa_rewritten(kind: str):
+    """Costa's declared energy with F^T for F ("transposed") or the frame pushed forward
+    ("deformed frame"), as a registered type of its own.
+    """
+    import ufl
+
+    from mjed.materials import Costa
+    from mjed.materials.declaration import declaration_of
+    from reference_fem.energies import declared_energy, register_energy
+
+    name = "_Costa_" + kind.replace(" ", "_")
+    cls = _REWRITTEN.get(name)
+    if cls is None:
+        cls = dataclass(frozen=True)(type(name, (Costa,), {}))
+        costa = declared_energy(declaration_of(Costa).energy)
+
+        def energy(p, F, frame):
+            if kind == "transposed":
+                return costa(p, F.T, frame)
+            FR = F * frame
+            cols = [ufl.sqrt(sum(FR[k, j] ** 2 for k in range(3))) for j in range(3)]
+            pushed = ufl.as_matrix([[FR[i, j] / cols[j] for j in range(3)] for i in range(3)])
+            return costa(p, F, pushed)
+
+        register_energy(cls, takes_frame=True)(energy)
+        _REWRITTEN[name] = cls
+    return lambda m: cls(**{f: getattr(m, f) for f in m.__dataclass_fields__})
+
+
+_REWRITTEN: dict = {}
+
+
+def _deformed_volume(m):
+    from reference_fem.user_energy import UserEnergy
+
+    return UserEnergy(
+        "J*(c1*(I1b - 3) + c2*(I2b - 3) + k0/2*ln(J)**2)", {"c1": m.c1, "c2": m.c2, "k0": m.k0}
+    )
+
+
+#: name -> (material name, engine, finding code named first).
+FAMILY: Dict[str, Tuple[str, Callable, str]] = {
+    "Mooney-Rivlin c1 and c2 exchanged": (
+        "MooneyRivlin",
+        _mjed_with(lambda m: replace(m, c1=m.c2, c2=m.c1)),
+        "term-coefficients",
+    ),
+    "St Venant-Kirchhoff lam and mu exchanged": (
+        "StVenantKirchhoff",
+        _mjed_with(lambda m: replace(m, lam=m.mu, mu=m.lam)),
+        "term-coefficients",
+    ),
+    "Neo-Hookean mu read in kPa": (
+        "NeoHookean",
+        _mjed_with(lambda m: replace(m, mu=1e3 * m.mu)),
+        "term-coefficients",
+    ),
+    "Mooney-Rivlin c2 term with the wrong sign": (
+        "MooneyRivlin",
+        _mjed_with(lambda m: replace(m, c2=-m.c2)),
+        "term-coefficients",
+    ),
+    "Yeoh c20 term dropped": (
+        "Yeoh",
+        _mjed_with(lambda m: replace(m, c20=0.0)),
+        "term-coefficients",
+    ),
+    # float64, an error of 6e-6: small enough for float32, and not float32
+    "Mooney-Rivlin c1 off by 6e-6 (float64)": (
+        "MooneyRivlin",
+        _mjed_with(lambda m: replace(m, c1=m.c1 * (1 + 6e-6))),
+        "term-coefficients",
+    ),
+    "Ogden with J^(-alpha/6)": (
+        "Ogden",
+        _mjed_with(lambda m: _OgdenTerms(m, -m.alpha / 6.0, m.alpha / 2.0)),
+        "kinematic-isochoric-power",
+    ),
+    "Ogden with the eigenvalues of C as stretches": (
+        "Ogden",
+        _mjed_with(lambda m: _OgdenTerms(m, -m.alpha / 3.0, m.alpha)),
+        "kinematic-stretch-squares",
+    ),
+    "Costa with F transposed": (
+        "Costa",
+        _ufl_engine(_costa_rewritten("transposed")),
+        "kinematic-C-B-confused",
+    ),
+    "Costa with the frame in the deformed configuration": (
+        "Costa",
+        _ufl_engine(_costa_rewritten("deformed frame")),
+        "kinematic-frame-deformed",
+    ),
+    "Mooney-Rivlin over the deformed volume": (
+        "MooneyRivlin",
+        _ufl_engine(_deformed_volume),
+        "kinematic-deformed-volume",
+    ),
+    # float64, 2/3 written as 0.666667: systematic, small, not explained: never float32
+    "Mooney-Rivlin J^(-0.666667) (float64)": (
+        "MooneyRivlin",
+        _mjed_with(lambda m: _MooneyRivlinPowers(m, -0.666667)),
+        "systematic-small",
+    ),
+}
+
+
+def _difference_tangent(scheme: str, eps: float):
+    """MJED's force, and K from differences of it: "central" with a step h = eps [m],
+    "forward" with a relative step h_j = eps |x_j| (eps where x_j = 0).
+    """
+
+    def engine(case):
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+        f = field.force(case.positions)
+        x = case.positions.ravel()
+        cols = []
+        for j in range(x.size):
+            h = eps if scheme == "central" or x[j] == 0 else eps * abs(x[j])
+            y = x.copy()
+            y[j] += h
+            fp = field.force(y.reshape(-1, 3)).ravel()
+            if scheme == "central":
+                y[j] -= 2 * h
+                fm = field.force(y.reshape(-1, 3)).ravel()
+                col = -(fp - fm) / (2 * h)
+            else:
+                col = -(fp - f.ravel()) / h
+            cols.append(sp.csc_matrix(col).T)
+        return f, sp.hstack(cols).tocsr(), field.energy(case.positions)
+
+    return engine
+
+
+FAMILY.update(
+    {
+        "central differences, absolute step": (
+            "NeoHookean",
+            _difference_tangent("central", 1e-4),
+            "finite-difference",
+        ),
+        "forward differences, relative step": (
+            "Ogden",
+            _difference_tangent("forward", 1e-6),
+            "finite-difference",
+        ),
+    }
+)

@@ -130,3 +130,123 @@ def test_nothing_claimed_for_noise():
     f = f_o + np.random.default_rng(9).standard_normal(f_o.shape) * 1e-3
     d = _diagnose_synthetic(points, cells, f, K_o, f_o, K_o)
     assert not d.causes and d.findings[0].code == "unexplained"
+
+
+# ---------------------------------------------------------------- issue 29: never a wrong cause
+def _mjed(material, seed=0):
+    """MJED's (f, K) on a jittered box at a random deformation, for the given material."""
+    import mjed
+
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    x = points + 0.05 * np.random.default_rng(seed).standard_normal(points.shape)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), material)
+    f, K = field.force_and_stiffness(x)
+    return f, sp.csr_matrix(K)
+
+
+def test_float32_signature_tells_rounding_from_a_small_systematic_error():
+    """A float64 engine with a parameter off by 6e-6 keeps the balance of the forces and of K's
+    rows (its error comes from an energy); the same output rounded to float32 breaks it as float32
+    rounding does. Only the latter may be called float32.
+    """
+    import dataclasses
+
+    from conformance.diagnosis.roundoff import signature
+    from mjed.materials import MooneyRivlin
+
+    m = MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)
+    f_o, K_o = _mjed(m)
+    f_s, K_s = _mjed(dataclasses.replace(m, c1=m.c1 * (1 + 6e-6)))
+    systematic = signature(f_s, K_s, f_o, K_o)
+    assert not systematic.float32_like and systematic.balance < 1e-6, systematic.text()
+    assert "systematic" in systematic.text() and systematic.representable < 0.01
+    rounded = signature(f_o.astype(np.float32).astype(np.float64), K_o.astype(np.float32), f_o, K_o)
+    assert rounded.float32_like and rounded.representable == 1.0, rounded.text()
+
+
+def test_coupled_terms_are_ambiguous_not_named():
+    """Two terms with the same force and stiffness on the cases fitted: the fit agrees, names
+    neither, and says which terms it cannot tell apart.
+    """
+    from conformance.diagnosis.readings import term_reading
+    from conformance.diagnosis.term_fit import TermCase
+
+    f_o, K_o = _mjed(__import__("mjed").materials.MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4))
+    third = (0.25 * f_o, 0.25 * K_o)
+    case = TermCase(
+        [0.5 * f_o, third[0], third[0]],
+        [0.5 * K_o, third[1], third[1]],
+        1.25 * f_o,
+        1.25 * K_o,
+        float(np.linalg.norm(f_o)),
+        float(sp.linalg.norm(K_o)),
+        1e-10,
+        1e-10,
+    )
+    r = term_reading([("a",), ("b",), ("c",)], [case], {"a": 1.0, "b": 2.0, "c": 3.0}, 1.0)
+    assert r.finding.code == "term-coefficients-ambiguous" and r.finding.strength == "observed"
+    assert "b, c" in r.finding.title
+
+
+def test_two_distinct_readings_are_both_shown_as_ambiguous():
+    from conformance.diagnosis.findings import FULL, Finding
+    from conformance.diagnosis.readings import Reading, merge_readings
+
+    f_o, K_o = _mjed(__import__("mjed").materials.NeoHookean(mu=1000.0, lam=5000.0))
+    s = scales(0.5, 0.0, f_o, K_o)
+
+    def reading(code, factor):
+        return Reading(Finding(code, code, FULL, "", {}), factor * f_o, factor * K_o)
+
+    (one,) = merge_readings([reading("a", 1.0), reading("b", 1.0)], s)
+    assert one.code == "a" and "equivalently" in one.evidence and "b" in one.evidence
+    lead, a, b = merge_readings([reading("a", 1.0), reading("b", 1.0 + 1e-6)], s)
+    assert lead.code == "ambiguous" and lead.figures["codes"] == ["a", "b"]
+    assert a.title.startswith("(ambiguous)") and b.title.startswith("(ambiguous)")
+
+
+def test_the_kit_fit_separates_what_one_case_cannot():
+    """Case A cannot tell its last two terms apart (the same force and stiffness); case B can.
+    The fit over both names the third term, tripled, and gives the reading to both cases.
+    """
+    from dataclasses import dataclass, field
+
+    import mjed
+    from conformance.diagnosis.findings import OBSERVED, Finding
+    from conformance.diagnosis.readings import kit_term_reading, term_reading
+    from conformance.diagnosis.term_fit import TermCase
+
+    M = mjed.materials
+    P, Q, R = (
+        _mjed(M.NeoHookean(mu=1000.0, lam=5000.0)),
+        _mjed(M.MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)),
+        _mjed(M.StVenantKirchhoff(mu=3000.0, lam=9000.0)),
+    )
+
+    def case(terms, coefficients):
+        f = sum(c * t[0] for c, t in zip(coefficients, terms))
+        K = sum(c * t[1] for c, t in zip(coefficients, terms))
+        fs, Ks = float(np.linalg.norm(f)), float(sp.linalg.norm(K))
+        return TermCase([t[0] for t in terms], [t[1] for t in terms], f, K, fs, Ks, 1e-10, 1e-10)
+
+    labels = [("a",), ("b",), ("c",)]
+    params = {"a": 1.0, "b": 2.0, "c": 5.0}
+    A, B = case([P, Q, Q], (1, 1, 3)), case([P, Q, R], (1, 1, 3))
+    alone = term_reading(labels, [A], params, 1.0)
+    assert alone.finding.code == "term-coefficients-ambiguous"
+
+    @dataclass(frozen=True)
+    class D:
+        findings: list = field(default_factory=list)
+
+        @property
+        def causes(self):
+            return [f for f in self.findings if f.strength == "explains"]
+
+    diagnoses = [D([alone.finding]), D([Finding("unexplained", "unexplained", OBSERVED, "")])]
+    entries = [(0, labels, A, params), (1, labels, B, params)]
+    a, b = kit_term_reading(diagnoses, entries)
+    for d in (a, b):
+        (first,) = d.findings
+        assert first.code == "term-coefficients" and first.figures["cases"] == 2
+        assert "the c term tripled" in first.title or "c: its terms tripled" in first.title

@@ -2,6 +2,10 @@
 
 ``diagnose`` (verdict, errors and findings of one case), ``findings`` (what it reports),
 ``hypotheses`` (convention mistakes as corrections), ``frames`` (fibre-frame mistakes),
-``tangent`` (which part of the tangent explains an error), ``variants`` (which energy the
-engine computes). The diagnosis reads the judge's figures; it never runs an engine.
+``tangent`` (which part of the tangent explains an error, a finite-difference tangent),
+``variants`` (rewritten formulas), ``energy_terms`` (an energy split into its terms or evaluated
+with a mistaken kinematic, for the oracle), ``term_fit`` (the terms' coefficients fitted),
+``kinematics`` (kinematic mistakes), ``readings`` (the hypotheses the oracle evaluates, every one
+tried, ambiguity said), ``roundoff`` (float32's signature). The diagnosis reads the judge's
+figures; it never runs an engine.
 """

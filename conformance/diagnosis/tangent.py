@@ -251,31 +251,83 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
 # ------------------------------------------------------------------ finite-difference tangent
 @dataclass(frozen=True)
 class FiniteDifferenceFit:
-    """step: the step h [m] a forward-difference tangent with this error would have used;
-    explained: the fraction of ||K - K_o||_F the fit accounts for; residual: what is left,
-    relative to ||K_o||_F.
+    """A stiffness built from differences of the force, as fitted.
+
+    scheme: "forward", "backward" or "central"; rule: "absolute" (h_j = h), "relative"
+    (h_j = eps |x_j|) or "relative, at least eps" (h_j = eps max(|x_j|, 1)); symmetrised: the
+    differences' matrix symmetrised ((K + K^T) / 2) before it was written; step: h [m] or eps
+    (dimensionless) of the rule; explained: the fraction of ||K - K_o||_F the fit accounts for;
+    residual: what is left, relative to ||K_o||_F.
     """
 
+    scheme: str
+    rule: str
+    symmetrised: bool
     step: float
     explained: float
     residual: float
 
+    def words(self) -> str:
+        h = {
+            "absolute": f"a step h = {self.step:.2e} m",
+            "relative": f"a relative step h_j = {self.step:.2e} |x_j|",
+            "relative, at least eps": f"a step h_j = {self.step:.2e} max(|x_j|, 1)",
+        }[self.rule]
+        sym = ", then symmetrised" if self.symmetrised else ""
+        return f"{self.scheme} differences of the force with {h}{sym}"
+
+
+#: The step rules: name -> weight of column j from the coordinate x_j.
+_RULES = {
+    "absolute": lambda x: np.ones_like(x),
+    "relative": np.abs,
+    "relative, at least eps": lambda x: np.maximum(np.abs(x), 1.0),
+}
+
 
 def fit_finite_difference(
-    D: sp.csr_matrix, G: sp.csr_matrix, K_o: sp.csr_matrix
+    D: sp.csr_matrix, G1: sp.csr_matrix, G2: sp.csr_matrix, K_o: sp.csr_matrix, x: np.ndarray
 ) -> Optional[FiniteDifferenceFit]:
-    """Fit D = K - K_o as (h / 2) G, the leading error of a tangent built column by column from
-    forward differences of the force: -(f(x + h e_j) - f(x)) / h = K e_j + (h / 2) G e_j + O(h^2),
-    G e_j the derivative of K's column j along e_j (third derivatives of the energy).
+    """The scheme, step rule and step that best explain D = K - K_o as a tangent built column by
+    column from differences of the force:
 
-    D, G, K_o: (3n, 3n). None when G is zero (a quadratic energy: forward differences exact).
+    - forward (backward: a negative step): -(f(x + h_j e_j) - f(x)) / h_j = K e_j
+      + (h_j / 2) G1 e_j + O(h^2), G1 e_j the derivative of K's column j along dof j;
+    - central: -(f(x + h_j e_j) - f(x - h_j e_j)) / (2 h_j) = K e_j + (h_j^2 / 6) G2 e_j + O(h^4),
+      G2 e_j the second derivative of K's column j along dof j;
+
+    h_j by each rule of :data:`_RULES`, with or without the matrix symmetrised afterwards. Each
+    candidate has one unknown (h or eps), fitted by least squares: the figure that explains most
+    of D is returned. D, G1, G2, K_o: (3n, 3n); x: (3n,) the positions. None when D is zero or
+    the energy has no third derivative.
     """
-    gg = float(G.multiply(G).sum())
-    if gg == 0.0:
-        return None
-    c = float(G.multiply(D).sum()) / gg
-    R = D - c * G
     nD = float(sparse_norm(D))
-    left = float(sparse_norm(R))
-    explained = 1.0 - left / nD if nD > 0 else 0.0
-    return FiniteDifferenceFit(2.0 * c, explained, left / float(sparse_norm(K_o)))
+    if nD == 0.0 or float(sparse_norm(G1)) == 0.0:
+        return None
+    best: Optional[FiniteDifferenceFit] = None
+    for scheme, G, order in (("forward", G1, 1), ("central", G2, 2)):
+        for rule, weight in _RULES.items():
+            w = weight(np.asarray(x, dtype=np.float64).ravel()) ** order
+            B = (G @ sp.diags(w / (2.0 if order == 1 else 6.0))).tocsr()
+            for symmetrised in (False, True):
+                Bs = (0.5 * (B + B.T)).tocsr() if symmetrised else B
+                bb = float(Bs.multiply(Bs).sum())
+                if bb == 0.0:
+                    continue
+                c = float(Bs.multiply(D).sum()) / bb
+                left = float(sparse_norm(D - c * Bs))
+                if order == 2 and c <= 0:
+                    continue  # a central scheme's error has the sign of h^2
+                step = abs(c) if order == 1 else float(np.sqrt(c))
+                name = scheme if order == 2 or c > 0 else "backward"
+                fit = FiniteDifferenceFit(
+                    name,
+                    rule,
+                    symmetrised,
+                    step,
+                    1.0 - left / nD,
+                    left / float(sparse_norm(K_o)),
+                )
+                if best is None or fit.explained > best.explained + 1e-12:
+                    best = fit
+    return best

@@ -52,7 +52,7 @@ class OracleCache:
     """UFL oracles and stiffness-part oracles, built once per (mesh, model)."""
 
     def __init__(self) -> None:
-        self._oracles: Dict[Tuple[str, str], Any] = {}
+        self._oracles: Dict[Tuple[str, ...], Any] = {}
         self._parts: Dict[Tuple[str, str], Any] = {}
 
     def reference(self, case: CaseInput) -> Reference:
@@ -72,21 +72,41 @@ class OracleCache:
         f, K = oracle.force_and_stiffness(case.positions)
         return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
 
-    def column_derivatives(self, case: CaseInput, step: np.ndarray) -> sp.csr_matrix:
-        """G (3n, 3n): column j is the derivative of the oracle's K column j along dof j, by a
-        forward difference of step ``step[j]`` [m] (3n oracle stiffness assemblies: small
-        meshes only).
+    def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
+        """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
+        the diagnosis builds: one term of the energy, a mistaken kinematic); ``key`` names it
+        (one oracle per (mesh, key), reused across states).
         """
+        k = (*_key(case), "variant:" + key)
+        if k not in self._oracles:
+            from reference_fem import UFLOracle
+
+            self._oracles[k] = UFLOracle(case.points, case.cells, model)
+        oracle = self._oracles[k]
+        f, K = oracle.force_and_stiffness(case.positions)
+        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+    def column_derivatives(
+        self, case: CaseInput, step: np.ndarray
+    ) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
+        """(G1, G2), each (3n, 3n): column j is the first (second) derivative of the oracle's K
+        column j along dof j, by central differences of step ``step[j]`` [m] (6n oracle
+        stiffness assemblies: small meshes only).
+        """
+        self.reference(case)  # builds the oracle if needed
         oracle = self._oracles[_key(case)]
         x = np.asarray(case.positions, dtype=np.float64).ravel()
         K0 = sp.csc_matrix(oracle.stiffness(case.positions))
-        cols = []
+        first, second = [], []
         for j in range(x.size):
-            y = x.copy()
-            y[j] += step[j]
-            Kj = sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))
-            cols.append((Kj[:, j] - K0[:, j]) / step[j])
-        return sp.hstack(cols).tocsr()
+            cols = []
+            for sign in (1.0, -1.0):
+                y = x.copy()
+                y[j] += sign * step[j]
+                cols.append(sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))[:, j])
+            first.append((cols[0] - cols[1]) / (2.0 * step[j]))
+            second.append((cols[0] - 2.0 * K0[:, j] + cols[1]) / step[j] ** 2)
+        return sp.hstack(first).tocsr(), sp.hstack(second).tocsr()
 
     def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:
         """The case's tolerances at single precision (:mod:`conformance.judge.precision`), measured

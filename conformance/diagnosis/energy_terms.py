@@ -1,0 +1,421 @@
+"""An energy the oracle can evaluate *differently*: one of its additive terms, or the whole of it
+computed with a mistaken kinematic. The mechanism behind the term fit
+(:mod:`conformance.diagnosis.term_fit`) and the kinematic variants
+(:mod:`conformance.diagnosis.kinematics`).
+
+Every energy with a formula reaches UFL the same way: a declared material's ``energy(p, k)``
+(its declaration, ``mjed/materials/<material>.py``) on a namespace ``k`` of kinematic quantities,
+a user energy's expression on its variables. Here both are run on :class:`Kinematics`, whose
+quantities can be computed the way an engine gets them wrong (F transposed, the stretches for
+their squares, the frame in the deformed configuration), and the resulting UFL expression can be
+
+- **split** into its additive terms (sums expanded through products and quotients by factors that
+  do not depend on the deformation; terms that do not depend on it dropped), each term carrying
+  the parameters it reads;
+- **rewritten**: every non-integer power of J (the isochoric powers J^(-2/3), J^(-4/3),
+  J^(-alpha/3)) scaled by a factor, or the density weighted by J (the deformed volume).
+
+:class:`TransformedEnergy` wraps a model with a :class:`Spec` saying which; its UFL energy is
+registered with :mod:`reference_fem.energies`, so the oracle (:class:`reference_fem.UFLOracle`)
+differentiates it exactly as it does the model's own energy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+
+__all__ = [
+    "Spec",
+    "TransformedEnergy",
+    "has_formula",
+    "model_frame_of",
+    "split_terms",
+    "symbolic",
+    "symbolic_domain",
+    "term_parameters",
+]
+
+
+@dataclass(frozen=True)
+class Spec:
+    """How to evaluate a model's energy.
+
+    term: the index of one additive term (None: the whole energy);
+    transpose: F^T used for F (C and B confused);
+    deformed_volume: the density weighted by J (integrated over the deformed volume);
+    eigen_power: the power of the eigenvalues of C multiplied by this (2: eigenvalues of C taken as
+    stretches; 0.5: stretches taken as eigenvalues of C);
+    i1: "trC2" (I1 = tr(C^2), the squared stretches squared again) or "trU" (I1 = sum of the
+    stretches, the stretches for their squares), None: tr C;
+    j_power: every non-integer power of J multiplied by this (1: unchanged); j_power_of: only the
+    powers whose exponent prints as this (None: all);
+    frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration).
+    """
+
+    term: Optional[int] = None
+    transpose: bool = False
+    deformed_volume: bool = False
+    eigen_power: float = 1.0
+    i1: Optional[str] = None
+    j_power: float = 1.0
+    j_power_of: Optional[str] = None
+    frame_deformed: bool = False
+
+    def key(self) -> str:
+        return repr(self)
+
+
+def _user_energy_type():
+    from reference_fem.user_energy import UserEnergy
+
+    return UserEnergy
+
+
+def _declaration(model: Any):
+    from mjed.materials.declaration import declaration_of
+
+    if not dataclasses.is_dataclass(model):
+        return None
+    try:
+        return declaration_of(type(model))
+    except LookupError:
+        return None
+
+
+def has_formula(model: Any) -> bool:
+    """A declared material or a user energy: an energy this module can rewrite and split."""
+    return isinstance(model, _user_energy_type()) or _declaration(model) is not None
+
+
+def model_frame_of(model: Any) -> Optional[np.ndarray]:
+    frame = getattr(model, "frame", None)
+    return None if frame is None else np.asarray(frame, dtype=np.float64)
+
+
+def _uses_frame(model: Any) -> bool:
+    if isinstance(model, _user_energy_type()):
+        return bool(model.uses_fibre)
+    return any(f.name == "frame" for f in dataclasses.fields(model))
+
+
+class Kinematics:
+    """The namespace of the declared formulas (docs/conventions.md, "Kinematics"), computed as
+    ``spec`` says; also the variables of a user energy (:meth:`variable`).
+    """
+
+    def __init__(self, F, frame, spec: Spec):
+        import ufl
+
+        from reference_fem.ogden_eigen import sum_of_eigenvalue_powers
+
+        self._eps = sum_of_eigenvalue_powers
+        self._spec = spec
+        J = ufl.det(F)
+        if spec.transpose:
+            F = F.T
+        if spec.frame_deformed and frame is not None:
+            FR = F * frame
+            frame = ufl.as_matrix(
+                [
+                    [FR[i, j] / ufl.sqrt(sum(FR[k, j] ** 2 for k in range(3))) for j in range(3)]
+                    for i in range(3)
+                ]
+            )
+        self.exp, self.ln, self.tr = ufl.exp, ufl.ln, ufl.tr
+        self.F = F
+        self.C = F.T * F
+        self.E = 0.5 * (self.C - ufl.Identity(3))
+        if spec.i1 == "trC2":
+            self.I1 = ufl.tr(self.C * self.C)
+        elif spec.i1 == "trU":
+            self.I1 = sum_of_eigenvalue_powers(self.C, 0.5)
+        else:
+            self.I1 = ufl.tr(self.C)
+        self.I2 = 0.5 * (ufl.tr(self.C) ** 2 - ufl.tr(self.C * self.C))
+        self.J = J
+        self.lnJ = ufl.ln(J)
+        self.I1b = J ** (-2.0 / 3.0) * self.I1
+        self.I2b = J ** (-4.0 / 3.0) * self.I2
+        self.frame = frame
+
+    def eigenvalue_power_sum(self, C, q):
+        return self._eps(C, q * self._spec.eigen_power)
+
+    def variable(self, name: str, fibre):
+        """A user energy's variable ``name`` (reference_fem.user_energy.VARIABLES)."""
+        import ufl
+
+        if name in ("C", "J", "I1", "I2", "I1b", "I2b"):
+            return getattr(self, name)
+        if name == "I3":
+            return ufl.det(self.C)
+        if len(name) == 3 and name[0] in "CE" and name[1:].isdigit():
+            i, j = int(name[1]) - 1, int(name[2]) - 1
+            return self.C[i, j] if name[0] == "C" else self.E[i, j]
+        a = fibre
+        if self.frame is not None:
+            a = ufl.as_vector([self.frame[i, 0] for i in range(3)])
+        Ca = self.C * a
+        if name == "I4":
+            return ufl.dot(a, Ca)
+        if name == "I5":
+            return ufl.dot(Ca, Ca)
+        raise ValueError(f"unknown variable {name!r}")
+
+
+class _Named:
+    """Parameters read by name for a declared formula, each recorded with what enters the form."""
+
+    def __init__(self, model: Any, constant: Optional[Callable[[Any], Any]]):
+        self.model = model
+        self.constant = constant
+        self.entered: List[Tuple[Any, str]] = []
+
+    def value(self, name: str) -> float:
+        v = float(getattr(self.model, name))
+        if not np.isfinite(v):
+            raise ValueError(f"parameter {name} is not finite")
+        return v
+
+    def __call__(self, name: str):
+        v = self.value(name)
+        c = v if self.constant is None else self.constant(v)
+        self.entered.append((c, name))
+        return c
+
+
+def _frame_expr(model: Any, frame, constant):
+    """The frame the formula reads: the oracle's per-cell one, else the model's (3, 3), else I."""
+    import ufl
+
+    if frame is not None:
+        return frame
+    R = model_frame_of(model)
+    if R is None or not _uses_frame(model):
+        return ufl.Identity(3) if R is None else None
+    if R.shape == (3, 3):
+        return ufl.as_matrix(R.tolist()) if constant is None else constant(R)
+    raise ValueError("a per-cell frame needs the oracle's frame Function")
+
+
+def build(model: Any, F, frame, constant, spec: Spec):
+    """(W as UFL, [(what entered the form, parameter name)]) of ``model`` evaluated as ``spec``
+    says (the whole energy or one term).
+    """
+    import ufl
+
+    UE = _user_energy_type()
+    entered: List[Tuple[Any, str]] = []
+    if isinstance(model, UE):
+        R = frame
+        if R is None and model.frame is not None and np.asarray(model.frame).shape == (3, 3):
+            R = ufl.as_matrix(np.asarray(model.frame, dtype=float).tolist())
+        k = Kinematics(F, R, spec)
+        fibre = None
+        if model.uses_fibre and R is None:
+            fibre = ufl.as_vector([float(v) for v in model.directions()])
+        names = list(model.params)
+        made: List[Any] = []
+
+        def wrap(v):
+            c = v if constant is None else constant(v)
+            made.append(c)
+            return c
+
+        cache: Dict[str, Any] = {}
+
+        def variable(n):
+            if n not in cache:
+                cache[n] = k.variable(n, fibre)
+            return cache[n]
+
+        W = model.evaluate(variable, ufl.ln, ufl.exp, ufl.sqrt, wrap)
+        entered = list(zip(made, names))
+    else:
+        declared = _declaration(model)
+        if declared is None:
+            raise ValueError(f"{type(model).__name__}: no declared energy formula")
+        p = _Named(model, constant)
+        k = Kinematics(F, _frame_expr(model, frame, constant), spec)
+        W = declared.energy(p, k)
+        entered = p.entered
+    if spec.j_power != 1.0:
+        W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
+    if spec.deformed_volume:
+        W = ufl.det(F) * W
+    if spec.term is not None:
+        terms = split_terms(W, F)
+        if spec.term >= len(terms):
+            raise ValueError(f"term {spec.term} of {len(terms)}")
+        W = terms[spec.term]
+    return W, entered
+
+
+def _is_integer_literal(e) -> bool:
+    from ufl.constantvalue import ScalarValue
+
+    return isinstance(e, ScalarValue) and float(e) == int(float(e))
+
+
+def j_power_exponents(W) -> List[str]:
+    """The distinct non-integer exponents of J (as printed) in the UFL expression W."""
+    from ufl.classes import Determinant, Power
+    from ufl.corealg.traversal import unique_pre_traversal
+
+    out: List[str] = []
+    for node in unique_pre_traversal(W):
+        if isinstance(node, Power) and isinstance(node.ufl_operands[0], Determinant):
+            ex = node.ufl_operands[1]
+            if not _is_integer_literal(ex) and str(ex) not in out:
+                out.append(str(ex))
+    return out
+
+
+def _scale_j_powers(W, r: float, only: Optional[str]):
+    """W with every non-integer power of J (or only the one printed as ``only``) multiplied by r."""
+    from ufl.classes import Determinant
+    from ufl.corealg.map_dag import map_expr_dag
+    from ufl.corealg.multifunction import MultiFunction
+
+    class Rewrite(MultiFunction):
+        expr = MultiFunction.reuse_if_untouched
+
+        def power(self, o, base, exponent):
+            if (
+                isinstance(base, Determinant)
+                and not _is_integer_literal(exponent)
+                and (only is None or str(o.ufl_operands[1]) == only)
+            ):
+                return base ** (r * exponent)
+            return self.reuse_if_untouched(o, base, exponent)
+
+    return map_expr_dag(Rewrite(), W)
+
+
+_SYMBOLIC: list = []
+
+
+def symbolic_domain():
+    """One symbolic UFL mesh of P1 tetrahedra (for :func:`symbolic`)."""
+    return _symbolic_objects()[0]
+
+
+def _symbolic_objects():
+    """(domain, displacement, per-cell frame): created once, so that two symbolic builds of
+    one formula print alike.
+    """
+    import ufl
+
+    if not _SYMBOLIC:
+        cell = ufl.tetrahedron
+        domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1))
+        u = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.VectorElement("Lagrange", cell, 1)))
+        R = ufl.Coefficient(ufl.FunctionSpace(domain, ufl.TensorElement("DG", cell, 0)))
+        _SYMBOLIC.extend([domain, u, R])
+    return tuple(_SYMBOLIC)
+
+
+def symbolic(model: Any, spec: Spec, constant: Optional[Callable[[Any], Any]] = None):
+    """(W, entered, F) of ``model`` as ``spec`` says on a symbolic P1 tetrahedron (plain UFL, no
+    mesh, nothing compiled): to count and label the terms, or to tell whether a variant changes
+    the formula at all. ``constant`` as in :func:`build` (None: parameters as plain numbers;
+    "symbol": a new UFL symbol for each).
+    """
+    import ufl
+
+    domain, u, cell_frame = _symbolic_objects()
+    F = ufl.Identity(3) + ufl.grad(u)
+    R = model_frame_of(model)
+    frame = cell_frame if R is not None and R.ndim == 3 else None
+    if constant == "symbol":
+
+        def constant(v):
+            return ufl.Constant(domain, shape=np.shape(v))
+
+    W, entered = build(model, F, frame, constant, spec)
+    return W, entered, F
+
+
+def _depends(e, u) -> bool:
+    from ufl.algorithms.analysis import extract_coefficients
+
+    return any(c is u or c == u for c in extract_coefficients(e))
+
+
+def split_terms(W, F) -> list:
+    """The additive terms of W that depend on the deformation (UFL expressions), in a fixed
+    order: sums expanded through products and quotients by factors that do not depend on it.
+    """
+    from ufl.algorithms.analysis import extract_coefficients
+    from ufl.classes import Division, Product, Sum
+
+    coeffs = extract_coefficients(F)
+    u = coeffs[0] if coeffs else None
+
+    def dep(e) -> bool:
+        return u is not None and _depends(e, u)
+
+    def expand(e) -> list:
+        if isinstance(e, Sum):
+            a, b = e.ufl_operands
+            return expand(a) + expand(b)
+        if isinstance(e, Product):
+            a, b = e.ufl_operands
+            if not dep(a):
+                return [a * t for t in expand(b)]
+            if not dep(b):
+                return [t * b for t in expand(a)]
+        if isinstance(e, Division):
+            a, b = e.ufl_operands
+            if not dep(b):
+                return [t / b for t in expand(a)]
+        return [e]
+
+    return [t for t in expand(W) if dep(t)]
+
+
+def term_parameters(term, entered: List[Tuple[Any, str]]) -> Tuple[str, ...]:
+    """The parameter names whose constants appear in ``term``, in the order they entered."""
+    from ufl.algorithms.analysis import extract_type
+    from ufl.classes import Constant
+
+    present = extract_type(term, Constant)
+    names: List[str] = []
+    for c, name in entered:
+        if any(c is x for x in present) and name not in names:
+            names.append(name)
+    return tuple(names)
+
+
+@dataclass(frozen=True, eq=False)
+class TransformedEnergy:
+    """``model``'s energy evaluated as ``spec`` says: a material for the oracle."""
+
+    model: Any
+    spec: Spec
+
+    @property
+    def frame(self):
+        return getattr(self.model, "frame", None)
+
+
+def _register() -> None:
+    from reference_fem.energies import energy_formula, register_energy
+
+    try:
+        if energy_formula(TransformedEnergy).material_type is TransformedEnergy:
+            return
+    except ValueError:
+        pass
+
+    @register_energy(TransformedEnergy, takes_frame=True)
+    def _energy(p, F, frame):
+        W, _ = build(p.material.model, F, frame, p.constant, p.material.spec)
+        return W
+
+
+_register()

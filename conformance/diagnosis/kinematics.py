@@ -1,0 +1,206 @@
+"""Kinematic mistakes as oracle variants, for every material with a formula (Ogden and Costa
+included) and every user energy.
+
+The energy is evaluated as an engine that gets its kinematics wrong would
+(:class:`conformance.diagnosis.energy_terms.Spec`); the oracle differentiates each variant, and
+the engine is said to match one when its force and stiffness agree with that variant within the
+case's tolerance. The mistakes:
+
+- C and B confused (F^T used for F): identical for an isotropic energy, so tried only where the
+  energy reads a fibre frame;
+- the energy weighted by the deformed volume (J W for W);
+- principal stretches confused with their squares (the power of the eigenvalues of C doubled or
+  halved, I1 taken as tr(C^2) or as the sum of the stretches);
+- the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
+  1/2 or 2);
+- the fibre frame in the deformed configuration (F R, normalised, for R).
+
+A variant that is the same formula as the energy itself (a mistake the energy cannot show, e.g.
+no eigenvalues in it) is not evaluated.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any, List, Tuple
+
+import numpy as np
+
+from conformance.diagnosis.energy_terms import Spec, has_formula, j_power_exponents
+
+__all__ = ["KinematicVariant", "kinematic_variants"]
+
+
+@dataclass(frozen=True)
+class KinematicVariant:
+    """code, title (the mistake in words), spec (how the oracle evaluates it)."""
+
+    code: str
+    title: str
+    spec: Spec
+
+
+_R_WORDS = {0.0: "left out (J^0)", 0.5: "halved", 2.0: "doubled"}
+
+
+def _formula_text(model: Any, spec: Spec) -> str:
+    """The variant's UFL expression printed (plain floats for parameters): to tell variants that
+    change nothing.
+    """
+    from conformance.diagnosis.energy_terms import symbolic
+
+    W, _, _ = symbolic(model, spec, _Symbols(model))
+    # UFL numbers the free indices of each build anew: renumber them in order of appearance.
+    seen: dict = {}
+    return re.sub(
+        r"i_\{?(\d+)\}?", lambda m: "i" + str(seen.setdefault(m.group(1), len(seen))), str(W)
+    )
+
+
+class _Symbols:
+    """Parameters as UFL symbols, the same objects for every build of one model (the k-th
+    parameter read is the k-th symbol), so that two builds print alike where they agree, and a
+    power of J with a parameter in it (Ogden's J^(-alpha/3)) is never taken for an integer.
+    """
+
+    _pools: dict = {}
+
+    def __init__(self, model: Any):
+        self.pool = _Symbols._pools.setdefault(type(model).__name__, [])
+        self.k = 0
+
+    def __call__(self, v):
+        import ufl
+
+        from conformance.diagnosis.energy_terms import symbolic_domain
+
+        shape = np.shape(v)
+        while len(self.pool) <= self.k:
+            self.pool.append({})
+        slot = self.pool[self.k]
+        if shape not in slot:
+            slot[shape] = ufl.Constant(symbolic_domain(), shape=shape)
+        self.k += 1
+        return slot[shape]
+
+
+def _uses_frame(model: Any) -> bool:
+    from reference_fem.user_energy import UserEnergy
+
+    if isinstance(model, UserEnergy):
+        return bool(model.uses_fibre)
+    return getattr(model, "frame", None) is not None or "frame" in getattr(
+        type(model), "__dataclass_fields__", {}
+    )
+
+
+def kinematic_variants(model: Any) -> List[KinematicVariant]:
+    """The kinematic variants of ``model`` that change its energy (empty without a formula)."""
+    if not has_formula(model):
+        return []
+    try:
+        base = _formula_text(model, Spec())
+    except Exception:  # noqa: BLE001 - a formula this module cannot rewrite: no variants
+        return []
+    out: List[Tuple[str, str, Spec]] = []
+    if _uses_frame(model):
+        out.append(
+            (
+                "C-B-confused",
+                "C and B confused: F^T used for F (B = F F^T where C = F^T F belongs)",
+                Spec(transpose=True),
+            )
+        )
+        out.append(
+            (
+                "frame-deformed",
+                "the fibre frame taken in the deformed configuration: F R (normalised) for R",
+                Spec(frame_deformed=True),
+            )
+        )
+    out.append(
+        (
+            "deformed-volume",
+            "the energy weighted by the deformed volume: J W integrated for W (a density per "
+            "current volume used per rest volume)",
+            Spec(deformed_volume=True),
+        )
+    )
+    out += [
+        (
+            "stretch-squares",
+            "principal stretches confused with their squares: the eigenvalues of C used as the "
+            "stretches (their power doubled)",
+            Spec(eigen_power=2.0),
+        ),
+        (
+            "stretch-squares",
+            "principal stretches confused with their squares: the stretches used as the "
+            "eigenvalues of C (their power halved)",
+            Spec(eigen_power=0.5),
+        ),
+        (
+            "stretch-squares",
+            "principal stretches confused with their squares: I1 = tr(C^2), the sum of the "
+            "stretches^4, for tr C",
+            Spec(i1="trC2"),
+        ),
+        (
+            "stretch-squares",
+            "principal stretches confused with their squares: I1 = the sum of the stretches for "
+            "the sum of their squares",
+            Spec(i1="trU"),
+        ),
+    ]
+    try:
+        exponents = _exponents(model)
+    except Exception:  # noqa: BLE001
+        exponents = []
+    for r, words in _R_WORDS.items():
+        if exponents:
+            out.append(
+                (
+                    "isochoric-power",
+                    f"the isochoric power of J {words}: every J^p with p not an integer "
+                    f"({', '.join(exponents)}) taken as J^({r:g} p)",
+                    Spec(j_power=r),
+                )
+            )
+        if len(exponents) > 1:
+            for e in exponents:
+                out.append(
+                    (
+                        "isochoric-power",
+                        f"the isochoric power of J {words} in one place: J^({e}) taken as "
+                        f"J^({r:g} x {e})",
+                        Spec(j_power=r, j_power_of=e),
+                    )
+                )
+    kept: List[KinematicVariant] = []
+    seen = {base}
+    for code, title, spec in out:
+        try:
+            text = _formula_text(model, spec)
+        except Exception:  # noqa: BLE001 - the rewrite does not apply to this formula
+            continue
+        if text in seen:
+            continue
+        seen.add(text)
+        kept.append(KinematicVariant(code, title, spec))
+    return kept
+
+
+def _exponents(model: Any) -> List[str]:
+    """The non-integer exponents of J in the formula, printed with parameters as plain numbers
+    (a Spec's j_power_of is matched on that print).
+    """
+    from conformance.diagnosis.energy_terms import symbolic
+
+    W, entered, _ = symbolic(model, Spec(), _Symbols(model))
+    out = []
+    for e in j_power_exponents(W):
+        for c, name in entered:  # the symbols printed as the parameters' names
+            e = re.sub(re.escape(str(c)) + r"(?![\d}])", name, e)
+        out.append(e)
+    return out
