@@ -261,6 +261,8 @@ def _run_check(
                 ),
             )
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
+            diag = _approximation_reading(diag, ci, out)
+        if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for a force as inexact as float32 storage alone makes it (a float32 value carries
@@ -324,6 +326,30 @@ def _kit_term_fit(run: CheckRun, kept: Dict[str, list]) -> None:
             continue
         for i, diag in zip(idx, found):
             run.outcomes[i] = replace(run.outcomes[i], diagnosis=diag)
+
+
+def _approximation_reading(diag: Diagnosis, ci, out: EngineOutput) -> Diagnosis:
+    """The force is right and nothing explains the stiffness: is it a known, published
+    approximation of the tangent (:mod:`conformance.diagnosis.approximations`)?
+    """
+    from conformance.diagnosis.approximations import match_approximation
+
+    match = match_approximation(
+        ci.model, ci.points, ci.cells, ci.positions, out.stiffness, diag.tolerances.stiffness
+    )
+    if match is None:
+        return diag
+    finding = Finding(
+        "tangent-approximation",
+        f"your engine's tangent is a known approximation: {match.words}",
+        FULL,
+        f"K equals that approximation to {match.error:.1e} (tolerance "
+        f"{diag.tolerances.stiffness:.0e}); the force matches; against the exact Hessian the "
+        f"stiffness error is {diag.errors.stiffness:.1e}, so Newton's method converges linearly "
+        "instead of quadratically",
+        {"option": match.option, "error": match.error},
+    )
+    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
 
 
 #: Largest mesh (nodes) on which a finite-difference tangent is looked for: 3n oracle assemblies.
