@@ -115,6 +115,13 @@ def _liver(ctx: StudyContext) -> StudyResult:
     )
 
 
+def _sofa(ctx: StudyContext) -> StudyResult:
+    from comparisons.sofa.study import sofa_study
+
+    # NOT RUN (with how to build) where SOFA's engine program is missing, as on most machines.
+    return _with_status(ctx, "SOFA", sofa_study, quick=ctx.quick)
+
+
 def _provenance(ctx: StudyContext) -> StudyResult:
     from comparisons.provenance import provenance_study
 
@@ -130,6 +137,7 @@ def report_studies() -> Tuple[ReportStudy, ...]:
     from comparisons.liver import study as liver
     from comparisons.regularization import study as regularization
     from comparisons.rheometer import study as rheometer
+    from comparisons.sofa import study as sofa
     from comparisons.timing import gpu_section as gpu_study
     from comparisons.timing import study as timing
 
@@ -142,6 +150,7 @@ def report_studies() -> Tuple[ReportStudy, ...]:
         ReportStudy(rheometer.KEY, rheometer.TITLE, _rheometer),
         ReportStudy(liver.KEY, liver.TITLE, _liver),
         ReportStudy(cross_release.KEY, cross_release.TITLE, _cross_release),
+        ReportStudy(sofa.KEY, sofa.TITLE, _sofa),
         ReportStudy(provenance.KEY, provenance.TITLE, _provenance),
     )
 
