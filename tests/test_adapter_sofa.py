@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
+import sys
 
 import numpy as np
 import pytest
@@ -93,7 +95,8 @@ def _check(tmp_path, forcefield, material, mesh="single-tet", states="uniaxial,r
     from comparisons.cli import main
 
     command = (
-        f"python -m conformance.adapters.sofa case --forcefield {forcefield} {{input}} {{output}}"
+        f"{shlex.quote(sys.executable)} -m conformance.adapters.sofa case "
+        f"--forcefield {forcefield} {{input}} {{output}}"
     )
     out = tmp_path / "r"
     code = main(
