@@ -23,11 +23,36 @@ from comparisons.sofa.setup import costa_energy_options, environment_with_progra
 __all__ = ["check_one", "time_material"]
 
 
-def _engine_command(forcefield: str, material: str) -> str:
-    costa = " --as-material Costa" if material == "Costa" else ""
+def _engine_command(forcefield: str, material: str, program: Path) -> str:
+    """The engine program itself, with the material mapped once here: the same arguments the
+    Python adapter (``python -m conformance.adapters.sofa case``) would pass for every case of
+    this material, without a Python start per case.
+    """
+    import dataclasses
+
+    from common.cases import default_material
+    from conformance.adapters.sofa.mapping import sofa_material
+
+    m = default_material(material)
+    model = {
+        "kind": "material",
+        "name": material,
+        "parameters": {f.name: getattr(m, f.name) for f in dataclasses.fields(m)},
+    }
+    sofa = sofa_material(model, forcefield)  # Costa: its global-axes energy, same parameters
     return (
-        f"{shlex.quote(sys.executable)} -m conformance.adapters.sofa case "
-        f"--forcefield {forcefield}{costa} {{input}} {{output}}"
+        shlex.join(
+            [
+                str(program),
+                "--forcefield",
+                forcefield,
+                "--material",
+                sofa.name,
+                "--parameters",
+                sofa.parameter_set(),
+            ]
+        )
+        + " {input} {output}"
     )
 
 
@@ -42,7 +67,7 @@ def check_one(
         argv = [
             "check",
             "--command",
-            _engine_command(forcefield, material),
+            _engine_command(forcefield, material, program),
             *model,
             "--mesh",
             mesh,
