@@ -250,3 +250,21 @@ def test_the_kit_fit_separates_what_one_case_cannot():
         (first,) = d.findings
         assert first.code == "term-coefficients" and first.figures["cases"] == 2
         assert "the c term tripled" in first.title or "c: its terms tripled" in first.title
+
+
+def test_a_factor_of_one_is_not_a_scaling():
+    """Round-off at the tolerance is not 'scaled by 1' (found checking SOFA's classical field on a
+    sliver in mm: stiffness error 1.04e-10, 'force and stiffness scaled: factor 1' named).
+    """
+    import numpy as np
+    import scipy.sparse as sp
+
+    from conformance.diagnosis.hypotheses import scale_corrections
+
+    rng = np.random.default_rng(0)
+    f_o = rng.normal(size=(4, 3))
+    K_o = sp.csr_matrix(rng.normal(size=(12, 12)))
+    near = scale_corrections(f_o, K_o, f_o * (1 + 1e-12), K_o * (1 + 1e-12), None, None)
+    assert near == []
+    far = scale_corrections(f_o, K_o, f_o * 1e-6, K_o * 1e-6, None, None)
+    assert {code for code, *_ in far} == {"scale", "scale-stiffness", "scale-force"}

@@ -226,6 +226,10 @@ def _full_from_triangle(K: sp.csr_matrix) -> sp.csr_matrix:
     return (K + K.T - sp.diags(K.diagonal())).tocsr()
 
 
+#: Relative distance from 1 below which a fitted global factor is round-off, not a scaling.
+SCALE_NOISE = 1e-8
+
+
 def scale_corrections(f_o, K_o, f_e, K_e, W_o, W_e) -> List[Tuple[str, str, float, Output]]:
     """Global factors fitted on force and stiffness: (code, which, engine/oracle ratio, corrected
     output).
@@ -234,6 +238,12 @@ def scale_corrections(f_o, K_o, f_e, K_e, W_o, W_e) -> List[Tuple[str, str, floa
     s_f = fit_scale(f_e, f_o)
     kk = _sparse_dot(K_e, K_e)
     s_K = _sparse_dot(K_e, K_o) / kk if kk > 0 else None
+    # A factor within round-off of 1 is no cause: "scaled by 1" once "explained" a case whose
+    # stiffness error (1.04e-10, a sliver in mm) sat at the tolerance (SOFA's classical field).
+    if s_K is not None and abs(s_K - 1.0) <= SCALE_NOISE:
+        s_K = None
+    if s_f is not None and abs(s_f - 1.0) <= SCALE_NOISE:
+        s_f = None
     if s_K is not None and s_K > 0:
         # One factor for both: a force scaled differently is left unexplained.
         W = None if W_e is None else W_e * s_K
