@@ -73,8 +73,16 @@ def check_meshes(folder: Path, plugin_meshes: Optional[Path], quick: bool) -> Li
 
 
 def states_for(label: str) -> str:
-    """Every state on the small meshes; on the others the states that load every term."""
-    return "all" if label in ("single-tet", "cube-small") else "uniaxial,shear,triaxial,random"
+    """Every state on the small meshes; on the others the states that load every term. The
+    hard meshes leave ``random`` out: its unbounded stretch on a cap or a sliver overflows the
+    exponential energies in float64 for every engine, the oracle included (the corpus bounds
+    its own random states for that reason).
+    """
+    if label in ("single-tet", "cube-small"):
+        return "all"
+    if label in ("cap-SI", "sliver-mm", "graded-SI"):
+        return "uniaxial,shear,triaxial"
+    return "uniaxial,shear,triaxial,random"
 
 
 def environment_with_program(program: os.PathLike) -> dict:
