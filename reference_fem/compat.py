@@ -170,7 +170,15 @@ def _vector_p1_element():
         import basix.ufl
 
         return basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
-    return ufl.VectorElement("Lagrange", ufl.tetrahedron, 1)
+    # Equispaced from the start: FFCx 0.5 gives a coordinate element without a variant this
+    # one, in place, when it compiles a form (ffcx.analysis), which changes the mesh's UFL hash.
+    # A form built on that mesh before the change and one built after then number the mesh
+    # twice, their signatures (FFCx's cache keys) differ from the same form's on a fresh mesh,
+    # and every first run compiled each form again under several keys. For P1 the points,
+    # hence the generated code and every result, are the same.
+    return ufl.VectorElement(
+        ufl.FiniteElement("Lagrange", ufl.tetrahedron, 1, variant="equispaced")
+    )
 
 
 def create_tet_mesh(comm, cells: np.ndarray, points: np.ndarray):
