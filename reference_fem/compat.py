@@ -170,7 +170,15 @@ def _vector_p1_element():
         import basix.ufl
 
         return basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
-    return ufl.VectorElement("Lagrange", ufl.tetrahedron, 1)
+    # Equispaced from the start: FFCx 0.5 gives a coordinate element without a variant this
+    # one, in place, when it compiles a form (ffcx.analysis), which changes the mesh's UFL hash.
+    # A form built on that mesh before the change and one built after then number the mesh
+    # twice, their signatures (FFCx's cache keys) differ from the same form's on a fresh mesh,
+    # and every first run compiled each form again under several keys. For P1 the points,
+    # hence the generated code and every result, are the same.
+    return ufl.VectorElement(
+        ufl.FiniteElement("Lagrange", ufl.tetrahedron, 1, variant="equispaced")
+    )
 
 
 def create_tet_mesh(comm, cells: np.ndarray, points: np.ndarray):
@@ -240,11 +248,47 @@ def constant(mesh, value):
     return fem.Constant(mesh, np.asarray(value, dtype=np.float64))
 
 
+#: A form whose compilation takes longer than this is announced on a terminal (stderr).
+COMPILE_NOTICE_AFTER_S = 1.0
+
+
+def _compile_notice() -> None:
+    """One line while FFCx compiles a form (a cache hit never gets here: it takes ms)."""
+    from dolfinx.jit import get_parameters
+
+    try:
+        where = get_parameters()["cache_dir"]
+    except Exception:  # noqa: BLE001 - the notice must never fail the compilation
+        where = "dolfinx's JIT cache"
+    print(
+        f"mjed: FFCx is compiling a form (first use on this machine, a few seconds; "
+        f"kept in {where})",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def compile_form(ufl_form):
-    """The dolfinx Form compiled (JIT, cached by FFCx) from a UFL form."""
+    """The dolfinx Form compiled (JIT, cached by FFCx) from a UFL form.
+
+    A compilation that lasts longer than :data:`COMPILE_NOTICE_AFTER_S` says so on stderr
+    when stderr is a terminal (a first run on a new machine compiles hundreds of forms), so
+    that a long first run never waits silently.
+    """
     from dolfinx import fem
 
-    return fem.form(ufl_form)
+    timer = None
+    if sys.stderr.isatty() and comm_world().rank == 0:
+        import threading
+
+        timer = threading.Timer(COMPILE_NOTICE_AFTER_S, _compile_notice)
+        timer.daemon = True
+        timer.start()
+    try:
+        return fem.form(ufl_form)
+    finally:
+        if timer is not None:
+            timer.cancel()
 
 
 # -- cell-wise maps and index maps --------------------------------------------------------

@@ -88,7 +88,13 @@ def generated_module(source: str, prefix: str, helpers: Sequence[Path] = ()) -> 
         module = _MODULES.get(name)
         if module is None:
             path = cache_directory() / f"{name}.py"
-            _write_if_changed(path, text)
+            if _write_if_changed(path, text) and sys.stderr.isatty():
+                print(
+                    f"mjed: compiling the Numba kernel {prefix} on its first call (first use "
+                    f"on this machine, 10 s to 2 min; kept in {path.parent})",
+                    file=sys.stderr,
+                    flush=True,
+                )
             spec = importlib.util.spec_from_file_location(name, path)
             module = importlib.util.module_from_spec(spec)
             sys.modules[name] = module  # Numba's cache finds the function's module by name
@@ -112,13 +118,14 @@ def kernel_module(shape: KernelShape, parallel: bool = False, batch: int = 0) ->
     return generated_module(kernel_source(shape), "mjed_kernel")
 
 
-def _write_if_changed(path: Path, text: str) -> None:
+def _write_if_changed(path: Path, text: str) -> bool:
     """Write ``text`` to ``path`` unless it already holds exactly that (its modification time,
-    which Numba's cache index checks, then stays the same).
+    which Numba's cache index checks, then stays the same). True if it was written (a kernel
+    new to this cache: Numba compiles it on its first call).
     """
     try:
         if path.read_text() == text:
-            return
+            return False
     except (OSError, UnicodeDecodeError):
         pass
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem, suffix=".tmp")
@@ -130,3 +137,4 @@ def _write_if_changed(path: Path, text: str) -> None:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+    return True
