@@ -125,3 +125,24 @@ def _check(tmp_path, forcefield, material, mesh="single-tet", states="uniaxial,r
 def test_sofa_neo_hookean_passes(tmp_path, forcefield):
     code, results = _check(tmp_path, forcefield, "NeoHookean")
     assert code == 0, [c.get("diagnosis") for c in results["cases"]]
+
+
+def test_sofa_study_options_reach_the_study(monkeypatch):
+    """--skip-checks, --skip-timing, --calls and the command line arrive as given (they were
+    once passed by position into the wrong parameters).
+    """
+    import comparisons.sofa.study as study
+    from comparisons.cli import main
+
+    seen = {}
+
+    def fake(*args, **kwargs):
+        seen.update(kwargs)
+        from common.result import StudyResult
+
+        return StudyResult.not_run("sofa", "SOFA", "test", kwargs["command"])
+
+    monkeypatch.setattr(study, "sofa_study", fake)
+    main(["sofa", "--skip-checks", "--calls", "3"])
+    assert seen["checks_on"] is False and seen["timing_on"] is True
+    assert seen["timing_calls"] == 3 and callable(seen["progress"])

@@ -71,6 +71,14 @@ def run(args) -> int:
         "mjed-verify sofa " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else "mjed-verify sofa"
     )
     result = sofa_study(
-        args.plugin_meshes, args.quick, materials, forcefields, args.calls, progress, command
+        args.plugin_meshes,
+        args.quick,
+        materials,
+        forcefields,
+        timing_calls=args.calls,
+        checks_on=not args.skip_checks,
+        timing_on=not args.skip_timing,
+        progress=progress,
+        command=command,
     )
     return finish(result, args)
