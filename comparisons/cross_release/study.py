@@ -70,7 +70,7 @@ KEY = "cross_release"
 TITLE = "The oracle across dolfinx releases and MPI ranks"
 
 TOLERANCE = 1e-12
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]  # comparisons/cross_release/study.py -> the repository
 MESH = "cube-small"
 
 

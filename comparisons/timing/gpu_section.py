@@ -26,7 +26,8 @@ __all__ = ["KEY", "TITLE", "COMMAND", "figures_path", "load_gpu_figures", "gpu_s
 
 KEY = "gpu"
 TITLE = "GPU speed: MJED and the classical element on the device"
-DEFAULT_PATH = Path(__file__).resolve().parents[1] / "docs" / "studies" / "gpu_figures.json"
+# comparisons/timing/gpu_section.py -> the repository
+DEFAULT_PATH = Path(__file__).resolve().parents[2] / "docs" / "studies" / "gpu_figures.json"
 COMMAND = "python -m comparisons.timing.hardware --json docs/studies/gpu_figures.json"
 
 
