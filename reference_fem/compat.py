@@ -285,10 +285,24 @@ def compile_form(ufl_form):
         timer.daemon = True
         timer.start()
     try:
-        return fem.form(ufl_form)
+        return fem.form(ufl_form, **jit_wait_options())
     finally:
         if timer is not None:
             timer.cancel()
+
+
+#: How long a process waits for another one that is compiling the same form (FFCx's default,
+#: 10 s, is shorter than one compilation on a loaded 2-core machine: two checks running side by
+#: side then failed with "JIT compilation timed out"). Not part of FFCx's cache key.
+JIT_TIMEOUT_S = 600
+
+
+def jit_wait_options() -> dict:
+    """The dolfinx JIT options that make a process wait JIT_TIMEOUT_S for a form that another
+    process is compiling (the keyword is jit_params before dolfinx 0.6, jit_options since).
+    """
+    key = "jit_params" if dolfinx_version() < (0, 6, 0) else "jit_options"
+    return {key: {"timeout": JIT_TIMEOUT_S}}
 
 
 # -- cell-wise maps and index maps --------------------------------------------------------

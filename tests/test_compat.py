@@ -205,3 +205,13 @@ def test_stack_versions_are_printable_text():
     assert {"python", "dolfinx", "ufl", "petsc", "numpy", "mpi"} <= set(versions)
     for name, text in versions.items():
         assert isinstance(text, str) and text.isprintable() and text, (name, text)
+
+
+def test_a_form_compiled_elsewhere_is_waited_for():
+    """Two checks side by side compile the same form; the second waits for the first instead of
+    failing after FFCx's default 10 s (it did, on the loaded 2-core machine).
+    """
+    from reference_fem import compat
+
+    (options,) = compat.jit_wait_options().values()
+    assert options["timeout"] == compat.JIT_TIMEOUT_S >= 300
