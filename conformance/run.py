@@ -261,9 +261,10 @@ def _run_check(
                 ),
             )
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
+            # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
-        if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
-            diag = _finite_difference_reading(diag, cache, ci, out, ref)
+            if not diag.causes:
+                diag = _finite_difference_reading(diag, cache, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for a force as inexact as float32 storage alone makes it (a float32 value carries
         # a relative error of u / sqrt(3) on average): a small exact-looking error is a mistake.

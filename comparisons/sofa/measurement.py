@@ -13,7 +13,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Callable, List, Optional, Sequence
+from typing import Callable, List, Sequence
 
 import numpy as np
 
@@ -28,18 +28,11 @@ def _engine_command(forcefield: str, material: str, program: Path) -> str:
     Python adapter (``python -m conformance.adapters.sofa case``) would pass for every case of
     this material, without a Python start per case.
     """
-    import dataclasses
-
     from common.cases import default_material
-    from conformance.adapters.sofa.mapping import sofa_material
+    from conformance.adapters.sofa.mapping import sofa_material_of
 
-    m = default_material(material)
-    model = {
-        "kind": "material",
-        "name": material,
-        "parameters": {f.name: getattr(m, f.name) for f in dataclasses.fields(m)},
-    }
-    sofa = sofa_material(model, forcefield)  # Costa: its global-axes energy, same parameters
+    # Costa is checked as its global-axes energy, with Costa's parameters: the same ParameterSet
+    sofa = sofa_material_of(default_material(material), forcefield)
     return (
         shlex.join(
             [
@@ -203,9 +196,3 @@ def _own_kernels(points, cells, material, say):
         yield "classical-numba", CompiledClassicalGalerkin(mesh, None, material)
     except Exception as exc:
         say(f"classical-numba not timed: {type(exc).__name__}: {exc}")
-
-
-def program_or_none() -> Optional[Path]:
-    from conformance.adapters.sofa import find_program
-
-    return find_program()

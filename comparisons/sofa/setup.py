@@ -68,7 +68,7 @@ def check_meshes(folder: Path, plugin_meshes: Optional[Path], quick: bool) -> Li
             raise FileNotFoundError(
                 f"{plugin_meshes}: no cylinder*.vtk (SofaMJEDFEM's examples/data)"
             )
-        out += [(p.stem, str(p)) for p in found[:1] if quick] or [(p.stem, str(p)) for p in found]
+        out += [(p.stem, str(p)) for p in (found[:1] if quick else found)]
     return out
 
 

@@ -15,8 +15,8 @@ from typing import Callable, List, Optional, Sequence
 
 from common.result import Check, StudyResult
 from comparisons.sofa.figures import blocks
-from comparisons.sofa.measurement import check_one, program_or_none, time_material
-from comparisons.sofa.records import SofaTiming, SofaVerdict  # noqa: F401
+from comparisons.sofa.measurement import check_one, time_material
+from comparisons.sofa.records import SofaTiming, SofaVerdict
 from comparisons.sofa.setup import FORCEFIELDS, check_meshes, sofa_materials
 
 __all__ = ["sofa_study"]
@@ -39,10 +39,10 @@ def sofa_study(
     """Check every (force field, material, mesh) and time every (method, material) on the
     timing meshes; one StudyResult with the verdicts, the timings and their ratios.
     """
-    program = program_or_none()
-    if program is None:
-        from conformance.adapters.sofa import how_to_build
+    from conformance.adapters.sofa import find_program, how_to_build
 
+    program = find_program()
+    if program is None:
         return StudyResult.not_run(KEY, TITLE, how_to_build(), command)
     names = list(materials or sofa_materials())
     verdicts: List[SofaVerdict] = []

@@ -216,17 +216,10 @@ def _sofa_missing() -> Optional[str]:
 
 def _sofa_refuses(forcefield: str) -> Callable[[Any], Optional[str]]:
     def unsupported(material) -> Optional[str]:
-        from dataclasses import fields
+        from conformance.adapters.sofa.mapping import NotExpressible, sofa_material_of
 
-        from conformance.adapters.sofa.mapping import NotExpressible, sofa_material
-
-        model = {
-            "kind": "material",
-            "name": type(material).__name__,
-            "parameters": {f.name: getattr(material, f.name) for f in fields(material)},
-        }
         try:
-            sofa_material(model, forcefield, getattr(material, "frame", None))
+            sofa_material_of(material, forcefield)
         except NotExpressible as why:
             return str(why)
         return None

@@ -513,7 +513,11 @@ def _time_material(name: str, setup: TimingSetup, data: TimingData, samples: _Sa
             )
         )
         spreads = [relative_spread(samples.times[(name, m, w)]) for (m, w) in fns]
-        spreads += [relative_spread(samples.times[k]) for k in samples.times if k[1] in self_timed]
+        spreads += [
+            relative_spread(samples.times[k])
+            for k in samples.times
+            if k[0] == name and k[1] in self_timed  # this material's rounds only
+        ]
         why = proto.should_stop(rounds, spreads, elapsed)
         if why:
             data.rounds[name] = Rounds(rounds, why)

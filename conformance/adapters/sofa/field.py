@@ -21,7 +21,7 @@ from typing import Any, Dict, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.adapters.sofa.mapping import FORCEFIELDS, sofa_material
+from conformance.adapters.sofa.mapping import FORCEFIELDS, sofa_material_of
 from conformance.adapters.sofa.program import find_program, how_to_build
 
 __all__ = ["SofaField", "SofaUnavailable", "write_case_folder"]
@@ -63,13 +63,7 @@ class SofaField:
         self.program, self.forcefield = program, forcefield
         self.points = np.asarray(points, dtype=float)
         self.cells = np.asarray(cells, dtype=np.int64)
-        model = {
-            "kind": "material",
-            "name": type(material).__name__,
-            "parameters": _parameters(material),
-        }
-        frame = getattr(material, "frame", None)
-        self.sofa = sofa_material(model, forcefield, None if frame is None else frame)
+        self.sofa = sofa_material_of(material, forcefield)
         self.label = f"SOFA {FORCEFIELDS[forcefield]}"
 
     def _run(self, x: np.ndarray, *extra: str) -> Tuple[Path, tempfile.TemporaryDirectory]:
@@ -122,17 +116,6 @@ class SofaField:
             "force+stiffness": t["implicit_add_force_and_k_to_matrix_s"],
             "dforce": t["add_dforce_s"],
         }
-
-
-def _parameters(material: Any) -> Dict[str, float]:
-    from dataclasses import fields
-
-    out: Dict[str, float] = {}
-    for f in fields(material):
-        value = getattr(material, f.name)
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            out[f.name] = float(value)
-    return out
 
 
 def available() -> Optional[str]:

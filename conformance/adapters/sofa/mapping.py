@@ -17,12 +17,19 @@ the x, y and z axes; none of the three fields reads a per-cell frame).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Dict, Mapping, Optional, Tuple
+from dataclasses import dataclass, fields
+from typing import Any, Dict, Mapping, Optional, Tuple
 
 import numpy as np
 
-__all__ = ["FORCEFIELDS", "NotExpressible", "SofaMaterial", "costa_in_global_axes", "sofa_material"]
+__all__ = [
+    "FORCEFIELDS",
+    "NotExpressible",
+    "SofaMaterial",
+    "costa_in_global_axes",
+    "sofa_material",
+    "sofa_material_of",
+]
 
 #: The force fields the engine program drives, each with the SOFA class it instantiates.
 FORCEFIELDS = {
@@ -106,6 +113,16 @@ def sofa_material(
     return SofaMaterial(sofa_name, tuple(float(parameters[p]) for p in order))
 
 
+def sofa_material_of(material: Any, forcefield: str) -> SofaMaterial:
+    """:func:`sofa_material` for an mjed material object (its own frame, if it has one)."""
+    model = {
+        "kind": "material",
+        "name": type(material).__name__,
+        "parameters": {f.name: getattr(material, f.name) for f in fields(material)},
+    }
+    return sofa_material(model, forcefield, getattr(material, "frame", None))
+
+
 def _is_global_axes(frame: np.ndarray) -> bool:
     frames = np.asarray(frame, dtype=float).reshape(-1, 3, 3)
     return bool(np.array_equal(frames, np.broadcast_to(np.eye(3), frames.shape)))
@@ -119,17 +136,16 @@ def costa_in_global_axes(parameters: Mapping[str, float]) -> Tuple[str, Dict[str
     Costa``), SOFA's law meets the oracle on the same formula as the declaration's, with
     ``R = I``: ``Q = sum_ij B_ij E_ij^2`` counts each off-diagonal pair twice.
     """
-    axes = "fsn"
-    terms = []
-    for i in range(3):
-        for j in range(3):
-            name = "b_" + "".join(sorted((axes[i], axes[j]), key=axes.index))
-            # the declaration's names are b_ff, b_fs, b_ss, b_fn, b_sn, b_nn
-            name = {"b_sf": "b_fs", "b_nf": "b_fn", "b_ns": "b_sn"}.get(name, name)
-            terms.append(f"{name}*E{i + 1}{j + 1}**2")
+    b = _costa_b_names()  # b_ff, b_fs, b_ss, b_fn, b_sn, b_nn: B's upper triangle by columns
+    names = [[b[0], b[1], b[3]], [b[1], b[2], b[4]], [b[3], b[4], b[5]]]
+    terms = [f"{names[i][j]}*E{i + 1}{j + 1}**2" for i in range(3) for j in range(3)]
     q = " + ".join(terms)
     expression = f"a/2*(exp(J**(-4/3)*({q})) - 1) + k0*(J*ln(J) - J + 1)"
-    return expression, {k: float(parameters[k]) for k in ("a", "k0") + _COSTA_B}
+    return expression, {k: float(parameters[k]) for k in ("a", "k0") + _costa_b_names()}
 
 
-_COSTA_B = ("b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn")
+def _costa_b_names() -> Tuple[str, ...]:
+    """Costa's B parameters in SOFA's ParameterSet order, from its declaration."""
+    from mjed.materials.sofa import sofa_parameter_order
+
+    return tuple(sofa_parameter_order()["Costa"][1][2:])
