@@ -4,25 +4,29 @@
 #
 #   OUT=/path/to/out scripts/gpu_session.sh [STEP ...]
 #
-# Steps (all by default, in this order): env bench kits liver organ pack. Each step runs
-# under its own time limit (seconds, STEP_LIMIT_<step>; together 755 s: on a device lent
-# 600 s per command, run `env bench` and then `kits liver organ pack`), with its log in
+# Steps (all by default, in this order): env bench kits liver organ peer pack. Each step runs
+# under its own time limit (seconds, STEP_LIMIT_<step>; together 705 s: on a device lent 600 s
+# per command, run `env bench peer`, then `kits liver organ pack`), with its log in
 # $WORK/logs/<step>.log (WORK default /tmp/gpu-session-work, packed into results.tar.xz) and
 # its last lines printed; a failed or timed-out step is reported loudly and the next one still
 # runs. The summary at the end (also $OUT/summary.txt) lists each step's exit code (124: timed
 # out) and seconds; the script exits 1 if any step failed. $OUT holds at most 7 files.
 #
 #   env    the machine: nvidia-smi, Python, NumPy, Numba, whether the oracle (dolfinx) is here
-#   bench  python -m comparisons.timing.hardware --json $OUT/hardware_bench.json (CPU and GPU)
+#   bench  python -m comparisons.timing.hardware --no-cpu --json $OUT/hardware_bench.json: the
+#          GPU section (1e4 to 1e7 tets, with the compiled CPU backend on all cores of the same
+#          machine for the ratio); BENCH_ARGS="" gives the CPU section too (minutes more)
 #   kits   conformance kits on cube-paper, every material and state, filled by the cuda
 #          backend in FP64 and FP32 (python -m conformance.adapters.mjed_backend --kit) and
-#          by the compiled CPU kernel; each GPU kit against the CPU one (max relative
+#          by mjed's NumPy engine; each GPU kit against the CPU one (max relative
 #          difference); `mjed-verify check` on each where dolfinx is importable. The same on
 #          cube-small (no probes), kept for `pack` so that a machine with the oracle checks them
 #   liver  mjed-verify liver --backends cuda,numba on the paper-size liver (30 steps, three
 #          models, the oscillation study)
 #   organ  the same on liver-100k (100,412 tets, 18,827 nodes; 5 steps, no oscillation study),
 #          the CPU runs with Jacobi CG too (a kept LU of 56,000 dofs takes tens of seconds)
+#   peer   python -m comparisons.timing.jax_peer: the same cubes by JAX autodiff per element
+#          (vmap of grad and hessian, XLA) where JAX sees the GPU, beside bench's figures
 #   pack   $OUT/results.tar.xz: the logs, check JSONs and figures; $OUT/kits-cube-small.tar.xz:
 #          the GPU-filled cube-small kits (inputs and outputs), for `mjed-verify check` elsewhere
 #
@@ -41,9 +45,13 @@ export MJED_KERNEL_CACHE=${MJED_KERNEL_CACHE:-$WORK/kernels}
 unset NUMBA_ENABLE_CUDASIM # a real device, never the simulator
 VERIFY=("$PY" -m comparisons.cli)
 ADAPTER=("$PY" -m conformance.adapters.mjed_backend)
-# bench runs sizes up to 1e7 tets (estimated 3 to 4 minutes): with it, the steps take more
-# than one device call (600 s), hence two calls: `env bench`, then `kits liver organ pack`.
-declare -A LIMIT=([env]=20 [bench]=330 [kits]=150 [liver]=110 [organ]=120 [pack]=25)
+# Two device commands: `env bench peer` (at most 225 s), `kits liver organ pack` (480 s).
+# Measured on an H200 (2026-11-26): env 8 s, bench 105 s, peer 30 s, liver 54 s, organ 98 s;
+# kits about 95 s per precision, nearly all of it compiling the 20 CUDA kernels of that
+# precision (cube-paper FP64: 76 s; then cube-small in 1 s from the kernel cache).
+declare -A LIMIT=([env]=15 [bench]=150 [kits]=220 [liver]=90 [organ]=150 [peer]=60 [pack]=20)
+BENCH_ARGS=${BENCH_ARGS---no-cpu}
+export XLA_PYTHON_CLIENT_PREALLOCATE=false # JAX takes memory as it needs it, not 75 % at start
 SUMMARY=()
 FAILED=0
 
@@ -63,11 +71,17 @@ try:
     print("dolfinx", dolfinx.__version__, ": kits are checked here")
 except ImportError:
     print("no dolfinx: kits are filled and compared with the CPU kernel here, checked elsewhere")
+try:
+    import jax
+    print("jax", jax.__version__, "backend", jax.default_backend(), jax.devices())
+except Exception as exc:  # the peer step says it is not run
+    print("no JAX on the GPU:", exc)
 EOF
 }
 
 step_bench() {
-    "$PY" -m comparisons.timing.hardware --json "$OUT/hardware_bench.json"
+    # shellcheck disable=SC2086 # BENCH_ARGS is a list of options
+    "$PY" -m comparisons.timing.hardware $BENCH_ARGS --json "$OUT/hardware_bench.json"
 }
 
 have_oracle() { "$PY" -c "import dolfinx" 2>/dev/null; }
@@ -87,32 +101,16 @@ kit() {
     return $rc
 }
 
-# compare_kits GPU_KIT CPU_KIT: every case's force, stiffness and energy, GPU against CPU
+# compare_kits GPU_KIT CPU_KIT: every case's force and stiffness, GPU against CPU, per material
 compare_kits() {
-    "$PY" - "$1" "$2" <<'EOF'
-import sys, numpy as np
-from conformance.kit.exchange import read_output
-from conformance.kit.cases import read_kit
-gpu, cpu = read_kit(sys.argv[1]), read_kit(sys.argv[2])
-worst = {}
-for g, c in zip(gpu.cases, cpu.cases):
-    assert g.case_id == c.case_id
-    n = g.input.n_nodes
-    a, b = read_output(g.output_dir, n, g.case_id), read_output(c.output_dir, n, c.case_id)
-    d = [np.abs(a.force - b.force).max() / np.abs(b.force).max(),
-         abs(a.stiffness - b.stiffness).max() / abs(b.stiffness).max()]
-    model = g.case_id.split(".")[0]
-    worst[model] = np.maximum(worst.get(model, 0.0), d)
-for model, (f, k) in worst.items():
-    print(f"  {model:20s} GPU ({gpu.precision}) against the compiled CPU kernel: force {f:.1e}, stiffness {k:.1e}")
-EOF
+    "$PY" -m conformance.kit.agreement "$1" "$2"
 }
 
 step_kits() {
     local rc=0 cpu="$WORK/kits/cube-paper-cpu"
     rm -rf "$cpu"
     "${VERIFY[@]}" export "$cpu" --mesh cube-paper --material all --no-probes || rc=1
-    "${ADAPTER[@]}" --kit "$cpu" --backend numba || rc=1
+    "${ADAPTER[@]}" --kit "$cpu" --backend numpy || rc=1
     for dtype in float64 float32; do
         kit cube-paper "$dtype" --no-probes || { echo "FAILED: cube-paper $dtype"; rc=1; }
         compare_kits "$WORK/kits/cube-paper-$dtype" "$cpu" || rc=1
@@ -151,6 +149,11 @@ step_organ() {
     [ $rc -eq 3 ] || return $rc
 }
 
+step_peer() {
+    "$PY" -m comparisons.timing.jax_peer --json "$OUT/jax_peer.json" \
+        --against "$OUT/hardware_bench.json"
+}
+
 step_pack() {
     local rc=0
     if [ -d "$WORK/kits/cube-small-float64" ]; then
@@ -172,7 +175,8 @@ run_step() {
     echo "=== $step (limit ${limit} s) ==="
     start=$(date +%s)
     # the step in its own process, killed with its children past its limit
-    timeout --kill-after=10 "$limit" bash -c "$(declare -f); $(declare -p VERIFY ADAPTER PY OUT WORK); \
+    timeout --kill-after=10 "$limit" bash -c "$(declare -f); $(declare -p VERIFY ADAPTER PY OUT WORK \
+        BENCH_ARGS); \
         step_$step" >"$WORK/logs/$step.log" 2>&1
     rc=$?
     tail -n 25 "$WORK/logs/$step.log"
@@ -185,10 +189,10 @@ run_step() {
 }
 
 STEPS=("$@")
-[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ pack)
+[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ peer pack)
 for s in "${STEPS[@]}"; do
     if [ -z "${LIMIT[$s]+x}" ]; then
-        echo "unknown step $s (env bench kits liver organ pack)"
+        echo "unknown step $s (env bench kits liver organ peer pack)"
         exit 2
     fi
 done

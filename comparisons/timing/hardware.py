@@ -388,6 +388,12 @@ def _add_gpu_options(ap: argparse.ArgumentParser) -> None:
         help="seconds of repeated calls per GPU figure (default 0.25; at least 3 calls)",
     )
     ap.add_argument("--no-gpu", action="store_true", help="skip the GPU section")
+    ap.add_argument(
+        "--no-cpu",
+        action="store_true",
+        help="skip the CPU section (the GPU section still times the compiled CPU backend on all "
+        "cores of this machine for its GPU/CPU ratio)",
+    )
 
 
 def _gpu_section(args, material_name: str) -> dict:
@@ -444,7 +450,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         f"load average {load:.2f} before"
     )
     figures = {"cpu": [], "load_before": load}
-    for name in names:
+    for name in [] if args.no_cpu else names:
         fig = cpu_figures(args.mesh, name, rounds=args.rounds)
         figures["cpu"].append(fig)
         _print_cpu(fig)
