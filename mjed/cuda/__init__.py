@@ -23,7 +23,8 @@ right-hand side, the constraints, CG and the update; the viscous history and the
 model's fluid pressure in :mod:`mjed.cuda.device_models`):
 :class:`mjed.cuda.integrator.DeviceImplicitEuler`, or
 :func:`mjed.cuda.integrator.implicit_euler`, which gives it where the models allow and the
-host integrator otherwise. Speed on a GPU: still to be measured (docs/studies/timing.md).
+host integrator otherwise. Speed on a GPU (an H200, 26 November 2026): docs/studies/timing.md,
+"Measured on an NVIDIA H200".
 """
 
 from mjed.compiled.availability import BackendUnavailable
