@@ -57,7 +57,7 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
     """(labels, TermCase) of one case, or None when the energy has no formula or its terms do not
     add up to the oracle's energy (then nothing is claimed from them).
     """
-    from conformance.diagnosis.energy_terms import Spec, has_formula
+    from conformance.diagnosis.energy_terms import Spec, has_formula, term_names
     from conformance.diagnosis.term_fit import TermCase, term_labels
 
     if not has_formula(ci.model):
@@ -74,6 +74,12 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
     e = errors(fs, Ks, None, ref.force, ref.stiffness, 0.0, s)
     if max(e.force, e.stiffness) > 1e-11:
         return None
+    try:
+        names = tuple(term_names(ci.model))
+    except Exception:  # noqa: BLE001 - no written formula to match: the terms by parameters
+        names = ()
+    if len(names) != len(labels):
+        names = ()
     return labels, TermCase(
         [r.force for r in refs],
         [r.stiffness for r in refs],
@@ -83,6 +89,7 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
         s.stiffness,
         tol.force,
         tol.stiffness,
+        names,
     )
 
 
@@ -95,9 +102,11 @@ def term_reading(
     fit = fit_terms(cases)
     if fit is None:
         return None
+    names = cases[0].names
     figs = {
         "coefficients": [float(a) for a in fit.coefficients],
         "terms": [list(p) for p in labels],
+        "term_names": list(names),
         "residual": fit.residual,
         "identified": fit.identified,
         "cases": len(cases),
@@ -106,7 +115,10 @@ def term_reading(
         f"{a:.9g} x [{' '.join(p) or 'term'}]" for a, p in zip(fit.coefficients, labels)
     )
     if fit.agrees and not fit.identified:
-        coupled = ", ".join(" ".join(labels[i]) or "a term" for i in fit.coupled)
+        coupled = ", ".join(
+            (names[i] if i < len(names) and names[i] else " ".join(labels[i]) or "a term")
+            for i in fit.coupled
+        )
         return Reading(
             Finding(
                 "term-coefficients-ambiguous",
@@ -121,18 +133,18 @@ def term_reading(
         )
     if not fit.agrees:
         if fit.residual < 0.1 * worst and fit.identified:
-            names, readings = describe_fit(fit, labels, params)
+            names_, readings = describe_fit(fit, labels, params, names=names)
             return Reading(
                 Finding(
                     "term-coefficients",
-                    f"mostly the energy's terms with other coefficients: {names}",
+                    f"mostly the energy's terms with other coefficients: {names_}",
                     PARTIAL,
                     f"f, K = {combo} leaves {fit.residual:.1e} (above the tolerance)",
                     figs,
                 )
             )
         return None
-    names, readings = describe_fit(fit, labels, params)
+    names_, readings = describe_fit(fit, labels, params, names=names)
     if not readings:
         return None
     a = fit.coefficients
@@ -146,7 +158,7 @@ def term_reading(
             FULL,
             f"the engine's force and stiffness are the oracle's per-term ones combined as {combo} "
             f"(least squares over {scope}): after the fit force and stiffness errors "
-            f"{fit.residual:.1e}; terms not at 1: {names}",
+            f"{fit.residual:.1e}; terms not at 1: {names_}",
             figs,
         ),
         f,
