@@ -3,7 +3,8 @@ energies, once no correction of the output explains a failure:
 
 1. the energy's terms with other coefficients (:mod:`conformance.diagnosis.term_fit`);
 2. a rewritten formula (:mod:`conformance.diagnosis.variants`);
-3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`).
+3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`);
+4. two parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`).
 
 Every hypothesis is tried (none stops the others), and a cause is named only when it brings the
 engine's force and stiffness within the case's tolerance. Readings that predict the same force
@@ -244,6 +245,69 @@ def _formula_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readin
     )
 
 
+def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
+    that the engine matches.
+    """
+    from conformance.diagnosis.parameters import exchanges, scalar_parameters, with_value
+    from conformance.diagnosis.refit import refit
+
+    found = _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda x=x: cache.reference(replace(ci, model=x.model)),
+                "parameters-exchanged",
+                x.title(),
+                x.words(),
+                {"parameters": [x.p, x.q]},
+            )
+            for x in exchanges(ci.model)
+        ),
+    )
+    values = scalar_parameters(ci.model)
+    for name, v0 in values.items():
+
+        def evaluate(v, name=name):
+            r = cache.reference(replace(ci, model=with_value(ci.model, **{name: float(v[0])})))
+            return r.force, r.stiffness
+
+        fit = refit(
+            evaluate,
+            [v0],
+            out.force,
+            out.stiffness,
+            s.force,
+            s.stiffness,
+            tol.force,
+            tol.stiffness,
+        )
+        if fit is None or not fit.agrees:
+            continue
+        v = fit.values[0]
+        if abs(v - v0) <= 1e-9 * max(abs(v0), 1e-300):
+            continue
+        same = [q for q, vq in values.items() if q != name and abs(v - vq) <= 1e-6 * abs(vq)]
+        also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
+        found.append(
+            Reading(
+                Finding(
+                    "parameter-value",
+                    f"parameter {name} = {v:.9g} in your engine where the case has {v0:g}{also}",
+                    FULL,
+                    f"the oracle with {name} = {v:.9g} (fitted; relative change "
+                    f"{v / v0 - 1 if v0 else v:+.3e}): force error {fit.force:.1e}, stiffness "
+                    f"error {fit.stiffness:.1e}",
+                    {"parameter": name, "value": v, "declared": v0, "residual": fit.residual},
+                ),
+                *fit.prediction,
+            )
+        )
+    return found
+
+
 def _same(a: Reading, b: Reading, s: Scales) -> bool:
     if a.force is None or b.force is None:
         return False
@@ -325,6 +389,7 @@ def read(
     # says it exactly (W' = ...) and the kinematic reading follows as "equivalently".
     full += _formula_readings(cache, ci, out, s, tol)
     full += _kinematic_readings(cache, ci, out, s, tol)
+    full += _parameter_readings(cache, ci, out, s, tol)
     causes = merge_readings(full, s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
@@ -332,7 +397,8 @@ def read(
     tried = (
         "; nor the energy's terms refitted"
         + ("" if tc is not None else " (no formula to split)")
-        + ", its kinematic variants or its rewritten formulas (evaluated by the oracle)"
+        + ", its kinematic variants, its rewritten formulas, its parameters exchanged or refitted "
+        "one at a time (evaluated by the oracle)"
     )
     head = [
         replace(f, evidence=f.evidence + tried) for f in diag.findings if f.code == "unexplained"
