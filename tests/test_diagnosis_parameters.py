@@ -13,7 +13,7 @@ import pytest
 import scipy.sparse as sp
 
 from conformance.diagnosis.parameters import declared_units, exchanges
-from conformance.diagnosis.refit import refit
+from conformance.diagnosis.refit import Target, refit
 from mjed.materials import Costa, VerondaWestmann
 from reference_fem import dolfinx_available
 
@@ -40,10 +40,10 @@ def _nonlinear(values):
 
 def test_refit_finds_a_value_inside_an_exponential_and_gives_up_on_noise():
     f, K = _nonlinear([2.2])
-    fit = refit(_nonlinear, [1.5], f, K, 10.0, 10.0, 1e-10, 1e-10)
+    fit = refit(_nonlinear, [1.5], Target(f, K, 10.0, 10.0, 1e-10, 1e-10))
     assert fit is not None and fit.agrees and fit.values[0] == pytest.approx(2.2, rel=1e-10)
     noise = np.random.default_rng(0).standard_normal(f.shape)
-    assert refit(_nonlinear, [2.2], f + noise, K, 10.0, 10.0, 1e-10, 1e-10) is None
+    assert refit(_nonlinear, [2.2], Target(f + noise, K, 10.0, 10.0, 1e-10, 1e-10)) is None
 
 
 @pytest.mark.oracle

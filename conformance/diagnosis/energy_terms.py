@@ -31,7 +31,9 @@ import numpy as np
 __all__ = [
     "Spec",
     "TransformedEnergy",
+    "exponent_key",
     "has_formula",
+    "j_exponents",
     "model_frame_of",
     "split_terms",
     "symbolic",
@@ -54,7 +56,10 @@ class Spec:
     stretches, the stretches for their squares), None: tr C;
     j_power: every non-integer power of J multiplied by this (1: unchanged); j_power_of: only the
     powers whose exponent prints as this (None: all);
-    frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration).
+    frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration);
+    j_exponents: ((exponent, factor), ...): each non-integer power of J whose exponent prints as
+    ``exponent`` (:func:`exponent_key`) taken as J^(factor x exponent), the factor entering the
+    form as a parameter does (one compiled form for every factor: a fit of the exponents).
     """
 
     term: Optional[int] = None
@@ -65,6 +70,7 @@ class Spec:
     j_power: float = 1.0
     j_power_of: Optional[str] = None
     frame_deformed: bool = False
+    j_exponents: Tuple[Tuple[str, float], ...] = ()
 
     def key(self) -> str:
         return repr(self)
@@ -244,6 +250,8 @@ def build(model: Any, F, frame, constant, spec: Spec):
         k = Kinematics(F, _frame_expr(model, frame, constant), spec)
         W = declared.energy(p, k)
         entered = p.entered
+    if spec.j_exponents:
+        W = _refit_j_powers(W, dict(spec.j_exponents), entered, constant)
     if spec.j_power != 1.0:
         W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
     if spec.deformed_volume:
@@ -292,6 +300,65 @@ def _scale_j_powers(W, r: float, only: Optional[str]):
                 and (only is None or str(o.ufl_operands[1]) == only)
             ):
                 return base ** (r * exponent)
+            return self.reuse_if_untouched(o, base, exponent)
+
+    return map_expr_dag(Rewrite(), W)
+
+
+def exponent_key(exponent, entered: List[Tuple[Any, str]]) -> str:
+    """A power of J's exponent as printed, each parameter by its name ("-1 * alpha / 3.0"): the
+    same for every build of a formula, whatever object carries the parameter.
+    """
+    import re
+
+    text = str(exponent)
+    for c, name in entered:
+        text = re.sub(re.escape(str(c)) + r"(?![\d}])", name, text)
+    return text
+
+
+def j_exponents(model: Any) -> List[Tuple[str, float]]:
+    """The non-integer exponents of J in ``model``'s energy: [(:func:`exponent_key`, value)], in
+    order of appearance (a parameter's exponent, Ogden's -alpha/3, at the model's values).
+    """
+    import ufl
+    from ufl.classes import Determinant, FloatValue, Power
+    from ufl.corealg.traversal import unique_pre_traversal
+
+    W, entered, _ = symbolic(model, Spec(), "symbol")
+    values = {c: FloatValue(_Named(model, None).value(n)) for c, n in entered}
+    out: List[Tuple[str, float]] = []
+    for node in unique_pre_traversal(W):
+        if isinstance(node, Power) and isinstance(node.ufl_operands[0], Determinant):
+            ex = node.ufl_operands[1]
+            key = exponent_key(ex, entered)
+            if _is_integer_literal(ex) or key in dict(out):
+                continue
+            value = ufl.replace(ex, values) if values else ex
+            out.append((key, float(value)))
+    return out
+
+
+def _refit_j_powers(W, factors: Dict[str, float], entered, constant):
+    """W with each power of J whose exponent's key is in ``factors`` taken to that factor times
+    its exponent (the factor a parameter-like constant when ``constant`` is given).
+    """
+    from ufl.classes import Determinant
+    from ufl.corealg.map_dag import map_expr_dag
+    from ufl.corealg.multifunction import MultiFunction
+
+    made: Dict[str, Any] = {}
+
+    class Rewrite(MultiFunction):
+        expr = MultiFunction.reuse_if_untouched
+
+        def power(self, o, base, exponent):
+            key = exponent_key(o.ufl_operands[1], entered)
+            if isinstance(base, Determinant) and key in factors:
+                if key not in made:
+                    r = factors[key]
+                    made[key] = r if constant is None else constant(r)
+                return base ** (made[key] * exponent)
             return self.reuse_if_untouched(o, base, exponent)
 
     return map_expr_dag(Rewrite(), W)

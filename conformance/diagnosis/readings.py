@@ -4,7 +4,8 @@ energies, once no correction of the output explains a failure:
 1. the energy's terms with other coefficients (:mod:`conformance.diagnosis.term_fit`);
 2. a rewritten formula (:mod:`conformance.diagnosis.variants`);
 3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`);
-4. two parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`).
+4. two parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`);
+5. an exponent of J with another value (:mod:`conformance.diagnosis.constants`).
 
 Every hypothesis is tried (none stops the others), and a cause is named only when it brings the
 engine's force and stiffness within the case's tolerance. Readings that predict the same force
@@ -54,6 +55,20 @@ def _evaluate(cache, ci, spec):
     )
 
 
+def _target(out, s: Scales, tol: Tolerances):
+    """The engine's output, the case's scales and tolerances, as a refit aims at them."""
+    from conformance.diagnosis.refit import Target
+
+    return Target(
+        np.asarray(out.force),
+        sp.csr_matrix(out.stiffness),
+        s.force,
+        s.stiffness,
+        tol.force,
+        tol.stiffness,
+    )
+
+
 def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
     """(labels, TermCase) of one case, or None when the energy has no formula or its terms do not
     add up to the oracle's energy (then nothing is claimed from them).
@@ -81,15 +96,16 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
         names = ()
     if len(names) != len(labels):
         names = ()
+    t = _target(out, s, tol)
     return labels, TermCase(
         [r.force for r in refs],
         [r.stiffness for r in refs],
-        np.asarray(out.force),
-        sp.csr_matrix(out.stiffness),
-        s.force,
-        s.stiffness,
-        tol.force,
-        tol.stiffness,
+        t.f,
+        t.K,
+        t.s_force,
+        t.s_stiffness,
+        t.tol_force,
+        t.tol_stiffness,
         names,
     )
 
@@ -274,16 +290,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             r = cache.reference(replace(ci, model=with_value(ci.model, **{name: float(v[0])})))
             return r.force, r.stiffness
 
-        fit = refit(
-            evaluate,
-            [v0],
-            out.force,
-            out.stiffness,
-            s.force,
-            s.stiffness,
-            tol.force,
-            tol.stiffness,
-        )
+        fit = refit(evaluate, [v0], _target(out, s, tol))
         if fit is None or not fit.agrees:
             continue
         v = fit.values[0]
@@ -306,6 +313,51 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             )
         )
     return found
+
+
+def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The exponents of J refitted (:mod:`conformance.diagnosis.constants`): a reading when the
+    engine matches the formula with some of them changed.
+    """
+    from conformance.diagnosis.constants import describe_exponent, fit_exponents
+    from conformance.diagnosis.energy_terms import Spec, has_formula, j_exponents
+
+    if not has_formula(ci.model):
+        return []
+    try:
+        exponents = j_exponents(ci.model)
+    except Exception:  # noqa: BLE001 - a formula this module cannot read: nothing to fit
+        return []
+
+    def evaluate(factors):
+        r = _evaluate(cache, ci, Spec(j_exponents=factors))
+        return r.force, r.stiffness
+
+    found = fit_exponents(exponents, evaluate, _target(out, s, tol))
+    if found is None or not found.fit.agrees or not found.changed():
+        return []
+    changed = found.changed()
+    return [
+        Reading(
+            Finding(
+                "formula-constant",
+                "a power of J differs from the formula's: "
+                + "; ".join(describe_exponent(*c) for c in changed),
+                FULL,
+                "the oracle with the exponents of J fitted (factors "
+                + ", ".join(f"{r:.9g}" for r in found.fit.values)
+                + f" on {', '.join(k for k, _ in found.exponents)}): force error "
+                f"{found.fit.force:.1e}, stiffness error {found.fit.stiffness:.1e}",
+                {
+                    "exponents": [k for k, _ in found.exponents],
+                    "declared": [p for _, p in found.exponents],
+                    "engine": [r * p for r, (_, p) in zip(found.fit.values, found.exponents)],
+                    "residual": found.fit.residual,
+                },
+            ),
+            *found.fit.prediction,
+        )
+    ]
 
 
 def _same(a: Reading, b: Reading, s: Scales) -> bool:
@@ -390,6 +442,7 @@ def read(
     full += _formula_readings(cache, ci, out, s, tol)
     full += _kinematic_readings(cache, ci, out, s, tol)
     full += _parameter_readings(cache, ci, out, s, tol)
+    full += _constant_readings(cache, ci, out, s, tol)
     causes = merge_readings(full, s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
@@ -398,7 +451,7 @@ def read(
         "; nor the energy's terms refitted"
         + ("" if tc is not None else " (no formula to split)")
         + ", its kinematic variants, its rewritten formulas, its parameters exchanged or refitted "
-        "one at a time (evaluated by the oracle)"
+        "one at a time, the exponents of J refitted (evaluated by the oracle)"
     )
     head = [
         replace(f, evidence=f.evidence + tried) for f in diag.findings if f.code == "unexplained"

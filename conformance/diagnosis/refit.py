@@ -18,9 +18,23 @@ from typing import Callable, Optional, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Refit", "refit"]
+__all__ = ["Refit", "Target", "refit"]
 
 Evaluate = Callable[[Sequence[float]], Tuple[np.ndarray, sp.spmatrix]]
+
+
+@dataclass(frozen=True)
+class Target:
+    """What a refit aims at: the engine's force f (n, 3) and stiffness K, the case's error
+    scales and its tolerances.
+    """
+
+    f: np.ndarray
+    K: sp.spmatrix
+    s_force: float
+    s_stiffness: float
+    tol_force: float
+    tol_stiffness: float
 
 
 @dataclass(frozen=True)
@@ -67,27 +81,22 @@ class _Residual:
 def refit(
     evaluate: Evaluate,
     start: Sequence[float],
-    f: np.ndarray,
-    K: sp.spmatrix,
-    s_force: float,
-    s_stiffness: float,
-    tol_force: float,
-    tol_stiffness: float,
+    target: Target,
     steps: int = 8,
     give_up: float = 0.5,
 ) -> Optional[Refit]:
     """The numbers near ``start`` with which the oracle (``evaluate(values) -> (f, K)``) best
-    matches the engine's ``f``, ``K`` (Gauss-Newton, at most ``steps`` steps; a value the oracle
-    cannot evaluate raises ValueError there and ends the fit). The fit is abandoned (None) when
-    the first step's linear model cannot remove at least ``give_up`` of the error: the numbers
-    do not explain it, and the oracle is not asked again.
+    matches the engine's ``target.f``, ``target.K`` (Gauss-Newton, at most ``steps`` steps; a
+    value the oracle cannot evaluate raises ValueError there and ends the fit). The fit is
+    abandoned (None) when the first step's linear model cannot remove at least ``give_up`` of
+    the error: the numbers do not explain it, and the oracle is not asked again.
     """
     x = np.asarray(start, dtype=np.float64)
     try:
         fo, Ko = evaluate(tuple(x))
     except ValueError:
         return None
-    res = _Residual(f, K, s_force, s_stiffness, Ko)
+    res = _Residual(target.f, target.K, target.s_force, target.s_stiffness, Ko)
     r = res.vector(fo, Ko)
     best = (float(np.linalg.norm(r)), x.copy(), (fo, Ko))
     for step in range(steps):
@@ -129,7 +138,7 @@ def refit(
         tuple(float(v) for v in x),
         ef,
         eK,
-        bool(ef <= tol_force and eK <= tol_stiffness),
+        bool(ef <= target.tol_force and eK <= target.tol_stiffness),
         (np.asarray(fo), sp.csr_matrix(Ko)),
         step + 1 if steps else 0,
     )
