@@ -26,7 +26,7 @@ import numpy as np
 
 from conformance.diagnosis.refit import Refit, Target, refit
 
-__all__ = ["ExponentFit", "fit_exponents", "describe_exponent"]
+__all__ = ["ExponentFit", "fit_exponents", "describe_exponent", "written_exponent"]
 
 #: A fitted factor within this of 1 (relative) leaves its exponent as declared.
 _SAME = 1e-9
@@ -56,7 +56,7 @@ def _fraction(x: float) -> str:
     return f"{x:.6g}"
 
 
-def _written(key: str) -> str:
+def written_exponent(key: str) -> str:
     """An exponent's key as a formula would write it: "-1 * alpha / 3.0" -> "-alpha/3"."""
     try:
         return _fraction(float(key))
@@ -66,7 +66,7 @@ def _written(key: str) -> str:
 
 def describe_exponent(key: str, declared: float, engine: float) -> str:
     """The exponent in words: "J^(-2/3) of the formula is J^(-0.66667) in your engine"."""
-    written = _written(key)
+    written = written_exponent(key)
     value = "" if written == _fraction(declared) else f" = J^({_fraction(declared)})"
     return f"J^({written}){value} of the formula is J^({_fraction(engine)}) in your engine"
 

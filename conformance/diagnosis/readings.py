@@ -319,7 +319,11 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
     """The exponents of J refitted (:mod:`conformance.diagnosis.constants`): a reading when the
     engine matches the formula with some of them changed.
     """
-    from conformance.diagnosis.constants import describe_exponent, fit_exponents
+    from conformance.diagnosis.constants import (
+        describe_exponent,
+        fit_exponents,
+        written_exponent,
+    )
     from conformance.diagnosis.energy_terms import Spec, has_formula, j_exponents
 
     if not has_formula(ci.model):
@@ -337,6 +341,9 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
     if found is None or not found.fit.agrees or not found.changed():
         return []
     changed = found.changed()
+    factors = ", ".join(
+        f"{r:.9g} on J^({written_exponent(k)})" for r, (k, _) in zip(found.fit.values, exponents)
+    )
     return [
         Reading(
             Finding(
@@ -344,9 +351,7 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
                 "a power of J differs from the formula's: "
                 + "; ".join(describe_exponent(*c) for c in changed),
                 FULL,
-                "the oracle with the exponents of J fitted (factors "
-                + ", ".join(f"{r:.9g}" for r in found.fit.values)
-                + f" on {', '.join(k for k, _ in found.exponents)}): force error "
+                f"the oracle with the exponents of J fitted (factors {factors}): force error "
                 f"{found.fit.force:.1e}, stiffness error {found.fit.stiffness:.1e}",
                 {
                     "exponents": [k for k, _ in found.exponents],
