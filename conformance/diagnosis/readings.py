@@ -287,7 +287,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     for name, v0 in values.items():
 
         def evaluate(v, name=name):
-            r = cache.reference(replace(ci, model=with_value(ci.model, **{name: float(v[0])})))
+            r = cache.evaluate_once(ci, with_value(ci.model, **{name: float(v[0])}))
             return r.force, r.stiffness
 
         fit = refit(evaluate, [v0], _target(out, s, tol))
@@ -324,7 +324,12 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
         fit_exponents,
         written_exponent,
     )
-    from conformance.diagnosis.energy_terms import Spec, has_formula, j_exponents
+    from conformance.diagnosis.energy_terms import (
+        Spec,
+        TransformedEnergy,
+        has_formula,
+        j_exponents,
+    )
 
     if not has_formula(ci.model):
         return []
@@ -334,7 +339,7 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
         return []
 
     def evaluate(factors):
-        r = _evaluate(cache, ci, Spec(j_exponents=factors))
+        r = cache.evaluate_once(ci, TransformedEnergy(ci.model, Spec(j_exponents=factors)))
         return r.force, r.stiffness
 
     found = fit_exponents(exponents, evaluate, _target(out, s, tol))
