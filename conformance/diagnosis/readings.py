@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading"]
@@ -150,18 +151,18 @@ def term_reading(
         )
     if not fit.agrees:
         if fit.residual < 0.1 * worst and fit.identified:
-            names_, readings = describe_fit(fit, labels, params, names=names)
+            differs, readings = describe_fit(fit, labels, params, names=names)
             return Reading(
                 Finding(
                     "term-coefficients",
-                    f"mostly the energy's terms with other coefficients: {names_}",
+                    f"mostly the energy's terms with other coefficients: {differs}",
                     PARTIAL,
                     f"f, K = {combo} leaves {fit.residual:.1e} (above the tolerance)",
                     figs,
                 )
             )
         return None
-    names_, readings = describe_fit(fit, labels, params, names=names)
+    differs, readings = describe_fit(fit, labels, params, names=names)
     if not readings:
         return None
     a = fit.coefficients
@@ -175,27 +176,12 @@ def term_reading(
             FULL,
             f"the engine's force and stiffness are the oracle's per-term ones combined as {combo} "
             f"(least squares over {scope}): after the fit force and stiffness errors "
-            f"{fit.residual:.1e}; terms not at 1: {names_}",
+            f"{fit.residual:.1e}; terms not at 1: {differs}",
             figs,
         ),
         f,
         K,
     )
-
-
-def _params(model: Any) -> dict:
-    import dataclasses
-
-    from reference_fem.user_energy import UserEnergy
-
-    if isinstance(model, UserEnergy):
-        return dict(model.params)
-    out = {}
-    for fl in dataclasses.fields(model):
-        v = getattr(model, fl.name)
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
-            out[fl.name] = float(v)
-    return out
 
 
 def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
@@ -265,7 +251,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
     that the engine matches.
     """
-    from conformance.diagnosis.parameters import exchanges, scalar_parameters, with_value
+    from conformance.diagnosis.parameters import exchanges, with_value
     from conformance.diagnosis.refit import refit
 
     found = _matching(
@@ -437,8 +423,8 @@ def read(
     if tc is not None:
         labels, case = tc
         if keep_terms is not None:
-            keep_terms((*tc, _params(ci.model)))
-        r = term_reading(labels, [case], _params(ci.model), worst)
+            keep_terms((*tc, scalar_parameters(ci.model)))
+        r = term_reading(labels, [case], scalar_parameters(ci.model), worst)
         if r is not None:
             bucket = {FULL: full, PARTIAL: None, OBSERVED: None}[r.finding.strength]
             if bucket is not None:
