@@ -271,6 +271,10 @@ def test_family_mistake_is_named(family_runs, name):
         ("Mooney-Rivlin c1 off by 6e-6 (float64)", "c1 slightly off"),
         ("Ogden with J^(-alpha/6)", "isochoric power of J halved"),
         ("Costa with F transposed", "C and B confused"),
+        (
+            "Mooney-Rivlin J^(-0.666667) (float64)",
+            "J^(-2/3) of the formula is J^(-0.666667) in your engine",
+        ),
     ],
 )
 def test_family_reading_in_words(family_runs, name, words):

@@ -31,11 +31,14 @@ import numpy as np
 __all__ = [
     "Spec",
     "TransformedEnergy",
+    "exponent_key",
     "has_formula",
+    "j_exponents",
     "model_frame_of",
     "split_terms",
     "symbolic",
     "symbolic_domain",
+    "term_names",
     "term_parameters",
 ]
 
@@ -53,7 +56,10 @@ class Spec:
     stretches, the stretches for their squares), None: tr C;
     j_power: every non-integer power of J multiplied by this (1: unchanged); j_power_of: only the
     powers whose exponent prints as this (None: all);
-    frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration).
+    frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration);
+    j_exponents: ((exponent, factor), ...): each non-integer power of J whose exponent prints as
+    ``exponent`` (:func:`exponent_key`) taken as J^(factor x exponent), the factor entering the
+    form as a parameter does (one compiled form for every factor: a fit of the exponents).
     """
 
     term: Optional[int] = None
@@ -64,6 +70,7 @@ class Spec:
     j_power: float = 1.0
     j_power_of: Optional[str] = None
     frame_deformed: bool = False
+    j_exponents: Tuple[Tuple[str, float], ...] = ()
 
     def key(self) -> str:
         return repr(self)
@@ -243,6 +250,8 @@ def build(model: Any, F, frame, constant, spec: Spec):
         k = Kinematics(F, _frame_expr(model, frame, constant), spec)
         W = declared.energy(p, k)
         entered = p.entered
+    if spec.j_exponents:
+        W = _refit_j_powers(W, dict(spec.j_exponents), entered, constant)
     if spec.j_power != 1.0:
         W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
     if spec.deformed_volume:
@@ -291,6 +300,65 @@ def _scale_j_powers(W, r: float, only: Optional[str]):
                 and (only is None or str(o.ufl_operands[1]) == only)
             ):
                 return base ** (r * exponent)
+            return self.reuse_if_untouched(o, base, exponent)
+
+    return map_expr_dag(Rewrite(), W)
+
+
+def exponent_key(exponent, entered: List[Tuple[Any, str]]) -> str:
+    """A power of J's exponent as printed, each parameter by its name ("-1 * alpha / 3.0"): the
+    same for every build of a formula, whatever object carries the parameter.
+    """
+    import re
+
+    text = str(exponent)
+    for c, name in entered:
+        text = re.sub(re.escape(str(c)) + r"(?![\d}])", name, text)
+    return text
+
+
+def j_exponents(model: Any) -> List[Tuple[str, float]]:
+    """The non-integer exponents of J in ``model``'s energy: [(:func:`exponent_key`, value)], in
+    order of appearance (a parameter's exponent, Ogden's -alpha/3, at the model's values).
+    """
+    import ufl
+    from ufl.classes import Determinant, FloatValue, Power
+    from ufl.corealg.traversal import unique_pre_traversal
+
+    W, entered, _ = symbolic(model, Spec(), "symbol")
+    values = {c: FloatValue(_Named(model, None).value(n)) for c, n in entered}
+    out: List[Tuple[str, float]] = []
+    for node in unique_pre_traversal(W):
+        if isinstance(node, Power) and isinstance(node.ufl_operands[0], Determinant):
+            ex = node.ufl_operands[1]
+            key = exponent_key(ex, entered)
+            if _is_integer_literal(ex) or key in dict(out):
+                continue
+            value = ufl.replace(ex, values) if values else ex
+            out.append((key, float(value)))
+    return out
+
+
+def _refit_j_powers(W, factors: Dict[str, float], entered, constant):
+    """W with each power of J whose exponent's key is in ``factors`` taken to that factor times
+    its exponent (the factor a parameter-like constant when ``constant`` is given).
+    """
+    from ufl.classes import Determinant
+    from ufl.corealg.map_dag import map_expr_dag
+    from ufl.corealg.multifunction import MultiFunction
+
+    made: Dict[str, Any] = {}
+
+    class Rewrite(MultiFunction):
+        expr = MultiFunction.reuse_if_untouched
+
+        def power(self, o, base, exponent):
+            key = exponent_key(o.ufl_operands[1], entered)
+            if isinstance(base, Determinant) and key in factors:
+                if key not in made:
+                    r = factors[key]
+                    made[key] = r if constant is None else constant(r)
+                return base ** (made[key] * exponent)
             return self.reuse_if_untouched(o, base, exponent)
 
     return map_expr_dag(Rewrite(), W)
@@ -389,6 +457,152 @@ def term_parameters(term, entered: List[Tuple[Any, str]]) -> Tuple[str, ...]:
         if any(c is x for x in present) and name not in names:
             names.append(name)
     return tuple(names)
+
+
+def formula_terms(text: str) -> List[Tuple[str, str]]:
+    """The top-level additive terms of a formula written as text: [(sign "+" or "-", the term
+    as written)]. A sign inside parentheses, after an operator or in a number's exponent (1e-3)
+    does not split.
+    """
+    out: List[Tuple[str, str]] = []
+    depth, start, sign = 0, 0, "+"
+    prev = ""  # the previous character that is not a space
+    for i, ch in enumerate(text):
+        if ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth -= 1
+        elif ch in "+-" and depth == 0:
+            exponent = prev in "eE" and i >= 2 and text[: i - 1].rstrip()[-1:].isdigit()
+            if prev and prev not in "+-*/^(,=" and not exponent:
+                body = text[start:i].strip()
+                if body:
+                    out.append((sign, body))
+                sign, start = ch, i + 1
+            elif not prev:
+                sign, start = ch, i + 1
+        if not ch.isspace():
+            prev = ch
+    body = text[start:].strip()
+    if body:
+        out.append((sign, body))
+    return out
+
+
+def _identifiers(text: str) -> set:
+    import re
+
+    return set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", text))
+
+
+def _declared_texts(model: Any) -> Optional[Tuple[str, Optional[str], List[str]]]:
+    """(the energy as written, its volumetric part as written or None, the parameter names) of a
+    declared material or a user energy; None when there is no written formula.
+    """
+    if isinstance(model, _user_energy_type()):
+        return model.expression, None, list(model.params)
+    declared = _declaration(model)
+    if declared is None or not getattr(declared, "formula", None):
+        return None
+    names = [f.name for f in dataclasses.fields(model) if f.name != "frame"]
+    return declared.formula, declared.volumetric_formula, names
+
+
+def _kind(body: str, volumetric: Optional[str], anisotropic: bool) -> Optional[str]:
+    """The term's kind as the declaration writes it: isochoric, volumetric, anisotropic or None."""
+    import re
+
+    flat = " ".join(body.split())
+    if volumetric is not None and any(
+        " ".join(b.split()) == flat for _, b in formula_terms(volumetric)
+    ):
+        return "volumetric"
+    if anisotropic:
+        return "anisotropic"
+    # The isochoric invariants of docs/conventions.md, or a power -p/3 of J on them (Ogden's).
+    if re.search(r"\bI[12]b\b|J\^\(-[^()]*/3\)", flat):
+        return "isochoric"
+    return None
+
+
+#: Functions a written term and a split term are matched on besides their parameters.
+_FUNCTIONS = {"exp": ("Exp",), "ln": ("Ln",)}
+
+
+def _functions_of_text(body: str) -> set:
+    words = _identifiers(body)
+    return {f for f in _FUNCTIONS if f in words or (f == "ln" and "log" in words)}
+
+
+def _functions_of_term(term) -> set:
+    from ufl.corealg.traversal import unique_pre_traversal
+
+    kinds = {type(node).__name__ for node in unique_pre_traversal(term)}
+    return {f for f, classes in _FUNCTIONS.items() if kinds & set(classes)}
+
+
+def _match_written(split: List[Tuple[set, set]], written: List[Tuple[set, set]]):
+    """For each split term (parameters, functions), the index of the written term it comes from,
+    or None: the one assignment of the split terms to the written ones (one to one when there
+    are as many) in which every pair shares its parameters and the written term has every
+    function the split term applies; else each split term's only compatible written term.
+    """
+    import itertools
+
+    def fits(u: Tuple[set, set], w: Tuple[set, set]) -> bool:
+        shares = bool(u[0] & w[0]) if u[0] or w[0] else True
+        return shares and u[1] <= w[1]
+
+    ok = [[j for j, w in enumerate(written) if fits(u, w)] for u in split]
+    if len(split) == len(written) and len(split) <= 7:
+        perms = [
+            p
+            for p in itertools.permutations(range(len(split)))
+            if all(p[i] in ok[i] for i in range(len(split)))
+        ]
+        if len(perms) == 1:
+            return list(perms[0])
+    return [c[0] if len(c) == 1 else None for c in ok]
+
+
+def term_names(model: Any) -> List[Optional[str]]:
+    """Each additive term of ``model``'s energy (in the order of :func:`split_terms`) named by
+    its formula as the material declares it (or the user wrote it), with its kind where the
+    declaration says it: "the isochoric term - c1 c2 / 2 (I2b - 3)". None for a term the written
+    formula cannot be matched to (by the parameters it reads and the functions, exp and ln, it
+    applies: :func:`_match_written`); "part k of m" when one written term gave several.
+    """
+    texts = _declared_texts(model)
+    if texts is None:
+        return []
+    formula, volumetric, params = texts
+    W, entered, F = symbolic(model, Spec(), "symbol")
+    terms = split_terms(W, F)
+    split = [(set(term_parameters(t, entered)), _functions_of_term(t)) for t in terms]
+    written = formula_terms(formula)
+    match = _match_written(
+        split, [(_identifiers(b) & set(params), _functions_of_text(b)) for _, b in written]
+    )
+    if isinstance(model, _user_energy_type()):
+        fibre = bool(model.uses_fibre)
+    else:
+        fibre = _uses_frame(model)
+    names: List[Optional[str]] = []
+    for i, j in enumerate(match):
+        if j is None:
+            names.append(None)
+            continue
+        sign, body = written[j]
+        reads_fibre = fibre and (
+            not isinstance(model, _user_energy_type()) or bool({"I4", "I5"} & _identifiers(body))
+        )
+        kind = _kind(body, volumetric, reads_fibre)
+        name = f"the {kind + ' ' if kind else ''}term {'- ' if sign == '-' else ''}{body}"
+        parts = [k for k, m in enumerate(match) if m == j]
+        if len(parts) > 1:
+            name += f" (part {parts.index(i) + 1} of {len(parts)})"
+        names.append(name)
+    return names
 
 
 @dataclass(frozen=True, eq=False)

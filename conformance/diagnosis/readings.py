@@ -3,7 +3,9 @@ energies, once no correction of the output explains a failure:
 
 1. the energy's terms with other coefficients (:mod:`conformance.diagnosis.term_fit`);
 2. a rewritten formula (:mod:`conformance.diagnosis.variants`);
-3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`).
+3. a kinematic mistake (:mod:`conformance.diagnosis.kinematics`);
+4. two parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`);
+5. an exponent of J with another value (:mod:`conformance.diagnosis.constants`).
 
 Every hypothesis is tried (none stops the others), and a cause is named only when it brings the
 engine's force and stiffness within the case's tolerance. Readings that predict the same force
@@ -21,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading"]
@@ -53,11 +56,25 @@ def _evaluate(cache, ci, spec):
     )
 
 
+def _target(out, s: Scales, tol: Tolerances):
+    """The engine's output, the case's scales and tolerances, as a refit aims at them."""
+    from conformance.diagnosis.refit import Target
+
+    return Target(
+        np.asarray(out.force),
+        sp.csr_matrix(out.stiffness),
+        s.force,
+        s.stiffness,
+        tol.force,
+        tol.stiffness,
+    )
+
+
 def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
     """(labels, TermCase) of one case, or None when the energy has no formula or its terms do not
     add up to the oracle's energy (then nothing is claimed from them).
     """
-    from conformance.diagnosis.energy_terms import Spec, has_formula
+    from conformance.diagnosis.energy_terms import Spec, has_formula, term_names
     from conformance.diagnosis.term_fit import TermCase, term_labels
 
     if not has_formula(ci.model):
@@ -74,15 +91,23 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
     e = errors(fs, Ks, None, ref.force, ref.stiffness, 0.0, s)
     if max(e.force, e.stiffness) > 1e-11:
         return None
+    try:
+        names = tuple(term_names(ci.model))
+    except Exception:  # noqa: BLE001 - no written formula to match: the terms by parameters
+        names = ()
+    if len(names) != len(labels):
+        names = ()
+    t = _target(out, s, tol)
     return labels, TermCase(
         [r.force for r in refs],
         [r.stiffness for r in refs],
-        np.asarray(out.force),
-        sp.csr_matrix(out.stiffness),
-        s.force,
-        s.stiffness,
-        tol.force,
-        tol.stiffness,
+        t.f,
+        t.K,
+        t.s_force,
+        t.s_stiffness,
+        t.tol_force,
+        t.tol_stiffness,
+        names,
     )
 
 
@@ -95,9 +120,11 @@ def term_reading(
     fit = fit_terms(cases)
     if fit is None:
         return None
+    names = cases[0].names
     figs = {
         "coefficients": [float(a) for a in fit.coefficients],
         "terms": [list(p) for p in labels],
+        "term_names": list(names),
         "residual": fit.residual,
         "identified": fit.identified,
         "cases": len(cases),
@@ -106,7 +133,10 @@ def term_reading(
         f"{a:.9g} x [{' '.join(p) or 'term'}]" for a, p in zip(fit.coefficients, labels)
     )
     if fit.agrees and not fit.identified:
-        coupled = ", ".join(" ".join(labels[i]) or "a term" for i in fit.coupled)
+        coupled = ", ".join(
+            (names[i] if i < len(names) and names[i] else " ".join(labels[i]) or "a term")
+            for i in fit.coupled
+        )
         return Reading(
             Finding(
                 "term-coefficients-ambiguous",
@@ -121,18 +151,18 @@ def term_reading(
         )
     if not fit.agrees:
         if fit.residual < 0.1 * worst and fit.identified:
-            names, readings = describe_fit(fit, labels, params)
+            differs, readings = describe_fit(fit, labels, params, names=names)
             return Reading(
                 Finding(
                     "term-coefficients",
-                    f"mostly the energy's terms with other coefficients: {names}",
+                    f"mostly the energy's terms with other coefficients: {differs}",
                     PARTIAL,
                     f"f, K = {combo} leaves {fit.residual:.1e} (above the tolerance)",
                     figs,
                 )
             )
         return None
-    names, readings = describe_fit(fit, labels, params)
+    differs, readings = describe_fit(fit, labels, params, names=names)
     if not readings:
         return None
     a = fit.coefficients
@@ -146,27 +176,12 @@ def term_reading(
             FULL,
             f"the engine's force and stiffness are the oracle's per-term ones combined as {combo} "
             f"(least squares over {scope}): after the fit force and stiffness errors "
-            f"{fit.residual:.1e}; terms not at 1: {names}",
+            f"{fit.residual:.1e}; terms not at 1: {differs}",
             figs,
         ),
         f,
         K,
     )
-
-
-def _params(model: Any) -> dict:
-    import dataclasses
-
-    from reference_fem.user_energy import UserEnergy
-
-    if isinstance(model, UserEnergy):
-        return dict(model.params)
-    out = {}
-    for fl in dataclasses.fields(model):
-        v = getattr(model, fl.name)
-        if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
-            out[fl.name] = float(v)
-    return out
 
 
 def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
@@ -230,6 +245,115 @@ def _formula_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readin
             for v in variants(ci.model)
         ),
     )
+
+
+def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
+    that the engine matches.
+    """
+    from conformance.diagnosis.parameters import exchanges, with_value
+    from conformance.diagnosis.refit import refit
+
+    found = _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda x=x: cache.reference(replace(ci, model=x.model)),
+                "parameters-exchanged",
+                x.title(),
+                x.words(),
+                {"parameters": [x.p, x.q]},
+            )
+            for x in exchanges(ci.model)
+        ),
+    )
+    values = scalar_parameters(ci.model)
+    for name, v0 in values.items():
+
+        def evaluate(v, name=name):
+            r = cache.evaluate_once(ci, with_value(ci.model, **{name: float(v[0])}))
+            return r.force, r.stiffness
+
+        fit = refit(evaluate, [v0], _target(out, s, tol))
+        if fit is None or not fit.agrees:
+            continue
+        v = fit.values[0]
+        if abs(v - v0) <= 1e-9 * max(abs(v0), 1e-300):
+            continue
+        same = [q for q, vq in values.items() if q != name and abs(v - vq) <= 1e-6 * abs(vq)]
+        also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
+        found.append(
+            Reading(
+                Finding(
+                    "parameter-value",
+                    f"parameter {name} = {v:.9g} in your engine where the case has {v0:g}{also}",
+                    FULL,
+                    f"the oracle with {name} = {v:.9g} (fitted; relative change "
+                    f"{v / v0 - 1 if v0 else v:+.3e}): force error {fit.force:.1e}, stiffness "
+                    f"error {fit.stiffness:.1e}",
+                    {"parameter": name, "value": v, "declared": v0, "residual": fit.residual},
+                ),
+                *fit.prediction,
+            )
+        )
+    return found
+
+
+def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The exponents of J refitted (:mod:`conformance.diagnosis.constants`): a reading when the
+    engine matches the formula with some of them changed.
+    """
+    from conformance.diagnosis.constants import (
+        describe_exponent,
+        fit_exponents,
+        written_exponent,
+    )
+    from conformance.diagnosis.energy_terms import (
+        Spec,
+        TransformedEnergy,
+        has_formula,
+        j_exponents,
+    )
+
+    if not has_formula(ci.model):
+        return []
+    try:
+        exponents = j_exponents(ci.model)
+    except Exception:  # noqa: BLE001 - a formula this module cannot read: nothing to fit
+        return []
+
+    def evaluate(factors):
+        r = cache.evaluate_once(ci, TransformedEnergy(ci.model, Spec(j_exponents=factors)))
+        return r.force, r.stiffness
+
+    found = fit_exponents(exponents, evaluate, _target(out, s, tol))
+    if found is None or not found.fit.agrees or not found.changed():
+        return []
+    changed = found.changed()
+    factors = ", ".join(
+        f"{r:.9g} on J^({written_exponent(k)})" for r, (k, _) in zip(found.fit.values, exponents)
+    )
+    return [
+        Reading(
+            Finding(
+                "formula-constant",
+                "a power of J differs from the formula's: "
+                + "; ".join(describe_exponent(*c) for c in changed),
+                FULL,
+                f"the oracle with the exponents of J fitted (factors {factors}): force error "
+                f"{found.fit.force:.1e}, stiffness error {found.fit.stiffness:.1e}",
+                {
+                    "exponents": [k for k, _ in found.exponents],
+                    "declared": [p for _, p in found.exponents],
+                    "engine": [r * p for r, (_, p) in zip(found.fit.values, found.exponents)],
+                    "residual": found.fit.residual,
+                },
+            ),
+            *found.fit.prediction,
+        )
+    ]
 
 
 def _same(a: Reading, b: Reading, s: Scales) -> bool:
@@ -299,8 +423,8 @@ def read(
     if tc is not None:
         labels, case = tc
         if keep_terms is not None:
-            keep_terms((*tc, _params(ci.model)))
-        r = term_reading(labels, [case], _params(ci.model), worst)
+            keep_terms((*tc, scalar_parameters(ci.model)))
+        r = term_reading(labels, [case], scalar_parameters(ci.model), worst)
         if r is not None:
             bucket = {FULL: full, PARTIAL: None, OBSERVED: None}[r.finding.strength]
             if bucket is not None:
@@ -313,6 +437,8 @@ def read(
     # says it exactly (W' = ...) and the kinematic reading follows as "equivalently".
     full += _formula_readings(cache, ci, out, s, tol)
     full += _kinematic_readings(cache, ci, out, s, tol)
+    full += _parameter_readings(cache, ci, out, s, tol)
+    full += _constant_readings(cache, ci, out, s, tol)
     causes = merge_readings(full, s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
@@ -320,7 +446,8 @@ def read(
     tried = (
         "; nor the energy's terms refitted"
         + ("" if tc is not None else " (no formula to split)")
-        + ", its kinematic variants or its rewritten formulas (evaluated by the oracle)"
+        + ", its kinematic variants, its rewritten formulas, its parameters exchanged or refitted "
+        "one at a time, the exponents of J refitted (evaluated by the oracle)"
     )
     head = [
         replace(f, evidence=f.evidence + tried) for f in diag.findings if f.code == "unexplained"

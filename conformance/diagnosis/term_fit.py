@@ -50,7 +50,9 @@ _FACTORS = (
 @dataclass(frozen=True)
 class TermCase:
     """One case's system: the oracle's per-term forces (T of (n, 3)) and stiffnesses (T of
-    (3n, 3n)); the engine's f, K; the error scales and the tolerances of the case.
+    (3n, 3n)); the engine's f, K; the error scales and the tolerances of the case; names: each
+    term's formula as declared (:func:`conformance.diagnosis.energy_terms.term_names`; empty, or
+    None for a term, where unknown).
     """
 
     forces: Sequence[np.ndarray]
@@ -61,6 +63,7 @@ class TermCase:
     stiffness_scale: float
     force_tol: float
     stiffness_tol: float
+    names: Tuple[Optional[str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -140,7 +143,9 @@ def fit_terms(cases: Sequence[TermCase]) -> Optional[TermFit]:
     return TermFit(a, identified, coupled, tuple(residuals), bool(agrees))
 
 
-def _label(i: int, labels: Sequence[Tuple[str, ...]]) -> str:
+def _label(i: int, labels: Sequence[Tuple[str, ...]], names: Sequence[Optional[str]] = ()) -> str:
+    if i < len(names) and names[i]:
+        return str(names[i])
     params = labels[i]
     same = [j for j, p in enumerate(labels) if p == params]
     name = f"the {' '.join(params)} term" if params else "a term without parameters"
@@ -161,9 +166,15 @@ def _factor_words(a: float, close: float) -> Optional[str]:
 
 
 def describe_fit(
-    fit: TermFit, labels: Sequence[Tuple[str, ...]], params: Dict[str, float], close: float = 1e-6
+    fit: TermFit,
+    labels: Sequence[Tuple[str, ...]],
+    params: Dict[str, float],
+    close: float = 1e-6,
+    names: Sequence[Optional[str]] = (),
 ) -> Tuple[str, List[str]]:
-    """(one line: what differs, [one reading per deviating group]) for a fit that agrees."""
+    """(one line: what differs, [one reading per deviating group]) for a fit that agrees.
+    ``names``: each term's declared formula (a parameter's reading then says which terms).
+    """
     a = fit.coefficients
     off = [i for i, ai in enumerate(a) if abs(ai - 1.0) > close]
     if not off:
@@ -199,6 +210,8 @@ def describe_fit(
             continue
         vp = params[p]
         words = _factor_words(ap, close)
+        written = sorted({names[i] for i in tp if i < len(names) and names[i]})
+        which = f" ({'; '.join(written)})" if written else ""
         other = [
             q
             for q, vq in params.items()
@@ -206,18 +219,19 @@ def describe_fit(
         ]
         if other:
             readings.append(
-                f"{other[0]} used for {p}: the terms of {p} scaled by {ap:.6g} = {other[0]}/{p}"
+                f"{other[0]} used for {p}: the terms of {p} scaled by {ap:.6g} = "
+                f"{other[0]}/{p}{which}"
             )
         elif words:
-            readings.append(f"parameter {p}: its terms {words} (factor {ap:.6g})")
+            readings.append(f"parameter {p}: its terms {words} (factor {ap:.6g}){which}")
         elif abs(ap - 1.0) < 1e-3:
             readings.append(
                 f"parameter {p} slightly off: its terms scaled by {ap:.9g} (relative "
-                f"{ap - 1:+.2e}: a rounded constant or parameter?)"
+                f"{ap - 1:+.2e}: a rounded constant or parameter?){which}"
             )
         else:
             readings.append(
-                f"parameter {p}: its terms scaled by {ap:.6g} (as if {p} = {ap * vp:.6g})"
+                f"parameter {p}: its terms scaled by {ap:.6g} (as if {p} = {ap * vp:.6g}){which}"
             )
         done |= set(tp)
     for i in off:
@@ -226,6 +240,6 @@ def describe_fit(
         words = _factor_words(float(a[i]), close)
         if words is None and abs(a[i] - 1.0) < 1e-3:
             words = f"slightly off (relative {a[i] - 1:+.2e}: a rounded constant?)"
-        readings.append(f"{_label(i, labels)} {words or 'scaled'} (coefficient {a[i]:.6g})")
-    names = ", ".join(f"{_label(i, labels)} x {a[i]:.6g}" for i in off)
-    return names, readings
+        readings.append(f"{_label(i, labels, names)} {words or 'scaled'} (coefficient {a[i]:.6g})")
+    line = ", ".join(f"{_label(i, labels, names)} x {a[i]:.6g}" for i in off)
+    return line, readings

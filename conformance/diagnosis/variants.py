@@ -3,7 +3,8 @@
 When no correction explains a failure, the case's energy is written as a formula (the
 material's declared energy, or the user's own) and rewritten the way engines
 get it wrong: an invariant without its isochoric factor, the wrong power of J in it, I2 taken
-as tr(C^2), the bulk term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2. Each variant
+as tr(C^2) or with tr(C^2) written from part of C (its diagonal, its Voigt entries once), the bulk
+term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2. Each variant
 is a user energy (:class:`reference_fem.user_energy.UserEnergy`), so the oracle differentiates
 it exactly as it does the built-in energies; a variant whose force and stiffness agree with the
 engine's within the case's tolerances is named: "your engine matches W' = ...".
@@ -165,6 +166,11 @@ class Rewrite:
     replacement: str
 
 
+#: I2 = (I1^2 - tr(C^2)) / 2 with tr(C^2) = sum_ij C_ij^2 written from part of C: its diagonal
+#: only, or its six Voigt entries each once (the off-diagonal ones belong twice).
+_I2_DIAGONAL = "((I1**2 - (C11**2 + C22**2 + C33**2))/2)"
+_I2_VOIGT = "((I1**2 - (C11**2 + C22**2 + C33**2 + C12**2 + C13**2 + C23**2))/2)"
+
 #: The mistake families, each a rewrite of the formula's invariants or of its bulk term.
 REWRITES: Tuple[Rewrite, ...] = (
     Rewrite(
@@ -187,6 +193,27 @@ REWRITES: Tuple[Rewrite, ...] = (
     ),
     Rewrite(
         "I2-as-trC2", "tr(C^2) used for I2 = (I1^2 - tr(C^2)) / 2", r"\bI2\b", "(I1**2 - 2*I2)"
+    ),
+    Rewrite(
+        "I2-diagonal",
+        "tr(C^2) in I2 = (I1^2 - tr(C^2)) / 2 taken from the diagonal of C only (the off-diagonal "
+        "entries dropped)",
+        r"\bI2b\b",
+        f"(J**(-4/3)*{_I2_DIAGONAL})",
+    ),
+    Rewrite(
+        "I2-diagonal",
+        "tr(C^2) in I2 = (I1^2 - tr(C^2)) / 2 taken from the diagonal of C only (the off-diagonal "
+        "entries dropped)",
+        r"\bI2\b",
+        _I2_DIAGONAL,
+    ),
+    Rewrite(
+        "I2-voigt",
+        "tr(C^2) in I2 = (I1^2 - tr(C^2)) / 2 summed over the six Voigt entries of C, the "
+        "off-diagonal ones counted once where tr(C^2) has them twice",
+        r"\bI2b\b",
+        f"(J**(-4/3)*{_I2_VOIGT})",
     ),
     Rewrite("isochoric-I1", "the isochoric I1b used where the formula has I1", r"\bI1\b", "I1b"),
     Rewrite(

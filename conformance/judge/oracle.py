@@ -48,6 +48,12 @@ def _key(case: CaseInput) -> Tuple[str, str]:
     return h.hexdigest(), model
 
 
+def _at(oracle: Any, case: CaseInput) -> Reference:
+    """``oracle`` evaluated at the case's positions."""
+    f, K = oracle.force_and_stiffness(case.positions)
+    return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+
+
 class OracleCache:
     """UFL oracles and stiffness-part oracles, built once per (mesh, model)."""
 
@@ -68,9 +74,7 @@ class OracleCache:
 
                 check_symbolic_budget(case.model)
             self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
-        oracle = self._oracles[key]
-        f, K = oracle.force_and_stiffness(case.positions)
-        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+        return _at(self._oracles[key], case)
 
     def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
         """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
@@ -82,9 +86,16 @@ class OracleCache:
             from reference_fem import UFLOracle
 
             self._oracles[k] = UFLOracle(case.points, case.cells, model)
-        oracle = self._oracles[k]
-        f, K = oracle.force_and_stiffness(case.positions)
-        return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+        return _at(self._oracles[k], case)
+
+    def evaluate_once(self, case: CaseInput, model: Any) -> Reference:
+        """The oracle for ``model`` at the case's positions, not kept: a refit asks for many
+        models (a parameter or an exponent at each of its trial values), each once. Built from
+        the same compiled form as the model's kept oracles where only parameter values differ.
+        """
+        from reference_fem import UFLOracle
+
+        return _at(UFLOracle(case.points, case.cells, model), case)
 
     def column_derivatives(
         self, case: CaseInput, step: np.ndarray

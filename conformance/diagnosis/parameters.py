@@ -1,0 +1,130 @@
+"""Parameters the engine read differently: two exchanged, or one with another value.
+
+The term fit (:mod:`conformance.diagnosis.term_fit`) sees a parameter that multiplies its terms;
+one that enters non-linearly (Costa's b_ij inside exp(Q), Veronda-Westmann's c2, Ogden's alpha)
+it cannot. Here the oracle is evaluated with the parameters themselves changed:
+
+- every pair of parameters of the same unit exchanged (the units as the material's declaration
+  writes them, "`a`, `k0` (Pa); `b_ff`, ... (dimensionless)"; a user energy's parameters have
+  no declared unit, so every pair of them);
+- each parameter alone refitted (:func:`conformance.diagnosis.refit.refit`): the value with
+  which the oracle matches the engine, named with the parameter it equals when it is another's.
+
+Each hypothesis is a model the oracle evaluates like the case's own; it is named only when the
+engine agrees with it within the case's tolerance, and the caller shows two that agree and
+predict differently as ambiguous.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import re
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+
+__all__ = ["Exchange", "declared_units", "exchanges", "scalar_parameters", "with_value"]
+
+
+def _is_user_energy(model: Any) -> bool:
+    from reference_fem.user_energy import UserEnergy
+
+    return isinstance(model, UserEnergy)
+
+
+def scalar_parameters(model: Any) -> Dict[str, float]:
+    """The model's finite scalar parameters, by name, in their declared order."""
+    if _is_user_energy(model):
+        return {k: float(v) for k, v in model.params.items()}
+    out: Dict[str, float] = {}
+    if not dataclasses.is_dataclass(model):
+        return out
+    for fl in dataclasses.fields(model):
+        v = getattr(model, fl.name)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v):
+            out[fl.name] = float(v)
+    return out
+
+
+def declared_units(model: Any) -> Dict[str, Optional[str]]:
+    """Each parameter's unit as the declaration's ``parameters`` text writes it (names in
+    backticks, then their unit in parentheses: "`mu`, `k0` (Pa), `alpha` (dimensionless)");
+    None for every parameter of a model without a declaration.
+    """
+    names = scalar_parameters(model)
+    units: Dict[str, Optional[str]] = dict.fromkeys(names)
+    if _is_user_energy(model):
+        return units
+    from mjed.materials.declaration import declaration_of
+
+    try:
+        text = declaration_of(type(model)).parameters or ""
+    except LookupError:
+        return units
+    pending: List[str] = []
+    for m in re.finditer(r"`([^`]+)`|\(([^()]*)\)", text):
+        if m.group(1) is not None:
+            pending.append(m.group(1))
+        else:
+            unit = m.group(2).split(",")[0].strip()
+            for n in pending:
+                if n in units:
+                    units[n] = unit
+            pending = []
+    return units
+
+
+def with_value(model: Any, **values: float) -> Any:
+    """``model`` with some parameters replaced (the model's own validation applies: ValueError)."""
+    import warnings
+
+    with warnings.catch_warnings():  # a changed parameter may pre-stress: that is the point
+        warnings.simplefilter("ignore")
+        if _is_user_energy(model):
+            return dataclasses.replace(model, params={**model.params, **values})
+        return dataclasses.replace(model, **values)
+
+
+@dataclass(frozen=True)
+class Exchange:
+    """Two parameters exchanged: names p, q (the declared values vp, vq), and the model that
+    reads vq for p and vp for q.
+    """
+
+    p: str
+    q: str
+    vp: float
+    vq: float
+    model: Any
+
+    def title(self) -> str:
+        return f"parameters {self.p} and {self.q} exchanged"
+
+    def words(self) -> str:
+        return (
+            f"{self.p} = {self.vq:g} and {self.q} = {self.vp:g} in the engine where the case "
+            f"has {self.p} = {self.vp:g}, {self.q} = {self.vq:g}: "
+        )
+
+
+def exchanges(model: Any) -> List[Exchange]:
+    """Every exchange of two parameters of the same declared unit (every pair where units are
+    not declared) that changes the model and that the model accepts.
+    """
+    values = scalar_parameters(model)
+    units = declared_units(model)
+    out = []
+    for p, q in itertools.combinations(values, 2):
+        if units[p] is not None and units[p] != units[q]:
+            continue
+        vp, vq = values[p], values[q]
+        if vp == vq:
+            continue
+        try:
+            swapped = with_value(model, **{p: vq, q: vp})
+        except (ValueError, TypeError):
+            continue
+        out.append(Exchange(p, q, vp, vq, swapped))
+    return out
