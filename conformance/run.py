@@ -19,6 +19,7 @@ from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
@@ -260,6 +261,8 @@ def _run_check(
                     (len(run.outcomes), *tc)
                 ),
             )
+        if unexplained and not diag.causes:  # mistakes inside the element: order, stress measure
+            diag = element_reading(diag, ci, out, ref, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
