@@ -19,6 +19,7 @@ from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
@@ -268,6 +269,8 @@ def _run_check(
             diag = _approximation_reading(diag, ci, out)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
+            if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
+                diag = element_difference_reading(diag, ci, out, ref, s)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for a force as inexact as float32 storage alone makes it (a float32 value carries
         # a relative error of u / sqrt(3) on average): a small exact-looking error is a mistake.
