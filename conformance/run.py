@@ -24,6 +24,7 @@ from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
+from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -267,6 +268,8 @@ def _run_check(
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
+            if not diag.causes:  # one invariant's curvature term wrong in the tangent
+                diag = second_derivative_reading(diag, ci, out, ref)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
