@@ -30,7 +30,7 @@ from typing import Any, Callable, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.findings import FULL, OBSERVED, Finding
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
@@ -163,24 +163,7 @@ def order_findings(
                     )
                 )
                 break
-    return _ambiguous(found)
-
-
-def _ambiguous(found: List[Finding]) -> List[Finding]:
-    if len(found) <= 1:
-        return found
-    lead = Finding(
-        "ambiguous",
-        f"ambiguous: {len(found)} causes explain this case equally",
-        OBSERVED,
-        "each brings force and stiffness within tolerance: "
-        + " | ".join(x.title for x in found)
-        + " (check a state or mesh that separates them)",
-        {"codes": [x.code for x in found]},
-    )
-    return [lead] + [
-        Finding(x.code, "(ambiguous) " + x.title, x.strength, x.evidence, x.figures) for x in found
-    ]
+    return ambiguous(found)
 
 
 # ------------------------------------------------------------------ stress measures
@@ -275,7 +258,7 @@ def stress_measure_findings(
                     {"measure": code, "residual": max(e.force, e.stiffness)},
                 )
             )
-    return _ambiguous(found)
+    return ambiguous(found)
 
 
 def element_reading(diag, ci, out, ref, s: Scales):

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import lsqr
 from scipy.sparse.linalg import norm as sparse_norm
 
-from conformance.diagnosis.findings import FULL, OBSERVED, Finding
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
 
 __all__ = [
     "INVARIANTS",
@@ -136,22 +136,7 @@ def second_derivative_findings(
         residual, lam = fit_invariant_curvature(points, cells, x, D, K_o, name)
         if residual <= tol:
             found.append(_finding(name, residual, lam))
-    if len(found) > 1:
-        lead = Finding(
-            "ambiguous",
-            f"ambiguous: {len(found)} causes explain this case equally",
-            OBSERVED,
-            "each brings the stiffness within tolerance (the invariants' gradients are parallel "
-            "in this state): "
-            + " | ".join(f.title for f in found)
-            + " (check a state that separates them, e.g. a random one)",
-            {"codes": [f.code for f in found]},
-        )
-        found = [lead] + [
-            Finding(f.code, "(ambiguous) " + f.title, f.strength, f.evidence, f.figures)
-            for f in found
-        ]
-    return found
+    return ambiguous(found, "the invariants' gradients are parallel in this state")
 
 
 def _finding(name: str, residual: float, lam: np.ndarray) -> Finding:
