@@ -68,3 +68,29 @@ def test_parallel_gradients_are_ambiguous_not_named():
     found = second_derivative_findings(points, cells, x, K, K_o, 1e-10)
     assert found[0].code == "ambiguous" and found[0].strength == "observed", found
     assert {f.figures.get("invariant") for f in found[1:]} >= {"I1b", "I2b"}
+
+
+def test_an_elasticity_tensor_without_its_minor_symmetry_is_named():
+    """A Neo-Hookean total-Lagrangian tangent with 2 s C^-1_IK C^-1_JL for the symmetrised
+    s (C^-1_IK C^-1_JL + C^-1_IL C^-1_JK), contracted with F^T grad v unsymmetrised.
+    """
+    from mjed.mesh import shape_vectors
+
+    points, cells = box_mesh(2, jitter=0.2, seed=6)
+    x = points + 0.05 * np.random.default_rng(6).standard_normal(points.shape)
+    K_o = _oracle(points, cells, x)
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    Ci = np.linalg.inv(F.swapaxes(1, 2) @ F)
+    s = 300.0 - 50.0 * np.log(np.linalg.det(F))
+    wrong = 2 * np.einsum("mIK,mJL->mIJKL", Ci, Ci)
+    right = np.einsum("mIK,mJL->mIJKL", Ci, Ci) + np.einsum("mIL,mJK->mIJKL", Ci, Ci)
+    BL = np.einsum("mkI,maJ->makIJ", F, D)
+    Ke = np.einsum("makIJ,mIJKL,mblKL->makbl", BL, wrong - right, BL)
+    Ke = ((np.abs(V0) * s)[:, None, None, None, None] * Ke).reshape(-1, 12, 12)
+    K = K_o + assemble(cells, points.shape[0], np.zeros((len(cells), 4, 3)), Ke)[1]
+    found = second_derivative_findings(points, cells, x, K, K_o, 1e-10)
+    assert [f.code for f in found] == ["tangent-unsymmetrised"], [f.title for f in found]
+    assert found[0].figures["tensor"] == "C^-1" and "symmetrised" in found[0].title
+    # the coefficient of the unsymmetrised C^-1_IK C^-1_JL in the engine: 2 s
+    assert abs(found[0].figures["coefficient_median"] / np.median(2 * s) - 1) < 0.2
