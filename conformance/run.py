@@ -25,6 +25,7 @@ from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
+from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -265,6 +266,8 @@ def _run_check(
             )
         if unexplained and not diag.causes:  # mistakes inside the element: order, stress measure
             diag = element_reading(diag, ci, out, ref, s)
+        if unexplained and not diag.causes:  # a hand-written stress with B where C belongs
+            diag = b_for_c_reading(diag, ci, out, ref, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
