@@ -320,7 +320,27 @@ def _run_check(
         if on_case is not None:
             on_case(case, out, ref, diag)
     _kit_term_fit(run, kept_terms)
+    _settle_ambiguity(run)
     return run
+
+
+def _settle_ambiguity(run: CheckRun) -> None:
+    """An ambiguous case given the cause that another case of the same model and mesh names
+    alone (:func:`conformance.diagnosis.disambiguate.settle_ambiguity`).
+    """
+    from conformance.diagnosis.disambiguate import settle_ambiguity
+
+    groups: Dict[tuple, List[int]] = {}
+    for i, o in enumerate(run.outcomes):
+        groups.setdefault((o.model, o.mesh), []).append(i)
+    settled = settle_ambiguity(
+        [o.diagnosis for o in run.outcomes],
+        list(groups.values()),
+        [o.case_id for o in run.outcomes],
+    )
+    for i, d in enumerate(settled):
+        if d is not run.outcomes[i].diagnosis:
+            run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
 
 
 def _kit_term_fit(run: CheckRun, kept: Dict[str, list]) -> None:
