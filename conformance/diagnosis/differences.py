@@ -219,7 +219,9 @@ class RoundoffDifferences:
 def roundoff_dominated(
     split: ElementSplit, K: sp.spmatrix, K_o: sp.spmatrix
 ) -> Optional[RoundoffDifferences]:
-    """The noise signature of a difference tangent whose step is too small (None: D is zero)."""
+    """The noise signature of a difference tangent whose step is too small (None: D is zero, or
+    the mesh has more than 1000 nodes, where the per-cell blocks of D are not gathered).
+    """
     K = sp.csr_matrix(K)
     D = (K - sp.csr_matrix(K_o)).tocsr()
     nD = float(sparse_norm(D))

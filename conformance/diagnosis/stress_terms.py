@@ -151,7 +151,7 @@ def b_for_c_findings(points, cells, x, df, dK, s: Scales, tol: Tolerances) -> Li
 
 
 #: Largest mesh (cells) the fit is tried on: a dense eigen-decomposition of 4m unknowns.
-MAX_CELLS = 1500
+MAX_CELLS = 800
 
 
 def b_for_c_reading(diag, ci, out, ref, s: Scales) -> Optional[object]:
