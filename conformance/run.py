@@ -19,9 +19,13 @@ from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.differences import element_difference_reading
+from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
+from conformance.diagnosis.second_derivative import second_derivative_reading
+from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -260,11 +264,19 @@ def _run_check(
                     (len(run.outcomes), *tc)
                 ),
             )
+        if unexplained and not diag.causes:  # mistakes inside the element: order, stress measure
+            diag = element_reading(diag, ci, out, ref, s)
+        if unexplained and not diag.causes:  # a hand-written stress with B where C belongs
+            diag = b_for_c_reading(diag, ci, out, ref, s)
         if unexplained and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
+            if not diag.causes:  # one invariant's curvature term wrong in the tangent
+                diag = second_derivative_reading(diag, ci, out, ref)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
+            if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
+                diag = element_difference_reading(diag, ci, out, ref, s)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for a force as inexact as float32 storage alone makes it (a float32 value carries
         # a relative error of u / sqrt(3) on average): a small exact-looking error is a mistake.
@@ -308,7 +320,27 @@ def _run_check(
         if on_case is not None:
             on_case(case, out, ref, diag)
     _kit_term_fit(run, kept_terms)
+    _settle_ambiguity(run)
     return run
+
+
+def _settle_ambiguity(run: CheckRun) -> None:
+    """An ambiguous case given the cause that another case of the same model and mesh names
+    alone (:func:`conformance.diagnosis.disambiguate.settle_ambiguity`).
+    """
+    from conformance.diagnosis.disambiguate import settle_ambiguity
+
+    groups: Dict[tuple, List[int]] = {}
+    for i, o in enumerate(run.outcomes):
+        groups.setdefault((o.model, o.mesh), []).append(i)
+    settled = settle_ambiguity(
+        [o.diagnosis for o in run.outcomes],
+        list(groups.values()),
+        [o.case_id for o in run.outcomes],
+    )
+    for i, d in enumerate(settled):
+        if d is not run.outcomes[i].diagnosis:
+            run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
 
 
 def _kit_term_fit(run: CheckRun, kept: Dict[str, list]) -> None:

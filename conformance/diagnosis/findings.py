@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Dict
+from typing import Any, Dict, List
 
-__all__ = ["Finding", "FULL", "PARTIAL", "OBSERVED"]
+__all__ = ["Finding", "FULL", "PARTIAL", "OBSERVED", "ambiguous"]
 
 FULL = "explains"  # applying the correction brings force and stiffness within tolerance
 PARTIAL = "partly explains"  # the correction reduces the error but leaves more than the tolerance
@@ -55,3 +55,25 @@ def _finite(v: Any) -> Any:
     if isinstance(v, (list, tuple)):
         return [_finite(x) for x in v]
     return v
+
+
+def ambiguous(found: List[Finding], why: str = "") -> List[Finding]:
+    """``found`` unchanged when it holds at most one cause; else led by an "ambiguous" finding
+    (observed: it names none) and each cause marked "(ambiguous)". why: what makes them alike.
+    """
+    if len(found) <= 1:
+        return found
+    lead = Finding(
+        "ambiguous",
+        f"ambiguous: {len(found)} causes explain this case equally",
+        OBSERVED,
+        "each brings force and stiffness within tolerance"
+        + (f" ({why})" if why else "")
+        + ": "
+        + " | ".join(x.title for x in found)
+        + " (check a state or mesh that separates them)",
+        {"codes": [x.code for x in found]},
+    )
+    return [lead] + [
+        Finding(x.code, "(ambiguous) " + x.title, x.strength, x.evidence, x.figures) for x in found
+    ]

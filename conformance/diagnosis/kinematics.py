@@ -13,7 +13,8 @@ case's tolerance. The mistakes:
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
 - the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
   1/2 or 2);
-- the fibre frame in the deformed configuration (F R, normalised, for R).
+- the fibre frame in the deformed configuration (F R, normalised, for R), or pushed forward and
+  re-orthonormalised (Gram-Schmidt) as an engine keeping the frame orthonormal would.
 
 A variant that is the same formula as the energy itself (a mistake the energy cannot show, e.g.
 no eigenvalues in it) is not evaluated.
@@ -29,7 +30,7 @@ import numpy as np
 
 from conformance.diagnosis.energy_terms import Spec, has_formula, j_power_exponents
 
-__all__ = ["KinematicVariant", "kinematic_variants"]
+__all__ = ["KinematicVariant", "OrthonormalisedFrameEnergy", "kinematic_variants"]
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,62 @@ class KinematicVariant:
     code: str
     title: str
     spec: Spec
+    orthonormalised: bool = False
+
+    def oracle_model(self, model: Any) -> Any:
+        """What the oracle evaluates for this variant of ``model``."""
+        from conformance.diagnosis.energy_terms import TransformedEnergy
+
+        if self.orthonormalised:
+            return OrthonormalisedFrameEnergy(model)
+        return TransformedEnergy(model, self.spec)
+
+    def key(self) -> str:
+        return self.spec.key() + (" orthonormalised" if self.orthonormalised else "")
+
+
+@dataclass(frozen=True, eq=False)
+class OrthonormalisedFrameEnergy:
+    """``model``'s energy with its fibre frame pushed forward and re-orthonormalised (Gram-
+    Schmidt: fibre F R e_f normalised, sheet F R e_s made orthogonal to it and normalised,
+    normal their cross product): a material for the oracle.
+    """
+
+    model: Any
+
+    @property
+    def frame(self):
+        return getattr(self.model, "frame", None)
+
+
+def _register() -> None:
+    from reference_fem.energies import energy_formula, register_energy
+
+    try:
+        if energy_formula(OrthonormalisedFrameEnergy).material_type is OrthonormalisedFrameEnergy:
+            return
+    except ValueError:
+        pass
+
+    @register_energy(OrthonormalisedFrameEnergy, takes_frame=True)
+    def _energy(p, F, frame):
+        import ufl
+
+        from conformance.diagnosis.energy_terms import build
+
+        R = frame
+        if R is not None:
+            FR = F * R
+            f = FR[:, 0] / ufl.sqrt(ufl.dot(FR[:, 0], FR[:, 0]))
+            s = FR[:, 1] - ufl.dot(f, FR[:, 1]) * f
+            s = s / ufl.sqrt(ufl.dot(s, s))
+            n = ufl.cross(f, s)
+            R = ufl.as_matrix([[f[i], s[i], n[i]] for i in range(3)])
+        W, _ = build(p.material.model, F, R, p.constant, Spec())
+        return W
+
+
+_register()
 
 
 _R_WORDS = {0.0: "left out (J^0)", 0.5: "halved", 2.0: "doubled"}
@@ -188,6 +245,17 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             continue
         seen.add(text)
         kept.append(KinematicVariant(code, title, spec))
+    if _uses_frame(model):  # a rewrite of the frame alone: no formula text tells it apart
+        kept.append(
+            KinematicVariant(
+                "frame-deformed",
+                "the fibre frame taken in the deformed configuration and re-orthonormalised: "
+                "F R pushed forward, fibre normalised, sheet made orthogonal to it (Gram-Schmidt), "
+                "normal their cross product",
+                Spec(),
+                orthonormalised=True,
+            )
+        )
     return kept
 
 

@@ -215,7 +215,9 @@ def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         tol,
         (
             (
-                lambda v=v: _evaluate(cache, ci, v.spec),
+                lambda v=v: cache.evaluate_model(
+                    ci, v.oracle_model(ci.model), _model_key(ci.model) + v.key()
+                ),
                 f"kinematic-{v.code}",
                 f"your engine matches the energy with {v.title}",
                 "",

@@ -35,6 +35,7 @@ __all__ = [
     "describe_coefficient",
     "FiniteDifferenceFit",
     "fit_finite_difference",
+    "step_fits",
 ]
 
 
@@ -249,6 +250,25 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
 
 
 # ------------------------------------------------------------------ finite-difference tangent
+def step_fits(B: sp.csr_matrix, D: sp.csr_matrix, order: int):
+    """The one-unknown fits of D = c B (B the leading error of a difference scheme per unit
+    step^order: order 1 forward or backward, order 2 central), B as is and symmetrised: yields
+    (symmetrised, scheme, step, ||D - c B||, c B). A central fit with c <= 0 is skipped (its
+    error has the sign of h^2).
+    """
+    for symmetrised in (False, True):
+        Bs = (0.5 * (B + B.T)).tocsr() if symmetrised else B
+        bb = float(Bs.multiply(Bs).sum())
+        if bb == 0.0:
+            continue
+        c = float(Bs.multiply(D).sum()) / bb
+        if order == 2 and c <= 0:
+            continue
+        step = abs(c) if order == 1 else float(np.sqrt(c))
+        scheme = "central" if order == 2 else ("forward" if c > 0 else "backward")
+        yield symmetrised, scheme, step, float(sparse_norm(D - c * Bs)), (c * Bs).tocsr()
+
+
 @dataclass(frozen=True)
 class FiniteDifferenceFit:
     """A stiffness built from differences of the force, as fitted.
@@ -305,21 +325,11 @@ def fit_finite_difference(
     if nD == 0.0 or float(sparse_norm(G1)) == 0.0:
         return None
     best: Optional[FiniteDifferenceFit] = None
-    for scheme, G, order in (("forward", G1, 1), ("central", G2, 2)):
+    for G, order in ((G1, 1), (G2, 2)):
         for rule, weight in _RULES.items():
             w = weight(np.asarray(x, dtype=np.float64).ravel()) ** order
             B = (G @ sp.diags(w / (2.0 if order == 1 else 6.0))).tocsr()
-            for symmetrised in (False, True):
-                Bs = (0.5 * (B + B.T)).tocsr() if symmetrised else B
-                bb = float(Bs.multiply(Bs).sum())
-                if bb == 0.0:
-                    continue
-                c = float(Bs.multiply(D).sum()) / bb
-                left = float(sparse_norm(D - c * Bs))
-                if order == 2 and c <= 0:
-                    continue  # a central scheme's error has the sign of h^2
-                step = abs(c) if order == 1 else float(np.sqrt(c))
-                name = scheme if order == 2 or c > 0 else "backward"
+            for symmetrised, name, step, left, _ in step_fits(B, D, order):
                 fit = FiniteDifferenceFit(
                     name,
                     rule,

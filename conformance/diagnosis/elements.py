@@ -1,0 +1,282 @@
+"""Mistakes made inside one element, tested on the oracle's element matrices.
+
+Some mistakes cannot be undone on the assembled output: an element matrix scattered in another
+local dof order, or a force that is the divergence of another stress measure. Both live in the
+cell, so they are tested by building what such an engine would assemble from per-cell
+quantities and comparing it with the engine's output.
+
+The per-cell quantities (element forces and 12 x 12 element matrices) come from the project's
+MJED engine for the case's material, used only once their sum is the oracle's force and
+stiffness within the case's tolerance: the oracle stays the judge, MJED only splits its answer
+into cells. A user energy (no MJED material) or a split that does not add up tests nothing.
+
+1. **Local dof order.** The element matrix written in another order of its 12 local dofs
+   (component-major: x of the four nodes, then y, then z; or the four nodes in another order)
+   and scattered with the node-major map ``3 * cells[e, a] + c``. Each of the 47 orders is
+   assembled; one is named when it alone matches.
+2. **Stress measure.** Per cell, the oracle's first Piola stress P and its derivative
+   A = dP/dF are read back from the element force and matrix (f_a = -V0 P D_a,
+   K_ab = V0 D_a . A . D_b); the engine is compared with the force and stiffness of
+   P' = M(P, F) for the usual confusions (Cauchy, Kirchhoff, second Piola-Kirchhoff, P^T,
+   P / J, J P), the derivative of M taken by complex step (exact to round-off).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Callable, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.judge.compare import Scales, Tolerances, errors
+
+__all__ = [
+    "ElementSplit",
+    "element_split",
+    "assemble",
+    "local_orders",
+    "order_findings",
+    "STRESS_MEASURES",
+    "stress_measure_findings",
+]
+
+
+@dataclass(frozen=True)
+class ElementSplit:
+    """The oracle's answer split into cells.
+
+    cells: (m, 4); n: nodes; V0: (m,) rest volumes; D: (m, 4, 3) shape gradients;
+    F: (m, 3, 3) deformation gradients; fe: (m, 4, 3) element forces; Ke: (m, 12, 12) element
+    matrices, local dof 3 a + c; residual: how far their sum is from the oracle (relative).
+    """
+
+    cells: np.ndarray
+    n: int
+    V0: np.ndarray
+    D: np.ndarray
+    F: np.ndarray
+    fe: np.ndarray
+    Ke: np.ndarray
+    residual: float
+
+
+def assemble(
+    cells: np.ndarray, n: int, fe: np.ndarray, Ke: Optional[np.ndarray]
+) -> Tuple[np.ndarray, Optional[sp.csr_matrix]]:
+    """Element forces (m, 4, 3) and matrices (m, 12, 12; None: the force alone) summed with the
+    node-major map.
+    """
+    m = cells.shape[0]
+    dof = (3 * cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    f = np.zeros(3 * n)
+    np.add.at(f, dof.ravel(), fe.reshape(-1))
+    if Ke is None:
+        return f.reshape(n, 3), None
+    rows = np.repeat(dof, 12, axis=1).ravel()
+    cols = np.tile(dof, (1, 12)).ravel()
+    K = sp.csr_matrix((Ke.reshape(-1), (rows, cols)), shape=(3 * n, 3 * n))
+    return f.reshape(n, 3), K
+
+
+def element_split(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    positions: np.ndarray,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> Optional[ElementSplit]:
+    """MJED's element forces and matrices for ``model`` at ``positions``, or None when MJED has
+    no such material or their sum is not the oracle's force and stiffness within ``tol``.
+    """
+    import mjed
+    from mjed.mesh import shape_vectors
+
+    try:
+        field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
+        fe = np.asarray(field.element_forces(positions), dtype=np.float64)
+        Ke = np.asarray(field.element_stiffness(positions), dtype=np.float64)
+    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state: no split
+        return None
+    n = points.shape[0]
+    f, K = assemble(cells, n, fe, Ke)
+    e = errors(f, K, None, f_o, sp.csr_matrix(K_o), 0.0, s)
+    if not tol.within(e, energy=False):
+        return None
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", positions[cells], D)
+    return ElementSplit(cells, n, np.abs(V0), D, F, fe, Ke, float(max(e.force, e.stiffness)))
+
+
+# ------------------------------------------------------------------ local dof order
+def local_orders() -> List[Tuple[np.ndarray, str]]:
+    """(p, words) for every local order but node-major in the given node order: the engine's
+    local dof i holds the value of the node-major local dof p[i].
+    """
+    out = []
+    for perm in itertools.permutations(range(4)):
+        nodes = np.array(perm)
+        node_major = (3 * nodes[:, None] + np.arange(3)).ravel()  # i = 3 a' + c
+        comp_major = (3 * nodes[None, :] + np.arange(3)[:, None]).ravel()  # i = 4 c + a'
+        moved = "" if perm == (0, 1, 2, 3) else f" with the cell's nodes taken as {perm}"
+        if moved:
+            out.append((node_major, f"local nodes permuted{moved}"))
+        out.append(
+            (
+                comp_major,
+                "element matrix in local component-major order (x of the four nodes, then y, "
+                f"then z){moved}, scattered with the node-major map 3*node + c",
+            )
+        )
+    return out
+
+
+def order_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The local orders whose assembly matches the engine (force in that order too, or the
+    force right and only the matrix reordered); several are said as ambiguous.
+    """
+    found = []
+    f_right = assemble(split.cells, split.n, split.fe, None)[0]
+    for p, words in local_orders():
+        Kp = split.Ke[:, p][:, :, p]
+        fp = split.fe.reshape(-1, 12)[:, p].reshape(-1, 4, 3)
+        f_both, K_p = assemble(split.cells, split.n, fp, Kp)
+        for fo, which in ((f_both, "force and stiffness"), (f_right, "stiffness only")):
+            e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
+            if tol.within(e, energy=False):
+                found.append(
+                    Finding(
+                        "element-order",
+                        f"element dofs in another local order ({which}): {words}",
+                        FULL,
+                        "the oracle's element matrices (MJED's, whose sum is the oracle's to "
+                        f"{split.residual:.1e}) reordered so and assembled: force error "
+                        f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                        {"order": [int(i) for i in p], "which": which},
+                    )
+                )
+                break
+    return ambiguous(found)
+
+
+# ------------------------------------------------------------------ stress measures
+def _inv(A):
+    return np.linalg.inv(A)
+
+
+def _det(A):
+    return np.linalg.det(A)
+
+
+def _t(A):
+    return np.swapaxes(A, -1, -2)
+
+
+#: code -> (the stress used as P, in words; M(P, F): the engine's P'), each analytic in P and F.
+STRESS_MEASURES: dict = {
+    "cauchy": (
+        "the Cauchy stress sigma = P F^T / J",
+        lambda P, F: P @ _t(F) / _det(F)[:, None, None],
+    ),
+    "kirchhoff": ("the Kirchhoff stress tau = P F^T", lambda P, F: P @ _t(F)),
+    "second-piola": ("the second Piola-Kirchhoff stress S = F^-1 P", lambda P, F: _inv(F) @ P),
+    "piola-transposed": ("P^T = S F^T (F S and S F^T confused)", lambda P, F: _t(P)),
+    "cauchy-rest-volume": (
+        "sigma F^-T = P / J: the Cauchy stress integrated over the rest volume (the J of "
+        "P = J sigma F^-T missing)",
+        lambda P, F: P / _det(F)[:, None, None],
+    ),
+    "deformed-volume": (
+        "J P = tau F^-T: the first Piola stress integrated over the deformed volume",
+        lambda P, F: P * _det(F)[:, None, None],
+    ),
+}
+
+
+def _piola(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
+    """Per cell P (m, 3, 3) and A = dP/dF (m, 3, 3, 3, 3), A[k, i, l, j] = dP_ki / dF_lj, read
+    back from the element force and matrix through the pseudo-inverse of D (rank 3).
+    """
+    Dp = np.linalg.pinv(split.D)  # (m, 3, 4): Dp D = I
+    V = split.V0
+    P = -np.einsum("mja,mak->mkj", Dp, split.fe) / V[:, None, None]
+    Ke = split.Ke.reshape(-1, 4, 3, 4, 3)
+    A = np.einsum("mia,makbl,mjb->mkilj", Dp, Ke, Dp) / V[:, None, None, None, None]
+    return P, A
+
+
+def _measure_output(
+    split: ElementSplit, P: np.ndarray, A: np.ndarray, M: Callable
+) -> Tuple[np.ndarray, sp.csr_matrix]:
+    """Force and stiffness of an engine whose first Piola stress is M(P, F)."""
+    h = 1e-30
+    Pm = np.real(M(P.astype(complex), split.F.astype(complex)))
+    dPm = np.empty_like(A)
+    for ll in range(3):
+        for j in range(3):
+            H = np.zeros((3, 3))
+            H[ll, j] = 1.0
+            Pc = P + 1j * h * A[:, :, :, ll, j]
+            Fc = split.F + 1j * h * H
+            dPm[:, :, :, ll, j] = np.imag(M(Pc, Fc)) / h
+    V, D = split.V0, split.D
+    fe = -V[:, None, None] * np.einsum("mki,mai->mak", Pm, D)
+    Ke = V[:, None, None, None, None] * np.einsum("mai,mkilj,mbj->makbl", D, dPm, D)
+    return assemble(split.cells, split.n, fe, Ke.reshape(-1, 12, 12))
+
+
+def stress_measure_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The stress measures whose force and stiffness match the engine's (several: ambiguous)."""
+    P, A = _piola(split)
+    found = []
+    for code, (words, M) in STRESS_MEASURES.items():
+        with np.errstate(all="ignore"):
+            fm, Km = _measure_output(split, P, A, M)
+        if not (np.all(np.isfinite(fm)) and np.all(np.isfinite(Km.data))):
+            continue
+        e = errors(f, sp.csr_matrix(K), None, fm, Km, 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(
+                Finding(
+                    f"stress-measure-{code}",
+                    f"your force is the divergence of another stress measure: {words} used as "
+                    "the first Piola stress P",
+                    FULL,
+                    "the oracle's P and dP/dF per cell (from MJED's element matrices, whose sum "
+                    f"is the oracle's to {split.residual:.1e}) mapped so, differentiated by "
+                    f"complex step and assembled: force error {e.force:.1e}, stiffness error "
+                    f"{e.stiffness:.1e}",
+                    {"measure": code, "residual": max(e.force, e.stiffness)},
+                )
+            )
+    return ambiguous(found)
+
+
+def element_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet) with the element mistakes the engine
+    matches, named first (the 'unexplained' finding dropped); unchanged when none matches.
+    """
+    from dataclasses import replace
+
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    found = order_findings(split, out.force, out.stiffness, s, tol)
+    if not found:
+        found = stress_measure_findings(split, out.force, out.stiffness, s, tol)
+    if not found:
+        return diag
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*found, *rest])

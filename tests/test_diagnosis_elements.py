@@ -1,0 +1,149 @@
+"""Mistakes inside the element (conformance.diagnosis.elements): a local dof order in the
+scatter, and a force that is the divergence of another stress measure. Each mistaken engine is
+built here by hand; MJED stands in for the oracle in the fast tests (the mechanism only needs
+force and stiffness to split), and one test runs the whole check with the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import box_mesh
+
+from conformance.diagnosis.elements import (
+    assemble,
+    element_split,
+    order_findings,
+    stress_measure_findings,
+)
+from conformance.judge.compare import DOUBLE, scales
+from reference_fem import dolfinx_available
+
+
+def _state(seed=0):
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    x = points @ np.diag([1.15, 0.95, 0.9]).T
+    x = x + 0.03 * np.random.default_rng(seed).standard_normal(points.shape)
+    return points, cells, x
+
+
+def _split(model, points, cells, x):
+    import mjed
+
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
+    f_o, K_o = field.force_and_stiffness(x)
+    K_o = sp.csr_matrix(K_o)
+    s = scales(0.5, 1.0, f_o, K_o)
+    split = element_split(model, points, cells, x, f_o, K_o, s, DOUBLE)
+    assert split is not None and split.residual < 1e-12
+    return split, f_o, K_o, s
+
+
+def test_component_major_element_matrix_is_named():
+    from common.cases import default_material
+
+    points, cells, x = _state()
+    split, f_o, K_o, s = _split(default_material("Ogden"), points, cells, x)
+    # the engine's mistake: its element matrix indexed [c, a] (4 c + a) scattered as 3 a + c
+    Ke = split.Ke.reshape(-1, 4, 3, 4, 3).transpose(0, 2, 1, 4, 3).reshape(-1, 12, 12)
+    _, K = assemble(cells, points.shape[0], split.fe, Ke)
+    found = order_findings(split, f_o, K, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].code == "element-order" and "component-major" in found[0].title
+    assert "stiffness only" in found[0].title and "permuted" not in found[0].title
+    # the correct output and a wrong one that no order explains: nothing named
+    assert order_findings(split, f_o, K_o, s, DOUBLE) == []
+    assert order_findings(split, f_o, K_o * 1.01, s, DOUBLE) == []
+
+
+def test_local_nodes_permuted_in_force_and_stiffness_are_named():
+    from common.cases import default_material
+
+    points, cells, x = _state(1)
+    split, f_o, K_o, s = _split(default_material("NeoHookean"), points, cells, x)
+    p = (3 * np.array([1, 0, 2, 3])[:, None] + np.arange(3)).ravel()
+    f, K = assemble(
+        cells,
+        points.shape[0],
+        split.fe.reshape(-1, 12)[:, p].reshape(-1, 4, 3),
+        split.Ke[:, p][:, :, p],
+    )
+    found = order_findings(split, f, K, s, DOUBLE)
+    assert len(found) == 1 and "(1, 0, 2, 3)" in found[0].title, [x.title for x in found]
+    assert "force and stiffness" in found[0].title
+
+
+def _neo_hookean_piola(F, mu, lam):
+    """P and dP/dF [k, i, l, j] of W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2, by hand."""
+    Fit = np.linalg.inv(F).swapaxes(1, 2)
+    J = np.linalg.det(F)
+    lnJ = np.log(J)
+    P = mu * (F - Fit) + (lam * lnJ)[:, None, None] * Fit
+    eye = np.eye(3)
+    A = (
+        mu * np.einsum("kl,ij->kilj", eye, eye)[None]
+        + (mu - lam * lnJ)[:, None, None, None, None] * np.einsum("mkj,mli->mkilj", Fit, Fit)
+        + lam * np.einsum("mki,mlj->mkilj", Fit, Fit)
+    )
+    return P, A, J
+
+
+def test_cauchy_stress_over_the_rest_volume_is_named():
+    """An engine integrating sigma F^-T = P / J over the rest volume, written by hand."""
+    from common.cases import default_material
+    from mjed.mesh import shape_vectors
+
+    model = default_material("NeoHookean")
+    points, cells, x = _state(2)
+    split, f_o, K_o, s = _split(model, points, cells, x)
+    V0, D = shape_vectors(points, cells)
+    V0 = np.abs(V0)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    P, A, J = _neo_hookean_piola(F, model.mu, model.lam)
+    Fit = np.linalg.inv(F).swapaxes(1, 2)
+    Pw = P / J[:, None, None]
+    Aw = A / J[:, None, None, None, None] - np.einsum("mki,mlj->mkilj", Pw, Fit)
+    fe = -V0[:, None, None] * np.einsum("mki,mai->mak", Pw, D)
+    Ke = V0[:, None, None, None, None] * np.einsum("mai,mkilj,mbj->makbl", D, Aw, D)
+    f, K = assemble(cells, points.shape[0], fe, Ke.reshape(-1, 12, 12))
+    found = stress_measure_findings(split, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["stress-measure-cauchy-rest-volume"], found
+    assert "Cauchy" in found[0].title
+    assert stress_measure_findings(split, f_o, K_o, s, DOUBLE) == []
+
+
+def test_no_split_for_a_model_mjed_does_not_have_or_a_wrong_sum():
+    from common.cases import default_material
+
+    points, cells, x = _state()
+    split, f_o, K_o, s = _split(default_material("NeoHookean"), points, cells, x)
+    assert element_split(object(), points, cells, x, f_o, K_o, s, DOUBLE) is None
+    assert (
+        element_split(default_material("NeoHookean"), points, cells, x, f_o, K_o * 1.001, s, DOUBLE)
+        is None
+    )
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_the_check_names_the_element_order():
+    """The whole check, with the oracle: an Ogden engine scattering component-major blocks (on
+    one tetrahedron the local order is the global one: a mesh of several cells is needed).
+    """
+    import mjed
+    from conformance.protocol import check_implementation
+
+    def engine(case):
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+        Ke = field.element_stiffness(case.positions).reshape(-1, 4, 3, 4, 3)
+        Ke = Ke.transpose(0, 2, 1, 4, 3).reshape(-1, 12, 12)
+        f = field.force(case.positions)
+        return f, assemble(case.cells, case.points.shape[0], np.zeros((len(Ke), 4, 3)), Ke)[1]
+
+    run = check_implementation(
+        engine, material="Ogden", mesh=box_mesh(2, jitter=0.2, seed=3), states=("random",)
+    )
+    for o in run.outcomes:
+        assert o.status == "failed"
+        assert o.diagnosis.findings[0].code == "element-order", o.diagnosis.text()
