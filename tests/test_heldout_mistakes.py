@@ -1,10 +1,12 @@
-"""The held-out corpus of engine mistakes (tests/heldout_mistakes/): every correct engine
-passes and no mistaken engine is passed.
+"""The held-out corpora of engine mistakes (tests/heldout_mistakes/ and
+tests/heldout_mistakes_2/): in each, every correct engine passes and no mistaken engine is
+passed.
 
 The engines were written from docs/conventions.md alone, each with one realistic mistake, to
-measure the diagnosis on mistakes it was not written against. How often the diagnosis *names*
-the mistake is reported by `python tests/heldout_mistakes/run_corpus.py` and is not asserted
-here: only the verdicts are.
+measure the diagnosis on mistakes it was not written against (the second corpus by another
+author, blind to the diagnosis). How often the diagnosis *names* the mistake is reported by
+`python tests/heldout_mistakes/run_corpus.py [--corpus DIR]` and is not asserted here: only
+the verdicts are.
 """
 
 from __future__ import annotations
@@ -26,7 +28,15 @@ pytestmark = [
     ),
 ]
 
-HERE = Path(__file__).resolve().parent / "heldout_mistakes"
+TESTS = Path(__file__).resolve().parent
+HERE = TESTS / "heldout_mistakes"
+CORPORA = {"heldout_mistakes": HERE, "heldout_mistakes_2": TESTS / "heldout_mistakes_2"}
+# the least number of controls and of mistaken engines each corpus must hold
+SIZES = {"heldout_mistakes": (3, 30), "heldout_mistakes_2": (2, 15)}
+FAMILIES = {
+    "parameters", "coefficient", "sign", "units", "kinematics", "volume", "frame",
+    "finite_difference", "tangent", "storage", "precision", "formula", "correct",
+}  # fmt: skip
 
 
 def _load_runner():
@@ -38,33 +48,41 @@ def _load_runner():
 
 
 RUNNER = _load_runner()
-ENTRIES = RUNNER.load_manifest()
+ENTRIES = {name: RUNNER.load_manifest(folder) for name, folder in CORPORA.items()}
+CASES = [(name, e) for name, entries in ENTRIES.items() for e in entries]
 
 
 @pytest.fixture(scope="module")
-def corpus(tmp_path_factory):
-    out = tmp_path_factory.mktemp("heldout")
-    summary = RUNNER.run_corpus(out, jobs=min(2, os.cpu_count() or 1))
-    return {row["engine"]: row for row in summary["rows"]}
+def corpora(tmp_path_factory):
+    """Each corpus run once, on first use: {corpus name: {engine file: row}}."""
+    done = {}
+
+    def run(name):
+        if name not in done:
+            out = tmp_path_factory.mktemp(name)
+            summary = RUNNER.run_corpus(out, jobs=min(2, os.cpu_count() or 1), corpus=CORPORA[name])
+            done[name] = {row["engine"]: row for row in summary["rows"]}
+        return done[name]
+
+    return run
 
 
-def test_manifest_lists_every_engine():
-    files = {p.name for p in HERE.glob("*.py")} - {"run_corpus.py"}
-    assert files == {e["file"] for e in ENTRIES}
-    families = {
-        "parameters", "coefficient", "sign", "units", "kinematics", "volume", "frame",
-        "finite_difference", "tangent", "storage", "precision", "formula", "correct",
-    }  # fmt: skip
-    for e in ENTRIES:
-        assert e["family"] in families, e["file"]
+@pytest.mark.parametrize("name", sorted(CORPORA))
+def test_manifest_lists_every_engine(name):
+    folder, entries = CORPORA[name], ENTRIES[name]
+    files = {p.name for p in folder.glob("*.py")} - {"run_corpus.py"}
+    assert files == {e["file"] for e in entries}
+    for e in entries:
+        assert e["family"] in FAMILIES, e["file"]
         assert e["family"] == "correct" or e["match"], e["file"]
-    assert sum(e["family"] == "correct" for e in ENTRIES) >= 3
-    assert sum(e["family"] != "correct" for e in ENTRIES) >= 30
+    controls, mistakes = SIZES[name]
+    assert sum(e["family"] == "correct" for e in entries) >= controls
+    assert sum(e["family"] != "correct" for e in entries) >= mistakes
 
 
-@pytest.mark.parametrize("entry", ENTRIES, ids=[e["file"] for e in ENTRIES])
-def test_verdict(corpus, entry):
-    row = corpus[entry["file"]]
+@pytest.mark.parametrize("name, entry", CASES, ids=[f"{name}/{e['file']}" for name, e in CASES])
+def test_verdict(corpora, name, entry):
+    row = corpora(name)[entry["file"]]
     assert row.get("cases"), f"{entry['file']}: no results ({row.get('detail', '')})"
     if entry["family"] == "correct":
         assert row["score"] == "pass", f"a correct engine failed: {row}"

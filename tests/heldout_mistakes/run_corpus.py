@@ -1,7 +1,11 @@
 #!/usr/bin/env python3
 """Run the held-out corpus of mistaken engines through `mjed-verify check` and score the diagnosis.
 
-    python tests/heldout_mistakes/run_corpus.py [--out DIR] [--states S] [--jobs N] [ENGINE ...]
+    python tests/heldout_mistakes/run_corpus.py [--corpus DIR] [--out DIR] [--states S] [--jobs N]
+                                                [ENGINE ...]
+
+--corpus DIR: the folder holding the engines and their manifest.toml (default: this folder,
+tests/heldout_mistakes; the second corpus is tests/heldout_mistakes_2).
 
 For each material of the manifest a kit is exported once (`mjed-verify export`, mesh cube-small,
 states uniaxial and random by default, with probes); each engine is then checked against its
@@ -62,6 +66,10 @@ def mjed_verify() -> list:
 
 
 def load_manifest(path: Path = HERE / "manifest.toml") -> list:
+    """The manifest's engines; `path` may also be a corpus folder holding manifest.toml."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "manifest.toml"
     return tomllib.loads(path.read_text())["engine"]
 
 
@@ -83,11 +91,11 @@ def export_kits(keys, out: Path, states: str) -> dict:
     return kits
 
 
-def run_engine(entry: dict, kit: Path, out: Path, timeout: int = 120) -> dict:
+def run_engine(entry: dict, kit: Path, out: Path, timeout: int = 120, corpus: Path = HERE) -> dict:
     name = Path(entry["file"]).stem
     report_json = out / "json" / f"{name}.json"
     report_json.parent.mkdir(parents=True, exist_ok=True)
-    engine = HERE / entry["file"]
+    engine = Path(corpus) / entry["file"]
     command = f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
     cmd = mjed_verify() + [
         "check",
@@ -199,8 +207,11 @@ def score(entry: dict, results, rc: int, seconds: float, tail: str) -> dict:
     return row
 
 
-def run_corpus(out: Path, states: str = STATES, only=(), jobs: int = 1, entries=None) -> dict:
-    entries = entries if entries is not None else load_manifest()
+def run_corpus(
+    out: Path, states: str = STATES, only=(), jobs: int = 1, entries=None, corpus: Path = HERE
+) -> dict:
+    corpus = Path(corpus).resolve()
+    entries = entries if entries is not None else load_manifest(corpus)
     if only:
         wanted = {Path(o).name for o in only} | {Path(o).stem for o in only}
         entries = [e for e in entries if e["file"] in wanted or Path(e["file"]).stem in wanted]
@@ -208,7 +219,9 @@ def run_corpus(out: Path, states: str = STATES, only=(), jobs: int = 1, entries=
     t0 = time.monotonic()
     kits = export_kits([kit_key(e) for e in entries], out, states)
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        rows = list(pool.map(lambda e: run_engine(e, kits[kit_key(e)], out), entries))
+        rows = list(
+            pool.map(lambda e: run_engine(e, kits[kit_key(e)], out, corpus=corpus), entries)
+        )
     mistakes = [r for r in rows if r["family"] != "correct"]
     counts = {
         k: sum(r["score"] == k for r in mistakes)
@@ -216,6 +229,7 @@ def run_corpus(out: Path, states: str = STATES, only=(), jobs: int = 1, entries=
     }
     controls = {r["engine"]: r["score"] for r in rows if r["family"] == "correct"}
     summary = {
+        "corpus": str(corpus.relative_to(ROOT) if corpus.is_relative_to(ROOT) else corpus),
         "mesh": MESH,
         "states": states,
         "engines": len(rows),
@@ -251,11 +265,17 @@ def print_table(summary: dict) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("engines", nargs="*", help="engine files or names (default: all)")
+    ap.add_argument(
+        "--corpus",
+        type=Path,
+        default=HERE,
+        help="folder of the engines and their manifest.toml (default: %(default)s)",
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "heldout_mistakes")
     ap.add_argument("--states", default=STATES)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
     args = ap.parse_args(argv)
-    summary = run_corpus(args.out, args.states, args.engines, args.jobs)
+    summary = run_corpus(args.out, args.states, args.engines, args.jobs, corpus=args.corpus)
     print_table(summary)
     print(f"summary: {args.out / 'summary.json'}")
     bad = (
