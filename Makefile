@@ -9,7 +9,7 @@ MODERN_TESTS := tests/test_compat.py tests/test_oracle_mapping.py tests/test_equ
 	tests/test_viscous.py tests/test_darcy.py tests/test_porous.py tests/test_adapters_felupe.py tests/test_user_energy.py \
 	tests/test_compiled.py tests/test_compiled_classical.py tests/test_compiled_oracle.py
 
-.PHONY: demo test test-debian lint bootstrap bootstrap-modern test-modern cross-release docs
+.PHONY: demo test test-debian test-sweep lint bootstrap bootstrap-modern test-modern cross-release docs
 
 bootstrap:
 	@bash scripts/bootstrap.sh
@@ -33,6 +33,11 @@ test: test-debian
 # Only the Debian leg (the quick loop while developing), after the lint gate.
 test-debian: lint
 	$(PY) -m pytest -q
+
+# The full sweeps: the tests marked `sweep` (cross products whose every code path `make test`
+# already checks, skipped there; docs/tests.md, "Full sweeps"), on the Debian stack.
+test-sweep: bootstrap
+	$(PY) -m pytest -q --sweep -m sweep
 
 # The lint and format gate (ruff, configured in pyproject.toml: 100 characters, Google-style
 # docstrings, sorted imports). `ruff format .` and `ruff check --fix .` repair most of it.

@@ -111,3 +111,26 @@ def pytest_report_header(config):
     if find_program() is None:
         return f"SOFA checks SKIPPED: {how_to_build()}"
     return f"SOFA checks: engine program {find_program()}"
+
+
+# ---- the full sweeps: cross products kept out of the default run (make test-sweep)
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--sweep",
+        action="store_true",
+        help="also run the tests marked 'sweep' (full cross products; make test-sweep)",
+    )
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test marked ``sweep`` repeats, on more cases, a code path the default run already
+    checks (each one's docstring says which); it is skipped, saying so, unless --sweep.
+    """
+    if config.getoption("--sweep"):
+        return
+    skip = pytest.mark.skip(reason="full sweep: run with --sweep (make test-sweep)")
+    for item in items:
+        if "sweep" in item.keywords:
+            item.add_marker(skip)

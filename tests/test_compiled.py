@@ -13,6 +13,7 @@ from conftest import MATERIALS, deformed_cube, relative_difference
 
 import mjed
 from mjed.compiled import numba_available
+from mjed.compiled.batched import DEFAULT_BATCH
 
 needs_numba = pytest.mark.skipif(
     not numba_available(),
@@ -108,7 +109,7 @@ def test_serial_kernels_run_the_cells_in_morton_order_and_answer_in_the_callers(
     assert 5 in bad
     fields = [
         mjed.make_force_field(mesh, mat, backend="numba"),
-        mjed.make_force_field(mesh, mat, backend="numba", batch=8),
+        mjed.make_force_field(mesh, mat, backend="numba", batch=DEFAULT_BATCH),
         CompiledClassicalGalerkin(mesh, None, mat),
     ]
     for field in fields:
