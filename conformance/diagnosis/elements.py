@@ -37,6 +37,7 @@ __all__ = [
     "ElementSplit",
     "element_split",
     "assemble",
+    "cell_kinematics",
     "local_orders",
     "order_findings",
     "STRESS_MEASURES",
@@ -81,6 +82,19 @@ def assemble(
     return f.reshape(n, 3), K
 
 
+def cell_kinematics(
+    points: np.ndarray, cells: np.ndarray, x: np.ndarray
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rest volumes |V0| (m,), shape vectors D (m, 4, 3) and deformation gradients F (m, 3, 3)
+    of P1 cells at positions ``x`` (n, 3): what the per-cell readings are written in.
+    """
+    from mjed.kinematics import deformation_gradient
+    from mjed.mesh import shape_vectors
+
+    V0, D = shape_vectors(points, cells)
+    return np.abs(V0), D, deformation_gradient(x[cells], D)
+
+
 def element_split(
     model: Any,
     points: np.ndarray,
@@ -95,7 +109,6 @@ def element_split(
     no such material or their sum is not the oracle's force and stiffness within ``tol``.
     """
     import mjed
-    from mjed.mesh import shape_vectors
 
     try:
         field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
@@ -108,9 +121,8 @@ def element_split(
     e = errors(f, K, None, f_o, sp.csr_matrix(K_o), 0.0, s)
     if not tol.within(e, energy=False):
         return None
-    V0, D = shape_vectors(points, cells)
-    F = np.einsum("mai,maj->mij", positions[cells], D)
-    return ElementSplit(cells, n, np.abs(V0), D, F, fe, Ke, float(max(e.force, e.stiffness)))
+    V0, D, F = cell_kinematics(points, cells, positions)
+    return ElementSplit(cells, n, V0, D, F, fe, Ke, float(max(e.force, e.stiffness)))
 
 
 # ------------------------------------------------------------------ local dof order

@@ -25,6 +25,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import lsqr
 from scipy.sparse.linalg import norm as sparse_norm
 
+from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 
 __all__ = [
@@ -84,17 +85,9 @@ INVARIANTS: Dict[str, Callable[[np.ndarray], np.ndarray]] = {
 }
 
 
-def _kinematics(points, cells, x):
-    from mjed.mesh import shape_vectors
-
-    V0, Dg = shape_vectors(points, cells)
-    F = np.einsum("mai,maj->mij", x[cells], Dg)
-    return np.abs(V0), Dg, F
-
-
 def curvature_basis(points, cells, x, invariant: str) -> np.ndarray:
     """(m, 12, 12): V_c g_c g_c^T, g_c the gradient of ``invariant`` over the cell's dofs."""
-    V0, Dg, F = _kinematics(points, cells, x)
+    V0, Dg, F = cell_kinematics(points, cells, x)
     g = np.einsum("mki,mai->mak", INVARIANTS[invariant](F), Dg).reshape(-1, 12)
     return V0[:, None, None] * g[:, :, None] * g[:, None, :]
 
@@ -105,7 +98,7 @@ def unsymmetrised_basis(points, cells, x, tensor: str) -> np.ndarray:
     an elasticity tensor holding A (.) A without its minor symmetrisation adds (per unit of
     its coefficient) to the material tangent.
     """
-    V0, Dg, F = _kinematics(points, cells, x)
+    V0, Dg, F = cell_kinematics(points, cells, x)
     if tensor == "C^-1":
         A = np.linalg.inv(F.swapaxes(1, 2) @ F)
     else:

@@ -19,6 +19,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances
 
@@ -35,11 +36,7 @@ def _cell_bases(points, cells, x, which: str):
     """Per cell: force column of beta (m, 12) and stiffness bases (m, 4, 12, 12) of beta and of
     the coefficients of dbeta/dF on dI1/dF, dI2/dF, dJ/dF, with V0 and D.
     """
-    from mjed.mesh import shape_vectors
-
-    V0, D = shape_vectors(points, cells)
-    V0 = np.abs(V0)
-    F = np.einsum("mai,maj->mij", x[cells], D)
+    V0, D, F = cell_kinematics(points, cells, x)
     Ft = F.swapaxes(1, 2)
     B, C = F @ Ft, Ft @ F
     eye = np.eye(3)
