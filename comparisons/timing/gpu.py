@@ -40,6 +40,7 @@ __all__ = [
     "cube_counts",
     "device_bytes",
     "moved_bytes",
+    "timed_repeats",
     "measure",
     "not_run",
     "print_figures",
@@ -265,27 +266,33 @@ def moved_bytes(cells: int, nodes: int, nnz: int, dtype: str, stiffness: bool) -
 
 
 # ------------------------------------------------------------------ timing
-def _time_device(call: Callable[[], object], min_time: float) -> Tuple[float, float, int]:
-    """(best, median, repeats) of ``call`` in seconds, the device synchronised around each
-    call; the call runs once before (compiling and loading), then as many times as fit in
+def timed_repeats(call: Callable[[], object], min_time: float) -> Tuple[float, float, int]:
+    """(best, median, repeats) of ``call`` in seconds, for a ``call`` that waits for its own
+    device work: it runs once before (compiling and loading), then as many times as fit in
     ``min_time`` (3 to 200).
     """
-    from numba import cuda
-
     call()
-    cuda.synchronize()
     t0 = time.perf_counter()
     call()
-    cuda.synchronize()
     first = max(time.perf_counter() - t0, 1e-7)
     repeats = int(min(200, max(3, min_time / first)))
     samples = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         call()
-        cuda.synchronize()
         samples.append(time.perf_counter() - t0)
     return min(samples), float(np.median(samples)), repeats
+
+
+def _time_device(call: Callable[[], object], min_time: float) -> Tuple[float, float, int]:
+    """:func:`timed_repeats` of ``call`` with the device synchronised after each call."""
+    from numba import cuda
+
+    def waited():
+        call()
+        cuda.synchronize()
+
+    return timed_repeats(waited, min_time)
 
 
 def copy_bandwidth(copy_bytes: int) -> float:

@@ -31,11 +31,11 @@ import argparse
 import datetime as _dt
 import json
 import sys
-import time
 from dataclasses import asdict, dataclass
 from typing import Callable, Dict, List, Optional, Sequence
 
 import numpy as np
+import scipy.sparse as sp
 
 __all__ = ["PeerTiming", "neo_hookean_density", "element_functions", "JaxPeer", "main"]
 
@@ -142,23 +142,6 @@ class JaxPeer:
         return self._force_and_stiffness(x_d, self.cells, self.D, self.V0, self.dofs, self.slots)
 
 
-def _time(call: Callable[[], object], min_time: float) -> tuple:
-    """(best, median, repeats) seconds of ``call()`` waited on, after one warm-up call."""
-    import jax
-
-    jax.block_until_ready(call())  # compiles
-    t0 = time.perf_counter()
-    jax.block_until_ready(call())
-    first = time.perf_counter() - t0
-    repeats = int(min(200, max(3, min_time / max(first, 1e-7))))
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        jax.block_until_ready(call())
-        samples.append(time.perf_counter() - t0)
-    return min(samples), float(np.median(samples)), repeats
-
-
 def verify(mesh, material, pattern) -> Dict[str, dict]:
     """Each precision's force and stiffness against mjed's NumPy engine (relative errors)."""
     import mjed
@@ -172,7 +155,9 @@ def verify(mesh, material, pattern) -> Dict[str, dict]:
         peer = JaxPeer(mesh, material, pattern, dtype)
         f, vals = peer.force_and_stiffness(peer.to_device(x))
         f = np.asarray(f, dtype=np.float64)
-        K = pattern._csr(np.asarray(vals, dtype=np.float64))
+        K = sp.csr_matrix(
+            (np.asarray(vals, dtype=np.float64), pattern.indices, pattern.indptr), pattern.shape
+        )
         ef = float(np.abs(f - f_ref).max() / np.abs(f_ref).max())
         eK = float(abs(K - K_ref).max() / abs(K_ref).max())
         out[dtype] = {
@@ -188,7 +173,9 @@ def _time_size(mesh, material, pattern, dtypes, min_time, timings, skipped) -> N
     """Force and force + stiffness of one cube in each of ``dtypes``, appended to ``timings``;
     a precision that does not fit the device is appended to ``skipped``, with the error.
     """
-    from comparisons.timing.gpu import _state
+    import jax
+
+    from comparisons.timing.gpu import _state, timed_repeats
 
     x = _state(mesh.points)
     for dtype in dtypes:
@@ -199,7 +186,9 @@ def _time_size(mesh, material, pattern, dtypes, min_time, timings, skipped) -> N
                 ("f", lambda: peer.force(x_d)),
                 ("f+K", lambda: peer.force_and_stiffness(x_d)),
             ):
-                best, median, repeats = _time(call, min_time)
+                best, median, repeats = timed_repeats(
+                    lambda call=call: jax.block_until_ready(call()), min_time
+                )
                 timings.append(
                     PeerTiming(
                         mesh.n_cells, dtype, quantity, best, median, repeats, mesh.n_cells / best
