@@ -22,7 +22,7 @@ from typing import Any, Callable, List, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors
 
@@ -387,19 +387,11 @@ def merge_readings(full: List[Reading], s: Scales) -> List[Finding]:
                 evidence=head.evidence + f"; equivalently (the same force and stiffness): {also}",
             )
         causes.append(head)
-    if len(causes) > 1:
-        lead = Finding(
-            "ambiguous",
-            f"ambiguous: {len(causes)} causes explain this case equally",
-            OBSERVED,
-            "each brings force and stiffness within tolerance and they predict different values, "
-            "but not differently enough for this case to tell them apart: "
-            + " | ".join(c.title for c in causes)
-            + " (check a state or mesh that separates them)",
-            {"codes": [c.code for c in causes]},
-        )
-        causes = [lead] + [replace(c, title="(ambiguous) " + c.title) for c in causes]
-    return causes
+    return ambiguous(
+        causes,
+        "they predict different values, but not differently enough for this case to tell them "
+        "apart",
+    )
 
 
 def read(
