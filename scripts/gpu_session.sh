@@ -4,13 +4,13 @@
 #
 #   OUT=/path/to/out scripts/gpu_session.sh [STEP ...]
 #
-# Steps (all by default, in this order): env bench kits liver organ peer pack. Each step runs
-# under its own time limit (seconds, STEP_LIMIT_<step>; together 705 s: on a device lent 600 s
-# per command, run `env bench peer`, then `kits liver organ pack`), with its log in
-# $WORK/logs/<step>.log (WORK default /tmp/gpu-session-work, packed into results.tar.xz) and
+# Steps (all by default, in this order): env bench kits liver organ peer regs pack. Each step
+# runs under its own time limit (seconds, STEP_LIMIT_<step>; together 845 s: on a device lent
+# 600 s per command, run `env bench peer`, `kits regs pack`, then `liver organ pack`), with its
+# log in $WORK/logs/<step>.log (WORK default /tmp/gpu-session-work, packed into results.tar.xz) and
 # its last lines printed; a failed or timed-out step is reported loudly and the next one still
 # runs. The summary at the end (also $OUT/summary.txt) lists each step's exit code (124: timed
-# out) and seconds; the script exits 1 if any step failed. $OUT holds at most 7 files.
+# out) and seconds; the script exits 1 if any step failed. $OUT holds at most 8 files.
 #
 #   env    the machine: nvidia-smi, Python, NumPy, Numba, whether the oracle (dolfinx) is here
 #   bench  python -m comparisons.timing.hardware --no-cpu --json $OUT/hardware_bench.json: the
@@ -27,6 +27,11 @@
 #          the CPU runs with Jacobi CG too (a kept LU of 56,000 dofs takes tens of seconds)
 #   peer   python -m comparisons.timing.jax_peer: the same cubes by JAX autodiff per element
 #          (vmap of grad and hessian, XLA) where JAX sees the GPU, beside bench's figures
+#   regs   python -m comparisons.timing.gpu_occupancy --json $OUT/gpu_occupancy.json: registers,
+#          local memory (spills) and theoretical occupancy of every CUDA cell kernel (MJED's and
+#          the classical element's, FP64 and FP32, force and force+stiffness); after `kits`,
+#          MJED's kernels load from the kernel cache; those not started within 85 s are listed
+#          as not read (exit 0), a kernel that fails to compile fails the step
 #   pack   $OUT/results.tar.xz: the logs, check JSONs and figures; $OUT/kits-cube-small.tar.xz:
 #          the GPU-filled cube-small kits (inputs and outputs), for `mjed-verify check` elsewhere
 #
@@ -45,11 +50,14 @@ export MJED_KERNEL_CACHE=${MJED_KERNEL_CACHE:-$WORK/kernels}
 unset NUMBA_ENABLE_CUDASIM # a real device, never the simulator
 VERIFY=("$PY" -m comparisons.cli)
 ADAPTER=("$PY" -m conformance.adapters.mjed_backend)
-# Two device commands: `env bench peer` (at most 225 s), `kits liver organ pack` (480 s).
-# Measured on an H200 (2026-11-26): env 8 s, bench 105 s, peer 30 s, liver 54 s, organ 98 s;
-# kits about 95 s per precision, nearly all of it compiling the 20 CUDA kernels of that
-# precision (cube-paper FP64: 76 s; then cube-small in 1 s from the kernel cache).
-declare -A LIMIT=([env]=15 [bench]=150 [kits]=220 [liver]=90 [organ]=150 [peer]=60 [pack]=20)
+# Three device commands: `env bench peer` (at most 225 s), `kits regs pack` (380 s), `liver
+# organ pack` (260 s). Measured on an H200 (2026-11-26): env 8 s, bench 105 s, peer 30 s, liver
+# 54 s, organ 98 s; kits about 95 s per precision, nearly all of it compiling the 20 CUDA
+# kernels of that precision (cube-paper FP64: 76 s; then cube-small in 1 s from the kernel
+# cache): 190 s for both, so 250 s leaves room for the NumPy kit and a slower compile; regs
+# stops compiling at 85 s (its --budget) within its 110 s.
+declare -A LIMIT=([env]=15 [bench]=150 [kits]=250 [liver]=90 [organ]=150 [peer]=60 [regs]=110
+    [pack]=20)
 BENCH_ARGS=${BENCH_ARGS---no-cpu}
 export XLA_PYTHON_CLIENT_PREALLOCATE=false # JAX takes memory as it needs it, not 75 % at start
 SUMMARY=()
@@ -154,6 +162,10 @@ step_peer() {
         --against "$OUT/hardware_bench.json"
 }
 
+step_regs() {
+    "$PY" -m comparisons.timing.gpu_occupancy --budget 85 --json "$OUT/gpu_occupancy.json"
+}
+
 step_pack() {
     local rc=0
     if [ -d "$WORK/kits/cube-small-float64" ]; then
@@ -189,10 +201,10 @@ run_step() {
 }
 
 STEPS=("$@")
-[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ peer pack)
+[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ peer regs pack)
 for s in "${STEPS[@]}"; do
     if [ -z "${LIMIT[$s]+x}" ]; then
-        echo "unknown step $s (env bench kits liver organ peer pack)"
+        echo "unknown step $s (env bench kits liver organ peer regs pack)"
         exit 2
     fi
 done
