@@ -175,3 +175,39 @@ def test_device_cg_solves_like_the_host_cg(simulated):
     assert (
         cg["indefinite"] == cg["host_indefinite"] == "negative_curvature"
     )  # -A is refused as on the host
+
+
+def _fp32_helpers() -> dict:
+    """The device helpers (Jacobi eigen-decomposition, divided differences) as the FP32 CUDA
+    module compiles them (their source through fp32_source), run as Python on NumPy float32
+    scalars: every operation rounds to float32, as on a GPU (NumPy float32 with float32 stays
+    float32 on every NumPy release).
+    """
+    import math
+
+    from mjed.compiled.kernels import DEVICE_HELPERS
+    from mjed.cuda.codegen import _helper_source, fp32_source
+
+    ns = {"math": math, "f32": np.float32}
+    for name in ("sqrt", "log", "exp", "expm1", "log1p"):
+        ns[f"f32_{name}"] = lambda v, f=getattr(np, name): np.float32(f(np.float32(v)))
+    for fn in DEVICE_HELPERS:
+        exec(fp32_source(_helper_source(fn)), ns)
+    return ns
+
+
+@pytest.mark.parametrize("tiny", [1e-23, 3e-30])
+def test_fp32_eigen_decomposition_of_two_equal_diagonal_entries_is_finite(tiny):
+    # Seen on an H200 (FP32 Ogden kits at rest, in uniaxial stretch and compression: NaN
+    # forces): with FMA the GPU's C has off-diagonals ~1e-8 where the simulator's is exactly
+    # the identity; a rotation then leaves an entry ~1e-23 between two equal diagonal entries,
+    # and b^2 underflowing to 0 gave rho = 0, c = 0 * inf = NaN.
+    eigh = _fp32_helpers()["eigh3_sym"]
+    f = np.float32
+    with np.errstate(all="ignore"):  # a regression shows as NaN below, not as a warning
+        r = eigh(f(1.0), f(1e-10), f(tiny), f(1.0), f(0.0), f(1.0))
+    lam, V = np.array(r[:3], dtype=float), np.array(r[3:], dtype=float).reshape(3, 3)
+    assert np.isfinite(lam).all() and np.isfinite(V).all(), r
+    A = np.array([[1.0, 1e-10, tiny], [1e-10, 1.0, 0.0], [tiny, 0.0, 1.0]])
+    assert np.allclose(np.sort(lam), np.linalg.eigvalsh(A), rtol=0, atol=1e-6)
+    assert np.allclose(V.T @ V, np.eye(3), atol=1e-6)

@@ -88,25 +88,32 @@ def eigh3_sym(a00, a01, a02, a11, a12, a22):
 
     Returns (lam0, lam1, lam2, V00, V01, V02, V10, V11, V12, V20, V21, V22), V[:, n] the
     eigenvector of lam_n (unsorted). Entries of physical magnitude are assumed (d^2 + b^2 of
-    a rotation must not overflow or underflow), as they are for C = F^T F.
+    a rotation must not overflow), as they are for C = F^T F.
+
+    An off-diagonal entry at or below ``tiny`` (1e-17 of the trace's magnitude) is dropped
+    instead of rotated: that changes the eigenvalues by less than round-off, and rotating it
+    could underflow. In float32 (the CUDA FP32 kernels), with two equal diagonal entries
+    (d = 0, at rest or in uniaxial stretch) and a_pq ~ 1e-23, b^2 underflows to 0, so rho = 0
+    and c = 0 * inf = NaN; a kept entry has b^2 >= 4 tiny^2, far above float32's smallest.
     """
     v00, v01, v02, v10, v11, v12, v20, v21, v22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-    tol = (1e-17 * (abs(a00) + abs(a11) + abs(a22) + 1e-300)) ** 2
+    tiny = 1e-17 * (abs(a00) + abs(a11) + abs(a22) + 1e-300)
+    tol = tiny * tiny
     for _sweep in range(60):
         if a01 * a01 + a02 * a02 + a12 * a12 <= tol:
             break
-        if a01 != 0.0:  # (p, q) = (0, 1), r = 2
+        if abs(a01) > tiny:  # (p, q) = (0, 1), r = 2
             a00, a11, a02, a12, c, s = _rotation(a00, a11, a01, a02, a12)
-            a01 = 0.0
             v00, v01, v10, v11, v20, v21 = _rotate_columns(c, s, v00, v01, v10, v11, v20, v21)
-        if a02 != 0.0:  # (0, 2), r = 1
+        a01 = 0.0
+        if abs(a02) > tiny:  # (0, 2), r = 1
             a00, a22, a01, a12, c, s = _rotation(a00, a22, a02, a01, a12)
-            a02 = 0.0
             v00, v02, v10, v12, v20, v22 = _rotate_columns(c, s, v00, v02, v10, v12, v20, v22)
-        if a12 != 0.0:  # (1, 2), r = 0
+        a02 = 0.0
+        if abs(a12) > tiny:  # (1, 2), r = 0
             a11, a22, a01, a02, c, s = _rotation(a11, a22, a12, a01, a02)
-            a12 = 0.0
             v01, v02, v11, v12, v21, v22 = _rotate_columns(c, s, v01, v02, v11, v12, v21, v22)
+        a12 = 0.0
     return a00, a11, a22, v00, v01, v02, v10, v11, v12, v20, v21, v22
 
 
