@@ -30,9 +30,13 @@ pytestmark = [
 
 TESTS = Path(__file__).resolve().parent
 HERE = TESTS / "heldout_mistakes"
-CORPORA = {"heldout_mistakes": HERE, "heldout_mistakes_2": TESTS / "heldout_mistakes_2"}
+CORPORA = {
+    "heldout_mistakes": HERE,
+    "heldout_mistakes_2": TESTS / "heldout_mistakes_2",
+    "heldout_mistakes_3": TESTS / "heldout_mistakes_3",
+}
 # the least number of controls and of mistaken engines each corpus must hold
-SIZES = {"heldout_mistakes": (3, 30), "heldout_mistakes_2": (2, 15)}
+SIZES = {"heldout_mistakes": (3, 30), "heldout_mistakes_2": (2, 15), "heldout_mistakes_3": (3, 25)}
 FAMILIES = {
     "parameters", "coefficient", "sign", "units", "kinematics", "volume", "frame",
     "finite_difference", "tangent", "storage", "precision", "formula", "correct",

@@ -1,0 +1,211 @@
+#!/usr/bin/env python3
+# VerondaWestmann: correct (float64, updated-Lagrangian Cauchy stress and spatial tangent, CSR
+#   stiffness)
+"""Veronda-Westmann engine for mjed-verify kits (UL, CSR stiffness).
+
+    python correct_veronda_ul_csr.py INPUT_DIR OUTPUT_DIR
+
+Updated-Lagrangian P1 tetrahedra: the law gives S and dS/dE, pushed forward to the
+Cauchy stress sigma = F S F^T / J and the spatial tangent c = (F F F F : CC) / J; spatial
+gradients g_a = F^-T D_a, current volume v = J V0; f_a = -v sigma g_a,
+K_ab = v (g_a . c . g_b + (g_a . sigma g_b) I). f = -dPi/dx, K = d2Pi/dx2.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+EYE = np.eye(3)
+VOIGT_I = np.array([0, 1, 2, 0, 1, 0])
+VOIGT_J = np.array([0, 1, 2, 1, 2, 2])
+
+
+def read_case(folder):
+    folder = Path(folder)
+    case = json.loads((folder / "case.json").read_text())
+    arrays = {}
+    for name, spec in case["arrays"].items():
+        raw = np.fromfile(folder / spec["file"], dtype=spec["dtype"])
+        arrays[name] = raw.reshape(spec["shape"])
+    return case, arrays
+
+
+def geometry(X, cells):
+    """Rest volume and shape-function gradients G (m, 4, 3) of each tetrahedron."""
+    Xe = X[cells]
+    Dm = np.transpose(Xe[:, 1:] - Xe[:, :1], (0, 2, 1))  # columns X1-X0, X2-X0, X3-X0
+    V0 = np.linalg.det(Dm) / 6.0
+    Dinv = np.linalg.inv(Dm)
+    G = np.empty((len(cells), 4, 3))
+    G[:, 1:] = Dinv
+    G[:, 0] = -Dinv.sum(axis=1)
+    return V0, G
+
+
+def outer(A, B):
+    return np.einsum("mij,mkl->mijkl", A, B)
+
+
+def odot(A):
+    """(A odot A)_ijkl = (A_ik A_jl + A_il A_jk) / 2."""
+    return 0.5 * (np.einsum("mik,mjl->mijkl", A, A) + np.einsum("mil,mjk->mijkl", A, A))
+
+
+def to_voigt(CC):
+    """Fourth-order tangent (m, 3, 3, 3, 3) with minor symmetries to a Voigt (m, 6, 6)."""
+    return CC[:, VOIGT_I[:, None], VOIGT_J[:, None], VOIGT_I[None, :], VOIGT_J[None, :]]
+
+
+def invariant_law(C, dW, d2W, extra=()):
+    """S = 2 dW/dC and CC = 4 d2W/dCdC for W(I1, I2, J [, more]) by the chain rule.
+
+    dW (m, k), d2W (m, k, k): derivatives of W by its invariants; extra: further
+    invariants as (gradient by C (m, 3, 3), second gradient (m, 3, 3, 3, 3)).
+    """
+    m = len(C)
+    Cinv = np.linalg.inv(C)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    J = np.sqrt(np.linalg.det(C))
+    eye = np.broadcast_to(EYE, (m, 3, 3))
+    II = 0.5 * (np.einsum("ik,jl->ijkl", EYE, EYE) + np.einsum("il,jk->ijkl", EYE, EYE))
+    grads = [
+        eye,  # dI1/dC
+        I1[:, None, None] * eye - C,  # dI2/dC
+        0.5 * J[:, None, None] * Cinv,  # dJ/dC
+    ]
+    hessians = [
+        np.zeros((m, 3, 3, 3, 3)),
+        outer(eye, eye) - II,
+        0.25 * J[:, None, None, None, None] * outer(Cinv, Cinv)
+        - 0.5 * J[:, None, None, None, None] * odot(Cinv),
+    ]
+    for g, h in extra:
+        grads.append(g)
+        hessians.append(h)
+    grads = np.stack(grads, axis=1)  # (m, k, 3, 3)
+    hessians = np.stack(hessians, axis=1)
+    S = 2.0 * np.einsum("ma,maij->mij", dW, grads)
+    CC = 4.0 * (
+        np.einsum("mab,maij,mbkl->mijkl", d2W, grads, grads)
+        + np.einsum("ma,maijkl->mijkl", dW, hessians)
+    )
+    return S, CC
+
+
+def invariants(C):
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    J = np.sqrt(np.linalg.det(C))
+    return I1, I2, J
+
+
+def isochoric_chain(I1, I2, J, p1, p2, p11, p12, p22, dU, ddU):
+    """Derivatives of W = Psi(I1b, I2b) + U(J) by (I1, I2, J), from those of Psi by (I1b, I2b)
+    (I1b = J^(-2/3) I1, I2b = J^(-4/3) I2) and of U by J.
+    """
+    m = len(J)
+    a = J ** (-2.0 / 3.0)
+    b = J ** (-4.0 / 3.0)
+    I1b, I2b = a * I1, b * I2
+    zero = np.zeros(m)
+    g1 = np.stack([a, zero, -2.0 / 3.0 * I1b / J], axis=1)  # dI1b / d(I1, I2, J)
+    g2 = np.stack([zero, b, -4.0 / 3.0 * I2b / J], axis=1)  # dI2b / d(I1, I2, J)
+    h1 = np.zeros((m, 3, 3))
+    h1[:, 0, 2] = h1[:, 2, 0] = -2.0 / 3.0 * a / J
+    h1[:, 2, 2] = 10.0 / 9.0 * I1b / J**2
+    h2 = np.zeros((m, 3, 3))
+    h2[:, 1, 2] = h2[:, 2, 1] = -4.0 / 3.0 * b / J
+    h2[:, 2, 2] = 28.0 / 9.0 * I2b / J**2
+    eJ = np.array([0.0, 0.0, 1.0])
+    dW = p1[:, None] * g1 + p2[:, None] * g2 + dU[:, None] * eJ
+    d2W = (
+        p11[:, None, None] * np.einsum("ma,mb->mab", g1, g1)
+        + p12[:, None, None] * (np.einsum("ma,mb->mab", g1, g2) + np.einsum("ma,mb->mab", g2, g1))
+        + p22[:, None, None] * np.einsum("ma,mb->mab", g2, g2)
+        + p1[:, None, None] * h1
+        + p2[:, None, None] * h2
+        + ddU[:, None, None] * np.einsum("a,b->ab", eJ, eJ)
+    )
+    return dW, d2W
+
+
+def volumetric(J, k0):
+    """U = k0/2 (ln J)^2 and its first two derivatives."""
+    lnJ = np.log(J)
+    return 0.5 * k0 * lnJ**2, k0 * lnJ / J, k0 * (1.0 - lnJ) / J**2
+
+
+def isochoric(I1b, I2b, p):
+    """Psi = c1 (exp(c2 (I1b - 3)) - 1) - c1 c2 / 2 (I2b - 3)."""
+    c1, c2 = p["c1"], p["c2"]
+    zero = np.zeros_like(I1b)
+    e = np.exp(c2 * (I1b - 3.0))
+    psi = c1 * (e - 1.0) - 0.5 * c1 * c2 * (I2b - 3.0)
+    return psi, c1 * c2 * e, zero - 0.5 * c1 * c2, c1 * c2 * c2 * e, zero, zero
+
+
+def material(C, p):
+    """W, S and the Voigt tangent D of the law, per cell."""
+    I1, I2, J = invariants(C)
+    I1b = J ** (-2.0 / 3.0) * I1
+    I2b = J ** (-4.0 / 3.0) * I2
+    psi, p1, p2, p11, p12, p22 = isochoric(I1b, I2b, p)
+    U, dU, ddU = volumetric(J, p["k0"])
+    dW, d2W = isochoric_chain(I1, I2, J, p1, p2, p11, p12, p22, dU, ddU)
+    S, CC = invariant_law(C, dW, d2W)
+    return psi + U, S, CC
+
+
+def main(input_dir, output_dir):
+    case, arrays = read_case(input_dir)
+    params = case["model"]["parameters"]
+    X, x, cells = arrays["points"], arrays["positions"], arrays["cells"]
+    n, m = len(X), len(cells)
+    V0, G = geometry(X, cells)
+    F = np.einsum("mak,mai->mki", x[cells], G)
+    C = np.einsum("mki,mkj->mij", F, F)
+    J = np.linalg.det(F)
+    W, S, CC = material(C, params)
+    # push forward to the current configuration
+    sigma = np.einsum("miI,mIJ,mjJ->mij", F, S, F) / J[:, None, None]
+    c = np.einsum("miI,mjJ,mkK,mlL,mIJKL->mijkl", F, F, F, F, CC) / J[:, None, None, None, None]
+    g = np.einsum("maI,mIk->mak", G, np.linalg.inv(F))  # spatial gradients F^-T D_a
+    v = J * V0
+    fe = v[:, None, None] * np.einsum("mij,maj->mai", sigma, g)  # internal force (m, 4, 3)
+    Kmat = v[:, None, None, None, None] * np.einsum("maj,mkjli,mbi->makbl", g, c, g)
+    gsg = np.einsum("mai,mij,mbj->mab", g, sigma, g)
+    Kgeo = v[:, None, None, None, None] * np.einsum("mab,kl->makbl", gsg, EYE)
+    Ke = (Kmat + Kgeo).reshape(m, 12, 12)
+    fe = fe.reshape(m, 12)
+    energy = float(np.sum(V0 * W))
+
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    force = np.zeros(3 * n)
+    np.add.at(force, dofs, -fe)
+
+    out = Path(output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    # CSR by hand: sort the element entries by (row, col) and sum duplicates
+    rows = np.broadcast_to(dofs[:, :, None], (m, 12, 12)).ravel()
+    cols = np.broadcast_to(dofs[:, None, :], (m, 12, 12)).ravel()
+    key = rows * (3 * n) + cols
+    order = np.argsort(key, kind="stable")
+    unique, start = np.unique(key[order], return_index=True)
+    values = np.add.reduceat(Ke.ravel()[order], start)
+    urows, ucols = unique // (3 * n), unique % (3 * n)
+    indptr = np.zeros(3 * n + 1, dtype=np.int64)
+    np.add.at(indptr, urows + 1, 1)
+    indptr = np.cumsum(indptr)
+    force.astype("<f8").tofile(out / "force.f64")
+    indptr.astype("<i8").tofile(out / "stiffness_indptr.i64")
+    ucols.astype("<i8").tofile(out / "stiffness_indices.i64")
+    values.astype("<f8").tofile(out / "stiffness_values.f64")
+    np.array([energy], dtype="<f8").tofile(out / "energy.f64")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        sys.exit("usage: python %s INPUT_DIR OUTPUT_DIR" % sys.argv[0])
+    main(sys.argv[1], sys.argv[2])
