@@ -1,0 +1,85 @@
+"""What the tests of the held-out corpora of engine mistakes share (tests/test_heldout_mistakes*.py,
+one module per corpus so that parallel test workers can take one corpus each).
+
+A corpus is a folder of standalone mistaken engines and correct controls with a manifest.toml,
+written from docs/conventions.md alone to measure the diagnosis on mistakes it was not written
+against. The tests assert only the verdicts: every correct engine passes and no mistaken engine
+is passed. How often the diagnosis *names* the mistake is reported by
+`python tests/heldout_mistakes/run_corpus.py [--corpus DIR]` and is not asserted.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from reference_fem import dolfinx_available
+
+TESTS = Path(__file__).resolve().parent
+MARKS = [
+    pytest.mark.slow,
+    pytest.mark.oracle,
+    pytest.mark.skipif(
+        not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)"
+    ),
+]
+FAMILIES = {
+    "parameters", "coefficient", "sign", "units", "kinematics", "volume", "frame",
+    "finite_difference", "tangent", "storage", "precision", "formula", "correct",
+}  # fmt: skip
+
+
+def _load_runner():
+    path = TESTS / "heldout_mistakes" / "run_corpus.py"
+    spec = importlib.util.spec_from_file_location("heldout_run_corpus", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+RUNNER = _load_runner()
+
+
+def entries(name: str) -> list:
+    """The manifest entries of corpus ``name`` (a folder of tests/)."""
+    return RUNNER.load_manifest(TESTS / name)
+
+
+def check_manifest(name: str, *, controls: int, mistakes: int) -> None:
+    """Every engine of the folder is in the manifest and the other way round, each with a known
+    family and, unless correct, the keywords that name its mistake; at least ``controls``
+    correct engines and ``mistakes`` mistaken ones.
+    """
+    folder, listed = TESTS / name, entries(name)
+    files = {p.name for p in folder.glob("*.py")} - {"run_corpus.py"}
+    assert files == {e["file"] for e in listed}
+    for e in listed:
+        assert e["family"] in FAMILIES, e["file"]
+        assert e["family"] == "correct" or e["match"], e["file"]
+    assert sum(e["family"] == "correct" for e in listed) >= controls
+    assert sum(e["family"] != "correct" for e in listed) >= mistakes
+
+
+def corpus_rows(name: str, out: Path) -> dict:
+    """Corpus ``name`` checked (`mjed-verify check` on each engine, results under ``out``):
+    {engine file: its row of run_corpus's summary}.
+    """
+    summary = RUNNER.run_corpus(out, jobs=min(2, os.cpu_count() or 1), corpus=TESTS / name)
+    return {row["engine"]: row for row in summary["rows"]}
+
+
+def check_verdict(rows: dict, entry: dict) -> None:
+    """A correct engine passed every case; a mistaken one failed at least one (or was refused
+    as bad input), and the check did not end in an error.
+    """
+    row = rows[entry["file"]]
+    assert row.get("cases"), f"{entry['file']}: no results ({row.get('detail', '')})"
+    if entry["family"] == "correct":
+        assert row["score"] == "pass", f"a correct engine failed: {row}"
+    else:
+        assert row["score"] not in ("PASSED", "error"), f"a mistaken engine was passed: {row}"

@@ -1,0 +1,26 @@
+"""The held-out corpus tests/heldout_mistakes_2/: the second corpus (20 mistakes written blind to
+the diagnosis by another author). Every correct engine passes and no mistaken engine is passed
+(tests/heldout_support.py).
+"""
+
+from __future__ import annotations
+
+import pytest
+from heldout_support import MARKS, check_manifest, check_verdict, corpus_rows, entries
+
+NAME = "heldout_mistakes_2"
+pytestmark = MARKS
+
+
+def test_manifest_lists_every_engine():
+    check_manifest(NAME, controls=2, mistakes=15)
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory):
+    return corpus_rows(NAME, tmp_path_factory.mktemp(NAME))
+
+
+@pytest.mark.parametrize("entry", entries(NAME), ids=lambda e: e["file"])
+def test_verdict(rows, entry):
+    check_verdict(rows, entry)
