@@ -215,3 +215,51 @@ def test_a_form_compiled_elsewhere_is_waited_for():
 
     (options,) = compat.jit_wait_options().values()
     assert options["timeout"] == compat.JIT_TIMEOUT_S >= 300
+
+
+def test_unoptimised_compilation_is_asked_for_only_when_optimise_is_false():
+    (fast,) = compat.jit_wait_options(optimise=False).values()
+    (full,) = compat.jit_wait_options(optimise=True).values()
+    assert fast["cffi_extra_compile_args"][0] == "-O0" and fast["timeout"] == full["timeout"]
+    assert "cffi_extra_compile_args" not in full  # FFCx's own defaults (-O2)
+
+
+@needs_dolfinx
+@pytest.mark.oracle
+def test_small_meshes_compile_without_optimisation_and_agree_with_optimised_forms(monkeypatch):
+    # The size rule reads the form's mesh (cells over all ranks); both compilations give the
+    # same residual to round-off, and the timed dolfinx method always asks for -O2.
+    import ufl
+    from conftest import box_mesh
+
+    points, cells = box_mesh(2, jitter=0.2)
+    mesh = compat.create_tet_mesh(compat.comm_self(), cells, points)
+    V = compat.vector_p1_space(mesh)
+    u = compat.function(V, "u")
+    u.x.array[:] = np.random.default_rng(3).uniform(-0.05, 0.05, u.x.array.shape)
+    F = ufl.Identity(3) + ufl.grad(u)
+    J = ufl.det(F)
+    W = ufl.tr(F.T * F) * J ** (-2.0 / 3.0) + (J - 1) ** 2
+    R_ufl = ufl.derivative(W * ufl.dx(domain=mesh), u, ufl.TestFunction(V))
+    assert compat._form_cells(R_ufl) == len(cells) <= compat.FAST_COMPILE_MAX_CELLS
+
+    asked = []
+    original = compat.jit_wait_options
+
+    def spy(*, optimise=True):
+        asked.append(optimise)
+        return original(optimise=optimise)
+
+    monkeypatch.setattr(compat, "jit_wait_options", spy)
+    residuals = []
+    for optimise in (None, True):
+        R = compat.compile_form(R_ufl, optimise=optimise)
+        b = compat.create_vector(R)
+        compat.assemble_vector_into(b, R)
+        residuals.append(b.array_r.copy())
+    assert asked == [False, True]
+    scale = np.abs(residuals[1]).max()
+    assert scale > 0 and np.abs(residuals[0] - residuals[1]).max() <= 1e-14 * scale
+    monkeypatch.setattr(compat, "FAST_COMPILE_MAX_CELLS", len(cells) - 1)
+    compat.compile_form(R_ufl)
+    assert asked[-1] is True  # a mesh above the limit gets FFCx's optimisation
