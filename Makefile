@@ -9,6 +9,12 @@ MODERN_TESTS := tests/test_compat.py tests/test_oracle_mapping.py tests/test_equ
 	tests/test_viscous.py tests/test_darcy.py tests/test_porous.py tests/test_adapters_felupe.py tests/test_user_energy.py \
 	tests/test_compiled.py tests/test_compiled_classical.py tests/test_compiled_oracle.py
 
+# Test workers (pytest-xdist, installed by both bootstraps): one per core by default; each test
+# module runs whole on one worker (--dist loadfile), so a module's fixtures (its kits, compiled
+# fields, oracle runs) are built once. `make test WORKERS=0` runs the suite in one process.
+WORKERS ?= auto
+PARALLEL := $(if $(filter 0,$(WORKERS)),,-n $(WORKERS) --dist loadfile)
+
 .PHONY: demo test test-debian test-sweep lint bootstrap bootstrap-modern test-modern cross-release docs
 
 bootstrap:
@@ -32,12 +38,12 @@ test: test-debian
 
 # Only the Debian leg (the quick loop while developing), after the lint gate.
 test-debian: lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PARALLEL)
 
 # The full sweeps: the tests marked `sweep` (cross products whose every code path `make test`
 # already checks, skipped there; docs/tests.md, "Full sweeps"), on the Debian stack.
 test-sweep: bootstrap
-	$(PY) -m pytest -q --sweep -m sweep
+	$(PY) -m pytest -q $(PARALLEL) --sweep -m sweep
 
 # The lint and format gate (ruff, configured in pyproject.toml: 100 characters, Google-style
 # docstrings, sorted imports). `ruff format .` and `ruff check --fix .` repair most of it.
@@ -50,7 +56,7 @@ bootstrap-modern:
 
 # The oracle's tests (compat layer, numbering, equivalence with MJED, 2 MPI ranks) on dolfinx 0.11.
 test-modern: bootstrap-modern
-	$(MODERN_PY) -m pytest -p dolfinx_solver -q $(MODERN_TESTS)
+	$(MODERN_PY) -m pytest -p dolfinx_solver -q $(PARALLEL) $(MODERN_TESTS)
 
 # The same oracle cases on both stacks, serial and on 2 ranks, compared to 1e-12.
 cross-release: bootstrap bootstrap-modern

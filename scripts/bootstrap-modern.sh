@@ -14,7 +14,7 @@ VENV=.venv-modern
 # The wheel fixes the whole FEniCS stack; the rest is what the oracle tests need.
 REQUIREMENTS=(
   "dolfinx-solver-real==0.11.0.post0"
-  "scipy>=1.11" "pytest>=7" "hypothesis>=6" "meshio>=5.3"
+  "scipy>=1.11" "pytest>=7" "pytest-xdist>=3" "hypothesis>=6" "meshio>=5.3"
   "felupe==11.3.0" "tensortrax==0.29.0"  # checked by tests/test_adapters_felupe.py (conformance/adapters/felupe.py)
   "numba==0.68.1"  # the compiled backend (mjed/compiled), checked by tests/test_compiled*.py
 )

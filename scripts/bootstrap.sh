@@ -11,7 +11,7 @@ APT_PACKAGES=(
   python3-numpy python3-scipy python3-matplotlib
   python3-dolfinx python3-petsc4py python3-mpi4py python3-ufl
   python3-gmsh python3-meshio python3-h5py
-  python3-pytest python3-hypothesis
+  python3-pytest python3-pytest-xdist python3-hypothesis
   python3-sphinx python3-myst-parser python3-sphinx-rtd-theme libjs-mathjax fonts-mathjax
   chromium chromium-driver
   python3-numba python3-sfepy

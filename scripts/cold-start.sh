@@ -73,6 +73,9 @@ leg() {
 }
 
 census_of() {
+  # the session's totals (the controller's snapshots, exact with parallel workers), then the
+  # per-test records
+  sed -n '/^compile census/,/per-test records/p' "$out/$1.log" | tee -a "$summary"
   [ -f "$out/$1.jsonl" ] && python3 scripts/compile_census.py summary "$out/$1.jsonl" | tee -a "$summary"
   return 0
 }

@@ -103,6 +103,9 @@ def _install_timers() -> None:
 
 def _row(name: str, before: Counter, after: Counter, seconds: float) -> dict:
     row = {"test": name, "s": round(seconds, 3)}
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if worker:  # a parallel worker: what the others compiled meanwhile is counted here too
+        row["worker"] = worker
     for key in ("ffcx_forms", "ffcx_elements", "ffcx_expressions", "kernel_sources"):
         row[key] = after[key] - before[key]
     row["numba_overloads"] = after["numba_overloads"] - before["numba_overloads"]
@@ -146,6 +149,15 @@ def summary(path: str, top: int = 20) -> None:
         for k in (*keys, "numba_bytes", "s", "ffcx_s", "numba_s"):
             total[k] += r.get(k, 0)
     print(f"census {path}: {len(rows)} items, {total['s']:.0f} s")
+    workers = {r["worker"] for r in rows if "worker" in r}
+    if len(workers) > 1:
+        # Counted on disk: a test's count includes what the other workers compiled while it
+        # ran, so the sums below overcount; the session's totals are in the log's
+        # "compile census" block (the controller's snapshots before and after).
+        print(
+            f"  {len(workers)} parallel workers: the counts per item overlap and the sums "
+            "overcount; the session's totals are in the leg's log, 'compile census'"
+        )
     print(
         f"  FFCx forms {total['ffcx_forms']}, elements {total['ffcx_elements']} "
         f"({total['ffcx_s']:.0f} s compiling in the test process); Numba overloads "
