@@ -26,7 +26,7 @@ from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, amb
 from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading"]
+__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
 
 #: Two predictions closer than this (relative, force and stiffness) are the same reading.
 _SAME = 1e-9
@@ -41,7 +41,8 @@ class Reading:
     stiffness: Optional[sp.csr_matrix] = None
 
 
-def _model_key(model: Any) -> str:
+def model_key(model: Any) -> str:
+    """The model as its manifest says it (JSON, sorted): one key for one material and values."""
     from conformance.kit.spec import model_to_manifest
 
     return json.dumps(model_to_manifest(model), sort_keys=True)
@@ -52,7 +53,7 @@ def _evaluate(cache, ci, spec):
     from conformance.diagnosis.energy_terms import TransformedEnergy
 
     return cache.evaluate_model(
-        ci, TransformedEnergy(ci.model, spec), _model_key(ci.model) + spec.key()
+        ci, TransformedEnergy(ci.model, spec), model_key(ci.model) + spec.key()
     )
 
 
@@ -216,7 +217,7 @@ def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         (
             (
                 lambda v=v: cache.evaluate_model(
-                    ci, v.oracle_model(ci.model), _model_key(ci.model) + v.key()
+                    ci, v.oracle_model(ci.model), model_key(ci.model) + v.key()
                 ),
                 f"kinematic-{v.code}",
                 f"your engine matches the energy with {v.title}",
