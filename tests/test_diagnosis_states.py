@@ -72,6 +72,4 @@ def test_a_zero_force_is_not_the_rest_state():
     run = check_implementation(engine, material="NeoHookean", states=("random",), probes=False)
     (outcome,) = run.outcomes
     assert outcome.status == "failed"
-    assert not any("state" in f.code for f in outcome.diagnosis.findings), (
-        outcome.diagnosis.text()
-    )
+    assert not any("state" in f.code for f in outcome.diagnosis.findings), outcome.diagnosis.text()
