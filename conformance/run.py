@@ -18,6 +18,7 @@ import numpy as np
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
+from conformance.diagnosis.cells import cell_contribution_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
@@ -236,6 +237,8 @@ def _run_check(
             tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
+        if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
+            diag = cell_contribution_reading(diag, ci, out, ref, s)
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
         if tol.capped and not diag.passed:

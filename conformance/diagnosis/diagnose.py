@@ -556,9 +556,14 @@ def _locality_findings(
     if total == 0:
         return
     order = np.argsort(field_)[::-1]
-    cum = np.cumsum(field_[order] ** 2) / total
+    # tail[k]: the squared error outside the k largest nodes, summed from the small end (exact
+    # where 1 - cumsum would round to 1e-16 of the total).
+    tail = np.append(np.cumsum((field_[order] ** 2)[::-1])[::-1], 0.0)
     limit = max(4, int(0.05 * n))
-    k = int(np.searchsorted(cum, 1.0 - 1e-20)) + 1
+    # The nodes that hold all of the error but what the tolerance lets pass: an engine's own
+    # round-off elsewhere (1e-16 of its values) must not spread a one-cell error over the mesh.
+    floor = max(1e-20 * total, (0.5 * min(tol.force, tol.stiffness)) ** 2)
+    k = max(1, int(np.argmax(tail <= floor)))
     if k > limit or 2 * k > n:
         return  # not localised: the error is on most of the mesh
     nodes = np.sort(order[:k])
