@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.parameters import scalar_parameters
-from conformance.judge.compare import Scales, Tolerances, errors
+from conformance.judge.compare import Scales, Tolerances, errors, grown
 
 __all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
 
@@ -195,7 +195,15 @@ def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
             r = evaluate()
         except ValueError:  # not finite at this state, or not a formula the oracle takes
             continue
-        e = errors(out.force, out.stiffness, None, r.force, r.stiffness, 0.0, s)
+        e = errors(
+            out.force,
+            out.stiffness,
+            None,
+            r.force,
+            r.stiffness,
+            0.0,
+            grown(s, r.force, r.stiffness),
+        )
         if tol.within(e, energy=False):
             evidence = (
                 f"{words}against that energy, differentiated by the oracle: force error "
