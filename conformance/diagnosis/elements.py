@@ -19,6 +19,8 @@ into cells. A user energy (no MJED material) or a split that does not add up tes
    K_ab = V0 D_a . A . D_b); the engine is compared with the force and stiffness of
    P' = M(P, F) for the usual confusions (Cauchy, Kirchhoff, second Piola-Kirchhoff, P^T,
    P / J, J P), the derivative of M taken by complex step (exact to round-off).
+3. **Shape-function gradients.** Built from another rest edge matrix (transposed):
+   :mod:`conformance.diagnosis.shape_gradients`.
 """
 
 from __future__ import annotations
@@ -288,6 +290,12 @@ def element_reading(diag, ci, out, ref, s: Scales):
     found = order_findings(split, out.force, out.stiffness, s, tol)
     if not found:
         found = stress_measure_findings(split, out.force, out.stiffness, s, tol)
+    if not found:  # the gradients themselves built wrongly (a cell's rest edges mis-read)
+        from conformance.diagnosis.shape_gradients import shape_gradient_findings
+
+        found = shape_gradient_findings(
+            split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
+        )
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]
