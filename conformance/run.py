@@ -26,6 +26,7 @@ from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
+from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
@@ -296,6 +297,8 @@ def _run_check(
             )
         if read_mistakes and not diag.causes:  # inside the element: order, stress measure
             diag = element_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
+            diag = shape_gradient_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
             diag = b_for_c_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:

@@ -20,7 +20,7 @@ into cells. A user energy (no MJED material) or a split that does not add up tes
    P' = M(P, F) for the usual confusions (Cauchy, Kirchhoff, second Piola-Kirchhoff, P^T,
    P / J, J P), the derivative of M taken by complex step (exact to round-off).
 3. **Shape-function gradients.** Built from another rest edge matrix (transposed):
-   :mod:`conformance.diagnosis.shape_gradients`.
+   :mod:`conformance.diagnosis.shape_gradients` (its own reading, after these).
 """
 
 from __future__ import annotations
@@ -290,12 +290,6 @@ def element_reading(diag, ci, out, ref, s: Scales):
     found = order_findings(split, out.force, out.stiffness, s, tol)
     if not found:
         found = stress_measure_findings(split, out.force, out.stiffness, s, tol)
-    if not found:  # the gradients themselves built wrongly (a cell's rest edges mis-read)
-        from conformance.diagnosis.shape_gradients import shape_gradient_findings
-
-        found = shape_gradient_findings(
-            split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
-        )
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]

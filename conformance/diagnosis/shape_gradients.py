@@ -18,11 +18,11 @@ from typing import Any, Callable, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, element_split
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 
-__all__ = ["REST_EDGES", "exploded_output", "shape_gradient_findings"]
+__all__ = ["REST_EDGES", "exploded_output", "shape_gradient_findings", "shape_gradient_reading"]
 
 #: code -> (words, M -> M'): the rest edge matrix (m, 3, 3) an engine's gradients belong to.
 REST_EDGES: dict = {
@@ -100,3 +100,23 @@ def shape_gradient_findings(
                 )
             )
     return ambiguous(found)
+
+
+def shape_gradient_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet) with the mistaken gradients the engine
+    matches, named first; unchanged when none does or MJED does not split this case.
+    """
+    from dataclasses import replace
+
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    found = shape_gradient_findings(
+        split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
+    )
+    if not found:
+        return diag
+    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
