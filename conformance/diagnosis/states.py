@@ -59,12 +59,17 @@ def other_state_findings(
         has_force = float(np.linalg.norm(st.force)) > tol.force * own_scales.force
         f_there = has_force and e.force <= tol.force
         K_there = e.stiffness <= tol.stiffness
+        # residual: what is left of the output with each quantity against the state it is from
         if K_there and f_there and not (f_own and K_own):
-            which, code = "force and stiffness are", "other-state"
+            which, code, left = "force and stiffness are", "other-state", (e.force, e.stiffness)
         elif K_there and f_own and not K_own:
-            which, code = "the stiffness is", "stiffness-other-state"
+            which, code, left = (
+                "the stiffness is",
+                "stiffness-other-state",
+                (own.force, e.stiffness),
+            )
         elif f_there and K_own and not f_own:
-            which, code = "the force is", "force-other-state"
+            which, code, left = "the force is", "force-other-state", (e.force, own.stiffness)
         else:
             continue
         found.append(
@@ -75,7 +80,7 @@ def other_state_findings(
                 f"against the oracle at that state: force error {e.force:.1e}, stiffness error "
                 f"{e.stiffness:.1e}; at this case's own positions: force error {own.force:.1e}, "
                 f"stiffness error {own.stiffness:.1e}",
-                {"state": st.name, "rest": st.rest, "residual": max(e.force, e.stiffness)},
+                {"state": st.name, "rest": st.rest, "residual": max(left)},
             )
         )
     return ambiguous(found, "those states have the same force and stiffness within tolerance")
