@@ -68,3 +68,10 @@ def test_an_engine_reading_its_mesh_in_other_units_is_named(s):
     assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
     assert named[0].code == "length-units", outcome.diagnosis.text()
     assert named[0].figures["s"] == pytest.approx(s, rel=1e-9)
+
+
+def test_ratios_near_the_float_limit_name_nothing_and_do_not_overflow():
+    f = np.ones((4, 3))
+    K = sp.identity(12, format="csr")
+    assert fit_length_scale(f, K, 1e300 * f, 1e300 * K) is None
+    assert fit_length_scale(f, K, 1e-300 * f, 1e200 * K) is None

@@ -76,7 +76,11 @@ def fit_length_scale(
     r = fit_scale(np.asarray(f_o), np.asarray(f_e))  # engine / oracle on the force
     if k is None or r is None or k <= 0 or r <= 0:
         return None
-    if abs(r / k**FORCE_POWER - 1.0) > _AGREE or abs(r / k - 1.0) <= _AGREE:
+    # In logarithms: ratios near 1e300 (garbage output) must not overflow a power.
+    lr, lk = np.log(r), np.log(k)
+    if not (np.isfinite(lr) and np.isfinite(lk)):
+        return None
+    if abs(lr - FORCE_POWER * lk) > _AGREE or abs(lr - lk) <= _AGREE:
         return None
     s = k  # the stiffness scales by s itself
     return LengthScale(
