@@ -18,7 +18,7 @@ import numpy as np
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
-from conformance.diagnosis.cells import cell_contribution_reading
+from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
@@ -299,6 +299,8 @@ def _run_check(
             diag = element_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
             diag = shape_gradient_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
+            diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
             diag = b_for_c_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:

@@ -97,6 +97,54 @@ def test_a_cell_skipped_or_counted_twice_is_named(cell, weight, words):
     assert any(f.code == "localised" for f in d.findings)  # the localisation stays, observed
 
 
+def test_the_fit_over_all_cells_finds_cells_missing_anywhere():
+    from conformance.diagnosis.cells import fit_all_cells
+    from conformance.diagnosis.elements import assemble
+    from meshes import unit_cube
+
+    points, cells = unit_cube(75)[:2]
+    m, n = cells.shape[0], points.shape[0]
+    rng = np.random.default_rng(2)
+    fe = rng.normal(size=(m, 4, 3))
+    A = rng.normal(size=(m, 12, 12))
+    Ke = A + np.swapaxes(A, 1, 2)
+    w = np.zeros(m)
+    w[[5, 40, m - 1]] = [-1.0, -1.0, 1.0]
+    df, dK = assemble(cells, n, w[:, None, None] * fe, w[:, None, None] * Ke)
+    fit = fit_all_cells(cells, n, fe, Ke, df, dK, Scales(1, 1, 1))
+    assert fit is not None and np.allclose(fit.alpha, w, atol=1e-9)
+    assert max(fit.force, fit.stiffness) < 1e-10
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_the_last_cells_skipped_all_over_the_mesh_are_named():
+    from conformance.protocol import check_implementation
+
+    seen: list = []
+
+    def weights(m):  # the assembly loop stops 6 cells short
+        seen.append(m)
+        w = np.ones(m)
+        w[-6:] = 0.0
+        return w
+
+    run = check_implementation(
+        _element_engine(weights),
+        material="NeoHookean",
+        mesh="cube-small",
+        states=("random",),
+        probes=False,
+    )
+    (outcome,) = run.outcomes
+    d = outcome.diagnosis
+    assert outcome.status == "failed" and len(d.causes) == 1, d.text()
+    cause = d.causes[0]
+    assert cause.code == "cell-contribution", d.text()
+    assert cause.figures["cells"] == list(range(seen[0] - 6, seen[0])), d.text()
+    assert np.allclose(cause.figures["coefficients"], -1.0)
+
+
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 @pytest.mark.parametrize("shift", [1, -1])

@@ -8,6 +8,11 @@ of those cells' element forces and matrices (MJED's, used only when their sum is
 +1 that it is counted twice, k that it is counted k + 1 times; a fit that leaves more than the
 case's tolerance names nothing. Bounded: at most :data:`MAX_CELLS` cells, fitted through their
 (cells x cells) Gram matrix on the sparse element contributions.
+
+Cells missing here and there (the error not localised: the last few cells of an unstructured
+mesh lie all over it) are fitted all at once, one coefficient a cell, by the normal equations
+of the sparse design matrix (:func:`fit_all_cells`; meshes up to :data:`MAX_ALL_CELLS` cells),
+and named only when fewer than half of the cells are off.
 """
 
 from __future__ import annotations
@@ -22,10 +27,25 @@ from conformance.diagnosis.elements import assemble, element_split
 from conformance.diagnosis.findings import FULL, OBSERVED, Finding
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["CellFit", "fit_cell_contributions", "cell_contribution_reading", "MAX_CELLS"]
+__all__ = [
+    "CellFit",
+    "fit_cell_contributions",
+    "fit_all_cells",
+    "cell_contribution_reading",
+    "spread_cells_reading",
+    "MAX_CELLS",
+    "MAX_ALL_CELLS",
+]
 
-#: Most cells fitted (the localised set); more names no single cell.
+#: Most cells fitted one by one (the localised set).
 MAX_CELLS = 64
+
+#: Most cells of a mesh fitted all at once (cells missing here and there): one sparse LU of an
+#: (m x m) matrix with as many entries per row as a cell has neighbours.
+MAX_ALL_CELLS = 20000
+
+#: Most cells listed by name in a finding; the rest are counted.
+_LISTED = 8
 
 #: A coefficient this close to an integer is read as that many copies of the cell.
 _INTEGER = 1e-6
@@ -83,6 +103,48 @@ def fit_cell_contributions(
     return CellFit(candidates, alpha, e.force, e.stiffness)
 
 
+def fit_all_cells(
+    cells: np.ndarray,
+    n: int,
+    fe: np.ndarray,
+    Ke: np.ndarray,
+    df: np.ndarray,
+    dK: sp.spmatrix,
+    s: Scales,
+) -> Optional[CellFit]:
+    """:func:`fit_cell_contributions` over every cell at once, for an error spread over the
+    mesh: the normal equations of the sparse design matrix (one column a cell: its 12 force and
+    144 matrix entries, weighted by the case's scales), solved by sparse LU. None beyond
+    :data:`MAX_ALL_CELLS` cells or when the equations are singular (no unique reading).
+    """
+    from scipy.sparse.linalg import spsolve
+
+    m = cells.shape[0]
+    if m > MAX_ALL_CELLS:
+        return None
+    dof = (3 * cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    key = (np.repeat(dof, 12, axis=1) * (3 * n) + np.tile(dof, (1, 12))).ravel()
+    keys, row = np.unique(key, return_inverse=True)  # the matrix entries cells touch
+    A_f = sp.csc_matrix(
+        (fe.reshape(-1) / s.force, (dof.ravel(), np.repeat(np.arange(m), 12))), shape=(3 * n, m)
+    )
+    A_K = sp.csc_matrix(
+        (Ke.reshape(-1) / s.stiffness, (row, np.repeat(np.arange(m), 144))),
+        shape=(keys.size, m),
+    )
+    D = sp.csr_matrix(dK)
+    b_K = np.asarray(D[keys // (3 * n), keys % (3 * n)]).ravel() / s.stiffness
+    b_f = np.asarray(df).ravel() / s.force
+    G = (A_f.T @ A_f + A_K.T @ A_K).tocsc()
+    with np.errstate(all="ignore"):
+        alpha = np.atleast_1d(spsolve(G, A_f.T @ b_f + A_K.T @ b_K))
+    if not np.all(np.isfinite(alpha)):
+        return None
+    f_fit, K_fit = assemble(cells, n, alpha[:, None, None] * fe, alpha[:, None, None] * Ke)
+    e = errors(f_fit, K_fit, None, np.asarray(df), D, 0.0, s)
+    return CellFit(np.arange(m), alpha, e.force, e.stiffness)
+
+
 def _describe(fit: CellFit) -> List[str]:
     """Words for each cell whose coefficient is not zero."""
     out = []
@@ -96,7 +158,43 @@ def _describe(fit: CellFit) -> List[str]:
             out.append(f"cell {c} counted {'twice' if r == 1 else f'{r + 1} times'}")
         else:
             out.append(f"cell {c}'s contribution scaled by {1 + a:.6g}")
+    if len(out) > _LISTED:
+        out = out[:_LISTED] + [f"and {len(out) - _LISTED} more cells"]
     return out
+
+
+def _finding(fit: CellFit, residual: float) -> Optional[Finding]:
+    """The finding for the cells whose coefficient is not zero (None: no such cell)."""
+    keep = np.abs(fit.alpha) > _INTEGER
+    words = _describe(fit)
+    if not words:
+        return None
+    listed = [(int(c), float(a)) for c, a in zip(fit.cells[keep], fit.alpha[keep])]
+    combo = " + ".join(f"{a:+.6g} x [cell {c}]" for c, a in listed[:_LISTED])
+    return Finding(
+        "cell-contribution",
+        "; ".join(words),
+        FULL,
+        f"engine - oracle is {combo}{' + ...' if len(listed) > _LISTED else ''} (those cells' "
+        f"element force and matrix, MJED's, whose sum is the oracle's to {residual:.1e}): left "
+        f"force error {fit.force:.1e}, stiffness error {fit.stiffness:.1e}",
+        {
+            "cells": [c for c, _ in listed],
+            "coefficients": [a for _, a in listed],
+            "residual": max(fit.force, fit.stiffness),
+        },
+    )
+
+
+def _split_and_difference(diag, ci, out, ref, s: Scales):
+    """(MJED's split of the oracle, engine - oracle force, stiffness), or None without a split."""
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
+    )
+    if split is None:
+        return None
+    df = np.asarray(out.force) - ref.force
+    return split, df, sp.csr_matrix(out.stiffness) - ref.stiffness
 
 
 def cell_contribution_reading(diag, ci, out, ref, s: Scales):
@@ -108,40 +206,41 @@ def cell_contribution_reading(diag, ci, out, ref, s: Scales):
     if lead is None or lead.code != "localised" or not lead.figures.get("cells"):
         return diag
     tol: Tolerances = diag.tolerances
-    split = element_split(
-        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
-    )
-    if split is None:
+    got = _split_and_difference(diag, ci, out, ref, s)
+    if got is None:
         return diag
+    split, df, dK = got
     fit = fit_cell_contributions(
-        split.cells,
-        split.n,
-        split.fe,
-        split.Ke,
-        np.asarray(out.force) - ref.force,
-        sp.csr_matrix(out.stiffness) - ref.stiffness,
-        np.asarray(lead.figures["cells"]),
-        s,
+        split.cells, split.n, split.fe, split.Ke, df, dK, np.asarray(lead.figures["cells"]), s
     )
     if fit is None or fit.force > tol.force or fit.stiffness > tol.stiffness:
         return diag
-    words = _describe(fit)
-    if not words:
+    finding = _finding(fit, split.residual)
+    if finding is None:
         return diag
-    finding = Finding(
-        "cell-contribution",
-        "; ".join(words),
-        FULL,
-        "engine - oracle is "
-        + " + ".join(f"{a:+.6g} x [cell {c}]" for c, a in zip(fit.cells, fit.alpha))
-        + f" (those cells' element force and matrix, MJED's, whose sum is the oracle's to "
-        f"{split.residual:.1e}): left force error {fit.force:.1e}, stiffness error "
-        f"{fit.stiffness:.1e}",
-        {
-            "cells": [int(c) for c in fit.cells],
-            "coefficients": [float(a) for a in fit.alpha],
-            "residual": max(fit.force, fit.stiffness),
-        },
-    )
     rest = [replace(f, strength=OBSERVED) if f is lead else f for f in diag.findings]
     return replace(diag, findings=[finding, *rest])
+
+
+def spread_cells_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained) with the cells named when the error is some
+    cells' contributions missing or repeated anywhere in the mesh (:func:`fit_all_cells`);
+    named only for fewer than half of the cells (more is a mistake of every cell, which the
+    other readings name); unchanged otherwise.
+    """
+    tol: Tolerances = diag.tolerances
+    if ci.cells.shape[0] > MAX_ALL_CELLS:
+        return diag
+    got = _split_and_difference(diag, ci, out, ref, s)
+    if got is None:
+        return diag
+    split, df, dK = got
+    fit = fit_all_cells(split.cells, split.n, split.fe, split.Ke, df, dK, s)
+    if fit is None or fit.force > tol.force or fit.stiffness > tol.stiffness:
+        return diag
+    if 2 * np.count_nonzero(np.abs(fit.alpha) > _INTEGER) > fit.alpha.size:
+        return diag
+    finding = _finding(fit, split.residual)
+    if finding is None:
+        return diag
+    return replace(diag, findings=[finding, *(f for f in diag.findings if f.code != "unexplained")])
