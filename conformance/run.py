@@ -18,6 +18,7 @@ import numpy as np
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
+from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
@@ -25,6 +26,8 @@ from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
+from conformance.diagnosis.shape_gradients import shape_gradient_reading
+from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -169,7 +172,12 @@ def _run_check(
     cache = OracleCache() if cache is None else cache
     run = CheckRun(input_errors=dict(input_errors or {}))
     kept_terms: Dict[str, list] = {}  # model -> [(outcome index, labels, TermCase)]
-    for case, probes in primary_and_probes(cases):
+    pairs = primary_and_probes(cases)
+    # The kit's cases by model and mesh: the other states an output may have been computed at.
+    kin: Dict[tuple, List[KitCase]] = {}
+    for c, _ in pairs:
+        kin.setdefault((readings.model_key(c.input.model), c.mesh), []).append(c)
+    for case, probes in pairs:
         t0 = time.perf_counter()
         ci = case.input
         label = dict(
@@ -230,6 +238,8 @@ def _run_check(
             tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
+        if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
+            diag = cell_contribution_reading(diag, ci, out, ref, s)
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
         if tol.capped and not diag.passed:
@@ -265,7 +275,14 @@ def _run_check(
             if sig.float32_like:
                 tol32 = cache.single_precision(ci, ref, s)
         read_mistakes = unexplained and not (tol32 is not None and tol32.within(diag.errors))
-        if read_mistakes:
+        if read_mistakes:  # computed at another state of the kit (cheap: an assembly a state)
+            others = [
+                c
+                for c in kin[(readings.model_key(ci.model), case.mesh)]
+                if c.case_id != case.case_id and np.array_equal(c.input.points, ci.points)
+            ]
+            diag = other_state_reading(diag, cache, ci, out, s, others)
+        if read_mistakes and not diag.causes:
             model_key = _model_name(ci.model)
             diag = readings.read(
                 diag,
@@ -280,6 +297,10 @@ def _run_check(
             )
         if read_mistakes and not diag.causes:  # inside the element: order, stress measure
             diag = element_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
+            diag = shape_gradient_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
+            diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
             diag = b_for_c_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:

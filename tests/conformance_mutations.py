@@ -223,8 +223,10 @@ EXPECTED: Dict[str, object] = {
     "Voigt shear doubled": "tangent-part",
     "geometric stiffness missing": "tangent-part",
     "volumetric tangent doubled": "tangent-part",
-    "stiffness not the derivative of the force": "inconsistent-stiffness",
-    "one cell wrong": "localised",
+    # the tangent is the rest state's: named as such, the probes' inconsistency still shown
+    "stiffness not the derivative of the force": "stiffness-other-state",
+    # one cell's contribution 1.5 times: the cell and its factor, the localisation observed
+    "one cell wrong": "cell-contribution",
     "(J-1)^2 bulk term": "volumetric",
 }
 

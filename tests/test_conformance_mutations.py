@@ -58,17 +58,12 @@ def test_mutation_is_named(runs, mutation):
             h = 1e-6 * mean_edge_length(*meshes.resolve("cube-small")[:2])
             assert first.figures["step"] == pytest.approx(h, rel=1e-2)
             assert first.figures["explained"] > 0.999
-        elif (
-            expected == "inconsistent-stiffness"
-        ):  # an observation, not a correction: no cause may be claimed
-            assert expected in [f.code for f in d.findings] and not codes, d.text()
-            assert (
-                d.findings[0].code == "unexplained"
-                and "the mistake is in the tangent alone" in d.text()
-            )
         else:
             assert codes and codes[0] == expected, d.text()
             assert d.causes[0].figures["residual"] <= 1e-10
+        if mutation == "stiffness not the derivative of the force":
+            assert "inconsistent-stiffness" in [f.code for f in d.findings], d.text()
+            assert d.causes[0].figures["rest"], d.text()
 
 
 def test_the_named_figures(runs):
@@ -95,8 +90,11 @@ def test_the_named_figures(runs):
     assert (
         "single J" in cause("(J-1)^2 bulk term", "uniaxial").evidence
     )  # not identifiable from one J: said so
-    loc = cause("one cell wrong").figures
-    assert len(loc["nodes"]) == 4 and len(loc["cells"]) == 1
+    cell = cause("one cell wrong")
+    assert len(cell.figures["cells"]) == 1 and "scaled by 1.5" in cell.title
+    (o,) = [o for o in runs["one cell wrong"].outcomes if o.state == "random"]
+    (loc,) = [f.figures for f in o.diagnosis.findings if f.code == "localised"]
+    assert len(loc["nodes"]) == 4 and loc["cells"] == cell.figures["cells"]
     assert "1-based" in cause("1-based node index").title
     assert "antisymmetric part" in cause("unsymmetric K").evidence
 

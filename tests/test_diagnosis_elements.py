@@ -147,3 +147,33 @@ def test_the_check_names_the_element_order():
     for o in run.outcomes:
         assert o.status == "failed"
         assert o.diagnosis.findings[0].code == "element-order", o.diagnosis.text()
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_shape_function_gradients_transposed_are_named():
+    """An engine whose D_a are the columns of M^-1: written here as the UFL oracle on cells
+    whose rest edges are the rows of M (then its gradients are those columns), summed back.
+    """
+    from conformance.protocol import check_implementation
+    from reference_fem import UFLOracle
+
+    def engine(case):
+        cells, m, n = case.cells, case.cells.shape[0], case.points.shape[0]
+        X = case.points[cells]
+        edges = X[:, 1:] - X[:, :1]  # (m, 3, 3), row a: edge a (M's column a)
+        rows_of_m = np.swapaxes(edges, 1, 2)  # row a: M's row a, the new cell's edge a
+        rest = np.concatenate([np.zeros((m, 1, 3)), rows_of_m], axis=1).reshape(-1, 3)
+        o = UFLOracle(rest, np.arange(4 * m).reshape(m, 4), case.model)
+        fe, Ke = o.force_and_stiffness(case.positions[cells].reshape(-1, 3))
+        P = sp.csr_matrix((np.ones(4 * m), (np.arange(4 * m), cells.ravel())), shape=(4 * m, n))
+        P3 = sp.kron(P, sp.identity(3)).tocsr()
+        return P.T @ fe, (P3.T @ Ke @ P3).tocsr()
+
+    run = check_implementation(
+        engine, material="VerondaWestmann", mesh="cube-small", states=("random",), probes=False
+    )
+    (outcome,) = run.outcomes
+    d = outcome.diagnosis
+    assert outcome.status == "failed" and len(d.causes) == 1, d.text()
+    assert d.causes[0].code == "gradients-transposed", d.text()

@@ -5,7 +5,8 @@ oracle once corrected; otherwise it is reported as partly explaining, with the r
 
 1. conventions: sign of force and/or stiffness; component-major dof order; node offsets and
    permutations; 3x3 blocks of K transposed; an unsymmetric K whose symmetric part is right;
-2. a global factor (fitted; 2, 1/2, 6, the rest volume named);
+2. a global factor (fitted; 2, 1/2, 6, the rest volume named); lengths in other units (force
+   and stiffness scaled by s^2 and s of one length factor s, :mod:`conformance.diagnosis.units`);
    then, for a model with a fibre frame, the frame mistakes: the oracle with the identity, the
    transposed or a single frame, or the columns in another order
    (:mod:`conformance.diagnosis.frames`);
@@ -32,6 +33,7 @@ from conformance.diagnosis.hypotheses import (
     convention_corrections,
     scale_corrections,
 )
+from conformance.diagnosis.units import FORCE_POWER, STIFFNESS_POWER, fit_length_scale
 from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
 from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
 
@@ -181,8 +183,8 @@ def diagnose(
             "unexplained",
             PARTIAL if best else OBSERVED,
             "no tested hypothesis (signs, dof order, node offsets and permutations, transposed or "
-            "unsymmetric K, global factor, fibre frame where the model has one, tangent parts, "
-            "volumetric energy, localisation) brings the error within tolerance"
+            "unsymmetric K, global factor, length units, fibre frame where the model has one, "
+            "tangent parts, volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + (
                 "; the force is right and the stiffness is not the derivative of the engine's own "
@@ -422,6 +424,18 @@ def _explain(
         )
         if full:
             return full, partial
+    unit = fit_length_scale(f_o, K_o, f, K)
+    if unit is not None:
+        judge(
+            "length-units",
+            unit.words(),
+            errors(unit.force, unit.stiffness, None, f_o, K_o, W_o, s),
+            f"force / s^{FORCE_POWER}, stiffness / s^{STIFFNESS_POWER} with s = {unit.s:.9g}, "
+            "the powers of a length in a P1 element's force (V0 P D) and stiffness (V0 D A D)",
+            {"s": unit.s, "force_ratio": unit.force_ratio, "stiffness_ratio": unit.stiffness_ratio},
+        )
+        if full:
+            return full, partial
 
     if frame_variants is not None:
         _frame_findings(f, K, W_o, frame_variants(), judge)
@@ -542,9 +556,14 @@ def _locality_findings(
     if total == 0:
         return
     order = np.argsort(field_)[::-1]
-    cum = np.cumsum(field_[order] ** 2) / total
+    # tail[k]: the squared error outside the k largest nodes, summed from the small end (exact
+    # where 1 - cumsum would round to 1e-16 of the total).
+    tail = np.append(np.cumsum((field_[order] ** 2)[::-1])[::-1], 0.0)
     limit = max(4, int(0.05 * n))
-    k = int(np.searchsorted(cum, 1.0 - 1e-20)) + 1
+    # The nodes that hold all of the error but what the tolerance lets pass: an engine's own
+    # round-off elsewhere (1e-16 of its values) must not spread a one-cell error over the mesh.
+    floor = max(1e-20 * total, (0.5 * min(tol.force, tol.stiffness)) ** 2)
+    k = max(1, int(np.argmax(tail <= floor)))
     if k > limit or 2 * k > n:
         return  # not localised: the error is on most of the mesh
     nodes = np.sort(order[:k])

@@ -19,6 +19,8 @@ into cells. A user energy (no MJED material) or a split that does not add up tes
    K_ab = V0 D_a . A . D_b); the engine is compared with the force and stiffness of
    P' = M(P, F) for the usual confusions (Cauchy, Kirchhoff, second Piola-Kirchhoff, P^T,
    P / J, J P), the derivative of M taken by complex step (exact to round-off).
+3. **Shape-function gradients.** Built from another rest edge matrix (transposed):
+   :mod:`conformance.diagnosis.shape_gradients` (its own reading, after these).
 """
 
 from __future__ import annotations

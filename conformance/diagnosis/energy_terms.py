@@ -57,6 +57,8 @@ class Spec:
     j_power: every non-integer power of J multiplied by this (1: unchanged); j_power_of: only the
     powers whose exponent prints as this (None: all);
     frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration);
+    strain: the strain measure E read as "green" (None: (C - I)/2), "no-half" (C - I, the 1/2 of
+    Green's strain dropped) or "small" ((F + F^T)/2 - I, the linearised strain); only E changes;
     j_exponents: ((exponent, factor), ...): each non-integer power of J whose exponent prints as
     ``exponent`` (:func:`exponent_key`) taken as J^(factor x exponent), the factor entering the
     form as a parameter does (one compiled form for every factor: a fit of the exponents).
@@ -71,6 +73,7 @@ class Spec:
     j_power_of: Optional[str] = None
     frame_deformed: bool = False
     j_exponents: Tuple[Tuple[str, float], ...] = ()
+    strain: Optional[str] = None
 
     def key(self) -> str:
         return repr(self)
@@ -135,7 +138,13 @@ class Kinematics:
         self.exp, self.ln, self.tr = ufl.exp, ufl.ln, ufl.tr
         self.F = F
         self.C = F.T * F
-        self.E = 0.5 * (self.C - ufl.Identity(3))
+        eye = ufl.Identity(3)
+        if spec.strain == "no-half":
+            self.E = self.C - eye
+        elif spec.strain == "small":
+            self.E = 0.5 * (F + F.T) - eye
+        else:
+            self.E = 0.5 * (self.C - eye)
         if spec.i1 == "trC2":
             self.I1 = ufl.tr(self.C * self.C)
         elif spec.i1 == "trU":

@@ -14,6 +14,9 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-global``: one frame for the whole mesh, the first cell's (the material axes held
   fixed in space instead of following the field: an engine that reads frame.f64 as one
   (3, 3) rotation);
+- ``frame-shifted``: per-cell frames read one cell off (cell i given cell i - 1's or i + 1's
+  frame: an off-by-one index, or frames written in another cell order), the end wrapping
+  round or held;
 - ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
   hypothesis per order of the three columns.
 
@@ -88,6 +91,8 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
             R[0] if R.ndim == 3 else R,
         ),
     ]
+    if R.ndim == 3 and R.shape[0] > 1:
+        candidates += _shifted(R)
     for order in itertools.permutations(range(3)):
         if order != (0, 1, 2):
             used = ", ".join(_COLUMNS[k] for k in order)
@@ -100,6 +105,26 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
         if np.array_equal(np.broadcast_to(variant, R.shape), R):
             continue  # the same frame as the model's: no mistake to tell apart
         out.append((code, title, dataclasses.replace(model, frame=variant)))
+    return out
+
+
+def _shifted(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Per-cell frames R (m, 3, 3) read one cell off: cell i given cell i - 1's or i + 1's
+    frame, the end wrapping round (Python's R[i - 1]; a modulo) or held (an index clamped).
+    """
+    m = R.shape[0]
+    i = np.arange(m)
+    out = []
+    for d, which in ((-1, "previous"), (1, "next")):
+        for idx, end in ((np.mod(i + d, m), "wrapping round"), (np.clip(i + d, 0, m - 1), "held")):
+            out.append(
+                (
+                    "frame-shifted",
+                    f"per-cell frames shifted by one cell: cell i given the {which} cell's frame "
+                    f"(i {d:+d}; the end {end})",
+                    np.ascontiguousarray(R[idx]),
+                )
+            )
     return out
 
 

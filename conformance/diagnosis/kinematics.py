@@ -11,6 +11,8 @@ case's tolerance. The mistakes:
 - the energy weighted by the deformed volume (J W for W);
 - principal stretches confused with their squares (the power of the eigenvalues of C doubled or
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
+- the strain measure: E = C - I (Green's 1/2 dropped) or the linearised strain (F + F^T)/2 - I
+  for E = (C - I)/2 (formulas written in E: St Venant-Kirchhoff, Costa, a user energy's Eij);
 - the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
   1/2 or 2);
 - the fibre frame in the deformed configuration (F R, normalised, for R), or pushed forward and
@@ -208,6 +210,19 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             "principal stretches confused with their squares: I1 = the sum of the stretches for "
             "the sum of their squares",
             Spec(i1="trU"),
+        ),
+    ]
+    # The strain measure: only formulas written in E change (the dedupe below drops the rest).
+    out += [
+        (
+            "strain-no-half",
+            "Green's strain without its 1/2: E = C - I used for E = (C - I)/2",
+            Spec(strain="no-half"),
+        ),
+        (
+            "strain-small",
+            "the linearised (small) strain (F + F^T)/2 - I used for Green's E = (C - I)/2",
+            Spec(strain="small"),
         ),
     ]
     try:

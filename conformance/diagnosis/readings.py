@@ -24,9 +24,9 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.parameters import scalar_parameters
-from conformance.judge.compare import Scales, Tolerances, errors
+from conformance.judge.compare import Scales, Tolerances, errors, grown
 
-__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading"]
+__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
 
 #: Two predictions closer than this (relative, force and stiffness) are the same reading.
 _SAME = 1e-9
@@ -41,7 +41,8 @@ class Reading:
     stiffness: Optional[sp.csr_matrix] = None
 
 
-def _model_key(model: Any) -> str:
+def model_key(model: Any) -> str:
+    """The model as its manifest says it (JSON, sorted): one key for one material and values."""
     from conformance.kit.spec import model_to_manifest
 
     return json.dumps(model_to_manifest(model), sort_keys=True)
@@ -52,7 +53,7 @@ def _evaluate(cache, ci, spec):
     from conformance.diagnosis.energy_terms import TransformedEnergy
 
     return cache.evaluate_model(
-        ci, TransformedEnergy(ci.model, spec), _model_key(ci.model) + spec.key()
+        ci, TransformedEnergy(ci.model, spec), model_key(ci.model) + spec.key()
     )
 
 
@@ -194,7 +195,15 @@ def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
             r = evaluate()
         except ValueError:  # not finite at this state, or not a formula the oracle takes
             continue
-        e = errors(out.force, out.stiffness, None, r.force, r.stiffness, 0.0, s)
+        e = errors(
+            out.force,
+            out.stiffness,
+            None,
+            r.force,
+            r.stiffness,
+            0.0,
+            grown(s, r.force, r.stiffness),
+        )
         if tol.within(e, energy=False):
             evidence = (
                 f"{words}against that energy, differentiated by the oracle: force error "
@@ -216,7 +225,7 @@ def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         (
             (
                 lambda v=v: cache.evaluate_model(
-                    ci, v.oracle_model(ci.model), _model_key(ci.model) + v.key()
+                    ci, v.oracle_model(ci.model), model_key(ci.model) + v.key()
                 ),
                 f"kinematic-{v.code}",
                 f"your engine matches the energy with {v.title}",

@@ -22,6 +22,7 @@ from conformance.judge.consistency import safe_norm
 
 __all__ = [
     "FORCE_TOL",
+    "grown",
     "STIFFNESS_TOL",
     "ENERGY_TOL",
     "Scales",
@@ -130,6 +131,16 @@ def scales(h: float, W_o: float, f_o: np.ndarray, K_o: sp.spmatrix) -> Scales:
     nK = safe_norm(K_o)
     nf = max(safe_norm(f_o), h * nK)
     return Scales(force=nf, stiffness=nK, energy=max(abs(W_o), h * nf))
+
+
+def grown(s: Scales, f: np.ndarray, K: sp.spmatrix) -> Scales:
+    """``s`` grown to a candidate's own force f (n, 3) and stiffness K where they are larger: a
+    candidate many orders above the oracle (an exponential energy at a mistaken strain) is
+    matched to its own round-off, never held to the oracle's smaller figures; a smaller one
+    keeps ``s``.
+    """
+    k = max(1.0, safe_norm(K) / s.stiffness) if s.stiffness > 0 else 1.0
+    return Scales(force=max(s.force * k, safe_norm(f)), stiffness=s.stiffness * k, energy=s.energy)
 
 
 def _ratio(num: float, den: float) -> float:

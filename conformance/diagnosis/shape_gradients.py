@@ -1,0 +1,122 @@
+"""Shape-function gradients built wrongly inside the element: the engine's D_a are not the rows
+of M^-1 (M: the cell's rest edge matrix, columns X_a - X_0), e.g. its columns (M^-T, the
+inverse or the edge matrix transposed).
+
+An engine that uses D'_a (a = 1..3, D'_0 = -sum) for both F = sum_a x_a D'_a^T and its force
+-V0 P D'_a is a correct engine on a cell whose rest edges are the columns of M' with rows of
+M'^-1 = D': for the transposed gradients, M' = M^T. So the hypothesis is tested exactly by
+MJED on an exploded mesh (each cell its own four nodes, rest edges M', positions unchanged),
+assembled with the case's cells; MJED is used only where its sum on the case's own mesh is the
+oracle's (:func:`conformance.diagnosis.elements.element_split`). Cost: one MJED evaluation on
+4 m nodes, vectorised.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import ElementSplit, assemble, element_split
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.judge.compare import Scales, Tolerances, errors, grown
+
+__all__ = ["REST_EDGES", "exploded_output", "shape_gradient_findings", "shape_gradient_reading"]
+
+#: code -> (words, M -> M'): the rest edge matrix (m, 3, 3) an engine's gradients belong to.
+REST_EDGES: dict = {
+    "gradients-transposed": (
+        "shape-function gradients transposed: D_a taken from the columns of the inverse rest "
+        "edge matrix M^-1 instead of its rows (M^-T for M^-1)",
+        lambda M: np.swapaxes(M, 1, 2),
+    ),
+}
+
+
+def exploded_output(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    positions: np.ndarray,
+    edges: Callable[[np.ndarray], np.ndarray],
+) -> Optional[Tuple[np.ndarray, sp.csr_matrix]]:
+    """Force (n, 3) and stiffness of MJED with each cell's rest edge matrix M (m, 3, 3), columns
+    X_a - X_0, replaced by edges(M), assembled on ``cells`` (m, 4); None when MJED cannot (no
+    such material, or a cell of edges(M) not positively oriented).
+    """
+    import mjed
+
+    m = cells.shape[0]
+    X = points[cells]
+    M = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)  # columns: the three rest edges
+    Mp = edges(M)
+    if np.any(np.linalg.det(Mp) <= 0):
+        return None
+    rest = np.concatenate([np.zeros((m, 1, 3)), np.swapaxes(Mp, 1, 2)], axis=1).reshape(-1, 3)
+    local = np.arange(4 * m, dtype=np.int64).reshape(m, 4)
+    try:
+        field = mjed.make_force_field(mjed.TetMesh(rest, local), model)
+        x = positions[cells].reshape(-1, 3)
+        fe = np.asarray(field.element_forces(x), dtype=np.float64)
+        Ke = np.asarray(field.element_stiffness(x), dtype=np.float64)
+    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state: no reading
+        return None
+    f, K = assemble(cells, points.shape[0], fe, Ke)
+    return f, K
+
+
+def shape_gradient_findings(
+    split: ElementSplit,
+    model: Any,
+    points: np.ndarray,
+    positions: np.ndarray,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The mistaken gradients of :data:`REST_EDGES` whose output matches the engine's (several:
+    ambiguous); ``split`` vouches that MJED is the oracle on this case.
+    """
+    found = []
+    for code, (words, edges) in REST_EDGES.items():
+        with np.errstate(all="ignore"):
+            out = exploded_output(model, points, split.cells, positions, edges)
+        if out is None:
+            continue
+        e = errors(f, sp.csr_matrix(K), None, out[0], out[1], 0.0, grown(s, *out))
+        if tol.within(e, energy=False):
+            found.append(
+                Finding(
+                    code,
+                    words,
+                    FULL,
+                    "MJED (whose sum is the oracle's to "
+                    f"{split.residual:.1e} on this case) on cells rebuilt with the rest edges "
+                    f"those gradients belong to: force error {e.force:.1e}, stiffness error "
+                    f"{e.stiffness:.1e}",
+                    {"residual": max(e.force, e.stiffness)},
+                )
+            )
+    return ambiguous(found)
+
+
+def shape_gradient_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet) with the mistaken gradients the engine
+    matches, named first; unchanged when none does or MJED does not split this case.
+    """
+    from dataclasses import replace
+
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    found = shape_gradient_findings(
+        split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
+    )
+    if not found:
+        return diag
+    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
