@@ -163,18 +163,23 @@ def check_implementation(
     states: Sequence[str] = ("uniaxial", "shear", "random"),
     probes: bool = True,
     precision: str = "auto",
+    read_causes: bool = True,
 ) -> CheckRun:
     """Run ``impl`` on every model x mesh x state (with probes) and diagnose each case.
 
     mesh: a built-in name, a file path, a (points, cells) pair, or a list of them.
     precision: "double", "single" or "auto" (single when ``impl`` returns float32 arrays).
+    read_causes: False judges only (the verdicts; a failed case's cause is not looked for
+    beyond the first, quick readings: ``mjed-verify check --verdict-only``).
     """
     if precision not in ("auto", "double", "single"):
         raise ValueError(f"precision must be 'auto', 'double' or 'single', not {precision!r}")
     cases = build_cases(
         resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0
     )
-    return run_check(cases, python_evaluator(impl), precision=precision)
+    return run_check(
+        cases, python_evaluator(impl), precision=precision, read_causes=read_causes
+    )
 
 
 def assert_matches_oracle(

@@ -159,8 +159,15 @@ def _run_check(
     progress: Optional[Callable[[str], None]] = None,
     on_case: Optional[Callable[..., None]] = None,
     precision: str = "auto",
+    read_causes: bool = True,
 ) -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
+
+    read_causes: False judges only (``mjed-verify check --verdict-only``): the verdicts, errors
+    and the quick readings of the first diagnosis, without the readings of mistakes that a
+    failed case otherwise gets (other states, energy terms and variants, the element, the
+    tangent, float32), which compile and evaluate many variant forms. A failure that the quick
+    readings do not explain then says that its cause was not looked for, not "unexplained".
 
     precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
     case's conditioning, :mod:`conformance.judge.precision`) or "auto": single for an output the
@@ -275,6 +282,8 @@ def _run_check(
             if sig.float32_like:
                 tol32 = cache.single_precision(ci, ref, s)
         read_mistakes = unexplained and not (tol32 is not None and tol32.within(diag.errors))
+        if unexplained and not read_causes:
+            diag, read_mistakes = _causes_not_read(diag), False
         if read_mistakes:  # computed at another state of the kit (cheap: an assembly a state)
             others = [
                 c
@@ -314,7 +323,7 @@ def _run_check(
                 diag = element_difference_reading(diag, ci, out, ref, s)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
-        if not single and unexplained and not diag.causes and inexact:
+        if read_causes and not single and unexplained and not diag.causes and inexact:
             if tol32 is None:
                 tol32 = cache.single_precision(ci, ref, s)
             if sig is None:
@@ -356,6 +365,23 @@ def _run_check(
     _kit_term_fit(run, kept_terms)
     _settle_ambiguity(run)
     return run
+
+
+def _causes_not_read(diag: Diagnosis) -> Diagnosis:
+    """A failed case checked with read_causes=False: its "unexplained" headline (which would say
+    that nothing fits) replaced by what was done, the quick readings' evidence kept.
+    """
+    if not diag.findings or diag.findings[0].code != "unexplained":
+        return diag
+    first = diag.findings[0]
+    not_read = Finding(
+        "causes-not-read",
+        "cause not looked for (--verdict-only): check without it to have the cause named",
+        OBSERVED,
+        first.evidence,
+        first.figures,
+    )
+    return replace(diag, findings=[not_read, *diag.findings[1:]])
 
 
 def _settle_ambiguity(run: CheckRun) -> None:

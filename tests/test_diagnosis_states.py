@@ -73,3 +73,29 @@ def test_a_zero_force_is_not_the_rest_state():
     (outcome,) = run.outcomes
     assert outcome.status == "failed"
     assert not any("state" in f.code for f in outcome.diagnosis.findings), outcome.diagnosis.text()
+
+
+def test_verdict_only_keeps_the_verdicts_and_says_the_cause_was_not_looked_for():
+    # The same mistaken engine judged without the readings of mistakes: the verdicts are
+    # those of the full check, and the failed case does not claim "unexplained".
+    from conformance.protocol import check_implementation
+
+    def engine(case):  # the tangent kept from the rest state, as above
+        o = _oracle(case)
+        return o.force_and_stiffness(case.positions)[0], o.force_and_stiffness(case.points)[1]
+
+    def check(read_causes):
+        return check_implementation(
+            engine,
+            material="Gent",
+            states=("rest", "random"),
+            probes=False,
+            read_causes=read_causes,
+        ).outcomes
+
+    full, quick = check(True), check(False)
+    assert [o.status for o in quick] == [o.status for o in full] == ["passed", "failed"]
+    assert full[1].diagnosis.causes[0].code == "stiffness-other-state"
+    first = quick[1].diagnosis.findings[0]
+    assert first.code == "causes-not-read" and not quick[1].diagnosis.causes, first
+    assert "verdict-only" in first.title

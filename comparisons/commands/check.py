@@ -59,6 +59,12 @@ def configure(parser) -> None:
         "each case's conditioning) or 'auto' (the kit's declaration, else "
         "single for .f32 outputs)",
     )
+    parser.add_argument(
+        "--verdict-only",
+        action="store_true",
+        help="judge only: each case's verdict and errors, without the readings that name a "
+        "failed case's cause (faster where many cases fail, e.g. an engine's CI)",
+    )
     parser.add_argument("--quiet", action="store_true", help="print only the summary line")
 
 
@@ -179,6 +185,7 @@ def _run(args, cases, input_errors) -> int:
         progress=progress,
         on_case=on_case,
         precision=args.precision,
+        read_causes=not args.verdict_only,
     )
     bar.close()
     paths = write_report(folder, result, command=command, fields=fields)

@@ -91,7 +91,14 @@ def export_kits(keys, out: Path, states: str) -> dict:
     return kits
 
 
-def run_engine(entry: dict, kit: Path, out: Path, timeout: int = 120, corpus: Path = HERE) -> dict:
+def run_engine(
+    entry: dict,
+    kit: Path,
+    out: Path,
+    timeout: int = 120,
+    corpus: Path = HERE,
+    verdict_only: bool = False,
+) -> dict:
     name = Path(entry["file"]).stem
     report_json = out / "json" / f"{name}.json"
     report_json.parent.mkdir(parents=True, exist_ok=True)
@@ -109,6 +116,7 @@ def run_engine(entry: dict, kit: Path, out: Path, timeout: int = 120, corpus: Pa
         "--json",
         str(report_json),
         "--quiet",
+        *(["--verdict-only"] if verdict_only else []),
     ]
     t0 = time.monotonic()
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
@@ -208,8 +216,18 @@ def score(entry: dict, results, rc: int, seconds: float, tail: str) -> dict:
 
 
 def run_corpus(
-    out: Path, states: str = STATES, only=(), jobs: int = 1, entries=None, corpus: Path = HERE
+    out: Path,
+    states: str = STATES,
+    only=(),
+    jobs: int = 1,
+    entries=None,
+    corpus: Path = HERE,
+    verdict_only: bool = False,
 ) -> dict:
+    """Every engine of ``corpus`` checked and scored (see the module docstring); with
+    ``verdict_only`` the checks only judge (`--verdict-only`: the verdicts and controls are
+    the same, the causes of failed cases are not looked for, so nothing is "named").
+    """
     corpus = Path(corpus).resolve()
     entries = entries if entries is not None else load_manifest(corpus)
     if only:
@@ -220,7 +238,12 @@ def run_corpus(
     kits = export_kits([kit_key(e) for e in entries], out, states)
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         rows = list(
-            pool.map(lambda e: run_engine(e, kits[kit_key(e)], out, corpus=corpus), entries)
+            pool.map(
+                lambda e: run_engine(
+                    e, kits[kit_key(e)], out, corpus=corpus, verdict_only=verdict_only
+                ),
+                entries,
+            )
         )
     mistakes = [r for r in rows if r["family"] != "correct"]
     counts = {
@@ -274,8 +297,18 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "heldout_mistakes")
     ap.add_argument("--states", default=STATES)
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument(
+        "--verdict-only", action="store_true", help="judge only; name no causes (faster)"
+    )
     args = ap.parse_args(argv)
-    summary = run_corpus(args.out, args.states, args.engines, args.jobs, corpus=args.corpus)
+    summary = run_corpus(
+        args.out,
+        args.states,
+        args.engines,
+        args.jobs,
+        corpus=args.corpus,
+        verdict_only=args.verdict_only,
+    )
     print_table(summary)
     print(f"summary: {args.out / 'summary.json'}")
     bad = (
