@@ -177,9 +177,7 @@ def check_implementation(
     cases = build_cases(
         resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0
     )
-    return run_check(
-        cases, python_evaluator(impl), precision=precision, read_causes=read_causes
-    )
+    return run_check(cases, python_evaluator(impl), precision=precision, read_causes=read_causes)
 
 
 def assert_matches_oracle(
