@@ -277,13 +277,15 @@ def _run_check(
         # which cannot explain round-off and would have the oracle compile and evaluate many
         # variant energies for nothing.
         sig = tol32 = None
-        if not single and unexplained and inexact:
+        if read_causes and not single and unexplained and inexact:
             sig = roundoff_signature(out.force, out.stiffness, ref.force, ref.stiffness)
             if sig.float32_like:
                 tol32 = cache.single_precision(ci, ref, s)
-        read_mistakes = unexplained and not (tol32 is not None and tol32.within(diag.errors))
+        read_mistakes = (
+            read_causes and unexplained and not (tol32 is not None and tol32.within(diag.errors))
+        )
         if unexplained and not read_causes:
-            diag, read_mistakes = _causes_not_read(diag), False
+            diag = _causes_not_read(diag)
         if read_mistakes:  # computed at another state of the kit (cheap: an assembly a state)
             others = [
                 c
