@@ -18,6 +18,7 @@ import numpy as np
 from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
+from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -310,6 +311,8 @@ def _run_check(
             diag = element_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
             diag = shape_gradient_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # shared entries written once, not summed
+            diag = buffered_assembly_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs

@@ -55,6 +55,24 @@ def box_mesh(n: int = 2, *, jitter: float = 0.0, seed: int = 0):
     return points, cells
 
 
+def mjed_split(model, points, cells, x):
+    """(split, f_o, K_o, s): MJED's force and stiffness as the oracle of a diagnosis test, their
+    split into cells (conformance.diagnosis.elements.element_split) and the case's scales.
+    """
+    import scipy.sparse as sp
+
+    from conformance.diagnosis.elements import element_split
+    from conformance.judge.compare import DOUBLE, scales
+
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
+    f_o, K_o = field.force_and_stiffness(x)
+    K_o = sp.csr_matrix(K_o)
+    s = scales(0.5, 1.0, f_o, K_o)
+    split = element_split(model, points, cells, x, f_o, K_o, s, DOUBLE)
+    assert split is not None and split.residual < 1e-12
+    return split, f_o, K_o, s
+
+
 def random_tetrahedron(rng):
     """A random, reasonably shaped, positively oriented single tetrahedron."""
     while True:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import box_mesh
+from conftest import box_mesh, mjed_split
 
 from conformance.diagnosis.elements import (
     assemble,
@@ -17,7 +17,7 @@ from conformance.diagnosis.elements import (
     order_findings,
     stress_measure_findings,
 )
-from conformance.judge.compare import DOUBLE, scales
+from conformance.judge.compare import DOUBLE
 from reference_fem import dolfinx_available
 
 
@@ -29,15 +29,7 @@ def _state(seed=0):
 
 
 def _split(model, points, cells, x):
-    import mjed
-
-    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
-    f_o, K_o = field.force_and_stiffness(x)
-    K_o = sp.csr_matrix(K_o)
-    s = scales(0.5, 1.0, f_o, K_o)
-    split = element_split(model, points, cells, x, f_o, K_o, s, DOUBLE)
-    assert split is not None and split.residual < 1e-12
-    return split, f_o, K_o, s
+    return mjed_split(model, points, cells, x)
 
 
 def test_component_major_element_matrix_is_named():

@@ -25,7 +25,14 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 
-__all__ = ["Exchange", "declared_units", "exchanges", "scalar_parameters", "with_value"]
+__all__ = [
+    "Exchange",
+    "convention_words",
+    "declared_units",
+    "exchanges",
+    "scalar_parameters",
+    "with_value",
+]
 
 
 def _is_user_energy(model: Any) -> bool:
@@ -128,3 +135,32 @@ def exchanges(model: Any) -> List[Exchange]:
             continue
         out.append(Exchange(p, q, vp, vq, swapped))
     return out
+
+
+#: (material class name, parameter) -> what the squared value means: the parameter given in a
+#: convention where its square root is entered (Arruda-Boyce's chain parameter N = lambda_m^2).
+_SQUARED = {
+    ("ArrudaBoyce", "N"): "N used as lambda_m^2: the locking stretch lambda_m given where N "
+    "(= lambda_m^2) is expected, and squared",
+}
+
+
+def convention_words(model: Any, name: str, value: float, declared: float) -> str:
+    """Words for a refitted parameter ``value`` that is the ``declared`` value squared, or its
+    square root (the parameter entered in another convention); "" otherwise.
+    """
+    if declared <= 0 or value <= 0 or abs(declared - 1.0) < 1e-3:
+        return ""  # 1 squared is 1: no convention can be told
+    if abs(value - declared**2) <= 1e-6 * declared**2:
+        known = _SQUARED.get((type(model).__name__, name))
+        return (
+            f" ({name} squared, {declared:g}^2: {known})"
+            if known
+            else f" ({name} squared, {declared:g}^2: the parameter entered in another convention)"
+        )
+    if abs(value - np.sqrt(declared)) <= 1e-6 * np.sqrt(declared):
+        return (
+            f" (the square root of {name} = {declared:g}: the parameter entered in another "
+            "convention)"
+        )
+    return ""

@@ -262,7 +262,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
     that the engine matches.
     """
-    from conformance.diagnosis.parameters import exchanges, with_value
+    from conformance.diagnosis.parameters import convention_words, exchanges, with_value
     from conformance.diagnosis.refit import refit
 
     found = _matching(
@@ -295,6 +295,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             continue
         same = [q for q, vq in values.items() if q != name and abs(v - vq) <= 1e-6 * abs(vq)]
         also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
+        also = also or convention_words(ci.model, name, v, v0)
         found.append(
             Reading(
                 Finding(
@@ -374,6 +375,29 @@ def _same(a: Reading, b: Reading, s: Scales) -> bool:
     return max(e.force, e.stiffness) <= _SAME
 
 
+def terms_scaled_unequally(finding: Finding) -> bool:
+    """Whether a term-coefficients finding scales several terms by different factors (e.g. the
+    terms of a series each by its own power of a ratio): then it describes the symptom term by
+    term, and a parameter refit that agrees (:func:`_parameter_readings`) says the cause.
+    """
+    if finding.code != "term-coefficients":
+        return False
+    a = np.asarray(finding.figures.get("coefficients", []), dtype=float)
+    off = a[np.abs(a - 1.0) > 1e-6]
+    return off.size > 1 and float(np.ptp(off)) > 1e-6 * float(np.max(np.abs(off)))
+
+
+def _parameters_first(full: List[Reading]) -> List[Reading]:
+    """``full`` with the parameter refits ahead of a term reading that scales several terms
+    unequally: the same prediction is then headed by the parameter's value (merge_readings
+    keeps the first of equal readings as the head), not by one term "scaled".
+    """
+    if not any(terms_scaled_unequally(r.finding) for r in full):
+        return full
+    first = [r for r in full if r.finding.code == "parameter-value"]
+    return first + [r for r in full if r.finding.code != "parameter-value"]
+
+
 def merge_readings(full: List[Reading], s: Scales) -> List[Finding]:
     """The named causes: readings with the same prediction merged into one (the others said as
     'equivalently'); several distinct ones shown as ambiguous, each of them.
@@ -442,7 +466,7 @@ def read(
     full += _kinematic_readings(cache, ci, out, s, tol)
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
-    causes = merge_readings(full, s)
+    causes = merge_readings(_parameters_first(full), s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
         return replace(diag, findings=[*causes, *observed, *rest])
@@ -490,5 +514,11 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
             for f in d.findings
             if f.code not in ("unexplained", "term-coefficients-ambiguous", "systematic-small")
         ]
+        named = [f for f in rest if f.code == "parameter-value" and f.strength == FULL]
+        if named and terms_scaled_unequally(r.finding):  # the case's parameter value says it
+            out.append(
+                replace(d, findings=[*named, r.finding, *(f for f in rest if f not in named)])
+            )
+            continue
         out.append(replace(d, findings=[r.finding, *rest]))
     return out

@@ -13,6 +13,7 @@ oracle's (:func:`conformance.diagnosis.elements.element_split`). Cost: one MJED 
 
 from __future__ import annotations
 
+import itertools
 from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
@@ -22,7 +23,14 @@ from conformance.diagnosis.elements import ElementSplit, assemble, element_split
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 
-__all__ = ["REST_EDGES", "exploded_output", "shape_gradient_findings", "shape_gradient_reading"]
+__all__ = [
+    "REST_EDGES",
+    "HYPOTHESES",
+    "permuted_edges",
+    "exploded_output",
+    "shape_gradient_findings",
+    "shape_gradient_reading",
+]
 
 #: code -> (words, M -> M'): the rest edge matrix (m, 3, 3) an engine's gradients belong to.
 REST_EDGES: dict = {
@@ -33,6 +41,55 @@ REST_EDGES: dict = {
     ),
 }
 
+#: Mirror of the rest coordinates (x -> -x): a rest cell whose nodes were permuted by an odd
+#: permutation is inverted; mirrored it is a valid cell, and an isotropic energy (or one whose
+#: frame is mirrored with it) does not change: W(F Q) = W(F) for every orthogonal Q.
+MIRROR = np.diag([-1.0, 1.0, 1.0])
+
+
+def permuted_edges(perm: Tuple[int, ...]) -> Callable[[np.ndarray], np.ndarray]:
+    """M -> M' for gradients assigned to the nodes in another order: node a given the gradient
+    of node perm[a]. Those are the gradients of the cell whose local node a rests at X_perm[a],
+    so M' has columns X_perm[a] - X_perm[0] (a = 1, 2, 3); it is mirrored (:data:`MIRROR`) when
+    perm is odd, which the MJED model is then told (:func:`exploded_output`, ``mirrored``).
+    """
+    p = np.asarray(perm)
+
+    def edges(M: np.ndarray) -> np.ndarray:
+        E = np.concatenate([np.zeros(M.shape[:2] + (1,)), M], axis=2)  # X_a - X_0, a = 0..3
+        Mp = E[:, :, p[1:]] - E[:, :, p[:1]]
+        return MIRROR @ Mp if _odd(perm) else Mp
+
+    return edges
+
+
+def _odd(perm: Tuple[int, ...]) -> bool:
+    """Whether ``perm`` is an odd permutation (inversions counted)."""
+    return sum(a > b for a, b in itertools.combinations(perm, 2)) % 2 == 1
+
+
+def _permutation_hypotheses() -> dict:
+    """The 23 non-identity node orders of a tetrahedron: code -> (words, edges, mirrored)."""
+    out = {}
+    for perm in itertools.permutations(range(4)):
+        if perm == (0, 1, 2, 3):
+            continue
+        code = "gradients-node-order-" + "".join(map(str, perm))
+        words = (
+            "shape-function gradients assigned to the cell's nodes in another order: the "
+            f"gradients of local nodes {perm} stored for nodes (0, 1, 2, 3) (a local node "
+            "permutation, e.g. a reference element with its origin at another node)"
+        )
+        out[code] = (words, permuted_edges(perm), _odd(perm))
+    return out
+
+
+#: code -> (words, M -> M', mirrored): every hypothesis tried, the transposed gradients first.
+HYPOTHESES: dict = {
+    **{k: (w, e, False) for k, (w, e) in REST_EDGES.items()},
+    **_permutation_hypotheses(),
+}
+
 
 def exploded_output(
     model: Any,
@@ -40,12 +97,19 @@ def exploded_output(
     cells: np.ndarray,
     positions: np.ndarray,
     edges: Callable[[np.ndarray], np.ndarray],
+    mirrored: bool = False,
 ) -> Optional[Tuple[np.ndarray, sp.csr_matrix]]:
     """Force (n, 3) and stiffness of MJED with each cell's rest edge matrix M (m, 3, 3), columns
     X_a - X_0, replaced by edges(M), assembled on ``cells`` (m, 4); None when MJED cannot (no
-    such material, or a cell of edges(M) not positively oriented).
+    such material, or a cell of edges(M) not positively oriented). mirrored: edges(M) holds
+    mirrored rest coordinates (:data:`MIRROR`), so a material frame is mirrored too.
     """
     import mjed
+
+    if mirrored and getattr(model, "frame", None) is not None:
+        from dataclasses import replace
+
+        model = replace(model, frame=MIRROR @ np.asarray(model.frame))
 
     m = cells.shape[0]
     X = points[cells]
@@ -76,13 +140,13 @@ def shape_gradient_findings(
     s: Scales,
     tol: Tolerances,
 ) -> List[Finding]:
-    """The mistaken gradients of :data:`REST_EDGES` whose output matches the engine's (several:
+    """The mistaken gradients of :data:`HYPOTHESES` whose output matches the engine's (several:
     ambiguous); ``split`` vouches that MJED is the oracle on this case.
     """
     found = []
-    for code, (words, edges) in REST_EDGES.items():
+    for code, (words, edges, mirrored) in HYPOTHESES.items():
         with np.errstate(all="ignore"):
-            out = exploded_output(model, points, split.cells, positions, edges)
+            out = exploded_output(model, points, split.cells, positions, edges, mirrored)
         if out is None:
             continue
         e = errors(f, sp.csr_matrix(K), None, out[0], out[1], 0.0, grown(s, *out))
