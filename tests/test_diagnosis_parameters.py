@@ -95,3 +95,51 @@ def test_a_parameter_inside_an_exponential_with_another_value_is_refitted():
     assert cause.code == "parameter-value" and cause.figures["parameter"] == "c2", d.text()
     assert cause.figures["value"] == pytest.approx(1.65, rel=1e-8)
     assert cause.title.startswith("parameter c2 = 1.65 in your engine where the case has 1.5")
+
+
+def test_a_squared_parameter_is_said_as_another_convention():
+    from conformance.diagnosis.parameters import convention_words
+    from mjed.materials import ArrudaBoyce
+
+    ab = ArrudaBoyce(mu=1.0, k0=10.0, N=8.0)
+    assert "locking stretch" in convention_words(ab, "N", 64.0, 8.0)
+    assert "another convention" in convention_words(COSTA, "b_ff", 18.5**2, 18.5)
+    assert "square root" in convention_words(ab, "N", np.sqrt(8.0), 8.0)
+    assert convention_words(ab, "N", 9.0, 8.0) == ""  # another value, not a convention
+    assert convention_words(ab, "N", 1.0, 1.0) == ""
+
+
+def _reading(code, coefficients=None):
+    from conformance.diagnosis.findings import FULL, Finding
+    from conformance.diagnosis.readings import Reading
+
+    figs = {} if coefficients is None else {"coefficients": coefficients}
+    return Reading(Finding(code, code, FULL, "", figs))
+
+
+def test_a_parameter_refit_heads_a_term_fit_that_scales_terms_unequally():
+    from conformance.diagnosis.readings import _parameters_first
+
+    series = [_reading("term-coefficients", [1.0, 0.125, 0.015625]), _reading("parameter-value")]
+    assert [r.finding.code for r in _parameters_first(series)] == [
+        "parameter-value",
+        "term-coefficients",
+    ]
+    # one term off, or several scaled alike (a parameter's terms): the term fit stays first
+    for a in ([1.0, 2.0, 1.0], [1.0, 2.0, 2.0]):
+        kept = [_reading("term-coefficients", a), _reading("parameter-value")]
+        assert _parameters_first(kept) == kept
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_arruda_boyce_n_given_as_the_locking_stretch_is_named_as_n():
+    """MJED on Arruda-Boyce with N squared (lambda_m given where N is expected, and squared):
+    every series term from the second on is off; the cause is N's value, not a term scaled.
+    """
+    from mjed.materials import ArrudaBoyce
+
+    d = _checked(ArrudaBoyce(mu=1.0, k0=10.0, N=8.0), lambda m: dataclasses.replace(m, N=64.0))
+    cause = d.causes[0]
+    assert cause.code == "parameter-value" and cause.figures["parameter"] == "N", d.text()
+    assert "locking stretch" in cause.title and "scaled" not in cause.title, d.text()

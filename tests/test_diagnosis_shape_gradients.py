@@ -1,0 +1,81 @@
+"""Shape-function gradients built wrongly (conformance.diagnosis.shape_gradients): assigned to
+the cell's nodes in another order. The mistaken engine is a St Venant-Kirchhoff engine written
+here by hand (its stiffness by complex step of its force, exact to round-off), not MJED; MJED
+stands in for the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.shape_gradients import shape_gradient_findings
+from conformance.judge.compare import DOUBLE
+from mjed import materials as M
+
+
+def _svk_engine(points, cells, x, G_of, mu=1.0, lam=2.0):
+    """Force (n, 3) and stiffness of W = lam/2 (tr E)^2 + mu tr(E^2) with the shape gradients
+    G_of(M^-1 rows (m, 4, 3)) -> (m, 4, 3) used for F and the force; V0 the true volume.
+    """
+    X = points[cells]
+    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
+    V0 = np.linalg.det(Mt) / 6.0
+    Minv = np.linalg.inv(Mt)
+    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)  # right gradients
+    G = G_of(D)
+    n, m = points.shape[0], cells.shape[0]
+
+    def force(y):
+        F = np.einsum("mai,maj->mij", y[cells], G)
+        E = 0.5 * (np.einsum("mki,mkj->mij", F, F) - np.eye(3))
+        S = lam * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu * E
+        fe = -V0[:, None, None] * np.einsum("mij,mjk,mak->mai", F, S, G)
+        f = np.zeros((n, 3), dtype=fe.dtype)
+        np.add.at(f, cells.ravel(), fe.reshape(4 * m, 3))
+        return f
+
+    h = 1e-30
+    cols = []
+    for k in range(3 * n):  # complex step: K = -df/dx, exact to round-off
+        y = x.astype(complex)
+        y.reshape(-1)[k] += 1j * h
+        cols.append(-np.imag(force(y)).ravel() / h)
+    return force(x), sp.csr_matrix(np.column_stack(cols))
+
+
+def _case(seed):
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.03 * rng.standard_normal(points.shape)
+    model = M.StVenantKirchhoff(mu=1.0, lam=2.0)
+    return points, cells, x, model, *mjed_split(model, points, cells, x)
+
+
+@pytest.mark.parametrize("perm", [(1, 2, 3, 0), (1, 0, 3, 2), (0, 2, 1, 3)])
+def test_gradients_assigned_in_another_node_order_are_named(perm):
+    points, cells, x, model, split, f_o, K_o, s = _case(0)
+    assert np.allclose(_svk_engine(points, cells, x, lambda D: D)[0], f_o, atol=1e-12)
+    f, K = _svk_engine(points, cells, x, lambda D: D[:, list(perm)])
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].code == "gradients-node-order-" + "".join(map(str, perm))
+    assert str(perm) in found[0].title and "shape-function gradients" in found[0].title
+
+
+def test_other_gradient_mistakes_are_not_given_a_node_order():
+    """Transposed gradients are named as such; gradients of a wrong size fit no order."""
+    points, cells, x, model, split, f_o, K_o, s = _case(1)
+
+    def transposed(D):
+        Minv_t = np.swapaxes(D[:, 1:], 1, 2)
+        return np.concatenate([-Minv_t.sum(axis=1, keepdims=True), Minv_t], axis=1)
+
+    f, K = _svk_engine(points, cells, x, transposed)
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["gradients-transposed"]
+    f, K = _svk_engine(points, cells, x, lambda D: 1.01 * D[:, [1, 2, 3, 0]])
+    assert shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE) == []
+    assert shape_gradient_findings(split, model, points, x, f_o, K_o, s, DOUBLE) == []
