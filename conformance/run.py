@@ -25,6 +25,7 @@ from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.mixed_precision import mixed_precision_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -334,8 +335,11 @@ def _run_check(
             if sig is None:
                 sig = roundoff_signature(out.force, out.stiffness, ref.force, ref.stiffness)
             if tol32.within(diag.errors) and not sig.float32_like:
-                # Small enough for float32, but not float32's signature: a systematic error.
-                diag = _systematic_reading(diag, sig, tol32)
+                # Small enough for float32 with the balance kept: float32 inside a double
+                # engine (noise at the probes, the rounding's pattern), else systematic.
+                diag = mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results)
+                if not diag.causes:
+                    diag = _systematic_reading(diag, sig, tol32)
             elif tol32.within(diag.errors):
                 cons32 = (
                     _self_consistency(cache, ci, ref, out, probes, probe_results, True)

@@ -1,0 +1,299 @@
+"""Part of a double-precision engine in single precision: an intermediate (C, F, S, the
+positions) rounded to float32, or the material routine run in float32, the assembly in double.
+
+Such an engine keeps the balance laws (each cell's forces still sum to zero in double), so it
+has not float32's own signature (:mod:`conformance.diagnosis.roundoff`), and its errors, 1e-9 to
+1e-6, are as small as a slightly wrong constant's. What tells them apart:
+
+- **Noise.** A formula error is a smooth function of the positions: at the kit's probes
+  (x + h d, h about 1e-4 of the cells' size) the error is the same to about h (correlation 1,
+  relative change 1e-4). Float32 round-off is not: a strain change of 1e-4 is thousands of
+  float32 steps, and the rounding of every cell is drawn anew (correlation near 0, change about
+  1 or more). Measured on the forces of the case and of each probe, engine minus oracle.
+- **The rounding's own pattern.** The oracle's answer is split into cells (MJED's element
+  forces, used only where their sum is the oracle's) and each hypothesis is computed exactly:
+  C rounded to float32 and the rest in double (F' = R sqrt(C32) evaluated, its force carried
+  back with F F'^-1), F rounded, the positions rounded, S rounded. Where the cells differ, the
+  engine's error correlates with one of these patterns, which no formula error or other noise
+  does (chance measured with random per-cell patterns: :func:`chance_correlation`); its size
+  is that pattern's to a small factor.
+
+Named only with both where the kit has probes, or, without probes, with a strong correlation
+over many distinct cells; otherwise nothing (the caller's systematic reading stands). NumPy
+and MJED only; the oracle at the probes is one force assembly each.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional, Sequence
+
+import numpy as np
+
+from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.findings import FULL, Finding
+
+__all__ = [
+    "NOISE_CORRELATION",
+    "PATTERN_CORRELATION",
+    "Noise",
+    "noise",
+    "chance_correlation",
+    "rounding_patterns",
+    "mixed_precision_finding",
+    "mixed_precision_reading",
+]
+
+#: A probe's error counts as drawn anew when it differs from the case's by more than
+#: :data:`NOISE_CHANGE` of its size (a smooth error changes by about the step, 1e-4) and their
+#: |correlation| is below this (independent draws on a small mesh can correlate by 0.5).
+NOISE_CORRELATION = 0.9
+NOISE_CHANGE = 0.5
+
+#: Smallest correlation with a rounding pattern that names it (chance: about 1 / sqrt(3n)).
+PATTERN_CORRELATION = 0.3
+
+#: The correlation with a rounding pattern must be this many times what chance gives.
+SIGNIFICANT = 3.0
+
+#: Without probes: the correlation needed, over at least this many distinct rounded cells.
+UNPROBED_CORRELATION = 0.5
+UNPROBED_CELLS = 50
+
+#: The engine's error may be this many times the pattern's, or its inverse (float32 arithmetic
+#: after the rounding adds errors of the same order).
+SIZE_FACTOR = 30.0
+
+_WHAT = {
+    "C": "C = F^T F rounded to float32",
+    "F": "F rounded to float32",
+    "S": "the second Piola-Kirchhoff stress S rounded to float32",
+    "positions": "the positions rounded to float32",
+}
+
+
+def _f32(a: np.ndarray) -> np.ndarray:
+    return np.asarray(a, dtype=np.float64).astype(np.float32).astype(np.float64)
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    return float(np.vdot(a, b) / (na * nb)) if na > 0 and nb > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class Noise:
+    """correlations (k,): of the case's force error with each probe's; changes (k,): |e_k - e_0|
+    / |e_0|. noisy: every probe's error is drawn anew (not a smooth function of x).
+    """
+
+    correlations: np.ndarray
+    changes: np.ndarray
+
+    @property
+    def noisy(self) -> bool:
+        return bool(
+            self.correlations.size
+            and np.all(np.abs(self.correlations) < NOISE_CORRELATION)
+            and np.all(self.changes > NOISE_CHANGE)
+        )
+
+
+def noise(error: np.ndarray, probe_errors: Sequence[np.ndarray]) -> Noise:
+    """The case's force error (n, 3) against its probes' (each (n, 3)), engine minus oracle."""
+    e0 = np.ravel(error)
+    n0 = np.linalg.norm(e0)
+    r = [_correlation(e0, np.ravel(e)) for e in probe_errors]
+    c = [np.linalg.norm(np.ravel(e) - e0) / n0 if n0 > 0 else 0.0 for e in probe_errors]
+    return Noise(np.asarray(r, dtype=float), np.asarray(c, dtype=float))
+
+
+def _sqrtm(S: np.ndarray) -> np.ndarray:
+    """Symmetric square roots of SPD matrices (m, 3, 3)."""
+    w, V = np.linalg.eigh(S)
+    return np.einsum("mij,mj,mkj->mik", V, np.sqrt(w), V)
+
+
+def _element_forces(model: Any, points: np.ndarray, cells: np.ndarray, F: np.ndarray):
+    """MJED's element forces (m, 4, 3) of each cell deformed by F (m, 3, 3) on its own nodes;
+    None where MJED cannot (not finite at that F).
+    """
+    import mjed
+
+    m = cells.shape[0]
+    X = points[cells]
+    rest = X.reshape(-1, 3)
+    x = np.einsum("mij,maj->mai", F, X).reshape(-1, 3)
+    try:
+        field = mjed.make_force_field(
+            mjed.TetMesh(rest, np.arange(4 * m, dtype=np.int64).reshape(m, 4)), model
+        )
+        fe = np.asarray(field.element_forces(x), dtype=np.float64)
+    except Exception:  # noqa: BLE001 - not at this state: no pattern
+        return None
+    return fe if np.all(np.isfinite(fe)) else None
+
+
+def rounding_patterns(
+    split: ElementSplit, model: Any, points: np.ndarray, positions: np.ndarray
+) -> Dict[str, np.ndarray]:
+    """The force change (n, 3) of each rounding hypothesis of :data:`_WHAT`, by its name,
+    computed in double from MJED per cell; a hypothesis MJED cannot evaluate is left out.
+    """
+    from mjed.kinematics import deformation_gradient
+
+    cells, n, F = split.cells, split.n, split.F
+    base = _element_forces(model, points, cells, F)
+    if base is None:
+        return {}
+    f0 = assemble(cells, n, base, None)[0]
+    out: Dict[str, np.ndarray] = {}
+    C = np.einsum("mki,mkj->mij", F, F)
+    Fc = F @ np.linalg.inv(_sqrtm(C)) @ _sqrtm(_f32(C))  # F'^T F' = C32, F' near F
+    fe = _element_forces(model, points, cells, Fc)
+    if fe is not None:  # the engine's P = F S(C32) = (F F'^-1) P'
+        out["C"] = np.einsum("mij,maj->mai", F @ np.linalg.inv(Fc), fe)
+    for name, Fp in (
+        ("F", _f32(F)),
+        ("positions", deformation_gradient(_f32(positions)[cells], split.D)),
+    ):
+        fe = _element_forces(model, points, cells, Fp)
+        if fe is not None:
+            out[name] = fe
+    S = _second_piola(split, base)
+    out["S"] = _stress_forces(split, _f32(S))
+    return {k: assemble(cells, n, fe, None)[0] - f0 for k, fe in out.items()}
+
+
+def _second_piola(split: ElementSplit, fe: np.ndarray) -> np.ndarray:
+    """Per cell S (m, 3, 3) read back from element forces fe (m, 4, 3), f_a = -V0 F S D_a."""
+    P = -np.einsum("mak,mja->mkj", fe, np.linalg.pinv(split.D)) / split.V0[:, None, None]
+    return np.linalg.solve(split.F, P)
+
+
+def _stress_forces(split: ElementSplit, S: np.ndarray) -> np.ndarray:
+    """Element forces (m, 4, 3) of the second Piola stresses S (m, 3, 3) at the split's F."""
+    return -split.V0[:, None, None] * np.einsum("mkj,maj->mak", split.F @ S, split.D)
+
+
+#: Random per-cell patterns drawn to measure the correlation that chance gives.
+SURROGATES = 16
+
+
+def chance_correlation(split: ElementSplit, error: np.ndarray) -> float:
+    """RMS correlation of ``error`` (n, 3) with noise that is not rounding: S of every cell
+    given independent random relative errors (fixed seed, :data:`SURROGATES` draws). Where the
+    force maps many cells onto few patterns (a small or uniform mesh), chance is large.
+    """
+    S = _second_piola(split, split.fe)
+    rng = np.random.default_rng(0)
+    r = []
+    for _ in range(SURROGATES):
+        dS = S * rng.standard_normal(S.shape)
+        d = assemble(split.cells, split.n, _stress_forces(split, dS + np.swapaxes(dS, 1, 2)), None)
+        r.append(_correlation(np.ravel(error), np.ravel(d[0])))
+    return float(np.sqrt(np.mean(np.square(r))))
+
+
+def mixed_precision_finding(
+    split: ElementSplit,
+    model: Any,
+    points: np.ndarray,
+    positions: np.ndarray,
+    error: np.ndarray,
+    probe_errors: Optional[List[np.ndarray]],
+) -> Optional[Finding]:
+    """The finding naming float32 inside a double-precision engine, or None without the
+    evidence. error: engine minus oracle force (n, 3); probe_errors: the same at each probe
+    (None: the kit has none).
+    """
+    patterns = rounding_patterns(split, model, points, positions)
+    if not patterns:
+        return None
+    r = {k: _correlation(np.ravel(error), np.ravel(d)) for k, d in patterns.items()}
+    best = max(r, key=lambda k: r[k])
+    size = np.linalg.norm(error) / max(np.linalg.norm(patterns[best]), 1e-300)
+    if not (1.0 / SIZE_FACTOR <= size <= SIZE_FACTOR):
+        return None
+    C32 = _f32(np.einsum("mki,mkj->mij", split.F, split.F)).reshape(-1, 9)
+    distinct = np.unique(C32, axis=0).shape[0]  # cells alike round alike: fewer samples
+    chance = chance_correlation(split, error)
+    if r[best] < max(PATTERN_CORRELATION, SIGNIFICANT * chance):
+        return None
+    nz = noise(error, probe_errors) if probe_errors else None
+    if nz is not None:
+        if not nz.noisy:
+            return None
+        why = (
+            "the error is drawn anew at every probe x + h d (correlation with the case's "
+            f"{', '.join(f'{v:+.2f}' for v in nz.correlations)}; it changes by "
+            f"{nz.changes.min():.2g} to {nz.changes.max():.2g} of itself, where a formula "
+            "error, smooth in x, changes by about h)"
+        )
+    else:
+        if r[best] < UNPROBED_CORRELATION or distinct < UNPROBED_CELLS:
+            return None
+        why = f"over {distinct} cells of distinct C"
+    alike = sorted(
+        (k for k in r if r[k] >= r[best] - 0.2 and r[k] >= PATTERN_CORRELATION),
+        key=lambda k: -r[k],
+    )
+    what = _WHAT[alike[0]] + (
+        " (or " + ", or ".join(_WHAT[k] for k in alike[1:]) + ")" if len(alike) > 1 else ""
+    )
+    return Finding(
+        "single-precision-intermediate",
+        "part of your double-precision engine computes in single precision (float32): its "
+        f"error is that of {what}, the assembly in double",
+        FULL,
+        f"{why}; the force error correlates with the error that rounding makes, computed "
+        f"exactly per cell (r = {r[best]:.2f}; by chance about {chance:.2f}), and is "
+        f"{size:.2g} times its size (float32 arithmetic after the rounding adds errors of the "
+        "same order); the balance laws hold, so the outputs were not stored in float32",
+        {
+            "correlations": {k: float(v) for k, v in r.items()},
+            "best": best,
+            "size_ratio": float(size),
+            **(
+                {}
+                if nz is None
+                else {
+                    "probe_correlations": [float(v) for v in nz.correlations],
+                    "probe_changes": [float(v) for v in nz.changes],
+                }
+            ),
+        },
+    )
+
+
+def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results):
+    """``diag`` (a failed case within float32's tolerances whose error keeps the balance laws)
+    with float32 inside the engine named first when the evidence holds; unchanged otherwise
+    (no MJED split, or not noise with the rounding's pattern). probes: the case's probe
+    KitCases; probe_results: (positions, force, energy) of the engine at each.
+    """
+    from dataclasses import replace
+
+    from conformance.diagnosis.elements import element_split
+
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
+    )
+    if split is None:
+        return diag
+    probe_errors = None
+    if probes and len(probe_results) == len(probes):
+        try:
+            oracle = cache.probes(ci, ref, [p.input for p in probes]).probe_forces
+        except ValueError:  # the oracle cannot evaluate a probe: judged without probes
+            oracle = None
+        if oracle is not None:
+            probe_errors = [np.asarray(f) - fo for (_, f, _), fo in zip(probe_results, oracle)]
+    error = np.asarray(out.force, dtype=np.float64) - ref.force
+    with np.errstate(all="ignore"):
+        found = mixed_precision_finding(
+            split, ci.model, ci.points, ci.positions, error, probe_errors
+        )
+    if found is None:
+        return diag
+    return replace(diag, findings=[found, *(f for f in diag.findings if f.code != "unexplained")])

@@ -1,0 +1,109 @@
+"""Part of a double-precision engine in single precision (conformance.diagnosis.mixed_precision):
+a St Venant-Kirchhoff engine written here by hand whose material routine gets C in float32 (and
+so computes S in float32), F, the force and the assembly in double. MJED stands in for the
+oracle in the fast tests; one test runs the whole check with the oracle and the kit's probes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.mixed_precision import mixed_precision_finding, noise
+from mjed import materials as M
+from reference_fem import dolfinx_available
+
+MU, LAM = 1.0, 2.0
+
+
+def _svk_force(points, cells, x, *, f32=False, mu=MU, noise_rng=None):
+    """Force (n, 3) of W = lam/2 (tr E)^2 + mu tr(E^2); f32: C handed to the material in
+    float32 (S computed in float32); noise_rng: S given random relative noise of float32's
+    size instead (noise that is not rounding, e.g. an iteration's tolerance).
+    """
+    X = points[cells]
+    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
+    V0 = np.linalg.det(Mt) / 6.0
+    Minv = np.linalg.inv(Mt)
+    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    C = np.einsum("mki,mkj->mij", F, F)
+    if f32:
+        C = C.astype(np.float32)
+    eye = np.eye(3, dtype=C.dtype)
+    E = 0.5 * (C - eye)
+    S = (LAM * np.trace(E, axis1=1, axis2=2)[:, None, None] * eye + 2 * mu * E).astype(float)
+    if noise_rng is not None:
+        S = S * (1 + 2.0**-24 * noise_rng.standard_normal(S.shape))
+        S = 0.5 * (S + np.swapaxes(S, 1, 2))
+    fe = -V0[:, None, None] * np.einsum("mij,mjk,mak->mai", F, S, D)
+    f = np.zeros(points.shape)
+    np.add.at(f, cells.ravel(), fe.reshape(-1, 3))
+    return f
+
+
+def _setup(seed=0):
+    points, cells = box_mesh(3, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.03 * rng.standard_normal(points.shape)
+    model = M.StVenantKirchhoff(mu=MU, lam=LAM)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    probes = [x + 1e-4 / 3 * 2.0**-k * rng.standard_normal(x.shape) for k in range(3)]
+    return points, cells, x, model, split, f_o, probes
+
+
+def _errors(points, cells, x, probes, **engine):
+    """The engine's force error at x and at each probe, MJED as the oracle."""
+    import mjed
+
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), M.StVenantKirchhoff(MU, LAM))
+    err = [_svk_force(points, cells, y, **engine) - field.force(y) for y in [x, *probes]]
+    return err[0], err[1:]
+
+
+def test_c_in_float32_inside_a_double_engine_is_named():
+    points, cells, x, model, split, f_o, probes = _setup()
+    assert np.allclose(_svk_force(points, cells, x), f_o, rtol=0, atol=1e-13)
+    e, pe = _errors(points, cells, x, probes, f32=True)
+    assert 1e-10 < np.linalg.norm(e) / np.linalg.norm(f_o) < 1e-6
+    found = mixed_precision_finding(split, model, points, x, e, pe)
+    assert found is not None and found.code == "single-precision-intermediate"
+    assert found.figures["best"] == "C" and "single precision (float32)" in found.title
+    assert noise(e, pe).noisy
+    # without probes: the rounding's pattern over the many distinct cells still says it
+    assert mixed_precision_finding(split, model, points, x, e, None) is not None
+
+
+def test_a_small_smooth_error_or_other_noise_is_not_called_float32():
+    points, cells, x, model, split, f_o, probes = _setup(1)
+    # a parameter off by 1e-7: as small, but smooth in x (the same at every probe)
+    e, pe = _errors(points, cells, x, probes, mu=MU * (1 + 1e-7))
+    assert not noise(e, pe).noisy
+    assert mixed_precision_finding(split, model, points, x, e, pe) is None
+    # noise of float32's size that is not the rounding of C, F, S or the positions
+    rng = np.random.default_rng(5)
+    e, pe = _errors(points, cells, x, probes, noise_rng=rng)
+    assert noise(e, pe).noisy
+    assert mixed_precision_finding(split, model, points, x, e, pe) is None
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_the_check_names_c_in_float32_inside_a_double_engine():
+    import mjed
+    from conformance.protocol import check_implementation
+
+    def engine(case):
+        field = mjed.make_force_field(mjed.TetMesh(case.points, case.cells), case.model)
+        f = _svk_force(case.points, case.cells, case.positions, f32=True)
+        return f, field.stiffness(case.positions)
+
+    run = check_implementation(
+        engine, material=M.StVenantKirchhoff(MU, LAM), mesh="cube-small", states=("random",)
+    )
+    (outcome,) = run.outcomes
+    d = outcome.diagnosis
+    assert outcome.status == "failed" and d.causes, d.text()
+    assert d.causes[0].code == "single-precision-intermediate", d.text()
+    assert "probe" in d.causes[0].evidence
