@@ -98,11 +98,14 @@ def exploded_output(
     positions: np.ndarray,
     edges: Callable[[np.ndarray], np.ndarray],
     mirrored: bool = False,
+    keep_force: Optional[Callable[[np.ndarray], bool]] = None,
 ) -> Optional[Tuple[np.ndarray, sp.csr_matrix]]:
     """Force (n, 3) and stiffness of MJED with each cell's rest edge matrix M (m, 3, 3), columns
     X_a - X_0, replaced by edges(M), assembled on ``cells`` (m, 4); None when MJED cannot (no
     such material, or a cell of edges(M) not positively oriented). mirrored: edges(M) holds
     mirrored rest coordinates (:data:`MIRROR`), so a material frame is mirrored too.
+    keep_force(f) -> False: None as well, before the element matrices are computed (the
+    costly part, for a hypothesis whose force already rules it out).
     """
     import mjed
 
@@ -123,6 +126,8 @@ def exploded_output(
         field = mjed.make_force_field(mjed.TetMesh(rest, local), model)
         x = positions[cells].reshape(-1, 3)
         fe = np.asarray(field.element_forces(x), dtype=np.float64)
+        if keep_force is not None and not keep_force(assemble(cells, points.shape[0], fe, None)[0]):
+            return None
         Ke = np.asarray(field.element_stiffness(x), dtype=np.float64)
     except Exception:  # noqa: BLE001 - not an MJED material, or not at this state: no reading
         return None
@@ -143,10 +148,16 @@ def shape_gradient_findings(
     """The mistaken gradients of :data:`HYPOTHESES` whose output matches the engine's (several:
     ambiguous); ``split`` vouches that MJED is the oracle on this case.
     """
+    f = np.asarray(f, dtype=np.float64)
+
+    def near(fh: np.ndarray) -> bool:  # a loose screen on the force (the test is below)
+        scale = max(s.force, float(np.linalg.norm(fh)), float(np.linalg.norm(f)))
+        return bool(np.linalg.norm(f - fh) <= 1e3 * tol.force * scale)
+
     found = []
     for code, (words, edges, mirrored) in HYPOTHESES.items():
         with np.errstate(all="ignore"):
-            out = exploded_output(model, points, split.cells, positions, edges, mirrored)
+            out = exploded_output(model, points, split.cells, positions, edges, mirrored, near)
         if out is None:
             continue
         e = errors(f, sp.csr_matrix(K), None, out[0], out[1], 0.0, grown(s, *out))
