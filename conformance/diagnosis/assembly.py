@@ -42,11 +42,9 @@ __all__ = [
 RULES = ("sum", "last", "first")
 
 _WHOSE = {
-    "last": "the last cell's in the mesh's cell order, as NumPy's buffered fancy indexing "
-    "(`force[dofs] -= fe`, `K[rows, cols] += Ke`) leaves it; np.add.at or a COO sum "
-    "accumulates",
-    "first": "the first cell's in the mesh's cell order (a buffered write looping the cells "
-    "backwards, or a write skipped when the entry is already set)",
+    "last": "the last cell's in the mesh's cell order",
+    "first": "the first cell's in the mesh's cell order: a buffered write looping the cells "
+    "backwards, or one that skips an entry already set",
 }
 
 
@@ -95,15 +93,19 @@ def buffered_stiffness(cells: np.ndarray, n: int, Ke: np.ndarray, rule: str) -> 
 
 
 def _words(rule_f: str, rule_K: str) -> str:
-    parts = []
-    for what, rule in (("force", rule_f), ("stiffness", rule_K)):
-        if rule != "sum":
-            parts.append(f"each {what} entry shared by several cells holds {_WHOSE[rule]}")
+    """The finding's title for force and stiffness assembled by these rules."""
+    parts = [
+        f"each {what} entry shared by several cells holds one cell's contribution "
+        f"({_WHOSE[rule]}), not their sum"
+        for what, rule in (("force", rule_f), ("stiffness", rule_K))
+        if rule != "sum"
+    ]
     which = " and ".join(w for w, r in (("force", rule_f), ("stiffness", rule_K)) if r != "sum")
     return (
-        f"{which} assembled adding repeated entries once (buffered fancy indexing): "
+        f"{which} assembled adding each repeated entry once: "
         + "; ".join(parts)
-        + ", instead of the sum of the cells' contributions"
+        + ". NumPy's buffered fancy indexing (`force[dofs] -= fe`, `K[rows, cols] += Ke`) "
+        "writes a repeated index once, where np.add.at or a COO sum accumulates"
     )
 
 
