@@ -16,13 +16,17 @@ from conformance.judge.compare import DOUBLE
 from mjed import materials as M
 
 
-def _svk_engine(points, cells, x, G_of, mu=1.0, lam=2.0):
+def _svk_engine(points, cells, x, G_of, mu=1.0, lam=2.0, origin=None):
     """Force (n, 3) and stiffness of W = lam/2 (tr E)^2 + mu tr(E^2) with the shape gradients
-    G_of(M^-1 rows (m, 4, 3)) -> (m, 4, 3) used for F and the force; V0 the true volume.
+    G_of(M^-1 rows (m, 4, 3)) -> (m, 4, 3) used for F and the force; V0 the true volume, or
+    with ``origin`` (a node order) det[X_o1 - X_o0, X_o2 - X_o0, X_o3 - X_o0] / 6.
     """
     X = points[cells]
     Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
     V0 = np.linalg.det(Mt) / 6.0
+    if origin is not None:
+        Xo = X[:, list(origin)]
+        V0 = np.linalg.det(np.swapaxes(Xo[:, 1:] - Xo[:, :1], 1, 2)) / 6.0
     Minv = np.linalg.inv(Mt)
     D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)  # right gradients
     G = G_of(D)
@@ -63,6 +67,21 @@ def test_gradients_assigned_in_another_node_order_are_named(perm):
     assert len(found) == 1, [x.title for x in found]
     assert found[0].code == "gradients-node-order-" + "".join(map(str, perm))
     assert str(perm) in found[0].title and "shape-function gradients" in found[0].title
+
+
+def test_a_node_order_with_the_volume_from_its_own_edges_is_named():
+    """An odd order with V0 = det / 6 of the reordered edges: negative, force and K flip."""
+    points, cells, x, model, split, f_o, K_o, s = _case(2)
+    perm = (1, 2, 3, 0)
+    f, K = _svk_engine(points, cells, x, lambda D: D[:, list(perm)], origin=perm)
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["gradients-node-order-1230-negative-volume"]
+    assert "negative" in found[0].title
+    # an even order keeps the volume's sign: named without it
+    perm = (1, 0, 3, 2)
+    f, K = _svk_engine(points, cells, x, lambda D: D[:, list(perm)], origin=perm)
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["gradients-node-order-1032"]
 
 
 def test_other_gradient_mistakes_are_not_given_a_node_order():

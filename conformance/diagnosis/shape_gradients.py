@@ -152,7 +152,8 @@ def shape_gradient_findings(
 
     def near(fh: np.ndarray) -> bool:  # a loose screen on the force (the test is below)
         scale = max(s.force, float(np.linalg.norm(fh)), float(np.linalg.norm(f)))
-        return bool(np.linalg.norm(f - fh) <= 1e3 * tol.force * scale)
+        d = min(np.linalg.norm(f - fh), np.linalg.norm(f + fh))
+        return bool(d <= 1e3 * tol.force * scale)
 
     found = []
     for code, (words, edges, mirrored) in HYPOTHESES.items():
@@ -160,12 +161,23 @@ def shape_gradient_findings(
             out = exploded_output(model, points, split.cells, positions, edges, mirrored, near)
         if out is None:
             continue
-        e = errors(f, sp.csr_matrix(K), None, out[0], out[1], 0.0, grown(s, *out))
-        if tol.within(e, energy=False):
+        # An odd order inverts the cell: an engine taking its rest volume from the same edges
+        # (det / 6, no absolute value) has it negative, force and stiffness with it.
+        for sign in (1.0, -1.0) if mirrored else (1.0,):
+            fh, Kh = sign * out[0], sign * out[1]
+            e = errors(f, sp.csr_matrix(K), None, fh, Kh, 0.0, grown(s, fh, Kh))
+            if not tol.within(e, energy=False):
+                continue
             found.append(
                 Finding(
-                    code,
-                    words,
+                    code + ("-negative-volume" if sign < 0 else ""),
+                    words
+                    + (
+                        "; the rest volume taken from those edges, det / 6, is negative for "
+                        "this order, and force and stiffness change sign with it"
+                        if sign < 0
+                        else ""
+                    ),
                     FULL,
                     "MJED (whose sum is the oracle's to "
                     f"{split.residual:.1e} on this case) on cells rebuilt with the rest edges "
