@@ -107,6 +107,12 @@ def test_a_squared_parameter_is_said_as_another_convention():
     assert "square root" in convention_words(ab, "N", np.sqrt(8.0), 8.0)
     assert convention_words(ab, "N", 9.0, 8.0) == ""  # another value, not a convention
     assert convention_words(ab, "N", 1.0, 1.0) == ""
+    from mjed.materials import Gent
+
+    gent = Gent(mu=1.0, Jm=10.0, k0=10.0)
+    assert "limiting value of I1b" in convention_words(gent, "Jm", 7.0, 10.0)
+    assert convention_words(gent, "Jm", 8.0, 10.0) == ""
+    assert convention_words(ab, "N", 5.0, 8.0) == ""  # a shift is Gent's Jm's alone
 
 
 def _reading(code, coefficients=None):

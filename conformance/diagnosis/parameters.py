@@ -144,11 +144,25 @@ _SQUARED = {
     "(= lambda_m^2) is expected, and squared",
 }
 
+#: (material class name, parameter) -> (shift, words): the value used is the declared one plus
+#: shift, the parameter read in a convention offset by it (Gent's Jm, the limit of I1b - 3,
+#: taken as the limit of I1b).
+_SHIFTED = {
+    ("Gent", "Jm"): (
+        (-3.0, "Jm taken as the limiting value of I1b, so Jm - 3 used as the limit of I1b - 3"),
+        (3.0, "Jm + 3 used: the limit of I1b given where that of I1b - 3 is expected"),
+    ),
+}
+
 
 def convention_words(model: Any, name: str, value: float, declared: float) -> str:
-    """Words for a refitted parameter ``value`` that is the ``declared`` value squared, or its
-    square root (the parameter entered in another convention); "" otherwise.
+    """Words for a refitted parameter ``value`` that is the ``declared`` value in another
+    convention: squared or its square root (any parameter), or shifted as :data:`_SHIFTED`
+    lists for its material; "" otherwise.
     """
+    for shift, words in _SHIFTED.get((type(model).__name__, name), ()):
+        if abs(value - (declared + shift)) <= 1e-6 * max(abs(declared), 1.0):
+            return f" ({name} {'-' if shift < 0 else '+'} {abs(shift):g}: {words})"
     if declared <= 0 or value <= 0 or abs(declared - 1.0) < 1e-3:
         return ""  # 1 squared is 1: no convention can be told
     if abs(value - declared**2) <= 1e-6 * declared**2:
