@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-# Demiray: the f'(J) g dJ/dQ_i term of eq. (3) subtracted in the force (the minus in front of the
-#   bracket distributed wrongly); stiffness right
+# Demiray: the f'(J) g dJ/dQ_i term of eq. (3) subtracted in the cell gradient (the minus in front
+#   of the bracket distributed wrongly); the stiffness blocks as written
 """A Multiplicative Jacobian Energy Decomposition (MJED) engine for P1 tetrahedra, in NumPy.
 
 Written the paper's way (Marchesseau et al., MICCAI 2010): per tetrahedron the strain energy
