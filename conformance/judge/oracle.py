@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
-from typing import Any, Dict, Sequence, Tuple
+from typing import Any, Callable, Dict, Sequence, Tuple, Union
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,13 +28,37 @@ def oracle_available() -> bool:
     return dolfinx_available()
 
 
-@dataclass(frozen=True)
 class Reference:
-    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]."""
+    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m].
 
-    energy: float
-    force: np.ndarray
-    stiffness: sp.csr_matrix
+    The force is assembled at once; the energy and the stiffness may be given as callables,
+    assembled (and their forms compiled) when first read: the diagnosis rejects most candidate
+    energies on their force alone, and a stiffness form is the costliest of the three to compile.
+    """
+
+    __slots__ = ("force", "_energy", "_stiffness")
+
+    def __init__(
+        self,
+        energy: Union[float, Callable[[], float]],
+        force: np.ndarray,
+        stiffness: Union[sp.spmatrix, Callable[[], sp.spmatrix]],
+    ) -> None:
+        self.force = force
+        self._energy = energy
+        self._stiffness = stiffness
+
+    @property
+    def energy(self) -> float:
+        if callable(self._energy):
+            self._energy = float(self._energy())
+        return self._energy
+
+    @property
+    def stiffness(self) -> sp.csr_matrix:
+        if callable(self._stiffness):
+            self._stiffness = sp.csr_matrix(self._stiffness())
+        return self._stiffness
 
 
 def _key(case: CaseInput) -> Tuple[str, str]:
@@ -49,10 +72,16 @@ def _key(case: CaseInput) -> Tuple[str, str]:
     return h.hexdigest(), model
 
 
-def _at(oracle: Any, case: CaseInput) -> Reference:
-    """``oracle`` evaluated at the case's positions."""
-    f, K = oracle.force_and_stiffness(case.positions)
-    return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+def _at(oracle: Any, case: CaseInput, lazy: bool = False) -> Reference:
+    """``oracle`` evaluated at the case's positions; ``lazy``: the force now, the energy and the
+    stiffness when first read (each sets the oracle's state to these positions again), and a
+    state the oracle cannot evaluate (ValueError) may then be found only on that reading.
+    """
+    x = case.positions
+    if lazy:
+        return Reference(lambda: oracle.energy(x), oracle.force(x), lambda: oracle.stiffness(x))
+    f, K = oracle.force_and_stiffness(x)
+    return Reference(float(oracle.energy(x)), f, sp.csr_matrix(K))
 
 
 class OracleCache:
@@ -62,7 +91,8 @@ class OracleCache:
         self._oracles: Dict[Tuple[str, ...], Any] = {}
         self._parts: Dict[Tuple[str, str], Any] = {}
 
-    def reference(self, case: CaseInput) -> Reference:
+    def reference(self, case: CaseInput, lazy: bool = False) -> Reference:
+        """The oracle of the case's model at its positions (``lazy``: see :func:`_at`)."""
         key = _key(case)
         if key not in self._oracles:
             from reference_fem import UFLOracle
@@ -75,9 +105,11 @@ class OracleCache:
 
                 check_symbolic_budget(case.model)
             self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
-        return _at(self._oracles[key], case)
+        return _at(self._oracles[key], case, lazy)
 
-    def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
+    def evaluate_model(
+        self, case: CaseInput, model: Any, key: str, lazy: bool = False
+    ) -> Reference:
         """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
         the diagnosis builds: one term of the energy, a mistaken kinematic); ``key`` names it
         (one oracle per (mesh, key), reused across states).
@@ -87,7 +119,7 @@ class OracleCache:
             from reference_fem import UFLOracle
 
             self._oracles[k] = UFLOracle(case.points, case.cells, model)
-        return _at(self._oracles[k], case)
+        return _at(self._oracles[k], case, lazy)
 
     def evaluate_once(self, case: CaseInput, model: Any) -> Reference:
         """The oracle for ``model`` at the case's positions, not kept: a refit asks for many
