@@ -24,6 +24,7 @@ from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.hand_derived import hand_derived_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -314,11 +315,16 @@ def _run_check(
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
             diag = b_for_c_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
+            # one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)
+            diag = hand_derived_reading(diag, cache, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
             if not diag.causes:  # one invariant's curvature term wrong in the tangent
                 diag = second_derivative_reading(diag, ci, out, ref)
+            if not diag.causes:  # one piece of a hand-derived tangent wrong, or its 1/J
+                diag = hand_derived_reading(diag, cache, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell

@@ -1,0 +1,90 @@
+"""The reading of a hand-derived stress or tangent: per cell, the oracle's stress and tangent
+(:mod:`conformance.diagnosis.elements`' split) with one piece written as such engines get it
+wrong, each predicting the engine's force and stiffness with nothing fitted to the engine:
+
+- a piece of the chain rule through the invariants
+  (:mod:`conformance.diagnosis.invariant_pieces`);
+- the Voigt stress vector's shear components doubled (:mod:`conformance.diagnosis.voigt_stress`);
+- the spatial tangent without its 1/J (:mod:`conformance.diagnosis.spatial_tangent`).
+
+A cause is named when its prediction matches the engine within the case's tolerance; several
+that match with different predictions are shown as ambiguous.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import _piola, element_split
+from conformance.diagnosis.findings import ambiguous
+from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
+from conformance.diagnosis.spatial_tangent import spatial_findings
+from conformance.diagnosis.voigt_stress import voigt_stress_findings
+from conformance.judge.compare import Scales, errors
+
+__all__ = ["hand_derived_reading"]
+
+
+#: The nearby state's displacement from the case's, in mean edge lengths (random, fixed seed).
+NEARBY = 0.03
+
+
+def _nearby(cache, ci, s: Scales, tol):
+    """The oracle's per-cell tensors at a state near the case's (positions moved randomly by
+    :data:`NEARBY` edge lengths): C has distinct eigenvalues there, so every derivative of
+    the law is determined; None when the split does not add up to the oracle there.
+    """
+    from common.tolerances import mean_edge_length
+
+    h = mean_edge_length(ci.points, ci.cells)
+    rng = np.random.default_rng(20261127)
+    near = replace(
+        ci, positions=ci.positions + NEARBY * h * rng.standard_normal(ci.positions.shape)
+    )
+    try:
+        r = cache.reference(near)
+    except ValueError:  # not finite there
+        return None
+    split = element_split(
+        near.model, near.points, near.cells, near.positions, r.force, r.stiffness, s, tol
+    )
+    return None if split is None else cell_tensors(*_piola(split), split.F)
+
+
+def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet) with the mistaken pieces the engine
+    matches named first (the 'unexplained' finding dropped); unchanged when none matches.
+    cache: the oracles (:class:`conformance.judge.oracle.OracleCache`), for a nearby state.
+    """
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    K_engine = sp.csr_matrix(out.stiffness)
+
+    def matches(f: np.ndarray, K: sp.csr_matrix) -> float:
+        """The engine's larger error against the prediction (f, K), inf unless it is within the
+        tolerance and the prediction is not the oracle's own (a piece this law lacks).
+        """
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(K.data))):
+            return float("inf")
+        if tol.within(errors(f, K, None, ref.force, ref.stiffness, 0.0, s), energy=False):
+            return float("inf")
+        e = errors(out.force, K_engine, None, f, K, 0.0, s)
+        return max(e.force, e.stiffness) if tol.within(e, energy=False) else float("inf")
+
+    with np.errstate(all="ignore"):
+        t = cell_tensors(*_piola(split), split.F)
+        found = piece_findings(split, t, matches, _nearby(cache, ci, s, tol))
+        found += voigt_stress_findings(split, t.S, matches)
+        found += spatial_findings(split, t.S, t.J, matches)
+    if not found:
+        return diag
+    found = ambiguous(found, "their predictions differ by less than the tolerance here")
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*found, *rest])
