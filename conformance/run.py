@@ -29,6 +29,7 @@ from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
+from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -329,6 +330,8 @@ def _run_check(
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
                 diag = element_difference_reading(diag, ci, out, ref, s)
+            if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
+                diag = strain_difference_reading(diag, ci, out, ref, s)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
         if read_causes and not single and unexplained and not diag.causes and inexact:
