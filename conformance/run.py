@@ -24,7 +24,7 @@ from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
-from conformance.diagnosis.hand_derived import hand_derived_reading
+from conformance.diagnosis.hand_derived import hand_derived_reading, nearby_force_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -249,6 +249,8 @@ def _run_check(
         )
         if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
             diag = cell_contribution_reading(diag, ci, out, ref, s)
+        if read_causes and not diag.causes and probes:  # right here, the force wrong nearby
+            diag = nearby_force_reading(diag, cache, ci, probe_results, s)
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
         if tol.capped and not diag.passed:

@@ -88,3 +88,56 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
     found = ambiguous(found, "their predictions differ by less than the tolerance here")
     rest = [f for f in diag.findings if f.code != "unexplained"]
     return replace(diag, findings=[*found, *rest])
+
+
+def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
+    """``diag`` (force and stiffness right here, the force wrong at the kit's probes near this
+    state: "force-wrong-nearby") with the force-changing pieces that the engine's force matches
+    at every probe named first; unchanged when none does. probe_results: [(positions (n, 3),
+    force (n, 3), energy)] the engine's outputs at the probes.
+    """
+    if not probe_results or not any(f.code == "force-wrong-nearby" for f in diag.findings):
+        return diag
+    tol = diag.tolerances
+    common = None
+    for positions, force, _ in probe_results:
+        near = replace(ci, positions=np.asarray(positions, dtype=np.float64))
+        try:
+            r = cache.reference(near)
+        except ValueError:  # the oracle cannot evaluate the probe
+            return diag
+        split = element_split(
+            near.model, near.points, near.cells, near.positions, r.force, r.stiffness, s, tol
+        )
+        if split is None:
+            return diag
+
+        def matches(f, K, r=r, force=force) -> float:
+            """The engine's force error at the probe against f; inf unless within the
+            tolerance and f is not the oracle's own force there.
+            """
+            if not np.all(np.isfinite(f)):
+                return float("inf")
+            if errors(f, r.stiffness, None, r.force, r.stiffness, 0.0, s).force <= tol.force:
+                return float("inf")
+            e = errors(np.asarray(force), r.stiffness, None, f, r.stiffness, 0.0, s).force
+            return e if e <= tol.force else float("inf")
+
+        with np.errstate(all="ignore"):
+            t = cell_tensors(*_piola(split), split.F)
+            found = piece_findings(split, t, matches, _nearby(cache, near, s, tol))
+            found += voigt_stress_findings(split, t.S, matches)
+        codes = {f.code: f for f in found}
+        common = codes if common is None else {c: codes[c] for c in common if c in codes}
+        if not common:
+            return diag
+    named = [
+        replace(
+            f,
+            evidence=f"at each of the kit's {len(probe_results)} probes near this state (where "
+            "the force is wrong; here it is right): " + f.evidence,
+        )
+        for f in common.values()
+    ]
+    named = ambiguous(named, "their predictions differ by less than the tolerance at the probes")
+    return replace(diag, findings=[*named, *diag.findings])
