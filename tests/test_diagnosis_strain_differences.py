@@ -35,7 +35,6 @@ def _engine(points, cells, x, model, h: float, central: bool):
     """(f, K, f_o, K_o): MJED's force and stiffness, and K with the differenced Voigt tangent."""
     import mjed
     from mjed.mesh import shape_vectors
-
     from reference_fem.classical import ClassicalGalerkin
 
     law = ClassicalGalerkin(points, cells, model).law
