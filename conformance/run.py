@@ -24,7 +24,11 @@ from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
-from conformance.diagnosis.hand_derived import hand_derived_reading, nearby_force_reading
+from conformance.diagnosis.hand_derived import (
+    hand_derived_reading,
+    nearby_force_reading,
+    tangent_term_reading,
+)
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -328,6 +332,8 @@ def _run_check(
                 diag = second_derivative_reading(diag, ci, out, ref)
             if not diag.causes:  # one piece of a hand-derived tangent wrong, or its 1/J
                 diag = hand_derived_reading(diag, cache, ci, out, ref, s)
+            if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
+                diag = tangent_term_reading(diag, ci, out, ref)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell

@@ -141,3 +141,26 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
     ]
     named = ambiguous(named, "their predictions differ by less than the tolerance at the probes")
     return replace(diag, findings=[*named, *diag.findings])
+
+
+def tangent_term_reading(diag, ci, out, ref):
+    """``diag`` (the force right, nothing named) with a hand-derived tangent term of a
+    material's own form named first: Ogden's coaxial tangent
+    (:mod:`conformance.diagnosis.spectral_tangent`), Costa's d2Q not symmetrised
+    (:mod:`conformance.diagnosis.fibre_tangent`); unchanged when neither fits.
+    """
+    from conformance.diagnosis.fibre_tangent import fibre_tangent_findings
+    from conformance.diagnosis.spectral_tangent import spectral_findings
+
+    tol = diag.tolerances
+    if diag.errors.force > tol.force:
+        return diag
+    args = (ci.model, ci.points, ci.cells, ci.positions, out.stiffness, ref.stiffness)
+    with np.errstate(all="ignore"):
+        found = spectral_findings(*args, tol.stiffness) + fibre_tangent_findings(
+            *args, tol.stiffness
+        )
+    if not found:
+        return diag
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*ambiguous(found), *rest])
