@@ -27,7 +27,7 @@ __all__ = ["power_exponent", "rotation_basis", "spectral_findings"]
 
 
 def power_exponent(model: Any) -> Optional[float]:
-    """q of the model's eigenvalue power sum tr C^q (Ogden: alpha / 2), or None."""
+    """Q of the model's eigenvalue power sum tr C^q (Ogden: alpha / 2), or None."""
     alpha = getattr(model, "alpha", None)
     if type(model).__name__ != "Ogden" or not isinstance(alpha, (int, float)) or alpha == 0:
         return None
