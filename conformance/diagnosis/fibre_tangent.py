@@ -35,9 +35,7 @@ def strain_form(model: Any, m: int) -> Optional[tuple]:
         B = np.array([[float(getattr(model, n)) for n in row] for row in _NAMES])
     except (AttributeError, TypeError):
         return None
-    if frame is None:
-        return None
-    R = np.asarray(frame, dtype=np.float64)
+    R = np.eye(3) if frame is None else np.asarray(frame, dtype=np.float64)  # None: the axes
     R = np.broadcast_to(R, (m, 3, 3)) if R.ndim == 2 else R.reshape(m, 3, 3)
     return B, R
 
