@@ -224,3 +224,41 @@ def test_uniaxial_kirchhoff_material_stiffness_is_not_said_scaled():
         tol=DOUBLE,
     )
     assert d.causes and "1/J missing in the spatial (Kirchhoff) tangent" in d.causes[0].title
+
+
+def _probe_engine(points, cells, x, model, extra_of_S):
+    """The engine's force at x: MJED's plus the force of extra_of_S(S) per cell."""
+    f_o, _ = _oracle(points, cells, x, model)
+    V0, D, F = _kin(points, cells, x)
+    extra = extra_of_S(_stress(points, cells, x, model))
+    fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, extra, D)
+    return f_o + assemble(cells, points.shape[0], fe, None)[0]
+
+
+def test_shear_stresses_doubled_are_named_at_the_probes_when_the_case_is_uniaxial():
+    from conformance.diagnosis.hand_derived import nearby_force_reading
+
+    model = _mooney()
+    points, cells, x = _state(True)
+    f_o, K_o = _oracle(points, cells, x, model)
+    rng = np.random.default_rng(9)
+    probes = [x + 1e-5 * rng.standard_normal(x.shape) for _ in range(2)]
+    s = scales(0.5, 1.0, f_o, K_o)
+    nearby = Finding(
+        "force-wrong-nearby", "the force is wrong away from this state", OBSERVED, "", {}
+    )
+    diag = Diagnosis("c", "failed", errors(f_o, K_o, None, f_o, K_o, 0.0, s), [nearby])
+
+    def shear(S):
+        return S - np.einsum("mii->mi", S)[:, :, None] * EYE
+
+    def normal(S):
+        return np.einsum("mii->mi", S)[:, :, None] * EYE
+
+    for extra, named in ((shear, True), (normal, False)):
+        results = [(p, _probe_engine(points, cells, p, model, extra), None) for p in probes]
+        d = nearby_force_reading(diag, _Cache(), _Case(points, cells, x, model), results, s)
+        codes = [c.code for c in d.causes]
+        assert codes == (["voigt-stress-shear"] if named else []), [c.title for c in d.findings]
+        if named:
+            assert "probes near this state" in d.causes[0].evidence
