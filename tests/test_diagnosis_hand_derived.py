@@ -6,11 +6,12 @@ Mooney-Rivlin (W = c1 (I1b - 3) + c2 (I2b - 3) + U(J)), written out per cell.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 from conftest import box_mesh
+from diagnosis_stubs import CaseStub as _Case
+from diagnosis_stubs import MjedCache as _Cache
+from diagnosis_stubs import OutputStub as _Out
 
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
@@ -22,31 +23,6 @@ from conformance.judge.compare import DOUBLE, errors, scales
 from conformance.judge.oracle import Reference
 
 EYE = np.eye(3)
-
-
-@dataclass(frozen=True)
-class _Case:
-    points: np.ndarray
-    cells: np.ndarray
-    positions: np.ndarray
-    model: object
-
-
-@dataclass(frozen=True)
-class _Out:
-    force: np.ndarray
-    stiffness: sp.csr_matrix
-
-
-class _Cache:
-    """The oracle stood in for by MJED (the reading asks it for a nearby state only)."""
-
-    def reference(self, ci):
-        import mjed
-
-        field = mjed.HyperelasticForceField(mjed.TetMesh(ci.points, ci.cells), ci.model)
-        f, K = field.force_and_stiffness(ci.positions)
-        return Reference(0.0, np.asarray(f), sp.csr_matrix(K))
 
 
 def _state(uniaxial: bool):

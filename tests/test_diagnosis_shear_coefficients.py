@@ -5,42 +5,18 @@ b_fn, b_sn four times their values (Q's shear terms with engineering shear strai
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
-import scipy.sparse as sp
 from conftest import box_mesh
+from diagnosis_stubs import CaseStub as _Case
+from diagnosis_stubs import MjedCache as _Cache
+from diagnosis_stubs import OutputStub as _Out
 
 from common.cases import default_material
 from conformance.diagnosis.readings import _shear_readings
 from conformance.diagnosis.shear_coefficients import shear_variants
 from conformance.judge.compare import DOUBLE, scales
-from conformance.judge.oracle import Reference
-
-
-@dataclass(frozen=True)
-class _Case:
-    points: np.ndarray
-    cells: np.ndarray
-    positions: np.ndarray
-    model: object
-
-
-@dataclass(frozen=True)
-class _Out:
-    force: np.ndarray
-    stiffness: sp.csr_matrix
-
-
-class _Cache:
-    """The oracle stood in for by MJED."""
-
-    def evaluate_once(self, ci, model):
-        import mjed
-
-        field = mjed.HyperelasticForceField(mjed.TetMesh(ci.points, ci.cells), model)
-        f, K = field.force_and_stiffness(ci.positions)
-        return Reference(0.0, np.asarray(f), sp.csr_matrix(K))
 
 
 def test_shear_variants_scale_the_three_shear_coefficients_only():

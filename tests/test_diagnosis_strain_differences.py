@@ -6,11 +6,11 @@ each strain component, engineering shear), assembled with the engineering B matr
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 from conftest import box_mesh
+from diagnosis_stubs import CaseStub as _Case
+from diagnosis_stubs import OutputStub as _Out
 
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
@@ -21,14 +21,6 @@ from conformance.judge.compare import errors, scales
 from conformance.judge.oracle import Reference
 
 VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
-
-
-@dataclass(frozen=True)
-class _Case:
-    points: np.ndarray
-    cells: np.ndarray
-    positions: np.ndarray
-    model: object
 
 
 def _engine(points, cells, x, model, h: float, central: bool):
@@ -77,11 +69,6 @@ def _read(h: float, central: bool):
     s = scales(0.5, 1.0, f_o, K_o)
     e = errors(f, K, None, f_o, K_o, 0.0, s)
     diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
-
-    @dataclass(frozen=True)
-    class _Out:
-        force: np.ndarray
-        stiffness: sp.csr_matrix
 
     ref = Reference(0.0, f_o, K_o)
     return strain_difference_reading(diag, _Case(points, cells, x, model), _Out(f, K), ref, s)
