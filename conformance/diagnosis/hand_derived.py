@@ -28,6 +28,9 @@ from conformance.judge.compare import Scales, errors
 __all__ = ["hand_derived_reading"]
 
 
+#: Largest mesh (cells) read this way: the per-cell fits hold (m, 90, 9) arrays and more.
+MAX_CELLS = 5000
+
 #: The nearby state's displacement from the case's, in mean edge lengths (random, fixed seed).
 NEARBY = 0.03
 
@@ -59,6 +62,8 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
     matches named first (the 'unexplained' finding dropped); unchanged when none matches.
     cache: the oracles (:class:`conformance.judge.oracle.OracleCache`), for a nearby state.
     """
+    if ci.cells.shape[0] > MAX_CELLS:
+        return diag
     tol = diag.tolerances
     split = element_split(
         ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
@@ -97,6 +102,8 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
     force (n, 3), energy)] the engine's outputs at the probes.
     """
     if not probe_results or not any(f.code == "force-wrong-nearby" for f in diag.findings):
+        return diag
+    if ci.cells.shape[0] > MAX_CELLS:
         return diag
     tol = diag.tolerances
     common = None
