@@ -511,10 +511,9 @@ def _tangent_findings(
             F = cell_kinematics(*mesh)[2]
             spatial = spatial_factor_words(1.0 + fit.coefficients[0], np.linalg.det(F))
             if spatial is not None:
-                title, text = (
-                    spatial,
-                    f"{text}; the factor {1.0 + fit.coefficients[0]:.9g} is the J (or 1/J) of every cell here",
-                )
+                ratio = 1.0 + fit.coefficients[0]
+                title = spatial
+                text += f"; the factor {ratio:.9g} is the J (or 1/J) of every cell here"
         full.append(Finding("tangent-part", title, FULL, text, figs))
     elif fit.residual < 0.1 * err.stiffness:
         partial.append(
