@@ -333,7 +333,7 @@ def _run_check(
             if not diag.causes:  # one piece of a hand-derived tangent wrong, or its 1/J
                 diag = hand_derived_reading(diag, cache, ci, out, ref, s)
             if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
-                diag = tangent_term_reading(diag, ci, out, ref)
+                diag = tangent_term_reading(diag, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell

@@ -87,6 +87,41 @@ def test_ogden_coaxial_tangent_is_named_and_a_scaled_tangent_is_not():
     assert spectral_findings(default_material("NeoHookean"), points, cells, x, K, K_o, 1) == []
 
 
+def _stress(points, cells, x, model):
+    """Per-cell S of MJED's element forces (f_a = -V0 F S D_a)."""
+    import mjed
+
+    field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
+    fe = np.asarray(field.element_forces(x))
+    V0, D, F = _kin(points, cells, x)
+    P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / V0[:, None, None]
+    return np.linalg.inv(F) @ P
+
+
+def test_ogden_coaxial_tangent_on_a_uniaxial_stretch_is_named_with_the_stress_slope():
+    """Two equal eigenvalues: the coaxial engine's eigenvectors in their plane are its
+    round-off's; named with dW/dP read from the stress, and not when the dropped term is
+    twice as large (a coefficient the stress does not give).
+    """
+    model = default_material("Ogden")
+    points, cells = box_mesh(2, jitter=0.2, seed=11)
+    x = points @ np.diag([1.3, 1.0, 1.0]).T
+    K_o = _oracle(points, cells, x, model)
+    F = _kin(points, cells, x)[2]
+    C = F.swapaxes(1, 2) @ F
+    q = model.alpha / 2
+    psi = model.mu / model.alpha**2 * np.linalg.det(F) ** (-model.alpha / 3)
+    dfC = _dfC(C, q, True) - _dfC(C, q, False)
+    S = _stress(points, cells, x, model)
+    for factor, named in ((1.0, True), (2.0, False)):
+        dCC = 4 * factor * psi[:, None, None, None, None] * dfC
+        K = (K_o + _assemble_tangent(points, cells, x, dCC)).tocsr()
+        found = spectral_findings(model, points, cells, x, K, K_o, 1e-8, S)
+        assert [f.code for f in found] == (["tangent-coaxial"] if named else [])
+    # without the stress, nothing is said on such a state
+    assert spectral_findings(model, points, cells, x, K, K_o, 1.0) == []
+
+
 def _voigt_engine(points, cells, x, dCC_unsym):
     """The stiffness change of an engine whose Voigt tangent picks entries (p<=q, r<=s) of a
     tensor that is not minor-symmetric, contracted with the engineering B matrix.

@@ -150,21 +150,27 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
     return replace(diag, findings=[*named, *diag.findings])
 
 
-def tangent_term_reading(diag, ci, out, ref):
+def tangent_term_reading(diag, ci, out, ref, s: Scales):
     """``diag`` (the force right, nothing named) with a hand-derived tangent term of a
     material's own form named first: Ogden's coaxial tangent
-    (:mod:`conformance.diagnosis.spectral_tangent`), Costa's d2Q not symmetrised
+    (:mod:`conformance.diagnosis.spectral_tangent`, with the oracle's per-cell stress from the
+    element split where it adds up), Costa's d2Q not symmetrised
     (:mod:`conformance.diagnosis.fibre_tangent`); unchanged when neither fits.
     """
     from conformance.diagnosis.fibre_tangent import fibre_tangent_findings
-    from conformance.diagnosis.spectral_tangent import spectral_findings
+    from conformance.diagnosis.spectral_tangent import power_exponent, spectral_findings
 
     tol = diag.tolerances
     if diag.errors.force > tol.force:
         return diag
     args = (ci.model, ci.points, ci.cells, ci.positions, out.stiffness, ref.stiffness)
+    S = None
+    if power_exponent(ci.model) is not None and ci.cells.shape[0] <= MAX_CELLS:
+        split = element_split(*args[:4], ref.force, ref.stiffness, s, tol)
+        if split is not None:
+            S = np.linalg.inv(split.F) @ _piola(split)[0]
     with np.errstate(all="ignore"):
-        found = spectral_findings(*args, tol.stiffness) + fibre_tangent_findings(
+        found = spectral_findings(*args, tol.stiffness, S) + fibre_tangent_findings(
             *args, tol.stiffness
         )
     if not found:
