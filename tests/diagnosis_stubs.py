@@ -42,3 +42,16 @@ class MjedCache:
         field = mjed.HyperelasticForceField(mjed.TetMesh(ci.points, ci.cells), model)
         f, K = field.force_and_stiffness(ci.positions)
         return Reference(0.0, np.asarray(f), sp.csr_matrix(K))
+
+
+def mjed_cell_stress(points, cells, x, model) -> np.ndarray:
+    """(m, 3, 3) per-cell S read back from MJED's element forces (f_a = -V0 F S D_a)."""
+    import mjed
+    from mjed.mesh import shape_vectors
+
+    field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
+    fe = np.asarray(field.element_forces(x))
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / np.abs(V0)[:, None, None]
+    return np.linalg.inv(F) @ P

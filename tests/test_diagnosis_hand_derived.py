@@ -12,6 +12,7 @@ from conftest import box_mesh
 from diagnosis_stubs import CaseStub as _Case
 from diagnosis_stubs import MjedCache as _Cache
 from diagnosis_stubs import OutputStub as _Out
+from diagnosis_stubs import mjed_cell_stress
 
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
@@ -110,23 +111,12 @@ def test_a_tangent_scaled_is_no_piece():
     assert d.causes == [] and d.findings[0].code == "unexplained"
 
 
-def _stress(points, cells, x, model):
-    """Per-cell S of MJED's element forces (f_a = -V0 F S D_a)."""
-    import mjed
-
-    field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
-    fe = np.asarray(field.element_forces(x))
-    V0, D, F = _kin(points, cells, x)
-    P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / V0[:, None, None]
-    return np.linalg.inv(F) @ P
-
-
 def test_voigt_shear_stresses_doubled_in_the_force_are_named_and_normal_ones_are_not():
     model = _mooney()
     points, cells, x = _state(False)
     f_o, K_o = _oracle(points, cells, x, model)
     V0, D, F = _kin(points, cells, x)
-    S = _stress(points, cells, x, model)
+    S = mjed_cell_stress(points, cells, x, model)
     diag = np.einsum("mii->mi", S)[:, :, None] * EYE
     for extra, named in ((S - diag, True), (diag, False)):
         fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, extra, D)
@@ -147,7 +137,7 @@ def test_a_spatial_tangent_without_its_one_over_j_is_named_cell_by_cell():
     f_o, K_o = _oracle(points, cells, x, model)
     V0, D, F = _kin(points, cells, x)
     J = np.linalg.det(F)
-    S = _stress(points, cells, x, model)
+    S = mjed_cell_stress(points, cells, x, model)
     field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
     Ke = np.asarray(field.element_stiffness(x))
     geo = np.einsum("maI,mIL,mbL,kl->makbl", D, S, D, EYE)
@@ -206,7 +196,7 @@ def _probe_engine(points, cells, x, model, extra_of_S):
     """The engine's force at x: MJED's plus the force of extra_of_S(S) per cell."""
     f_o, _ = _oracle(points, cells, x, model)
     V0, D, F = _kin(points, cells, x)
-    extra = extra_of_S(_stress(points, cells, x, model))
+    extra = extra_of_S(mjed_cell_stress(points, cells, x, model))
     fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, extra, D)
     return f_o + assemble(cells, points.shape[0], fe, None)[0]
 

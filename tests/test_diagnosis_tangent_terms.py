@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from conftest import box_mesh
+from diagnosis_stubs import mjed_cell_stress
 
 from common.cases import default_material
 from conformance.diagnosis.elements import assemble
@@ -87,17 +88,6 @@ def test_ogden_coaxial_tangent_is_named_and_a_scaled_tangent_is_not():
     assert spectral_findings(default_material("NeoHookean"), points, cells, x, K, K_o, 1) == []
 
 
-def _stress(points, cells, x, model):
-    """Per-cell S of MJED's element forces (f_a = -V0 F S D_a)."""
-    import mjed
-
-    field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
-    fe = np.asarray(field.element_forces(x))
-    V0, D, F = _kin(points, cells, x)
-    P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / V0[:, None, None]
-    return np.linalg.inv(F) @ P
-
-
 def test_ogden_coaxial_tangent_on_a_uniaxial_stretch_is_named_with_the_stress_slope():
     """Two equal eigenvalues: the coaxial engine's eigenvectors in their plane are its
     round-off's; named with dW/dP read from the stress, and not when the dropped term is
@@ -112,7 +102,7 @@ def test_ogden_coaxial_tangent_on_a_uniaxial_stretch_is_named_with_the_stress_sl
     q = model.alpha / 2
     psi = model.mu / model.alpha**2 * np.linalg.det(F) ** (-model.alpha / 3)
     dfC = _dfC(C, q, True) - _dfC(C, q, False)
-    S = _stress(points, cells, x, model)
+    S = mjed_cell_stress(points, cells, x, model)
     for factor, named in ((1.0, True), (2.0, False)):
         dCC = 4 * factor * psi[:, None, None, None, None] * dfC
         K = (K_o + _assemble_tangent(points, cells, x, dCC)).tocsr()
