@@ -330,6 +330,29 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     return found
 
 
+def _shear_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The shear coefficients of the strain form scaled by one factor
+    (:mod:`conformance.diagnosis.shear_coefficients`), that the engine matches.
+    """
+    from conformance.diagnosis.shear_coefficients import shear_variants
+
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda v=v: cache.evaluate_once(ci, v),
+                "shear-coefficients",
+                words,
+                f"the oracle with b_fs, b_fn, b_sn times {factor:g}: ",
+                {"factor": factor},
+            )
+            for factor, v, words in shear_variants(ci.model)
+        ),
+    )
+
+
 def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
     """The exponents of J refitted (:mod:`conformance.diagnosis.constants`): a reading when the
     engine matches the formula with some of them changed.
@@ -460,6 +483,7 @@ def read(
     full += _kinematic_readings(cache, ci, out, s, tol)
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
+    full += _shear_readings(cache, ci, out, s, tol)
     causes = merge_readings(full, s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
