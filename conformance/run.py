@@ -25,11 +25,17 @@ from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.hand_derived import (
+    hand_derived_reading,
+    nearby_force_reading,
+    tangent_term_reading,
+)
 from conformance.diagnosis.mixed_precision import mixed_precision_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
+from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -249,6 +255,8 @@ def _run_check(
         )
         if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
             diag = cell_contribution_reading(diag, ci, out, ref, s)
+        if read_causes and not diag.causes and probes:  # right here, the force wrong nearby
+            diag = nearby_force_reading(diag, cache, ci, probe_results, s)
         # Force and stiffness wrong against the oracle, and no correction named: which energy,
         # or which tangent, is it? (A failure by the probes alone is not about the energy.)
         if tol.capped and not diag.passed:
@@ -318,15 +326,24 @@ def _run_check(
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
             diag = b_for_c_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
+            # one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)
+            diag = hand_derived_reading(diag, cache, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
             if not diag.causes:  # one invariant's curvature term wrong in the tangent
                 diag = second_derivative_reading(diag, ci, out, ref)
+            if not diag.causes:  # one piece of a hand-derived tangent wrong, or its 1/J
+                diag = hand_derived_reading(diag, cache, ci, out, ref, s)
+            if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
+                diag = tangent_term_reading(diag, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
                 diag = element_difference_reading(diag, ci, out, ref, s)
+            if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
+                diag = strain_difference_reading(diag, ci, out, ref, s)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
         if read_causes and not single and unexplained and not diag.causes and inexact:

@@ -130,7 +130,7 @@ def _child() -> int:
         name=data["name"],
     )
     points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    UFLOracle(points, np.array([[0, 1, 2, 3]]), energy)
+    UFLOracle(points, np.array([[0, 1, 2, 3]]), energy).compile_forms()  # all three, in budget
     return 0
 
 

@@ -56,8 +56,9 @@ class UFLOracle:
             assembles its share. Force and stiffness are gathered on rank 0 in input order;
             the other ranks get None. The energy is returned on every rank.
 
-    The forms are compiled and the numbering maps built once, here; each evaluation only
-    sets u = x - X and assembles. Every method is collective over ``comm``.
+    The numbering maps are built once, here, and each form is compiled once, when first
+    used (:meth:`compile_forms` compiles all three now); each evaluation only sets u = x - X
+    and assembles. Every method is collective over ``comm``.
     """
 
     def __init__(self, points, cells, material: Any, comm=None):
@@ -92,11 +93,12 @@ class UFLOracle:
         # otherwise depend on whether Pi was a cache hit, and FFCx would compile R and K anew.
         for f in (Pi, R, K):
             f.signature()  # cached on the form object
-        self._Pi, self._R, self._K = (compat.compile_form(f) for f in (Pi, R, K))
-
-        # PETSc objects reused by every call (zeroed before each assembly).
-        self._b = compat.create_vector(self._R)
-        self._A = compat.create_matrix(self._K)
+        # Each form is compiled when first assembled: a caller that needs only the force of a
+        # candidate energy (the diagnosis rejects most candidates on their force) never pays for
+        # its stiffness form, the largest of the three to compile.
+        self._ufl_forms = {"Pi": Pi, "R": R, "K": K}
+        self._compiled: dict = {}
+        self._b = self._A = None  # PETSc objects reused by every call, made with their form
         # Input dof of each global dof (owned blocks of ranks 0, 1, ... in order), on rank 0.
         n_owned = self._numbering.n_owned_dof_nodes
         self._input_dof_of_global = gather_rows(
@@ -105,6 +107,33 @@ class UFLOracle:
         self._renumber = None
         if self.is_root:
             self._renumber = CSRRenumbering(self._input_dof_of_global, 3 * n)
+
+    # -- compiled forms (each on first use; collective like every evaluation) ---------------
+    def compile_forms(self) -> None:
+        """Compile energy, force and stiffness now (else each is compiled when first used)."""
+        for name in self._ufl_forms:
+            self._form(name)
+
+    def _form(self, name: str):
+        if name not in self._compiled:
+            self._compiled[name] = compat.compile_form(self._ufl_forms[name])
+        return self._compiled[name]
+
+    @property
+    def _Pi(self):
+        return self._form("Pi")
+
+    @property
+    def _R(self):
+        if self._b is None:
+            self._b = compat.create_vector(self._form("R"))
+        return self._form("R")
+
+    @property
+    def _K(self):
+        if self._A is None:
+            self._A = compat.create_matrix(self._form("K"))
+        return self._form("K")
 
     # -- properties ---------------------------------------------------------------------
     @property
@@ -216,7 +245,8 @@ class UFLOracle:
         return xx
 
     def _assemble_force(self, x: np.ndarray) -> Optional[np.ndarray]:
-        compat.assemble_vector_into(self._b, self._R)
+        form = self._R  # compiled (and its vector made) on first use
+        compat.assemble_vector_into(self._b, form)
         compat.accumulate_ghosts(self._b)
         owned = self._b.array_r[: 3 * self._numbering.n_owned_dof_nodes].copy()
         self._require_finite(owned, "force", x)
@@ -228,7 +258,8 @@ class UFLOracle:
         return -out.reshape(-1, 3)
 
     def _assemble_stiffness(self, x: np.ndarray) -> Optional[sp.csr_matrix]:
-        compat.assemble_matrix_into(self._A, self._K)
+        form = self._K  # compiled (and its matrix made) on first use
+        compat.assemble_matrix_into(self._A, form)
         indptr, indices, data = self._A.getValuesCSR()  # owned rows, global columns
         self._require_finite(data, "stiffness", x)
         rows = gather_csr(self._comm, indptr, indices, data)

@@ -163,7 +163,9 @@ step_peer() {
 }
 
 step_regs() {
-    "$PY" -m comparisons.timing.gpu_occupancy --budget 85 --json "$OUT/gpu_occupancy.json"
+    # REGS_ARGS (default "--budget 85") e.g. "--engines classical --budget 200" for one engine
+    # shellcheck disable=SC2086 # word splitting of the arguments is meant
+    "$PY" -m comparisons.timing.gpu_occupancy ${REGS_ARGS:---budget 85} --json "$OUT/gpu_occupancy.json"
 }
 
 step_pack() {

@@ -19,6 +19,9 @@ from comparisons.timing.gpu_occupancy import (
     read_kernels,
     theoretical_occupancy,
 )
+from comparisons.timing.gpu_occupancy import (
+    main as gpu_occupancy_main,
+)
 
 #: An H100/H200 SM (compute capability 9.0): 65,536 registers, 2,048 threads = 64 warps,
 #: 32 blocks, registers per warp allocated by 256.
@@ -103,6 +106,19 @@ def test_a_spent_budget_reads_nothing_and_lists_every_kernel():
     assert all(r["not_read"] == "budget spent" and "error" not in r for r in rows)
     assert [r["material"] for r in rows[:4]] == ["NeoHookean"] * 4
     assert rows[0]["engine"] == "mjed" and rows[-1]["engine"] == "classical"
+
+
+def test_one_engine_reads_only_its_kernels():
+    rows = list(read_kernels({"Ogden": None}, SM90, 128, budget=-1.0, engines=("classical",)))
+    assert len(rows) == 2 * len(FORMS)  # dtypes, forms
+    assert {r["engine"] for r in rows} == {"classical"}
+
+
+def test_an_unknown_engine_is_refused_by_name(capsys):
+    with pytest.raises(SystemExit) as exc:
+        gpu_occupancy_main(["--engines", "classical,sofa"])
+    assert exc.value.code == 2
+    assert "--engines: sofa" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("simulator", ["1", None])

@@ -172,12 +172,15 @@ def _kernels(engine: str, material, dtype: str) -> Tuple[object, object]:
     return field._force_kernel, field._kernel
 
 
-def _order(names: Sequence[str]) -> List[Tuple[str, str]]:
+ENGINES = ("mjed", "classical")
+
+
+def _order(names: Sequence[str], engines: Sequence[str] = ENGINES) -> List[Tuple[str, str]]:
     """(engine, material): MJED's first (cached by the kits step), NeoHookean (the benchmark's)
     first within each.
     """
     names = sorted(names, key=lambda n: n != "NeoHookean")
-    return [(e, n) for e in ("mjed", "classical") for n in names]
+    return [(e, n) for e in ENGINES if e in engines for n in names]
 
 
 def read_kernels(
@@ -186,13 +189,14 @@ def read_kernels(
     threads: int,
     budget: float,
     clock: Callable[[], float] = time.monotonic,
+    engines: Sequence[str] = ENGINES,
 ) -> Iterator[Dict[str, object]]:
     """One row per (engine, material, dtype, form): what :func:`_reading` reads, or ``error``
     (the kernel did not compile or launch), or ``not_read`` (the budget, in seconds, was
     spent before it was started).
     """
     end = clock() + budget
-    for engine, name in _order(list(materials)):
+    for engine, name in _order(list(materials), engines):
         for dtype in DTYPES:
             row = {"engine": engine, "material": name, "dtype": dtype}
             if clock() > end:
@@ -225,7 +229,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--json", help="write the readings and the device's limits here")
     parser.add_argument("--materials", default="all", help="comma-separated, or all")
     parser.add_argument("--budget", type=float, default=90.0, help="seconds of compiling")
+    parser.add_argument(
+        "--engines",
+        default=",".join(ENGINES),
+        help="comma-separated among mjed, classical (a session that read one reads the other)",
+    )
     args = parser.parse_args(argv)
+    engines = [e.strip() for e in args.engines.split(",") if e.strip()]
+    unknown = sorted(set(engines) - set(ENGINES))
+    if unknown or not engines:
+        parser.error(
+            f"--engines: {', '.join(unknown) or 'none given'}; known: {', '.join(ENGINES)}"
+        )
     from comparisons.timing.hardware import gpu_status
 
     why = gpu_status()  # the simulator runs kernels as Python: it has no registers to report
@@ -249,7 +264,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         " blk warp occupancy"
     )
     rows = []
-    for row in read_kernels(materials, limits, THREADS_PER_BLOCK, args.budget):
+    for row in read_kernels(materials, limits, THREADS_PER_BLOCK, args.budget, engines=engines):
         print(_line(row), flush=True)
         rows.append(row)
     if args.json:

@@ -449,7 +449,7 @@ def _explain(
         return full, partial
 
     if parts is not None and err.force <= tol.force:
-        _tangent_findings(K, K_o, parts(), err, tol, full, partial)
+        _tangent_findings(K, K_o, parts(), err, tol, full, partial, (points, cells, x))
         if full:
             return full, partial
 
@@ -477,7 +477,13 @@ def _frame_findings(
         judge(v.code, v.title, e, "errors measured against the oracle evaluated with that frame")
 
 
-def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial) -> None:
+def _tangent_findings(
+    K, K_o, parts, err: Errors, tol: Tolerances, full, partial, mesh=None
+) -> None:
+    """The tangent parts that explain K - K_o; mesh: (points, cells, x), to recognise a material
+    stiffness scaled by the state's J (a spatial tangent pushed forward without its 1/J).
+    """
+    from conformance.diagnosis.spatial_tangent import spatial_factor_words
     from conformance.diagnosis.tangent import candidate_parts, describe_coefficient, fit_parts
 
     D = (K - K_o).tocsr()
@@ -498,9 +504,17 @@ def _tangent_findings(K, K_o, parts, err: Errors, tol: Tolerances, full, partial
         + f" leaves a stiffness error of {fit.residual:.1e}; the force matches"
     )
     if ok is not None:
-        full.append(
-            Finding("tangent-part", f"tangent error in one part: {words}", FULL, text, figs)
-        )
+        title = f"tangent error in one part: {words}"
+        if mesh is not None and fit.names == ("material stiffness",):
+            from conformance.diagnosis.elements import cell_kinematics
+
+            F = cell_kinematics(*mesh)[2]
+            spatial = spatial_factor_words(1.0 + fit.coefficients[0], np.linalg.det(F))
+            if spatial is not None:
+                ratio = 1.0 + fit.coefficients[0]
+                title = spatial
+                text += f"; the factor {ratio:.9g} is the J (or 1/J) of every cell here"
+        full.append(Finding("tangent-part", title, FULL, text, figs))
     elif fit.residual < 0.1 * err.stiffness:
         partial.append(
             Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs)

@@ -25,6 +25,7 @@ import scipy.sparse as sp
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors, grown
+from conformance.judge.consistency import safe_norm
 
 __all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
 
@@ -185,6 +186,21 @@ def term_reading(
     )
 
 
+def _force_may_match(out, f_c: np.ndarray, s: Scales, tol: Tolerances) -> bool:
+    """False only where a candidate with force ``f_c`` cannot pass :func:`_matching`'s test
+    whatever its stiffness K_c: that test scales the force by max(s.force k, |f_c|) with
+    k = max(1, |K_c| / s.stiffness), and a matching K_c is within tol.stiffness of the engine's
+    K, so |K_c| <= |K| / (1 - tol.stiffness): k is bounded by the engine's own stiffness.
+    NaN or infinite figures bound nothing (True).
+    """
+    if not (0.0 < s.stiffness and tol.stiffness < 1.0):
+        return True
+    k_max = max(1.0, safe_norm(out.stiffness) / ((1.0 - tol.stiffness) * s.stiffness))
+    bound = tol.force * max(s.force * k_max, safe_norm(f_c)) * (1.0 + 1e-9)
+    miss = safe_norm(np.asarray(out.force) - f_c)
+    return not (np.isfinite(k_max) and np.isfinite(bound) and miss > bound)
+
+
 def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
     """The candidates the engine matches: each is (evaluate () -> Reference, code, title, words,
     figures); a candidate the oracle cannot evaluate at this state (ValueError) is skipped.
@@ -193,17 +209,19 @@ def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
     for evaluate, code, title, words, figures in candidates:
         try:
             r = evaluate()
+            if not _force_may_match(out, r.force, s, tol):
+                continue  # its stiffness (compiled on first reading) is never needed
+            e = errors(
+                out.force,
+                out.stiffness,
+                None,
+                r.force,
+                r.stiffness,
+                0.0,
+                grown(s, r.force, r.stiffness),
+            )
         except ValueError:  # not finite at this state, or not a formula the oracle takes
             continue
-        e = errors(
-            out.force,
-            out.stiffness,
-            None,
-            r.force,
-            r.stiffness,
-            0.0,
-            grown(s, r.force, r.stiffness),
-        )
         if tol.within(e, energy=False):
             evidence = (
                 f"{words}against that energy, differentiated by the oracle: force error "
@@ -225,7 +243,7 @@ def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         (
             (
                 lambda v=v: cache.evaluate_model(
-                    ci, v.oracle_model(ci.model), model_key(ci.model) + v.key()
+                    ci, v.oracle_model(ci.model), model_key(ci.model) + v.key(), lazy=True
                 ),
                 f"kinematic-{v.code}",
                 f"your engine matches the energy with {v.title}",
@@ -247,7 +265,7 @@ def _formula_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readin
         tol,
         (
             (
-                lambda v=v: cache.reference(replace(ci, model=v.model)),
+                lambda v=v: cache.reference(replace(ci, model=v.model), lazy=True),
                 "energy-variant",
                 f"your engine matches W' = {v.expression}",
                 f"{v.rewrite.words}: ",
@@ -311,6 +329,29 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             )
         )
     return found
+
+
+def _shear_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The shear coefficients of the strain form scaled by one factor
+    (:mod:`conformance.diagnosis.shear_coefficients`), that the engine matches.
+    """
+    from conformance.diagnosis.shear_coefficients import shear_variants
+
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda v=v: cache.evaluate_once(ci, v),
+                "shear-coefficients",
+                words,
+                f"the oracle with b_fs, b_fn, b_sn times {factor:g}: ",
+                {"factor": factor},
+            )
+            for factor, v, words in shear_variants(ci.model)
+        ),
+    )
 
 
 def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
@@ -466,6 +507,7 @@ def read(
     full += _kinematic_readings(cache, ci, out, s, tol)
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
+    full += _shear_readings(cache, ci, out, s, tol)
     causes = merge_readings(_parameters_first(full), s)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
-from typing import Any, Dict, Sequence, Tuple
+from typing import Any, Callable, Dict, Sequence, Tuple, Union
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.judge.colouring import independent_node_groups
 from conformance.judge.compare import Scales, Tolerances
 from conformance.judge.consistency import ReferenceProbes
 from conformance.judge.energy import energy_density
@@ -28,13 +28,37 @@ def oracle_available() -> bool:
     return dolfinx_available()
 
 
-@dataclass(frozen=True)
 class Reference:
-    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]."""
+    """The oracle at one state: energy [J], force (n, 3) [N], stiffness CSR (3n, 3n) [N/m].
 
-    energy: float
-    force: np.ndarray
-    stiffness: sp.csr_matrix
+    The force is assembled at once; the energy and the stiffness may be given as callables,
+    assembled (and their forms compiled) when first read: the diagnosis rejects most candidate
+    energies on their force alone, and a stiffness form is the costliest of the three to compile.
+    """
+
+    __slots__ = ("force", "_energy", "_stiffness")
+
+    def __init__(
+        self,
+        energy: Union[float, Callable[[], float]],
+        force: np.ndarray,
+        stiffness: Union[sp.spmatrix, Callable[[], sp.spmatrix]],
+    ) -> None:
+        self.force = force
+        self._energy = energy
+        self._stiffness = stiffness
+
+    @property
+    def energy(self) -> float:
+        if callable(self._energy):
+            self._energy = float(self._energy())
+        return self._energy
+
+    @property
+    def stiffness(self) -> sp.csr_matrix:
+        if callable(self._stiffness):
+            self._stiffness = sp.csr_matrix(self._stiffness())
+        return self._stiffness
 
 
 def _key(case: CaseInput) -> Tuple[str, str]:
@@ -48,10 +72,16 @@ def _key(case: CaseInput) -> Tuple[str, str]:
     return h.hexdigest(), model
 
 
-def _at(oracle: Any, case: CaseInput) -> Reference:
-    """``oracle`` evaluated at the case's positions."""
-    f, K = oracle.force_and_stiffness(case.positions)
-    return Reference(float(oracle.energy(case.positions)), f, sp.csr_matrix(K))
+def _at(oracle: Any, case: CaseInput, lazy: bool = False) -> Reference:
+    """``oracle`` evaluated at the case's positions; ``lazy``: the force now, the energy and the
+    stiffness when first read (each sets the oracle's state to these positions again), and a
+    state the oracle cannot evaluate (ValueError) may then be found only on that reading.
+    """
+    x = case.positions
+    if lazy:
+        return Reference(lambda: oracle.energy(x), oracle.force(x), lambda: oracle.stiffness(x))
+    f, K = oracle.force_and_stiffness(x)
+    return Reference(float(oracle.energy(x)), f, sp.csr_matrix(K))
 
 
 class OracleCache:
@@ -61,7 +91,8 @@ class OracleCache:
         self._oracles: Dict[Tuple[str, ...], Any] = {}
         self._parts: Dict[Tuple[str, str], Any] = {}
 
-    def reference(self, case: CaseInput) -> Reference:
+    def reference(self, case: CaseInput, lazy: bool = False) -> Reference:
+        """The oracle of the case's model at its positions (``lazy``: see :func:`_at`)."""
         key = _key(case)
         if key not in self._oracles:
             from reference_fem import UFLOracle
@@ -74,9 +105,11 @@ class OracleCache:
 
                 check_symbolic_budget(case.model)
             self._oracles[key] = UFLOracle(case.points, case.cells, case.model)
-        return _at(self._oracles[key], case)
+        return _at(self._oracles[key], case, lazy)
 
-    def evaluate_model(self, case: CaseInput, model: Any, key: str) -> Reference:
+    def evaluate_model(
+        self, case: CaseInput, model: Any, key: str, lazy: bool = False
+    ) -> Reference:
         """The oracle for another ``model`` on the case's mesh, at the case's positions (a model
         the diagnosis builds: one term of the energy, a mistaken kinematic); ``key`` names it
         (one oracle per (mesh, key), reused across states).
@@ -86,7 +119,7 @@ class OracleCache:
             from reference_fem import UFLOracle
 
             self._oracles[k] = UFLOracle(case.points, case.cells, model)
-        return _at(self._oracles[k], case)
+        return _at(self._oracles[k], case, lazy)
 
     def evaluate_once(self, case: CaseInput, model: Any) -> Reference:
         """The oracle for ``model`` at the case's positions, not kept: a refit asks for many
@@ -101,22 +134,30 @@ class OracleCache:
         self, case: CaseInput, step: np.ndarray
     ) -> Tuple[sp.csr_matrix, sp.csr_matrix]:
         """(G1, G2), each (3n, 3n): column j is the first (second) derivative of the oracle's K
-        column j along dof j, by central differences of step ``step[j]`` [m] (6n oracle
-        stiffness assemblies: small meshes only).
+        column j along dof j, by central differences of step ``step[j]`` [m].
+
+        One dof of every node of a group that shares no cell is perturbed at once
+        (:mod:`conformance.judge.colouring`): each of their columns is then exactly what
+        perturbing it alone gives, for 6 x (groups) oracle stiffness assemblies instead of 6n.
         """
         self.reference(case)  # builds the oracle if needed
         oracle = self._oracles[_key(case)]
         x = np.asarray(case.positions, dtype=np.float64).ravel()
         K0 = sp.csc_matrix(oracle.stiffness(case.positions))
-        first, second = [], []
-        for j in range(x.size):
-            cols = []
-            for sign in (1.0, -1.0):
-                y = x.copy()
-                y[j] += sign * step[j]
-                cols.append(sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))[:, j])
-            first.append((cols[0] - cols[1]) / (2.0 * step[j]))
-            second.append((cols[0] - 2.0 * K0[:, j] + cols[1]) / step[j] ** 2)
+        first: list = [None] * x.size
+        second: list = [None] * x.size
+        for nodes in independent_node_groups(case.cells, case.points.shape[0]):
+            for component in range(3):
+                dofs = 3 * nodes + component
+                cols = []
+                for sign in (1.0, -1.0):
+                    y = x.copy()
+                    y[dofs] += sign * step[dofs]
+                    cols.append(sp.csc_matrix(oracle.stiffness(y.reshape(-1, 3)))[:, dofs])
+                for i, j in enumerate(dofs):  # the same operations as one dof at a time
+                    plus, minus = cols[0][:, i], cols[1][:, i]
+                    first[j] = (plus - minus) / (2.0 * step[j])
+                    second[j] = (plus - 2.0 * K0[:, j] + minus) / step[j] ** 2
         return sp.hstack(first).tocsr(), sp.hstack(second).tocsr()
 
     def single_precision(self, case: CaseInput, ref: Reference, s: Scales) -> Tolerances:

@@ -24,6 +24,12 @@ Scores, per engine (from the check's results.json):
   "named" if every failing case is named, else "unexplained" (the table shows how many of its
   failing cases were named).
 
+How: the engines of one kit are judged in one process, which reads the kit and builds its oracles
+once (``--jobs`` such processes side by side, each taking whole kits); each engine is checked
+there exactly as ``mjed-verify check KIT --command 'python ENGINE {input} {output}' --json``
+checks it (the same run_check, the same results.json), without starting the command line and
+rebuilding the oracle for every engine. ``--one-process-per-engine`` runs that command instead.
+
 Prints a table and writes OUT/summary.json. Exit code 0 unless a correct engine fails or a
 mistaken engine passes (the diagnosis' naming rate is reported, not enforced).
 """
@@ -50,6 +56,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 MESH = "cube-small"
 STATES = "uniaxial,random"
+TIMEOUT = 120  # seconds an engine may take for one case
 # headline findings that observe rather than explain
 NOT_A_CAUSE_STRENGTHS = {"observed"}
 NOT_A_CAUSE_CODES = {"unexplained"}
@@ -95,7 +102,7 @@ def run_engine(
     entry: dict,
     kit: Path,
     out: Path,
-    timeout: int = 120,
+    timeout: int = TIMEOUT,
     corpus: Path = HERE,
     verdict_only: bool = False,
 ) -> dict:
@@ -125,6 +132,116 @@ def run_engine(
     return score(
         entry, results, proc.returncode, seconds, proc.stdout[-2000:] + proc.stderr[-2000:]
     )
+
+
+def _judge_here(entry: dict, kit: Path, out: Path, corpus: Path, verdict_only: bool, caches):
+    """One engine checked in this process, as `mjed-verify check KIT --command ... --json` does
+    (the same run_check and results.json); ``caches`` keeps each kit's cases and oracles.
+    """
+    from common.options import write_json
+    from conformance.engine.command import command_evaluator
+    from conformance.judge.oracle import OracleCache
+    from conformance.kit.read import read_kit
+    from conformance.run import run_check
+
+    if str(kit) not in caches:
+        read = read_kit(str(kit))
+        caches[str(kit)] = (list(read.cases), dict(read.errors), read.precision, OracleCache())
+    cases, errors, precision, cache = caches[str(kit)]
+    name = Path(entry["file"]).stem
+    folder = out / "outputs" / name
+    shutil.rmtree(folder, ignore_errors=True)
+    engine = Path(corpus) / entry["file"]
+    command = f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
+    evaluate = command_evaluator(
+        command,
+        lambda c: c.input_dir or str(kit / "cases" / c.case_id / "input"),
+        str(folder),
+        TIMEOUT,
+    )
+    t0 = time.monotonic()
+    run = run_check(
+        cases,
+        evaluate,
+        input_errors=errors,
+        precision=precision,
+        read_causes=not verdict_only,
+        cache=cache,
+    )
+    seconds = time.monotonic() - t0
+    report_json = out / "json" / f"{name}.json"
+    report_json.parent.mkdir(parents=True, exist_ok=True)
+    write_json(str(report_json), {"command": command, **run.to_dict(), "fields": {}})
+    return score(entry, json.loads(report_json.read_text()), run.exit_code, seconds, "")
+
+
+def _serve(task_file: Path) -> int:
+    """A judging process: the task file lists (entry, kit) pairs, whole kits, in order; each
+    engine's row is written beside it as soon as it is scored.
+    """
+    sys.path.insert(0, str(ROOT))  # the checkout's own checker, beside its corpus
+    task = json.loads(task_file.read_text())
+    caches: dict = {}
+    rows = []
+    for entry, kit in task["items"]:
+        rows.append(
+            _judge_here(
+                entry,
+                Path(kit),
+                Path(task["out"]),
+                Path(task["corpus"]),
+                task["verdict_only"],
+                caches,
+            )
+        )
+        task_file.with_suffix(".rows.json").write_text(json.dumps(rows))
+    return 0
+
+
+def _share_kits(entries, kits, jobs: int) -> list:
+    """Whole kits dealt to ``jobs`` processes, the largest first to the least loaded."""
+    groups: dict = {}
+    for e in entries:
+        groups.setdefault(kit_key(e), []).append(e)
+    bins = [[] for _ in range(max(1, min(jobs, len(groups))))]
+    for key in sorted(groups, key=lambda k: (-len(groups[k]), k)):
+        min(bins, key=len).extend((e, str(kits[key])) for e in groups[key])
+    return bins
+
+
+def judge_in_processes(entries, kits, out: Path, corpus: Path, jobs: int, verdict_only: bool):
+    """Every engine's row, judged by ``jobs`` processes that each read a kit and build its
+    oracles once (:func:`_serve`); an engine whose process died is an "error" row saying so.
+    """
+    procs = []
+    for i, items in enumerate(_share_kits(entries, kits, jobs)):
+        task = out / "judges" / f"judge{i}.json"
+        task.parent.mkdir(parents=True, exist_ok=True)
+        task.with_suffix(".rows.json").unlink(missing_ok=True)
+        task.write_text(
+            json.dumps(
+                {
+                    "items": items,
+                    "out": str(out),
+                    "corpus": str(corpus),
+                    "verdict_only": verdict_only,
+                }
+            )
+        )
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--serve", str(task)]
+        procs.append(
+            (items, task, subprocess.Popen(cmd, cwd=ROOT, stderr=subprocess.PIPE, text=True))
+        )
+    rows = {}
+    for items, task, proc in procs:
+        _, err = proc.communicate()
+        done = task.with_suffix(".rows.json")
+        for row in json.loads(done.read_text()) if done.exists() else []:
+            rows[row["engine"]] = row
+        for entry, _ in items:
+            if entry["file"] not in rows:
+                rows[entry["file"]] = score(entry, None, proc.returncode, 0.0, err[-2000:])
+    return [rows[e["file"]] for e in entries]
 
 
 def keyword_match(text: str, keywords) -> bool:
@@ -223,10 +340,13 @@ def run_corpus(
     entries=None,
     corpus: Path = HERE,
     verdict_only: bool = False,
+    one_process_per_engine: bool = False,
 ) -> dict:
     """Every engine of ``corpus`` checked and scored (see the module docstring); with
     ``verdict_only`` the checks only judge (`--verdict-only`: the verdicts and controls are
-    the same, the causes of failed cases are not looked for, so nothing is "named").
+    the same, the causes of failed cases are not looked for, so nothing is "named");
+    ``one_process_per_engine`` runs `mjed-verify check` for each engine instead of judging the
+    engines of a kit in one process.
     """
     corpus = Path(corpus).resolve()
     entries = entries if entries is not None else load_manifest(corpus)
@@ -236,15 +356,18 @@ def run_corpus(
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     kits = export_kits([kit_key(e) for e in entries], out, states)
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        rows = list(
-            pool.map(
-                lambda e: run_engine(
-                    e, kits[kit_key(e)], out, corpus=corpus, verdict_only=verdict_only
-                ),
-                entries,
+    if one_process_per_engine:
+        with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            rows = list(
+                pool.map(
+                    lambda e: run_engine(
+                        e, kits[kit_key(e)], out, corpus=corpus, verdict_only=verdict_only
+                    ),
+                    entries,
+                )
             )
-        )
+    else:
+        rows = judge_in_processes(entries, kits, out, corpus, jobs, verdict_only)
     mistakes = [r for r in rows if r["family"] != "correct"]
     counts = {
         k: sum(r["score"] == k for r in mistakes)
@@ -300,7 +423,15 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--verdict-only", action="store_true", help="judge only; name no causes (faster)"
     )
+    ap.add_argument(
+        "--one-process-per-engine",
+        action="store_true",
+        help="run `mjed-verify check` for each engine (slower: the oracle is built every time)",
+    )
+    ap.add_argument("--serve", type=Path, help=argparse.SUPPRESS)  # a judging process's tasks
     args = ap.parse_args(argv)
+    if args.serve:
+        return _serve(args.serve)
     summary = run_corpus(
         args.out,
         args.states,
@@ -308,6 +439,7 @@ def main(argv=None) -> int:
         args.jobs,
         corpus=args.corpus,
         verdict_only=args.verdict_only,
+        one_process_per_engine=args.one_process_per_engine,
     )
     print_table(summary)
     print(f"summary: {args.out / 'summary.json'}")

@@ -1,0 +1,181 @@
+"""A tangent of a sum of eigenvalue powers taken coaxial: the eigenvectors held fixed.
+
+For P = tr C^q = sum_i lambda_i^q (Ogden's principal-stretch sums, q = alpha/2), dP/dC =
+f(C) with f(lambda) = q lambda^(q-1), and its derivative in the principal frame N_i holds
+f'(lambda_i) on the pairs i = i and the divided differences
+theta_ij = (f(lambda_i) - f(lambda_j)) / (lambda_i - lambda_j) on the pairs i != j (the
+rotation of the principal directions). An engine that differentiates f(C) with its
+eigenvectors held fixed keeps the first and drops the second: per cell, its tangent lacks
+4 dW/dP X, X_pqrs = sum_(i != j) theta_ij (N_pi N_qj N_ri N_sj + N_pi N_qj N_rj N_si) / 2, with
+dW/dP unknown. Where two eigenvalues are equal (a uniaxial stretch) the engine's eigenvectors
+in their plane are whatever its round-off makes them: there dW/dP is read from the oracle's
+stress (S = 2 dW/dP q C^(q-1) + dW/dJ J C^-1), the X part taken with that known coefficient,
+and the turn of the kept terms f' (n1^4 + n2^4) in the plane fitted with two unknowns. The
+fit: one unknown per cell against the stiffness error
+(:func:`conformance.diagnosis.second_derivative.fit_cell_term`); named when it leaves the
+stiffness within the tolerance, the force being right.
+"""
+
+from __future__ import annotations
+
+from typing import Any, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import cell_kinematics
+from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.second_derivative import fit_cell_term
+
+__all__ = ["power_exponent", "rotation_basis", "spectral_findings"]
+
+
+def power_exponent(model: Any) -> Optional[float]:
+    """Q of the model's eigenvalue power sum tr C^q (Ogden: alpha / 2), or None."""
+    alpha = getattr(model, "alpha", None)
+    if type(model).__name__ != "Ogden" or not isinstance(alpha, (int, float)) or alpha == 0:
+        return None
+    return 0.5 * float(alpha)
+
+
+def rotation_basis(points, cells, x, q: float) -> np.ndarray:
+    """(m, 12, 12): V0 sym(F^T grad v) : X : sym(F^T grad w) per cell, X the divided-difference
+    part of d(tr C^q)'s second derivative (module docstring); equal eigenvalues take the limit
+    f'(lambda).
+    """
+    V0, D, F = cell_kinematics(points, cells, x)
+    lam, N = np.linalg.eigh(F.swapaxes(1, 2) @ F)
+    f = q * lam ** (q - 1.0)
+    df = q * (q - 1.0) * lam ** (q - 2.0)
+    gap = lam[:, :, None] - lam[:, None, :]
+    close = np.abs(gap) <= 1e-8 * np.abs(lam).max(axis=1)[:, None, None]
+    theta = np.where(
+        close, df[:, :, None], (f[:, :, None] - f[:, None, :]) / np.where(close, 1, gap)
+    )
+    theta = theta * (1.0 - np.eye(3))  # i != j only
+    X = 0.5 * (
+        np.einsum("mij,mpi,mqj,mri,msj->mpqrs", theta, N, N, N, N)
+        + np.einsum("mij,mpi,mqj,mrj,msi->mpqrs", theta, N, N, N, N)
+    )
+    X = 0.5 * (X + X.swapaxes(1, 2))
+    K = np.einsum("maI,mkJ,mJIML,mlM,mbL->makbl", D, F, X, F, D)
+    return (V0[:, None, None, None, None] * K).reshape(-1, 12, 12)
+
+
+def power_sum_slope(S: np.ndarray, F: np.ndarray, q: float) -> Optional[np.ndarray]:
+    """(m,) dW/dP per cell of a law W(P, J), P = tr C^q, read from the oracle's per-cell stress
+    S (m, 3, 3) = 2 dW/dP q C^(q-1) + dW/dJ J C^-1 (two unknowns on the eigenvalues; C need
+    not have three distinct ones); None where S is not of that form or C is isotropic.
+    """
+    lam, N = np.linalg.eigh(F.swapaxes(1, 2) @ F)
+    Se = np.einsum("mpi,mpq,mqj->mij", N, S, N)
+    M = np.stack([2.0 * q * lam ** (q - 1.0), np.linalg.det(F)[:, None] / lam], axis=2)
+    G = np.einsum("mia,mib->mab", M, M)
+    if np.any(np.abs(np.linalg.det(G)) <= 1e-12 * np.einsum("maa->m", G) ** 2):
+        return None
+    y = np.einsum("mii->mi", Se)
+    sol = np.linalg.solve(G, np.einsum("mia,mi->ma", M, y)[..., None])[..., 0]
+    left = np.linalg.norm(Se - np.einsum("mi,ij->mij", np.einsum("mia,ma->mi", M, sol), np.eye(3)))
+    if left > 1e-8 * np.linalg.norm(S):
+        return None
+    return sol[:, 0]
+
+
+def _fourth(n: np.ndarray) -> np.ndarray:
+    """(m, 3, 3, 3, 3) n (x) n (x) n (x) n of vectors n (m, 3)."""
+    return np.einsum("mp,mq,mr,ms->mpqrs", n, n, n, n)
+
+
+def in_plane_bases(points, cells, x, q: float) -> Tuple[np.ndarray, np.ndarray]:
+    """(bases (m, 2, 12, 12), degenerate (m,) booleans). Where two eigenvalues of C are equal
+    the engine's eigenvectors n1, n2 in their plane are any (its round-off chooses them, turned
+    by phi from these), and the terms it keeps there, f' (n1^4 + n2^4), turn with them as
+    P0 + cos 4 phi P1 + sin 4 phi P2: the bases are V0 BL : f' P1 : BL and V0 BL : f' P2 : BL.
+    """
+    V0, D, F = cell_kinematics(points, cells, x)
+    lam, N = np.linalg.eigh(F.swapaxes(1, 2) @ F)
+    gap = np.abs(np.diff(lam, axis=1))  # sorted: the pairs (0, 1) and (1, 2)
+    close = gap <= 1e-8 * np.abs(lam).max(axis=1)[:, None]
+    degenerate = close.any(axis=1)
+    i = np.where(close[:, 0], 0, 1)
+    m = np.arange(cells.shape[0])
+    na, nb = N[m, :, i], N[m, :, i + 1]
+    dfp = q * (q - 1.0) * lam[m, i] ** (q - 2.0) * degenerate
+
+    def g(phi):
+        c, s_ = np.cos(phi), np.sin(phi)
+        return _fourth(c * na + s_ * nb) + _fourth(c * nb - s_ * na)
+
+    g0, g4, g8 = g(0.0), g(np.pi / 4), g(np.pi / 8)
+    out = []
+    for T in (0.5 * (g0 - g4), g8 - 0.5 * (g0 + g4)):
+        K = np.einsum(
+            "maI,mkJ,mJIML,mlM,mbL->makbl", D, F, dfp[:, None, None, None, None] * T, F, D
+        )
+        out.append((V0[:, None, None, None, None] * K).reshape(-1, 12, 12))
+    return np.stack(out, axis=1), degenerate
+
+
+def _fit(cells, q, points, x, D, K_o, slope):
+    """(residual, coefficients of the X basis per cell): one unknown per cell; in cells with
+    two equal eigenvalues the X part's coefficient is the known -4 dW/dP (``slope``) and the
+    two in-plane turns are fitted instead (None: no such cells may be fitted).
+    """
+    X = rotation_basis(points, cells, x, q)
+    bases, degenerate = in_plane_bases(points, cells, x, q)
+    if not degenerate.any():
+        return fit_cell_term(cells, X, D, K_o)
+    if slope is None:
+        return np.inf, np.zeros(cells.shape[0])
+    from conformance.diagnosis.elements import assemble
+
+    known = np.where(degenerate, -4.0 * slope, 0.0)
+    zero = np.zeros((cells.shape[0], 4, 3))
+    D = (D - assemble(cells, points.shape[0], zero, known[:, None, None] * X)[1]).tocsr()
+    free = np.concatenate([X[~degenerate], bases[degenerate].reshape(-1, 12, 12)])
+    owners = np.concatenate([cells[~degenerate], np.repeat(cells[degenerate], 2, axis=0)])
+    residual, u = fit_cell_term(owners, free, D, K_o)
+    known[~degenerate] = u[: int((~degenerate).sum())]
+    return residual, known
+
+
+def spectral_findings(
+    model: Any,
+    points,
+    cells,
+    x,
+    K: sp.spmatrix,
+    K_o: sp.spmatrix,
+    tol: float,
+    S: Optional[np.ndarray] = None,
+) -> List[Finding]:
+    """The coaxial-tangent finding when the per-cell fit explains K - K_o within ``tol``;
+    S: the oracle's per-cell stress (m, 3, 3), needed where C has two equal eigenvalues.
+    """
+    q = power_exponent(model)
+    if q is None:
+        return []
+    K_o = sp.csr_matrix(K_o)
+    D = (sp.csr_matrix(K) - K_o).tocsr()
+    slope = None
+    if S is not None:
+        slope = power_sum_slope(S, cell_kinematics(points, cells, x)[2], q)
+    residual, lam = _fit(cells, q, points, x, D, K_o, slope)
+    if residual > tol:
+        return []
+    p = np.percentile(lam, [0, 50, 100])
+    return [
+        Finding(
+            "tangent-coaxial",
+            "coaxial tangent: the derivative of C^(alpha/2 - 1) taken with the eigenvectors "
+            "held fixed (the divided differences between the eigenvalues, the rotation of the "
+            "principal directions, dropped from your tangent)",
+            FULL,
+            "K - K_oracle = sum over cells of c_c V0 BL : X : BL, X the divided-difference "
+            f"part of d2(tr C^{q:g})/dC2, leaves a stiffness error of {residual:.1e}; c_c "
+            f"from {p[0]:.4g} to {p[2]:.4g} Pa, median {p[1]:.4g} (fitted; where C has two "
+            "equal eigenvalues, -4 dW/dP from the oracle's stress, with the turn of the "
+            "engine's eigenvectors in their plane fitted); the force matches",
+            {"residual": residual, "coefficient_median": float(p[1])},
+        )
+    ]

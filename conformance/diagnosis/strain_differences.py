@@ -1,0 +1,186 @@
+"""A material tangent D = dS/dE built by differences of the stress in the strain components.
+
+An engine that computes the Voigt tangent column by column, D e_B = (S(E + h e_B) - S(E)) / h
+with e_B a unit step of the B-th Voigt strain component (engineering shear: a shear column
+moves E_kl = E_lk by h / 2), has the error (h / 2) dD_AB / d(eps_B) + O(h^2) in its column B,
+cell by cell. Differencing the force by the nodes (:mod:`conformance.diagnosis.tangent`,
+:mod:`conformance.diagnosis.differences`) leaves another error, so this one is tested on its
+own: dD/d(eps_B) per cell by central differences of the oracle's tangent (MJED's element
+matrices on the mesh with its cells pulled apart, each cell's F moved so that its E moves by
++-delta e_B), the stiffness of (1/2) dD_AB / d(eps_B) assembled, and the step fitted with one
+unknown. Named when it accounts for nearly all of the stiffness error (99 %), as the other
+difference readings are.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
+
+from conformance.diagnosis.elements import ElementSplit, _piola, assemble
+from conformance.diagnosis.invariant_pieces import cell_tensors
+
+__all__ = [
+    "VOIGT",
+    "strain_derivatives",
+    "StrainDifferenceFit",
+    "fit_strain_differences",
+    "strain_difference_reading",
+]
+
+#: Voigt order 11, 22, 33, 12, 23, 13 as (i, j) pairs.
+VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
+#: Central-difference step in the strain (dimensionless).
+DELTA = 1e-4
+#: Fraction of the stiffness error a fit must account for to be named.
+EXPLAINED = 0.99
+
+
+def _unit_strain(B: int) -> np.ndarray:
+    """(3, 3) the strain of a unit step of Voigt component B (engineering shear: E_kl = 1/2)."""
+    i, j = VOIGT[B]
+    e = np.zeros((3, 3))
+    e[i, j] += 0.5
+    e[j, i] += 0.5
+    return e
+
+
+def strain_derivatives(model: Any, split: ElementSplit, points: np.ndarray) -> Optional[np.ndarray]:
+    """(m, 6, 6, 6) dD_AB / d(eps_C) per cell (D the Voigt material tangent, eps the Voigt
+    strain with engineering shear), or None when MJED cannot evaluate the model there.
+    """
+    import mjed
+
+    cells, F = split.cells, split.F
+    m = cells.shape[0]
+    X = points[cells]  # (m, 4, 3)
+    loose = np.arange(4 * m).reshape(m, 4)
+    Xc = X - X[:, :1]
+    Ci = np.linalg.inv(F.swapaxes(1, 2) @ F)
+    out = np.empty((m, 6, 6, 6))
+    try:
+        field = mjed.make_force_field(mjed.TetMesh(X.reshape(-1, 3), loose), model)
+        for c in range(6):
+            tangents = []
+            for sign in (1.0, -1.0):
+                # F (I + delta C^-1 e): C moves by 2 delta e to first order, the second order
+                # even in delta, so the central difference is exact to O(delta^2).
+                Fs = F @ (np.eye(3) + sign * DELTA * Ci @ _unit_strain(c))
+                xs = (np.einsum("mij,maj->mai", Fs, Xc) + X[:, :1]).reshape(-1, 3)
+                fe = np.asarray(field.element_forces(xs), dtype=np.float64)
+                Ke = np.asarray(field.element_stiffness(xs), dtype=np.float64)
+                moved = ElementSplit(loose, 4 * m, split.V0, split.D, Fs, fe, Ke, 0.0)
+                t = cell_tensors(*_piola(moved), Fs)
+                tangents.append(_voigt(t.CC))
+            out[:, :, :, c] = (tangents[0] - tangents[1]) / (2.0 * DELTA)
+    except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
+        return None
+    return out
+
+
+def _voigt(CC: np.ndarray) -> np.ndarray:
+    """(m, 6, 6) the Voigt matrix of a minor-symmetric tangent (m, 3, 3, 3, 3)."""
+    i = np.array([p[0] for p in VOIGT])
+    j = np.array([p[1] for p in VOIGT])
+    return CC[:, i[:, None], j[:, None], i[None, :], j[None, :]]
+
+
+def _tensor(Dv: np.ndarray) -> np.ndarray:
+    """(m, 3, 3, 3, 3) the minor-symmetric tensor whose Voigt matrix is Dv (m, 6, 6)."""
+    T = np.zeros((Dv.shape[0], 3, 3, 3, 3))
+    for A, (i, j) in enumerate(VOIGT):
+        for B, (k, ll) in enumerate(VOIGT):
+            for p, q in {(i, j), (j, i)}:
+                for r, s in {(k, ll), (ll, k)}:
+                    T[:, p, q, r, s] = Dv[:, A, B]
+    return T
+
+
+def _material_stiffness(split: ElementSplit, dCC: np.ndarray) -> sp.csr_matrix:
+    """The assembled V0 D_a F dCC F D_b of per-cell tangent changes dCC (m, 3, 3, 3, 3)."""
+    mat = np.einsum("maI,mkJ,mJIML,mlM,mbL->makbl", split.D, split.F, dCC, split.F, split.D)
+    Ke = (split.V0[:, None, None, None, None] * mat).reshape(-1, 12, 12)
+    return assemble(split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke)[1]
+
+
+@dataclass(frozen=True)
+class StrainDifferenceFit:
+    """scheme ("forward" / "backward"); step: h; explained: the fraction of ||K - K_o||
+    accounted for; residual: what is left, relative to ||K_o||.
+    """
+
+    scheme: str
+    step: float
+    explained: float
+    residual: float
+
+    def words(self) -> str:
+        return (
+            f"{self.scheme} differences of the stress S in each Voigt strain component of E "
+            f"(engineering shear strains), step h = {self.step:.2e}"
+        )
+
+
+def fit_strain_differences(
+    split: ElementSplit, dD: np.ndarray, D: sp.csr_matrix, K_o: sp.csr_matrix
+) -> Optional[StrainDifferenceFit]:
+    """The step that best explains D = K - K_o (3n, 3n) as the leading error of forward
+    (backward: a negative step) differences in the strain components, with one unknown;
+    dD: (m, 6, 6, 6) from :func:`strain_derivatives`. None when D or the basis is zero.
+    """
+    nD = float(sparse_norm(D))
+    lead = 0.5 * np.einsum("mABB->mAB", dD)  # column B's error per unit step
+    Bm = _material_stiffness(split, _tensor(lead))
+    bb = float(Bm.multiply(Bm).sum())
+    if nD == 0.0 or bb == 0.0:
+        return None
+    c = float(Bm.multiply(D).sum()) / bb
+    left = float(sparse_norm(D - c * Bm))
+    return StrainDifferenceFit(
+        "forward" if c > 0 else "backward", abs(c), 1.0 - left / nD, left / float(sparse_norm(K_o))
+    )
+
+
+def strain_difference_reading(diag, ci, out, ref, s):
+    """``diag`` (the force right, nothing named) with a strain-difference tangent named first
+    (partly explaining: the higher orders and round-off are left) when the fit accounts for
+    :data:`EXPLAINED` of the stiffness error; unchanged otherwise.
+    """
+    from dataclasses import replace
+
+    from conformance.diagnosis.elements import element_split
+    from conformance.diagnosis.findings import PARTIAL, Finding
+    from conformance.diagnosis.hand_derived import MAX_CELLS
+
+    if ci.cells.shape[0] > MAX_CELLS:
+        return diag
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    with np.errstate(all="ignore"):
+        dD = strain_derivatives(ci.model, split, ci.points)
+    if dD is None or not np.all(np.isfinite(dD)):
+        return diag
+    K_o = sp.csr_matrix(ref.stiffness)
+    fit = fit_strain_differences(split, dD, (sp.csr_matrix(out.stiffness) - K_o).tocsr(), K_o)
+    if fit is None or fit.explained < EXPLAINED:
+        return diag
+    finding = Finding(
+        "strain-finite-difference",
+        f"a finite-difference material tangent: {fit.words()}",
+        PARTIAL,
+        "K - K_oracle is the leading error of that scheme per cell ((h/2) dD_AB/d(eps_B) in "
+        "column B of the Voigt tangent, from the oracle's tangent differentiated in the strain), "
+        f"fitted with one unknown: it accounts for {100 * fit.explained:.2f} % of the stiffness "
+        f"error (left: {fit.residual:.1e}, the higher orders and round-off); the force matches",
+        {"step": fit.step, "scheme": fit.scheme, "explained": fit.explained},
+    )
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[finding, *rest])

@@ -1,0 +1,57 @@
+"""Stand-ins for the check's case, engine output and oracle cache in the diagnosis tests that
+build a mistaken engine from MJED: MJED plays the oracle (it agrees with it to round-off).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.judge.oracle import Reference
+
+
+@dataclass(frozen=True)
+class CaseStub:
+    """What a reading reads of a kit case: the mesh, the positions and the model."""
+
+    points: np.ndarray
+    cells: np.ndarray
+    positions: np.ndarray
+    model: object
+
+
+@dataclass(frozen=True)
+class OutputStub:
+    """An engine's output: force (n, 3) and stiffness (3n, 3n)."""
+
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+
+
+class MjedCache:
+    """The oracle cache with MJED evaluating every model (no energy)."""
+
+    def reference(self, ci) -> Reference:
+        return self.evaluate_once(ci, ci.model)
+
+    def evaluate_once(self, ci, model) -> Reference:
+        import mjed
+
+        field = mjed.HyperelasticForceField(mjed.TetMesh(ci.points, ci.cells), model)
+        f, K = field.force_and_stiffness(ci.positions)
+        return Reference(0.0, np.asarray(f), sp.csr_matrix(K))
+
+
+def mjed_cell_stress(points, cells, x, model) -> np.ndarray:
+    """(m, 3, 3) per-cell S read back from MJED's element forces (f_a = -V0 F S D_a)."""
+    import mjed
+    from mjed.mesh import shape_vectors
+
+    field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
+    fe = np.asarray(field.element_forces(x))
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / np.abs(V0)[:, None, None]
+    return np.linalg.inv(F) @ P

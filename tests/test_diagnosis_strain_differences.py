@@ -1,0 +1,88 @@
+"""A material tangent by differences of S in the Voigt strain components
+(conformance.diagnosis.strain_differences). The engine is built here: per cell, S(C) of the
+project's classical law for Mooney-Rivlin, its Voigt tangent by forward differences (step h in
+each strain component, engineering shear), assembled with the engineering B matrix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from conftest import box_mesh
+from diagnosis_stubs import CaseStub as _Case
+from diagnosis_stubs import OutputStub as _Out
+
+from common.cases import default_material
+from conformance.diagnosis.diagnose import Diagnosis
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.findings import OBSERVED, Finding
+from conformance.diagnosis.strain_differences import strain_difference_reading
+from conformance.judge.compare import errors, scales
+from conformance.judge.oracle import Reference
+
+VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
+
+
+def _engine(points, cells, x, model, h: float, central: bool):
+    """(f, K, f_o, K_o): MJED's force and stiffness, and K with the differenced Voigt tangent."""
+    import mjed
+    from mjed.mesh import shape_vectors
+    from reference_fem.classical import ClassicalGalerkin
+
+    law = ClassicalGalerkin(points, cells, model).law
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
+    f_o, K_o = field.force_and_stiffness(x)
+    V0, D = shape_vectors(points, cells)
+    V0 = np.abs(V0)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    C = F.swapaxes(1, 2) @ F
+
+    def S_of(Cs):
+        return law.stress(Cs, np.sqrt(np.linalg.det(Cs)))
+
+    S = S_of(C)
+    Dv = np.empty((len(cells), 6, 6))
+    for B, (k, ll) in enumerate(VOIGT):
+        dC = np.zeros((3, 3))
+        dC[k, ll] += h
+        dC[ll, k] += h
+        up = S_of(C + dC)
+        diff = (up - S_of(C - dC)) / (2 * h) if central else (up - S) / h
+        Dv[:, :, B] = diff[:, [p[0] for p in VOIGT], [p[1] for p in VOIGT]]
+    Bm = np.empty((len(cells), 6, 4, 3))
+    for A, (i, j) in enumerate(VOIGT):
+        Bm[:, A] = np.einsum("ma,mk->mak", D[:, :, j], F[:, :, i])
+        if i != j:
+            Bm[:, A] += np.einsum("ma,mk->mak", D[:, :, i], F[:, :, j])
+    Bm = Bm.reshape(-1, 6, 12)
+    geo = np.einsum("mab,kl->makbl", np.einsum("mai,mij,mbj->mab", D, S, D), np.eye(3))
+    Ke = V0[:, None, None] * (np.einsum("mAi,mAB,mBj->mij", Bm, Dv, Bm) + geo.reshape(-1, 12, 12))
+    K = assemble(cells, points.shape[0], np.zeros((len(cells), 4, 3)), Ke)[1]
+    return np.asarray(f_o), K, np.asarray(f_o), sp.csr_matrix(K_o)
+
+
+def _read(h: float, central: bool):
+    points, cells = box_mesh(2, jitter=0.2, seed=3)
+    x = points + 0.06 * np.random.default_rng(5).standard_normal(points.shape)
+    model = default_material("MooneyRivlin")
+    f, K, f_o, K_o = _engine(points, cells, x, model, h, central)
+    s = scales(0.5, 1.0, f_o, K_o)
+    e = errors(f, K, None, f_o, K_o, 0.0, s)
+    diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
+
+    ref = Reference(0.0, f_o, K_o)
+    return strain_difference_reading(diag, _Case(points, cells, x, model), _Out(f, K), ref, s)
+
+
+def test_forward_differences_in_the_voigt_strain_are_named_with_their_step():
+    d = _read(1e-6, central=False)
+    top = d.findings[0]
+    assert top.code == "strain-finite-difference", [f.title for f in d.findings]
+    assert "forward differences of the stress S" in top.title
+    assert abs(top.figures["step"] / 1e-6 - 1) < 1e-3
+
+
+def test_central_differences_with_a_large_step_are_not_named_so():
+    d = _read(1e-3, central=True)
+    assert d.errors.stiffness > 1e-8  # a failing tangent, not named as forward differences
+    assert d.findings[0].code == "unexplained", [f.title for f in d.findings]

@@ -1,0 +1,27 @@
+"""The held-out corpus tests/heldout_mistakes_4/: the fourth corpus (30 mistakes written blind to
+the diagnosis, in engines of another architecture: MJED, the energy as f(J) g(C) terms, the
+force from per-term derivatives and the stiffness from per-edge 3x3 blocks). Every correct
+engine passes and no mistaken engine is passed (tests/heldout_support.py).
+"""
+
+from __future__ import annotations
+
+import pytest
+from heldout_support import MARKS, check_manifest, check_verdict, corpus_rows, entries
+
+NAME = "heldout_mistakes_4"
+pytestmark = MARKS
+
+
+def test_manifest_lists_every_engine():
+    check_manifest(NAME, controls=3, mistakes=30)
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory):
+    return corpus_rows(NAME, tmp_path_factory.mktemp(NAME))
+
+
+@pytest.mark.parametrize("entry", entries(NAME), ids=lambda e: e["file"])
+def test_verdict(rows, entry):
+    check_verdict(rows, entry)

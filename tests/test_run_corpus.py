@@ -1,0 +1,60 @@
+"""tests/heldout_mistakes/run_corpus.py: judging the engines of a kit in one process, which reads
+the kit and builds its oracles once, gives each engine exactly the results of its own
+`mjed-verify check KIT --command ...` (the corpus tests rely on it to run in minutes).
+"""
+
+from __future__ import annotations
+
+from heldout_support import MARKS, RUNNER, TESTS
+
+pytestmark = MARKS
+
+#: three engines sharing one kit (a correct one first: its oracles then serve the next two), and
+#: a float32 engine on a single-precision kit
+ENGINES = [
+    "correct_neohookean_coo.py",
+    "neohookean_geometric_subtracted.py",
+    "neohookean_i1b_for_i1.py",
+    "correct_demiray_float32.py",
+]
+
+
+def _rows(summary: dict) -> dict:
+    return {
+        r["engine"]: (r["score"], r["verdict"], r["cause"], [c["errors"] for c in r["cases"]])
+        for r in summary["rows"]
+    }
+
+
+def test_one_process_per_kit_gives_each_engine_its_own_checks_results(tmp_path):
+    corpus = TESTS / "heldout_mistakes_3"
+    shared = RUNNER.run_corpus(
+        tmp_path / "shared", only=ENGINES, jobs=1, corpus=corpus, verdict_only=True
+    )
+    alone = RUNNER.run_corpus(
+        tmp_path / "alone",
+        only=ENGINES,
+        jobs=2,
+        corpus=corpus,
+        verdict_only=True,
+        one_process_per_engine=True,
+    )
+    assert len(shared["rows"]) == len(ENGINES)
+    assert _rows(shared) == _rows(alone)
+    scores = {r["engine"]: r["score"] for r in shared["rows"]}
+    assert scores["correct_neohookean_coo.py"] == scores["correct_demiray_float32.py"] == "pass"
+    assert all(scores[e] not in ("pass", "PASSED", "error") for e in ENGINES[1:3])
+
+
+def test_an_engine_whose_judge_died_is_an_error_row(tmp_path, monkeypatch):
+    """A judging process that ends without rows (here: killed before its first) leaves every
+    engine it held as an error row with the process's last words, not a silent gap.
+    """
+    monkeypatch.setattr(RUNNER.sys, "executable", "/bin/false")
+    entries = [
+        e for e in RUNNER.load_manifest(TESTS / "heldout_mistakes_3") if e["file"] in ENGINES
+    ]
+    kits = {RUNNER.kit_key(e): tmp_path / "no-kit" for e in entries}
+    rows = RUNNER.judge_in_processes(entries, kits, tmp_path, TESTS / "heldout_mistakes_3", 2, True)
+    assert [r["engine"] for r in rows] == [e["file"] for e in entries]
+    assert {r["score"] for r in rows} == {"FAIL", "error"}  # controls FAIL, mistakes error
