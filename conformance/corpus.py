@@ -356,14 +356,24 @@ def mutant_figure(
     """For each mutant: {"missed": meshes where it passed, "unnamed": meshes where it failed
     without the expected finding}. The catalogue's "none" (the correct engine) is left out.
     """
+    from conformance.judge.oracle import OracleCache
+
     out: Dict[str, Dict[str, List[str]]] = {}
+    # Every mutant is checked on the same material, meshes and state: one cache of oracles
+    # (the reference and the diagnosis's candidate energies) serves them all.
+    cache = OracleCache()
     for name, expected in catalogue.EXPECTED.items():
         if expected is None:
             continue
         cases = build_cases(
             [catalogue.MATERIAL], [(m.label, m.points, m.cells) for m in meshes_], [state]
         )
-        run = run_check(cases, _engine_evaluator(catalogue.broken_engine(name)), progress=progress)
+        run = run_check(
+            cases,
+            _engine_evaluator(catalogue.broken_engine(name)),
+            progress=progress,
+            cache=cache,
+        )
         missed = [o.mesh for o in run.outcomes if o.status == "passed"]
         unnamed = [o.mesh for o in run.outcomes if o.status != "passed" and not _named(o, expected)]
         out[name] = {"missed": missed, "unnamed": unnamed}
