@@ -37,6 +37,7 @@ from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
+from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -322,6 +323,8 @@ def _run_check(
             diag = shape_gradient_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # shared entries written once, not summed
             diag = buffered_assembly_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # 3x3 blocks of K stored untransposed
+            diag = transposed_blocks_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
