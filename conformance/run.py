@@ -37,6 +37,7 @@ from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
+from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -347,6 +348,9 @@ def _run_check(
                 diag = element_difference_reading(diag, ci, out, ref, s)
             if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
                 diag = strain_difference_reading(diag, ci, out, ref, s)
+        if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
+            # one tangent term named: wrong, or a tiny perturbation of it (differences)?
+            diag = term_difference_reading(diag, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
         if read_causes and not single and unexplained and not diag.causes and inexact:
