@@ -19,6 +19,7 @@ from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
+from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -326,6 +327,8 @@ def _run_check(
             diag = buffered_assembly_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # 3x3 blocks of K stored untransposed
             diag = transposed_blocks_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # each cell weighted by V0 twice, the mean volume
+            diag = cell_weight_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
