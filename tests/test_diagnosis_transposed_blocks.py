@@ -99,3 +99,20 @@ def test_nearby_mistakes_are_not_transposed_blocks():
         assert transposed_findings(K, K_o, f_o, f_o, s, DOUBLE, split) == []
     # the transposed K with a wrong force is not storage alone
     assert transposed_findings(K_wrong, K_o, 1.1 * f_o, f_o, s, DOUBLE, split) == []
+
+
+def test_node_blocks_written_with_the_mirror_rule_are_named():
+    """Each node block written at (i, i) and again transposed at (i, i); K doubled, or one
+    node's block doubled, are not that.
+    """
+    split, f_o, K_o, s = _case("MooneyRivlin", seed=4)
+    K = _edge_storage(split).tolil()
+    for i in range(split.n):  # the engine's second write of each node block, transposed
+        block = K[3 * i : 3 * i + 3, 3 * i : 3 * i + 3].toarray()
+        K[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = block + block.T
+    found = transposed_findings(K.tocsr(), K_o, f_o, f_o, s, DOUBLE, split)
+    assert len(found) == 1 and found[0].figures["pattern"] == "node-mirror", found
+    one = K_o.tolil()
+    one[0:3, 0:3] = 2 * K_o[0:3, 0:3].toarray()
+    for wrong in (2 * K_o, one.tocsr()):
+        assert transposed_findings(wrong, K_o, f_o, f_o, s, DOUBLE, split) == []
