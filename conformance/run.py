@@ -31,6 +31,7 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
+from conformance.diagnosis.j_hessian_block import j_hessian_reading
 from conformance.diagnosis.mixed_precision import mixed_precision_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -345,6 +346,8 @@ def _run_check(
                 diag = hand_derived_reading(diag, cache, ci, out, ref, s)
             if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
                 diag = tangent_term_reading(diag, ci, out, ref, s)
+            if not diag.causes:  # MJED's J-Hessian block: its sign flipped, dropped, doubled
+                diag = j_hessian_reading(diag, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell

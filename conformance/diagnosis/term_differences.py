@@ -32,6 +32,7 @@ from conformance.diagnosis.findings import FULL, PARTIAL, Finding
 __all__ = [
     "SMALL",
     "cell_invariants",
+    "declared_energy",
     "invariant_derivatives",
     "DifferenceStep",
     "fit_difference_step",
@@ -66,12 +67,9 @@ def cell_invariants(F: np.ndarray) -> Dict[str, np.ndarray]:
     }
 
 
-def invariant_derivatives(
-    model: Any, invariants: Dict[str, np.ndarray], name: str
-) -> Optional[np.ndarray]:
-    """(4, m): the 1st to 4th derivatives of the declared energy in invariant ``name`` at each
-    cell's invariants (the others held), or None when the energy has no scalar formula, does not
-    read ``name``, or is not finite around the cells' values.
+def declared_energy(model: Any) -> Any:
+    """The oracle's declared energy of ``model`` as a user energy (evaluable on arrays of the
+    scalar invariants), or None when it has no scalar formula.
     """
     from conformance.diagnosis.variants import energy_expression
     from reference_fem.user_energy import UserEnergy
@@ -80,10 +78,24 @@ def invariant_derivatives(
     if expr is None:
         return None
     try:
-        energy = UserEnergy(expr[0], dict(expr[1]))
+        return UserEnergy(expr[0], dict(expr[1]))
     except (ValueError, TypeError):
         return None
-    if name not in energy.variables or not set(energy.variables) <= set(invariants):
+
+
+def invariant_derivatives(
+    model: Any, invariants: Dict[str, np.ndarray], name: str
+) -> Optional[np.ndarray]:
+    """(4, m): the 1st to 4th derivatives of the declared energy in invariant ``name`` at each
+    cell's invariants (the others held), or None when the energy has no scalar formula, does not
+    read ``name``, or is not finite around the cells' values.
+    """
+    energy = declared_energy(model)
+    if (
+        energy is None
+        or name not in energy.variables
+        or not set(energy.variables) <= set(invariants)
+    ):
         return None
     x = invariants[name]
     # A wide step: the derivatives' shape over cells is what matters; the 4th difference's
