@@ -19,6 +19,7 @@ from common.result import EXIT_FAILED, EXIT_INPUT, EXIT_PASSED
 from common.tolerances import mean_edge_length
 from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
+from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.diagnose import Diagnosis, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -30,6 +31,7 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
+from conformance.diagnosis.j_hessian_block import j_hessian_reading
 from conformance.diagnosis.mixed_precision import mixed_precision_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -37,6 +39,8 @@ from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
+from conformance.diagnosis.term_differences import term_difference_reading
+from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -322,6 +326,10 @@ def _run_check(
             diag = shape_gradient_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # shared entries written once, not summed
             diag = buffered_assembly_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # 3x3 blocks of K stored untransposed
+            diag = transposed_blocks_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # each cell weighted by V0 twice, the mean volume
+            diag = cell_weight_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
             diag = spread_cells_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
@@ -338,12 +346,17 @@ def _run_check(
                 diag = hand_derived_reading(diag, cache, ci, out, ref, s)
             if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
                 diag = tangent_term_reading(diag, ci, out, ref, s)
+            if not diag.causes:  # MJED's J-Hessian block: its sign flipped, dropped, doubled
+                diag = j_hessian_reading(diag, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
                 diag = element_difference_reading(diag, ci, out, ref, s)
             if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
                 diag = strain_difference_reading(diag, ci, out, ref, s)
+        if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
+            # one tangent term named: wrong, or a tiny perturbation of it (differences)?
+            diag = term_difference_reading(diag, ci, out, ref)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
         if read_causes and not single and unexplained and not diag.causes and inexact:

@@ -21,7 +21,7 @@ observed fact. When nothing explains the error the diagnosis says so.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, List, Optional, Sequence
 
 import numpy as np
@@ -33,6 +33,7 @@ from conformance.diagnosis.hypotheses import (
     convention_corrections,
     scale_corrections,
 )
+from conformance.diagnosis.roundoff import energy_precision
 from conformance.diagnosis.units import FORCE_POWER, STIFFNESS_POWER, fit_length_scale
 from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
 from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
@@ -217,13 +218,33 @@ def _energy_finding(W, W_o, err: Errors, volume: float) -> Finding:
     # 3')
     # is the likely reading: say what density it would be, as a figure, not as a claim.
     offset = (W - W_o) / volume
+    p = energy_precision(W, W_o)
+    if p.float32:
+        # The energy alone off by float32's rounding, and itself a float32 number: a float32
+        # energy (or sum), not a formula (a double result is a float32 number with odds 2^-29).
+        return Finding(
+            "energy-float32",
+            "the energy is computed in single precision (float32): its error is float32's rounding",
+            FULL,
+            f"force and stiffness match; energy {W:.9e} J against {W_o:.9e} J: relative error "
+            f"{p.relative:.1e} = {p.in_units:.2g} float32 unit round-offs, and the engine's "
+            "energy is exactly a float32 number (a double result is one with odds 2^-29)",
+            {"energy": W, "oracle_energy": W_o, **asdict(p)},
+        )
+    size = (
+        f"; the error is of float32 rounding's size ({p.in_units:.2g} float32 unit round-offs) "
+        "but the value is not a float32 number: a float32 intermediate, or a small mistake in the "
+        "energy alone"
+        if p.float32_size
+        else ""
+    )
     return Finding(
         "energy",
         "energy differs while force and stiffness match",
         FULL,
         f"energy {W:.6e} J against {W_o:.6e} J (relative error "
         f"{err.energy:.1e}){'; ' + words if words else ''}; as a constant density over the rest "
-        f"volume: {offset:.6g} Pa",
+        f"volume: {offset:.6g} Pa{size}",
         {"energy": W, "oracle_energy": W_o, "offset_density": offset},
     )
 

@@ -39,11 +39,15 @@ __all__ = [
     "fit_element_differences",
     "RoundoffDifferences",
     "roundoff_dominated",
+    "exact_node_blocks",
     "element_difference_reading",
 ]
 
 #: Fraction of the stiffness error a fit must account for to be named.
 EXPLAINED = 0.99
+
+#: Fraction of K's node blocks left exact above which an error is not round-off noise.
+EXACT_BLOCKS = 0.2
 
 _U64 = 2.0**-53
 
@@ -197,7 +201,10 @@ class RoundoffDifferences:
     force whose nodal sum is zero for every x);
     representable: fraction of K's values that are float32 numbers; outside32: fraction of the
     error (in norm) on entries whose error exceeds float32's relative rounding of the entry;
-    step: the step the noise level implies, u ||f_e|| / ||K_e - K_o,e|| per cell, median [m].
+    step: the step the noise level implies, u ||f_e|| / ||K_e - K_o,e|| per cell, median [m];
+    exact_blocks: fraction of K's nonzero 3x3 node blocks whose error is zero to double
+    round-off of the block: about 0 for noise (every difference carries round-off), a half or
+    more for a storage mistake (blocks of one triangle, say, transposed: the others exact).
     """
 
     asymmetry: float
@@ -205,6 +212,7 @@ class RoundoffDifferences:
     representable: float
     outside32: float
     step: float
+    exact_blocks: float = 0.0
 
     @property
     def holds(self) -> bool:
@@ -213,6 +221,8 @@ class RoundoffDifferences:
             and self.balance > 0.01
             and self.representable < 0.5
             and self.outside32 > 0.5
+            # Round-off reaches every block; an error confined to some blocks is structured.
+            and self.exact_blocks < EXACT_BLOCKS
         )
 
 
@@ -248,7 +258,28 @@ def roundoff_dominated(
     fe = np.linalg.norm(split.fe.reshape(m, -1), axis=1)
     ok = err > 0
     step = float(np.median(_U64 * fe[ok] * np.sqrt(12.0) / err[ok])) if np.any(ok) else np.nan
-    return RoundoffDifferences(asym, balance, rep, outside, step)
+    return RoundoffDifferences(asym, balance, rep, outside, step, exact_node_blocks(D, Ko))
+
+
+def exact_node_blocks(D: sp.csr_matrix, K_o: sp.csr_matrix) -> float:
+    """Fraction of K_o's nonzero 3x3 node blocks (3n, 3n) whose error D is below 1e3 double
+    unit round-offs of the block's norm.
+    """
+    n = K_o.shape[0] // 3
+
+    def block_norms(A: sp.csr_matrix) -> sp.csr_matrix:
+        C = sp.coo_matrix(A)
+        return sp.csr_matrix((C.data**2, (C.row // 3, C.col // 3)), shape=(n, n))
+
+    Bo = block_norms(K_o)
+    Bd = block_norms(D)
+    Bo.sum_duplicates()
+    C = sp.coo_matrix(Bo)
+    keep = C.data > 0
+    if not np.any(keep):
+        return 0.0
+    d = np.asarray(Bd[C.row[keep], C.col[keep]]).ravel()
+    return float(np.mean(np.sqrt(d) <= 1e3 * _U64 * np.sqrt(C.data[keep])))
 
 
 def _sums_by_component(D: sp.spmatrix) -> np.ndarray:
@@ -321,6 +352,7 @@ def element_difference_reading(diag, ci, out, ref, s):
                     "representable": r.representable,
                     "outside32": r.outside32,
                     "step_order": r.step,
+                    "exact_blocks": r.exact_blocks,
                 },
             )
     if finding is None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import List, Optional, Sequence
 
-from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.findings import FULL, PARTIAL, Finding
 
 __all__ = ["settle_ambiguity"]
 
@@ -22,6 +22,8 @@ _MARK = "(ambiguous) "
 
 
 def _single_cause(findings: Sequence[Finding]) -> Optional[Finding]:
+    if findings and "restates" in findings[0].figures:
+        return findings[0]  # one term's finding restated (a difference step, a small error)
     if not findings or findings[0].strength != FULL:
         return None
     causes = [f for f in findings if f.strength == FULL]
@@ -40,7 +42,7 @@ def settle_ambiguity(diagnoses: List, groups: List[List[int]], case_ids: List[st
             d = diagnoses[i]
             cause = None if d is None else _single_cause(d.findings)
             if cause is not None:
-                named.setdefault(cause.title, (cause, i))
+                named.setdefault(cause.figures.get("restates", cause.title), (cause, i))
         for i in group:
             d = diagnoses[i]
             if d is None or not d.findings or d.findings[0].code != "ambiguous":
@@ -54,6 +56,23 @@ def settle_ambiguity(diagnoses: List, groups: List[List[int]], case_ids: List[st
             if len(hits) != 1:
                 continue
             mine, j = hits[0]
+            other = named[mine.title[len(_MARK) :]][0]
+            if "restates" in other.figures:
+                # The other case restated this term (a difference step, a small error): said
+                # here as the other case's reading, partly: this case alone does not show it.
+                settled = replace(
+                    other,
+                    strength=PARTIAL,
+                    evidence=f"this case cannot tell the term from {len(options) - 1} other "
+                    f"cause(s) ({' | '.join(t for t in options if t != mine.title[len(_MARK) :])})"
+                    f"; the kit's case {case_ids[j]} (same engine, model and mesh) is explained by "
+                    f"it alone, and there: {other.evidence}",
+                )
+                rest = [
+                    f for f in d.findings if f.code != "ambiguous" and not f.title.startswith(_MARK)
+                ]
+                out[i] = replace(d, findings=[settled, *rest])
+                continue
             settled = replace(
                 mine,
                 title=mine.title[len(_MARK) :],

@@ -17,6 +17,8 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-shifted``: per-cell frames read one cell off (cell i given cell i - 1's or i + 1's
   frame: an off-by-one index, or frames written in another cell order), the end wrapping
   round or held;
+- ``frame-rebuilt``: only the fibre read, the sheet and normal rebuilt from a global axis a
+  (s = a x f / |a x f|, n = f x s), one variant per axis;
 - ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
   hypothesis per order of the three columns.
 
@@ -93,6 +95,7 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
     ]
     if R.ndim == 3 and R.shape[0] > 1:
         candidates += _shifted(R)
+    candidates += _rebuilt_from_fibre(R)
     for order in itertools.permutations(range(3)):
         if order != (0, 1, 2):
             used = ", ".join(_COLUMNS[k] for k in order)
@@ -104,7 +107,35 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
     for code, title, variant in candidates:
         if np.array_equal(np.broadcast_to(variant, R.shape), R):
             continue  # the same frame as the model's: no mistake to tell apart
-        out.append((code, title, dataclasses.replace(model, frame=variant)))
+        try:
+            out.append((code, title, dataclasses.replace(model, frame=variant)))
+        except ValueError:  # not a rotation (cells' frames mixed): the oracle cannot take it
+            continue
+    return out
+
+
+def _rebuilt_from_fibre(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Frames R ((m,) 3, 3) with only the fibre kept and the sheet and normal rebuilt from a
+    global axis a: s = a x f / |a x f|, n = f x s (one variant per axis; none where a fibre is
+    parallel to a, where the rebuilt frame is undefined).
+    """
+    f = R[..., :, 0]
+    out = []
+    for k, axis in enumerate("xyz"):
+        s = np.cross(np.eye(3)[k], f)
+        norm = np.linalg.norm(s, axis=-1, keepdims=True)
+        if np.any(norm < 1e-8):
+            continue
+        s = s / norm
+        rebuilt = np.stack([f, s, np.cross(f, s)], axis=-1)
+        out.append(
+            (
+                "frame-rebuilt",
+                f"only the fibre read from the frame: the sheet and normal rebuilt from the "
+                f"global {axis} axis (s = {axis} x f / |{axis} x f|, n = f x s)",
+                np.ascontiguousarray(rebuilt),
+            )
+        )
     return out
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["Signature", "signature", "BALANCE_RATIO"]
+__all__ = ["Signature", "signature", "BALANCE_RATIO", "EnergyPrecision", "energy_precision"]
 
 #: Unit round-off of float32 (as in conformance.judge.precision, kept local: no import cycle).
 _U32 = 2.0**-24
@@ -118,3 +118,36 @@ def signature(f: np.ndarray, K: sp.spmatrix, f_o: np.ndarray, K_o: sp.spmatrix) 
         else 0.0
     )
     return Signature(balance, int(np.count_nonzero(keep)), representable)
+
+
+# ------------------------------------------------------------------ the energy alone
+@dataclass(frozen=True)
+class EnergyPrecision:
+    """The energy's error against float32's rounding (force and stiffness right).
+
+    relative: |W - W_o| / |W_o|; in_units: that in float32 unit round-offs (2^-24);
+    representable: W is exactly a float32 number (a double result is one with odds 2^-29).
+    """
+
+    relative: float
+    in_units: float
+    representable: bool
+
+    @property
+    def float32(self) -> bool:
+        """Stored as float32 and off by float32's rounding of a sum (at most 10 u32, more than
+        double's): named. A float32 number off by more is a mistake stored in float32.
+        """
+        return self.representable and 1e-12 < self.relative <= 10 * _U32
+
+    @property
+    def float32_size(self) -> bool:
+        """Not stored as float32, but off by float32's rounding size (u32/10 to 10 u32)."""
+        return not self.representable and _U32 / 10 <= self.relative <= 10 * _U32
+
+
+def energy_precision(W: float, W_o: float) -> EnergyPrecision:
+    """Whether the energy W's error against W_o (J) is float32's rounding."""
+    W, W_o = float(W), float(W_o)
+    rel = abs(W - W_o) / abs(W_o) if W_o else float("inf")
+    return EnergyPrecision(rel, rel / _U32, bool(np.float64(np.float32(W)) == W))

@@ -1,0 +1,111 @@
+"""Each cell's contribution weighted by a wrong geometric quantity of the cell.
+
+An engine that writes its own volume weighting may weight every cell by the wrong quantity:
+the rest volume V0 applied a second time (element matrices that already carry V0 multiplied by
+it again), V0 left out (divided by it), or every cell given the mesh's mean rest volume (as on a
+structured grid). The engine's output is then, exactly, the oracle's element forces and
+matrices (MJED's, used only where their sum is the oracle's:
+:func:`conformance.diagnosis.elements.element_split`) summed with per-cell weights q_c / 1 that
+are that quantity over the right one: V0_c, 1 / V0_c, mean(V0) / V0_c. Force and stiffness are
+tested separately (an engine may weight one and not the other). No fit: each candidate's
+weights are fixed, and one is named only when its sum matches the engine within tolerance.
+A mesh whose cells all have the same volume cannot tell these from a global factor, which the
+global readings name; no candidate is tried there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable, Dict, List, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import ElementSplit, assemble, element_split
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.judge.compare import Scales, Tolerances, errors
+
+__all__ = ["WEIGHTS", "cell_weight_findings", "cell_weight_reading"]
+
+#: name -> (words, weights (m,) from the rest volumes V0 (m,)).
+WEIGHTS: Dict[str, Tuple[str, Callable[[np.ndarray], np.ndarray]]] = {
+    "V0 twice": (
+        "multiplied by the cell's rest volume V0 twice (a matrix that already carries V0 "
+        "scaled by it again): each cell weighted by V0^2",
+        lambda V0: V0,
+    ),
+    "V0 missing": (
+        "not multiplied by the cell's rest volume V0 (a density summed as if it were the "
+        "cell's contribution)",
+        lambda V0: 1.0 / V0,
+    ),
+    "mean volume": (
+        "weighted by the mesh's mean rest volume (total volume / number of cells, as on a "
+        "structured grid) instead of each cell's own V0",
+        lambda V0: np.full_like(V0, V0.mean()) / V0,
+    ),
+}
+
+#: Spread of the rest volumes (max / min - 1) below which the cells are alike: no reading.
+ALIKE = 1e-6
+
+
+def cell_weight_findings(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The weightings (of the force, the stiffness or both) whose sums of the oracle's element
+    forces (m, 4, 3) and matrices (m, 12, 12) match the engine's f (n, 3) and K (3n, 3n).
+    """
+    V0 = split.V0
+    if V0.max() <= V0.min() * (1 + ALIKE):
+        return []
+    K = sp.csr_matrix(K)
+    found = []
+    for name, (words, weight) in WEIGHTS.items():
+        q = weight(V0)
+        f_q, K_q = assemble(
+            split.cells, split.n, q[:, None, None] * split.fe, q[:, None, None] * split.Ke
+        )
+        for which, f_pred, K_pred in (
+            ("force and stiffness", f_q, K_q),
+            ("stiffness", f_o, K_q),
+            ("force", f_q, K_o),
+        ):
+            e = errors(f, K, None, f_pred, K_pred, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            found.append(
+                Finding(
+                    "cell-weight",
+                    f"each cell's {which} {words}",
+                    FULL,
+                    "the oracle's element forces and matrices (MJED's, whose sum is the "
+                    f"oracle's to {split.residual:.1e}) summed with those weights (rest volumes "
+                    f"from {V0.min():.3g} to {V0.max():.3g} m^3) match the engine: force error "
+                    f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                    {"weighting": name, "applies_to": which, "residual": max(e.force, e.stiffness)},
+                )
+            )
+    return ambiguous(found, "the weightings coincide on this mesh")
+
+
+def cell_weight_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet) with a per-cell volume weighting named
+    first when the engine's output is it; unchanged otherwise (or without an MJED split).
+    """
+    tol = diag.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    found = cell_weight_findings(split, out.force, out.stiffness, ref.force, ref.stiffness, s, tol)
+    if not found:
+        return diag
+    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])

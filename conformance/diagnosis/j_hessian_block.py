@@ -1,0 +1,145 @@
+"""MJED's J-Hessian block of the stiffness written with a wrong factor.
+
+MJED's stiffness holds, per cell, the block f'(J) g(C) d2J/dx2 summed over the terms f(J) g(C),
+with d2J/dx_a dx_b = (dJ_a dJ_b^T - dJ_b dJ_a^T) / J: the partial derivative psi_J of W in J,
+the invariants of C (I1, I2) held, times the Hessian of J. An engine that writes this
+antisymmetric block by hand may flip its sign (dJ_b dJ_a^T - dJ_a dJ_b^T), leave it out, or add
+it twice; the force is untouched, and the stiffness error is, exactly, k psi_J V0 d2J/dx2 per
+cell with k = -2, -1 or +1.
+
+psi_J is taken from the oracle's declared energy (:func:`conformance.diagnosis.variants.
+energy_expression`), by complex step in each invariant it reads and the chain rule to (I1, I2,
+J): psi_J = W_J + W_I1b dI1b/dJ + W_I2b dI2b/dJ + W_I3 dI3/dJ. Each factor's prediction is
+compared with the engine; named only within the case's tolerance. A material without a scalar
+formula (Ogden, Costa) is not read.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Dict, List, Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import assemble, cell_kinematics
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.term_differences import cell_invariants, declared_energy
+from conformance.judge.compare import Scales, Tolerances, errors
+
+__all__ = ["FACTORS", "psi_j", "j_hessian", "j_hessian_findings", "j_hessian_reading"]
+
+#: engine minus oracle, in units of the right block -> words.
+FACTORS: Dict[float, str] = {
+    -2.0: "with its sign flipped ((dJ_j dJ_i^T - dJ_i dJ_j^T) / J for "
+    "(dJ_i dJ_j^T - dJ_j dJ_i^T) / J)",
+    -1.0: "left out",
+    1.0: "added twice",
+}
+
+
+def psi_j(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
+    """(m,) dW/dJ with I1 and I2 held, at deformation gradients F (m, 3, 3), from the declared
+    energy; None when it has no scalar formula of these invariants.
+    """
+    energy = declared_energy(model)
+    if energy is None:
+        return None
+    inv = cell_invariants(F)
+    if not set(energy.variables) <= set(inv):
+        return None
+    J = inv["J"]
+    # d(invariant)/dJ with I1 and I2 held
+    chain = {
+        "J": np.ones_like(J),
+        "I1": 0.0,
+        "I2": 0.0,
+        "I3": 2.0 * J,
+        "I1b": -2.0 / 3.0 * inv["I1b"] / J,
+        "I2b": -4.0 / 3.0 * inv["I2b"] / J,
+    }
+    h = 1e-30  # complex step: exact to round-off
+    out = np.zeros_like(J)
+    for name in energy.variables:
+        shifted = {**inv, name: inv[name] + 1j * h}
+        with np.errstate(all="ignore"):
+            W = np.asarray(energy.evaluate(shifted.__getitem__, np.log, np.exp, np.sqrt))
+        out = out + np.imag(W) / h * chain[name]
+    return out if np.all(np.isfinite(out)) else None
+
+
+def j_hessian(points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(m, 12, 12): V0 d2J/dx2 per cell, J (g_a g_b^T - g_b g_a^T) with g_a = F^-T D_a."""
+    V0, D, F = cell_kinematics(points, cells, x)
+    J = np.linalg.det(F)
+    g = np.einsum("mji,maj->mai", np.linalg.inv(F), D)
+    H = np.einsum("mai,mbj->maibj", g, g) - np.einsum("mbi,maj->maibj", g, g)
+    return ((V0 * J)[:, None, None, None, None] * H).reshape(-1, 12, 12)
+
+
+def j_hessian_findings(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The factors whose J-Hessian block error, added to the oracle's K (3n, 3n), matches the
+    engine's K, the force f (n, 3) matching the oracle's.
+    """
+    K_o = sp.csr_matrix(K_o)
+    if not tol.within(errors(f, K_o, None, f_o, K_o, 0.0, s), energy=False):
+        return []
+    _, _, F = cell_kinematics(points, cells, x)
+    pj = psi_j(model, F)
+    if pj is None or not np.any(pj):
+        return []
+    m, n = cells.shape[0], points.shape[0]
+    block = assemble(
+        cells, n, np.zeros((m, 4, 3)), pj[:, None, None] * j_hessian(points, cells, x)
+    )[1]
+    found = []
+    for k, words in FACTORS.items():
+        e = errors(f, K, None, f_o, K_o + k * block, 0.0, s)
+        if not tol.within(e, energy=False):
+            continue
+        found.append(
+            Finding(
+                "j-hessian-block",
+                "MJED stiffness: the J-Hessian block f'(J) g (dJ_i dJ_j^T - dJ_j dJ_i^T) / J "
+                f"(psi_J d2J/dx2) {words}",
+                FULL,
+                f"the oracle's K plus {k:+g} x sum over cells of psi_J V0 d2J/dx2 (psi_J = dW/dJ "
+                "with I1 and I2 held, from the oracle's energy; median "
+                f"{float(np.median(pj)):.4g} Pa) matches the engine's K to {e.stiffness:.1e}; the "
+                "force matches",
+                {"factor": k, "stiffness_error": e.stiffness},
+            )
+        )
+    return ambiguous(found)
+
+
+def j_hessian_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (the force right, nothing explaining the stiffness) with the J-Hessian block's
+    factor named first when it explains the engine's K; unchanged otherwise.
+    """
+    found = j_hessian_findings(
+        ci.model,
+        ci.points,
+        ci.cells,
+        ci.positions,
+        out.force,
+        out.stiffness,
+        ref.force,
+        ref.stiffness,
+        s,
+        diag.tolerances,
+    )
+    if not found:
+        return diag
+    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])

@@ -1,0 +1,256 @@
+"""One scalar second derivative of the energy taken by finite differences inside the engine.
+
+The readings of one tangent term (:mod:`conformance.diagnosis.second_derivative`: the term
+d2W/dI2 dI (x) dI; :func:`conformance.diagnosis.diagnose.diagnose`: the volumetric U''(J)) fit
+the stiffness error cell by cell as lambda_c V_c g_c g_c^T, lambda_c the engine's error on
+psi''(I_c). They say WHERE the error is. When lambda_c is a tiny fraction of psi''(I_c) itself
+(1e-7 .. 1e-3), the term is neither left out nor scaled: it is perturbed, and the usual
+perturbation is a difference quotient of psi' with a step h. Its error is, cell by cell,
+
+    forward   (psi'(I + h) - psi'(I)) / h - psi''(I)      ~  (h / 2)   psi'''(I)
+    backward  (psi'(I) - psi'(I - h)) / h - psi''(I)      ~ -(h / 2)   psi'''(I)
+    central   (psi'(I + h) - psi'(I - h)) / 2h - psi''(I) ~  (h^2 / 6) psi''''(I)
+
+with one unknown h. psi's derivatives are those of the oracle's own declared energy
+(:func:`conformance.diagnosis.variants.energy_expression`) in that invariant, the others held,
+evaluated at each cell's invariants by differences with a wide step (what is fitted is the
+shape over cells, to a few per cent). A step is named only when one scheme reproduces lambda_c
+over cells with at least three distinct values of the invariant (on fewer, any smooth error
+fits); otherwise the term is said to be slightly off, not wrong, at "partly explains".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any, Dict, Optional
+
+import numpy as np
+
+from conformance.diagnosis.elements import cell_kinematics
+from conformance.diagnosis.findings import FULL, PARTIAL, Finding
+
+__all__ = [
+    "SMALL",
+    "cell_invariants",
+    "declared_energy",
+    "invariant_derivatives",
+    "DifferenceStep",
+    "fit_difference_step",
+    "term_difference_finding",
+    "term_difference_reading",
+]
+
+#: lambda_c relative to psi''(I_c) (RMS over cells) below which the term is perturbed, not
+#: wrong (a term left out, scaled or linearised is off by 1e-2 of itself or more).
+SMALL = 1e-3
+
+#: Relative residual of lambda_c after the fitted scheme, below which the step is named.
+FITS = 0.02
+
+#: The finding codes whose term is read: code -> invariant ("J" for the volumetric U(J)).
+TERM_CODES = ("tangent-curvature", "volumetric")
+
+
+def cell_invariants(F: np.ndarray) -> Dict[str, np.ndarray]:
+    """The scalar invariants (each (m,)) of deformation gradients F (m, 3, 3)."""
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    return {
+        "J": J,
+        "I1": I1,
+        "I2": I2,
+        "I3": J**2,
+        "I1b": J ** (-2.0 / 3.0) * I1,
+        "I2b": J ** (-4.0 / 3.0) * I2,
+    }
+
+
+def declared_energy(model: Any) -> Any:
+    """The oracle's declared energy of ``model`` as a user energy (evaluable on arrays of the
+    scalar invariants), or None when it has no scalar formula.
+    """
+    from conformance.diagnosis.variants import energy_expression
+    from reference_fem.user_energy import UserEnergy
+
+    expr = energy_expression(model)
+    if expr is None:
+        return None
+    try:
+        return UserEnergy(expr[0], dict(expr[1]))
+    except (ValueError, TypeError):
+        return None
+
+
+def invariant_derivatives(
+    model: Any, invariants: Dict[str, np.ndarray], name: str
+) -> Optional[np.ndarray]:
+    """(4, m): the 1st to 4th derivatives of the declared energy in invariant ``name`` at each
+    cell's invariants (the others held), or None when the energy has no scalar formula, does not
+    read ``name``, or is not finite around the cells' values.
+    """
+    energy = declared_energy(model)
+    if (
+        energy is None
+        or name not in energy.variables
+        or not set(energy.variables) <= set(invariants)
+    ):
+        return None
+    x = invariants[name]
+    # A wide step: the derivatives' shape over cells is what matters; the 4th difference's
+    # round-off is u |W| / d^4 ~ 1e-8 of it at d = 1e-2, its truncation d^2 ~ 1e-4.
+    d = 1e-2 * np.maximum(np.abs(x), 1.0)
+
+    def W(k: int) -> np.ndarray:
+        shifted = {**invariants, name: x + k * d}
+        with np.errstate(all="ignore"):
+            return np.asarray(energy.evaluate(shifted.__getitem__, np.log, np.exp, np.sqrt))
+
+    w = {k: W(k) for k in range(-3, 4)}
+    out = np.stack(
+        [
+            (w[1] - w[-1]) / (2 * d),
+            (w[1] - 2 * w[0] + w[-1]) / d**2,
+            (w[2] - 2 * w[1] + 2 * w[-1] - w[-2]) / (2 * d**3),
+            (w[2] - 4 * w[1] + 6 * w[0] - 4 * w[-1] + w[-2]) / d**4,
+        ]
+    )
+    return out if np.all(np.isfinite(out)) else None
+
+
+@dataclass(frozen=True)
+class DifferenceStep:
+    """scheme ("forward", "backward", "central"); step h (in the invariant's units); residual:
+    ||lambda - prediction|| / ||lambda||; relative: RMS of lambda_c / psi''(I_c); distinct:
+    how many distinct values of the invariant the cells hold.
+    """
+
+    scheme: str
+    step: float
+    residual: float
+    relative: float
+    distinct: int
+
+    @property
+    def named(self) -> bool:
+        return self.residual <= FITS and self.distinct >= 3 and self.step > 0
+
+
+def fit_difference_step(lam: np.ndarray, derivs: np.ndarray, x: np.ndarray) -> DifferenceStep:
+    """The scheme and step whose truncation error best reproduces lam (m,) (engine minus oracle
+    psi''), derivs (4, m) psi' .. psi'''' at the cells' values x (m,).
+    """
+    d2, d3, d4 = derivs[1], derivs[2], derivs[3]
+    nl = float(np.linalg.norm(lam))
+    rel = float(np.sqrt(np.mean((lam / np.where(d2 == 0, np.inf, d2)) ** 2)))
+    distinct = int(np.unique(np.round(x, 9)).size)
+    best = DifferenceStep("forward", float("nan"), float("inf"), rel, distinct)
+    for scheme, basis in (("forward", d3 / 2), ("backward", -d3 / 2), ("central", d4 / 6)):
+        nb = float(basis @ basis)
+        if nb == 0 or nl == 0:
+            continue
+        a = float(lam @ basis) / nb
+        if a <= 0:
+            continue
+        left = float(np.linalg.norm(lam - a * basis)) / nl
+        step = a if scheme != "central" else float(np.sqrt(a))
+        if left < best.residual:
+            best = DifferenceStep(scheme, step, left, rel, distinct)
+    return best
+
+
+def _term_words(finding: Finding) -> tuple[str, str]:
+    """(invariant, the term in words) of a term finding."""
+    if finding.code == "volumetric":
+        return "J", "d2U/dJ2 of the volumetric (J-only) energy U"
+    name = finding.figures["invariant"]
+    return name, f"d2W/d{name}2 (the term d2W/d{name}2 d{name} (x) d{name})"
+
+
+def term_difference_finding(
+    finding: Finding, lam: np.ndarray, derivs: np.ndarray, x: np.ndarray
+) -> Optional[Finding]:
+    """The term finding restated when lam (m,) is a small perturbation of psi'' (None when it
+    is not small: the term is then wrong, and ``finding`` stands).
+    """
+    fit = fit_difference_step(lam, derivs, x)
+    if not fit.relative < SMALL:
+        return None
+    name, term = _term_words(finding)
+    figures = {
+        **finding.figures,
+        "relative_to_term": fit.relative,
+        "scheme": fit.scheme,
+        "step": fit.step,
+        "step_residual": fit.residual,
+        "distinct_values": fit.distinct,
+        "restates": finding.title,  # what the other cases of the kit may settle on
+    }
+    size = (
+        f"{finding.evidence}; the fitted error is {fit.relative:.1e} of the oracle's {term} "
+        "itself (RMS over cells): a small perturbation of that term, not a term left out or "
+        "scaled"
+    )
+    if fit.named:
+        order = f"h / 2 d3W/d{name}3" if fit.scheme != "central" else f"h^2 / 6 d4W/d{name}4"
+        return Finding(
+            "finite-difference-term",
+            f"{term} taken by {fit.scheme} finite differences of its first derivative in "
+            f"{name}, step h = {fit.step:.2g} (in {name}; or the same step in a variable "
+            "proportional to it), inside an otherwise analytic tangent",
+            finding.strength,
+            f"{size}; cell by cell it is the truncation error of {fit.scheme} differences, "
+            f"{order} of the oracle's energy, with one fitted step (left: "
+            f"{100 * fit.residual:.1f} % over {fit.distinct} distinct values of {name})",
+            figures,
+        )
+    why = (
+        f"the state holds {fit.distinct} distinct value(s) of {name}: too few to tell a "
+        "difference step from another small error"
+        if fit.distinct < 3
+        else f"no difference scheme reproduces it over the cells (best: {fit.scheme}, "
+        f"{100 * fit.residual:.0f} % left)"
+    )
+    return Finding(
+        finding.code,
+        f"{term} slightly off (by {fit.relative:.1e} of itself), e.g. by finite differences "
+        "of its first derivative",
+        PARTIAL,
+        f"{size}; {why}",
+        figures,
+    )
+
+
+def term_difference_reading(diag, ci, out, ref):
+    """``diag`` whose first cause is one tangent term (curvature or volumetric, the force
+    right) with that finding restated as a finite-difference step or a small perturbation when
+    the evidence says so; unchanged otherwise.
+    """
+    from scipy.sparse import csr_matrix
+
+    from conformance.diagnosis.second_derivative import fit_invariant_curvature
+
+    causes = diag.causes
+    if not causes or causes[0].code not in TERM_CODES or causes[0].strength != FULL:
+        return diag
+    if any(f.code == "ambiguous" for f in diag.findings):
+        return diag  # several terms fit: which one is perturbed is not known
+    if diag.errors.force > diag.tolerances.force:
+        return diag
+    first = causes[0]
+    name = "J" if first.code == "volumetric" else first.figures.get("invariant")
+    if name is None:
+        return diag
+    F = cell_kinematics(ci.points, ci.cells, ci.positions)[2]
+    inv = cell_invariants(F)
+    derivs = invariant_derivatives(ci.model, inv, name)
+    if derivs is None:
+        return diag
+    K_o = csr_matrix(ref.stiffness)
+    D = (csr_matrix(out.stiffness) - K_o).tocsr()
+    _, lam = fit_invariant_curvature(ci.points, ci.cells, ci.positions, D, K_o, name)
+    new = term_difference_finding(first, lam, derivs, inv[name])
+    if new is None:
+        return diag
+    return replace(diag, findings=[new if f is first else f for f in diag.findings])

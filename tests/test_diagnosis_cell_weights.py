@@ -1,0 +1,69 @@
+"""Each cell weighted by a wrong geometric quantity (conformance.diagnosis.cell_weights): the
+mistaken engines are written here from MJED's per-cell densities with their own volume
+weighting, not with the module's weights; MJED stands in for the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from conftest import box_mesh, mjed_split
+
+from common.cases import default_material
+from conformance.diagnosis.cell_weights import cell_weight_findings
+from conformance.diagnosis.elements import assemble
+from conformance.judge.compare import DOUBLE
+
+
+def _case(material, seed=0):
+    points, cells = box_mesh(2, jitter=0.25, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.03 * rng.standard_normal(points.shape)
+    return mjed_split(default_material(material), points, cells, x)
+
+
+def _engine(split, volume_f, volume_K):
+    """Force and stiffness from per-unit-volume element terms (the oracle's over V0) weighted
+    by the engine's own volume per cell.
+    """
+    V0 = split.V0
+    per_volume_f = split.fe / V0[:, None, None]
+    per_volume_K = split.Ke / V0[:, None, None]
+    f = assemble(split.cells, split.n, volume_f[:, None, None] * per_volume_f, None)[0]
+    K = assemble(split.cells, split.n, 0 * split.fe, volume_K[:, None, None] * per_volume_K)[1]
+    return f, K
+
+
+def test_stiffness_with_v0_twice_is_named():
+    split, f_o, K_o, s = _case("MooneyRivlin")
+    f, K = _engine(split, split.V0, split.V0**2)
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].figures == {
+        **found[0].figures,
+        "weighting": "V0 twice",
+        "applies_to": "stiffness",
+    }
+    assert "V0 twice" in found[0].title and "stiffness" in found[0].title
+
+
+def test_mean_cell_volume_is_named():
+    split, f_o, K_o, s = _case("Yeoh", seed=1)
+    mean = np.full_like(split.V0, split.V0.mean())
+    f, K = _engine(split, mean, mean)
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].figures["weighting"] == "mean volume"
+    assert found[0].figures["applies_to"] == "force and stiffness"
+
+
+def test_other_weightings_are_not_named():
+    """The current volume J V0 for V0 (another mistake), a global factor, one cell doubled."""
+    split, f_o, K_o, s = _case("NeoHookean", seed=2)
+    J = np.linalg.det(split.F)
+    for vf, vK in (
+        (J * split.V0, J * split.V0),
+        (1.01 * split.V0, 1.01 * split.V0),
+        (np.where(np.arange(split.V0.size) == 3, 2.0, 1.0) * split.V0,) * 2,
+    ):
+        f, K = _engine(split, vf, vK)
+        assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []
