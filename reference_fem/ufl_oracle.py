@@ -98,7 +98,7 @@ class UFLOracle:
         # its stiffness form, the largest of the three to compile.
         self._ufl_forms = {"Pi": Pi, "R": R, "K": K}
         self._compiled: dict = {}
-        self._b = self._A = None  # PETSc objects reused by every call, made with their form
+        self._b = self._A = None  # PETSc vector and matrix, made with their forms (_form)
         # Input dof of each global dof (owned blocks of ranks 0, 1, ... in order), on rank 0.
         n_owned = self._numbering.n_owned_dof_nodes
         self._input_dof_of_global = gather_rows(
@@ -115,25 +115,17 @@ class UFLOracle:
             self._form(name)
 
     def _form(self, name: str):
+        """The compiled form ``name`` ("Pi", "R" or "K"), compiled on first use together with the
+        PETSc vector (R) or matrix (K) that every later assembly reuses.
+        """
         if name not in self._compiled:
-            self._compiled[name] = compat.compile_form(self._ufl_forms[name])
+            form = compat.compile_form(self._ufl_forms[name])
+            if name == "R":
+                self._b = compat.create_vector(form)
+            elif name == "K":
+                self._A = compat.create_matrix(form)
+            self._compiled[name] = form
         return self._compiled[name]
-
-    @property
-    def _Pi(self):
-        return self._form("Pi")
-
-    @property
-    def _R(self):
-        if self._b is None:
-            self._b = compat.create_vector(self._form("R"))
-        return self._form("R")
-
-    @property
-    def _K(self):
-        if self._A is None:
-            self._A = compat.create_matrix(self._form("K"))
-        return self._form("K")
 
     # -- properties ---------------------------------------------------------------------
     @property
@@ -187,7 +179,7 @@ class UFLOracle:
     def energy(self, x) -> float:
         """Total strain energy sum_cells V0 W(F) at current positions ``x`` (n, 3)."""
         xx = self._set_state(x)
-        value = compat.assemble_scalar_local(self._Pi)
+        value = compat.assemble_scalar_local(self._form("Pi"))
         if self._comm.size > 1:
             value = float(self._comm.allreduce(value))
         self._require_finite(np.array([value]), "energy", xx)
@@ -245,7 +237,7 @@ class UFLOracle:
         return xx
 
     def _assemble_force(self, x: np.ndarray) -> Optional[np.ndarray]:
-        form = self._R  # compiled (and its vector made) on first use
+        form = self._form("R")  # first: it makes self._b
         compat.assemble_vector_into(self._b, form)
         compat.accumulate_ghosts(self._b)
         owned = self._b.array_r[: 3 * self._numbering.n_owned_dof_nodes].copy()
@@ -258,7 +250,7 @@ class UFLOracle:
         return -out.reshape(-1, 3)
 
     def _assemble_stiffness(self, x: np.ndarray) -> Optional[sp.csr_matrix]:
-        form = self._K  # compiled (and its matrix made) on first use
+        form = self._form("K")  # first: it makes self._A
         compat.assemble_matrix_into(self._A, form)
         indptr, indices, data = self._A.getValuesCSR()  # owned rows, global columns
         self._require_finite(data, "stiffness", x)
