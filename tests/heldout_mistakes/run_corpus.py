@@ -98,6 +98,12 @@ def export_kits(keys, out: Path, states: str) -> dict:
     return kits
 
 
+def engine_command(entry: dict, corpus: Path) -> str:
+    """The engine's command template: this Python running the corpus file on {input} {output}."""
+    engine = Path(corpus) / entry["file"]
+    return f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
+
+
 def run_engine(
     entry: dict,
     kit: Path,
@@ -109,8 +115,7 @@ def run_engine(
     name = Path(entry["file"]).stem
     report_json = out / "json" / f"{name}.json"
     report_json.parent.mkdir(parents=True, exist_ok=True)
-    engine = Path(corpus) / entry["file"]
-    command = f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
+    command = engine_command(entry, corpus)
     cmd = mjed_verify() + [
         "check",
         str(kit),
@@ -151,8 +156,7 @@ def _judge_here(entry: dict, kit: Path, out: Path, corpus: Path, verdict_only: b
     name = Path(entry["file"]).stem
     folder = out / "outputs" / name
     shutil.rmtree(folder, ignore_errors=True)
-    engine = Path(corpus) / entry["file"]
-    command = f"{shlex.quote(sys.executable)} {shlex.quote(str(engine))} {{input}} {{output}}"
+    command = engine_command(entry, corpus)
     evaluate = command_evaluator(
         command,
         lambda c: c.input_dir or str(kit / "cases" / c.case_id / "input"),
@@ -229,12 +233,13 @@ def judge_in_processes(entries, kits, out: Path, corpus: Path, jobs: int, verdic
             )
         )
         cmd = [sys.executable, str(Path(__file__).resolve()), "--serve", str(task)]
-        procs.append(
-            (items, task, subprocess.Popen(cmd, cwd=ROOT, stderr=subprocess.PIPE, text=True))
-        )
+        # stderr to a file: a pipe read one process at a time could fill and stall the others
+        with open(task.with_suffix(".log"), "w") as log:
+            procs.append((items, task, subprocess.Popen(cmd, cwd=ROOT, stderr=log)))
     rows = {}
     for items, task, proc in procs:
-        _, err = proc.communicate()
+        proc.wait()
+        err = task.with_suffix(".log").read_text(errors="replace")
         done = task.with_suffix(".rows.json")
         for row in json.loads(done.read_text()) if done.exists() else []:
             rows[row["engine"]] = row
