@@ -1,0 +1,28 @@
+"""The held-out corpus tests/heldout_mistakes_5/: the fifth corpus (30 mistakes written blind to
+the diagnosis, in engines of another architecture: updated-Lagrangian, the Cauchy stress and the
+spatial elasticity tensor per cell, spatial gradients grad N = D F^-1, integrals over the deformed
+volume, material plus geometric stiffness). Every correct engine passes and no mistaken engine is
+passed (tests/heldout_support.py).
+"""
+
+from __future__ import annotations
+
+import pytest
+from heldout_support import MARKS, check_manifest, check_verdict, corpus_rows, entries
+
+NAME = "heldout_mistakes_5"
+pytestmark = MARKS
+
+
+def test_manifest_lists_every_engine():
+    check_manifest(NAME, controls=3, mistakes=30)
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory):
+    return corpus_rows(NAME, tmp_path_factory.mktemp(NAME))
+
+
+@pytest.mark.parametrize("entry", entries(NAME), ids=lambda e: e["file"])
+def test_verdict(rows, entry):
+    check_verdict(rows, entry)
