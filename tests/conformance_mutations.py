@@ -388,61 +388,37 @@ class _OgdenTerms(mjed.materials.base.Material):
         )
 
 
-def _ufl_engine(make_model):
-    """An engine that hands ``make_model(case.model)`` to the UFL oracle (one per mesh)."""
-    from reference_fem import UFLOracle
-
-    oracles: dict = {}
-
-    def engine(case):
-        key = (case.points.tobytes(), case.cells.tobytes())
-        if key not in oracles:
-            oracles[key] = UFLOracle(case.points, case.cells, make_model(case.model))
-        o = oracles[key]
-        f, K = o.force_and_stiffness(case.positions)
-        return f, K, o.energy(case.positions)
-
-    return engine
-
-
 def _costa_rewritten(kind: str):
-    """Costa's declared energy with F^T for F ("transposed") or the frame pushed forward
-    ("deformed frame"), as a registered type of its own.
+    """An engine computing Costa's declared energy with F^T for F ("transposed") or with the
+    frame pushed forward, each column normalised ("deformed frame"); differentiated by
+    hyper-dual numbers (tests/hyperdual_engine.py), so that it costs no compiled form.
     """
-    import ufl
+    from hyperdual_engine import Namespace, density_engine, pushed_frame
 
     from mjed.materials import Costa
     from mjed.materials.declaration import declaration_of
-    from reference_fem.energies import declared_energy, register_energy
 
-    name = "_Costa_" + kind.replace(" ", "_")
-    cls = _REWRITTEN.get(name)
-    if cls is None:
-        cls = dataclass(frozen=True)(type(name, (Costa,), {}))
-        costa = declared_energy(declaration_of(Costa).energy)
+    formula = declaration_of(Costa).energy
 
-        def energy(p, F, frame):
-            if kind == "transposed":
-                return costa(p, F.T, frame)
-            FR = F * frame
-            cols = [ufl.sqrt(sum(FR[k, j] ** 2 for k in range(3))) for j in range(3)]
-            pushed = ufl.as_matrix([[FR[i, j] / cols[j] for j in range(3)] for i in range(3)])
-            return costa(p, F, pushed)
+    def density(model, k, F, R):
+        p = lambda name: float(getattr(model, name))  # noqa: E731
+        if kind == "transposed":
+            return formula(p, Namespace(F.T, R))
+        return formula(p, Namespace(F, pushed_frame(F, R)))
 
-        register_energy(cls, takes_frame=True)(energy)
-        _REWRITTEN[name] = cls
-    return lambda m: cls(**{f: getattr(m, f) for f in m.__dataclass_fields__})
+    return density_engine(density, frame_of=lambda model: model.frame)
 
 
-_REWRITTEN: dict = {}
+def _mooney_over_deformed_volume():
+    """An engine computing Mooney-Rivlin's energy per unit deformed volume,
+    J (c1 (I1b - 3) + c2 (I2b - 3) + k0/2 (ln J)^2), by hyper-dual numbers.
+    """
+    from hyperdual_engine import density_engine
 
+    def density(m, k, F, R):
+        return k.J * (m.c1 * (k.I1b - 3.0) + m.c2 * (k.I2b - 3.0) + 0.5 * m.k0 * k.lnJ * k.lnJ)
 
-def _deformed_volume(m):
-    from reference_fem.user_energy import UserEnergy
-
-    return UserEnergy(
-        "J*(c1*(I1b - 3) + c2*(I2b - 3) + k0/2*ln(J)**2)", {"c1": m.c1, "c2": m.c2, "k0": m.k0}
-    )
+    return density_engine(density)
 
 
 #: name -> (material name, engine, finding code named first).
@@ -490,17 +466,17 @@ FAMILY: Dict[str, Tuple[str, Callable, str]] = {
     ),
     "Costa with F transposed": (
         "Costa",
-        _ufl_engine(_costa_rewritten("transposed")),
+        _costa_rewritten("transposed"),
         "kinematic-C-B-confused",
     ),
     "Costa with the frame in the deformed configuration": (
         "Costa",
-        _ufl_engine(_costa_rewritten("deformed frame")),
+        _costa_rewritten("deformed frame"),
         "kinematic-frame-deformed",
     ),
     "Mooney-Rivlin over the deformed volume": (
         "MooneyRivlin",
-        _ufl_engine(_deformed_volume),
+        _mooney_over_deformed_volume(),
         "kinematic-deformed-volume",
     ),
     # float64, 2/3 written as 0.666667: small and systematic, never float32; the exponent of J

@@ -5,8 +5,6 @@ here with its own Gram-Schmidt, independent of the module's) is named by the che
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pytest
 
 from common.cases import default_material
@@ -27,51 +25,35 @@ def test_the_orthonormalised_frame_is_tried_only_with_a_frame():
     assert not any(v.orthonormalised for v in kinematic_variants(default_material("NeoHookean")))
 
 
-_ENGINE_TYPE: dict = {}
-
-
-def _gram_schmidt_costa(model):
+def _gram_schmidt_costa_engine():
     """Costa's declared energy with R replaced by the orthonormalised push-forward of R, the
-    sheet projected with (I - f f^T), as a registered type of its own.
+    sheet projected with (I - f f^T): written with its own Gram-Schmidt, and differentiated in
+    NumPy by hyper-dual numbers (tests/hyperdual_engine.py), so that the engine costs no
+    compiled form of its own (the UFL stiffness of this energy takes over a minute to compile).
     """
-    import ufl
+    from hyperdual_engine import Namespace, density_engine, gram_schmidt_frame
 
     from mjed.materials import Costa
     from mjed.materials.declaration import declaration_of
-    from reference_fem.energies import declared_energy, register_energy
 
-    cls = _ENGINE_TYPE.get("costa")
-    if cls is None:
-        cls = dataclass(frozen=True)(type("_CostaGramSchmidt", (Costa,), {}))
-        costa = declared_energy(declaration_of(Costa).energy)
+    formula = declaration_of(Costa).energy
 
-        def energy(p, F, frame):
-            a = F * frame[:, 0]
-            f = a / ufl.sqrt(ufl.inner(a, a))
-            b = (ufl.Identity(3) - ufl.outer(f, f)) * (F * frame[:, 1])
-            s = b / ufl.sqrt(ufl.inner(b, b))
-            n = ufl.as_vector([f[1] * s[2] - f[2] * s[1], f[2] * s[0] - f[0] * s[2],
-                               f[0] * s[1] - f[1] * s[0]])  # fmt: skip
-            R = ufl.as_matrix([[f[i], s[i], n[i]] for i in range(3)])
-            return costa(p, F, R)
+    def density(model, k, F, R):
+        p = lambda name: float(getattr(model, name))  # noqa: E731
+        return formula(p, Namespace(F, gram_schmidt_frame(F, R)))
 
-        register_energy(cls, takes_frame=True)(energy)
-        _ENGINE_TYPE["costa"] = cls
-    return cls(**{f: getattr(model, f) for f in model.__dataclass_fields__})
+    engine = density_engine(density, frame_of=lambda model: model.frame)
+    return lambda case: engine(case)[:2]  # force and stiffness; the energy is not given
 
 
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 def test_an_engine_with_the_orthonormalised_deformed_frame_is_named():
     from conformance.protocol import check_implementation
-    from reference_fem import UFLOracle
 
-    def engine(case):
-        o = UFLOracle(case.points, case.cells, _gram_schmidt_costa(case.model))
-        f, K = o.force_and_stiffness(case.positions)
-        return f, K
-
-    run = check_implementation(engine, material="Costa", states=("random",), probes=False)
+    run = check_implementation(
+        _gram_schmidt_costa_engine(), material="Costa", states=("random",), probes=False
+    )
     (outcome,) = run.outcomes
     named = outcome.diagnosis.causes
     assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
