@@ -17,6 +17,11 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-shifted``: per-cell frames read one cell off (cell i given cell i - 1's or i + 1's
   frame: an off-by-one index, or frames written in another cell order), the end wrapping
   round or held;
+- ``frame-node-indexed``: per-cell frames looked up by a node number, cell k given
+  frame[cells[k, a]] (an engine that stores the frames per node, or indexes them with the
+  connectivity), one variant per local node a, where every node number is a cell index;
+- ``frame-averaged``: one frame for the whole mesh, the mean of the cells' frames made a
+  rotation again (by Gram-Schmidt from the mean fibre, or as the nearest rotation);
 - ``frame-rebuilt``: only the fibre read, the sheet and normal rebuilt from a global axis a
   (s = a x f / |a x f|, n = f x s), one variant per axis;
 - ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
@@ -72,9 +77,10 @@ def _frame_of(model: Any) -> "np.ndarray | None":
     return None if frame is None else np.asarray(frame, dtype=np.float64)
 
 
-def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
+def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[str, str, Any]]:
     """(code, title, model with the mistaken frame) for each frame mistake that differs from the
-    model's own frame; empty for a model without a frame or with the identity.
+    model's own frame; empty for a model without a frame or with the identity. ``cells`` (m, 4),
+    the mesh's connectivity, adds the frames looked up by node number.
     """
     R = _frame_of(model)
     if R is None:
@@ -95,6 +101,9 @@ def frame_models(model: Any) -> List[Tuple[str, str, Any]]:
     ]
     if R.ndim == 3 and R.shape[0] > 1:
         candidates += _shifted(R)
+        candidates += _averaged(R)
+        if cells is not None:
+            candidates += _node_indexed(R, np.asarray(cells))
     candidates += _rebuilt_from_fibre(R)
     for order in itertools.permutations(range(3)):
         if order != (0, 1, 2):
@@ -159,6 +168,53 @@ def _shifted(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
     return out
 
 
+def _node_indexed(R: np.ndarray, cells: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Per-cell frames R (m, 3, 3) looked up by node number: cell k given frame[cells[k, a]],
+    one variant per local node a; none where a node number is not a cell index (an engine
+    doing so would have failed to run).
+    """
+    if cells.ndim != 2 or cells.shape[0] != R.shape[0] or cells.max() >= R.shape[0]:
+        return []
+    return [
+        (
+            "frame-node-indexed",
+            f"per-cell frames indexed by a node number: cell k given frame[cells[k, {a}]] (the "
+            f"number of its local node {a} used as a cell index), not its own frame",
+            np.ascontiguousarray(R[cells[:, a]]),
+        )
+        for a in range(cells.shape[1])
+    ]
+
+
+def _averaged(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """One frame for all cells from the mean of R (m, 3, 3), made a rotation again two ways:
+    Gram-Schmidt from the mean fibre (sheet made orthogonal to it, normal their cross product)
+    and the nearest rotation (polar factor of the mean, by SVD). None where the mean fibre or
+    sheet vanishes.
+    """
+    mean = R.mean(axis=0)
+    f, b = mean[:, 0], mean[:, 1]
+    s = b - f * (f @ b) / max(f @ f, 1e-300)
+    if np.linalg.norm(f) < 1e-8 or np.linalg.norm(s) < 1e-8:
+        return []
+    f, s = f / np.linalg.norm(f), s / np.linalg.norm(s)
+    U, _, Vt = np.linalg.svd(mean)
+    return [
+        (
+            "frame-averaged",
+            "one frame for the whole mesh: the cells' frames averaged and re-orthonormalised "
+            "(Gram-Schmidt from the mean fibre), not each cell's own frame",
+            np.stack([f, s, np.cross(f, s)], axis=-1),
+        ),
+        (
+            "frame-averaged",
+            "one frame for the whole mesh: the nearest rotation to the mean of the cells' "
+            "frames (polar factor), not each cell's own frame",
+            U @ Vt,
+        ),
+    ]
+
+
 def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     """The oracle at ``case.positions`` for each frame mistake of the case's model.
 
@@ -167,7 +223,7 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     """
     h = mean_edge_length(case.points, case.cells)
     out: List[FrameVariant] = []
-    for code, title, model in frame_models(case.model):
+    for code, title, model in frame_models(case.model, case.cells):
         variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
         ref = cache.reference(variant)
         if any(_same_prediction(v, ref.force, ref.stiffness) for v in out):

@@ -1,0 +1,96 @@
+"""Per-cell frames looked up wrongly (conformance.diagnosis.frames): by a node number
+(``frame-node-indexed``) or replaced by one averaged frame for the whole mesh
+(``frame-averaged``). The mistaken engines are MJED given the frames such an engine would use,
+written here; the oracle judges.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from common.cases import default_material
+from conformance.diagnosis.frames import frame_models
+from reference_fem import dolfinx_available
+
+
+def _rotations(m: int, seed: int = 0) -> np.ndarray:
+    R = np.linalg.qr(np.random.default_rng(seed).standard_normal((m, 3, 3)))[0]
+    return R * np.sign(np.linalg.det(R))[:, None, None]
+
+
+def _averaged_by_svd(R: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(R.mean(axis=0))
+    return U @ Vt
+
+
+def test_node_indexed_frames_are_offered_only_where_node_numbers_are_cell_indices():
+    R = _rotations(6)
+    model = replace(default_material("Costa"), frame=R)
+    cells = np.array(
+        [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [0, 2, 4, 5], [1, 3, 5, 0], [5, 4, 3, 2]]
+    )
+    found = [
+        (t, np.asarray(m.frame))
+        for c, t, m in frame_models(model, cells)
+        if c == "frame-node-indexed"
+    ]
+    assert len(found) == 4 and all(
+        np.array_equal(fr, R[cells[:, a]]) for a, (_, fr) in enumerate(found)
+    )
+    assert not [c for c, _, _ in frame_models(model, cells + 1) if c == "frame-node-indexed"]
+    assert not [c for c, _, _ in frame_models(model) if c == "frame-node-indexed"]  # no mesh given
+
+
+def test_the_averaged_frames_are_rotations_and_the_svd_one_is_the_nearest():
+    R = _rotations(7, seed=3)
+    model = replace(default_material("Costa"), frame=R)
+    averaged = [np.asarray(m.frame) for c, _, m in frame_models(model) if c == "frame-averaged"]
+    assert len(averaged) == 2
+    for A in averaged:
+        assert np.allclose(A.T @ A, np.eye(3), atol=1e-12)
+    gram_schmidt, polar = averaged
+    mean = R.mean(axis=0)
+    assert np.allclose(gram_schmidt[:, 0], mean[:, 0] / np.linalg.norm(mean[:, 0]))
+    assert np.allclose(polar, _averaged_by_svd(R))
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+@pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "first cell"])
+def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
+    import mjed
+    from conformance.protocol import check_implementation
+
+    def engine(case):
+        R = np.asarray(case.model.frame)
+        if mistake == "node-indexed":
+            used = R[np.asarray(case.cells)[:, 0]]
+        elif mistake == "averaged":
+            used = np.broadcast_to(_averaged_by_svd(R), R.shape)
+        else:  # a nearby mistake with its own name: the first cell's frame everywhere
+            used = np.broadcast_to(R[0], R.shape)
+        wrong = replace(case.model, frame=np.ascontiguousarray(used))
+        field = mjed.make_force_field(mjed.TetMesh(case.points, case.cells), wrong)
+        return field.force(case.positions), field.stiffness(case.positions)
+
+    run = check_implementation(
+        engine,
+        material=default_material("Costa"),
+        mesh="cube-small",
+        states=("random",),
+        probes=False,
+    )
+    (outcome,) = run.outcomes
+    causes = outcome.diagnosis.causes
+    expected = {"node-indexed": "frame-node-indexed", "averaged": "frame-averaged"}.get(
+        mistake, "frame-global"
+    )
+    assert outcome.status == "failed" and causes, outcome.diagnosis.text()
+    assert [c.code for c in causes] == [expected], outcome.diagnosis.text()
+    if mistake == "node-indexed":
+        assert "cells[k, 0]" in causes[0].title
+    if mistake == "averaged":
+        assert "nearest rotation" in causes[0].title
