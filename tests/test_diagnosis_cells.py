@@ -6,13 +6,10 @@ assembled here with their own mistake.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from common.cases import default_material
 from conformance.diagnosis.cells import fit_cell_contributions
 from conformance.judge.compare import Scales
 from reference_fem import dolfinx_available
@@ -149,23 +146,9 @@ def test_the_last_cells_skipped_all_over_the_mesh_are_named():
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 @pytest.mark.parametrize("shift", [1, -1])
 def test_per_cell_frames_shifted_by_one_cell_are_named(shift):
-    import mjed
-    from conformance.protocol import check_implementation
+    from frame_support import check_with_frames
 
-    def engine(case):
-        R = np.asarray(case.model.frame)
-        wrong = replace(case.model, frame=np.roll(R, shift, axis=0))
-        field = mjed.make_force_field(mjed.TetMesh(case.points, case.cells), wrong)
-        return field.force(case.positions), field.stiffness(case.positions)
-
-    run = check_implementation(
-        engine,
-        material=default_material("Costa"),
-        mesh="cube-small",
-        states=("fibre-shear",),
-        probes=False,
-    )
-    (outcome,) = run.outcomes
+    outcome = check_with_frames(lambda R, cells: np.roll(R, shift, axis=0), "fibre-shear")
     d = outcome.diagnosis
     assert outcome.status == "failed" and len(d.causes) == 1, d.text()
     assert d.causes[0].code == "frame-shifted", d.text()

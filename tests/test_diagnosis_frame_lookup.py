@@ -61,29 +61,16 @@ def test_the_averaged_frames_are_rotations_and_the_svd_one_is_the_nearest():
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 @pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "first cell"])
 def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
-    import mjed
-    from conformance.protocol import check_implementation
+    from frame_support import check_with_frames
 
-    def engine(case):
-        R = np.asarray(case.model.frame)
+    def used(R, cells):
         if mistake == "node-indexed":
-            used = R[np.asarray(case.cells)[:, 0]]
-        elif mistake == "averaged":
-            used = np.broadcast_to(_averaged_by_svd(R), R.shape)
-        else:  # a nearby mistake with its own name: the first cell's frame everywhere
-            used = np.broadcast_to(R[0], R.shape)
-        wrong = replace(case.model, frame=np.ascontiguousarray(used))
-        field = mjed.make_force_field(mjed.TetMesh(case.points, case.cells), wrong)
-        return field.force(case.positions), field.stiffness(case.positions)
+            return R[cells[:, 0]]
+        if mistake == "averaged":
+            return np.broadcast_to(_averaged_by_svd(R), R.shape)
+        return np.broadcast_to(R[0], R.shape)  # a nearby mistake with its own name
 
-    run = check_implementation(
-        engine,
-        material=default_material("Costa"),
-        mesh="cube-small",
-        states=("random",),
-        probes=False,
-    )
-    (outcome,) = run.outcomes
+    outcome = check_with_frames(used, "random")
     causes = outcome.diagnosis.causes
     expected = {"node-indexed": "frame-node-indexed", "averaged": "frame-averaged"}.get(
         mistake, "frame-global"

@@ -41,24 +41,11 @@ def test_the_rebuilt_frames_are_variants_unless_the_frame_is_already_so_built():
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 @pytest.mark.parametrize("mistake", ["rebuilt", "columns"])
 def test_a_frame_rebuilt_from_z_is_named_and_swapped_columns_are_not(mistake):
-    import mjed
-    from conformance.protocol import check_implementation
+    from frame_support import check_with_frames
 
-    def engine(case):
-        R = np.asarray(case.model.frame)
-        used = _from_z(R) if mistake == "rebuilt" else R[..., [0, 2, 1]]
-        wrong = replace(case.model, frame=np.ascontiguousarray(used))
-        field = mjed.make_force_field(mjed.TetMesh(case.points, case.cells), wrong)
-        return field.force(case.positions), field.stiffness(case.positions)
-
-    run = check_implementation(
-        engine,
-        material=default_material("Costa"),
-        mesh="cube-small",
-        states=("fibre-shear",),
-        probes=False,
+    outcome = check_with_frames(
+        lambda R, cells: _from_z(R) if mistake == "rebuilt" else R[..., [0, 2, 1]], "fibre-shear"
     )
-    (outcome,) = run.outcomes
     d = outcome.diagnosis
     assert outcome.status == "failed" and d.causes, d.text()
     codes = [c.code for c in d.causes]
