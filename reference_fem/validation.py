@@ -7,7 +7,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["check_points", "check_cells", "check_positions", "check_frame", "signed_volumes"]
+__all__ = [
+    "AsReadFrame",
+    "check_points",
+    "check_cells",
+    "check_positions",
+    "check_frame",
+    "signed_volumes",
+]
 
 
 def check_points(points) -> np.ndarray:
@@ -76,13 +83,23 @@ def check_positions(x, n: int) -> np.ndarray:
     return a
 
 
+class AsReadFrame(np.ndarray):
+    """Per-cell 3x3 matrices that a mistaken engine read from a kit's frame file in another
+    layout, hence not rotations: the diagnosis asks the oracle for the energy with them as
+    written (R^T E R and the like stay defined), which :func:`check_frame` otherwise refuses.
+    Made with ``array.view(AsReadFrame)``; never from user input.
+    """
+
+
 def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
     """A fibre frame (Costa, a user energy with I4/I5): None, a (3, 3) or (m, 3, 3) orthonormal
     frame; returned as (m, 3, 3).
 
-    Orthonormality (R^T R = I to ``tol``) is required; det R = -1 is allowed, since flipping
-    the sign of a frame column leaves Q = sum B_ij Ef_ij^2 unchanged.
+    Orthonormality (R^T R = I to ``tol``) is required, except of an :class:`AsReadFrame`;
+    det R = -1 is allowed, since flipping the sign of a frame column leaves
+    Q = sum B_ij Ef_ij^2 unchanged.
     """
+    as_read = isinstance(frame, AsReadFrame)
     if frame is None:
         return np.broadcast_to(np.eye(3), (m, 3, 3))
     R = np.asarray(frame, dtype=np.float64)
@@ -93,7 +110,7 @@ def check_frame(frame, m: int, *, tol: float = 1e-8) -> np.ndarray:
     if not np.all(np.isfinite(R)):
         raise ValueError("fibre frame contains non-finite values")
     err = np.abs(np.einsum("cki,ckj->cij", R, R) - np.eye(3)).reshape(m, 9).max(axis=1)
-    if np.any(err > tol):
+    if np.any(err > tol) and not as_read:
         c = int(np.argmax(err))
         raise ValueError(
             f"fibre frame must be orthonormal (R^T R = I); cell {c}: max |R^T R - I| = {err[c]:.3g}"

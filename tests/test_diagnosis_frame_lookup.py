@@ -81,3 +81,55 @@ def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
         assert "cells[k, 0]" in causes[0].title
     if mistake == "averaged":
         assert "nearest rotation" in causes[0].title
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+@pytest.mark.parametrize("layout", ["cells last", "column major", "transposed"])
+def test_a_frame_file_read_in_another_layout_is_named(layout):
+    """The engine (hyper-dual, tests/hyperdual_engine.py: a frame that is not a rotation is
+    refused by mjed's Costa) computes Costa's energy with the matrices it read; the per-cell
+    transpose, also a misread layout, keeps its own name.
+    """
+    from hyperdual_engine import density_engine
+
+    from conformance.protocol import check_implementation
+    from mjed.materials import Costa
+    from mjed.materials.declaration import declaration_of
+
+    def misread(R):
+        flat, m = np.ascontiguousarray(R).ravel(), R.shape[0]
+        if layout == "cells last":
+            return np.moveaxis(flat.reshape(3, 3, m), -1, 0)
+        if layout == "column major":
+            return flat.reshape((m, 3, 3), order="F")
+        return np.swapaxes(R, -1, -2)
+
+    formula = declaration_of(Costa).energy
+    engine = density_engine(
+        lambda model, k, F, R: formula(lambda name: float(getattr(model, name)), k),
+        frame_of=lambda model: misread(np.asarray(model.frame)),
+    )
+    run = check_implementation(
+        engine, material=default_material("Costa"), mesh="cube-small", states=("random",),
+        probes=False,
+    )  # fmt: skip
+    (outcome,) = run.outcomes
+    causes = outcome.diagnosis.causes
+    expected = "frame-transposed" if layout == "transposed" else "frame-layout"
+    assert outcome.status == "failed" and [c.code for c in causes] == [expected], (
+        outcome.diagnosis.text()
+    )
+    if layout != "transposed":
+        assert ("cell index last" in causes[0].title) == (layout == "cells last")
+
+
+def test_only_a_frame_marked_as_read_passes_the_oracles_check_without_being_a_rotation():
+    from reference_fem.validation import AsReadFrame, check_frame
+
+    R = np.moveaxis(_rotations(4).ravel().reshape(3, 3, 4), -1, 0)  # read cells last
+    with pytest.raises(ValueError, match="orthonormal"):
+        check_frame(R, 4)
+    assert np.array_equal(check_frame(R.view(AsReadFrame), 4), R)
+    with pytest.raises(ValueError, match="non-finite"):
+        check_frame(np.full((4, 3, 3), np.nan).view(AsReadFrame), 4)

@@ -22,6 +22,10 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
   connectivity), one variant per local node a, where every node number is a cell index;
 - ``frame-averaged``: one frame for the whole mesh, the mean of the cells' frames made a
   rotation again (by Gram-Schmidt from the mean fibre, or as the nearest rotation);
+- ``frame-layout``: the kit's row-major (m, 3, 3) frame file read in another memory layout,
+  the cell index last (MATLAB's R(:, :, k): reshaped (3, 3, m)) or the whole array in column
+  major (Fortran's order); the matrices so read are not rotations, and the oracle is given them
+  as read (:class:`reference_fem.validation.AsReadFrame`; declared materials only);
 - ``frame-rebuilt``: only the fibre read, the sheet and normal rebuilt from a global axis a
   (s = a x f / |a x f|, n = f x s), one variant per axis;
 - ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
@@ -46,6 +50,8 @@ from scipy.sparse.linalg import norm as sparse_norm
 from common.tolerances import mean_edge_length
 from conformance.judge.compare import Scales, scales
 from conformance.kit.spec import CaseInput
+from mjed.materials.base import Material
+from reference_fem.validation import AsReadFrame
 
 __all__ = ["FrameVariant", "frame_models", "frame_variants"]
 
@@ -104,6 +110,10 @@ def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[st
         candidates += _averaged(R)
         if cells is not None:
             candidates += _node_indexed(R, np.asarray(cells))
+        if isinstance(model, Material):
+            # a declared material's frame goes to the oracle as it is; a user energy's is
+            # re-read (and checked again) where its formula is compiled, in another process
+            candidates += _misread_layouts(R)
     candidates += _rebuilt_from_fibre(R)
     for order in itertools.permutations(range(3)):
         if order != (0, 1, 2):
@@ -117,10 +127,46 @@ def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[st
         if np.array_equal(np.broadcast_to(variant, R.shape), R):
             continue  # the same frame as the model's: no mistake to tell apart
         try:
-            out.append((code, title, dataclasses.replace(model, frame=variant)))
+            if isinstance(variant, AsReadFrame):
+                out.append((code, title, _with_frame_as_read(model, variant)))
+            else:
+                out.append((code, title, dataclasses.replace(model, frame=variant)))
         except ValueError:  # not a rotation (cells' frames mixed): the oracle cannot take it
             continue
     return out
+
+
+def _with_frame_as_read(model: Any, frame: "AsReadFrame") -> Any:
+    """``model`` carrying ``frame`` as read, past the material's own check that a frame is a
+    rotation (the frame is what the engine computed with, not an input to validate).
+    """
+    variant = dataclasses.replace(model, frame=None)
+    object.__setattr__(variant, "frame", frame)
+    return variant
+
+
+def _misread_layouts(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """The row-major frame file of R (m, 3, 3) read in two other layouts: cell index last
+    (reshaped (3, 3, m), then cell k = [:, :, k]) and the whole array in column-major order;
+    as :class:`AsReadFrame` (not rotations).
+    """
+    flat = np.ascontiguousarray(R).ravel()
+    m = R.shape[0]
+    layouts = (
+        ("the cell index last (reshaped (3, 3, m), cell k's frame = [:, :, k], MATLAB's "
+         "R(:, :, k))", flat.reshape(3, 3, m).transpose(2, 0, 1)),
+        ("the whole (m, 3, 3) array in column-major (Fortran) order",
+         flat.reshape((m, 3, 3), order="F")),
+    )  # fmt: skip
+    return [
+        (
+            "frame-layout",
+            f"frame file read in another memory layout: {how}; the matrices so read are not "
+            "rotations",
+            np.ascontiguousarray(read).view(AsReadFrame),
+        )
+        for how, read in layouts
+    ]
 
 
 def _rebuilt_from_fibre(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
