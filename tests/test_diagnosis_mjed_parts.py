@@ -221,3 +221,57 @@ def test_silent_on_an_ogden_stiffness_with_noise_and_a_material_mjed_cannot_spli
             raise NotImplementedError
 
     assert _find(NoTerms(), points, cells, x, f_o, noise, f_o, K_o, s) is None
+
+
+def test_demiray_gradient_j_part_sign_reaches_the_groups_rank_one_block():
+    """Every term's f'(J) g dJ_a subtracted where the term's gradient is formed: the force, and
+    the exponential group's c phi''(u) du_a du_b^T built from that gradient.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("Demiray", seed=6)
+    t = _term(split, model, 0, 0)  # the term in a exp(b (I1b - 3))
+    v = _term(split, model, 1, 0)  # the volumetric term
+    a = (t["f1"] * t["g"])[:, None, None] * t["dJ"]  # the J part of the term's gradient
+    du = a + t["f"][:, None, None] * t["FSD"]
+    w2 = t["w"]  # phi'' = phi' for exp
+    wrong = du - 2.0 * a
+    outer = lambda p, q: np.einsum("mai,mbj->maibj", p, q)  # noqa: E731
+    dK_e = w2[:, None, None, None, None] * (outer(wrong, wrong) - outer(du, du))
+    fJ = t["w"][:, None, None] * a + (v["w"] * v["f1"] * v["g"])[:, None, None] * v["dJ"]
+    df, dK = _assembled(split, fe=2.0 * fJ, Ke=dK_e)  # the oracle's force is -dW/dx
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "every term with its sign flipped in the term's gradient" in found[0].title
+    # the force alone (the group's block from a right gradient): the force-only reading
+    found = _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s)
+    assert len(found) == 1 and "gradient" not in found[0].title, [x.title for x in found]
+    assert found[0].figures["part"] == "force-J" and found[0].figures["factor"] == -2.0
+    # nearby: the block changed with half the wrong gradient
+    assert _find(model, points, cells, x, f_o + df, K_o + 0.5 * dK, f_o, K_o, s) == []
+
+
+def test_dj_with_the_inverse_not_transposed_is_named_and_a_symmetric_f_leaves_it_silent():
+    """dJ_a = J F^-1 D_a everywhere (NeoHookean, written out here): named on a general state;
+    where F is symmetric (a stretch along the axes) F^-1 = F^-T and the engine is right.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean", seed=7)
+    F, D = split.F, split.D
+    J = np.linalg.det(F)
+    Finv = np.linalg.inv(F)
+    psi1 = (model.lam * np.log(J) - model.mu) / J  # f' of the volumetric term
+    psi2 = (model.lam * (1.0 - np.log(J)) + model.mu) / J**2  # its f''
+
+    def engine(dJ):
+        c = (slice(None), None, None, None, None)
+        JJ = np.einsum("mai,mbj->maibj", dJ, dJ)
+        anti = JJ - np.einsum("mbi,maj->maibj", dJ, dJ)
+        Ke = psi2[c] * JJ + (psi1 / J)[c] * anti
+        return _assembled(split, fe=-psi1[:, None, None] * dJ, Ke=Ke)
+
+    right = engine(J[:, None, None] * np.einsum("mji,maj->mai", Finv, D))
+    wrong = engine(J[:, None, None] * np.einsum("mij,maj->mai", Finv, D))
+    df, dK = wrong[0] - right[0], wrong[1] - right[1]
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1 and found[0].code == "mjed-dj", [x.title for x in found]
+    assert "J F^-1 D_i" in found[0].title
+    # nearby: only the force built with it (the stiffness right)
+    assert _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s) == []

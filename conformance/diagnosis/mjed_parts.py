@@ -123,6 +123,13 @@ class Parts:
     pattern: Any = None
     #: label -> the exponent q of f = J^q (JPower terms), to write the engine's f'.
     powers: Tuple[Tuple[str, float], ...] = ()
+    #: a term's gradient part wrong by k where the group's rank-one block is built from it:
+    #: (label or "", kind, S1 (p,), S2 (p,)), the block changing by k S1 + k^2 S2 ("" = the part
+    #: of every term).
+    gradient_blocks: Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...] = ()
+    #: (words, force (3n,), stiffness (p,)): everything recomputed with dJ_a written wrongly,
+    #: minus the parts.
+    dj_variants: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -312,9 +319,78 @@ def _group_words(group: Any) -> str:
     return f" (in the group c {type(group.function).__name__.lower()}(u))"
 
 
-def _cell_parts(model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray):
+def _dj_right(J: np.ndarray, Finv: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """(m, 4, 3) dJ_a = J F^-T D_a (paper, eq. 4)."""
+    return J[:, None, None] * np.einsum("mji,maj->mai", Finv, D)
+
+
+#: dJ_a written wrongly by hand -> (words, dJ (m, 4, 3) from J (m,), F^-1 (m, 3, 3), D).
+DJ_VARIANTS = (
+    (
+        "J F^-1 D_i for J F^-T D_i (the inverse not transposed)",
+        lambda J, Finv, D: J[:, None, None] * np.einsum("mij,maj->mai", Finv, D),
+    ),
+    (
+        "F^-T D_i for J F^-T D_i (the factor J left out)",
+        lambda J, Finv, D: _dj_right(J, Finv, D) / J[:, None, None],
+    ),
+)
+
+
+@dataclass(frozen=True)
+class _Group:
+    """What a group with a function of its sum builds its rank-one block from: c phi''(u) (m,),
+    du (m, 4, 3), and each of its terms' gradient parts (label, kind, (m, 4, 3)), without V0.
+    """
+
+    w2: np.ndarray
+    du: np.ndarray
+    pieces: Tuple[Tuple[str, str, np.ndarray], ...]
+
+
+def _group_parts(group: Any, kin: Any, F: np.ndarray, D: np.ndarray, dJ: np.ndarray):
+    """One group's [(parts by kind, label)] scaled by c phi'(u) (its rank-one block last), its
+    regularisation deltas [(array, label)] and its _Group (None for a plain group).
+    """
+    m = len(kin.J)
+    built = [_term_parts(term, kin, F, D, dJ) for term in group.terms]
+    labels = [term_label(t) + _group_words(group) for t in group.terms]
+    u = np.sum([value for _, _, value in built], axis=0)
+    w1, w2 = group.coefficient, 0.0
+    if not group.plain:
+        _, d1, d2 = group.function(u)
+        w1, w2 = group.coefficient * d1, group.coefficient * d2
+    w1 = _per_cell(w1, m)[:, None, None, None, None]
+    out = []
+    for (parts, _, _), label in zip(built, labels):
+        # a group's terms enter as c phi'(u) times their parts
+        out.append(
+            ({k: (w1[..., 0, 0] if k[:5] == "force" else w1) * a for k, a in parts.items()}, label)
+        )
+    reg = [(w1 * _regularised(t, kin, dJ), label) for t, label in zip(group.terms, labels)]
+    if group.plain:
+        return out, reg, None
+    du = np.sum([grad for _, grad, _ in built], axis=0)
+    w2 = _per_cell(w2, m)
+    out.append(({"group": w2[:, None, None, None, None] * _outer(du, du)}, _rank_one_label(group)))
+    pieces = tuple(
+        (label, kind, parts[kind])
+        for (parts, _, _), label in zip(built, labels)
+        for kind in ("force-J", "force-C")
+    )
+    return out, reg, _Group(w2, du, pieces)
+
+
+def _rank_one_label(group: Any) -> str:
+    """The words c phi(terms) of a group with a function of its sum."""
+    words = ", ".join(term_label(t) for t in group.terms)
+    return f"c {type(group.function).__name__.lower()}({words})"
+
+
+def _cell_parts(model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray, dj=_dj_right):
     """[(kind, label, per-cell array)] of every term and group, the regularisation deltas
-    [(label, array)], V0 (m,) and J (m,); None when the model has no MJED decomposition.
+    [(array, label)], the _Groups, V0 (m,) and J (m,); None when the model has no MJED
+    decomposition. dj: how dJ_a is formed (the paper's, or a variant written wrongly).
     """
     from mjed.kinematics import Kinematics
 
@@ -324,36 +400,15 @@ def _cell_parts(model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray
         return None
     V0, D, F = cell_kinematics(points, cells, x)
     kin = Kinematics(F)
-    J = kin.J
-    dJ = J[:, None, None] * np.einsum("mji,maj->mai", np.linalg.inv(F), D)
-    out, reg = [], []
+    dJ = dj(kin.J, np.linalg.inv(F), D)
+    out, reg, grouped = [], [], []
     for group in groups:
-        grads, values, labels = [], [], []
-        for term in group.terms:
-            parts, grad, value = _term_parts(term, kin, F, D, dJ)
-            labels.append(term_label(term) + _group_words(group))
-            grads.append(grad)
-            values.append(value)
-            out.append((parts, labels[-1]))
-            reg.append((_regularised(term, kin, dJ), labels[-1]))
-        u = np.sum(values, axis=0)
-        w1, w2 = (group.coefficient, 0.0)
-        if not group.plain:
-            _, d1, d2 = group.function(u)
-            w1, w2 = group.coefficient * d1, group.coefficient * d2
-        w1 = _per_cell(w1, len(J))[:, None, None, None, None]
-        k, r = len(out) - len(group.terms), len(reg) - len(group.terms)
-        for parts, _ in out[k:]:
-            for kind in parts:  # a group's terms enter as c phi'(u) times their parts
-                parts[kind] = (w1[..., 0, 0] if kind.startswith("force") else w1) * parts[kind]
-        reg[r:] = [(w1 * a, label) for a, label in reg[r:]]
-        if not group.plain:
-            du = np.sum(grads, axis=0)
-            rank_one = _per_cell(w2, len(J))[:, None, None, None, None] * _outer(du, du)
-            words = ", ".join(term_label(t) for t in group.terms)
-            out.append(({"group": rank_one}, f"c {type(group.function).__name__.lower()}({words})"))
+        o, r, g = _group_parts(group, kin, F, D, dJ)
+        out += o
+        reg += r
+        grouped += [] if g is None else [g]
     flat = [(kind, label, arr) for parts, label in out for kind, arr in parts.items()]
-    return flat, reg, V0, J
+    return flat, reg, grouped, V0, kin.J
 
 
 def mjed_parts(
@@ -373,7 +428,7 @@ def mjed_parts(
     built = _cell_parts(model, points, cells, x)
     if built is None:
         return None
-    flat, reg, V0, J = built
+    flat, reg, grouped, V0, J = built
     pat = _Pattern.of(cells, points.shape[0])
     parts = tuple(
         Part(kind, label, -pat.force(a, V0), np.zeros(0))  # the oracle's force is -dW/dx
@@ -412,8 +467,54 @@ def mjed_parts(
         )
         df_cells.append((t, np.broadcast_to(fe, (len(J), 4, 3)), Ke))
     return Parts(
-        parts, regularised, J, pat.rows, pat.cols, terms, tuple(df_cells), pat, _powers(model)
+        parts,
+        regularised,
+        J,
+        pat.rows,
+        pat.cols,
+        terms,
+        tuple(df_cells),
+        pat,
+        _powers(model),
+        _gradient_blocks(grouped, pat, V0),
+        _dj_variants(model, points, cells, x, pat, f_sum, K_sum),
     )
+
+
+def _gradient_blocks(grouped: List[_Group], pat: "_Pattern", V0: np.ndarray):
+    """For each grouped term's gradient part a (and the part of every term, summed per group):
+    S1 = c phi'' (a du^T + du a^T) and S2 = c phi'' a a^T, assembled (see Parts).
+    """
+    out = []
+    every: Dict[str, Tuple[np.ndarray, np.ndarray]] = {}
+    for grp in grouped:
+        w = grp.w2[:, None, None, None, None]
+        sums: Dict[str, np.ndarray] = {}
+        for label, kind, a in grp.pieces:
+            sums[kind] = sums.get(kind, 0.0) + a
+            S1 = pat.stiffness(w * (_outer(a, grp.du) + _outer(grp.du, a)), V0)
+            out.append((label, kind, S1, pat.stiffness(w * _outer(a, a), V0)))
+        for kind, a in sums.items():
+            S1 = pat.stiffness(w * (_outer(a, grp.du) + _outer(grp.du, a)), V0)
+            S2 = pat.stiffness(w * _outer(a, a), V0)
+            prev = every.get(kind, (0.0, 0.0))
+            every[kind] = (prev[0] + S1, prev[1] + S2)
+    return tuple(out) + tuple(("", kind, S1, S2) for kind, (S1, S2) in every.items())
+
+
+def _dj_variants(model, points, cells, x, pat: "_Pattern", f_sum, K_sum):
+    """(words, force (3n,), stiffness (p,)) of every DJ_VARIANTS: all parts with that dJ_a,
+    minus the right ones (f_sum, K_sum).
+    """
+    out = []
+    for words, dj in DJ_VARIANTS:
+        with np.errstate(all="ignore"):
+            flat, _, grouped, V0, _ = _cell_parts(model, points, cells, x, dj)
+            f = -np.sum([pat.force(a, V0) for k, _, a in flat if k[:5] == "force"], axis=0)
+            K = np.sum([pat.stiffness(a, V0) for k, _, a in flat if k[:5] != "force"], axis=0)
+        if np.all(np.isfinite(f)) and np.all(np.isfinite(K)):
+            out.append((words, f - f_sum, K - K_sum))
+    return tuple(out)
 
 
 def _powers(model: Any) -> Tuple[Tuple[str, float], ...]:
@@ -450,6 +551,46 @@ def _single(parts: Parts) -> List[Candidate]:
                 Candidate(code, title, k * df, k * dK, {"part": kind, "factor": k, "terms": which})
             )
     return out
+
+
+def _gradient(parts: Parts) -> List[Candidate]:
+    """A grouped term's gradient part (or that part of every term) with a constant factor where
+    the term's gradient is formed: in the force and in the group's rank-one block built from it.
+    """
+    out = []
+    for label, kind, S1, S2 in parts.gradient_blocks:
+        which = f"of the term {label}" if label else "of every term"
+        ps = [p for p in parts.parts if p.kind == kind and (p.term == label or not label)]
+        df = np.sum([p.force for p in ps], axis=0)
+        if not np.any(S1) and not np.any(S2):
+            continue
+        for k, words in FACTORS.items():
+            out.append(
+                Candidate(
+                    "mjed-part",
+                    f"MJED {KINDS[kind]} {which} {words} in the term's gradient, so also in the "
+                    "group's rank-one block c phi''(u) du_i du_j^T built from it",
+                    k * df,
+                    k * S1 + k * k * S2,
+                    {"part": kind + "-gradient", "factor": k, "terms": which},
+                )
+            )
+    return out
+
+
+def _dj(parts: Parts) -> List[Candidate]:
+    """DJ_VARIANTS: dJ_a written wrongly, in the force and every block built from it."""
+    return [
+        Candidate(
+            "mjed-dj",
+            f"MJED dJ/dx_i (dJ/dQ_i) written {words}, in the force and every stiffness block "
+            "built from it",
+            df,
+            dK,
+            {"part": "dJ", "variant": words},
+        )
+        for words, df, dK in parts.dj_variants
+    ]
 
 
 def _transposed(parts: Parts) -> List[Candidate]:
@@ -558,7 +699,14 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """Every reading's predicted engine-minus-oracle, the most specific first; r (3n + p,) the
     residual and w (3n + p,) its weights (1 / scale), for the fitted factor of _power.
     """
-    return [*_single(parts), *_transposed(parts), *_power(parts, r, w), *_regularisation(parts)]
+    return [
+        *_single(parts),
+        *_gradient(parts),
+        *_transposed(parts),
+        *_power(parts, r, w),
+        *_regularisation(parts),
+        *_dj(parts),
+    ]
 
 
 def mjed_part_findings(
