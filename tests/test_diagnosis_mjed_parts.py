@@ -20,6 +20,7 @@ from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.mjed_parts import mjed_part_findings, mjed_parts
 from conformance.judge.compare import DOUBLE
 from mjed.kinematics import Kinematics
+from mjed.materials.base import Material
 
 MATERIALS = (
     "NeoHookean",
@@ -275,3 +276,43 @@ def test_dj_with_the_inverse_not_transposed_is_named_and_a_symmetric_f_leaves_it
     assert "J F^-1 D_i" in found[0].title
     # nearby: only the force built with it (the stiffness right)
     assert _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s) == []
+
+
+class _Terms(Material):
+    """A material given by its term groups (mjed computes it: the mistaken engine)."""
+
+    def __init__(self, groups):
+        self.groups = groups
+
+    def decomposition(self):
+        return self.groups
+
+
+def _with_power(model, power):
+    """MooneyRivlin with its I2b term given f = J^power."""
+    from mjed.terms import JPower
+
+    groups = list(model.decomposition())
+    for i, g in enumerate(groups):
+        terms = tuple(
+            dataclasses.replace(t, f=JPower(power))
+            if isinstance(t.f, JPower) and abs(t.f.p + 4.0 / 3.0) < 1e-12
+            else t
+            for t in g.terms
+        )
+        groups[i] = dataclasses.replace(g, terms=terms)
+    return _Terms(tuple(groups))
+
+
+def test_mooney_i2b_given_the_i1b_power_of_j_is_named_and_another_power_is_not():
+    """The I2b term's f(J) written J^(-2/3), copied from the I1b term: the energy's formula
+    changed (force and stiffness consistently), named as that copy, not as a block.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("MooneyRivlin", seed=8)
+    _, _, _, _, _, f_w, K_w, _ = _case("MooneyRivlin", seed=8, model=_with_power(model, -2 / 3))
+    found = _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)
+    assert len(found) == 1 and found[0].code == "mjed-f-power", [x.title for x in found]
+    assert "I2b" in found[0].title and "J^(-2/3)" in found[0].title
+    # nearby: J^(-1), the power of no term of the material
+    _, _, _, _, _, f_n, K_n, _ = _case("MooneyRivlin", seed=8, model=_with_power(model, -1.0))
+    assert _find(model, points, cells, x, f_n, K_n, f_o, K_o, s) == []

@@ -130,6 +130,8 @@ class Parts:
     #: (words, force (3n,), stiffness (p,)): everything recomputed with dJ_a written wrongly,
     #: minus the parts.
     dj_variants: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
+    #: the same with f = J^q of a term given another term's power (the energy changed too).
+    power_copies: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -502,18 +504,69 @@ def _gradient_blocks(grouped: List[_Group], pat: "_Pattern", V0: np.ndarray):
     return tuple(out) + tuple(("", kind, S1, S2) for kind, (S1, S2) in every.items())
 
 
+def _totals(model, points, cells, x, pat: "_Pattern", dj=_dj_right):
+    """The force (3n,) and stiffness (p,) of all parts of ``model`` with dJ_a from dj, summed
+    per cell before assembling; None where not finite.
+    """
+    with np.errstate(all="ignore"):
+        flat, _, _, V0, _ = _cell_parts(model, points, cells, x, dj)
+        f = -pat.force(sum(a for k, _, a in flat if k[:5] == "force"), V0)
+        K = pat.stiffness(sum(a for k, _, a in flat if k[:5] != "force"), V0)
+    return (f, K) if np.all(np.isfinite(f)) and np.all(np.isfinite(K)) else None
+
+
 def _dj_variants(model, points, cells, x, pat: "_Pattern", f_sum, K_sum):
     """(words, force (3n,), stiffness (p,)) of every DJ_VARIANTS: all parts with that dJ_a,
     minus the right ones (f_sum, K_sum).
     """
     out = []
     for words, dj in DJ_VARIANTS:
-        with np.errstate(all="ignore"):
-            flat, _, grouped, V0, _ = _cell_parts(model, points, cells, x, dj)
-            f = -np.sum([pat.force(a, V0) for k, _, a in flat if k[:5] == "force"], axis=0)
-            K = np.sum([pat.stiffness(a, V0) for k, _, a in flat if k[:5] != "force"], axis=0)
-        if np.all(np.isfinite(f)) and np.all(np.isfinite(K)):
-            out.append((words, f - f_sum, K - K_sum))
+        t = _totals(model, points, cells, x, pat, dj)
+        if t is not None:
+            out.append((words, t[0] - f_sum, t[1] - K_sum))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class _Declared:
+    """A stand-in material: the given term groups."""
+
+    groups: Tuple[Any, ...]
+
+    def decomposition(self) -> Tuple[Any, ...]:
+        return self.groups
+
+
+def _power_copies(model, points, cells, x, pat: "_Pattern", f_sum, K_sum):
+    """(words, force (3n,), stiffness (p,)): f = J^q of one term (or of every term with a power
+    of J) written with the power q' of another term, the energy's formula changed, minus the
+    right parts.
+    """
+    from mjed.terms import JPower
+
+    groups = model.decomposition()
+    where = [
+        (i, j)
+        for i, g in enumerate(groups)
+        for j, t in enumerate(g.terms)
+        if isinstance(t.f, JPower) and t.f.p != 0
+    ]
+    powers = sorted({groups[i].terms[j].f.p for i, j in where})
+    sets = [([w], f"f(J) of the term {term_label(groups[w[0]].terms[w[1]])}") for w in where]
+    sets += [(where, "f(J) of every term with a power of J")] if len(where) > 2 else []
+    out = []
+    for chosen, which in sets:
+        for q in powers:
+            if all(groups[i].terms[j].f.p == q for i, j in chosen):
+                continue
+            new = [list(g.terms) for g in groups]
+            for i, j in chosen:
+                new[i][j] = replace(new[i][j], f=JPower(q))
+            variant = _Declared(tuple(replace(g, terms=tuple(t)) for g, t in zip(groups, new)))
+            tot = _totals(variant, points, cells, x, pat)
+            if tot is not None:
+                words = f"{which} written {_power_words(q)} (another term's power of J)"
+                out.append((words, tot[0] - f_sum, tot[1] - K_sum))
     return tuple(out)
 
 
@@ -590,6 +643,9 @@ def _dj(parts: Parts) -> List[Candidate]:
             {"part": "dJ", "variant": words},
         )
         for words, df, dK in parts.dj_variants
+    ] + [
+        Candidate("mjed-f-power", f"MJED {words}", df, dK, {"part": "f", "variant": words})
+        for words, df, dK in parts.power_copies
     ]
 
 
@@ -729,6 +785,12 @@ def mjed_part_findings(
     if parts is None:
         return None
     pat = parts.pattern
+    if errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force > tol.force:
+        # a term's f(J) with another power changes the force: read only where it is wrong
+        f_sum = np.sum([p.force for p in parts.parts], axis=0)
+        K_sum = np.sum([p.stiffness for p in parts.parts], axis=0)
+        copies = _power_copies(model, points, cells, x, pat, f_sum, K_sum)
+        parts = replace(parts, power_copies=copies)
     f_o = np.asarray(f_o, dtype=np.float64)
     on_e, off_e = _sparse_entries(K, pat)
     on_o, _ = _sparse_entries(K_o, pat)
