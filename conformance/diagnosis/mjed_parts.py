@@ -21,6 +21,11 @@ combination of parts, one mechanism per family of hand-derivation mistakes:
 - f'(J) of one term wrong by a per-cell factor k J^p (p a multiple of 1/3, k fitted): the J part
   of the force and every f'-block scaled together, f and f'' right;
 - the paper's regularisation of the J-J block (section 2.3) kept in compressed cells.
+- a grouped term's gradient part with a constant factor where the gradient is formed: the force
+  and the group's rank-one block c phi''(u) du_a du_b^T built from it change together;
+- dJ_a written J F^-1 D_a (the inverse not transposed) or without J: every part recomputed;
+- where the force is wrong, f = J^q of one term (or of every term with a power of J) written
+  with another term's power: every part recomputed (the energy's formula changed).
 
 A reading is named only when its prediction brings force and stiffness within the case's
 tolerance; readings that predict the same output are one; several that explain but predict
@@ -350,7 +355,9 @@ class _Group:
     pieces: Tuple[Tuple[str, str, np.ndarray], ...]
 
 
-def _group_parts(group: Any, kin: Any, F: np.ndarray, D: np.ndarray, dJ: np.ndarray):
+def _group_parts(
+    group: Any, kin: Any, F: np.ndarray, D: np.ndarray, dJ: np.ndarray
+) -> Tuple[list, list, Optional[_Group]]:
     """One group's [(parts by kind, label)] scaled by c phi'(u) (its rank-one block last), its
     regularisation deltas [(array, label)] and its _Group (None for a plain group).
     """
@@ -389,7 +396,9 @@ def _rank_one_label(group: Any) -> str:
     return f"c {type(group.function).__name__.lower()}({words})"
 
 
-def _cell_parts(model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray, dj=_dj_right):
+def _cell_parts(
+    model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray, dj=_dj_right
+) -> Optional[tuple]:
     """[(kind, label, per-cell array)] of every term and group, the regularisation deltas
     [(array, label)], the _Groups, V0 (m,) and J (m,); None when the model has no MJED
     decomposition. dj: how dJ_a is formed (the paper's, or a variant written wrongly).
@@ -459,15 +468,6 @@ def mjed_parts(
         Part("JJ-regularised", label, np.zeros(3 * pat.n), pat.stiffness(a, V0)) for a, label in reg
     )
     terms = tuple(dict.fromkeys(p.term for p in parts))
-    df_cells = []
-    for t in terms:
-        mine = [(k, a) for k, label, a in flat if label == t and k in _DF]
-        fe = sum((-V0[:, None, None] * a for k, a in mine if k == "force-J"), np.zeros((1, 4, 3)))
-        Ke = sum(
-            (V0[:, None, None, None, None] * a for k, a in mine if k != "force-J"),
-            np.zeros((1, 4, 3, 4, 3)),
-        )
-        df_cells.append((t, np.broadcast_to(fe, (len(J), 4, 3)), Ke))
     return Parts(
         parts,
         regularised,
@@ -475,7 +475,7 @@ def mjed_parts(
         pat.rows,
         pat.cols,
         terms,
-        tuple(df_cells),
+        _df_cells(terms, flat, V0),
         pat,
         _powers(model),
         _gradient_blocks(grouped, pat, V0),
@@ -483,7 +483,27 @@ def mjed_parts(
     )
 
 
-def _gradient_blocks(grouped: List[_Group], pat: "_Pattern", V0: np.ndarray):
+def _df_cells(
+    terms: Tuple[str, ...], flat: list, V0: np.ndarray
+) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
+    """Per term, its f'-parts per cell times V0: the force (m, 4, 3) as the oracle's (-dW/dx)
+    and the blocks (m, 4, 3, 4, 3), for _power to weight per cell by J^p.
+    """
+    out = []
+    for t in terms:
+        mine = [(k, a) for k, label, a in flat if label == t and k in _DF]
+        fe = sum((-V0[:, None, None] * a for k, a in mine if k == "force-J"), np.zeros((1, 4, 3)))
+        Ke = sum(
+            (V0[:, None, None, None, None] * a for k, a in mine if k != "force-J"),
+            np.zeros((1, 4, 3, 4, 3)),
+        )
+        out.append((t, np.broadcast_to(fe, (len(V0), 4, 3)), Ke))
+    return tuple(out)
+
+
+def _gradient_blocks(
+    grouped: List[_Group], pat: "_Pattern", V0: np.ndarray
+) -> Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...]:
     """For each grouped term's gradient part a (and the part of every term, summed per group):
     S1 = c phi'' (a du^T + du a^T) and S2 = c phi'' a a^T, assembled (see Parts).
     """
@@ -504,7 +524,9 @@ def _gradient_blocks(grouped: List[_Group], pat: "_Pattern", V0: np.ndarray):
     return tuple(out) + tuple(("", kind, S1, S2) for kind, (S1, S2) in every.items())
 
 
-def _totals(model, points, cells, x, pat: "_Pattern", dj=_dj_right):
+def _totals(
+    model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray, pat: "_Pattern", dj=_dj_right
+) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     """The force (3n,) and stiffness (p,) of all parts of ``model`` with dJ_a from dj, summed
     per cell before assembling; None where not finite.
     """
@@ -515,7 +537,15 @@ def _totals(model, points, cells, x, pat: "_Pattern", dj=_dj_right):
     return (f, K) if np.all(np.isfinite(f)) and np.all(np.isfinite(K)) else None
 
 
-def _dj_variants(model, points, cells, x, pat: "_Pattern", f_sum, K_sum):
+def _dj_variants(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    pat: "_Pattern",
+    f_sum: np.ndarray,
+    K_sum: np.ndarray,
+) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
     """(words, force (3n,), stiffness (p,)) of every DJ_VARIANTS: all parts with that dJ_a,
     minus the right ones (f_sum, K_sum).
     """
@@ -537,7 +567,15 @@ class _Declared:
         return self.groups
 
 
-def _power_copies(model, points, cells, x, pat: "_Pattern", f_sum, K_sum):
+def _power_copies(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    pat: "_Pattern",
+    f_sum: np.ndarray,
+    K_sum: np.ndarray,
+) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
     """(words, force (3n,), stiffness (p,)): f = J^q of one term (or of every term with a power
     of J) written with the power q' of another term, the energy's formula changed, minus the
     right parts.
@@ -828,7 +866,7 @@ def _finding(c, d, f, K, f_o, K_o, pat, s: Scales) -> Finding:
     )
 
 
-def mjed_part_reading(diag, ci, out, ref, s: Scales):
+def mjed_part_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
     """``diag`` with the MJED part reading named first when one explains the engine; unchanged
     otherwise. A material mjed cannot split (or too large a mesh) gets
     :func:`conformance.diagnosis.j_hessian_block.j_hessian_reading` instead, from the declared
