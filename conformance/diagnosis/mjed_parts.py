@@ -479,7 +479,7 @@ def mjed_parts(
         pat,
         _powers(model),
         _gradient_blocks(grouped, pat, V0),
-        _dj_variants(model, points, cells, x, pat, f_sum, K_sum),
+        _dj_variants(model, _State(points, cells, x, pat, f_sum, K_sum)),
     )
 
 
@@ -524,36 +524,42 @@ def _gradient_blocks(
     return tuple(out) + tuple(("", kind, S1, S2) for kind, (S1, S2) in every.items())
 
 
-def _totals(
-    model: Any, points: np.ndarray, cells: np.ndarray, x: np.ndarray, pat: "_Pattern", dj=_dj_right
-) -> Optional[Tuple[np.ndarray, np.ndarray]]:
-    """The force (3n,) and stiffness (p,) of all parts of ``model`` with dJ_a from dj, summed
-    per cell before assembling; None where not finite.
+@dataclass(frozen=True)
+class _State:
+    """Where the parts are taken: rest points (n, 3), cells (m, 4), positions x (n, 3), the
+    element pattern, and the right parts' summed force (3n,) and stiffness (p,).
     """
-    with np.errstate(all="ignore"):
-        flat, _, _, V0, _ = _cell_parts(model, points, cells, x, dj)
-        f = -pat.force(sum(a for k, _, a in flat if k[:5] == "force"), V0)
-        K = pat.stiffness(sum(a for k, _, a in flat if k[:5] != "force"), V0)
-    return (f, K) if np.all(np.isfinite(f)) and np.all(np.isfinite(K)) else None
+
+    points: np.ndarray
+    cells: np.ndarray
+    x: np.ndarray
+    pat: "_Pattern"
+    f_sum: np.ndarray
+    K_sum: np.ndarray
+
+    def change(self, model: Any, dj=_dj_right) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+        """All parts of ``model`` with dJ_a from dj (summed per cell before assembling) minus
+        the right ones: force (3n,), stiffness (p,); None where not finite.
+        """
+        pat = self.pat
+        with np.errstate(all="ignore"):
+            flat, _, _, V0, _ = _cell_parts(model, self.points, self.cells, self.x, dj)
+            f = -pat.force(sum(a for k, _, a in flat if k[:5] == "force"), V0)
+            K = pat.stiffness(sum(a for k, _, a in flat if k[:5] != "force"), V0)
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(K))):
+            return None
+        return f - self.f_sum, K - self.K_sum
 
 
-def _dj_variants(
-    model: Any,
-    points: np.ndarray,
-    cells: np.ndarray,
-    x: np.ndarray,
-    pat: "_Pattern",
-    f_sum: np.ndarray,
-    K_sum: np.ndarray,
-) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
+def _dj_variants(model: Any, st: _State) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
     """(words, force (3n,), stiffness (p,)) of every DJ_VARIANTS: all parts with that dJ_a,
-    minus the right ones (f_sum, K_sum).
+    minus the right ones.
     """
     out = []
     for words, dj in DJ_VARIANTS:
-        t = _totals(model, points, cells, x, pat, dj)
-        if t is not None:
-            out.append((words, t[0] - f_sum, t[1] - K_sum))
+        d = st.change(model, dj)
+        if d is not None:
+            out.append((words, *d))
     return tuple(out)
 
 
@@ -567,15 +573,7 @@ class _Declared:
         return self.groups
 
 
-def _power_copies(
-    model: Any,
-    points: np.ndarray,
-    cells: np.ndarray,
-    x: np.ndarray,
-    pat: "_Pattern",
-    f_sum: np.ndarray,
-    K_sum: np.ndarray,
-) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
+def _power_copies(model: Any, st: _State) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
     """(words, force (3n,), stiffness (p,)): f = J^q of one term (or of every term with a power
     of J) written with the power q' of another term, the energy's formula changed, minus the
     right parts.
@@ -601,10 +599,9 @@ def _power_copies(
             for i, j in chosen:
                 new[i][j] = replace(new[i][j], f=JPower(q))
             variant = _Declared(tuple(replace(g, terms=tuple(t)) for g, t in zip(groups, new)))
-            tot = _totals(variant, points, cells, x, pat)
-            if tot is not None:
-                words = f"{which} written {_power_words(q)} (another term's power of J)"
-                out.append((words, tot[0] - f_sum, tot[1] - K_sum))
+            d = st.change(variant)
+            if d is not None:
+                out.append((f"{which} written {_power_words(q)} (another term's power of J)", *d))
     return tuple(out)
 
 
@@ -827,7 +824,7 @@ def mjed_part_findings(
         # a term's f(J) with another power changes the force: read only where it is wrong
         f_sum = np.sum([p.force for p in parts.parts], axis=0)
         K_sum = np.sum([p.stiffness for p in parts.parts], axis=0)
-        copies = _power_copies(model, points, cells, x, pat, f_sum, K_sum)
+        copies = _power_copies(model, _State(points, cells, x, pat, f_sum, K_sum))
         parts = replace(parts, power_copies=copies)
     f_o = np.asarray(f_o, dtype=np.float64)
     on_e, off_e = _sparse_entries(K, pat)
