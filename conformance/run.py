@@ -31,8 +31,8 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
-from conformance.diagnosis.j_hessian_block import j_hessian_reading
 from conformance.diagnosis.mixed_precision import mixed_precision_reading
+from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -337,6 +337,9 @@ def _run_check(
         if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
             # one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)
             diag = hand_derived_reading(diag, cache, ci, out, ref, s)
+        if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
+            # one of MJED's chain-rule parts of a term wrong: the force's J or C part, f'(J)
+            diag = mjed_part_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:
             # The force is right: is the stiffness a known approximation, or differences?
             diag = _approximation_reading(diag, ci, out)
@@ -346,8 +349,9 @@ def _run_check(
                 diag = hand_derived_reading(diag, cache, ci, out, ref, s)
             if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
                 diag = tangent_term_reading(diag, ci, out, ref, s)
-            if not diag.causes:  # MJED's J-Hessian block: its sign flipped, dropped, doubled
-                diag = j_hessian_reading(diag, ci, out, ref, s)
+            if not diag.causes:  # one of MJED's stiffness blocks of a term wrong (J-Hessian,
+                # cross, J-J, material blocks), or f'(J) of a term
+                diag = mjed_part_reading(diag, ci, out, ref, s)
             if not diag.causes:
                 diag = _finite_difference_reading(diag, cache, ci, out, ref)
             if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell

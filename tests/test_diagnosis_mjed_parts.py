@@ -1,0 +1,318 @@
+"""MJED's chain-rule parts of the declared terms (conformance.diagnosis.mjed_parts).
+
+The mistaken engines are written here, per cell, from mjed's declared f(J), g(C) and S of one
+term and this file's own dJ_a = J F^-T D_a, F S D_a and einsums (not with the module's
+functions); MJED stands in for the oracle. Each mistake comes with a nearby one that must not
+get its cause: an energy with another parameter (force and stiffness changed consistently), the
+part with another factor, the stiffness merely scaled.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from conftest import box_mesh, mjed_split
+
+from common.cases import default_material
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.mjed_parts import mjed_part_findings, mjed_parts
+from conformance.judge.compare import DOUBLE
+from mjed.kinematics import Kinematics
+from mjed.materials.base import Material
+
+MATERIALS = (
+    "NeoHookean",
+    "MooneyRivlin",
+    "Yeoh",
+    "ArrudaBoyce",
+    "Gent",
+    "VerondaWestmann",
+    "Demiray",
+    "Ogden",
+    "StVenantKirchhoff",
+    "Costa",
+)
+
+
+def _case(name, seed=0, stretch=(1.1, 0.95, 0.92), model=None):
+    model = default_material(name) if model is None else model
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag(stretch).T + 0.03 * rng.standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    return model, points, cells, x, split, f_o, K_o, s
+
+
+def _term(split, model, g_index, t_index):
+    """Per cell: J, dJ (m, 4, 3), F S D (m, 4, 3), f, f', f'', g and the group's factor
+    c phi'(u) of term t of group g, from mjed's declared pieces.
+    """
+    F, D = split.F, split.D
+    kin = Kinematics(F)
+    J = np.linalg.det(F)
+    dJ = J[:, None, None] * np.einsum("mji,maj->mai", np.linalg.inv(F), D)
+    group = model.decomposition()[g_index]
+    term = group.terms[t_index]
+    m = len(J)
+    f, f1, f2 = (np.broadcast_to(v, (m,)) for v in term.f(J))
+    S = term.g.stress(kin)
+    S = np.zeros((m, 3, 3)) if S is None else np.broadcast_to(S, (m, 3, 3))
+    FSD = np.einsum("mij,mjk,mak->mai", F, S, D)
+    g = np.broadcast_to(term.g.value(kin), (m,))
+    w = np.full(m, group.coefficient)
+    if not group.plain:
+        u = sum(np.broadcast_to(t.f(J)[0] * t.g.value(kin), (m,)) for t in group.terms)
+        w = group.coefficient * group.function(u)[1]
+    return dict(J=J, dJ=dJ, FSD=FSD, f=f, f1=f1, f2=f2, g=g, w=w)
+
+
+def _assembled(split, fe=None, Ke=None):
+    """Per-cell force (m, 4, 3) and blocks (m, 4, 3, 4, 3), times V0, assembled."""
+    m = split.cells.shape[0]
+    fe = np.zeros((m, 4, 3)) if fe is None else fe
+    Ke = np.zeros((m, 4, 3, 4, 3)) if Ke is None else Ke
+    f, K = assemble(
+        split.cells,
+        split.n,
+        split.V0[:, None, None] * fe,
+        (split.V0[:, None, None, None, None] * Ke).reshape(m, 12, 12),
+    )
+    return f, K
+
+
+def _find(model, points, cells, x, f, K, f_o, K_o, s):
+    return mjed_part_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE)
+
+
+@pytest.mark.parametrize("name", MATERIALS)
+def test_the_parts_of_every_material_add_up_to_the_oracle(name):
+    model, points, cells, x, _, f_o, K_o, _ = _case(name)
+    parts = mjed_parts(model, points, cells, x, f_o, K_o)
+    assert parts is not None and len(parts.terms) >= 1
+    # a wrong oracle is not split: the parts must add up to it
+    assert mjed_parts(model, points, cells, x, f_o, 1.001 * K_o) is None
+    assert mjed_parts(model, points, cells, x, 1.001 * f_o, K_o) is None
+
+
+def test_neo_hookean_force_j_part_sign_is_named_and_a_parameter_is_not():
+    """The volumetric term's f'(J) dJ_a subtracted in the force (stiffness right): its sign."""
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean")
+    J = np.linalg.det(split.F)
+    dJ = J[:, None, None] * np.einsum("mji,maj->mai", np.linalg.inv(split.F), split.D)
+    psi = (model.lam * np.log(J) - model.mu) / J  # f' of -mu ln J + lam/2 (ln J)^2
+    f_part, _ = _assembled(split, fe=psi[:, None, None] * dJ)
+    f = f_o + 2.0 * f_part  # the oracle's force is -dW/dx: the J part added, not subtracted
+    found = _find(model, points, cells, x, f, K_o, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].code == "mjed-part" and found[0].figures["part"] == "force-J"
+    assert "sign flipped" in found[0].title and "volumetric" in found[0].title
+    # nearby: lam 1 % off in the energy (force and stiffness change consistently), and the J
+    # part with 1.9 its value
+    other = dataclasses.replace(model, lam=1.01 * model.lam)
+    _, _, _, _, _, f_l, K_l, _ = _case("NeoHookean", model=other)
+    assert _find(model, points, cells, x, f_l, K_l, f_o, K_o, s) == []
+    assert _find(model, points, cells, x, f_o + 1.9 * f_part, K_o, f_o, K_o, s) == []
+
+
+def test_demiray_cross_block_once_is_named_and_its_transpose_told_apart():
+    """(F S D_a) dJ_b^T left out of the exponential term's cross blocks: K not symmetric."""
+    model, points, cells, x, split, f_o, K_o, s = _case("Demiray", seed=1)
+    t = _term(split, model, 0, 0)
+    c = (t["w"] * t["f1"])[:, None, None, None, None]
+    _, Kb = _assembled(split, Ke=c * np.einsum("mai,mbj->maibj", t["FSD"], t["dJ"]))
+    _, Ka = _assembled(split, Ke=c * np.einsum("mai,mbj->maibj", t["dJ"], t["FSD"]))
+    found = _find(model, points, cells, x, f_o, K_o - Kb, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "cross block f'(J) (F S D_i) dJ_j^T" in found[0].title and "left out" in found[0].title
+    # the other half written twice instead: the transposed-half reading, not "left out"
+    found = _find(model, points, cells, x, f_o, K_o - Kb + Ka, f_o, K_o, s)
+    assert len(found) == 1 and "written twice" in found[0].title, [x.title for x in found]
+    # nearby: the half left out at 0.9, and parameter a 1 % off
+    assert _find(model, points, cells, x, f_o, K_o - 0.9 * Kb, f_o, K_o, s) == []
+    other = dataclasses.replace(model, a=1.01 * model.a)
+    _, _, _, _, _, f_a, K_a, _ = _case("Demiray", seed=1, model=other)
+    assert _find(model, points, cells, x, f_a, K_a, f_o, K_o, s) == []
+
+
+def test_svk_material_block_half_left_out_is_named_and_mu_off_is_not():
+    """SVK's gamma (F B D_b)(F B D_a)^T of mu H (B = Id) left out of SVK's material block."""
+    model, points, cells, x, split, f_o, K_o, s = _case("StVenantKirchhoff", seed=2)
+    FD = np.einsum("mij,maj->mai", split.F, split.D)
+    _, Kh = _assembled(split, Ke=model.mu * np.einsum("mbi,maj->maibj", FD, FD))
+    found = _find(model, points, cells, x, f_o, K_o - Kh, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "material block's half" in found[0].title and "left out" in found[0].title
+    other = dataclasses.replace(model, mu=1.01 * model.mu)
+    _, _, _, _, _, f_m, K_m, _ = _case("StVenantKirchhoff", seed=2, model=other)
+    assert _find(model, points, cells, x, f_m, K_m, f_o, K_o, s) == []
+    assert _find(model, points, cells, x, f_o, 1.01 * K_o, f_o, K_o, s) == []
+
+
+def _wrong_dfdj(split, model, factor):
+    """VerondaWestmann's I2b term with f'(J) ``factor(J)`` times the right one (per cell):
+    the engine-minus-right force and stiffness.
+    """
+    t = _term(split, model, 1, 0)
+    d = factor(t["J"]) - 1.0  # engine minus right, per cell, in units of f'
+    dJ, FSD, g, J = t["dJ"], t["FSD"], t["g"], t["J"]
+    w = (t["w"] * t["f1"] * d)[:, None, None, None, None]
+    anti = np.einsum("mai,mbj->maibj", dJ, dJ) - np.einsum("mbi,maj->maibj", dJ, dJ)
+    Ke = w * (
+        np.einsum("mai,mbj->maibj", dJ, FSD)
+        + np.einsum("mai,mbj->maibj", FSD, dJ)
+        + (g / J)[:, None, None, None, None] * anti
+    )
+    # the oracle's force is -dW/dx
+    return _assembled(split, fe=-w[..., 0, 0] * g[:, None, None] * dJ, Ke=Ke)
+
+
+def test_veronda_i2b_dfdj_copied_gets_its_power_of_j():
+    """f'(J) of the I2b term written -2/3 J^(-5/3), copied from I1b: 1/2 J^(2/3) times the
+    right -4/3 J^(-7/3), in the force and in every f'-block.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("VerondaWestmann", seed=3)
+    df, dK = _wrong_dfdj(split, model, lambda J: 0.5 * J ** (2.0 / 3.0))
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].code == "mjed-dfdj" and "I2b" in found[0].title
+    assert "-2/3 J^(-5/3)" in found[0].title and "-4/3 J^(-7/3)" in found[0].title
+    # nearby: the wrong f' in the force only (stiffness right), a per-cell factor that follows
+    # no power of J, and c2 1 % off in the energy
+    assert _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s) == []
+    df2, dK2 = _wrong_dfdj(split, model, lambda J: 1.0 + 5.0 * (J - 1.0) ** 2)
+    assert _find(model, points, cells, x, f_o + df2, K_o + dK2, f_o, K_o, s) == []
+    other = dataclasses.replace(model, c2=1.01 * model.c2)
+    _, _, _, _, _, f_c, K_c, _ = _case("VerondaWestmann", seed=3, model=other)
+    assert _find(model, points, cells, x, f_c, K_c, f_o, K_o, s) == []
+
+
+def test_veronda_regularised_jj_block_in_compressed_cells_is_named():
+    """Every term's f'' g dJ_a dJ_b^T replaced by (1 - b) dJ_a dJ_b^T + b (dJ_a . dJ_b) Id."""
+    model, points, cells, x, split, f_o, K_o, s = _case(
+        "VerondaWestmann", seed=4, stretch=(0.9, 0.95, 0.97)
+    )
+    Ke = 0.0
+    for gi, group in enumerate(model.decomposition()):
+        for ti in range(len(group.terms)):
+            t = _term(split, model, gi, ti)
+            b = np.clip(1.0 - t["J"], 0.0, 1.0)
+            dJ = t["dJ"]
+            dd = np.einsum("mak,mbk,ij->maibj", dJ, dJ, np.eye(3))
+            JJ = np.einsum("mai,mbj->maibj", dJ, dJ)
+            Ke = Ke + (t["w"] * t["f2"] * t["g"] * b)[:, None, None, None, None] * (dd - JJ)
+    _, dK = _assembled(split, Ke=Ke)
+    found = _find(model, points, cells, x, f_o, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "regularised" in found[0].title and "every term" in found[0].title
+    assert _find(model, points, cells, x, f_o, K_o + 0.5 * dK, f_o, K_o, s) == []
+
+
+def test_silent_on_an_ogden_stiffness_with_noise_and_a_material_mjed_cannot_split():
+    """No part explains noise on Ogden's stiffness; a model without terms is not read (None)."""
+    model, points, cells, x, split, f_o, K_o, s = _case("Ogden", seed=5)
+    rng = np.random.default_rng(0)
+    noise = K_o.copy()
+    noise.data = noise.data * (1.0 + 1e-3 * rng.standard_normal(noise.nnz))
+    assert _find(model, points, cells, x, f_o, noise, f_o, K_o, s) == []
+
+    class NoTerms:
+        def decomposition(self):
+            raise NotImplementedError
+
+    assert _find(NoTerms(), points, cells, x, f_o, noise, f_o, K_o, s) is None
+
+
+def test_demiray_gradient_j_part_sign_reaches_the_groups_rank_one_block():
+    """Every term's f'(J) g dJ_a subtracted where the term's gradient is formed: the force, and
+    the exponential group's c phi''(u) du_a du_b^T built from that gradient.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("Demiray", seed=6)
+    t = _term(split, model, 0, 0)  # the term in a exp(b (I1b - 3))
+    v = _term(split, model, 1, 0)  # the volumetric term
+    a = (t["f1"] * t["g"])[:, None, None] * t["dJ"]  # the J part of the term's gradient
+    du = a + t["f"][:, None, None] * t["FSD"]
+    w2 = t["w"]  # phi'' = phi' for exp
+    wrong = du - 2.0 * a
+    outer = lambda p, q: np.einsum("mai,mbj->maibj", p, q)  # noqa: E731
+    dK_e = w2[:, None, None, None, None] * (outer(wrong, wrong) - outer(du, du))
+    fJ = t["w"][:, None, None] * a + (v["w"] * v["f1"] * v["g"])[:, None, None] * v["dJ"]
+    df, dK = _assembled(split, fe=2.0 * fJ, Ke=dK_e)  # the oracle's force is -dW/dx
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "every term with its sign flipped in the term's gradient" in found[0].title
+    # the force alone (the group's block from a right gradient): the force-only reading
+    found = _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s)
+    assert len(found) == 1 and "gradient" not in found[0].title, [x.title for x in found]
+    assert found[0].figures["part"] == "force-J" and found[0].figures["factor"] == -2.0
+    # nearby: the block changed with half the wrong gradient
+    assert _find(model, points, cells, x, f_o + df, K_o + 0.5 * dK, f_o, K_o, s) == []
+
+
+def test_dj_with_the_inverse_not_transposed_is_named_and_a_symmetric_f_leaves_it_silent():
+    """dJ_a = J F^-1 D_a everywhere (NeoHookean, written out here): named on a general state;
+    where F is symmetric (a stretch along the axes) F^-1 = F^-T and the engine is right.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean", seed=7)
+    F, D = split.F, split.D
+    J = np.linalg.det(F)
+    Finv = np.linalg.inv(F)
+    psi1 = (model.lam * np.log(J) - model.mu) / J  # f' of the volumetric term
+    psi2 = (model.lam * (1.0 - np.log(J)) + model.mu) / J**2  # its f''
+
+    def engine(dJ):
+        c = (slice(None), None, None, None, None)
+        JJ = np.einsum("mai,mbj->maibj", dJ, dJ)
+        anti = JJ - np.einsum("mbi,maj->maibj", dJ, dJ)
+        Ke = psi2[c] * JJ + (psi1 / J)[c] * anti
+        return _assembled(split, fe=-psi1[:, None, None] * dJ, Ke=Ke)
+
+    right = engine(J[:, None, None] * np.einsum("mji,maj->mai", Finv, D))
+    wrong = engine(J[:, None, None] * np.einsum("mij,maj->mai", Finv, D))
+    df, dK = wrong[0] - right[0], wrong[1] - right[1]
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert len(found) == 1 and found[0].code == "mjed-dj", [x.title for x in found]
+    assert "J F^-1 D_i" in found[0].title
+    # nearby: only the force built with it (the stiffness right)
+    assert _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s) == []
+
+
+class _Terms(Material):
+    """A material given by its term groups (mjed computes it: the mistaken engine)."""
+
+    def __init__(self, groups):
+        self.groups = groups
+
+    def decomposition(self):
+        return self.groups
+
+
+def _with_power(model, power):
+    """MooneyRivlin with its I2b term given f = J^power."""
+    from mjed.terms import JPower
+
+    groups = list(model.decomposition())
+    for i, g in enumerate(groups):
+        terms = tuple(
+            dataclasses.replace(t, f=JPower(power))
+            if isinstance(t.f, JPower) and abs(t.f.p + 4.0 / 3.0) < 1e-12
+            else t
+            for t in g.terms
+        )
+        groups[i] = dataclasses.replace(g, terms=terms)
+    return _Terms(tuple(groups))
+
+
+def test_mooney_i2b_given_the_i1b_power_of_j_is_named_and_another_power_is_not():
+    """The I2b term's f(J) written J^(-2/3), copied from the I1b term: the energy's formula
+    changed (force and stiffness consistently), named as that copy, not as a block.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("MooneyRivlin", seed=8)
+    _, _, _, _, _, f_w, K_w, _ = _case("MooneyRivlin", seed=8, model=_with_power(model, -2 / 3))
+    found = _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)
+    assert len(found) == 1 and found[0].code == "mjed-f-power", [x.title for x in found]
+    assert "I2b" in found[0].title and "J^(-2/3)" in found[0].title
+    # nearby: J^(-1), the power of no term of the material
+    _, _, _, _, _, f_n, K_n, _ = _case("MooneyRivlin", seed=8, model=_with_power(model, -1.0))
+    assert _find(model, points, cells, x, f_n, K_n, f_o, K_o, s) == []
