@@ -35,12 +35,16 @@ from conformance.diagnosis.hypotheses import (
 )
 from conformance.diagnosis.roundoff import energy_precision
 from conformance.diagnosis.units import FORCE_POWER, STIFFNESS_POWER, fit_length_scale
+from conformance.diagnosis.volumes import uniform_volume_words
 from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
 from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
 
 __all__ = ["Diagnosis", "diagnose", "node_error_field"]
 
 SIGN_CODES = ("force-sign", "stiffness-sign", "both-signs")
+
+#: scale correction code -> (power on the force, on the stiffness) of its factor.
+_SCALE_POWERS = {"scale": (1, 1), "scale-stiffness": (0, 1), "scale-force": (1, 0)}
 
 
 @dataclass(frozen=True)
@@ -437,9 +441,16 @@ def _explain(
 
     V0 = _rest_volumes(points, cells)
     uniform = bool(np.ptp(V0) <= 1e-9 * V0.mean())
+    J = None
     for code, which, ratio, out in scale_corrections(f_o, K_o, f, K, W_o, W):
         e = errors(*out[:2], None, f_o, K_o, W_o, s)
         name = common_factor_name(ratio, float(V0.mean()), uniform)
+        if J is None:
+            from conformance.diagnosis.elements import cell_kinematics
+
+            J = np.linalg.det(cell_kinematics(points, cells, x)[2])
+        # A factor that is the J of every cell is the volume confused, not a constant.
+        name = uniform_volume_words(*_SCALE_POWERS[code], ratio, J) or name
         judge(
             code, f"{which} scaled: {name}", e, f"engine / oracle = {ratio:.6g}", {"ratio": ratio}
         )

@@ -290,6 +290,10 @@ def element_reading(diag, ci, out, ref, s: Scales):
     found = order_findings(split, out.force, out.stiffness, s, tol)
     if not found:
         found = stress_measure_findings(split, out.force, out.stiffness, s, tol)
+    if not found:  # each cell's force or stiffness times its J: the volume confused
+        from conformance.diagnosis.volumes import volume_findings
+
+        found = volume_findings(split, out.force, out.stiffness, s, tol)
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]
