@@ -280,7 +280,12 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
     that the engine matches.
     """
-    from conformance.diagnosis.parameters import convention_words, exchanges, with_value
+    from conformance.diagnosis.parameters import (
+        convention_words,
+        elastic_convention_words,
+        exchanges,
+        with_value,
+    )
     from conformance.diagnosis.refit import refit
 
     found = _matching(
@@ -314,6 +319,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         same = [q for q, vq in values.items() if q != name and abs(v - vq) <= 1e-6 * abs(vq)]
         also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
         also = also or convention_words(ci.model, name, v, v0)
+        elastic = bool(elastic_convention_words(ci.model, name, v, v0))
         found.append(
             Reading(
                 Finding(
@@ -323,7 +329,13 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                     f"the oracle with {name} = {v:.9g} (fitted; relative change "
                     f"{v / v0 - 1 if v0 else v:+.3e}): force error {fit.force:.1e}, stiffness "
                     f"error {fit.stiffness:.1e}",
-                    {"parameter": name, "value": v, "declared": v0, "residual": fit.residual},
+                    {
+                        "parameter": name,
+                        "value": v,
+                        "declared": v0,
+                        "residual": fit.residual,
+                        "elastic_convention": elastic,
+                    },
                 ),
                 *fit.prediction,
             )
@@ -430,10 +442,16 @@ def terms_scaled_unequally(finding: Finding) -> bool:
 
 def _parameters_first(full: List[Reading]) -> List[Reading]:
     """``full`` with the parameter refits ahead of a term reading that scales several terms
-    unequally: the same prediction is then headed by the parameter's value (merge_readings
-    keeps the first of equal readings as the head), not by one term "scaled".
+    unequally, or of any reading when a refit is an elastic-constant convention: the same
+    prediction is then headed by the parameter's value (merge_readings keeps the first of equal
+    readings as the head), not by one term "scaled".
     """
-    if not any(terms_scaled_unequally(r.finding) for r in full):
+    # A parameter read in another elastic-constant convention says the cause (the term fit
+    # says only "scaled by 0.93") and heads its equals too.
+    if not any(
+        terms_scaled_unequally(r.finding) or r.finding.figures.get("elastic_convention")
+        for r in full
+    ):
         return full
     first = [r for r in full if r.finding.code == "parameter-value"]
     return first + [r for r in full if r.finding.code != "parameter-value"]
