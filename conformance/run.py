@@ -257,6 +257,8 @@ def _run_check(
             tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
+        if read_causes and diag.causes and diag.causes[0].code == "volumetric":
+            diag = readings.refine_volumetric(diag, cache, ci, out, s)  # which U(J) exactly?
         if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
             diag = cell_contribution_reading(diag, ci, out, ref, s)
         if read_causes and not diag.causes and probes:  # right here, the force wrong nearby

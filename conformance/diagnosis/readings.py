@@ -27,7 +27,15 @@ from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 from conformance.judge.consistency import safe_norm
 
-__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
+__all__ = [
+    "Reading",
+    "read",
+    "refine_volumetric",
+    "term_case",
+    "merge_readings",
+    "kit_term_reading",
+    "model_key",
+]
 
 #: Two predictions closer than this (relative, force and stiffness) are the same reading.
 _SAME = 1e-9
@@ -541,6 +549,25 @@ def read(
     ]
     rest = [f for f in diag.findings if f.code != "unexplained"]
     return replace(diag, findings=[*head, *observed, *partial, *rest])
+
+
+def refine_volumetric(diag, cache, ci, out, s: Scales):
+    """``diag`` whose head cause is a J-only energy difference (the per-cell fit of
+    :mod:`conformance.diagnosis.diagnose`, true but unspecific) headed by the one rewritten
+    formula of :mod:`conformance.diagnosis.variants` that the engine matches, the volumetric
+    reading said as equivalent; unchanged when none or several distinct ones match.
+    """
+    if not diag.causes or diag.causes[0].code != "volumetric":
+        return diag
+    causes = merge_readings(_formula_readings(cache, ci, out, s, diag.tolerances), s)
+    if len(causes) != 1:
+        return diag
+    v = diag.causes[0]
+    head = replace(
+        causes[0],
+        evidence=causes[0].evidence + f"; equivalently, per cell: {v.title} ({v.evidence})",
+    )
+    return replace(diag, findings=[head, *(f for f in diag.findings if f is not v)])
 
 
 def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
