@@ -36,6 +36,7 @@ from conformance.diagnosis.mixed_precision import mixed_precision_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
+from conformance.diagnosis.spatial_assembly import spatial_assembly_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
@@ -356,6 +357,8 @@ def _run_check(
                 diag = element_difference_reading(diag, ci, out, ref, s)
             if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
                 diag = strain_difference_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # an updated-Lagrangian assembly's kinematics
+            diag = spatial_assembly_reading(diag, ci, out, ref, s)
         if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
             # one tangent term named: wrong, or a tiny perturbation of it (differences)?
             diag = term_difference_reading(diag, ci, out, ref)
