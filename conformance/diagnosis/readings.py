@@ -31,6 +31,7 @@ __all__ = [
     "Reading",
     "read",
     "refine_volumetric",
+    "stress_only",
     "term_case",
     "merge_readings",
     "kit_term_reading",
@@ -494,6 +495,27 @@ def merge_readings(full: List[Reading], s: Scales) -> List[Finding]:
     )
 
 
+def stress_only(causes: List[Finding], diag) -> List[Finding]:
+    """``causes`` (readings of another energy: its terms, formula, parameters) said of the
+    force and stiffness only where the engine's own energy denies an energy mistake: it is the
+    oracle's within tolerance, or the probes found the force not its derivative. The readings
+    compare force and stiffness alone; the energy says the formula's energy is right there.
+    """
+    e = diag.errors.energy
+    if e is not None and e <= diag.tolerances.energy:
+        why = "your energy is the oracle's, so only its derivatives are computed so"
+    elif any(f.code == "inconsistent-force" for f in diag.findings):
+        why = "your force is not the derivative of your energy (the probes)"
+    else:
+        return causes
+    return [
+        replace(c, title=f"{c.title} [in the stress and tangent only: {why}]")
+        if c.strength == FULL
+        else c
+        for c in causes
+    ]
+
+
 def read(
     diag,
     cache,
@@ -534,7 +556,7 @@ def read(
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
-    causes = merge_readings(_parameters_first(full), s)
+    causes = stress_only(merge_readings(_parameters_first(full), s), diag)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
         return replace(diag, findings=[*causes, *observed, *rest])
