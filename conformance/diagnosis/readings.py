@@ -575,21 +575,27 @@ def read(
 
 def refine_volumetric(diag, cache, ci, out, s: Scales):
     """``diag`` whose head cause is a J-only energy difference (the per-cell fit of
-    :mod:`conformance.diagnosis.diagnose`, true but unspecific) headed by the one rewritten
-    formula of :mod:`conformance.diagnosis.variants` that the engine matches, the volumetric
-    reading said as equivalent; unchanged when none or several distinct ones match.
+    :mod:`conformance.diagnosis.diagnose`, true but unspecific: it recognised no variant) made
+    specific by the one rewritten formula of :mod:`conformance.diagnosis.variants` that the
+    engine matches, said in its title and evidence; unchanged when none or several distinct
+    ones match.
     """
     if not diag.causes or diag.causes[0].code != "volumetric":
         return diag
+    v = diag.causes[0]
+    if v.figures.get("variant"):
+        return diag  # the per-cell fit already names the bulk term
     causes = merge_readings(_formula_readings(cache, ci, out, s, diag.tolerances), s)
     if len(causes) != 1:
         return diag
-    v = diag.causes[0]
+    (w,) = causes
     head = replace(
-        causes[0],
-        evidence=causes[0].evidence + f"; equivalently, per cell: {v.title} ({v.evidence})",
+        v,
+        title=f"{v.title}: {w.title}",
+        evidence=f"{v.evidence}; the rewritten formula: {w.evidence}",
+        figures={**v.figures, "formula": w.figures},
     )
-    return replace(diag, findings=[head, *(f for f in diag.findings if f is not v)])
+    return replace(diag, findings=[head if f is v else f for f in diag.findings])
 
 
 def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
