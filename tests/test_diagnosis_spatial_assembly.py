@@ -77,3 +77,38 @@ def test_geometric_stiffness_with_reference_gradients_is_named_not_the_others():
     _, dK = assemble(split.cells, split.n, split.fe, dKe.reshape(-1, 12, 12))
     found = assembly_findings(split, f_o, (K_o + dK).tocsr(), s, DOUBLE)
     assert [x.code for x in found] == ["spatial-assembly-geometric-pressure"], found
+
+
+def test_stress_built_on_c_where_b_belongs_is_named_with_or_without_transposed_gradients():
+    """B formed as F^T F (= C): for an isotropic energy sigma' = R^T sigma R (F = R U), written
+    here by hand on the force; with F transposed everywhere the gradients are F^-1 D_a too.
+    """
+    from conformance.diagnosis.spatial_assembly import (
+        ASSEMBLY_VARIANTS,
+        assemble_variant,
+        spatial_parts,
+    )
+
+    points, cells, x = _state(2)
+    split, f_o, K_o, s = mjed_split(MooneyRivlin(c1=1200.0, c2=400.0, k0=3e4), points, cells, x)
+    P, _ = _piola(split)
+    J = np.linalg.det(split.F)
+    sigma = P @ np.swapaxes(split.F, 1, 2) / J[:, None, None]
+    W, _, Vt = np.linalg.svd(split.F)
+    R = W @ Vt
+    rotated = np.swapaxes(R, 1, 2) @ sigma @ R
+    Fi = np.linalg.inv(split.F)
+    parts = spatial_parts(split)
+    for code, grad in (("b-from-C", "mip"), ("F-transposed", "mpi")):
+        g = np.einsum(f"{grad},mai->map", Fi, split.D)
+        fe = -(J * split.V0)[:, None, None] * np.einsum("mkp,map->mak", rotated, g)
+        f = assemble(split.cells, split.n, fe, None)[0]
+        (v,) = [v for v in ASSEMBLY_VARIANTS if v.code == code]
+        fv, K = assemble_variant(split, parts, v)
+        assert np.allclose(fv, f, rtol=0, atol=1e-12 * np.abs(f).max())  # by hand = variant
+        found = assembly_findings(split, f, K, s, DOUBLE)
+        assert [x.code for x in found] == [f"spatial-assembly-{code}"], found
+    # nearby: the right stress with the rotated tangent only is none of them
+    (v,) = [v for v in ASSEMBLY_VARIANTS if v.code == "b-from-C"]
+    _, K = assemble_variant(split, parts, v)
+    assert assembly_findings(split, f_o, K, s, DOUBLE) == []

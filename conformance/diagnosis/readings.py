@@ -635,5 +635,5 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
                 replace(d, findings=[*named, r.finding, *(f for f in rest if f not in named)])
             )
             continue
-        out.append(replace(d, findings=[r.finding, *rest]))
+        out.append(replace(d, findings=[*stress_only([r.finding], d), *rest]))
     return out

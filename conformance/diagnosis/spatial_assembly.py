@@ -82,7 +82,8 @@ def spatial_parts(split: ElementSplit) -> SpatialParts:
 class AssemblyVariant:
     """code; words: the mistake; which gradient (g, gT, D) the force and material stiffness use;
     geo_grad: the geometric stiffness's gradient; pressure: the geometric stress is tr(sigma)/3 I
-    alone.
+    alone; rotated: sigma and c computed from C where b belongs (R^T sigma R, c rotated by R^T,
+    F = R U), as an engine that forms b = F^T F or reads F transposed gets them.
     """
 
     code: str
@@ -90,6 +91,7 @@ class AssemblyVariant:
     grad: str = "g"
     geo_grad: str = "g"
     pressure: bool = False
+    rotated: bool = False
 
 
 _RIGHT = "grad N_a = F^-T D_a (the row form D F^-1)"
@@ -113,6 +115,21 @@ ASSEMBLY_VARIANTS: Tuple[AssemblyVariant, ...] = (
         geo_grad="D",
     ),
     AssemblyVariant(
+        "b-from-C",
+        "the left Cauchy-Green tensor formed as F^T F (that is C) where b = F F^T belongs: sigma "
+        "and c built on C, i.e. R^T sigma R and c rotated back by R (F = R U)",
+        rotated=True,
+    ),
+    AssemblyVariant(
+        "F-transposed",
+        "the deformation gradient assembled transposed (F^T used as F everywhere): b built as "
+        "F^T F = C, so sigma and c rotated back by R (F = R U), and the spatial gradients "
+        "D F^-T (F^-1 D_a)",
+        grad="gT",
+        geo_grad="gT",
+        rotated=True,
+    ),
+    AssemblyVariant(
         "geometric-reference",
         "the geometric (initial-stress) stiffness built with the reference gradients D_a: "
         f"(D_a . sigma D_b) v I where {_RIGHT} belongs (force and material stiffness right)",
@@ -133,6 +150,12 @@ ASSEMBLY_VARIANTS: Tuple[AssemblyVariant, ...] = (
 )
 
 
+def _rotation(F: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) the rotation R of the polar decomposition F = R U (by the SVD of F)."""
+    W, _, Vt = np.linalg.svd(F)
+    return W @ Vt
+
+
 def assemble_variant(
     split: ElementSplit, parts: SpatialParts, v: AssemblyVariant
 ) -> Tuple[np.ndarray, sp.csr_matrix]:
@@ -140,11 +163,16 @@ def assemble_variant(
     grads = {"g": parts.g, "gT": parts.gT, "D": parts.D}
     G, Gg = grads[v.grad], grads[v.geo_grad]
     vol = parts.J * parts.V0
-    sig = parts.sigma
+    sigma, c = parts.sigma, parts.c
+    if v.rotated:
+        R = _rotation(split.F)
+        sigma = np.einsum("mak,mab,mbl->mkl", R, sigma, R)
+        c = np.einsum("mak,mbp,mcl,mdq,mabcd->mkplq", R, R, R, R, c, optimize=True)
+    sig = sigma
     if v.pressure:
         sig = np.einsum("mii->m", sig)[:, None, None] / 3.0 * np.eye(3)
-    fe = -vol[:, None, None] * np.einsum("mkp,map->mak", parts.sigma, G)
-    mat = np.einsum("map,mkplq,mbq->makbl", G, parts.c, G)
+    fe = -vol[:, None, None] * np.einsum("mkp,map->mak", sigma, G)
+    mat = np.einsum("map,mkplq,mbq->makbl", G, c, G)
     geo = np.einsum("map,mpq,mbq->mab", Gg, sig, Gg)
     Ke = mat + np.einsum("mab,kl->makbl", geo, np.eye(3))
     Ke = (vol[:, None, None, None, None] * Ke).reshape(-1, 12, 12)
