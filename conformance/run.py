@@ -21,7 +21,7 @@ from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
-from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
@@ -359,6 +359,8 @@ def _run_check(
                 diag = strain_difference_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # an updated-Lagrangian assembly's kinematics
             diag = spatial_assembly_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # last: the J-only stress the energy denied
+            diag = denied_volumetric(diag)
         if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
             # one tangent term named: wrong, or a tiny perturbation of it (differences)?
             diag = term_difference_reading(diag, ci, out, ref)

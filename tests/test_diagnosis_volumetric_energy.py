@@ -74,3 +74,34 @@ def test_the_volumetric_energy_is_named_only_when_one_function_of_j_and_not_deni
     f, K = _volumetric_engine(points, cells, x, g * other, dg * other, f_o, K_o)
     full, partial = _volumetric(points, cells, x, f, K, f_o, K_o, s)
     assert full == [] and "not as one U(J)" in partial[0].title
+
+
+def test_a_denied_volumetric_reading_is_the_cause_only_when_nothing_else_is():
+    """The energy denies a J-only energy change: the reading is held back for the energy
+    readings, and named last as a volumetric stress and tangent difference if none names one.
+    """
+    from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric
+    from conformance.diagnosis.findings import OBSERVED, Finding
+    from conformance.judge.compare import Errors
+
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    g, dg = 2e3 * np.log(J) / J, 2e3 * (1 - np.log(J)) / J**2
+    f, K = _volumetric_engine(points, cells, x, g, dg, f_o, K_o)
+    _, (held,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert held.figures["denied"] is True
+    unexplained = Finding("unexplained", "unexplained", OBSERVED, "", {})
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [unexplained, held])
+    (cause,) = denied_volumetric(d).causes
+    assert cause.code == "volumetric" and "stress and tangent differ" in cause.title
+    # nearby: not one function of J (never held), or another cause named: unchanged
+    other = np.random.default_rng(5).uniform(0.5, 1.5, J.size)
+    f, K = _volumetric_engine(points, cells, x, g * other, dg * other, f_o, K_o)
+    _, (loose,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert not loose.figures.get("denied")
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [unexplained, loose])
+    assert denied_volumetric(d) is d
+    named = Finding("term-coefficients", "k0 with the wrong sign", "explains", "", {})
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [named, held])
+    assert denied_volumetric(d) is d
