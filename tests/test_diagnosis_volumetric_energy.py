@@ -105,3 +105,16 @@ def test_a_denied_volumetric_reading_is_the_cause_only_when_nothing_else_is():
     named = Finding("term-coefficients", "k0 with the wrong sign", "explains", "", {})
     d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [named, held])
     assert denied_volumetric(d) is d
+
+
+def test_a_tangent_only_change_is_not_held_to_one_function_of_j():
+    """U'' changed per cell with the force right (a hand-coded tangent dropping a term): no
+    energy is claimed, so the one-function test does not apply and the tangent is named.
+    """
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    f, K = _volumetric_engine(points, cells, x, 0.0 * J, 3e4 * np.log(J) / J**2, f_o, K_o)
+    full, _ = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert [x.code for x in full] == ["volumetric"] and "tangent differs" in full[0].title
+    assert full[0].figures["j_function_residual"] > 0.1  # not one U(J): the gate would drop it

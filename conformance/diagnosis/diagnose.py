@@ -663,7 +663,8 @@ def _volumetric_findings(
     spread = j_function_residual(fit.J, fit.dU1, fit.dU2)
     figs["j_function_residual"] = spread
     named = True
-    if spread > J_ONLY:  # per cell a pressure, but not one U(J): another invariant's term
+    # Only an energy is one function of J; the tangent alone (the force right) claims none.
+    if spread > J_ONLY and not force_ok:  # a pressure per cell, not one U(J)'s
         named = False
         title = "a spherical (pressure-like) stress and tangent differ per cell, not as one U(J)"
         text += (
