@@ -118,3 +118,16 @@ def test_a_tangent_only_change_is_not_held_to_one_function_of_j():
     full, _ = _volumetric(points, cells, x, f, K, f_o, K_o, s)
     assert [x.code for x in full] == ["volumetric"] and "tangent differs" in full[0].title
     assert full[0].figures["j_function_residual"] > 0.1  # not one U(J): the gate would drop it
+
+
+def test_a_denied_reading_on_a_single_j_is_not_held():
+    """On a state with one J the one-function test cannot fail: a denied reading is not held
+    for the fallback (an I2 typo's spherical term on a uniaxial state was named so).
+    """
+    points, cells = box_mesh(2, jitter=0.2, seed=3)
+    x = points @ np.diag([1.3, 1.0, 1.0]).T
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    f, K = _volumetric_engine(points, cells, x, 50.0 + 0 * J, 20.0 + 0 * J, f_o, K_o)
+    _, (held,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert held.figures["denied"] is False

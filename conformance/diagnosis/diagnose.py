@@ -676,8 +676,11 @@ def _volumetric_findings(
         named = False
         # Kept (in the findings) for readings.denied_volumetric: the readings of the energy go
         # first; if none names a cause, this statement of the stress and tangent is the cause.
+        # Only where J varies: on one J the one-function test cannot fail, so nothing is held.
         figs["denied"] = bool(
-            fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness
+            np.isfinite(spread)
+            and fit.force_residual <= tol.force
+            and fit.stiffness_residual <= tol.stiffness
         )
         title = (
             "volumetric (J-only) stress and tangent differ from the oracle's, but the engine's "
