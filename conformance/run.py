@@ -21,7 +21,7 @@ from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
-from conformance.diagnosis.diagnose import Diagnosis, diagnose
+from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
@@ -36,6 +36,7 @@ from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
+from conformance.diagnosis.spatial_assembly import spatial_assembly_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
@@ -257,6 +258,8 @@ def _run_check(
             tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
         )
+        if read_causes and diag.causes and diag.causes[0].code == "volumetric":
+            diag = readings.refine_volumetric(diag, cache, ci, out, s)  # which U(J) exactly?
         if diag.causes and diag.causes[0].code == "localised":  # those cells missing, or twice?
             diag = cell_contribution_reading(diag, ci, out, ref, s)
         if read_causes and not diag.causes and probes:  # right here, the force wrong nearby
@@ -358,6 +361,10 @@ def _run_check(
                 diag = element_difference_reading(diag, ci, out, ref, s)
             if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
                 diag = strain_difference_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # an updated-Lagrangian assembly's kinematics
+            diag = spatial_assembly_reading(diag, ci, out, ref, s)
+        if read_mistakes and not diag.causes:  # last: the J-only stress the energy denied
+            diag = denied_volumetric(diag)
         if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
             # one tangent term named: wrong, or a tiny perturbation of it (differences)?
             diag = term_difference_reading(diag, ci, out, ref)

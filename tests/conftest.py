@@ -73,6 +73,23 @@ def mjed_split(model, points, cells, x):
     return split, f_o, K_o, s
 
 
+def checked_random(engine, material):
+    """The diagnosis of ``engine`` checked as ``material`` on cube-small's random state without
+    probes (conformance.protocol.check_implementation), asserted to have failed.
+    """
+    import logging
+
+    from conformance.protocol import check_implementation
+
+    logging.disable(logging.INFO)
+    run = check_implementation(
+        engine, material=material, mesh="cube-small", states=("random",), probes=False
+    )
+    (outcome,) = run.outcomes
+    assert outcome.status == "failed", outcome.diagnosis.text()
+    return outcome.diagnosis
+
+
 def random_tetrahedron(rng):
     """A random, reasonably shaped, positively oriented single tetrahedron."""
     while True:

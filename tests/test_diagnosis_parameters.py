@@ -12,9 +12,14 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from conformance.diagnosis.parameters import declared_units, exchanges
+from conformance.diagnosis.parameters import (
+    convention_words,
+    declared_units,
+    elastic_convention_words,
+    exchanges,
+)
 from conformance.diagnosis.refit import Target, refit
-from mjed.materials import Costa, VerondaWestmann
+from mjed.materials import Costa, MooneyRivlin, StVenantKirchhoff, VerondaWestmann
 from reference_fem import dolfinx_available
 
 COSTA = Costa(a=800.0, k0=3.0e4, b_ff=18.5, b_fs=2.8, b_ss=3.6, b_fn=2.0, b_sn=1.6, b_nn=3.6)
@@ -149,3 +154,18 @@ def test_arruda_boyce_n_given_as_the_locking_stretch_is_named_as_n():
     cause = d.causes[0]
     assert cause.code == "parameter-value" and cause.figures["parameter"] == "N", d.text()
     assert "locking stretch" in cause.title and "scaled" not in cause.title, d.text()
+
+
+def test_lame_and_bulk_modulus_confused_is_a_convention():
+    svk = StVenantKirchhoff(mu=3448.2759, lam=31034.483)
+    lam, mu = svk.lam, svk.mu
+    words = elastic_convention_words(svk, "lam", lam - 2 * mu / 3, lam)
+    assert "bulk modulus" in words and "2 mu/3" in words
+    assert "entered where Lame" in convention_words(svk, "lam", lam + 2 * mu / 3, lam)
+    # nearby: another value of lam, and mu itself, are no convention
+    assert elastic_convention_words(svk, "lam", 0.9 * lam, lam) == ""
+    assert elastic_convention_words(svk, "mu", mu - 2 * lam / 3, mu) == ""
+    # a bulk modulus with the shear modulus written as 2 (c1 + c2)
+    mr = MooneyRivlin(c1=1200.0, c2=400.0, k0=3e4)
+    words = elastic_convention_words(mr, "k0", 3e4 + 2 * 3200.0 / 3, 3e4)
+    assert "Lame's lambda" in words and "2 (c1 + c2)" in words

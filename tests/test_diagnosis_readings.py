@@ -78,3 +78,30 @@ def test_the_oracle_compiles_a_form_only_when_it_is_first_used():
     eager = OracleCache().reference(case)
     assert np.array_equal(lazy.force, f) and np.array_equal(eager.force, f)
     assert (lazy.stiffness != eager.stiffness).nnz == 0 and lazy.energy == eager.energy
+
+
+def test_an_energy_reading_is_said_of_the_stress_only_where_the_engine_energy_denies_it():
+    """A pressure sign flipped in sigma and c with the energy right: the term fit's "k0: its
+    terms with the wrong sign" compares force and stiffness alone, so it is said of them.
+    """
+    from conformance.diagnosis.findings import FULL, OBSERVED, Finding
+    from conformance.diagnosis.readings import stress_only
+
+    cause = Finding(
+        "term-coefficients", "parameter k0: its terms with the wrong sign", FULL, "", {}
+    )
+
+    def diag(energy, findings=()):
+        return SimpleNamespace(
+            errors=SimpleNamespace(energy=energy), tolerances=DOUBLE, findings=list(findings)
+        )
+
+    (said,) = stress_only([cause], diag(0.0))
+    assert said.title.startswith(cause.title) and "stress and tangent only" in said.title
+    assert "energy is the oracle's" in said.title
+    probes = Finding("inconsistent-force", "force is not minus ...", OBSERVED, "", {})
+    (said,) = stress_only([cause], diag(0.2, [probes]))
+    assert "not the derivative of your energy" in said.title
+    # nearby: the energy differs too (an energy mistake), or no energy given: unchanged
+    assert stress_only([cause], diag(0.2)) == [cause]
+    assert stress_only([cause], diag(None)) == [cause]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 
 import pytest
+from conftest import checked_random
 
 from mjed.materials import MooneyRivlin
 from reference_fem import dolfinx_available
@@ -53,3 +54,55 @@ def test_i2_from_the_diagonal_of_c_is_named_as_a_rewritten_formula():
     assert outcome.status == "failed" and d.causes, d.text()
     assert d.causes[0].code == "energy-variant", d.text()
     assert d.causes[0].figures["variant"] == "I2-diagonal", d.text()
+
+
+def test_log10_for_ln_is_a_variant_of_every_formula_with_ln_j():
+    from conformance.diagnosis.variants import variants
+    from mjed.materials import NeoHookean
+    from reference_fem.user_energy import UserEnergy
+
+    (v,) = [v for v in variants(NeoHookean(mu=3448.0, lam=31034.0)) if v.rewrite.code == "log10"]
+    assert v.expression.count("ln(J)/2.302585092994") == 2  # both J terms, none left natural
+    no_log = UserEnergy("mu/2*(I1b - 3) + k/2*(J - 1)**2", {"mu": 1.0, "k": 10.0})
+    assert "log10" not in [v.rewrite.code for v in variants(no_log)]
+
+
+def _check_user_engine(expression, material):
+    """check_implementation of an engine that is the oracle of ``expression`` (a UserEnergy with
+    ``material``'s parameters), on the random state: the outcome's diagnosis.
+    """
+    import dataclasses
+
+    from reference_fem import UFLOracle
+    from reference_fem.user_energy import UserEnergy
+
+    oracles: dict = {}
+    params = {f.name: getattr(material, f.name) for f in dataclasses.fields(material)}
+
+    def engine(case):
+        if "o" not in oracles:
+            oracles["o"] = UFLOracle(case.points, case.cells, UserEnergy(expression, params))
+        f, K = oracles["o"].force_and_stiffness(case.positions)
+        return f, K, oracles["o"].energy(case.positions)
+
+    return checked_random(engine, material)
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_a_j_only_energy_named_per_cell_is_made_specific_by_the_rewritten_formula():
+    """log10 J for ln J: the per-cell volumetric reading is true but unspecific; the rewritten
+    formula says which U(J). Nearby: a bulk term scaled by 1.3 is J-only too, but no rewrite
+    matches, so the volumetric reading stays as it was.
+    """
+    from mjed.materials import NeoHookean
+
+    neo = NeoHookean(mu=3448.2759, lam=31034.483)
+    c = 1.0 / 2.302585092994046
+    d = _check_user_engine(f"mu/2*(I1 - 3) - mu*{c!r}*ln(J) + lam/2*({c!r}*ln(J))**2", neo)
+    (head,) = d.causes
+    assert head.code == "volumetric" and "your engine matches W' =" in head.title, d.text()
+    assert head.figures["formula"]["variant"] == "log10", d.text()
+    assert "log10" in head.evidence
+    d = _check_user_engine("mu/2*(I1 - 3) - mu*ln(J) + 1.3*lam/2*ln(J)**2", neo)
+    assert "formula" not in d.causes[0].figures, d.text()

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Any, Callable, List, Optional, Tuple
+from typing import Any, Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -44,6 +44,8 @@ __all__ = [
     "order_findings",
     "STRESS_MEASURES",
     "stress_measure_findings",
+    "split_reading",
+    "element_reading",
 ]
 
 
@@ -275,9 +277,11 @@ def stress_measure_findings(
     return ambiguous(found)
 
 
-def element_reading(diag, ci, out, ref, s: Scales):
-    """``diag`` (a failed case nothing explained yet) with the element mistakes the engine
-    matches, named first (the 'unexplained' finding dropped); unchanged when none matches.
+def split_reading(diag, ci, out, ref, s: Scales, finders: Sequence[Callable[..., list]]):
+    """``diag`` (a failed case nothing explained yet) with the findings of the first of
+    ``finders`` (each (split, f, K, s, tol) -> findings) that finds any on the oracle's element
+    split, named first (the 'unexplained' finding dropped); unchanged when none matches or the
+    split does not add up to the oracle.
     """
     from dataclasses import replace
 
@@ -287,10 +291,21 @@ def element_reading(diag, ci, out, ref, s: Scales):
     )
     if split is None:
         return diag
-    found = order_findings(split, out.force, out.stiffness, s, tol)
-    if not found:
-        found = stress_measure_findings(split, out.force, out.stiffness, s, tol)
-    if not found:
-        return diag
-    rest = [f for f in diag.findings if f.code != "unexplained"]
-    return replace(diag, findings=[*found, *rest])
+    for finder in finders:
+        found = finder(split, out.force, out.stiffness, s, tol)
+        if found:
+            rest = [f for f in diag.findings if f.code != "unexplained"]
+            return replace(diag, findings=[*found, *rest])
+    return diag
+
+
+def element_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` with the element mistakes the engine matches (:func:`split_reading`): a local
+    dof order, a stress measure, then each cell's force or stiffness times its J (the volume
+    confused, :mod:`conformance.diagnosis.volumes`).
+    """
+    from conformance.diagnosis.volumes import volume_findings
+
+    return split_reading(
+        diag, ci, out, ref, s, (order_findings, stress_measure_findings, volume_findings)
+    )

@@ -28,6 +28,7 @@ import numpy as np
 __all__ = [
     "Exchange",
     "convention_words",
+    "elastic_convention_words",
     "declared_units",
     "exchanges",
     "scalar_parameters",
@@ -155,11 +156,80 @@ _SHIFTED = {
 }
 
 
+#: Parameter names read as Lame's first parameter, and as the bulk modulus.
+_LAME = ("lam", "lmbda", "lambda_", "la")
+_BULK = ("k0", "kappa", "K", "bulk")
+
+
+def _shear_moduli(values: Dict[str, float]) -> Dict[str, float]:
+    """The small-strain shear modulus in the model's parameters, by how it is written: mu, or
+    2 c10 (Yeoh), 2 (c1 + c2) (Mooney-Rivlin); empty when none is there.
+    """
+    out: Dict[str, float] = {}
+    if "mu" in values:
+        out["mu"] = values["mu"]
+    if "c10" in values:
+        out["2 c10"] = 2.0 * values["c10"]
+    if "c1" in values and "c2" in values and "mu" not in values:
+        out["2 (c1 + c2)"] = 2.0 * (values["c1"] + values["c2"])
+    return out
+
+
+def elastic_convention_words(model: Any, name: str, value: float, declared: float) -> str:
+    """Words for a refitted ``value`` of Lame's lambda or of the bulk modulus that is the
+    ``declared`` one converted between the two, K = lambda + 2 mu/3 (mu the model's shear
+    modulus, :func:`_shear_moduli`): lambda used as K in a bulk/shear split (its effective value
+    lambda - 2 mu/3), K entered where lambda belongs (lambda + 2 mu/3), and the converse for a
+    bulk modulus; "" otherwise.
+    """
+    values = scalar_parameters(model)
+    for mu_name, mu in _shear_moduli(values).items():
+        if mu == 0 or mu_name == name:
+            continue
+        two = f"2 {mu_name}/3" if " " not in mu_name else f"2/3 x {mu_name}"
+        if name in _LAME:
+            cases = (
+                (
+                    -1.0,
+                    f"{name} used as the bulk modulus kappa in a bulk/shear split, so the "
+                    f"effective Lame parameter is {name} - {two} (the convention K = lam + "
+                    "2 mu/3 confused)",
+                ),
+                (
+                    1.0,
+                    f"the bulk modulus K = {name} + {two} entered where Lame's lambda belongs "
+                    "(the convention K = lam + 2 mu/3 confused)",
+                ),
+            )
+        elif name in _BULK:
+            cases = (
+                (
+                    1.0,
+                    f"{name} taken as Lame's lambda and converted to the bulk modulus "
+                    f"{name} + {two} (the convention K = lam + 2 mu/3 confused)",
+                ),
+                (
+                    -1.0,
+                    f"{name} converted to Lame's lambda = {name} - {two} and used as the bulk "
+                    "modulus (the convention K = lam + 2 mu/3 confused)",
+                ),
+            )
+        else:
+            return ""
+        for sign, words in cases:
+            if abs(value - (declared + sign * 2.0 * mu / 3.0)) <= 1e-6 * max(abs(declared), 1.0):
+                return f" ({words})"
+    return ""
+
+
 def convention_words(model: Any, name: str, value: float, declared: float) -> str:
     """Words for a refitted parameter ``value`` that is the ``declared`` value in another
     convention: squared or its square root (any parameter), or shifted as :data:`_SHIFTED`
     lists for its material; "" otherwise.
     """
+    elastic = elastic_convention_words(model, name, value, declared)
+    if elastic:
+        return elastic
     for shift, words in _SHIFTED.get((type(model).__name__, name), ()):
         if abs(value - (declared + shift)) <= 1e-6 * max(abs(declared), 1.0):
             return f" ({name} {'-' if shift < 0 else '+'} {abs(shift):g}: {words})"

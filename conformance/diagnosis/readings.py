@@ -27,7 +27,16 @@ from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 from conformance.judge.consistency import safe_norm
 
-__all__ = ["Reading", "read", "term_case", "merge_readings", "kit_term_reading", "model_key"]
+__all__ = [
+    "Reading",
+    "read",
+    "refine_volumetric",
+    "stress_only",
+    "term_case",
+    "merge_readings",
+    "kit_term_reading",
+    "model_key",
+]
 
 #: Two predictions closer than this (relative, force and stiffness) are the same reading.
 _SAME = 1e-9
@@ -280,7 +289,12 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
     that the engine matches.
     """
-    from conformance.diagnosis.parameters import convention_words, exchanges, with_value
+    from conformance.diagnosis.parameters import (
+        convention_words,
+        elastic_convention_words,
+        exchanges,
+        with_value,
+    )
     from conformance.diagnosis.refit import refit
 
     found = _matching(
@@ -314,6 +328,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         same = [q for q, vq in values.items() if q != name and abs(v - vq) <= 1e-6 * abs(vq)]
         also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
         also = also or convention_words(ci.model, name, v, v0)
+        elastic = bool(elastic_convention_words(ci.model, name, v, v0))
         found.append(
             Reading(
                 Finding(
@@ -323,7 +338,13 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                     f"the oracle with {name} = {v:.9g} (fitted; relative change "
                     f"{v / v0 - 1 if v0 else v:+.3e}): force error {fit.force:.1e}, stiffness "
                     f"error {fit.stiffness:.1e}",
-                    {"parameter": name, "value": v, "declared": v0, "residual": fit.residual},
+                    {
+                        "parameter": name,
+                        "value": v,
+                        "declared": v0,
+                        "residual": fit.residual,
+                        "elastic_convention": elastic,
+                    },
                 ),
                 *fit.prediction,
             )
@@ -430,10 +451,16 @@ def terms_scaled_unequally(finding: Finding) -> bool:
 
 def _parameters_first(full: List[Reading]) -> List[Reading]:
     """``full`` with the parameter refits ahead of a term reading that scales several terms
-    unequally: the same prediction is then headed by the parameter's value (merge_readings
-    keeps the first of equal readings as the head), not by one term "scaled".
+    unequally, or of any reading when a refit is an elastic-constant convention: the same
+    prediction is then headed by the parameter's value (merge_readings keeps the first of equal
+    readings as the head), not by one term "scaled".
     """
-    if not any(terms_scaled_unequally(r.finding) for r in full):
+    # A parameter read in another elastic-constant convention says the cause (the term fit
+    # says only "scaled by 0.93") and heads its equals too.
+    if not any(
+        terms_scaled_unequally(r.finding) or r.finding.figures.get("elastic_convention")
+        for r in full
+    ):
         return full
     first = [r for r in full if r.finding.code == "parameter-value"]
     return first + [r for r in full if r.finding.code != "parameter-value"]
@@ -466,6 +493,27 @@ def merge_readings(full: List[Reading], s: Scales) -> List[Finding]:
         "they predict different values, but not differently enough for this case to tell them "
         "apart",
     )
+
+
+def stress_only(causes: List[Finding], diag) -> List[Finding]:
+    """``causes`` (readings of another energy: its terms, formula, parameters) said of the
+    force and stiffness only where the engine's own energy denies an energy mistake: it is the
+    oracle's within tolerance, or the probes found the force not its derivative. The readings
+    compare force and stiffness alone; the energy says the formula's energy is right there.
+    """
+    e = diag.errors.energy
+    if e is not None and e <= diag.tolerances.energy:
+        why = "your energy is the oracle's, so only its derivatives are computed so"
+    elif any(f.code == "inconsistent-force" for f in diag.findings):
+        why = "your force is not the derivative of your energy (the probes)"
+    else:
+        return causes
+    return [
+        replace(c, title=f"{c.title} [in the stress and tangent only: {why}]")
+        if c.strength == FULL
+        else c
+        for c in causes
+    ]
 
 
 def read(
@@ -508,7 +556,7 @@ def read(
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
-    causes = merge_readings(_parameters_first(full), s)
+    causes = stress_only(merge_readings(_parameters_first(full), s), diag)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
         return replace(diag, findings=[*causes, *observed, *rest])
@@ -523,6 +571,31 @@ def read(
     ]
     rest = [f for f in diag.findings if f.code != "unexplained"]
     return replace(diag, findings=[*head, *observed, *partial, *rest])
+
+
+def refine_volumetric(diag, cache, ci, out, s: Scales):
+    """``diag`` whose head cause is a J-only energy difference (the per-cell fit of
+    :mod:`conformance.diagnosis.diagnose`, true but unspecific: it recognised no variant) made
+    specific by the one rewritten formula of :mod:`conformance.diagnosis.variants` that the
+    engine matches, said in its title and evidence; unchanged when none or several distinct
+    ones match.
+    """
+    if not diag.causes or diag.causes[0].code != "volumetric":
+        return diag
+    v = diag.causes[0]
+    if v.figures.get("variant"):
+        return diag  # the per-cell fit already names the bulk term
+    causes = merge_readings(_formula_readings(cache, ci, out, s, diag.tolerances), s)
+    if len(causes) != 1:
+        return diag
+    (w,) = causes
+    head = replace(
+        v,
+        title=f"{v.title}: {w.title}",
+        evidence=f"{v.evidence}; the rewritten formula: {w.evidence}",
+        figures={**v.figures, "formula": w.figures},
+    )
+    return replace(diag, findings=[head if f is v else f for f in diag.findings])
 
 
 def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
@@ -562,5 +635,5 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
                 replace(d, findings=[*named, r.finding, *(f for f in rest if f not in named)])
             )
             continue
-        out.append(replace(d, findings=[r.finding, *rest]))
+        out.append(replace(d, findings=[*stress_only([r.finding], d), *rest]))
     return out

@@ -4,7 +4,7 @@ When no correction explains a failure, the case's energy is written as a formula
 material's declared energy, or the user's own) and rewritten the way engines
 get it wrong: an invariant without its isochoric factor, the wrong power of J in it, I2 taken
 as tr(C^2) or with tr(C^2) written from part of C (its diagonal, its Voigt entries once), the bulk
-term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2. Each variant
+term k/2 (J-1)^2 or k/4 (J^2 - 1 - 2 ln J) for k/2 (ln J)^2, log10 J for ln J. Each variant
 is a user energy (:class:`reference_fem.user_energy.UserEnergy`), so the oracle differentiates
 it exactly as it does the built-in energies; a variant whose force and stiffness agree with the
 engine's within the case's tolerances is named: "your engine matches W' = ...".
@@ -218,6 +218,14 @@ REWRITES: Tuple[Rewrite, ...] = (
     Rewrite("isochoric-I1", "the isochoric I1b used where the formula has I1", r"\bI1\b", "I1b"),
     Rewrite(
         "bulk-J-1", "k/2 (J-1)^2 for the bulk term k/2 (ln J)^2", r"ln\(J\)\*\*2", "(J - 1)**2"
+    ),
+    # ln J in another base (log10 for ln): every J term of the formula scaled non-linearly,
+    # which the fit of U(J) per cell sees only as "a J-only energy differs".
+    Rewrite(
+        "log10",
+        "log10 J (the base-10 logarithm, ln J / ln 10) used for the natural logarithm ln J",
+        r"\bln\(J\)",
+        f"(ln(J)/{float(np.log(10.0))!r})",
     ),
     Rewrite(
         "bulk-simo",

@@ -1,0 +1,133 @@
+"""The volumetric (J-only) energy reading names an energy only when the per-cell change is one
+function of J and the engine's own energy does not deny it (corpus 5: a pressure sign flipped
+with the energy right, and an I2 typo, were told "volumetric energy differs"). Each engine is
+built here: the oracle's stand-in (MJED) plus a per-cell spherical change.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.diagnose import _volumetric_findings, j_function_residual
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.tangent import _cell_derivatives
+from conformance.judge.compare import DOUBLE
+from mjed.materials import NeoHookean
+
+
+def _random_state(seed=0):
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.15, 0.95, 0.9]).T + 0.04 * rng.standard_normal(points.shape)
+    return points, cells, x
+
+
+MODEL = NeoHookean(mu=3448.2759, lam=31034.483)
+
+
+def test_a_j_only_function_is_told_from_a_per_cell_pressure():
+    rng = np.random.default_rng(1)
+    J = rng.uniform(0.85, 1.2, 40)
+    g = 1e4 * (np.log10(J) - np.log(J))  # ln J read as log10 J
+    dg = 1e4 * (1 / np.log(10) - 1) / J
+    assert j_function_residual(J, g, dg) < 1e-3
+    # nearby: the same sizes, but depending on another invariant of the cell
+    other = rng.uniform(0.8, 1.2, 40)
+    assert j_function_residual(J, g * other, dg * other) > 0.1
+    assert np.isnan(j_function_residual(np.full(40, 1.1), g, dg))  # one J: nothing told
+
+
+def _volumetric_engine(points, cells, x, a, b, f_o, K_o):
+    """The oracle plus a per-cell spherical change: dU' = a_c, dU'' = b_c (each (m,))."""
+    V0, _, dJ, H = _cell_derivatives(points, cells, x)
+    V0 = np.abs(V0)
+    fe = -(V0 * a)[:, None] * dJ
+    Ke = V0[:, None, None] * (
+        b[:, None, None] * dJ[:, :, None] * dJ[:, None, :] + a[:, None, None] * H
+    )
+    df, dK = assemble(cells, points.shape[0], fe.reshape(-1, 4, 3), Ke)
+    return f_o + df, (K_o + dK).tocsr()
+
+
+def _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=False):
+    full, partial = [], []
+    worst = 1.0
+    _volumetric_findings(points, cells, x, f - f_o, (K - K_o).tocsr(), s, worst, DOUBLE, full,
+                         partial, denies)  # fmt: skip
+    return full, partial
+
+
+def test_the_volumetric_energy_is_named_only_when_one_function_of_j_and_not_denied():
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    g, dg = 2e3 * np.log(J) / J, 2e3 * (1 - np.log(J)) / J**2
+    f, K = _volumetric_engine(points, cells, x, g, dg, f_o, K_o)
+    full, _ = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert [x.code for x in full] == ["volumetric"] and "energy differs" in full[0].title
+    # the engine's energy denies it (equal to the oracle's, or not the force's potential)
+    full, partial = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert full == [] and "energy does not say so" in partial[0].title
+    # nearby: a per-cell pressure whose coefficient is not a function of J
+    other = np.random.default_rng(5).uniform(0.5, 1.5, J.size)
+    f, K = _volumetric_engine(points, cells, x, g * other, dg * other, f_o, K_o)
+    full, partial = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert full == [] and "not as one U(J)" in partial[0].title
+
+
+def test_a_denied_volumetric_reading_is_the_cause_only_when_nothing_else_is():
+    """The energy denies a J-only energy change: the reading is held back for the energy
+    readings, and named last as a volumetric stress and tangent difference if none names one.
+    """
+    from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric
+    from conformance.diagnosis.findings import OBSERVED, Finding
+    from conformance.judge.compare import Errors
+
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    g, dg = 2e3 * np.log(J) / J, 2e3 * (1 - np.log(J)) / J**2
+    f, K = _volumetric_engine(points, cells, x, g, dg, f_o, K_o)
+    _, (held,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert held.figures["denied"] is True
+    unexplained = Finding("unexplained", "unexplained", OBSERVED, "", {})
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [unexplained, held])
+    (cause,) = denied_volumetric(d).causes
+    assert cause.code == "volumetric" and "stress and tangent differ" in cause.title
+    # nearby: not one function of J (never held), or another cause named: unchanged
+    other = np.random.default_rng(5).uniform(0.5, 1.5, J.size)
+    f, K = _volumetric_engine(points, cells, x, g * other, dg * other, f_o, K_o)
+    _, (loose,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert not loose.figures.get("denied")
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [unexplained, loose])
+    assert denied_volumetric(d) is d
+    named = Finding("term-coefficients", "k0 with the wrong sign", "explains", "", {})
+    d = Diagnosis("c", "failed", Errors(0.1, 0.1, None, 0.0), [named, held])
+    assert denied_volumetric(d) is d
+
+
+def test_a_tangent_only_change_is_not_held_to_one_function_of_j():
+    """U'' changed per cell with the force right (a hand-coded tangent dropping a term): no
+    energy is claimed, so the one-function test does not apply and the tangent is named.
+    """
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    f, K = _volumetric_engine(points, cells, x, 0.0 * J, 3e4 * np.log(J) / J**2, f_o, K_o)
+    full, _ = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert [x.code for x in full] == ["volumetric"] and "tangent differs" in full[0].title
+    assert full[0].figures["j_function_residual"] > 0.1  # not one U(J): the gate would drop it
+
+
+def test_a_denied_reading_on_a_single_j_is_not_held():
+    """On a state with one J the one-function test cannot fail: a denied reading is not held
+    for the fallback (an I2 typo's spherical term on a uniaxial state was named so).
+    """
+    points, cells = box_mesh(2, jitter=0.2, seed=3)
+    x = points @ np.diag([1.3, 1.0, 1.0]).T
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    f, K = _volumetric_engine(points, cells, x, 50.0 + 0 * J, 20.0 + 0 * J, f_o, K_o)
+    _, (held,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
+    assert held.figures["denied"] is False
