@@ -42,6 +42,7 @@ from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
+from conformance.diagnosis.volumes import volume_findings
 from conformance.judge.compare import DOUBLE, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
 from conformance.judge.oracle import OracleCache
@@ -324,7 +325,7 @@ def _run_check(
                 ),
             )
         if read_mistakes and not diag.causes:  # inside the element: order, stress measure
-            diag = element_reading(diag, ci, out, ref, s)
+            diag = element_reading(diag, ci, out, ref, s, volume_findings)
         if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
             diag = shape_gradient_reading(diag, ci, out, ref, s)
         if read_mistakes and not diag.causes:  # shared entries written once, not summed

@@ -299,13 +299,12 @@ def split_reading(diag, ci, out, ref, s: Scales, finders: Sequence[Callable[...,
     return diag
 
 
-def element_reading(diag, ci, out, ref, s: Scales):
+def element_reading(diag, ci, out, ref, s: Scales, *more_finders):
     """``diag`` with the element mistakes the engine matches (:func:`split_reading`): a local
-    dof order, a stress measure, then each cell's force or stiffness times its J (the volume
-    confused, :mod:`conformance.diagnosis.volumes`).
+    dof order, a stress measure, then ``more_finders`` (the run passes each cell's force or
+    stiffness times its J, the volume confused: :mod:`conformance.diagnosis.volumes`, which
+    builds on this module and so is handed in rather than imported here).
     """
-    from conformance.diagnosis.volumes import volume_findings
-
     return split_reading(
-        diag, ci, out, ref, s, (order_findings, stress_measure_findings, volume_findings)
+        diag, ci, out, ref, s, (order_findings, stress_measure_findings, *more_finders)
     )
