@@ -5,7 +5,10 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
 - a piece of the chain rule through the invariants
   (:mod:`conformance.diagnosis.invariant_pieces`);
 - the Voigt stress vector's shear components doubled (:mod:`conformance.diagnosis.voigt_stress`);
-- the spatial tangent without its 1/J (:mod:`conformance.diagnosis.spatial_tangent`).
+- the spatial tangent without its 1/J (:mod:`conformance.diagnosis.spatial_tangent`);
+- the spatial tangent in a wrong form (Voigt order, tensor shear rows in B, the Jaumann rate's
+  terms) or one part of the element matrix in another local order
+  (:mod:`conformance.diagnosis.spatial_variants`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -22,6 +25,7 @@ from conformance.diagnosis.elements import _piola, element_split
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
+from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
 from conformance.judge.compare import Scales, errors
 
@@ -88,6 +92,7 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found = piece_findings(split, t, matches, _nearby(cache, ci, s, tol))
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
+        found += spatial_variant_findings(split, t, matches)
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")
