@@ -15,7 +15,7 @@ from diagnosis_stubs import CaseStub, MjedCache, OutputStub
 
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
-from conformance.diagnosis.findings import OBSERVED, Finding
+from conformance.diagnosis.findings import OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.hand_derived import hand_derived_reading
 from conformance.judge.compare import errors, scales
 from conformance.judge.oracle import Reference
@@ -42,11 +42,12 @@ def _engine(
     shear_b=1.0,
     shear_b_force=True,
     geo=lambda G: np.kron(G, EYE),
+    extra=lambda sig: 0.0,
 ):
     """(f, K) of an updated-Lagrangian St Venant-Kirchhoff engine; the keywords make its mistakes:
     c_order the Voigt order c is filled in (B stays FEBio), jaumann the weight of the Jaumann
     terms added to c, shear_b the factor on B's shear rows (shear_b_force: in the force too),
-    geo the 12 x 12 layout of the geometric block from G (4, 4).
+    geo the 12 x 12 layout of the geometric block from G (4, 4), extra a term added to c.
     """
     from mjed.mesh import shape_vectors
 
@@ -71,6 +72,7 @@ def _engine(
             + np.einsum("il,jk->ijkl", EYE, sig)
             + np.einsum("il,jk->ijkl", sig, EYE)
         )
+        c = c + extra(sig)
         c6 = np.array([[c[i, j, k, l] for (k, l) in c_order] for (i, j) in c_order])
         gN = D[e] @ np.linalg.inv(F)
 
@@ -95,8 +97,8 @@ def _engine(
     return f.reshape(n, 3), sp.csr_matrix(K)
 
 
-def _causes(**mistake):
-    """The codes of the causes hand_derived_reading names for the engine with ``mistake``."""
+def _diagnosis(**mistake):
+    """hand_derived_reading's diagnosis of the engine with ``mistake``."""
     points, cells, x = _state()
     model = default_material("StVenantKirchhoff")
     ci = CaseStub(points, cells, x, model)
@@ -106,8 +108,19 @@ def _causes(**mistake):
     e = errors(f, K, None, ref.force, ref.stiffness, 0.0, s)
     diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
     ref = Reference(0.0, ref.force, sp.csr_matrix(ref.stiffness))
-    d = hand_derived_reading(diag, MjedCache(), ci, OutputStub(f, K), ref, s)
+    return hand_derived_reading(diag, MjedCache(), ci, OutputStub(f, K), ref, s)
+
+
+def _causes(**mistake):
+    """The codes of the causes named for the engine with ``mistake``, and all the titles."""
+    d = _diagnosis(**mistake)
     return [c.code for c in d.causes], [c.title for c in d.findings]
+
+
+def _findings(**mistake):
+    """(code, strength) of every spatial-variant finding for the engine with ``mistake``."""
+    d = _diagnosis(**mistake)
+    return [(x.code, x.strength) for x in d.findings if x.code.startswith("spatial-")]
 
 
 def test_the_engine_written_right_is_the_oracle():
@@ -145,3 +158,29 @@ def test_the_geometric_block_component_major_is_named_and_its_nodes_reversed_are
     assert codes == ["element-part-order-geometric"], titles
     codes, titles = _causes(geo=lambda G: np.kron(EYE, G[::-1, ::-1]))
     assert not any(c.startswith("element-part-order") for c in codes), titles
+
+
+def test_a_perturbation_tangent_of_sigma_is_named_and_its_transpose_is_not():
+    """-sigma_ij delta_kl (Miehe's perturbation differencing sigma, not tau) against the
+    transposed term -delta_ij sigma_kl, which no perturbation leaves.
+    """
+    codes, titles = _causes(extra=lambda sig: -np.einsum("ij,kl->ijkl", sig, EYE))
+    assert codes == ["spatial-miehe-cauchy"], titles
+    codes, titles = _causes(extra=lambda sig: -np.einsum("ij,kl->ijkl", EYE, sig))
+    assert "spatial-miehe-cauchy" not in codes, titles
+
+
+def test_a_perturbation_tangent_keeps_its_cause_through_its_own_noise_but_not_beyond():
+    """Differences leave noise above an exact engine's tolerance (1e-9 of c here): the cause
+    stays, said as partly explaining; a term off by 0.1 % is no such noise and is not named.
+    """
+    rng = np.random.default_rng(7)
+    noisy = _findings(
+        extra=lambda sig: (
+            -np.einsum("ij,kl->ijkl", sig, EYE)
+            + 1e-9 * np.abs(sig).max() * rng.standard_normal((3, 3, 3, 3))
+        )
+    )
+    assert noisy == [("spatial-miehe-cauchy", PARTIAL)], noisy
+    off = _findings(extra=lambda sig: -1.001 * np.einsum("ij,kl->ijkl", sig, EYE))
+    assert off == [], off
