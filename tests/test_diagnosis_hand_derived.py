@@ -103,6 +103,21 @@ def test_the_whole_d2i2_term_missing_is_not_named_as_its_identity_term():
     assert [f.code for f in d.causes] == ["derivative-d2I2-missing"], [f.title for f in d.findings]
 
 
+def test_the_sign_of_d2i2s_identity_term_flipped_is_named_and_not_as_it_missing():
+    """The tangent with b (x) b + b (.) b for b (x) b - b (.) b: twice the change of the -II
+    term missing (whose own test above is the nearby mistake that must not get this cause).
+    """
+    model = _mooney()
+    points, cells, x = _state(False)
+    f_o, K_o = _oracle(points, cells, x, model)
+    psi2 = _psi2(_kin(points, cells, x)[2], model.c2)[:, None, None, None, None]
+    K = (K_o + _material(points, cells, x, 8.0 * psi2 * II)).tocsr()
+    d = _read(points, cells, x, f_o, K, f_o, K_o, model)
+    assert [f.code for f in d.causes] == ["derivative-d2I2-identity-sign"], [
+        f.title for f in d.findings
+    ]
+
+
 def test_a_tangent_scaled_is_no_piece():
     model = _mooney()
     points, cells, x = _state(False)

@@ -116,3 +116,38 @@ def test_node_blocks_written_with_the_mirror_rule_are_named():
     one[0:3, 0:3] = 2 * K_o[0:3, 0:3].toarray()
     for wrong in (2 * K_o, one.tocsr()):
         assert transposed_findings(wrong, K_o, f_o, f_o, s, DOUBLE, split) == []
+
+
+def _triangle_storage(split, strict=False):
+    """K from the element triplets with global row <= col (row < col: ``strict``) kept and
+    written again with row and col exchanged: a symmetric store filled the way users do.
+    """
+    m = split.cells.shape[0]
+    dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    rows = np.repeat(dof, 12, axis=1).ravel()
+    cols = np.tile(dof, (1, 12)).ravel()
+    keep = rows < cols if strict else rows <= cols
+    r, c, v = rows[keep], cols[keep], split.Ke.reshape(-1)[keep]
+    n3 = 3 * split.n
+    return sp.csr_matrix((np.r_[v, v], (np.r_[r, c], np.r_[c, r])), shape=(n3, n3))
+
+
+def test_symmetric_storage_with_or_without_its_diagonal_is_named():
+    split, f_o, K_o, s = _case("Yeoh", seed=4)
+    for strict, pattern in ((False, "diagonal-doubled"), (True, "diagonal-dropped")):
+        found = transposed_findings(_triangle_storage(split, strict), K_o, f_o, f_o, s, DOUBLE)
+        assert [x.figures["pattern"] for x in found] == [pattern], [x.title for x in found]
+        assert found[0].code == "storage-diagonal"
+    assert (
+        "doubled"
+        in transposed_findings(_triangle_storage(split), K_o, f_o, f_o, s, DOUBLE)[0].title
+    )
+
+
+def test_node_blocks_doubled_or_a_diagonal_scaled_otherwise_are_not_the_diagonal():
+    split, f_o, K_o, s = _case("NeoHookean", seed=5)
+    blocks = sp.block_diag([K_o[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] for i in range(split.n)])
+    found = transposed_findings(K_o + blocks, K_o, f_o, f_o, s, DOUBLE)
+    assert [x.figures["pattern"] for x in found] == ["node-mirror"], [x.title for x in found]
+    K = K_o + 0.5 * sp.diags(K_o.diagonal())  # the diagonal 1.5 times: no storage does that
+    assert transposed_findings(K, K_o, f_o, f_o, s, DOUBLE) == []

@@ -116,6 +116,8 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
         g[1] = t.I1[:, None, None] * eye + t.C
     elif mistake == "d2I2-no-identity":
         h[1] = _outer(eye, eye)
+    elif mistake == "d2I2-identity-sign":
+        h[1] = _outer(eye, eye) + II
     elif mistake == "d2I2-missing":
         h[1] = np.zeros_like(h[1])
     elif mistake == "d2J-odot-sign":
@@ -137,6 +139,9 @@ LAW_MISTAKES: Dict[str, str] = {
     "stress and tangent",
     "d2I2-no-identity": "the -II term of d2I2/dC2 is missing from your tangent (d2I2/dCdC "
     "written I (x) I instead of I (x) I - II)",
+    "d2I2-identity-sign": "d2I2/dC2 written I (x) I + II instead of I (x) I - II (pushed "
+    "forward: b (x) b + b (.) b for b (x) b - b (.) b), the sign of its symmetric-identity term "
+    "flipped in your tangent",
     "d2I2-missing": "the psi_2 d2I2/dC2 term (I (x) I - II) is missing from your tangent",
     "d2J-odot-sign": "d(C^-1)/dC with its sign lost in d2J/dC2: your tangent has "
     "+ J/2 C^-1 (.) C^-1 where d2J/dCdC = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1",

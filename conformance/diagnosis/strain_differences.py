@@ -110,19 +110,49 @@ def _material_stiffness(split: ElementSplit, dCC: np.ndarray) -> sp.csr_matrix:
 @dataclass(frozen=True)
 class StrainDifferenceFit:
     """scheme ("forward" / "backward"); step: h; explained: the fraction of ||K - K_o||
-    accounted for; residual: what is left, relative to ||K_o||.
+    accounted for; residual: what is left, relative to ||K_o||; kind: "strain" (differences of
+    S in the strain) or "perturbation" (Miehe's perturbation of F,
+    :mod:`conformance.diagnosis.perturbation_differences`).
     """
 
     scheme: str
     step: float
     explained: float
     residual: float
+    kind: str = "strain"
 
     def words(self) -> str:
+        if self.kind == "perturbation":
+            return (
+                f"{self.scheme} differences of the Kirchhoff stress under Miehe's perturbation "
+                f"of F (F + eps sym(e_k e_l) F, a numerical spatial tangent), step eps = "
+                f"{self.step:.2e}"
+            )
         return (
             f"{self.scheme} differences of the stress S in each Voigt strain component of E "
             f"(engineering shear strains), step h = {self.step:.2e}"
         )
+
+
+def fit_step(
+    Bm: sp.csr_matrix, D: sp.csr_matrix, K_o: sp.csr_matrix, kind: str = "strain"
+) -> Optional[StrainDifferenceFit]:
+    """The step that best explains D = K - K_o (3n, 3n) as ``step`` x Bm (the stiffness of a
+    scheme's leading error per unit step), one unknown; None when D or Bm is zero.
+    """
+    nD = float(sparse_norm(D))
+    bb = float(Bm.multiply(Bm).sum())
+    if nD == 0.0 or bb == 0.0:
+        return None
+    c = float(Bm.multiply(D).sum()) / bb
+    left = float(sparse_norm(D - c * Bm))
+    return StrainDifferenceFit(
+        "forward" if c > 0 else "backward",
+        abs(c),
+        1.0 - left / nD,
+        left / float(sparse_norm(K_o)),
+        kind,
+    )
 
 
 def fit_strain_differences(
@@ -132,29 +162,40 @@ def fit_strain_differences(
     (backward: a negative step) differences in the strain components, with one unknown;
     dD: (m, 6, 6, 6) from :func:`strain_derivatives`. None when D or the basis is zero.
     """
-    nD = float(sparse_norm(D))
     lead = 0.5 * np.einsum("mABB->mAB", dD)  # column B's error per unit step
-    Bm = _material_stiffness(split, _tensor(lead))
-    bb = float(Bm.multiply(Bm).sum())
-    if nD == 0.0 or bb == 0.0:
-        return None
-    c = float(Bm.multiply(D).sum()) / bb
-    left = float(sparse_norm(D - c * Bm))
-    return StrainDifferenceFit(
-        "forward" if c > 0 else "backward", abs(c), 1.0 - left / nD, left / float(sparse_norm(K_o))
-    )
+    return fit_step(_material_stiffness(split, _tensor(lead)), D, K_o)
+
+
+#: kind -> (code, what the leading error is, in words)
+_EVIDENCE = {
+    "strain": (
+        "strain-finite-difference",
+        "(h/2) dD_AB/d(eps_B) in column B of the Voigt tangent, from the oracle's tangent "
+        "differentiated in the strain",
+    ),
+    "perturbation": (
+        "perturbation-finite-difference",
+        "(eps/2) tau''_kl / J in column kl of the spatial tangent, tau'' the oracle's Kirchhoff "
+        "stress differentiated twice along the perturbation",
+    ),
+}
 
 
 def strain_difference_reading(diag, ci, out, ref, s):
-    """``diag`` (the force right, nothing named) with a strain-difference tangent named first
-    (partly explaining: the higher orders and round-off are left) when the fit accounts for
-    :data:`EXPLAINED` of the stiffness error; unchanged otherwise.
+    """``diag`` (the force right, nothing named) with a finite-difference tangent named first
+    (partly explaining: the higher orders and round-off are left) when a scheme's fit (in the
+    strain, or Miehe's perturbation of F) accounts for :data:`EXPLAINED` of the stiffness
+    error; both: said as ambiguous; unchanged when neither does.
     """
     from dataclasses import replace
 
     from conformance.diagnosis.elements import element_split
-    from conformance.diagnosis.findings import PARTIAL, Finding
+    from conformance.diagnosis.findings import PARTIAL, Finding, ambiguous
     from conformance.diagnosis.hand_derived import MAX_CELLS
+    from conformance.diagnosis.perturbation_differences import (
+        kirchhoff_curvatures,
+        perturbation_basis,
+    )
 
     if ci.cells.shape[0] > MAX_CELLS:
         return diag
@@ -164,23 +205,35 @@ def strain_difference_reading(diag, ci, out, ref, s):
     )
     if split is None:
         return diag
+    K_o = sp.csr_matrix(ref.stiffness)
+    D = (sp.csr_matrix(out.stiffness) - K_o).tocsr()
+    fits = []
     with np.errstate(all="ignore"):
         dD = strain_derivatives(ci.model, split, ci.points)
-    if dD is None or not np.all(np.isfinite(dD)):
+        if dD is not None and np.all(np.isfinite(dD)):
+            fits.append(fit_strain_differences(split, dD, D, K_o))
+        curv = kirchhoff_curvatures(ci.model, split, ci.points)
+        if curv is not None and np.all(np.isfinite(curv)):
+            fits.append(fit_step(perturbation_basis(split, curv), D, K_o, "perturbation"))
+    found = []
+    for fit in fits:
+        if fit is None or fit.explained < EXPLAINED:
+            continue
+        code, lead = _EVIDENCE[fit.kind]
+        found.append(
+            Finding(
+                code,
+                f"a finite-difference {'spatial' if fit.kind == 'perturbation' else 'material'} "
+                f"tangent: {fit.words()}",
+                PARTIAL,
+                f"K - K_oracle is the leading error of that scheme per cell ({lead}), fitted "
+                f"with one unknown: it accounts for {100 * fit.explained:.2f} % of the "
+                f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off); "
+                "the force matches",
+                {"step": fit.step, "scheme": fit.scheme, "explained": fit.explained},
+            )
+        )
+    if not found:
         return diag
-    K_o = sp.csr_matrix(ref.stiffness)
-    fit = fit_strain_differences(split, dD, (sp.csr_matrix(out.stiffness) - K_o).tocsr(), K_o)
-    if fit is None or fit.explained < EXPLAINED:
-        return diag
-    finding = Finding(
-        "strain-finite-difference",
-        f"a finite-difference material tangent: {fit.words()}",
-        PARTIAL,
-        "K - K_oracle is the leading error of that scheme per cell ((h/2) dD_AB/d(eps_B) in "
-        "column B of the Voigt tangent, from the oracle's tangent differentiated in the strain), "
-        f"fitted with one unknown: it accounts for {100 * fit.explained:.2f} % of the stiffness "
-        f"error (left: {fit.residual:.1e}, the higher orders and round-off); the force matches",
-        {"step": fit.step, "scheme": fit.scheme, "explained": fit.explained},
-    )
     rest = [f for f in diag.findings if f.code != "unexplained"]
-    return replace(diag, findings=[finding, *rest])
+    return replace(diag, findings=[*ambiguous(found, "both schemes' errors fit"), *rest])

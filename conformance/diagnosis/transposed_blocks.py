@@ -28,6 +28,7 @@ from conformance.judge.compare import Scales, Tolerances, errors
 __all__ = [
     "GLOBAL_PATTERNS",
     "CELL_PATTERNS",
+    "DIAGONAL",
     "transpose_global_blocks",
     "transpose_cell_blocks",
     "mirror_node_blocks",
@@ -53,6 +54,16 @@ CELL_PATTERNS: Dict[str, str] = {
     "along": "a cell's off-diagonal blocks K_ab added to the edge transposed where the cell "
     "walks the edge from its smaller node (global a < b): those edge blocks transposed, an "
     "edge-orientation mistake of per-edge storage",
+}
+
+
+#: Symmetric storage from one triangle: pattern -> words (the diagonal entries of K alone).
+DIAGONAL: Dict[str, str] = {
+    "doubled": "symmetric storage mirrored with its diagonal: K = U + U^T with U the upper (or "
+    "lower) triangle including the diagonal, so every diagonal entry of K is doubled, the "
+    "off-diagonal entries right",
+    "dropped": "symmetric storage mirrored without its diagonal: K = U + U^T with U the strict "
+    "upper (or lower) triangle, so every diagonal entry of K is missing",
 }
 
 
@@ -131,6 +142,13 @@ def transposed_findings(
             mirror_node_blocks(K_o),
         )
     )
+    # Symmetric storage of one triangle: K = U + U^T with U's diagonal kept doubles every
+    # diagonal entry; with U strictly upper it loses them. Both touch the diagonal alone.
+    diag = sp.diags(K_o.diagonal())
+    candidates += [
+        ("diagonal-doubled", DIAGONAL["doubled"], (K_o + diag).tocsr()),
+        ("diagonal-dropped", DIAGONAL["dropped"], (K_o - diag).tocsr()),
+    ]
     if split is not None:
         candidates += [
             (f"cell-{p}", words, transpose_cell_blocks(split, p))
@@ -144,14 +162,16 @@ def transposed_findings(
         e = errors(f, K, None, f_o, Kp, 0.0, s)
         if not tol.within(e, energy=False):
             continue
+        on_diagonal = name.startswith("diagonal")
+        where = "its diagonal entries" if on_diagonal else "those 3x3 blocks"
         found.append(
             Finding(
-                "storage-transposed-blocks",
+                "storage-diagonal" if on_diagonal else "storage-transposed-blocks",
                 "stiffness storage: " + words,
                 FULL,
-                f"the oracle's K with those 3x3 blocks so written matches the engine's K to "
-                f"{e.stiffness:.1e} (against {before:.1e} untransposed); the force matches; "
-                f"its error is confined to those blocks, not noise",
+                f"the oracle's K with {where} so written matches the engine's K to "
+                f"{e.stiffness:.1e} (against {before:.1e} as the oracle's); the force matches; "
+                f"its error is confined to {where}, not noise",
                 {"pattern": name, "stiffness_error": e.stiffness, "before": before},
             )
         )
