@@ -4,6 +4,8 @@ localisation.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -238,6 +240,9 @@ def test_the_kit_fit_separates_what_one_case_cannot():
     @dataclass(frozen=True)
     class D:
         findings: list = field(default_factory=list)
+        # no energy given, so nothing denies an energy reading (readings.stress_only)
+        errors: object = field(default_factory=lambda: SimpleNamespace(energy=None))
+        tolerances: object = None
 
         @property
         def causes(self):
