@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import os
 import shlex
-from typing import Callable, List
+from typing import Callable, List, Sequence
 
-from conformance.engine.process import run_engine
+from conformance.engine.process import EngineRun, run_engine
 from conformance.kit.cases import KitCase
 from conformance.kit.exchange import CaseError, EngineOutput, read_output
 
@@ -47,10 +47,16 @@ def _tail(data: bytes) -> str:
 
 
 def command_evaluator(
-    template: str, input_dir: Callable[[KitCase], str], output_root: str, timeout: float
+    template: str,
+    input_dir: Callable[[KitCase], str],
+    output_root: str,
+    timeout: float,
+    run: Callable[[Sequence[str], float], EngineRun] = run_engine,
 ) -> Callable[[KitCase], EngineOutput]:
     """An evaluator running the command for each case; outputs go to ``output_root/<case id>``
-    (a new directory per case, never the user's kit).
+    (a new directory per case, never the user's kit). ``run`` runs one command line with a time
+    limit (the check always uses :func:`run_engine`; a test harness may start a script faster
+    but must give the same EngineRun).
     """
     words = command_words(template)
 
@@ -60,7 +66,7 @@ def command_evaluator(
         os.makedirs(out)
         argv = [w.replace("{input}", src).replace("{output}", out) for w in words]
         try:
-            ran = run_engine(argv, timeout)
+            ran = run(argv, timeout)
         except OSError as exc:
             raise CaseError(
                 f"case {case.case_id}: cannot start {argv[0]!r}: {exc.strerror or exc}"

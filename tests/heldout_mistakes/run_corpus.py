@@ -143,6 +143,8 @@ def _judge_here(entry: dict, kit: Path, out: Path, corpus: Path, verdict_only: b
     """One engine checked in this process, as `mjed-verify check KIT --command ... --json` does
     (the same run_check and results.json); ``caches`` keeps each kit's cases and oracles.
     """
+    from forked_engines import run_forked  # beside this script, first on sys.path in --serve
+
     from common.options import write_json
     from conformance.engine.command import command_evaluator
     from conformance.judge.oracle import OracleCache
@@ -162,6 +164,7 @@ def _judge_here(entry: dict, kit: Path, out: Path, corpus: Path, verdict_only: b
         lambda c: c.input_dir or str(kit / "cases" / c.case_id / "input"),
         str(folder),
         TIMEOUT,
+        run=run_forked,  # the engine script forked from a warm Python (forked_engines.py)
     )
     t0 = time.monotonic()
     run = run_check(
