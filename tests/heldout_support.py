@@ -43,6 +43,13 @@ def _load_runner():
 
 
 RUNNER = _load_runner()
+#: what conformance.engine.command says of a case whose engine did not run to its end
+ENGINE_DID_NOT_RUN = (
+    "failed (exit code",
+    "failed (killed by signal",
+    "ran past the time limit",
+    "cannot start",
+)
 
 
 def entries(name: str) -> list:
@@ -87,3 +94,11 @@ def check_verdict(rows: dict, entry: dict) -> None:
         assert row["score"] == "pass", f"a correct engine failed: {row}"
     else:
         assert row["score"] not in ("PASSED", "error"), f"a mistaken engine was passed: {row}"
+        # an engine refused as bad input must have run: its outputs were read and refused.
+        # One that did not run to its end (a crash of the way it was started, the time limit)
+        # would count as caught without having been checked at all.
+        for case in row["cases"]:
+            if case["status"] == "bad input":
+                assert not any(s in case["message"] for s in ENGINE_DID_NOT_RUN), (
+                    f"{entry['file']}: the engine did not run to its end: {case['message']}"
+                )

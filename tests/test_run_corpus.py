@@ -5,6 +5,7 @@ the kit and builds its oracles once, gives each engine exactly the results of it
 
 from __future__ import annotations
 
+import pytest
 from heldout_support import MARKS, RUNNER, TESTS
 
 pytestmark = MARKS
@@ -58,3 +59,20 @@ def test_an_engine_whose_judge_died_is_an_error_row(tmp_path, monkeypatch):
     rows = RUNNER.judge_in_processes(entries, kits, tmp_path, TESTS / "heldout_mistakes_3", 2, True)
     assert [r["engine"] for r in rows] == [e["file"] for e in entries]
     assert {r["score"] for r in rows} == {"FAIL", "error"}  # controls FAIL, mistakes error
+
+
+def test_a_mistaken_engine_that_did_not_run_is_not_counted_as_caught():
+    """An engine refused as bad input because its outputs were wrong is caught; one that never
+    ran to its end (how it was started failed) was not checked, and the corpus test says so.
+    """
+    from heldout_support import check_verdict
+
+    entry = {"file": "x.py", "family": "storage"}
+
+    def row(message):
+        case = {"status": "bad input", "message": message}
+        return {"x.py": {"cases": [case], "score": "unexplained"}}
+
+    check_verdict(row("x/stiffness_rows.i64: indices must lie in [0, 558)"), entry)
+    with pytest.raises(AssertionError, match="did not run to its end"):
+        check_verdict(row("case c: python failed (exit code 1); no stderr"), entry)

@@ -313,6 +313,7 @@ def score(entry: dict, results, rc: int, seconds: float, tail: str) -> dict:
                 "status": c.get("status"),
                 "verdict": c.get("verdict"),
                 "errors": c.get("errors"),
+                "message": c.get("message", ""),
                 "score": s,
                 "cause_code": cause.get("code") if cause else "unexplained",
                 "cause": (cause.get("title") if cause else "unexplained"),
