@@ -9,7 +9,7 @@ integrates over the deformed volume v = J V with the spatial shape gradients gra
 Its mistakes in the kinematics of the assembly are tested here, per cell, on the oracle's answer:
 sigma = P F^T / J and c = (1/J) F F A_mat (A_mat = dP/dF less its geometric part, i.e. the
 push-forward of the material tangent) come from the oracle's element split
-(:func:`conformance.diagnosis.elements._piola`), and each variant reassembles them with
+(:func:`conformance.diagnosis.elements.cell_piola`), and each variant reassembles them with
 
 - another gradient everywhere: F^-1 D_a (the row form D F^-T, the inverse transposed once too
   often) or D_a itself (the reference gradients);
@@ -31,7 +31,7 @@ from typing import List, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, _piola, assemble, split_reading
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors
 
@@ -64,7 +64,7 @@ class SpatialParts:
 
 def spatial_parts(split: ElementSplit) -> SpatialParts:
     """The oracle's per-cell sigma and c, and the gradients, from its element split."""
-    P, A = _piola(split)
+    P, A = cell_piola(split)
     F = split.F
     J = np.linalg.det(F)
     Fi = np.linalg.inv(F)
