@@ -7,9 +7,10 @@ from grad N = D F^-1 and integrals over v = J V0 computes, per cell,
     K_e = v B^T c B + v (grad N_a . sigma grad N_b) I,    f_a = -v sigma grad N_a.
 
 From the oracle's per-cell stress and tangent (the element split's S and CC,
-:mod:`conformance.diagnosis.invariant_pieces`) c = F F F F : CC / J and sigma = F S F^T / J are
-exact, so each family mistake below predicts the engine's force and stiffness with nothing
-fitted:
+:mod:`conformance.diagnosis.invariant_pieces`), pushed forward by
+:func:`conformance.diagnosis.spatial_tangent.spatial_cells`, c = F F F F : CC / J and
+sigma = F S F^T / J are exact, so each family mistake below predicts the engine's force and
+stiffness with nothing fitted:
 
 1. **Voigt order.** c filled in Abaqus' order (xx, yy, zz, xy, xz, yz) while B uses FEBio's
    (xx, yy, zz, xy, yz, xz): the yz and xz rows and columns of c exchanged (stiffness only).
@@ -31,7 +32,6 @@ is not the oracle's own; several that match are said as ambiguous by the caller.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable, Dict, List
 
 import numpy as np
@@ -39,12 +39,10 @@ import numpy as np
 from conformance.diagnosis.elements import ElementSplit, assemble
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding
 from conformance.diagnosis.invariant_pieces import CellTensors
-from conformance.diagnosis.spatial_tangent import material_stiffness
+from conformance.diagnosis.spatial_tangent import SpatialCells, material_stiffness, spatial_cells
 
 __all__ = [
     "FEBIO",
-    "SpatialCells",
-    "spatial_cells",
     "to_voigt",
     "from_voigt",
     "TANGENT_VARIANTS",
@@ -56,30 +54,6 @@ __all__ = [
 FEBIO = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 
 _EYE = np.eye(3)
-
-
-@dataclass(frozen=True)
-class SpatialCells:
-    """Per cell (m cells): sigma (m, 3, 3) the Cauchy stress, c (m, 3, 3, 3, 3) the spatial
-    tangent, gN (m, 4, 3) the spatial shape gradients grad N_a (rows), v (m,) current volumes.
-    """
-
-    sigma: np.ndarray
-    c: np.ndarray
-    gN: np.ndarray
-    v: np.ndarray
-
-
-def spatial_cells(split: ElementSplit, S: np.ndarray, CC: np.ndarray) -> SpatialCells:
-    """The spatial quantities of the split's cells from the second Piola stress S (m, 3, 3) and
-    the material tangent CC = dS/dE (m, 3, 3, 3, 3): the push-forward by F with its 1/J.
-    """
-    F = split.F
-    J = np.linalg.det(F)
-    sigma = F @ S @ F.swapaxes(1, 2) / J[:, None, None]
-    c = np.einsum("miI,mjJ,mkK,mlL,mIJKL->mijkl", F, F, F, F, CC, optimize=True)
-    gN = split.D @ np.linalg.inv(F)  # rows grad N_a = F^-T D_a
-    return SpatialCells(sigma, c / J[:, None, None, None, None], gN, J * split.V0)
 
 
 def to_voigt(c: np.ndarray) -> np.ndarray:
