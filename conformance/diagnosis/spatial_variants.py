@@ -27,7 +27,9 @@ stiffness with nothing fitted:
    while the geometric part is node-major): stiffness only.
 
 A variant is named only when its prediction matches the engine within the case's tolerance and
-is not the oracle's own; several that match are said as ambiguous by the caller.
+is not the oracle's own; several that match are said as ambiguous by the caller. The numerical
+variant (a perturbation tangent) may leave more, up to the round-off of its differences
+(:data:`NUMERICAL`): then it is said as partly explaining, with what it leaves.
 """
 
 from __future__ import annotations
@@ -141,10 +143,28 @@ TANGENT_VARIANTS: Dict[str, tuple] = {
     ),
 }
 
-#: Variants that are numerical tangents, and the stiffness error (relative) their differences
-#: may leave: central differences of double stresses leave about u^(2/3) ~ 4e-11 at best and
-#: grow with a coarser or finer step, so the tolerance of an exact engine is too tight for them.
-NUMERICAL = {"miehe-cauchy": 1e-6}
+#: The unit round-off of double precision, u = 2^-53.
+U = 2.0**-53
+
+#: Variants that are numerical tangents (differences of the stress), and the stiffness error
+#: they may leave beyond the tolerance, as a fraction of the variant's own term (the stiffness
+#: of that term, i.e. of the prediction less the oracle, which the data give).
+#:
+#: Why sqrt(u), and why relative to the term. A difference quotient of a stress computed in
+#: double with step eps carries that stress's rounding (a few u |sigma|) divided by eps, in
+#: every column of c. Steps in use are at least sqrt(u) (~1.1e-8, the optimal step of
+#: one-sided differences; below it round-off exceeds the truncation of any scheme, the case of
+#: the finite-difference-roundoff reading), so the round-off left in c is at most about
+#: sqrt(u) |sigma|, and its stiffness about sqrt(u) times that of a term of sigma's size: the
+#: -sigma_ij delta_kl term itself (up to factors of order one from how the rounding falls; no
+#: margin is added). The truncation of central differences, (eps^2 / 6) sigma''', is within
+#: this for the usual steps (1e-6 to 1e-5; at 1e-4 it is comparable). A one-sided scheme's
+#: truncation, (eps / 2) sigma'', is not: with any coarse step it is far beyond this, and is
+#: not claimed here (the perturbation reading of
+#: :mod:`conformance.diagnosis.perturbation_differences` fits a step to it). Anything else left
+#: (another mistake beside the differences) is beyond this bound unless it is below the
+#: differences' own round-off, where no reading can see it.
+NUMERICAL = {"miehe-cauchy": U**0.5}
 
 #: code -> words: the part of the element matrix written in component-major order.
 PART_ORDERS: Dict[str, str] = {
@@ -181,9 +201,10 @@ def spatial_variant_findings(
 
     cells: the oracle's per-cell stress S (m, 3, 3) and material tangent CC (m, 3, 3, 3, 3);
     matches(f, K, allowance): the engine's error against the prediction, inf unless within
-    tolerance (a numerical variant: within its allowance of :data:`NUMERICAL`) and the
-    prediction differs from the oracle's (as in :mod:`conformance.diagnosis.hand_derived`);
-    tolerance: the case's stiffness tolerance (a numerical variant beyond it is partial).
+    tolerance (a numerical variant: within its allowance of :data:`NUMERICAL`, a fraction of the
+    prediction's own distance from the oracle) and the prediction differs from the oracle's (as
+    in :mod:`conformance.diagnosis.hand_derived`); tolerance: the case's stiffness tolerance (a
+    numerical variant beyond it is partial, and says what it leaves).
     """
     t = spatial_cells(split, cells.S, cells.CC)
     found = []
@@ -201,7 +222,14 @@ def spatial_variant_findings(
                     "the oracle's per-cell stress and tangent pushed forward (sigma, c = "
                     "F F F F : CC / J, grad N = D F^-1, v = J V0), the element matrices "
                     f"rebuilt so: errors against your engine {left:.1e}"
-                    + (", the rest of the size of the differences' own error" if numerical else ""),
+                    + (
+                        f", beyond the tolerance {tolerance:.0e}: not fully explained; what is "
+                        f"left is below sqrt(u) = {NUMERICAL[code]:.1e} times this term's own "
+                        "stiffness, the round-off that differences of the stress at a step of "
+                        "sqrt(u) or more leave"
+                        if numerical
+                        else ""
+                    ),
                     {"variant": code, "residual": left},
                 )
             )
