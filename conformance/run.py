@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Dict, List, Optional, Sequence
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -43,14 +43,23 @@ from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.diagnosis.volumes import volume_findings
-from conformance.judge.compare import DOUBLE, scales
+from conformance.judge.compare import DOUBLE, Scales, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
-from conformance.judge.oracle import OracleCache
+from conformance.judge.oracle import OracleCache, Reference
 from conformance.judge.precision import U32
 from conformance.kit.cases import KitCase, primary_and_probes, probe_lengths
 from conformance.kit.exchange import CaseError, EngineOutput, FormatError
+from conformance.kit.spec import CaseInput
 
-__all__ = ["CaseError", "CaseOutcome", "CheckRun", "run_check"]
+__all__ = [
+    "CaseError",
+    "CaseOutcome",
+    "CheckRun",
+    "CaseReadings",
+    "Reading",
+    "READINGS",
+    "run_check",
+]
 
 
 Evaluator = Callable[[KitCase], EngineOutput]
@@ -132,6 +141,192 @@ class CheckRun:
             "cases": [o.to_dict() for o in self.outcomes],
             "input_errors": dict(self.input_errors),
         }
+
+
+@dataclass(frozen=True)
+class CaseReadings:
+    """A compared case as the readings of its mistakes see it: the oracles (``cache``), the kit
+    case, the engine's output and the oracle's (``ref``), the scales, the kit's cases by model
+    and mesh (``kin``: the other states an output may have been computed at), where the energy
+    reading keeps the case's term system for the fit over the kit; read_mistakes: a failed case
+    that the first diagnosis does not explain and that is not float32 round-off within single
+    precision; read_causes: False for ``--verdict-only``.
+    """
+
+    cache: OracleCache
+    case: KitCase
+    out: EngineOutput
+    ref: Reference
+    s: Scales
+    kin: Dict[tuple, List[KitCase]]
+    keep_terms: Callable[[Any], None]
+    read_mistakes: bool
+    read_causes: bool
+
+    @property
+    def ci(self) -> CaseInput:
+        return self.case.input
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One reading of a failed case: its name, when it runs (on the diagnosis so far) and the
+    call, which returns the diagnosis with what it finds (unchanged when it finds nothing).
+    """
+
+    name: str
+    when: Callable[[Diagnosis, CaseReadings], bool]
+    read: Callable[[Diagnosis, CaseReadings], Diagnosis]
+
+
+def _mistakes_read(d: Diagnosis, c: CaseReadings) -> bool:
+    return c.read_mistakes
+
+
+def _nothing_named(d: Diagnosis, c: CaseReadings) -> bool:
+    return c.read_mistakes and not d.causes
+
+
+def _force_wrong(d: Diagnosis, c: CaseReadings) -> bool:
+    return _nothing_named(d, c) and d.errors.force > d.tolerances.force
+
+
+def _force_right(d: Diagnosis, c: CaseReadings) -> bool:
+    return _nothing_named(d, c) and d.errors.force <= d.tolerances.force
+
+
+def _headline_unexplained(d: Diagnosis, c: CaseReadings) -> bool:
+    """The force right and no reading (not even a partial one) has taken the headline."""
+    return _force_right(d, c) and bool(d.findings) and d.findings[0].code == "unexplained"
+
+
+def _named_force_right(d: Diagnosis, c: CaseReadings) -> bool:
+    return c.read_causes and bool(d.causes) and d.errors.force <= d.tolerances.force
+
+
+def _other_states(d: Diagnosis, c: CaseReadings) -> Diagnosis:
+    """Computed at another state of the kit (cheap: an assembly a state)."""
+    ci = c.ci
+    others = [
+        k
+        for k in c.kin[(readings.model_key(ci.model), c.case.mesh)]
+        if k.case_id != c.case.case_id and np.array_equal(k.input.points, ci.points)
+    ]
+    return other_state_reading(d, c.cache, ci, c.out, c.s, others)
+
+
+#: The readings of a failed case's mistakes, in the order they are tried; each runs when its
+#: condition holds on the diagnosis so far (most: nothing named yet). The force-right readings
+#: ask first for a known approximation, then for hand-derived terms, then for differences.
+READINGS: Tuple[Reading, ...] = (
+    Reading("another state of the kit", _mistakes_read, _other_states),
+    Reading(
+        "energy hypotheses (terms, variants, parameters)",
+        _nothing_named,
+        lambda d, c: readings.read(d, c.cache, c.ci, c.out, c.ref, c.s, keep_terms=c.keep_terms),
+    ),
+    Reading(
+        "inside the element: local order, stress measure, volume",
+        _nothing_named,
+        lambda d, c: element_reading(d, c.ci, c.out, c.ref, c.s, volume_findings),
+    ),
+    Reading(
+        "shape-function gradients built wrongly",
+        _nothing_named,
+        lambda d, c: shape_gradient_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "shared entries written once, not summed",
+        _nothing_named,
+        lambda d, c: buffered_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "3x3 blocks of K stored untransposed",
+        _nothing_named,
+        lambda d, c: transposed_blocks_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "each cell weighted by V0 twice, or the mean volume",
+        _nothing_named,
+        lambda d, c: cell_weight_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "cells skipped or doubled here and there",
+        _nothing_named,
+        lambda d, c: spread_cells_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a hand-written stress with B where C belongs",
+        _nothing_named,
+        lambda d, c: b_for_c_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)",
+        _force_wrong,
+        lambda d, c: hand_derived_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "one of MJED's chain-rule parts of a term wrong: the force's J or C part, f'(J)",
+        _force_wrong,
+        lambda d, c: mjed_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a known approximation of the tangent",
+        _force_right,
+        lambda d, c: _approximation_reading(d, c.ci, c.out),
+    ),
+    Reading(
+        "one invariant's curvature term wrong in the tangent",
+        _force_right,
+        lambda d, c: second_derivative_reading(d, c.ci, c.out, c.ref),
+    ),
+    Reading(
+        "one piece of a hand-derived tangent wrong, or its 1/J",
+        _force_right,
+        lambda d, c: hand_derived_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "Ogden's coaxial tangent, Costa's d2Q unsymmetrised",
+        _force_right,
+        lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "one of MJED's stiffness blocks of a term wrong (J-Hessian, cross, J-J, material "
+        "blocks), or f'(J) of a term",
+        _force_right,
+        lambda d, c: mjed_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "differences of the force",
+        _force_right,
+        lambda d, c: _finite_difference_reading(d, c.cache, c.ci, c.out, c.ref),
+    ),
+    Reading(
+        "differences with a step per cell",
+        _headline_unexplained,
+        lambda d, c: element_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "differences in the strain, or Miehe's perturbation of F",
+        _headline_unexplained,
+        lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "an updated-Lagrangian assembly's kinematics",
+        _nothing_named,
+        lambda d, c: spatial_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "last: the J-only stress the energy denied",
+        _nothing_named,
+        lambda d, c: denied_volumetric(d),
+    ),
+    Reading(
+        "one tangent term named: wrong, or a tiny perturbation of it (differences)?",
+        _named_force_right,
+        lambda d, c: term_difference_reading(d, c.ci, c.out, c.ref),
+    ),
+)
 
 
 def run_check(cases: Sequence[KitCase], evaluate: Evaluator, **options: Any) -> CheckRun:
@@ -304,71 +499,22 @@ def _run_check(
         )
         if unexplained and not read_causes:
             diag = _causes_not_read(diag)
-        if read_mistakes:  # computed at another state of the kit (cheap: an assembly a state)
-            others = [
-                c
-                for c in kin[(readings.model_key(ci.model), case.mesh)]
-                if c.case_id != case.case_id and np.array_equal(c.input.points, ci.points)
-            ]
-            diag = other_state_reading(diag, cache, ci, out, s, others)
-        if read_mistakes and not diag.causes:
-            model_key = _model_name(ci.model)
-            diag = readings.read(
-                diag,
-                cache,
-                ci,
-                out,
-                ref,
-                s,
-                keep_terms=lambda tc, k=model_key: kept_terms.setdefault(k, []).append(
-                    (len(run.outcomes), *tc)
-                ),
-            )
-        if read_mistakes and not diag.causes:  # inside the element: order, stress measure
-            diag = element_reading(diag, ci, out, ref, s, volume_findings)
-        if read_mistakes and not diag.causes:  # the shape-function gradients built wrongly
-            diag = shape_gradient_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # shared entries written once, not summed
-            diag = buffered_assembly_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # 3x3 blocks of K stored untransposed
-            diag = transposed_blocks_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # each cell weighted by V0 twice, the mean volume
-            diag = cell_weight_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # cells skipped or doubled here and there
-            diag = spread_cells_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # a hand-written stress with B where C belongs
-            diag = b_for_c_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
-            # one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)
-            diag = hand_derived_reading(diag, cache, ci, out, ref, s)
-        if read_mistakes and not diag.causes and diag.errors.force > diag.tolerances.force:
-            # one of MJED's chain-rule parts of a term wrong: the force's J or C part, f'(J)
-            diag = mjed_part_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes and diag.errors.force <= diag.tolerances.force:
-            # The force is right: is the stiffness a known approximation, or differences?
-            diag = _approximation_reading(diag, ci, out)
-            if not diag.causes:  # one invariant's curvature term wrong in the tangent
-                diag = second_derivative_reading(diag, ci, out, ref)
-            if not diag.causes:  # one piece of a hand-derived tangent wrong, or its 1/J
-                diag = hand_derived_reading(diag, cache, ci, out, ref, s)
-            if not diag.causes:  # Ogden's coaxial tangent, Costa's d2Q unsymmetrised
-                diag = tangent_term_reading(diag, ci, out, ref, s)
-            if not diag.causes:  # one of MJED's stiffness blocks of a term wrong (J-Hessian,
-                # cross, J-J, material blocks), or f'(J) of a term
-                diag = mjed_part_reading(diag, ci, out, ref, s)
-            if not diag.causes:
-                diag = _finite_difference_reading(diag, cache, ci, out, ref)
-            if diag.findings and diag.findings[0].code == "unexplained":  # a step per cell
-                diag = element_difference_reading(diag, ci, out, ref, s)
-            if diag.findings and diag.findings[0].code == "unexplained":  # steps in the strain
-                diag = strain_difference_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # an updated-Lagrangian assembly's kinematics
-            diag = spatial_assembly_reading(diag, ci, out, ref, s)
-        if read_mistakes and not diag.causes:  # last: the J-only stress the energy denied
-            diag = denied_volumetric(diag)
-        if read_causes and diag.causes and diag.errors.force <= diag.tolerances.force:
-            # one tangent term named: wrong, or a tiny perturbation of it (differences)?
-            diag = term_difference_reading(diag, ci, out, ref)
+        case_readings = CaseReadings(
+            cache,
+            case,
+            out,
+            ref,
+            s,
+            kin,
+            lambda tc, k=label["model"]: kept_terms.setdefault(k, []).append(
+                (len(run.outcomes), *tc)
+            ),
+            read_mistakes,
+            read_causes,
+        )
+        for reading in READINGS:
+            if reading.when(diag, case_readings):
+                diag = reading.read(diag, case_readings)
         # Last: would the output pass as a float32 engine's? Only when no mistake was named, and
         # only for an inexact force (above).
         if read_causes and not single and unexplained and not diag.causes and inexact:

@@ -273,3 +273,47 @@ def test_a_factor_of_one_is_not_a_scaling():
     assert near == []
     far = scale_corrections(f_o, K_o, f_o * 1e-6, K_o * 1e-6, None, None)
     assert {code for code, *_ in far} == {"scale", "scale-stiffness", "scale-force"}
+
+
+def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_conditions():
+    """conformance.run.READINGS: which readings a failed case's diagnosis gets, read from the
+    declared list alone (the conditions see the diagnosis so far and the case's flags).
+    """
+    from conformance.run import READINGS
+
+    names = [r.name for r in READINGS]
+    assert len(set(names)) == len(names)
+
+    def running(force_wrong, named=False, headline="unexplained", mistakes=True, causes=True):
+        tol = SimpleNamespace(force=1e-10)
+        findings = [SimpleNamespace(code=headline)]
+        d = SimpleNamespace(
+            causes=findings if named else [],
+            findings=findings,
+            errors=SimpleNamespace(force=1e-3 if force_wrong else 1e-12),
+            tolerances=tol,
+        )
+        c = SimpleNamespace(read_mistakes=mistakes, read_causes=causes)
+        return [r.name for r in READINGS if r.when(d, c)]
+
+    force_right = set(running(False)) - set(running(True))
+    force_wrong = set(running(True)) - set(running(False))
+    assert len(force_wrong) == 2 and all(
+        "hand-derived stress" in n or "f'(J)" in n for n in force_wrong
+    )
+    assert names.index("a known approximation of the tangent") == min(
+        names.index(n) for n in force_right
+    )
+    # a partial reading in the headline stops the difference readings, not the others
+    partial = running(False, headline="finite-difference")
+    assert set(running(False)) - set(partial) == {
+        "differences with a step per cell",
+        "differences in the strain, or Miehe's perturbation of F",
+    }
+    # a cause named by the first diagnosis (no mistakes read): only the tangent term's
+    # differences, and only with the force right
+    assert running(False, named=True, mistakes=False) == [names[-1]]
+    assert running(True, named=True, mistakes=False) == []
+    # --verdict-only reads nothing
+    assert running(True, mistakes=False, causes=False) == []
+    assert running(False, named=True, mistakes=False, causes=False) == []

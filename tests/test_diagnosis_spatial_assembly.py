@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from conftest import box_mesh, mjed_split
 
-from conformance.diagnosis.elements import _piola, assemble
+from conformance.diagnosis.elements import assemble, cell_piola
 from conformance.diagnosis.spatial_assembly import assembly_findings
 from conformance.judge.compare import DOUBLE
 from mjed.materials import MooneyRivlin, NeoHookean
@@ -24,7 +24,7 @@ def _state(seed=0):
 
 def _force(split, grad):
     """f_a = -v sigma grad_a, written by hand from the split's P: (n, 3)."""
-    P, _ = _piola(split)
+    P, _ = cell_piola(split)
     J = np.linalg.det(split.F)
     sigma = P @ np.swapaxes(split.F, 1, 2) / J[:, None, None]
     fe = -(J * split.V0)[:, None, None] * np.einsum("mkp,map->mak", sigma, grad)
@@ -91,7 +91,7 @@ def test_stress_built_on_c_where_b_belongs_is_named_with_or_without_transposed_g
 
     points, cells, x = _state(2)
     split, f_o, K_o, s = mjed_split(MooneyRivlin(c1=1200.0, c2=400.0, k0=3e4), points, cells, x)
-    P, _ = _piola(split)
+    P, _ = cell_piola(split)
     J = np.linalg.det(split.F)
     sigma = P @ np.swapaxes(split.F, 1, 2) / J[:, None, None]
     W, _, Vt = np.linalg.svd(split.F)

@@ -40,6 +40,7 @@ __all__ = [
     "element_split",
     "assemble",
     "cell_kinematics",
+    "cell_piola",
     "local_orders",
     "order_findings",
     "STRESS_MEASURES",
@@ -216,9 +217,10 @@ STRESS_MEASURES: dict = {
 }
 
 
-def _piola(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
+def cell_piola(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
     """Per cell P (m, 3, 3) and A = dP/dF (m, 3, 3, 3, 3), A[k, i, l, j] = dP_ki / dF_lj, read
-    back from the element force and matrix through the pseudo-inverse of D (rank 3).
+    back from the element force and matrix through the pseudo-inverse of D (rank 3): the
+    oracle's stress and tangent per cell, which the other per-cell readings start from.
     """
     Dp = np.linalg.pinv(split.D)  # (m, 3, 4): Dp D = I
     V = split.V0
@@ -252,7 +254,7 @@ def stress_measure_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
     """The stress measures whose force and stiffness match the engine's (several: ambiguous)."""
-    P, A = _piola(split)
+    P, A = cell_piola(split)
     found = []
     for code, (words, M) in STRESS_MEASURES.items():
         with np.errstate(all="ignore"):

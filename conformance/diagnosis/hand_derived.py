@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import _piola, element_split
+from conformance.diagnosis.elements import cell_piola, element_split
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
@@ -58,7 +58,7 @@ def _nearby(cache, ci, s: Scales, tol):
     split = element_split(
         near.model, near.points, near.cells, near.positions, r.force, r.stiffness, s, tol
     )
-    return None if split is None else cell_tensors(*_piola(split), split.F)
+    return None if split is None else cell_tensors(*cell_piola(split), split.F)
 
 
 def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
@@ -79,8 +79,9 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
     def matches(f: np.ndarray, K: sp.csr_matrix, allowance: float = 0.0) -> float:
         """The engine's larger error against the prediction (f, K), inf unless it is within the
         tolerance and the prediction is not the oracle's own (a piece this law lacks). A
-        numerical prediction (differences) may leave a stiffness error up to ``allowance``
-        (relative) when that is below 1e-4 of the prediction's own distance from the oracle.
+        numerical prediction (differences) may leave a stiffness error up to ``allowance`` times
+        the prediction's own distance from the oracle (its term's size; why:
+        :data:`conformance.diagnosis.spatial_variants.NUMERICAL`).
         """
         if not (np.all(np.isfinite(f)) and np.all(np.isfinite(K.data))):
             return float("inf")
@@ -89,13 +90,13 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
             return float("inf")
         e = errors(out.force, K_engine, None, f, K, 0.0, s)
         if tol.within(e, energy=False) or (
-            e.force <= tol.force and e.stiffness <= min(allowance, 1e-4 * d.stiffness)
+            e.force <= tol.force and e.stiffness <= allowance * d.stiffness
         ):
             return max(e.force, e.stiffness)
         return float("inf")
 
     with np.errstate(all="ignore"):
-        t = cell_tensors(*_piola(split), split.F)
+        t = cell_tensors(*cell_piola(split), split.F)
         found = piece_findings(split, t, matches, _nearby(cache, ci, s, tol))
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
@@ -143,7 +144,7 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
             return e if e <= tol.force else float("inf")
 
         with np.errstate(all="ignore"):
-            t = cell_tensors(*_piola(split), split.F)
+            t = cell_tensors(*cell_piola(split), split.F)
             found = piece_findings(split, t, matches, _nearby(cache, near, s, tol))
             found += voigt_stress_findings(split, t.S, matches)
         codes = {f.code: f for f in found}
@@ -180,7 +181,7 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
     if power_exponent(ci.model) is not None and ci.cells.shape[0] <= MAX_CELLS:
         split = element_split(*args[:4], ref.force, ref.stiffness, s, tol)
         if split is not None:
-            S = np.linalg.inv(split.F) @ _piola(split)[0]
+            S = np.linalg.inv(split.F) @ cell_piola(split)[0]
     with np.errstate(all="ignore"):
         found = spectral_findings(*args, tol.stiffness, S) + fibre_tangent_findings(
             *args, tol.stiffness

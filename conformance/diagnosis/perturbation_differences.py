@@ -24,7 +24,7 @@ from typing import Any, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, _piola, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola
 from conformance.diagnosis.spatial_variants import FEBIO, from_voigt
 
 __all__ = ["STEP", "kirchhoff_curvatures", "perturbation_basis"]
@@ -68,7 +68,7 @@ def kirchhoff_curvatures(
 
     try:
         field = mjed.make_force_field(mjed.TetMesh(X.reshape(-1, 3), loose), model)
-        t0 = _piola(split)[0] @ F.swapaxes(1, 2)
+        t0 = cell_piola(split)[0] @ F.swapaxes(1, 2)
         for col, (k, l) in enumerate(FEBIO):  # noqa: E741
             step = STEP * _sym_unit(k, l)
             tp = tau(field, (np.eye(3) + step) @ F)

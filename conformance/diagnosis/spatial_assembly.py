@@ -7,9 +7,10 @@ integrates over the deformed volume v = J V with the spatial shape gradients gra
     f_a = -v sigma grad N_a,   K_ab = v grad N_a . c . grad N_b + v (grad N_a . sigma grad N_b) I.
 
 Its mistakes in the kinematics of the assembly are tested here, per cell, on the oracle's answer:
-sigma = P F^T / J and c = (1/J) F F A_mat (A_mat = dP/dF less its geometric part, i.e. the
-push-forward of the material tangent) come from the oracle's element split
-(:func:`conformance.diagnosis.elements._piola`), and each variant reassembles them with
+sigma = F S F^T / J and c = F F F F : CC / J come from the oracle's element split (its per-cell
+S and CC, :func:`conformance.diagnosis.invariant_pieces.cell_tensors`, pushed forward by
+:func:`conformance.diagnosis.spatial_tangent.spatial_cells`), and each variant reassembles them
+with
 
 - another gradient everywhere: F^-1 D_a (the row form D F^-T, the inverse transposed once too
   often) or D_a itself (the reference gradients);
@@ -31,8 +32,10 @@ from typing import List, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, _piola, assemble, split_reading
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.spatial_tangent import SpatialCells, spatial_cells
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
@@ -48,34 +51,21 @@ __all__ = [
 
 @dataclass(frozen=True)
 class SpatialParts:
-    """Per cell: sigma (m, 3, 3) Cauchy stress; c (m, 3, 3, 3, 3) spatial tangent c[k, p, l, q];
-    J (m,); g (m, 4, 3) the right spatial gradients F^-T D_a; gT (m, 4, 3) F^-1 D_a; D (m, 4, 3)
-    the reference gradients; V0 (m,) rest volumes.
+    """Per cell: the oracle's spatial quantities (sigma, c, the right gradients grad N_a =
+    F^-T D_a and v = J V0); gT (m, 4, 3) F^-1 D_a and D (m, 4, 3) the reference gradients, the
+    gradients of the mistakes.
     """
 
-    sigma: np.ndarray
-    c: np.ndarray
-    J: np.ndarray
-    g: np.ndarray
+    cells: SpatialCells
     gT: np.ndarray
     D: np.ndarray
-    V0: np.ndarray
 
 
 def spatial_parts(split: ElementSplit) -> SpatialParts:
     """The oracle's per-cell sigma and c, and the gradients, from its element split."""
-    P, A = _piola(split)
-    F = split.F
-    J = np.linalg.det(F)
-    Fi = np.linalg.inv(F)
-    S = Fi @ P  # second Piola-Kirchhoff stress
-    # A[k, i, l, j] = dP_ki/dF_lj; its geometric part delta_kl S_ij, the rest pushed forward.
-    A_mat = A - np.einsum("kl,mij->mkilj", np.eye(3), S)
-    c = np.einsum("mpi,mqj,mkilj->mkplq", F, F, A_mat) / J[:, None, None, None, None]
-    sigma = P @ np.swapaxes(F, 1, 2) / J[:, None, None]
-    g = np.einsum("mip,mai->map", Fi, split.D)  # F^-T D_a
-    gT = np.einsum("mpi,mai->map", Fi, split.D)  # F^-1 D_a
-    return SpatialParts(sigma, c, J, g, gT, split.D, split.V0)
+    t = cell_tensors(*cell_piola(split), split.F)
+    gT = np.einsum("mpi,mai->map", np.linalg.inv(split.F), split.D)  # F^-1 D_a
+    return SpatialParts(spatial_cells(split, t.S, t.CC), gT, split.D)
 
 
 @dataclass(frozen=True)
@@ -160,10 +150,10 @@ def assemble_variant(
     split: ElementSplit, parts: SpatialParts, v: AssemblyVariant
 ) -> Tuple[np.ndarray, sp.csr_matrix]:
     """Force (n, 3) and stiffness (3n, 3n) of an engine that assembles sigma and c as ``v``."""
-    grads = {"g": parts.g, "gT": parts.gT, "D": parts.D}
+    grads = {"g": parts.cells.gN, "gT": parts.gT, "D": parts.D}
     G, Gg = grads[v.grad], grads[v.geo_grad]
-    vol = parts.J * parts.V0
-    sigma, c = parts.sigma, parts.c
+    vol = parts.cells.v
+    sigma, c = parts.cells.sigma, parts.cells.c
     if v.rotated:
         R = _rotation(split.F)
         sigma = np.einsum("mak,mab,mbl->mkl", R, sigma, R)

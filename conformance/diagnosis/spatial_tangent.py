@@ -7,10 +7,16 @@ and the geometric stiffness stay right. On a state with one J the symptom is "ma
 stiffness scaled by J": :func:`spatial_factor_words` says which J; on a state where J varies,
 :func:`spatial_findings` tests the factor J_c (and 1/J_c) per cell on the oracle's per-cell
 material stiffness.
+
+The push-forward itself, sigma = F S F^T / J and c = F F F F : CC / J with the spatial shape
+gradients grad N_a = F^-T D_a and the current volume v = J V0, is :func:`spatial_cells`: the
+readings of updated-Lagrangian mistakes (:mod:`conformance.diagnosis.spatial_variants`,
+:mod:`conformance.diagnosis.spatial_assembly`) start from it.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable, List, Optional
 
 import numpy as np
@@ -19,7 +25,40 @@ import scipy.sparse as sp
 from conformance.diagnosis.elements import ElementSplit, assemble
 from conformance.diagnosis.findings import FULL, Finding
 
-__all__ = ["FACTORS", "spatial_factor_words", "material_stiffness", "spatial_findings"]
+__all__ = [
+    "SpatialCells",
+    "spatial_cells",
+    "FACTORS",
+    "spatial_factor_words",
+    "material_stiffness",
+    "spatial_findings",
+]
+
+
+@dataclass(frozen=True)
+class SpatialCells:
+    """Per cell (m cells): sigma (m, 3, 3) the Cauchy stress, c (m, 3, 3, 3, 3) the spatial
+    tangent c[i, j, k, l], gN (m, 4, 3) the spatial shape gradients grad N_a = F^-T D_a (rows,
+    the row form D F^-1), v (m,) current volumes J V0.
+    """
+
+    sigma: np.ndarray
+    c: np.ndarray
+    gN: np.ndarray
+    v: np.ndarray
+
+
+def spatial_cells(split: ElementSplit, S: np.ndarray, CC: np.ndarray) -> SpatialCells:
+    """The spatial quantities of the split's cells from the second Piola stress S (m, 3, 3) and
+    the material tangent CC = dS/dE (m, 3, 3, 3, 3): the push-forward by F with its 1/J.
+    """
+    F = split.F
+    J = np.linalg.det(F)
+    sigma = F @ S @ F.swapaxes(1, 2) / J[:, None, None]
+    c = np.einsum("miI,mjJ,mkK,mlL,mIJKL->mijkl", F, F, F, F, CC, optimize=True)
+    gN = split.D @ np.linalg.inv(F)  # rows grad N_a = F^-T D_a
+    return SpatialCells(sigma, c / J[:, None, None, None, None], gN, J * split.V0)
+
 
 #: power of J -> the mistake it names (the engine's material stiffness is J^p times the oracle's).
 FACTORS = {

@@ -7,9 +7,10 @@ from grad N = D F^-1 and integrals over v = J V0 computes, per cell,
     K_e = v B^T c B + v (grad N_a . sigma grad N_b) I,    f_a = -v sigma grad N_a.
 
 From the oracle's per-cell stress and tangent (the element split's S and CC,
-:mod:`conformance.diagnosis.invariant_pieces`) c = F F F F : CC / J and sigma = F S F^T / J are
-exact, so each family mistake below predicts the engine's force and stiffness with nothing
-fitted:
+:mod:`conformance.diagnosis.invariant_pieces`), pushed forward by
+:func:`conformance.diagnosis.spatial_tangent.spatial_cells`, c = F F F F : CC / J and
+sigma = F S F^T / J are exact, so each family mistake below predicts the engine's force and
+stiffness with nothing fitted:
 
 1. **Voigt order.** c filled in Abaqus' order (xx, yy, zz, xy, xz, yz) while B uses FEBio's
    (xx, yy, zz, xy, yz, xz): the yz and xz rows and columns of c exchanged (stiffness only).
@@ -26,12 +27,13 @@ fitted:
    while the geometric part is node-major): stiffness only.
 
 A variant is named only when its prediction matches the engine within the case's tolerance and
-is not the oracle's own; several that match are said as ambiguous by the caller.
+is not the oracle's own; several that match are said as ambiguous by the caller. The numerical
+variant (a perturbation tangent) may leave more, up to the round-off of its differences
+(:data:`NUMERICAL`): then it is said as partly explaining, with what it leaves.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable, Dict, List
 
 import numpy as np
@@ -39,12 +41,10 @@ import numpy as np
 from conformance.diagnosis.elements import ElementSplit, assemble
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding
 from conformance.diagnosis.invariant_pieces import CellTensors
-from conformance.diagnosis.spatial_tangent import material_stiffness
+from conformance.diagnosis.spatial_tangent import SpatialCells, material_stiffness, spatial_cells
 
 __all__ = [
     "FEBIO",
-    "SpatialCells",
-    "spatial_cells",
     "to_voigt",
     "from_voigt",
     "TANGENT_VARIANTS",
@@ -56,30 +56,6 @@ __all__ = [
 FEBIO = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 
 _EYE = np.eye(3)
-
-
-@dataclass(frozen=True)
-class SpatialCells:
-    """Per cell (m cells): sigma (m, 3, 3) the Cauchy stress, c (m, 3, 3, 3, 3) the spatial
-    tangent, gN (m, 4, 3) the spatial shape gradients grad N_a (rows), v (m,) current volumes.
-    """
-
-    sigma: np.ndarray
-    c: np.ndarray
-    gN: np.ndarray
-    v: np.ndarray
-
-
-def spatial_cells(split: ElementSplit, S: np.ndarray, CC: np.ndarray) -> SpatialCells:
-    """The spatial quantities of the split's cells from the second Piola stress S (m, 3, 3) and
-    the material tangent CC = dS/dE (m, 3, 3, 3, 3): the push-forward by F with its 1/J.
-    """
-    F = split.F
-    J = np.linalg.det(F)
-    sigma = F @ S @ F.swapaxes(1, 2) / J[:, None, None]
-    c = np.einsum("miI,mjJ,mkK,mlL,mIJKL->mijkl", F, F, F, F, CC, optimize=True)
-    gN = split.D @ np.linalg.inv(F)  # rows grad N_a = F^-T D_a
-    return SpatialCells(sigma, c / J[:, None, None, None, None], gN, J * split.V0)
 
 
 def to_voigt(c: np.ndarray) -> np.ndarray:
@@ -167,10 +143,28 @@ TANGENT_VARIANTS: Dict[str, tuple] = {
     ),
 }
 
-#: Variants that are numerical tangents, and the stiffness error (relative) their differences
-#: may leave: central differences of double stresses leave about u^(2/3) ~ 4e-11 at best and
-#: grow with a coarser or finer step, so the tolerance of an exact engine is too tight for them.
-NUMERICAL = {"miehe-cauchy": 1e-6}
+#: The unit round-off of double precision, u = 2^-53.
+U = 2.0**-53
+
+#: Variants that are numerical tangents (differences of the stress), and the stiffness error
+#: they may leave beyond the tolerance, as a fraction of the variant's own term (the stiffness
+#: of that term, i.e. of the prediction less the oracle, which the data give).
+#:
+#: Why sqrt(u), and why relative to the term. A difference quotient of a stress computed in
+#: double with step eps carries that stress's rounding (a few u |sigma|) divided by eps, in
+#: every column of c. Steps in use are at least sqrt(u) (~1.1e-8, the optimal step of
+#: one-sided differences; below it round-off exceeds the truncation of any scheme, the case of
+#: the finite-difference-roundoff reading), so the round-off left in c is at most about
+#: sqrt(u) |sigma|, and its stiffness about sqrt(u) times that of a term of sigma's size: the
+#: -sigma_ij delta_kl term itself (up to factors of order one from how the rounding falls; no
+#: margin is added). The truncation of central differences, (eps^2 / 6) sigma''', is within
+#: this for the usual steps (1e-6 to 1e-5; at 1e-4 it is comparable). A one-sided scheme's
+#: truncation, (eps / 2) sigma'', is not: with any coarse step it is far beyond this, and is
+#: not claimed here (the perturbation reading of
+#: :mod:`conformance.diagnosis.perturbation_differences` fits a step to it). Anything else left
+#: (another mistake beside the differences) is beyond this bound unless it is below the
+#: differences' own round-off, where no reading can see it.
+NUMERICAL = {"miehe-cauchy": U**0.5}
 
 #: code -> words: the part of the element matrix written in component-major order.
 PART_ORDERS: Dict[str, str] = {
@@ -207,9 +201,10 @@ def spatial_variant_findings(
 
     cells: the oracle's per-cell stress S (m, 3, 3) and material tangent CC (m, 3, 3, 3, 3);
     matches(f, K, allowance): the engine's error against the prediction, inf unless within
-    tolerance (a numerical variant: within its allowance of :data:`NUMERICAL`) and the
-    prediction differs from the oracle's (as in :mod:`conformance.diagnosis.hand_derived`);
-    tolerance: the case's stiffness tolerance (a numerical variant beyond it is partial).
+    tolerance (a numerical variant: within its allowance of :data:`NUMERICAL`, a fraction of the
+    prediction's own distance from the oracle) and the prediction differs from the oracle's (as
+    in :mod:`conformance.diagnosis.hand_derived`); tolerance: the case's stiffness tolerance (a
+    numerical variant beyond it is partial, and says what it leaves).
     """
     t = spatial_cells(split, cells.S, cells.CC)
     found = []
@@ -227,7 +222,14 @@ def spatial_variant_findings(
                     "the oracle's per-cell stress and tangent pushed forward (sigma, c = "
                     "F F F F : CC / J, grad N = D F^-1, v = J V0), the element matrices "
                     f"rebuilt so: errors against your engine {left:.1e}"
-                    + (", the rest of the size of the differences' own error" if numerical else ""),
+                    + (
+                        f", beyond the tolerance {tolerance:.0e}: not fully explained; what is "
+                        f"left is below sqrt(u) = {NUMERICAL[code]:.1e} times this term's own "
+                        "stiffness, the round-off that differences of the stress at a step of "
+                        "sqrt(u) or more leave"
+                        if numerical
+                        else ""
+                    ),
                     {"variant": code, "residual": left},
                 )
             )

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
-from conformance.diagnosis.elements import ElementSplit, _piola, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola
 from conformance.diagnosis.invariant_pieces import cell_tensors
 
 __all__ = [
@@ -74,7 +74,7 @@ def strain_derivatives(model: Any, split: ElementSplit, points: np.ndarray) -> O
                 fe = np.asarray(field.element_forces(xs), dtype=np.float64)
                 Ke = np.asarray(field.element_stiffness(xs), dtype=np.float64)
                 moved = ElementSplit(loose, 4 * m, split.V0, split.D, Fs, fe, Ke, 0.0)
-                t = cell_tensors(*_piola(moved), Fs)
+                t = cell_tensors(*cell_piola(moved), Fs)
                 tangents.append(_voigt(t.CC))
             out[:, :, :, c] = (tangents[0] - tangents[1]) / (2.0 * DELTA)
     except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
