@@ -9,9 +9,9 @@ import importlib.util
 import sys
 
 import pytest
+from heldout_support import TESTS
 
 from conformance.engine.process import run_engine
-from heldout_support import TESTS
 
 _spec = importlib.util.spec_from_file_location(
     "forked_engines", TESTS / "heldout_mistakes" / "forked_engines.py"
