@@ -36,6 +36,7 @@ from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
+from conformance.diagnosis.sparsity import off_pattern_reading
 from conformance.diagnosis.spatial_assembly import spatial_assembly_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
@@ -220,6 +221,11 @@ def _other_states(d: Diagnosis, c: CaseReadings) -> Diagnosis:
 #: ask first for a known approximation, then for hand-derived terms, then for differences.
 READINGS: Tuple[Reading, ...] = (
     Reading("another state of the kit", _mistakes_read, _other_states),
+    Reading(
+        "stiffness entries where the mesh has none (indices wrong)",
+        _nothing_named,
+        lambda d, c: off_pattern_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
     Reading(
         "energy hypotheses (terms, variants, parameters)",
         _nothing_named,

@@ -9,7 +9,11 @@ from __future__ import annotations
 import numpy as np
 from conftest import box_mesh, mjed_split
 
-from conformance.diagnosis.diagnose import _volumetric_findings, j_function_residual
+from conformance.diagnosis.diagnose import (
+    _volumetric_findings,
+    j_function_residual,
+    j_function_steps,
+)
 from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.tangent import _cell_derivatives
 from conformance.judge.compare import DOUBLE
@@ -131,3 +135,42 @@ def test_a_denied_reading_on_a_single_j_is_not_held():
     f, K = _volumetric_engine(points, cells, x, 50.0 + 0 * J, 20.0 + 0 * J, f_o, K_o)
     _, (held,) = _volumetric(points, cells, x, f, K, f_o, K_o, s, denies=True)
     assert held.figures["denied"] is False
+
+
+def test_j_function_steps_tells_one_function_of_j_from_a_per_cell_coefficient():
+    rng = np.random.default_rng(4)
+    J = rng.uniform(0.85, 1.2, 60)
+    assert j_function_steps(J, 3e4 * np.log(J) / J**2) < 1e-2
+    assert j_function_steps(J, np.exp(5 * J)) < 1e-2  # steep
+    assert j_function_steps(J, 3e4 * rng.uniform(0.5, 1.5, 60)) > 0.3
+    # nearby: mostly a function of J, times an invariant varying by +-20 % from cell to cell
+    assert j_function_steps(J, np.exp(5 * J) * rng.uniform(0.8, 1.2, 60)) > 0.05
+    assert np.isnan(j_function_steps(np.full(60, 1.1), J))  # one J: nothing told
+
+
+def test_a_tangent_term_along_c_inverse_squared_not_of_j_is_not_the_volumetric_tangent():
+    """An isochoric term along C^-1 (x) C^-1 with a wrong factor (a decoupled engine's
+    projection P~ with +1/3) changes d2U/dJ2 per cell as an isochoric invariant does, not as
+    one function of J: the volumetric tangent U''(J) is not named (corpus 6 was told so).
+    """
+    points, cells, x = _random_state(2)
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    per_cell = 3e4 * np.random.default_rng(6).uniform(0.5, 1.5, J.size)
+    f, K = _volumetric_engine(points, cells, x, 0.0 * J, per_cell, f_o, K_o)
+    full, partial = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert full == [] and "not as one function of J" in partial[0].title
+    assert "not the volumetric tangent" in partial[0].title
+
+
+def test_on_a_single_j_a_tangent_term_along_c_inverse_squared_names_neither_reading():
+    """One J: U''(J) and an isochoric term along C^-1 (x) C^-1 fit equally; neither is named."""
+    points, cells = box_mesh(2, jitter=0.2, seed=3)
+    x = points @ np.diag([1.3, 1.0, 1.0]).T
+    _, f_o, K_o, s = mjed_split(MODEL, points, cells, x)
+    J = np.abs(_cell_derivatives(points, cells, x)[1])
+    f, K = _volumetric_engine(points, cells, x, 0.0 * J, 2e4 + 0.0 * J, f_o, K_o)
+    full, partial = _volumetric(points, cells, x, f, K, f_o, K_o, s)
+    assert full == [] and [x.code for x in partial] == ["volumetric"]
+    assert "U''(J), or another term" in partial[0].title
+    assert "too few distinct J" in partial[0].title

@@ -611,6 +611,34 @@ def j_function_residual(J: np.ndarray, dU1: np.ndarray, dU2: np.ndarray) -> floa
     return float(np.linalg.norm(step - trap)) / scale
 
 
+#: A per-cell tangent coefficient is read as one function of J when, the cells sorted by J, each
+#: value is predicted by its two neighbours in J (linear interpolation) to within this fraction
+#: of the values' spread (medians of both): about 1e-4 for a smooth function of J on the kits'
+#: meshes, 0.2 to 1 for values that depend on the cell otherwise (an isochoric invariant).
+J_FUNCTION_STEPS = 0.05
+
+
+def j_function_steps(J: np.ndarray, values: np.ndarray) -> float:
+    """How far ``values`` (m,) are from one function of J (m,): the cells sorted by J, the median
+    of |v_i - (v_(i-1), v_(i+1)) interpolated at J_i| over the median absolute deviation of v.
+    Small for one function of J (its interpolation error), O(1) when the values depend on the
+    cell otherwise. Medians, so that the few wide gaps at the ends of a wide range of J do not
+    count. NaN with fewer than 8 distinct J (nothing can be told), 0 for constant values.
+    """
+    if np.unique(np.round(J, 12)).size < 8:
+        return float("nan")
+    o = np.argsort(J, kind="stable")
+    j, v = np.asarray(J, dtype=float)[o], np.asarray(values, dtype=float)[o]
+    gap = j[2:] - j[:-2]
+    keep = gap > 0
+    w = (j[1:-1] - j[:-2])[keep] / gap[keep]
+    between = v[:-2][keep] + w * (v[2:] - v[:-2])[keep]
+    spread = float(np.median(np.abs(v - np.median(v))))
+    if spread == 0.0:
+        return 0.0
+    return float(np.median(np.abs(v[1:-1][keep] - between))) / spread
+
+
 def _volumetric_findings(
     points,
     cells,
@@ -663,6 +691,30 @@ def _volumetric_findings(
     spread = j_function_residual(fit.J, fit.dU1, fit.dU2)
     figs["j_function_residual"] = spread
     named = True
+    steps = j_function_steps(fit.J, fit.dU2)
+    figs["j_function_steps"] = steps
+    if force_ok:
+        # The tangent alone claims no energy, but "the volumetric tangent" claims U''(J): its
+        # per-cell change must be one function of J. Another term along C^-1 (x) C^-1 (in a
+        # decoupled engine, the isochoric projection's) fits the same per-cell form.
+        if not np.isfinite(steps):
+            named = False  # two causes fit equally: said as the closest reading, not named
+            title = (
+                "a tangent term along C^-1 (x) C^-1 differs (the force matches): the volumetric "
+                "tangent U''(J), or another term along C^-1 (x) C^-1 such as an isochoric "
+                "projection's; this case has too few distinct J to tell them apart"
+            )
+        elif steps > J_FUNCTION_STEPS:
+            named = False
+            title = (
+                "a tangent term along C^-1 (x) C^-1 differs per cell, not as one function of J "
+                "(the force matches): not the volumetric tangent U''(J)"
+            )
+            text += (
+                f"; the fitted d2U/dJ2 of a cell differs from what its neighbours in J predict "
+                f"by {steps:.2f} of its spread: it depends on more than J (e.g. an isochoric "
+                "invariant: a term of the isochoric tangent along C^-1 (x) C^-1)"
+            )
     # Only an energy is one function of J; the tangent alone (the force right) claims none.
     if spread > J_ONLY and not force_ok:  # a pressure per cell, not one U(J)'s
         named = False

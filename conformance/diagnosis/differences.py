@@ -30,6 +30,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.sparsity import OFF_PATTERN, off_pattern_fraction
 from conformance.diagnosis.tangent import step_fits
 
 __all__ = [
@@ -202,6 +203,7 @@ class RoundoffDifferences:
     representable: fraction of K's values that are float32 numbers; outside32: fraction of the
     error (in norm) on entries whose error exceeds float32's relative rounding of the entry;
     step: the step the noise level implies, u ||f_e|| / ||K_e - K_o,e|| per cell, median [m];
+    off_pattern: fraction of the error on node pairs that share no cell (0 for differences);
     exact_blocks: fraction of K's nonzero 3x3 node blocks whose error is zero to double
     round-off of the block: about 0 for noise (every difference carries round-off), a half or
     more for a storage mistake (blocks of one triangle, say, transposed: the others exact).
@@ -213,6 +215,7 @@ class RoundoffDifferences:
     outside32: float
     step: float
     exact_blocks: float = 0.0
+    off_pattern: float = 0.0
 
     @property
     def holds(self) -> bool:
@@ -223,6 +226,9 @@ class RoundoffDifferences:
             and self.outside32 > 0.5
             # Round-off reaches every block; an error confined to some blocks is structured.
             and self.exact_blocks < EXACT_BLOCKS
+            # Differences change only the forces around the perturbed node: never off the
+            # mesh's pattern (conformance.diagnosis.sparsity).
+            and not self.off_pattern > OFF_PATTERN
         )
 
 
@@ -258,7 +264,15 @@ def roundoff_dominated(
     fe = np.linalg.norm(split.fe.reshape(m, -1), axis=1)
     ok = err > 0
     step = float(np.median(_U64 * fe[ok] * np.sqrt(12.0) / err[ok])) if np.any(ok) else np.nan
-    return RoundoffDifferences(asym, balance, rep, outside, step, exact_node_blocks(D, Ko))
+    return RoundoffDifferences(
+        asym,
+        balance,
+        rep,
+        outside,
+        step,
+        exact_node_blocks(D, Ko),
+        off_pattern_fraction(split.cells, D),
+    )
 
 
 def exact_node_blocks(D: sp.csr_matrix, K_o: sp.csr_matrix) -> float:

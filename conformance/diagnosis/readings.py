@@ -285,6 +285,28 @@ def _formula_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readin
     )
 
 
+def _single_j(ci) -> float:
+    """The J of every cell of the case when the state has one (else NaN)."""
+    from conformance.diagnosis.elements import cell_kinematics
+
+    J = np.linalg.det(cell_kinematics(ci.points, ci.cells, ci.positions)[2])
+    return float(J[0]) if J.size and np.ptp(J) <= 1e-9 * np.abs(J).max() else float("nan")
+
+
+def _single_j_factor(ci, ratio: float) -> str:
+    """Words for a parameter's factor that is the state's one J (or 1/J): the same change as
+    that parameter's terms integrated over the deformed volume (or divided by J); "" if not.
+    """
+    J = _single_j(ci)
+    if not np.isfinite(J) or abs(J - 1.0) < 1e-3 or not np.isfinite(ratio):
+        return ""
+    if abs(ratio - J) <= 1e-6 * J:
+        return "times J (integrated over the deformed volume J V)"
+    if abs(ratio - 1.0 / J) <= 1e-6 / J:
+        return "divided by J"
+    return ""
+
+
 def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
     """Parameters exchanged, or one with another value (:mod:`conformance.diagnosis.parameters`),
     that the engine matches.
@@ -329,6 +351,12 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
         also = also or convention_words(ci.model, name, v, v0)
         elastic = bool(elastic_convention_words(ci.model, name, v, v0))
+        volume = _single_j_factor(ci, v / v0 if v0 else float("nan"))
+        if volume and not also:
+            also = (
+                f" or, equally on this state, {name}'s terms {volume}: the state has one "
+                f"J = {_single_j(ci):.6g}, which cannot tell a value from a volume"
+            )
         found.append(
             Reading(
                 Finding(
