@@ -141,7 +141,18 @@ def _helper_process() -> subprocess.Popen:
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
         )
+        atexit.register(_stop_helper, _helper)
     return _helper
+
+
+def _stop_helper(helper: subprocess.Popen) -> None:
+    """At exit: end of requests, and the helper waited for (no orphan left behind)."""
+    try:
+        helper.stdin.close()
+        helper.wait(timeout=10)
+    except (OSError, subprocess.TimeoutExpired):
+        helper.kill()
+        helper.wait()
 
 
 def is_python_script(argv: Sequence[str]) -> bool:
