@@ -120,6 +120,21 @@ def test_a_squared_parameter_is_said_as_another_convention():
     assert convention_words(ab, "N", 5.0, 8.0) == ""  # a shift is Gent's Jm's alone
 
 
+def test_a_bulk_modulus_given_as_abaqus_d1_or_as_an_inverse_is_a_convention():
+    """k0 = 3e4 used as D1 = 2/K (corpus 6: the engine's bulk modulus was 2/k0): said so; the
+    inverse of any modulus is a compliance; other small values are values.
+    """
+    from conformance.diagnosis.parameters import convention_words
+    from mjed.materials import Yeoh
+
+    yeoh = Yeoh(c10=1e3, c20=-200.0, c30=100.0, k0=3e4)
+    assert "D1 = 2/K" in convention_words(yeoh, "k0", 2 / 3e4, 3e4)
+    assert "inverse" in convention_words(yeoh, "k0", 1 / 3e4, 3e4)
+    assert "inverse" in convention_words(yeoh, "c10", 1e-3, 1e3)
+    assert convention_words(yeoh, "k0", 3 / 3e4, 3e4) == ""
+    assert "D1" not in convention_words(yeoh, "c10", 2e-3, 1e3)  # D1 is a bulk modulus's
+
+
 def _reading(code, coefficients=None):
     from conformance.diagnosis.findings import FULL, Finding
     from conformance.diagnosis.readings import Reading

@@ -235,6 +235,13 @@ def convention_words(model: Any, name: str, value: float, declared: float) -> st
             return f" ({name} {'-' if shift < 0 else '+'} {abs(shift):g}: {words})"
     if declared <= 0 or value <= 0 or abs(declared - 1.0) < 1e-3:
         return ""  # 1 squared is 1: no convention can be told
+    if name in _BULK and abs(value * declared - 2.0) <= 2e-6:
+        return (
+            f" (2/{name}: {name} used as Abaqus' compressibility D1 = 2/K, or a D1 converted as "
+            "if it were K)"
+        )
+    if abs(value * declared - 1.0) <= 1e-6:
+        return f" (1/{name}: the parameter entered as its inverse, a compliance for a modulus)"
     if abs(value - declared**2) <= 1e-6 * declared**2:
         known = _SQUARED.get((type(model).__name__, name))
         return (

@@ -605,8 +605,9 @@ def refine_volumetric(diag, cache, ci, out, s: Scales):
     """``diag`` whose head cause is a J-only energy difference (the per-cell fit of
     :mod:`conformance.diagnosis.diagnose`, true but unspecific: it recognised no variant) made
     specific by the one rewritten formula of :mod:`conformance.diagnosis.variants` that the
-    engine matches, said in its title and evidence; unchanged when none or several distinct
-    ones match.
+    engine matches, or else the one parameter value (with its convention, e.g. a bulk modulus
+    given as Abaqus' D1), said in its title and evidence; unchanged when none or several
+    distinct ones match.
     """
     if not diag.causes or diag.causes[0].code != "volumetric":
         return diag
@@ -614,6 +615,8 @@ def refine_volumetric(diag, cache, ci, out, s: Scales):
     if v.figures.get("variant"):
         return diag  # the per-cell fit already names the bulk term
     causes = merge_readings(_formula_readings(cache, ci, out, s, diag.tolerances), s)
+    if len(causes) != 1:  # no rewritten formula: one parameter with another value (conventions)?
+        causes = merge_readings(_parameter_readings(cache, ci, out, s, diag.tolerances), s)
     if len(causes) != 1:
         return diag
     (w,) = causes
