@@ -184,3 +184,22 @@ def test_lame_and_bulk_modulus_confused_is_a_convention():
     mr = MooneyRivlin(c1=1200.0, c2=400.0, k0=3e4)
     words = elastic_convention_words(mr, "k0", 3e4 + 2 * 3200.0 / 3, 3e4)
     assert "Lame's lambda" in words and "2 (c1 + c2)" in words
+
+
+def test_parameters_given_each_others_values_are_read_as_another_order():
+    """Costa's six b's taken by position in Guccione's order (corpus 6): the refitted values are
+    the declared ones rearranged, three or more moved; two moved is an exchange (its own
+    reading), and values that are not a rearrangement are values.
+    """
+    from conformance.diagnosis.parameters import permutation_words, unit_groups
+
+    names = ["b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn"]
+    declared = [18.5, 2.8, 3.6, 2.0, 1.6, 3.6]
+    fitted = [18.5, 2.0, 2.8, 1.6, 3.6, 3.6]
+    words = permutation_words(names, fitted, declared)
+    assert "another order" in words and "b_fs = 2 (the case's b_fn)" in words
+    assert "b_sn = 3.6 (the case's b_ss or b_nn)" in words
+    assert permutation_words(names, [18.5, 2.0, 3.6, 2.8, 1.6, 3.6], declared) is None  # a pair
+    assert permutation_words(names, [18.5, 2.0, 2.8, 1.6, 3.7, 3.6], declared) is None
+    assert permutation_words(names, declared, declared) is None
+    assert ["b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn"] in unit_groups(COSTA)

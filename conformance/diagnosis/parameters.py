@@ -21,7 +21,7 @@ import dataclasses
 import itertools
 import re
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
@@ -31,7 +31,9 @@ __all__ = [
     "elastic_convention_words",
     "declared_units",
     "exchanges",
+    "permutation_words",
     "scalar_parameters",
+    "unit_groups",
     "with_value",
 ]
 
@@ -255,3 +257,38 @@ def convention_words(model: Any, name: str, value: float, declared: float) -> st
             "convention)"
         )
     return ""
+
+
+def unit_groups(model: Any) -> List[List[str]]:
+    """The model's scalar parameters grouped by declared unit, groups of three or more (two are
+    :func:`exchanges`'s); none for a model without declared units.
+    """
+    groups: Dict[str, List[str]] = {}
+    for name, unit in declared_units(model).items():
+        if unit is not None:
+            groups.setdefault(unit, []).append(name)
+    return [g for g in groups.values() if len(g) >= 3]
+
+
+def permutation_words(
+    names: Sequence[str], fitted: Sequence[float], declared: Sequence[float], rel: float = 1e-6
+) -> Optional[str]:
+    """Words for refitted values of the parameters ``names`` that are their declared values in
+    another order, three or more moved (two moved is an exchange); None otherwise (the values
+    are not the declared ones rearranged, or nothing moved).
+    """
+    v, d = np.asarray(fitted, dtype=float), np.asarray(declared, dtype=float)
+    scale = np.maximum(np.abs(d), 1e-300)
+    if not np.allclose(np.sort(v), np.sort(d), rtol=rel, atol=0.0):
+        return None
+    moved = [i for i in range(len(names)) if abs(v[i] - d[i]) > rel * scale[i]]
+    if len(moved) < 3:
+        return None
+    said = []
+    for i in moved:
+        sources = [names[j] for j in range(len(names)) if abs(v[i] - d[j]) <= rel * scale[j]]
+        said.append(f"{names[i]} = {v[i]:.6g} (the case's {' or '.join(sources)})")
+    return (
+        f"parameters {', '.join(names[i] for i in moved)} read in another order (a list taken "
+        f"by position in another convention's order): {'; '.join(said)}"
+    )

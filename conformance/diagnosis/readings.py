@@ -377,6 +377,50 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                 *fit.prediction,
             )
         )
+    return found or _permutation_readings(cache, ci, out, s, tol)
+
+
+def _permutation_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """Three or more parameters of one unit given each other's values (a list read by position
+    in another order): the group refitted jointly from its declared values (each evaluation
+    reuses the compiled form), named when the engine matches and the values are the declared
+    ones rearranged. Tried only when no single parameter explains the engine.
+    """
+    from conformance.diagnosis.parameters import permutation_words, unit_groups, with_value
+    from conformance.diagnosis.refit import refit
+
+    values = scalar_parameters(ci.model)
+    found = []
+    for names in unit_groups(ci.model):
+        declared = [values[n] for n in names]
+
+        def evaluate(v, names=names):
+            model = with_value(ci.model, **{n: float(x) for n, x in zip(names, v)})
+            r = cache.evaluate_once(ci, model)
+            return r.force, r.stiffness
+
+        try:
+            fit = refit(evaluate, declared, _target(out, s, tol))
+        except (ValueError, TypeError):  # a trial value the model refuses
+            continue
+        words = fit and fit.agrees and permutation_words(names, fit.values, declared)
+        if not words:
+            continue
+        found.append(
+            Reading(
+                Finding(
+                    "parameters-permuted",
+                    words,
+                    FULL,
+                    "the oracle with "
+                    + ", ".join(f"{n} = {v:.9g}" for n, v in zip(names, fit.values))
+                    + f" (refitted together): force error {fit.force:.1e}, stiffness error "
+                    + f"{fit.stiffness:.1e}",
+                    {"parameters": list(names), "values": list(fit.values)},
+                ),
+                *fit.prediction,
+            )
+        )
     return found
 
 
