@@ -26,6 +26,33 @@ def _averaged_by_svd(R: np.ndarray) -> np.ndarray:
     return U @ Vt
 
 
+def _smoothed_by_svd(R: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    n = cells.max() + 1
+    nodal = np.zeros((n, 3, 3))
+    for k, cell in enumerate(cells):  # a test's plain loop: the reading's einsum is not reused
+        for a in cell:
+            nodal[a] += R[k]
+    nodal /= np.bincount(cells.ravel(), minlength=n)[:, None, None]
+    U, _, Vt = np.linalg.svd(nodal[cells].mean(axis=1))
+    return U @ Vt
+
+
+def test_smoothed_frames_are_rotations_offered_only_with_the_mesh():
+    R = _rotations(6, seed=5)
+    model = replace(default_material("Costa"), frame=R)
+    cells = np.array(
+        [[0, 1, 2, 3], [1, 2, 3, 4], [2, 3, 4, 5], [0, 2, 4, 5], [1, 3, 5, 0], [5, 4, 3, 2]]
+    )
+    smoothed = [
+        np.asarray(m.frame) for c, _, m in frame_models(model, cells) if c == "frame-smoothed"
+    ]
+    assert len(smoothed) == 4
+    for A in smoothed:
+        assert np.allclose(np.einsum("kji,kjl->kil", A, A), np.eye(3), atol=1e-12)
+    assert any(np.allclose(A, _smoothed_by_svd(R, cells)) for A in smoothed)
+    assert not [c for c, _, _ in frame_models(model) if c == "frame-smoothed"]  # no mesh given
+
+
 def test_node_indexed_frames_are_offered_only_where_node_numbers_are_cell_indices():
     R = _rotations(6)
     model = replace(default_material("Costa"), frame=R)
@@ -59,7 +86,7 @@ def test_the_averaged_frames_are_rotations_and_the_svd_one_is_the_nearest():
 
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
-@pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "first cell"])
+@pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "smoothed", "first cell"])
 def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
     from frame_support import check_with_frames
 
@@ -68,18 +95,22 @@ def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
             return R[cells[:, 0]]
         if mistake == "averaged":
             return np.broadcast_to(_averaged_by_svd(R), R.shape)
+        if mistake == "smoothed":  # a fibre field stored per node: cells -> nodes -> cells
+            return _smoothed_by_svd(R, cells)
         return np.broadcast_to(R[0], R.shape)  # a nearby mistake with its own name
 
     outcome = check_with_frames(used, "random")
     causes = outcome.diagnosis.causes
-    expected = {"node-indexed": "frame-node-indexed", "averaged": "frame-averaged"}.get(
-        mistake, "frame-global"
-    )
+    expected = {
+        "node-indexed": "frame-node-indexed",
+        "averaged": "frame-averaged",
+        "smoothed": "frame-smoothed",
+    }.get(mistake, "frame-global")
     assert outcome.status == "failed" and causes, outcome.diagnosis.text()
     assert [c.code for c in causes] == [expected], outcome.diagnosis.text()
     if mistake == "node-indexed":
         assert "cells[k, 0]" in causes[0].title
-    if mistake == "averaged":
+    if mistake in ("averaged", "smoothed"):
         assert "nearest rotation" in causes[0].title
 
 

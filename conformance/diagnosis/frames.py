@@ -20,6 +20,9 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-node-indexed``: per-cell frames looked up by a node number, cell k given
   frame[cells[k, a]] (an engine that stores the frames per node, or indexes them with the
   connectivity), one variant per local node a, where every node number is a cell index;
+- ``frame-smoothed``: per-cell frames smoothed through the nodes (each node the mean of its
+  cells' frames, each cell the mean of its nodes', made rotations again by the polar factor or
+  Gram-Schmidt, at the nodes too or only in the cells), as an engine storing the field per node;
 - ``frame-averaged``: one frame for the whole mesh, the mean of the cells' frames made a
   rotation again (by Gram-Schmidt from the mean fibre, or as the nearest rotation);
 - ``frame-layout``: the kit's row-major (m, 3, 3) frame file read in another memory layout,
@@ -110,6 +113,7 @@ def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[st
         candidates += _averaged(R)
         if cells is not None:
             candidates += _node_indexed(R, np.asarray(cells))
+            candidates += _smoothed(R, np.asarray(cells))
         if isinstance(model, Material):
             # a declared material's frame goes to the oracle as it is; a user energy's is
             # re-read (and checked again) where its formula is compiled, in another process
@@ -230,6 +234,57 @@ def _node_indexed(R: np.ndarray, cells: np.ndarray) -> List[Tuple[str, str, np.n
         )
         for a in range(cells.shape[1])
     ]
+
+
+def _rotations(M: np.ndarray, how: str) -> np.ndarray:
+    """(k, 3, 3) matrices made rotations again: "polar" the nearest rotation (SVD), "gram" by
+    Gram-Schmidt from the first column (the fibre kept in direction, the sheet made orthogonal
+    to it, the normal their cross product).
+    """
+    if how == "polar":
+        U, _, Vt = np.linalg.svd(M)
+        Q = U @ Vt
+        # a reflection's nearest proper rotation: the last singular direction flipped
+        flip = np.linalg.det(Q) < 0
+        U[flip, :, -1] *= -1.0
+        return U @ Vt
+    f = M[:, :, 0] / np.linalg.norm(M[:, :, 0], axis=1, keepdims=True)
+    b = M[:, :, 1] - f * np.einsum("ki,ki->k", f, M[:, :, 1])[:, None]
+    b /= np.linalg.norm(b, axis=1, keepdims=True)
+    return np.stack([f, b, np.cross(f, b)], axis=-1)
+
+
+def _smoothed(R: np.ndarray, cells: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Per-cell frames R (m, 3, 3) smoothed through the nodes (a field stored per node, or
+    interpolated for a plot and read back): each node given the mean of its cells' frames, each
+    cell the mean of its nodes' (m, 4 of them), made a rotation again by the polar factor or
+    Gram-Schmidt, at the nodes too or only in the cells. None where a mean vanishes.
+    """
+    if cells.ndim != 2 or cells.shape[0] != R.shape[0]:
+        return []
+    n = int(cells.max()) + 1
+    total = np.zeros((n, 3, 3))
+    np.add.at(total, cells.ravel(), np.repeat(R, cells.shape[1], axis=0))
+    count = np.bincount(cells.ravel(), minlength=n).astype(float)
+    nodes = total / np.maximum(count, 1.0)[:, None, None]
+    out = []
+    for how, words in (("polar", "the nearest rotation"), ("gram", "Gram-Schmidt")):
+        for at_nodes in (False, True):
+            node_frames = _rotations(nodes, how) if at_nodes else nodes
+            mean = node_frames[cells].mean(axis=1)
+            if np.min(np.linalg.norm(mean[:, :, :2], axis=1)) < 1e-8:
+                continue
+            where = "at the nodes and in the cells" if at_nodes else "in the cells"
+            out.append(
+                (
+                    "frame-smoothed",
+                    "fibre frames smoothed through the nodes: each node given the mean of its "
+                    "cells' frames, each cell the mean of its nodes' (made rotations again by "
+                    f"{words} {where}), not the cell's own frame",
+                    _rotations(mean, how),
+                )
+            )
+    return out
 
 
 def _averaged(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
