@@ -31,7 +31,10 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
-from conformance.diagnosis.mixed_precision import mixed_precision_reading
+from conformance.diagnosis.mixed_precision import (
+    mixed_precision_reading,
+    rounded_elements_reading,
+)
 from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -225,6 +228,11 @@ READINGS: Tuple[Reading, ...] = (
         "stiffness entries where the mesh has none (indices wrong)",
         _nothing_named,
         lambda d, c: off_pattern_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "element vectors or matrices kept in float32, assembled in double",
+        _nothing_named,
+        lambda d, c: rounded_elements_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "energy hypotheses (terms, variants, parameters)",

@@ -107,3 +107,36 @@ def test_the_check_names_c_in_float32_inside_a_double_engine():
     assert outcome.status == "failed" and d.causes, d.text()
     assert d.causes[0].code == "single-precision-intermediate", d.text()
     assert "probe" in d.causes[0].evidence
+
+
+def test_element_matrices_in_a_float32_buffer_are_named_from_their_exact_rounding():
+    """Element stiffness matrices stored in float32, assembled in double (corpus 6): the oracle's
+    element matrices rounded and summed predict the engine entry by entry. Nearby: the
+    assembled K rounded (another mistake, the output's storage) and a formula error of the same
+    size are not this.
+    """
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from conformance.diagnosis.elements import assemble
+    from conformance.diagnosis.mixed_precision import rounded_elements_finding
+    from conformance.judge.compare import DOUBLE
+
+    points, cells = box_mesh(2, jitter=0.2, seed=1)
+    rng = np.random.default_rng(1)
+    x = points @ np.diag([1.1, 0.95, 1.0]).T + 0.03 * rng.standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(M.Ogden(mu=3000.0, alpha=8.0, k0=3e4), points, cells, x)
+    f32 = lambda a: a.astype(np.float32).astype(np.float64)  # noqa: E731
+    _, K_elements = assemble(cells, points.shape[0], split.fe, f32(split.Ke))
+    found = rounded_elements_finding(
+        split, SimpleNamespace(force=f_o, stiffness=K_elements), s, DOUBLE
+    )
+    assert found is not None and "stiffness matrices are kept in float32" in found.title
+    K_rounded = sp.csr_matrix(K_o.copy())
+    K_rounded.data = f32(K_rounded.data)
+    for K in (K_rounded, K_o * (1 + 3e-8)):
+        assert (
+            rounded_elements_finding(split, SimpleNamespace(force=f_o, stiffness=K), s, DOUBLE)
+            is None
+        )

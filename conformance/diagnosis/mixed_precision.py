@@ -42,6 +42,8 @@ __all__ = [
     "rounding_patterns",
     "mixed_precision_finding",
     "mixed_precision_reading",
+    "rounded_elements_finding",
+    "rounded_elements_reading",
 ]
 
 #: A probe's error counts as drawn anew when it differs from the case's by more than
@@ -264,6 +266,65 @@ def mixed_precision_finding(
             ),
         },
     )
+
+
+#: What an engine may hold in float32 between its element routine and a double assembly.
+_ELEMENT_BUFFERS = {
+    (True, False): "the element force vectors",
+    (False, True): "the element stiffness matrices",
+    (True, True): "the element force vectors and stiffness matrices",
+}
+
+
+def rounded_elements_finding(split: ElementSplit, out, s, tol) -> Optional[Finding]:
+    """Element vectors or matrices kept in a float32 buffer, then assembled in double: predicted
+    exactly (the oracle's element matrices, from MJED's split, rounded to float32 and summed)
+    and named when the engine matches that prediction within the double tolerance and the
+    oracle itself does not; None otherwise. out: the engine's output; s: the case's scales;
+    tol: its tolerances.
+    """
+    from conformance.diagnosis.elements import assemble
+    from conformance.judge.compare import DOUBLE, errors
+
+    f_o, K_o = assemble(split.cells, split.n, split.fe, split.Ke)
+    f32, K32 = assemble(split.cells, split.n, _f32(split.fe), _f32(split.Ke))
+    for (force, stiffness), what in _ELEMENT_BUFFERS.items():
+        f_p = f32 if force else f_o
+        K_p = K32 if stiffness else K_o
+        e = errors(out.force, out.stiffness, None, f_p, K_p, 0.0, s)
+        if not DOUBLE.within(e, energy=False):
+            continue
+        before = errors(out.force, out.stiffness, None, f_o, K_o, 0.0, s)
+        return Finding(
+            "single-precision-elements",
+            f"{what} are kept in float32 (a single-precision buffer) and assembled in double",
+            FULL,
+            f"the oracle's element matrices (MJED's split of the cell) rounded to float32 and "
+            f"summed give your output entry by entry: force error {e.force:.1e}, stiffness "
+            f"error {e.stiffness:.1e} (against {before.force:.1e} and {before.stiffness:.1e} "
+            "unrounded); the material routine itself is in double",
+            {"force": force, "stiffness": stiffness},
+        )
+    return None
+
+
+def rounded_elements_reading(diag, ci, out, ref, s):
+    """``diag`` led by :func:`rounded_elements_finding` when it holds; unchanged otherwise (no
+    MJED split of the case, or the engine does not match the rounded elements). Cheap: one
+    assembly of the rounded element arrays; run whatever the force's error (a float32 stiffness
+    buffer leaves the force exact).
+    """
+    from dataclasses import replace
+
+    from conformance.diagnosis.elements import element_split
+
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
+    )
+    found = None if split is None else rounded_elements_finding(split, out, s, diag.tolerances)
+    if found is None:
+        return diag
+    return replace(diag, findings=[found, *(f for f in diag.findings if f.code != "unexplained")])
 
 
 def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results):
