@@ -59,6 +59,33 @@ def test_a_linearised_function_of_i1b_is_named_in_a_random_state():
     assert second_derivative_findings(points, cells, x, K_o * 1.001, K_o, 1e-10) == []
 
 
+def test_the_j_curvature_is_named_only_as_one_function_of_j():
+    """A function of J linearised in the tangent (its factor -psi''(J_c)) is named; the same
+    term with a factor depending on more than J (an isochoric term along C^-1 (x) C^-1, the
+    projection P~ of a decoupled tangent with a wrong sign: corpus 6) is not the J curvature,
+    and on one J (a homogeneous stretch) the two cannot be told apart.
+    """
+    points, cells = box_mesh(2, jitter=0.2, seed=5)
+    rng = np.random.default_rng(5)
+    x = points + 0.05 * rng.standard_normal(points.shape)
+    K_o = _oracle(points, cells, x)
+    J = lambda F: np.linalg.det(F)  # noqa: E731
+    from mjed.mesh import shape_vectors
+
+    Jc = np.linalg.det(np.einsum("mai,maj->mij", x[cells], shape_vectors(points, cells)[1]))
+    K = K_o + _curvature_error(points, cells, x, J, -3e4 / Jc**2)
+    found = second_derivative_findings(points, cells, x, K, K_o, 1e-10)
+    assert [f.figures.get("invariant") for f in found if f.code != "ambiguous"] == ["J"]
+    K = K_o + _curvature_error(points, cells, x, J, -3e4 * rng.uniform(0.5, 1.5, len(cells)))
+    assert not [f for f in second_derivative_findings(points, cells, x, K, K_o, 1e-10)
+                if f.figures.get("invariant") == "J"]  # fmt: skip
+    y = points @ np.diag([1.3, 1.0, 1.0]).T
+    K_y = _oracle(points, cells, y)
+    K = K_y + _curvature_error(points, cells, y, J, np.full(len(cells), -3e4))
+    assert not [f for f in second_derivative_findings(points, cells, y, K, K_y, 1e-10)
+                if f.figures.get("invariant") == "J"]  # fmt: skip
+
+
 def test_parallel_gradients_are_ambiguous_not_named():
     """A homogeneous uniaxial stretch: the gradients of I1b and I2b are parallel."""
     points, cells = box_mesh(2)

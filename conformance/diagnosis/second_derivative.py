@@ -7,8 +7,10 @@ function of an invariant in its tangent (the exponential of Veronda-Westmann's o
 or gets it wrong, with a factor that differs per cell. The fit: D = K - K_o against
 sum_c lambda_c V_c g_c g_c^T, g_c the gradient of I over the cell's 12 dofs, one unknown per
 cell (linear least squares), for I among I1, I2, I1b, I2b and J. Named when the residual is
-within the stiffness tolerance; two invariants that fit (their gradients parallel in this state,
-e.g. a homogeneous uniaxial stretch) are both shown, as ambiguous.
+within the stiffness tolerance (for J, only when the factor is one function of J over cells of
+distinct J: any term along C^-1 (x) C^-1 fits dJ (x) dJ with a free factor); two invariants
+that fit (their gradients parallel in this state, e.g. a homogeneous uniaxial stretch) are both
+shown, as ambiguous.
 
 The same per-cell fit tests an elasticity tensor that holds A (.) A (A_IK A_JL; A = C^-1, as in
 every tangent with ln J or J^p terms written in the total-Lagrangian form, or I) without its
@@ -27,6 +29,7 @@ from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.j_functions import J_FUNCTION_STEPS, j_function_steps
 
 __all__ = [
     "INVARIANTS",
@@ -170,7 +173,7 @@ def second_derivative_findings(
     found = []
     for name in INVARIANTS:
         residual, lam = fit_invariant_curvature(points, cells, x, D, K_o, name)
-        if residual <= tol:
+        if residual <= tol and (name != "J" or _one_function_of_j(points, cells, x, lam)):
             found.append(_finding(name, residual, lam))
     for tensor in ("C^-1", "I"):
         basis = unsymmetrised_basis(points, cells, x, tensor)
@@ -178,6 +181,16 @@ def second_derivative_findings(
         if residual <= tol:
             found.append(_unsymmetrised_finding(tensor, residual, lam))
     return ambiguous(found, "the invariants' gradients are parallel in this state")
+
+
+def _one_function_of_j(points, cells, x, lam: np.ndarray) -> bool:
+    """The J curvature's term dJ (x) dJ is J^2 C^-1 (x) C^-1: with a free factor per cell it
+    also fits any other term along C^-1 (x) C^-1 (the isochoric projection's, in a decoupled
+    tangent). Only a factor that is one function of J, on a state where J varies, is d2W/dJ2's.
+    """
+    J = np.linalg.det(cell_kinematics(points, cells, x)[2])
+    steps = j_function_steps(J, lam)
+    return bool(np.isfinite(steps) and steps <= J_FUNCTION_STEPS)
 
 
 def _finding(name: str, residual: float, lam: np.ndarray) -> Finding:
