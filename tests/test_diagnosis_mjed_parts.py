@@ -316,3 +316,25 @@ def test_mooney_i2b_given_the_i1b_power_of_j_is_named_and_another_power_is_not()
     # nearby: J^(-1), the power of no term of the material
     _, _, _, _, _, f_n, K_n, _ = _case("MooneyRivlin", seed=8, model=_with_power(model, -1.0))
     assert _find(model, points, cells, x, f_n, K_n, f_o, K_o, s) == []
+
+
+def test_a_term_integrated_over_the_deformed_volume_is_named_and_a_constant_factor_is_not():
+    """Yeoh's volumetric term with its force and stiffness times J cell by cell (the pressure
+    integrated over J V, corpus 6), the isochoric term right. Nearby: the same term times a
+    constant (a parameter's value, another reading's) is not a volume.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("Yeoh")
+    twice = dataclasses.replace(model, k0=2.0 * model.k0)
+    _, _, _, _, split2, _, _, _ = _case("Yeoh", model=twice)
+    J = np.linalg.det(split.F)
+    fe, Ke = split2.fe - split.fe, split2.Ke - split.Ke  # the volumetric term, per cell
+
+    def engine(w):
+        df, dK = assemble(cells, points.shape[0], w[:, None, None] * fe, w[:, None, None] * Ke)
+        return f_o + df, K_o + dK
+
+    found = _find(model, points, cells, x, *engine(J - 1.0), f_o, K_o, s)
+    assert [c.code for c in found] == ["mjed-term-volume"], [c.title for c in found]
+    assert "deformed volume" in found[0].title and "(volumetric)" in found[0].title
+    found = _find(model, points, cells, x, *engine(np.full(J.size, 0.3)), f_o, K_o, s)
+    assert "mjed-term-volume" not in [c.code for c in found]

@@ -137,6 +137,9 @@ class Parts:
     dj_variants: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
     #: the same with f = J^q of a term given another term's power (the energy changed too).
     power_copies: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
+    #: per term (label, all its parts per cell V0-weighted: force (m, 4, 3), stiffness
+    #: (m, 4, 3, 4, 3)), to weight the whole term per cell by J^p (a term's volume).
+    term_cells: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -480,21 +483,24 @@ def mjed_parts(
         _powers(model),
         _gradient_blocks(grouped, pat, V0),
         _dj_variants(model, _State(points, cells, x, pat, f_sum, K_sum)),
+        term_cells=_df_cells(terms, flat, V0, kinds=None),
     )
 
 
 def _df_cells(
-    terms: Tuple[str, ...], flat: list, V0: np.ndarray
+    terms: Tuple[str, ...], flat: list, V0: np.ndarray, kinds: Optional[Tuple[str, ...]] = _DF
 ) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
-    """Per term, its f'-parts per cell times V0: the force (m, 4, 3) as the oracle's (-dW/dx)
-    and the blocks (m, 4, 3, 4, 3), for _power to weight per cell by J^p.
+    """Per term, its f'-parts (``kinds``; None: all its parts) per cell times V0: the force
+    (m, 4, 3) as the oracle's (-dW/dx) and the blocks (m, 4, 3, 4, 3), for _power (or _volume)
+    to weight per cell by J^p.
     """
     out = []
     for t in terms:
-        mine = [(k, a) for k, label, a in flat if label == t and k in _DF]
-        fe = sum((-V0[:, None, None] * a for k, a in mine if k == "force-J"), np.zeros((1, 4, 3)))
+        mine = [(k, a) for k, label, a in flat if label == t and (kinds is None or k in kinds)]
+        forces = [a for k, a in mine if k.startswith("force")]
+        fe = sum((-V0[:, None, None] * a for a in forces), np.zeros((1, 4, 3)))
         Ke = sum(
-            (V0[:, None, None, None, None] * a for k, a in mine if k != "force-J"),
+            (V0[:, None, None, None, None] * a for k, a in mine if not k.startswith("force")),
             np.zeros((1, 4, 3, 4, 3)),
         )
         out.append((t, np.broadcast_to(fe, (len(V0), 4, 3)), Ke))
@@ -786,6 +792,35 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     return out
 
 
+#: power p of J -> words: a term's force and stiffness scaled cell by cell by J^p.
+VOLUME_WORDS = {1.0: "times J (integrated over the deformed volume J V)", -1.0: "divided by J"}
+
+
+def _volume(parts: Parts) -> List[Candidate]:
+    """Per term: its whole force and stiffness scaled cell by cell by J (integrated over the
+    deformed volume J V) or 1/J, the other terms right. Only where J varies from cell to cell (a
+    single J is a constant factor, the term-coefficient reading's).
+    """
+    pat, J = parts.pattern, parts.J
+    if np.ptp(J) <= 1e-9 * np.mean(np.abs(J)):
+        return []
+    out = []
+    for t, fe, Ke in parts.term_cells:
+        for p, words in VOLUME_WORDS.items():
+            w = J**p - 1.0
+            out.append(
+                Candidate(
+                    "mjed-term-volume",
+                    f"the term {t}: its force and stiffness {words}, cell by cell; the other "
+                    "terms right",
+                    pat.force(fe, w),
+                    pat.stiffness(Ke, w),
+                    {"part": "volume", "terms": t, "p": p},
+                )
+            )
+    return out
+
+
 def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """Every reading's predicted engine-minus-oracle, the most specific first; r (3n + p,) the
     residual and w (3n + p,) its weights (1 / scale), for the fitted factor of _power.
@@ -797,6 +832,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
         *_power(parts, r, w),
         *_regularisation(parts),
         *_dj(parts),
+        *_volume(parts),
     ]
 
 
