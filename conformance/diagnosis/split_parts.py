@@ -228,6 +228,13 @@ def _col4(a):
     return a[:, None, None, None, None]
 
 
+def _project(P, T):
+    """(P : T : P^T)_IJKL = P_IJAB T_ABCD P_KLCD, per cell, as 9x9 matrix products."""
+    m = len(P)
+    P9 = P.reshape(m, 9, 9)
+    return (P9 @ T.reshape(m, 9, 9) @ P9.transpose(0, 2, 1)).reshape(m, 3, 3, 3, 3)
+
+
 def _dot2(A, B):
     return np.einsum("mij,mij->m", A, B)
 
@@ -326,7 +333,7 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
         "vol-p": (None, None, _col4(pJ) * _outer(Ci, Ci)),
         "vol-dp": (None, None, _col4(J * J * law.d2U) * _outer(Ci, Ci)),
         "vol-odot": (None, None, -2.0 * _col4(pJ) * _odot(Ci, Ci)),
-        "iso-proj": (None, None, np.einsum("mijab,mabcd,mklcd->mijkl", proj, CCt, proj)),
+        "iso-proj": (None, None, _project(proj, CCt)),
         "trace-odot": (None, None, t_odot),
         "trace-outer": (None, None, t_outer),
         "coupling": (None, None, coupling(S_iso)),
@@ -342,19 +349,36 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
 
 
 def _element(c: _Cells, piece: _Piece, pat: Pattern) -> Tuple[np.ndarray, np.ndarray]:
-    """A piece pushed to the assembled force (3n,) as the oracle's (-dW/dx) and stiffness (p,)."""
+    """A piece pushed to the assembled force (3n,) as the oracle's (-dW/dx) and stiffness (p,):
+    f_a = -V0 F S D_a, K_ab = V0 D_a (delta_ik S_JL + F_iI CC_IJKL F_kK) D_b (batched matrix
+    products, the cell axis first).
+    """
     Sf, Sg, CC = piece
+    F, D = c.F, c.D
     m = len(c.J)
-    fe = np.zeros((m, 4, 3))
-    Ke = np.zeros((m, 4, 3, 4, 3))
-    if Sf is not None:
-        fe = np.einsum("mik,mkl,mal->mai", c.F, Sf, c.D)
-    if Sg is not None:
-        Ke = Ke + np.einsum("maJ,mJL,mbL,ik->maibk", c.D, Sg, c.D, _I)
+    fe = np.zeros((m, 4, 3)) if Sf is None else np.einsum("mik,mkl,mal->mai", F, Sf, D)
+    A = np.zeros((m, 3, 3, 3, 3))  # A_iJkL
     if CC is not None:
-        FD = np.einsum("miI,maJ->maiIJ", c.F, c.D)
-        Ke = Ke + np.einsum("maiIJ,mIJKL,mbkKL->maibk", FD, CC, FD)
+        A1 = (F @ CC.reshape(m, 3, 27)).reshape(m, 3, 3, 3, 3)  # (i, J, K, L)
+        A2 = A1.transpose(0, 1, 2, 4, 3).reshape(m, 27, 3) @ F.transpose(0, 2, 1)  # (i, J, L, k)
+        A = A2.reshape(m, 3, 3, 3, 3).transpose(0, 1, 2, 4, 3)
+    if Sg is not None:
+        A = A + np.einsum("ik,mJL->miJkL", _I, Sg)
+    DT = D.transpose(0, 2, 1)  # (m, 3, 4)
+    B = np.ascontiguousarray(A).reshape(m, 27, 3) @ DT  # (i, J, k, b)
+    B = B.reshape(m, 3, 3, 3, 4).transpose(0, 1, 3, 4, 2).reshape(m, 36, 3) @ DT  # (i, k, b, a)
+    Ke = B.reshape(m, 3, 3, 4, 4).transpose(0, 4, 1, 3, 2)  # (a, i, b, k)
     return -pat.force(fe, c.V0), pat.stiffness(Ke, c.V0)
+
+
+def _summed(pieces: Dict[str, _Piece]) -> _Piece:
+    """The pieces added up: one piece."""
+
+    def add(i):
+        xs = [p[i] for p in pieces.values() if p[i] is not None]
+        return np.sum(xs, axis=0) if xs else None
+
+    return add(0), add(1), add(2)
 
 
 @dataclass(frozen=True)
@@ -459,9 +483,7 @@ def split_parts(
     variants = []
     with np.errstate(all="ignore"):
         for v, words in VARIANTS:
-            pieces = _pieces(c, v)[0]
-            f = np.sum([_element(c, a, pat)[0] for a in pieces.values()], axis=0)
-            K = np.sum([_element(c, a, pat)[1] for a in pieces.values()], axis=0)
+            f, K = _element(c, _summed(_pieces(c, v)[0]), pat)
             if np.all(np.isfinite(f)) and np.all(np.isfinite(K)):
                 variants.append((words, f - f_sum, K - K_sum))
     return SplitParts(part, carried, tuple(variants), pat)
