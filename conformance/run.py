@@ -189,10 +189,14 @@ def _nothing_named(d: Diagnosis, c: CaseReadings) -> bool:
 
 
 def _nothing_named_but_volumetric(d: Diagnosis, c: CaseReadings) -> bool:
-    """Nothing named yet, or only the diagnosis's per-cell volumetric fit, which a piece of an
-    isochoric tangent along C^-1 (x) C^-1 also fits (the split reading then goes first).
+    """Nothing named yet, or only the diagnosis's per-cell volumetric fit (which then leaves the
+    mistakes unread): a piece of the split along C^-1 (x) C^-1 (P~'s, p~'s) fits it too, and the
+    split reading, which fits nothing per cell, goes first when it explains.
     """
-    return c.read_mistakes and all(f.code == "volumetric" for f in d.causes)
+    only_volumetric = all(f.code == "volumetric" for f in d.causes)
+    if c.read_mistakes:
+        return only_volumetric
+    return c.read_causes and bool(d.causes) and only_volumetric
 
 
 def _force_wrong(d: Diagnosis, c: CaseReadings) -> bool:
