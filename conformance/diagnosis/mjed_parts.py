@@ -61,6 +61,7 @@ __all__ = [
     "sparse_entries",
     "residual",
     "explaining",
+    "part_finding",
 ]
 
 #: Parts that sum to the oracle to more than this (relative) are not used.
@@ -833,7 +834,7 @@ def mjed_part_findings(
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
     kept = explaining(candidates(parts, r, w), r, w, off, 3 * pat.n, tol)
-    return ambiguous([_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+    return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
 
 
 def residual(
@@ -873,8 +874,16 @@ def explaining(
     return kept
 
 
-def _finding(c, d, f, K, f_o, K_o, pat, s: Scales) -> Finding:
-    """A reading as a finding, its errors checked on the assembled matrices."""
+#: What mjed_parts' predictions are, in a finding's evidence.
+_SOURCE = (
+    "this part's contribution (from mjed's declared terms, which add up to the oracle to round-off)"
+)
+
+
+def part_finding(c, d, f, K, f_o, K_o, pat, s: Scales, source: str = _SOURCE) -> Finding:
+    """A reading (code, title, figures) with its prediction d (3n + p,) as a finding, its
+    errors checked on the assembled matrices; source: what the prediction is, in words.
+    """
     n = 3 * pat.n
     dK = sp.csr_matrix((d[n:], (pat.rows, pat.cols)), shape=(n, n))
     e = errors(f, K, None, f_o + d[:n].reshape(-1, 3), sp.csr_matrix(K_o) + dK, 0.0, s)
@@ -882,8 +891,7 @@ def _finding(c, d, f, K, f_o, K_o, pat, s: Scales) -> Finding:
         c.code,
         c.title,
         FULL,
-        f"the oracle's force and stiffness plus this part's contribution (from mjed's declared "
-        f"terms, which add up to the oracle to round-off) match the engine: force error "
+        f"the oracle's force and stiffness plus {source} match the engine: force error "
         f"{e.force:.1e}, stiffness {e.stiffness:.1e}",
         {**c.figures, "force_error": e.force, "stiffness_error": e.stiffness},
     )

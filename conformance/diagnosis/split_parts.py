@@ -34,17 +34,23 @@ tolerance; several that explain but predict differently are shown as ambiguous.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, replace
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
-import scipy.sparse as sp
 
 from conformance.diagnosis.elements import cell_kinematics
-from conformance.diagnosis.findings import FULL, Finding, ambiguous
-from conformance.diagnosis.mjed_parts import Pattern, explaining, residual, sparse_entries
-from conformance.judge.compare import Scales, Tolerances, errors
+from conformance.diagnosis.energy_terms import declaration
+from conformance.diagnosis.findings import Finding, ambiguous
+from conformance.diagnosis.mjed_parts import (
+    Candidate,
+    Pattern,
+    explaining,
+    part_finding,
+    residual,
+    sparse_entries,
+)
+from conformance.judge.compare import Scales, Tolerances
 
 __all__ = [
     "Law",
@@ -183,15 +189,8 @@ def decoupled_law(model: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray) -
     J; None when the model has no declared formula in I1b, I2b and J alone with a volumetric
     part (NeoHookean, St Venant-Kirchhoff, Ogden, Costa, a user energy).
     """
-    from mjed.materials.declaration import declaration_of
-
-    if not dataclasses.is_dataclass(model):
-        return None
-    try:
-        declared = declaration_of(type(model))
-    except LookupError:
-        return None
-    if declared.volumetric is None:
+    declared = declaration(model)
+    if declared is None or declared.volumetric is None:
         return None
 
     def p(name):
@@ -556,15 +555,6 @@ def _words(name: str, k: float) -> str:
 _STRESS = ("Sbar-psi1", "Sbar-I1b-psi2", "Sbar-Cb-psi2", "Sbar-psi2", "S_iso-all")
 
 
-@dataclass(frozen=True)
-class _Candidate:
-    code: str
-    title: str
-    force: np.ndarray
-    stiffness: np.ndarray
-    figures: Dict[str, Any]
-
-
 def _named(parts: SplitParts) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
     """Every piece read with a factor: the partition's, the carried ones, and their sums."""
     P, Cr = parts.part, parts.carried
@@ -603,7 +593,7 @@ _PAIRED = (
 )
 
 
-def candidates(parts: SplitParts) -> List[_Candidate]:
+def candidates(parts: SplitParts) -> List[Candidate]:
     """Every reading's predicted engine-minus-oracle, the most specific first: one piece with a
     factor, a piece written another way, two pieces with the same factor.
     """
@@ -612,7 +602,7 @@ def candidates(parts: SplitParts) -> List[_Candidate]:
     for name, (df, dK) in named.items():
         for k in FACTORS:
             out.append(
-                _Candidate(
+                Candidate(
                     "split-part",
                     f"isochoric/volumetric split: {_words(name, k)}",
                     k * df,
@@ -621,13 +611,13 @@ def candidates(parts: SplitParts) -> List[_Candidate]:
                 )
             )
     for words, df, dK in parts.variants:
-        out.append(_Candidate("split-variant", f"isochoric/volumetric split: {words}", df, dK, {}))
+        out.append(Candidate("split-variant", f"isochoric/volumetric split: {words}", df, dK, {}))
     paired = [n for n in _PAIRED if n in named]
     for i, a in enumerate(paired):
         for b in paired[i + 1 :]:
             for k in FACTORS:
                 out.append(
-                    _Candidate(
+                    Candidate(
                         "split-part",
                         f"isochoric/volumetric split: {_words(a, k)}; and {_words(b, k)}",
                         k * (named[a][0] + named[b][0]),
@@ -661,23 +651,11 @@ def split_part_findings(
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
     kept = explaining(candidates(parts), r, w, off, 3 * pat.n, tol)
-    return ambiguous([_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
-
-
-def _finding(c: _Candidate, d, f, K, f_o, K_o, pat: Pattern, s: Scales) -> Finding:
-    """A reading as a finding, its errors checked on the assembled matrices."""
-    n = 3 * pat.n
-    dK = sp.csr_matrix((d[n:], (pat.rows, pat.cols)), shape=(n, n))
-    e = errors(f, K, None, f_o + d[:n].reshape(-1, 3), sp.csr_matrix(K_o) + dK, 0.0, s)
-    return Finding(
-        c.code,
-        c.title,
-        FULL,
-        f"the oracle's force and stiffness plus this change of Holzapfel's decoupled S and CC "
-        f"(pieces from the declared energy, which add up to the oracle to round-off) match the "
-        f"engine: force error {e.force:.1e}, stiffness {e.stiffness:.1e}",
-        {**c.figures, "force_error": e.force, "stiffness_error": e.stiffness},
+    source = (
+        "this change of Holzapfel's decoupled S and CC (pieces from the declared energy, which "
+        "add up to the oracle to round-off)"
     )
+    return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s, source) for c, d in kept])
 
 
 def split_part_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
