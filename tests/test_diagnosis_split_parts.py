@@ -14,13 +14,14 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import box_mesh, mjed_split
+from conftest import box_mesh, checked_random, mjed_split
 
 from common.cases import default_material
 from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.split_parts import split_part_findings, split_parts
 from conformance.judge.compare import DOUBLE
 from mjed.materials.declaration import declaration_of
+from reference_fem import dolfinx_available
 
 DECOUPLED = ("MooneyRivlin", "Yeoh", "ArrudaBoyce", "Gent", "VerondaWestmann", "Demiray")
 NOT_SPLIT = ("NeoHookean", "StVenantKirchhoff", "Ogden", "Costa")
@@ -221,3 +222,31 @@ def test_a_volumetric_parameter_is_not_read_as_pieces():
     other = dataclasses.replace(model, k0=1.01 * model.k0)
     f, K = holzapfel(other, points, cells, x)
     assert split_part_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE) == []
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+@pytest.mark.parametrize(
+    "name, mistake, words",
+    [
+        ("ArrudaBoyce", dict(ptilde=1.0 / 3.0), "modified projection P~"),
+        ("MooneyRivlin", dict(sbar_c2=1.0), "-2 psi2 C_bar of the fictitious stress S_bar halved"),
+    ],
+)
+def test_the_check_puts_the_split_reading_first(name, mistake, words):
+    """Through the check (the UFL oracle, run.READINGS): P~'s sign lies along C^-1 (x) C^-1,
+    which the diagnosis's per-cell volumetric fit also fits; the split goes first. A stress
+    piece (the force wrong) is read before the hand-derived readings.
+    """
+    import mjed
+
+    model = default_material(name)
+
+    def engine(case):
+        f, K = holzapfel(model, case.points, case.cells, case.positions, **mistake)
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), model)
+        return f, K, field.energy(case.positions)
+
+    diag = checked_random(engine, model)
+    head = diag.findings[0]
+    assert head.code == "split-part" and words in head.title, diag.text()
