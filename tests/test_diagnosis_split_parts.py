@@ -40,6 +40,7 @@ RIGHT = dict(
     dev_tr=False,  # DEV(X) with tr(X) for X : C
     proj_t=False,  # P = II - 1/3 C (x) C^-1
     k0=1.0,  # U' and U'' times k0
+    psi11=1.0,  # psi11 times psi11 in the fictitious tangent
 )
 
 
@@ -73,6 +74,7 @@ def holzapfel(model, points, cells, x, **mistake):
     _, psi1, psi2, psi11, psi12, psi22 = (
         np.broadcast_to(np.asarray(v, dtype=float), (m,)) for v in law.psi.function(p, I1b, I2b, np)
     )
+    psi11 = c["psi11"] * psi11
     k0 = c["k0"] * law.k0
     dU, d2U = k0 * np.log(J) / J, k0 * (1.0 - np.log(J)) / J**2
     Id = np.broadcast_to(I3, (m, 3, 3))
@@ -194,6 +196,12 @@ MISTAKES = [
         "MooneyRivlin",
         ("-2 psi2 C_bar", "fictitious stress", "halved"),
         dict(sbar_c2=1.2),
+    ),
+    (
+        dict(psi11=-1.0),
+        "Gent",
+        ("psi11 part 4 psi11 I (x) I", "sign flipped"),
+        dict(psi11=-0.8),
     ),
     (
         dict(sbar_power=-2.0 / 3.0),

@@ -267,7 +267,9 @@ class _Cells:
 
 
 def _fictitious(law: Law, Cb: np.ndarray, I1b: np.ndarray):
-    """The parts of S_bar (2 psi1 I, 2 I1b psi2 I, -2 psi2 C_bar) and CC_bar (Holzapfel 6.193)."""
+    """The parts of S_bar (2 psi1 I, 2 I1b psi2 I, -2 psi2 C_bar) and of CC_bar by psi11, psi12,
+    psi22 and psi2.
+    """
     m = len(I1b)
     Id = np.broadcast_to(_I, (m, 3, 3))
     X = {
@@ -275,14 +277,14 @@ def _fictitious(law: Law, Cb: np.ndarray, I1b: np.ndarray):
         "I1b-psi2": 2.0 * _col(I1b * law.psi2) * Id,
         "Cb-psi2": -2.0 * _col(law.psi2) * Cb,
     }
-    d1 = law.psi11 + 2.0 * I1b * law.psi12 + law.psi2 + I1b**2 * law.psi22
-    d2 = -(law.psi12 + I1b * law.psi22)
-    CCbar = 4.0 * (
-        _col4(d1) * _outer(Id, Id)
-        + _col4(d2) * (_outer(Id, Cb) + _outer(Cb, Id))
-        + _col4(law.psi22) * _outer(Cb, Cb)
-        - _col4(law.psi2) * np.broadcast_to(_II, (m, 3, 3, 3, 3))
-    )
+    G2 = _col(I1b) * Id - Cb  # dI2b/dC_bar
+    II = np.broadcast_to(_II, (m, 3, 3, 3, 3))
+    CCbar = {  # 4 d2Psi/dC_bar2 by the derivative of Psi it carries (Holzapfel 6.193)
+        "psi11": 4.0 * _col4(law.psi11) * _outer(Id, Id),
+        "psi12": 4.0 * _col4(law.psi12) * (_outer(Id, G2) + _outer(G2, Id)),
+        "psi22": 4.0 * _col4(law.psi22) * _outer(G2, G2),
+        "psi2": 4.0 * _col4(law.psi2) * (_outer(Id, Id) - II),
+    }
     return X, CCbar
 
 
@@ -323,7 +325,8 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
     pJ = J * law.dU
     Id4 = np.broadcast_to(_II, (m, 3, 3, 3, 3))
     proj = Id4 - (_outer(C, Ci) if v.projection_transposed else _outer(Ci, C)) / 3.0
-    CCt = _col4(J ** (-4.0 / 3.0 + v.cbar_power)) * CCbar
+    Jm43 = _col4(J ** (-4.0 / 3.0 + v.cbar_power))
+    CCt = Jm43 * sum(CCbar.values())
     t_odot, t_outer = trace_term(Sbar)
     S_vol = _col(pJ) * Ci
     part: Dict[str, _Piece] = {
@@ -344,6 +347,8 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
         carried["Sbar-" + k] = (dS, dS, a + b + coupling(dS))
     dS = dev_term(Sbar)
     carried["dev"] = (dS, dS, coupling(dS))
+    for k, T in CCbar.items():
+        carried["CCbar-" + k] = (None, None, _project(proj, Jm43 * T))
     return part, carried
 
 
@@ -506,6 +511,14 @@ PIECES: Dict[str, str] = {
     "trace-outer": "the -1/3 C^-1 (x) C^-1 of the modified projection P~ = C^-1 (.) C^-1 - 1/3 "
     "C^-1 (x) C^-1 in the isochoric tangent's trace term 2/3 Tr(J^(-2/3) S_bar) P~",
     "coupling": "the isochoric tangent's coupling term -2/3 (C^-1 (x) S_iso + S_iso (x) C^-1)",
+    "CCbar-psi11": "the psi11 part 4 psi11 I (x) I of the fictitious tangent CC_bar (in the "
+    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "CCbar-psi12": "the psi12 part 4 psi12 (I (x) G + G (x) I), G = I1b I - C_bar, of the "
+    "fictitious tangent CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "CCbar-psi22": "the psi22 part 4 psi22 G (x) G, G = I1b I - C_bar, of the fictitious tangent "
+    "CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "CCbar-psi2": "the psi2 part 4 psi2 (I (x) I - II) of the fictitious tangent CC_bar (in the "
+    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
     "Sbar-psi1": "the psi1 part 2 psi1 I of the fictitious stress S_bar",
     "Sbar-I1b-psi2": "the psi2 part 2 I1b psi2 I of the fictitious stress S_bar",
     "Sbar-Cb-psi2": "the psi2 part -2 psi2 C_bar of the fictitious stress S_bar",
@@ -565,7 +578,10 @@ def _named(parts: SplitParts) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
             np.sum([source[n][1] for n in names], axis=0),
         )
 
-    out = dict(P)
+    # the fictitious tangent's parts first: for a Psi of I1b alone its psi11 part is all of
+    # P : (J^(-4/3) CC_bar) : P^T, and the more specific words are kept
+    out = {k: a for k, a in Cr.items() if k.startswith("CCbar-")}
+    out.update(P)
     out["vol"] = add("vol-p", "vol-dp", "vol-odot", source=P)
     out["trace"] = add("trace-odot", "trace-outer", source=P)
     out.update(Cr)
