@@ -41,6 +41,7 @@ from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.sparsity import off_pattern_reading
 from conformance.diagnosis.spatial_assembly import spatial_assembly_reading
+from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
@@ -191,6 +192,17 @@ def _nothing_named(d: Diagnosis, c: CaseReadings) -> bool:
     return c.read_mistakes and not d.causes
 
 
+def _nothing_named_but_volumetric(d: Diagnosis, c: CaseReadings) -> bool:
+    """Nothing named yet, or only the diagnosis's per-cell volumetric fit (which then leaves the
+    mistakes unread): a piece of the split along C^-1 (x) C^-1 (P~'s, p~'s) fits it too, and the
+    split reading, which fits nothing per cell, goes first when it explains.
+    """
+    only_volumetric = all(f.code == "volumetric" for f in d.causes)
+    if c.read_mistakes:
+        return only_volumetric
+    return c.read_causes and bool(d.causes) and only_volumetric
+
+
 def _force_wrong(d: Diagnosis, c: CaseReadings) -> bool:
     return _nothing_named(d, c) and d.errors.force > d.tolerances.force
 
@@ -273,6 +285,11 @@ READINGS: Tuple[Reading, ...] = (
         "a hand-written stress with B where C belongs",
         _nothing_named,
         lambda d, c: b_for_c_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "one piece of Holzapfel's isochoric/volumetric split wrong (S_iso, DEV, P, P~, p~)",
+        _nothing_named_but_volumetric,
+        lambda d, c: split_part_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)",

@@ -29,6 +29,7 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 import numpy as np
 
 __all__ = [
+    "declaration",
     "Spec",
     "TransformedEnergy",
     "exponent_key",
@@ -85,7 +86,8 @@ def _user_energy_type():
     return UserEnergy
 
 
-def _declaration(model: Any):
+def declaration(model: Any):
+    """The declaration of ``model``'s type (mjed/materials), or None (not a declared material)."""
     from mjed.materials.declaration import declaration_of
 
     if not dataclasses.is_dataclass(model):
@@ -98,7 +100,7 @@ def _declaration(model: Any):
 
 def has_formula(model: Any) -> bool:
     """A declared material or a user energy: an energy this module can rewrite and split."""
-    return isinstance(model, _user_energy_type()) or _declaration(model) is not None
+    return isinstance(model, _user_energy_type()) or declaration(model) is not None
 
 
 def model_frame_of(model: Any) -> Optional[np.ndarray]:
@@ -252,7 +254,7 @@ def build(model: Any, F, frame, constant, spec: Spec):
         W = model.evaluate(variable, ufl.ln, ufl.exp, ufl.sqrt, wrap)
         entered = list(zip(made, names))
     else:
-        declared = _declaration(model)
+        declared = declaration(model)
         if declared is None:
             raise ValueError(f"{type(model).__name__}: no declared energy formula")
         p = _Named(model, constant)
@@ -510,7 +512,7 @@ def _declared_texts(model: Any) -> Optional[Tuple[str, Optional[str], List[str]]
     """
     if isinstance(model, _user_energy_type()):
         return model.expression, None, list(model.params)
-    declared = _declaration(model)
+    declared = declaration(model)
     if declared is None or not getattr(declared, "formula", None):
         return None
     names = [f.name for f in dataclasses.fields(model) if f.name != "frame"]

@@ -57,6 +57,11 @@ __all__ = [
     "candidates",
     "mjed_part_findings",
     "mjed_part_reading",
+    "Pattern",
+    "sparse_entries",
+    "residual",
+    "explaining",
+    "part_finding",
 ]
 
 #: Parts that sum to the oracle to more than this (relative) are not used.
@@ -283,7 +288,7 @@ def _regularised(term: Any, kin: Any, dJ: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class _Pattern:
+class Pattern:
     """The element pattern: dof (m, 12), the unique (rows, cols) (p,) and each element entry's
     index among them (m * 144,), n nodes.
     """
@@ -295,12 +300,12 @@ class _Pattern:
     n: int
 
     @staticmethod
-    def of(cells: np.ndarray, n: int) -> "_Pattern":
+    def of(cells: np.ndarray, n: int) -> "Pattern":
         m = cells.shape[0]
         dof = (3 * cells[:, :, None] + np.arange(3)).reshape(m, 12)
         key = np.repeat(dof, 12, axis=1).ravel() * (3 * n) + np.tile(dof, (1, 12)).ravel()
         uniq, index = np.unique(key, return_inverse=True)
-        return _Pattern(dof, uniq // (3 * n), uniq % (3 * n), index.ravel(), n)
+        return Pattern(dof, uniq // (3 * n), uniq % (3 * n), index.ravel(), n)
 
     def force(self, fe: np.ndarray, V0: np.ndarray) -> np.ndarray:
         """(3n,) the element forces (m, 4, 3) times V0 (m,), summed."""
@@ -313,7 +318,7 @@ class _Pattern:
         return np.bincount(self.index, weights=w, minlength=len(self.rows))
 
 
-def _sparse_entries(K: Any, pat: _Pattern) -> Tuple[np.ndarray, float]:
+def sparse_entries(K: Any, pat: Pattern) -> Tuple[np.ndarray, float]:
     """K's entries on the pattern (p,) and the squared norm of those off it."""
     K = sp.csr_matrix(K)
     on = np.asarray(K[pat.rows, pat.cols]).ravel()
@@ -443,7 +448,7 @@ def mjed_parts(
     if built is None:
         return None
     flat, reg, grouped, V0, J = built
-    pat = _Pattern.of(cells, points.shape[0])
+    pat = Pattern.of(cells, points.shape[0])
     parts = tuple(
         Part(kind, label, -pat.force(a, V0), np.zeros(0))  # the oracle's force is -dW/dx
         if kind.startswith("force")
@@ -456,7 +461,7 @@ def mjed_parts(
     )
     f_sum = np.sum([p.force for p in parts], axis=0)
     K_sum = np.sum([p.stiffness for p in parts], axis=0)
-    K_on, K_off = _sparse_entries(K_o, pat)
+    K_on, K_off = sparse_entries(K_o, pat)
     f_ref = np.asarray(f_o, dtype=np.float64).ravel()
     nf, nK = np.linalg.norm(f_ref), np.linalg.norm(K_on)
     if nK == 0 or K_off > (_ROUNDOFF * nK) ** 2:
@@ -508,7 +513,7 @@ def _df_cells(
 
 
 def _gradient_blocks(
-    grouped: List[_Group], pat: "_Pattern", V0: np.ndarray
+    grouped: List[_Group], pat: "Pattern", V0: np.ndarray
 ) -> Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...]:
     """For each grouped term's gradient part a (and the part of every term, summed per group):
     S1 = c phi'' (a du^T + du a^T) and S2 = c phi'' a a^T, assembled (see Parts).
@@ -539,7 +544,7 @@ class _State:
     points: np.ndarray
     cells: np.ndarray
     x: np.ndarray
-    pat: "_Pattern"
+    pat: "Pattern"
     f_sum: np.ndarray
     K_sum: np.ndarray
 
@@ -863,28 +868,58 @@ def mjed_part_findings(
         copies = _power_copies(model, _State(points, cells, x, pat, f_sum, K_sum))
         parts = replace(parts, power_copies=copies)
     f_o = np.asarray(f_o, dtype=np.float64)
-    on_e, off_e = _sparse_entries(K, pat)
-    on_o, _ = _sparse_entries(K_o, pat)
+    r, w, off = residual(pat, f, K, f_o, K_o, s)
+    kept = explaining(candidates(parts, r, w), r, w, off, 3 * pat.n, tol)
+    return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+
+
+def residual(
+    pat: Pattern, f: np.ndarray, K: Any, f_o: np.ndarray, K_o: Any, s: Scales
+) -> Tuple[np.ndarray, np.ndarray, float]:
+    """The engine-minus-oracle force and stiffness on the element pattern r (3n + p,), its
+    weights w (1 / scale, 3n + p,) and the scaled norm of the engine's entries off the pattern
+    (the oracle's K_o has none there).
+    """
+    on_e, off_e = sparse_entries(K, pat)
+    on_o, _ = sparse_entries(K_o, pat)
     n = 3 * pat.n
+    f_o = np.asarray(f_o, dtype=np.float64)
     r = np.concatenate([(np.asarray(f, dtype=np.float64) - f_o).ravel(), on_e - on_o])
     w = np.concatenate([np.full(n, 1.0 / s.force), np.full(len(on_e), 1.0 / s.stiffness)])
-    off = np.sqrt(off_e + 0.0) / s.stiffness  # (K_o has none off the pattern: mjed_parts)
-    kept: List[Tuple[Candidate, np.ndarray]] = []
-    for c in candidates(parts, r, w):
+    return r, w, float(np.sqrt(off_e + 0.0) / s.stiffness)
+
+
+def explaining(
+    cands: Any, r: np.ndarray, w: np.ndarray, off: float, n: int, tol: Tolerances
+) -> List[Tuple[Any, np.ndarray]]:
+    """(candidate, its prediction (3n + p,)) of every candidate (with .force (n,) and .stiffness)
+    whose prediction brings the residual r within ``tol``, in order; a prediction the same as
+    one kept (to _SAME of the residual) is left out: one cause said once.
+    """
+    kept: List[Tuple[Any, np.ndarray]] = []
+    scale = max(np.linalg.norm(r * w), 1e-300)
+    for c in cands:
         d = np.concatenate([c.force, c.stiffness])
         e = (r - d) * w
         ef, eK = np.linalg.norm(e[:n]), np.hypot(np.linalg.norm(e[n:]), off)
         if ef > tol.force or eK > tol.stiffness:
             continue
-        scale = max(np.linalg.norm(r * w), 1e-300)
         if any(np.linalg.norm((d - d2) * w) <= _SAME * scale for _, d2 in kept):
-            continue  # the same prediction as a reading kept: one cause said once
+            continue
         kept.append((c, d))
-    return ambiguous([_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+    return kept
 
 
-def _finding(c, d, f, K, f_o, K_o, pat, s: Scales) -> Finding:
-    """A reading as a finding, its errors checked on the assembled matrices."""
+#: What mjed_parts' predictions are, in a finding's evidence.
+_SOURCE = (
+    "this part's contribution (from mjed's declared terms, which add up to the oracle to round-off)"
+)
+
+
+def part_finding(c, d, f, K, f_o, K_o, pat, s: Scales, source: str = _SOURCE) -> Finding:
+    """A reading (code, title, figures) with its prediction d (3n + p,) as a finding, its
+    errors checked on the assembled matrices; source: what the prediction is, in words.
+    """
     n = 3 * pat.n
     dK = sp.csr_matrix((d[n:], (pat.rows, pat.cols)), shape=(n, n))
     e = errors(f, K, None, f_o + d[:n].reshape(-1, 3), sp.csr_matrix(K_o) + dK, 0.0, s)
@@ -892,8 +927,7 @@ def _finding(c, d, f, K, f_o, K_o, pat, s: Scales) -> Finding:
         c.code,
         c.title,
         FULL,
-        f"the oracle's force and stiffness plus this part's contribution (from mjed's declared "
-        f"terms, which add up to the oracle to round-off) match the engine: force error "
+        f"the oracle's force and stiffness plus {source} match the engine: force error "
         f"{e.force:.1e}, stiffness {e.stiffness:.1e}",
         {**c.figures, "force_error": e.force, "stiffness_error": e.stiffness},
     )
