@@ -152,3 +152,28 @@ def test_element_matrix_reshaped_from_another_einsum_layout_is_a_local_order_fin
     # component-major stays a local order (elements' own), not a layout
     split, f, K, *_, s = _case(Ke="maJ,miJkL,mbL->miakb")
     assert _codes(order_findings(split, f, K, s, DOUBLE)) == ["element-order"]
+
+
+def test_at_probes_the_force_alone_names_the_product():
+    """A state where the force is right (uniaxial) and its probes, which give forces only: the
+    S F engine's force at a probe is told from F^T S and S F^T by the force alone.
+    """
+    from conformance.diagnosis.elements import cell_piola
+    from conformance.diagnosis.invariant_pieces import cell_tensors
+    from conformance.diagnosis.piola_assembly import piola_force_findings
+    from conformance.judge.compare import errors
+
+    split, f, _, f_o, K_o, s = _case(seed=2, P=lambda F, S: S @ F)
+    t = cell_tensors(*cell_piola(split), split.F)
+
+    def matches(fp, K):
+        if errors(fp, K_o, None, f_o, K_o, 0.0, s).force <= DOUBLE.force:
+            return float("inf")
+        e = errors(f, K_o, None, fp, K_o, 0.0, s).force
+        return e if e <= DOUBLE.force else float("inf")
+
+    found = piola_force_findings(split, t.S, matches)
+    assert _codes(found) == ["piola-assembly-piola-SF"], found
+    # nearby: the right force is none of them
+    f = f_o
+    assert piola_force_findings(split, t.S, matches) == []

@@ -53,6 +53,7 @@ __all__ = [
     "PIOLA_VARIANTS",
     "piola_variant_output",
     "piola_findings",
+    "piola_force_findings",
     "piola_assembly_reading",
 ]
 
@@ -290,6 +291,34 @@ def piola_findings(
                 )
             )
     return ambiguous(found, "their predictions differ by less than the tolerance here")
+
+
+def piola_force_findings(
+    split: ElementSplit, S: np.ndarray, matches: Callable[..., float]
+) -> List[Finding]:
+    """The wrong products of :data:`PRODUCTS` whose force alone matches the engine's:
+    matches(f, None) finite (the probes near a state where the force is right, F and S diagonal
+    there so that S F = F S, give forces only:
+    :func:`conformance.diagnosis.hand_derived.nearby_force_reading`). S: (m, 3, 3) per cell.
+    """
+    found = []
+    for code, (name, M) in PRODUCTS.items():
+        if code == "FS":
+            continue
+        fe = -split.V0[:, None, None] * np.einsum("miJ,maJ->mai", M(S, split.F), split.D)
+        left = matches(assemble(split.cells, split.n, fe, None)[0], None)
+        if np.isfinite(left):
+            found.append(
+                Finding(
+                    f"piola-assembly-piola-{code}",
+                    f"the first Piola stress computed as {name} instead of F S in the force",
+                    FULL,
+                    "the oracle's second Piola stress per cell (from its element split) times F "
+                    f"so, assembled into f_a = -V P G_a: force error {left:.1e}",
+                    {"variant": f"piola-{code}", "residual": left},
+                )
+            )
+    return found
 
 
 def piola_assembly_reading(diag, ci, out, ref, s: Scales):
