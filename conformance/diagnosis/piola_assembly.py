@@ -155,6 +155,10 @@ class PiolaVariant:
     swap_gradients: bool = False
 
 
+#: The geometric part an engine gets from its wrong product: its derivative by F at fixed S.
+_PRODUCT_GEOMETRIC = {"SF": "S_ik delta_JL", "FtS": "delta_iL S_kJ", "SFt": "S_iL delta_Jk"}
+
+
 def _product_variants() -> List[PiolaVariant]:
     out = []
     for p in ("SF", "FtS", "SFt"):
@@ -171,8 +175,8 @@ def _product_variants() -> List[PiolaVariant]:
             PiolaVariant(
                 f"piola-{p}-geometric",
                 f"{base}, in the force and in the geometric part of the first elasticity tensor "
-                f"(the derivative of {name} at fixed S for delta_ik S_JL; the material part "
-                "right)",
+                f"({_PRODUCT_GEOMETRIC[p]}, the derivative of {name} at fixed S, for "
+                "delta_ik S_JL; the material part right)",
                 product=p,
                 tangent="geometric",
             )
