@@ -174,6 +174,10 @@ def test_at_probes_the_force_alone_names_the_product():
 
     found = piola_force_findings(split, t.S, matches)
     assert _codes(found) == ["piola-assembly-piola-SF"], found
+    # S F^T: for an isotropic material the force of F transposed too, so both are said
+    f = _engine(*_state(2), P=lambda F, S: S @ np.swapaxes(F, 1, 2))[0]
+    found = piola_force_findings(split, t.S, matches)
+    assert sorted(_codes(found)) == ["piola-assembly-F-transposed", "piola-assembly-piola-SFt"]
     # nearby: the right force is none of them
     f = f_o
     assert piola_force_findings(split, t.S, matches) == []

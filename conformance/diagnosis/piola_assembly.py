@@ -300,26 +300,50 @@ def piola_findings(
 def piola_force_findings(
     split: ElementSplit, S: np.ndarray, matches: Callable[..., float]
 ) -> List[Finding]:
-    """The wrong products of :data:`PRODUCTS` whose force alone matches the engine's:
+    """The wrong products of :data:`PRODUCTS`, and F transposed (for an isotropic material the
+    force of S F^T), whose force alone matches the engine's:
     matches(f, None) finite (the probes near a state where the force is right, F and S diagonal
     there so that S F = F S, give forces only:
     :func:`conformance.diagnosis.hand_derived.nearby_force_reading`). S: (m, 3, 3) per cell.
     """
+    F = split.F
+    W, _, Vt = np.linalg.svd(F)
+    R = W @ Vt  # F = R U
+    candidates = [
+        (
+            f"piola-assembly-piola-{code}",
+            f"the first Piola stress computed as {name} instead of F S in the force",
+            M(S, F),
+            f"times F so ({name})",
+        )
+        for code, (name, M) in PRODUCTS.items()
+        if code != "FS"
+    ]
+    # F^T used as F everywhere gives P = F^T S(F F^T) = F^T R S R^T for an isotropic S: the
+    # same force as S F^T there, so the two are said together (ambiguous), never S F^T alone.
+    candidates.append(
+        (
+            "piola-assembly-F-transposed",
+            "the deformation gradient assembled transposed (F^T used as F everywhere: "
+            "P = F^T S(F F^T), for an isotropic material the force of S F^T)",
+            _t(F) @ R @ S @ _t(R),
+            "rotated by R (F = R U) and multiplied by F^T, as S(F F^T) = R S R^T for an "
+            "isotropic material",
+        )
+    )
     found = []
-    for code, (name, M) in PRODUCTS.items():
-        if code == "FS":
-            continue
-        fe = -split.V0[:, None, None] * np.einsum("miJ,maJ->mai", M(S, split.F), split.D)
+    for code, words, P, how in candidates:
+        fe = -split.V0[:, None, None] * np.einsum("miJ,maJ->mai", P, split.D)
         left = matches(assemble(split.cells, split.n, fe, None)[0], None)
         if np.isfinite(left):
             found.append(
                 Finding(
-                    f"piola-assembly-piola-{code}",
-                    f"the first Piola stress computed as {name} instead of F S in the force",
+                    code,
+                    words,
                     FULL,
-                    "the oracle's second Piola stress per cell (from its element split) times F "
-                    f"so, assembled into f_a = -V P G_a: force error {left:.1e}",
-                    {"variant": f"piola-{code}", "residual": left},
+                    "the oracle's second Piola stress per cell (from its element split) "
+                    f"{how}, assembled into f_a = -V P G_a: force error {left:.1e}",
+                    {"variant": code, "residual": left},
                 )
             )
     return found
