@@ -189,6 +189,21 @@ def element_layouts() -> List[Tuple[Tuple[int, ...], str]]:
     return out
 
 
+def _split_finding(code: str, title: str, split: ElementSplit, how: str, e, figures) -> Finding:
+    """A finding that the oracle's element matrices, ``how`` changed ("reordered", "laid out")
+    and assembled, match the engine with errors ``e``.
+    """
+    return Finding(
+        code,
+        title,
+        FULL,
+        "the oracle's element matrices (MJED's, whose sum is the oracle's to "
+        f"{split.residual:.1e}) {how} so and assembled: force error {e.force:.1e}, "
+        f"stiffness error {e.stiffness:.1e}",
+        figures,
+    )
+
+
 def _layout_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
@@ -206,17 +221,9 @@ def _layout_findings(
             continue  # the oracle's own matrix here: no evidence either way
         e = errors(f, sp.csr_matrix(K), None, f0, K_l, 0.0, s)
         if tol.within(e, energy=False):
-            found.append(
-                Finding(
-                    "element-layout",
-                    f"element matrix in another layout (stiffness only): {words}",
-                    FULL,
-                    "the oracle's element matrices (MJED's, whose sum is the oracle's to "
-                    f"{split.residual:.1e}) laid out so and assembled: force error "
-                    f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
-                    {"layout": "".join(_AXES[p] for p in perm)},
-                )
-            )
+            title = f"element matrix in another layout (stiffness only): {words}"
+            layout = {"layout": "".join(_AXES[p] for p in perm)}
+            found.append(_split_finding("element-layout", title, split, "laid out", e, layout))
     return found
 
 
@@ -237,13 +244,12 @@ def order_findings(
             e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
             if tol.within(e, energy=False):
                 found.append(
-                    Finding(
+                    _split_finding(
                         "element-order",
                         f"element dofs in another local order ({which}): {words}",
-                        FULL,
-                        "the oracle's element matrices (MJED's, whose sum is the oracle's to "
-                        f"{split.residual:.1e}) reordered so and assembled: force error "
-                        f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                        split,
+                        "reordered",
+                        e,
                         {"order": [int(i) for i in p], "which": which},
                     )
                 )
