@@ -36,6 +36,7 @@ from conformance.diagnosis.mixed_precision import (
     rounded_elements_reading,
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
+from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -346,6 +347,11 @@ READINGS: Tuple[Reading, ...] = (
         "an updated-Lagrangian assembly's kinematics",
         _nothing_named,
         lambda d, c: spatial_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a total-Lagrangian assembly's first Piola stress and first elasticity tensor",
+        _nothing_named,
+        lambda d, c: piola_assembly_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "last: the J-only stress the energy denied",

@@ -13,7 +13,9 @@ into cells. A user energy (no MJED material) or a split that does not add up tes
 1. **Local dof order.** The element matrix written in another order of its 12 local dofs
    (component-major: x of the four nodes, then y, then z; or the four nodes in another order)
    and scattered with the node-major map ``3 * cells[e, a] + c``. Each of the 47 orders is
-   assembled; one is named when it alone matches.
+   assembled; one is named when it alone matches. Beside them, the element matrix computed as
+   a (4, 3, 4, 3) array with its axes in another order (an einsum output 'mabik') and reshaped
+   as if node-major: entries scrambled beyond a reordering of the dofs (stiffness only).
 2. **Stress measure.** Per cell, the oracle's first Piola stress P and its derivative
    A = dP/dF are read back from the element force and matrix (f_a = -V0 P D_a,
    K_ab = V0 D_a . A . D_b); the engine is compared with the force and stiffness of
@@ -42,6 +44,7 @@ __all__ = [
     "cell_kinematics",
     "cell_piola",
     "local_orders",
+    "element_layouts",
     "order_findings",
     "STRESS_MEASURES",
     "stress_measure_findings",
@@ -153,13 +156,85 @@ def local_orders() -> List[Tuple[np.ndarray, str]]:
     return out
 
 
+#: Axes of an element matrix as a (4, 3, 4, 3) array: node a, component i, node b, component k.
+_AXES = "aibk"
+
+#: Layouts said elsewhere: node-major (right), component-major (a local order above) and the
+#: 3x3 blocks transposed (:mod:`conformance.diagnosis.transposed_blocks`), and their transposes.
+_LAYOUTS_ELSEWHERE = ("aibk", "iakb", "akbi", "biak", "bkai", "kbia")
+
+
+def element_layouts() -> List[Tuple[Tuple[int, ...], str]]:
+    """(axes, words) for every order of the element matrix's (a, i, b, k) axes that an engine
+    may compute (an einsum's output, e.g. 'mabik') and then reshape to (12, 12) as if it were
+    node-major 'maibk': the entries scrambled beyond a reordering of the local dofs. axes: the
+    engine's array is the right one's ``transpose(axes)``.
+    """
+    out = []
+    for perm in itertools.permutations(range(4)):
+        name = "".join(_AXES[p] for p in perm)
+        # Its transpose (a <-> b, i <-> k) lays a symmetric element matrix out the same way:
+        # one of the pair is tested, and the words say both.
+        twin = name.translate(str.maketrans("abik", "bak" + "i"))
+        if name in _LAYOUTS_ELSEWHERE or twin < name:
+            continue
+        words = (
+            f"element stiffness computed with its indices in the order ({', '.join(name)}) "
+            f"(an einsum output 'm{name}', or 'm{twin}', the same for a symmetric element "
+            "matrix) and reshaped to (12, 12) as if it were (a, i, b, k) "
+            "('maibk', node-major; a, b nodes, i, k components): the entries of every element "
+            "matrix scrambled before the node-major scatter"
+        )
+        out.append((perm, words))
+    return out
+
+
+def _split_finding(code: str, title: str, split: ElementSplit, how: str, e, figures) -> Finding:
+    """A finding that the oracle's element matrices, ``how`` changed ("reordered", "laid out")
+    and assembled, match the engine with errors ``e``.
+    """
+    return Finding(
+        code,
+        title,
+        FULL,
+        "the oracle's element matrices (MJED's, whose sum is the oracle's to "
+        f"{split.residual:.1e}) {how} so and assembled: force error {e.force:.1e}, "
+        f"stiffness error {e.stiffness:.1e}",
+        figures,
+    )
+
+
+def _layout_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The layouts of :func:`element_layouts` whose element matrices, assembled with the force
+    right, match the engine and differ from the oracle's.
+    """
+    found = []
+    m = split.cells.shape[0]
+    Ke4 = split.Ke.reshape(m, 4, 3, 4, 3)
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    for perm, words in element_layouts():
+        Kl = Ke4.transpose(0, *(1 + np.array(perm))).reshape(m, 12, 12)
+        _, K_l = assemble(split.cells, split.n, split.fe, Kl)
+        if tol.within(errors(f0, K_l, None, f0, K0, 0.0, s), energy=False):
+            continue  # the oracle's own matrix here: no evidence either way
+        e = errors(f, sp.csr_matrix(K), None, f0, K_l, 0.0, s)
+        if tol.within(e, energy=False):
+            title = f"element matrix in another layout (stiffness only): {words}"
+            layout = {"layout": "".join(_AXES[p] for p in perm)}
+            found.append(_split_finding("element-layout", title, split, "laid out", e, layout))
+    return found
+
+
 def order_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
     """The local orders whose assembly matches the engine (force in that order too, or the
-    force right and only the matrix reordered); several are said as ambiguous.
+    force right and only the matrix reordered), and the element layouts
+    (:func:`element_layouts`); several are said as ambiguous.
     """
-    found = []
+    found = _layout_findings(split, f, K, s, tol)
     f_right = assemble(split.cells, split.n, split.fe, None)[0]
     for p, words in local_orders():
         Kp = split.Ke[:, p][:, :, p]
@@ -169,13 +244,12 @@ def order_findings(
             e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
             if tol.within(e, energy=False):
                 found.append(
-                    Finding(
+                    _split_finding(
                         "element-order",
                         f"element dofs in another local order ({which}): {words}",
-                        FULL,
-                        "the oracle's element matrices (MJED's, whose sum is the oracle's to "
-                        f"{split.residual:.1e}) reordered so and assembled: force error "
-                        f"{e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                        split,
+                        "reordered",
+                        e,
                         {"order": [int(i) for i in p], "which": which},
                     )
                 )
