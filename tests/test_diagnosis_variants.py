@@ -93,7 +93,7 @@ def _check_user_engine(expression, material):
 def test_a_j_only_energy_named_per_cell_is_made_specific_by_the_rewritten_formula():
     """log10 J for ln J: the per-cell volumetric reading is true but unspecific; the rewritten
     formula says which U(J). Nearby: a bulk term scaled by 1.3 is J-only too, but no rewrite
-    matches, so the volumetric reading stays as it was.
+    matches: the parameter's value (lam 1.3 times the case's) says it.
     """
     from mjed.materials import NeoHookean
 
@@ -106,3 +106,6 @@ def test_a_j_only_energy_named_per_cell_is_made_specific_by_the_rewritten_formul
     assert "log10" in head.evidence
     d = _check_user_engine("mu/2*(I1 - 3) - mu*ln(J) + 1.3*lam/2*ln(J)**2", neo)
     assert "formula" not in d.causes[0].figures, d.text()
+    # ... but one parameter's value does: lam 1.3 times the case's
+    assert d.causes[0].figures["parameter"]["parameter"] == "lam", d.text()
+    assert "parameter lam = " in d.causes[0].title, d.text()

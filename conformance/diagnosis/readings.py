@@ -658,17 +658,20 @@ def refine_volumetric(diag, cache, ci, out, s: Scales):
     v = diag.causes[0]
     if v.figures.get("variant"):
         return diag  # the per-cell fit already names the bulk term
+    what = "formula"
     causes = merge_readings(_formula_readings(cache, ci, out, s, diag.tolerances), s)
     if len(causes) != 1:  # no rewritten formula: one parameter with another value (conventions)?
+        what = "parameter"
         causes = merge_readings(_parameter_readings(cache, ci, out, s, diag.tolerances), s)
     if len(causes) != 1:
         return diag
     (w,) = causes
+    said = "the rewritten formula" if what == "formula" else "the parameter"
     head = replace(
         v,
         title=f"{v.title}: {w.title}",
-        evidence=f"{v.evidence}; the rewritten formula: {w.evidence}",
-        figures={**v.figures, "formula": w.figures},
+        evidence=f"{v.evidence}; {said}: {w.evidence}",
+        figures={**v.figures, what: w.figures},
     )
     return replace(diag, findings=[head if f is v else f for f in diag.findings])
 
