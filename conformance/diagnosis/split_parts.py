@@ -512,13 +512,14 @@ PIECES: Dict[str, str] = {
     "C^-1 (x) C^-1 in the isochoric tangent's trace term 2/3 Tr(J^(-2/3) S_bar) P~",
     "coupling": "the isochoric tangent's coupling term -2/3 (C^-1 (x) S_iso + S_iso (x) C^-1)",
     "CCbar-psi11": "the psi11 part 4 psi11 I (x) I of the fictitious tangent CC_bar (in the "
-    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T; psi11 = d2W/dI1b2)",
     "CCbar-psi12": "the psi12 part 4 psi12 (I (x) G + G (x) I), G = I1b I - C_bar, of the "
-    "fictitious tangent CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "fictitious tangent CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T; "
+    "psi12 = d2W/dI1b dI2b)",
     "CCbar-psi22": "the psi22 part 4 psi22 G (x) G, G = I1b I - C_bar, of the fictitious tangent "
-    "CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "CC_bar (in the isochoric tangent's P : (J^(-4/3) CC_bar) : P^T; psi22 = d2W/dI2b2)",
     "CCbar-psi2": "the psi2 part 4 psi2 (I (x) I - II) of the fictitious tangent CC_bar (in the "
-    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T)",
+    "isochoric tangent's P : (J^(-4/3) CC_bar) : P^T; psi2 = dW/dI2b)",
     "Sbar-psi1": "the psi1 part 2 psi1 I of the fictitious stress S_bar",
     "Sbar-I1b-psi2": "the psi2 part 2 I1b psi2 I of the fictitious stress S_bar",
     "Sbar-Cb-psi2": "the psi2 part -2 psi2 C_bar of the fictitious stress S_bar",
