@@ -113,16 +113,16 @@ def test_a_parameter_factor_equal_to_the_single_j_of_the_state_is_also_a_volume(
     """
     from conftest import box_mesh
 
-    from conformance.diagnosis.readings import _single_j_factor
+    from conformance.diagnosis.readings import _single_j, _single_j_factor
     from conformance.kit.spec import CaseInput
     from mjed.materials import NeoHookean
 
     points, cells = box_mesh(2, jitter=0.2, seed=3)
     model = NeoHookean(mu=3448.2759, lam=31034.483)
     ci = CaseInput("c", points, cells, points @ np.diag([1.3, 1.0, 1.0]).T, model)
-    assert "deformed volume" in _single_j_factor(ci, 1.3)
-    assert "divided by J" in _single_j_factor(ci, 1 / 1.3)
-    assert _single_j_factor(ci, 1.2) == ""
+    assert "deformed volume" in _single_j_factor(_single_j(ci), 1.3)
+    assert "divided by J" in _single_j_factor(_single_j(ci), 1 / 1.3)
+    assert _single_j_factor(_single_j(ci), 1.2) == ""
     rng = np.random.default_rng(0)  # nearby: J varies from cell to cell, a value is a value
     x = points @ np.diag([1.3, 1.0, 1.0]).T + 0.02 * rng.standard_normal(points.shape)
-    assert _single_j_factor(CaseInput("c", points, cells, x, model), 1.3) == ""
+    assert _single_j_factor(_single_j(CaseInput("c", points, cells, x, model)), 1.3) == ""

@@ -293,11 +293,11 @@ def _single_j(ci) -> float:
     return float(J[0]) if J.size and np.ptp(J) <= 1e-9 * np.abs(J).max() else float("nan")
 
 
-def _single_j_factor(ci, ratio: float) -> str:
-    """Words for a parameter's factor that is the state's one J (or 1/J): the same change as
-    that parameter's terms integrated over the deformed volume (or divided by J); "" if not.
+def _single_j_factor(J: float, ratio: float) -> str:
+    """Words for a parameter's factor that is the state's one J (:func:`_single_j`; or 1/J):
+    the same change as that parameter's terms integrated over the deformed volume (or divided
+    by J); "" if not.
     """
-    J = _single_j(ci)
     if not np.isfinite(J) or abs(J - 1.0) < 1e-3 or not np.isfinite(ratio):
         return ""
     if abs(ratio - J) <= 1e-6 * J:
@@ -335,6 +335,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         ),
     )
     values = scalar_parameters(ci.model)
+    one_j = _single_j(ci)
     for name, v0 in values.items():
 
         def evaluate(v, name=name):
@@ -351,11 +352,11 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         also = f" (the value of {same[0]}: {same[0]} used for {name})" if same else ""
         also = also or convention_words(ci.model, name, v, v0)
         elastic = bool(elastic_convention_words(ci.model, name, v, v0))
-        volume = _single_j_factor(ci, v / v0 if v0 else float("nan"))
+        volume = _single_j_factor(one_j, v / v0 if v0 else float("nan"))
         if volume and not also:
             also = (
                 f" or, equally on this state, {name}'s terms {volume}: the state has one "
-                f"J = {_single_j(ci):.6g}, which cannot tell a value from a volume"
+                f"J = {one_j:.6g}, which cannot tell a value from a volume"
             )
         found.append(
             Reading(

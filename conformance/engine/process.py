@@ -42,7 +42,16 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Dict, Iterator, List, Optional, Sequence, Set, Tuple
 
-__all__ = ["EngineRun", "run_engine", "end_process_tree", "MARK", "HEAD_BYTES", "TAIL_BYTES"]
+__all__ = [
+    "EngineRun",
+    "run_engine",
+    "end_process_tree",
+    "head_and_tail",
+    "dropped_marker",
+    "MARK",
+    "HEAD_BYTES",
+    "TAIL_BYTES",
+]
 
 MARK = "MJED_VERIFY_ENGINE_RUN"  # environment variable carrying the run's token
 HEAD_BYTES = 64 << 10  # kept from the start of each stream
@@ -65,6 +74,21 @@ class EngineRun:
     stdout: bytes
     stderr: bytes
     ended: int
+
+
+def dropped_marker(dropped: int) -> bytes:
+    """What stands between a stream's kept head and tail when ``dropped`` bytes were left out."""
+    return f"\n...[{dropped} bytes dropped]...\n".encode() if dropped else b""
+
+
+def head_and_tail(data: bytes) -> bytes:
+    """A whole stream ``data`` as :func:`run_engine` keeps one: its first HEAD_BYTES and last
+    TAIL_BYTES, the bytes between said dropped.
+    """
+    if len(data) <= HEAD_BYTES + TAIL_BYTES:
+        return data
+    dropped = len(data) - HEAD_BYTES - TAIL_BYTES
+    return data[:HEAD_BYTES] + dropped_marker(dropped) + data[-TAIL_BYTES:]
 
 
 class _BoundedReader(threading.Thread):
@@ -103,8 +127,7 @@ class _BoundedReader(threading.Thread):
             return
 
     def text(self) -> bytes:
-        gap = f"\n...[{self.dropped} bytes dropped]...\n".encode() if self.dropped else b""
-        return bytes(self.head) + gap + bytes(self.tail)
+        return bytes(self.head) + dropped_marker(self.dropped) + bytes(self.tail)
 
 
 def _subreaper(on: bool) -> bool:

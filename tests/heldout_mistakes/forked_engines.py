@@ -165,16 +165,12 @@ def is_python_script(argv: Sequence[str]) -> bool:
     )
 
 
-def _bounded(path: str):
-    """The file's head and tail as run_engine keeps a stream's (the middle dropped, said so)."""
-    from conformance.engine.process import HEAD_BYTES, TAIL_BYTES
+def _bounded(path: str) -> bytes:
+    """The file's head and tail as run_engine keeps a stream's."""
+    from conformance.engine.process import head_and_tail
 
     with open(path, "rb") as f:
-        data = f.read()
-    if len(data) <= HEAD_BYTES + TAIL_BYTES:
-        return data
-    dropped = len(data) - HEAD_BYTES - TAIL_BYTES
-    return data[:HEAD_BYTES] + f"...[{dropped} bytes dropped]...".encode() + data[-TAIL_BYTES:]
+        return head_and_tail(f.read())
 
 
 def run_forked(argv: Sequence[str], timeout: float):
