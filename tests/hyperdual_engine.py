@@ -24,82 +24,9 @@ from typing import Any, Callable, Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from common.hyperdual import HD, exp, ln, sqrt
+
 __all__ = ["HD", "Matrix", "Namespace", "density_engine", "hyperdual_F"]
-
-
-class HD:
-    """A hyper-dual array a + b e1 + c e2 + d e1 e2 (e1^2 = e2^2 = 0), parts of one shape."""
-
-    __slots__ = ("a", "b", "c", "d")
-    __array_ufunc__ = None  # ndarray * HD defers to HD.__rmul__ instead of an object array
-
-    def __init__(self, a, b=0.0, c=0.0, d=0.0):
-        self.a, self.b, self.c, self.d = a, b, c, d
-
-    def _apply(self, g, dg, d2g) -> "HD":
-        # The chain rule to second order: d(g(x))/de1 de2 = g' d + g'' b c.
-        return HD(g, dg * self.b, dg * self.c, dg * self.d + d2g * self.b * self.c)
-
-    def __add__(self, o):
-        if isinstance(o, HD):
-            return HD(self.a + o.a, self.b + o.b, self.c + o.c, self.d + o.d)
-        return HD(self.a + o, self.b, self.c, self.d)
-
-    __radd__ = __add__
-
-    def __neg__(self):
-        return HD(-self.a, -self.b, -self.c, -self.d)
-
-    def __sub__(self, o):
-        return self + (-o)
-
-    def __rsub__(self, o):
-        return (-self) + o
-
-    def __mul__(self, o):
-        if isinstance(o, HD):
-            return HD(
-                self.a * o.a,
-                self.a * o.b + self.b * o.a,
-                self.a * o.c + self.c * o.a,
-                self.a * o.d + self.b * o.c + self.c * o.b + self.d * o.a,
-            )
-        if isinstance(o, Matrix):
-            return NotImplemented
-        return HD(self.a * o, self.b * o, self.c * o, self.d * o)
-
-    __rmul__ = __mul__
-
-    def reciprocal(self) -> "HD":
-        r = 1.0 / self.a
-        return self._apply(r, -r * r, 2.0 * r * r * r)
-
-    def __truediv__(self, o):
-        return self * (o.reciprocal() if isinstance(o, HD) else 1.0 / o)
-
-    def __rtruediv__(self, o):
-        return self.reciprocal() * o
-
-    def __pow__(self, p: float):
-        p = float(p)
-        return self._apply(self.a**p, p * self.a ** (p - 1.0), p * (p - 1.0) * self.a ** (p - 2.0))
-
-
-def exp(x):
-    if not isinstance(x, HD):
-        return np.exp(x)
-    e = np.exp(x.a)
-    return x._apply(e, e, e)
-
-
-def ln(x):
-    if not isinstance(x, HD):
-        return np.log(x)
-    return x._apply(np.log(x.a), 1.0 / x.a, -1.0 / (x.a * x.a))
-
-
-def sqrt(x):
-    return x**0.5 if isinstance(x, HD) else np.sqrt(x)
 
 
 class Matrix:

@@ -39,6 +39,7 @@ from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
+from common.hyperdual import HD, exp, ln
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.energy_terms import declaration
 from conformance.diagnosis.findings import Finding, ambiguous
@@ -72,85 +73,17 @@ _II = 0.5 * (np.einsum("ik,jl->ijkl", _I, _I) + np.einsum("il,jk->ijkl", _I, _I)
 
 
 # ------------------------------------------------------------------ the declared energy's law
-class _HD:
-    """A hyper-dual number a + b e1 + c e2 + d e1 e2 (e1^2 = e2^2 = 0) of per-cell arrays."""
-
-    __slots__ = ("a", "b", "c", "d")
-    __array_ufunc__ = None  # ndarray op _HD defers to _HD
-
-    def __init__(self, a, b=0.0, c=0.0, d=0.0):
-        self.a, self.b, self.c, self.d = a, b, c, d
-
-    def _chain(self, g, dg, d2g) -> "_HD":
-        return _HD(g, dg * self.b, dg * self.c, dg * self.d + d2g * self.b * self.c)
-
-    def __add__(self, o):
-        if isinstance(o, _HD):
-            return _HD(self.a + o.a, self.b + o.b, self.c + o.c, self.d + o.d)
-        return _HD(self.a + o, self.b, self.c, self.d)
-
-    __radd__ = __add__
-
-    def __neg__(self):
-        return _HD(-self.a, -self.b, -self.c, -self.d)
-
-    def __sub__(self, o):
-        return self + (-o)
-
-    def __rsub__(self, o):
-        return (-self) + o
-
-    def __mul__(self, o):
-        if isinstance(o, _HD):
-            return _HD(
-                self.a * o.a,
-                self.a * o.b + self.b * o.a,
-                self.a * o.c + self.c * o.a,
-                self.a * o.d + self.b * o.c + self.c * o.b + self.d * o.a,
-            )
-        return _HD(self.a * o, self.b * o, self.c * o, self.d * o)
-
-    __rmul__ = __mul__
-
-    def __truediv__(self, o):
-        if isinstance(o, _HD):
-            r = 1.0 / o.a
-            return self * o._chain(r, -r * r, 2.0 * r**3)
-        return self * (1.0 / o)
-
-    def __rtruediv__(self, o):
-        r = 1.0 / self.a
-        return self._chain(r, -r * r, 2.0 * r**3) * o
-
-    def __pow__(self, p):
-        p = float(p)
-        return self._chain(self.a**p, p * self.a ** (p - 1.0), p * (p - 1.0) * self.a ** (p - 2.0))
-
-
-def _exp(x):
-    if not isinstance(x, _HD):
-        return np.exp(x)
-    e = np.exp(x.a)
-    return x._chain(e, e, e)
-
-
-def _ln(x):
-    if not isinstance(x, _HD):
-        return np.log(x)
-    return x._chain(np.log(x.a), 1.0 / x.a, -1.0 / (x.a * x.a))
-
-
 class _Invariants:
     """The formula namespace with I1b, I2b, J (and ln J) only: a formula reading anything else
     (I1, C, E, a frame, eigenvalues) raises AttributeError, and is not split here.
     """
 
     __slots__ = ("I1b", "I2b", "J", "lnJ")
-    exp = staticmethod(_exp)
-    ln = staticmethod(_ln)
+    exp = staticmethod(exp)
+    ln = staticmethod(ln)
 
     def __init__(self, I1b, I2b, J):
-        self.I1b, self.I2b, self.J, self.lnJ = I1b, I2b, J, _ln(J)
+        self.I1b, self.I2b, self.J, self.lnJ = I1b, I2b, J, ln(J)
 
 
 @dataclass(frozen=True)
@@ -172,13 +105,13 @@ def _seeded(energy, p, I1b, I2b, J, seeds: Tuple[str, str]) -> Tuple[np.ndarray,
     one = np.ones_like(J)
     x, y = seeds
     if x == y:
-        args[x] = _HD(args[x], one, one, 0.0)
+        args[x] = HD(args[x], one, one, 0.0)
     else:
-        args[x] = _HD(args[x], one, 0.0, 0.0)
-        args[y] = _HD(args[y], 0.0, one, 0.0)
+        args[x] = HD(args[x], one, 0.0, 0.0)
+        args[y] = HD(args[y], 0.0, one, 0.0)
     W = energy(p, _Invariants(args["I1b"], args["I2b"], args["J"]))
     m = len(J)
-    if not isinstance(W, _HD):
+    if not isinstance(W, HD):
         return np.zeros(m), np.zeros(m)
     first = W.b if x == y else np.zeros(m)
     return np.broadcast_to(first, (m,)) + 0.0, np.broadcast_to(W.d, (m,)) + 0.0
