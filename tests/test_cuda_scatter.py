@@ -136,3 +136,44 @@ def test_element_assembly_equals_atomic_and_numpy_on_the_simulator(simulated, dt
             assert c[key] <= tol, (c["material"], key, c[key])
         assert c["element_vs_numpy_K"] <= tol and c["element_vs_numpy_f"] <= tol, c
         assert c["force_alone"] <= tol, c
+
+
+@pytest.mark.skipif(not numba_available(), reason="needs Numba's CUDA target")
+def test_scatter_benchmark_code_path_runs_on_the_simulator():
+    # comparisons.timing.gpu_scatter only times a device; its code path on one tiny cube here
+    from comparisons.timing.gpu_scatter import VARIANTS
+
+    code = (
+        "import json; from comparisons.timing.gpu_scatter import measure, print_figures; "
+        "fig = measure(sizes=(48, 200), min_time=0.0, budget=0.0); lines = []; "
+        "print_figures(fig, lines.append); print(json.dumps({'fig': fig, 'text': lines}))"
+    )
+    run = run_on_simulator(["-c", code], timeout=600)
+    fig, text = run["fig"], run["text"]
+    assert fig["simulated"] and fig["not_started"] == [200]  # past the budget
+    (row,) = fig["sizes"]
+    assert row["cells"] == 48 and row["blocks"] * 9 == row["nnz"] and not row["skipped"]
+    for dtype in ("float64", "float32"):
+        p = row["precisions"][dtype]
+        assert p["check"]["agrees"] and p["check"]["K"] <= p["check"]["tol"]
+        assert set(p["timings"]) == set(VARIANTS)
+        assert all(t["tets_per_s"] > 0 and t["repeats"] >= 3 for t in p["timings"].values())
+        assert p["ratios"]["atomic f+K / element f+K"] > 0
+        assert any(line.strip().startswith(f"{dtype} gather ") for line in text)
+    assert "simulator: figures meaningless" in text[0]
+
+
+def test_scatter_benchmark_refuses_the_simulator(monkeypatch, capsys):
+    from comparisons.timing import gpu_scatter
+
+    monkeypatch.setenv("NUMBA_ENABLE_CUDASIM", "1")
+    assert gpu_scatter.main(["--sizes", "48"]) == 2
+    assert "needs a real NVIDIA GPU" in capsys.readouterr().err
+
+
+def test_element_extra_bytes():
+    from comparisons.timing.gpu_scatter import extra_bytes
+
+    # 1e6 tets in FP64: the per-cell entries alone are 1.15 GB
+    assert extra_bytes(1_000_000, 0, "float64") == 144 * 8 * 10**6 + 4 * (16 * 10**6 + 1)
+    assert extra_bytes(20_000_000, 0, "float32") % 8 == 0  # int64 indices past 2**31 entries
