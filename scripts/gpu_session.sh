@@ -4,13 +4,14 @@
 #
 #   OUT=/path/to/out scripts/gpu_session.sh [STEP ...]
 #
-# Steps (all by default, in this order): env bench kits liver organ peer regs pack. Each step
-# runs under its own time limit (seconds, STEP_LIMIT_<step>; together 845 s: on a device lent
-# 600 s per command, run `env bench peer`, `kits regs pack`, then `liver organ pack`), with its
+# Steps (all by default, in this order): env bench kits liver organ peer regs scatter pack. Each
+# step runs under its own time limit (seconds, STEP_LIMIT_<step>; together 1025 s: on a device
+# lent 600 s per command, run `env bench peer`, `kits regs pack`, `liver organ pack`, then
+# `env scatter pack`), with its
 # log in $WORK/logs/<step>.log (WORK default /tmp/gpu-session-work, packed into results.tar.xz) and
 # its last lines printed; a failed or timed-out step is reported loudly and the next one still
 # runs. The summary at the end (also $OUT/summary.txt) lists each step's exit code (124: timed
-# out) and seconds; the script exits 1 if any step failed. $OUT holds at most 8 files.
+# out) and seconds; the script exits 1 if any step failed. $OUT holds at most 9 files.
 #
 #   env    the machine: nvidia-smi, Python, NumPy, Numba, whether the oracle (dolfinx) is here
 #   bench  python -m comparisons.timing.hardware --no-cpu --json $OUT/hardware_bench.json: the
@@ -32,6 +33,13 @@
 #          the classical element's, FP64 and FP32, force and force+stiffness); after `kits`,
 #          MJED's kernels load from the kernel cache; those not started within 85 s are listed
 #          as not read (exit 0), a kernel that fails to compile fails the step
+#   scatter python -m comparisons.timing.gpu_scatter --json $OUT/gpu_scatter.json: are the 144
+#          atomic adds per cell into the CSR values what bounds force+stiffness? NeoHookean,
+#          cubes of 1e5, 1e6 (and 1e7 if started within 70 s) tets, FP64 and FP32: the atomic
+#          f+K kernel, the element kernel (plain stores per cell) and the gather kernel apart and
+#          together, the force kernel for reference, each checked against the atomic path first
+#          (SCATTER_ARGS for other options); at most 180 s, most of it compiling and the 1e7
+#          cube's host set-up
 #   pack   $OUT/results.tar.xz: the logs, check JSONs and figures; $OUT/kits-cube-small.tar.xz:
 #          the GPU-filled cube-small kits (inputs and outputs), for `mjed-verify check` elsewhere
 #
@@ -51,13 +59,13 @@ unset NUMBA_ENABLE_CUDASIM # a real device, never the simulator
 VERIFY=("$PY" -m comparisons.cli)
 ADAPTER=("$PY" -m conformance.adapters.mjed_backend)
 # Three device commands: `env bench peer` (at most 225 s), `kits regs pack` (380 s), `liver
-# organ pack` (260 s). Measured on an H200 (2026-11-26): env 8 s, bench 105 s, peer 30 s, liver
+# organ pack` (260 s); and `env scatter pack` (215 s) for the scatter experiment. Measured on an H200 (2026-11-26): env 8 s, bench 105 s, peer 30 s, liver
 # 54 s, organ 98 s; kits about 95 s per precision, nearly all of it compiling the 20 CUDA
 # kernels of that precision (cube-paper FP64: 76 s; then cube-small in 1 s from the kernel
 # cache): 190 s for both, so 250 s leaves room for the NumPy kit and a slower compile; regs
 # stops compiling at 85 s (its --budget) within its 110 s.
 declare -A LIMIT=([env]=15 [bench]=150 [kits]=250 [liver]=90 [organ]=150 [peer]=60 [regs]=110
-    [pack]=20)
+    [scatter]=180 [pack]=20)
 BENCH_ARGS=${BENCH_ARGS---no-cpu}
 export XLA_PYTHON_CLIENT_PREALLOCATE=false # JAX takes memory as it needs it, not 75 % at start
 SUMMARY=()
@@ -168,6 +176,11 @@ step_regs() {
     "$PY" -m comparisons.timing.gpu_occupancy ${REGS_ARGS:---budget 85} --json "$OUT/gpu_occupancy.json"
 }
 
+step_scatter() {
+    # shellcheck disable=SC2086 # SCATTER_ARGS is a list of options
+    "$PY" -m comparisons.timing.gpu_scatter ${SCATTER_ARGS:-} --json "$OUT/gpu_scatter.json"
+}
+
 step_pack() {
     local rc=0
     if [ -d "$WORK/kits/cube-small-float64" ]; then
@@ -203,10 +216,10 @@ run_step() {
 }
 
 STEPS=("$@")
-[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ peer regs pack)
+[ ${#STEPS[@]} -eq 0 ] && STEPS=(env bench kits liver organ peer regs scatter pack)
 for s in "${STEPS[@]}"; do
     if [ -z "${LIMIT[$s]+x}" ]; then
-        echo "unknown step $s (env bench kits liver organ peer regs pack)"
+        echo "unknown step $s (env bench kits liver organ peer regs scatter pack)"
         exit 2
     fi
 done

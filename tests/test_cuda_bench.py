@@ -108,7 +108,7 @@ def test_cube_counts_are_the_built_cube_s():
 def test_a_size_that_does_not_fit_is_skipped_saying_why(monkeypatch):
     from comparisons.timing import gpu as gpu_bench
 
-    monkeypatch.setattr(gpu_bench, "_free_memory", lambda: 1e9)  # 1 GB free
+    monkeypatch.setattr(gpu_bench, "free_memory", lambda: 1e9)  # 1 GB free
     size, mesh, _ = gpu_bench.measure_size(10_000_000, None, set(), 1.0, 0.0)
     assert mesh is None and size.timings == () and len(size.skipped) == 2
     assert "float64: needs 3.95 GB" in size.skipped[0] and "1.00 GB free" in size.skipped[0]

@@ -41,6 +41,12 @@ __all__ = [
     "device_bytes",
     "moved_bytes",
     "timed_repeats",
+    "time_device",
+    "bench_state",
+    "free_memory",
+    "device_name",
+    "utc_now",
+    "copy_bandwidth",
     "measure",
     "not_run",
     "print_figures",
@@ -284,7 +290,7 @@ def timed_repeats(call: Callable[[], object], min_time: float) -> Tuple[float, f
     return min(samples), float(np.median(samples)), repeats
 
 
-def _time_device(call: Callable[[], object], min_time: float) -> Tuple[float, float, int]:
+def time_device(call: Callable[[], object], min_time: float) -> Tuple[float, float, int]:
     """:func:`timed_repeats` of ``call`` with the device synchronised after each call."""
     from numba import cuda
 
@@ -302,11 +308,11 @@ def copy_bandwidth(copy_bytes: int) -> float:
     n_copy = max(1, copy_bytes // 8)
     a = cuda.to_device(np.ones(n_copy))
     b = cuda.device_array(n_copy)
-    best = _time_device(lambda: b.copy_to_device(a), 0.0)[0]
+    best = time_device(lambda: b.copy_to_device(a), 0.0)[0]
     return 2 * 8 * n_copy / best / 1e9
 
 
-def _state(points: np.ndarray) -> np.ndarray:
+def bench_state(points: np.ndarray) -> np.ndarray:
     """The deformed positions every figure is taken at (a stretch; J stays near 1)."""
     return points * [1.05, 0.98, 0.99]
 
@@ -331,7 +337,7 @@ def verify(mesh, material, layout) -> List[Verification]:
     import mjed
     from reference_fem.classical import ClassicalGalerkin
 
-    x = _state(mesh.points)
+    x = bench_state(mesh.points)
     refs = {
         "mjed": mjed.make_force_field(mesh, material).force_and_stiffness(x),
         "classical": ClassicalGalerkin(mesh, None, material).force_and_stiffness(x),
@@ -362,7 +368,7 @@ def _time_dtype(mesh, material, dtype, layout, allowed, copy_GBs, min_time) -> L
     from numba import cuda
 
     launcher, fields = _fields(mesh, material, dtype, layout)
-    x_d = launcher.to_device(_state(mesh.points))
+    x_d = launcher.to_device(bench_state(mesh.points))
     out = (
         cuda.device_array((mesh.n_nodes, 3), dtype=dtype),
         cuda.device_array(launcher.pattern.nnz, dtype=dtype),
@@ -375,7 +381,7 @@ def _time_dtype(mesh, material, dtype, layout, allowed, copy_GBs, min_time) -> L
             def call(fld=fields[method], stiff=stiff):
                 fld.device_force_and_stiffness(x_d, force=True, stiffness=stiff, out=out)
 
-            best, median, repeats = _time_device(call, min_time)
+            best, median, repeats = time_device(call, min_time)
             moved = moved_bytes(mesh.n_cells, mesh.n_nodes, launcher.pattern.nnz, dtype, stiff)
             GBs = moved / best / 1e9
             timings.append(
@@ -395,7 +401,7 @@ def _time_dtype(mesh, material, dtype, layout, allowed, copy_GBs, min_time) -> L
     return timings
 
 
-def _free_memory() -> float:
+def free_memory() -> float:
     from numba import cuda
 
     return float(cuda.current_context().get_memory_info()[0])
@@ -413,7 +419,7 @@ def measure_size(target, material, allowed, copy_GBs, min_time, verifications=No
     _, cells, nodes, nnz = cube_counts(target)
     need = {d: device_bytes(cells, nodes, nnz, d) for d in DTYPES}
     csr = {d: np.dtype(d).itemsize * nnz for d in DTYPES}
-    free = _free_memory()
+    free = free_memory()
     skipped = [
         f"{d}: needs {need[d] / 1e9:.2f} GB of device memory (CSR values {csr[d] / 1e9:.2f} GB, "
         f"{nnz:,} entries), {free / 1e9:.2f} GB free"
@@ -432,7 +438,7 @@ def measure_size(target, material, allowed, copy_GBs, min_time, verifications=No
         allowed = {(v.method, v.dtype) for v in verifications if v.passed}
     timings = []
     for dtype in DTYPES:
-        if need[dtype] <= MEMORY_SHARE * _free_memory():
+        if need[dtype] <= MEMORY_SHARE * free_memory():
             timings += _time_dtype(mesh, material, dtype, layout, allowed, copy_GBs, min_time)
     size = GpuSize(target, cells, nodes, nnz, need, csr, setup_s, tuple(timings), size.skipped)
     return size, mesh, layout
@@ -446,7 +452,7 @@ def cpu_reference(mesh, material, min_time: float) -> CpuReference:
 
     import mjed
 
-    x = _state(mesh.points)
+    x = bench_state(mesh.points)
     cpu = mjed.make_force_field(mesh, material, backend="numba", parallel=True)
     gpu_force = mjed.make_force_field(mesh, material, backend="cuda").force(x)
     f = cpu.force(x)
@@ -520,11 +526,11 @@ def measure(
     return GpuFigures(
         "measured",
         material_name,
-        _device_name(),
-        _now(),
+        device_name(),
+        utc_now(),
         simulated(),
         copy_GBs,
-        _free_memory(),
+        free_memory(),
         tuple(checks),
         tuple(done),
         ref,
@@ -536,10 +542,10 @@ def measure(
 def not_run(reason: str, material_name: str = "NeoHookean") -> GpuFigures:
     """The section of a run without a device: the reason, every target unjudged."""
     targets = tuple(TargetOutcome(t.name, t.tets_per_s, None, None, reason) for t in TARGETS)
-    return GpuFigures(reason, material_name, date=_now(), targets=targets)
+    return GpuFigures(reason, material_name, date=utc_now(), targets=targets)
 
 
-def _device_name() -> str:
+def device_name() -> str:
     from numba import cuda
 
     try:
@@ -549,7 +555,7 @@ def _device_name() -> str:
     return name.decode() if isinstance(name, bytes) else str(name)
 
 
-def _now() -> str:
+def utc_now() -> str:
     return f"{_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M} UTC"
 
 

@@ -145,9 +145,9 @@ class JaxPeer:
 def verify(mesh, material, pattern) -> Dict[str, dict]:
     """Each precision's force and stiffness against mjed's NumPy engine (relative errors)."""
     import mjed
-    from comparisons.timing.gpu import _state
+    from comparisons.timing.gpu import bench_state
 
-    x = _state(mesh.points)
+    x = bench_state(mesh.points)
     f_ref, K_ref = mjed.make_force_field(mesh, material).force_and_stiffness(x)
     K_ref = K_ref.tocsr()
     out = {}
@@ -175,9 +175,9 @@ def _time_size(mesh, material, pattern, dtypes, min_time, timings, skipped) -> N
     """
     import jax
 
-    from comparisons.timing.gpu import _state, timed_repeats
+    from comparisons.timing.gpu import bench_state, timed_repeats
 
-    x = _state(mesh.points)
+    x = bench_state(mesh.points)
     for dtype in dtypes:
         try:
             peer = JaxPeer(mesh, material, pattern, dtype)

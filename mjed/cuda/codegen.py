@@ -14,7 +14,14 @@ this target only says how a cell's results leave it and writes the module around
   per-cell block map ``blk`` (m, 16) computed once per mesh (block (a, b) of cell e starts at
   blk[e, 4 a + b], its row r at r * rowlen[node a] further; :func:`block_map`): the edge
   block K_ab, its transpose K_ba and the node blocks K_aa = -sum_b K_ab, 144 atomic adds per
-  cell. No pass over mesh edges, no per-edge scratch.
+  cell. No pass over mesh edges, no per-edge scratch. That is the default
+  (:attr:`Assembly.ATOMIC`); with :attr:`Assembly.ELEMENT`, chosen when the kernel is
+  generated, each cell instead stores its 144 entries with plain stores into a per-cell
+  array ``data`` (144, m), entry 9 (4 a + b) + 3 r + c of block (a, b) at [entry, e] (one
+  row per entry, so that consecutive threads write consecutive addresses), and a second,
+  fixed kernel (:mod:`mjed.cuda.kernels`, ``gather_blocks``) sums them into the CSR values,
+  one thread per 3x3 block of the pattern, from the incidence of :func:`element_incidence`.
+  The force stays atomic in both (12 adds per cell).
 
 The compiled helpers of the CPU kernels (the Jacobi eigen-decomposition of C, the divided
 differences of Ogden's tangent: :data:`mjed.compiled.kernels.DEVICE_HELPERS`) are compiled
@@ -34,20 +41,27 @@ Pure Python; the generated module imports numba.cuda when it is loaded.
 from __future__ import annotations
 
 import ast
+import enum
 import inspect
 import re
 import textwrap
+from dataclasses import dataclass
 
 import numpy as np
 
 from mjed.compiled.codegen import CELL_INPUTS, EDGES, PAIRS6, Source, Target, node_block_sum
 
 __all__ = [
+    "Assembly",
+    "BLOCK_ENTRIES",
     "CudaTarget",
+    "ElementIncidence",
     "CUDA_ASSEMBLY_ARGS",
     "CUDA_SIGNATURE",
     "add_block",
     "block_map",
+    "element_incidence",
+    "store_block",
     "fp32_source",
     "row_lengths",
     "write_cuda_module",
@@ -60,6 +74,36 @@ CUDA_ASSEMBLY_ARGS = ("blk", "rowlen", "force", "data", "J_out", "E_out")
 
 #: The arguments of the generated CUDA ``mjed_cells``, in order.
 CUDA_SIGNATURE = CELL_INPUTS + CUDA_ASSEMBLY_ARGS + ("stress_out",)
+
+#: Stiffness entries one cell forms: 16 node blocks of 3 x 3.
+BLOCK_ENTRIES = 144
+
+
+class Assembly(enum.Enum):
+    """How a cell's stiffness leaves it, chosen when the CUDA kernel is generated:
+
+    ATOMIC: each entry added by ``cuda.atomic.add`` into the CSR values (144 per cell);
+    ELEMENT: each entry stored into the per-cell array ``data`` (144, m), gathered into the
+    CSR values by a second kernel (see the module docstring).
+    """
+
+    ATOMIC = "atomic"
+    ELEMENT = "element"
+
+    @classmethod
+    def of(cls, value) -> "Assembly":
+        """``value`` (an Assembly or its name, "atomic" or "element") as an Assembly;
+        ValueError naming the choices otherwise.
+        """
+        if isinstance(value, cls):
+            return value
+        try:
+            return cls(value)
+        except ValueError:
+            raise ValueError(
+                f"assembly must be one of {', '.join(a.value for a in cls)}, not {value!r}"
+            ) from None
+
 
 _MATH = ("sqrt", "log", "exp", "expm1", "log1p")
 # math.nan / math.inf: a float64 constant in one branch of a conditional makes it float64.
@@ -97,10 +141,29 @@ class CudaTarget(Target):
     (np.float64 or np.float32).
     """
 
-    def __init__(self, dtype=np.float64):
+    def __init__(self, dtype=np.float64, assembly=Assembly.ATOMIC):
         self.dtype = np.dtype(dtype)
         if self.dtype not in (np.dtype(np.float64), np.dtype(np.float32)):
             raise ValueError(f"dtype must be float64 or float32, got {self.dtype}")
+        self.assembly = Assembly.of(assembly)
+
+    @property
+    def title_note(self) -> str:
+        """What the module's title adds for a non-default assembly (none for the atomic one,
+        whose source, hence its kernel cache, stays that of before the option).
+        """
+        return "" if self.assembly is Assembly.ATOMIC else f", {self.assembly.value} stiffness"
+
+    def before_blocks(self, s: Source) -> None:
+        """What the blocks of the cell need first (the row lengths, for the atomic adds)."""
+        if self.assembly is Assembly.ATOMIC:
+            row_lengths(s)
+
+    def block(self, s: Source, a: int, b: int, entry) -> None:
+        """Block (node a, node b) of cell e out of the cell, as :attr:`assembly` says:
+        :func:`add_block` or :func:`store_block`.
+        """
+        _BLOCK_WRITERS[self.assembly](s, a, b, entry)
 
     def add_energy(self, s: Source, expr: str) -> None:
         s(f"E_out[e] = {expr}")
@@ -109,21 +172,23 @@ class CudaTarget(Target):
         s(f"cuda.atomic.add(force, (n{a}, {i}), -({expr}))")
 
     def scatter(self, s: Source) -> None:
-        """Every block of the cell added straight into the CSR data (see the module docstring)."""
-        row_lengths(s)
+        """Every block of the cell out of it (see the module docstring): edge blocks, their
+        transposes and the node blocks.
+        """
+        self.before_blocks(s)
         for k, (a, b) in enumerate(EDGES):
-            add_block(s, a, b, lambda r, c, k=k: f"K{k}_{r}{c}")
-            add_block(s, b, a, lambda r, c, k=k: f"K{k}_{c}{r}")
+            self.block(s, a, b, lambda r, c, k=k: f"K{k}_{r}{c}")
+            self.block(s, b, a, lambda r, c, k=k: f"K{k}_{c}{r}")
         for a in range(4):
             for r, c in PAIRS6:
                 s(f"N{r}{c} = " + node_block_sum(a, r, c))
-            add_block(s, a, a, lambda r, c: f"-N{min(r, c)}{max(r, c)}")
+            self.block(s, a, a, lambda r, c: f"-N{min(r, c)}{max(r, c)}")
 
     def module(self, kernel) -> None:
         write_cuda_module(
             kernel,
-            f"MJED CUDA kernel ({self.dtype.name}) generated by mjed.cuda.codegen for one "
-            "kernel shape; do not edit.",
+            f"MJED CUDA kernel ({self.dtype.name}{self.title_note}) generated by "
+            "mjed.cuda.codegen for one kernel shape; do not edit.",
             ("mjed_cells", "mjed_force"),
             CUDA_SIGNATURE,
             self.dtype,
@@ -145,6 +210,19 @@ def add_block(s: Source, a: int, b: int, entry) -> None:
     for r in range(3):
         for c in range(3):
             s(f"cuda.atomic.add(data, p + {r} * L{a} + {c}, {entry(r, c)})")
+
+
+def store_block(s: Source, a: int, b: int, entry) -> None:
+    """Write the plain stores of a 3x3 block of cell e into the per-cell array ``data``
+    (144, m): entry (r, c) of block (node a, node b) at row 9 (4 a + b) + 3 r + c, column e
+    (:attr:`Assembly.ELEMENT`).
+    """
+    for r in range(3):
+        for c in range(3):
+            s(f"data[{9 * (4 * a + b) + 3 * r + c}, e] = {entry(r, c)}")
+
+
+_BLOCK_WRITERS = {Assembly.ATOMIC: add_block, Assembly.ELEMENT: store_block}
 
 
 def write_cuda_module(writer, title: str, names, signature, dtype) -> None:
@@ -204,6 +282,21 @@ def write_cuda_module(writer, title: str, names, signature, dtype) -> None:
     s.lines.extend((fp32_source(code) if fp32 else code).rstrip("\n").splitlines())
 
 
+def _block_starts(indptr: np.ndarray, n_nodes: int):
+    """(first, rows, rowlen) of a node-block pattern: the position of entry (0, 0) of each
+    3x3 block in CSR order (ascending), the node of its rows, and the row length per node.
+    """
+    indptr = np.asarray(indptr, dtype=np.int64)
+    row0 = indptr[0 : 3 * n_nodes : 3]
+    rowlen = indptr[1 : 3 * n_nodes + 1 : 3] - row0
+    deg = rowlen // 3
+    rows = np.repeat(np.arange(n_nodes), deg)
+    first = row0[rows] + 3 * (
+        np.arange(len(rows)) - np.repeat(np.cumsum(deg) - deg, deg)
+    )  # (0, 0) of each block
+    return first, rows, rowlen
+
+
 def block_map(cells: np.ndarray, indptr: np.ndarray, indices: np.ndarray, n_nodes: int):
     """Where each cell's 16 node blocks start in the CSR data of a node-block pattern
     (mjed.sparse.CSRPattern: rows 3 i + r hold, for each neighbour k of node i in order, the
@@ -212,15 +305,8 @@ def block_map(cells: np.ndarray, indptr: np.ndarray, indices: np.ndarray, n_node
     entry (r, c) of the block is at blk + r * rowlen[node a] + c. Vectorised, once per mesh.
     """
     cells = np.asarray(cells, dtype=np.int64)
-    indptr = np.asarray(indptr, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
-    row0 = indptr[0 : 3 * n_nodes : 3]
-    rowlen = indptr[1 : 3 * n_nodes + 1 : 3] - row0
-    deg = rowlen // 3
-    rows = np.repeat(np.arange(n_nodes), deg)
-    first = row0[rows] + 3 * (
-        np.arange(len(rows)) - np.repeat(np.cumsum(deg) - deg, deg)
-    )  # (0, 0) of each block
+    first, rows, rowlen = _block_starts(indptr, n_nodes)
     keys = rows * n_nodes + indices[first] // 3  # sorted: rows in order, columns sorted in a row
     a = np.repeat(cells, 4, axis=1)  # (m, 16): node a of block 4 a + b
     b = np.tile(cells, (1, 4))
@@ -228,3 +314,63 @@ def block_map(cells: np.ndarray, indptr: np.ndarray, indices: np.ndarray, n_node
     if len(keys) and not np.array_equal(keys[np.minimum(pos, len(keys) - 1)], a * n_nodes + b):
         raise ValueError("block_map: a cell's node pair is missing from the pattern")
     return first[pos], rowlen
+
+
+@dataclass(frozen=True)
+class ElementIncidence:
+    """Which per-cell entries make up each 3x3 block of the CSR values
+    (:attr:`Assembly.ELEMENT`), built once per mesh by :func:`element_incidence`.
+
+    first (nb,): the CSR position of entry (0, 0) of each block, in CSR order; rowlen (nb,):
+    the length of its rows (entry (r, c) at first + r * rowlen + c); offsets (nb + 1,) and
+    contributions (16 m,): block t is the sum over k in offsets[t]:offsets[t + 1] of the
+    3x3 blocks whose entry (r, c) is, in the per-cell array ``data`` (144, m) read flat,
+    at contributions[k] + (3 r + c) m (contributions[k] = 9 (4 a + b) m + e: block (a, b) of
+    cell e). Integer arrays of int64.
+    """
+
+    first: np.ndarray
+    rowlen: np.ndarray
+    offsets: np.ndarray
+    contributions: np.ndarray
+    cells: int
+
+    @property
+    def blocks(self) -> int:
+        return len(self.first)
+
+    def gather(self, data: np.ndarray, nnz: int) -> np.ndarray:
+        """The CSR values (nnz,) from the per-cell entries ``data`` (144, m) on the host, in
+        NumPy: the reference of the device's gather kernel.
+        """
+        flat = np.asarray(data).reshape(-1)
+        m, out = self.cells, np.zeros(nnz, dtype=np.asarray(data).dtype)
+        owner = np.repeat(np.arange(self.blocks), np.diff(self.offsets))
+        for r in range(3):
+            for c in range(3):
+                sums = np.bincount(
+                    owner,
+                    weights=flat[self.contributions + (3 * r + c) * m],
+                    minlength=self.blocks,
+                )
+                out[self.first + r * self.rowlen + c] = sums
+        return out
+
+
+def element_incidence(blk: np.ndarray, indptr: np.ndarray, n_nodes: int) -> ElementIncidence:
+    """The :class:`ElementIncidence` of a mesh from its block map ``blk`` (m, 16)
+    (:func:`block_map`) and its pattern's indptr: each cell block's CSR block found by a
+    search among the block starts, then the 16 m contributions sorted by block (stable, so
+    in cell order within a block). Vectorised, once per mesh.
+    """
+    blk = np.asarray(blk, dtype=np.int64).reshape(-1, 16)
+    m = len(blk)
+    first, rows, rowlen = _block_starts(indptr, n_nodes)
+    block = np.searchsorted(first, blk)  # (m, 16): the CSR block of each cell block
+    if blk.size and not np.array_equal(first[np.minimum(block, len(first) - 1)], blk):
+        raise ValueError("element_incidence: the block map is not of this pattern")
+    order = np.argsort(block.T.reshape(-1), kind="stable")  # slot-major: 4 a + b, then e
+    slot, e = np.divmod(order, max(m, 1))
+    offsets = np.zeros(len(first) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(block.reshape(-1), minlength=len(first)), out=offsets[1:])
+    return ElementIncidence(first, rowlen[rows], offsets, 9 * slot * m + e, m)

@@ -11,6 +11,7 @@ import scipy.sparse as sp
 
 from mjed.compiled.lowering import lower_groups
 from mjed.compiled.shape import kernel_shape
+from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly
 from mjed.cuda.launch import THREADS_PER_BLOCK
 from mjed.forcefield import check_field_arguments, checked_positions
 from mjed.materials.base import Material
@@ -35,6 +36,10 @@ class CudaForceField:
         dtype: np.float64 (default) or np.float32, the arithmetic and the device arrays.
         launcher: a :class:`mjed.cuda.launch.CellLauncher` of this mesh and dtype to share
             (its device arrays) with other fields of the mesh; default a new one.
+        assembly: how the stiffness leaves a cell (:class:`mjed.cuda.codegen.Assembly`, or
+            its name): "atomic" (the default: atomic adds into the CSR values) or "element"
+            (per-cell entries, then a gather kernel; the experiment of
+            comparisons.timing.gpu_scatter). The results are the same to round-off.
 
     Raises:
         BackendUnavailable: Numba or a CUDA device (or the simulator) is missing.
@@ -52,6 +57,7 @@ class CudaForceField:
         allow_inverted: bool = False,
         dtype=np.float64,
         launcher=None,
+        assembly=Assembly.ATOMIC,
     ):
         check_field_arguments(mesh, material)
         from mjed.cuda.launch import launcher_for
@@ -68,7 +74,8 @@ class CudaForceField:
         self.dtype = launcher.dtype
         self.table = lower_groups(material.decomposition(), mesh.D)
         self.shape = kernel_shape(self.table)
-        module = cuda_module(self.shape, self.dtype)
+        self.assembly = Assembly.of(assembly)
+        module = cuda_module(self.shape, self.dtype, self.assembly)
         self._kernel, self._force_kernel = module.mjed_cells, module.mjed_force
         self.pattern = launcher.pattern
         t = self.table
@@ -76,6 +83,7 @@ class CudaForceField:
             launcher.to_device(a) for a in (t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M)
         )
         self._empty_stress = self._cuda.device_array((0, 3, 3), dtype=self.dtype)
+        self._ke = None  # the per-cell entries of the element assembly, allocated on first use
 
     # ---------------------------------------------------------------- public API
     def energy(self, x) -> float:
@@ -115,6 +123,16 @@ class CudaForceField:
         energy, f, data, _ = self._launch(x_device, force, stiffness, False, out)
         return energy, (f if force else None), (data if stiffness else None)
 
+    def device_element_stiffness(self, x_device, *, force: bool = True, out: tuple):
+        """The cell kernel alone of an ``assembly="element"`` field: F (n, 3) and the per-cell
+        stiffness entries (144, m) into ``out`` = (f, ke), device arrays of ``dtype``; no
+        gather (:meth:`mjed.cuda.launch.CellLauncher.gather` makes the CSR values of ke).
+        Returns (energy, f, ke). For timing the two kernels apart.
+        """
+        if self.assembly is not Assembly.ELEMENT:
+            raise ValueError("device_element_stiffness: this field's assembly is atomic")
+        return self._cells(x_device, force, True, False, out, self._empty_stress)
+
     def device_stress(self, x_device, *, out=None):
         """S = 2 dW/dC per cell (m, 3, 3) as a device array of ``dtype``, from positions on the
         device (n, 3) of ``dtype``; out: a device array (m, 3, 3) to reuse. Nothing crosses but
@@ -150,13 +168,11 @@ class CudaForceField:
             S.copy_to_host().astype(np.float64) if stress else None,
         )
 
-    def _launch(self, x_d, force: bool, stiffness: bool, stress: bool, out, S=None):
-        m = self.mesh.n_cells
-        if S is None:
-            S = self._empty_stress
-            if stress:
-                S = self._cuda.device_array((m, 3, 3), dtype=self.dtype)
-        energy, f, data = self._launcher.launch(
+    def _cells(self, x_d, force: bool, stiffness: bool, stress: bool, out, S):
+        """One launch of the cell kernel (the stiffness one when asked): (energy, f, CSR
+        values or, for the element assembly, the per-cell entries).
+        """
+        return self._launcher.launch(
             self._kernel if stiffness else self._force_kernel,
             x_d,
             self._numbers,
@@ -166,5 +182,29 @@ class CudaForceField:
             allow_inverted=self.allow_inverted,
             out=out,
             tail=(S,),
+            assembly=self.assembly if stiffness else Assembly.ATOMIC,
         )
-        return energy, f, data, S
+
+    def _new_force(self, force: bool):
+        n = self.mesh.n_nodes
+        if force:
+            return self._cuda.device_array((n, 3), dtype=self.dtype)
+        return self._launcher.empty_force
+
+    def _launch(self, x_d, force: bool, stiffness: bool, stress: bool, out, S=None):
+        m = self.mesh.n_cells
+        if S is None:
+            S = self._empty_stress
+            if stress:
+                S = self._cuda.device_array((m, 3, 3), dtype=self.dtype)
+        element = stiffness and self.assembly is Assembly.ELEMENT
+        csr = None if out is None else out[1]
+        if element:  # the cell kernel stores into ke, the gather writes the CSR values
+            if self._ke is None:
+                self._ke = self._cuda.device_array((BLOCK_ENTRIES, m), dtype=self.dtype)
+            f = out[0] if out is not None else self._new_force(force)
+            out = (f, self._ke)
+        energy, f, data_or_ke = self._cells(x_d, force, stiffness, stress, out, S)
+        if element:
+            data_or_ke = self._launcher.gather(data_or_ke, csr)
+        return energy, f, data_or_ke, S

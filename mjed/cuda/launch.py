@@ -8,17 +8,24 @@ MJED term tables, or the classical law's parameters), what to form (``flags``), 
 map of the CSR pattern (:func:`mjed.cuda.codegen.block_map`), the outputs and any further
 ones (``tail``: the MJED stress). The MJED field (:mod:`mjed.cuda.forcefield`) and the
 classical element on the GPU (reference_fem.classical_cuda) both run through it.
+
+A kernel generated with :attr:`mjed.cuda.codegen.Assembly.ELEMENT` takes, in place of the CSR
+values, the per-cell stiffness entries (144, m) (``launch(..., assembly=...)``), which
+:meth:`CellLauncher.gather` sums into the CSR values through the mesh's
+:class:`mjed.cuda.codegen.ElementIncidence` (built on the host and copied on first use).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
 
 from mjed.cuda.availability import require_cuda
+from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly, ElementIncidence
 from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
@@ -47,6 +54,16 @@ class BlockLayout:
         pattern = CSRPattern(mesh.cells, mesh.n_nodes)
         blk, rowlen = block_map(mesh.cells, pattern.indptr, pattern.indices, mesh.n_nodes)
         return cls(pattern, blk, rowlen)
+
+    @cached_property
+    def incidence(self) -> ElementIncidence:
+        """The CSR-block -> cell-entry incidence of the element assembly, built on first use
+        (:func:`mjed.cuda.codegen.element_incidence`).
+        """
+        from mjed.cuda.codegen import element_incidence
+
+        p = self.pattern
+        return element_incidence(self.blk, p.indptr, p.shape[0] // 3)
 
 
 class CellLauncher:
@@ -101,25 +118,25 @@ class CellLauncher:
         allow_inverted: bool,
         out: Optional[tuple] = None,
         tail: tuple = (),
+        assembly: Assembly = Assembly.ATOMIC,
     ):
         """Run ``kernel`` over the cells (see the module docstring for its arguments) into
         fresh force (n, 3) and CSR values (nnz,), zeroed, or into ``out`` = (f, data).
-        Returns (energy, f, data); raises InvertedElementError, naming the cells, for J <= 0
-        unless ``allow_inverted``.
+        With ``assembly`` ELEMENT (a kernel generated so), data is the per-cell entries
+        (144, m), not zeroed (every entry is stored). Returns (energy, f, data); raises
+        InvertedElementError, naming the cells, for J <= 0 unless ``allow_inverted``.
         """
         cuda, m, n = self.cuda, self.mesh.n_cells, self.mesh.n_nodes
+        atomic = Assembly.of(assembly) is Assembly.ATOMIC
         if out is not None:
             f, data = out
         else:
             f = cuda.device_array((n, 3), dtype=self.dtype) if force else self.empty_force
-            data = (
-                cuda.device_array(self.pattern.nnz, dtype=self.dtype)
-                if stiffness
-                else self.empty_data
-            )
+            shape = self.pattern.nnz if atomic else (BLOCK_ENTRIES, m)
+            data = cuda.device_array(shape, dtype=self.dtype) if stiffness else self.empty_data
         if force:
             self._zero_array(f.reshape(3 * n))
-        if stiffness:
+        if stiffness and atomic:
             self._zero_array(data)
         if m:
             kernel[self.blocks, THREADS_PER_BLOCK](
@@ -141,6 +158,34 @@ class CellLauncher:
         if not allow_inverted and not J_min > 0.0:
             refuse_inverted(self.J.copy_to_host())  # names the cells
         return energy, f, data
+
+    def gather(self, ke, data=None):
+        """The CSR values (nnz,) on the device, into ``data`` or a fresh array, from the
+        per-cell entries ``ke`` (144, m) of an ELEMENT kernel: one thread per 3x3 block of the
+        pattern (:func:`mjed.cuda.kernels.gather_blocks`). Returns data.
+        """
+        from mjed.cuda.kernels import gather_blocks
+
+        if data is None:
+            data = self.cuda.device_array(self.pattern.nnz, dtype=self.dtype)
+        inc = self._incidence
+        blocks = len(inc[2])
+        m = self.mesh.n_cells
+        if blocks and m:
+            grid = -(-blocks // THREADS_PER_BLOCK)
+            gather_blocks[grid, THREADS_PER_BLOCK](ke.reshape(BLOCK_ENTRIES * m), *inc, m, data)
+        return data
+
+    @cached_property
+    def _incidence(self) -> tuple:
+        """(offsets, contributions, first, rowlen) of the layout's incidence on the device."""
+        inc = self.layout.incidence
+        big = max(inc.offsets[-1], BLOCK_ENTRIES * self.mesh.n_cells) >= 2**31
+        index = np.int64 if big or self.index == np.int64 else np.int32
+        return tuple(
+            self.cuda.to_device(np.ascontiguousarray(a, dtype=index))
+            for a in (inc.offsets, inc.contributions, inc.first, inc.rowlen)
+        )
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """The CSR matrix of host ``data`` (nnz,) with this mesh's pattern (owning its indices)."""

@@ -1,0 +1,179 @@
+"""The element assembly of the cuda backend (mjed.cuda.codegen.Assembly): each cell stores its
+144 stiffness entries, a gather kernel sums them into the CSR values through a per-mesh
+incidence built on the host. The incidence against a dense assembly (no Numba's CUDA); the
+option at generation (the atomic kernel unchanged, the element one without atomic adds into
+the stiffness, the option in the cache name); both assemblies on Numba's CUDA simulator
+against each other and the NumPy engine, FP64 and FP32, for NeoHookean and Ogden.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import box_mesh
+from cuda_support import run_on_simulator
+
+import mjed
+from mjed.compiled import numba_available
+from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly, CudaTarget, block_map, element_incidence
+from mjed.sparse import CSRPattern
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _dense(cells: np.ndarray, n: int, ke: np.ndarray) -> np.ndarray:
+    """The stiffness assembled entry by entry from per-cell entries ke (144, m): the reference."""
+    K = np.zeros((3 * n, 3 * n))
+    for e, nodes in enumerate(cells):
+        for a in range(4):
+            for b in range(4):
+                for r in range(3):
+                    for c in range(3):
+                        K[3 * nodes[a] + r, 3 * nodes[b] + c] += ke[9 * (4 * a + b) + 3 * r + c, e]
+    return K
+
+
+def _layout(n: int = 2):
+    points, cells = box_mesh(n, jitter=0.1)
+    pattern = CSRPattern(cells, len(points))
+    blk, _ = block_map(cells, pattern.indptr, pattern.indices, len(points))
+    return cells, len(points), pattern, element_incidence(blk, pattern.indptr, len(points))
+
+
+def test_incidence_sums_to_the_dense_assembly():
+    cells, n, pattern, inc = _layout()
+    ke = np.random.default_rng(1).standard_normal((BLOCK_ENTRIES, len(cells)))
+    data = inc.gather(ke, pattern.nnz)
+    K = np.zeros((3 * n, 3 * n))
+    rows = np.repeat(np.arange(3 * n), np.diff(pattern.indptr))
+    K[rows, pattern.indices] = data
+    np.testing.assert_allclose(K, _dense(cells, n, ke), rtol=0, atol=1e-13)
+    # every block written, each cell block counted once, offsets consistent
+    assert inc.blocks * 9 == pattern.nnz and inc.offsets[-1] == 16 * len(cells)
+    assert np.all(np.diff(inc.offsets) >= 1)
+    assert np.array_equal(
+        np.sort(inc.contributions % len(cells)), np.repeat(np.arange(len(cells)), 16)
+    )
+
+
+def test_a_damaged_incidence_is_caught_by_the_dense_check():
+    cells, n, pattern, inc = _layout(1)
+    ke = np.random.default_rng(2).standard_normal((BLOCK_ENTRIES, len(cells)))
+    good = inc.gather(ke, pattern.nnz)
+    contributions = inc.contributions.copy()
+    contributions[[0, 1]] = contributions[[1, 0]] + np.array([0, len(cells)])  # misplaced
+    bad = type(inc)(inc.first, inc.rowlen, inc.offsets, contributions, inc.cells)
+    assert np.abs(bad.gather(ke, pattern.nnz) - good).max() > 1e-3
+
+
+def test_incidence_refuses_another_pattern():
+    cells, n, pattern, _ = _layout(1)
+    blk, _ = block_map(cells, pattern.indptr, pattern.indices, n)
+    with pytest.raises(ValueError, match="not of this pattern"):
+        element_incidence(blk + 1, pattern.indptr, n)
+
+
+def test_assembly_option_is_validated_and_default_atomic():
+    assert (
+        Assembly.of("element") is Assembly.ELEMENT
+        and Assembly.of(Assembly.ATOMIC) is Assembly.ATOMIC
+    )
+    assert CudaTarget().assembly is Assembly.ATOMIC
+    with pytest.raises(ValueError, match="atomic, element"):
+        CudaTarget(np.float64, "shared")
+
+
+def test_element_kernel_stores_every_entry_once_and_adds_only_the_force():
+    from common.cases import default_material
+    from mjed.compiled.codegen import kernel_source
+    from mjed.compiled.lowering import lower_groups
+    from mjed.compiled.shape import kernel_shape
+
+    points, cells = box_mesh(1)
+    mesh = mjed.TetMesh(points, cells)
+    material = default_material("NeoHookean")
+    shape = kernel_shape(lower_groups(material.decomposition(), mesh.D))
+    atomic = kernel_source(shape, CudaTarget(np.float64))
+    element = kernel_source(shape, CudaTarget(np.float64, Assembly.ELEMENT))
+    # both kernels (force+K and force alone) hold the stiffness code, the second with
+    # want_stiffness = False so that the compiler removes it
+    assert atomic.count("cuda.atomic.add(data") == 2 * BLOCK_ENTRIES
+    assert "cuda.atomic.add(data" not in element and "rowlen[" not in element
+    stores = [f"data[{j}, e] = " for j in range(BLOCK_ENTRIES)]
+    assert all(element.count(s) == 2 for s in stores)  # once in each of the two kernels
+    assert element.count("cuda.atomic.add(force") == atomic.count("cuda.atomic.add(force") == 24
+    assert "element stiffness" in element and "element" not in atomic
+
+
+def test_classical_element_kernel_follows_the_option():
+    from common.cases import default_material
+    from reference_fem import classical_materials as cm
+    from reference_fem.classical_codegen import ClassicalCudaTarget, classical_source
+    from reference_fem.classical_compiled import lower_law
+
+    shape = lower_law(cm.classical_law(default_material("NeoHookean")))[0]
+    source = classical_source(shape, ClassicalCudaTarget(np.float32, "element"))
+    assert "cuda.atomic.add(data" not in source and source.count("data[143, e] = ") == 2
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    script = str(ROOT / "tests" / "cuda_scatter_simulated.py")
+    return run_on_simulator([script, "NeoHookean", "Ogden"], timeout=600)
+
+
+@pytest.mark.skipif(not numba_available(), reason="needs Numba's CUDA target")
+@pytest.mark.parametrize("dtype,tol", [("float64", 1e-13), ("float32", 5e-5)])
+def test_element_assembly_equals_atomic_and_numpy_on_the_simulator(simulated, dtype, tol):
+    assert simulated["simulated"]
+    cases = [c for c in simulated["cases"] if c["dtype"] == dtype]
+    assert {c["material"] for c in cases} == {"NeoHookean", "Ogden"}
+    for c in cases:
+        assert c["same_pattern"], c
+        for key in ("element_vs_atomic_K", "element_vs_atomic_f", "device_out_K", "device_out_f"):
+            assert c[key] <= tol, (c["material"], key, c[key])
+        assert c["element_vs_numpy_K"] <= tol and c["element_vs_numpy_f"] <= tol, c
+        assert c["force_alone"] <= tol, c
+
+
+@pytest.mark.skipif(not numba_available(), reason="needs Numba's CUDA target")
+def test_scatter_benchmark_code_path_runs_on_the_simulator():
+    # comparisons.timing.gpu_scatter only times a device; its code path on one tiny cube here
+    from comparisons.timing.gpu_scatter import VARIANTS
+
+    code = (
+        "import json; from comparisons.timing.gpu_scatter import measure, print_figures; "
+        "fig = measure(sizes=(48, 200), min_time=0.0, budget=0.0); lines = []; "
+        "print_figures(fig, lines.append); print(json.dumps({'fig': fig, 'text': lines}))"
+    )
+    run = run_on_simulator(["-c", code], timeout=600)
+    fig, text = run["fig"], run["text"]
+    assert fig["simulated"] and fig["not_started"] == [200]  # past the budget
+    (row,) = fig["sizes"]
+    assert row["cells"] == 48 and row["blocks"] * 9 == row["nnz"] and not row["skipped"]
+    for dtype in ("float64", "float32"):
+        p = row["precisions"][dtype]
+        assert p["check"]["agrees"] and p["check"]["K"] <= p["check"]["tol"]
+        assert set(p["timings"]) == set(VARIANTS)
+        assert all(t["tets_per_s"] > 0 and t["repeats"] >= 3 for t in p["timings"].values())
+        assert p["ratios"]["atomic f+K / element f+K"] > 0
+        assert any(line.strip().startswith(f"{dtype} gather ") for line in text)
+    assert "simulator: figures meaningless" in text[0]
+
+
+def test_scatter_benchmark_refuses_the_simulator(monkeypatch, capsys):
+    from comparisons.timing import gpu_scatter
+
+    monkeypatch.setenv("NUMBA_ENABLE_CUDASIM", "1")
+    assert gpu_scatter.main(["--sizes", "48"]) == 2
+    assert "needs a real NVIDIA GPU" in capsys.readouterr().err
+
+
+def test_element_extra_bytes():
+    from comparisons.timing.gpu_scatter import extra_bytes
+
+    # 1e6 tets in FP64: the per-cell entries alone are 1.15 GB
+    assert extra_bytes(1_000_000, 0, "float64") == 144 * 8 * 10**6 + 4 * (16 * 10**6 + 1)
+    assert extra_bytes(20_000_000, 0, "float32") % 8 == 0  # int64 indices past 2**31 entries
