@@ -623,6 +623,12 @@ class TransformedEnergy:
     model: Any
     spec: Spec
 
+    def __post_init__(self):
+        # Registered with the oracle when first needed, not when this module is imported:
+        # the oracle's formulas need UFL, and the kit tools that import the diagnosis (export,
+        # the adapters, kit agreement) run on machines without it (a GPU machine, say).
+        _register()
+
     @property
     def frame(self):
         return getattr(self.model, "frame", None)
@@ -641,6 +647,3 @@ def _register() -> None:
     def _energy(p, F, frame):
         W, _ = build(p.material.model, F, frame, p.constant, p.material.spec)
         return W
-
-
-_register()
