@@ -48,6 +48,8 @@ import re
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Tuple
 
+import numpy as np
+
 from mjed.compiled.codegen import (
     ASSEMBLY_ARGS,
     EDGES,
@@ -61,6 +63,7 @@ from mjed.compiled.codegen import (
 )
 from mjed.cuda.codegen import (
     CUDA_ASSEMBLY_ARGS,
+    Assembly,
     CudaTarget,
     write_cuda_module,
 )
@@ -598,8 +601,16 @@ class ClassicalCudaTarget(CudaTarget):
     block (a, b) and its transpose at (b, a), the node block (a, a); 144 atomic adds per cell,
     as MJED's kernel; or, with ``assembly=Assembly.ELEMENT``, stored per cell for the
     gather kernel, as MJED's (:class:`mjed.cuda.codegen.Assembly`, the before_blocks and
-    block methods inherited).
+    block methods inherited). The edge assembly (:attr:`mjed.cuda.codegen.Assembly.EDGE`) is
+    MJED's alone: refused here.
     """
+
+    def __init__(self, dtype=np.float64, assembly=Assembly.ATOMIC):
+        super().__init__(dtype, assembly)
+        if self.assembly is Assembly.EDGE:
+            raise NotImplementedError(
+                "the classical element has no edge assembly (MJED's alone): atomic or element"
+            )
 
     def edge_block(self, s: Source, k: int, a: int, b: int) -> None:
         self.block(s, a, b, lambda r, c: f"K{r}{c}")

@@ -40,7 +40,7 @@ def main(names) -> dict:
     from mjed.compiled.shape import kernel_shape
     from mjed.cuda import kernels
 
-    def signature(dtype, table):
+    def signature(dtype, table, per_cell_data=False):
         """The kernel's argument types as CudaForceField launches it (CellLauncher.launch):
         the material's numbers typed from its lowered table, so a change of their layout
         (group_coef became 2-D with Yeoh and Gent) cannot leave this list behind.
@@ -54,10 +54,11 @@ def main(names) -> dict:
         )
         head = (a(f, 2), a(i, 2), a(f, 3), a(f, 1))  # x, cells, D, V0
         flags = (nt.boolean,) * 4  # regularize, want force, stiffness, stress
-        tail = (a(i, 2), a(i, 1), a(f, 2), a(f, 1), a(f, 1), a(f, 1), a(f, 3))
+        data = a(f, 2) if per_cell_data else a(f, 1)  # (54, m) for the edge assembly
+        tail = (a(i, 2), a(i, 1), a(f, 2), data, a(f, 1), a(f, 1), a(f, 3))
         return head + numbers + flags + tail
 
-    out = {"nvvm": True, "kernels": []}
+    out = {"nvvm": True, "kernels": [], "edge_kernels": []}
     for name in names:
         table = lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3)))
         shape = kernel_shape(table)
@@ -78,11 +79,32 @@ def main(names) -> dict:
                         "entry": ".entry" in ptx,
                     }
                 )
+    for name in names[:1]:  # the edge assembly's cell kernel (mjed.cuda.codegen.Assembly.EDGE)
+        table = lower_groups(MATERIALS[name].decomposition(), np.zeros((1, 4, 3)))
+        for dtype in (np.float64, np.float32):
+            module = kernels.cuda_module(kernel_shape(table), dtype, "edge")
+            ptx, _ = cuda.compile_ptx(
+                module.mjed_cells.py_func, signature(dtype, table, True), cc=(8, 0)
+            )
+            out["edge_kernels"].append(
+                {
+                    "material": name,
+                    "dtype": np.dtype(dtype).name,
+                    "f64": ptx.count(".f64"),
+                    "f32": ptx.count(".f32"),
+                    "atomics": ptx.count("atom."),
+                    "entry": ".entry" in ptx,
+                }
+            )
     out["kernels"] += classical_kernels(names)
     from mjed.cuda import solvers, step_kernels
 
-    i32, f64 = nt.int32[:], nt.float64[:]
+    i32, f64, f32 = nt.int32[:], nt.float64[:], nt.float32[:]
     for fn, sig in (
+        (kernels.gather_blocks, (f64, i32, i32, i32, i32, nt.int64, f64)),
+        (kernels.gather_blocks, (f32, i32, i32, i32, i32, nt.int64, f32)),
+        (kernels.gather_edge_blocks, (f64, i32, i32, i32, i32, i32, nt.int64, f64)),
+        (kernels.gather_edge_blocks, (f32, i32, i32, i32, i32, i32, nt.int64, f32)),
         (step_kernels.fill_zero, (nt.float64[:],)),
         (step_kernels.clear, (nt.float64[:],)),
         (kernels._min_and_sum, (nt.float32[:], nt.float32[:], nt.float64[:])),

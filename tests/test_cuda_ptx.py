@@ -55,6 +55,15 @@ def test_every_kernel_compiles_to_ptx(ptx):
             assert 12 <= k["atomics"] < 144
 
 
+def test_edge_kernel_compiles_with_the_force_its_only_atomics(ptx):
+    # mjed.cuda.codegen.Assembly.EDGE: the six edge blocks stored, no atomic into the stiffness
+    assert {k["dtype"] for k in ptx["edge_kernels"]} == {"float64", "float32"}
+    for k in ptx["edge_kernels"]:
+        assert k["entry"] and 12 <= k["atomics"] < 54, k
+        if k["dtype"] == "float32":
+            assert k["f64"] == 0 and k["f32"] > 0, k
+
+
 def test_fp32_kernels_have_no_double_precision_instruction(ptx):
     # every literal and math call is rounded to float32: a double instruction would cost
     # 2x to 64x on GPUs (and mean the FP32 kernel is not single precision)

@@ -1,8 +1,9 @@
-"""The element assembly of the cuda backend (mjed.cuda.codegen.Assembly): each cell stores its
-144 stiffness entries, a gather kernel sums them into the CSR values through a per-mesh
-incidence built on the host. The incidence against a dense assembly (no Numba's CUDA); the
-option at generation (the atomic kernel unchanged, the element one without atomic adds into
-the stiffness, the option in the cache name); both assemblies on Numba's CUDA simulator
+"""The element and edge assemblies of the cuda backend (mjed.cuda.codegen.Assembly): each cell
+stores its 144 stiffness entries (or its six edge blocks, 54), a gather kernel sums them into
+the CSR values through a per-mesh incidence built on the host. The incidences against a dense
+assembly (no Numba's CUDA), damaged ones caught; the option at generation (the atomic kernel
+unchanged, the others without atomic adds into the stiffness, the option in the cache name);
+the three assemblies on Numba's CUDA simulator
 against each other and the NumPy engine, FP64 and FP32, for NeoHookean and Ogden.
 """
 
@@ -17,7 +18,16 @@ from cuda_support import run_on_simulator
 
 import mjed
 from mjed.compiled import numba_available
-from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly, CudaTarget, block_map, element_incidence
+from mjed.compiled.codegen import EDGES
+from mjed.cuda.codegen import (
+    BLOCK_ENTRIES,
+    EDGE_ENTRIES,
+    Assembly,
+    CudaTarget,
+    block_map,
+    edge_incidence,
+    element_incidence,
+)
 from mjed.sparse import CSRPattern
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,6 +78,65 @@ def test_a_damaged_incidence_is_caught_by_the_dense_check():
     assert np.abs(bad.gather(ke, pattern.nnz) - good).max() > 1e-3
 
 
+def _element_of_edges(edges: np.ndarray) -> np.ndarray:
+    """The 144 per-cell entries (144, m) of six stored edge blocks (54, m), by the rules the
+    edge assembly relies on: block (a, b) = K_ab, (b, a) = K_ab^T, (a, a) = -sum_b K_ab.
+    """
+    m = edges.shape[1]
+    blocks = np.zeros((4, 4, 3, 3, m))
+    for k, (a, b) in enumerate(EDGES):
+        K = edges[9 * k : 9 * k + 9].reshape(3, 3, m)
+        blocks[a, b] = K
+        blocks[b, a] = K.transpose(1, 0, 2)
+        blocks[a, a] -= K
+        blocks[b, b] -= K.transpose(1, 0, 2)
+    return blocks.reshape(BLOCK_ENTRIES, m)
+
+
+def _edge_layout(n: int = 2):
+    cells, nodes, pattern, inc = _layout(n)
+    return cells, nodes, pattern, edge_incidence(inc)
+
+
+def _csr_dense(pattern, data: np.ndarray) -> np.ndarray:
+    n3 = pattern.shape[0]
+    K = np.zeros((n3, n3))
+    K[np.repeat(np.arange(n3), np.diff(pattern.indptr)), pattern.indices] = data
+    return K
+
+
+def test_edge_incidence_sums_to_the_dense_assembly():
+    cells, n, pattern, inc = _edge_layout()
+    m = len(cells)
+    edges = np.random.default_rng(4).standard_normal((EDGE_ENTRIES, m))  # not symmetric
+    K = _csr_dense(pattern, inc.gather(edges, pattern.nnz))
+    np.testing.assert_allclose(K, _dense(cells, n, _element_of_edges(edges)), rtol=0, atol=1e-12)
+    # each cell edge in four blocks: (a, b), (b, a), (a, a) and (b, b)
+    assert inc.offsets[-1] == 24 * m and inc.blocks * 9 == pattern.nnz
+    assert np.array_equal(np.sort((inc.contributions >> 1) % m), np.repeat(np.arange(m), 24))
+    assert int(inc.diagonal.sum()) == n and np.all(np.diff(inc.offsets) >= 1)
+    # FP32 stays FP32
+    assert inc.gather(edges.astype(np.float32), pattern.nnz).dtype == np.float32
+
+
+@pytest.mark.parametrize("damage", ["transpose flag", "diagonal flag", "edge"])
+def test_a_damaged_edge_incidence_is_caught_by_the_dense_check(damage):
+    cells, n, pattern, inc = _edge_layout(1)
+    m = len(cells)
+    edges = np.random.default_rng(5).standard_normal((EDGE_ENTRIES, m))
+    reference = _dense(cells, n, _element_of_edges(edges))
+    contributions, diagonal = inc.contributions.copy(), inc.diagonal.copy()
+    off = np.flatnonzero(np.repeat(diagonal == 0, np.diff(inc.offsets)))[0]
+    if damage == "transpose flag":
+        contributions[off] ^= 1
+    elif damage == "diagonal flag":
+        diagonal[0] ^= 1
+    else:  # the next cell's edge block
+        contributions[off] += 2 if (contributions[off] >> 1) % m < m - 1 else -2
+    bad = type(inc)(inc.first, inc.rowlen, inc.offsets, contributions, m, diagonal)
+    assert np.abs(_csr_dense(pattern, bad.gather(edges, pattern.nnz)) - reference).max() > 1e-3
+
+
 def test_incidence_refuses_another_pattern():
     cells, n, pattern, _ = _layout(1)
     blk, _ = block_map(cells, pattern.indptr, pattern.indices, n)
@@ -81,8 +150,10 @@ def test_assembly_option_is_validated_and_default_atomic():
         and Assembly.of(Assembly.ATOMIC) is Assembly.ATOMIC
     )
     assert CudaTarget().assembly is Assembly.ATOMIC
-    with pytest.raises(ValueError, match="atomic, element"):
+    with pytest.raises(ValueError, match="atomic, element, edge"):
         CudaTarget(np.float64, "shared")
+    assert Assembly.of("edge").entries == EDGE_ENTRIES == 54
+    assert Assembly.ELEMENT.entries == BLOCK_ENTRIES and Assembly.ATOMIC.entries == 0
 
 
 def test_element_kernel_stores_every_entry_once_and_adds_only_the_force():
@@ -107,6 +178,42 @@ def test_element_kernel_stores_every_entry_once_and_adds_only_the_force():
     assert "element stiffness" in element and "element" not in atomic
 
 
+def _mjed_source(material_name: str, assembly) -> str:
+    from common.cases import default_material
+    from mjed.compiled.codegen import kernel_source
+    from mjed.compiled.lowering import lower_groups
+    from mjed.compiled.shape import kernel_shape
+
+    points, cells = box_mesh(1)
+    mesh = mjed.TetMesh(points, cells)
+    material = default_material(material_name)
+    shape = kernel_shape(lower_groups(material.decomposition(), mesh.D))
+    return kernel_source(shape, CudaTarget(np.float64, assembly))
+
+
+@pytest.mark.parametrize("material", ["NeoHookean", "Ogden"])
+def test_edge_kernel_stores_the_six_edge_blocks_and_adds_only_the_force(material):
+    source = _mjed_source(material, "edge")
+    assert "cuda.atomic.add(data" not in source and "rowlen[" not in source
+    assert source.count("data[") == 2 * EDGE_ENTRIES  # 54 stores in each of the two kernels
+    for k in range(len(EDGES)):  # edge k's block as the atomic path sends it to (a, b)
+        for r in range(3):
+            for c in range(3):
+                assert source.count(f"data[{9 * k + 3 * r + c}, e] = K{k}_{r}{c}\n") == 2
+    assert source.count("cuda.atomic.add(force") == 24 and "edge stiffness" in source
+
+
+def test_atomic_path_sends_the_stored_edge_block_to_a_b():
+    # the block the edge kernel stores for edge k is what the atomic kernel adds at (a, b)
+    source = _mjed_source("NeoHookean", "atomic").splitlines()
+    for k, (a, b) in enumerate(EDGES):
+        at = source.index(
+            next(line for line in source if line.strip() == f"p = blk[e, {4 * a + b}]")
+        )
+        assert source[at + 1].strip() == f"cuda.atomic.add(data, p + 0 * L{a} + 0, K{k}_00)"
+        assert source[at + 2].strip() == f"cuda.atomic.add(data, p + 0 * L{a} + 1, K{k}_01)"
+
+
 def test_classical_element_kernel_follows_the_option():
     from common.cases import default_material
     from reference_fem import classical_materials as cm
@@ -116,6 +223,8 @@ def test_classical_element_kernel_follows_the_option():
     shape = lower_law(cm.classical_law(default_material("NeoHookean")))[0]
     source = classical_source(shape, ClassicalCudaTarget(np.float32, "element"))
     assert "cuda.atomic.add(data" not in source and source.count("data[143, e] = ") == 2
+    with pytest.raises(NotImplementedError, match="no edge assembly"):
+        ClassicalCudaTarget(np.float64, "edge")
 
 
 @pytest.fixture(scope="module")
@@ -126,16 +235,20 @@ def simulated():
 
 @pytest.mark.skipif(not numba_available(), reason="needs Numba's CUDA target")
 @pytest.mark.parametrize("dtype,tol", [("float64", 1e-13), ("float32", 5e-5)])
-def test_element_assembly_equals_atomic_and_numpy_on_the_simulator(simulated, dtype, tol):
+@pytest.mark.parametrize("assembly", ["element", "edge"])
+def test_gathered_assembly_equals_atomic_and_numpy_on_the_simulator(
+    simulated, assembly, dtype, tol
+):
     assert simulated["simulated"]
     cases = [c for c in simulated["cases"] if c["dtype"] == dtype]
     assert {c["material"] for c in cases} == {"NeoHookean", "Ogden"}
     for c in cases:
-        assert c["same_pattern"], c
-        for key in ("element_vs_atomic_K", "element_vs_atomic_f", "device_out_K", "device_out_f"):
-            assert c[key] <= tol, (c["material"], key, c[key])
-        assert c["element_vs_numpy_K"] <= tol and c["element_vs_numpy_f"] <= tol, c
-        assert c["force_alone"] <= tol, c
+        assert c[f"{assembly}_same_pattern"], c
+        for key in ("vs_atomic_K", "vs_atomic_f", "device_out_K", "device_out_f"):
+            value = c[f"{assembly}_{key}"]
+            assert value <= tol, (c["material"], assembly, key, value)
+        assert c[f"{assembly}_vs_numpy_K"] <= tol and c[f"{assembly}_vs_numpy_f"] <= tol, c
+        assert c[f"{assembly}_force_alone"] <= tol, c
 
 
 @pytest.mark.skipif(not numba_available(), reason="needs Numba's CUDA target")

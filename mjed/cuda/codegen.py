@@ -21,7 +21,11 @@ this target only says how a cell's results leave it and writes the module around
   row per entry, so that consecutive threads write consecutive addresses), and a second,
   fixed kernel (:mod:`mjed.cuda.kernels`, ``gather_blocks``) sums them into the CSR values,
   one thread per 3x3 block of the pattern, from the incidence of :func:`element_incidence`.
-  The force stays atomic in both (12 adds per cell).
+  With :attr:`Assembly.EDGE`, each cell stores only its six edge blocks K_ab (a < b, in the
+  order of EDGES), 54 values, into ``data`` (54, m), entry (r, c) of edge k at row
+  9 k + 3 r + c, column e; the gather (``gather_edge_blocks``) rebuilds the rest from the
+  incidence of :func:`edge_incidence`: block (b, a) is K_ab^T and the node blocks
+  K_aa = -sum_b K_ab. The force stays atomic in all three (12 adds per cell).
 
 The compiled helpers of the CPU kernels (the Jacobi eigen-decomposition of C, the divided
 differences of Ogden's tangent: :data:`mjed.compiled.kernels.DEVICE_HELPERS`) are compiled
@@ -55,13 +59,17 @@ __all__ = [
     "Assembly",
     "BLOCK_ENTRIES",
     "CudaTarget",
+    "EDGE_ENTRIES",
+    "EdgeIncidence",
     "ElementIncidence",
     "CUDA_ASSEMBLY_ARGS",
     "CUDA_SIGNATURE",
     "add_block",
     "block_map",
+    "edge_incidence",
     "element_incidence",
     "store_block",
+    "store_edge_block",
     "fp32_source",
     "row_lengths",
     "write_cuda_module",
@@ -78,21 +86,32 @@ CUDA_SIGNATURE = CELL_INPUTS + CUDA_ASSEMBLY_ARGS + ("stress_out",)
 #: Stiffness entries one cell forms: 16 node blocks of 3 x 3.
 BLOCK_ENTRIES = 144
 
+#: Stiffness entries one cell stores with :attr:`Assembly.EDGE`: six edge blocks of 3 x 3.
+EDGE_ENTRIES = 54
+
 
 class Assembly(enum.Enum):
     """How a cell's stiffness leaves it, chosen when the CUDA kernel is generated:
 
     ATOMIC: each entry added by ``cuda.atomic.add`` into the CSR values (144 per cell);
     ELEMENT: each entry stored into the per-cell array ``data`` (144, m), gathered into the
-    CSR values by a second kernel (see the module docstring).
+    CSR values by a second kernel (see the module docstring);
+    EDGE: only the six edge blocks stored, into ``data`` (54, m), the transposes and node
+    blocks formed by the gather kernel.
     """
 
     ATOMIC = "atomic"
     ELEMENT = "element"
+    EDGE = "edge"
+
+    @property
+    def entries(self) -> int:
+        """Values a cell stores per cell (the rows of ``data``); 0 for ATOMIC."""
+        return {"atomic": 0, "element": BLOCK_ENTRIES, "edge": EDGE_ENTRIES}[self.value]
 
     @classmethod
     def of(cls, value) -> "Assembly":
-        """``value`` (an Assembly or its name, "atomic" or "element") as an Assembly;
+        """``value`` (an Assembly or its name: "atomic", "element", "edge") as an Assembly;
         ValueError naming the choices otherwise.
         """
         if isinstance(value, cls):
@@ -173,8 +192,13 @@ class CudaTarget(Target):
 
     def scatter(self, s: Source) -> None:
         """Every block of the cell out of it (see the module docstring): edge blocks, their
-        transposes and the node blocks.
+        transposes and the node blocks; with :attr:`Assembly.EDGE`, the edge blocks alone
+        (:func:`store_edge_block`).
         """
+        if self.assembly is Assembly.EDGE:
+            for k in range(len(EDGES)):
+                store_edge_block(s, k, lambda r, c, k=k: f"K{k}_{r}{c}")
+            return
         self.before_blocks(s)
         for k, (a, b) in enumerate(EDGES):
             self.block(s, a, b, lambda r, c, k=k: f"K{k}_{r}{c}")
@@ -220,6 +244,16 @@ def store_block(s: Source, a: int, b: int, entry) -> None:
     for r in range(3):
         for c in range(3):
             s(f"data[{9 * (4 * a + b) + 3 * r + c}, e] = {entry(r, c)}")
+
+
+def store_edge_block(s: Source, k: int, entry) -> None:
+    """Write the plain stores of edge block k (nodes EDGES[k] = (a, b), a < b: the block that
+    goes to (node a, node b)) of cell e into the per-cell array ``data`` (54, m): entry (r, c)
+    at row 9 k + 3 r + c, column e (:attr:`Assembly.EDGE`).
+    """
+    for r in range(3):
+        for c in range(3):
+            s(f"data[{9 * k + 3 * r + c}, e] = {entry(r, c)}")
 
 
 _BLOCK_WRITERS = {Assembly.ATOMIC: add_block, Assembly.ELEMENT: store_block}
@@ -344,17 +378,20 @@ class ElementIncidence:
         NumPy: the reference of the device's gather kernel.
         """
         flat = np.asarray(data).reshape(-1)
-        m, out = self.cells, np.zeros(nnz, dtype=np.asarray(data).dtype)
+        out = np.zeros(nnz, dtype=np.asarray(data).dtype)
         owner = np.repeat(np.arange(self.blocks), np.diff(self.offsets))
         for r in range(3):
             for c in range(3):
-                sums = np.bincount(
-                    owner,
-                    weights=flat[self.contributions + (3 * r + c) * m],
-                    minlength=self.blocks,
-                )
-                out[self.first + r * self.rowlen + c] = sums
+                sums = np.bincount(owner, weights=self._entries(flat, r, c), minlength=self.blocks)
+                out[self.first + r * self.rowlen + c] = self._signed(sums)
         return out
+
+    def _entries(self, flat: np.ndarray, r: int, c: int) -> np.ndarray:
+        """Entry (r, c) of every contribution, from the per-cell entries read flat."""
+        return flat[self.contributions + (3 * r + c) * self.cells]
+
+    def _signed(self, sums: np.ndarray) -> np.ndarray:
+        return sums
 
 
 def element_incidence(blk: np.ndarray, indptr: np.ndarray, n_nodes: int) -> ElementIncidence:
@@ -374,3 +411,67 @@ def element_incidence(blk: np.ndarray, indptr: np.ndarray, n_nodes: int) -> Elem
     offsets = np.zeros(len(first) + 1, dtype=np.int64)
     np.cumsum(np.bincount(block.reshape(-1), minlength=len(first)), out=offsets[1:])
     return ElementIncidence(first, rowlen[rows], offsets, 9 * slot * m + e, m)
+
+
+@dataclass(frozen=True)
+class EdgeIncidence(ElementIncidence):
+    """Which stored edge blocks make up each 3x3 block of the CSR values
+    (:attr:`Assembly.EDGE`), built once per mesh by :func:`edge_incidence`.
+
+    first, rowlen, offsets: as :class:`ElementIncidence`. contributions (24 m,): each a code
+    2 q + t, q = 9 k m + e the position of entry (0, 0) of edge block k of cell e in the
+    per-cell array ``data`` (54, m) read flat (entry (r, c) at q + (3 r + c) m), t = 1 when the
+    block enters transposed (entry (r, c) at q + (3 c + r) m). An off-diagonal CSR block
+    (p, q) holds every cell edge joining p and q: as stored when p is the edge's first node
+    a, transposed when it is b. diagonal (nb,): 1 for a diagonal block (p, p), which is minus
+    the sum of the (p, other) blocks of every cell edge touching p (K_pp = -sum K_p.), 0
+    otherwise.
+    """
+
+    diagonal: np.ndarray
+
+    def _entries(self, flat: np.ndarray, r: int, c: int) -> np.ndarray:
+        q, t = self.contributions >> 1, (self.contributions & 1).astype(bool)
+        m = self.cells
+        return flat[q + np.where(t, (3 * c + r) * m, (3 * r + c) * m)]
+
+    def _signed(self, sums: np.ndarray) -> np.ndarray:
+        return np.where(self.diagonal.astype(bool), -sums, sums)
+
+
+def _slot_edges(m: int) -> np.ndarray:
+    """Per cell block slot 4 a + b, the stored edge blocks that make it, as codes less 2 e
+    (:class:`EdgeIncidence`), (16, 3): column 0 the edge block of {a, b} for a != b (transposed
+    when a > b), columns 0 to 2 the three edge blocks of a for a node block a == b
+    (transposed where a is the edge's second node); -1 where unused.
+    """
+    table = np.full((16, 3), -1, dtype=np.int64)
+    for a in range(4):
+        for b in range(4):
+            for j, c in enumerate([b] if a != b else [c for c in range(4) if c != a]):
+                k = EDGES.index((min(a, c), max(a, c)))
+                table[4 * a + b, j] = 2 * 9 * k * m + int(a > c)
+    return table
+
+
+def edge_incidence(element: ElementIncidence) -> EdgeIncidence:
+    """The :class:`EdgeIncidence` of a mesh from its :class:`ElementIncidence`
+    (:func:`element_incidence`, the same CSR blocks): each cell block (a, b), a != b, becomes
+    its edge block, as stored or transposed, and each node block (a, a) the three edge blocks
+    of a, in place; the grouping by CSR block is kept, so nothing is sorted again. Vectorised.
+    """
+    m = element.cells
+    table = _slot_edges(m)
+    slot, e = np.divmod(element.contributions, 9 * max(m, 1))
+    node = slot % 5 == 0  # slots 0, 5, 10, 15: the node blocks (a, a)
+    reps = np.where(node, 3, 1)
+    pos = np.cumsum(reps) - reps  # where each cell block's first edge block goes
+    code = np.empty(int(reps.sum()), dtype=np.int64)
+    code[pos] = table[slot, 0] + 2 * e
+    pos, slot, e = pos[node], slot[node], e[node]
+    for j in (1, 2):
+        code[pos + j] = table[slot, j] + 2 * e
+    diagonal = node[element.offsets[:-1]].astype(np.int8)  # a block's cell blocks: all alike
+    offsets = np.zeros(element.blocks + 1, dtype=np.int64)
+    np.cumsum(np.diff(element.offsets) * np.where(diagonal, 3, 1), out=offsets[1:])
+    return EdgeIncidence(element.first, element.rowlen, offsets, code, m, diagonal)

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 
 from mjed.compiled.lowering import lower_groups
 from mjed.compiled.shape import kernel_shape
-from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly
+from mjed.cuda.codegen import Assembly
 from mjed.cuda.launch import THREADS_PER_BLOCK
 from mjed.forcefield import check_field_arguments, checked_positions
 from mjed.materials.base import Material
@@ -37,9 +37,10 @@ class CudaForceField:
         launcher: a :class:`mjed.cuda.launch.CellLauncher` of this mesh and dtype to share
             (its device arrays) with other fields of the mesh; default a new one.
         assembly: how the stiffness leaves a cell (:class:`mjed.cuda.codegen.Assembly`, or
-            its name): "atomic" (the default: atomic adds into the CSR values) or "element"
-            (per-cell entries, then a gather kernel; the experiment of
-            comparisons.timing.gpu_scatter). The results are the same to round-off.
+            its name): "atomic" (the default: atomic adds into the CSR values), "element"
+            (per-cell entries, then a gather kernel) or "edge" (the six edge blocks per
+            cell, then a gather kernel that forms the rest): the experiments of
+            comparisons.timing.gpu_scatter. The results are the same to round-off.
 
     Raises:
         BackendUnavailable: Numba or a CUDA device (or the simulator) is missing.
@@ -83,7 +84,7 @@ class CudaForceField:
             launcher.to_device(a) for a in (t.jpar, t.gpar, t.gmat, t.group_coef, t.slot_M)
         )
         self._empty_stress = self._cuda.device_array((0, 3, 3), dtype=self.dtype)
-        self._ke = None  # the per-cell entries of the element assembly, allocated on first use
+        self._ke = None  # the per-cell entries of the element or edge assembly, on first use
 
     # ---------------------------------------------------------------- public API
     def energy(self, x) -> float:
@@ -124,12 +125,12 @@ class CudaForceField:
         return energy, (f if force else None), (data if stiffness else None)
 
     def device_element_stiffness(self, x_device, *, force: bool = True, out: tuple):
-        """The cell kernel alone of an ``assembly="element"`` field: F (n, 3) and the per-cell
-        stiffness entries (144, m) into ``out`` = (f, ke), device arrays of ``dtype``; no
-        gather (:meth:`mjed.cuda.launch.CellLauncher.gather` makes the CSR values of ke).
-        Returns (energy, f, ke). For timing the two kernels apart.
+        """The cell kernel alone of an ``assembly="element"`` or ``"edge"`` field: F (n, 3) and
+        the per-cell stiffness entries (144, m) or edge blocks (54, m) into ``out`` = (f, ke),
+        device arrays of ``dtype``; no gather (:meth:`mjed.cuda.launch.CellLauncher.gather`
+        makes the CSR values of ke). Returns (energy, f, ke). For timing the kernels apart.
         """
-        if self.assembly is not Assembly.ELEMENT:
+        if self.assembly is Assembly.ATOMIC:
             raise ValueError("device_element_stiffness: this field's assembly is atomic")
         return self._cells(x_device, force, True, False, out, self._empty_stress)
 
@@ -197,14 +198,15 @@ class CudaForceField:
             S = self._empty_stress
             if stress:
                 S = self._cuda.device_array((m, 3, 3), dtype=self.dtype)
-        element = stiffness and self.assembly is Assembly.ELEMENT
+        element = stiffness and self.assembly is not Assembly.ATOMIC
         csr = None if out is None else out[1]
         if element:  # the cell kernel stores into ke, the gather writes the CSR values
             if self._ke is None:
-                self._ke = self._cuda.device_array((BLOCK_ENTRIES, m), dtype=self.dtype)
+                shape = (self.assembly.entries, m)
+                self._ke = self._cuda.device_array(shape, dtype=self.dtype)
             f = out[0] if out is not None else self._new_force(force)
             out = (f, self._ke)
         energy, f, data_or_ke = self._cells(x_d, force, stiffness, stress, out, S)
         if element:
-            data_or_ke = self._launcher.gather(data_or_ke, csr)
+            data_or_ke = self._launcher.gather(data_or_ke, csr, self.assembly)
         return energy, f, data_or_ke, S

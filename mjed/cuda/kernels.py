@@ -1,7 +1,8 @@
 """The CUDA modules: the generated cell kernel of a shape (one per dtype and
 :class:`mjed.cuda.codegen.Assembly`) and the small fixed kernels a launch uses (the minimum J
 and the energy sum; zeroing an array, which is :func:`mjed.cuda.step_kernels.fill_zero`; the
-gather of per-cell stiffness entries into the CSR values, :func:`gather_blocks`). Importing
+gather of per-cell stiffness entries into the CSR values, :func:`gather_blocks`, and of
+per-cell edge blocks, :func:`gather_edge_blocks`). Importing
 this module imports numba.cuda.
 """
 
@@ -19,7 +20,7 @@ from mjed.compiled.specialise import generated_module
 from mjed.cuda.codegen import Assembly, CudaTarget
 from mjed.cuda.step_kernels import fill_zero
 
-__all__ = ["cuda_module", "gather_blocks", "reduce_kernels"]
+__all__ = ["cuda_module", "gather_blocks", "gather_edge_blocks", "reduce_kernels"]
 
 
 def cuda_module(shape: KernelShape, dtype=np.float64, assembly=Assembly.ATOMIC) -> ModuleType:
@@ -61,6 +62,49 @@ def gather_blocks(ke, offsets, contributions, first, rowlen, m, data):
             s6 += ke[q + 6 * m]
             s7 += ke[q + 7 * m]
             s8 += ke[q + 8 * m]
+        p, L = first[t], rowlen[t]
+        data[p], data[p + 1], data[p + 2] = s0, s1, s2
+        data[p + L], data[p + L + 1], data[p + L + 2] = s3, s4, s5
+        data[p + 2 * L], data[p + 2 * L + 1], data[p + 2 * L + 2] = s6, s7, s8
+
+
+@cuda.jit
+def gather_edge_blocks(ke, offsets, contributions, diagonal, first, rowlen, m, data):
+    """The CSR values ``data`` from the per-cell edge blocks ``ke`` (54 m, the (54, m) array
+    of :attr:`mjed.cuda.codegen.Assembly.EDGE` read flat), one thread per 3x3 block t of the
+    pattern: the sum of its contributions (offsets[t]:offsets[t + 1] of ``contributions``,
+    each 2 q + transposed: entry (r, c) at q + (3 r + c) m, or q + (3 c + r) m transposed),
+    negated for a diagonal block (``diagonal[t]``), written at first[t] + r rowlen[t] + c
+    (:class:`mjed.cuda.codegen.EdgeIncidence`). Every value is written: ``data`` needs no
+    zeroing. The sums start from the first contribution, so that they stay in the dtype of
+    ``ke``.
+    """
+    t = cuda.grid(1)
+    if t < first.shape[0]:
+        k0 = offsets[t]
+        code = contributions[k0]
+        q = code >> 1
+        R = m + 2 * m * (1 - (code & 1))  # the stride of a row: 3 m as stored, m transposed
+        C = 4 * m - R
+        s0, s1, s2 = ke[q], ke[q + C], ke[q + 2 * C]
+        s3, s4, s5 = ke[q + R], ke[q + R + C], ke[q + R + 2 * C]
+        s6, s7, s8 = ke[q + 2 * R], ke[q + 2 * R + C], ke[q + 2 * R + 2 * C]
+        for k in range(k0 + 1, offsets[t + 1]):
+            code = contributions[k]
+            q = code >> 1
+            R = m + 2 * m * (1 - (code & 1))
+            C = 4 * m - R
+            s0 += ke[q]
+            s1 += ke[q + C]
+            s2 += ke[q + 2 * C]
+            s3 += ke[q + R]
+            s4 += ke[q + R + C]
+            s5 += ke[q + R + 2 * C]
+            s6 += ke[q + 2 * R]
+            s7 += ke[q + 2 * R + C]
+            s8 += ke[q + 2 * R + 2 * C]
+        if diagonal[t]:
+            s0, s1, s2, s3, s4, s5, s6, s7, s8 = -s0, -s1, -s2, -s3, -s4, -s5, -s6, -s7, -s8
         p, L = first[t], rowlen[t]
         data[p], data[p + 1], data[p + 2] = s0, s1, s2
         data[p + L], data[p + L + 1], data[p + L + 2] = s3, s4, s5

@@ -12,7 +12,10 @@ classical element on the GPU (reference_fem.classical_cuda) both run through it.
 A kernel generated with :attr:`mjed.cuda.codegen.Assembly.ELEMENT` takes, in place of the CSR
 values, the per-cell stiffness entries (144, m) (``launch(..., assembly=...)``), which
 :meth:`CellLauncher.gather` sums into the CSR values through the mesh's
-:class:`mjed.cuda.codegen.ElementIncidence` (built on the host and copied on first use).
+:class:`mjed.cuda.codegen.ElementIncidence` (built on the host and copied on first use); one
+generated with :attr:`mjed.cuda.codegen.Assembly.EDGE`, its six edge blocks per cell (54, m),
+which ``gather(..., assembly=EDGE)`` turns into the CSR values through the
+:class:`mjed.cuda.codegen.EdgeIncidence`.
 """
 
 from __future__ import annotations
@@ -25,7 +28,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from mjed.cuda.availability import require_cuda
-from mjed.cuda.codegen import BLOCK_ENTRIES, Assembly, ElementIncidence
+from mjed.cuda.codegen import (
+    BLOCK_ENTRIES,
+    EDGE_ENTRIES,
+    Assembly,
+    EdgeIncidence,
+    ElementIncidence,
+)
 from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
@@ -64,6 +73,15 @@ class BlockLayout:
 
         p = self.pattern
         return element_incidence(self.blk, p.indptr, p.shape[0] // 3)
+
+    @cached_property
+    def edge_incidence(self) -> EdgeIncidence:
+        """The CSR-block -> stored edge block incidence of the edge assembly, built on first
+        use from :attr:`incidence` (:func:`mjed.cuda.codegen.edge_incidence`).
+        """
+        from mjed.cuda.codegen import edge_incidence
+
+        return edge_incidence(self.incidence)
 
 
 class CellLauncher:
@@ -122,17 +140,19 @@ class CellLauncher:
     ):
         """Run ``kernel`` over the cells (see the module docstring for its arguments) into
         fresh force (n, 3) and CSR values (nnz,), zeroed, or into ``out`` = (f, data).
-        With ``assembly`` ELEMENT (a kernel generated so), data is the per-cell entries
-        (144, m), not zeroed (every entry is stored). Returns (energy, f, data); raises
-        InvertedElementError, naming the cells, for J <= 0 unless ``allow_inverted``.
+        With ``assembly`` ELEMENT or EDGE (a kernel generated so), data is the per-cell
+        entries (144, m) or edge blocks (54, m), not zeroed (every entry is stored).
+        Returns (energy, f, data); raises InvertedElementError, naming the cells, for
+        J <= 0 unless ``allow_inverted``.
         """
         cuda, m, n = self.cuda, self.mesh.n_cells, self.mesh.n_nodes
-        atomic = Assembly.of(assembly) is Assembly.ATOMIC
+        assembly = Assembly.of(assembly)
+        atomic = assembly is Assembly.ATOMIC
         if out is not None:
             f, data = out
         else:
             f = cuda.device_array((n, 3), dtype=self.dtype) if force else self.empty_force
-            shape = self.pattern.nnz if atomic else (BLOCK_ENTRIES, m)
+            shape = self.pattern.nnz if atomic else (assembly.entries, m)
             data = cuda.device_array(shape, dtype=self.dtype) if stiffness else self.empty_data
         if force:
             self._zero_array(f.reshape(3 * n))
@@ -159,33 +179,53 @@ class CellLauncher:
             refuse_inverted(self.J.copy_to_host())  # names the cells
         return energy, f, data
 
-    def gather(self, ke, data=None):
+    def gather(self, ke, data=None, assembly: Assembly = Assembly.ELEMENT):
         """The CSR values (nnz,) on the device, into ``data`` or a fresh array, from the
-        per-cell entries ``ke`` (144, m) of an ELEMENT kernel: one thread per 3x3 block of the
-        pattern (:func:`mjed.cuda.kernels.gather_blocks`). Returns data.
+        per-cell entries ``ke`` of an ELEMENT kernel (144, m) or the edge blocks of an EDGE
+        kernel (54, m) (``assembly``): one thread per 3x3 block of the pattern
+        (:func:`mjed.cuda.kernels.gather_blocks`, :func:`mjed.cuda.kernels.gather_edge_blocks`).
+        Returns data.
         """
-        from mjed.cuda.kernels import gather_blocks
+        from mjed.cuda import kernels
 
+        assembly = Assembly.of(assembly)
+        if assembly is Assembly.ATOMIC:
+            raise ValueError("gather: the atomic assembly has nothing to gather")
         if data is None:
             data = self.cuda.device_array(self.pattern.nnz, dtype=self.dtype)
-        inc = self._incidence
-        blocks = len(inc[2])
+        edge = assembly is Assembly.EDGE
+        inc = self._edge_incidence if edge else self._incidence
+        blocks = len(inc[-2])
         m = self.mesh.n_cells
         if blocks and m:
             grid = -(-blocks // THREADS_PER_BLOCK)
-            gather_blocks[grid, THREADS_PER_BLOCK](ke.reshape(BLOCK_ENTRIES * m), *inc, m, data)
+            kernel = kernels.gather_edge_blocks if edge else kernels.gather_blocks
+            kernel[grid, THREADS_PER_BLOCK](ke.reshape(assembly.entries * m), *inc, m, data)
         return data
+
+    def _device_incidence(self, inc: ElementIncidence, codes: int, extra: tuple) -> tuple:
+        """The incidence's integer arrays on the device: (offsets, contributions, *extra,
+        first, rowlen), int32 while ``codes`` and the contributions fit, as the mesh's.
+        """
+        big = max(inc.offsets[-1], codes) >= 2**31
+        index = np.int64 if big or self.index == np.int64 else np.int32
+        arrays = (inc.offsets, inc.contributions, *extra, inc.first, inc.rowlen)
+        return tuple(self.cuda.to_device(np.ascontiguousarray(a, dtype=index)) for a in arrays)
 
     @cached_property
     def _incidence(self) -> tuple:
         """(offsets, contributions, first, rowlen) of the layout's incidence on the device."""
-        inc = self.layout.incidence
-        big = max(inc.offsets[-1], BLOCK_ENTRIES * self.mesh.n_cells) >= 2**31
-        index = np.int64 if big or self.index == np.int64 else np.int32
-        return tuple(
-            self.cuda.to_device(np.ascontiguousarray(a, dtype=index))
-            for a in (inc.offsets, inc.contributions, inc.first, inc.rowlen)
-        )
+        m = self.mesh.n_cells
+        return self._device_incidence(self.layout.incidence, BLOCK_ENTRIES * m, ())
+
+    @cached_property
+    def _edge_incidence(self) -> tuple:
+        """(offsets, contributions, diagonal, first, rowlen) of the layout's edge incidence on
+        the device (the codes 2 q + t reach 2 * 54 m).
+        """
+        inc = self.layout.edge_incidence
+        m = self.mesh.n_cells
+        return self._device_incidence(inc, 2 * EDGE_ENTRIES * m, (inc.diagonal,))
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """The CSR matrix of host ``data`` (nnz,) with this mesh's pattern (owning its indices)."""
