@@ -37,6 +37,7 @@
 #          atomic adds per cell into the CSR values what bounds force+stiffness? NeoHookean,
 #          cubes of 1e5, 1e6 (and 1e7 if started within 70 s) tets, FP64 and FP32: the atomic
 #          f+K kernel, the element kernel (plain stores per cell) and the gather kernel apart and
+#          together, the edge kernel (six edge blocks per cell) and its gather apart and
 #          together, the force kernel for reference, each checked against the atomic path first
 #          (SCATTER_ARGS for other options); at most 180 s, most of it compiling and the 1e7
 #          cube's host set-up

@@ -266,13 +266,19 @@ def test_scatter_benchmark_code_path_runs_on_the_simulator():
     assert fig["simulated"] and fig["not_started"] == [200]  # past the budget
     (row,) = fig["sizes"]
     assert row["cells"] == 48 and row["blocks"] * 9 == row["nnz"] and not row["skipped"]
+    assert row["edge_incidence_s"] >= 0
     for dtype in ("float64", "float32"):
         p = row["precisions"][dtype]
         assert p["check"]["agrees"] and p["check"]["K"] <= p["check"]["tol"]
-        assert set(p["timings"]) == set(VARIANTS)
+        assert p["check"]["edge"]["agrees"] and p["check"]["edge"]["K"] <= p["check"]["tol"]
+        assert set(p["timings"]) == set(VARIANTS) and len(VARIANTS) == 8
         assert all(t["tets_per_s"] > 0 and t["repeats"] >= 3 for t in p["timings"].values())
         assert p["ratios"]["atomic f+K / element f+K"] > 0
-        assert any(line.strip().startswith(f"{dtype} gather ") for line in text)
+        assert p["ratios"]["atomic f+K / edge f+K"] > 0
+        assert p["ratios"]["element f+K / edge f+K"] > 0
+        for name in ("gather", "edge gather", "edge f+K"):
+            assert any(line.strip().startswith(f"{dtype} {name} ") for line in text), name
+        assert any(f"{dtype} edge vs atomic" in line and "agrees" in line for line in text)
     assert "simulator: figures meaningless" in text[0]
 
 
@@ -287,6 +293,7 @@ def test_scatter_benchmark_refuses_the_simulator(monkeypatch, capsys):
 def test_element_extra_bytes():
     from comparisons.timing.gpu_scatter import extra_bytes
 
-    # 1e6 tets in FP64: the per-cell entries alone are 1.15 GB
-    assert extra_bytes(1_000_000, 0, "float64") == 144 * 8 * 10**6 + 4 * (16 * 10**6 + 1)
+    # 1e6 tets in FP64: the per-cell entries alone are 1.15 GB, the edge blocks 0.43 GB
+    element = 144 * 8 * 10**6 + 4 * (16 * 10**6 + 1)
+    assert extra_bytes(1_000_000, 0, "float64") == element + 54 * 8 * 10**6 + 4 * (24 * 10**6 + 1)
     assert extra_bytes(20_000_000, 0, "float32") % 8 == 0  # int64 indices past 2**31 entries

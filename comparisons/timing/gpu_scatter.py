@@ -19,12 +19,20 @@ device, best of adaptive repeats with the device synchronised after each call
   force's;
 - ``gather``: the gather kernel alone, one thread per 3x3 block of the pattern summing its
   cells' entries through the incidence built on the host (mjed.cuda.codegen.element_incidence);
-- ``element f+K``: the two in sequence.
+- ``element f+K``: the two in sequence;
+- ``edge kernel``: the cell kernel of the edge assembly alone, each cell storing only its six
+  edge blocks K_ab (a < b), 54 values, into a (54, m) array (2.7x fewer stores);
+- ``edge gather``: its gather kernel alone, one thread per 3x3 block of the pattern summing
+  the edge blocks of its cell edges (transposed where the edge runs the other way; minus the
+  sum of every edge touching the node for a diagonal block: K_aa = -sum_b K_ab), through the
+  incidence mjed.cuda.codegen.edge_incidence (24 contributions per cell, against the
+  element gather's 16);
+- ``edge f+K``: the two in sequence.
 
-The force is atomic in both assemblies (12 adds per cell). Before timing, at each size and
-precision, the element path's CSR values and force are compared with the atomic path's
-(largest difference over the largest entry); a precision whose element path disagrees beyond
-:data:`TOLERANCE` is not timed for it (the atomic and force figures still are). Ratios are of
+The force is atomic in every assembly (12 adds per cell). Before timing, at each size and
+precision, the element and edge paths' CSR values and force are compared with the atomic
+path's (largest difference over the largest entry); a path that disagrees beyond
+:data:`TOLERANCE` is not timed (the atomic and force figures still are). Ratios are of
 figures from the same run. It needs a real device: without one (or under Numba's CUDA
 simulator) it says so and exits 2; :func:`measure` runs anywhere numba.cuda does (the tests run
 it on the simulator, figures meaningless). Sizes after the first are started only while less
@@ -58,61 +66,98 @@ DEFAULT_SIZES = (100_000, 1_000_000, 10_000_000)
 DTYPES = ("float64", "float32")
 #: Element against atomic, largest difference over largest entry (summation orders differ).
 TOLERANCE = {"float64": 1e-12, "float32": 1e-5}
-VARIANTS = ("force", "atomic f+K", "element kernel", "gather", "element f+K")
+VARIANTS = (
+    "force",
+    "atomic f+K",
+    "element kernel",
+    "gather",
+    "element f+K",
+    "edge kernel",
+    "edge gather",
+    "edge f+K",
+)
+#: The variants of each gathered path, timed only where the path agrees with the atomic one.
+PATHS = {
+    "element": ("element kernel", "gather", "element f+K"),
+    "edge": ("edge kernel", "edge gather", "edge f+K"),
+}
 
 
 def extra_bytes(cells: int, blocks: int, dtype: str) -> int:
-    """Device bytes the element assembly adds to comparisons.timing.gpu.device_bytes: the
-    per-cell entries (144 m values), a second CSR array, the incidence (16 m contributions,
-    offsets, block starts and row lengths; int32 while they fit, as the launcher's).
+    """Device bytes the element and edge assemblies add to comparisons.timing.gpu.device_bytes:
+    the per-cell entries (144 m values) and edge blocks (54 m), a second CSR array (shared by
+    the two gathers), the incidences (16 m and 24 m contributions, offsets, block starts and
+    row lengths, the edge one's diagonal flags; int32 while they fit, as the launcher's).
     """
     isz = np.dtype(dtype).itemsize
     idx = 4 if 144 * cells < 2**31 else 8
-    return 144 * cells * isz + 9 * blocks * isz + idx * (16 * cells + 3 * blocks + 1)
+    eidx = 4 if 2 * 54 * cells < 2**31 and 24 * cells < 2**31 else 8
+    element = 144 * cells * isz + idx * (16 * cells + 3 * blocks + 1)
+    edge = 54 * cells * isz + eidx * (24 * cells + 4 * blocks + 1)
+    return element + edge + 9 * blocks * isz
 
 
 def _calls(fields, launcher, x_d, arrays) -> Dict[str, Callable[[], object]]:
     """The timed calls, by :data:`VARIANTS` name."""
-    atomic, element = fields
-    f, data_a, data_e, ke = arrays
+    atomic, element, edge = fields
+    f, data_a, data_g, ke, kg = arrays
 
     def both():
         element.device_element_stiffness(x_d, out=(f, ke))
-        launcher.gather(ke, data_e)
+        launcher.gather(ke, data_g)
+
+    def edge_both():
+        edge.device_element_stiffness(x_d, out=(f, kg))
+        launcher.gather(kg, data_g, "edge")
 
     return {
         "force": lambda: atomic.device_force_and_stiffness(x_d, stiffness=False, out=(f, data_a)),
         "atomic f+K": lambda: atomic.device_force_and_stiffness(x_d, out=(f, data_a)),
         "element kernel": lambda: element.device_element_stiffness(x_d, out=(f, ke)),
-        "gather": lambda: launcher.gather(ke, data_e),
+        "gather": lambda: launcher.gather(ke, data_g),
         "element f+K": both,
+        "edge kernel": lambda: edge.device_element_stiffness(x_d, out=(f, kg)),
+        "edge gather": lambda: launcher.gather(kg, data_g, "edge"),
+        "edge f+K": edge_both,
     }
 
 
-def _check(calls, arrays) -> Dict[str, float]:
-    """The element path against the atomic one at the same positions (run once each)."""
-    f, data_a, data_e, _ = arrays
+def _check(calls, arrays, tol: float) -> dict:
+    """The element and edge paths against the atomic one at the same positions (run once
+    each): the element path's figures at the top level (K, f, agrees), the edge path's under
+    "edge".
+    """
+    f, data_a, data_g = arrays[:3]
     calls["atomic f+K"]()
     f_a, K_a = f.copy_to_host(), data_a.copy_to_host()
-    calls["element f+K"]()
-    f_e, K_e = f.copy_to_host(), data_e.copy_to_host()
 
     def rel(a, b):
         return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
 
-    return {"K": rel(K_e, K_a), "f": rel(f_e, f_a)}
+    out = {"tol": tol}
+    for path in PATHS:
+        data_g.copy_to_device(np.full(data_g.shape[0], np.nan, dtype=data_g.dtype))
+        calls[PATHS[path][2]]()
+        K, force = data_g.copy_to_host(), f.copy_to_host()
+        got = {"K": rel(K, K_a), "f": rel(force, f_a)}
+        got["agrees"] = all(v <= tol for v in got.values())  # NaN (a value not written): no
+        if path == "element":
+            out.update(got)
+        else:
+            out[path] = got
+    return out
 
 
 def _precision(mesh, material, layout, dtype: str, min_time: float) -> dict:
     """Check, then time, the variants in one precision on one mesh."""
     from mjed.cuda import CudaForceField
-    from mjed.cuda.codegen import BLOCK_ENTRIES
+    from mjed.cuda.codegen import BLOCK_ENTRIES, EDGE_ENTRIES
     from mjed.cuda.launch import CellLauncher
 
     launcher = CellLauncher(mesh, dtype, layout)
     fields = [
         CudaForceField(mesh, material, dtype=dtype, launcher=launcher, assembly=a)
-        for a in ("atomic", "element")
+        for a in ("atomic", "element", "edge")
     ]
     cuda, nnz = launcher.cuda, launcher.pattern.nnz
     x_d = launcher.to_device(bench_state(mesh.points))
@@ -121,13 +166,18 @@ def _precision(mesh, material, layout, dtype: str, min_time: float) -> dict:
         cuda.device_array(nnz, dtype=dtype),
         cuda.device_array(nnz, dtype=dtype),
         cuda.device_array((BLOCK_ENTRIES, mesh.n_cells), dtype=dtype),
+        cuda.device_array((EDGE_ENTRIES, mesh.n_cells), dtype=dtype),
     )
     calls = _calls(fields, launcher, x_d, arrays)
-    check = _check(calls, arrays)
-    agrees = max(check.values()) <= TOLERANCE[dtype]
-    out = {"check": dict(check, tol=TOLERANCE[dtype], agrees=agrees), "timings": {}}
+    check = _check(calls, arrays, TOLERANCE[dtype])
+    refused = set()
+    if not check["agrees"]:
+        refused.update(PATHS["element"])
+    if not check["edge"]["agrees"]:
+        refused.update(PATHS["edge"])
+    out = {"check": check, "timings": {}}
     for name, call in calls.items():
-        if not agrees and name not in ("force", "atomic f+K"):
+        if name in refused:
             continue  # a variant that disagrees is not timed
         best, median, repeats = time_device(call, min_time)
         out["timings"][name] = {
@@ -148,6 +198,11 @@ def _ratios(best: Dict[str, float]) -> Dict[str, float]:
         ("atomic f+K", "force"),
         ("element kernel", "force"),
         ("gather", "element f+K"),
+        ("atomic f+K", "edge f+K"),
+        ("element f+K", "edge f+K"),
+        ("element kernel", "edge kernel"),
+        ("gather", "edge gather"),
+        ("edge kernel", "force"),
     ]
     return {f"{a} / {b}": best[a] / best[b] for a, b in pairs if a in best and b in best}
 
@@ -170,6 +225,9 @@ def measure_size(target: int, material, dtypes, min_time: float, say) -> dict:
     t0 = time.perf_counter()
     row["blocks"] = layout.incidence.blocks
     row["incidence_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    layout.edge_incidence
+    row["edge_incidence_s"] = time.perf_counter() - t0
     row["precisions"], row["skipped"] = {}, {}
     for dtype in dtypes:
         free = free_memory()
@@ -222,18 +280,22 @@ def print_figures(fig: dict, out: Callable[[str], None] = print) -> None:
     out(f"{fig['device']}{note}, {fig['date']}, {fig['material']}, {fig['seconds']:.0f} s")
     for row in fig["sizes"]:
         counts = f"{row['cells']:,} tets, {row['nnz']:,} CSR values in {row['blocks']:,} blocks"
-        host = f"layout {row['layout_s']:.1f} s, incidence {row['incidence_s']:.1f} s"
+        host = (
+            f"layout {row['layout_s']:.1f} s, incidence {row['incidence_s']:.1f} s, "
+            f"edge incidence {row['edge_incidence_s']:.1f} s"
+        )
         out(f"  {counts}; host: {host}")
         skipped = "; ".join(f"{d} ({why})" for d, why in row["skipped"].items())
         if skipped:
             out(f"    skipped: {skipped}")
         for dtype, p in row["precisions"].items():
             c = p["check"]
-            verdict = "agrees" if c["agrees"] else "DISAGREES: element variants not timed"
-            out(
-                f"    {dtype} element vs atomic: K {c['K']:.1e}, f {c['f']:.1e} "
-                f"(tol {c['tol']:.0e}) {verdict}"
-            )
+            for path, got in (("element", c), ("edge", c["edge"])):
+                verdict = "agrees" if got["agrees"] else f"DISAGREES: {path} variants not timed"
+                out(
+                    f"    {dtype} {path} vs atomic: K {got['K']:.1e}, f {got['f']:.1e} "
+                    f"(tol {c['tol']:.0e}) {verdict}"
+                )
             for name, t in p["timings"].items():
                 out(
                     f"    {dtype} {name:<15s} {t['best_s'] * 1e3:9.3f} ms  "
@@ -283,7 +345,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(fig, fh, indent=1)
-    bad = [p for r in fig["sizes"] for p in r["precisions"].values() if not p["check"]["agrees"]]
+    bad = [
+        p
+        for r in fig["sizes"]
+        for p in r["precisions"].values()
+        if not (p["check"]["agrees"] and p["check"]["edge"]["agrees"])
+    ]
     return 1 if bad else 0
 
 
