@@ -338,3 +338,16 @@ def test_a_term_integrated_over_the_deformed_volume_is_named_and_a_constant_fact
     assert "deformed volume" in found[0].title and "(volumetric)" in found[0].title
     found = _find(model, points, cells, x, *engine(np.full(J.size, 0.3)), f_o, K_o, s)
     assert "mjed-term-volume" not in [c.code for c in found]
+
+
+def test_f_prime_times_j_is_said_as_a_kirchhoff_pressure():
+    """f'(J) of a volumetric term times J (corpus 7: k0 ln J, the Kirchhoff pressure, used as the
+    Cauchy pressure): the words say so; a constant factor or another power does not.
+    """
+    from conformance.diagnosis.mjed_parts import _df_words
+
+    assert "Kirchhoff pressure" in _df_words("k0/2 (ln J)^2", 1.0, 1.0, None)
+    assert "divided by J once more" in _df_words("k0/2 (ln J)^2", 1.0, -1.0, None)
+    assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 2.0, 1.0, None)
+    assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 1.3, 0.0, None)
+    assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 1.0, 2.0 / 3.0, None)

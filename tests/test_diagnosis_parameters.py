@@ -203,3 +203,40 @@ def test_parameters_given_each_others_values_are_read_as_another_order():
     assert permutation_words(names, [18.5, 2.0, 2.8, 1.6, 3.7, 3.6], declared) is None
     assert permutation_words(names, declared, declared) is None
     assert ["b_ff", "b_fs", "b_ss", "b_fn", "b_sn", "b_nn"] in unit_groups(COSTA)
+
+
+def test_moduli_converted_through_young_and_poisson_with_one_slip_are_named():
+    """Corpus 7: a driver converting (lam, mu) to (E, nu) with nu = lam / (lam + mu) (its 2 lost)
+    for a routine that converts back: both moduli change, and the round trip with that slip
+    predicts both values; the plane-stress lambda changes lam alone. Nearby: other values, or
+    one modulus of a two-modulus slip, are no conversion.
+    """
+    from conformance.diagnosis.elastic_conversions import matching_conversion
+    from conformance.diagnosis.term_fit import TermFit, describe_fit
+
+    values = {"mu": 3448.2758620689656, "lam": 31034.48275862069}
+    lam, mu = values["lam"], values["mu"]
+    e, nu = mu * (3 * lam + 2 * mu) / (lam + mu), lam / (lam + mu)
+    fitted = {"lam": e * nu / ((1 + nu) * (1 - 2 * nu)), "mu": e / (2 * (1 + nu))}
+    found = matching_conversion(values, fitted)
+    assert len(found) == 1 and "its 2 lost" in found[0].words and "(E, nu)" in found[0].words
+    assert matching_conversion(values, {"lam": 1.01 * fitted["lam"], "mu": fitted["mu"]}) == []
+    assert matching_conversion(values, {"lam": fitted["lam"]}) == []  # mu changes too
+    e, nu = mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
+    plane = matching_conversion(values, {"lam": e * nu / (1 - nu * nu)})
+    assert len(plane) == 1 and "plane-stress" in plane[0].words
+    # the term fit says the conversion instead of two odd factors
+    a = np.array([fitted["lam"] / lam, fitted["mu"] / mu])
+    fit = TermFit(a, True, (), ((0.0, 0.0),), True)
+    _, readings = describe_fit(fit, [("lam",), ("mu",)], values)
+    assert len(readings) == 1 and "nu = lam / (lam + mu)" in readings[0], readings
+    fit = TermFit(np.array([1.3, 0.7]), True, (), ((0.0, 0.0),), True)
+    _, readings = describe_fit(fit, [("lam",), ("mu",)], values)
+    assert not any("(E, nu)" in r for r in readings), readings
+    # a bulk modulus doubled (D1 = 1/K given to a routine reading K = 2/D1) is said so
+    from mjed.materials import Yeoh
+
+    yeoh = Yeoh(c10=1e3, c20=-200.0, c30=100.0, k0=3e4)
+    assert "D1 = 1/K" in convention_words(yeoh, "k0", 6e4, 3e4)
+    assert "D1 = 2/K" in convention_words(yeoh, "k0", 1.5e4, 3e4)
+    assert "D1" not in convention_words(yeoh, "k0", 6.1e4, 3e4)

@@ -747,10 +747,22 @@ def _frac(x: float) -> str:
     return str(q) if abs(float(q) - x) < 1e-9 * max(1.0, abs(x)) else f"{x:.4g}"
 
 
+#: What f'(J) times J or divided by J is, for a volumetric term U(J): the pressure's measure.
+_KIRCHHOFF_WORDS = {
+    1.0: " (for a volumetric term, J U'(J) is the Kirchhoff pressure: a Kirchhoff stress used "
+    "where the Cauchy stress belongs, not divided by J)",
+    -1.0: " (for a volumetric term, the Cauchy pressure divided by J once more)",
+}
+
+
 def _df_words(t: str, k: float, p: float, q: Optional[float]) -> str:
     """The engine's f'(J) of term t, k J^p times the declared one, in words."""
     if q is None:
-        return f"{_frac(k)} {_power_words(p)} times the declared f'" if p else f"{_frac(k)} times"
+        if not p:
+            return f"{_frac(k)} times"
+        factor = "" if abs(k - 1.0) < 1e-9 else f"{_frac(k)} "
+        extra = _KIRCHHOFF_WORDS.get(p, "") if not factor else ""
+        return f"{factor}{_power_words(p)} times the declared f'(J){extra}"
     return (
         f"{_frac(k * q)} {_power_words(q - 1.0 + p)} for the declared {_frac(q)} "
         f"{_power_words(q - 1.0)}"
@@ -782,7 +794,14 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
             d = k * X - P
             n = 3 * pat.n
             words = _df_words(t, k, p, powers.get(t))
-            if uniform:
+            j = float(np.mean(J))
+            power = next((q for q in (1.0, -1.0) if abs(k - j**q) <= 1e-6 * max(k, 1e-300)), None)
+            if uniform and powers.get(t) is None and power is not None:
+                words = (
+                    f"{_df_words(t, 1.0, power, None)}, or equally {words}: J = {j:.6g} in "
+                    "every cell here, which cannot tell a power of J from a constant"
+                )
+            elif uniform:
                 words += " (J is the same in every cell here: whether the factor follows a "
                 words += "power of J cannot be told)"
             out.append(

@@ -25,6 +25,8 @@ from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
+from conformance.diagnosis.elastic_conversions import matching_conversion
+
 __all__ = [
     "Exchange",
     "convention_words",
@@ -232,11 +234,24 @@ def convention_words(model: Any, name: str, value: float, declared: float) -> st
     elastic = elastic_convention_words(model, name, value, declared)
     if elastic:
         return elastic
+    converted = matching_conversion(scalar_parameters(model), {name: value})
+    if converted:
+        return f" ({converted[0].words})"
     for shift, words in _SHIFTED.get((type(model).__name__, name), ()):
         if abs(value - (declared + shift)) <= 1e-6 * max(abs(declared), 1.0):
             return f" ({name} {'-' if shift < 0 else '+'} {abs(shift):g}: {words})"
     if declared <= 0 or value <= 0 or abs(declared - 1.0) < 1e-3:
         return ""  # 1 squared is 1: no convention can be told
+    if name in _BULK and abs(value - 2.0 * declared) <= 2e-6 * declared:
+        return (
+            f" (twice {name}: a compressibility D1 = 1/K given to a routine that reads "
+            "K = 2/D1 (Abaqus' convention), or the volumetric energy doubled)"
+        )
+    if name in _BULK and abs(value - 0.5 * declared) <= 1e-6 * declared:
+        return (
+            f" (half {name}: a compressibility D1 = 2/K (Abaqus' convention) read as K = 1/D1, "
+            "or the volumetric energy halved)"
+        )
     if name in _BULK and abs(value * declared - 2.0) <= 2e-6:
         return (
             f" (2/{name}: {name} used as Abaqus' compressibility D1 = 2/K, or a D1 converted as "

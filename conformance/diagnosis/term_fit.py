@@ -30,6 +30,8 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.diagnosis.elastic_conversions import matching_conversion, moduli_names
+
 __all__ = ["TermCase", "TermFit", "term_labels", "fit_terms", "describe_fit"]
 
 #: Singular value ratio below which a combination of terms is not identified by the cases.
@@ -205,6 +207,18 @@ def describe_fit(
             )
             exchanged |= {p, q}
             done |= set(tp) | set(tq)
+    # Moduli changed as a conversion through (E, nu) with one slip would change them: the values
+    # of every changed modulus predicted, so a match is the cause.
+    moduli = moduli_names(params)
+    scaled = {p: ap * params[p] for p, (_, ap) in by_param.items() if p in moduli}
+    deviating = {p for p in moduli if any(p in labels[i] for i in off)}
+    if scaled and set(scaled) == deviating and not deviating & exchanged:
+        for conv in matching_conversion(params, scaled, close=max(close, 1e-9)):
+            readings.append(conv.words)
+            exchanged |= set(scaled)
+            for p in scaled:
+                done |= set(by_param[p][0])
+            break
     for p, (tp, ap) in by_param.items():
         if p in exchanged or set(tp) <= done:
             continue
