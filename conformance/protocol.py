@@ -169,8 +169,8 @@ def check_implementation(
 
     mesh: a built-in name, a file path, a (points, cells) pair, or a list of them.
     precision: "double", "single" or "auto" (single when ``impl`` returns float32 arrays).
-    read_causes: False judges only (the verdicts; a failed case's cause is not looked for
-    beyond the first, quick readings: ``mjed-verify check --verdict-only``).
+    read_causes: False judges only (the verdicts and errors; a failed case's cause is not
+    looked for: ``mjed-verify check --verdict-only``).
     """
     if precision not in ("auto", "double", "single"):
         raise ValueError(f"precision must be 'auto', 'double' or 'single', not {precision!r}")

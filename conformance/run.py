@@ -409,11 +409,10 @@ def _run_check(
 ) -> CheckRun:
     """Evaluate, compare and diagnose every primary case (its probes feed the consistency test).
 
-    read_causes: False judges only (``mjed-verify check --verdict-only``): the verdicts, errors
-    and the quick readings of the first diagnosis, without the readings of mistakes that a
-    failed case otherwise gets (other states, energy terms and variants, the element, the
-    tangent, float32), which compile and evaluate many variant forms. A failure that the quick
-    readings do not explain then says that its cause was not looked for, not "unexplained".
+    read_causes: False judges only (``mjed-verify check --verdict-only``): the verdicts, the
+    errors and the consistency test, without any reading of a failed case's cause (neither the
+    first diagnosis' hypotheses nor the readings of mistakes, which compile and evaluate many
+    variant forms). A failure then says that its cause was not looked for, not "unexplained".
 
     precision: "double" (tolerance 1e-10), "single" (tolerances from float32 round-off and the
     case's conditioning, :mod:`conformance.judge.precision`) or "auto": single for an output the
@@ -490,6 +489,7 @@ def _run_check(
             consistency=cons if probes else None,
             tol=tol,
             frame_variants=_lazy(lambda: frame_variants(ci, cache)),
+            explain=read_causes,
         )
         if read_causes and diag.causes and diag.causes[0].code == "volumetric":
             diag = readings.refine_volumetric(diag, cache, ci, out, s)  # which U(J) exactly?

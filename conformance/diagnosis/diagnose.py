@@ -137,6 +137,7 @@ def diagnose(
     consistency: Optional[Consistency] = None,
     tol: Tolerances = DOUBLE,
     frame_variants: Optional[Callable[[], Sequence[Any]]] = None,
+    explain: bool = True,
 ) -> Diagnosis:
     """Diagnose one case.
 
@@ -149,6 +150,8 @@ def diagnose(
         tol: the tolerances the case is held to (double precision by default).
         frame_variants: a callable returning the oracle with mistaken frames
             (:class:`conformance.diagnosis.frames.FrameVariant`; built only if needed).
+        explain: False judges only: the errors, the verdict and the consistency findings, and
+            a failure left "unexplained" without any hypothesis tried (``--verdict-only``).
     """
     K = sp.csr_matrix(K)
     K_o = sp.csr_matrix(K_o)
@@ -188,7 +191,7 @@ def diagnose(
         consistency is not None and consistency.force_consistent is False
     )
     args = (f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol, frame_variants)
-    causes, partial = _explain(*args, energy_denies=energy_denies)
+    causes, partial = _explain(*args, energy_denies=energy_denies) if explain else ([], [])
     if causes:
         findings = causes + findings
     else:
