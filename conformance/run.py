@@ -339,7 +339,7 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: element_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "differences in the strain, or Miehe's perturbation of F",
+        "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
         _headline_unexplained,
         lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),

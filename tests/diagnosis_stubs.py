@@ -55,3 +55,25 @@ def mjed_cell_stress(points, cells, x, model) -> np.ndarray:
     F = np.einsum("mai,maj->mij", x[cells], D)
     P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / np.abs(V0)[:, None, None]
     return np.linalg.inv(F) @ P
+
+
+def classical_cells(points, cells, x, model):
+    """(f_o, K_o, V0, D, F, J, tau_of) for engines built in the tests: MJED's force and
+    stiffness, the cells' rest volumes V0 (signed as MJED's), shape gradients D, F and J, and
+    tau_of(Fs) the Kirchhoff stress of the project's classical law at per-cell gradients Fs.
+    """
+    import mjed
+    from mjed.mesh import shape_vectors
+    from reference_fem.classical import ClassicalGalerkin
+
+    law = ClassicalGalerkin(points, cells, model).law
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
+    f_o, K_o = field.force_and_stiffness(x)
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+
+    def tau_of(Fs):
+        Cs = Fs.swapaxes(1, 2) @ Fs
+        return Fs @ law.stress(Cs, np.linalg.det(Fs)) @ Fs.swapaxes(1, 2)
+
+    return f_o, K_o, V0, D, F, np.linalg.det(F), tau_of

@@ -185,7 +185,9 @@ def strain_difference_reading(diag, ci, out, ref, s):
     """``diag`` (the force right, nothing named) with a finite-difference tangent named first
     (partly explaining: the higher orders and round-off are left) when a scheme's fit (in the
     strain, or Miehe's perturbation of F) accounts for :data:`EXPLAINED` of the stiffness
-    error; both: said as ambiguous; unchanged when neither does.
+    error; both: said as ambiguous; when neither does, a perturbation of F of another form
+    (:func:`conformance.diagnosis.perturbation_differences.scheme_findings`); unchanged when
+    none fits.
     """
     from dataclasses import replace
 
@@ -195,6 +197,7 @@ def strain_difference_reading(diag, ci, out, ref, s):
     from conformance.diagnosis.perturbation_differences import (
         kirchhoff_curvatures,
         perturbation_basis,
+        scheme_findings,
     )
 
     if ci.cells.shape[0] > MAX_CELLS:
@@ -233,7 +236,12 @@ def strain_difference_reading(diag, ci, out, ref, s):
                 {"step": fit.step, "scheme": fit.scheme, "explained": fit.explained},
             )
         )
+    why = "both schemes' errors fit"
+    if not found:  # the perturbation itself wrong?
+        with np.errstate(all="ignore"):
+            found = scheme_findings(ci.model, split, ci.points, D, s.stiffness, tol.stiffness)
+        why = "their perturbations predict the same tangent here"
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]
-    return replace(diag, findings=[*ambiguous(found, "both schemes' errors fit"), *rest])
+    return replace(diag, findings=[*ambiguous(found, why), *rest])
