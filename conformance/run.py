@@ -243,7 +243,7 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: off_pattern_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "element vectors or matrices kept in float32, assembled in double",
+        "element vectors or matrices, or the per-cell tangent, in float32, assembled in double",
         _nothing_named,
         lambda d, c: rounded_elements_reading(d, c.ci, c.out, c.ref, c.s),
     ),
