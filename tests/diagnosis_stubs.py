@@ -77,3 +77,15 @@ def classical_cells(points, cells, x, model):
         return Fs @ law.stress(Cs, np.linalg.det(Fs)) @ Fs.swapaxes(1, 2)
 
     return f_o, K_o, V0, D, F, np.linalg.det(F), tau_of
+
+
+def cell_gradients(points, cells, x):
+    """(V0, D, F, J) per cell of a linear tet mesh: rest volumes (m,), shape gradients
+    dN_a/dX (m, 4, 3), deformation gradients and their determinants at positions x.
+    """
+    X = points[cells]
+    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
+    Minv = np.linalg.inv(Mt)
+    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    return np.abs(np.linalg.det(Mt)) / 6.0, D, F, np.linalg.det(F)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import box_mesh, mjed_split
+from diagnosis_stubs import cell_gradients
 
 from conformance.diagnosis.mixed_precision import mixed_precision_finding, noise
 from mjed import materials as M
@@ -149,13 +150,7 @@ def _svk_spatial_stiffness(points, cells, x, transform):
     """
     import scipy.sparse as sp
 
-    X = points[cells]
-    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
-    V0 = np.abs(np.linalg.det(Mt)) / 6.0
-    Minv = np.linalg.inv(Mt)
-    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
-    F = np.einsum("mai,maj->mij", x[cells], D)
-    J = np.linalg.det(F)
+    V0, D, F, J = cell_gradients(points, cells, x)
     b = F @ F.swapaxes(1, 2)
     E = 0.5 * (F.swapaxes(1, 2) @ F - np.eye(3))
     S = LAM * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * MU * E
