@@ -84,17 +84,20 @@ def _engine(points, cells, x, model, eps: float, perturb: str):
     return np.asarray(f_o), K, np.asarray(f_o), sp.csr_matrix(K_o)
 
 
-def _read(perturb: str, eps: float = 1e-7, material: str = "MooneyRivlin"):
-    points, cells, x = _mesh()
-    model = default_material(material)
-    f, K, f_o, K_o = _engine(points, cells, x, model, eps, perturb)
+def _reading(points, cells, x, model, f, K, f_o, K_o):
+    """strain_difference_reading's diagnosis of an engine's (f, K) against MJED's (f_o, K_o)."""
     s = scales(0.5, 1.0, f_o, K_o)
     e = errors(f, K, None, f_o, K_o, 0.0, s)
     diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
     ref = Reference(0.0, f_o, K_o)
-    return strain_difference_reading(
-        diag, CaseStub(points, cells, x, model), OutputStub(f, K), ref, s
-    )
+    case = CaseStub(points, cells, x, model)
+    return strain_difference_reading(diag, case, OutputStub(f, K), ref, s)
+
+
+def _read(perturb: str, eps: float = 1e-7, material: str = "MooneyRivlin"):
+    points, cells, x = _mesh()
+    model = default_material(material)
+    return _reading(points, cells, x, model, *_engine(points, cells, x, model, eps, perturb))
 
 
 def test_the_right_scheme_in_the_limit_is_the_oracle_spatial_tangent():
@@ -137,3 +140,39 @@ def test_shear_columns_off_by_another_factor_are_not_the_doubled_step():
     d = _read("shear-1.9")
     assert d.errors.stiffness > 1e-3
     assert d.findings[0].code == "unexplained", [f.title for f in d.findings]
+
+
+def _piola_engine(points, cells, x, model, h: float, central: bool):
+    """(f, K, f_o, K_o): MJED's force, and K = V0 D A D with A = dP/dF by differences of
+    P = tau F^-T in each component of F (a total-Lagrangian engine's numerical tangent).
+    """
+    f_o, K_o, V0, D, F, J, tau_of = classical_cells(points, cells, x, model)
+
+    def P_of(Fs):
+        return tau_of(Fs) @ np.linalg.inv(Fs).swapaxes(1, 2)
+
+    P = P_of(F)
+    A = np.empty((len(cells), 3, 3, 3, 3))
+    for ll in range(3):
+        for L in range(3):
+            dF = np.zeros((3, 3))
+            dF[ll, L] = h
+            up = P_of(F + dF)
+            A[:, :, :, ll, L] = (up - P_of(F - dF)) / (2 * h) if central else (up - P) / h
+    Ke = np.abs(V0)[:, None, None, None, None] * np.einsum("maI,mkIlL,mbL->makbl", D, A, D)
+    K = assemble(cells, points.shape[0], np.zeros((len(cells), 4, 3)), Ke.reshape(-1, 12, 12))[1]
+    return np.asarray(f_o), K, np.asarray(f_o), sp.csr_matrix(K_o)
+
+
+def test_differences_of_p_in_the_components_of_f_are_named_with_their_step():
+    points, cells, x = _mesh()
+    model = default_material("MooneyRivlin")
+    for h, central, named in ((1e-4, False, True), (1e-2, True, False)):
+        d = _reading(points, cells, x, model, *_piola_engine(points, cells, x, model, h, central))
+        assert d.errors.stiffness > 1e-8
+        codes = [f.code for f in d.findings]
+        if named:
+            assert codes[0] == "first-elasticity-finite-difference", [f.title for f in d.findings]
+            assert abs(d.findings[0].figures["step"] / h - 1) < 1e-2
+        else:
+            assert "first-elasticity-finite-difference" not in codes

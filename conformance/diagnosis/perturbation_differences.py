@@ -50,8 +50,10 @@ from conformance.diagnosis.spatial_variants import FEBIO, U, from_voigt, jaumann
 __all__ = [
     "STEP",
     "SCHEMES",
+    "stress_curvatures",
     "kirchhoff_curvatures",
     "perturbation_basis",
+    "piola_basis",
     "scheme_directions",
     "scheme_tangent",
     "scheme_findings",
@@ -69,6 +71,49 @@ def _sym_unit(k: int, l: int) -> np.ndarray:  # noqa: E741 - the index names of 
     return E
 
 
+def stress_curvatures(
+    model: Any, split: ElementSplit, points: np.ndarray, directions: np.ndarray, quantity: str
+) -> Optional[np.ndarray]:
+    """(m, k, 3, 3) per cell Q'' along each of the k directions M (m, k, 3, 3) per unit step:
+    the second derivative of the oracle's stress Q along F + t M, by second differences of
+    MJED's element forces on the mesh with its cells pulled apart; quantity: "tau" (divided by
+    the cell's J), "cauchy" (sigma), "tau-no-J" (tau) or "piola" (P); None when MJED cannot
+    evaluate the model there.
+    """
+    import mjed
+
+    cells, F = split.cells, split.F
+    m = cells.shape[0]
+    X = points[cells]
+    loose = np.arange(4 * m).reshape(m, 4)
+    Xc = X - X[:, :1]
+    J = np.linalg.det(F)
+    Dp = np.linalg.pinv(split.D)  # (m, 3, 4): P from the element forces, f_a = -V0 P D_a
+
+    def stress(field, Fs: np.ndarray) -> np.ndarray:
+        """(m, 3, 3) the oracle's Q at per-cell gradients Fs, over the scheme's divisor."""
+        xs = (np.einsum("mij,maj->mai", Fs, Xc) + X[:, :1]).reshape(-1, 3)
+        fe = np.asarray(field.element_forces(xs), dtype=np.float64)
+        P = -np.einsum("mja,mak->mkj", Dp, fe) / split.V0[:, None, None]
+        if quantity == "piola":
+            return P
+        tau = P @ Fs.swapaxes(1, 2)
+        if quantity == "cauchy":
+            return tau / np.linalg.det(Fs)[:, None, None]
+        return tau if quantity == "tau-no-J" else tau / J[:, None, None]
+
+    out = np.empty(directions.shape)
+    try:
+        field = mjed.make_force_field(mjed.TetMesh(X.reshape(-1, 3), loose), model)
+        t0 = stress(field, F)
+        for col in range(directions.shape[1]):
+            step = STEP * directions[:, col]
+            out[:, col] = (stress(field, F + step) + stress(field, F - step) - 2.0 * t0) / STEP**2
+    except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
+        return None
+    return out
+
+
 def kirchhoff_curvatures(
     model: Any,
     split: ElementSplit,
@@ -82,40 +127,29 @@ def kirchhoff_curvatures(
     quantity: "tau" (divided by J), "cauchy" (sigma, not divided) or "tau-no-J" (tau, not
     divided), as :data:`SCHEMES`; None when MJED cannot evaluate the model there.
     """
-    import mjed
-
-    cells, F = split.cells, split.F
-    m = cells.shape[0]
-    X = points[cells]
-    loose = np.arange(4 * m).reshape(m, 4)
-    Xc = X - X[:, :1]
-    J = np.linalg.det(F)
-    rows = np.array(FEBIO)
-    out = np.empty((m, 6, 6))
-    Dp = np.linalg.pinv(split.D)  # (m, 3, 4): P from the element forces, f_a = -V0 P D_a
     if directions is None:
-        directions = scheme_directions("miehe", F)
-
-    def stress(field, Fs: np.ndarray) -> np.ndarray:
-        """(m, 3, 3) the oracle's Q at per-cell gradients Fs, over the scheme's divisor."""
-        xs = (np.einsum("mij,maj->mai", Fs, Xc) + X[:, :1]).reshape(-1, 3)
-        fe = np.asarray(field.element_forces(xs), dtype=np.float64)
-        P = -np.einsum("mja,mak->mkj", Dp, fe) / split.V0[:, None, None]
-        tau = P @ Fs.swapaxes(1, 2)
-        if quantity == "cauchy":
-            return tau / np.linalg.det(Fs)[:, None, None]
-        return tau if quantity == "tau-no-J" else tau / J[:, None, None]
-
-    try:
-        field = mjed.make_force_field(mjed.TetMesh(X.reshape(-1, 3), loose), model)
-        t0 = stress(field, F)
-        for col in range(6):
-            step = STEP * directions[:, col]
-            d2 = (stress(field, F + step) + stress(field, F - step) - 2.0 * t0) / STEP**2
-            out[:, :, col] = d2[:, rows[:, 0], rows[:, 1]]
-    except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
+        directions = scheme_directions("miehe", split.F)
+    d2 = stress_curvatures(model, split, points, directions, quantity)
+    if d2 is None:
         return None
-    return out
+    rows = np.array(FEBIO)
+    return d2[:, :, rows[:, 0], rows[:, 1]].swapaxes(1, 2)
+
+
+def piola_basis(model: Any, split: ElementSplit, points: np.ndarray) -> Optional[sp.csr_matrix]:
+    """(3n, 3n) the assembled V0 D_aI dA_kIlL D_bL of the leading error per unit step of a
+    first elasticity tensor A = dP/dF by one-sided differences of P in each component F_lL,
+    dA_kIlL = (1/2) d2P_kI / dF_lL^2 (:func:`stress_curvatures` along e_l e_L); None when MJED
+    cannot evaluate the model there.
+    """
+    m = split.F.shape[0]
+    units = np.broadcast_to(np.eye(9).reshape(9, 3, 3), (m, 9, 3, 3))
+    d2 = stress_curvatures(model, split, points, units, "piola")
+    if d2 is None or not np.all(np.isfinite(d2)):
+        return None
+    dA = 0.5 * d2.reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)  # [m, k, I, l, L]
+    Ke = np.einsum("m,maI,mkIlL,mbL->makbl", split.V0, split.D, dA, split.D, optimize=True)
+    return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))[1]
 
 
 def perturbation_basis(split: ElementSplit, curv: np.ndarray) -> sp.csr_matrix:
