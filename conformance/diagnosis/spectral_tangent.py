@@ -197,8 +197,8 @@ def spectral_findings(
 SHEAR_VARIANTS = {
     "shear-sign": (
         "the off-diagonal (a != b, shear) terms of the spectral tangent with the wrong sign: "
-        "the numerator of their divided difference reversed, e.g. (tau_b lambda_a^2 - tau_a "
-        "lambda_b^2) / (lambda_a^2 - lambda_b^2)",
+        "the numerator of their divided difference written the other way round (b's stress "
+        "term before a's) over lambda_a^2 - lambda_b^2",
         "isochoric",
         lambda la, lb: -np.ones_like(la * lb),
     ),
