@@ -243,7 +243,7 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: off_pattern_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "element vectors or matrices kept in float32, assembled in double",
+        "element vectors or matrices, or the per-cell tangent, in float32, assembled in double",
         _nothing_named,
         lambda d, c: rounded_elements_reading(d, c.ci, c.out, c.ref, c.s),
     ),
@@ -339,7 +339,7 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: element_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "differences in the strain, or Miehe's perturbation of F",
+        "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
         _headline_unexplained,
         lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),

@@ -55,3 +55,37 @@ def mjed_cell_stress(points, cells, x, model) -> np.ndarray:
     F = np.einsum("mai,maj->mij", x[cells], D)
     P = -np.einsum("mja,mak->mkj", np.linalg.pinv(D), fe) / np.abs(V0)[:, None, None]
     return np.linalg.inv(F) @ P
+
+
+def classical_cells(points, cells, x, model):
+    """(f_o, K_o, V0, D, F, J, tau_of) for engines built in the tests: MJED's force and
+    stiffness, the cells' rest volumes V0 (signed as MJED's), shape gradients D, F and J, and
+    tau_of(Fs) the Kirchhoff stress of the project's classical law at per-cell gradients Fs.
+    """
+    import mjed
+    from mjed.mesh import shape_vectors
+    from reference_fem.classical import ClassicalGalerkin
+
+    law = ClassicalGalerkin(points, cells, model).law
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
+    f_o, K_o = field.force_and_stiffness(x)
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+
+    def tau_of(Fs):
+        Cs = Fs.swapaxes(1, 2) @ Fs
+        return Fs @ law.stress(Cs, np.linalg.det(Fs)) @ Fs.swapaxes(1, 2)
+
+    return f_o, K_o, V0, D, F, np.linalg.det(F), tau_of
+
+
+def cell_gradients(points, cells, x):
+    """(V0, D, F, J) per cell of a linear tet mesh: rest volumes (m,), shape gradients
+    dN_a/dX (m, 4, 3), deformation gradients and their determinants at positions x.
+    """
+    X = points[cells]
+    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
+    Minv = np.linalg.inv(Mt)
+    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    return np.abs(np.linalg.det(Mt)) / 6.0, D, F, np.linalg.det(F)

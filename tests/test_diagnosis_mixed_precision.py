@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import box_mesh, mjed_split
+from diagnosis_stubs import cell_gradients
 
 from conformance.diagnosis.mixed_precision import mixed_precision_finding, noise
 from mjed import materials as M
@@ -140,3 +141,69 @@ def test_element_matrices_in_a_float32_buffer_are_named_from_their_exact_roundin
             rounded_elements_finding(split, SimpleNamespace(force=f_o, stiffness=K), s, DOUBLE)
             is None
         )
+
+
+def _svk_spatial_stiffness(points, cells, x, transform):
+    """K of an updated-Lagrangian St Venant-Kirchhoff engine (MU, LAM) whose per-cell spatial
+    tangent J c = lam b (x) b + 2 mu b (.) b is passed through ``transform`` (the rest double):
+    K_e = v (grad N . c . grad N + grad N . sigma grad N I), v = J V0.
+    """
+    import scipy.sparse as sp
+
+    V0, D, F, J = cell_gradients(points, cells, x)
+    b = F @ F.swapaxes(1, 2)
+    E = 0.5 * (F.swapaxes(1, 2) @ F - np.eye(3))
+    S = LAM * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * MU * E
+    sig = F @ S @ F.swapaxes(1, 2) / J[:, None, None]
+    Jc = LAM * np.einsum("mij,mkl->mijkl", b, b) + MU * (
+        np.einsum("mik,mjl->mijkl", b, b) + np.einsum("mil,mjk->mijkl", b, b)
+    )
+    c = transform(Jc, F) / J[:, None, None, None, None]
+    g = D @ np.linalg.inv(F)
+    Ke = np.einsum("maj,mijkl,mbl->maibk", g, c, g) + np.einsum(
+        "mab,ik->maibk", np.einsum("maj,mjl,mbl->mab", g, sig, g), np.eye(3)
+    )
+    Ke = (J * V0)[:, None, None, None, None] * Ke
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(-1, 12)
+    rows = np.repeat(dofs, 12, axis=1).ravel()
+    cols = np.tile(dofs, (1, 12)).ravel()
+    n = 3 * points.shape[0]
+    return sp.csr_matrix((Ke.ravel(), (rows, cols)), shape=(n, n))
+
+
+@pytest.mark.parametrize("uniform", [False, True])
+def test_a_tangent_in_float32_with_a_double_exact_force_is_named(uniform):
+    """The per-cell spatial tangent J c rounded to float32 (a UMAT's REAL*4 tangent), the stress,
+    force and assembly in double (corpus 7): named as the stiffness in single precision, on a
+    random state and on a uniform one (every cell rounds alike). Nearby, double engines with a
+    small systematic tangent error of the same size (a coefficient off by 1e-8; a tangent off
+    by a smooth term, as a finite-difference tangent with a tiny step) are not named so.
+    """
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.mixed_precision import rounded_tangent_finding
+
+    points, cells = box_mesh(2, jitter=0.0 if uniform else 0.2, seed=1)
+    rng = np.random.default_rng(1)
+    x = points @ np.diag([1.1, 0.95, 0.97]).T
+    if not uniform:
+        x = x + 0.03 * rng.standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(M.StVenantKirchhoff(mu=MU, lam=LAM), points, cells, x)
+
+    def found(transform):
+        K = _svk_spatial_stiffness(points, cells, x, transform)
+        return rounded_tangent_finding(split, SimpleNamespace(force=f_o, stiffness=K), s)
+
+    exact = found(lambda Jc, F: Jc)
+    assert exact is None  # the engine right: nothing to name
+    f32 = found(lambda Jc, F: Jc.astype(np.float32).astype(np.float64))
+    assert f32 is not None and f32.figures["form"] == "Jc", f32
+    assert "single precision" in f32.title
+    for wrong in (
+        lambda Jc, F: Jc * (1 + 1e-8),
+        lambda Jc, F: Jc + 1e-8 * MU * np.einsum("mij,mkl->mijkl", F @ F, F @ F),
+    ):
+        K = _svk_spatial_stiffness(points, cells, x, wrong)
+        e = np.abs(K - K_o).max() / np.abs(K_o).max()
+        assert 1e-10 < e < 1e-6  # a failing tangent of float32's size
+        assert found(wrong) is None

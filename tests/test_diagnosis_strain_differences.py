@@ -11,6 +11,7 @@ import scipy.sparse as sp
 from conftest import box_mesh
 from diagnosis_stubs import CaseStub as _Case
 from diagnosis_stubs import OutputStub as _Out
+from diagnosis_stubs import classical_cells
 
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
@@ -94,21 +95,7 @@ def _miehe_engine(points, cells, x, model, eps: float, central: bool):
     spatial tangent is Miehe's: tau differenced under F + eps sym(e_k e_l) F, over J, less the
     Jaumann rate's terms; B from grad N = D F^-1 (engineering shear), integrals over v = J V0.
     """
-    import mjed
-    from mjed.mesh import shape_vectors
-    from reference_fem.classical import ClassicalGalerkin
-
-    law = ClassicalGalerkin(points, cells, model).law
-    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model)
-    f_o, K_o = field.force_and_stiffness(x)
-    V0, D = shape_vectors(points, cells)
-    F = np.einsum("mai,maj->mij", x[cells], D)
-    J = np.linalg.det(F)
-
-    def tau_of(Fs):
-        Cs = Fs.swapaxes(1, 2) @ Fs
-        return Fs @ law.stress(Cs, np.linalg.det(Fs)) @ Fs.swapaxes(1, 2)
-
+    f_o, K_o, V0, D, F, J, tau_of = classical_cells(points, cells, x, model)
     tau = tau_of(F)
     sig = tau / J[:, None, None]
     I3 = np.eye(3)

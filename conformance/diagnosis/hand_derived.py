@@ -171,17 +171,22 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
     """``diag`` (the force right, nothing named) with a hand-derived tangent term of a
     material's own form named first: Ogden's coaxial tangent
     (:mod:`conformance.diagnosis.spectral_tangent`, with the oracle's per-cell stress from the
-    element split where it adds up), Costa's d2Q not symmetrised
+    element split where it adds up) or its shear (a != b) terms with the wrong sign or divisor,
+    Costa's d2Q not symmetrised
     (:mod:`conformance.diagnosis.fibre_tangent`); unchanged when neither fits.
     """
     from conformance.diagnosis.fibre_tangent import fibre_tangent_findings
-    from conformance.diagnosis.spectral_tangent import power_exponent, spectral_findings
+    from conformance.diagnosis.spectral_tangent import (
+        power_exponent,
+        shear_term_findings,
+        spectral_findings,
+    )
 
     tol = diag.tolerances
     if diag.errors.force > tol.force:
         return diag
     args = (ci.model, ci.points, ci.cells, ci.positions, out.stiffness, ref.stiffness)
-    S = None
+    S = split = None
     if power_exponent(ci.model) is not None and ci.cells.shape[0] <= MAX_CELLS:
         split = element_split(*args[:4], ref.force, ref.stiffness, s, tol)
         if split is not None:
@@ -190,6 +195,8 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
         found = spectral_findings(*args, tol.stiffness, S) + fibre_tangent_findings(
             *args, tol.stiffness
         )
+        if split is not None:
+            found += shear_term_findings(ci.model, split, *args[4:], tol.stiffness)
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]

@@ -18,6 +18,13 @@ has not float32's own signature (:mod:`conformance.diagnosis.roundoff`), and its
   does (chance measured with random per-cell patterns: :func:`chance_correlation`); its size
   is that pattern's to a small factor.
 
+The stiffness alone in single precision (the material routine's tangent in float32, its
+stress in double: the force and energy double-exact) keeps the balance laws too and leaves no
+trace in the force, so neither test applies; there the rounding is predicted exactly instead
+(:func:`rounded_tangent_finding`: the oracle's per-cell tangent rounded in one of its usual
+forms, as the element buffers of :func:`rounded_elements_finding` are), and a double engine
+with a small systematic tangent error does not match it.
+
 Named only with both where the kit has probes, or, without probes, with a strong correlation
 over many distinct cells; otherwise nothing (the caller's systematic reading stands). NumPy
 and MJED only; the oracle at the probes is one force assembly each.
@@ -44,6 +51,7 @@ __all__ = [
     "mixed_precision_reading",
     "rounded_elements_finding",
     "rounded_elements_reading",
+    "rounded_tangent_finding",
 ]
 
 #: A probe's error counts as drawn anew when it differs from the case's by more than
@@ -308,11 +316,101 @@ def rounded_elements_finding(split: ElementSplit, out, s, tol) -> Optional[Findi
     return None
 
 
+def _rounded_tangents(split: ElementSplit) -> Dict[str, np.ndarray]:
+    """Form -> (m, 12, 12) the element matrices of the oracle's per-cell tangent rounded to
+    float32 in that form (:data:`_TANGENTS`), the stress and the rest in double.
+    """
+    from conformance.diagnosis.elements import cell_piola
+    from conformance.diagnosis.invariant_pieces import cell_tensors
+    from conformance.diagnosis.spatial_tangent import spatial_cells
+    from conformance.diagnosis.spatial_variants import jaumann_terms
+
+    P, A = cell_piola(split)
+    t = cell_tensors(P, A, split.F)
+    sc = spatial_cells(split, t.S, t.CC)
+    J = np.linalg.det(split.F)[:, None, None, None, None]
+    jau = jaumann_terms(sc.sigma)
+    dc = {
+        "Jc": _f32(J * sc.c) / J - sc.c,
+        "c": _f32(sc.c) - sc.c,
+        "ddsdde": _f32(sc.c + jau) - jau - sc.c,
+        "CC": spatial_cells(split, t.S, _f32(t.CC)).c - sc.c,
+    }
+    out = {
+        k: split.Ke
+        + np.einsum("m,maj,mijkl,mbl->maibk", sc.v, sc.gN, d, sc.gN, optimize=True).reshape(
+            -1, 12, 12
+        )
+        for k, d in dc.items()
+    }
+    dA = _f32(A) - A  # A[k, I, l, L] = dP_kI / dF_lL: K_e = V0 D_aI A D_bL
+    Ke = np.einsum("m,maI,mkIlL,mbL->makbl", split.V0, split.D, dA, split.D, optimize=True)
+    out["A"] = split.Ke + Ke.reshape(-1, 12, 12)
+    return out
+
+
+#: A stiffness error beyond this (relative) is not the rounding of a tangent to float32
+#: (2^-24 = 6e-8 per entry; assembly's cancellations may magnify it, not a thousandfold).
+ROUNDED_TANGENT = 1e3 * 2.0**-24
+
+#: Form of the per-cell tangent an engine may compute or keep in float32 -> its words.
+_TANGENTS = {
+    "Jc": "the per-cell spatial (Kirchhoff) tangent J c",
+    "c": "the per-cell spatial tangent c",
+    "ddsdde": "the per-cell Jaumann-rate tangent (a UMAT's DDSDDE, c plus the Jaumann terms)",
+    "CC": "the per-cell material tangent CC = dS/dE",
+    "A": "the per-cell first elasticity tensor A = dP/dF",
+}
+
+
+def rounded_tangent_finding(split: ElementSplit, out, s) -> Optional[Finding]:
+    """The stiffness alone in single precision: the oracle's per-cell tangent rounded to
+    float32 in one of the forms of :data:`_TANGENTS` (the stress, the force and the assembly
+    in double), predicted exactly, and named when the engine matches that prediction within
+    the double tolerance and the oracle itself does not (several forms matching: the first,
+    the others said); None otherwise. out: the engine's output; s: the case's scales.
+    """
+    from conformance.judge.compare import DOUBLE, errors
+
+    before = errors(
+        out.force, out.stiffness, None, *assemble(split.cells, split.n, split.fe, split.Ke), 0.0, s
+    )
+    if DOUBLE.within(before, energy=False) or before.force > DOUBLE.force:
+        return None
+    if before.stiffness > ROUNDED_TANGENT:  # beyond float32's rounding of any tangent
+        return None
+    with np.errstate(all="ignore"):
+        forms = _rounded_tangents(split)
+    hits = []
+    for form, Ke in forms.items():
+        K = assemble(split.cells, split.n, split.fe, Ke)[1]
+        e = errors(out.force, out.stiffness, None, out.force, K, 0.0, s)
+        if e.stiffness <= DOUBLE.stiffness:
+            hits.append((form, e.stiffness))
+    if not hits:
+        return None
+    form, left = hits[0]
+    also = "; ".join(_TANGENTS[f] for f, _ in hits[1:])
+    return Finding(
+        "single-precision-tangent",
+        "the stiffness computed in single precision (float32): "
+        f"{_TANGENTS[form]} rounded to float32, the stress, force and assembly in double",
+        FULL,
+        "the oracle's per-cell tangent (read back from its element matrices) rounded to "
+        f"float32 in that form and assembled gives your stiffness entry by entry: error "
+        f"{left:.1e} (against {before.stiffness:.1e} unrounded, about float32's unit "
+        "round-off times the tangent's entries, with no pattern a formula error has); the "
+        "force is double-exact" + (f" (the same rounding of {also} matches too)" if also else ""),
+        {"form": form, "residual": left, "forms": [f for f, _ in hits]},
+    )
+
+
 def rounded_elements_reading(diag, ci, out, ref, s):
-    """``diag`` led by :func:`rounded_elements_finding` when it holds; unchanged otherwise (no
-    MJED split of the case, or the engine does not match the rounded elements). Cheap: one
-    assembly of the rounded element arrays; run whatever the force's error (a float32 stiffness
-    buffer leaves the force exact).
+    """``diag`` led by :func:`rounded_elements_finding` when it holds, else by
+    :func:`rounded_tangent_finding` (the per-cell tangent rounded); unchanged otherwise (no
+    MJED split of the case, or the engine matches neither). Cheap: a few assemblies of the
+    rounded arrays; run whatever the force's error (a float32 stiffness buffer leaves the force
+    exact).
     """
     from dataclasses import replace
 
@@ -322,6 +420,8 @@ def rounded_elements_reading(diag, ci, out, ref, s):
         ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
     )
     found = None if split is None else rounded_elements_finding(split, out, s, diag.tolerances)
+    if found is None and split is not None:
+        found = rounded_tangent_finding(split, out, s)
     if found is None:
         return diag
     return replace(diag, findings=[found, *(f for f in diag.findings if f.code != "unexplained")])

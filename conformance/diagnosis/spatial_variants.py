@@ -47,6 +47,7 @@ __all__ = [
     "FEBIO",
     "to_voigt",
     "from_voigt",
+    "jaumann_terms",
     "TANGENT_VARIANTS",
     "PART_ORDERS",
     "spatial_variant_findings",
@@ -86,20 +87,23 @@ _SWAP = np.eye(6)[[0, 1, 2, 3, 5, 4]]
 _HALF = np.diag([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
 
 
+def jaumann_terms(sigma: np.ndarray) -> np.ndarray:
+    """(m, 3, 3, 3, 3) the Jaumann-rate terms (d_ik s_jl + s_ik d_jl + d_il s_jk + s_il d_jk) / 2
+    of the Cauchy stresses sigma (m, 3, 3): DDSDDE less c.
+    """
+    d = _EYE
+    terms = (
+        np.einsum("ik,mjl->mijkl", d, sigma)
+        + np.einsum("mik,jl->mijkl", sigma, d)
+        + np.einsum("il,mjk->mijkl", d, sigma)
+        + np.einsum("mil,jk->mijkl", sigma, d)
+    )
+    return 0.5 * terms
+
+
 def _jaumann(sign: float) -> Callable[[SpatialCells], np.ndarray]:
-    """The Jaumann-rate terms (d_ik s_jl + s_ik d_jl + d_il s_jk + s_il d_jk) / 2, times sign."""
-
-    def dc(t: SpatialCells) -> np.ndarray:
-        s, d = t.sigma, _EYE
-        terms = (
-            np.einsum("ik,mjl->mijkl", d, s)
-            + np.einsum("mik,jl->mijkl", s, d)
-            + np.einsum("il,mjk->mijkl", d, s)
-            + np.einsum("mil,jk->mijkl", s, d)
-        )
-        return 0.5 * sign * terms
-
-    return dc
+    """The Jaumann-rate terms (:func:`jaumann_terms`), times sign."""
+    return lambda t: sign * jaumann_terms(t.sigma)
 
 
 #: code -> (words, the engine's c minus the right c (SpatialCells -> (m, 3, 3, 3, 3)), the

@@ -22,12 +22,20 @@ from typing import Any, List, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.second_derivative import fit_cell_term
 
-__all__ = ["power_exponent", "rotation_basis", "spectral_findings"]
+__all__ = [
+    "power_exponent",
+    "rotation_basis",
+    "spectral_findings",
+    "SHEAR_VARIANTS",
+    "shear_term_fit",
+    "shear_term_findings",
+]
 
 
 def power_exponent(model: Any) -> Optional[float]:
@@ -179,3 +187,144 @@ def spectral_findings(
             {"residual": residual, "coefficient_median": float(p[1])},
         )
     ]
+
+
+# ------------------------------------------------------------------ the shear terms' factor
+#: code -> (words, the part of the spectral tangent whose a != b (shear) terms the engine
+#: writes wrong: "isochoric" (the whole isochoric tangent, as a spectral routine returns it)
+#: or "fictitious" (the fictitious tangent's divided differences, before the projection),
+#: the engine's factor on that part's terms per pair of isochoric stretches (a, b) (m, 3, 3)).
+SHEAR_VARIANTS = {
+    "shear-sign": (
+        "the off-diagonal (a != b, shear) terms of the spectral tangent with the wrong sign: "
+        "the numerator of their divided difference written the other way round (b's stress "
+        "term before a's) over lambda_a^2 - lambda_b^2",
+        "isochoric",
+        lambda la, lb: -np.ones_like(la * lb),
+    ),
+    "shear-sign-fictitious": (
+        "the off-diagonal (a != b, shear) terms of the fictitious spectral tangent "
+        "(S_b - S_a) / (lambda_b^2 - lambda_a^2) with the wrong sign (numerator reversed)",
+        "fictitious",
+        lambda la, lb: -np.ones_like(la * lb),
+    ),
+    "shear-stretches": (
+        "the off-diagonal (a != b, shear) terms of the spectral tangent divided by the "
+        "difference of the stretches, (S_b - S_a) / (lambda_b - lambda_a), where the "
+        "difference of their squares, lambda_b^2 - lambda_a^2, belongs (Holzapfel 6.196)",
+        "fictitious",
+        lambda la, lb: la + lb,
+    ),
+}
+
+
+def _pair_tensors(n: np.ndarray, a: int, b: int) -> tuple:
+    """(s (x) s, u, w) of the principal pair (a, b): s = w = n_a n_b + n_b n_a and
+    u = n_a n_a - n_b n_b (m, 3, 3), n (m, 3, 3) the principal directions as columns.
+    """
+    na, nb = n[:, :, a], n[:, :, b]
+    w = np.einsum("mi,mj->mij", na, nb) + np.einsum("mi,mj->mij", nb, na)
+    u = np.einsum("mi,mj->mij", na, na) - np.einsum("mi,mj->mij", nb, nb)
+    return np.einsum("mij,mkl->mijkl", w, w), u, w
+
+
+def shear_term_fit(model: Any, split, D: sp.csr_matrix, K_o: sp.csr_matrix, code: str):
+    """(residual ||D - prediction|| / ||K_o||, degenerate cells) of :data:`SHEAR_VARIANTS`'
+    ``code``: per cell, in the principal frame n_a of b, the shear coefficients of the
+    oracle's Kirchhoff tangent J c, g_ab = (n_a n_b) : J c : (n_a n_b) + J U' (its volumetric
+    -2 J U' II taken out, J U' = tr(tau) / 3), less tr(tau_bar) / 3 = mu / (3 alpha) sum
+    lambda_bar^alpha for the fictitious part; the engine's K = K_o + sum over pairs of
+    v grad N . (phi_ab - 1) g_ab (s (x) s) / J . grad N. Where two stretches are equal the
+    engine's frame in their plane is its round-off's: there the pair's s (x) s turns as
+    T0 + cos 4 psi T1 + sin 4 psi T2 and the two turns are fitted per cell. None: not an
+    Ogden model, or a cell with three equal stretches.
+    """
+    from conformance.diagnosis.elements import assemble, cell_piola
+    from conformance.diagnosis.invariant_pieces import cell_tensors
+    from conformance.diagnosis.spatial_tangent import spatial_cells
+
+    q = power_exponent(model)
+    if q is None:
+        return None
+    words, part, factor = SHEAR_VARIANTS[code]
+    P, A = cell_piola(split)
+    t = cell_tensors(P, A, split.F)
+    sc = spatial_cells(split, t.S, t.CC)
+    J = np.linalg.det(split.F)
+    Jc = J[:, None, None, None, None] * sc.c
+    tau = J[:, None, None] * sc.sigma
+    x, n = np.linalg.eigh(split.F @ split.F.swapaxes(1, 2))
+    xb = J[:, None] ** (-2.0 / 3.0) * x
+    close = np.abs(x[:, :, None] - x[:, None, :]) <= 1e-8 * x.max(axis=1)[:, None, None]
+    if np.any(close[:, 0, 1] & close[:, 1, 2]):
+        return None
+    sub = np.trace(tau, axis1=1, axis2=2) / 3.0  # J U'
+    if part == "fictitious":
+        sub = sub - float(model.mu) / (3.0 * 2.0 * q) * np.sum(xb**q, axis=1)
+    phi = factor(np.sqrt(xb)[:, :, None], np.sqrt(xb)[:, None, :])
+    m = J.size
+    known = np.zeros_like(Jc)
+    turns, owners = [], []
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        ss, u, w = _pair_tensors(n, a, b)
+        g = np.einsum("mij,mijkl,mkl->m", w, Jc, w) / 4.0 + sub
+        coef = ((phi[:, a, b] - 1.0) * g)[:, None, None, None, None]
+        deg = close[:, a, b]
+        uu, ww = np.einsum("mij,mkl->mijkl", u, u), np.einsum("mij,mkl->mijkl", w, w)
+        uw = np.einsum("mij,mkl->mijkl", u, w)
+        T0 = 0.5 * (uu + ww)
+        known = known + coef * np.where(deg[:, None, None, None, None], T0, ss)
+        for T in (0.5 * (ww - uu), -0.5 * (uw + uw.transpose(0, 3, 4, 1, 2))):
+            turns.append((coef * T)[deg])
+            owners.append(np.flatnonzero(deg))
+
+    def element(c4, v, gN):
+        Ke = np.einsum("m,maj,mijkl,mbl->maibk", v, gN, c4, gN, optimize=True)
+        return Ke.reshape(-1, 12, 12)
+
+    zero = np.zeros((m, 4, 3))
+    Kd = assemble(split.cells, split.n, zero, element(known, sc.v / J, sc.gN))[1]
+    R = (D - Kd).tocsr()
+    own = np.concatenate(owners)
+    if own.size == 0:
+        return float(sparse_norm(R)) / float(sparse_norm(K_o)), 0
+    basis = element(np.concatenate(turns), (sc.v / J)[own], sc.gN[own])
+    residual, _ = fit_cell_term(split.cells[own], basis, R, K_o)
+    return residual, int(np.unique(own).size)
+
+
+def shear_term_findings(model: Any, split, K: sp.spmatrix, K_o: sp.spmatrix, tol: float):
+    """The findings of :data:`SHEAR_VARIANTS` whose prediction (:func:`shear_term_fit`) leaves
+    the stiffness within ``tol`` ([] for another model, or none within).
+    """
+    K_o = sp.csr_matrix(K_o)
+    D = (sp.csr_matrix(K) - K_o).tocsr()
+    found = []
+    for code, (words, part, _) in SHEAR_VARIANTS.items():
+        fit = shear_term_fit(model, split, D, K_o, code)
+        if fit is None or not fit[0] <= tol:
+            continue
+        residual, turned = fit
+        found.append(
+            Finding(
+                f"tangent-{code}",
+                f"Ogden's spectral tangent: {words} (stiffness only)",
+                FULL,
+                "the oracle's Kirchhoff tangent J c per cell in the principal frame of b, its "
+                f"{part} part's a != b coefficients (the volumetric -2 J U' II taken out, "
+                "J U' = tr(tau)/3"
+                + (", and tr(tau_bar)/3 of the projection" if part == "fictitious" else "")
+                + ") given that factor, the rest kept: stiffness error against your engine "
+                f"{residual:.1e}"
+                + (
+                    f" ({turned} cells with two equal stretches: the turn of your engine's "
+                    "eigenvectors in their plane fitted, two numbers a cell; the other pairs "
+                    "predicted with nothing fitted)"
+                    if turned
+                    else " (nothing fitted)"
+                )
+                + "; the force matches",
+                {"variant": code, "residual": residual, "turned_cells": turned},
+            )
+        )
+    return found

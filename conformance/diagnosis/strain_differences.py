@@ -111,8 +111,9 @@ def _material_stiffness(split: ElementSplit, dCC: np.ndarray) -> sp.csr_matrix:
 class StrainDifferenceFit:
     """scheme ("forward" / "backward"); step: h; explained: the fraction of ||K - K_o||
     accounted for; residual: what is left, relative to ||K_o||; kind: "strain" (differences of
-    S in the strain) or "perturbation" (Miehe's perturbation of F,
-    :mod:`conformance.diagnosis.perturbation_differences`).
+    S in the strain), "perturbation" (Miehe's perturbation of F,
+    :mod:`conformance.diagnosis.perturbation_differences`) or "first-elasticity" (differences
+    of P in each component of F).
     """
 
     scheme: str
@@ -122,6 +123,11 @@ class StrainDifferenceFit:
     kind: str = "strain"
 
     def words(self) -> str:
+        if self.kind == "first-elasticity":
+            return (
+                f"{self.scheme} differences of the first Piola stress P in each component of F "
+                f"(the first elasticity tensor A = dP/dF numerically), step h = {self.step:.2e}"
+            )
         if self.kind == "perturbation":
             return (
                 f"{self.scheme} differences of the Kirchhoff stress under Miehe's perturbation "
@@ -178,14 +184,25 @@ _EVIDENCE = {
         "(eps/2) tau''_kl / J in column kl of the spatial tangent, tau'' the oracle's Kirchhoff "
         "stress differentiated twice along the perturbation",
     ),
+    "first-elasticity": (
+        "first-elasticity-finite-difference",
+        "(h/2) d2P_kI/dF_lL^2 in column lL of A = dP/dF, from the oracle's first Piola stress "
+        "differentiated twice in that component of F",
+    ),
 }
+
+#: kind -> the tangent it is, in words
+_TANGENT = {"strain": "material", "perturbation": "spatial", "first-elasticity": "first elasticity"}
 
 
 def strain_difference_reading(diag, ci, out, ref, s):
     """``diag`` (the force right, nothing named) with a finite-difference tangent named first
     (partly explaining: the higher orders and round-off are left) when a scheme's fit (in the
-    strain, or Miehe's perturbation of F) accounts for :data:`EXPLAINED` of the stiffness
-    error; both: said as ambiguous; unchanged when neither does.
+    strain, Miehe's perturbation of F, or P differenced in F's components) accounts for
+    :data:`EXPLAINED` of the stiffness error; several: said as ambiguous; when none does, a
+    perturbation of F of another form
+    (:func:`conformance.diagnosis.perturbation_differences.scheme_findings`); unchanged when
+    none fits.
     """
     from dataclasses import replace
 
@@ -195,6 +212,8 @@ def strain_difference_reading(diag, ci, out, ref, s):
     from conformance.diagnosis.perturbation_differences import (
         kirchhoff_curvatures,
         perturbation_basis,
+        piola_basis,
+        scheme_findings,
     )
 
     if ci.cells.shape[0] > MAX_CELLS:
@@ -215,6 +234,9 @@ def strain_difference_reading(diag, ci, out, ref, s):
         curv = kirchhoff_curvatures(ci.model, split, ci.points)
         if curv is not None and np.all(np.isfinite(curv)):
             fits.append(fit_step(perturbation_basis(split, curv), D, K_o, "perturbation"))
+        Bp = piola_basis(ci.model, split, ci.points)
+        if Bp is not None:
+            fits.append(fit_step(Bp, D, K_o, "first-elasticity"))
     found = []
     for fit in fits:
         if fit is None or fit.explained < EXPLAINED:
@@ -223,8 +245,7 @@ def strain_difference_reading(diag, ci, out, ref, s):
         found.append(
             Finding(
                 code,
-                f"a finite-difference {'spatial' if fit.kind == 'perturbation' else 'material'} "
-                f"tangent: {fit.words()}",
+                f"a finite-difference {_TANGENT[fit.kind]} tangent: {fit.words()}",
                 PARTIAL,
                 f"K - K_oracle is the leading error of that scheme per cell ({lead}), fitted "
                 f"with one unknown: it accounts for {100 * fit.explained:.2f} % of the "
@@ -233,7 +254,12 @@ def strain_difference_reading(diag, ci, out, ref, s):
                 {"step": fit.step, "scheme": fit.scheme, "explained": fit.explained},
             )
         )
+    why = "the schemes' errors fit alike"
+    if not found:  # the perturbation itself wrong?
+        with np.errstate(all="ignore"):
+            found = scheme_findings(ci.model, split, ci.points, D, s.stiffness, tol.stiffness)
+        why = "their perturbations predict the same tangent here"
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]
-    return replace(diag, findings=[*ambiguous(found, "both schemes' errors fit"), *rest])
+    return replace(diag, findings=[*ambiguous(found, why), *rest])
