@@ -12,7 +12,9 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
   frame (:mod:`conformance.diagnosis.routine_inputs`), which rotation-free states hide;
 - the spatial tangent in a wrong form (Voigt order, tensor shear rows in B, the Jaumann rate's
   terms) or one part of the element matrix in another local order
-  (:mod:`conformance.diagnosis.spatial_variants`).
+  (:mod:`conformance.diagnosis.spatial_variants`);
+- a fibre strain form's dQ/dC and d2Q/dCdC rotated back from the frame wrongly (with the
+  transpose, or not at all: :mod:`conformance.diagnosis.fibre_pieces`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -26,6 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.elements import cell_piola, element_split
+from conformance.diagnosis.fibre_pieces import fibre_piece_findings
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.piola_assembly import piola_force_findings
@@ -107,6 +110,7 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
         found += spatial_variant_findings(split, t, matches, tol.stiffness)
+        found += fibre_piece_findings(split, t, ci.model, matches)
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")
