@@ -77,7 +77,7 @@ def _codes(found):
     return [x.code for x, _ in found]
 
 
-def test_routine_handed_the_isochoric_F_is_named_and_a_halved_bulk_term_is_not():
+def test_routine_handed_the_isochoric_F_is_named_not_f_bar_in_the_stress_alone():
     model, points, split, f_o, K_o, s = _case()
     # the closed form is the oracle's with the true F (the hand engine is sound)
     f1, K1 = _ul_engine(split, *_neo(split.F))
