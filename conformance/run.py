@@ -38,10 +38,10 @@ from conformance.diagnosis.mixed_precision import (
 from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
+from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.sparsity import off_pattern_reading
-from conformance.diagnosis.spatial_assembly import spatial_assembly_reading
 from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
@@ -344,9 +344,10 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "an updated-Lagrangian assembly's kinematics",
+        "an updated-Lagrangian assembly's kinematics, or its material routine handed F_bar, U, "
+        "F^T or a corotated frame",
         _nothing_named,
-        lambda d, c: spatial_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+        lambda d, c: spatial_kinematics_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a total-Lagrangian assembly's first Piola stress and first elasticity tensor",

@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
-from conformance.judge.compare import Scales, Tolerances, errors
+from conformance.judge.compare import Errors, Scales, Tolerances, errors
 
 __all__ = [
     "ElementSplit",
@@ -43,6 +43,7 @@ __all__ = [
     "assemble",
     "cell_kinematics",
     "cell_piola",
+    "prediction_errors",
     "local_orders",
     "element_layouts",
     "order_findings",
@@ -302,6 +303,28 @@ def cell_piola(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
     Ke = split.Ke.reshape(-1, 4, 3, 4, 3)
     A = np.einsum("mia,makbl,mjb->mkilj", Dp, Ke, Dp) / V[:, None, None, None, None]
     return P, A
+
+
+def prediction_errors(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    prediction: Tuple[np.ndarray, sp.spmatrix],
+    s: Scales,
+    tol: Tolerances,
+) -> Optional[Errors]:
+    """The engine's errors (force f (n, 3), stiffness K) against a mistake's ``prediction``
+    (force, stiffness), or None unless they are within ``tol``, the prediction is finite and it
+    is not the oracle's own (the split's sum) within ``tol`` (then it is no evidence).
+    """
+    fv, Kv = prediction[0], sp.csr_matrix(prediction[1])
+    if not (np.all(np.isfinite(fv)) and np.all(np.isfinite(Kv.data))):
+        return None
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    if tol.within(errors(fv, Kv, None, f0, K0, 0.0, s), energy=False):
+        return None
+    e = errors(f, sp.csr_matrix(K), None, fv, Kv, 0.0, s)
+    return e if tol.within(e, energy=False) else None
 
 
 def _measure_output(

@@ -7,10 +7,14 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
 - the Voigt stress vector's shear components doubled (:mod:`conformance.diagnosis.voigt_stress`);
 - the spatial tangent without its 1/J (:mod:`conformance.diagnosis.spatial_tangent`);
 - at the probes near a state where the force is right, the first Piola stress formed as S F
-  (or F^T S, S F^T) for F S (:mod:`conformance.diagnosis.piola_assembly`);
+  (or F^T S, S F^T) for F S (:mod:`conformance.diagnosis.piola_assembly`), or an
+  updated-Lagrangian engine's kinematic slips and its routine handed U, F^T or a corotated
+  frame (:mod:`conformance.diagnosis.routine_inputs`), which rotation-free states hide;
 - the spatial tangent in a wrong form (Voigt order, tensor shear rows in B, the Jaumann rate's
   terms) or one part of the element matrix in another local order
-  (:mod:`conformance.diagnosis.spatial_variants`).
+  (:mod:`conformance.diagnosis.spatial_variants`);
+- a fibre strain form's dQ/dC and d2Q/dCdC rotated back from the frame wrongly (with the
+  transpose, or not at all: :mod:`conformance.diagnosis.fibre_pieces`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -24,9 +28,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.elements import cell_piola, element_split
+from conformance.diagnosis.fibre_pieces import fibre_piece_findings
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.piola_assembly import piola_force_findings
+from conformance.diagnosis.routine_inputs import probe_force_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
@@ -104,6 +110,7 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
         found += spatial_variant_findings(split, t, matches, tol.stiffness)
+        found += fibre_piece_findings(split, t, ci.model, matches)
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")
@@ -151,6 +158,7 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
             found = piece_findings(split, t, matches, _nearby(cache, near, s, tol))
             found += voigt_stress_findings(split, t.S, matches)
             found += piola_force_findings(split, t.S, matches)
+            found += probe_force_findings(near.model, near.points, split, matches)
         codes = {f.code: f for f in found}
         common = codes if common is None else {c: codes[c] for c in common if c in codes}
         if not common:

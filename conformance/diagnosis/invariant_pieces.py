@@ -41,6 +41,11 @@ __all__ = [
     "LAW_MISTAKES",
     "CHAIN_MISTAKES",
     "PieceFit",
+    "j_pieces",
+    "stress_tangent",
+    "design_columns",
+    "fit_columns",
+    "determined_change",
     "fit_pieces",
     "predict",
     "piece_findings",
@@ -131,6 +136,14 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
     return g, h
 
 
+def j_pieces(t: CellTensors) -> Tuple[np.ndarray, np.ndarray]:
+    """dJ/dC = J/2 C^-1 (m, 3, 3) and d2J/dCdC = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1
+    (m, 3, 3, 3, 3): the pieces of J in any law's chain rule.
+    """
+    g, h = _law(t)
+    return g[2], h[2]
+
+
 #: code -> title: one piece of (g, h) written wrongly, in the stress and the tangent alike.
 LAW_MISTAKES: Dict[str, str] = {
     "dJ-with-C": "dJ/dC written with C for C^-1 (J/2 C instead of J/2 C^-1) in your stress and "
@@ -209,7 +222,7 @@ def _chain_basis(t: CellTensors, mistake: str = "") -> Tuple[np.ndarray, np.ndar
     return dW, d2W
 
 
-def _stress_tangent(g, h, dW, d2W) -> Tuple[np.ndarray, np.ndarray]:
+def stress_tangent(g, h, dW, d2W) -> Tuple[np.ndarray, np.ndarray]:
     """S (k, m, 3, 3) and CC (k, m, 3, 3, 3, 3) of k unknowns given as dW (k, m, 3) and
     d2W (k, m, 3, 3) over (I1, I2, J), through the pieces g, h (lists of three).
     """
@@ -245,7 +258,7 @@ class PieceFit:
     used: np.ndarray
 
 
-def _columns(S: np.ndarray, CC: np.ndarray) -> np.ndarray:
+def design_columns(S: np.ndarray, CC: np.ndarray) -> np.ndarray:
     """(m, 90, k) design columns from S (k, m, 3, 3) and CC (k, m, 3, 3, 3, 3)."""
     k, m = S.shape[:2]
     return np.concatenate([S.reshape(k, m, 9), CC.reshape(k, m, 81)], axis=2).transpose(1, 2, 0)
@@ -263,8 +276,21 @@ def fit_pieces(t: CellTensors, form: str, used: Optional[np.ndarray] = None) -> 
     """
     g, h = _law(t)
     dW, d2W = _basis(t, form, "", used)
-    M = _columns(*_stress_tangent(g, h, dW, d2W))
-    y = np.concatenate([t.S.reshape(-1, 9), t.CC.reshape(-1, 81)], axis=1)
+    M = design_columns(*stress_tangent(g, h, dW, d2W))
+    x, scale, free, residual = fit_columns(M, t.S, t.CC)
+    used = np.ones(dW.shape[0], dtype=bool) if used is None else used
+    return PieceFit(form, x, scale, free, residual, used)
+
+
+def fit_columns(
+    M: np.ndarray, S: np.ndarray, CC: np.ndarray
+) -> Tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Least squares per cell of (S (m, 3, 3), CC (m, 3, 3, 3, 3)) on the design columns
+    M (m, 90, k) (:func:`design_columns`), by a batched SVD on unit columns: (x (m, k) the
+    unknowns, scale (m, k) the columns' norms, free (m, k, k) the unit free directions (rows;
+    zero where an unknown is determined), the largest relative misfit).
+    """
+    y = np.concatenate([S.reshape(-1, 9), CC.reshape(-1, 81)], axis=1)
     scale = np.linalg.norm(M, axis=1)
     scale[scale == 0] = 1.0
     U, sv, Vt = np.linalg.svd(M / scale[:, None, :], full_matrices=False)
@@ -275,8 +301,22 @@ def fit_pieces(t: CellTensors, form: str, used: Optional[np.ndarray] = None) -> 
     left = np.linalg.norm(np.einsum("mij,mj->mi", M, x) - y, axis=1)
     size = np.maximum(np.linalg.norm(y, axis=1), 1e-300)
     free = Vt * (~keep)[:, :, None]
-    used = np.ones(dW.shape[0], dtype=bool) if used is None else used
-    return PieceFit(form, x, scale, free, float(np.max(left / size)), used)
+    return x, scale, free, float(np.max(left / size))
+
+
+def determined_change(
+    L: np.ndarray, x: np.ndarray, scale: np.ndarray, free: np.ndarray
+) -> Optional[np.ndarray]:
+    """(m, 90) the change L x of (S, CC) that a mistake's design columns L (m, 90, k) (its
+    columns less the right ones) make with the fitted unknowns x (m, k); None where it moves
+    along a free direction of the fit (:func:`fit_columns`), i.e. is not determined.
+    """
+    Ls = L / scale[:, None, :]
+    moved = np.linalg.norm(np.einsum("mik,mjk->mij", Ls, free), axis=1)  # (m, k)
+    size = np.linalg.norm(Ls, axis=(1, 2))
+    if np.any(moved.max(axis=1) > DETERMINED * np.maximum(size, 1e-300)):
+        return None
+    return np.einsum("mik,mk->mi", L, x)
 
 
 def vanishing(fit: PieceFit, t: CellTensors) -> np.ndarray:
@@ -296,15 +336,12 @@ def predict(
     with the law mistake ``law`` or the chain mistake ``chain``; None where the fit leaves the
     prediction free (it changes along a free direction).
     """
-    right = _stress_tangent(*_law(t), *_basis(t, fit.form, "", fit.used))
-    wrong = _stress_tangent(*_law(t, law), *_basis(t, fit.form, chain, fit.used))
-    L = _columns(wrong[0] - right[0], wrong[1] - right[1])  # (m, 90, k)
-    Ls = L / fit.scale[:, None, :]
-    moved = np.linalg.norm(np.einsum("mik,mjk->mij", Ls, fit.free), axis=1)  # (m, k)
-    size = np.linalg.norm(Ls, axis=(1, 2))
-    if np.any(moved.max(axis=1) > DETERMINED * np.maximum(size, 1e-300)):
+    right = stress_tangent(*_law(t), *_basis(t, fit.form, "", fit.used))
+    wrong = stress_tangent(*_law(t, law), *_basis(t, fit.form, chain, fit.used))
+    L = design_columns(wrong[0] - right[0], wrong[1] - right[1])  # (m, 90, k)
+    d = determined_change(L, fit.x, fit.scale, fit.free)
+    if d is None:
         return None
-    d = np.einsum("mik,mk->mi", L, fit.x)
     m = t.J.size
     return d[:, :9].reshape(m, 3, 3), d[:, 9:].reshape(m, 3, 3, 3, 3)
 

@@ -42,7 +42,13 @@ from typing import Callable, List, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_piola,
+    prediction_errors,
+    split_reading,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -278,10 +284,8 @@ def piola_findings(
             if not tol.within(errors(f0, K0, None, fv, Kv, 0.0, s), energy=False):
                 return []  # the reassembly does not reproduce the oracle: claim nothing
             continue
-        if tol.within(errors(fv, Kv, None, f0, K0, 0.0, s), energy=False):
-            continue  # predicts the oracle's own output here: no evidence either way
-        e = errors(f, K, None, fv, Kv, 0.0, s)
-        if tol.within(e, energy=False):
+        e = prediction_errors(split, f, K, (fv, Kv), s, tol)
+        if e is not None:
             found.append(
                 Finding(
                     f"piola-assembly-{v.code}",

@@ -13,7 +13,8 @@ S and CC, :func:`conformance.diagnosis.invariant_pieces.cell_tensors`, pushed fo
 with
 
 - another gradient everywhere: F^-1 D_a (the row form D F^-T, the inverse transposed once too
-  often) or D_a itself (the reference gradients);
+  often), D_a itself (the reference gradients), or D_a multiplied by F where F^-1 belongs (the
+  row forms D F and D F^T);
 - only the geometric stiffness changed: built with the reference gradients D_a or with
   F^-1 D_a, or with the pressure part of sigma alone (tr(sigma)/3 I).
 
@@ -45,6 +46,7 @@ __all__ = [
     "ASSEMBLY_VARIANTS",
     "assemble_variant",
     "assembly_findings",
+    "assembly_matches",
     "spatial_assembly_reading",
 ]
 
@@ -52,20 +54,24 @@ __all__ = [
 @dataclass(frozen=True)
 class SpatialParts:
     """Per cell: the oracle's spatial quantities (sigma, c, the right gradients grad N_a =
-    F^-T D_a and v = J V0); gT (m, 4, 3) F^-1 D_a and D (m, 4, 3) the reference gradients, the
-    gradients of the mistakes.
+    F^-T D_a and v = J V0); gT (m, 4, 3) F^-1 D_a, D (m, 4, 3) the reference gradients, gF
+    (m, 4, 3) the row form D F and gFT the row form D F^T: the gradients of the mistakes.
     """
 
     cells: SpatialCells
     gT: np.ndarray
     D: np.ndarray
+    gF: np.ndarray
+    gFT: np.ndarray
 
 
 def spatial_parts(split: ElementSplit) -> SpatialParts:
     """The oracle's per-cell sigma and c, and the gradients, from its element split."""
     t = cell_tensors(*cell_piola(split), split.F)
     gT = np.einsum("mpi,mai->map", np.linalg.inv(split.F), split.D)  # F^-1 D_a
-    return SpatialParts(spatial_cells(split, t.S, t.CC), gT, split.D)
+    gF = split.D @ split.F  # rows D_a F (F^T D_a)
+    gFT = split.D @ split.F.swapaxes(1, 2)  # rows D_a F^T (F D_a)
+    return SpatialParts(spatial_cells(split, t.S, t.CC), gT, split.D, gF, gFT)
 
 
 @dataclass(frozen=True)
@@ -103,6 +109,21 @@ ASSEMBLY_VARIANTS: Tuple[AssemblyVariant, ...] = (
         "and the stiffness",
         grad="D",
         geo_grad="D",
+    ),
+    AssemblyVariant(
+        "gradient-times-F",
+        f"spatial shape gradients computed as D F (dN/dX multiplied by F, F^T D_a) where "
+        f"{_RIGHT} belongs (dN/dx = dN/dX dX/dx: the inverse of F missing), in the force and "
+        "the stiffness",
+        grad="gF",
+        geo_grad="gF",
+    ),
+    AssemblyVariant(
+        "gradient-times-F-transposed",
+        f"spatial shape gradients computed as D F^T (F D_a: dN/dX multiplied by F transposed) "
+        f"where {_RIGHT} belongs (the inverse of F missing), in the force and the stiffness",
+        grad="gFT",
+        geo_grad="gFT",
     ),
     AssemblyVariant(
         "b-from-C",
@@ -150,7 +171,7 @@ def assemble_variant(
     split: ElementSplit, parts: SpatialParts, v: AssemblyVariant
 ) -> Tuple[np.ndarray, sp.csr_matrix]:
     """Force (n, 3) and stiffness (3n, 3n) of an engine that assembles sigma and c as ``v``."""
-    grads = {"g": parts.cells.gN, "gT": parts.gT, "D": parts.D}
+    grads = {"g": parts.cells.gN, "gT": parts.gT, "D": parts.D, "gF": parts.gF, "gFT": parts.gFT}
     G, Gg = grads[v.grad], grads[v.geo_grad]
     vol = parts.cells.v
     sigma, c = parts.cells.sigma, parts.cells.c
@@ -175,6 +196,15 @@ def assembly_findings(
     """The variants of :data:`ASSEMBLY_VARIANTS` whose assembly matches the engine (several:
     ambiguous); none when the correct variant does not reproduce the split (then the per-cell
     sigma and c are not trusted).
+    """
+    return ambiguous(assembly_matches(split, f, K, s, tol))
+
+
+def assembly_matches(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """:func:`assembly_findings` before several are said as ambiguous (for a caller that adds
+    its own variants to the same comparison).
     """
     parts = spatial_parts(split)
     K = sp.csr_matrix(K)
@@ -201,7 +231,7 @@ def assembly_findings(
                     {"variant": v.code, "residual": max(e.force, e.stiffness)},
                 )
             )
-    return ambiguous(found)
+    return found
 
 
 def spatial_assembly_reading(diag, ci, out, ref, s: Scales):

@@ -1,0 +1,141 @@
+"""A fibre-frame routine whose results are rotated back to the global axes wrongly.
+
+An engine for a fibre strain form Q = sum_ij B_ij Ef_ij^2 (Costa's) takes the strain into the
+frame, Ef = R^T E R (R the per-cell frame, columns fibre, sheet, normal), computes the
+derivatives of Q there, dQ/dEf / 2 = B o Ef (entrywise) and the constant T_f, and rotates them
+back: dQ/dC = R (B o Ef) R^T and d2Q/dCdC = R R R R : T_f. A law W(Q, J) then has, by the chain
+rule,
+
+    S  = 2 (psi_Q dQ/dC + psi_J dJ/dC),
+    CC = 4 (psi_QQ dQ (x) dQ + psi_QJ (dQ (x) dJ + dJ (x) dQ) + psi_JJ dJ (x) dJ
+            + psi_Q d2Q + psi_J d2J).
+
+The five derivatives psi are not taken from a material's code: per cell they are fitted on the
+oracle's S and CC (:mod:`conformance.diagnosis.invariant_pieces`' machinery), which must be
+reproduced to round-off (else the law is not of this form and nothing is claimed). Each way of
+rotating back wrongly (:data:`ROTATIONS_BACK`) replaces dQ/dC and d2Q/dCdC in S and CC alike and
+predicts the engine's force and stiffness with nothing else fitted; it is named when that
+prediction matches the engine within the case's tolerance (and is determined by the fit).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Dict, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import ElementSplit
+from conformance.diagnosis.fibre_tangent import strain_form
+from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.invariant_pieces import (
+    FIT_TOL,
+    CellTensors,
+    design_columns,
+    determined_change,
+    fit_columns,
+    j_pieces,
+    stress_tangent,
+    stress_tangent_output,
+)
+
+__all__ = ["ROTATIONS_BACK", "q_pieces", "fibre_piece_findings"]
+
+_EYE = np.eye(3)
+
+#: code -> (words, the einsum specs rotating a frame tensor of second and of fourth order back
+#: with R, None: not rotated at all); the right one is R X R^T.
+ROTATIONS_BACK: Dict[str, Tuple[str, Optional[str], Optional[str]]] = {
+    "right": ("", "mia,mab,mjb->mij", "mia,mjb,mkc,mld,mabcd->mijkl"),
+    "transposed": (
+        "fibre-frame results (dQ/dC and d2Q/dCdC of the fibre strain form) rotated back to the "
+        "global axes with the transpose of the frame, R^T (.) R (R^T on every index of the "
+        "tangent) instead of R (.) R^T, the strain taken into the frame correctly (R^T E R)",
+        "mai,mab,mbj->mij",
+        "mai,mbj,mck,mdl,mabcd->mijkl",
+    ),
+    "not-rotated": (
+        "fibre-frame results (dQ/dC and d2Q/dCdC of the fibre strain form) never rotated back "
+        "to the global axes: used in the frame's components as if global, the strain taken "
+        "into the frame correctly (R^T E R)",
+        None,
+        None,
+    ),
+}
+
+
+def q_pieces(
+    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str = "right"
+) -> Tuple[np.ndarray, np.ndarray]:
+    """dQ/dC (m, 3, 3) and d2Q/dCdC (m, 3, 3, 3, 3) of Q = sum B_ij (R^T E R)_ij^2, rotated back
+    as ``back`` (a key of :data:`ROTATIONS_BACK`). B: (3, 3); R: (m, 3, 3).
+    """
+    Ef = np.einsum("mai,mab,mbj->mij", R, 0.5 * (t.C - _EYE), R)
+    Tf = 0.25 * (
+        np.einsum("ab,ac,bd->abcd", B, _EYE, _EYE) + np.einsum("ab,ad,bc->abcd", B, _EYE, _EYE)
+    )
+    Tf = np.broadcast_to(Tf, R.shape[:1] + Tf.shape)
+    _, two, four = ROTATIONS_BACK[back]
+    if two is None or four is None:
+        return B * Ef, np.array(Tf)
+    return np.einsum(two, R, B * Ef, R), np.einsum(four, R, R, R, R, Tf, optimize=True)
+
+
+def _columns(t: CellTensors, B: np.ndarray, R: np.ndarray, back: str) -> np.ndarray:
+    """(m, 90, 5) the design columns of psi_Q, psi_J, psi_QQ, psi_QJ, psi_JJ with dQ and d2Q
+    rotated back as ``back``.
+    """
+    gQ, hQ = q_pieces(t, B, R, back)
+    gJ, hJ = j_pieces(t)
+    m = t.J.size
+    dW = np.zeros((5, m, 2))
+    d2W = np.zeros((5, m, 2, 2))
+    dW[0, :, 0] = dW[1, :, 1] = 1.0
+    d2W[2, :, 0, 0] = d2W[4, :, 1, 1] = 1.0
+    d2W[3, :, 0, 1] = d2W[3, :, 1, 0] = 1.0
+    return design_columns(*stress_tangent([gQ, gJ], [hQ, hJ], dW, d2W))
+
+
+def fibre_piece_findings(
+    split: ElementSplit,
+    t: CellTensors,
+    model: Any,
+    matches: Callable[[np.ndarray, sp.csr_matrix], float],
+) -> List[Finding]:
+    """The wrong rotations back of :data:`ROTATIONS_BACK` whose prediction the engine matches
+    (matches(f, K): the engine's larger error against (f, K), inf unless within the tolerance
+    and not the oracle's own); none for a model without a fibre strain form or a law that is
+    not W(Q, J) on this case.
+    """
+    form = strain_form(model, t.J.size)
+    if form is None:
+        return []
+    B, R = form
+    right = _columns(t, B, R, "right")
+    x, scale, free, residual = fit_columns(right, t.S, t.CC)
+    if residual > FIT_TOL:
+        return []
+    found = []
+    for code, (words, _, _) in ROTATIONS_BACK.items():
+        if code == "right":
+            continue
+        d = determined_change(_columns(t, B, R, code) - right, x, scale, free)
+        if d is None:
+            continue
+        m = t.J.size
+        dS, dCC = d[:, :9].reshape(m, 3, 3), d[:, 9:].reshape(m, 3, 3, 3, 3)
+        left = matches(*stress_tangent_output(split, dS, dS, dCC))
+        if np.isfinite(left):
+            found.append(
+                Finding(
+                    f"fibre-rotated-back-{code}",
+                    words,
+                    FULL,
+                    "the oracle's stress and tangent per cell (from the element matrices, whose "
+                    f"sum is the oracle's to {split.residual:.1e}) fitted on the chain rule of "
+                    f"W(Q, J) (misfit {residual:.1e}), dQ/dC and d2Q/dCdC rotated back so and "
+                    f"the rest kept: force and stiffness errors against your engine {left:.1e}",
+                    {"rotation": code, "residual": left},
+                )
+            )
+    return found

@@ -1,0 +1,117 @@
+"""A fibre-frame routine's results rotated back wrongly (conformance.diagnosis.fibre_pieces):
+Costa's dQ/dC and d2Q/dCdC computed in the frame and rotated back with R^T (.) R, or not at
+all, the strain taken into the frame rightly. The engine is Costa written out here by hand
+(total-Lagrangian: f_a = -V0 F S D_a, K_ab = V0 (D_a F CC F D_b + D_a S D_b I)).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.elements import assemble, cell_piola
+from conformance.diagnosis.fibre_pieces import fibre_piece_findings
+from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.judge.compare import DOUBLE, errors
+from mjed.materials import Costa
+
+A, K0, BS = 0.9, 3.0, (1.0, 0.3, 0.8, 0.2, 0.1, 0.5)  # b_ff, b_fs, b_ss, b_fn, b_sn, b_nn
+EYE = np.eye(3)
+
+
+def _rotations(n, seed):
+    R = np.linalg.qr(np.random.default_rng(seed).standard_normal((n, 3, 3)))[0]
+    return R * np.sign(np.linalg.det(R))[:, None, None]
+
+
+def _dyad(a, b):
+    return np.einsum("mij,mkl->mijkl", a, b)
+
+
+def _costa_engine(split, R, back):
+    """Force and stiffness of Costa with dQ/dC, d2Q/dCdC rotated back by ``back`` ("right":
+    R X R^T; "transposed": R^T X R; "none": X).
+    """
+    bff, bfs, bss, bfn, bsn, bnn = BS
+    B = np.array([[bff, bfs, bfn], [bfs, bss, bsn], [bfn, bsn, bnn]])
+    F = split.F
+    J = np.linalg.det(F)
+    C = F.swapaxes(1, 2) @ F
+    Ci = np.linalg.inv(C)
+    Ef = np.einsum("mai,mab,mbj->mij", R, 0.5 * (C - EYE), R)
+    Q = np.einsum("ij,mij->m", B, Ef * Ef)
+    Tf = 0.25 * (
+        np.einsum("ab,ac,bd->abcd", B, EYE, EYE) + np.einsum("ab,ad,bc->abcd", B, EYE, EYE)
+    )
+    Tf = np.broadcast_to(Tf, (J.size, 3, 3, 3, 3))
+    if back == "right":
+        H = R @ (B * Ef) @ R.swapaxes(1, 2)
+        dH = np.einsum("mia,mjb,mkc,mld,mabcd->mijkl", R, R, R, R, Tf)
+    elif back == "transposed":
+        H = R.swapaxes(1, 2) @ (B * Ef) @ R
+        dH = np.einsum("mai,mbj,mck,mdl,mabcd->mijkl", R, R, R, R, Tf)
+    else:
+        H, dH = B * Ef, np.array(Tf)
+    j43 = (J ** (-4.0 / 3.0))[:, None, None]
+    e = np.exp(j43[:, 0, 0] * Q)[:, None, None]
+    Qs = Q[:, None, None, None, None]
+    G = j43 * (H - (2.0 / 3.0) * Q[:, None, None] * Ci)
+    odot = 0.5 * (np.einsum("mik,mjl->mijkl", Ci, Ci) + np.einsum("mil,mjk->mijkl", Ci, Ci))
+    d2 = -(2.0 / 3.0) * (_dyad(H, Ci) + _dyad(Ci, H)) + (4.0 / 9.0) * Qs * _dyad(Ci, Ci)
+    d2 = j43[..., None, None] * (d2 + (2.0 / 3.0) * Qs * odot + dH)
+    lnJ = np.log(J)[:, None, None]
+    S = A * e * G + K0 * J[:, None, None] * lnJ * Ci
+    CC = 2.0 * A * e[..., None, None] * (_dyad(G, G) + d2)
+    Jv = J[:, None, None, None, None]
+    CC = (
+        CC
+        + K0 * Jv * (lnJ[..., None, None] + 1.0) * _dyad(Ci, Ci)
+        - 2.0 * K0 * Jv * lnJ[..., None, None] * odot
+    )
+    V0, D = split.V0, split.D
+    fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, S, D)
+    mat = np.einsum("maI,mkJ,mJIML,mlM,mbL->makbl", D, F, CC, F, D)
+    geo = np.einsum("maI,mIL,mbL,kl->makbl", D, S, D, EYE)
+    Ke = (V0[:, None, None, None, None] * (mat + geo)).reshape(-1, 12, 12)
+    return assemble(split.cells, split.n, fe, Ke)
+
+
+def _case(seed):
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.15, 0.95, 0.9]).T + 0.05 * rng.standard_normal(points.shape)
+    R = _rotations(cells.shape[0], seed + 10)
+    model = Costa(A, K0, *BS, frame=R)
+    return model, R, points, cells, x, *mjed_split(model, points, cells, x)
+
+
+def _found(split, model, f, K, f_o, K_o, s):
+    def matches(fp, Kp):
+        if DOUBLE.within(errors(fp, Kp, None, f_o, K_o, 0.0, s), energy=False):
+            return float("inf")
+        e = errors(f, sp.csr_matrix(K), None, fp, Kp, 0.0, s)
+        return max(e.force, e.stiffness) if DOUBLE.within(e, energy=False) else float("inf")
+
+    t = cell_tensors(*cell_piola(split), split.F)
+    return [x.code for x in fibre_piece_findings(split, t, model, matches)]
+
+
+def test_results_rotated_back_with_the_transpose_or_not_at_all_are_told_apart():
+    model, R, points, cells, x, split, f_o, K_o, s = _case(0)
+    f, K = _costa_engine(split, R, "right")  # the hand engine is the oracle's
+    assert DOUBLE.within(errors(f, K, None, f_o, K_o, 0.0, s), energy=False)
+    assert _found(split, model, f, K, f_o, K_o, s) == []
+    for back, code in (("transposed", "transposed"), ("none", "not-rotated")):
+        f, K = _costa_engine(split, R, back)
+        assert _found(split, model, f, K, f_o, K_o, s) == [f"fibre-rotated-back-{code}"]
+
+
+def test_the_whole_frame_transposed_is_not_a_wrong_rotation_back():
+    """R^T for R everywhere (the strain taken into the frame with it too): not this mistake."""
+    import mjed
+
+    model, R, points, cells, x, split, f_o, K_o, s = _case(1)
+    wrong = Costa(A, K0, *BS, frame=np.ascontiguousarray(R.swapaxes(1, 2)))
+    f, K = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), wrong).force_and_stiffness(x)
+    assert _found(split, model, f, sp.csr_matrix(K), f_o, K_o, s) == []
