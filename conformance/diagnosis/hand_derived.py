@@ -10,7 +10,10 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
   (or F^T S, S F^T) for F S (:mod:`conformance.diagnosis.piola_assembly`);
 - the spatial tangent in a wrong form (Voigt order, tensor shear rows in B, the Jaumann rate's
   terms) or one part of the element matrix in another local order
-  (:mod:`conformance.diagnosis.spatial_variants`).
+  (:mod:`conformance.diagnosis.spatial_variants`);
+- when none of these: a UMAT driver's DDSDDE scaled and its Jaumann terms weighted, fitted over
+  declared per-cell pieces and named in simple numbers
+  (:mod:`conformance.diagnosis.spatial_pieces`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -27,6 +30,7 @@ from conformance.diagnosis.elements import cell_piola, element_split
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.piola_assembly import piola_force_findings
+from conformance.diagnosis.spatial_pieces import piece_fit_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
@@ -104,6 +108,8 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
         found += spatial_variant_findings(split, t, matches, tol.stiffness)
+        if not found:
+            found = piece_fit_findings(split, t, K_engine, matches)
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")
