@@ -9,6 +9,7 @@ weight that is no simple number) that must not get the cause.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from conftest import box_mesh
 from diagnosis_stubs import CaseStub, MjedCache, OutputStub
@@ -61,8 +62,30 @@ def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT):
     ddsdde = c + T.sum(axis=0)
     c_e = np.asarray(scale(J))[..., None, None, None, None] * ddsdde
     c_e = c_e + np.einsum("q,qmijkl->mijkl", np.asarray(weights, dtype=float), T)
-    g = D @ np.linalg.inv(F)
-    v = J * np.abs(V0)
+    return _assemble(points, cells, D @ np.linalg.inv(F), J * np.abs(V0), s, c_e)
+
+
+def _neo_engine(points, cells, x, weight=-1.0):
+    """(f, K) of a Neo-Hookean engine written with c = lam/J I (x) I + 2 (mu + weight lam ln J)/J
+    II (the right: weight -1).
+    """
+    from mjed.mesh import shape_vectors
+
+    model = default_material("NeoHookean")
+    mu, lam = model.mu, model.lam
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    J = np.linalg.det(F)
+    lnJ = np.log(J)[:, None, None]
+    s = (mu * (F @ F.swapaxes(1, 2) - EYE) + lam * lnJ * EYE) / J[:, None, None]
+    II = 0.5 * (np.einsum("ik,jl->ijkl", EYE, EYE) + np.einsum("il,jk->ijkl", EYE, EYE))
+    k = (2.0 * (mu + weight * lam * np.log(J)) / J)[:, None, None, None, None]
+    c_e = (lam / J)[:, None, None, None, None] * np.einsum("ij,kl->ijkl", EYE, EYE) + k * II
+    return _assemble(points, cells, D @ np.linalg.inv(F), J * np.abs(V0), s, c_e)
+
+
+def _assemble(points, cells, g, v, s, c_e):
+    """(f, K): f_a = -v s g_a, K_ab = v (g_a . c_e . g_b + (g_a . s g_b) I), summed."""
     fe = -np.einsum("m,mij,maj->mai", v, s, g)
     Ke = np.einsum("maj,mijkl,mbl->maibk", g, c_e, g)
     Ke = Ke + np.einsum("maj,mjl,mbl,ik->maibk", g, s, g, EYE)
@@ -76,12 +99,15 @@ def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT):
     return f.reshape(n, 3), K
 
 
-def _causes(uniform=False, **mistake):
-    """The codes of the causes named for the engine with ``mistake``, and all the titles."""
+def _causes(uniform=False, law="StVenantKirchhoff", **mistake):
+    """The codes of the causes named for the engine of ``law`` with ``mistake``, and all the
+    titles.
+    """
     points, cells, x = _state(uniform)
-    ci = CaseStub(points, cells, x, default_material("StVenantKirchhoff"))
+    ci = CaseStub(points, cells, x, default_material(law))
     ref = MjedCache().reference(ci)
-    f, K = _engine(points, cells, x, **mistake)
+    engine = _engine if law == "StVenantKirchhoff" else _neo_engine
+    f, K = engine(points, cells, x, **mistake)
     s = scales(0.5, 1.0, ref.force, ref.stiffness)
     e = errors(f, K, None, ref.force, ref.stiffness, 0.0, s)
     diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
@@ -90,10 +116,11 @@ def _causes(uniform=False, **mistake):
     return [c.code for c in d.causes], [c.title for c in d.findings]
 
 
-def test_the_engine_written_right_is_the_oracle():
+@pytest.mark.parametrize("law", ["StVenantKirchhoff", "NeoHookean"])
+def test_the_engine_written_right_is_the_oracle(law):
     points, cells, x = _state()
-    ref = MjedCache().reference(CaseStub(points, cells, x, default_material("StVenantKirchhoff")))
-    f, K = _engine(points, cells, x)
+    ref = MjedCache().reference(CaseStub(points, cells, x, default_material(law)))
+    f, K = (_engine if law == "StVenantKirchhoff" else _neo_engine)(points, cells, x)
     assert np.abs(f - ref.force).max() < 1e-9 * np.abs(ref.force).max()
     assert abs(K - ref.stiffness).max() < 1e-9 * abs(ref.stiffness).max()
 
@@ -126,3 +153,17 @@ def test_on_a_state_with_one_j_the_factor_is_said_as_both():
     codes, titles = _causes(uniform=True, scale=lambda J: 1.0 / J)
     assert codes == ["spatial-tangent-pieces"], titles
     assert "divided by J once more" in titles[0] and "equally the constant" in titles[0]
+
+
+def test_one_isotropic_term_with_its_sign_flipped_is_named_and_another_weight_is_not():
+    """Neo-Hookean's 2 (mu - lam ln J)/J II written with + lam ln J: the term -2 lam (ln J/J) II
+    with its sign flipped; the weight -0.3 on lam ln J (no ratio of RATIOS) is not named; on a
+    state with one J the functions of J coincide and nothing is named.
+    """
+    codes, titles = _causes(law="NeoHookean", weight=1.0)
+    assert codes == ["spatial-isotropic-term"], titles
+    assert "sign flipped" in titles[0] and "-2 lam (ln J / J) II" in titles[0], titles
+    codes, titles = _causes(law="NeoHookean", weight=-0.3)
+    assert "spatial-isotropic-term" not in codes, titles
+    codes, titles = _causes(law="NeoHookean", weight=1.0, uniform=True)
+    assert "spatial-isotropic-term" not in codes, titles

@@ -12,8 +12,8 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
   terms) or one part of the element matrix in another local order
   (:mod:`conformance.diagnosis.spatial_variants`);
 - when none of these: a UMAT driver's DDSDDE scaled and its Jaumann terms weighted, fitted over
-  declared per-cell pieces and named in simple numbers
-  (:mod:`conformance.diagnosis.spatial_pieces`).
+  declared per-cell pieces and named in simple numbers, or one term of an isotropic tangent in
+  J alone taken wrong (:mod:`conformance.diagnosis.spatial_pieces`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -21,6 +21,7 @@ that match with different predictions are shown as ambiguous.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import replace
 
 import numpy as np
@@ -30,7 +31,7 @@ from conformance.diagnosis.elements import cell_piola, element_split
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.piola_assembly import piola_force_findings
-from conformance.diagnosis.spatial_pieces import piece_fit_findings
+from conformance.diagnosis.spatial_pieces import isotropic_fit_findings, piece_fit_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
@@ -66,6 +67,14 @@ def _nearby(cache, ci, s: Scales, tol):
         near.model, near.points, near.cells, near.positions, r.force, r.stiffness, s, tol
     )
     return None if split is None else cell_tensors(*cell_piola(split), split.F)
+
+
+def _parameters(model) -> dict:
+    """The law's scalar parameters, name -> value (none when it is not a dataclass)."""
+    if not dataclasses.is_dataclass(model):
+        return {}
+    values = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    return {k: float(v) for k, v in values.items() if isinstance(v, (int, float))}
 
 
 def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
@@ -110,6 +119,8 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += spatial_variant_findings(split, t, matches, tol.stiffness)
         if not found:
             found = piece_fit_findings(split, t, K_engine, matches)
+        if not found:
+            found = isotropic_fit_findings(split, t, K_engine, matches, _parameters(ci.model))
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")

@@ -23,11 +23,20 @@ DDSDDE J and DDSDDE coincide: the factor is fitted on DDSDDE alone and a factor 
 together with the constant it equals there. Pieces that coincide on a state otherwise (the fit
 not determined) name nothing. T1 assembles exactly as half the geometric stiffness
 v (grad N_a . sigma grad N_b) I: a weight on it is said with that reading too.
+
+A law whose spatial tangent is isotropic with coefficients in J alone (the compressible
+Neo-Hookean forms, c = lam/J I (x) I + 2 (mu - lam ln J)/J II) has its terms fitted the same
+way over the pieces of :data:`ISOTROPIC` (I (x) I and II times 1/J and ln J / J):
+:func:`isotropic_fit_findings` fits the oracle's c and the engine's, and names one term taken
+wrong (:data:`RATIOS`: sign flipped, dropped, doubled, halved) when the oracle's c lies in the
+pieces' span and that term so, nothing else changed, matches the engine. On a state whose cells
+share one J the pieces coincide (1/J and ln J / J are one column there) and nothing is named;
+a law outside that span (any with b in its tangent) is not read this way.
 """
 
 from __future__ import annotations
 
-from typing import Callable, List, Tuple
+from typing import Callable, List, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,7 +47,15 @@ from conformance.diagnosis.invariant_pieces import CellTensors
 from conformance.diagnosis.spatial_tangent import SpatialCells, spatial_cells
 from conformance.diagnosis.spatial_variants import jaumann_terms
 
-__all__ = ["SCALES", "WEIGHTS", "TERMS", "piece_fit_findings"]
+__all__ = [
+    "SCALES",
+    "WEIGHTS",
+    "TERMS",
+    "piece_fit_findings",
+    "ISOTROPIC",
+    "RATIOS",
+    "isotropic_fit_findings",
+]
 
 #: The simple numbers a factor on DDSDDE is taken to (1e-6 .. 1e6: units, MPa against Pa).
 SCALES = (0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0, 1e-6, 1e-3, 1e3, 1e6)
@@ -133,6 +150,33 @@ def _words(a: Tuple[float, float, float], b: np.ndarray, J0: float) -> str:
     return "; ".join(said)
 
 
+def _entries(split: ElementSplit, Ke: np.ndarray) -> np.ndarray:
+    """(q,) the assembled entries of element matrices Ke (m, 12, 12) on the mesh's pattern."""
+    return assemble(split.cells, split.n, split.fe, Ke)[1].tocoo().data
+
+
+def _fit(
+    split: ElementSplit, t: SpatialCells, Ke: np.ndarray, K_engine: sp.spmatrix
+) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """Least squares over the pieces' stiffnesses Ke (k, m, 12, 12) of the engine's material
+    stiffness (its K less the oracle's geometric part) and of the oracle's (the stiffness of c):
+    their coefficients (k,) each; None when the pieces are not determined on this state.
+    """
+    K_c = _stiffness(t, t.c)
+    base = assemble(split.cells, split.n, split.fe, split.Ke - K_c)[1].tocoo()
+    engine = np.asarray(sp.csr_matrix(K_engine)[base.row, base.col]).ravel()
+    A = np.stack([_entries(split, k) for k in Ke], axis=1)
+    norm = np.linalg.norm(A, axis=0)
+    if not np.all(norm > 0):
+        return None
+    sv = np.linalg.svd(A / norm, compute_uv=False)
+    if sv[-1] < DETERMINED * sv[0]:
+        return None
+    y = np.stack([engine - base.data, _entries(split, K_c)], axis=1)
+    x = np.linalg.lstsq(A / norm, y, rcond=None)[0] / norm[:, None]
+    return x[:, 0], x[:, 1]
+
+
 def piece_fit_findings(
     split: ElementSplit,
     cells: CellTensors,
@@ -155,26 +199,10 @@ def piece_fit_findings(
     scales = [np.ones(m)] if one_j else [np.ones(m), 1.0 / J, J]
     pieces = [q[:, None, None, None, None] * D for q in scales] + list(T)
     Ke = np.stack([_stiffness(t, p) for p in pieces])  # (k, m, 12, 12)
-    dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
-    rows = np.repeat(dof, 12, axis=1).ravel()
-    cols = np.tile(dof, (1, 12)).ravel()
-    pattern = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=K_engine.shape).tocoo()
-    r, c = pattern.row, pattern.col
-
-    def entries(K: sp.spmatrix) -> np.ndarray:
-        return np.asarray(sp.csr_matrix(K)[r, c]).ravel()
-
-    A = np.stack([entries(assemble(split.cells, split.n, split.fe, k)[1]) for k in Ke], axis=1)
-    K_oracle = assemble(split.cells, split.n, split.fe, split.Ke)[1]
-    K_c = assemble(split.cells, split.n, split.fe, _stiffness(t, t.c))[1]
-    y = entries(K_engine) - entries(K_oracle) + entries(K_c)
-    norm = np.linalg.norm(A, axis=0)
-    if not np.all(norm > 0):
+    fit = _fit(split, t, Ke, K_engine)
+    if fit is None:
         return []
-    sv = np.linalg.svd(A / norm, compute_uv=False)
-    if sv[-1] < DETERMINED * sv[0]:
-        return []
-    x = np.linalg.lstsq(A / norm, y, rcond=None)[0] / norm
+    x, _ = fit
     J0 = float(J[0]) if one_j else float("nan")
     scale_values = SCALES + ((J0, 1.0 / J0) if one_j else ())
     a0 = _nearest(x[0], scale_values)
@@ -212,3 +240,90 @@ def piece_fit_findings(
             },
         )
     ]
+
+
+#: The isotropic pieces of a law whose spatial tangent is isotropic in J alone (the compressible
+#: Neo-Hookean forms): code -> (words, f(J) (m,) -> (m,), the fourth-order tensor (3,3,3,3)).
+_D = np.eye(3)
+_IXI = np.einsum("ij,kl->ijkl", _D, _D)
+_II = 0.5 * (np.einsum("ik,jl->ijkl", _D, _D) + np.einsum("il,jk->ijkl", _D, _D))
+ISOTROPIC = {
+    "IxI/J": ("(1/J) I (x) I", lambda J: 1.0 / J, _IXI),
+    "II/J": ("(1/J) II", lambda J: 1.0 / J, _II),
+    "lnJ IxI/J": ("(ln J / J) I (x) I", lambda J: np.log(J) / J, _IXI),
+    "lnJ II/J": ("(ln J / J) II", lambda J: np.log(J) / J, _II),
+}
+
+#: What one isotropic term of the engine's tangent may be, as a multiple of the oracle's.
+RATIOS = {-1.0: "with its sign flipped", 0.0: "dropped", 2.0: "doubled", 0.5: "halved"}
+
+#: The multiples of a material parameter a coefficient is said as.
+_MULTIPLES = (1.0, -1.0, 2.0, -2.0, 0.5, -0.5, 4.0, -4.0)
+
+
+def _in_parameters(x: float, parameters: dict) -> str:
+    """The number x as a simple multiple of a material parameter (2 lam), else as it is."""
+    for name, value in parameters.items():
+        for r in _MULTIPLES:
+            if value and abs(x - r * value) <= 1e-9 * abs(x):
+                return f"{'-' if r < 0 else ''}{_number(abs(r)) + ' ' if abs(r) != 1 else ''}{name}"
+    return f"{x:.6g}"
+
+
+def isotropic_fit_findings(
+    split: ElementSplit,
+    cells: CellTensors,
+    K_engine: sp.spmatrix,
+    matches: Callable[..., float],
+    parameters: dict,
+) -> List[Finding]:
+    """One term of an isotropic spatial tangent (:data:`ISOTROPIC`) taken wrong
+    (:data:`RATIOS`): the oracle's c and the engine's fitted over the pieces' stiffnesses, named
+    when the oracle's lies in their span, exactly one coefficient differs by a ratio of
+    :data:`RATIOS`, and the rebuilt prediction matches. Nothing on a state whose cells share
+    one J (the functions of J coincide there). parameters: the law's name -> value.
+    """
+    t = spatial_cells(split, cells.S, cells.CC)
+    J = t.v / split.V0
+    if np.ptp(J) <= ONE_J * np.abs(J).max():
+        return []
+    tensors = [q(J)[:, None, None, None, None] * T for _, q, T in ISOTROPIC.values()]
+    Ke = np.stack([_stiffness(t, p) for p in tensors])
+    fit = _fit(split, t, Ke, K_engine)
+    if fit is None:
+        return []
+    beta, alpha = fit
+    y_c = _entries(split, _stiffness(t, t.c))
+    if np.linalg.norm(np.stack([_entries(split, k) for k in Ke], 1) @ alpha - y_c) > 1e-9 * (
+        np.linalg.norm(y_c)
+    ):
+        return []  # the oracle's tangent is not of this form
+    found = []
+    for k, (code, (words, _, _)) in enumerate(ISOTROPIC.items()):
+        if alpha[k] == 0.0 or abs(alpha[k]) < 1e-9 * np.abs(alpha).max():
+            continue
+        ratio = min(RATIOS, key=lambda v: abs(beta[k] / alpha[k] - v))
+        Kp = split.Ke + (ratio - 1.0) * alpha[k] * Ke[k]
+        left = matches(*assemble(split.cells, split.n, split.fe, Kp))
+        if np.isfinite(left):
+            term = f"{_in_parameters(alpha[k], parameters)} {words}"
+            found.append(
+                Finding(
+                    "spatial-isotropic-term",
+                    f"one term of the isotropic spatial tangent {RATIOS[ratio]}: {term} (II the "
+                    "symmetric identity, I (x) I the dyad of identities, J the volume ratio) "
+                    f"written as {_in_parameters(ratio * alpha[k], parameters)} {words}",
+                    FULL,
+                    "the oracle's spatial tangent fits, cell by cell, "
+                    + " + ".join(
+                        f"{_in_parameters(a, parameters)} {w}"
+                        for a, (w, _, _) in zip(alpha, ISOTROPIC.values())
+                        if abs(a) >= 1e-9 * np.abs(alpha).max()
+                    )
+                    + f"; the engine's stiffness fitted so (coefficients "
+                    f"{', '.join(f'{v:.6g}' for v in beta)}); that term {RATIOS[ratio]} and "
+                    f"the rest kept: errors against your engine {left:.1e}",
+                    {"term": code, "ratio": ratio, "residual": left},
+                )
+            )
+    return found
