@@ -9,6 +9,7 @@ has a nearby one that must not get its cause.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 from conftest import box_mesh
 from diagnosis_stubs import CaseStub, MjedCache, OutputStub
@@ -33,6 +34,16 @@ def _state():
     return points, cells, x
 
 
+def _start(points, cells):
+    """St Venant-Kirchhoff's mu, lam, the rest volumes and shape vectors, n, and zero f, K."""
+    from mjed.mesh import shape_vectors
+
+    model = default_material("StVenantKirchhoff")
+    V0, D = shape_vectors(points, cells)
+    n = points.shape[0]
+    return model.mu, model.lam, V0, D, n, np.zeros(3 * n), np.zeros((3 * n, 3 * n))
+
+
 def _engine(
     points,
     cells,
@@ -49,14 +60,7 @@ def _engine(
     terms added to c, shear_b the factor on B's shear rows (shear_b_force: in the force too),
     geo the 12 x 12 layout of the geometric block from G (4, 4), extra a term added to c.
     """
-    from mjed.mesh import shape_vectors
-
-    model = default_material("StVenantKirchhoff")
-    mu, lam = model.mu, model.lam
-    V0, D = shape_vectors(points, cells)
-    n = points.shape[0]
-    f = np.zeros(3 * n)
-    K = np.zeros((3 * n, 3 * n))
+    mu, lam, V0, D, n, f, K = _start(points, cells)
     for e, cell in enumerate(cells):
         F = x[cell].T @ D[e]
         J = np.linalg.det(F)
@@ -97,13 +101,15 @@ def _engine(
     return f.reshape(n, 3), sp.csr_matrix(K)
 
 
-def _diagnosis(**mistake):
-    """hand_derived_reading's diagnosis of the engine with ``mistake``."""
+def _diagnosis(engine=None, **mistake):
+    """hand_derived_reading's diagnosis of ``engine`` (default: the FEBio-style one) with
+    ``mistake``.
+    """
     points, cells, x = _state()
     model = default_material("StVenantKirchhoff")
     ci = CaseStub(points, cells, x, model)
     ref = MjedCache().reference(ci)
-    f, K = _engine(points, cells, x, **mistake)
+    f, K = (engine or _engine)(points, cells, x, **mistake)
     s = scales(0.5, 1.0, ref.force, ref.stiffness)
     e = errors(f, K, None, ref.force, ref.stiffness, 0.0, s)
     diag = Diagnosis("c", "failed", e, [Finding("unexplained", "unexplained", OBSERVED, "", {})])
@@ -123,10 +129,11 @@ def _findings(**mistake):
     return [(x.code, x.strength) for x in d.findings if x.code.startswith("spatial-")]
 
 
-def test_the_engine_written_right_is_the_oracle():
+@pytest.mark.parametrize("engine", ["febio", "umat"])
+def test_the_engine_written_right_is_the_oracle(engine):
     points, cells, x = _state()
     ref = MjedCache().reference(CaseStub(points, cells, x, default_material("StVenantKirchhoff")))
-    f, K = _engine(points, cells, x)
+    f, K = (_engine if engine == "febio" else _umat_engine)(points, cells, x)
     assert np.abs(f - ref.force).max() < 1e-9 * np.abs(ref.force).max()
     assert abs(K - ref.stiffness).max() < 1e-9 * abs(ref.stiffness).max()
 
@@ -198,3 +205,79 @@ def test_a_perturbation_tangent_with_a_small_error_of_another_kind_is_not_explai
     # the same engine without the extra error: named (fully: exact arithmetic here)
     exact = _findings(extra=lambda sig: -np.einsum("ij,kl->ijkl", sig, EYE))
     assert exact == [("spatial-miehe-cauchy", FULL)], exact
+
+
+def _umat_engine(points, cells, x, unpack=ABAQUS, mirror=True, shear_cols=1.0, stress=True):
+    """(f, K) of a UMAT-style driver (St Venant-Kirchhoff): STRESS and DDSDDE (c plus the
+    Jaumann-rate terms) packed in Abaqus' order, unpacked by the driver in ``unpack`` (the
+    stress too when ``stress``), mirrors filled when ``mirror``, DDSDDE's shear columns times
+    ``shear_cols``; the Jaumann terms then removed with the unpacked stress.
+    """
+    mu, lam, V0, D, n, f, K = _start(points, cells)
+
+    def jaumann(s):
+        return 0.5 * (
+            np.einsum("ik,jl->ijkl", EYE, s)
+            + np.einsum("ik,jl->ijkl", s, EYE)
+            + np.einsum("il,jk->ijkl", EYE, s)
+            + np.einsum("il,jk->ijkl", s, EYE)
+        )
+
+    for e, cell in enumerate(cells):
+        F = x[cell].T @ D[e]
+        J = np.linalg.det(F)
+        b = F @ F.T
+        E = 0.5 * (F.T @ F - EYE)
+        sig = F @ (lam * np.trace(E) * EYE + 2 * mu * E) @ F.T / J
+        bb = 0.5 * (np.einsum("ik,jl->ijkl", b, b) + np.einsum("il,jk->ijkl", b, b))
+        c = (lam * np.einsum("ij,kl->ijkl", b, b) + 2 * mu * bb) / J
+        dd = c + jaumann(sig)
+        s6 = [sig[i, j] for (i, j) in ABAQUS]
+        d6 = [[dd[i, j, k, l] for (k, l) in ABAQUS] for (i, j) in ABAQUS]
+        s_in = np.zeros((3, 3)) if stress else sig
+        D4 = np.zeros((3, 3, 3, 3))
+        for I, (i, j) in enumerate(unpack):
+            if stress:
+                s_in[i, j] = s_in[j, i] = s6[I]
+            for L, (k, l) in enumerate(unpack):
+                pairs = [((i, j), (k, l))]
+                if mirror:
+                    pairs += [((j, i), (k, l)), ((i, j), (l, k)), ((j, i), (l, k))]
+                for (p, q), (r, t) in pairs:
+                    D4[p, q, r, t] = d6[I][L] * (shear_cols if L > 2 else 1.0)
+        c_e = D4 - jaumann(s_in)
+        gN = D[e] @ np.linalg.inv(F)
+        v = J * abs(V0[e])
+        fe = -v * (gN @ s_in.T).ravel()
+        Ke = v * np.einsum("aj,ijkl,bl->aibk", gN, c_e, gN).reshape(12, 12)
+        Ke += np.kron(v * gN @ s_in @ gN.T, EYE)
+        dof = (3 * cell[:, None] + np.arange(3)).ravel()
+        f[dof] += fe
+        K[np.ix_(dof, dof)] += Ke
+    return f.reshape(n, 3), sp.csr_matrix(K)
+
+
+def _umat_causes(**mistake):
+    """The codes of the causes named for the UMAT driver with ``mistake``, and the titles."""
+    d = _diagnosis(_umat_engine, **mistake)
+    return [c.code for c in d.causes], [c.title for c in d.findings]
+
+
+def test_stress_and_ddsdde_unpacked_in_another_shear_order_are_named_with_the_order():
+    codes, titles = _umat_causes(unpack=FEBIO)  # 12, 23, 13 where 12, 13, 23 was packed
+    assert codes == ["spatial-voigt-order-12-23-13-stress-ddsdde"], titles
+    assert "12, 23, 13" in titles[0] and "STRESS and DDSDDE" in titles[0]
+    # the stress unpacked right and only DDSDDE so: another cause, the force right
+    codes, titles = _umat_causes(unpack=FEBIO, stress=False)
+    assert codes == ["spatial-voigt-order-12-23-13-ddsdde"], titles
+
+
+def test_ddsdde_without_its_mirror_entries_or_with_halved_shear_columns_is_named():
+    codes, titles = _umat_causes(mirror=False, stress=False)
+    assert codes == ["spatial-voigt-no-mirror-ddsdde"], titles
+    assert "mirror" in titles[0]
+    codes, titles = _umat_causes(shear_cols=0.5)
+    assert codes == ["spatial-voigt-shear-columns-halved-ddsdde"], titles
+    # a factor no unpacking slip makes (a third): nothing of the kind
+    codes, titles = _umat_causes(shear_cols=1.0 / 3.0)
+    assert not any(c.startswith("spatial-voigt") for c in codes), titles

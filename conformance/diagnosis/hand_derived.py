@@ -14,7 +14,10 @@ wrong, each predicting the engine's force and stiffness with nothing fitted to t
   terms) or one part of the element matrix in another local order
   (:mod:`conformance.diagnosis.spatial_variants`);
 - a fibre strain form's dQ/dC and d2Q/dCdC rotated back from the frame wrongly (with the
-  transpose, or not at all: :mod:`conformance.diagnosis.fibre_pieces`).
+  transpose, or not at all: :mod:`conformance.diagnosis.fibre_pieces`);
+- when none of these: a UMAT driver's DDSDDE scaled and its Jaumann terms weighted, fitted over
+  declared per-cell pieces and named in simple numbers, or one term of an isotropic tangent in
+  J alone taken wrong (:mod:`conformance.diagnosis.spatial_pieces`).
 
 A cause is named when its prediction matches the engine within the case's tolerance; several
 that match with different predictions are shown as ambiguous.
@@ -22,6 +25,7 @@ that match with different predictions are shown as ambiguous.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import replace
 
 import numpy as np
@@ -33,6 +37,7 @@ from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
 from conformance.diagnosis.piola_assembly import piola_force_findings
 from conformance.diagnosis.routine_inputs import probe_force_findings
+from conformance.diagnosis.spatial_pieces import isotropic_fit_findings, piece_fit_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
@@ -68,6 +73,14 @@ def _nearby(cache, ci, s: Scales, tol):
         near.model, near.points, near.cells, near.positions, r.force, r.stiffness, s, tol
     )
     return None if split is None else cell_tensors(*cell_piola(split), split.F)
+
+
+def _parameters(model) -> dict:
+    """The law's scalar parameters, name -> value (none when it is not a dataclass)."""
+    if not dataclasses.is_dataclass(model):
+        return {}
+    values = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    return {k: float(v) for k, v in values.items() if isinstance(v, (int, float))}
 
 
 def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
@@ -111,6 +124,10 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += spatial_findings(split, t.S, t.J, matches)
         found += spatial_variant_findings(split, t, matches, tol.stiffness)
         found += fibre_piece_findings(split, t, ci.model, matches)
+        if not found:
+            found = piece_fit_findings(split, t, K_engine, matches)
+        if not found:
+            found = isotropic_fit_findings(split, t, K_engine, matches, _parameters(ci.model))
     if not found:
         return diag
     found = ambiguous(found, "their predictions differ by less than the tolerance here")

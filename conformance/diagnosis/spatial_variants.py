@@ -12,8 +12,14 @@ From the oracle's per-cell stress and tangent (the element split's S and CC,
 sigma = F S F^T / J are exact, so each family mistake below predicts the engine's force and
 stiffness with nothing fitted:
 
-1. **Voigt order.** c filled in Abaqus' order (xx, yy, zz, xy, xz, yz) while B uses FEBio's
-   (xx, yy, zz, xy, yz, xz): the yz and xz rows and columns of c exchanged (stiffness only).
+1. **Voigt unpacking** (:data:`VOIGT_SLIPS` on the targets of :data:`SLIP_TARGETS`). A
+   tangent or stress packed in Abaqus' Voigt order (11, 22, 33, 12, 13, 23) and unpacked with a
+   slip: the shear slots read in another order (any of the five other orders of 12, 13, 23;
+   c filled in Abaqus' order while B uses FEBio's is the exchange of 13 and 23), a factor 2 or
+   1/2 on the shear rows, columns or both (engineering against tensor shear), or the
+   minor-symmetric mirror entries left zero (only the slots i <= j, k <= l filled). The slip
+   hits c alone, or the UMAT's DDSDDE = c + (the Jaumann terms) before the driver removes those
+   terms, or sigma together with c or DDSDDE (then the force is wrong too).
 2. **Tensor shear rows in B.** B's shear rows (v_i,j + v_j,i)/2 instead of engineering shear:
    the shear rows of B halved, so the force sees sigma's shear halved and B^T c B its shear
    rows and columns halved.
@@ -34,7 +40,9 @@ variant (a perturbation tangent) may leave more, up to the round-off of its diff
 
 from __future__ import annotations
 
-from typing import Callable, Dict, List
+from dataclasses import dataclass
+from itertools import permutations
+from typing import Callable, Dict, List, Sequence, Tuple
 
 import numpy as np
 
@@ -45,6 +53,13 @@ from conformance.diagnosis.spatial_tangent import SpatialCells, material_stiffne
 
 __all__ = [
     "FEBIO",
+    "ABAQUS",
+    "jaumann_pieces",
+    "VoigtSlip",
+    "VOIGT_SLIPS",
+    "SLIP_TARGETS",
+    "slip_tensor",
+    "slip_stress",
     "to_voigt",
     "from_voigt",
     "jaumann_terms",
@@ -56,24 +71,45 @@ __all__ = [
 #: FEBio's Voigt order of the index pairs: xx, yy, zz, xy, yz, xz.
 FEBIO = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
 
+#: Abaqus' Voigt order (a UMAT's STRESS and DDSDDE): 11, 22, 33, 12, 13, 23.
+ABAQUS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
 _EYE = np.eye(3)
+
+
+def _pack(c: np.ndarray, order: Sequence[Tuple[int, int]]) -> np.ndarray:
+    """(m, 6, 6) the Voigt matrix of c (m, 3, 3, 3, 3) in ``order`` (six index pairs)."""
+    i = np.array([p[0] for p in order])
+    j = np.array([p[1] for p in order])
+    return c[:, i[:, None], j[:, None], i[None, :], j[None, :]]
+
+
+def _unpack(C6: np.ndarray, order: Sequence[Tuple[int, int]], mirror: bool = True) -> np.ndarray:
+    """(m, 3, 3, 3, 3) the tensor of a Voigt matrix C6 (m, 6, 6) read in ``order``; mirror:
+    the minor-symmetric entries (j, i), (l, k) filled too (else left zero).
+    """
+    idx = np.zeros((3, 3), dtype=int)
+    filled = np.zeros((3, 3))
+    for k, (i, j) in enumerate(order):
+        idx[i, j] = k
+        filled[i, j] = 1.0
+        if mirror:
+            idx[j, i] = k
+            filled[j, i] = 1.0
+    c = C6[:, idx[:, :, None, None], idx[None, None, :, :]]
+    return c * (filled[:, :, None, None] * filled[None, None, :, :])
 
 
 def to_voigt(c: np.ndarray) -> np.ndarray:
     """(m, 6, 6) the Voigt matrix of c (m, 3, 3, 3, 3) in :data:`FEBIO` order."""
-    i = np.array([p[0] for p in FEBIO])
-    j = np.array([p[1] for p in FEBIO])
-    return c[:, i[:, None], j[:, None], i[None, :], j[None, :]]
+    return _pack(c, FEBIO)
 
 
 def from_voigt(C6: np.ndarray) -> np.ndarray:
     """(m, 3, 3, 3, 3) the minor-symmetric tensor of a Voigt matrix C6 (m, 6, 6), FEBio order:
     with engineering shear in B, B^T C6 B is this tensor contracted with grad N on both sides.
     """
-    idx = np.empty((3, 3), dtype=int)
-    for k, (i, j) in enumerate(FEBIO):
-        idx[i, j] = idx[j, i] = k
-    return C6[:, idx[:, :, None, None], idx[None, None, :, :]]
+    return _unpack(C6, FEBIO)
 
 
 def _voigt_map(rows: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
@@ -83,22 +119,30 @@ def _voigt_map(rows: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     return lambda c: from_voigt(rows @ to_voigt(c) @ rows.T)
 
 
-_SWAP = np.eye(6)[[0, 1, 2, 3, 5, 4]]
 _HALF = np.diag([1.0, 1.0, 1.0, 0.5, 0.5, 0.5])
+
+
+def jaumann_pieces(sigma: np.ndarray) -> np.ndarray:
+    """(4, m, 3, 3, 3, 3) the four Jaumann-rate terms of sigma (m, 3, 3), each halved:
+    d_ik s_jl / 2, s_ik d_jl / 2, d_il s_jk / 2, s_il d_jk / 2 (their sum: the correction that
+    turns the Truesdell tangent c into a UMAT's DDSDDE, the Jaumann tangent of tau over J).
+    """
+    d = _EYE
+    return 0.5 * np.stack(
+        [
+            np.einsum("ik,mjl->mijkl", d, sigma),
+            np.einsum("mik,jl->mijkl", sigma, d),
+            np.einsum("il,mjk->mijkl", d, sigma),
+            np.einsum("mil,jk->mijkl", sigma, d),
+        ]
+    )
 
 
 def jaumann_terms(sigma: np.ndarray) -> np.ndarray:
     """(m, 3, 3, 3, 3) the Jaumann-rate terms (d_ik s_jl + s_ik d_jl + d_il s_jk + s_il d_jk) / 2
-    of the Cauchy stresses sigma (m, 3, 3): DDSDDE less c.
+    of the Cauchy stresses sigma (m, 3, 3): DDSDDE less c (the sum of :func:`jaumann_pieces`).
     """
-    d = _EYE
-    terms = (
-        np.einsum("ik,mjl->mijkl", d, sigma)
-        + np.einsum("mik,jl->mijkl", sigma, d)
-        + np.einsum("il,mjk->mijkl", d, sigma)
-        + np.einsum("mil,jk->mijkl", sigma, d)
-    )
-    return 0.5 * terms
+    return jaumann_pieces(sigma).sum(axis=0)
 
 
 def _jaumann(sign: float) -> Callable[[SpatialCells], np.ndarray]:
@@ -106,16 +150,116 @@ def _jaumann(sign: float) -> Callable[[SpatialCells], np.ndarray]:
     return lambda t: sign * jaumann_terms(t.sigma)
 
 
+_PAIR = {(0, 1): "12", (0, 2): "13", (1, 2): "23"}
+
+
+@dataclass(frozen=True)
+class VoigtSlip:
+    """A slip in unpacking a Voigt (Abaqus order) matrix and vector: read back in ``order``, rows
+    and columns scaled by ``rows`` and ``cols`` (6,), the mirror entries filled or not.
+    """
+
+    code: str
+    words: str
+    order: Tuple[Tuple[int, int], ...] = ABAQUS
+    rows: Tuple[float, ...] = (1.0,) * 6
+    cols: Tuple[float, ...] = (1.0,) * 6
+    mirror: bool = True
+    stress: bool = True  # the slip has a meaning for the stress vector too
+
+
+def _slips() -> Tuple[VoigtSlip, ...]:
+    """The declared unpacking slips: the five other orders of the shear slots, a factor 2 or
+    1/2 on the shear rows, columns or both, the mirror entries missing.
+    """
+    out = []
+    for shear in permutations(ABAQUS[3:]):
+        if shear == ABAQUS[3:]:
+            continue
+        names = ", ".join(_PAIR[p] for p in shear)
+        out.append(
+            VoigtSlip(
+                "order-" + "-".join(_PAIR[p] for p in shear),
+                "Voigt order of the shear slots: packed in Abaqus' order 11, 22, 33, 12, 13, 23 "
+                f"and unpacked as 11, 22, 33, {names}",
+                ABAQUS[:3] + tuple(shear),
+            )
+        )
+    for f, name in ((2.0, "doubled"), (0.5, "halved")):
+        k = (1.0, 1.0, 1.0, f, f, f)
+        for where, rows, cols in (
+            ("rows", k, (1.0,) * 6),
+            ("columns", (1.0,) * 6, k),
+            ("rows-and-columns", k, k),
+        ):
+            out.append(
+                VoigtSlip(
+                    f"shear-{where}-{name}",
+                    f"the shear {where.replace('-', ' and ')} (12, 13, 23) of the Voigt tangent "
+                    f"{name} when unpacked (engineering against tensor shear strain: "
+                    "gamma = 2 eps)",
+                    rows=rows,
+                    cols=cols,
+                    stress=False,
+                )
+            )
+    out.append(
+        VoigtSlip(
+            "no-mirror",
+            "the Voigt matrix unpacked into c_ijkl only at the pairs i <= j, k <= l: the "
+            "minor-symmetric mirror entries c_jikl, c_ijlk (and sigma_ji) left zero",
+            mirror=False,
+        )
+    )
+    return tuple(out)
+
+
+#: The declared unpacking slips (:class:`VoigtSlip`).
+VOIGT_SLIPS: Tuple[VoigtSlip, ...] = _slips()
+
+#: What a slip hits -> (words, sigma slipped too, the slip applied to DDSDDE = c + Jaumann
+#: terms (removed after unpacking, from the sigma the driver has) rather than to c).
+SLIP_TARGETS: Dict[str, Tuple[str, bool, bool]] = {
+    "c": ("the spatial tangent c alone (force right)", False, False),
+    "ddsdde": (
+        "the UMAT's DDSDDE (c plus the Jaumann-rate terms, removed after unpacking; force right)",
+        False,
+        True,
+    ),
+    "stress-c": ("the Cauchy stress and the spatial tangent c (force wrong too)", True, False),
+    "stress-ddsdde": (
+        "STRESS and DDSDDE both (the Jaumann-rate terms then removed with the unpacked "
+        "stress; force wrong too)",
+        True,
+        True,
+    ),
+}
+
+
+def slip_tensor(c: np.ndarray, slip: VoigtSlip) -> np.ndarray:
+    """(m, 3, 3, 3, 3) c (minor-symmetric) packed in Abaqus' order and unpacked with ``slip``."""
+    C6 = _pack(c, ABAQUS) * np.asarray(slip.rows)[:, None] * np.asarray(slip.cols)[None, :]
+    return _unpack(C6, slip.order, slip.mirror)
+
+
+def slip_stress(sigma: np.ndarray, slip: VoigtSlip) -> np.ndarray:
+    """(m, 3, 3) sigma packed in Abaqus' order and unpacked with ``slip`` (its rows' factor)."""
+    s6 = sigma[:, [p[0] for p in ABAQUS], [p[1] for p in ABAQUS]] * np.asarray(slip.rows)
+    out = np.zeros_like(sigma)
+    for k, (i, j) in enumerate(slip.order):
+        out[:, i, j] = s6[:, k]
+        if slip.mirror:
+            out[:, j, i] = s6[:, k]
+    return out
+
+
+#: (slip code, target) named with an older code (kept stable for the reports that use it).
+_LEGACY = {("order-12-23-13", "c"): "voigt-abaqus-order"}
+
+
 #: code -> (words, the engine's c minus the right c (SpatialCells -> (m, 3, 3, 3, 3)), the
 #: factor on sigma's shear in the force (1: the force right)).
 TANGENT_VARIANTS: Dict[str, tuple] = {
-    "voigt-abaqus-order": (
-        "spatial tangent c filled in Abaqus' Voigt order (xx, yy, zz, xy, xz, yz) while B uses "
-        "FEBio's (xx, yy, zz, xy, yz, xz): the yz and xz rows and columns of c exchanged in "
-        "B^T c B",
-        lambda t: _voigt_map(_SWAP)(t.c) - from_voigt(to_voigt(t.c)),
-        1.0,
-    ),
     "tensor-shear-b": (
         "B written with tensor shear rows (v_i,j + v_j,i)/2 where Voigt's engineering shear "
         "strain v_i,j + v_j,i belongs: the shear rows of B halved, so the shear part of the "
@@ -195,6 +339,45 @@ def _shear_force(split: ElementSplit, t: SpatialCells, factor: float) -> np.ndar
     return split.fe + dfe
 
 
+def _slip_findings(
+    split: ElementSplit, t: SpatialCells, matches: Callable[..., float]
+) -> List[Finding]:
+    """The unpacking slips of :data:`VOIGT_SLIPS` on the targets of :data:`SLIP_TARGETS` whose
+    prediction (the oracle's sigma and c so unpacked, then assembled) matches the engine.
+    """
+    corr = jaumann_terms(t.sigma)
+    found = []
+    for slip in VOIGT_SLIPS:
+        for target, (where, stress, ddsdde) in SLIP_TARGETS.items():
+            if stress and not slip.stress:
+                continue
+            sigma = slip_stress(t.sigma, slip) if stress else t.sigma
+            if ddsdde:
+                c = slip_tensor(t.c + corr, slip) - jaumann_terms(sigma)
+            else:
+                c = slip_tensor(t.c, slip)
+            ds = sigma - t.sigma
+            geo = np.einsum("m,maj,mjl,mbl,ik->maibk", t.v, t.gN, ds, t.gN, _EYE)
+            Ke = split.Ke + _material_part(t, c - t.c) + geo.reshape(-1, 12, 12)
+            fe = split.fe - np.einsum("m,mij,maj->mai", t.v, ds, t.gN)
+            left = matches(*assemble(split.cells, split.n, fe, Ke))
+            if np.isfinite(left):
+                code = _LEGACY.get((slip.code, target), f"voigt-{slip.code}-{target}")
+                found.append(
+                    Finding(
+                        f"spatial-{code}",
+                        f"Voigt unpacking of {where}: {slip.words}",
+                        FULL,
+                        "the oracle's per-cell stress and tangent pushed forward (sigma, c = "
+                        "F F F F : CC / J), packed in Abaqus' Voigt order and unpacked so, the "
+                        f"force and element matrices rebuilt: errors against your engine "
+                        f"{left:.1e}",
+                        {"slip": slip.code, "target": target, "residual": left},
+                    )
+                )
+    return found
+
+
 def spatial_variant_findings(
     split: ElementSplit,
     cells: CellTensors,
@@ -237,6 +420,7 @@ def spatial_variant_findings(
                     {"variant": code, "residual": left},
                 )
             )
+    found += _slip_findings(split, t, matches)
     # v grad N_a . sigma grad N_b = V0 D_a . S D_b: the geometric block the material way.
     geo = split.Ke - material_stiffness(split, cells.S)
     for part, words in PART_ORDERS.items():
