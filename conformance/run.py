@@ -45,6 +45,7 @@ from conformance.diagnosis.sparsity import off_pattern_reading
 from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
+from conformance.diagnosis.stress_side import stress_side_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
@@ -301,6 +302,14 @@ READINGS: Tuple[Reading, ...] = (
         "one of MJED's chain-rule parts of a term wrong: the force's J or C part, f'(J)",
         _force_wrong,
         lambda d, c: mjed_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after MJED's parts: an MJED engine's own geometric block is one of its parts; here the
+        # geometric stiffness follows a wrong stress, the material tangent its own formula
+        "a stress written wrongly, its tangent derived separately (a term's coefficient, a "
+        "grouped term's gradient part)",
+        _force_wrong,
+        lambda d, c: stress_side_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a known approximation of the tangent",
