@@ -4,7 +4,7 @@ An engine for a fibre strain form Q = sum_ij B_ij Ef_ij^2 (Costa's) takes the st
 frame, Ef = R^T E R (R the per-cell frame, columns fibre, sheet, normal), computes the
 derivatives of Q there, dQ/dEf / 2 = B o Ef (entrywise) and the constant T_f, and rotates them
 back: dQ/dC = R (B o Ef) R^T and d2Q/dCdC = R R R R : T_f. A law W(Q, J) then has, by the chain
-rule,
+rule::
 
     S  = 2 (psi_Q dQ/dC + psi_J dJ/dC),
     CC = 4 (psi_QQ dQ (x) dQ + psi_QJ (dQ (x) dJ + dJ (x) dQ) + psi_JJ dJ (x) dJ
