@@ -44,6 +44,7 @@ import scipy.sparse as sp
 from conformance.diagnosis.elements import ElementSplit, assemble
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.invariant_pieces import CellTensors
+from conformance.diagnosis.least_squares import determined_lstsq
 from conformance.diagnosis.spatial_tangent import SpatialCells, spatial_cells
 from conformance.diagnosis.spatial_variants import jaumann_pieces
 
@@ -166,15 +167,9 @@ def _fit(
     base = assemble(split.cells, split.n, split.fe, split.Ke - K_c)[1].tocoo()
     engine = np.asarray(sp.csr_matrix(K_engine)[base.row, base.col]).ravel()
     A = np.stack([_entries(split, k) for k in Ke], axis=1)
-    norm = np.linalg.norm(A, axis=0)
-    if not np.all(norm > 0):
-        return None
-    sv = np.linalg.svd(A / norm, compute_uv=False)
-    if sv[-1] < DETERMINED * sv[0]:
-        return None
     y = np.stack([engine - base.data, _entries(split, K_c)], axis=1)
-    x = np.linalg.lstsq(A / norm, y, rcond=None)[0] / norm[:, None]
-    return x[:, 0], x[:, 1]
+    x = determined_lstsq(A, y, DETERMINED)
+    return None if x is None else (x[:, 0], x[:, 1])
 
 
 def piece_fit_findings(

@@ -38,6 +38,7 @@ import numpy as np
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import ambiguous
+from conformance.diagnosis.least_squares import determined_lstsq
 from conformance.diagnosis.mjed_parts import (
     MAX_CELLS,
     Candidate,
@@ -286,14 +287,9 @@ def _fit(side: StressSide, cols: List[List[int]], r, w) -> Optional[np.ndarray]:
     """
     P = [np.concatenate([p.force, p.geometric]) for p in side.pieces]
     X = np.column_stack([np.sum([P[i] for i in c], axis=0) for c in cols])
-    Xs = X * w[:, None]
-    norms = np.linalg.norm(Xs, axis=0)
-    if not np.all(norms > 0):
+    t = determined_lstsq(X * w[:, None], r * w, _IDENTIFIED)
+    if t is None:
         return None
-    sv = np.linalg.svd(Xs / norms, compute_uv=False)
-    if sv[-1] < _IDENTIFIED * sv[0]:
-        return None
-    t = np.linalg.lstsq(Xs, r * w, rcond=None)[0]
     k = np.ones(len(P))
     for c, tc in zip(cols, t):
         k[c] = 1.0 + tc
