@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
+import os
 
-import mjed
-from mjed import materials as M
+# One OpenBLAS thread per test process. The suite already runs one pytest-xdist worker per core
+# (and each corpus test two engine subprocesses); OpenBLAS' own threads on top of them
+# oversubscribe the cores, and its waiting threads then slow the many small LAPACK calls (the
+# stacked 3x3 inverses and determinants of every mesh, the least-squares fits of the diagnosis)
+# several times over: the mutation catalogue took 303 s with the default and 180 s with one
+# thread, beside another worker (docs/tests.md). Set before NumPy first loads OpenBLAS;
+# subprocesses inherit it. An explicit OPENBLAS_NUM_THREADS is kept.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import mjed  # noqa: E402
+from mjed import materials as M  # noqa: E402
 
 # The parameter sets of every declared material, read from its declaration (``examples``:
 # chosen so that every term of the energy matters, and a second set where the sign of a
