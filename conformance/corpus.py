@@ -352,9 +352,13 @@ def mutant_figure(
     meshes_: Sequence[CorpusMesh],
     state: Tuple[str, Callable],
     progress: Optional[Callable[[str], None]] = None,
+    read_causes: bool = True,
 ) -> Dict[str, Dict[str, List[str]]]:
     """For each mutant: {"missed": meshes where it passed, "unnamed": meshes where it failed
     without the expected finding}. The catalogue's "none" (the correct engine) is left out.
+
+    read_causes: False judges only (no diagnosis of the failed cases); "unnamed" is then left
+    out of each mutant's entry rather than claimed empty.
     """
     from conformance.judge.oracle import OracleCache
 
@@ -373,10 +377,13 @@ def mutant_figure(
             _engine_evaluator(catalogue.broken_engine(name)),
             progress=progress,
             cache=cache,
+            read_causes=read_causes,
         )
-        missed = [o.mesh for o in run.outcomes if o.status == "passed"]
-        unnamed = [o.mesh for o in run.outcomes if o.status != "passed" and not _named(o, expected)]
-        out[name] = {"missed": missed, "unnamed": unnamed}
+        out[name] = {"missed": [o.mesh for o in run.outcomes if o.status == "passed"]}
+        if read_causes:
+            out[name]["unnamed"] = [
+                o.mesh for o in run.outcomes if o.status != "passed" and not _named(o, expected)
+            ]
     return out
 
 

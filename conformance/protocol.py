@@ -15,11 +15,22 @@ A failure raises AssertionError whose message is the diagnosis of every failing 
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable, Mapping, Protocol, Sequence, Union, runtime_checkable
+from typing import (
+    Any,
+    Callable,
+    Iterable,
+    Mapping,
+    Optional,
+    Protocol,
+    Sequence,
+    Union,
+    runtime_checkable,
+)
 
 import numpy as np
 import scipy.sparse as sp
 
+from conformance.judge.oracle import OracleCache
 from conformance.kit.cases import KitCase, build_cases
 from conformance.kit.exchange import EngineOutput
 from conformance.kit.spec import CaseInput
@@ -164,6 +175,7 @@ def check_implementation(
     probes: bool = True,
     precision: str = "auto",
     read_causes: bool = True,
+    cache: Optional[OracleCache] = None,
 ) -> CheckRun:
     """Run ``impl`` on every model x mesh x state (with probes) and diagnose each case.
 
@@ -171,13 +183,17 @@ def check_implementation(
     precision: "double", "single" or "auto" (single when ``impl`` returns float32 arrays).
     read_causes: False judges only (the verdicts and errors; a failed case's cause is not
     looked for: ``mjed-verify check --verdict-only``).
+    cache: the oracles (the reference and the diagnosis' candidate energies) to reuse across
+    several checks on the same meshes and materials; a new one by default.
     """
     if precision not in ("auto", "double", "single"):
         raise ValueError(f"precision must be 'auto', 'double' or 'single', not {precision!r}")
     cases = build_cases(
         resolve_models(material, energy), _meshes(mesh), list(states), probes=4 if probes else 0
     )
-    return run_check(cases, python_evaluator(impl), precision=precision, read_causes=read_causes)
+    return run_check(
+        cases, python_evaluator(impl), precision=precision, read_causes=read_causes, cache=cache
+    )
 
 
 def assert_matches_oracle(

@@ -22,14 +22,28 @@ logging.disable(logging.INFO)  # FFCx logs every compilation
 
 
 @pytest.fixture(scope="module")
-def runs():
+def oracles():
+    """One cache of oracles for the module's checks: they share cube-small and most share the
+    material, so the reference and the diagnosis' candidate energies are built once.
+    """
+    from conformance.judge.oracle import OracleCache
+
+    return OracleCache()
+
+
+@pytest.fixture(scope="module")
+def runs(oracles):
     from conformance_mutations import MATERIAL, MUTATIONS, broken_engine
 
     from conformance.protocol import check_implementation
 
     return {
         name: check_implementation(
-            broken_engine(name), material=MATERIAL, mesh="cube-small", states=("uniaxial", "random")
+            broken_engine(name),
+            material=MATERIAL,
+            mesh="cube-small",
+            states=("uniaxial", "random"),
+            cache=oracles,
         )
         for name in MUTATIONS
     }
@@ -99,7 +113,7 @@ def test_the_named_figures(runs):
     assert "antisymmetric part" in cause("unsymmetric K").evidence
 
 
-def test_an_unexplained_error_is_called_so():
+def test_an_unexplained_error_is_called_so(oracles):
     """Random noise on K: no hypothesis may claim it."""
     import numpy as np
     import scipy.sparse as sp
@@ -117,7 +131,12 @@ def test_an_unexplained_error_is_called_so():
         return f, K + N + N.T
 
     run = check_implementation(
-        noisy, material=MATERIAL, mesh="cube-small", states=("random",), probes=False
+        noisy,
+        material=MATERIAL,
+        mesh="cube-small",
+        states=("random",),
+        probes=False,
+        cache=oracles,
     )
     d = run.outcomes[0].diagnosis
     assert not d.causes and d.findings[0].code == "unexplained", d.text()
@@ -131,7 +150,7 @@ def test_an_unexplained_error_is_called_so():
         ("geometric stiffness missing", "geometric stiffness", -1.0),
     ],
 )
-def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
+def test_tangent_parts_on_every_material(oracles, material, mutation, part, coefficient):
     from conformance_mutations import broken_engine
 
     from common.cases import DEFAULT_MATERIALS
@@ -143,6 +162,7 @@ def test_tangent_parts_on_every_material(material, mutation, part, coefficient):
         mesh="cube-small",
         states=("random",),
         probes=False,
+        cache=oracles,
     )
     d = run.outcomes[0].diagnosis
     assert d.causes and d.causes[0].code == "tangent-part", d.text()
@@ -174,7 +194,10 @@ def float32_engine(engine):
 
 
 @pytest.fixture(scope="module")
-def runs_single():
+def runs_single(oracles):
+    """Verdicts only: what is tested here is the tolerance and the verdict at single precision
+    (the causes are the double-precision runs' tests).
+    """
     from conformance_mutations import MATERIAL, MUTATIONS, broken_engine
 
     from conformance.protocol import check_implementation
@@ -185,6 +208,8 @@ def runs_single():
             material=MATERIAL,
             mesh="cube-small",
             states=("random",),
+            read_causes=False,
+            cache=oracles,
         )
         for name in MUTATIONS
     }
@@ -211,7 +236,7 @@ from conformance_mutations import FAMILY  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def family_runs():
+def family_runs(oracles):
     from common.cases import DEFAULT_MATERIALS
     from conformance.protocol import check_implementation
 
@@ -226,6 +251,7 @@ def family_runs():
                 mesh="cube-small",
                 states=("random",),
                 probes=False,
+                cache=oracles,
             )
         return cache[name]
 
