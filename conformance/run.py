@@ -21,6 +21,7 @@ from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
+from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
@@ -608,6 +609,7 @@ def _run_check(
             on_case(case, out, ref, diag)
     _kit_term_fit(run, kept_terms)
     _settle_ambiguity(run)
+    _corroborate(run)
     return run
 
 
@@ -643,6 +645,23 @@ def _settle_ambiguity(run: CheckRun) -> None:
         [o.case_id for o in run.outcomes],
     )
     for i, d in enumerate(settled):
+        if d is not run.outcomes[i].diagnosis:
+            run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
+
+
+def _corroborate(run: CheckRun) -> None:
+    """A cause named on one case not named where it leaves another case of the same model and
+    mesh unexplained (:func:`conformance.diagnosis.corroborate.corroborate`).
+    """
+    groups: Dict[tuple, List[int]] = {}
+    for i, o in enumerate(run.outcomes):
+        groups.setdefault((o.model, o.mesh), []).append(i)
+    checked = corroborate(
+        [o.diagnosis for o in run.outcomes],
+        list(groups.values()),
+        [o.case_id for o in run.outcomes],
+    )
+    for i, d in enumerate(checked):
         if d is not run.outcomes[i].diagnosis:
             run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
 

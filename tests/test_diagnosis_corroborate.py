@@ -1,0 +1,112 @@
+"""A cause named on one case is held against the kit's other cases of the same engine
+(conformance.diagnosis.corroborate).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conformance.diagnosis.diagnose import Diagnosis
+from conformance.diagnosis.findings import FULL, OBSERVED, Finding, ambiguous
+from conformance.judge.compare import DOUBLE, Errors
+
+WRONG = Errors(force=1e-16, stiffness=0.2, energy=0.0, symmetry=0.0)
+RIGHT = Errors(force=1e-16, stiffness=1e-15, energy=0.0, symmetry=0.0)
+
+
+def _diag(case, findings, errors=WRONG, verdict="failed"):
+    return Diagnosis(case, verdict, errors, findings, tolerances=DOUBLE)
+
+
+def _cause(title="P^T used as P"):
+    return Finding("stress-measure-piola-transposed", title, FULL, "force 1e-16, stiffness 6e-16")
+
+
+def _nothing():
+    return Finding("unexplained", "unexplained", OBSERVED, "no tested hypothesis fits")
+
+
+def test_a_cause_that_leaves_another_case_unexplained_is_not_named():
+    from conformance.diagnosis.corroborate import corroborate
+
+    named = _diag("uniaxial", [_cause()])
+    other = _diag("random", [_nothing()])
+    out = corroborate([named, other], [[0, 1]], ["uniaxial", "random"])
+    d = out[0]
+    assert not d.causes, d.findings
+    lead = d.findings[0]
+    assert lead.code == "uncorroborated" and lead.strength == OBSERVED
+    assert "P^T used as P" in lead.title and "random" in lead.title
+    assert lead.figures["unexplained_cases"] == ["random"]
+    assert d.findings[1].title == "(this case only) P^T used as P"
+    assert d.findings[1].strength == OBSERVED
+    assert out[1] is other
+
+
+def test_what_does_not_contradict_a_cause():
+    from conformance.diagnosis.corroborate import corroborate
+
+    named = _diag("uniaxial", [_cause()])
+    # explained by the same cause, passed, or failing only through the energy or the probes
+    same = _diag("random", [_cause()])
+    passed = _diag("random", [], errors=RIGHT, verdict="passed")
+    energy_only = _diag("random", [_nothing()], errors=Errors(1e-16, 1e-15, 0.3, 0.0))
+    not_read = _diag("random", [Finding("causes-not-read", "not looked for", OBSERVED, "")])
+    for other in (same, passed, energy_only, not_read):
+        assert corroborate([named, other], [[0, 1]], ["u", "r"])[0] is named
+    # another model or mesh is another group
+    lost = _diag("random", [_nothing()])
+    assert corroborate([named, lost], [[0], [1]], ["u", "r"])[0] is named
+
+
+def test_ambiguous_causes_are_held_the_same_way():
+    from conformance.diagnosis.corroborate import corroborate
+
+    both = _diag("uniaxial", ambiguous([_cause("I1b term"), _cause("I2b term")]))
+    out = corroborate([both, _diag("random", [_nothing()])], [[0, 1]], ["u", "r"])[0]
+    assert not out.causes
+    assert "I1b term | I2b term" in out.findings[0].title
+
+
+@pytest.mark.oracle
+def test_a_check_does_not_name_what_one_state_alone_shows():
+    """An engine whose stiffness is doubled on the uniaxial state and noisy on the random one:
+    "stiffness 2 times" fits the first case alone and is not named; doubled on both states it
+    is named on both.
+    """
+    pytest.importorskip("dolfinx")
+    import scipy.sparse as sp
+
+    import mjed
+    from conformance.protocol import check_implementation
+    from mjed.materials import NeoHookean
+
+    def engine(noisy: bool):
+        def run(case):
+            field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), case.model)
+            f, K = field.force_and_stiffness(case.positions)
+            K = sp.csr_matrix(K)
+            if noisy and case.case_id.endswith("random"):
+                C = K.tocoo()
+                rng = np.random.default_rng(1)
+                N = sp.csr_matrix(
+                    (rng.standard_normal(C.nnz) * 1e-3 * abs(C.data).max(), (C.row, C.col)),
+                    shape=K.shape,
+                )
+                return f, K + N + N.T
+            return f, 2.0 * K
+
+        return run
+
+    material = NeoHookean(mu=1000.0, lam=5000.0)
+    kw = dict(material=material, mesh="cube-small", states=("uniaxial", "random"), probes=False)
+    mixed = check_implementation(engine(noisy=True), **kw)
+    uni, rnd = mixed.outcomes
+    assert uni.status == rnd.status == "failed"
+    assert rnd.diagnosis.findings[0].code == "unexplained", rnd.diagnosis.text()
+    assert not uni.diagnosis.causes, uni.diagnosis.text()
+    assert uni.diagnosis.findings[0].code == "uncorroborated", uni.diagnosis.text()
+    doubled = check_implementation(engine(noisy=False), **kw)
+    for o in doubled.outcomes:
+        assert o.diagnosis.causes, o.diagnosis.text()
