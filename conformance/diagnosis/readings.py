@@ -378,7 +378,35 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                 *fit.prediction,
             )
         )
-    return found or _permutation_readings(cache, ci, out, s, tol)
+    return (
+        found
+        or _permutation_readings(cache, ci, out, s, tol)
+        or _reordered_readings(cache, ci, out, s, tol)
+    )
+
+
+def _reordered_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The case's parameter list read by position in another order, units regardless
+    (:func:`conformance.diagnosis.parameters.reorderings`), that the engine matches. Tried only
+    when no exchange, single value or same-unit permutation explains the engine.
+    """
+    from conformance.diagnosis.parameters import reorderings
+
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda x=x: cache.evaluate_once(ci, x.model),
+                "parameters-reordered",
+                x.title(),
+                x.words(),
+                {"parameters": [x.names[i] for i in x.moved()], "order": list(x.order)},
+            )
+            for x in reorderings(ci.model)
+        ),
+    )
 
 
 def _permutation_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
