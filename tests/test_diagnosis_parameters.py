@@ -155,6 +155,10 @@ def test_a_parameter_refit_heads_a_term_fit_that_scales_terms_unequally():
     for a in ([1.0, 2.0, 1.0], [1.0, 2.0, 2.0]):
         kept = [_reading("term-coefficients", a), _reading("parameter-value")]
         assert _parameters_first(kept) == kept
+    # the parameter list read in another order heads such a term fit too (corpus 7's
+    # ab_props_in_kit_order: N for k0 scales every term of the series unequally)
+    reordered = [_reading("term-coefficients", [2.7e-4, 7.1e-8]), _reading("parameters-reordered")]
+    assert [r.finding.code for r in _parameters_first(reordered)][0] == "parameters-reordered"
 
 
 @pytest.mark.oracle
