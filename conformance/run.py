@@ -24,6 +24,7 @@ from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_
 from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
+from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
@@ -255,9 +256,11 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: readings.read(d, c.cache, c.ci, c.out, c.ref, c.s, keep_terms=c.keep_terms),
     ),
     Reading(
-        "inside the element: local order, stress measure, volume",
+        "inside the element: local order, stress measure, volume, the element forces' nodes",
         _nothing_named,
-        lambda d, c: element_reading(d, c.ci, c.out, c.ref, c.s, volume_findings),
+        lambda d, c: element_reading(
+            d, c.ci, c.out, c.ref, c.s, volume_findings, force_node_findings
+        ),
     ),
     Reading(
         "shape-function gradients built wrongly",

@@ -67,3 +67,22 @@ def test_other_weightings_are_not_named():
     ):
         f, K = _engine(split, vf, vK)
         assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []
+
+
+def test_volume_from_the_inverse_edge_matrix_is_named():
+    """An engine that takes each cell's volume as |det(Dm^-1)| / 6, computed here from its own
+    edge matrices: every cell scaled by 1 / (36 V0^2), named with the formula; a power of V0
+    that is not declared (V0^1.5) is not named.
+    """
+    split, f_o, K_o, s = _case("ArrudaBoyce", seed=3)
+    points, cells = box_mesh(2, jitter=0.25, seed=3)
+    Dm = np.swapaxes(points[cells[:, 1:]] - points[cells[:, :1]], 1, 2)
+    from_inverse = np.abs(np.linalg.det(np.linalg.inv(Dm))) / 6
+    f, K = _engine(split, from_inverse, from_inverse)
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].figures["weighting"] == "V0^-1"
+    assert found[0].figures["applies_to"] == "force and stiffness"
+    assert "det(Dm^-1)| / 6" in found[0].title
+    f, K = _engine(split, split.V0**1.5, split.V0**1.5)
+    assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []

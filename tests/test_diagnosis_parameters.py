@@ -155,6 +155,10 @@ def test_a_parameter_refit_heads_a_term_fit_that_scales_terms_unequally():
     for a in ([1.0, 2.0, 1.0], [1.0, 2.0, 2.0]):
         kept = [_reading("term-coefficients", a), _reading("parameter-value")]
         assert _parameters_first(kept) == kept
+    # the parameter list read in another order heads such a term fit too (corpus 7's
+    # ab_props_in_kit_order: N for k0 scales every term of the series unequally)
+    reordered = [_reading("term-coefficients", [2.7e-4, 7.1e-8]), _reading("parameters-reordered")]
+    assert [r.finding.code for r in _parameters_first(reordered)][0] == "parameters-reordered"
 
 
 @pytest.mark.oracle
@@ -240,3 +244,37 @@ def test_moduli_converted_through_young_and_poisson_with_one_slip_are_named():
     assert "D1 = 1/K" in convention_words(yeoh, "k0", 6e4, 3e4)
     assert "D1 = 2/K" in convention_words(yeoh, "k0", 1.5e4, 3e4)
     assert "D1" not in convention_words(yeoh, "k0", 6.1e4, 3e4)
+
+
+def test_every_order_of_a_short_parameter_list_but_the_exchanges_is_tried():
+    """Gent (mu, Jm, k0): five other orders, less the exchange of mu and k0 (both Pa, the
+    exchanges' reading); a model with more than four parameters is not reordered.
+    """
+    from conformance.diagnosis.parameters import reorderings
+    from mjed.materials import Gent
+
+    orders = {x.order for x in reorderings(Gent(mu=2500.0, Jm=10.0, k0=3e4))}
+    assert orders == {(0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1)}
+    assert reorderings(COSTA) == []
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_a_parameter_list_read_in_a_constructors_order_is_named():
+    """An engine whose Gent constructor takes (mu, kappa, Jm), handed the kit's list (mu, Jm,
+    k0) by position: Jm and k0 (of different units) exchanged, named as the list's order. Nearby:
+    the same two values not exactly exchanged is no reordering.
+    """
+    from mjed.materials import Gent
+
+    def positional(model):
+        mu, kappa, jm = model.mu, model.Jm, model.k0  # the kit's list read by position
+        return Gent(mu=mu, Jm=jm, k0=kappa)
+
+    d = _checked("Gent", positional)
+    (cause,) = d.causes
+    assert cause.code == "parameters-reordered", d.text()
+    assert "by position" in cause.title and "(mu, k0, Jm)" in cause.title, cause.title
+    assert "Jm = 30000 (the case's k0)" in cause.title
+    near = _checked("Gent", lambda m: Gent(mu=m.mu, Jm=m.k0 * 1.001, k0=m.Jm))
+    assert all(c.code != "parameters-reordered" for c in near.causes), near.text()

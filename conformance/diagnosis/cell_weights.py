@@ -11,6 +11,12 @@ tested separately (an engine may weight one and not the other). No fit: each can
 weights are fixed, and one is named only when its sum matches the engine within tolerance.
 A mesh whose cells all have the same volume cannot tell these from a global factor, which the
 global readings name; no candidate is tried there.
+
+Beside the fixed weights, the rest volume computed as another power of V0 times a constant
+(:data:`POWERS`): the volume from the stored inverse edge matrix, |det(Dm^-1)| / 6 = 1 / (36 V0),
+where |det Dm| / 6 belongs, weights every cell by 1 / (36 V0^2). The power is declared, the one
+constant fitted (least squares on the part that is wrong), and the constant said with the formula
+it matches when it is one of :data:`CONSTANTS`.
 """
 
 from __future__ import annotations
@@ -25,7 +31,7 @@ from conformance.diagnosis.elements import ElementSplit, assemble, element_split
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["WEIGHTS", "cell_weight_findings", "cell_weight_reading"]
+__all__ = ["WEIGHTS", "POWERS", "CONSTANTS", "cell_weight_findings", "cell_weight_reading"]
 
 #: name -> (words, weights (m,) from the rest volumes V0 (m,)).
 WEIGHTS: Dict[str, Tuple[str, Callable[[np.ndarray], np.ndarray]]] = {
@@ -44,6 +50,24 @@ WEIGHTS: Dict[str, Tuple[str, Callable[[np.ndarray], np.ndarray]]] = {
         "structured grid) instead of each cell's own V0",
         lambda V0: np.full_like(V0, V0.mean()) / V0,
     ),
+}
+
+#: power p -> words: the engine's volume is c V0^p (c a constant), each cell weighted by c V0^(p-1).
+POWERS: Dict[int, str] = {
+    -1: "computed as a constant over the right one (the volume of the inverse edge matrix Dm^-1, "
+    "proportional to 1 / V0)",
+    2: "proportional to V0^2 (the volume multiplied in twice, with a constant)",
+}
+
+#: (power, constant c) -> the formula of the engine's volume c V0^p said by name.
+CONSTANTS: Dict[Tuple[int, float], str] = {
+    (-1, 1 / 36): "|det(Dm^-1)| / 6 = 1 / (36 V0), from the stored inverse Dm^-1, where "
+    "V0 = |det Dm| / 6 belongs",
+    (-1, 1 / 6): "|det(Dm^-1)| = 1 / (6 V0), from the stored inverse Dm^-1 (and without the "
+    "1/6), where V0 = |det Dm| / 6 belongs",
+    (-1, 1.0): "1 / V0 (the volume inverted)",
+    (2, 6.0): "V0 |det Dm| = 6 V0^2 (V0 applied twice, once without the 1/6)",
+    (2, 36.0): "(det Dm)^2 = 36 V0^2",
 }
 
 #: Spread of the rest volumes (max / min - 1) below which the cells are alike: no reading.
@@ -92,7 +116,82 @@ def cell_weight_findings(
                     {"weighting": name, "applies_to": which, "residual": max(e.force, e.stiffness)},
                 )
             )
+    found = found or _power_findings(split, f, K, f_o, K_o, s, tol)
     return ambiguous(found, "the weightings coincide on this mesh")
+
+
+def _fit(a, b) -> float:
+    """The constant c that brings c b closest to a (least squares; arrays of one shape, or
+    sparse matrices); 0 when b is zero.
+    """
+    if sp.issparse(b):
+        ab, bb = float(sp.csr_matrix(a).multiply(b).sum()), float(b.multiply(b).sum())
+    else:
+        ab, bb = float(np.vdot(a, b)), float(np.vdot(b, b))
+    return ab / bb if bb > 0 else 0.0
+
+
+def _constant_words(p: int, c: float) -> str:
+    """The engine's volume c V0^p by name, or with the fitted constant."""
+    for (q, known), words in CONSTANTS.items():
+        if q == p and abs(c - known) <= 1e-6 * known:
+            return words
+    return f"{c:.6g} V0^{p}"
+
+
+def _power_findings(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.csr_matrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The powers of :data:`POWERS` whose weights c V0^(p-1), c fitted on the part that is
+    wrong, match the engine (force, stiffness or both).
+    """
+    V0 = split.V0
+    found = []
+    for p, words in POWERS.items():
+        q = V0 ** (p - 1)
+        f_q, K_q = assemble(
+            split.cells, split.n, q[:, None, None] * split.fe, q[:, None, None] * split.Ke
+        )
+        c_f, c_K = _fit(f, f_q), _fit(K, K_q)
+        for which, c, f_pred, K_pred in (
+            ("force and stiffness", c_K, c_K * f_q, c_K * K_q),
+            ("stiffness", c_K, f_o, c_K * K_q),
+            ("force", c_f, c_f * f_q, K_o),
+        ):
+            if not np.isfinite(c) or c <= 0:
+                continue
+            e = errors(f, K, None, f_pred, K_pred, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            formula = _constant_words(p, c)
+            found.append(
+                Finding(
+                    "cell-weight",
+                    f"each cell's {which} weighted by a wrong rest volume, {formula}: the "
+                    f"engine's volume {words}, so every cell's contribution scaled by "
+                    f"{c:.6g} V0^{p - 1} (a per-cell factor)",
+                    FULL,
+                    "the oracle's element forces and matrices (MJED's, whose sum is the "
+                    f"oracle's to {split.residual:.1e}) summed with weights c V0^{p - 1}, "
+                    f"c = {c:.9g} fitted (rest volumes from {V0.min():.3g} to {V0.max():.3g} "
+                    f"m^3), match the engine: force error {e.force:.1e}, stiffness error "
+                    f"{e.stiffness:.1e}",
+                    {
+                        "weighting": f"V0^{p}",
+                        "constant": c,
+                        "applies_to": which,
+                        "residual": max(e.force, e.stiffness),
+                    },
+                )
+            )
+            break
+    return found
 
 
 def cell_weight_reading(diag, ci, out, ref, s: Scales):

@@ -49,6 +49,7 @@ __all__ = [
     "order_findings",
     "STRESS_MEASURES",
     "stress_measure_findings",
+    "split_finding",
     "split_reading",
     "element_reading",
 ]
@@ -190,7 +191,7 @@ def element_layouts() -> List[Tuple[Tuple[int, ...], str]]:
     return out
 
 
-def _split_finding(code: str, title: str, split: ElementSplit, how: str, e, figures) -> Finding:
+def split_finding(code: str, title: str, split: ElementSplit, how: str, e, figures) -> Finding:
     """A finding that the oracle's element matrices, ``how`` changed ("reordered", "laid out")
     and assembled, match the engine with errors ``e``.
     """
@@ -224,7 +225,7 @@ def _layout_findings(
         if tol.within(e, energy=False):
             title = f"element matrix in another layout (stiffness only): {words}"
             layout = {"layout": "".join(_AXES[p] for p in perm)}
-            found.append(_split_finding("element-layout", title, split, "laid out", e, layout))
+            found.append(split_finding("element-layout", title, split, "laid out", e, layout))
     return found
 
 
@@ -245,7 +246,7 @@ def order_findings(
             e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
             if tol.within(e, energy=False):
                 found.append(
-                    _split_finding(
+                    split_finding(
                         "element-order",
                         f"element dofs in another local order ({which}): {words}",
                         split,

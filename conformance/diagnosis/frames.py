@@ -17,6 +17,10 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-shifted``: per-cell frames read one cell off (cell i given cell i - 1's or i + 1's
   frame: an off-by-one index, or frames written in another cell order), the end wrapping
   round or held;
+- ``frame-cells-sorted``: the cells reordered by a sort key (their lowest node, their first node,
+  their sorted node numbers, a coordinate of their rest centroid; a stable sort) for the
+  engine's own loop or scatter, the per-cell frames left in the kit's cell order: the engine's
+  j-th cell, the kit's cell order[j], given the kit's frame j;
 - ``frame-node-indexed``: per-cell frames looked up by a node number, cell k given
   frame[cells[k, a]] (an engine that stores the frames per node, or indexes them with the
   connectivity), one variant per local node a, where every node number is a cell index;
@@ -86,10 +90,14 @@ def _frame_of(model: Any) -> "np.ndarray | None":
     return None if frame is None else np.asarray(frame, dtype=np.float64)
 
 
-def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[str, str, Any]]:
+def frame_models(
+    model: Any, cells: "np.ndarray | None" = None, points: "np.ndarray | None" = None
+) -> List[Tuple[str, str, Any]]:
     """(code, title, model with the mistaken frame) for each frame mistake that differs from the
     model's own frame; empty for a model without a frame or with the identity. ``cells`` (m, 4),
-    the mesh's connectivity, adds the frames looked up by node number.
+    the mesh's connectivity, adds the frames looked up by node number and left in the kit's
+    order after the cells were sorted; ``points`` (n, 3), the rest positions, the sorts by a
+    centroid coordinate.
     """
     R = _frame_of(model)
     if R is None:
@@ -113,6 +121,7 @@ def frame_models(model: Any, cells: "np.ndarray | None" = None) -> List[Tuple[st
         candidates += _averaged(R)
         if cells is not None:
             candidates += _node_indexed(R, np.asarray(cells))
+            candidates += _cells_sorted(R, np.asarray(cells), points)
             candidates += _smoothed(R, np.asarray(cells))
         if isinstance(model, Material):
             # a declared material's frame goes to the oracle as it is; a user energy's is
@@ -236,6 +245,59 @@ def _node_indexed(R: np.ndarray, cells: np.ndarray) -> List[Tuple[str, str, np.n
     ]
 
 
+def _sort_keys(cells: np.ndarray, points: "np.ndarray | None") -> List[Tuple[str, np.ndarray]]:
+    """(words, order) for the sorts of the cells (m, 4) an engine may apply: a stable argsort
+    by their lowest node, by their first node, lexicographic by their sorted node numbers, and
+    (with the rest ``points`` (n, 3)) by each coordinate of their centroid.
+    """
+    s = np.sort(cells, axis=1)
+    keys = [
+        ("their lowest node", np.argsort(cells.min(axis=1), kind="stable")),
+        ("their first node", np.argsort(cells[:, 0], kind="stable")),
+        ("their sorted node numbers (lexicographically)", np.lexsort(s.T[::-1])),
+    ]
+    if points is not None and points.shape[0] > cells.max():
+        centroid = np.asarray(points, dtype=np.float64)[cells].mean(axis=1)
+        keys += [
+            (
+                f"the {axis} coordinate of their rest centroid",
+                np.argsort(centroid[:, k], kind="stable"),
+            )
+            for k, axis in enumerate("xyz")
+        ]
+    return keys
+
+
+def _cells_sorted(
+    R: np.ndarray, cells: np.ndarray, points: "np.ndarray | None"
+) -> List[Tuple[str, str, np.ndarray]]:
+    """Per-cell frames R (m, 3, 3) left in the kit's cell order while the cells were sorted
+    (:func:`_sort_keys`): the kit's cell order[j] given frame j. Sorts that leave the cells in
+    place, or repeat an earlier sort's order, are left out.
+    """
+    if cells.ndim != 2 or cells.shape[0] != R.shape[0]:
+        return []
+    out, seen = [], []
+    for words, order in _sort_keys(cells, points):
+        moved = int(np.count_nonzero(order != np.arange(order.size)))
+        if moved == 0 or any(np.array_equal(order, o) for o in seen):
+            continue
+        seen.append(order)
+        used = np.empty_like(R)
+        used[order] = R
+        out.append(
+            (
+                "frame-cells-sorted",
+                f"fibre frames assigned to the wrong cells: the cells reordered by {words} "
+                "(a stable sort, e.g. for the scatter's locality) but the per-cell frames left "
+                f"in the kit's cell order, so {moved} of the {order.size} cells get another "
+                "cell's frame (a permutation of the frames)",
+                np.ascontiguousarray(used),
+            )
+        )
+    return out
+
+
 def _rotations(M: np.ndarray, how: str) -> np.ndarray:
     """(k, 3, 3) matrices made rotations again: "polar" the nearest rotation (SVD), "gram" by
     Gram-Schmidt from the first column (the fibre kept in direction, the sheet made orthogonal
@@ -324,7 +386,7 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
     """
     h = mean_edge_length(case.points, case.cells)
     out: List[FrameVariant] = []
-    for code, title, model in frame_models(case.model, case.cells):
+    for code, title, model in frame_models(case.model, case.cells, case.points):
         variant = CaseInput(case.case_id, case.points, case.cells, case.positions, model)
         ref = cache.reference(variant)
         if any(_same_prediction(v, ref.force, ref.stiffness) for v in out):

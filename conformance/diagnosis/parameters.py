@@ -8,7 +8,11 @@ it cannot. Here the oracle is evaluated with the parameters themselves changed:
   writes them, "`a`, `k0` (Pa); `b_ff`, ... (dimensionless)"; a user energy's parameters have
   no declared unit, so every pair of them);
 - each parameter alone refitted (:func:`conformance.diagnosis.refit.refit`): the value with
-  which the oracle matches the engine, named with the parameter it equals when it is another's.
+  which the oracle matches the engine, named with the parameter it equals when it is another's;
+- the whole parameter list read by position in another order (:func:`reorderings`: the kit
+  lists the parameters in the declaration's order, an engine's constructor or table may take
+  them in its own), units regardless: every order of a model's parameters (at most
+  :data:`MAX_REORDERED` of them) that the exchanges above do not already try.
 
 Each hypothesis is a model the oracle evaluates like the case's own; it is named only when the
 engine agrees with it within the case's tolerance, and the caller shows two that agree and
@@ -21,7 +25,7 @@ import dataclasses
 import itertools
 import re
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional, Sequence
+from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -29,6 +33,9 @@ from conformance.diagnosis.elastic_conversions import matching_conversion
 
 __all__ = [
     "Exchange",
+    "MAX_REORDERED",
+    "Reordering",
+    "reorderings",
     "convention_words",
     "elastic_convention_words",
     "declared_units",
@@ -139,6 +146,73 @@ def exchanges(model: Any) -> List[Exchange]:
         except (ValueError, TypeError):
             continue
         out.append(Exchange(p, q, vp, vq, swapped))
+    return out
+
+
+#: Models with more scalar parameters than this are not reordered (24 orders of four).
+MAX_REORDERED = 4
+
+
+@dataclass(frozen=True)
+class Reordering:
+    """The case's parameter list read in another order: names (the declared order, which the
+    kit lists), values (the case's), order (the engine's parameter names[i] holds the case's
+    value of names[order[i]]) and the model so read.
+    """
+
+    names: Tuple[str, ...]
+    values: Tuple[float, ...]
+    order: Tuple[int, ...]
+    model: Any
+
+    def moved(self) -> List[int]:
+        return [i for i, j in enumerate(self.order) if i != j]
+
+    def title(self) -> str:
+        said = " and ".join(
+            f"{self.names[i]} = {self.values[self.order[i]]:g} (the case's "
+            f"{self.names[self.order[i]]})"
+            for i in self.moved()
+        )
+        both = len(self.moved()) == 2
+        return (
+            f"parameters read by position in another order: {said} in your engine; the case "
+            f"lists ({', '.join(self.names)}) and your engine took that list in the order "
+            f"({', '.join(self.names[j] for j in self.order)})"
+            + (" (two parameters exchanged)" if both else " (parameters permuted)")
+        )
+
+    def words(self) -> str:
+        return (
+            "the oracle with "
+            + ", ".join(f"{self.names[i]} = {self.values[self.order[i]]:g}" for i in self.moved())
+            + ": "
+        )
+
+
+def reorderings(model: Any) -> List[Reordering]:
+    """Every order of the model's scalar parameters (at most :data:`MAX_REORDERED` of them)
+    that changes the model, that the model accepts and that :func:`exchanges` does not try
+    (an exchange of two of one declared unit, or of two undeclared ones).
+    """
+    values = scalar_parameters(model)
+    if len(values) > MAX_REORDERED:
+        return []
+    names = tuple(values)
+    vals = tuple(values[n] for n in names)
+    units = declared_units(model)
+    out = []
+    for order in itertools.permutations(range(len(names))):
+        moved = [i for i, j in enumerate(order) if vals[i] != vals[j]]
+        if not moved:
+            continue
+        if len(moved) == 2 and units[names[moved[0]]] == units[names[moved[1]]]:
+            continue  # an exchange within one unit (or two undeclared): exchanges()'s
+        try:
+            model_o = with_value(model, **{names[i]: vals[order[i]] for i in moved})
+        except (ValueError, TypeError):
+            continue
+        out.append(Reordering(names, vals, order, model_o))
     return out
 
 

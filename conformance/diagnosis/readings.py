@@ -378,7 +378,35 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                 *fit.prediction,
             )
         )
-    return found or _permutation_readings(cache, ci, out, s, tol)
+    return (
+        found
+        or _permutation_readings(cache, ci, out, s, tol)
+        or _reordered_readings(cache, ci, out, s, tol)
+    )
+
+
+def _reordered_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """The case's parameter list read by position in another order, units regardless
+    (:func:`conformance.diagnosis.parameters.reorderings`), that the engine matches. Tried only
+    when no exchange, single value or same-unit permutation explains the engine.
+    """
+    from conformance.diagnosis.parameters import reorderings
+
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda x=x: cache.evaluate_once(ci, x.model),
+                "parameters-reordered",
+                x.title(),
+                x.words(),
+                {"parameters": [x.names[i] for i in x.moved()], "order": list(x.order)},
+            )
+            for x in reorderings(ci.model)
+        ),
+    )
 
 
 def _permutation_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
@@ -522,11 +550,21 @@ def terms_scaled_unequally(finding: Finding) -> bool:
     return off.size > 1 and float(np.ptp(off)) > 1e-6 * float(np.max(np.abs(off)))
 
 
+#: The readings of the parameters themselves (a value, two exchanged, the list in another order):
+#: where one agrees with a term fit that scales several terms unequally, it says the cause.
+PARAMETER_CODES = (
+    "parameter-value",
+    "parameters-exchanged",
+    "parameters-permuted",
+    "parameters-reordered",
+)
+
+
 def _parameters_first(full: List[Reading]) -> List[Reading]:
-    """``full`` with the parameter refits ahead of a term reading that scales several terms
-    unequally, or of any reading when a refit is an elastic-constant convention: the same
-    prediction is then headed by the parameter's value (merge_readings keeps the first of equal
-    readings as the head), not by one term "scaled".
+    """``full`` with the parameter readings (:data:`PARAMETER_CODES`) ahead of a term reading
+    that scales several terms unequally, or of any reading when a refit is an elastic-constant
+    convention: the same prediction is then headed by the parameter's value (merge_readings
+    keeps the first of equal readings as the head), not by one term "scaled".
     """
     # A parameter read in another elastic-constant convention says the cause (the term fit
     # says only "scaled by 0.93") and heads its equals too.
@@ -535,8 +573,8 @@ def _parameters_first(full: List[Reading]) -> List[Reading]:
         for r in full
     ):
         return full
-    first = [r for r in full if r.finding.code == "parameter-value"]
-    return first + [r for r in full if r.finding.code != "parameter-value"]
+    first = [r for r in full if r.finding.code in PARAMETER_CODES]
+    return first + [r for r in full if r.finding.code not in PARAMETER_CODES]
 
 
 def merge_readings(full: List[Reading], s: Scales) -> List[Finding]:
@@ -708,7 +746,7 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
             for f in d.findings
             if f.code not in ("unexplained", "term-coefficients-ambiguous", "systematic-small")
         ]
-        named = [f for f in rest if f.code == "parameter-value" and f.strength == FULL]
+        named = [f for f in rest if f.code in PARAMETER_CODES and f.strength == FULL]
         if named and terms_scaled_unequally(r.finding):  # the case's parameter value says it
             out.append(
                 replace(d, findings=[*named, r.finding, *(f for f in rest if f not in named)])
