@@ -426,12 +426,12 @@ FAMILY: Dict[str, Tuple[str, Callable, str]] = {
     "Mooney-Rivlin c1 and c2 exchanged": (
         "MooneyRivlin",
         _mjed_with(lambda m: replace(m, c1=m.c2, c2=m.c1)),
-        "term-coefficients",
+        "parameters-exchanged",
     ),
     "St Venant-Kirchhoff lam and mu exchanged": (
         "StVenantKirchhoff",
         _mjed_with(lambda m: replace(m, lam=m.mu, mu=m.lam)),
-        "term-coefficients",
+        "parameters-exchanged",
     ),
     "Neo-Hookean mu read in kPa": (
         "NeoHookean",
