@@ -211,6 +211,8 @@ def vector_p1_space(mesh):
     """The continuous P1 vector function space (block size 3) on ``mesh``."""
     from dolfinx import fem
 
+    install_jit_memo()
+
     if _at_least(_BASIX_ELEMENTS):
         return fem.functionspace(mesh, ("Lagrange", 1, (3,)))
     return fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
@@ -280,6 +282,56 @@ FAST_COMPILE_MAX_CELLS = 20_000
 _NO_C_OPTIMISATION = ["-O0", "-g0"]
 
 
+#: What dolfinx's JIT returned in this process, by FFCx's own cache key (see _jit_key).
+_JIT_MEMO: Dict[tuple, Any] = {}
+
+
+def _jit_key(ufl_object, args: tuple, kwargs: dict) -> Optional[tuple]:
+    """FFCx's cache key of a form or element: its UFL signature (a form's) or repr (an
+    element's) and the options; None for anything else (not memoised).
+    """
+    import ufl
+
+    options = (repr(args), repr(sorted(kwargs.items())))
+    if isinstance(ufl_object, ufl.Form):
+        return ("form", ufl_object.signature(), *options)
+    element_base = getattr(ufl, "FiniteElementBase", None)
+    if element_base is not None and isinstance(ufl_object, element_base):
+        return ("element", repr(ufl_object), *options)
+    return None
+
+
+def install_jit_memo() -> None:
+    """Have dolfinx's JIT answer a form or element it already answered in this process from
+    memory.
+
+    dolfinx asks FFCx's JIT for every form it builds, even one compiled a moment ago: FFCx
+    then finds the module in its disk cache by listing the cache folder (about 2,000 files
+    after a first test run) and loads it again, 10 to 20 ms each. The diagnosis builds
+    hundreds of oracles on the same few forms, so that lookup cost more than the assembly. The
+    memo keys on what FFCx's cache keys on (the form's signature and the options) and returns
+    the same compiled object FFCx would load; in parallel runs (more than one rank) dolfinx's
+    own path is kept. Installed once, by the oracle's first compilation.
+    """
+    from dolfinx import jit
+
+    if getattr(jit.ffcx_jit, "memoised", False):
+        return
+
+    def ffcx_jit(comm, ufl_object, *args, **kwargs):
+        inner = ffcx_jit.__wrapped__  # dolfinx's own
+        key = _jit_key(ufl_object, args, kwargs) if comm.size == 1 else None
+        if key is None:
+            return inner(comm, ufl_object, *args, **kwargs)
+        if key not in _JIT_MEMO:
+            _JIT_MEMO[key] = inner(comm, ufl_object, *args, **kwargs)
+        return _JIT_MEMO[key]
+
+    ffcx_jit.memoised = True
+    ffcx_jit.__wrapped__ = jit.ffcx_jit
+    jit.ffcx_jit = ffcx_jit
+
+
 def compile_form(ufl_form, *, optimise: Optional[bool] = None):
     """The dolfinx Form compiled (JIT, cached by FFCx) from a UFL form.
 
@@ -293,6 +345,7 @@ def compile_form(ufl_form, *, optimise: Optional[bool] = None):
     """
     from dolfinx import fem
 
+    install_jit_memo()
     if optimise is None:
         optimise = _form_cells(ufl_form) > FAST_COMPILE_MAX_CELLS
     timer = None

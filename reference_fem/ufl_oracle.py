@@ -9,6 +9,8 @@ force = -R and stiffness = K (the Hessian of the total energy).
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from typing import Any, Optional, Tuple
 
 import numpy as np
@@ -37,6 +39,38 @@ QUADRATURE_DEGREE = 1
 def _checked_mesh(points, cells) -> Tuple[np.ndarray, np.ndarray]:
     X = check_points(points)
     return X, check_cells(cells, X)
+
+
+#: Serial oracles built on the same mesh share its dolfinx mesh, P1 space and numbering (the
+#: diagnosis builds hundreds of oracles, one per candidate energy, on a case's one mesh; each
+#: would otherwise partition the mesh, build the dofmap and renumber again, about 60 ms). Each
+#: oracle keeps its own function u, forms and PETSc objects; nothing here changes a mesh.
+_SHARED: "OrderedDict[tuple, tuple]" = OrderedDict()
+SHARED_MESHES_KEPT = 8
+
+
+def _mesh_space_numbering(X: np.ndarray, cells: np.ndarray, comm) -> tuple:
+    """(mesh, V, numbering) of the input mesh (X, cells): shared between serial oracles on
+    the same points and cells (the last SHARED_MESHES_KEPT meshes), built anew in parallel.
+    """
+    key = None
+    if comm.size == 1:
+        key = (X.shape, cells.shape, _digest(X), _digest(cells))
+        if key in _SHARED:
+            _SHARED.move_to_end(key)
+            return _SHARED[key]
+    mesh = build_mesh(X, cells, comm)
+    V = compat.vector_p1_space(mesh)
+    numbering = collective(comm, compute_numbering, mesh, V, X, cells)
+    if key is not None:
+        _SHARED[key] = (mesh, V, numbering)
+        while len(_SHARED) > SHARED_MESHES_KEPT:
+            _SHARED.popitem(last=False)
+    return mesh, V, numbering
+
+
+def _digest(a: np.ndarray) -> str:
+    return hashlib.blake2b(np.ascontiguousarray(a).tobytes(), digest_size=16).hexdigest()
 
 
 class UFLOracle:
@@ -70,11 +104,7 @@ class UFLOracle:
         self._material = material
         n = self._X.shape[0]
 
-        self._mesh = build_mesh(self._X, self._cells, comm)
-        self._V = compat.vector_p1_space(self._mesh)
-        self._numbering = collective(
-            comm, compute_numbering, self._mesh, self._V, self._X, self._cells
-        )
+        self._mesh, self._V, self._numbering = _mesh_space_numbering(self._X, self._cells, comm)
 
         # Kinematics and energy, then let UFL differentiate.
         self._u = compat.function(self._V, "u")

@@ -458,3 +458,59 @@ def test_helpers():
     object.__setattr__(zero_alpha, "alpha", 0.0)
     with pytest.raises(ValueError, match="alpha"):
         strain_energy_density(zero_alpha, F)
+
+
+def test_oracles_on_one_mesh_share_it_and_answer_as_if_alone(mesh):
+    """Serial oracles on the same points and cells share the dolfinx mesh, space and numbering
+    (reference_fem.ufl_oracle._mesh_space_numbering); each still answers as one built alone.
+    """
+    from reference_fem import ufl_oracle
+
+    points, cells = mesh
+    a = UFLOracle(points, cells, NeoHookean(mu=1000.0, lam=5000.0))
+    b = UFLOracle(points, cells, Ogden(mu=900.0, alpha=3.0, k0=4000.0))
+    assert a.mesh is b.mesh and a.numbering is b.numbering
+    moved = points.copy()
+    moved[0] += 1e-3
+    assert UFLOracle(moved, cells, a._material).mesh is not a.mesh  # other points: its own
+    x = points + np.random.default_rng(5).uniform(-0.02, 0.02, points.shape)
+    fa, Ka = a.force(x), a.stiffness(x)
+    ufl_oracle._SHARED.clear()  # built alone
+    alone = UFLOracle(points, cells, a._material)
+    assert alone.mesh is not a.mesh
+    np.testing.assert_array_equal(fa, alone.force(x))
+    assert abs(Ka - alone.stiffness(x)).max() == 0.0
+
+
+def test_a_form_compiled_again_comes_from_memory(mesh):
+    """The dolfinx JIT is asked once per form signature and options in a process
+    (reference_fem.compat.install_jit_memo); a form with another signature is compiled.
+    """
+    from dolfinx import jit
+
+    from reference_fem import compat
+
+    points, cells = mesh
+    oracle = UFLOracle(points, cells, NeoHookean(mu=1000.0, lam=5000.0))
+    oracle.compile_forms()
+    assert getattr(jit.ffcx_jit, "memoised", False)
+    inner, asked = jit.ffcx_jit.__wrapped__, []
+
+    def counting(comm, ufl_object, *args, **kwargs):
+        asked.append(ufl_object)
+        return inner(comm, ufl_object, *args, **kwargs)
+
+    jit.ffcx_jit.__wrapped__ = counting
+    try:
+        u = compat.function(oracle.function_space, "u")
+        dx = ufl.Measure("dx", domain=oracle.mesh, metadata={"quadrature_degree": 1})
+        k = 1.0 + 0.25 * len(compat._JIT_MEMO)  # a form no earlier test compiled
+        first = compat.compile_form(k * ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)
+        again = compat.compile_form(k * ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)
+        other = compat.compile_form(2 * k * ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)
+    finally:
+        jit.ffcx_jit.__wrapped__ = inner
+    assert len(asked) == 2  # the first form and the other one, not the first again
+    u.x.array[:] = np.random.default_rng(2).uniform(-0.05, 0.05, u.x.array.shape)
+    values = [compat.assemble_scalar_local(f) for f in (first, again, other)]
+    assert values[0] == values[1] and values[2] == pytest.approx(2 * values[0], rel=1e-13)
