@@ -47,8 +47,10 @@ __all__ = [
     "fit_columns",
     "determined_change",
     "fit_pieces",
+    "derivative_basis",
     "predict",
     "piece_findings",
+    "law_fit",
 ]
 
 EYE = np.eye(3)
@@ -269,6 +271,13 @@ def _basis(t: CellTensors, form: str, chain: str, used: Optional[np.ndarray]):
     return (dW, d2W) if used is None else (dW[used], d2W[used])
 
 
+def derivative_basis(t: CellTensors, fit: PieceFit) -> Tuple[np.ndarray, np.ndarray]:
+    """(dW (k, m, 3), d2W (k, m, 3, 3)) the derivatives of W by (I1, I2, J) per unit of each
+    of ``fit``'s k unknowns: dW/dI_a = sum_k fit.x[:, k] dW[k, :, a], and so d2W.
+    """
+    return _basis(t, fit.form, "", fit.used)
+
+
 def fit_pieces(t: CellTensors, form: str, used: Optional[np.ndarray] = None) -> PieceFit:
     """Least squares per cell of the oracle's (S, CC) on the unknowns of ``form`` (only those
     ``used``: (k,) booleans; all by default), through the correct pieces; batched SVD on unit
@@ -385,12 +394,14 @@ def piece_findings(
     t: CellTensors,
     matches: Callable[[np.ndarray, sp.csr_matrix], float],
     generic: Optional[CellTensors] = None,
+    fit: Optional[PieceFit] = None,
 ) -> List[Finding]:
     """The mistaken pieces whose prediction the engine matches; matches(f, K) returns the
     larger relative error of the engine against (f, K), or inf when it does not match;
-    generic: the law at a nearby state with distinct eigenvalues (:func:`law_fit`).
+    generic: the law at a nearby state with distinct eigenvalues (:func:`law_fit`); fit: the
+    law's fit when made already (else :func:`law_fit` makes it).
     """
-    fit = law_fit(t, generic)
+    fit = law_fit(t, generic) if fit is None else fit
     if fit is None:
         return []
     trials = [("law", c, w, dict(law=c)) for c, w in LAW_MISTAKES.items()]
