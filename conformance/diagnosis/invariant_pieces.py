@@ -40,6 +40,7 @@ __all__ = [
     "cell_tensors",
     "LAW_MISTAKES",
     "CHAIN_MISTAKES",
+    "J_MISTAKES",
     "PieceFit",
     "j_pieces",
     "stress_tangent",
@@ -119,6 +120,8 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
     h = [np.zeros((m, 3, 3, 3, 3)), _outer(eye, eye) - II, outer_ci - odot_ci]
     if mistake == "dJ-with-C":
         g[2] = 0.5 * J * t.C
+    elif mistake == "dJ-without-J":
+        g[2] = 0.5 * t.Ci
     elif mistake == "dI2-sign":
         g[1] = t.I1[:, None, None] * eye + t.C
     elif mistake == "d2I2-no-identity":
@@ -138,11 +141,12 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
     return g, h
 
 
-def j_pieces(t: CellTensors) -> Tuple[np.ndarray, np.ndarray]:
+def j_pieces(t: CellTensors, mistake: str = "") -> Tuple[np.ndarray, np.ndarray]:
     """dJ/dC = J/2 C^-1 (m, 3, 3) and d2J/dCdC = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1
-    (m, 3, 3, 3, 3): the pieces of J in any law's chain rule.
+    (m, 3, 3, 3, 3): the pieces of J in any law's chain rule, with one of
+    :data:`J_MISTAKES` made ("": none).
     """
-    g, h = _law(t)
+    g, h = _law(t, mistake)
     return g[2], h[2]
 
 
@@ -150,6 +154,9 @@ def j_pieces(t: CellTensors) -> Tuple[np.ndarray, np.ndarray]:
 LAW_MISTAKES: Dict[str, str] = {
     "dJ-with-C": "dJ/dC written with C for C^-1 (J/2 C instead of J/2 C^-1) in your stress and "
     "tangent",
+    "dJ-without-J": "dJ/dC written C^-1/2 (the derivative of ln J) instead of J/2 C^-1 (dJ/dF "
+    "= J F^-T without its factor J) in your stress and in the chain-rule products of your "
+    "tangent (d2J/dC2 right): every term through J off where J != 1",
     "dI2-sign": "dI2/dC written I1 I + C instead of I1 I - C (the sign of its C term) in your "
     "stress and tangent",
     "d2I2-no-identity": "the -II term of d2I2/dC2 is missing from your tangent (d2I2/dCdC "
@@ -164,6 +171,10 @@ LAW_MISTAKES: Dict[str, str] = {
     "d2J-outer-missing": "the J/4 C^-1 (x) C^-1 term of d2J/dC2 is missing from your tangent",
     "d2J-missing": "the psi_J d2J/dC2 term is missing from your tangent",
 }
+
+#: The codes of :data:`LAW_MISTAKES` that change J's pieces (dJ/dC, d2J/dCdC) alone: they
+#: apply to any law of J and other variables.
+J_MISTAKES: Tuple[str, ...] = tuple(c for c in LAW_MISTAKES if c.startswith(("dJ", "d2J")))
 
 #: code -> title: the chain from Psi(I1b, I2b) + U(J) to (I1, I2, J) with one piece wrong.
 CHAIN_MISTAKES: Dict[str, str] = {
