@@ -298,7 +298,8 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: split_part_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses)",
+        "one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses, an SVD "
+        "engine's dI/dsigma in its stress and plus quotient)",
         _force_wrong,
         lambda d, c: hand_derived_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
     ),
@@ -326,7 +327,8 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: second_derivative_reading(d, c.ci, c.out, c.ref),
     ),
     Reading(
-        "one piece of a hand-derived tangent wrong, or its 1/J",
+        "one piece of a hand-derived tangent wrong, or its 1/J, or an SVD engine's divided "
+        "difference of an invariant's gradient",
         _force_right,
         lambda d, c: hand_derived_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
     ),

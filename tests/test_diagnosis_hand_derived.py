@@ -243,3 +243,38 @@ def test_shear_stresses_doubled_are_named_at_the_probes_when_the_case_is_uniaxia
         assert codes == (["voigt-stress-shear"] if named else []), [c.title for c in d.findings]
         if named:
             assert "probes near this state" in d.causes[0].evidence
+
+
+def _neo_dj_without_j(points, cells, x, model, tangent: bool):
+    """The compressible Neo-Hookean (W_J = (lam ln J - mu)/J, W_JJ = (mu + lam - lam ln J)/J^2,
+    no cross derivatives) with dJ/dC = C^-1/2 for J/2 C^-1 in the stress (f and the geometric
+    stiffness) and, with ``tangent``, in CC's W_JJ dJ (x) dJ; d2J/dC2 right.
+    """
+    f_o, K_o = _oracle(points, cells, x, model)
+    V0, D, F = _kin(points, cells, x)
+    J = np.linalg.det(F)
+    Ci = np.linalg.inv(F.swapaxes(1, 2) @ F)
+    WJ = (model.lam * np.log(J) - model.mu) / J
+    WJJ = (model.mu + model.lam - model.lam * np.log(J)) / J**2
+    g, gw = 0.5 * J[:, None, None] * Ci, 0.5 * Ci
+    dS = 2.0 * WJ[:, None, None] * (gw - g)
+    outer = lambda a: np.einsum("mij,mkl->mijkl", a, a)  # noqa: E731
+    dCC = 4.0 * WJJ[:, None, None, None, None] * (outer(gw) - outer(g)) * tangent
+    fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, dS, D)
+    geo = np.einsum("maI,mIL,mbL,kl->makbl", D, dS, D, EYE)
+    Ke = (V0[:, None, None, None, None] * geo).reshape(-1, 12, 12)
+    df, dK = assemble(cells, points.shape[0], fe, Ke)
+    K = K_o + dK + _material(points, cells, x, dCC)
+    return f_o + df, sp.csr_matrix(K), f_o, K_o
+
+
+def test_dj_dc_without_its_j_is_named_and_not_in_the_stress_alone():
+    model = default_material("NeoHookean")
+    for uniaxial in (False, True):
+        points, cells, x = _state(uniaxial)
+        d = _read(points, cells, x, *_neo_dj_without_j(points, cells, x, model, True), model)
+        assert [f.code for f in d.causes] == ["derivative-dJ-without-J"], [
+            f.title for f in d.findings
+        ]
+    d = _read(points, cells, x, *_neo_dj_without_j(points, cells, x, model, False), model)
+    assert "derivative-dJ-without-J" not in [f.code for f in d.findings]

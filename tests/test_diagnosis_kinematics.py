@@ -59,3 +59,53 @@ def test_an_engine_with_the_orthonormalised_deformed_frame_is_named():
     assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
     assert named[0].code == "kinematic-frame-deformed", outcome.diagnosis.text()
     assert "re-orthonormalised" in named[0].title
+
+
+def test_the_j_power_out_of_the_exponential_is_tried_only_where_it_multiplies_the_argument():
+    """Costa's exp(J^(-4/3) Q) has the power as a factor of the argument; Demiray's
+    exp(b (I1b - 3)) and Neo-Hookean's energy have none: no such variant there.
+    """
+    codes = lambda name: [v.code for v in kinematic_variants(default_material(name))]  # noqa: E731
+    assert codes("Costa").count("j-power-out-of-exp") == 1
+    assert "j-power-out-of-exp" not in codes("Demiray")
+    assert "j-power-out-of-exp" not in codes("NeoHookean")
+
+
+def _costa_engine_j_power_outside(power_kept: bool):
+    """Costa with its fibre term written a/2 J^(-4/3) (exp(Q) - 1) (power_kept False: the
+    nearby mistake a/2 (exp(Q) - 1), the power dropped), by hyper-dual numbers.
+    """
+    from hyperdual_engine import density_engine
+
+    def density(model, k, F, R):
+        B = model.B
+        Ef = R.T * k.E * R
+        Q = sum(B[i][j] * Ef[i, j] ** 2 for i in range(3) for j in range(3))
+        fibre = 0.5 * model.a * (k.exp(Q) - 1.0)
+        if power_kept:
+            fibre = k.J ** (-4.0 / 3.0) * fibre
+        return fibre + model.k0 * (k.J * k.lnJ - k.J + 1.0)
+
+    engine = density_engine(density, frame_of=lambda model: model.frame)
+    return lambda case: engine(case)[:2]
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_costa_with_the_j_power_outside_the_exponential_is_named_and_without_it_is_not():
+    from conformance.protocol import check_implementation
+
+    for kept, code in ((True, "kinematic-j-power-out-of-exp"), (False, None)):
+        run = check_implementation(
+            _costa_engine_j_power_outside(kept),
+            material="Costa",
+            states=("random",),
+            probes=False,
+        )
+        (outcome,) = run.outcomes
+        codes = [f.code for f in outcome.diagnosis.causes]
+        assert outcome.status == "failed", outcome.diagnosis.text()
+        if code is None:
+            assert "kinematic-j-power-out-of-exp" not in codes, outcome.diagnosis.text()
+        else:
+            assert codes == [code], outcome.diagnosis.text()

@@ -62,7 +62,10 @@ class Spec:
     Green's strain dropped) or "small" ((F + F^T)/2 - I, the linearised strain); only E changes;
     j_exponents: ((exponent, factor), ...): each non-integer power of J whose exponent prints as
     ``exponent`` (:func:`exponent_key`) taken as J^(factor x exponent), the factor entering the
-    form as a parameter does (one compiled form for every factor: a fit of the exponents).
+    form as a parameter does (one compiled form for every factor: a fit of the exponents);
+    j_out_of_exp: a non-integer power of J that multiplies an exponential's argument applied
+    to the exponential term instead, exp(J^p X) taken as J^p (exp(X) - 1) + 1 (so that
+    c (exp(J^p X) - 1) reads c J^p (exp(X) - 1)).
     """
 
     term: Optional[int] = None
@@ -75,6 +78,7 @@ class Spec:
     frame_deformed: bool = False
     j_exponents: Tuple[Tuple[str, float], ...] = ()
     strain: Optional[str] = None
+    j_out_of_exp: bool = False
 
     def key(self) -> str:
         return repr(self)
@@ -265,6 +269,8 @@ def build(model: Any, F, frame, constant, spec: Spec):
         W = _refit_j_powers(W, dict(spec.j_exponents), entered, constant)
     if spec.j_power != 1.0:
         W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
+    if spec.j_out_of_exp:
+        W = _j_power_out_of_exp(W)
     if spec.deformed_volume:
         W = ufl.det(F) * W
     if spec.term is not None:
@@ -312,6 +318,48 @@ def _scale_j_powers(W, r: float, only: Optional[str]):
             ):
                 return base ** (r * exponent)
             return self.reuse_if_untouched(o, base, exponent)
+
+    return map_expr_dag(Rewrite(), W)
+
+
+def _factors(e) -> list:
+    """The factors of a (nested) UFL product."""
+    from ufl.classes import Product
+
+    if isinstance(e, Product):
+        return [f for o in e.ufl_operands for f in _factors(o)]
+    return [e]
+
+
+def _j_power_out_of_exp(W):
+    """W with each exp(J^p X) (J^p a non-integer power of J among the argument's factors) taken
+    as J^p (exp(X) - 1) + 1; unchanged where no exponential's argument has such a factor.
+    """
+    import functools
+    import operator
+
+    import ufl
+    from ufl.classes import Determinant, Power
+    from ufl.corealg.map_dag import map_expr_dag
+    from ufl.corealg.multifunction import MultiFunction
+
+    def is_j_power(f) -> bool:
+        return (
+            isinstance(f, Power)
+            and isinstance(f.ufl_operands[0], Determinant)
+            and not _is_integer_literal(f.ufl_operands[1])
+        )
+
+    class Rewrite(MultiFunction):
+        expr = MultiFunction.reuse_if_untouched
+
+        def exp(self, o, argument):
+            factors = _factors(argument)
+            powers = [f for f in factors if is_j_power(f)]
+            if len(powers) != 1 or len(factors) < 2:
+                return self.reuse_if_untouched(o, argument)
+            rest = functools.reduce(operator.mul, [f for f in factors if f is not powers[0]])
+            return powers[0] * (ufl.exp(rest) - 1.0) + 1.0
 
     return map_expr_dag(Rewrite(), W)
 

@@ -1,4 +1,5 @@
-"""A fibre-frame routine whose results are rotated back to the global axes wrongly.
+"""A fibre-frame routine whose results are rotated back to the global axes wrongly, or a law
+W(Q, J) of a fibre strain form with one of J's pieces wrong.
 
 An engine for a fibre strain form Q = sum_ij B_ij Ef_ij^2 (Costa's) takes the strain into the
 frame, Ef = R^T E R (R the per-cell frame, columns fibre, sheet, normal), computes the
@@ -14,8 +15,10 @@ The five derivatives psi are not taken from a material's code: per cell they are
 oracle's S and CC (:mod:`conformance.diagnosis.invariant_pieces`' machinery), which must be
 reproduced to round-off (else the law is not of this form and nothing is claimed). Each way of
 rotating back wrongly (:data:`ROTATIONS_BACK`) replaces dQ/dC and d2Q/dCdC in S and CC alike and
-predicts the engine's force and stiffness with nothing else fitted; it is named when that
-prediction matches the engine within the case's tolerance (and is determined by the fit).
+predicts the engine's force and stiffness with nothing else fitted; so does each of J's pieces
+written wrongly (:data:`conformance.diagnosis.invariant_pieces.J_MISTAKES`: dJ/dC without its
+J, say, in S and in CC's chain-rule products alike). One is named when its prediction matches
+the engine within the case's tolerance (and is determined by the fit).
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from conformance.diagnosis.fibre_tangent import strain_form
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.invariant_pieces import (
     FIT_TOL,
+    J_MISTAKES,
+    LAW_MISTAKES,
     CellTensors,
     design_columns,
     determined_change,
@@ -81,12 +86,15 @@ def q_pieces(
     return np.einsum(two, R, B * Ef, R), np.einsum(four, R, R, R, R, Tf, optimize=True)
 
 
-def _columns(t: CellTensors, B: np.ndarray, R: np.ndarray, back: str) -> np.ndarray:
+def _columns(
+    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str, j_mistake: str = ""
+) -> np.ndarray:
     """(m, 90, 5) the design columns of psi_Q, psi_J, psi_QQ, psi_QJ, psi_JJ with dQ and d2Q
-    rotated back as ``back``.
+    rotated back as ``back`` and J's pieces with ``j_mistake`` (a code of
+    :data:`conformance.diagnosis.invariant_pieces.J_MISTAKES`; "": none).
     """
     gQ, hQ = q_pieces(t, B, R, back)
-    gJ, hJ = j_pieces(t)
+    gJ, hJ = j_pieces(t, j_mistake)
     m = t.J.size
     dW = np.zeros((5, m, 2))
     d2W = np.zeros((5, m, 2, 2))
@@ -115,11 +123,18 @@ def fibre_piece_findings(
     x, scale, free, residual = fit_columns(right, t.S, t.CC)
     if residual > FIT_TOL:
         return []
+    trials = [
+        (f"fibre-rotated-back-{code}", words, "dQ/dC and d2Q/dCdC rotated back so", code, "")
+        for code, (words, _, _) in ROTATIONS_BACK.items()
+        if code != "right"
+    ]
+    trials += [
+        (f"derivative-{code}", LAW_MISTAKES[code], "that piece of J written so", "right", code)
+        for code in J_MISTAKES
+    ]
     found = []
-    for code, (words, _, _) in ROTATIONS_BACK.items():
-        if code == "right":
-            continue
-        d = determined_change(_columns(t, B, R, code) - right, x, scale, free)
+    for code, words, how, back, j_mistake in trials:
+        d = determined_change(_columns(t, B, R, back, j_mistake) - right, x, scale, free)
         if d is None:
             continue
         m = t.J.size
@@ -128,14 +143,14 @@ def fibre_piece_findings(
         if np.isfinite(left):
             found.append(
                 Finding(
-                    f"fibre-rotated-back-{code}",
+                    code,
                     words,
                     FULL,
                     "the oracle's stress and tangent per cell (from the element matrices, whose "
                     f"sum is the oracle's to {split.residual:.1e}) fitted on the chain rule of "
-                    f"W(Q, J) (misfit {residual:.1e}), dQ/dC and d2Q/dCdC rotated back so and "
-                    f"the rest kept: force and stiffness errors against your engine {left:.1e}",
-                    {"rotation": code, "residual": left},
+                    f"W(Q, J) (misfit {residual:.1e}), {how} and the rest kept: force and "
+                    f"stiffness errors against your engine {left:.1e}",
+                    {"rotation": back, "j_piece": j_mistake, "residual": left},
                 )
             )
     return found

@@ -3,7 +3,8 @@
 wrong, each predicting the engine's force and stiffness with nothing fitted to the engine:
 
 - a piece of the chain rule through the invariants
-  (:mod:`conformance.diagnosis.invariant_pieces`);
+  (:mod:`conformance.diagnosis.invariant_pieces`), or of an SVD engine's chain through the
+  singular values (:mod:`conformance.diagnosis.singular_value_pieces`);
 - the Voigt stress vector's shear components doubled (:mod:`conformance.diagnosis.voigt_stress`);
 - the spatial tangent without its 1/J (:mod:`conformance.diagnosis.spatial_tangent`);
 - at the probes near a state where the force is right, the first Piola stress formed as S F
@@ -34,9 +35,14 @@ import scipy.sparse as sp
 from conformance.diagnosis.elements import cell_piola, element_split
 from conformance.diagnosis.fibre_pieces import fibre_piece_findings
 from conformance.diagnosis.findings import ambiguous
-from conformance.diagnosis.invariant_pieces import cell_tensors, piece_findings
+from conformance.diagnosis.invariant_pieces import (
+    cell_tensors,
+    law_fit,
+    piece_findings,
+)
 from conformance.diagnosis.piola_assembly import piola_force_findings
 from conformance.diagnosis.routine_inputs import probe_force_findings
+from conformance.diagnosis.singular_value_pieces import singular_value_findings
 from conformance.diagnosis.spatial_pieces import isotropic_fit_findings, piece_fit_findings
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
@@ -119,7 +125,9 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
 
     with np.errstate(all="ignore"):
         t = cell_tensors(*cell_piola(split), split.F)
-        found = piece_findings(split, t, matches, _nearby(cache, ci, s, tol))
+        fit = law_fit(t, _nearby(cache, ci, s, tol))
+        found = [] if fit is None else piece_findings(split, t, matches, fit=fit)
+        found += singular_value_findings(split, t, fit, matches)
         found += voigt_stress_findings(split, t.S, matches)
         found += spatial_findings(split, t.S, t.J, matches)
         found += spatial_variant_findings(split, t, matches, tol.stiffness)

@@ -40,6 +40,7 @@ __all__ = [
     "cell_tensors",
     "LAW_MISTAKES",
     "CHAIN_MISTAKES",
+    "J_MISTAKES",
     "PieceFit",
     "j_pieces",
     "stress_tangent",
@@ -47,8 +48,10 @@ __all__ = [
     "fit_columns",
     "determined_change",
     "fit_pieces",
+    "derivative_basis",
     "predict",
     "piece_findings",
+    "law_fit",
 ]
 
 EYE = np.eye(3)
@@ -117,6 +120,8 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
     h = [np.zeros((m, 3, 3, 3, 3)), _outer(eye, eye) - II, outer_ci - odot_ci]
     if mistake == "dJ-with-C":
         g[2] = 0.5 * J * t.C
+    elif mistake == "dJ-without-J":
+        g[2] = 0.5 * t.Ci
     elif mistake == "dI2-sign":
         g[1] = t.I1[:, None, None] * eye + t.C
     elif mistake == "d2I2-no-identity":
@@ -136,11 +141,12 @@ def _law(t: CellTensors, mistake: str = "") -> Tuple[List[np.ndarray], List[np.n
     return g, h
 
 
-def j_pieces(t: CellTensors) -> Tuple[np.ndarray, np.ndarray]:
+def j_pieces(t: CellTensors, mistake: str = "") -> Tuple[np.ndarray, np.ndarray]:
     """dJ/dC = J/2 C^-1 (m, 3, 3) and d2J/dCdC = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1
-    (m, 3, 3, 3, 3): the pieces of J in any law's chain rule.
+    (m, 3, 3, 3, 3): the pieces of J in any law's chain rule, with one of
+    :data:`J_MISTAKES` made ("": none).
     """
-    g, h = _law(t)
+    g, h = _law(t, mistake)
     return g[2], h[2]
 
 
@@ -148,6 +154,9 @@ def j_pieces(t: CellTensors) -> Tuple[np.ndarray, np.ndarray]:
 LAW_MISTAKES: Dict[str, str] = {
     "dJ-with-C": "dJ/dC written with C for C^-1 (J/2 C instead of J/2 C^-1) in your stress and "
     "tangent",
+    "dJ-without-J": "dJ/dC written C^-1/2 (the derivative of ln J) instead of J/2 C^-1 (dJ/dF "
+    "= J F^-T without its factor J) in your stress and in the chain-rule products of your "
+    "tangent (d2J/dC2 right): every term through J off where J != 1",
     "dI2-sign": "dI2/dC written I1 I + C instead of I1 I - C (the sign of its C term) in your "
     "stress and tangent",
     "d2I2-no-identity": "the -II term of d2I2/dC2 is missing from your tangent (d2I2/dCdC "
@@ -162,6 +171,10 @@ LAW_MISTAKES: Dict[str, str] = {
     "d2J-outer-missing": "the J/4 C^-1 (x) C^-1 term of d2J/dC2 is missing from your tangent",
     "d2J-missing": "the psi_J d2J/dC2 term is missing from your tangent",
 }
+
+#: The codes of :data:`LAW_MISTAKES` that change J's pieces (dJ/dC, d2J/dCdC) alone: they
+#: apply to any law of J and other variables.
+J_MISTAKES: Tuple[str, ...] = tuple(c for c in LAW_MISTAKES if c.startswith(("dJ", "d2J")))
 
 #: code -> title: the chain from Psi(I1b, I2b) + U(J) to (I1, I2, J) with one piece wrong.
 CHAIN_MISTAKES: Dict[str, str] = {
@@ -267,6 +280,13 @@ def design_columns(S: np.ndarray, CC: np.ndarray) -> np.ndarray:
 def _basis(t: CellTensors, form: str, chain: str, used: Optional[np.ndarray]):
     dW, d2W = FORMS[form](t, chain)
     return (dW, d2W) if used is None else (dW[used], d2W[used])
+
+
+def derivative_basis(t: CellTensors, fit: PieceFit) -> Tuple[np.ndarray, np.ndarray]:
+    """(dW (k, m, 3), d2W (k, m, 3, 3)) the derivatives of W by (I1, I2, J) per unit of each
+    of ``fit``'s k unknowns: dW/dI_a = sum_k fit.x[:, k] dW[k, :, a], and so d2W.
+    """
+    return _basis(t, fit.form, "", fit.used)
 
 
 def fit_pieces(t: CellTensors, form: str, used: Optional[np.ndarray] = None) -> PieceFit:
@@ -385,12 +405,14 @@ def piece_findings(
     t: CellTensors,
     matches: Callable[[np.ndarray, sp.csr_matrix], float],
     generic: Optional[CellTensors] = None,
+    fit: Optional[PieceFit] = None,
 ) -> List[Finding]:
     """The mistaken pieces whose prediction the engine matches; matches(f, K) returns the
     larger relative error of the engine against (f, K), or inf when it does not match;
-    generic: the law at a nearby state with distinct eigenvalues (:func:`law_fit`).
+    generic: the law at a nearby state with distinct eigenvalues (:func:`law_fit`); fit: the
+    law's fit when made already (else :func:`law_fit` makes it).
     """
-    fit = law_fit(t, generic)
+    fit = law_fit(t, generic) if fit is None else fit
     if fit is None:
         return []
     trials = [("law", c, w, dict(law=c)) for c, w in LAW_MISTAKES.items()]

@@ -15,6 +15,8 @@ case's tolerance. The mistakes:
   for E = (C - I)/2 (formulas written in E: St Venant-Kirchhoff, Costa, a user energy's Eij);
 - the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
   1/2 or 2);
+- a power of J that multiplies an exponential's argument applied to the whole exponential
+  term instead (c (exp(J^p X) - 1) as c J^p (exp(X) - 1));
 - the fibre frame in the deformed configuration (F R, normalised, for R), or pushed forward and
   re-orthonormalised (Gram-Schmidt) as an engine keeping the frame orthonormal would.
 
@@ -249,6 +251,15 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
                         Spec(j_power=r, j_power_of=e),
                     )
                 )
+    out.append(
+        (
+            "j-power-out-of-exp",
+            "the isochoric power of J applied outside the exponential instead of to its argument "
+            "inside: exp(J^p X) taken as J^p (exp(X) - 1) + 1, i.e. c (exp(J^p X) - 1) computed "
+            "as c J^p (exp(X) - 1), J^p read as a factor of the whole exponential term",
+            Spec(j_out_of_exp=True),
+        )
+    )
     kept: List[KinematicVariant] = []
     seen = {base}
     for code, title, spec in out:
