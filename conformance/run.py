@@ -37,6 +37,7 @@ from conformance.diagnosis.mixed_precision import (
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
+from conformance.diagnosis.piola_slips import piola_slip_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -362,6 +363,14 @@ READINGS: Tuple[Reading, ...] = (
         "a total-Lagrangian assembly's first Piola stress and first elasticity tensor",
         _nothing_named,
         lambda d, c: piola_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the total-Lagrangian assembly's own slips (P and A built from S and CC): here P
+        # and A themselves are slipped (SVD factors, the 9 x 9 flattening, dP/dDs, F = Dm^-1 Ds,
+        # a difference quotient's divisor, named only with the differences' noise left)
+        "the first Piola stress or dP/dF with an index or operand slip",
+        _nothing_named,
+        lambda d, c: piola_slip_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "last: the J-only stress the energy denied",
