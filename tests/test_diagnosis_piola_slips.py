@@ -148,13 +148,16 @@ def test_uniaxial_state_the_flattening_predicts_the_oracle_and_nothing_is_claime
     assert _found(case) == []
 
 
-def test_differences_in_ds_are_named_partly_with_their_noise_and_the_wrong_index_is_not_it():
+def test_differences_in_ds_are_named_and_the_chain_factor_on_the_wrong_index_is_not_it():
     def in_Ds(F, Ds, Bm):
         return _differences(lambda Z: _piola(Z @ Bm), Ds)
 
     found = _found(_engine(A=in_Ds)[0])
     assert _codes(found) == ["piola-slip-derivative-in-Ds"], found
     assert "dP/dDs = dP/dF Dm^-T" in found[0].title
+    # the same slip made analytically (nothing left): named in full
+    found = _found(_engine(A=lambda F, Ds, Bm: np.einsum("miJkL,mlL->miJkl", _tangent(F), Bm))[0])
+    assert _codes(found) == ["piola-slip-derivative-in-Ds"] and found[0].strength == "explains"
     # the analytic chain factor on the wrong index is another slip, named in full
     found = _found(_engine(A=lambda F, Ds, Bm: np.einsum("miJkL,mLl->miJkl", _tangent(F), Bm))[0])
     assert (

@@ -34,10 +34,11 @@ tangent an engine gets by differences (``numerical``) may leave more, up to sqrt
 stiffness (the round-off of differences at a step of sqrt(u) or more), and only when what it
 leaves has their signature: not symmetric (:data:`ASYMMETRY`), as the round-off and truncation
 of differences of P are and the tangent of any energy's stress is not; it is then said as
-partly explaining, with what it leaves. The exact doubling or halving of the stiffness alone is
-the global factor's (:mod:`conformance.diagnosis.diagnose`), so the divisor slips are named only
-so. The correct reassembly must reproduce the split (a soundness check of the per-cell P and A:
-otherwise nothing is claimed).
+partly explaining, with what it leaves, and only where no slip matches within the tolerance.
+The exact doubling or halving of the stiffness alone is the global factor's
+(:mod:`conformance.diagnosis.diagnose`), so the divisor slips are named only so. The correct
+reassembly must reproduce the split (a soundness check of the per-cell P and A: otherwise
+nothing is claimed).
 """
 
 from __future__ import annotations
@@ -409,6 +410,9 @@ def slip_findings(
                 found.append(
                     Finding(f"piola-slip-{v.code}", v.words, strength, f"{how_F}: {left}", figures)
                 )
+        # A slip matched within the tolerance outranks one matched only up to the differences'
+        # round-off.
+        found = [x for x in found if x.strength == FULL] or found
         return ambiguous(found, "their predictions differ by less than the tolerance here")
 
     return finder
