@@ -24,6 +24,7 @@ from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.elements import element_reading
+from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.hand_derived import (
@@ -371,6 +372,13 @@ READINGS: Tuple[Reading, ...] = (
         "the first Piola stress or dP/dF with an index or operand slip",
         _nothing_named,
         lambda d, c: piola_slip_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the slips: a difference divisor slip leaves noise too, but in every column
+        "differences of P with a step relative to each entry of F (the zero entries' columns "
+        "noise)",
+        _force_right,
+        lambda d, c: entry_step_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "last: the J-only stress the energy denied",

@@ -1,5 +1,6 @@
 """The first Piola stress or its derivative A = dP/dF with an index or operand slip
-(conformance.diagnosis.piola_slips). Each mistaken engine is a small St Venant-Kirchhoff engine
+(conformance.diagnosis.piola_slips), and differences of P with a step relative to each entry of
+F (conformance.diagnosis.entry_steps). Each mistaken engine is a small St Venant-Kirchhoff engine
 of this module's own in the graphics style (F = Ds Dm^-1, P = F S and A = delta S + F CC F in
 closed form, or through numpy's SVD, or by central differences of P; f_a = -V P G_a,
 K_ab = V G_a A G_b), checked against MJED as the oracle.
@@ -11,6 +12,7 @@ import numpy as np
 from conftest import mjed_split, stretched_state
 
 from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.entry_steps import entry_step_findings
 from conformance.diagnosis.piola_slips import slip_findings
 from conformance.judge.compare import DOUBLE
 from mjed.materials import StVenantKirchhoff
@@ -45,15 +47,19 @@ def _tangent(F):
     return np.einsum("ik,mJL->miJkL", EYE, S) + np.einsum("miI,IJKL,mkK->miJkL", F, CC, F)
 
 
-def _differences(P_of, Z, h=1e-6, over=2.0):
-    """The derivative of P_of by Z (m, 3, 3, 3, 3): central differences divided by over h."""
+def _differences(P_of, Z, h=1e-6, over=2.0, relative=False):
+    """The derivative of P_of by Z (m, 3, 3, 3, 3): central differences divided by over h; with
+    ``relative`` the step h max(|Z_kL|, eps) of each entry.
+    """
     A = np.zeros(Z.shape + (3, 3))
     for k in range(3):
         for L in range(3):
+            step = h * np.maximum(np.abs(Z[:, k, L]), np.finfo(float).eps) if relative else h
+            step = np.broadcast_to(step, Z.shape[:1])
             Zp, Zm = Z.copy(), Z.copy()
-            Zp[:, k, L] += h
-            Zm[:, k, L] -= h
-            A[:, :, :, k, L] = (P_of(Zp) - P_of(Zm)) / (over * h)
+            Zp[:, k, L] += step
+            Zm[:, k, L] -= step
+            A[:, :, :, k, L] = (P_of(Zp) - P_of(Zm)) / (over * step[:, None, None])
     return A
 
 
@@ -187,3 +193,47 @@ def test_f_formed_as_dm_inverse_ds_is_named_and_f_transposed_is_not_it():
     assert _codes(found) == ["piola-slip-F-product-reversed-last"], found
     # nearby: F^T for F (a stress measure's family, P^T for an isotropic material): none here
     assert _found(_engine(F_of=lambda Ds, Bm: np.swapaxes(Ds @ Bm, 1, 2))[0]) == []
+
+
+def _piola_svd(F):
+    """P through the SVD, P = U diag(sigma_i S_i) V^T (S_i the principal SVK stresses): its
+    entries sums of products that cancel, each with the round-off of |P|.
+    """
+    U, sig, Vh = np.linalg.svd(F)
+    E = 0.5 * (sig**2 - 1.0)
+    S = LAM * E.sum(axis=1, keepdims=True) + 2.0 * MU * E
+    return np.einsum("mia,ma,maJ->miJ", U, sig * S, Vh)
+
+
+def _entry_found(case):
+    points, split, f, K, s = case
+    return entry_step_findings(points)(split, f, K, s, DOUBLE)
+
+
+def test_a_step_relative_to_each_entry_of_f_is_named_on_a_stretch_and_nothing_else_is():
+    def relative(F, Ds, Bm):
+        return _differences(_piola_svd, F, relative=True)
+
+    found = _entry_found(_engine(uniaxial=True, A=relative)[0])
+    assert _codes(found) == ["finite-difference-entry-steps"], found
+    assert "relative to each entry of F" in found[0].title and "F_12" in found[0].title
+    assert found[0].strength == "partly explains"
+    # the random state's F has no zero entry: nothing read (and the slips name nothing either)
+    case = _engine(A=relative)[0]
+    assert _entry_found(case) == [] and _found(case) == []
+    # nearby: a step of round-off size for every entry: the stretches' columns are noise too
+    assert (
+        _entry_found(
+            _engine(uniaxial=True, A=lambda F, Ds, Bm: _differences(_piola_svd, F, 1e-13))[0]
+        )
+        == []
+    )
+
+    # nearby: the shear columns wrong by a formula, the same in every cell: not noise
+    def shear_columns(F, Ds, Bm):
+        A = _tangent(F)
+        off = ~np.eye(3, dtype=bool)
+        A[:, :, :, off] *= 1.5
+        return A
+
+    assert _entry_found(_engine(uniaxial=True, A=shear_columns)[0]) == []
