@@ -26,6 +26,7 @@ from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnos
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
+from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.hand_derived import (
@@ -39,6 +40,7 @@ from conformance.diagnosis.mixed_precision import (
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
+from conformance.diagnosis.piola_slips import piola_slip_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -368,6 +370,21 @@ READINGS: Tuple[Reading, ...] = (
         "a total-Lagrangian assembly's first Piola stress and first elasticity tensor",
         _nothing_named,
         lambda d, c: piola_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the total-Lagrangian assembly's own slips (P and A built from S and CC): here P
+        # and A themselves are slipped (SVD factors, the 9 x 9 flattening, dP/dDs, F = Dm^-1 Ds,
+        # a difference quotient's divisor, named only with the differences' noise left)
+        "the first Piola stress or dP/dF with an index or operand slip",
+        _nothing_named,
+        lambda d, c: piola_slip_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the slips: a difference divisor slip leaves noise too, but in every column
+        "differences of P with a step relative to each entry of F (the zero entries' columns "
+        "noise)",
+        _force_right,
+        lambda d, c: entry_step_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "last: the J-only stress the energy denied",

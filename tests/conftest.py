@@ -66,6 +66,20 @@ def box_mesh(n: int = 2, *, jitter: float = 0.0, seed: int = 0):
     return points, cells
 
 
+def stretched_state(seed=0, uniaxial=False):
+    """(points, cells, x): a jittered 2 x 2 x 2 cube stretched along its axes (uniaxial, F
+    diagonal) or deformed, rotated and its nodes moved randomly (U != V in F's SVD).
+    """
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    if uniaxial:
+        return points, cells, points @ np.diag([1.2, 0.95, 0.95])
+    rng = np.random.default_rng(seed)
+    c, s_ = np.cos(0.4), np.sin(0.4)
+    R = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    x = points @ (R @ np.array([[1.15, 0.1, 0.0], [0.0, 0.95, 0.05], [0.05, 0.0, 0.9]])).T
+    return points, cells, x + 0.03 * rng.standard_normal(points.shape)
+
+
 def mjed_split(model, points, cells, x):
     """(split, f_o, K_o, s): MJED's force and stiffness as the oracle of a diagnosis test, their
     split into cells (conformance.diagnosis.elements.element_split) and the case's scales.

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import box_mesh, mjed_split
+from conftest import mjed_split, stretched_state
 
 from conformance.diagnosis.elements import assemble, cell_kinematics, order_findings
 from conformance.diagnosis.piola_assembly import piola_findings
@@ -26,17 +26,6 @@ RIGHT = {
     "mat": lambda F, CC: np.einsum("miI,mIJKL,mkK->miJkL", F, CC, F),
     "Ke": "maJ,miJkL,mbL->maibk",
 }
-
-
-def _state(seed=0, uniaxial=False):
-    points, cells = box_mesh(2, jitter=0.2, seed=seed)
-    if uniaxial:
-        return points, cells, points @ np.diag([1.2, 0.95, 0.95])
-    rng = np.random.default_rng(seed)
-    c, s_ = np.cos(0.4), np.sin(0.4)
-    R = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
-    x = points @ (R @ np.array([[1.15, 0.1, 0.0], [0.0, 0.95, 0.05], [0.05, 0.0, 0.9]])).T
-    return points, cells, x + 0.03 * rng.standard_normal(points.shape)
 
 
 def _engine(points, cells, x, **mistake):
@@ -60,7 +49,7 @@ def _engine(points, cells, x, **mistake):
 
 def _case(seed=0, uniaxial=False, **mistake):
     """(split, the mistaken engine's f and K, the oracle's f_o, K_o, scales)."""
-    points, cells, x = _state(seed, uniaxial)
+    points, cells, x = stretched_state(seed, uniaxial)
     split, f_o, K_o, s = mjed_split(StVenantKirchhoff(mu=MU, lam=LAM), points, cells, x)
     f, K = _engine(points, cells, x, **mistake)
     return split, f, K, f_o, K_o, s
@@ -175,7 +164,7 @@ def test_at_probes_the_force_alone_names_the_product():
     found = piola_force_findings(split, t.S, matches)
     assert _codes(found) == ["piola-assembly-piola-SF"], found
     # S F^T: for an isotropic material the force of F transposed too, so both are said
-    f = _engine(*_state(2), P=lambda F, S: S @ np.swapaxes(F, 1, 2))[0]
+    f = _engine(*stretched_state(2), P=lambda F, S: S @ np.swapaxes(F, 1, 2))[0]
     found = piola_force_findings(split, t.S, matches)
     assert sorted(_codes(found)) == ["piola-assembly-F-transposed", "piola-assembly-piola-SFt"]
     # nearby: the right force is none of them

@@ -66,6 +66,7 @@ __all__ = [
     "RoutineInput",
     "ROUTINE_INPUTS",
     "polar",
+    "piola_at",
     "routine_cells",
     "SAME_PREDICTION",
     "merge_same",
@@ -142,18 +143,19 @@ def _cell_frames(model: Any, m: int) -> Frame:
     return np.broadcast_to(R, (m, 3, 3)).copy() if R.ndim == 2 else R.reshape(m, 3, 3)
 
 
-def routine_cells(
+def piola_at(
     model: Any,
     points: np.ndarray,
     split: ElementSplit,
     F2: np.ndarray,
-    frame2: Frame,
+    frame2: Frame = None,
     stiffness: bool = True,
-) -> Optional[Tuple[np.ndarray, Optional[np.ndarray]]]:
-    """(sigma (m, 3, 3), c (m, 3, 3, 3, 3) or None without ``stiffness``): the material's Cauchy
-    stress and spatial tangent at F2 (m, 3, 3) with the frame ``frame2`` (m, 3, 3; None: the
-    model's own), from MJED on the split's cells exploded; None where MJED cannot (not its
-    material, F2 not invertible, a value not finite).
+) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """(P (m, 3, 3), A = dP/dF (m, 3, 3, 3, 3); zeros without ``stiffness``): the material's
+    first Piola stress and its derivative at F2 (m, 3, 3) with the frame ``frame2`` (m, 3, 3;
+    None: the model's own), from MJED on the split's cells exploded (each its own four nodes,
+    its rest shape unchanged, moved so that its deformation gradient is F2); None where MJED
+    cannot (not its material, F2 not invertible).
     """
     import mjed
 
@@ -180,8 +182,27 @@ def routine_cells(
         )
     except Exception:  # noqa: BLE001 - not an MJED material, or not at this state
         return None
-    at = ElementSplit(local, 4 * m, split.V0, split.D, F2, fe, Ke, 0.0)
-    P, A = cell_piola(at)
+    return cell_piola(ElementSplit(local, 4 * m, split.V0, split.D, F2, fe, Ke, 0.0))
+
+
+def routine_cells(
+    model: Any,
+    points: np.ndarray,
+    split: ElementSplit,
+    F2: np.ndarray,
+    frame2: Frame,
+    stiffness: bool = True,
+) -> Optional[Tuple[np.ndarray, Optional[np.ndarray]]]:
+    """(sigma (m, 3, 3), c (m, 3, 3, 3, 3) or None without ``stiffness``): the material's Cauchy
+    stress and spatial tangent at F2 (m, 3, 3) with the frame ``frame2`` (m, 3, 3; None: the
+    model's own), from MJED on the split's cells exploded (:func:`piola_at`); None where MJED
+    cannot (not its material, F2 not invertible, a value not finite).
+    """
+    at = piola_at(model, points, split, F2, frame2, stiffness)
+    if at is None:
+        return None
+    P, A = at
+    J2 = np.linalg.det(F2)
     Jv = J2[:, None, None]
     if not stiffness:
         S = np.linalg.solve(F2, P)
