@@ -38,11 +38,14 @@ readings, neither fitting anything beyond what it declares:
 columns p, q are any pair turned by one angle phi in their plane (its round-off chooses), and
 a wrong block is not invariant under that turn. There a variant's tensor, rotated back, is
 T0 + cos 2 phi T2c + sin 2 phi T2s + cos 4 phi T4c + sin 4 phi T4s (a fourth-order tensor's
-harmonics, computed by sampling phi); the four numbers of each such cell are fitted
-(:func:`conformance.diagnosis.second_derivative.fit_cell_term`), phi read back from them, and
-the variant's stiffness rebuilt with that phi must then be within the tolerance: one angle per
-cell, nothing else. The piece fit is not tried there (its pieces depend on phi). Three equal
-singular values (rest) claim nothing.
+harmonics, computed by sampling phi). A variant is dropped at once when even free numbers for
+the harmonics leave more than ten times the tolerance; else the numbers' least-squares fit
+(:func:`conformance.diagnosis.second_derivative.fit_cell_term`) gives a first phi per cell,
+Gauss-Newton steps on phi (one unknown a cell) refine it, and where they stall the fit's null
+space is searched for numbers that are an angle's (Levenberg-Marquardt on those conditions).
+The variant's stiffness rebuilt with the phi found must then be within the tolerance: one
+angle per cell, nothing else. The piece fit is not tried there (its pieces depend on phi).
+Three equal singular values (rest) claim nothing.
 """
 
 from __future__ import annotations
@@ -84,8 +87,8 @@ _STRUCTURE = 1e-8
 _OFF = 1e-3
 #: Gauss-Newton steps on the turn angles (at most).
 _NEWTON = 40
-#: Alternating projections for the turn angles (at most), before the Gauss-Newton steps.
-_PROJECTIONS = 40
+#: Most harmonics' numbers (columns) read with a dense SVD of the fit (:func:`_unit_numbers`).
+_DENSE = 2500
 
 
 def svd_frames(F: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -320,14 +323,89 @@ def _harmonics(t: TeranBlocks, Ah: np.ndarray) -> np.ndarray:
     return np.stack(out)
 
 
+def _unit_numbers(
+    owners: np.ndarray, basis: np.ndarray, R: sp.csr_matrix, use: List[int]
+) -> Optional[np.ndarray]:
+    """The harmonics' numbers x (len(use), k) of the k turned cells that the stiffness error R
+    asks for and that are an angle's (cos 2 phi, sin 2 phi, cos 4 phi, sin 4 phi: unit pairs,
+    and the fourth harmonic the second's square): the least-squares solution of least norm
+    moved in the null space of the assembled columns (dense SVD of ``basis`` (len(use) k, 12,
+    12) scattered by ``owners``) by Gauss-Newton on those conditions; None when they are not
+    met.
+    """
+    N = R.shape[0]
+    k = owners.shape[0] // len(use)
+    dof = (3 * owners[:, :, None] + np.arange(3)).reshape(-1, 12)
+    keys = (np.repeat(dof, 12, axis=1).astype(np.int64) * N + np.tile(dof, (1, 12))).ravel()
+    pattern, where = np.unique(keys, return_inverse=True)
+    A = np.zeros((pattern.size, owners.shape[0]))
+    np.add.at(A, (where.ravel(), np.repeat(np.arange(owners.shape[0]), 144)), basis.ravel())
+    norms = np.linalg.norm(A, axis=0)
+    norms[norms == 0] = 1.0
+    Us, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
+    keep = sv > 1e-9 * sv[0]
+    null = (Vt[~keep] / norms).T.reshape(len(use), k, -1)  # (len(use), k, r)
+    Rc = sp.coo_matrix(R)
+    rkeys = Rc.row.astype(np.int64) * N + Rc.col
+    pos = np.minimum(np.searchsorted(pattern, rkeys), pattern.size - 1)
+    inside = pattern[pos] == rkeys
+    b = np.zeros(pattern.size)
+    np.add.at(b, pos[inside], Rc.data[inside])
+    x0 = ((Vt[keep].T @ ((Us[:, keep].T @ b) / sv[keep])) / norms).reshape(len(use), k)
+    row = dict(zip(use, range(len(use))))
+
+    def conditions(x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """(the conditions g (c, k), their derivatives by y (c, k, r)) at numbers x."""
+        g, dg = [], []
+        for pair in ((1, 2), (3, 4)):
+            if pair[0] in row:
+                p, q = row[pair[0]], row[pair[1]]
+                g.append(x[p] ** 2 + x[q] ** 2 - 1.0)
+                dg.append(2 * x[p][:, None] * null[p] + 2 * x[q][:, None] * null[q])
+        if 1 in row and 3 in row:
+            c2, s2, c4, s4 = (row[h] for h in (1, 2, 3, 4))
+            g += [x[c4] - x[c2] ** 2 + x[s2] ** 2, x[s4] - 2 * x[c2] * x[s2]]
+            dg += [
+                null[c4] - 2 * x[c2][:, None] * null[c2] + 2 * x[s2][:, None] * null[s2],
+                null[s4] - 2 * x[s2][:, None] * null[c2] - 2 * x[c2][:, None] * null[s2],
+            ]
+        return np.stack(g), np.stack(dg)
+
+    y = np.zeros(null.shape[2])
+    g, dg = conditions(x0)
+    now = float(np.sum(g**2))
+    mu = 1e-3
+    for _ in range(10 * _NEWTON):  # Levenberg-Marquardt
+        if np.abs(g).max() <= 1e-13 or not y.size:
+            break
+        J = dg.reshape(-1, y.size)
+        JtJ = J.T @ J
+        trial = y - np.linalg.solve(JtJ + mu * np.diag(np.diag(JtJ) + 1e-30), J.T @ g.ravel())
+        g_t, dg_t = conditions(x0 + null @ trial)
+        if float(np.sum(g_t**2)) < now:
+            y, g, dg, now, mu = trial, g_t, dg_t, float(np.sum(g_t**2)), mu / 3.0
+        else:
+            mu *= 4.0
+            if mu > 1e12:
+                break
+    return x0 + null @ y if np.abs(g).max() <= 1e-10 else None
+
+
 def _turn_angles(
-    split: ElementSplit, Ke: np.ndarray, idx: np.ndarray, D: sp.csr_matrix, K_o: sp.csr_matrix
-) -> np.ndarray:
-    """The turn angles phi (len(idx),) of the cells ``idx``: a linear fit of the four harmonics'
-    numbers per cell (Ke (5, m, 12, 12): the harmonics' element matrices) gives a first phi,
-    then Gauss-Newton steps on phi alone (one unknown a cell, each step halved until the
-    error falls) against D = K - K_o; where they stall above round-off, alternating
-    projections from the first phi and Gauss-Newton again (the better of the two kept).
+    split: ElementSplit,
+    Ke: np.ndarray,
+    idx: np.ndarray,
+    D: sp.csr_matrix,
+    K_o: sp.csr_matrix,
+    bound: float,
+) -> Optional[np.ndarray]:
+    """The turn angles phi (len(idx),) of the cells ``idx``; None when even free numbers for
+    the harmonics (Ke (5, m, 12, 12): their element matrices) leave more than ``bound`` of
+    D = K - K_o (relative to ||K_o||): not this variant. Else the free numbers' angles, then
+    Gauss-Newton steps on phi alone (one unknown a cell, each step halved until the error
+    falls); where they stall above round-off, the numbers made an angle's in the fit's null
+    space (:func:`_unit_numbers`, cases of at most :data:`_DENSE` numbers) and Gauss-Newton
+    again (the better of the two kept).
     """
     from conformance.diagnosis.second_derivative import fit_cell_term
 
@@ -338,20 +416,18 @@ def _turn_angles(
     R = (D - assemble(split.cells, split.n, split.fe, Ke[0] - split.Ke)[1]).tocsr()
     basis = np.concatenate([Ke[h, idx] for h in use])
     owners = np.concatenate([split.cells[idx]] * len(use))
+    free, lam = fit_cell_term(owners, basis, R, K_o)
+    if not free <= bound:
+        return None
+    x0 = lam.reshape(len(use), -1)
 
     def angle(x: np.ndarray) -> np.ndarray:
         """The angles phi from the harmonics' numbers x (len(use), cells)."""
         got = dict(zip(use, x))
-        if 1 in got or 2 in got:
-            return 0.5 * np.arctan2(got.get(2, 0.0), got.get(1, 0.0))
-        return 0.25 * np.arctan2(got.get(4, 0.0), got.get(3, 0.0))
+        if 1 in got:
+            return 0.5 * np.arctan2(got[2], got[1])
+        return 0.25 * np.arctan2(got[4], got[3])
 
-    def numbers(phi: np.ndarray) -> np.ndarray:
-        """The harmonics' numbers (len(use), cells) of the angles phi."""
-        trig = (np.cos(2 * phi), np.sin(2 * phi), np.cos(4 * phi), np.sin(4 * phi))
-        return np.stack([trig[h - 1] for h in use])
-
-    phi = angle(fit_cell_term(owners, basis, R, K_o)[1].reshape(len(use), -1))
     cells = split.cells[idx]
 
     def at(phi):
@@ -387,31 +463,28 @@ def _turn_angles(
                 break
         return phi, left
 
-    first, left = newton(phi)
-    if left <= 1e-13 * scale:
+    first, left = newton(angle(x0))
+    if left <= 1e-13 * scale or basis.shape[0] > _DENSE:
         return first
-    # else alternating projections from the first phi: the harmonics' numbers of the angles,
-    # corrected by the linear fit of what they leave, turned back into angles; then Newton
-    R = at(phi)[1]
-    left_p = float(np.linalg.norm(R.data))
-    for _ in range(_PROJECTIONS):
-        step = fit_cell_term(owners, basis, R, K_o)[1].reshape(len(use), -1)
-        trial = angle(numbers(phi) + step)
-        R_t = at(trial)[1]
-        left_t = float(np.linalg.norm(R_t.data))
-        if not left_t < 0.99 * left_p:
-            break
-        phi, R, left_p = trial, R_t, left_t
-    second, left_2 = newton(phi)
+    x = _unit_numbers(owners, basis, R, use)
+    if x is None:
+        return first
+    second, left_2 = newton(angle(x))
     return second if left_2 < left else first
 
 
 def variant_output(
-    split: ElementSplit, t: TeranBlocks, blocks: Blocks, D: sp.csr_matrix, K_o: sp.csr_matrix
-) -> Tuple[np.ndarray, sp.csr_matrix, int]:
+    split: ElementSplit,
+    t: TeranBlocks,
+    blocks: Blocks,
+    D: sp.csr_matrix,
+    K_o: sp.csr_matrix,
+    bound: float = np.inf,
+) -> Optional[Tuple[np.ndarray, sp.csr_matrix, int]]:
     """(force, stiffness, cells turned) of an engine whose blocks are ``blocks``: the oracle's
     force; where two singular values are equal the turn phi of the engine's frame read from the
-    stiffness error D = K - K_o (:func:`_turn_angles`) and the stiffness built with it.
+    stiffness error D = K - K_o (:func:`_turn_angles`) and the stiffness built with it; None
+    when free harmonics there leave more than ``bound`` (relative to ||K_o||).
     """
     Ah = block_tensor(blocks)
     turn = t.equal.any(axis=1)
@@ -419,7 +492,10 @@ def variant_output(
     if turn.any():
         Ke = np.stack([_element_matrices(split, Th) for Th in _harmonics(t, Ah)])
         idx = np.flatnonzero(turn)
-        phi[idx] = _turn_angles(split, Ke, idx, D, K_o)
+        got = _turn_angles(split, Ke, idx, D, K_o, bound)
+        if got is None:
+            return None
+        phi[idx] = got
     U, V = _turned(t, phi)
     A = _rotate_back(U, V, Ah)
     f, K = assemble(split.cells, split.n, split.fe, _element_matrices(split, A))
@@ -483,10 +559,14 @@ def svd_block_findings(
         return []
     K = sp.csr_matrix(K)
     D = (K - K0).tocsr()
+    bound = 10.0 * tol.stiffness * s.stiffness / float(np.linalg.norm(K0.data))
     found = []
     for code, (words, build) in VARIANTS.items():
         with np.errstate(all="ignore"):
-            fv, Kv, turned = variant_output(split, t, build(t), D, sp.csr_matrix(K0))
+            got = variant_output(split, t, build(t), D, sp.csr_matrix(K0), bound)
+        if got is None:
+            continue
+        fv, Kv, turned = got
         e = prediction_errors(split, f, K, (fv, Kv), s, tol)
         if e is None:
             continue
