@@ -127,3 +127,17 @@ def test_a_geometric_stiffness_missing_is_not_a_wrong_block(uniaxial):
     assert codes == []
     codes, *_ = _found("neo", uniaxial, VARIANTS["blocks-doubled"][1], geometric_missing=True)
     assert codes == []
+
+
+def test_the_turns_out_of_a_local_minimum_on_a_larger_uniaxial_mesh():
+    # 162 cells, all with two equal singular values: Gauss-Newton on the angles alone stalls
+    # here; the search in the fit's null space finds the engine's turns
+    points, cells = box_mesh(3, jitter=0.2, seed=1)
+    x = points @ np.diag([1.2, 0.95, 0.95])
+    split, f_o, K_o, s = mjed_split(MODELS["ogden"], points, cells, x)
+    f, K = _engine(split, VARIANTS["blocks-doubled"][1])
+    codes = [x.code for x in svd_block_findings(split, f, K, s, DOUBLE)]
+    assert codes == ["svd-blocks-blocks-doubled"]
+    f, K = _engine(split, VARIANTS["hessian-diagonal"][1])
+    codes = [x.code for x in svd_block_findings(split, f, K, s, DOUBLE)]
+    assert codes == ["svd-blocks-hessian-diagonal"]

@@ -89,6 +89,8 @@ _OFF = 1e-3
 _NEWTON = 40
 #: Most harmonics' numbers (columns) read with a dense SVD of the fit (:func:`_unit_numbers`).
 _DENSE = 2500
+#: The sizes of the perturbed starts of the search (8 of each), in the numbers' RMS change.
+_RESTARTS = (0.1, 0.3, 0.6)
 
 
 def svd_frames(F: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -324,14 +326,15 @@ def _harmonics(t: TeranBlocks, Ah: np.ndarray) -> np.ndarray:
 
 
 def _unit_numbers(
-    owners: np.ndarray, basis: np.ndarray, R: sp.csr_matrix, use: List[int]
+    owners: np.ndarray, basis: np.ndarray, R: sp.csr_matrix, use: List[int], near: np.ndarray
 ) -> Optional[np.ndarray]:
     """The harmonics' numbers x (len(use), k) of the k turned cells that the stiffness error R
     asks for and that are an angle's (cos 2 phi, sin 2 phi, cos 4 phi, sin 4 phi: unit pairs,
     and the fourth harmonic the second's square): the least-squares solution of least norm
     moved in the null space of the assembled columns (dense SVD of ``basis`` (len(use) k, 12,
-    12) scattered by ``owners``) by Gauss-Newton on those conditions; None when they are not
-    met.
+    12) scattered by ``owners``), from the point nearest the numbers ``near`` (len(use), k) and
+    then from perturbed starts (:data:`_RESTARTS`, fixed seed), by Levenberg-Marquardt on those
+    conditions; None when no start meets them.
     """
     N = R.shape[0]
     k = owners.shape[0] // len(use)
@@ -371,11 +374,30 @@ def _unit_numbers(
             ]
         return np.stack(g), np.stack(dg)
 
-    y = np.zeros(null.shape[2])
-    g, dg = conditions(x0)
+    flat = null.reshape(-1, null.shape[2])
+    start = np.linalg.lstsq(flat, (near - x0).ravel(), rcond=None)[0]
+    # perturbed starts (a few turns' worth, rho the RMS change of the numbers) out of the local
+    # minima of the conditions
+    unit = np.sqrt(flat.shape[0]) / max(float(np.linalg.norm(flat)), 1e-300)
+    rng = np.random.default_rng(0)
+    for rho in (0.0, *np.repeat(_RESTARTS, 8)):
+        y = start + rho * unit * rng.standard_normal(start.size)
+        x = _levenberg_marquardt(conditions, x0, null, y)
+        if x is not None:
+            return x
+    return None
+
+
+def _levenberg_marquardt(
+    conditions: Callable, x0: np.ndarray, null: np.ndarray, y: np.ndarray
+) -> Optional[np.ndarray]:
+    """The numbers x0 + null y (null (len(use), k, r)) meeting ``conditions`` (x -> (g, dg/dy))
+    by Levenberg-Marquardt from ``y``; None when they are not met.
+    """
+    g, dg = conditions(x0 + null @ y)
     now = float(np.sum(g**2))
     mu = 1e-3
-    for _ in range(10 * _NEWTON):  # Levenberg-Marquardt
+    for _ in range(10 * _NEWTON):
         if np.abs(g).max() <= 1e-13 or not y.size:
             break
         J = dg.reshape(-1, y.size)
@@ -466,7 +488,8 @@ def _turn_angles(
     first, left = newton(angle(x0))
     if left <= 1e-13 * scale or basis.shape[0] > _DENSE:
         return first
-    x = _unit_numbers(owners, basis, R, use)
+    trig = (np.cos(2 * first), np.sin(2 * first), np.cos(4 * first), np.sin(4 * first))
+    x = _unit_numbers(owners, basis, R, use, np.stack([trig[h - 1] for h in use]))
     if x is None:
         return first
     second, left_2 = newton(angle(x))
