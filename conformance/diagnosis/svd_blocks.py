@@ -91,6 +91,9 @@ _NEWTON = 40
 _DENSE = 2500
 #: The sizes of the perturbed starts of the search (8 of each), in the numbers' RMS change.
 _RESTARTS = (0.1, 0.3, 0.6)
+#: The angle conditions met to this (the data's round-off, e.g. a clamped quotient's, leaves
+#: more than machine precision; the rebuilt stiffness is judged against the tolerance after).
+_MET = 1e-6
 
 
 def svd_frames(F: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -410,7 +413,7 @@ def _levenberg_marquardt(
             mu *= 4.0
             if mu > 1e12:
                 break
-    return x0 + null @ y if np.abs(g).max() <= 1e-10 else None
+    return x0 + null @ y if np.abs(g).max() <= _MET else None
 
 
 def _turn_angles(
