@@ -51,6 +51,7 @@ from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_side import stress_side_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
+from conformance.diagnosis.svd_blocks import svd_block_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.diagnosis.volumes import volume_findings
@@ -338,6 +339,14 @@ READINGS: Tuple[Reading, ...] = (
         "Ogden's coaxial tangent, Costa's d2Q unsymmetrised",
         _force_right,
         lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # a material's own formula too (Teran's SVD-basis blocks); before MJED's parts and the
+        # differences, which would read a wrong block as a wrong term or a step
+        "one of Teran's blocks of dP/dF in the SVD basis wrong (2x2 blocks, their quotients, "
+        "the 3x3 block, the definiteness fix)",
+        _force_right,
+        lambda d, c: svd_block_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "one of MJED's stiffness blocks of a term wrong (J-Hessian, cross, J-J, material "
