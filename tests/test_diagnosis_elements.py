@@ -105,6 +105,37 @@ def test_cauchy_stress_over_the_rest_volume_is_named():
     assert stress_measure_findings(split, f_o, K_o, s, DOUBLE) == []
 
 
+def test_p_transposed_is_named_only_where_p_is_not_symmetric():
+    """An engine using P^T as P (force and its exact derivative): named on a general state; on
+    a uniaxial stretch (F and S diagonal, P symmetric) its force is the oracle's, and the
+    stiffness alone is no evidence of a stress measure: not named there.
+    """
+    from common.cases import default_material
+    from mjed.mesh import shape_vectors
+
+    model = default_material("NeoHookean")
+    general = _state(3)
+    points, cells, _ = general
+    uniaxial = (points, cells, points @ np.diag([1.2, 0.93, 0.93]).T)
+    for (points, cells, x), named in ((general, True), (uniaxial, False)):
+        split, f_o, K_o, s = _split(model, points, cells, x)
+        V0, D = shape_vectors(points, cells)
+        V0 = np.abs(V0)
+        F = np.einsum("mai,maj->mij", x[cells], D)
+        P, A, _ = _neo_hookean_piola(F, model.mu, model.lam)
+        Pt, At = P.swapaxes(1, 2), A.transpose(0, 2, 1, 3, 4)  # d(P^T)_ki / dF_lj
+        fe = -V0[:, None, None] * np.einsum("mki,mai->mak", Pt, D)
+        Ke = V0[:, None, None, None, None] * np.einsum("mai,mkilj,mbj->makbl", D, At, D)
+        f, K = assemble(cells, points.shape[0], fe, Ke.reshape(-1, 12, 12))
+        found = stress_measure_findings(split, f, K, s, DOUBLE)
+        if named:
+            assert [x.code for x in found] == ["stress-measure-piola-transposed"], found
+        else:
+            assert np.abs(f - f_o).max() <= 1e-12 * np.abs(f_o).max()  # the same force
+            assert abs(K - K_o).max() > 1e-3 * abs(K_o).max()  # another stiffness
+            assert found == [], found
+
+
 def test_no_split_for_a_model_mjed_does_not_have_or_a_wrong_sum():
     from common.cases import default_material
 
