@@ -59,11 +59,11 @@ import scipy.sparse as sp
 from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, prediction_errors
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.least_squares import determined_lstsq
+from conformance.diagnosis.singular_value_pieces import PAIRS, rotation_variant_svd
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
     "PAIRS",
-    "svd_frames",
     "TeranBlocks",
     "teran_blocks",
     "block_tensor",
@@ -76,8 +76,6 @@ __all__ = [
     "svd_block_reading",
 ]
 
-#: The pairs (i, j), i < j, of the singular values (sorted descending, as NumPy's SVD gives).
-PAIRS = ((0, 1), (0, 2), (1, 2))
 
 #: Two singular values closer than this (relative to the largest) are equal: the frame turns.
 _EQUAL = 1e-8
@@ -96,20 +94,6 @@ _RESTARTS = (0.1, 0.3, 0.6)
 _MET = 1e-6
 
 
-def svd_frames(F: np.ndarray) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rotation-variant SVD of F (m, 3, 3): U (m, 3, 3), sigma (m, 3) descending, V (m, 3, 3)
-    with F = U diag(sigma) V^T and det U = det V = 1 (a reflection put on sigma_3's sign).
-    """
-    U, s, Vt = np.linalg.svd(F)
-    V = np.swapaxes(Vt, 1, 2).copy()
-    U, s = U.copy(), s.copy()
-    for W in (U, V):
-        flip = np.linalg.det(W) < 0
-        W[flip, :, 2] *= -1.0
-        s[flip, 2] *= -1.0
-    return U, s, V
-
-
 @dataclass(frozen=True)
 class Blocks:
     """Teran's blocks of a tangent in the SVD basis: H (m, 3, 3) the 3x3 block; per pair of
@@ -126,7 +110,7 @@ class Blocks:
 
 @dataclass(frozen=True)
 class TeranBlocks:
-    """The oracle's tangent read as Teran's blocks: U, sigma, V (:func:`svd_frames`); psi
+    """The oracle's tangent read as Teran's blocks: U, sigma, V (:func:`rotation_variant_svd`); psi
     (m, 3) = diag(U^T P V); blocks; minus, plus (m, 3) per pair (a + b, a - b); equal (m, 3)
     per pair: its singular values equal (the frame turns in their plane); structure: how far
     the rotated tangent is from the block structure (relative).
@@ -165,7 +149,7 @@ def _rotate_back(U: np.ndarray, V: np.ndarray, Ah: np.ndarray) -> np.ndarray:
 
 def teran_blocks(P: np.ndarray, A: np.ndarray, F: np.ndarray) -> TeranBlocks:
     """The oracle's P (m, 3, 3) and A (m, 3, 3, 3, 3) read in the SVD basis of F (m, 3, 3)."""
-    U, s, V = svd_frames(F)
+    U, s, V = rotation_variant_svd(F)
     Ah = np.einsum("mia,mjb,mkc,mld,mijkl->mabcd", U, V, U, V, A, optimize=True)
     psi = np.einsum("mia,mij,mja->ma", U, P, V)
     H = np.einsum("maacc->mac", Ah)
