@@ -667,32 +667,29 @@ def _settle_ambiguity(run: CheckRun) -> None:
     """
     from conformance.diagnosis.disambiguate import settle_ambiguity
 
-    groups: Dict[tuple, List[int]] = {}
-    for i, o in enumerate(run.outcomes):
-        groups.setdefault((o.model, o.mesh), []).append(i)
-    settled = settle_ambiguity(
-        [o.diagnosis for o in run.outcomes],
-        list(groups.values()),
-        [o.case_id for o in run.outcomes],
-    )
-    for i, d in enumerate(settled):
-        if d is not run.outcomes[i].diagnosis:
-            run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
+    _by_group(run, settle_ambiguity)
 
 
 def _corroborate(run: CheckRun) -> None:
     """A cause named on one case not named where it leaves another case of the same model and
     mesh unexplained (:func:`conformance.diagnosis.corroborate.corroborate`).
     """
+    _by_group(run, corroborate)
+
+
+def _by_group(run: CheckRun, rule: Callable[..., list]) -> None:
+    """The outcomes' diagnoses passed through ``rule(diagnoses, groups, case_ids)``, the groups
+    being the cases of one model and mesh; each diagnosis it changes replaced in place.
+    """
     groups: Dict[tuple, List[int]] = {}
     for i, o in enumerate(run.outcomes):
         groups.setdefault((o.model, o.mesh), []).append(i)
-    checked = corroborate(
+    changed = rule(
         [o.diagnosis for o in run.outcomes],
         list(groups.values()),
         [o.case_id for o in run.outcomes],
     )
-    for i, d in enumerate(checked):
+    for i, d in enumerate(changed):
         if d is not run.outcomes[i].diagnosis:
             run.outcomes[i] = replace(run.outcomes[i], diagnosis=d)
 
