@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
 import sys
 import time
 
@@ -193,4 +194,33 @@ def test_sigterm_to_check_ends_the_engine_it_is_running(tmp_path):
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=30) == 130
     assert "interrupted" in proc.stderr.read()
+    _assert_ended(pidfile, 1)
+
+
+@linux_only
+@pytest.mark.parametrize("where", ["reader start", "engine start"])
+def test_an_interrupt_while_the_engine_is_being_started_still_ends_it(tmp_path, monkeypatch, where):
+    # SIGTERM becomes KeyboardInterrupt wherever the main thread is. It once landed after the
+    # fork but before the cleanup was armed (CI, 27 Nov 2026): the engine outlived the check.
+    from conformance.engine import process
+
+    pidfile = tmp_path / "pids"
+    script = f"echo $$ >> {pidfile}; exec sleep 60"
+
+    def wait_for_engine_then_interrupt(*_args, **_kwargs):
+        _pids(pidfile)  # the engine is running: its pid is written
+        raise KeyboardInterrupt()
+
+    if where == "reader start":
+        monkeypatch.setattr(process._BoundedReader, "start", wait_for_engine_then_interrupt)
+    else:  # after the fork, before Popen returns: the engine's pid is not known here yet
+        real = subprocess.Popen.__init__
+
+        def popen_then_interrupt(self, *args, **kwargs):
+            real(self, *args, **kwargs)
+            wait_for_engine_then_interrupt()
+
+        monkeypatch.setattr(subprocess.Popen, "__init__", popen_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        run_engine(["sh", "-c", script], timeout=20)
     _assert_ended(pidfile, 1)

@@ -230,19 +230,25 @@ def _reap_adopted(me: int, skip: Set[int]) -> None:
 
 
 def end_process_tree(
-    root: int, token: str, spare: Set[int] = frozenset(), *, rounds: int = 200
+    root: Optional[int], token: str, spare: Set[int] = frozenset(), *, rounds: int = 200
 ) -> int:
     """SIGKILL the engine's process group and every process of its tree; returns how many
     distinct processes were killed (the group leader not counted). spare: as for _tree.
+
+    root None: the engine's pid is not known (an interrupt arrived while it was being started,
+    after the fork); its tree is then found by the token and by being our new child.
     """
-    try:
-        os.killpg(root, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
+    if root is not None:
+        try:
+            os.killpg(root, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
     me, mark = os.getpid(), f"{MARK}={token}".encode()
+    # -1 matches no process group or session: only the token and our parentage find the tree
+    group = -1 if root is None else root
     killed: Set[int] = set()
     for _ in range(rounds):  # a forking process may add children between two scans
-        live = _tree(root, mark, me, spare) - {root}
+        live = _tree(group, mark, me, spare) - {group}
         if not live:
             break
         for pid in live:
@@ -252,8 +258,8 @@ def end_process_tree(
                 pass
         killed |= live
         time.sleep(0.005)
-        _reap_adopted(me, spare | {root})
-    _reap_adopted(me, spare | {root})
+        _reap_adopted(me, spare | {group})
+    _reap_adopted(me, spare | {group})
     return len(killed)
 
 
@@ -262,52 +268,56 @@ def run_engine(
 ) -> EngineRun:
     """Run ``argv`` (no shell) with a time limit; its whole tree is ended before returning.
 
-    Raises OSError when it cannot be started.
+    Raises OSError when it cannot be started. An interrupt (Ctrl-C, or SIGTERM turned into one)
+    arriving at any point after the fork, even before the engine's pid is known here, still
+    ends the tree before it propagates.
     """
     token = secrets.token_hex(16)
     env = dict(os.environ if env is None else env)
     env[MARK] = token
-    fds: List[int] = []
     spare = _children(os.getpid())
+    proc: Optional[subprocess.Popen] = None
+    readers: List[_BoundedReader] = []
+    fds: List[int] = []
+    timed_out, ended = False, 0
     with _adopting():
         out_r, out_w = os.pipe()
         err_r, err_w = os.pipe()
         fds += [out_r, err_r]
         try:
-            proc = subprocess.Popen(
-                list(argv),
-                stdin=subprocess.DEVNULL,
-                stdout=out_w,
-                stderr=err_w,
-                start_new_session=True,
-                env=env,
-                close_fds=True,
-            )
-        except OSError:
-            for fd in (out_r, err_r):
-                os.close(fd)
-            raise
-        finally:
-            os.close(out_w)
-            os.close(err_w)
-        readers = [_BoundedReader(out_r), _BoundedReader(err_r)]
-        for r in readers:
-            r.start()
-        timed_out = False
-        try:
+            try:
+                proc = subprocess.Popen(
+                    list(argv),
+                    stdin=subprocess.DEVNULL,
+                    stdout=out_w,
+                    stderr=err_w,
+                    start_new_session=True,
+                    env=env,
+                    close_fds=True,
+                )
+            finally:
+                os.close(out_w)
+                os.close(err_w)
+            readers = [_BoundedReader(out_r), _BoundedReader(err_r)]
+            for r in readers:
+                r.start()
             try:
                 proc.wait(timeout=timeout)
             except subprocess.TimeoutExpired:
                 timed_out = True
-            finally:  # also on Ctrl-C while the engine runs
-                ended = end_process_tree(proc.pid, token, spare)
-                proc.wait()
-        finally:
-            # every writer is dead now; one out of our reach (another user's) cannot hold us
-            for r in readers:
-                r.join(timeout=2.0)
-                r.stop.set()
-                r.join()
-            for fd in fds:
-                os.close(fd)
+        finally:  # also on Ctrl-C, wherever it lands after the fork; a failed start finds none
+            try:
+                ended = end_process_tree(None if proc is None else proc.pid, token, spare)
+                if proc is not None:
+                    proc.wait()
+            finally:
+                # every writer is dead now; one out of our reach (another user's) cannot hold us
+                for r in readers:
+                    if r.ident is None:  # interrupted before it started
+                        continue
+                    r.join(timeout=2.0)
+                    r.stop.set()
+                    r.join()
+                for fd in fds:
+                    os.close(fd)
     return EngineRun(proc.returncode, timed_out, readers[0].text(), readers[1].text(), ended)
