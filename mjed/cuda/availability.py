@@ -15,9 +15,9 @@ from mjed.compiled.availability import BackendUnavailable, numba_available
 __all__ = ["cuda_available", "load_numba_cuda", "require_cuda", "simulated"]
 
 
-def simulated() -> bool:
+def simulated(environ=os.environ) -> bool:
     """True when Numba's CUDA simulator is (or will be) used instead of a device."""
-    return os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
+    return environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
 
 
 def load_numba_cuda() -> ModuleType:

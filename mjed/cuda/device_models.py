@@ -29,6 +29,8 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from mjed.cuda.threads import THREADS_PER_BLOCK
+
 __all__ = ["DevicePlan", "DeviceFluid", "DeviceViscous", "PRESSURE_TOL", "device_plan"]
 
 #: Relative residual to which the device CG solves the Darcy step (the host factorises it):
@@ -118,7 +120,7 @@ class Geometry:
         else:
             self.D = cuda.to_device(np.ascontiguousarray(mesh.D, dtype=np.float64))
             self.V = cuda.to_device(np.ascontiguousarray(mesh.volumes, dtype=np.float64))
-        self.grid = max(1, -(-mesh.n_cells // 128))
+        self.grid = max(1, -(-mesh.n_cells // THREADS_PER_BLOCK))
 
 
 class DeviceViscous:
@@ -127,7 +129,7 @@ class DeviceViscous:
     :meth:`sync`.
     """
 
-    THREADS = 128
+    THREADS = THREADS_PER_BLOCK
 
     def __init__(self, model, field, geometry: Geometry, cuda):
         from mjed.cuda import model_kernels
@@ -217,7 +219,7 @@ class DeviceFluid:
     host model is left untouched until :meth:`sync`.
     """
 
-    THREADS = 128
+    THREADS = THREADS_PER_BLOCK
 
     def __init__(self, model, geometry: Geometry, cuda):
         from mjed.cuda import model_kernels, step_kernels

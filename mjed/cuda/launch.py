@@ -35,14 +35,12 @@ from mjed.cuda.codegen import (
     EdgeIncidence,
     ElementIncidence,
 )
+from mjed.cuda.threads import THREADS_PER_BLOCK
 from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
 
 __all__ = ["BlockLayout", "CellLauncher", "THREADS_PER_BLOCK", "launcher_for"]
-
-#: Threads per block of the cell kernels (one thread per cell).
-THREADS_PER_BLOCK = 128
 
 
 @dataclass(frozen=True)
@@ -240,7 +238,8 @@ class CellLauncher:
 
     def _zero_array(self, a) -> None:
         if a.shape[0]:
-            self._zero[max(1, min(1024, -(-a.shape[0] // 256))), 256](a)
+            T = THREADS_PER_BLOCK
+            self._zero[max(1, min(1024, -(-a.shape[0] // T))), T](a)
 
     def _reduce(self) -> Tuple[float, float]:
         """(min J, sum of the cell energies) over the cells, on the device."""
@@ -248,7 +247,8 @@ class CellLauncher:
         if m == 0:
             return np.inf, 0.0
         self._reduced.copy_to_device(np.array([np.inf, 0.0]))
-        self._min_sum[max(1, min(256, -(-m // 256))), 256](self.J, self.E, self._reduced)
+        T = THREADS_PER_BLOCK
+        self._min_sum[max(1, min(256, -(-m // T))), T](self.J, self.E, self._reduced)
         J_min, energy = self._reduced.copy_to_host()
         return float(J_min), float(energy)
 

@@ -25,11 +25,12 @@ import numpy as np
 from numba import cuda
 
 from mjed.cuda.step_kernels import clear
+from mjed.cuda.threads import THREADS_PER_BLOCK
 from mjed.solvers import CGResult
 
 __all__ = ["DeviceCG", "DeviceCSR", "device_conjugate_gradient"]
 
-_THREADS = 128
+_THREADS = THREADS_PER_BLOCK
 
 
 @cuda.jit

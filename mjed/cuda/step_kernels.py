@@ -15,6 +15,8 @@ import math
 
 from numba import cuda
 
+from mjed.cuda.threads import THREADS_PER_BLOCK
+
 __all__ = [
     "THREADS",
     "advance_velocity",
@@ -33,8 +35,8 @@ __all__ = [
     "system_matrix",
 ]
 
-#: Threads per block of every kernel here.
-THREADS = 128
+#: Threads per block of every kernel here (mjed.cuda.threads).
+THREADS = THREADS_PER_BLOCK
 
 
 @cuda.jit
