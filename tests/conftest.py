@@ -176,6 +176,23 @@ def pytest_report_header(config):
 # ---- the full sweeps: cross products kept out of the default run (make test-sweep)
 
 
+def pytest_configure(config):
+    """In the controlling process only: one tutorial cache for the session's workers
+    (tests/docs_support.py), made before they start so that they inherit its name.
+    """
+    from docs_support import SHARED_CACHE
+
+    if hasattr(config, "workerinput") or SHARED_CACHE in os.environ:
+        return
+    import shutil
+    import tempfile
+
+    path = tempfile.mkdtemp(prefix="mjed-tutorials-")
+    os.environ[SHARED_CACHE] = path
+    config.add_cleanup(lambda: shutil.rmtree(path, ignore_errors=True))
+    config.add_cleanup(lambda: os.environ.pop(SHARED_CACHE, None))
+
+
 def pytest_addoption(parser):
     parser.addoption(
         "--sweep",

@@ -4,12 +4,17 @@ site.
 Each tutorial is executed once per test session (into a fresh temporary cache, so nothing
 from an earlier run is reused), by ``tests/test_tutorials.py`` or by the site build of
 ``tests/test_docs_site.py``, whichever asks first; the build then reuses the executions
-(``docs/_ext/tutorial_runner.py`` matches them by a hash of the sources).
+(``docs/_ext/tutorial_runner.py`` matches them by a hash of the sources). The two modules
+usually run on different pytest-xdist workers: the session's cache is then one folder made by
+the controlling process (``tests/conftest.py``, :data:`SHARED_CACHE`), and a lock per
+tutorial makes the second worker wait for the first one's run and reuse it instead of running
+the tutorial again.
 """
 
 from __future__ import annotations
 
 import atexit
+import fcntl
 import functools
 import os
 import shutil
@@ -32,14 +37,25 @@ def session_dir() -> Path:
     return path
 
 
+#: the environment variable naming the tutorial cache shared by a session's worker processes
+SHARED_CACHE = "MJED_TESTS_TUTORIAL_CACHE"
+
+
 def tutorial_cache() -> Path:
-    return session_dir() / "tutorials"
+    shared = os.environ.get(SHARED_CACHE)
+    return Path(shared) if shared else session_dir() / "tutorials"
 
 
 @functools.lru_cache(maxsize=None)
 def executed(script: Path) -> "tutorial_runner.Execution":
-    """Run one tutorial (subprocess, cwd a temporary directory) once per session."""
-    return tutorial_runner.ensure_executed(Path(script), tutorial_cache())
+    """Run one tutorial (subprocess, cwd a temporary directory) once per session: a process
+    that finds another one running it waits for that run and reuses it.
+    """
+    cache = tutorial_cache()
+    cache.mkdir(parents=True, exist_ok=True)
+    with open(cache / f"{Path(script).stem}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return tutorial_runner.ensure_executed(Path(script), cache)
 
 
 @dataclass(frozen=True)
