@@ -173,24 +173,27 @@ def pytest_report_header(config):
     return f"SOFA checks: engine program {find_program()}"
 
 
-# ---- the full sweeps: cross products kept out of the default run (make test-sweep)
+#: the environment variable naming the tutorial cache that a session's worker processes share
+#: (tests/docs_support.py reads it)
+TUTORIAL_CACHE_VARIABLE = "MJED_TESTS_TUTORIAL_CACHE"
 
 
 def pytest_configure(config):
     """In the controlling process only: one tutorial cache for the session's workers
     (tests/docs_support.py), made before they start so that they inherit its name.
     """
-    from docs_support import SHARED_CACHE
-
-    if hasattr(config, "workerinput") or SHARED_CACHE in os.environ:
+    if hasattr(config, "workerinput") or TUTORIAL_CACHE_VARIABLE in os.environ:
         return
     import shutil
     import tempfile
 
     path = tempfile.mkdtemp(prefix="mjed-tutorials-")
-    os.environ[SHARED_CACHE] = path
+    os.environ[TUTORIAL_CACHE_VARIABLE] = path
     config.add_cleanup(lambda: shutil.rmtree(path, ignore_errors=True))
-    config.add_cleanup(lambda: os.environ.pop(SHARED_CACHE, None))
+    config.add_cleanup(lambda: os.environ.pop(TUTORIAL_CACHE_VARIABLE, None))
+
+
+# ---- the full sweeps: cross products kept out of the default run (make test-sweep)
 
 
 def pytest_addoption(parser):

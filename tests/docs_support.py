@@ -6,7 +6,7 @@ from an earlier run is reused), by ``tests/test_tutorials.py`` or by the site bu
 ``tests/test_docs_site.py``, whichever asks first; the build then reuses the executions
 (``docs/_ext/tutorial_runner.py`` matches them by a hash of the sources). The two modules
 usually run on different pytest-xdist workers: the session's cache is then one folder made by
-the controlling process (``tests/conftest.py``, :data:`SHARED_CACHE`), and a lock per
+the controlling process (``tests/conftest.py``, ``TUTORIAL_CACHE_VARIABLE``), and a lock per
 tutorial makes the second worker wait for the first one's run and reuse it instead of running
 the tutorial again.
 """
@@ -37,12 +37,10 @@ def session_dir() -> Path:
     return path
 
 
-#: the environment variable naming the tutorial cache shared by a session's worker processes
-SHARED_CACHE = "MJED_TESTS_TUTORIAL_CACHE"
-
-
 def tutorial_cache() -> Path:
-    shared = os.environ.get(SHARED_CACHE)
+    from conftest import TUTORIAL_CACHE_VARIABLE
+
+    shared = os.environ.get(TUTORIAL_CACHE_VARIABLE)
     return Path(shared) if shared else session_dir() / "tutorials"
 
 
