@@ -29,6 +29,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.elements import ElementSplit, assemble, element_split
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.hypotheses import fit_scale
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = ["WEIGHTS", "POWERS", "CONSTANTS", "cell_weight_findings", "cell_weight_reading"]
@@ -120,17 +121,6 @@ def cell_weight_findings(
     return ambiguous(found, "the weightings coincide on this mesh")
 
 
-def _fit(a, b) -> float:
-    """The constant c that brings c b closest to a (least squares; arrays of one shape, or
-    sparse matrices); 0 when b is zero.
-    """
-    if sp.issparse(b):
-        ab, bb = float(sp.csr_matrix(a).multiply(b).sum()), float(b.multiply(b).sum())
-    else:
-        ab, bb = float(np.vdot(a, b)), float(np.vdot(b, b))
-    return ab / bb if bb > 0 else 0.0
-
-
 def _constant_words(p: int, c: float) -> str:
     """The engine's volume c V0^p by name, or with the fitted constant."""
     for (q, known), words in CONSTANTS.items():
@@ -158,13 +148,13 @@ def _power_findings(
         f_q, K_q = assemble(
             split.cells, split.n, q[:, None, None] * split.fe, q[:, None, None] * split.Ke
         )
-        c_f, c_K = _fit(f, f_q), _fit(K, K_q)
+        c_f, c_K = fit_scale(f_q, f), fit_scale(K_q, K)
         for which, c, f_pred, K_pred in (
             ("force and stiffness", c_K, c_K * f_q, c_K * K_q),
             ("stiffness", c_K, f_o, c_K * K_q),
             ("force", c_f, c_f * f_q, K_o),
         ):
-            if not np.isfinite(c) or c <= 0:
+            if c is None or not np.isfinite(c) or c <= 0:
                 continue
             e = errors(f, K, None, f_pred, K_pred, 0.0, s)
             if not tol.within(e, energy=False):

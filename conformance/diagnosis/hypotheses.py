@@ -70,10 +70,15 @@ def transpose_blocks(K: sp.csr_matrix) -> sp.csr_matrix:
     return sp.csr_matrix((C.data, (3 * r_node + c_c, 3 * c_node + r_c)), shape=K.shape)
 
 
-def fit_scale(engine: np.ndarray, oracle: np.ndarray) -> Optional[float]:
-    """S minimising ||s engine - oracle|| (None if engine is zero)."""
-    ee = float(np.vdot(engine, engine))
-    return None if ee == 0 else float(np.vdot(engine, oracle)) / ee
+def fit_scale(engine, oracle) -> Optional[float]:
+    """S minimising ||s engine - oracle|| (arrays of one shape, or sparse matrices; None if
+    engine is zero).
+    """
+    if sp.issparse(engine):
+        ee, eo = _sparse_dot(engine, engine), _sparse_dot(engine, oracle)
+    else:
+        ee, eo = float(np.vdot(engine, engine)), float(np.vdot(engine, oracle))
+    return None if ee == 0 else eo / ee
 
 
 def _sparse_dot(A: sp.spmatrix, B: sp.spmatrix) -> float:
