@@ -41,6 +41,8 @@ __all__ = [
     "ElementSplit",
     "element_split",
     "assemble",
+    "piola_element_forces",
+    "tangent_element_matrices",
     "cell_kinematics",
     "cell_piola",
     "prediction_errors",
@@ -90,6 +92,21 @@ def assemble(
     cols = np.tile(dof, (1, 12)).ravel()
     K = sp.csr_matrix((Ke.reshape(-1), (rows, cols)), shape=(3 * n, 3 * n))
     return f.reshape(n, 3), K
+
+
+def piola_element_forces(V0: np.ndarray, D: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Element forces (m, 4, 3) of per-cell first Piola stresses P (m, 3, 3):
+    f_a,k = -V0 P_kI D_a,I, for rest volumes V0 (m,) and shape vectors D (m, 4, 3).
+    """
+    return -V0[:, None, None] * np.einsum("mkI,maI->mak", P, D)
+
+
+def tangent_element_matrices(V0: np.ndarray, D: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """Element matrices (m, 12, 12) of per-cell tangents A = dP/dF (m, 3, 3, 3, 3), A[k, I, l, L]
+    = dP_kI / dF_lL: K_ak,bl = V0 D_a,I A_kIlL D_b,L (node-major rows and columns).
+    """
+    Ke = np.einsum("maI,mkIlL,mbL->makbl", D, A, D, optimize=True)
+    return (V0[:, None, None, None, None] * Ke).reshape(-1, 12, 12)
 
 
 def cell_kinematics(
@@ -342,10 +359,8 @@ def _measure_output(
             Pc = P + 1j * h * A[:, :, :, ll, j]
             Fc = split.F + 1j * h * H
             dPm[:, :, :, ll, j] = np.imag(M(Pc, Fc)) / h
-    V, D = split.V0, split.D
-    fe = -V[:, None, None] * np.einsum("mki,mai->mak", Pm, D)
-    Ke = V[:, None, None, None, None] * np.einsum("mai,mkilj,mbj->makbl", D, dPm, D)
-    return assemble(split.cells, split.n, fe, Ke.reshape(-1, 12, 12))
+    fe = piola_element_forces(split.V0, split.D, Pm)
+    return assemble(split.cells, split.n, fe, tangent_element_matrices(split.V0, split.D, dPm))
 
 
 def stress_measure_findings(

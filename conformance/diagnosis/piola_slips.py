@@ -50,7 +50,14 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
-from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_piola,
+    piola_element_forces,
+    split_reading,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.routine_inputs import piola_at
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -301,10 +308,8 @@ def slip_output(
     """Force (n, 3) and stiffness of an engine assembling per-cell P (m, 3, 3) and A
     (m, 3, 3, 3, 3): f_a = -V0 P G_a, K_ab,ik = V0 G_aJ A_iJkL G_bL.
     """
-    V, G = split.V0, split.D
-    fe = -V[:, None, None] * np.einsum("miJ,maJ->mai", P, G)
-    Ke = V[:, None, None, None, None] * np.einsum("maJ,miJkL,mbL->maibk", G, A, G, optimize=True)
-    return assemble(split.cells, split.n, fe, Ke.reshape(-1, 12, 12))
+    fe = piola_element_forces(split.V0, split.D, P)
+    return assemble(split.cells, split.n, fe, tangent_element_matrices(split.V0, split.D, A))
 
 
 def _asymmetry(R: sp.csr_matrix) -> float:

@@ -33,7 +33,12 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    piola_element_forces,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.invariant_pieces import (
     CellTensors,
@@ -251,10 +256,8 @@ def slip_output(
     """The split's force and stiffness with per-cell changes dP (m, 3, 3) of the first Piola
     stress and dA (m, 3, 3, 3, 3) of dP/dF: f_a = -V0 P D_a, K_ab = V0 D_a . A . D_b.
     """
-    V0, D = split.V0, split.D
-    fe = split.fe - V0[:, None, None] * np.einsum("mkI,maI->mak", dP, D)
-    dK = np.einsum("maI,mkIlL,mbL->makbl", D, dA, D)
-    Ke = split.Ke + (V0[:, None, None, None, None] * dK).reshape(-1, 12, 12)
+    fe = split.fe + piola_element_forces(split.V0, split.D, dP)
+    Ke = split.Ke + tangent_element_matrices(split.V0, split.D, dA)
     return assemble(split.cells, split.n, fe, Ke)
 
 

@@ -56,7 +56,13 @@ from typing import Callable, Dict, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, prediction_errors
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_piola,
+    prediction_errors,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.least_squares import determined_lstsq
 from conformance.diagnosis.singular_value_pieces import PAIRS, rotation_variant_svd
@@ -280,8 +286,7 @@ PIECES = (
 
 def _element_matrices(split: ElementSplit, A: np.ndarray) -> np.ndarray:
     """V0 G_a A G_b (m, 12, 12) of per-cell tangents A (m, 3, 3, 3, 3)."""
-    Ke = np.einsum("maj,mijkl,mbl->maibk", split.D, A, split.D, optimize=True)
-    return (split.V0[:, None, None, None, None] * Ke).reshape(-1, 12, 12)
+    return tangent_element_matrices(split.V0, split.D, A)
 
 
 def _turned(t: TeranBlocks, phi: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
