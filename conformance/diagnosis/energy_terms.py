@@ -230,6 +230,30 @@ def build(model: Any, F, frame, constant, spec: Spec):
     """
     import ufl
 
+    W, entered = written_energy(model, F, frame, constant, spec)
+    if spec.j_exponents:
+        W = _refit_j_powers(W, dict(spec.j_exponents), entered, constant)
+    if spec.j_power != 1.0:
+        W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
+    if spec.j_out_of_exp:
+        W = _j_power_out_of_exp(W)
+    if spec.deformed_volume:
+        W = ufl.det(F) * W
+    if spec.term is not None:
+        terms = split_terms(W, F)
+        if spec.term >= len(terms):
+            raise ValueError(f"term {spec.term} of {len(terms)}")
+        W = terms[spec.term]
+    return W, entered
+
+
+def written_energy(model: Any, F, frame, constant, spec: Spec):
+    """(W, entered) of ``model`` as its formula is written, on the kinematics ``spec`` says (F
+    transposed, stretches for their squares, the strain measure, the frame deformed), before any
+    rewriting of its powers of J, its volume or its terms (:func:`build` does those).
+    """
+    import ufl
+
     UE = _user_energy_type()
     entered: List[Tuple[Any, str]] = []
     if isinstance(model, UE):
@@ -265,19 +289,6 @@ def build(model: Any, F, frame, constant, spec: Spec):
         k = Kinematics(F, _frame_expr(model, frame, constant), spec)
         W = declared.energy(p, k)
         entered = p.entered
-    if spec.j_exponents:
-        W = _refit_j_powers(W, dict(spec.j_exponents), entered, constant)
-    if spec.j_power != 1.0:
-        W = _scale_j_powers(W, spec.j_power, spec.j_power_of)
-    if spec.j_out_of_exp:
-        W = _j_power_out_of_exp(W)
-    if spec.deformed_volume:
-        W = ufl.det(F) * W
-    if spec.term is not None:
-        terms = split_terms(W, F)
-        if spec.term >= len(terms):
-            raise ValueError(f"term {spec.term} of {len(terms)}")
-        W = terms[spec.term]
     return W, entered
 
 
@@ -477,6 +488,13 @@ def split_terms(W, F) -> list:
     """The additive terms of W that depend on the deformation (UFL expressions), in a fixed
     order: sums expanded through products and quotients by factors that do not depend on it.
     """
+    return additive_parts(W, F)[0]
+
+
+def additive_parts(W, F) -> Tuple[list, list]:
+    """(the terms of :func:`split_terms`, the additive terms that do not depend on the
+    deformation, such as a rest constant): together they sum to W.
+    """
     from ufl.algorithms.analysis import extract_coefficients
     from ufl.classes import Division, Product, Sum
 
@@ -502,7 +520,8 @@ def split_terms(W, F) -> list:
                 return [t / b for t in expand(a)]
         return [e]
 
-    return [t for t in expand(W) if dep(t)]
+    parts = expand(W)
+    return [t for t in parts if dep(t)], [t for t in parts if not dep(t)]
 
 
 def term_parameters(term, entered: List[Tuple[Any, str]]) -> Tuple[str, ...]:
@@ -693,5 +712,11 @@ def _register() -> None:
 
     @register_energy(TransformedEnergy, takes_frame=True)
     def _energy(p, F, frame):
-        W, _ = build(p.material.model, F, frame, p.constant, p.material.spec)
+        from conformance.diagnosis import shared_form
+
+        spec = p.material.spec
+        if p.constant is not None and shared_form.applies(spec):
+            # one compiled form for every variant that differs only in numbers
+            return shared_form.energy(p.material.model, F, frame, p.constant, spec)
+        W, _ = build(p.material.model, F, frame, p.constant, spec)
         return W
