@@ -200,3 +200,56 @@ def test_shape_function_gradients_transposed_are_named():
     d = outcome.diagnosis
     assert outcome.status == "failed" and len(d.causes) == 1, d.text()
     assert d.causes[0].code == "gradients-transposed", d.text()
+
+
+def test_a_difference_stiffness_with_its_rows_from_a_reordered_force_is_named():
+    """The element force written component-major and scattered node-major; the stiffness of
+    differences (or a complex step) of that force takes its rows from it, its columns right.
+    """
+    from common.cases import default_material
+
+    points, cells, x = _state(2)
+    split, f_o, K_o, s = _split(default_material("VerondaWestmann"), points, cells, x)
+    p = (3 * np.arange(4)[None, :] + np.arange(3)[:, None]).ravel()  # i = 4 c + a
+    f, K = assemble(
+        cells,
+        points.shape[0],
+        split.fe.reshape(-1, 12)[:, p].reshape(-1, 4, 3),
+        split.Ke[:, p, :],
+    )
+    found = order_findings(split, f, K, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert "rows" in found[0].title and "component-major" in found[0].title
+
+
+@pytest.mark.parametrize("code", ["element-columns-accumulated", "element-columns-coordinates"])
+def test_perturbed_columns_of_an_element_stiffness_are_named(code):
+    """A complex-step or difference element stiffness whose perturbation was not reset between
+    the dofs, or whose relative step was divided by h alone; the force right.
+    """
+    from common.cases import default_material
+
+    points, cells, x = _state(3)
+    split, f_o, K_o, s = _split(default_material("Ogden"), points, cells, x)
+    if code == "element-columns-accumulated":
+        Ke = split.Ke @ np.triu(np.ones((12, 12)))
+    else:
+        Ke = split.Ke * x[cells].reshape(-1, 1, 12)
+    _, K = assemble(cells, points.shape[0], split.fe, Ke)
+    found = order_findings(split, f_o, K, s, DOUBLE)
+    assert [x.code for x in found] == [code], [x.title for x in found]
+
+
+def test_a_cauchy_stress_pushed_forward_with_f_transposed_is_named():
+    """The Cauchy stress F^T S F / J for F S F^T / J: its force (and the complex-step stiffness of
+    that force) is the divergence of P' = F^T F^-1 P F F^-T.
+    """
+    from common.cases import default_material
+    from conformance.diagnosis.elements import STRESS_MEASURES, _measure_output, cell_piola
+
+    points, cells, x = _state(4)
+    split, f_o, K_o, s = _split(default_material("StVenantKirchhoff"), points, cells, x)
+    P, A = cell_piola(split)
+    f, K = _measure_output(split, P, A, STRESS_MEASURES["pushforward-transposed"][1])
+    found = stress_measure_findings(split, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["stress-measure-pushforward-transposed"], found

@@ -106,3 +106,25 @@ def test_the_fit_reading_names_the_term_by_its_formula():
         names=["the term lam/2 (tr E)^2", "the term mu tr(E^2)"],
     )
     assert reading.startswith("parameter mu: its terms halved") and "mu tr(E^2)" in reading
+
+
+def test_a_series_part_is_named_by_its_index():
+    """Arruda-Boyce's written series sum_{i=1..5}: each of its five parts is labelled with its
+    own series term (the split keeps the series' order: its coefficients mu c_i N^(1-i) fall
+    with i, which the last assertion checks on the split itself).
+    """
+    from conftest import MATERIALS
+
+    from conformance.diagnosis.energy_terms import Spec, split_terms, symbolic, term_names
+
+    model = MATERIALS["ArrudaBoyce"]
+    names = term_names(model)
+    series = [n for n in names if "sum_{i=1..5}" in n]
+    assert len(series) == 5
+    for i, name in enumerate(series, start=1):
+        assert f"(part {i} of 5: the series term i = {i}, mu c_{i} N^(1-{i}) " in name, name
+        assert f"(I1b^{i} - 3^{i}))" in name, name
+    assert not any("series term" in n for n in names if "sum_{" not in n)
+    W, _, F = symbolic(model, Spec())
+    leading = [float(str(t).split(" * ")[0]) for t in split_terms(W, F)[:5]]
+    assert leading == sorted(leading, reverse=True)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from conftest import box_mesh, mjed_split
 
+import mjed
 from conformance.diagnosis.diagnose import diagnose
 from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.volumes import uniform_volume_words, volume_findings
@@ -76,3 +77,42 @@ def test_the_global_scale_says_the_volume_where_the_factor_is_the_state_j():
     # nearby: a factor that is not J stays a number
     d = _diagnose(points, cells, x, f_o, K_o * 0.8, f_o, K_o, s)
     assert d.causes[0].title == "stiffness only scaled: factor 0.8"
+
+
+def test_a_force_scaled_by_j_squared_with_its_own_derivative_as_stiffness():
+    """The deformed volume taken as V / J (force 1/J^2 times the oracle's, cell by cell) in an
+    engine whose stiffness is the derivative of its own force (differences or a complex step):
+    the stiffness is then not J^-2 times the oracle's, but that force's derivative.
+    """
+    import dataclasses
+
+    import scipy.sparse as sp
+
+    from conformance.diagnosis.elements import cell_kinematics
+
+    points, cells, x = _random_state(seed=4)
+    split, _, _, s = mjed_split(MODEL, points, cells, x)
+    field = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), MODEL)
+    n = points.shape[0]
+
+    def force(y):
+        _, _, F = cell_kinematics(points, cells, y)
+        fe = np.asarray(field.element_forces(y)) / np.linalg.det(F)[:, None, None] ** 2
+        return assemble(cells, n, fe, None)[0].ravel()
+
+    h = 1e-6
+    columns = []
+    for j in range(3 * n):
+        e = np.zeros(3 * n)
+        e[j] = h
+        columns.append(-(force(x + e.reshape(-1, 3)) - force(x - e.reshape(-1, 3))) / (2 * h))
+    K = sp.csr_matrix(np.array(columns).T)
+    f = force(x).reshape(-1, 3)
+    loose = dataclasses.replace(DOUBLE, force=1e-6, stiffness=1e-6)
+    found = volume_findings(split, f, K, s, loose)
+    assert [(x.figures["force_power"], x.figures.get("derived")) for x in found] == [(-2, True)]
+    assert "V / J" in found[0].title
+    # the same force with the stiffness scaled like it is not this mistake
+    scaled = split.Ke / np.linalg.det(split.F)[:, None, None] ** 2
+    _, K_scaled = assemble(cells, n, split.fe / np.linalg.det(split.F)[:, None, None] ** 2, scaled)
+    assert not any(x.figures.get("derived") for x in volume_findings(split, f, K_scaled, s, loose))

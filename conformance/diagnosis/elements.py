@@ -74,6 +74,7 @@ class ElementSplit:
     fe: np.ndarray
     Ke: np.ndarray
     residual: float
+    positions: Optional[np.ndarray] = None  # (n, 3) where known
 
 
 def assemble(
@@ -149,7 +150,8 @@ def element_split(
     if not tol.within(e, energy=False):
         return None
     V0, D, F = cell_kinematics(points, cells, positions)
-    return ElementSplit(cells, n, V0, D, F, fe, Ke, float(max(e.force, e.stiffness)))
+    residual = float(max(e.force, e.stiffness))
+    return ElementSplit(cells, n, V0, D, F, fe, Ke, residual, np.asarray(positions, dtype=float))
 
 
 # ------------------------------------------------------------------ local dof order
@@ -246,6 +248,44 @@ def _layout_findings(
     return found
 
 
+def _perturbation_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """Slips of an element stiffness built column by column from perturbed element forces
+    (differences or a complex step), the force right: the perturbation not reset between the
+    dofs (column j the sum of columns 0..j), or a relative step x_j (1 + h) divided by h alone
+    (column j times the coordinate x_j it perturbs).
+    """
+    candidates = [
+        (
+            "element-columns-accumulated",
+            "element stiffness columns accumulated: column j is the sum of the true columns "
+            "0..j (a difference or complex-step perturbation not reset between the element's "
+            "dofs)",
+            split.Ke @ np.triu(np.ones((12, 12))),
+        )
+    ]
+    if split.positions is not None:
+        xe = split.positions[split.cells].reshape(-1, 1, 12)
+        candidates.append(
+            (
+                "element-columns-coordinates",
+                "element stiffness column j times the coordinate x_j it perturbs: a relative "
+                "step, x_j (1 + h) or x_j (1 + i h) for a complex step, divided by h where h x_j "
+                "belongs",
+                split.Ke * xe,
+            )
+        )
+    f_right = assemble(split.cells, split.n, split.fe, None)[0]
+    found = []
+    for code, words, Ke in candidates:
+        _, Kc = assemble(split.cells, split.n, split.fe, Ke)
+        e = errors(f, sp.csr_matrix(K), None, f_right, Kc, 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(split_finding(code, words, split, "changed", e, {"element": code}))
+    return found
+
+
 def order_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
@@ -253,13 +293,25 @@ def order_findings(
     force right and only the matrix reordered), and the element layouts
     (:func:`element_layouts`); several are said as ambiguous.
     """
-    found = _layout_findings(split, f, K, s, tol)
+    found = _layout_findings(split, f, K, s, tol) + _perturbation_findings(split, f, K, s, tol)
     f_right = assemble(split.cells, split.n, split.fe, None)[0]
+    # the columns alone in component-major order are the layout (a, i, k, b), said above
+    said = (3 * np.arange(4)[None, :] + np.arange(3)[:, None]).ravel()
     for p, words in local_orders():
-        Kp = split.Ke[:, p][:, :, p]
         fp = split.fe.reshape(-1, 12)[:, p].reshape(-1, 4, 3)
-        f_both, K_p = assemble(split.cells, split.n, fp, Kp)
-        for fo, which in ((f_both, "force and stiffness"), (f_right, "stiffness only")):
+        f_both, K_p = assemble(split.cells, split.n, fp, split.Ke[:, p][:, :, p])
+        # A stiffness of differences or of a complex step takes its rows from the engine's
+        # element force (reordered with it) and its columns from the dofs it perturbs.
+        K_rows = assemble(split.cells, split.n, fp, split.Ke[:, p, :])[1]
+        K_cols = assemble(split.cells, split.n, split.fe, split.Ke[:, :, p])[1]
+        for fo, K_p, which in (
+            (f_both, K_p, "force and stiffness"),
+            (f_right, K_p, "stiffness only"),
+            (f_both, K_rows, "the force and the stiffness's rows, its columns right"),
+            (f_right, K_cols, "the stiffness's columns only: the dofs perturbed in that order"),
+        ):
+            if K_p is K_cols and np.array_equal(p, said):
+                continue
             e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
             if tol.within(e, energy=False):
                 found.append(
@@ -303,8 +355,15 @@ STRESS_MEASURES: dict = {
         "P = J sigma F^-T missing)",
         lambda P, F: P / _det(F)[:, None, None],
     ),
+    "pushforward-transposed": (
+        "the Cauchy stress pushed forward with F transposed, F^T S F / J where F S F^T / J "
+        "belongs (the same where F is symmetric): J F^T S F F^-T / J",
+        lambda P, F: _t(F) @ _inv(F) @ P @ F @ _inv(_t(F)),
+    ),
     "deformed-volume": (
-        "J P = tau F^-T: the first Piola stress integrated over the deformed volume",
+        "J P = tau F^-T, a factor J in each cell: the first Piola stress integrated over the "
+        "deformed volume, the Kirchhoff stress tau used as the Cauchy stress, or the spatial "
+        "gradients taken from cof F = J F^-T (the 1/J of F^-T dropped)",
         lambda P, F: P * _det(F)[:, None, None],
     ),
 }

@@ -23,6 +23,7 @@ differentiates it exactly as it does the model's own energy.
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
@@ -678,9 +679,27 @@ def term_names(model: Any) -> List[Optional[str]]:
         name = f"the {kind + ' ' if kind else ''}term {'- ' if sign == '-' else ''}{body}"
         parts = [k for k, m in enumerate(match) if m == j]
         if len(parts) > 1:
-            name += f" (part {parts.index(i) + 1} of {len(parts)})"
+            name += f" (part {parts.index(i) + 1} of {len(parts)}"
+            name += f"{_series_part(body, parts.index(i), len(parts))})"
         names.append(name)
     return names
+
+
+_SERIES = re.compile(r"sum_\{(\w)=(\d+)\.\.(\d+)\}\s*")
+
+
+def _series_part(body: str, index: int, count: int) -> str:
+    """The words added to a part's label when ``body`` is a written series sum_{i=a..b} whose
+    b - a + 1 terms are the ``count`` parts: ": the series term i = 5, mu c_5 N^(1-5) (I1b^5 -
+    3^5)" (the index value put in, so that the part reads as the series term it is); else "".
+    """
+    m = _SERIES.search(body)
+    if m is None or int(m.group(3)) - int(m.group(2)) + 1 != count:
+        return ""
+    name, value = m.group(1), str(int(m.group(2)) + index)
+    rest = body[: m.start()] + body[m.end() :]
+    term = re.sub(rf"(?<![A-Za-z0-9]){name}(?![A-Za-z0-9])", value, rest)
+    return f": the series term {name} = {value}, {term}"
 
 
 @dataclass(frozen=True, eq=False)

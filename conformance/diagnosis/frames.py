@@ -35,8 +35,13 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
   as read (:class:`reference_fem.validation.AsReadFrame`; declared materials only);
 - ``frame-rebuilt``: only the fibre read, the sheet and normal rebuilt from a global axis a
   (s = a x f / |a x f|, n = f x s), one variant per axis;
+- ``frame-blocked``: one frame per block of 5 or 6 cells (a hexahedron's tetrahedra), the
+  block's first cell's;
+- ``frame-single-precision``: the frames rounded to float32 and used in double (as read);
 - ``frame-columns``: the columns taken in another order (e.g. the sheet used as the fibre), one
-  hypothesis per order of the three columns.
+  hypothesis per order of the three columns; for an energy weighted by coefficients b_xy of the
+  frame's strain components (Costa) this is the same energy as those coefficients exchanged,
+  which the title says (the two cannot be told apart).
 
 Two mistakes that predict the same force and stiffness cannot be told apart (for an energy of
 I4 and I5, which sees only the fibre column, two column orders with the same first column):
@@ -48,7 +53,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from dataclasses import dataclass
-from typing import Any, List, Tuple
+from typing import Any, Dict, List, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -123,10 +128,12 @@ def frame_models(
             candidates += _node_indexed(R, np.asarray(cells))
             candidates += _cells_sorted(R, np.asarray(cells), points)
             candidates += _smoothed(R, np.asarray(cells))
+        candidates += _blocked(R)
         if isinstance(model, Material):
             # a declared material's frame goes to the oracle as it is; a user energy's is
             # re-read (and checked again) where its formula is compiled, in another process
             candidates += _misread_layouts(R)
+            candidates += _single_precision(R)
     candidates += _rebuilt_from_fibre(R)
     for order in itertools.permutations(range(3)):
         if order != (0, 1, 2):
@@ -134,6 +141,7 @@ def frame_models(
             title = (
                 f"frame columns in another order: the {used} columns used as fibre, sheet, normal"
             )
+            title += _same_as_coefficients_exchanged(model, order)
             candidates.append(("frame-columns", title, np.ascontiguousarray(R[..., list(order)])))
     out = []
     for code, title, variant in candidates:
@@ -179,6 +187,42 @@ def _misread_layouts(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
             np.ascontiguousarray(read).view(AsReadFrame),
         )
         for how, read in layouts
+    ]
+
+
+def _blocked(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Per-cell frames R (m, 3, 3) indexed as one frame per block of b cells, the block's first
+    (cell k given frame b (k // b)): a structured mesh's hexahedra split into 5 or 6
+    tetrahedra, the frames read as one per hexahedron.
+    """
+    m = R.shape[0]
+    k = np.arange(m)
+    return [
+        (
+            "frame-blocked",
+            f"frames indexed one per block of {b} cells (a hexahedron of {b} tetrahedra): cell k "
+            f"given frame {b} (k // {b}), its block's first, not its own",
+            np.ascontiguousarray(R[b * (k // b)]),
+        )
+        for b in (5, 6)
+        if m > b
+    ]
+
+
+def _single_precision(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
+    """Frames R rounded to float32 (stored in single precision, used in double): no longer
+    orthonormal to 1e-8, so :class:`AsReadFrame`.
+    """
+    rounded = R.astype(np.float32).astype(np.float64)
+    if np.array_equal(rounded, R):
+        return []
+    return [
+        (
+            "frame-single-precision",
+            "fibre frames rounded to single precision (float32 storage) and used in double: "
+            "the frames' own round-off, about 1e-7",
+            np.ascontiguousarray(rounded).view(AsReadFrame),
+        )
     ]
 
 
@@ -376,6 +420,43 @@ def _averaged(R: np.ndarray) -> List[Tuple[str, str, np.ndarray]]:
             U @ Vt,
         ),
     ]
+
+
+_LETTERS = "fsn"  # fibre, sheet, normal: the indices of a frame energy's coefficients b_xy
+
+
+def _same_as_coefficients_exchanged(model: Any, order: Tuple[int, ...]) -> str:
+    """For an energy of the frame-strain components weighted by coefficients b_xy (Costa's
+    B matrix), the columns taken in ``order`` give exactly the energy with the coefficients
+    permuted the same way: '; the same energy as b_fs and b_fn exchanged ...', naming the
+    coefficients whose values that changes (the two mistakes cannot be told apart), or ''.
+    """
+    value: Dict[Tuple[int, int], Tuple[str, float]] = {}
+    for a in range(3):
+        for b in range(3):
+            for name in (f"b_{_LETTERS[a]}{_LETTERS[b]}", f"b_{_LETTERS[b]}{_LETTERS[a]}"):
+                if hasattr(model, name):
+                    value[a, b] = (name, float(getattr(model, name)))
+                    break
+            else:
+                return ""
+    # Column k of the frame used is column order[k] of the true one, so the term of entry
+    # (a, b) reads the true component (order[a], order[b]), weighted by B[a, b], not its own.
+    pairs = set()
+    for a in range(3):
+        for b in range(a, 3):
+            name, v = value[a, b]
+            true_name, true_v = value[order[a], order[b]]
+            if true_v != v:
+                pairs.add(tuple(sorted((name, true_name))))
+    if not pairs:
+        return ""
+    named = [n for p in sorted(pairs) for n in p]
+    if len(set(named)) < len(named):  # a cycle, not exchanges
+        said = ", ".join(sorted(set(named))) + " permuted"
+    else:
+        said = " and ".join(f"{x} and {y} exchanged" for x, y in sorted(pairs))
+    return f"; the same energy as {said} (the frame right): the two cannot be told apart"
 
 
 def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:

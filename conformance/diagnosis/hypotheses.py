@@ -131,6 +131,14 @@ def common_factor_name(ratio: float, mean_volume: float, uniform_volume: bool) -
         6.0: "factor 6 (the 1/6 of the tetrahedron volume missing)",
         1.0 / 6.0: "factor 1/6",
     }
+    # A power of 1000 is a unit conversion applied where it does not belong (or missing): a
+    # length or a difference step in mm against m, a modulus in kPa against Pa.
+    for k in (1, 2, 3):
+        words_k = {1: "1000", 2: "10^6", 3: "10^9"}[k]
+        named[1000.0**k] = f"factor {words_k} (units: a length, a step or a modulus converted"
+        named[1000.0**k] += " where it should not be, or not converted, e.g. mm against m)"
+        named[1000.0**-k] = f"factor 1/{words_k} (units: a length, a step or a modulus converted"
+        named[1000.0**-k] += " where it should not be, or not converted, e.g. mm against m)"
     words = [name for value, name in named.items() if abs(ratio / value - 1.0) < 1e-6]
     if uniform_volume and abs(ratio * mean_volume - 1.0) < 1e-6:
         words.append(f"volume weighting missing (engine = oracle / V0, V0 = {mean_volume:.3e} m^3)")
@@ -158,7 +166,12 @@ def convention_corrections(
             "stiffness sign flipped (df/dx = -K given instead of K = d2W/dx2)",
             lambda f, K, W: (f, -K, W),
         ),
-        Correction("both-signs", "force and stiffness signs flipped", lambda f, K, W: (-f, -K, W)),
+        Correction(
+            "both-signs",
+            "force and stiffness signs flipped (the stress negated: the residual's sign "
+            "convention, or a sign inside the stress, e.g. the strain written (I - C)/2)",
+            lambda f, K, W: (-f, -K, W),
+        ),
         Correction(
             "dof-order",
             "component-major dof order (c*n + node) instead of node-major (3*node + c)",

@@ -345,6 +345,15 @@ def convention_words(model: Any, name: str, value: float, declared: float) -> st
             f" (the square root of {name} = {declared:g}: the parameter entered in another "
             "convention)"
         )
+    for k in (1, 2, 3):
+        for factor, how in ((1000.0**-k, "divided"), (1000.0**k, "multiplied")):
+            if abs(value - factor * declared) <= 1e-6 * factor * declared:
+                unit = declared_units(model).get(name)
+                kind = f"its unit {unit}" if unit else "a dimensionless parameter"
+                return (
+                    f" ({name} {how} by {1000**k:g}: a unit conversion applied to {name} "
+                    f"({kind}) where it does not belong, or one missing, e.g. Pa and kPa)"
+                )
     return ""
 
 

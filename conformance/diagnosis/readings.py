@@ -342,7 +342,13 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             r = cache.evaluate_once(ci, with_value(ci.model, **{name: float(v[0])}))
             return r.force, r.stiffness
 
-        fit = refit(evaluate, [v0], _target(out, s, tol))
+        # From the declared value, then from a unit conversion away (a parameter in kPa for
+        # Pa, or a dimensionless one converted with the moduli), which a local fit of a
+        # parameter inside an exponential does not reach from v0.
+        for start in (v0, v0 * 1e-3, v0 * 1e3):
+            fit = refit(evaluate, [start], _target(out, s, tol))
+            if fit is not None and fit.agrees:
+                break
         if fit is None or not fit.agrees:
             continue
         v = fit.values[0]
@@ -613,18 +619,60 @@ def stress_only(causes: List[Finding], diag) -> List[Finding]:
     compare force and stiffness alone; the energy says the formula's energy is right there.
     """
     e = diag.errors.energy
-    if e is not None and e <= diag.tolerances.energy:
+    energy_right = e is not None and e <= diag.tolerances.energy
+    if energy_right:
         why = "your energy is the oracle's, so only its derivatives are computed so"
     elif any(f.code == "inconsistent-force" for f in diag.findings):
         why = "your force is not the derivative of your energy (the probes)"
     else:
         return causes
-    return [
-        replace(c, title=f"{c.title} [in the stress and tangent only: {why}]")
-        if c.strength == FULL
-        else c
-        for c in causes
-    ]
+    out = []
+    for c in causes:
+        if c.strength != FULL:
+            out.append(c)
+        elif energy_right and c.code == "term-coefficients":
+            said = _term_stresses(c)
+            out.append(said if said is not None else _stress_only_title(c, why))
+        else:
+            out.append(_stress_only_title(c, why))
+    return out
+
+
+def _stress_only_title(c: Finding, why: str) -> Finding:
+    return replace(c, title=f"{c.title} [in the stress and tangent only: {why}]")
+
+
+def _term_stresses(c: Finding) -> Optional[Finding]:
+    """A term fit said of the stress (the energy right): the terms whose force and stiffness
+    are off, by their factors, as derivatives written wrongly. A parameter's value, its units
+    or its order would change the energy too, which is right; so the parameter stories the fit
+    also fits are kept in the evidence only, as what the force and stiffness alone allow.
+    """
+    from conformance.diagnosis.term_fit import factor_words
+
+    g = c.figures or {}
+    names, coefficients = g.get("term_names") or [], g.get("coefficients") or []
+    if not names or len(names) != len(coefficients):
+        return None
+    off = []
+    for name, a in zip(names, coefficients):
+        if name and abs(a - 1.0) > 1e-6:
+            words = factor_words(a, 1e-6)
+            words = words.split(" (")[0] if words and not words.startswith("scaled") else None
+            off.append(f"{name} {words or 'scaled'} (x {a:.6g})")
+    if not off:
+        return None
+    title = (
+        "the stress and tangent of "
+        + "; of ".join(off)
+        + ", your energy right: the derivative of that term is written wrongly (its "
+        "parameter's value would change the energy too)"
+    )
+    return replace(
+        c,
+        title=title,
+        evidence=f"{c.evidence}; in the force and stiffness alone the fit also reads: {c.title}",
+    )
 
 
 def read(

@@ -97,6 +97,13 @@ def refit(
     except ValueError:
         return None
     res = _Residual(target.f, target.K, target.s_force, target.s_stiffness, Ko)
+    ef, eK = res.errors(fo, Ko)
+    if ef <= target.tol_force and eK <= target.tol_stiffness:
+        # the start itself agrees: no step could remove half of an error at round-off, and
+        # the give-up rule below would reject the very values that explain the engine
+        return Refit(
+            tuple(float(v) for v in x), ef, eK, True, (np.asarray(fo), sp.csr_matrix(Ko)), 0
+        )
     r = res.vector(fo, Ko)
     best = (float(np.linalg.norm(r)), x.copy(), (fo, Ko))
     for step in range(steps):

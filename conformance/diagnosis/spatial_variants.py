@@ -283,9 +283,11 @@ TANGENT_VARIANTS: Dict[str, tuple] = {
         1.0,
     ),
     "miehe-cauchy": (
-        "a perturbation tangent (Miehe's: F moved by eps sym(e_k e_l) F) that differences the "
-        "Cauchy stress sigma where the Kirchhoff stress tau = J sigma belongs (then / J): c "
-        "left with a -sigma_ij delta_kl term, not symmetric",
+        "the derivative of J left out of the tangent of J sigma (c left with a -sigma_ij "
+        "delta_kl term, not symmetric): the deformed volume v = J V0 held constant (dv/dx "
+        "missing) where the force is v sigma grad N, or a perturbation tangent (Miehe's: F "
+        "moved by eps sym(e_k e_l) F) that differences the Cauchy stress sigma where the "
+        "Kirchhoff stress tau = J sigma belongs",
         lambda t: -np.einsum("mij,kl->mijkl", t.sigma, _EYE),
         1.0,
     ),

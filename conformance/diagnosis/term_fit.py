@@ -32,7 +32,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.elastic_conversions import matching_conversion, moduli_names
 
-__all__ = ["TermCase", "TermFit", "term_labels", "fit_terms", "describe_fit"]
+__all__ = ["TermCase", "TermFit", "term_labels", "fit_terms", "describe_fit", "factor_words"]
 
 #: Singular value ratio below which a combination of terms is not identified by the cases.
 _IDENTIFIED = 1e-7
@@ -156,7 +156,7 @@ def _label(i: int, labels: Sequence[Tuple[str, ...]], names: Sequence[Optional[s
     return name
 
 
-def _factor_words(a: float, close: float) -> Optional[str]:
+def factor_words(a: float, close: float) -> Optional[str]:
     for value, words in _FACTORS:
         if abs(a - value) <= close * max(1.0, abs(value)):
             return words
@@ -223,7 +223,7 @@ def describe_fit(
         if p in exchanged or set(tp) <= done:
             continue
         vp = params[p]
-        words = _factor_words(ap, close)
+        words = factor_words(ap, close)
         written = sorted({names[i] for i in tp if i < len(names) and names[i]})
         which = f" ({'; '.join(written)})" if written else ""
         other = [
@@ -251,7 +251,7 @@ def describe_fit(
     for i in off:
         if i in done:
             continue
-        words = _factor_words(float(a[i]), close)
+        words = factor_words(float(a[i]), close)
         if words is None and abs(a[i] - 1.0) < 1e-3:
             words = f"slightly off (relative {a[i] - 1:+.2e}: a rounded constant?)"
         readings.append(f"{_label(i, labels, names)} {words or 'scaled'} (coefficient {a[i]:.6g})")

@@ -45,6 +45,17 @@ VOLUME_FACTORS: Dict[Tuple[int, int], str] = {
     f"{_KIRCHHOFF}",
 }
 
+#: power q of J on the force -> words, the stiffness being the derivative of that force (a
+#: difference or complex-step tangent of the engine's own force), not J^q times the oracle's.
+DERIVED_FACTORS: Dict[int, str] = {
+    1: f"force J times the oracle's, integrated over {_KIRCHHOFF}",
+    -1: f"force 1/J times the oracle's, integrated over {_REST}",
+    -2: "force 1/J^2 times the oracle's: the deformed volume taken as V / J (the density's "
+    "rho = rho0 / J applied to the volume) where v = J V belongs",
+    2: "force J^2 times the oracle's: the deformed volume taken as J^2 V, or J applied to the "
+    "Kirchhoff stress again and to the volume",
+}
+
 #: The factor equals J^p within this (relative), and J differs from 1 by at least _AWAY.
 _SAME = 1e-6
 _AWAY = 1e-3
@@ -73,9 +84,9 @@ def volume_findings(
     the global-scale reading, :func:`uniform_volume_words`). Several: ambiguous.
     """
     J = np.linalg.det(split.F)
+    found = _derived_findings(split, J, f, K, s, tol)
     if np.ptp(J) <= _AWAY * np.abs(J).max():
-        return []
-    found = []
+        return ambiguous(found)
     for (q, p), words in VOLUME_FACTORS.items():
         fc, Kc = assemble(
             split.cells,
@@ -98,3 +109,39 @@ def volume_findings(
                 )
             )
     return ambiguous(found)
+
+
+def _derived_findings(
+    split: ElementSplit, J: np.ndarray, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The factors J_c^q of :data:`DERIVED_FACTORS` on the element forces, with the element
+    matrices of their derivative, whose assembly matches the engine: on any state, a uniform J
+    included (the derivative's term f_e (x) dJ/dx is no constant factor).
+    """
+    if np.all(np.abs(J - 1.0) < _AWAY):
+        return []  # J^q is 1 and its derivative's term vanishes with the rest forces
+    found = []
+    # The stiffness the derivative of the scaled force: K_e' = J^q K_e - q J^(q-1) f_e (x) dJ/dx
+    # (K = -df/dx), dJ/dx_a = J F^-T grad N_a.
+    m = split.cells.shape[0]
+    dJ = J[:, None, None] * np.einsum("mal,mlk->mak", split.D, np.linalg.inv(split.F))
+    for q, words in DERIVED_FACTORS.items():
+        fq = split.fe * (J**q)[:, None, None]
+        Kq = split.Ke * (J**q)[:, None, None] - q * np.einsum(
+            "m,mi,mj->mij", J ** (q - 1), split.fe.reshape(m, 12), dJ.reshape(m, 12)
+        )
+        fc, Kc = assemble(split.cells, split.n, fq, Kq)
+        e = errors(f, sp.csr_matrix(K), None, fc, Kc, 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(
+                Finding(
+                    "volume-factor",
+                    f"{words}; the stiffness the derivative of that force",
+                    FULL,
+                    f"the oracle's element forces times J_c^{q} and the element matrices of "
+                    f"their derivative (J from {J.min():.4g} to {J.max():.4g} over the cells), "
+                    f"assembled: force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                    {"force_power": q, "derived": True, "residual": max(e.force, e.stiffness)},
+                )
+            )
+    return found
