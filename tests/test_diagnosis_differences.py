@@ -125,3 +125,21 @@ def test_the_check_names_a_per_cell_step():
         first = o.diagnosis.findings[0]
         assert first.code == "finite-difference", o.diagnosis.text()
         assert first.figures["rule"] == "longest edge", o.diagnosis.text()
+
+
+def test_a_complex_step_too_large_is_fitted_as_a_complex_step():
+    """A complex step's tangent, Im f(x + i h e_j) / h, errs by - h^2/6 f''' where central
+    differences err by + h^2/6 f''': to that order it is 2 K - K_central(h). Its fit has the
+    central scheme's basis with a negative coefficient, and is named a complex step.
+    """
+    model = default_material("Demiray")
+    points, cells, x = _state(3)
+    split, f_o, K_o = _oracle(model, points, cells, x)
+    h = np.full(len(cells), 2e-3)
+    _, K_central = _difference_engine(model, points, cells, x, h, central=True)
+    K = (2 * K_o - K_central).tocsr()
+    d = cell_column_derivatives(model, points, cells, x)
+    fit = fit_element_differences(split, d, (K - K_o).tocsr(), K_o)
+    assert fit.scheme == "complex step" and fit.rule == "absolute", fit
+    assert fit.explained > 0.99 and abs(fit.step / 2e-3 - 1) < 1e-2, fit
+    assert "complex step" in fit.words() and "too large" in fit.words()

@@ -146,6 +146,11 @@ class ElementDifferenceFit:
         h = _RULES[self.rule][0].format(self.step)
         sym = ", then symmetrised" if self.symmetrised else ""
         also = f" (equivalently, on this mesh: {', '.join(self.same)})" if self.same else ""
+        if self.scheme == "complex step":
+            return (
+                f"a complex step of each element's force, Im f(x + i h e_j) / h, with {h}{sym}"
+                f"{also}: the step too large (what is left is its truncation error)"
+            )
         return f"{self.scheme} differences of each element's force with {h}{sym}{also}"
 
 

@@ -253,8 +253,9 @@ def _variant(J: np.ndarray, dU1: np.ndarray) -> str:
 def step_fits(B: sp.csr_matrix, D: sp.csr_matrix, order: int):
     """The one-unknown fits of D = c B (B the leading error of a difference scheme per unit
     step^order: order 1 forward or backward, order 2 central), B as is and symmetrised: yields
-    (symmetrised, scheme, step, ||D - c B||, c B). A central fit with c <= 0 is skipped (its
-    error has the sign of h^2).
+    (symmetrised, scheme, step, ||D - c B||, c B). Of order 2, c > 0 is central differences
+    (error + h^2/6 times the force's third derivative) and c < 0 a complex step,
+    Im f(x + i h e_j) / h, whose truncation error is the same term with the other sign.
     """
     for symmetrised in (False, True):
         Bs = (0.5 * (B + B.T)).tocsr() if symmetrised else B
@@ -262,10 +263,13 @@ def step_fits(B: sp.csr_matrix, D: sp.csr_matrix, order: int):
         if bb == 0.0:
             continue
         c = float(Bs.multiply(D).sum()) / bb
-        if order == 2 and c <= 0:
+        if order == 2 and c == 0:
             continue
-        step = abs(c) if order == 1 else float(np.sqrt(c))
-        scheme = "central" if order == 2 else ("forward" if c > 0 else "backward")
+        step = abs(c) if order == 1 else float(np.sqrt(abs(c)))
+        if order == 2:
+            scheme = "central" if c > 0 else "complex step"
+        else:
+            scheme = "forward" if c > 0 else "backward"
         yield symmetrised, scheme, step, float(sparse_norm(D - c * Bs)), (c * Bs).tocsr()
 
 
@@ -294,6 +298,11 @@ class FiniteDifferenceFit:
             "relative, at least eps": f"a step h_j = {self.step:.2e} max(|x_j|, 1)",
         }[self.rule]
         sym = ", then symmetrised" if self.symmetrised else ""
+        if self.scheme == "complex step":
+            return (
+                f"a complex step, Im f(x + i h_j e_j) / h_j, with {h}{sym}: the step too large "
+                "(what is left is its truncation error, - h^2/6 of the force's third derivative)"
+            )
         return f"{self.scheme} differences of the force with {h}{sym}"
 
 
