@@ -67,7 +67,8 @@ def _isochoric_exponents(model) -> list:
 
 @pytest.mark.parametrize("name", ["MooneyRivlin", "Costa"])
 def test_variants_that_differ_in_numbers_share_one_form(cube, name):
-    from conformance.diagnosis.energy_terms import Spec, TransformedEnergy, j_exponents
+    from conformance.diagnosis.energy_terms import Spec, j_exponents
+    from conformance.diagnosis.transformed import TransformedEnergy
 
     mesh, _ = cube
     model = MATERIALS[name]
@@ -108,7 +109,7 @@ def test_the_shared_form_gives_what_the_variants_own_form_gives(cube, name):
     belongs to the whole energy, not to a term), for a material with two powers of J and one
     whose power of J reads a parameter.
     """
-    from conformance.diagnosis.energy_terms import TransformedEnergy
+    from conformance.diagnosis.transformed import TransformedEnergy
 
     mesh, x = cube
     model = MATERIALS[name]
@@ -126,7 +127,8 @@ def test_the_shared_form_gives_what_the_variants_own_form_gives(cube, name):
 
 
 def test_a_term_beyond_the_split_is_refused(cube):
-    from conformance.diagnosis.energy_terms import Spec, TransformedEnergy
+    from conformance.diagnosis.energy_terms import Spec
+    from conformance.diagnosis.transformed import TransformedEnergy
 
     mesh, _ = cube
     with pytest.raises(ValueError, match="term 9 of 3"):

@@ -15,9 +15,9 @@ their squares, the frame in the deformed configuration), and the resulting UFL e
 - **rewritten**: every non-integer power of J (the isochoric powers J^(-2/3), J^(-4/3),
   J^(-alpha/3)) scaled by a factor, or the density weighted by J (the deformed volume).
 
-:class:`TransformedEnergy` wraps a model with a :class:`Spec` saying which; its UFL energy is
-registered with :mod:`reference_fem.energies`, so the oracle (:class:`reference_fem.UFLOracle`)
-differentiates it exactly as it does the model's own energy.
+:class:`conformance.diagnosis.transformed.TransformedEnergy` wraps a model with a :class:`Spec`
+saying which; its UFL energy is registered with :mod:`reference_fem.energies`, so the oracle
+(:class:`reference_fem.UFLOracle`) differentiates it exactly as it does the model's own energy.
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ import numpy as np
 __all__ = [
     "declaration",
     "Spec",
-    "TransformedEnergy",
     "exponent_key",
     "has_formula",
     "j_exponents",
@@ -700,42 +699,3 @@ def _series_part(body: str, index: int, count: int) -> str:
     rest = body[: m.start()] + body[m.end() :]
     term = re.sub(rf"(?<![A-Za-z0-9]){name}(?![A-Za-z0-9])", value, rest)
     return f": the series term {name} = {value}, {term}"
-
-
-@dataclass(frozen=True, eq=False)
-class TransformedEnergy:
-    """``model``'s energy evaluated as ``spec`` says: a material for the oracle."""
-
-    model: Any
-    spec: Spec
-
-    def __post_init__(self):
-        # Registered with the oracle when first needed, not when this module is imported:
-        # the oracle's formulas need UFL, and the kit tools that import the diagnosis (export,
-        # the adapters, kit agreement) run on machines without it (a GPU machine, say).
-        _register()
-
-    @property
-    def frame(self):
-        return getattr(self.model, "frame", None)
-
-
-def _register() -> None:
-    from reference_fem.energies import energy_formula, register_energy
-
-    try:
-        if energy_formula(TransformedEnergy).material_type is TransformedEnergy:
-            return
-    except ValueError:
-        pass
-
-    @register_energy(TransformedEnergy, takes_frame=True)
-    def _energy(p, F, frame):
-        from conformance.diagnosis import shared_form
-
-        spec = p.material.spec
-        if p.constant is not None and shared_form.applies(spec):
-            # one compiled form for every variant that differs only in numbers
-            return shared_form.energy(p.material.model, F, frame, p.constant, spec)
-        W, _ = build(p.material.model, F, frame, p.constant, spec)
-        return W

@@ -48,7 +48,7 @@ class KinematicVariant:
 
     def oracle_model(self, model: Any) -> Any:
         """What the oracle evaluates for this variant of ``model``."""
-        from conformance.diagnosis.energy_terms import TransformedEnergy
+        from conformance.diagnosis.transformed import TransformedEnergy
 
         if self.orthonormalised:
             return OrthonormalisedFrameEnergy(model)

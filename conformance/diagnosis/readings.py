@@ -60,7 +60,7 @@ def model_key(model: Any) -> str:
 
 def _evaluate(cache, ci, spec):
     """The oracle's Reference for ``ci.model`` evaluated as ``spec`` says."""
-    from conformance.diagnosis.energy_terms import TransformedEnergy
+    from conformance.diagnosis.transformed import TransformedEnergy
 
     return cache.evaluate_model(
         ci, TransformedEnergy(ci.model, spec), model_key(ci.model) + spec.key()
@@ -491,12 +491,8 @@ def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Readi
         fit_exponents,
         written_exponent,
     )
-    from conformance.diagnosis.energy_terms import (
-        Spec,
-        TransformedEnergy,
-        has_formula,
-        j_exponents,
-    )
+    from conformance.diagnosis.energy_terms import Spec, has_formula, j_exponents
+    from conformance.diagnosis.transformed import TransformedEnergy
 
     if not has_formula(ci.model):
         return []
