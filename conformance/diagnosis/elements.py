@@ -304,15 +304,15 @@ def order_findings(
         # element force (reordered with it) and its columns from the dofs it perturbs.
         K_rows = assemble(split.cells, split.n, fp, split.Ke[:, p, :])[1]
         K_cols = assemble(split.cells, split.n, split.fe, split.Ke[:, :, p])[1]
-        for fo, K_p, which in (
+        for fo, K_pred, which in (
             (f_both, K_p, "force and stiffness"),
             (f_right, K_p, "stiffness only"),
             (f_both, K_rows, "the force and the stiffness's rows, its columns right"),
             (f_right, K_cols, "the stiffness's columns only: the dofs perturbed in that order"),
         ):
-            if K_p is K_cols and np.array_equal(p, said):
+            if K_pred is K_cols and np.array_equal(p, said):
                 continue
-            e = errors(f, sp.csr_matrix(K), None, fo, K_p, 0.0, s)
+            e = errors(f, sp.csr_matrix(K), None, fo, K_pred, 0.0, s)
             if tol.within(e, energy=False):
                 found.append(
                     split_finding(

@@ -26,6 +26,8 @@ from typing import Any, Callable, Dict, List, Tuple
 
 from conformance.diagnosis.energy_terms import (
     Spec,
+    _is_integer_literal,
+    _refit_j_powers,
     additive_parts,
     exponent_key,
     written_energy,
@@ -87,27 +89,17 @@ def _factor(spec: Spec, key: str, printed: str) -> float:
 
 def _powers_of_j_with_factors(W, spec: Spec, entered: List[Tuple[Any, str]], constant):
     """W with every non-integer power of J, J^e, written J^(s e), s a Constant (one per
-    distinct exponent) holding its factor for ``spec``.
+    distinct exponent) holding its factor for ``spec``: energy_terms' refit of the powers of J
+    with every exponent listed, so that every spec gives the same expression.
     """
-    from ufl.classes import Determinant, ScalarValue
-    from ufl.corealg.map_dag import map_expr_dag
-    from ufl.corealg.multifunction import MultiFunction
+    from ufl.classes import Determinant, Power
+    from ufl.corealg.traversal import unique_pre_traversal
 
-    made: Dict[Tuple[str, str], Any] = {}
-
-    def integer(e) -> bool:
-        return isinstance(e, ScalarValue) and float(e) == int(float(e))
-
-    class Rewrite(MultiFunction):
-        expr = MultiFunction.reuse_if_untouched
-
-        def power(self, o, base, exponent):
-            original = o.ufl_operands[1]
-            if not isinstance(base, Determinant) or integer(original):
-                return self.reuse_if_untouched(o, base, exponent)
-            key = (exponent_key(original, entered), str(original))
-            if key not in made:
-                made[key] = constant(_factor(spec, *key))
-            return base ** (made[key] * exponent)
-
-    return map_expr_dag(Rewrite(), W)
+    factors: Dict[str, float] = {}
+    for node in unique_pre_traversal(W):
+        if isinstance(node, Power) and isinstance(node.ufl_operands[0], Determinant):
+            exponent = node.ufl_operands[1]
+            if not _is_integer_literal(exponent):
+                key = exponent_key(exponent, entered)
+                factors.setdefault(key, _factor(spec, key, str(exponent)))
+    return _refit_j_powers(W, factors, entered, constant)
