@@ -148,8 +148,11 @@ def test_device_history_and_pressure_follow_the_host(models_simulated, name):
     """
     case = models_simulated[name]
     # a large first step (0.84 of the box's size) ends one CG iteration apart: round-off of
-    # 1e-15 in the forces moves the residual across the 1e-12 tolerance (measured 17 vs 16)
-    _same_steps(case, cg_slack=1 if name == "porous_halving" else 0)
+    # 1e-15 in the forces moves the residual across the 1e-12 tolerance (measured 17 vs 16).
+    # The porous case's first solve stops on the host at 9.75e-13, within round-off of that
+    # tolerance: the order of the device's sums, which the grid decides (mjed.cuda.threads),
+    # can take one more iteration (measured 14 vs 13 on the simulator's grid of 2 blocks)
+    _same_steps(case, cg_slack=1 if name in ("porous", "porous_halving") else 0)
     assert case["history_steps"][0] == case["history_steps"][1] == sum(case["substeps"][1])
     assert case["peak"] > 1e-2
     for key in ("x", "v", "reaction", "gammas"):

@@ -261,7 +261,8 @@ _BLOCK_WRITERS = {Assembly.ATOMIC: add_block, Assembly.ELEMENT: store_block}
 
 def write_cuda_module(writer, title: str, names, signature, dtype) -> None:
     """Write a CUDA kernel module into ``writer.src``: the compiled helpers of the CPU
-    kernels as device functions, then two kernels of ``signature``, one thread per cell e:
+    kernels as device functions, then two kernels of ``signature``, each a grid-stride loop
+    over the cells e (one cell a thread on a GPU; :mod:`mjed.cuda.threads`):
     ``names[0]`` (everything) and ``names[1]`` (the same with ``want_stiffness = False``, so
     that the compiler removes the stiffness code and the force runs at a higher occupancy).
     Their bodies are written by ``writer.parameters()`` and ``writer.cell()`` (which write
@@ -288,8 +289,9 @@ def write_cuda_module(writer, title: str, names, signature, dtype) -> None:
                 # alone gets its own kernel, without the stiffness code (the branch is
                 # removed by the compiler), so that it runs at a higher occupancy.
                 body("want_stiffness = False")
-            body("e = cuda.grid(1)")
-            with body.block("if e < cells.shape[0]:"):
+            # a grid-stride loop over the cells (mjed.cuda.threads: the simulator caps the grid)
+            body("start, stride = cuda.grid(1), cuda.gridsize(1)")
+            with body.block("for e in range(start, cells.shape[0], stride):"):
                 writer.parameters()
                 writer.cell()
         body("")

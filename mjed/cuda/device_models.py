@@ -29,7 +29,7 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
-from mjed.cuda.threads import THREADS_PER_BLOCK
+from mjed.cuda.threads import REDUCTION_BLOCKS, THREADS_PER_BLOCK, blocks_for
 
 __all__ = ["DevicePlan", "DeviceFluid", "DeviceViscous", "PRESSURE_TOL", "device_plan"]
 
@@ -120,7 +120,7 @@ class Geometry:
         else:
             self.D = cuda.to_device(np.ascontiguousarray(mesh.D, dtype=np.float64))
             self.V = cuda.to_device(np.ascontiguousarray(mesh.volumes, dtype=np.float64))
-        self.grid = max(1, -(-mesh.n_cells // THREADS_PER_BLOCK))
+        self.grid = blocks_for(mesh.n_cells)
 
 
 class DeviceViscous:
@@ -256,8 +256,8 @@ class DeviceFluid:
         self._sums = cuda.device_array(2)
         self._cg = DeviceCG(n)
         self._matrix_dt = None
-        self._rows = max(1, -(-n // self.THREADS))
-        self._reduce_grid = max(1, min(256, self._rows))
+        self._rows = blocks_for(n)
+        self._reduce_grid = blocks_for(n, REDUCTION_BLOCKS)
         self.max_iterations = max(PRESSURE_MAX_ITERATIONS, n)
         self.last_iterations = 0
 

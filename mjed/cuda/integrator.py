@@ -54,6 +54,7 @@ from typing import Optional
 
 import numpy as np
 
+from mjed.cuda.threads import REDUCTION_BLOCKS, blocks_for
 from mjed.errors import IntegrationError, InvertedElementError
 from mjed.integrator import ImplicitEuler, LinearSolverOptions, StepTally
 from mjed.linear_system import values_on_pattern
@@ -227,10 +228,9 @@ class DeviceImplicitEuler(ImplicitEuler):
         self._sums = cuda.device_array(2)
         self._warm_valid = False
         self._cg = DeviceCG(n3)
-        k = self._k
-        self._rows = max(1, -(-n3 // k.THREADS))
-        self._reduce_grid = max(1, min(256, self._rows))
-        self._cell_grid = max(1, min(256, -(-m // k.THREADS)))
+        self._rows = blocks_for(n3)
+        self._reduce_grid = blocks_for(n3, REDUCTION_BLOCKS)
+        self._cell_grid = blocks_for(m, REDUCTION_BLOCKS)
 
     # ---------------------------------------------------------------- checkpoints
     def _checkpoint(self) -> tuple:
@@ -322,8 +322,7 @@ class DeviceImplicitEuler(ImplicitEuler):
         """The prescribed nodes' velocity over the step (24 bytes per node to the device)."""
         target = self.prescribed_positions(step, t1)
         k = len(target)
-        grid = max(1, -(-k // self._k.THREADS))
-        self._k.prescribe[grid, self._k.THREADS](
+        self._k.prescribe[blocks_for(k), self._k.THREADS](
             self._nodes, self._cuda.to_device(target), self._x_d, dt, self._vref
         )
 
@@ -356,8 +355,8 @@ class DeviceImplicitEuler(ImplicitEuler):
             n3, nnz = self._f_tot.shape[0], self._K_tot.shape[0]
             mk = self._model_kernels
             f = self._f.reshape(-1)
-            mk.scale_into[max(1, -(-n3 // k.THREADS)), k.THREADS](f, c, self._f_tot)
-            mk.scale_into[max(1, -(-nnz // k.THREADS)), k.THREADS](self._K, c, self._K_tot)
+            mk.scale_into[blocks_for(n3), k.THREADS](f, c, self._f_tot)
+            mk.scale_into[blocks_for(nnz), k.THREADS](self._K, c, self._K_tot)
         if self._viscous is not None:
             self._viscous.add(self._x_d, self._ue, self._f_tot, self._K_tot)
         tally.model_seconds[plan.body_index] += time.perf_counter() - clock
@@ -376,9 +375,7 @@ class DeviceImplicitEuler(ImplicitEuler):
         if self._viscous is not None:
             clock = time.perf_counter()
             n3 = self._x1.shape[0]
-            self._model_kernels.cast_into[max(1, -(-n3 // k.THREADS)), k.THREADS](
-                self._x1, self._xe.reshape(-1)
-            )
+            self._model_kernels.cast_into[blocks_for(n3), k.THREADS](self._x1, self._xe.reshape(-1))
             try:
                 self._viscous.advance(self._xe, dt)
             except InvertedElementError as exc:
@@ -427,7 +424,7 @@ class DeviceImplicitEuler(ImplicitEuler):
         count = len(self._dofs_host)
         if count:
             k = self._k
-            k.reaction[max(1, -(-count // k.THREADS)), k.THREADS](
+            k.reaction[blocks_for(count), k.THREADS](
                 self._dofs, self._A.indptr, self._A.indices, self._mass, self._K_tot, a, b,
                 self._dv, self._rhs, dt, self._reaction,
             )  # fmt: skip

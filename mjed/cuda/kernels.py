@@ -44,8 +44,8 @@ def gather_blocks(ke, offsets, contributions, first, rowlen, m, data):
     has a contribution, so every value is written: ``data`` needs no zeroing. The sums start
     from the first contribution, so that they stay in the dtype of ``ke``.
     """
-    t = cuda.grid(1)
-    if t < first.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for t in range(start, first.shape[0], stride):
         k0 = offsets[t]
         q = contributions[k0]
         s0, s1, s2 = ke[q], ke[q + m], ke[q + 2 * m]
@@ -79,8 +79,8 @@ def gather_edge_blocks(ke, offsets, contributions, diagonal, first, rowlen, m, d
     zeroing. The sums start from the first contribution, so that they stay in the dtype of
     ``ke``.
     """
-    t = cuda.grid(1)
-    if t < first.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for t in range(start, first.shape[0], stride):
         k0 = offsets[t]
         code = contributions[k0]
         q = code >> 1

@@ -35,7 +35,7 @@ from mjed.cuda.codegen import (
     EdgeIncidence,
     ElementIncidence,
 )
-from mjed.cuda.threads import THREADS_PER_BLOCK
+from mjed.cuda.threads import REDUCTION_BLOCKS, THREADS_PER_BLOCK, ZEROING_BLOCKS, blocks_for
 from mjed.forcefield import refuse_inverted
 from mjed.mesh import TetMesh
 from mjed.sparse import CSRPattern
@@ -116,7 +116,7 @@ class CellLauncher:
         self._reduced = cuda.device_array(2, dtype=np.float64)
         self.empty_force = cuda.device_array((0, 3), dtype=dt)
         self.empty_data = cuda.device_array(0, dtype=dt)
-        self.blocks = max(1, -(-mesh.n_cells // THREADS_PER_BLOCK))
+        self.blocks = blocks_for(mesh.n_cells)
 
     def to_device(self, a) -> object:
         """A host array on the device, in this launcher's dtype."""
@@ -196,9 +196,10 @@ class CellLauncher:
         blocks = len(inc[-2])
         m = self.mesh.n_cells
         if blocks and m:
-            grid = -(-blocks // THREADS_PER_BLOCK)
             kernel = kernels.gather_edge_blocks if edge else kernels.gather_blocks
-            kernel[grid, THREADS_PER_BLOCK](ke.reshape(assembly.entries * m), *inc, m, data)
+            kernel[blocks_for(blocks), THREADS_PER_BLOCK](
+                ke.reshape(assembly.entries * m), *inc, m, data
+            )
         return data
 
     def _device_incidence(self, inc: ElementIncidence, codes: int, extra: tuple) -> tuple:
@@ -238,8 +239,7 @@ class CellLauncher:
 
     def _zero_array(self, a) -> None:
         if a.shape[0]:
-            T = THREADS_PER_BLOCK
-            self._zero[max(1, min(1024, -(-a.shape[0] // T))), T](a)
+            self._zero[blocks_for(a.shape[0], ZEROING_BLOCKS), THREADS_PER_BLOCK](a)
 
     def _reduce(self) -> Tuple[float, float]:
         """(min J, sum of the cell energies) over the cells, on the device."""
@@ -247,8 +247,8 @@ class CellLauncher:
         if m == 0:
             return np.inf, 0.0
         self._reduced.copy_to_device(np.array([np.inf, 0.0]))
-        T = THREADS_PER_BLOCK
-        self._min_sum[max(1, min(256, -(-m // T))), T](self.J, self.E, self._reduced)
+        grid = blocks_for(m, REDUCTION_BLOCKS)
+        self._min_sum[grid, THREADS_PER_BLOCK](self.J, self.E, self._reduced)
         J_min, energy = self._reduced.copy_to_host()
         return float(J_min), float(energy)
 

@@ -18,7 +18,8 @@ equations:
   nodes (:func:`darcy_rhs`) and the matrix M / K_lim + dt kappa L with the drained rows and
   columns of the identity (:func:`darcy_matrix`), solved by the device CG.
 
-Cell kernels run one thread per cell and add into shared nodes and CSR values by atomics,
+Every kernel is a grid-stride loop (:mod:`mjed.cuda.threads`; one cell, row or entry a
+thread on a GPU). Cell kernels add into shared nodes and CSR values by atomics,
 through the field's block map (:func:`mjed.cuda.codegen.block_map`: entry (r, c) of block
 (a, b) of cell e at blk[e, 4 a + b] + r rowlen[node a] + c). Importing this module imports
 numba.cuda.
@@ -46,16 +47,16 @@ __all__ = [
 @cuda.jit
 def scale_into(src, c, dst):
     """Dst = c src (dst float64, src in any dtype), one thread per entry."""
-    i = cuda.grid(1)
-    if i < dst.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, dst.shape[0], stride):
         dst[i] = c * src[i]
 
 
 @cuda.jit
 def cast_into(src, dst):
     """Dst = src in dst's dtype (rounded as a host copy would be)."""
-    i = cuda.grid(1)
-    if i < dst.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, dst.shape[0], stride):
         dst[i] = src[i]
 
 
@@ -63,8 +64,8 @@ def cast_into(src, dst):
 @cuda.jit
 def prony_stress(gammas, b, Q):
     """Q[e] = sum_i b_i gammas[i, e] (gammas (p, m, 3, 3)), one thread per cell."""
-    e = cuda.grid(1)
-    if e < Q.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for e in range(start, Q.shape[0], stride):
         for r in range(3):
             for c in range(3):
                 s = 0.0
@@ -76,8 +77,8 @@ def prony_stress(gammas, b, Q):
 @cuda.jit
 def prony_update(gammas, S, a, b, out):
     """Out[i, e] = a_i S[e] + b_i gammas[i, e] (S in the field's dtype), one thread per cell."""
-    e = cuda.grid(1)
-    if e < S.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for e in range(start, S.shape[0], stride):
         for i in range(a.shape[0]):
             for r in range(3):
                 for c in range(3):
@@ -89,8 +90,8 @@ def history_force_stiffness(x0, ue, cells, D, V, Q, blk, rowlen, f, K):
     """The constant stress -Q of each cell: K += blocks s_ab Id, f_a -= sum_b s_ab x_b, with
     s_ab = -V (D_a . Q D_b) and x = x0 + ue (flat (3n,)); f (3n,) and K (nnz,) float64.
     """
-    e = cuda.grid(1)
-    if e < cells.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for e in range(start, cells.shape[0], stride):
         QD = cuda.local.array(12, float64)  # Q D_b, (3, 4)
         for k in range(3):
             for b in range(4):
@@ -134,8 +135,8 @@ def fluid_force_stiffness(
     """The energy V (U(J) - Pbar (J - 1)) of each cell (U = 0 unless ``solid``): its force
     into f (3n,) and its stiffness into K (nnz,), both float64; x = x0 + ue (flat (3n,)).
     """
-    e = cuda.grid(1)
-    if e < cells.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for e in range(start, cells.shape[0], stride):
         F = cuda.local.array(9, float64)
         for i in range(3):
             for j in range(3):
@@ -231,8 +232,8 @@ def darcy_rhs(indptr, indices, mass, P, s, drained, K_lim, rhs, guess):
     """Rhs = (M P) / K_lim - s over the free nodes (the drained columns left out), 0 on the
     drained rows; guess = P there, 0 on the drained rows (the CG's first guess).
     """
-    i = cuda.grid(1)
-    if i < rhs.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, rhs.shape[0], stride):
         if drained[i]:
             rhs[i] = 0.0
             guess[i] = 0.0
@@ -251,8 +252,8 @@ def darcy_matrix(indptr, indices, mass, laplacian, drained, K_lim, c, out):
     """Out = M / K_lim + c L on the free rows and columns (c = dt kappa); the drained rows and
     columns are the identity's.
     """
-    i = cuda.grid(1)
-    if i < drained.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, drained.shape[0], stride):
         di = drained[i]
         for k in range(indptr[i], indptr[i + 1]):
             j = indices[k]

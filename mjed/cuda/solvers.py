@@ -3,8 +3,9 @@
 :func:`device_conjugate_gradient` solves A x = b with the semantics of
 :func:`mjed.solvers.conjugate_gradient` (same tolerance test ||b - A x|| <= tol ||b||, same
 stopping reasons, same :class:`mjed.solvers.CGResult`) with A in CSR on the device: the
-matrix-vector product one thread per row, the vector updates one thread per entry, the dot
-products reduced by one atomic add per thread of a grid-stride loop. The CSR values can come
+matrix-vector product over the rows, the vector updates over the entries, the dot products
+reduced by one atomic add per thread, each a grid-stride loop (one item a thread on a GPU;
+:mod:`mjed.cuda.threads`). The CSR values can come
 straight from :meth:`mjed.cuda.CudaForceField.device_force_and_stiffness`, whose pattern is
 the field's (``field.pattern``), so that the stiffness never leaves the device.
 
@@ -25,7 +26,7 @@ import numpy as np
 from numba import cuda
 
 from mjed.cuda.step_kernels import clear
-from mjed.cuda.threads import THREADS_PER_BLOCK
+from mjed.cuda.threads import REDUCTION_BLOCKS, THREADS_PER_BLOCK, blocks_for
 from mjed.solvers import CGResult
 
 __all__ = ["DeviceCG", "DeviceCSR", "device_conjugate_gradient"]
@@ -36,8 +37,8 @@ _THREADS = THREADS_PER_BLOCK
 @cuda.jit
 def _spmv(indptr, indices, data, x, y):
     """Y = A x, one thread per row."""
-    i = cuda.grid(1)
-    if i < y.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, y.shape[0], stride):
         acc = 0.0
         for k in range(indptr[i], indptr[i + 1]):
             acc += data[k] * x[indices[k]]
@@ -49,8 +50,8 @@ def _jacobi(indptr, indices, data, dinv):
     """Dinv = 1 / diag(A), 1 where the diagonal is not positive (as
     mjed.solvers.jacobi_preconditioner).
     """
-    i = cuda.grid(1)
-    if i < dinv.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, dinv.shape[0], stride):
         d = 0.0
         for k in range(indptr[i], indptr[i + 1]):
             if indices[k] == i:
@@ -74,8 +75,8 @@ def _dots(a, b, c, out):
 @cuda.jit
 def _step(x, r, p, Ap, dinv, z, alpha):
     """X += alpha p; r -= alpha Ap; z = dinv r."""
-    i = cuda.grid(1)
-    if i < x.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, x.shape[0], stride):
         x[i] += alpha * p[i]
         ri = r[i] - alpha * Ap[i]
         r[i] = ri
@@ -85,16 +86,16 @@ def _step(x, r, p, Ap, dinv, z, alpha):
 @cuda.jit
 def _direction(z, p, beta):
     """P = z + beta p."""
-    i = cuda.grid(1)
-    if i < p.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, p.shape[0], stride):
         p[i] = z[i] + beta * p[i]
 
 
 @cuda.jit
 def _residual_start(b, Ax, dinv, r, z):
     """R = b - A x; z = dinv r."""
-    i = cuda.grid(1)
-    if i < r.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, r.shape[0], stride):
         ri = b[i] - Ax[i]
         r[i] = ri
         z[i] = dinv[i] * ri
@@ -130,8 +131,8 @@ class DeviceCG:
 
     def __init__(self, n: int):
         self.n = n
-        self.blocks = max(1, -(-n // _THREADS))
-        self.reduce_blocks = max(1, min(self.blocks, 256))
+        self.blocks = blocks_for(n)
+        self.reduce_blocks = blocks_for(n, REDUCTION_BLOCKS)
         self.r, self.z, self.p, self.Ap, self.dinv = (cuda.device_array(n) for _ in range(5))
         self.sums = cuda.device_array(2)
 

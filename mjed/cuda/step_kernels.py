@@ -4,8 +4,9 @@
 Vectors are flat (3n,) dof arrays; matrices are value arrays (nnz,) on the one CSR pattern of
 the force field's stiffness (:class:`mjed.sparse.CSRPattern`): the stiffness K (in the
 field's dtype), the mass M laid on it once per mesh (:func:`mjed.linear_system.values_on_pattern`)
-and the step matrix A. Row kernels run one thread per row; the reductions are grid-stride
-loops with one atomic per thread into a few float64 scalars, the only numbers read back.
+and the step matrix A. Every kernel but :func:`clear` is a grid-stride loop
+(:mod:`mjed.cuda.threads`): the row kernels over the rows, one a thread on a GPU; the
+reductions add one atomic per thread into a few float64 scalars, the only numbers read back.
 Importing this module imports numba.cuda.
 """
 
@@ -50,7 +51,7 @@ def clear(out):
 @cuda.jit
 def fill_zero(a):
     """A = 0, grid-stride: one thread per entry, or fewer threads each taking several (the
-    force field's launcher caps its blocks).
+    force field's launcher caps its blocks; the simulator caps every launch's).
     """
     start, stride = cuda.grid(1), cuda.gridsize(1)
     for i in range(start, a.shape[0], stride):
@@ -62,8 +63,8 @@ def start_velocity(v0, constrained, vref, ue):
     """Vref = v0 on the free dofs and 0 on the constrained ones; ue = 0 (the first
     linearisation point is x0).
     """
-    i = cuda.grid(1)
-    if i < vref.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, vref.shape[0], stride):
         vref[i] = 0.0 if constrained[i] else v0[i]
         ue[i] = 0.0
 
@@ -73,8 +74,8 @@ def prescribe(nodes, target, x0, dt, vref):
     """Vref at prescribed node a = nodes[k]: (target[k] - x0[a]) / dt, which brings it to its
     prescribed position at the end of the step.
     """
-    k = cuda.grid(1)
-    if k < nodes.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for k in range(start, nodes.shape[0], stride):
         a = nodes[k]
         for c in range(3):
             vref[3 * a + c] = (target[k, c] - x0[3 * a + c]) / dt
@@ -83,8 +84,8 @@ def prescribe(nodes, target, x0, dt, vref):
 @cuda.jit
 def positions(x0, ue, out):
     """Out = x0 + ue, out in the force field's dtype (rounded as a host copy to it would be)."""
-    i = cuda.grid(1)
-    if i < out.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, out.shape[0], stride):
         out[i] = x0[i] + ue[i]
 
 
@@ -97,8 +98,8 @@ def right_hand_side(
     K (dt vref - ue)) - M (vref - v0) regrouped; b = rhs on the free rows, 0 on the
     constrained ones (the CG's right-hand side).
     """
-    i = cuda.grid(1)
-    if i < rhs.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, rhs.shape[0], stride):
         acc = 0.0
         for k in range(indptr[i], indptr[i + 1]):
             j = indices[k]
@@ -141,8 +142,8 @@ def system_matrix(indptr, indices, mass, stiff, constrained, a, b, out):
     those of the identity, so that CG on the whole system runs the iterations of CG on the free
     block (its right-hand side and first guess being 0 on the constrained dofs).
     """
-    i = cuda.grid(1)
-    if i < constrained.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, constrained.shape[0], stride):
         ci = constrained[i]
         for k in range(indptr[i], indptr[i + 1]):
             j = indices[k]
@@ -157,8 +158,8 @@ def reaction(dofs, indptr, indices, mass, stiff, a, b, dv, rhs, dt, out):
     """Out[k] = (a (M dv)_i + b (K dv)_i - rhs_i) / dt at the constrained dof i = dofs[k]:
     what the constraint must add for row i to balance (a = b = 0: -rhs_i / dt).
     """
-    k = cuda.grid(1)
-    if k < dofs.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for k in range(start, dofs.shape[0], stride):
         i = dofs[k]
         m = 0.0
         s = 0.0
@@ -173,8 +174,8 @@ def reaction(dofs, indptr, indices, mass, stiff, a, b, dv, rhs, dt, out):
 @cuda.jit
 def advance_velocity(vref, dv, ue, dt):
     """Vref += dv; ue = dt vref (the next linearisation point)."""
-    i = cuda.grid(1)
-    if i < vref.shape[0]:
+    start, stride = cuda.grid(1), cuda.gridsize(1)
+    for i in range(start, vref.shape[0], stride):
         v = vref[i] + dv[i]
         vref[i] = v
         ue[i] = dt * v
