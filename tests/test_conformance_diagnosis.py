@@ -134,6 +134,49 @@ def test_nothing_claimed_for_noise():
     assert not d.causes and d.findings[0].code == "unexplained"
 
 
+def _noisy_force_with(W, consistency):
+    """The diagnosis of a force off by noise (stiffness and, with ``W`` = 0, energy right)."""
+    points, cells, f_o, K_o = _synthetic(3)
+    f = f_o + np.random.default_rng(3).standard_normal(f_o.shape) * 1e-3
+    return diagnose(
+        "synthetic",
+        f=f,
+        K=K_o,
+        W=W,
+        f_o=f_o,
+        K_o=K_o,
+        W_o=0.0,
+        s=scales(0.5, 1.0, f_o, K_o),
+        points=points,
+        cells=cells,
+        x=points,
+        consistency=consistency,
+    )
+
+
+def test_an_unexplained_force_is_localised_to_the_stress_only_on_the_engines_own_evidence():
+    """Energy right, force not its derivative, stiffness the derivative of the force: the
+    unexplained finding says where to look (the stress formula); with any of the three
+    missing or not holding it does not.
+    """
+    from conformance.judge.consistency import Consistency
+
+    said = "the mistake is in the force's stress formula"
+    stress_wrong = Consistency(force_stiffness=1e-11, energy_force=5e-3)
+    d = _noisy_force_with(0.0, stress_wrong)
+    assert not d.causes and d.findings[0].code == "unexplained", d.text()
+    assert said in d.findings[0].evidence
+    for W, c in (
+        (None, stress_wrong),  # no energy
+        (1e-3, stress_wrong),  # energy wrong
+        (0.0, None),  # no probes
+        (0.0, Consistency(force_stiffness=1e-3, energy_force=5e-3)),  # K not the force's
+        (0.0, Consistency(force_stiffness=1e-11, energy_force=1e-12)),  # force the energy's
+    ):
+        d = _noisy_force_with(W, c)
+        assert said not in d.findings[0].evidence, (W, c)
+
+
 # ---------------------------------------------------------------- issue 29: never a wrong cause
 def _mjed(material, seed=0):
     """MJED's (f, K) on a jittered box at a random deformation, for the given material."""

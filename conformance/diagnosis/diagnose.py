@@ -210,12 +210,32 @@ def diagnose(
                 "the mistake is in the tangent alone"
                 if inconsistent and err.force <= tol.force
                 else ""
-            ),
+            )
+            + _stress_routine_words(W, err, tol, consistency),
             {"force": err.force, "stiffness": err.stiffness},
         )
         denied = [p for p in partial if p.figures.get("denied")]
         findings = [unexplained, *denied] + findings
     return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
+
+
+def _stress_routine_words(W, err, tol, consistency) -> str:
+    """Where to look when nothing is named but the engine's own figures localise the mistake:
+    its energy is the oracle's, its force is not, and its stiffness is the derivative of its own
+    force (the probes). The force then departs from the derivative of a right energy, and the
+    stiffness was derived from that force (or from the same stress): the mistake is in the
+    stress formula. Empty where any of the three is not measured or does not hold.
+    """
+    energy_right = W is not None and err.energy is not None and err.energy <= tol.energy
+    if not (energy_right and err.force > tol.force and consistency is not None):
+        return ""
+    if consistency.stiffness_consistent is not True or consistency.force_consistent is not False:
+        return ""
+    return (
+        "; your energy is the oracle's, your force is not its derivative and your stiffness is "
+        "the derivative of your force (below): the mistake is in the force's stress formula, "
+        "which the stiffness inherits"
+    )
 
 
 def denied_volumetric(diag: Diagnosis) -> Diagnosis:
