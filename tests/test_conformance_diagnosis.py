@@ -79,14 +79,16 @@ def _synthetic(seed=0):
     return points, cells, rng.standard_normal((n, 3)), K
 
 
-def _diagnose_synthetic(points, cells, f, K, f_o, K_o):
-    """The diagnosis of (f, K) against (f_o, K_o) at rest positions, without energies."""
-    s = scales(0.5, 0.0, f_o, K_o)
+def _diagnose_synthetic(points, cells, f, K, f_o, K_o, W=None, consistency=None):
+    """The diagnosis of (f, K) against (f_o, K_o) at rest positions: without energies, or the
+    engine's energy ``W`` against the oracle's 0 (energy scale 1); probes' ``consistency``.
+    """
+    s = scales(0.5, 0.0 if W is None else 1.0, f_o, K_o)
     return diagnose(
         "synthetic",
         f=f,
         K=K,
-        W=None,
+        W=W,
         f_o=f_o,
         K_o=K_o,
         W_o=0.0,
@@ -94,6 +96,7 @@ def _diagnose_synthetic(points, cells, f, K, f_o, K_o):
         points=points,
         cells=cells,
         x=points,
+        consistency=consistency,
     )
 
 
@@ -138,20 +141,7 @@ def _noisy_force_with(W, consistency):
     """The diagnosis of a force off by noise (stiffness and, with ``W`` = 0, energy right)."""
     points, cells, f_o, K_o = _synthetic(3)
     f = f_o + np.random.default_rng(3).standard_normal(f_o.shape) * 1e-3
-    return diagnose(
-        "synthetic",
-        f=f,
-        K=K_o,
-        W=W,
-        f_o=f_o,
-        K_o=K_o,
-        W_o=0.0,
-        s=scales(0.5, 1.0, f_o, K_o),
-        points=points,
-        cells=cells,
-        x=points,
-        consistency=consistency,
-    )
+    return _diagnose_synthetic(points, cells, f, K_o, f_o, K_o, W, consistency)
 
 
 def test_an_unexplained_force_is_localised_to_the_stress_only_on_the_engines_own_evidence():
