@@ -29,7 +29,7 @@ __all__ = ["SymbolicBudgetError", "SYMBOLIC_SECONDS", "SYMBOLIC_BYTES", "check_s
 SYMBOLIC_SECONDS = 60.0  # the built-in energies compile in 3 to 10 s on the 2-core machine
 SYMBOLIC_BYTES = 2 << 30  # address space: dolfinx with PETSc and MPI maps about 0.7 GB at start
 
-_within: Set[str] = set()  # energies already shown to fit (this process)
+_within: Set[str] = set()  # the forms of energies already shown to fit (this process, _form_key)
 
 
 class SymbolicBudgetError(ValueError):
@@ -57,6 +57,29 @@ def _key(energy: Any) -> str:
     )
 
 
+def _form_key(energy: Any) -> str:
+    """What shapes the compiled forms of ``energy``, and nothing else: its expression, the names
+    of its parameters (their values enter the forms as Constants), and its fibre direction as
+    the oracle writes it into the form (a fibre or one frame for the mesh: its numbers; a frame
+    per cell: only that there is one, read from a DG0 Function). Energies with one form key
+    have the same symbolic work: the diagnosis' frame variants of one user energy (columns
+    exchanged, transposed, one per block of cells, ...) are checked once, not once each.
+    """
+    frame = getattr(energy, "frame", None)
+    if frame is not None:
+        frame = np.asarray(frame, dtype=float)
+        frame = frame[:, 0].tolist() if frame.ndim == 2 else "one per cell"
+    return json.dumps(
+        {
+            "expression": energy.expression,
+            "params": sorted(energy.params),
+            "fibre": None if energy.fibre is None else list(energy.fibre),
+            "frame": frame,
+        },
+        sort_keys=True,
+    )
+
+
 def _limit_memory(nbytes: int) -> None:
     import resource
 
@@ -67,13 +90,14 @@ def check_symbolic_budget(
     energy: Any, *, seconds: Optional[float] = None, nbytes: Optional[int] = None
 ) -> None:
     """Compile ``energy``'s oracle forms in a child within the budget, or raise
-    SymbolicBudgetError saying which limit it exceeded. A no-op for an energy that fitted before.
+    SymbolicBudgetError saying which limit it exceeded. A no-op for an energy whose forms
+    (:func:`_form_key`) fitted before.
     """
     seconds = SYMBOLIC_SECONDS if seconds is None else seconds
     nbytes = SYMBOLIC_BYTES if nbytes is None else nbytes
-    key = _key(energy)
-    if key in _within:
+    if _form_key(energy) in _within:
         return
+    key = _key(energy)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, os.environ.get("PYTHONPATH", "")]))
     proc = subprocess.Popen(
@@ -109,7 +133,7 @@ def check_symbolic_budget(
         raise SymbolicBudgetError(
             f"user energy {shown}: differentiating and compiling it {why}; simplify the expression"
         )
-    _within.add(key)
+    _within.add(_form_key(energy))
 
 
 def _child() -> int:
