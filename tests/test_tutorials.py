@@ -9,6 +9,7 @@ failed assert with its traceback.
 from __future__ import annotations
 
 import json
+import os
 
 import pytest
 from docs_support import executed, tutorial_runner
@@ -48,6 +49,19 @@ def test_a_failing_assert_is_reported_with_the_tutorial_and_the_line(tmp_path):
     assert not run.ok
     assert "broken.py" in run.error and "line 8" in run.error
     assert "assert value == 5" in run.error and "four is not five" in run.error
+
+
+def test_what_a_tutorial_makes_in_the_temporary_folder_goes_with_its_run(tmp_path):
+    script = tmp_path / "keeps.py"
+    out = tmp_path / "made.txt"
+    script.write_text(
+        "# %% [markdown]\n# # Keeps a folder\n\n# %%\nimport tempfile\n"
+        f"made = tempfile.mkdtemp(prefix='kept-')\nopen({str(out)!r}, 'w').write(made)\n"
+    )
+    run = tutorial_runner.ensure_executed(script, tmp_path / "cache")
+    assert run.ok, run.error
+    made = out.read_text()
+    assert made and not os.path.exists(made)
 
 
 def test_cells_and_markdown_are_parsed_with_their_lines():

@@ -233,10 +233,12 @@ def ensure_executed(script: Path, cache_dir: Path, *, python: str = sys.executab
         PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
     )
     with tempfile.TemporaryDirectory(prefix=f"tutorial-{script.stem}-") as cwd:
+        # What a tutorial makes under the system's temporary folder (a reader keeps it to look
+        # at; the check tutorial's engine and report) goes inside cwd here, and goes with it.
         proc = subprocess.run(
             [python, str(Path(__file__).resolve()), str(script), str(outdir.resolve())],
             cwd=cwd,
-            env=env,
+            env=dict(env, TMPDIR=cwd),
             capture_output=True,
             text=True,
         )
