@@ -73,13 +73,10 @@ class OrthonormalisedFrameEnergy:
 
 
 def _register() -> None:
-    from reference_fem.energies import energy_formula, register_energy
+    from reference_fem.energies import register_energy, supported_materials
 
-    try:
-        if energy_formula(OrthonormalisedFrameEnergy).material_type is OrthonormalisedFrameEnergy:
-            return
-    except ValueError:
-        pass
+    if OrthonormalisedFrameEnergy in supported_materials():
+        return
 
     @register_energy(OrthonormalisedFrameEnergy, takes_frame=True)
     def _energy(p, F, frame):
