@@ -187,7 +187,8 @@ def diagnose(
 
     # The engine's own energy denies an energy mistake: it equals the oracle's, or the engine's
     # force is not its derivative (the probes). A reading of the energy must then not be named.
-    energy_denies = (W is not None and err.energy is not None and err.energy <= tol.energy) or (
+    energy_right = W is not None and err.energy is not None and err.energy <= tol.energy
+    energy_denies = energy_right or (
         consistency is not None and consistency.force_consistent is False
     )
     args = (f, K, W, f_o, K_o, W_o, s, err, points, cells, x, parts, field_, tol, frame_variants)
@@ -204,14 +205,7 @@ def diagnose(
             "unsymmetric K, global factor, length units, fibre frame where the model has one, "
             "tangent parts, volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
-            + (
-                "; the force is right and the stiffness is not the derivative of the engine's own "
-                "force (below): "
-                "the mistake is in the tangent alone"
-                if inconsistent and err.force <= tol.force
-                else ""
-            )
-            + _stress_routine_words(W, err, tol, consistency),
+            + _where_to_look(err, tol, consistency, inconsistent, energy_right),
             {"force": err.force, "stiffness": err.stiffness},
         )
         denied = [p for p in partial if p.figures.get("denied")]
@@ -219,14 +213,22 @@ def diagnose(
     return Diagnosis(case_id, "failed", err, findings, field_, consistency, tol)
 
 
-def _stress_routine_words(W, err, tol, consistency) -> str:
-    """Where to look when nothing is named but the engine's own figures localise the mistake:
-    its energy is the oracle's, its force is not, and its stiffness is the derivative of its own
-    force (the probes). The force then departs from the derivative of a right energy, and the
-    stiffness was derived from that force (or from the same stress): the mistake is in the
-    stress formula. Empty where any of the three is not measured or does not hold.
+def _where_to_look(err, tol, consistency, inconsistent: bool, energy_right: bool) -> str:
+    """Where to look when nothing is named but the engine's own figures localise the mistake
+    (the probes' ``consistency``; ``inconsistent``: they found something inconsistent):
+
+    - the force right and the stiffness not its derivative: the tangent alone;
+    - the energy the oracle's, the force not its derivative and the stiffness the derivative of
+      the force: the force departs from the derivative of a right energy and the stiffness was
+      derived from that force (or from the same stress): the stress formula.
+
+    Empty where neither is measured and holds.
     """
-    energy_right = W is not None and err.energy is not None and err.energy <= tol.energy
+    if inconsistent and err.force <= tol.force:
+        return (
+            "; the force is right and the stiffness is not the derivative of the engine's own "
+            "force (below): the mistake is in the tangent alone"
+        )
     if not (energy_right and err.force > tol.force and consistency is not None):
         return ""
     if consistency.stiffness_consistent is not True or consistency.force_consistent is not False:
