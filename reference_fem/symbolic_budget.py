@@ -95,7 +95,8 @@ def check_symbolic_budget(
     """
     seconds = SYMBOLIC_SECONDS if seconds is None else seconds
     nbytes = SYMBOLIC_BYTES if nbytes is None else nbytes
-    if _form_key(energy) in _within:
+    form = _form_key(energy)
+    if form in _within:
         return
     key = _key(energy)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -133,7 +134,7 @@ def check_symbolic_budget(
         raise SymbolicBudgetError(
             f"user energy {shown}: differentiating and compiling it {why}; simplify the expression"
         )
-    _within.add(_form_key(energy))
+    _within.add(form)
 
 
 def _child() -> int:
