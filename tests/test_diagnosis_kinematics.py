@@ -109,3 +109,83 @@ def test_costa_with_the_j_power_outside_the_exponential_is_named_and_without_it_
             assert "kinematic-j-power-out-of-exp" not in codes, outcome.diagnosis.text()
         else:
             assert codes == [code], outcome.diagnosis.text()
+
+
+def test_the_inverse_map_and_the_ignored_rotation_are_tried_for_every_material():
+    from mjed.materials.declaration import declarations
+
+    for d in declarations():
+        codes = [v.code for v in kinematic_variants(d.default)]
+        assert "inverse-map" in codes and "rotation-ignored" in codes, d.name
+    titles = [v.title for v in kinematic_variants(default_material("Yeoh"))]
+    assert any("J with its sign flipped" in t for t in titles)  # I1b = J^(2/3) I1
+    assert not any(
+        "sign flipped" in v.title for v in kinematic_variants(default_material("NeoHookean"))
+    )  # no non-integer power of J
+
+
+def _inverse(F):
+    """F^-1 of a hyper-dual Matrix: its cofactors transposed over its determinant."""
+    from hyperdual_engine import Matrix
+
+    def cof(i, j):
+        a, b, c, d = (i + 1) % 3, (i + 2) % 3, (j + 1) % 3, (j + 2) % 3
+        return F[a, c] * F[b, d] - F[a, d] * F[b, c]
+
+    J = F[0, 0] * cof(0, 0) + F[0, 1] * cof(0, 1) + F[0, 2] * cof(0, 2)
+    return Matrix([[cof(j, i) / J for j in range(3)] for i in range(3)])
+
+
+def _formula_engine(material, kinematics):
+    """The declared formula of ``material`` on kinematics(F) (a Namespace), by hyper-dual
+    numbers (tests/hyperdual_engine.py): force and stiffness.
+    """
+    from hyperdual_engine import density_engine
+
+    from mjed.materials.declaration import declaration_of
+
+    formula = declaration_of(type(default_material(material))).energy
+
+    def density(model, k, F, R):
+        p = lambda name: float(getattr(model, name))  # noqa: E731
+        return formula(p, kinematics(F))
+
+    engine = density_engine(density)
+    return lambda case: engine(case)[:2]
+
+
+def _symmetric_part(F):
+    """The namespace of (F + F^T)/2, with J = det F (a rotation leaves it alone)."""
+    from hyperdual_engine import Matrix, Namespace, det, ln
+
+    k = Namespace(Matrix([[0.5 * (F[i, j] + F[j, i]) for j in range(3)] for i in range(3)]))
+    k.J = det(F)
+    k.lnJ = ln(k.J)
+    k.I1b, k.I2b = k.J ** (-2.0 / 3.0) * k.I1, k.J ** (-4.0 / 3.0) * k.I2
+    return k
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_the_inverse_map_and_the_ignored_rotation_are_named():
+    """Mooney-Rivlin on F^-1: I1b and I2b exchange (I1b(C^-1) = I2b(C)) and (ln J)^2 is even, so
+    the engine is exactly c1 and c2 exchanged, and both are said, as one prediction. Neo-Hookean
+    on (F + F^T)/2 with J = det F: the rotation ignored.
+    """
+    from hyperdual_engine import Namespace
+
+    from conformance.protocol import check_implementation
+
+    for material, kinematics, code, words in (
+        ("MooneyRivlin", lambda F: Namespace(_inverse(F)), None, ("F^-1", "c1 and c2")),
+        ("NeoHookean", _symmetric_part, "kinematic-rotation-ignored", ("(F + F^T)/2",)),
+    ):
+        run = check_implementation(
+            _formula_engine(material, kinematics), material=material, states=("random",)
+        )
+        (outcome,) = run.outcomes
+        named = outcome.diagnosis.causes
+        assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
+        assert code is None or named[0].code == code, outcome.diagnosis.text()
+        said = named[0].title + named[0].evidence
+        assert all(w in said for w in words), outcome.diagnosis.text()

@@ -50,6 +50,9 @@ class Spec:
 
     term: the index of one additive term (None: the whole energy);
     transpose: F^T used for F (C and B confused);
+    deformation: "inverse" (F^-1 used for F: the gradient of the map from the current cell to
+    the rest one, dX/dx, for dx/dX), "symmetric" ((F + F^T)/2 used for F in C and the strains,
+    J = det F kept: the rotation ignored, F taken for its stretch U) or None (F);
     deformed_volume: the density weighted by J (integrated over the deformed volume);
     eigen_power: the power of the eigenvalues of C multiplied by this (2: eigenvalues of C taken as
     stretches; 0.5: stretches taken as eigenvalues of C);
@@ -79,6 +82,7 @@ class Spec:
     j_exponents: Tuple[Tuple[str, float], ...] = ()
     strain: Optional[str] = None
     j_out_of_exp: bool = False
+    deformation: Optional[str] = None
 
     def key(self) -> str:
         return repr(self)
@@ -130,7 +134,11 @@ class Kinematics:
 
         self._eps = sum_of_eigenvalue_powers
         self._spec = spec
+        if spec.deformation == "inverse":
+            F = ufl.inv(F)
         J = ufl.det(F)
+        if spec.deformation == "symmetric":  # J kept: det F, which no rotation changes
+            F = 0.5 * (F + F.T)
         if spec.transpose:
             F = F.T
         if spec.frame_deformed and frame is not None:

@@ -8,13 +8,16 @@ case's tolerance. The mistakes:
 
 - C and B confused (F^T used for F): identical for an isotropic energy, so tried only where the
   energy reads a fibre frame;
+- the deformation gradient of the inverse map, F^-1 for F (dX/dx, as an updated-Lagrangian code
+  holds it, for dx/dX), and its symmetric part (F + F^T)/2 for F (the rotation ignored: F taken
+  for its stretch U, exact while the cells do not rotate);
 - the energy weighted by the deformed volume (J W for W);
 - principal stretches confused with their squares (the power of the eigenvalues of C doubled or
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
 - the strain measure: E = C - I (Green's 1/2 dropped) or the linearised strain (F + F^T)/2 - I
   for E = (C - I)/2 (formulas written in E: St Venant-Kirchhoff, Costa, a user energy's Eij);
 - the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
-  1/2 or 2);
+  1/2, 2 or -1: its minus sign lost);
 - a power of J that multiplies an exponential's argument applied to the whole exponential
   term instead (c (exp(J^p X) - 1) as c J^p (exp(X) - 1));
 - the fibre frame in the deformed configuration (F R, normalised, for R), or pushed forward and
@@ -99,7 +102,7 @@ def _register() -> None:
 _register()
 
 
-_R_WORDS = {0.0: "left out (J^0)", 0.5: "halved", 2.0: "doubled"}
+_R_WORDS = {0.0: "left out (J^0)", 0.5: "halved", 2.0: "doubled", -1.0: "with its sign flipped"}
 
 
 def _formula_text(model: Any, spec: Spec) -> str:
@@ -177,6 +180,20 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
                 Spec(frame_deformed=True),
             )
         )
+    out += [
+        (
+            "inverse-map",
+            "the deformation gradient of the inverse map: F^-1 (dX/dx, from the current cell to "
+            "the rest one) used for F = dx/dX",
+            Spec(deformation="inverse"),
+        ),
+        (
+            "rotation-ignored",
+            "the symmetric part of F, (F + F^T)/2, used for F: the rotation ignored (F taken for "
+            "its stretch U, as if F = U)",
+            Spec(deformation="symmetric"),
+        ),
+    ]
     out.append(
         (
             "deformed-volume",
