@@ -40,7 +40,12 @@ from conformance.diagnosis.j_functions import (
     j_function_steps,
 )
 from conformance.diagnosis.roundoff import energy_precision
-from conformance.diagnosis.units import FORCE_POWER, STIFFNESS_POWER, fit_length_scale
+from conformance.diagnosis.units import (
+    FORCE_POWER,
+    STIFFNESS_POWER,
+    fit_derivative_scale,
+    fit_length_scale,
+)
 from conformance.diagnosis.volumes import uniform_volume_words
 from conformance.judge.compare import DOUBLE, Errors, Scales, Tolerances, errors
 from conformance.judge.consistency import FLOOR_FACTOR, PROBE_TOL, RESOLUTION, Consistency
@@ -519,6 +524,19 @@ def _explain(
             f"force / s^{FORCE_POWER}, stiffness / s^{STIFFNESS_POWER} with s = {unit.s:.9g}, "
             "the powers of a length in a P1 element's force (V0 P D) and stiffness (V0 D A D)",
             {"s": unit.s, "force_ratio": unit.force_ratio, "stiffness_ratio": unit.stiffness_ratio},
+        )
+        if full:
+            return full, partial
+    # Derivatives per another unit leave the energy as it is: a wrong energy denies them.
+    per_unit = fit_derivative_scale(f_o, K_o, f, K)
+    if per_unit is not None and (err.energy is None or err.energy <= tol.energy):
+        judge(
+            "derivative-units",
+            per_unit.words(),
+            errors(per_unit.force, per_unit.stiffness, None, f_o, K_o, W_o, s),
+            f"force / t, stiffness / t^2 with t = {per_unit.t:.9g}"
+            + ("" if err.energy is None else "; your energy is the oracle's"),
+            {"t": per_unit.t},
         )
         if full:
             return full, partial

@@ -7,6 +7,11 @@ force f_a = -V0 P D_a therefore scales by s^2, the element matrix K_ab = V0 D_a 
 and the energy V0 W by s^3. Force and stiffness scaled by different factors that are s^2 and s
 of one s are that mistake; each alone, or both by one factor, is another
 (:func:`conformance.diagnosis.hypotheses.scale_corrections`).
+
+The other way round, an engine that differentiates with respect to positions in another unit
+(a step or a hyper-dual or complex seed of 1e-3, "one millimetre", not divided out; positions
+converted to mm only inside the derivative) computes the right energy but dE/d(x/t) = t dE/dx
+and t^2 d2E/dx2: force scaled by t and stiffness by t^2 (:func:`fit_derivative_scale`).
 """
 
 from __future__ import annotations
@@ -19,7 +24,15 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.hypotheses import fit_scale
 
-__all__ = ["LengthScale", "fit_length_scale", "FORCE_POWER", "STIFFNESS_POWER", "ENERGY_POWER"]
+__all__ = [
+    "LengthScale",
+    "DerivativeScale",
+    "fit_length_scale",
+    "fit_derivative_scale",
+    "FORCE_POWER",
+    "STIFFNESS_POWER",
+    "ENERGY_POWER",
+]
 
 #: Powers of the length factor s in the force, the stiffness and the energy of a P1 element.
 FORCE_POWER, STIFFNESS_POWER, ENERGY_POWER = 2, 1, 3
@@ -90,3 +103,44 @@ def fit_length_scale(
         np.asarray(f_e) / s**FORCE_POWER,
         (sp.csr_matrix(K_e) / s**STIFFNESS_POWER).tocsr(),
     )
+
+
+@dataclass(frozen=True)
+class DerivativeScale:
+    """t: the factor of each derivative (the force scaled by t, the stiffness by t^2); force,
+    stiffness: the output divided by t and t^2.
+    """
+
+    t: float
+    force: np.ndarray
+    stiffness: sp.csr_matrix
+
+    def words(self) -> str:
+        return (
+            f"derivatives taken with respect to positions in another unit: force scaled by "
+            f"t = {self.t:.6g} and stiffness by t^2 = {self.t**2:.6g} (each derivative per "
+            f"{1.0 / self.t:.6g} of the kit's length: e.g. a finite-difference step, or a "
+            "complex or hyper-dual seed, of that size not divided out, or positions converted "
+            "to another length unit only where they are differentiated)"
+        )
+
+
+def fit_derivative_scale(
+    f_o: np.ndarray, K_o: sp.spmatrix, f_e: np.ndarray, K_e: sp.spmatrix
+) -> Optional[DerivativeScale]:
+    """The factor t whose force (x t) and stiffness (x t^2) scalings are the engine's, or None:
+    the force or the stiffness is zero, t <= 0, the two ratios disagree, or they are the same
+    factor (a plain global scale).
+
+    f_o, f_e: (n, 3); K_o, K_e: (3n, 3n).
+    """
+    k = _sparse_ratio(K_e, K_o)
+    r = fit_scale(np.asarray(f_o), np.asarray(f_e))
+    if k is None or r is None or k <= 0 or r <= 0:
+        return None
+    lr, lk = np.log(r), np.log(k)
+    if not (np.isfinite(lr) and np.isfinite(lk)):
+        return None
+    if abs(lk - 2.0 * lr) > _AGREE or abs(lr - lk) <= _AGREE:
+        return None
+    return DerivativeScale(r, np.asarray(f_e) / r, (sp.csr_matrix(K_e) / r**2).tocsr())
