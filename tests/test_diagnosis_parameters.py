@@ -278,3 +278,21 @@ def test_a_parameter_list_read_in_a_constructors_order_is_named():
     assert "Jm = 30000 (the case's k0)" in cause.title
     near = _checked("Gent", lambda m: Gent(mu=m.mu, Jm=m.k0 * 1.001, k0=m.Jm))
     assert all(c.code != "parameters-reordered" for c in near.causes), near.text()
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_parameters_held_in_float32_are_named_and_one_rounded_alone_is_not_said_so():
+    """Every parameter rounded to single precision (a float32 parameter struct), the rest in
+    double: named as such. Only mu rounded is one parameter with another value, not the
+    float32 reading (which rounds them all).
+    """
+    rounded = lambda m, names: dataclasses.replace(  # noqa: E731
+        m, **{n: float(np.float32(getattr(m, n))) for n in names}
+    )
+    d = _checked("NeoHookean", lambda m: rounded(m, ("mu", "lam")))
+    (cause,) = d.causes
+    assert cause.code == "parameters-float32", d.text()
+    assert "single precision (float32)" in cause.title and "mu = " in cause.title
+    d = _checked("NeoHookean", lambda m: rounded(m, ("mu",)))
+    assert "parameters-float32" not in [c.code for c in d.causes], d.text()

@@ -334,6 +334,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             for x in exchanges(ci.model)
         ),
     )
+    found += _float32_parameter_readings(cache, ci, out, s, tol)
     values = scalar_parameters(ci.model)
     one_j = _single_j(ci)
     for name, v0 in values.items():
@@ -388,6 +389,36 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         found
         or _permutation_readings(cache, ci, out, s, tol)
         or _reordered_readings(cache, ci, out, s, tol)
+    )
+
+
+def _float32_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """Every scalar parameter rounded to single precision (a parameter struct in float32, the
+    rest of the engine in double): named when the oracle with those values, and not with the
+    case's, matches the engine. Not tried when rounding changes no parameter.
+    """
+    from conformance.diagnosis.parameters import with_value
+
+    values = scalar_parameters(ci.model)
+    rounded = {k: float(np.float32(v)) for k, v in values.items()}
+    changed = {k: v for k, v in rounded.items() if v != values[k]}
+    if not changed:
+        return []
+    said = ", ".join(f"{k} = {v:.9g} for {values[k]:.9g}" for k, v in changed.items())
+    return _matching(
+        out,
+        s,
+        tol,
+        (
+            (
+                lambda: cache.evaluate_once(ci, with_value(ci.model, **rounded)),
+                "parameters-float32",
+                "your engine's material parameters are rounded to single precision (float32): "
+                f"{said} (parameters held in float32, the rest computed in double)",
+                "",
+                {"parameters": sorted(changed)},
+            ),
+        ),
     )
 
 
