@@ -56,23 +56,54 @@ def test_mean_cell_volume_is_named():
     assert found[0].figures["applies_to"] == "force and stiffness"
 
 
-def test_other_weightings_are_not_named():
-    """The current volume J V0 for V0 (another mistake), a global factor, one cell doubled."""
+def test_other_weightings_are_named_only_as_a_factor_per_cell():
+    """The current volume J V0 for V0 matches no declared weighting: it is said only as a
+    fitted factor per cell (with how many cells are off). A global factor, the same in every
+    cell, and one cell counted twice are not said here at all (the global readings and
+    conformance.diagnosis.cells name them).
+    """
     split, f_o, K_o, s = _case("NeoHookean", seed=2)
     J = np.linalg.det(split.F)
-    for vf, vK in (
-        (J * split.V0, J * split.V0),
-        (1.01 * split.V0, 1.01 * split.V0),
-        (np.where(np.arange(split.V0.size) == 3, 2.0, 1.0) * split.V0,) * 2,
-    ):
-        f, K = _engine(split, vf, vK)
+    f, K = _engine(split, J * split.V0, J * split.V0)
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert [x.figures["weighting"] for x in found] == ["fitted per cell"], found
+    assert found[0].figures["cells_off"] == split.V0.size and "rest volume" in found[0].title
+    twice = np.where(np.arange(split.V0.size) == 3, 2.0, 1.0)
+    for weight in (np.full_like(J, 1.01), twice):
+        f, K = _engine(split, weight * split.V0, weight * split.V0)
         assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []
+
+
+def test_a_volume_with_a_typo_is_named_as_a_factor_per_cell_and_a_wrong_force_is_not():
+    """Each cell's volume from a triple product whose cross product has a sign typo in one
+    component (the engine's own formula): a fitted weight per cell matches force and stiffness
+    together. The same engine with its force also off in one node's entries (no weighting of
+    the cells gives it) is not named.
+    """
+    split, f_o, K_o, s = _case("Gent", seed=4)
+    points, cells = box_mesh(2, jitter=0.25, seed=4)
+    u, v, w = (points[cells[:, k]] - points[cells[:, 0]] for k in (1, 2, 3))
+    cross = np.stack(
+        [
+            u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
+            u[:, 0] * v[:, 2] - u[:, 2] * v[:, 0],  # the typo: the sign of the y component
+            u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0],
+        ],
+        axis=1,
+    )
+    volume = np.abs(np.einsum("mi,mi->m", cross, w)) / 6
+    f, K = _engine(split, volume, volume)
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert [x.figures["weighting"] for x in found] == ["fitted per cell"], found
+    assert found[0].figures["residual"] <= 1e-9
+    f[0] += 1e-3 * np.abs(f).max()
+    assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []
 
 
 def test_volume_from_the_inverse_edge_matrix_is_named():
     """An engine that takes each cell's volume as |det(Dm^-1)| / 6, computed here from its own
     edge matrices: every cell scaled by 1 / (36 V0^2), named with the formula; a power of V0
-    that is not declared (V0^1.5) is not named.
+    that is not declared (V0^1.5) is not named as a formula, only as a fitted factor per cell.
     """
     split, f_o, K_o, s = _case("ArrudaBoyce", seed=3)
     points, cells = box_mesh(2, jitter=0.25, seed=3)
@@ -85,4 +116,5 @@ def test_volume_from_the_inverse_edge_matrix_is_named():
     assert found[0].figures["applies_to"] == "force and stiffness"
     assert "det(Dm^-1)| / 6" in found[0].title
     f, K = _engine(split, split.V0**1.5, split.V0**1.5)
-    assert cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE) == []
+    found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
+    assert [x.figures["weighting"] for x in found] == ["fitted per cell"], found

@@ -17,6 +17,14 @@ Beside the fixed weights, the rest volume computed as another power of V0 times 
 where |det Dm| / 6 belongs, weights every cell by 1 / (36 V0^2). The power is declared, the one
 constant fitted (least squares on the part that is wrong), and the constant said with the formula
 it matches when it is one of :data:`CONSTANTS`.
+
+Last, any other per-cell factor (a volume computed by a formula with a typo, a cell's volume of
+the wrong sign, a coefficient that differs from cell to cell): one weight per cell fitted by
+linear least squares to force and stiffness together (:func:`fitted_weight_findings`), named
+only when the fitted sum matches the engine within tolerance, the system has at least
+:data:`OVERDETERMINED` equations per weight, and the weights are not all alike (a global factor,
+which the global readings name) nor all whole numbers (cells skipped or counted again, which
+:mod:`conformance.diagnosis.cells` names cell by cell).
 """
 
 from __future__ import annotations
@@ -32,7 +40,14 @@ from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.hypotheses import fit_scale
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["WEIGHTS", "POWERS", "CONSTANTS", "cell_weight_findings", "cell_weight_reading"]
+__all__ = [
+    "WEIGHTS",
+    "POWERS",
+    "CONSTANTS",
+    "cell_weight_findings",
+    "cell_weight_reading",
+    "fitted_weight_findings",
+]
 
 #: name -> (words, weights (m,) from the rest volumes V0 (m,)).
 WEIGHTS: Dict[str, Tuple[str, Callable[[np.ndarray], np.ndarray]]] = {
@@ -73,6 +88,9 @@ CONSTANTS: Dict[Tuple[int, float], str] = {
 
 #: Spread of the rest volumes (max / min - 1) below which the cells are alike: no reading.
 ALIKE = 1e-6
+
+#: Equations (force entries and stiffness entries) per fitted weight, at least.
+OVERDETERMINED = 4
 
 
 def cell_weight_findings(
@@ -118,7 +136,70 @@ def cell_weight_findings(
                 )
             )
     found = found or _power_findings(split, f, K, f_o, K_o, s, tol)
+    found = found or fitted_weight_findings(split, f, K, s, tol)
     return ambiguous(found, "the weightings coincide on this mesh")
+
+
+def fitted_weight_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """One weight per cell, fitted: the engine's f (n, 3) and K (3n, 3n) as sum_c w_c (f_c, K_c)
+    of the oracle's element forces and matrices (least squares, force rows over s.force and
+    stiffness rows over s.stiffness); a finding when that sum matches within tolerance and the
+    weights differ from cell to cell.
+    """
+    from scipy.sparse.linalg import lsqr
+
+    m, n = split.cells.shape[0], split.n
+    dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    K = sp.csr_matrix(K)
+    # Stiffness entries by their (row, column) in one numbering shared by the engine and cells.
+    flat = (np.repeat(dof, 12, axis=1) * (3 * n) + np.tile(dof, (1, 12))).ravel()
+    Kc = K.tocoo()
+    keys, where = np.unique(np.concatenate([flat, Kc.row * (3 * n) + Kc.col]), return_inverse=True)
+    n_eq = 3 * n + keys.size
+    if n_eq < OVERDETERMINED * m or not (s.force > 0 and s.stiffness > 0):
+        return []
+    col = np.repeat(np.arange(m), 12 + 144)
+    row = np.concatenate([dof, 3 * n + where[: flat.size].reshape(m, 144)], axis=1).ravel()
+    val = np.concatenate(
+        [split.fe.reshape(m, 12) / s.force, split.Ke.reshape(m, 144) / s.stiffness], axis=1
+    ).ravel()
+    A = sp.csr_matrix((val, (row, col)), shape=(n_eq, m))
+    b = np.zeros(n_eq)
+    b[: 3 * n] = np.asarray(f).reshape(-1) / s.force
+    np.add.at(b, 3 * n + where[flat.size :], Kc.data / s.stiffness)
+    if not np.isfinite(b).all():
+        return []
+    w = lsqr(A, b, atol=1e-15, btol=1e-15, iter_lim=20 * m)[0]
+    if not np.isfinite(w).all() or np.ptp(w) <= 1e-6 * np.abs(w).max():
+        return []
+    if np.abs(w - np.round(w)).max() <= 1e-6:  # cells left out or repeated: said by cells.py
+        return []
+    f_w, K_w = assemble(split.cells, n, w[:, None, None] * split.fe, w[:, None, None] * split.Ke)
+    e = errors(f, K, None, f_w, K_w, 0.0, s)
+    if not tol.within(e, energy=False):
+        return []
+    off = int(np.sum(np.abs(w - 1.0) > 1e-6))
+    return [
+        Finding(
+            "cell-weight",
+            "each cell's contribution scaled by a factor of its own: a per-cell quantity wrong, "
+            f"such as the cell's rest volume V0 computed wrongly ({off} of {m} cells off, "
+            f"factors from {w.min():.4g} to {w.max():.4g})",
+            FULL,
+            "the oracle's element forces and matrices (MJED's, whose sum is the oracle's to "
+            f"{split.residual:.1e}) summed with one weight per cell, fitted (least squares, "
+            f"{n_eq} equations for {m} weights), match the engine: force error {e.force:.1e}, "
+            f"stiffness error {e.stiffness:.1e}",
+            {
+                "weighting": "fitted per cell",
+                "applies_to": "force and stiffness",
+                "cells_off": off,
+                "residual": max(e.force, e.stiffness),
+            },
+        )
+    ]
 
 
 def _constant_words(p: int, c: float) -> str:
