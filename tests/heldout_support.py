@@ -72,16 +72,31 @@ def check_manifest(name: str, *, controls: int, mistakes: int) -> None:
     assert sum(e["family"] != "correct" for e in listed) >= mistakes
 
 
-def corpus_rows(name: str, out: Path) -> dict:
-    """Corpus ``name`` judged (`mjed-verify check --verdict-only` on each engine, results under
-    ``out``): {engine file: its row of run_corpus's summary}. Only the verdicts are asserted,
-    so the readings that name causes (most of a full run's time: they compile the variant
-    energies) are left to `run_corpus.py`, which reports them.
+def corpus_rows(name: str, tmp_path_factory) -> dict:
+    """Corpus ``name`` judged (`mjed-verify check --verdict-only` on each engine, results in a
+    new temporary folder): {engine file: its row of run_corpus's summary}. Only the verdicts
+    are asserted, so the readings that name causes (most of a full run's time: they compile
+    the variant energies) are left to `run_corpus.py`, which reports them. The kits (one per
+    material and precision) are exported once per session into :func:`kit_store` and shared by
+    every corpus.
     """
     summary = RUNNER.run_corpus(
-        out, jobs=min(2, os.cpu_count() or 1), corpus=TESTS / name, verdict_only=True
+        tmp_path_factory.mktemp(name),
+        jobs=min(2, os.cpu_count() or 1),
+        corpus=TESTS / name,
+        verdict_only=True,
+        kit_store=kit_store(tmp_path_factory),
     )
     return {row["engine"]: row for row in summary["rows"]}
+
+
+def kit_store(tmp_path_factory) -> Path:
+    """The folder of the kits the corpus modules of this pytest session share: beside the
+    session's base temporary folder, which under pytest-xdist is the workers' common parent
+    (each worker's own base folder is one level down), so every worker finds it.
+    """
+    base = tmp_path_factory.getbasetemp()
+    return (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "heldout-kits"
 
 
 def check_verdict(rows: dict, entry: dict) -> None:

@@ -23,7 +23,7 @@ def test_manifest_lists_every_engine():
 
 @pytest.fixture(scope="module")
 def rows(tmp_path_factory):
-    return corpus_rows(NAME, tmp_path_factory.mktemp(NAME))
+    return corpus_rows(NAME, tmp_path_factory)
 
 
 @pytest.mark.parametrize("entry", entries(NAME), ids=lambda e: e["file"])

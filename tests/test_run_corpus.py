@@ -76,3 +76,32 @@ def test_a_mistaken_engine_that_did_not_run_is_not_counted_as_caught():
     check_verdict(row("x/stiffness_rows.i64: indices must lie in [0, 558)"), entry)
     with pytest.raises(AssertionError, match="did not run to its end"):
         check_verdict(row("case c: python failed (exit code 1); no stderr"), entry)
+
+
+def test_a_kit_store_exports_each_kit_once(tmp_path, monkeypatch):
+    """The corpus modules of one session share their kits: a kit of the same material,
+    precision and states is exported into the store once; other states make another kit; an
+    export that did not finish is done again, not trusted.
+    """
+    exported = []
+
+    def export(kit, material, precision, states):
+        exported.append((material, precision, states))
+        if material == "Gent" and len(exported) == 3:
+            raise RuntimeError("interrupted")
+        kit.mkdir(parents=True)
+        return kit
+
+    monkeypatch.setattr(RUNNER, "_export", export)
+    store, states = tmp_path / "store", "uniaxial,random"
+    keys = [("NeoHookean", "double"), ("Demiray", "single"), ("NeoHookean", "double")]
+    first = RUNNER.export_kits(keys, tmp_path / "a", states, store)
+    again = RUNNER.export_kits(keys, tmp_path / "b", states, store)
+    assert first == again and all(kit.parent == store for kit in first.values())
+    assert exported == [("Demiray", "single", states), ("NeoHookean", "double", states)]
+    with pytest.raises(RuntimeError):
+        RUNNER.export_kits([("Gent", "double")], tmp_path / "c", states, store)
+    RUNNER.export_kits([("Gent", "double")], tmp_path / "c", states, store)
+    assert exported[-1] == ("Gent", "double", states) and len(exported) == 4
+    RUNNER.export_kits(keys[:1], tmp_path / "d", "uniaxial", store)
+    assert exported[-1] == ("NeoHookean", "double", "uniaxial")

@@ -37,6 +37,7 @@ mistaken engine passes (the diagnosis' naming rate is reported, not enforced).
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import shlex
@@ -85,17 +86,38 @@ def kit_key(entry: dict) -> tuple:
     return entry["material"], entry.get("precision", "double")
 
 
-def export_kits(keys, out: Path, states: str) -> dict:
+def export_kits(keys, out: Path, states: str, store: Path = None) -> dict:
+    """{(material, precision): kit folder}, each kit exported by `mjed-verify export` under
+    ``out``/kits; with ``store``, a folder shared by several runs (the corpus test modules of
+    one pytest session, on every worker), a kit of the same material, precision and states
+    already exported there is used as it is, and a missing one is exported there once (a file
+    lock per kit: two runs asking at once export it once).
+    """
     kits = {}
     for material, precision in sorted(set(keys)):
-        kit = out / "kits" / (material if precision == "double" else f"{material}-{precision}")
-        if kit.exists():
-            shutil.rmtree(kit)
-        cmd = mjed_verify() + ["export", str(kit), "--material", material, "--mesh", MESH]
-        cmd += ["--states", states, "--precision", precision]
-        subprocess.run(cmd, check=True, cwd=ROOT, capture_output=True, text=True)
+        name = material if precision == "double" else f"{material}-{precision}"
+        if store is None:
+            kits[material, precision] = _export(out / "kits" / name, material, precision, states)
+            continue
+        kit = Path(store) / f"{name}-{states.replace(',', '+')}"
+        Path(store).mkdir(parents=True, exist_ok=True)
+        with open(kit.with_suffix(".lock"), "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file is closed
+            done = kit.with_suffix(".exported")
+            if not done.exists():
+                _export(kit, material, precision, states)
+                done.touch()  # after the export: a kit interrupted half way is exported again
         kits[material, precision] = kit
     return kits
+
+
+def _export(kit: Path, material: str, precision: str, states: str) -> Path:
+    if kit.exists():
+        shutil.rmtree(kit)
+    cmd = mjed_verify() + ["export", str(kit), "--material", material, "--mesh", MESH]
+    cmd += ["--states", states, "--precision", precision]
+    subprocess.run(cmd, check=True, cwd=ROOT, capture_output=True, text=True)
+    return kit
 
 
 def engine_command(entry: dict, corpus: Path) -> str:
@@ -350,12 +372,14 @@ def run_corpus(
     corpus: Path = HERE,
     verdict_only: bool = False,
     one_process_per_engine: bool = False,
+    kit_store: Path = None,
 ) -> dict:
     """Every engine of ``corpus`` checked and scored (see the module docstring); with
     ``verdict_only`` the checks only judge (`--verdict-only`: the verdicts and controls are
     the same, the causes of failed cases are not looked for, so nothing is "named");
     ``one_process_per_engine`` runs `mjed-verify check` for each engine instead of judging the
-    engines of a kit in one process.
+    engines of a kit in one process; ``kit_store``: a folder of kits shared with other runs
+    (:func:`export_kits`).
     """
     corpus = Path(corpus).resolve()
     entries = entries if entries is not None else load_manifest(corpus)
@@ -364,7 +388,7 @@ def run_corpus(
         entries = [e for e in entries if e["file"] in wanted or Path(e["file"]).stem in wanted]
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
-    kits = export_kits([kit_key(e) for e in entries], out, states)
+    kits = export_kits([kit_key(e) for e in entries], out, states, kit_store)
     if one_process_per_engine:
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
             rows = list(
