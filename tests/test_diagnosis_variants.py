@@ -109,3 +109,32 @@ def test_a_j_only_energy_named_per_cell_is_made_specific_by_the_rewritten_formul
     # ... but one parameter's value does: lam 1.3 times the case's
     assert d.causes[0].figures["parameter"]["parameter"] == "lam", d.text()
     assert "parameter lam = " in d.causes[0].title, d.text()
+
+
+def test_every_declared_formula_is_written_as_the_declared_energy_computes():
+    """The written formula of each declared material (the base of every rewrite) gives the
+    declared energy's value at a deformed state: a divisor or a power written without its
+    parentheses (a/2*b for a/(2 b)) would not.
+    """
+    import math
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.variants import energy_expression
+    from mjed.materials.declaration import declarations
+
+    J, I1, I2 = 1.07, 3.4, 3.6  # a state with J != 1 and non-trivial invariants
+    k = SimpleNamespace(
+        I1=I1, I2=I2, J=J, lnJ=math.log(J), I1b=J ** (-2 / 3) * I1, I2b=J ** (-4 / 3) * I2
+    )
+    k.exp, k.ln = math.exp, math.log
+    written = 0
+    for d in declarations():
+        found = energy_expression(d.default)
+        if found is None or "E11" in found[0]:  # no scalar formula, or one written in E
+            continue
+        text, params = found
+        value = eval(text, {"exp": math.exp, "ln": math.log}, {**vars(k), **params})  # noqa: S307
+        declared = d.energy(lambda name, m=d.default: float(getattr(m, name)), k)
+        assert value == pytest.approx(declared, rel=1e-12), (d.name, text)
+        written += 1
+    assert written >= 7

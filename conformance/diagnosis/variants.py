@@ -46,6 +46,24 @@ class _NotScalar(Exception):
     """The declared energy uses a matrix, the frame or eigenvalues: no scalar formula."""
 
 
+def _operand(text: str) -> str:
+    """``text`` as it can stand after ``/`` or around ``**``: as it is when it is one name, one
+    number, one call or one parenthesised group; else in parentheses (a/(2*b), not a/2*b).
+    """
+    if re.fullmatch(r"[A-Za-z_]\w*|\d+(\.\d*)?([eE][+-]?\d+)?", text):
+        return text
+    start = re.match(r"[A-Za-z_]\w*\(|\(", text)
+    if start:
+        depth = 0
+        for i, ch in enumerate(text):
+            depth += {"(": 1, ")": -1}.get(ch, 0)
+            if depth == 0 and i >= start.end() - 1:
+                if i == len(text) - 1:
+                    return text  # the group opened first closes last
+                break
+    return f"({text})"
+
+
 class _Sym:
     """A formula in the user-energy syntax, built by running a declared energy on it."""
 
@@ -80,13 +98,13 @@ class _Sym:
         return _Sym(f"{self.text}/2") if o == 0.5 else _Sym(f"{_Sym.of(o).text}*{self.text}")
 
     def __truediv__(self, o):
-        return _Sym(f"({self.text}/{_Sym.of(o).text})")
+        return _Sym(f"({self.text}/{_operand(_Sym.of(o).text)})")
 
     def __rtruediv__(self, o):
-        return _Sym(f"({_Sym.of(o).text}/{self.text})")
+        return _Sym(f"({_Sym.of(o).text}/{_operand(self.text)})")
 
     def __pow__(self, o):
-        return _Sym(f"{self.text}**{_Sym.of(o).text}")
+        return _Sym(f"{_operand(self.text)}**{_operand(_Sym.of(o).text)}")
 
     def __neg__(self):
         return _Sym(f"(-{self.text})")
