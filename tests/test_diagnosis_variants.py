@@ -138,3 +138,17 @@ def test_every_declared_formula_is_written_as_the_declared_energy_computes():
         assert value == pytest.approx(declared, rel=1e-12), (d.name, text)
         written += 1
     assert written >= 7
+
+
+def test_an_exponential_with_its_argument_negated_is_a_variant_of_every_formula_with_exp():
+    from common.cases import default_material
+    from conformance.diagnosis.variants import variants
+
+    def flipped(name):
+        return [
+            v.expression for v in variants(default_material(name)) if v.rewrite.code == "exp-sign"
+        ]
+
+    (demiray,) = flipped("Demiray")
+    assert "(a/(2*b))*(1/exp(b*(I1b - 3)) - 1)" in demiray
+    assert len(flipped("VerondaWestmann")) == 1 and flipped("NeoHookean") == []

@@ -251,6 +251,14 @@ REWRITES: Tuple[Rewrite, ...] = (
         r"/2\*ln\(J\)\*\*2",
         "/4*(J**2 - 1 - 2*ln(J))",
     ),
+    # exp(-X) written as 1/exp(X), so that the rewrite needs no matching parenthesis
+    Rewrite(
+        "exp-sign",
+        "exp(-X) for exp(X): the sign of the exponential's argument flipped (a decaying "
+        "exponential typed where a growing one belongs)",
+        r"\bexp\(",
+        "1/exp(",
+    ),
 )
 
 
