@@ -66,6 +66,23 @@ def test_local_nodes_permuted_in_force_and_stiffness_are_named():
     assert "force and stiffness" in found[0].title
 
 
+def test_a_dof_map_from_sorted_cells_is_named():
+    """The element results in the kit's node order scattered through each cell's sorted node
+    ids (the engine's own sort): named with how many cells moved; the right output, nothing.
+    """
+    from common.cases import default_material
+
+    points, cells, x = _state(2)
+    split, f_o, K_o, s = _split(default_material("VerondaWestmann"), points, cells, x)
+    rows = np.array([sorted(c) for c in cells.tolist()])
+    f, K = assemble(rows, points.shape[0], split.fe, split.Ke)
+    found = order_findings(split, f, K, s, DOUBLE)
+    moved = int(np.sum(np.any(rows != cells, axis=1)))
+    assert moved > 0 and len(found) == 1, [x.title for x in found]
+    assert "sorted" in found[0].title and found[0].figures["cells"] == moved
+    assert order_findings(split, f_o, K_o, s, DOUBLE) == []
+
+
 def _neo_hookean_piola(F, mu, lam):
     """P and dP/dF [k, i, l, j] of W = mu/2 (I1 - 3) - mu ln J + lam/2 (ln J)^2, by hand."""
     Fit = np.linalg.inv(F).swapaxes(1, 2)

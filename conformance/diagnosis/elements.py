@@ -286,6 +286,47 @@ def _perturbation_findings(
     return found
 
 
+#: Per-cell node orders an engine may build its dof map from (a sorted copy of the cells,
+#: made for a sparsity pattern or a hash of the cell, reused for the scatter): name -> rows.
+SORTED_MAPS = {
+    "sorted": lambda cells: np.sort(cells, axis=1),
+    "sorted in decreasing order": lambda cells: -np.sort(-cells, axis=1),
+}
+
+
+def _sorted_map_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """Element results in the cell's given node order scattered through its node ids sorted
+    (each cell's own permutation, not one local order for all), that match the engine's force
+    and stiffness; none when no cell's nodes are out of that order.
+    """
+    found = []
+    for name, order in SORTED_MAPS.items():
+        rows = order(split.cells)
+        moved = int(np.sum(np.any(rows != split.cells, axis=1)))
+        if moved == 0:
+            continue
+        f_p, K_p = assemble(rows, split.n, split.fe, split.Ke)
+        e = errors(f, sp.csr_matrix(K), None, f_p, K_p, 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(
+                split_finding(
+                    "element-order",
+                    f"element dof map built from each cell's node ids {name} (a sorted copy of "
+                    "the cells, e.g. made for the sparsity pattern) while the element's "
+                    "coordinates, forces and matrix follow the kit's node order: in the "
+                    f"{moved} cells whose nodes are listed otherwise, forces and blocks go to "
+                    "the wrong nodes",
+                    split,
+                    "scattered",
+                    e,
+                    {"order": name, "which": "force and stiffness", "cells": moved},
+                )
+            )
+    return found
+
+
 def order_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
@@ -294,6 +335,7 @@ def order_findings(
     (:func:`element_layouts`); several are said as ambiguous.
     """
     found = _layout_findings(split, f, K, s, tol) + _perturbation_findings(split, f, K, s, tol)
+    found += _sorted_map_findings(split, f, K, s, tol)
     f_right = assemble(split.cells, split.n, split.fe, None)[0]
     # the columns alone in component-major order are the layout (a, i, k, b), said above
     said = (3 * np.arange(4)[None, :] + np.arange(3)[:, None]).ravel()
