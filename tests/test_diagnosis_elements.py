@@ -270,3 +270,36 @@ def test_a_cauchy_stress_pushed_forward_with_f_transposed_is_named():
     f, K = _measure_output(split, P, A, STRESS_MEASURES["pushforward-transposed"][1])
     found = stress_measure_findings(split, f, K, s, DOUBLE)
     assert [x.code for x in found] == ["stress-measure-pushforward-transposed"], found
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_element_matrix_values_stored_wrongly_are_named(which):
+    """Each storage slip, written here with the engine's own packing (triu values read as tril
+    positions; a (78, m) pair buffer or a (144, m) entry buffer reshaped for its transpose):
+    named, the force right; the right matrices name nothing.
+    """
+    from common.cases import default_material
+
+    points, cells, x = _state(3)
+    split, f_o, K_o, s = _split(default_material("Gent"), points, cells, x)
+    m = cells.shape[0]
+    iu, il = np.triu_indices(12), np.tril_indices(12)
+    if which == 0:
+        Ke = np.zeros((m, 12, 12))
+        Ke[:, il[0], il[1]] = split.Ke[:, iu[0], iu[1]]
+        Ke = Ke + np.transpose(Ke, (0, 2, 1)) - Ke * np.eye(12)
+    elif which == 1:
+        buffer = np.empty((78, m))
+        for p in range(78):
+            buffer[p] = split.Ke[:, iu[0][p], iu[1][p]]
+        pairs = buffer.reshape(m, 78)
+        Ke = np.zeros((m, 12, 12))
+        Ke[:, iu[0], iu[1]] = pairs
+        Ke[:, iu[1], iu[0]] = pairs
+    else:
+        Ke = np.stack([split.Ke[:, i // 12, i % 12] for i in range(144)]).reshape(m, 12, 12)
+    _, K = assemble(cells, points.shape[0], split.fe, Ke)
+    found = order_findings(split, f_o, K, s, DOUBLE)
+    assert [x.code for x in found] == ["element-storage"], [x.title for x in found]
+    assert ("triu" in found[0].title) == (which == 0)
+    assert ("(78, m)" in found[0].title) == (which == 1)

@@ -248,6 +248,74 @@ def _layout_findings(
     return found
 
 
+def _mirrored(pairs: np.ndarray, at: Tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(m, 78) values put at the triangle positions ``at`` (in that order) and mirrored."""
+    K = np.zeros((pairs.shape[0], 12, 12))
+    K[:, at[0], at[1]] = pairs
+    return K + np.swapaxes(K, 1, 2) - K * np.eye(12)
+
+
+def storage_slips() -> List[Tuple[str, Callable[[np.ndarray], np.ndarray]]]:
+    """(words, element matrices (m, 12, 12) -> what the engine stores instead): the element
+    matrix's values moved by a slip of how they are packed or buffered, not by a layout of its
+    axes: the 78 values of the upper triangle (row by row) unpacked into the lower triangle's
+    positions, and a buffer of one row per entry or pair, (k, m), read back with reshape(m, k)
+    for its transpose (each cell then holds values of other cells).
+    """
+    up = np.triu_indices(12)
+
+    def packed_upper_as_lower(Ke):
+        return _mirrored(Ke[:, up[0], up[1]], np.tril_indices(12))
+
+    def pair_buffer_reshaped(Ke):
+        pairs = Ke[:, up[0], up[1]]  # (m, 78), unpacked again in the same (upper) order
+        return _mirrored(pairs.T.copy().reshape(pairs.shape), up)
+
+    def entry_buffer_reshaped(Ke):
+        m = Ke.shape[0]
+        return Ke.reshape(m, 144).T.copy().reshape(m, 12, 12)
+
+    return [
+        (
+            "the 78 values of each symmetric element matrix taken from its upper triangle row "
+            "by row and unpacked into the lower triangle's positions (triu order read as tril "
+            "order), then mirrored",
+            packed_upper_as_lower,
+        ),
+        (
+            "the element matrices' 78 pair values buffered one row per pair, (78, m), and read "
+            "back with reshape(m, 78) where the transpose belongs: every cell's matrix filled "
+            "with values of other cells and pairs",
+            pair_buffer_reshaped,
+        ),
+        (
+            "the element matrices buffered one row per entry, (144, m), and read back with "
+            "reshape(m, 12, 12) where the transpose belongs: every cell's matrix filled with "
+            "values of other cells",
+            entry_buffer_reshaped,
+        ),
+    ]
+
+
+def _storage_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The storage slips of :func:`storage_slips` whose element matrices, assembled with the
+    force right, match the engine (and differ from the oracle's).
+    """
+    found = []
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    for words, slip in storage_slips():
+        _, K_s = assemble(split.cells, split.n, split.fe, slip(split.Ke))
+        if tol.within(errors(f0, K_s, None, f0, K0, 0.0, s), energy=False):
+            continue
+        e = errors(f, sp.csr_matrix(K), None, f0, K_s, 0.0, s)
+        if tol.within(e, energy=False):
+            title = f"element matrix values stored wrongly (stiffness only): {words}"
+            found.append(split_finding("element-storage", title, split, "stored", e, {}))
+    return found
+
+
 def _perturbation_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
@@ -335,7 +403,7 @@ def order_findings(
     (:func:`element_layouts`); several are said as ambiguous.
     """
     found = _layout_findings(split, f, K, s, tol) + _perturbation_findings(split, f, K, s, tol)
-    found += _sorted_map_findings(split, f, K, s, tol)
+    found += _sorted_map_findings(split, f, K, s, tol) + _storage_findings(split, f, K, s, tol)
     f_right = assemble(split.cells, split.n, split.fe, None)[0]
     # the columns alone in component-major order are the layout (a, i, k, b), said above
     said = (3 * np.arange(4)[None, :] + np.arange(3)[:, None]).ravel()
