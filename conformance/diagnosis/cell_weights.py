@@ -20,11 +20,12 @@ it matches when it is one of :data:`CONSTANTS`.
 
 Last, any other per-cell factor (a volume computed by a formula with a typo, a cell's volume of
 the wrong sign, a coefficient that differs from cell to cell): one weight per cell fitted by
-linear least squares to force and stiffness together (:func:`fitted_weight_findings`), named
-only when the fitted sum matches the engine within tolerance, the system has at least
-:data:`OVERDETERMINED` equations per weight, and the weights are not all alike (a global factor,
-which the global readings name) nor all whole numbers (cells skipped or counted again, which
-:mod:`conformance.diagnosis.cells` names cell by cell).
+least squares to force and stiffness together (:func:`fitted_weight_findings`: the all-cells fit
+of :mod:`conformance.diagnosis.cells` read as weights), named only when the fitted sum matches
+the engine within tolerance, the system has at least :data:`OVERDETERMINED` equations per
+weight, and the weights are not all alike (a global factor, which the global readings name) nor
+all whole numbers (cells skipped or counted again, which :mod:`conformance.diagnosis.cells`
+names cell by cell).
 """
 
 from __future__ import annotations
@@ -136,42 +137,37 @@ def cell_weight_findings(
                 )
             )
     found = found or _power_findings(split, f, K, f_o, K_o, s, tol)
-    found = found or fitted_weight_findings(split, f, K, s, tol)
+    found = found or fitted_weight_findings(split, f, K, f_o, K_o, s, tol)
     return ambiguous(found, "the weightings coincide on this mesh")
 
 
 def fitted_weight_findings(
-    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
 ) -> List[Finding]:
     """One weight per cell, fitted: the engine's f (n, 3) and K (3n, 3n) as sum_c w_c (f_c, K_c)
-    of the oracle's element forces and matrices (least squares, force rows over s.force and
-    stiffness rows over s.stiffness); a finding when that sum matches within tolerance and the
-    weights differ from cell to cell.
+    of the oracle's element forces and matrices, w = 1 + the coefficients of
+    :func:`conformance.diagnosis.cells.fit_all_cells` (engine - oracle over every cell); a
+    finding when that sum matches within tolerance and the weights differ from cell to cell.
     """
-    from scipy.sparse.linalg import lsqr
+    from conformance.diagnosis.cells import fit_all_cells
 
     m, n = split.cells.shape[0], split.n
     dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
-    K = sp.csr_matrix(K)
-    # Stiffness entries by their (row, column) in one numbering shared by the engine and cells.
-    flat = (np.repeat(dof, 12, axis=1) * (3 * n) + np.tile(dof, (1, 12))).ravel()
-    Kc = K.tocoo()
-    keys, where = np.unique(np.concatenate([flat, Kc.row * (3 * n) + Kc.col]), return_inverse=True)
-    n_eq = 3 * n + keys.size
+    touched = np.unique((np.repeat(dof, 12, axis=1) * (3 * n) + np.tile(dof, (1, 12))).ravel())
+    n_eq = 3 * n + touched.size  # force entries and the stiffness entries the cells reach
     if n_eq < OVERDETERMINED * m or not (s.force > 0 and s.stiffness > 0):
         return []
-    col = np.repeat(np.arange(m), 12 + 144)
-    row = np.concatenate([dof, 3 * n + where[: flat.size].reshape(m, 144)], axis=1).ravel()
-    val = np.concatenate(
-        [split.fe.reshape(m, 12) / s.force, split.Ke.reshape(m, 144) / s.stiffness], axis=1
-    ).ravel()
-    A = sp.csr_matrix((val, (row, col)), shape=(n_eq, m))
-    b = np.zeros(n_eq)
-    b[: 3 * n] = np.asarray(f).reshape(-1) / s.force
-    np.add.at(b, 3 * n + where[flat.size :], Kc.data / s.stiffness)
-    if not np.isfinite(b).all():
+    K = sp.csr_matrix(K)
+    fit = fit_all_cells(split.cells, n, split.fe, split.Ke, np.asarray(f) - f_o, K - K_o, s)
+    if fit is None:
         return []
-    w = lsqr(A, b, atol=1e-15, btol=1e-15, iter_lim=20 * m)[0]
+    w = 1.0 + fit.alpha
     if not np.isfinite(w).all() or np.ptp(w) <= 1e-6 * np.abs(w).max():
         return []
     if np.abs(w - np.round(w)).max() <= 1e-6:  # cells left out or repeated: said by cells.py
