@@ -231,20 +231,43 @@ def _layout_findings(
     """The layouts of :func:`element_layouts` whose element matrices, assembled with the force
     right, match the engine and differ from the oracle's.
     """
-    found = []
     m = split.cells.shape[0]
     Ke4 = split.Ke.reshape(m, 4, 3, 4, 3)
+    return _matrix_slip_findings(
+        split,
+        f,
+        K,
+        s,
+        tol,
+        (
+            (
+                "element-layout",
+                f"element matrix in another layout (stiffness only): {words}",
+                "laid out",
+                {"layout": "".join(_AXES[p] for p in perm)},
+                Ke4.transpose(0, *(1 + np.array(perm))).reshape(m, 12, 12),
+            )
+            for perm, words in element_layouts()
+        ),
+    )
+
+
+def _matrix_slip_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances, slips
+) -> List[Finding]:
+    """The slips whose element matrices, assembled with the force right, match the engine and
+    differ from the oracle's. slips: (code, title, how they were changed, figures, element
+    matrices (m, 12, 12) the engine holds instead), each computed when it is reached.
+    """
+    found = []
     f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
-    for perm, words in element_layouts():
-        Kl = Ke4.transpose(0, *(1 + np.array(perm))).reshape(m, 12, 12)
-        _, K_l = assemble(split.cells, split.n, split.fe, Kl)
-        if tol.within(errors(f0, K_l, None, f0, K0, 0.0, s), energy=False):
+    for code, title, how, figures, Ke in slips:
+        _, K_c = assemble(split.cells, split.n, split.fe, Ke)
+        if tol.within(errors(f0, K_c, None, f0, K0, 0.0, s), energy=False):
             continue  # the oracle's own matrix here: no evidence either way
-        e = errors(f, sp.csr_matrix(K), None, f0, K_l, 0.0, s)
+        e = errors(f, sp.csr_matrix(K), None, f0, K_c, 0.0, s)
         if tol.within(e, energy=False):
-            title = f"element matrix in another layout (stiffness only): {words}"
-            layout = {"layout": "".join(_AXES[p] for p in perm)}
-            found.append(split_finding("element-layout", title, split, "laid out", e, layout))
+            found.append(split_finding(code, title, split, how, e, figures))
     return found
 
 
@@ -303,17 +326,23 @@ def _storage_findings(
     """The storage slips of :func:`storage_slips` whose element matrices, assembled with the
     force right, match the engine (and differ from the oracle's).
     """
-    found = []
-    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
-    for words, slip in storage_slips():
-        _, K_s = assemble(split.cells, split.n, split.fe, slip(split.Ke))
-        if tol.within(errors(f0, K_s, None, f0, K0, 0.0, s), energy=False):
-            continue
-        e = errors(f, sp.csr_matrix(K), None, f0, K_s, 0.0, s)
-        if tol.within(e, energy=False):
-            title = f"element matrix values stored wrongly (stiffness only): {words}"
-            found.append(split_finding("element-storage", title, split, "stored", e, {}))
-    return found
+    return _matrix_slip_findings(
+        split,
+        f,
+        K,
+        s,
+        tol,
+        (
+            (
+                "element-storage",
+                f"element matrix values stored wrongly (stiffness only): {words}",
+                "stored",
+                {},
+                slip(split.Ke),
+            )
+            for words, slip in storage_slips()
+        ),
+    )
 
 
 def _perturbation_findings(
