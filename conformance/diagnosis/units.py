@@ -17,7 +17,7 @@ and t^2 d2E/dx2: force scaled by t and stiffness by t^2 (:func:`fit_derivative_s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -76,6 +76,21 @@ def _sparse_ratio(K_e: sp.spmatrix, K_o: sp.spmatrix) -> Optional[float]:
     return None if oo == 0 else float(sp.csr_matrix(K_e).multiply(K_o).sum()) / oo
 
 
+def _log_ratios(f_o, K_o, f_e, K_e) -> Optional[Tuple[float, float, float, float]]:
+    """(r, k, ln r, ln k): the engine / oracle factors fitted on the force and on the stiffness
+    and their logarithms, or None when either is missing, not positive or not finite. In
+    logarithms, so that ratios near 1e300 (garbage output) never overflow a power.
+    """
+    k = _sparse_ratio(K_e, K_o)
+    r = fit_scale(np.asarray(f_o), np.asarray(f_e))  # engine / oracle on the force
+    if k is None or r is None or k <= 0 or r <= 0:
+        return None
+    lr, lk = np.log(r), np.log(k)
+    if not (np.isfinite(lr) and np.isfinite(lk)):
+        return None
+    return r, k, lr, lk
+
+
 def fit_length_scale(
     f_o: np.ndarray, K_o: sp.spmatrix, f_e: np.ndarray, K_e: sp.spmatrix
 ) -> Optional[LengthScale]:
@@ -85,14 +100,10 @@ def fit_length_scale(
 
     f_o, f_e: (n, 3); K_o, K_e: (3n, 3n).
     """
-    k = _sparse_ratio(K_e, K_o)
-    r = fit_scale(np.asarray(f_o), np.asarray(f_e))  # engine / oracle on the force
-    if k is None or r is None or k <= 0 or r <= 0:
+    ratios = _log_ratios(f_o, K_o, f_e, K_e)
+    if ratios is None:
         return None
-    # In logarithms: ratios near 1e300 (garbage output) must not overflow a power.
-    lr, lk = np.log(r), np.log(k)
-    if not (np.isfinite(lr) and np.isfinite(lk)):
-        return None
+    r, k, lr, lk = ratios
     if abs(lr - FORCE_POWER * lk) > _AGREE or abs(lr - lk) <= _AGREE:
         return None
     s = k  # the stiffness scales by s itself
@@ -134,13 +145,10 @@ def fit_derivative_scale(
 
     f_o, f_e: (n, 3); K_o, K_e: (3n, 3n).
     """
-    k = _sparse_ratio(K_e, K_o)
-    r = fit_scale(np.asarray(f_o), np.asarray(f_e))
-    if k is None or r is None or k <= 0 or r <= 0:
+    ratios = _log_ratios(f_o, K_o, f_e, K_e)
+    if ratios is None:
         return None
-    lr, lk = np.log(r), np.log(k)
-    if not (np.isfinite(lr) and np.isfinite(lk)):
-        return None
+    r, k, lr, lk = ratios
     if abs(lk - 2.0 * lr) > _AGREE or abs(lr - lk) <= _AGREE:
         return None
     return DerivativeScale(r, np.asarray(f_e) / r, (sp.csr_matrix(K_e) / r**2).tocsr())
