@@ -334,8 +334,8 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
             for x in exchanges(ci.model)
         ),
     )
-    found += _float32_parameter_readings(cache, ci, out, s, tol)
     values = scalar_parameters(ci.model)
+    found += _float32_parameter_readings(cache, ci, out, s, tol, values)
     one_j = _single_j(ci)
     for name, v0 in values.items():
 
@@ -392,14 +392,16 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     )
 
 
-def _float32_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
-    """Every scalar parameter rounded to single precision (a parameter struct in float32, the
-    rest of the engine in double): named when the oracle with those values, and not with the
-    case's, matches the engine. Not tried when rounding changes no parameter.
+def _float32_parameter_readings(
+    cache, ci, out, s: Scales, tol: Tolerances, values: dict
+) -> List[Reading]:
+    """Every scalar parameter (``values``, by name) rounded to single precision (a parameter
+    struct in float32, the rest of the engine in double): named when the oracle with those
+    values, and not with the case's, matches the engine. Not tried when rounding changes no
+    parameter.
     """
     from conformance.diagnosis.parameters import with_value
 
-    values = scalar_parameters(ci.model)
     rounded = {k: float(np.float32(v)) for k, v in values.items()}
     changed = {k: v for k, v in rounded.items() if v != values[k]}
     if not changed:
