@@ -22,6 +22,7 @@ from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.corroborate import corroborate
+from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.element_forces import force_node_findings
@@ -318,6 +319,12 @@ READINGS: Tuple[Reading, ...] = (
         "grouped term's gradient part)",
         _force_wrong,
         lambda d, c: stress_side_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a derivative dW/dI typed wrongly in a hand-written stress, the energy right (a sign, a "
+        "number, an exponent, a parameter, an invariant, a power of J)",
+        _force_wrong,
+        lambda d, c: derivative_rewrite_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a known approximation of the tangent",

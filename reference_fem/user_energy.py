@@ -67,6 +67,7 @@ __all__ = [
     "EnergySyntaxError",
     "PrestressWarning",
     "parse_user_energy",
+    "evaluate_formula",
     "user_energy_from_cli",
     "parse_param",
     "parse_fibre",
@@ -406,6 +407,19 @@ def _ufl_variable(name: str, F, a, get: Callable[[str], Any]):
 
 
 _NUMPY = _Backend(ln=np.log, exp=np.exp, sqrt=np.sqrt)
+
+
+def evaluate_formula(expression: str, values: Mapping[str, Any]) -> Any:
+    """An expression in the user-energy syntax evaluated with NumPy: ``values`` maps each name
+    it uses (variables and parameters alike) to a number or an array (real or complex; arrays
+    broadcast). The expression is checked against the same whitelist as an energy's, with the
+    names of ``values`` as the only names; EnergySyntaxError otherwise.
+
+    For formulas that are not energies (a derivative dW/dI1b written out, say), which
+    :class:`UserEnergy` would examine at rest as if they were.
+    """
+    tree = _parse(expression, frozenset(values))
+    return _evaluate(tree, values, _NUMPY)
 
 
 # -- the energy ---------------------------------------------------------------------------

@@ -1,0 +1,440 @@
+"""A derivative dW/dI written wrongly in a hand-written stress, the energy right.
+
+Engines that write their stress by hand (a UMAT, a Cauchy stress in closed form, a force field's
+second Piola-Kirchhoff routine) compute P = sum_k psi_k dI_k/dF, psi_k = dW/dI_k for each
+invariant I_k the energy uses (I1, I2, J, I1b, I2b, I3), each psi_k typed as its own formula. A
+mistake there leaves W right and makes the force wrong: the engine's energy matches the oracle's,
+its force does not derive from it.
+
+The energy's formula (:func:`conformance.diagnosis.variants.energy_expression`) is differentiated
+symbolically (:mod:`conformance.diagnosis.formula_derivative`) and each psi_k rewritten the way a
+hand derivation goes wrong, one change at a time: a sign before a term flipped or a minus lost,
+the -1 of W's exp(X) - 1 carried into exp(X)'s derivative, a number doubled or halved, an exponent
+off by one or with its sign lost, a parameter left out or another one used, an invariant used for
+its isochoric version or the other way round; and psi_k as a whole with its sign flipped,
+doubled, halved, dropped or multiplied by a power of J. Each rewrite predicts, per cell, the
+stress P' = P + (psi_k' - psi_k) dI_k/dF, hence the force, with nothing fitted; the stiffness is
+predicted three ways, as engines make it:
+
+- the derivative of that force (a complex step or differences of the stress routine, a tangent
+  derived from the same wrong psi_k): exact, by complex step of P' - P;
+- the oracle's own (the tangent taken from the energy by automatic differentiation, or written
+  separately and right);
+- the oracle's plus the geometric part of the stress error, (D_a . dS D_b) Id with dS = F^-1 dP
+  (a total-Lagrangian or force-field engine whose material tangent is its own formula, right, and
+  whose geometric stiffness uses its wrong S).
+
+A rewrite is named when the engine's energy agrees with the oracle's (or the engine gives none)
+and one of its predictions brings force and stiffness within the case's tolerance, while the
+oracle's own answer is outside it (else the state shows nothing). Rewrites that predict the same
+answer are one cause said once (the first, the most specific); different predictions that fit
+are shown as ambiguous.
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass, replace
+from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import (
+    assemble,
+    cell_kinematics,
+    piola_element_forces,
+    tangent_element_matrices,
+)
+from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.formula_derivative import derivative, number
+from conformance.diagnosis.variants import energy_expression
+from conformance.judge.compare import Scales, Tolerances, errors
+from conformance.judge.consistency import safe_norm
+from reference_fem.user_energy import EnergySyntaxError, evaluate_formula
+
+__all__ = [
+    "StressRewrite",
+    "stress_rewrites",
+    "invariants",
+    "invariant_gradients",
+    "derivative_rewrite_findings",
+    "derivative_rewrite_reading",
+]
+
+#: The scalar invariants a hand-written stress is a sum over (the user-energy syntax's names).
+INVARIANTS = ("I1", "I2", "I3", "J", "I1b", "I2b")
+#: An invariant and the one it is confused with (isochoric or not).
+_CONFUSED = {"I1b": "I1", "I1": "I1b", "I2b": "I2", "I2": "I2b"}
+#: Extra powers of J a whole psi_k may carry (det B or J^2 used for J, a J left from a
+#: push-forward).
+_J_POWERS = ((-4, 3), (-1, 1), (-2, 3), (-1, 3), (1, 3), (2, 3), (1, 1), (4, 3))
+#: Two predictions this close (relative, force and stiffness) are the same reading.
+_SAME = 1e-9
+
+
+@dataclass(frozen=True)
+class StressRewrite:
+    """One rewritten derivative: ``invariant`` I_k, dW/dI_k as written (``formula``) and as it
+    should read (``right``), and the mistake in ``words``.
+    """
+
+    invariant: str
+    formula: str
+    right: str
+    words: str
+
+
+# ------------------------------------------------------------------ kinematics (complex-safe)
+def invariants(F: np.ndarray) -> Dict[str, np.ndarray]:
+    """I1, I2, I3, J, I1b, I2b per cell (m,) of F (m, 3, 3), real or complex (no conjugates:
+    complex-step derivatives pass through).
+    """
+    C = np.swapaxes(F, 1, 2) @ F
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.trace(C @ C, axis1=1, axis2=2))
+    J = np.linalg.det(F)
+    return {
+        "I1": I1,
+        "I2": I2,
+        "I3": J**2,
+        "J": J,
+        "I1b": J ** (-2.0 / 3.0) * I1,
+        "I2b": J ** (-4.0 / 3.0) * I2,
+    }
+
+
+def invariant_gradients(F: np.ndarray, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
+    """dI/dF (m, 3, 3) of each invariant of :func:`invariants` (``values``), complex-safe."""
+    FiT = np.swapaxes(np.linalg.inv(F), 1, 2)
+    C = np.swapaxes(F, 1, 2) @ F
+    I1, I2, J = values["I1"], values["I2"], values["J"]
+    g1 = 2.0 * F
+    g2 = 2.0 * (I1[:, None, None] * F - F @ C)
+    w = lambda a: a[:, None, None]  # noqa: E731  (per-cell scalars against (m, 3, 3))
+    return {
+        "I1": g1,
+        "I2": g2,
+        "I3": w(2.0 * J**2) * FiT,
+        "J": w(J) * FiT,
+        "I1b": w(J ** (-2.0 / 3.0)) * (g1 - w(2.0 / 3.0 * I1) * FiT),
+        "I2b": w(J ** (-4.0 / 3.0)) * (g2 - w(4.0 / 3.0 * I2) * FiT),
+    }
+
+
+# ------------------------------------------------------------------ the rewrites
+class _Nodes(ast.NodeVisitor):
+    """Every node of a tree in the order :class:`_At` counts them."""
+
+    def __init__(self):
+        self.nodes: List[ast.AST] = []
+
+    def visit(self, node):
+        self.nodes.append(node)
+        self.generic_visit(node)
+
+
+class _At(ast.NodeTransformer):
+    """The tree with its ``target``-th node (in :class:`_Nodes`' order) replaced by make(node)."""
+
+    def __init__(self, target: int, make: Callable[[ast.AST], ast.AST]):
+        self.target, self.make, self.seen = target, make, -1
+
+    def visit(self, node):
+        self.seen += 1
+        if self.seen == self.target:
+            return self.make(node)
+        return self.generic_visit(node)
+
+
+def _parse(text: str) -> ast.expr:
+    return ast.parse(text, mode="eval").body
+
+
+def _replaced(text: str, index: int, make: Callable[[ast.AST], ast.AST]) -> str:
+    tree = ast.Expression(_parse(text))  # parsed anew: no node shared with another rewrite
+    return ast.unparse(ast.fix_missing_locations(_At(index, make).visit(tree)).body)
+
+
+def _literal(node: ast.AST) -> Optional[float]:
+    if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+        return float(node.value)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        v = _literal(node.operand)
+        return None if v is None else -v
+    return None
+
+
+def _fmt(v: float) -> str:
+    return ast.unparse(number(v))
+
+
+def _node_rewrites(text: str, params: Tuple[str, ...]) -> Iterator[Tuple[str, str]]:
+    """(rewritten formula, words) for each one-place change of the formula ``text``."""
+    holder = _Nodes()
+    holder.visit(ast.Expression(_parse(text)))
+    for i, node in enumerate(holder.nodes):
+        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Sub)):
+            flip = ast.Sub() if isinstance(node.op, ast.Add) else ast.Add()
+            new = ast.BinOp(node.left, flip, node.right)
+            yield (
+                _replaced(text, i, lambda n, new=new: new),
+                f"the sign before {ast.unparse(node.right)} flipped: {ast.unparse(new)} where "
+                f"{ast.unparse(node)} belongs",
+            )
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+            yield (
+                _replaced(text, i, lambda n: n.operand),
+                f"a minus sign lost: {ast.unparse(node.operand)} where {ast.unparse(node)} belongs",
+            )
+        elif isinstance(node, ast.Call) and node.func.id == "exp":
+            new = ast.BinOp(node, ast.Sub(), ast.Constant(1))
+            yield (
+                _replaced(text, i, lambda n, new=new: new),
+                f"{ast.unparse(new)} where {ast.unparse(node)} belongs (the -1 of the energy's "
+                "exp(X) - 1 carried into its derivative)",
+            )
+        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+            p = _literal(node.right)
+            if p is None:
+                continue
+            for q, how in ((p - 1, "one lower"), (p + 1, "one higher"), (-p, "its sign lost")):
+                if q == p:
+                    continue
+                new = ast.BinOp(node.left, ast.Pow(), number(q))
+                yield (
+                    _replaced(text, i, lambda n, new=new: new),
+                    f"the exponent {_fmt(p)} written {_fmt(q)} ({how}): {ast.unparse(new)} where "
+                    f"{ast.unparse(node)} belongs",
+                )
+        elif isinstance(node, ast.Constant) and type(node.value) in (int, float):
+            c = float(node.value)
+            if c in (0.0, 1.0):
+                continue
+            for q in (2 * c, c / 2):
+                yield (
+                    _replaced(text, i, lambda n, q=q: number(q)),
+                    f"the number {_fmt(c)} written {_fmt(q)} (a factor 2 "
+                    f"{'too many' if abs(q) > abs(c) else 'lost'})",
+                )
+        elif isinstance(node, ast.Name) and node.id in params:
+            yield (
+                _replaced(text, i, lambda n: ast.Constant(1)),
+                f"the parameter {node.id} left out",
+            )
+            for other in params:
+                if other != node.id:
+                    yield (
+                        _replaced(text, i, lambda n, o=other: ast.Name(o, ast.Load())),
+                        f"{other} used for {node.id}",
+                    )
+        elif isinstance(node, ast.Name) and node.id in _CONFUSED:
+            other = _CONFUSED[node.id]
+            yield (
+                _replaced(text, i, lambda n, o=other: ast.Name(o, ast.Load())),
+                f"{other} used for {node.id} in it",
+            )
+
+
+def _whole_rewrites(text: str) -> Iterator[Tuple[str, str]]:
+    """(rewritten formula, words) for the derivative ``text`` scaled as a whole."""
+    group = f"({text})"
+    yield f"-{group}", "with its sign flipped"
+    yield f"2*{group}", "doubled"
+    yield f"{group}/2", "halved"
+    yield "0", "left out (that term's stress missing)"
+    for a, b in _J_POWERS:
+        yield f"{group}*J**({a}/{b})", f"multiplied by J^({a}/{b})"
+
+
+def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[StressRewrite]:
+    """The rewritten derivatives of the energy ``expression`` (user-energy syntax) in each of
+    the invariants it uses; [] when it uses a variable that is not one of :data:`INVARIANTS`
+    (C or E entries, I4, I5: no scalar chain rule through invariants).
+    """
+    try:
+        tree = _parse(expression)
+    except SyntaxError:
+        return []
+    callees = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and id(n) not in callees}
+    used = [k for k in INVARIANTS if k in names]
+    if names - set(params) - set(used):
+        return []
+    out, seen = [], set()
+    for k in used:
+        right = derivative(expression, k)
+        if right == "0":
+            continue
+        specific = [(t, f"dW/d{k} with {w}") for t, w in _node_rewrites(right, params)]
+        whole = [(t, f"dW/d{k} {w}") for t, w in _whole_rewrites(right)]
+        for text, words in specific + whole:
+            if text != right and (k, text) not in seen:
+                seen.add((k, text))
+                out.append(StressRewrite(k, text, right, words))
+    return out
+
+
+# ------------------------------------------------------------------ predictions
+def _psi(formula: str, values: Dict[str, Any]) -> Optional[np.ndarray]:
+    try:
+        with np.errstate(all="ignore"):
+            v = evaluate_formula(formula, values)
+    except (EnergySyntaxError, ZeroDivisionError, OverflowError, KeyError):
+        return None
+    return v
+
+
+def _stress_error(
+    rw: StressRewrite, F: np.ndarray, params: Dict[str, float]
+) -> Optional[np.ndarray]:
+    """The stress error (psi_k' - psi_k) dI_k/dF per cell (m, 3, 3), complex-safe; None where
+    a derivative cannot be evaluated.
+    """
+    inv = invariants(F)
+    values = {**params, **inv}
+    new, right = _psi(rw.formula, values), _psi(rw.right, values)
+    if new is None or right is None:
+        return None
+    d = np.broadcast_to(np.asarray(new) - np.asarray(right), F.shape[:1])
+    return d[:, None, None] * invariant_gradients(F, inv)[rw.invariant]
+
+
+def _stress_error_tangent(rw: StressRewrite, F: np.ndarray, params) -> Optional[np.ndarray]:
+    """d(dP)/dF (m, 3, 3, 3, 3) by complex step, [k, I, l, L] = d dP_kI / dF_lL."""
+    h = 1e-30
+    m = F.shape[0]
+    Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)
+    Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
+    with np.errstate(all="ignore"):
+        dP = _stress_error(rw, Fc.reshape(m * 9, 3, 3), params)
+    if dP is None:
+        return None
+    # rows of the copies: (l, L) the perturbed entry; then dP's (k, I)
+    return (dP.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
+
+
+def _geometric(dP: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The geometric part delta_kl dS_IL of a stress error dP = F dS, (m, 3, 3, 3, 3)."""
+    dS = np.linalg.solve(F, dP)
+    return np.einsum("kl,mIL->mkIlL", np.eye(3), dS)
+
+
+_TANGENTS = (
+    ("consistent", "its stiffness the derivative of that force"),
+    ("oracle", "its stiffness the energy's own (right)"),
+    ("geometric", "its geometric stiffness from that stress, its material tangent right"),
+)
+
+
+def derivative_rewrite_findings(
+    model: Any,
+    points: np.ndarray,
+    cells: np.ndarray,
+    x: np.ndarray,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The rewritten derivatives whose predicted force and stiffness match the engine's
+    (f (n, 3), K) where the oracle's (f_o, K_o) do not; several that predict differently:
+    ambiguous.
+    """
+    base = energy_expression(model)
+    if base is None:
+        return []
+    expression, params = base
+    rewrites = stress_rewrites(expression, tuple(params))
+    if not rewrites:
+        return []
+    V0, D, F = cell_kinematics(points, cells, x)
+    n = points.shape[0]
+    K = sp.csr_matrix(K)
+    K_o = sp.csr_matrix(K_o)
+    if tol.within(errors(f, K, None, f_o, K_o, 0.0, s), energy=False):
+        return []
+    matches: List[Tuple[Finding, np.ndarray, sp.csr_matrix]] = []
+    for rw in rewrites:
+        dP = _stress_error(rw, F, params)
+        if dP is None or not np.all(np.isfinite(dP)):
+            continue
+        df, _ = assemble(cells, n, piola_element_forces(V0, D, dP), None)
+        f_p = f_o + df
+        if safe_norm(np.asarray(f) - f_p) > tol.force * s.force:
+            continue
+        for how, words in _TANGENTS:
+            if how == "oracle":
+                K_p = K_o
+            else:
+                A = (
+                    _stress_error_tangent(rw, F, params)
+                    if how == "consistent"
+                    else _geometric(dP, F)
+                )
+                if A is None or not np.all(np.isfinite(A)):
+                    continue
+                zero = np.zeros((cells.shape[0], 4, 3))
+                K_p = K_o + assemble(cells, n, zero, tangent_element_matrices(V0, D, A))[1]
+            if tol.within(errors(f_p, K_p, None, f_o, K_o, 0.0, s), energy=False):
+                continue  # the oracle's answer here: this state shows nothing of it
+            e = errors(f, K, None, f_p, K_p, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            if any(_same(f_p, K_p, g, L, s) for _, g, L in matches):
+                break
+            matches.append((_finding(rw, words, e), f_p, K_p))
+            break
+    return ambiguous([m[0] for m in matches])
+
+
+def _same(f1, K1, f2, K2, s: Scales) -> bool:
+    e = errors(f1, K1, None, f2, K2, 0.0, s)
+    return e.force <= _SAME and e.stiffness <= _SAME
+
+
+def _finding(rw: StressRewrite, tangent: str, e) -> Finding:
+    k = rw.invariant
+    return Finding(
+        "stress-derivative-rewritten",
+        f"a derivative of W written wrongly in your stress: {rw.words} (the energy right)",
+        FULL,
+        f"dW/d{k} = {rw.formula} where {rw.right} belongs: the oracle's stress with its term "
+        f"dW/d{k} d{k}/dF rewritten so (nothing fitted), {tangent}: force error {e.force:.1e}, "
+        f"stiffness error {e.stiffness:.1e}",
+        {
+            "invariant": k,
+            "formula": rw.formula,
+            "right": rw.right,
+            "tangent": tangent,
+            "residual": max(e.force, e.stiffness),
+        },
+    )
+
+
+def derivative_rewrite_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
+    """``diag`` (a failed case nothing explained yet, its force wrong) with a rewritten
+    derivative named first when one explains it; unchanged when the engine's energy is wrong
+    (then W itself differs) or nothing fits.
+    """
+    e = diag.errors.energy
+    if e is not None and e > diag.tolerances.energy:
+        return diag
+    found = derivative_rewrite_findings(
+        ci.model,
+        ci.points,
+        ci.cells,
+        ci.positions,
+        np.asarray(out.force),
+        out.stiffness,
+        np.asarray(ref.force),
+        ref.stiffness,
+        s,
+        diag.tolerances,
+    )
+    if not found:
+        return diag
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*found, *rest])

@@ -1,0 +1,165 @@
+"""A derivative dW/dI typed wrongly in a hand-written stress, the energy right
+(conformance.diagnosis.derivative_rewrites and formula_derivative).
+
+The engines here write their first Piola stress by hand, P = psi1 dI1b/dF + U'(J) dJ/dF with the
+derivative psi1 = dW/dI1b typed as its own formula, and take the element stiffness by complex
+step of their element-force routine (or keep the energy's own stiffness); they are written with
+this file's own kinematics, not the module's. MJED stands in for the oracle. Each mistake comes
+with a nearby one that must not get this cause.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import box_mesh, mjed_split
+
+from common.cases import default_material
+from conformance.diagnosis.derivative_rewrites import derivative_rewrite_findings, stress_rewrites
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.formula_derivative import derivative
+from conformance.diagnosis.variants import energy_expression
+from conformance.judge.compare import DOUBLE
+from reference_fem.user_energy import evaluate_formula
+
+DECLARED = ["NeoHookean", "MooneyRivlin", "Yeoh", "ArrudaBoyce", "Gent", "VerondaWestmann",
+            "Demiray"]  # fmt: skip
+
+
+@pytest.mark.parametrize("name", DECLARED)
+def test_the_written_derivative_is_the_derivative_of_the_energy(name):
+    expression, params = energy_expression(default_material(name))
+    rng = np.random.default_rng(7)
+    values = {
+        "I1": 3.0 + rng.uniform(0, 0.5, 5),
+        "I2": 3.0 + rng.uniform(0, 0.5, 5),
+        "I1b": 3.0 + rng.uniform(0, 0.5, 5),
+        "I2b": 3.0 + rng.uniform(0, 0.5, 5),
+        "J": rng.uniform(0.8, 1.2, 5),
+    }
+    checked = 0
+    for k in values:
+        written = derivative(expression, k)
+        step = {**params, **values, k: values[k] + 1e-30j}
+        expected = evaluate_formula(expression, step).imag / 1e-30
+        got = np.broadcast_to(evaluate_formula(written, {**params, **values}), (5,))
+        assert np.allclose(got, expected, rtol=1e-13, atol=1e-12 * np.abs(expected).max()), k
+        checked += written != "0"
+    assert checked >= 2  # an isochoric or I1 term and the volumetric term at least
+
+
+def test_derivatives_of_every_function_of_the_syntax():
+    formula = "a*sqrt(I1)**3/exp(-J) + pow(J, I1)*ln(I1b) - log(2*J)/I2 + (I1b - 3)**(-1/3)"
+    values = {"a": 1.7, "I1": 3.3, "I2": 2.9, "I1b": 3.4, "J": 1.1}
+    for k in ("I1", "I2", "I1b", "J"):
+        step = {**values, k: values[k] + 1e-30j}
+        expected = evaluate_formula(formula, step).imag / 1e-30
+        assert evaluate_formula(derivative(formula, k), values) == pytest.approx(expected, 1e-13)
+    assert derivative(formula, "I3") == "0"
+
+
+def _shape_vectors(points, cells):
+    E0 = (points[cells[:, 1:]] - points[cells[:, :1]]).transpose(0, 2, 1)
+    G = np.linalg.inv(E0)  # rows: the gradients of N1, N2, N3
+    return np.linalg.det(E0) / 6.0, np.concatenate([-G.sum(axis=1, keepdims=True), G], axis=1)
+
+
+def _engine(points, cells, x, stress, stiffness=None):
+    """Force and stiffness of an engine whose per-cell first Piola stress is ``stress(F)``, its
+    element stiffness the complex step of its element force (or ``stiffness`` as given).
+    """
+    V0, D = _shape_vectors(points, cells)
+
+    def element_forces(xe):
+        F = np.einsum("mak,maI->mkI", xe, D)
+        return -V0[:, None, None] * np.einsum("mkI,maI->mak", stress(F), D)
+
+    xe = x[cells].astype(complex)
+    fe = element_forces(xe).real
+    m, h = cells.shape[0], 1e-30
+    Ke = np.zeros((m, 12, 12))
+    for j in range(12):
+        xp = xe.reshape(m, 12).copy()
+        xp[:, j] += 1j * h
+        Ke[:, :, j] = -(element_forces(xp.reshape(m, 4, 3)).imag / h).reshape(m, 12)
+    f, K = assemble(cells, points.shape[0], fe, Ke)
+    return f, (K if stiffness is None else stiffness)
+
+
+def _isochoric_stress(psi1, k0, transposed=False):
+    """P = psi1(I1b) dI1b/dF + k0 ln J F^-T (W = Psi(I1b) + k0/2 (ln J)^2)."""
+
+    def P(F):
+        J = np.linalg.det(F)
+        I1 = np.einsum("mij,mij->m", F, F)
+        I1b = J ** (-2.0 / 3.0) * I1
+        FiT = np.linalg.inv(F).transpose(0, 2, 1)
+        dI1b = (J ** (-2.0 / 3.0))[:, None, None] * (
+            2.0 * F - (2.0 / 3.0 * I1)[:, None, None] * FiT
+        )
+        out = psi1(I1b)[:, None, None] * dI1b + (k0 * np.log(J))[:, None, None] * FiT
+        return out.transpose(0, 2, 1) if transposed else out
+
+    return P
+
+
+def _case(name, seed=1):
+    model = default_material(name)
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag((1.1, 0.95, 0.92)).T + 0.03 * rng.standard_normal(points.shape)
+    _, f_o, K_o, s = mjed_split(model, points, cells, x)
+    return model, points, cells, x, f_o, K_o, s
+
+
+def _find(case, f, K):
+    model, points, cells, x, f_o, K_o, s = case
+    return derivative_rewrite_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE)
+
+
+def _gent_psi1(model, sign=-1.0):
+    return lambda I1b: model.mu / 2.0 / (1.0 + sign * (I1b - 3.0) / model.Jm)
+
+
+def test_gent_with_the_locking_denominators_sign_flipped_is_named():
+    case = _case("Gent")
+    model = case[0]
+    right = _engine(*case[1:4], _isochoric_stress(_gent_psi1(model), model.k0))
+    assert _find(case, *right) == []  # the right engine: nothing to name
+    f, K = _engine(*case[1:4], _isochoric_stress(_gent_psi1(model, +1.0), model.k0))
+    found = _find(case, f, K)
+    assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
+    assert "1 + (I1b - 3) / Jm" in found[0].title and "the energy right" in found[0].title
+    assert found[0].figures["tangent"].startswith("its stiffness the derivative of that force")
+    # the same stress with the energy's own stiffness (automatic differentiation of W)
+    found = _find(case, f, case[5])
+    assert [x.code for x in found] == ["stress-derivative-rewritten"]
+    assert "energy's own" in found[0].figures["tangent"]
+
+
+def test_demirays_minus_one_carried_into_its_derivative_is_named():
+    case = _case("Demiray", seed=2)
+    model = case[0]
+    psi1 = lambda I1b: model.a / 2.0 * (np.exp(model.b * (I1b - 3.0)) - 1.0)  # noqa: E731
+    found = _find(case, *_engine(*case[1:4], _isochoric_stress(psi1, model.k0)))
+    assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
+    assert "- 1" in found[0].title and "exp(" in found[0].title
+
+
+def test_a_stress_mistake_outside_the_derivatives_is_not_named():
+    # P^T for P: the derivatives right, the tensor wrong; and dW/dI1b scaled by 1.37, which
+    # none of the rewrites (a sign, 2, 1/2, a parameter, a power of J) is
+    case = _case("Gent", seed=3)
+    model = case[0]
+    transposed = _isochoric_stress(_gent_psi1(model), model.k0, transposed=True)
+    assert _find(case, *_engine(*case[1:4], transposed)) == []
+    scaled = lambda I1b: 1.37 * _gent_psi1(model)(I1b)  # noqa: E731
+    assert _find(case, *_engine(*case[1:4], _isochoric_stress(scaled, model.k0))) == []
+
+
+def test_no_rewrites_without_a_formula_in_scalar_invariants():
+    assert stress_rewrites("lam/2*(E11 + E22 + E33)**2 + mu*E11**2", ("lam", "mu")) == []
+    assert stress_rewrites("mu*(I1 - 3) + k*(I4 - 1)**2", ("mu", "k")) == []
+    rewrites = stress_rewrites("mu/2*(I1b - 3) + k/2*ln(J)**2", ("mu", "k"))
+    assert {r.invariant for r in rewrites} == {"I1b", "J"}
+    assert len({(r.invariant, r.formula) for r in rewrites}) == len(rewrites)
