@@ -35,6 +35,7 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
+from conformance.diagnosis.isochoric_curvature import isochoric_curvature_reading
 from conformance.diagnosis.mixed_precision import (
     mixed_precision_reading,
     rounded_elements_reading,
@@ -335,6 +336,12 @@ READINGS: Tuple[Reading, ...] = (
         "one invariant's curvature term wrong in the tangent",
         _force_right,
         lambda d, c: second_derivative_reading(d, c.ci, c.out, c.ref),
+    ),
+    Reading(
+        "the curvature p (p - 1) J^(p-2) of the isochoric factor J^p written wrongly in the "
+        "tangent (p^2, p, the sign, left out)",
+        _force_right,
+        lambda d, c: isochoric_curvature_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "one piece of a hand-derived tangent wrong, or its 1/J, or an SVD engine's divided "

@@ -34,7 +34,7 @@ are shown as ambiguous.
 from __future__ import annotations
 
 import ast
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
@@ -46,7 +46,7 @@ from conformance.diagnosis.elements import (
     piola_element_forces,
     tangent_element_matrices,
 )
-from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.findings import FULL, Finding, ambiguous, named_first
 from conformance.diagnosis.formula_derivative import derivative, number
 from conformance.diagnosis.variants import energy_expression
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -60,6 +60,7 @@ __all__ = [
     "invariant_gradients",
     "derivative_rewrite_findings",
     "derivative_rewrite_reading",
+    "read_case",
 ]
 
 #: The scalar invariants a hand-written stress is a sum over (the user-energy syntax's names).
@@ -414,6 +415,15 @@ def _finding(rw: StressRewrite, tangent: str, e) -> Finding:
     )
 
 
+def read_case(finder: Callable[..., List[Finding]], diag: Any, ci: Any, out: Any, ref: Any, s):
+    """``diag`` with what ``finder`` finds on the case named first: finder(model, points, cells,
+    positions, engine force, engine stiffness, oracle force, oracle stiffness, scales, tolerances).
+    """
+    case = (ci.model, ci.points, ci.cells, ci.positions)
+    answers = (np.asarray(out.force), out.stiffness, np.asarray(ref.force), ref.stiffness)
+    return named_first(diag, finder(*case, *answers, s, diag.tolerances))
+
+
 def derivative_rewrite_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
     """``diag`` (a failed case nothing explained yet, its force wrong) with a rewritten
     derivative named first when one explains it; unchanged when the engine's energy is wrong
@@ -422,19 +432,4 @@ def derivative_rewrite_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales
     e = diag.errors.energy
     if e is not None and e > diag.tolerances.energy:
         return diag
-    found = derivative_rewrite_findings(
-        ci.model,
-        ci.points,
-        ci.cells,
-        ci.positions,
-        np.asarray(out.force),
-        out.stiffness,
-        np.asarray(ref.force),
-        ref.stiffness,
-        s,
-        diag.tolerances,
-    )
-    if not found:
-        return diag
-    rest = [f for f in diag.findings if f.code != "unexplained"]
-    return replace(diag, findings=[*found, *rest])
+    return read_case(derivative_rewrite_findings, diag, ci, out, ref, s)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Dict, List
 
-__all__ = ["Finding", "FULL", "PARTIAL", "OBSERVED", "ambiguous"]
+__all__ = ["Finding", "FULL", "PARTIAL", "OBSERVED", "ambiguous", "named_first"]
 
 FULL = "explains"  # applying the correction brings force and stiffness within tolerance
 PARTIAL = "partly explains"  # the correction reduces the error but leaves more than the tolerance
@@ -77,3 +77,13 @@ def ambiguous(found: List[Finding], why: str = "") -> List[Finding]:
     return [lead] + [
         Finding(x.code, "(ambiguous) " + x.title, x.strength, x.evidence, x.figures) for x in found
     ]
+
+
+def named_first(diag: Any, found: List[Finding]) -> Any:
+    """``diag`` (a case's diagnosis) with ``found`` named first and its "unexplained" finding
+    dropped; ``diag`` itself when nothing was found.
+    """
+    if not found:
+        return diag
+    rest = [f for f in diag.findings if f.code != "unexplained"]
+    return replace(diag, findings=[*found, *rest])
