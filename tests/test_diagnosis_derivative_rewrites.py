@@ -15,7 +15,11 @@ import pytest
 from conftest import box_mesh, mjed_split
 
 from common.cases import default_material
-from conformance.diagnosis.derivative_rewrites import derivative_rewrite_findings, stress_rewrites
+from conformance.diagnosis.derivative_rewrites import (
+    StressRewrite,
+    derivative_rewrite_findings,
+    stress_rewrites,
+)
 from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.formula_derivative import derivative
 from conformance.diagnosis.variants import energy_expression
@@ -161,5 +165,46 @@ def test_no_rewrites_without_a_formula_in_scalar_invariants():
     assert stress_rewrites("lam/2*(E11 + E22 + E33)**2 + mu*E11**2", ("lam", "mu")) == []
     assert stress_rewrites("mu*(I1 - 3) + k*(I4 - 1)**2", ("mu", "k")) == []
     rewrites = stress_rewrites("mu/2*(I1b - 3) + k/2*ln(J)**2", ("mu", "k"))
+    rewrites = [r for r in rewrites if isinstance(r, StressRewrite)]
     assert {r.invariant for r in rewrites} == {"I1b", "J"}
     assert len({(r.invariant, r.formula) for r in rewrites}) == len(rewrites)
+
+
+def _mooney_rivlin_kirchhoff(model, power_of_det_b, i1_of_b=False):
+    """P = tau F^-T, tau = 2 c1 dev(Bb) + 2 c2 dev(I1b Bb - Bb^2) + k0 ln J I, the isochoric
+    Bb = det(B)^power B (-1/3: right; -2/3: det B where J belongs in J^(-2/3)).
+    """
+
+    def P(F):
+        B = F @ F.transpose(0, 2, 1)
+        Bb = np.linalg.det(B)[:, None, None] ** power_of_det_b * B
+        I1b = np.trace(B if i1_of_b else Bb, axis1=1, axis2=2)[:, None, None]
+        eye = np.eye(3)
+
+        def dev(A):
+            return A - np.trace(A, axis1=1, axis2=2)[:, None, None] / 3.0 * eye
+
+        tau = 2 * model.c1 * dev(Bb) + 2 * model.c2 * dev(I1b * Bb - Bb @ Bb)
+        tau = tau + (model.k0 * np.log(np.linalg.det(F)))[:, None, None] * eye
+        return tau @ np.linalg.inv(F).transpose(0, 2, 1)
+
+    return P
+
+
+def test_the_isochoric_factor_applied_twice_in_a_kirchhoff_stress_is_named():
+    case = _case("MooneyRivlin", seed=5)
+    model = case[0]
+    right = _engine(*case[1:4], _mooney_rivlin_kirchhoff(model, -1.0 / 3.0))
+    assert np.allclose(right[0], case[4], rtol=0, atol=1e-9 * np.abs(case[4]).max())
+    assert _find(case, *right) == []
+    found = _find(case, *_engine(*case[1:4], _mooney_rivlin_kirchhoff(model, -2.0 / 3.0)))
+    assert [x.code for x in found] == ["stress-isochoric-scaling"], [x.title for x in found]
+    assert "J^(-4/3) B where J^(-2/3) B belongs" in found[0].title
+
+
+def test_i1_for_i1b_in_the_i2b_stress_is_named():
+    case = _case("MooneyRivlin", seed=6)
+    P = _mooney_rivlin_kirchhoff(case[0], -1.0 / 3.0, i1_of_b=True)
+    found = _find(case, *_engine(*case[1:4], P))
+    assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
+    assert "typed I1 = tr B" in found[0].title

@@ -34,6 +34,7 @@ are shown as ambiguous.
 from __future__ import annotations
 
 import ast
+import functools
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, Iterator, List, Optional, Tuple
 
@@ -55,6 +56,7 @@ from reference_fem.user_energy import EnergySyntaxError, evaluate_formula
 
 __all__ = [
     "StressRewrite",
+    "IsochoricScaling",
     "stress_rewrites",
     "invariants",
     "invariant_gradients",
@@ -84,6 +86,38 @@ class StressRewrite:
     formula: str
     right: str
     words: str
+
+
+@dataclass(frozen=True)
+class IsochoricScaling:
+    """The isochoric part of the stress computed from J^q Bb where Bb = J^(-2/3) B belongs:
+    each isochoric term's stress dW/dIkb dIkb/dF scaled by J^(q deg_k) (deg 1 for I1b, 2 for
+    I2b, which is quadratic in Bb), with dW/dIkb (``derivatives``: (Ikb, formula)) evaluated at
+    the invariants of J^q Bb when ``at_scaled``, else at the right ones.
+    """
+
+    q: Tuple[int, int]
+    at_scaled: bool
+    derivatives: Tuple[Tuple[str, str], ...]
+    words: str
+
+    @property
+    def invariant(self) -> str:
+        return " and ".join(k for k, _ in self.derivatives)
+
+
+#: q of :class:`IsochoricScaling` and what it means (B the left Cauchy-Green tensor).
+_ISOCHORIC_SCALINGS = (
+    (
+        (-2, 3),
+        "J^(-4/3) B where J^(-2/3) B belongs (the isochoric factor J^(-2/3) applied twice, "
+        "or det B = J^2 used for J in it)",
+    ),
+    ((2, 3), "B where J^(-2/3) B belongs (the isochoric factor J^(-2/3) left out of the stress)"),
+    ((-1, 3), "J^(-1) B where J^(-2/3) B belongs (the isochoric factor's power written -1)"),
+    ((1, 3), "J^(-1/3) B where J^(-2/3) B belongs (the isochoric factor's power halved)"),
+)
+_DEGREE = {"I1b": 1, "I2b": 2}
 
 
 # ------------------------------------------------------------------ kinematics (complex-safe)
@@ -248,7 +282,7 @@ def _whole_rewrites(text: str) -> Iterator[Tuple[str, str]]:
         yield f"{group}*J**({a}/{b})", f"multiplied by J^({a}/{b})"
 
 
-def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[StressRewrite]:
+def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
     """The rewritten derivatives of the energy ``expression`` (user-energy syntax) in each of
     the invariants it uses; [] when it uses a variable that is not one of :data:`INVARIANTS`
     (C or E entries, I4, I5: no scalar chain rule through invariants).
@@ -273,6 +307,33 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[StressRewr
             if text != right and (k, text) not in seen:
                 seen.add((k, text))
                 out.append(StressRewrite(k, text, right, words))
+    if "I2b" in used:
+        # dI2b/dF F^T = 2 dev(I1b Bb - Bb^2): the I1b there typed I1 = tr B adds
+        # dW/dI2b (I1 - I1b) along dI1b/dF, whose F^T-push is 2 dev(Bb)
+        psi1 = derivative(expression, "I1b") if "I1b" in used else "0"
+        psi2 = derivative(expression, "I2b")
+        out.append(
+            StressRewrite(
+                "I1b",
+                f"{psi1} + ({psi2})*(I1 - I1b)",
+                psi1,
+                "the I1b of the I2b stress, dev(I1b Bb - Bb^2), typed I1 = tr B (I1 for I1b in "
+                "the isochoric invariant's gradient)",
+            )
+        )
+    isochoric = tuple((k, derivative(expression, k)) for k in used if k in _DEGREE)
+    isochoric = tuple((k, d) for k, d in isochoric if d != "0")
+    for q, words in _ISOCHORIC_SCALINGS if isochoric else ():
+        for at_scaled in (False, True):
+            where = "from them" if at_scaled else "from the right ones"
+            out.append(
+                IsochoricScaling(
+                    q,
+                    at_scaled,
+                    isochoric,
+                    f"the isochoric stress computed with {words}; its dW/dIkb evaluated {where}",
+                )
+            )
     return out
 
 
@@ -286,12 +347,37 @@ def _psi(formula: str, values: Dict[str, Any]) -> Optional[np.ndarray]:
     return v
 
 
-def _stress_error(
-    rw: StressRewrite, F: np.ndarray, params: Dict[str, float]
-) -> Optional[np.ndarray]:
-    """The stress error (psi_k' - psi_k) dI_k/dF per cell (m, 3, 3), complex-safe; None where
-    a derivative cannot be evaluated.
+@functools.singledispatch
+def _stress_error(rw: Any, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
+    """The stress error of the rewrite per cell (m, 3, 3), complex-safe; None where a
+    derivative cannot be evaluated.
     """
+    raise TypeError(type(rw).__name__)
+
+
+@_stress_error.register
+def _(rw: IsochoricScaling, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
+    inv = invariants(F)
+    values = {**params, **inv}
+    a, b = rw.q
+    Jq = inv["J"] ** (a / b)
+    scaled = dict(values)
+    if rw.at_scaled:
+        scaled.update({k: inv[k] * Jq**d for k, d in _DEGREE.items()})
+    grads = invariant_gradients(F, inv)
+    dP = np.zeros(F.shape, dtype=np.result_type(F, float))
+    for k, formula in rw.derivatives:
+        new, right = _psi(formula, scaled), _psi(formula, values)
+        if new is None or right is None:
+            return None
+        d = np.broadcast_to(np.asarray(new) * Jq ** _DEGREE[k] - np.asarray(right), F.shape[:1])
+        dP = dP + d[:, None, None] * grads[k]
+    return dP
+
+
+@_stress_error.register
+def _(rw: StressRewrite, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
+    """(psi_k' - psi_k) dI_k/dF."""
     inv = invariants(F)
     values = {**params, **inv}
     new, right = _psi(rw.formula, values), _psi(rw.right, values)
@@ -301,7 +387,7 @@ def _stress_error(
     return d[:, None, None] * invariant_gradients(F, inv)[rw.invariant]
 
 
-def _stress_error_tangent(rw: StressRewrite, F: np.ndarray, params) -> Optional[np.ndarray]:
+def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
     """d(dP)/dF (m, 3, 3, 3, 3) by complex step, [k, I, l, L] = d dP_kI / dF_lL."""
     h = 1e-30
     m = F.shape[0]
@@ -396,11 +482,36 @@ def _same(f1, K1, f2, K2, s: Scales) -> bool:
     return e.force <= _SAME and e.stiffness <= _SAME
 
 
-def _finding(rw: StressRewrite, tangent: str, e) -> Finding:
+@functools.singledispatch
+def _finding(rw: Any, tangent: str, e) -> Finding:
+    raise TypeError(type(rw).__name__)
+
+
+@_finding.register
+def _(rw: IsochoricScaling, tangent: str, e) -> Finding:
+    a, b = rw.q
+    return Finding(
+        "stress-isochoric-scaling",
+        f"the isochoric part of your stress scaled wrongly: {rw.words} (the energy right)",
+        FULL,
+        f"the oracle's stress with its terms dW/dIkb dIkb/dF ({rw.invariant}) times J^({a}/{b}) "
+        f"per power of Bb (nothing fitted), {tangent}: force error {e.force:.1e}, stiffness "
+        f"error {e.stiffness:.1e}",
+        {
+            "q": f"{a}/{b}",
+            "at_scaled": rw.at_scaled,
+            "tangent": tangent,
+            "residual": max(e.force, e.stiffness),
+        },
+    )
+
+
+@_finding.register
+def _(rw: StressRewrite, tangent: str, e) -> Finding:
     k = rw.invariant
     return Finding(
         "stress-derivative-rewritten",
-        f"a derivative of W written wrongly in your stress: {rw.words} (the energy right)",
+        f"your hand-written stress wrong: {rw.words} (the energy right)",
         FULL,
         f"dW/d{k} = {rw.formula} where {rw.right} belongs: the oracle's stress with its term "
         f"dW/d{k} d{k}/dF rewritten so (nothing fitted), {tangent}: force error {e.force:.1e}, "
