@@ -152,3 +152,20 @@ def test_an_exponential_with_its_argument_negated_is_a_variant_of_every_formula_
     (demiray,) = flipped("Demiray")
     assert "(a/(2*b))*(1/exp(b*(I1b - 3)) - 1)" in demiray
     assert len(flipped("VerondaWestmann")) == 1 and flipped("NeoHookean") == []
+
+
+def test_the_identity_typed_as_ones_in_the_green_strain_is_a_variant_of_st_venant_kirchhoff():
+    import numpy as np
+
+    from common.cases import default_material
+    from conformance.diagnosis.variants import variants
+
+    model = default_material("StVenantKirchhoff")
+    (v,) = [v for v in variants(model) if v.rewrite.code == "identity-ones"]
+    rng = np.random.default_rng(3)
+    F = np.eye(3) + 0.1 * rng.standard_normal((6, 3, 3))
+    E = 0.5 * (F.transpose(0, 2, 1) @ F - np.ones((3, 3)))  # the typo itself
+    trE = np.trace(E, axis1=1, axis2=2)
+    W = model.lam / 2 * trE**2 + model.mu * np.einsum("mij,mij->m", E, E)
+    assert np.allclose(v.model.density(F), W, rtol=1e-13)
+    assert all(v.rewrite.code != "identity-ones" for v in variants(default_material("Yeoh")))

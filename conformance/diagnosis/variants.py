@@ -251,6 +251,16 @@ REWRITES: Tuple[Rewrite, ...] = (
         r"/2\*ln\(J\)\*\*2",
         "/4*(J**2 - 1 - 2*ln(J))",
     ),
+    # E = (C - I)/2 with the identity typed as a matrix of ones (np.ones for np.eye): each
+    # off-diagonal strain shifted by -1/2 (the formula has each such entry once, as E12, E13,
+    # E23; E21 ... are the same entries)
+    Rewrite(
+        "identity-ones",
+        "E = (C - I)/2 with the identity typed as a matrix of ones: the off-diagonal strains "
+        "E_ij shifted by -1/2",
+        r"\bE(12|13|23|21|31|32)\b",
+        r"(E\1 - 1/2)",
+    ),
     # exp(-X) written as 1/exp(X), so that the rewrite needs no matching parenthesis
     Rewrite(
         "exp-sign",
