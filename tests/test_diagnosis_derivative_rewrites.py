@@ -208,3 +208,14 @@ def test_i1_for_i1b_in_the_i2b_stress_is_named():
     found = _find(case, *_engine(*case[1:4], P))
     assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
     assert "typed I1 = tr B" in found[0].title
+
+
+def test_without_the_engines_energy_the_energy_is_not_said_to_be_right():
+    case = _case("Gent", seed=7)
+    model, points, cells, x, f_o, K_o, s = case
+    f, K = _engine(points, cells, x, _isochoric_stress(_gent_psi1(model, +1.0), model.k0))
+    found = derivative_rewrite_findings(
+        model, points, cells, x, f, K, f_o, K_o, s, DOUBLE, energy_given=False
+    )
+    assert [x.code for x in found] == ["stress-derivative-rewritten"]
+    assert "the energy right" not in found[0].title and "gives no energy" in found[0].title

@@ -425,6 +425,7 @@ def derivative_rewrite_findings(
     K_o: sp.spmatrix,
     s: Scales,
     tol: Tolerances,
+    energy_given: bool = True,
 ) -> List[Finding]:
     """The rewritten derivatives whose predicted force and stiffness match the engine's
     (f (n, 3), K) where the oracle's (f_o, K_o) do not; several that predict differently:
@@ -472,7 +473,7 @@ def derivative_rewrite_findings(
                 continue
             if any(_same(f_p, K_p, g, L, s) for _, g, L in matches):
                 break
-            matches.append((_finding(rw, words, e), f_p, K_p))
+            matches.append((_finding(rw, words, e, _energy_words(energy_given)), f_p, K_p))
             break
     return ambiguous([m[0] for m in matches])
 
@@ -482,17 +483,25 @@ def _same(f1, K1, f2, K2, s: Scales) -> bool:
     return e.force <= _SAME and e.stiffness <= _SAME
 
 
+def _energy_words(energy_given: bool) -> str:
+    # Without the engine's energy, a rewritten derivative that is itself the derivative of
+    # some energy W' cannot be told from that energy: say so rather than "the energy right".
+    if energy_given:
+        return "the energy right"
+    return "your engine gives no energy, so an energy with that derivative would do the same"
+
+
 @functools.singledispatch
-def _finding(rw: Any, tangent: str, e) -> Finding:
+def _finding(rw: Any, tangent: str, e, energy: str) -> Finding:
     raise TypeError(type(rw).__name__)
 
 
 @_finding.register
-def _(rw: IsochoricScaling, tangent: str, e) -> Finding:
+def _(rw: IsochoricScaling, tangent: str, e, energy: str) -> Finding:
     a, b = rw.q
     return Finding(
         "stress-isochoric-scaling",
-        f"the isochoric part of your stress scaled wrongly: {rw.words} (the energy right)",
+        f"the isochoric part of your stress scaled wrongly: {rw.words} ({energy})",
         FULL,
         f"the oracle's stress with its terms dW/dIkb dIkb/dF ({rw.invariant}) times J^({a}/{b}) "
         f"per power of Bb (nothing fitted), {tangent}: force error {e.force:.1e}, stiffness "
@@ -507,11 +516,11 @@ def _(rw: IsochoricScaling, tangent: str, e) -> Finding:
 
 
 @_finding.register
-def _(rw: StressRewrite, tangent: str, e) -> Finding:
+def _(rw: StressRewrite, tangent: str, e, energy: str) -> Finding:
     k = rw.invariant
     return Finding(
         "stress-derivative-rewritten",
-        f"your hand-written stress wrong: {rw.words} (the energy right)",
+        f"your hand-written stress wrong: {rw.words} ({energy})",
         FULL,
         f"dW/d{k} = {rw.formula} where {rw.right} belongs: the oracle's stress with its term "
         f"dW/d{k} d{k}/dF rewritten so (nothing fitted), {tangent}: force error {e.force:.1e}, "
@@ -543,4 +552,5 @@ def derivative_rewrite_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales
     e = diag.errors.energy
     if e is not None and e > diag.tolerances.energy:
         return diag
-    return read_case(derivative_rewrite_findings, diag, ci, out, ref, s)
+    finder = functools.partial(derivative_rewrite_findings, energy_given=e is not None)
+    return read_case(finder, diag, ci, out, ref, s)
