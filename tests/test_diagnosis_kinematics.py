@@ -189,3 +189,38 @@ def test_the_inverse_map_and_the_ignored_rotation_are_named():
         assert code is None or named[0].code == code, outcome.diagnosis.text()
         said = named[0].title + named[0].evidence
         assert all(w in said for w in words), outcome.diagnosis.text()
+
+
+def test_i1_from_part_of_f_is_tried_wherever_the_formula_has_i1():
+    titles = [v.title for v in kinematic_variants(default_material("NeoHookean"))]
+    assert any("tr(F F)" in t for t in titles) and any("diagonal of F" in t for t in titles)
+    titles = [v.title for v in kinematic_variants(default_material("StVenantKirchhoff"))]
+    assert not any("diagonal of F" in t for t in titles)  # written in E: no I1 to take
+
+
+def _i1_from_the_diagonal(F):
+    """The namespace of F with I1 = F_11^2 + F_22^2 + F_33^2 (C's trace from F's diagonal)."""
+    from hyperdual_engine import Namespace
+
+    k = Namespace(F)
+    k.I1 = F[0, 0] * F[0, 0] + F[1, 1] * F[1, 1] + F[2, 2] * F[2, 2]
+    k.I1b = k.J ** (-2.0 / 3.0) * k.I1
+    return k
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_i1_from_the_diagonal_of_f_is_named():
+    from conformance.protocol import check_implementation
+
+    run = check_implementation(
+        _formula_engine("NeoHookean", _i1_from_the_diagonal),
+        material="NeoHookean",
+        states=("random",),
+        probes=False,
+    )
+    (outcome,) = run.outcomes
+    named = outcome.diagnosis.causes
+    assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
+    assert named[0].code == "kinematic-i1-from-part-of-F", outcome.diagnosis.text()
+    assert "diagonal of F" in named[0].title

@@ -56,8 +56,10 @@ class Spec:
     deformed_volume: the density weighted by J (integrated over the deformed volume);
     eigen_power: the power of the eigenvalues of C multiplied by this (2: eigenvalues of C taken as
     stretches; 0.5: stretches taken as eigenvalues of C);
-    i1: "trC2" (I1 = tr(C^2), the squared stretches squared again) or "trU" (I1 = sum of the
-    stretches, the stretches for their squares), None: tr C;
+    i1: "trC2" (I1 = tr(C^2), the squared stretches squared again), "trU" (I1 = sum of the
+    stretches, the stretches for their squares), "trFF" (tr(F F): the transpose of C = F^T F
+    lost) or "diagF" (F_11^2 + F_22^2 + F_33^2: tr C = sum_ij F_ij^2 from F's diagonal only),
+    None: tr C;
     j_power: every non-integer power of J multiplied by this (1: unchanged); j_power_of: only the
     powers whose exponent prints as this (None: all);
     frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration);
@@ -163,6 +165,10 @@ class Kinematics:
             self.I1 = ufl.tr(self.C * self.C)
         elif spec.i1 == "trU":
             self.I1 = sum_of_eigenvalue_powers(self.C, 0.5)
+        elif spec.i1 == "trFF":
+            self.I1 = ufl.tr(F * F)
+        elif spec.i1 == "diagF":
+            self.I1 = F[0, 0] ** 2 + F[1, 1] ** 2 + F[2, 2] ** 2
         else:
             self.I1 = ufl.tr(self.C)
         self.I2 = 0.5 * (ufl.tr(self.C) ** 2 - ufl.tr(self.C * self.C))

@@ -228,6 +228,20 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             Spec(i1="trU"),
         ),
     ]
+    out += [
+        (
+            "i1-from-part-of-F",
+            "I1 = tr(F F) for tr C = tr(F^T F): the transpose lost in C (exact where F is "
+            "symmetric)",
+            Spec(i1="trFF"),
+        ),
+        (
+            "i1-from-part-of-F",
+            "I1 = F_11^2 + F_22^2 + F_33^2 for tr C = sum_ij F_ij^2: the first invariant taken "
+            "from the diagonal of F (C_ii as F_ii^2; exact where F is diagonal)",
+            Spec(i1="diagF"),
+        ),
+    ]
     # The strain measure: only formulas written in E change (the dedupe below drops the rest).
     out += [
         (
