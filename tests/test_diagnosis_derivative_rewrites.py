@@ -168,6 +168,9 @@ def test_no_rewrites_without_a_formula_in_scalar_invariants():
     rewrites = [r for r in rewrites if isinstance(r, StressRewrite)]
     assert {r.invariant for r in rewrites} == {"I1b", "J"}
     assert len({(r.invariant, r.formula) for r in rewrites}) == len(rewrites)
+    volumetric = [r.words for r in rewrites if r.invariant == "J"]
+    assert all("pressure" in w for w in volumetric) and "dW/dJ" in volumetric[0]
+    assert not any("/1)" in r.words for r in rewrites)  # J^(-1), not J^(-1/1)
 
 
 def _mooney_rivlin_kirchhoff(model, power_of_det_b, i1_of_b=False):

@@ -118,6 +118,8 @@ _ISOCHORIC_SCALINGS = (
     ((1, 3), "J^(-1/3) B where J^(-2/3) B belongs (the isochoric factor's power halved)"),
 )
 _DEGREE = {"I1b": 1, "I2b": 2}
+#: What a derivative is called where it has a name of its own in mechanics.
+_ROLE = {"J": " (the volumetric stress: the pressure p = dW/dJ)"}
 
 
 # ------------------------------------------------------------------ kinematics (complex-safe)
@@ -279,7 +281,8 @@ def _whole_rewrites(text: str) -> Iterator[Tuple[str, str]]:
     yield f"{group}/2", "halved"
     yield "0", "left out (that term's stress missing)"
     for a, b in _J_POWERS:
-        yield f"{group}*J**({a}/{b})", f"multiplied by J^({a}/{b})"
+        power = f"{a}" if b == 1 else f"{a}/{b}"
+        yield f"{group}*J**({a}/{b})", f"multiplied by J^({power})"
 
 
 def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
@@ -301,8 +304,9 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
         right = derivative(expression, k)
         if right == "0":
             continue
-        specific = [(t, f"dW/d{k} with {w}") for t, w in _node_rewrites(right, params)]
-        whole = [(t, f"dW/d{k} {w}") for t, w in _whole_rewrites(right)]
+        name = f"dW/d{k}{_ROLE.get(k, '')}"
+        specific = [(t, f"{name} with {w}") for t, w in _node_rewrites(right, params)]
+        whole = [(t, f"{name} {w}") for t, w in _whole_rewrites(right)]
         for text, words in specific + whole:
             if text != right and (k, text) not in seen:
                 seen.add((k, text))
