@@ -118,6 +118,19 @@ _ISOCHORIC_SCALINGS = (
     ((1, 3), "J^(-1/3) B where J^(-2/3) B belongs (the isochoric factor's power halved)"),
 )
 _DEGREE = {"I1b": 1, "I2b": 2}
+#: The C^-1 coefficient of dIkb/dC (J^p factor aside) as engines mistype it: (w, words).
+_PROJECTION_SLIPS = {
+    "I1b": (
+        (-2 / 3, "-2/3 I1 C^-1 (I2b's coefficient)"),
+        (1 / 3, "+1/3 I1 C^-1 (its sign lost)"),
+        (0.0, "0 (left out)"),
+    ),
+    "I2b": (
+        (-1 / 3, "-1/3 I2 C^-1 (I1b's coefficient)"),
+        (2 / 3, "+2/3 I2 C^-1 (its sign lost)"),
+        (0.0, "0 (left out)"),
+    ),
+}
 #: What a derivative is called where it has a name of its own in mechanics.
 _ROLE = {"J": " (the volumetric stress: the pressure p = dW/dJ)"}
 
@@ -325,6 +338,21 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
                 "the isochoric invariant's gradient)",
             )
         )
+    # dIkb/dC = J^(-2 deg/3) (dIk/dC - (deg/3) Ik C^-1): its C^-1 coefficient written w moves
+    # 2 (w + deg/3) dW/dIkb Ikb / J onto dW/dJ (F C^-1 = F^-T, dJ/dF = J F^-T)
+    right_j = derivative(expression, "J") if "J" in used else "0"
+    for k in (k for k in used if k in _DEGREE):
+        deg, psi = _DEGREE[k], derivative(expression, k)
+        for w, how in _PROJECTION_SLIPS[k]:
+            out.append(
+                StressRewrite(
+                    "J",
+                    f"{right_j} + 2*({w} + {deg}/3)*({psi})*{k}/J",
+                    right_j,
+                    f"the C^-1 term of d{k}/dC written {how} where -{deg}/3 {k[:2]} C^-1 belongs "
+                    "(the isochoric projection of the stress)",
+                )
+            )
     isochoric = tuple((k, derivative(expression, k)) for k in used if k in _DEGREE)
     isochoric = tuple((k, d) for k, d in isochoric if d != "0")
     for q, words in _ISOCHORIC_SCALINGS if isochoric else ():
