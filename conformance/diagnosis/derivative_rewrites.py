@@ -312,9 +312,10 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
     used = [k for k in INVARIANTS if k in names]
     if names - set(params) - set(used):
         return []
+    psi = {k: derivative(expression, k) for k in used}
     out, seen = [], set()
     for k in used:
-        right = derivative(expression, k)
+        right = psi[k]
         if right == "0":
             continue
         name = f"dW/d{k}{_ROLE.get(k, '')}"
@@ -327,12 +328,11 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
     if "I2b" in used:
         # dI2b/dF F^T = 2 dev(I1b Bb - Bb^2): the I1b there typed I1 = tr B adds
         # dW/dI2b (I1 - I1b) along dI1b/dF, whose F^T-push is 2 dev(Bb)
-        psi1 = derivative(expression, "I1b") if "I1b" in used else "0"
-        psi2 = derivative(expression, "I2b")
+        psi1 = psi.get("I1b", "0")
         out.append(
             StressRewrite(
                 "I1b",
-                f"{psi1} + ({psi2})*(I1 - I1b)",
+                f"{psi1} + ({psi['I2b']})*(I1 - I1b)",
                 psi1,
                 "the I1b of the I2b stress, dev(I1b Bb - Bb^2), typed I1 = tr B (I1 for I1b in "
                 "the isochoric invariant's gradient)",
@@ -340,21 +340,20 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
         )
     # dIkb/dC = J^(-2 deg/3) (dIk/dC - (deg/3) Ik C^-1): its C^-1 coefficient written w moves
     # 2 (w + deg/3) dW/dIkb Ikb / J onto dW/dJ (F C^-1 = F^-T, dJ/dF = J F^-T)
-    right_j = derivative(expression, "J") if "J" in used else "0"
+    right_j = psi.get("J", "0")
     for k in (k for k in used if k in _DEGREE):
-        deg, psi = _DEGREE[k], derivative(expression, k)
+        deg = _DEGREE[k]
         for w, how in _PROJECTION_SLIPS[k]:
             out.append(
                 StressRewrite(
                     "J",
-                    f"{right_j} + 2*({w} + {deg}/3)*({psi})*{k}/J",
+                    f"{right_j} + 2*({w} + {deg}/3)*({psi[k]})*{k}/J",
                     right_j,
                     f"the C^-1 term of d{k}/dC written {how} where -{deg}/3 {k[:2]} C^-1 belongs "
                     "(the isochoric projection of the stress)",
                 )
             )
-    isochoric = tuple((k, derivative(expression, k)) for k in used if k in _DEGREE)
-    isochoric = tuple((k, d) for k, d in isochoric if d != "0")
+    isochoric = tuple((k, psi[k]) for k in used if k in _DEGREE and psi[k] != "0")
     for q, words in _ISOCHORIC_SCALINGS if isochoric else ():
         for at_scaled in (False, True):
             where = "from them" if at_scaled else "from the right ones"
@@ -379,8 +378,24 @@ def _psi(formula: str, values: Dict[str, Any]) -> Optional[np.ndarray]:
     return v
 
 
+@dataclass(frozen=True, eq=False)  # arrays: compared by identity
+class _Cells:
+    """Per cell of one F (m, 3, 3): the invariants and their gradients dI/dF, shared by every
+    rewrite evaluated at that F.
+    """
+
+    F: np.ndarray
+    inv: Dict[str, np.ndarray]
+    grads: Dict[str, np.ndarray]
+
+    @staticmethod
+    def of(F: np.ndarray) -> "_Cells":
+        inv = invariants(F)
+        return _Cells(F, inv, invariant_gradients(F, inv))
+
+
 @functools.singledispatch
-def _stress_error(rw: Any, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
+def _stress_error(rw: Any, cells: _Cells, params: Dict[str, float]) -> Optional[np.ndarray]:
     """The stress error of the rewrite per cell (m, 3, 3), complex-safe; None where a
     derivative cannot be evaluated.
     """
@@ -388,15 +403,14 @@ def _stress_error(rw: Any, F: np.ndarray, params: Dict[str, float]) -> Optional[
 
 
 @_stress_error.register
-def _(rw: IsochoricScaling, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
-    inv = invariants(F)
+def _(rw: IsochoricScaling, cells: _Cells, params: Dict[str, float]) -> Optional[np.ndarray]:
+    F, inv, grads = cells.F, cells.inv, cells.grads
     values = {**params, **inv}
     a, b = rw.q
     Jq = inv["J"] ** (a / b)
     scaled = dict(values)
     if rw.at_scaled:
         scaled.update({k: inv[k] * Jq**d for k, d in _DEGREE.items()})
-    grads = invariant_gradients(F, inv)
     dP = np.zeros(F.shape, dtype=np.result_type(F, float))
     for k, formula in rw.derivatives:
         new, right = _psi(formula, scaled), _psi(formula, values)
@@ -408,15 +422,14 @@ def _(rw: IsochoricScaling, F: np.ndarray, params: Dict[str, float]) -> Optional
 
 
 @_stress_error.register
-def _(rw: StressRewrite, F: np.ndarray, params: Dict[str, float]) -> Optional[np.ndarray]:
+def _(rw: StressRewrite, cells: _Cells, params: Dict[str, float]) -> Optional[np.ndarray]:
     """(psi_k' - psi_k) dI_k/dF."""
-    inv = invariants(F)
-    values = {**params, **inv}
+    values = {**params, **cells.inv}
     new, right = _psi(rw.formula, values), _psi(rw.right, values)
     if new is None or right is None:
         return None
-    d = np.broadcast_to(np.asarray(new) - np.asarray(right), F.shape[:1])
-    return d[:, None, None] * invariant_gradients(F, inv)[rw.invariant]
+    d = np.broadcast_to(np.asarray(new) - np.asarray(right), cells.F.shape[:1])
+    return d[:, None, None] * cells.grads[rw.invariant]
 
 
 def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
@@ -426,7 +439,7 @@ def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray
     Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)
     Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
     with np.errstate(all="ignore"):
-        dP = _stress_error(rw, Fc.reshape(m * 9, 3, 3), params)
+        dP = _stress_error(rw, _Cells.of(Fc.reshape(m * 9, 3, 3)), params)
     if dP is None:
         return None
     # rows of the copies: (l, L) the perturbed entry; then dP's (k, I)
@@ -477,8 +490,9 @@ def derivative_rewrite_findings(
     if tol.within(errors(f, K, None, f_o, K_o, 0.0, s), energy=False):
         return []
     matches: List[Tuple[Finding, np.ndarray, sp.csr_matrix]] = []
+    at_F = _Cells.of(F)
     for rw in rewrites:
-        dP = _stress_error(rw, F, params)
+        dP = _stress_error(rw, at_F, params)
         if dP is None or not np.all(np.isfinite(dP)):
             continue
         df, _ = assemble(cells, n, piola_element_forces(V0, D, dP), None)

@@ -15,6 +15,7 @@ Nothing here evaluates; :func:`reference_fem.user_energy.evaluate_formula` does.
 from __future__ import annotations
 
 import ast
+import functools
 from typing import Optional
 
 __all__ = ["derivative", "derivative_tree", "number"]
@@ -165,6 +166,7 @@ def _power_derivative(a, b, da, db, name: str) -> ast.expr:
     )
 
 
+@functools.lru_cache(maxsize=256)  # a pure function of two strings; readings ask it per case
 def derivative(expression: str, name: str) -> str:
     """d(expression)/d(name) as a formula in the same syntax (``"0"`` when it does not use the
     name). Raises ValueError for what the syntax does not contain.
