@@ -41,6 +41,7 @@ from conformance.diagnosis.mixed_precision import (
     rounded_elements_reading,
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
+from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
@@ -281,6 +282,13 @@ READINGS: Tuple[Reading, ...] = (
         "3x3 blocks of K stored untransposed",
         _nothing_named,
         lambda d, c: transposed_blocks_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the named storage patterns (transposed blocks, entries not summed), which are
+        # permutations too
+        "the right stiffness values at the wrong entries (values out of order with indices)",
+        _nothing_named,
+        lambda d, c: permuted_values_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "each cell weighted by V0 twice, or the mean volume",

@@ -211,7 +211,10 @@ class RoundoffDifferences:
     off_pattern: fraction of the error on node pairs that share no cell (0 for differences);
     exact_blocks: fraction of K's nonzero 3x3 node blocks whose error is zero to double
     round-off of the block: about 0 for noise (every difference carries round-off), a half or
-    more for a storage mistake (blocks of one triangle, say, transposed: the others exact).
+    more for a storage mistake (blocks of one triangle, say, transposed: the others exact);
+    smallest_step: the spacing of doubles at the median node coordinate [m] (nan: positions
+    unknown). A step below it does not move most nodes at all (x + h == x), so noise that
+    implies such a step is not the round-off of differences: values at the wrong entries, say.
     """
 
     asymmetry: float
@@ -221,11 +224,18 @@ class RoundoffDifferences:
     step: float
     exact_blocks: float = 0.0
     off_pattern: float = 0.0
+    smallest_step: float = float("nan")
+
+    @property
+    def possible_step(self) -> bool:
+        """False when the implied step is below the spacing of doubles at the coordinates."""
+        return not self.step < self.smallest_step
 
     @property
     def holds(self) -> bool:
         return (
-            self.asymmetry > 0.4
+            self.possible_step
+            and self.asymmetry > 0.4
             and self.balance > 0.01
             and self.representable < 0.5
             and self.outside32 > 0.5
@@ -269,6 +279,11 @@ def roundoff_dominated(
     fe = np.linalg.norm(split.fe.reshape(m, -1), axis=1)
     ok = err > 0
     step = float(np.median(_U64 * fe[ok] * np.sqrt(12.0) / err[ok])) if np.any(ok) else np.nan
+    smallest = (
+        float(np.spacing(np.median(np.abs(split.positions))))
+        if split.positions is not None
+        else np.nan
+    )
     return RoundoffDifferences(
         asym,
         balance,
@@ -277,6 +292,7 @@ def roundoff_dominated(
         step,
         exact_node_blocks(D, Ko),
         off_pattern_fraction(split.cells, D),
+        smallest,
     )
 
 
