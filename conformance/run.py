@@ -27,6 +27,7 @@ from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnos
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
+from conformance.diagnosis.energy_alone import energy_alone_reading
 from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
@@ -165,7 +166,9 @@ class CaseReadings:
     and mesh (``kin``: the other states an output may have been computed at), where the energy
     reading keeps the case's term system for the fit over the kit; read_mistakes: a failed case
     that the first diagnosis does not explain and that is not float32 round-off within single
-    precision; read_causes: False for ``--verdict-only``.
+    precision; read_causes: False for ``--verdict-only``; probes: the case's probe cases and
+    probe_results the engine's (positions (n, 3), force (n, 3), energy) at each (empty when a
+    probe's output was unusable).
     """
 
     cache: OracleCache
@@ -177,6 +180,8 @@ class CaseReadings:
     keep_terms: Callable[[Any], None]
     read_mistakes: bool
     read_causes: bool
+    probes: Tuple[KitCase, ...] = ()
+    probe_results: Tuple[tuple, ...] = ()
 
     @property
     def ci(self) -> CaseInput:
@@ -213,6 +218,20 @@ def _nothing_named_but_volumetric(d: Diagnosis, c: CaseReadings) -> bool:
     return c.read_causes and bool(d.causes) and only_volumetric
 
 
+def _energy_alone(d: Diagnosis, c: CaseReadings) -> bool:
+    """Force and stiffness right, an energy given, and either it differs here (the plain
+    "energy" finding, no other cause) or the probes found the force not its derivative.
+    """
+    tol, e = d.tolerances, d.errors
+    if not (c.read_causes and e.force <= tol.force and e.stiffness <= tol.stiffness):
+        return False
+    if c.out.energy is None:
+        return False
+    if any(f.code != "energy" for f in d.causes):
+        return False
+    return any(f.code in ("energy", "inconsistent-force") for f in d.findings)
+
+
 def _force_wrong(d: Diagnosis, c: CaseReadings) -> bool:
     return _nothing_named(d, c) and d.errors.force > d.tolerances.force
 
@@ -245,6 +264,14 @@ def _other_states(d: Diagnosis, c: CaseReadings) -> Diagnosis:
 #: condition holds on the diagnosis so far (most: nothing named yet). The force-right readings
 #: ask first for a known approximation, then for hand-derived terms, then for differences.
 READINGS: Tuple[Reading, ...] = (
+    Reading(
+        "the energy alone wrong, force and stiffness right (a volume weight, a factor, a "
+        "constant, or the energy routine's formula)",
+        _energy_alone,
+        lambda d, c: energy_alone_reading(
+            d, c.cache, c.ci, c.out, c.ref, c.s, c.probes, c.probe_results
+        ),
+    ),
     Reading("another state of the kit", _mistakes_read, _other_states),
     Reading(
         "stiffness entries where the mesh has none (indices wrong)",
@@ -612,6 +639,8 @@ def _run_check(
             ),
             read_mistakes,
             read_causes,
+            tuple(probes),
+            tuple(probe_results) if not probe_errors else (),
         )
         for reading in READINGS:
             if reading.when(diag, case_readings):

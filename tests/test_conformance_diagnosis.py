@@ -317,16 +317,28 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
     names = [r.name for r in READINGS]
     assert len(set(names)) == len(names)
 
-    def running(force_wrong, named=False, headline="unexplained", mistakes=True, causes=True):
-        tol = SimpleNamespace(force=1e-10)
+    def running(
+        force_wrong,
+        named=False,
+        headline="unexplained",
+        mistakes=True,
+        causes=True,
+        energy=None,
+        stiffness_wrong=True,
+    ):
+        tol = SimpleNamespace(force=1e-10, stiffness=1e-10)
         findings = [SimpleNamespace(code=headline)]
         d = SimpleNamespace(
             causes=findings if named else [],
             findings=findings,
-            errors=SimpleNamespace(force=1e-3 if force_wrong else 1e-12),
+            errors=SimpleNamespace(
+                force=1e-3 if force_wrong else 1e-12, stiffness=1e-3 if stiffness_wrong else 1e-12
+            ),
             tolerances=tol,
         )
-        c = SimpleNamespace(read_mistakes=mistakes, read_causes=causes)
+        c = SimpleNamespace(
+            read_mistakes=mistakes, read_causes=causes, out=SimpleNamespace(energy=energy)
+        )
         return [r.name for r in READINGS if r.when(d, c)]
 
     force_right = set(running(False)) - set(running(True))
@@ -351,6 +363,31 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
     # differences, and only with the force right
     assert running(False, named=True, mistakes=False) == [names[-1]]
     assert running(True, named=True, mistakes=False) == []
+    # force and stiffness right and only the energy wrong (here, or by the probes): the energy
+    # reading first; not without an energy, nor for a float32 energy, nor with --verdict-only
+    energy_first = "the energy alone wrong, force and stiffness right"
+    for headline in ("energy", "inconsistent-force"):
+        only_energy = running(
+            False,
+            named=headline == "energy",
+            headline=headline,
+            mistakes=False,
+            energy=1.0,
+            stiffness_wrong=False,
+        )
+        assert only_energy[0].startswith(energy_first), only_energy
+    assert not any(
+        n.startswith(energy_first)
+        for kw in (
+            {"headline": "energy-float32"},
+            {"headline": "energy", "causes": False},
+            {"headline": "energy", "energy": None},
+        )
+        for n in running(
+            False,
+            **{"named": True, "mistakes": False, "energy": 1.0, "stiffness_wrong": False, **kw},
+        )
+    )
     # --verdict-only reads nothing
     assert running(True, mistakes=False, causes=False) == []
     assert running(False, named=True, mistakes=False, causes=False) == []
