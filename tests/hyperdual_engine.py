@@ -151,17 +151,24 @@ def _geometry(points: np.ndarray, cells: np.ndarray):
 Density = Callable[[Any, Namespace, Matrix, Matrix], Any]
 
 
-def density_engine(density: Density, frame_of: Callable[[Any], Any] = lambda model: None):
+def density_engine(
+    density: Density,
+    frame_of: Callable[[Any], Any] = lambda model: None,
+    gradients: Callable[[np.ndarray], np.ndarray] = lambda D: D,
+):
     """An engine ``case -> (f, K, W)`` for the energy density ``density(model, k, F, R)`` (the
     case's model, k the namespace at F, F the hyper-dual deformation gradient, R the cells'
     frames as a Matrix or None), per unit reference volume, on the case's P1 mesh;
-    ``frame_of(model)`` gives the per-cell frames (m, 3, 3) or None (the identity). The force
-    is -dW/dx (docs/conventions.md, "Signs"), the stiffness d2W/dx2.
+    ``frame_of(model)`` gives the per-cell frames (m, 3, 3) or None (the identity);
+    ``gradients(D)`` the shape gradients (m, 4, 3) the engine uses for F, force and matrix in
+    place of the right ones D (a mistake's). The force is -dW/dx (docs/conventions.md,
+    "Signs"), the stiffness d2W/dx2.
     """
 
     def engine(case):
         points, cells = np.asarray(case.points, float), np.asarray(case.cells)
         D, V0 = _geometry(points, cells)
+        D = gradients(D)
         x = np.asarray(case.positions, float).reshape(-1, 3)
         F = np.einsum("mai,mak->mik", x[cells], D)
         R = frame_of(case.model)

@@ -11,6 +11,7 @@ import pytest
 import scipy.sparse as sp
 from conftest import box_mesh, mjed_split
 
+from common.cases import default_material
 from conformance.diagnosis.shape_gradients import shape_gradient_findings
 from conformance.judge.compare import DOUBLE
 from mjed import materials as M
@@ -98,3 +99,47 @@ def test_other_gradient_mistakes_are_not_given_a_node_order():
     f, K = _svk_engine(points, cells, x, lambda D: 1.01 * D[:, [1, 2, 3, 0]])
     assert shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE) == []
     assert shape_gradient_findings(split, model, points, x, f_o, K_o, s, DOUBLE) == []
+
+
+# ---------------------------------------------------------------- gradients that do not sum to 0
+def _node_zero_engine(weights):
+    """Mooney-Rivlin from C (J = sqrt(det C), as an engine that forms W from C has it), with
+    node 0's gradient written sum_b weights[b - 1] D_b; hyper-dual, independent of MJED.
+    """
+    from hyperdual_engine import density_engine, det, ln, sqrt
+
+    def density(model, k, F, R):
+        J = sqrt(det(k.C))
+        I1b = J ** (-2.0 / 3.0) * k.I1
+        I2b = J ** (-4.0 / 3.0) * k.I2
+        return model.c1 * (I1b - 3.0) + model.c2 * (I2b - 3.0) + model.k0 / 2.0 * ln(J) * ln(J)
+
+    def gradients(D):
+        D = D.copy()
+        D[:, 0] = np.einsum("b,mbi->mi", np.asarray(weights), D[:, 1:])
+        return D
+
+    return density_engine(density, gradients=gradients)
+
+
+@pytest.mark.parametrize(
+    "code, weights",
+    [("gradient-0-sign", (1.0, 1.0, 1.0)), ("gradient-0-without-2", (-1.0, 0.0, -1.0))],
+)
+def test_a_node_zero_gradient_written_wrongly_is_named(code, weights):
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.shape_gradients import unbalanced_findings
+
+    model = default_material("MooneyRivlin")
+    points, cells = box_mesh(2, jitter=0.2, seed=5)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T
+    x = x + 0.02 * np.random.default_rng(5).standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    case = SimpleNamespace(points=points, cells=cells, positions=x, model=model)
+    with np.errstate(invalid="ignore"):  # the namespace's own ln(det F') where F' inverts
+        f, K, _ = _node_zero_engine(weights)(case)
+    found = unbalanced_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
+    assert [x.code for x in found] == [code], [x.title for x in found]
+    # the oracle's own output is none of them
+    assert unbalanced_findings(split, model, points, x, f_o, K_o, s, DOUBLE) == []

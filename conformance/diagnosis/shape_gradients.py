@@ -2,6 +2,14 @@
 of M^-1 (M: the cell's rest edge matrix, columns X_a - X_0), e.g. its columns (M^-T, the
 inverse or the edge matrix transposed).
 
+Gradients that do not sum to zero belong to no rest cell: node 0's gradient, which an engine
+forms from the others as D_0 = -(D_1 + D_2 + D_3) (the partition of unity), with its minus
+lost, left out, or one term missing (:data:`NODE_ZERO`). Such an engine forms
+F' = sum_a x_a D'_a^T (no longer blind to a translation), and its force -V0 P(F') D'_a and
+matrix V0 D'_a . A(F') . D'_b; the material at F' comes from MJED on the cells exploded
+(:func:`conformance.diagnosis.routine_inputs.piola_at`; a cell F' inverts is read as an engine
+that forms its energy from C does), nothing fitted.
+
 An engine that uses D'_a (a = 1..3, D'_0 = -sum) for both F = sum_a x_a D'_a^T and its force
 -V0 P D'_a is a correct engine on a cell whose rest edges are the columns of M' with rows of
 M'^-1 = D': for the transposed gradients, M' = M^T. So the hypothesis is tested exactly by
@@ -14,7 +22,7 @@ oracle's (:func:`conformance.diagnosis.elements.element_split`). Cost: one MJED 
 from __future__ import annotations
 
 import itertools
-from typing import Any, Callable, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,6 +37,9 @@ __all__ = [
     "permuted_edges",
     "exploded_output",
     "shape_gradient_findings",
+    "NODE_ZERO",
+    "unbalanced_output",
+    "unbalanced_findings",
     "shape_gradient_reading",
 ]
 
@@ -189,6 +200,130 @@ def shape_gradient_findings(
     return ambiguous(found)
 
 
+#: code -> (words, weights c (3,)): node 0's gradient written D'_0 = sum_b c_b D_b (b = 1..3)
+#: where -(D_1 + D_2 + D_3) belongs; the other three gradients right.
+NODE_ZERO: Dict[str, Tuple[str, Tuple[float, float, float]]] = {
+    "gradient-0-sign": (
+        "the shape-function gradient of local node 0 written D_1 + D_2 + D_3, its minus lost "
+        "(the partition of unity gives D_0 = -(D_1 + D_2 + D_3)): F, force and stiffness wrong",
+        (1.0, 1.0, 1.0),
+    ),
+    "gradient-0-missing": (
+        "the shape-function gradient of local node 0 left zero (never formed from the partition "
+        "of unity D_0 = -(D_1 + D_2 + D_3)): node 0 left out of F, force and stiffness",
+        (0.0, 0.0, 0.0),
+    ),
+    **{
+        f"gradient-0-without-{b}": (
+            f"the shape-function gradient of local node 0 written without D_{b} (the partition "
+            f"of unity D_0 = -(D_1 + D_2 + D_3) with one term lost)",
+            tuple(0.0 if k == b else -1.0 for k in (1, 2, 3)),
+        )
+        for b in (1, 2, 3)
+    },
+}
+
+
+#: Round-off allowed per cell of a prediction at F', in units of kappa(F')^2 (a hundred double
+#: unit round-offs): an engine and the oracle computing at the same ill-conditioned F' agree
+#: no better than that.
+ROUNDOFF = 100 * np.finfo(np.float64).eps
+
+
+def _formed_F(
+    split: ElementSplit, positions: np.ndarray, weights: Tuple[float, float, float]
+) -> Tuple[np.ndarray, np.ndarray]:
+    """(D' (m, 4, 3), F' (m, 3, 3)): the gradients with node 0's written sum_b weights D_b, and
+    the deformation gradient sum_a x_a D'_a^T they form at ``positions`` (n, 3).
+    """
+    D = split.D.copy()
+    D[:, 0] = np.einsum("b,mbi->mi", np.asarray(weights), split.D[:, 1:])
+    return D, np.einsum("mak,mai->mki", positions[split.cells], D)
+
+
+def unbalanced_output(
+    model: Any,
+    points: np.ndarray,
+    split: ElementSplit,
+    positions: np.ndarray,
+    weights: Tuple[float, float, float],
+) -> Optional[Tuple[np.ndarray, sp.csr_matrix, float, float]]:
+    """Force (n, 3) and stiffness of an engine whose node-0 gradient is sum_b weights[b-1] D_b
+    (m, 3) in F, force and matrix, with the round-off floor of each (norms: :data:`ROUNDOFF`
+    kappa(F')^2 times each cell's element vector or matrix); None where the material cannot be
+    evaluated at its F'.
+    """
+    from conformance.diagnosis.elements import piola_element_forces, tangent_element_matrices
+    from conformance.diagnosis.routine_inputs import piola_at
+
+    D, F2 = _formed_F(split, positions, weights)
+    # F' may be inverted (det F' < 0). An engine that forms W from C = F'^T F' (J = sqrt(det
+    # C)) answers there as at the reflected Q F' (Q = diag(-1, 1, 1), the same C): P = Q P(Q F')
+    # and A[H] = Q A(Q F')[Q H]. One that takes J = det F' has no finite answer: no match.
+    q = np.where(np.linalg.det(F2) < 0.0, -1.0, 1.0)
+    Q = np.broadcast_to(np.eye(3), F2.shape).copy()
+    Q[:, 0, 0] = q
+    with np.errstate(all="ignore"):
+        at = piola_at(model, points, split, Q @ F2)
+    if at is None:
+        return None
+    P, A = at
+    P = Q @ P
+    A = np.einsum("mkp,mpilj,mlq->mkiqj", Q, A, Q)
+    fe = piola_element_forces(split.V0, D, P)
+    Ke = tangent_element_matrices(split.V0, D, A)
+    f, K = assemble(split.cells, split.n, fe, Ke)
+    # What any computation at F' leaves to round-off: C = F'^T F' has the condition number
+    # kappa(F')^2, and a cell F' nearly flattens can have kappa in the thousands.
+    cond = np.linalg.cond(F2) ** 2 * ROUNDOFF
+    floor_f = float(np.linalg.norm(cond * np.linalg.norm(fe.reshape(len(fe), -1), axis=1)))
+    floor_K = float(np.linalg.norm(cond * np.linalg.norm(Ke.reshape(len(Ke), -1), axis=1)))
+    return f, K, floor_f, floor_K
+
+
+def unbalanced_findings(
+    split: ElementSplit,
+    model: Any,
+    points: np.ndarray,
+    positions: np.ndarray,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """The node-0 gradient mistakes of :data:`NODE_ZERO` whose output matches the engine's."""
+    found = []
+    for code, (words, weights) in NODE_ZERO.items():
+        out = unbalanced_output(model, points, split, positions, weights)
+        if out is None or not np.all(np.isfinite(out[0])):
+            continue
+        fh, Kh, floor_f, floor_K = out
+        kappa = float(np.max(np.linalg.cond(_formed_F(split, positions, weights)[1])))
+        g = grown(s, fh, Kh)
+        e = errors(np.asarray(f, float), sp.csr_matrix(K), None, fh, Kh, 0.0, g)
+        if not (
+            e.force <= max(tol.force, floor_f / g.force)
+            and e.stiffness <= max(tol.stiffness, floor_K / g.stiffness)
+        ):
+            continue
+        found.append(
+            Finding(
+                code,
+                words,
+                FULL,
+                "the material (MJED, whose sum is the oracle's to "
+                f"{split.residual:.1e} on this case) at the F those gradients form, its force "
+                "and matrix built with them: force error "
+                f"{e.force:.1e}, stiffness error {e.stiffness:.1e} (the round-off a "
+                f"computation at that F' leaves: {floor_f / g.force:.1e} and "
+                f"{floor_K / g.stiffness:.1e}, from the condition number of F' squared, up "
+                f"to {kappa**2:.1e})",
+                {"residual": max(e.force, e.stiffness)},
+            )
+        )
+    return ambiguous(found)
+
+
 def shape_gradient_reading(diag, ci, out, ref, s: Scales):
     """``diag`` (a failed case nothing explained yet) with the mistaken gradients the engine
     matches, named first; unchanged when none does or MJED does not split this case.
@@ -202,6 +337,8 @@ def shape_gradient_reading(diag, ci, out, ref, s: Scales):
     if split is None:
         return diag
     found = shape_gradient_findings(
+        split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
+    ) or unbalanced_findings(
         split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
     )
     if not found:
