@@ -42,6 +42,7 @@ from conformance.diagnosis.mixed_precision import (
     rounded_elements_reading,
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
+from conformance.diagnosis.node_blocks import node_block_reading
 from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
@@ -316,6 +317,12 @@ READINGS: Tuple[Reading, ...] = (
         "the right stiffness values at the wrong entries (values out of order with indices)",
         _nothing_named,
         lambda d, c: permuted_values_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "vertex and edge blocks of K scaled apart (an edge added from both orientations, the "
+        "vertex blocks twice or left out)",
+        _nothing_named,
+        lambda d, c: node_block_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "each cell weighted by V0 twice, or the mean volume",
