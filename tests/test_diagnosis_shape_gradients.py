@@ -129,7 +129,7 @@ def _node_zero_engine(weights):
 def test_a_node_zero_gradient_written_wrongly_is_named(code, weights):
     from types import SimpleNamespace
 
-    from conformance.diagnosis.shape_gradients import unbalanced_findings
+    from conformance.diagnosis.shape_gradients import gradient_slip_findings
 
     model = default_material("MooneyRivlin")
     points, cells = box_mesh(2, jitter=0.2, seed=5)
@@ -139,7 +139,24 @@ def test_a_node_zero_gradient_written_wrongly_is_named(code, weights):
     case = SimpleNamespace(points=points, cells=cells, positions=x, model=model)
     with np.errstate(invalid="ignore"):  # the namespace's own ln(det F') where F' inverts
         f, K, _ = _node_zero_engine(weights)(case)
-    found = unbalanced_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
+    found = gradient_slip_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
     assert [x.code for x in found] == [code], [x.title for x in found]
     # the oracle's own output is none of them
-    assert unbalanced_findings(split, model, points, x, f_o, K_o, s, DOUBLE) == []
+    assert gradient_slip_findings(split, model, points, x, f_o, K_o, s, DOUBLE) == []
+
+
+def test_gradients_and_volumes_from_the_current_positions_are_named():
+    """An engine initialised on the deformed state: its rest geometry is the current one."""
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.shape_gradients import gradient_slip_findings
+
+    model = default_material("MooneyRivlin")
+    points, cells = box_mesh(2, jitter=0.2, seed=6)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T
+    x = x + 0.02 * np.random.default_rng(6).standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    deformed_as_rest = SimpleNamespace(points=x, cells=cells, positions=x, model=model)
+    f, K, _ = _node_zero_engine((-1.0, -1.0, -1.0))(deformed_as_rest)  # node 0 right here
+    found = gradient_slip_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
+    assert [x.code for x in found] == ["gradients-current-volume"], [x.title for x in found]

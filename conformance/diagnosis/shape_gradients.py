@@ -4,7 +4,8 @@ inverse or the edge matrix transposed).
 
 Gradients that do not sum to zero belong to no rest cell: node 0's gradient, which an engine
 forms from the others as D_0 = -(D_1 + D_2 + D_3) (the partition of unity), with its minus
-lost, left out, or one term missing (:data:`NODE_ZERO`). Such an engine forms
+lost, left out, or one term missing, and gradients built from the current positions
+(:data:`GRADIENT_SLIPS`). Such an engine forms
 F' = sum_a x_a D'_a^T (no longer blind to a translation), and its force -V0 P(F') D'_a and
 matrix V0 D'_a . A(F') . D'_b; the material at F' comes from MJED on the cells exploded
 (:func:`conformance.diagnosis.routine_inputs.piola_at`; a cell F' inverts is read as an engine
@@ -22,6 +23,7 @@ oracle's (:func:`conformance.diagnosis.elements.element_split`). Cost: one MJED 
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -37,9 +39,10 @@ __all__ = [
     "permuted_edges",
     "exploded_output",
     "shape_gradient_findings",
-    "NODE_ZERO",
-    "unbalanced_output",
-    "unbalanced_findings",
+    "GRADIENT_SLIPS",
+    "GradientOutput",
+    "gradient_output",
+    "gradient_slip_findings",
     "shape_gradient_reading",
 ]
 
@@ -200,68 +203,109 @@ def shape_gradient_findings(
     return ambiguous(found)
 
 
-#: code -> (words, weights c (3,)): node 0's gradient written D'_0 = sum_b c_b D_b (b = 1..3)
-#: where -(D_1 + D_2 + D_3) belongs; the other three gradients right.
-NODE_ZERO: Dict[str, Tuple[str, Tuple[float, float, float]]] = {
+Gradients = Callable[[ElementSplit, np.ndarray], Tuple[np.ndarray, np.ndarray]]
+
+
+def _node_zero(weights: Tuple[float, float, float]) -> Gradients:
+    """(split, x) -> (D', V'): node 0's gradient written sum_b weights[b - 1] D_b (b = 1..3),
+    the other three and the rest volumes right.
+    """
+
+    def gradients(split: ElementSplit, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        D = split.D.copy()
+        D[:, 0] = np.einsum("b,mbi->mi", np.asarray(weights), split.D[:, 1:])
+        return D, split.V0
+
+    return gradients
+
+
+def _current(volume: bool) -> Gradients:
+    """(split, x) -> (D', V'): the gradients of the deformed cells (their edge matrices at x
+    inverted); the volumes the rest ones, or (``volume``) the deformed ones too.
+    """
+
+    def gradients(split: ElementSplit, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        from conformance.diagnosis.elements import cell_kinematics
+
+        v, D, _ = cell_kinematics(x, split.cells, x)
+        return D, (v if volume else split.V0)
+
+    return gradients
+
+
+#: code -> (words, (split, x) -> (D' (m, 4, 3), V' (m,))): gradients (and volumes) an engine
+#: uses for F, its force and its matrix in place of the rest ones.
+GRADIENT_SLIPS: Dict[str, Tuple[str, Gradients]] = {
     "gradient-0-sign": (
         "the shape-function gradient of local node 0 written D_1 + D_2 + D_3, its minus lost "
         "(the partition of unity gives D_0 = -(D_1 + D_2 + D_3)): F, force and stiffness wrong",
-        (1.0, 1.0, 1.0),
+        _node_zero((1.0, 1.0, 1.0)),
     ),
     "gradient-0-missing": (
         "the shape-function gradient of local node 0 left zero (never formed from the partition "
         "of unity D_0 = -(D_1 + D_2 + D_3)): node 0 left out of F, force and stiffness",
-        (0.0, 0.0, 0.0),
+        _node_zero((0.0, 0.0, 0.0)),
     ),
     **{
         f"gradient-0-without-{b}": (
             f"the shape-function gradient of local node 0 written without D_{b} (the partition "
             f"of unity D_0 = -(D_1 + D_2 + D_3) with one term lost)",
-            tuple(0.0 if k == b else -1.0 for k in (1, 2, 3)),
+            _node_zero(tuple(0.0 if k == b else -1.0 for k in (1, 2, 3))),
         )
         for b in (1, 2, 3)
     },
+    "gradients-current": (
+        "shape-function gradients computed from the current positions instead of the rest "
+        "configuration (the deformed edge matrix inverted, e.g. an init() run after the state "
+        "is loaded), the rest volumes kept: F = I in every cell, so the force is the rest "
+        "state's (zero) and the stiffness the rest tangent on the deformed cells",
+        _current(volume=False),
+    ),
+    "gradients-current-volume": (
+        "shape-function gradients and cell volumes computed from the current positions instead "
+        "of the rest configuration (e.g. an init() run after the state is loaded): F = I in "
+        "every cell, so the force is the rest state's (zero) and the stiffness the rest tangent "
+        "on the deformed cells",
+        _current(volume=True),
+    ),
 }
-
 
 #: Round-off allowed per cell of a prediction at F', in units of kappa(F')^2 (a hundred double
 #: unit round-offs): an engine and the oracle computing at the same ill-conditioned F' agree
 #: no better than that.
 ROUNDOFF = 100 * np.finfo(np.float64).eps
 
-
 #: A prediction whose round-off floor exceeds this share of its own size tells nothing (cells
 #: F' nearly flattens, or an energy that overflows there): the hypothesis is not tried.
 UNTESTABLE = 1e-4
 
 
-def _formed_F(
-    split: ElementSplit, positions: np.ndarray, weights: Tuple[float, float, float]
-) -> Tuple[np.ndarray, np.ndarray]:
-    """(D' (m, 4, 3), F' (m, 3, 3)): the gradients with node 0's written sum_b weights D_b, and
-    the deformation gradient sum_a x_a D'_a^T they form at ``positions`` (n, 3).
+@dataclass(frozen=True)
+class GradientOutput:
+    """An engine's force f (n, 3) and stiffness K with the slipped gradients, the round-off
+    floors of each (norms: :data:`ROUNDOFF` kappa(F')^2 times each cell's element vector or
+    matrix) and the largest kappa(F').
     """
-    D = split.D.copy()
-    D[:, 0] = np.einsum("b,mbi->mi", np.asarray(weights), split.D[:, 1:])
-    return D, np.einsum("mak,mai->mki", positions[split.cells], D)
+
+    f: np.ndarray
+    K: sp.csr_matrix
+    floor_f: float
+    floor_K: float
+    kappa: float
 
 
-def unbalanced_output(
-    model: Any,
-    points: np.ndarray,
-    split: ElementSplit,
-    positions: np.ndarray,
-    weights: Tuple[float, float, float],
-) -> Optional[Tuple[np.ndarray, sp.csr_matrix, float, float]]:
-    """Force (n, 3) and stiffness of an engine whose node-0 gradient is sum_b weights[b-1] D_b
-    (m, 3) in F, force and matrix, with the round-off floor of each (norms: :data:`ROUNDOFF`
-    kappa(F')^2 times each cell's element vector or matrix); None where the material cannot be
-    evaluated at its F'.
+def gradient_output(
+    model: Any, points: np.ndarray, split: ElementSplit, x: np.ndarray, gradients: Gradients
+) -> Optional[GradientOutput]:
+    """The output of an engine that forms F' = sum_a x_a D'_a^T, its force -V' P(F') D'_a and
+    matrix V' D'_a . A(F') . D'_b with (D', V') = gradients(split, x); None where the material
+    cannot be evaluated at F' or the result is not finite.
     """
     from conformance.diagnosis.elements import piola_element_forces, tangent_element_matrices
     from conformance.diagnosis.routine_inputs import piola_at
 
-    D, F2 = _formed_F(split, positions, weights)
+    D, V = gradients(split, x)
+    F2 = np.einsum("mak,mai->mki", x[split.cells], D)
     # F' may be inverted (det F' < 0). An engine that forms W from C = F'^T F' (J = sqrt(det
     # C)) answers there as at the reflected Q F' (Q = diag(-1, 1, 1), the same C): P = Q P(Q F')
     # and A[H] = Q A(Q F')[Q H]. One that takes J = det F' has no finite answer: no match.
@@ -270,23 +314,26 @@ def unbalanced_output(
     Q[:, 0, 0] = q
     with np.errstate(all="ignore"):
         at = piola_at(model, points, split, Q @ F2)
-    if at is None:
-        return None
-    P, A = at
-    P = Q @ P
-    A = np.einsum("mkp,mpilj,mlq->mkiqj", Q, A, Q)
-    fe = piola_element_forces(split.V0, D, P)
-    Ke = tangent_element_matrices(split.V0, D, A)
-    f, K = assemble(split.cells, split.n, fe, Ke)
-    # What any computation at F' leaves to round-off: C = F'^T F' has the condition number
-    # kappa(F')^2, and a cell F' nearly flattens can have kappa in the thousands.
-    cond = np.linalg.cond(F2) ** 2 * ROUNDOFF
-    floor_f = float(np.linalg.norm(cond * np.linalg.norm(fe.reshape(len(fe), -1), axis=1)))
-    floor_K = float(np.linalg.norm(cond * np.linalg.norm(Ke.reshape(len(Ke), -1), axis=1)))
-    return f, K, floor_f, floor_K
+        if at is None:
+            return None
+        P, A = at
+        P = Q @ P
+        A = np.einsum("mkp,mpilj,mlq->mkiqj", Q, A, Q)
+        fe = piola_element_forces(V, D, P)
+        Ke = tangent_element_matrices(V, D, A)
+        if not (np.all(np.isfinite(fe)) and np.all(np.isfinite(Ke))):
+            return None
+        f, K = assemble(split.cells, split.n, fe, Ke)
+        # What any computation at F' leaves to round-off: C = F'^T F' has the condition number
+        # kappa(F')^2, and a cell F' nearly flattens can have kappa in the thousands.
+        kappa = np.linalg.cond(F2)
+        cond = kappa**2 * ROUNDOFF
+        floor_f = float(np.linalg.norm(cond * np.linalg.norm(fe.reshape(len(fe), -1), axis=1)))
+        floor_K = float(np.linalg.norm(cond * np.linalg.norm(Ke.reshape(len(Ke), -1), axis=1)))
+    return GradientOutput(f, K, floor_f, floor_K, float(np.max(kappa)))
 
 
-def unbalanced_findings(
+def gradient_slip_findings(
     split: ElementSplit,
     model: Any,
     points: np.ndarray,
@@ -296,23 +343,26 @@ def unbalanced_findings(
     s: Scales,
     tol: Tolerances,
 ) -> List[Finding]:
-    """The node-0 gradient mistakes of :data:`NODE_ZERO` whose output matches the engine's."""
+    """The slips of :data:`GRADIENT_SLIPS` whose output matches the engine's (several:
+    ambiguous); not the oracle's own output.
+    """
     found = []
-    for code, (words, weights) in NODE_ZERO.items():
-        out = unbalanced_output(model, points, split, positions, weights)
-        if out is None or not (np.all(np.isfinite(out[0])) and np.all(np.isfinite(out[1].data))):
+    f = np.asarray(f, dtype=np.float64)
+    K = sp.csr_matrix(K)
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    for code, (words, gradients) in GRADIENT_SLIPS.items():
+        out = gradient_output(model, points, split, positions, gradients)
+        if out is None:
             continue
-        fh, Kh, floor_f, floor_K = out
-        kappa = float(np.max(np.linalg.cond(_formed_F(split, positions, weights)[1])))
-        g = grown(s, fh, Kh)
-        if not (floor_f / g.force <= UNTESTABLE and floor_K / g.stiffness <= UNTESTABLE):
-            continue  # round-off (or overflow) at that F' leaves nothing to compare
-        e = errors(np.asarray(f, float), sp.csr_matrix(K), None, fh, Kh, 0.0, g)
-        if not (
-            e.force <= max(tol.force, floor_f / g.force)
-            and e.stiffness <= max(tol.stiffness, floor_K / g.stiffness)
-        ):
+        g = grown(s, out.f, out.K)
+        room_f, room_K = out.floor_f / g.force, out.floor_K / g.stiffness
+        if not (room_f <= UNTESTABLE and room_K <= UNTESTABLE):
+            continue  # round-off at that F' leaves nothing to compare
+        e = errors(f, K, None, out.f, out.K, 0.0, g)
+        if not (e.force <= max(tol.force, room_f) and e.stiffness <= max(tol.stiffness, room_K)):
             continue
+        if tol.within(errors(out.f, out.K, None, f0, K0, 0.0, g), energy=False):
+            continue  # the slip changes nothing on this state: no evidence
         found.append(
             Finding(
                 code,
@@ -322,9 +372,8 @@ def unbalanced_findings(
                 f"{split.residual:.1e} on this case) at the F those gradients form, its force "
                 "and matrix built with them: force error "
                 f"{e.force:.1e}, stiffness error {e.stiffness:.1e} (the round-off a "
-                f"computation at that F' leaves: {floor_f / g.force:.1e} and "
-                f"{floor_K / g.stiffness:.1e}, from the condition number of F' squared, up "
-                f"to {kappa**2:.1e})",
+                f"computation at that F' leaves: {room_f:.1e} and {room_K:.1e}, from the "
+                f"condition number of F' squared, up to {out.kappa**2:.1e})",
                 {"residual": max(e.force, e.stiffness)},
             )
         )
@@ -345,7 +394,7 @@ def shape_gradient_reading(diag, ci, out, ref, s: Scales):
         return diag
     found = shape_gradient_findings(
         split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
-    ) or unbalanced_findings(
+    ) or gradient_slip_findings(
         split, ci.model, ci.points, ci.positions, out.force, out.stiffness, s, tol
     )
     if not found:
