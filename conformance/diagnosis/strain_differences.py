@@ -123,6 +123,12 @@ class StrainDifferenceFit:
     kind: str = "strain"
 
     def words(self) -> str:
+        if self.kind == "directional":
+            return (
+                f"{self.scheme} differences of the stress S along each node's strain direction "
+                f"H (the elasticity tensor applied to H as (S(E + h H) - S(E)) / h, i.e. "
+                f"S(C + 2 h H)), step h = {self.step:.2e}"
+            )
         if self.kind == "first-elasticity":
             return (
                 f"{self.scheme} differences of the first Piola stress P in each component of F "
@@ -184,6 +190,11 @@ _EVIDENCE = {
         "(eps/2) tau''_kl / J in column kl of the spatial tangent, tau'' the oracle's Kirchhoff "
         "stress differentiated twice along the perturbation",
     ),
+    "directional": (
+        "directional-finite-difference",
+        "(h/2) dCC[H][H] in the stress change along each node dof's strain direction H, from "
+        "the oracle's tangent differentiated in the strain",
+    ),
     "first-elasticity": (
         "first-elasticity-finite-difference",
         "(h/2) d2P_kI/dF_lL^2 in column lL of A = dP/dF, from the oracle's first Piola stress "
@@ -192,7 +203,12 @@ _EVIDENCE = {
 }
 
 #: kind -> the tangent it is, in words
-_TANGENT = {"strain": "material", "perturbation": "spatial", "first-elasticity": "first elasticity"}
+_TANGENT = {
+    "strain": "material",
+    "perturbation": "spatial",
+    "first-elasticity": "first elasticity",
+    "directional": "material",
+}
 
 
 def strain_difference_reading(diag, ci, out, ref, s):
@@ -237,6 +253,11 @@ def strain_difference_reading(diag, ci, out, ref, s):
         Bp = piola_basis(ci.model, split, ci.points)
         if Bp is not None:
             fits.append(fit_step(Bp, D, K_o, "first-elasticity"))
+        if not any(f is not None and f.explained >= EXPLAINED for f in fits):
+            # the tangent applied to each direction by differences along it
+            from conformance.diagnosis.directional_differences import directional_findings
+
+            fits += [fit for _, fit in directional_findings(ci.model, split, ci.points, D, K_o)]
     found = []
     for fit in fits:
         if fit is None or fit.explained < EXPLAINED:
