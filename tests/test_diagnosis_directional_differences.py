@@ -25,8 +25,11 @@ def _second_piola(model, points, split, C):
     return np.linalg.solve(U, P)
 
 
-def _difference_engine(model, points, split, h):
-    """K of an engine whose material part is (S(C + 2 h H) - S(C)) / h along each H_bl."""
+def _difference_engine(model, points, split, h, central=False, mirrored=False):
+    """K of an engine whose material part is (S(C + 2 h H) - S(C)) / h along each H_bl, or
+    (``central``) (S(C + 2 h H) - S(C - 2 h H)) / (2 h); ``mirrored``: each cell's blocks of
+    local pairs a > b written as the transposes of those of a < b (an edge-based engine).
+    """
     F, D, V0 = split.F, split.D, split.V0
     C = np.swapaxes(F, 1, 2) @ F
     S = _second_piola(model, points, split, C)
@@ -36,8 +39,15 @@ def _difference_engine(model, points, split, h):
         for ll in range(3):
             FtdF = np.einsum("mi,mj->mij", F[:, ll, :], D[:, b, :])
             H = 0.5 * (FtdF + np.swapaxes(FtdF, 1, 2))
-            dS = (_second_piola(model, points, split, C + 2 * h * H) - S) / h
+            if central:
+                minus = _second_piola(model, points, split, C - 2 * h * H)
+                dS = (_second_piola(model, points, split, C + 2 * h * H) - minus) / (2 * h)
+            else:
+                dS = (_second_piola(model, points, split, C + 2 * h * H) - S) / h
             Ke[:, :, :, b, ll] += np.einsum("m,mkI,mIJ,maJ->mak", V0, F, dS, D)
+    if mirrored:
+        a, b = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+        Ke = np.where((a > b)[None, :, None, :, None], Ke.transpose(0, 3, 4, 1, 2), Ke)
     return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))[1]
 
 
@@ -63,3 +73,17 @@ def test_a_tangent_part_scaled_is_not_a_directional_difference():
     split, f_o, K_o, s = mjed_split(model, points, cells, x)
     K = sp.csr_matrix(K_o) * (1 + 1e-6) + 1e-6 * sp.diags(sp.csr_matrix(K_o).diagonal())
     assert directional_findings(model, split, points, (K - K_o).tocsr(), K_o) == []
+
+
+def test_central_differences_in_an_edge_based_engine_are_fitted_with_their_step():
+    model = default_material("ArrudaBoyce")
+    points, cells = box_mesh(2, jitter=0.2, seed=9)
+    x = points @ np.diag([1.2, 0.92, 0.9]).T
+    x = x + 0.02 * np.random.default_rng(9).standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    K = _difference_engine(model, points, split, 5e-4, central=True, mirrored=True)
+    found = directional_findings(model, split, points, (K - sp.csr_matrix(K_o)).tocsr(), K_o)
+    assert found, "not fitted"
+    assembly, fit = found[0]
+    assert assembly == "upper" and fit.scheme == "central", found
+    assert abs(fit.step / 5e-4 - 1) < 2e-2 and fit.explained > 0.99, fit

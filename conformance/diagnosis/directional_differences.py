@@ -14,8 +14,11 @@ dD_AB/d(eps_C) per cell), assembled per cell as V0 (F dS_err(H_bl) D_a)_k in row
 (b, l), and the step fitted with one unknown. An edge-based engine computes one block of each
 node pair and writes the other as its transpose, so the error is assembled three ways (every
 block; the blocks above the local diagonal mirrored; those below mirrored) and the best fit
-kept. Named, partly explaining (round-off and the higher orders are left), when it accounts for
-99 % of the stiffness error, as the other difference readings are.
+kept. Central differences, (S(E + h H) - S(E - h H)) / (2 h), err by h^2 times the third
+derivative: that error is measured per unit h^2 by simulating the scheme with a larger step
+(:data:`CENTRAL_PROBE`, the stress from MJED at each moved C) against the exact change from the
+oracle's tangent, and h^2 fitted. Named, partly explaining (round-off and the higher orders are
+left), when it accounts for 99 % of the stiffness error, as the other difference readings are.
 """
 
 from __future__ import annotations
@@ -63,11 +66,7 @@ def direction_errors(split: ElementSplit, dD: np.ndarray) -> np.ndarray:
     along each node dof's direction H_bl = sym(F^T e_l D_b^T), indexed [cell, b, l, i, j];
     dD: (m, 6, 6, 6) dD_AB/d(eps_C).
     """
-    F, D = split.F, split.D
-    # dF = e_l D_b^T, F^T dF = F[l, :]^T D_b (rows of F as the column of F^T): (m, 4, 3, 3, 3)
-    FtdF = np.einsum("mli,mbj->mblij", F, D)
-    H = 0.5 * (FtdF + np.swapaxes(FtdF, -1, -2))
-    h = _voigt_of(H)  # (m, 4, 3, 6)
+    h = _voigt_of(_directions(split))  # (m, 4, 3, 6)
     err = 0.5 * np.einsum("mABC,mblB,mblC->mblA", dD, h, h)
     return _tensor_of(err)
 
@@ -86,21 +85,89 @@ def directional_basis(split: ElementSplit, dS: np.ndarray, assembly: str) -> sp.
     return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))[1]
 
 
+#: The step in E of the simulated central differences that give the central scheme's leading
+#: error per unit h^2 (its O(h^4) rest is 1e-6 of it; its round-off u |S| / h, 1e-13 of S).
+CENTRAL_PROBE = 1e-3
+
+
+def _directions(split: ElementSplit) -> np.ndarray:
+    """(m, 4, 3, 3, 3): H_bl = sym(F^T e_l D_b^T) per cell, node b and component l."""
+    FtdF = np.einsum("mli,mbj->mblij", split.F, split.D)
+    return 0.5 * (FtdF + np.swapaxes(FtdF, -1, -2))
+
+
+def _second_piola(model, points: np.ndarray, split: ElementSplit, C: np.ndarray):
+    """(m, 3, 3) the material's S at right Cauchy-Green tensors C (m, 3, 3) through F = sqrt(C)
+    (MJED on the cells exploded); None where it cannot.
+    """
+    from conformance.diagnosis.routine_inputs import piola_at
+
+    w, V = np.linalg.eigh(C)
+    if np.any(w <= 0.0):
+        return None
+    U = np.einsum("mij,mj,mkj->mik", V, np.sqrt(w), V)
+    at = piola_at(model, points, split, U, stiffness=False)
+    return None if at is None else np.linalg.solve(U, at[0])
+
+
+def central_errors(model, split: ElementSplit, points: np.ndarray) -> Optional[np.ndarray]:
+    """(m, 4, 3, 3, 3): the central scheme's error per unit h^2 in the stress change along
+    each H_bl, (S(C + 2 h H) - S(C - 2 h H)) / (2 h) - dS(H) at h = :data:`CENTRAL_PROBE`,
+    divided by h^2; dS(H) exact from the oracle's tangent (F^-1 (A[dF] - dF S)). None where the
+    material cannot be evaluated.
+    """
+    from conformance.diagnosis.elements import cell_piola
+
+    P, A = cell_piola(split)
+    F, D = split.F, split.D
+    Fi = np.linalg.inv(F)
+    S = Fi @ P
+    H = _directions(split)
+    h = CENTRAL_PROBE
+    C = np.swapaxes(F, 1, 2) @ F
+    out = np.empty_like(H)
+    for b in range(4):
+        for ll in range(3):
+            plus = _second_piola(model, points, split, C + 2 * h * H[:, b, ll])
+            minus = _second_piola(model, points, split, C - 2 * h * H[:, b, ll])
+            if plus is None or minus is None:
+                return None
+            dF = np.zeros_like(F)
+            dF[:, ll, :] = D[:, b, :]
+            exact = Fi @ (np.einsum("mkilj,mlj->mki", A, dF) - dF @ S)
+            out[:, b, ll] = ((plus - minus) / (2 * h) - exact) / h**2
+    return out
+
+
 def directional_findings(
     model, split: ElementSplit, points: np.ndarray, D: sp.csr_matrix, K_o: sp.csr_matrix
 ) -> List[Tuple[str, StrainDifferenceFit]]:
     """(assembly, fit) of the directional forward (or backward) differences that account for
     :data:`EXPLAINED` of D = K - K_o, best first; empty when none does.
     """
-    dD = strain_derivatives(model, split, points)
-    if dD is None or not np.all(np.isfinite(dD)):
-        return []
-    dS = direction_errors(split, dD)
     out = []
-    for assembly in ASSEMBLIES:
-        fit: Optional[StrainDifferenceFit] = fit_step(
-            directional_basis(split, dS, assembly), D, K_o, "directional"
-        )
-        if fit is not None and fit.explained >= EXPLAINED:
-            out.append((assembly, fit))
+    dD = strain_derivatives(model, split, points)
+    if dD is not None and np.all(np.isfinite(dD)):
+        dS = direction_errors(split, dD)
+        for assembly in ASSEMBLIES:
+            fit: Optional[StrainDifferenceFit] = fit_step(
+                directional_basis(split, dS, assembly), D, K_o, "directional"
+            )
+            if fit is not None and fit.explained >= EXPLAINED:
+                out.append((assembly, fit))
+    if not out:  # central differences: the error quadratic in the step
+        dS = central_errors(model, split, points)
+        if dS is not None and np.all(np.isfinite(dS)):
+            for assembly in ASSEMBLIES:
+                fit = fit_step(directional_basis(split, dS, assembly), D, K_o, "directional")
+                # fitted: h^2, which must be positive
+                if fit is not None and fit.scheme == "forward" and fit.explained >= EXPLAINED:
+                    central = StrainDifferenceFit(
+                        "central",
+                        float(np.sqrt(fit.step)),
+                        fit.explained,
+                        fit.residual,
+                        "directional",
+                    )
+                    out.append((assembly, central))
     return sorted(out, key=lambda af: -af[1].explained)

@@ -124,10 +124,15 @@ class StrainDifferenceFit:
 
     def words(self) -> str:
         if self.kind == "directional":
+            quotient = (
+                "(S(E + h H) - S(E - h H)) / (2 h)"
+                if self.scheme == "central"
+                else "(S(E + h H) - S(E)) / h"
+            )
             return (
                 f"{self.scheme} differences of the stress S along each node's strain direction "
-                f"H (the elasticity tensor applied to H as (S(E + h H) - S(E)) / h, i.e. "
-                f"S(C + 2 h H)), step h = {self.step:.2e}"
+                f"H (the elasticity tensor applied to H as {quotient}, C moved by 2 h H), "
+                f"step h = {self.step:.2e} in E"
             )
         if self.kind == "first-elasticity":
             return (
