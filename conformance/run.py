@@ -25,6 +25,7 @@ from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
+from conformance.diagnosis.edge_ids import edge_id_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.energy_alone import energy_alone_reading
@@ -323,6 +324,12 @@ READINGS: Tuple[Reading, ...] = (
         "vertex blocks twice or left out)",
         _nothing_named,
         lambda d, c: node_block_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "an edge-based engine's table of edge ids read in the other layout (pair-major as "
+        "cell-major, or back)",
+        _nothing_named,
+        lambda d, c: edge_id_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "each cell weighted by V0 twice, or the mean volume",
