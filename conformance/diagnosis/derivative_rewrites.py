@@ -14,7 +14,7 @@ off by one or with its sign lost, a parameter left out or another one used, an i
 its isochoric version or the other way round; and psi_k as a whole with its sign flipped,
 doubled, halved, dropped or multiplied by a power of J. Each rewrite predicts, per cell, the
 stress P' = P + (psi_k' - psi_k) dI_k/dF, hence the force, with nothing fitted; the stiffness is
-predicted three ways, as engines make it:
+predicted four ways, as engines make it:
 
 - the derivative of that force (a complex step or differences of the stress routine, a tangent
   derived from the same wrong psi_k): exact, by complex step of P' - P;
@@ -22,7 +22,10 @@ predicted three ways, as engines make it:
   separately and right);
 - the oracle's plus the geometric part of the stress error, (D_a . dS D_b) Id with dS = F^-1 dP
   (a total-Lagrangian or force-field engine whose material tangent is its own formula, right, and
-  whose geometric stiffness uses its wrong S).
+  whose geometric stiffness uses its wrong S);
+- the derivative of that force computed for each cell's local node pairs a <= b and the blocks
+  of b > a written as their transposes (an edge-based engine): the stress error's tangent is
+  not symmetric, since that stress derives from no energy.
 
 A rewrite is named when the engine's energy agrees with the oracle's (or the engine gives none)
 and one of its predictions brings force and stiffness within the case's tolerance, while the
@@ -44,6 +47,7 @@ import scipy.sparse as sp
 from conformance.diagnosis.elements import (
     assemble,
     cell_kinematics,
+    mirrored_pairs,
     piola_element_forces,
     tangent_element_matrices,
 )
@@ -456,6 +460,11 @@ _TANGENTS = (
     ("consistent", "its stiffness the derivative of that force"),
     ("oracle", "its stiffness the energy's own (right)"),
     ("geometric", "its geometric stiffness from that stress, its material tangent right"),
+    (
+        "mirrored",
+        "its stiffness the derivative of that force computed for each cell's local node pairs "
+        "a <= b, the blocks of b > a written as their transposes (an edge-based engine)",
+    ),
 )
 
 
@@ -499,19 +508,24 @@ def derivative_rewrite_findings(
         f_p = f_o + df
         if safe_norm(np.asarray(f) - f_p) > tol.force * s.force:
             continue
+        consistent = None  # the stress error's tangent, computed once per rewrite
         for how, words in _TANGENTS:
             if how == "oracle":
                 K_p = K_o
             else:
-                A = (
-                    _stress_error_tangent(rw, F, params)
-                    if how == "consistent"
-                    else _geometric(dP, F)
-                )
+                if how in ("consistent", "mirrored") and consistent is None:
+                    consistent = _stress_error_tangent(rw, F, params)
+                A = consistent if how in ("consistent", "mirrored") else _geometric(dP, F)
                 if A is None or not np.all(np.isfinite(A)):
                     continue
                 zero = np.zeros((cells.shape[0], 4, 3))
-                K_p = K_o + assemble(cells, n, zero, tangent_element_matrices(V0, D, A))[1]
+                Ke = tangent_element_matrices(V0, D, A)
+                if how == "mirrored":
+                    # the stress error's tangent is not symmetric (that stress derives from
+                    # no energy): an engine that mirrors one triangle of a cell's blocks has
+                    # the computed triangle's error in both
+                    Ke = mirrored_pairs(Ke, "upper")
+                K_p = K_o + assemble(cells, n, zero, Ke)[1]
             if tol.within(errors(f_p, K_p, None, f_o, K_o, 0.0, s), energy=False):
                 continue  # the oracle's answer here: this state shows nothing of it
             e = errors(f, K, None, f_p, K_p, 0.0, s)

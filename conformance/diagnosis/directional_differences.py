@@ -28,7 +28,7 @@ from typing import List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, mirrored_pairs
 from conformance.diagnosis.strain_differences import (
     EXPLAINED,
     VOIGT,
@@ -75,14 +75,11 @@ def directional_basis(split: ElementSplit, dS: np.ndarray, assembly: str) -> sp.
     """The assembled stiffness change V0 (F dS[b, l] D_a)_k (rows (a, k), columns (b, l)) of
     per-direction stress changes dS (m, 4, 3, 3, 3), filled as ``assembly`` says.
     """
-    Ke = np.einsum("m,mkI,mblIJ,maJ->makbl", split.V0, split.F, dS, split.D)  # (m,4,3,4,3)
-    if assembly != "every":
-        a, b = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
-        written = a > b if assembly == "upper" else a < b  # the transposed ones
-        mirrored = Ke.transpose(0, 3, 4, 1, 2)  # [m, a, k, b, l] = Ke[m, b, l, a, k]
-        Ke = np.where(written[None, :, None, :, None], mirrored, Ke)
     m = split.V0.size
-    return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))[1]
+    Ke = np.einsum("m,mkI,mblIJ,maJ->makbl", split.V0, split.F, dS, split.D).reshape(m, 12, 12)
+    if assembly != "every":
+        Ke = mirrored_pairs(Ke, assembly)
+    return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke)[1]
 
 
 #: The step in E of the simulated central differences that give the central scheme's leading

@@ -46,6 +46,7 @@ __all__ = [
     "cell_kinematics",
     "cell_piola",
     "prediction_errors",
+    "mirrored_pairs",
     "local_orders",
     "element_layouts",
     "order_findings",
@@ -108,6 +109,20 @@ def tangent_element_matrices(V0: np.ndarray, D: np.ndarray, A: np.ndarray) -> np
     """
     Ke = np.einsum("maI,mkIlL,mbL->makbl", D, A, D, optimize=True)
     return (V0[:, None, None, None, None] * Ke).reshape(-1, 12, 12)
+
+
+def mirrored_pairs(Ke: np.ndarray, computed: str = "upper") -> np.ndarray:
+    """Element matrices (m, 12, 12) as an engine that computes one triangle of each cell's 3x3
+    node blocks and writes the other as their transposes has them: block (a, b) replaced by
+    block (b, a)^T where a > b (``computed`` "upper": local pairs a <= b computed) or a < b
+    ("lower"). A symmetric element matrix is unchanged.
+    """
+    m = Ke.shape[0]
+    B = Ke.reshape(m, 4, 3, 4, 3)
+    a, b = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    written = a > b if computed == "upper" else a < b
+    out = np.where(written[None, :, None, :, None], B.transpose(0, 3, 4, 1, 2), B)
+    return out.reshape(m, 12, 12)
 
 
 def cell_kinematics(
