@@ -25,6 +25,7 @@ from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
+from conformance.diagnosis.directional_differences import directional_difference_reading
 from conformance.diagnosis.edge_ids import edge_id_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
@@ -431,6 +432,12 @@ READINGS: Tuple[Reading, ...] = (
         "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
         _headline_unexplained,
         lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "the elasticity tensor applied to each node direction by differences of the stress "
+        "along it (forward or central; one triangle of a cell's blocks mirrored, or not)",
+        _headline_unexplained,
+        lambda d, c: directional_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "an updated-Lagrangian assembly's kinematics, or its material routine handed F_bar, U, "

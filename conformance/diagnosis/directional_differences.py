@@ -37,7 +37,13 @@ from conformance.diagnosis.strain_differences import (
     strain_derivatives,
 )
 
-__all__ = ["ASSEMBLIES", "direction_errors", "directional_basis", "directional_findings"]
+__all__ = [
+    "ASSEMBLIES",
+    "direction_errors",
+    "directional_basis",
+    "directional_findings",
+    "directional_difference_reading",
+]
 
 #: How the engine fills a cell's 4 x 4 node blocks from the blocks it computes: name -> words.
 ASSEMBLIES = {
@@ -168,3 +174,56 @@ def directional_findings(
                     )
                     out.append((assembly, central))
     return sorted(out, key=lambda af: -af[1].explained)
+
+
+def directional_difference_reading(diag, ci, out, ref, s):
+    """``diag`` (the force right, nothing named: after the Voigt-column, perturbation and
+    first-elasticity schemes of :mod:`conformance.diagnosis.strain_differences`) with the
+    directional differences named first, partly explaining, when a scheme accounts for
+    :data:`EXPLAINED` of the stiffness error; unchanged otherwise.
+    """
+    from conformance.diagnosis.elements import element_split
+    from conformance.diagnosis.findings import PARTIAL, Finding, named_first
+    from conformance.diagnosis.hand_derived import MAX_CELLS
+
+    if ci.cells.shape[0] > MAX_CELLS:
+        return diag
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
+    )
+    if split is None:
+        return diag
+    K_o = sp.csr_matrix(ref.stiffness)
+    D = (sp.csr_matrix(out.stiffness) - K_o).tocsr()
+    with np.errstate(all="ignore"):
+        found = directional_findings(ci.model, split, ci.points, D, K_o)
+    if not found:
+        return diag
+    assembly, fit = found[0]
+    lead = (
+        "h^2 times the error per unit h^2, measured by simulating the scheme with h = "
+        f"{CENTRAL_PROBE:g} against the oracle's exact change"
+        if fit.scheme == "central"
+        else "(h/2) dCC[H][H], from the oracle's tangent differentiated in the strain"
+    )
+    return named_first(
+        diag,
+        [
+            Finding(
+                "directional-finite-difference",
+                f"a finite-difference material tangent: {fit.words()}",
+                PARTIAL,
+                f"K - K_oracle is the leading error of that scheme in the stress change along "
+                f"each node dof's strain direction H ({lead}), {ASSEMBLIES[assembly]}, fitted "
+                f"with one unknown: it accounts for {100 * fit.explained:.2f} % of the "
+                f"stiffness error (left: {fit.residual:.1e}, the higher orders and round-off); "
+                "the force matches",
+                {
+                    "step": fit.step,
+                    "scheme": fit.scheme,
+                    "explained": fit.explained,
+                    "assembly": assembly,
+                },
+            )
+        ],
+    )

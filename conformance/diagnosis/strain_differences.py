@@ -195,11 +195,6 @@ _EVIDENCE = {
         "(eps/2) tau''_kl / J in column kl of the spatial tangent, tau'' the oracle's Kirchhoff "
         "stress differentiated twice along the perturbation",
     ),
-    "directional": (
-        "directional-finite-difference",
-        "(h/2) dCC[H][H] in the stress change along each node dof's strain direction H, from "
-        "the oracle's tangent differentiated in the strain",
-    ),
     "first-elasticity": (
         "first-elasticity-finite-difference",
         "(h/2) d2P_kI/dF_lL^2 in column lL of A = dP/dF, from the oracle's first Piola stress "
@@ -212,7 +207,6 @@ _TANGENT = {
     "strain": "material",
     "perturbation": "spatial",
     "first-elasticity": "first elasticity",
-    "directional": "material",
 }
 
 
@@ -258,11 +252,6 @@ def strain_difference_reading(diag, ci, out, ref, s):
         Bp = piola_basis(ci.model, split, ci.points)
         if Bp is not None:
             fits.append(fit_step(Bp, D, K_o, "first-elasticity"))
-        if not any(f is not None and f.explained >= EXPLAINED for f in fits):
-            # the tangent applied to each direction by differences along it
-            from conformance.diagnosis.directional_differences import directional_findings
-
-            fits += [fit for _, fit in directional_findings(ci.model, split, ci.points, D, K_o)]
     found = []
     for fit in fits:
         if fit is None or fit.explained < EXPLAINED:
