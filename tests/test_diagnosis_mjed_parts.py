@@ -351,3 +351,28 @@ def test_f_prime_times_j_is_said_as_a_kirchhoff_pressure():
     assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 2.0, 1.0, None)
     assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 1.3, 0.0, None)
     assert "Kirchhoff" not in _df_words("k0/2 (ln J)^2", 1.0, 2.0 / 3.0, None)
+
+
+def test_a_closed_form_tangent_with_the_inverse_paired_the_other_way_is_the_j_hessian():
+    """A Neo-Hookean dP/dF written in closed form, A = mu I (x) I + lam F^-T (x) F^-T +
+    (lam ln J - mu) d(F^-T)/dF, with d(F^-T)_iJ/dF_kL typed -F^-1_Ji F^-1_Lk (the pairing of the
+    lam term copied) where -F^-1_Jk F^-1_Li belongs: the J-Hessian block left out, said both
+    ways.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean", seed=3)
+    F, D = split.F, split.D
+    Fi = np.linalg.inv(F)
+    c = model.lam * np.log(np.linalg.det(F)) - model.mu
+    eye = np.eye(3)
+
+    def stiffness(pairing):
+        A = model.mu * np.einsum("ik,JL->iJkL", eye, eye)[None]
+        A = A + model.lam * np.einsum("mJi,mLk->miJkL", Fi, Fi)
+        A = A - c[:, None, None, None, None] * np.einsum(pairing, Fi, Fi)
+        return _assembled(split, Ke=np.einsum("maJ,miJkL,mbL->maibk", D, A, D))[1]
+
+    right = stiffness("mJk,mLi->miJkL")
+    assert abs(right - K_o).max() < 1e-9 * abs(K_o).max()
+    found = _find(model, points, cells, x, f_o, stiffness("mJi,mLk->miJkL"), f_o, K_o, s)
+    assert [f.code for f in found] == ["j-hessian-block"], [f.title for f in found]
+    assert "left out" in found[0].title and "-F^-1_Ji F^-1_Lk" in found[0].title

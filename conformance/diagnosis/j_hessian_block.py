@@ -33,7 +33,12 @@ __all__ = ["FACTORS", "psi_j", "j_hessian", "j_hessian_findings", "j_hessian_rea
 FACTORS: Dict[float, str] = {
     -2.0: "with its sign flipped ((dJ_j dJ_i^T - dJ_i dJ_j^T) / J for "
     "(dJ_i dJ_j^T - dJ_j dJ_i^T) / J)",
-    -1.0: "left out",
+    # the same stiffness, in the words of an engine that writes dP/dF in closed form: the
+    # f'(J) g d2J/dx2 block is the antisymmetric part of f' g d(J F^-T)/dF, which cancels when
+    # d(F^-T)_iJ/dF_kL = -F^-1_Jk F^-1_Li is typed with the other pairing, -F^-1_Ji F^-1_Lk
+    -1.0: "left out (in a hand-written dP/dF: the derivative of F^-T, d(F^-T)_iJ/dF_kL = "
+    "-F^-1_Jk F^-1_Li, written with its indices paired -F^-1_Ji F^-1_Lk, i.e. as -F^-T (x) "
+    "F^-T: the same stiffness)",
     1.0: "added twice",
 }
 
