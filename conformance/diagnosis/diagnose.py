@@ -54,6 +54,13 @@ __all__ = ["Diagnosis", "diagnose", "denied_volumetric", "node_error_field"]
 
 SIGN_CODES = ("force-sign", "stiffness-sign", "both-signs")
 
+#: "both-signs" where the engine's energy is negated too.
+ENERGY_NEGATED = (
+    "energy, force and stiffness all negated: the energy's own sign, e.g. each cell's volume or "
+    "quadrature weight negative (the determinant of the reference map negative: the reference "
+    "element's nodes in another order than the mesh's), or W written with its sign flipped"
+)
+
 #: scale correction code -> (power on the force, on the stiffness) of its factor.
 _SCALE_POWERS = {"scale": (1, 1), "scale-stiffness": (0, 1), "scale-force": (1, 0)}
 
@@ -463,11 +470,21 @@ def _explain(
                 Finding(code, title, PARTIAL, text + " (residual above tolerance)", figs)
             )
 
+    # The energy negated too: the whole energy's sign, not the stress's alone.
+    energy_negated = (
+        W is not None
+        and W_o is not None
+        and abs(W_o) > tol.energy * s.energy
+        and abs(W + W_o) <= tol.energy * s.energy
+    )
     for c in convention_corrections(f_o, K_o, f, K):
         out = c.apply(f, K, W)
         if out is not None:
             e = errors(*out[:2], None, f_o, K_o, W_o, s)
             extra = ""
+            if c.code == "both-signs" and energy_negated:
+                judge(c.code, ENERGY_NEGATED, e, "your energy is the oracle's negated as well")
+                continue
             if c.code == "unsymmetric":
                 from scipy.sparse.linalg import norm as sparse_norm
 
