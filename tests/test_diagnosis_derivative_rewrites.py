@@ -182,6 +182,24 @@ def test_an_edge_based_engine_mirroring_the_tangent_of_its_wrong_stress_is_named
     assert "a <= b" in found[0].figures["tangent"]
 
 
+def test_the_one_over_j_of_ln_js_derivative_lost_is_named():
+    """Gent's volumetric stress written k0 ln J J F^-T: d(k0/2 (ln J)^2)/dJ without the 1/J of
+    d(ln J)/dJ; the stiffness the energy's own.
+    """
+    case = _case("Gent", seed=6)
+    model = case[0]
+    right = _isochoric_stress(_gent_psi1(model), model.k0)
+
+    def wrong(F):
+        J = np.linalg.det(F)
+        FiT = np.linalg.inv(F).transpose(0, 2, 1)
+        return right(F) + (model.k0 * np.log(J) * (J - 1.0))[:, None, None] * FiT
+
+    found = _find(case, _engine(*case[1:4], wrong)[0], case[5])
+    assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
+    assert "(the derivative of ln(J) in the chain rule) lost" in found[0].title
+
+
 def test_demirays_minus_one_carried_into_its_derivative_is_named():
     case = _case("Demiray", seed=2)
     model = case[0]

@@ -248,6 +248,18 @@ def _node_rewrites(text: str, params: Tuple[str, ...]) -> Iterator[Tuple[str, st
                 f"{ast.unparse(new)} where {ast.unparse(node)} belongs (the -1 of the energy's "
                 "exp(X) - 1 carried into its derivative)",
             )
+        elif (
+            isinstance(node, ast.BinOp)
+            and isinstance(node.op, ast.Div)
+            and _literal(node.left) == 1.0
+        ):
+            # 1 / X: the derivative of ln(X), which the chain rule multiplies in; dropped, the
+            # term's derivative is X times what it should be
+            yield (
+                _replaced(text, i, lambda n: ast.Constant(1)),
+                f"the factor {ast.unparse(node)} (the derivative of ln({ast.unparse(node.right)}) "
+                "in the chain rule) lost",
+            )
         elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
             p = _literal(node.right)
             if p is None:
