@@ -21,6 +21,7 @@ from conformance.diagnosis import readings
 from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
+from conformance.diagnosis.central_differences import central_difference_reading
 from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
@@ -438,6 +439,11 @@ READINGS: Tuple[Reading, ...] = (
         "along it (forward or central; one triangle of a cell's blocks mirrored, or not)",
         _headline_unexplained,
         lambda d, c: directional_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "central differences of P in each component of F (a first elasticity tensor)",
+        _headline_unexplained,
+        lambda d, c: central_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "an updated-Lagrangian assembly's kinematics, or its material routine handed F_bar, U, "

@@ -360,6 +360,7 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
         "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
         "the elasticity tensor applied to each node direction by differences of the stress "
         "along it (forward or central; one triangle of a cell's blocks mirrored, or not)",
+        "central differences of P in each component of F (a first elasticity tensor)",
     }
     # a cause named by the first diagnosis (no mistakes read): only the tangent term's
     # differences, and only with the force right
