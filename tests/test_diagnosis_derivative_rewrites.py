@@ -200,6 +200,33 @@ def test_the_one_over_j_of_ln_js_derivative_lost_is_named():
     assert "(the derivative of ln(J) in the chain rule) lost" in found[0].title
 
 
+def _yeoh_like_stress(model, projection):
+    """Gent's P with dI1b/dF = J^(-2/3) (2 F + projection I1 F^-T) (right: -2/3)."""
+
+    def P(F):
+        J = np.linalg.det(F)
+        I1 = np.einsum("mij,mij->m", F, F)
+        I1b = J ** (-2.0 / 3.0) * I1
+        FiT = np.linalg.inv(F).transpose(0, 2, 1)
+        dI1b = (J ** (-2.0 / 3.0))[:, None, None] * (
+            2.0 * F + (projection * I1)[:, None, None] * FiT
+        )
+        psi1 = _gent_psi1(model)(I1b)
+        return psi1[:, None, None] * dI1b + (model.k0 * np.log(J))[:, None, None] * FiT
+
+    return P
+
+
+def test_the_projection_of_di1b_df_halved_is_named():
+    """-1/3 I1 F^-T where -2/3 I1 F^-T belongs (the 2 of d(J^(-2/3))/dF dropped)."""
+    case = _case("Gent", seed=7)
+    model = case[0]
+    assert _find(case, *_engine(*case[1:4], _yeoh_like_stress(model, -2.0 / 3.0))) == []
+    found = _find(case, *_engine(*case[1:4], _yeoh_like_stress(model, -1.0 / 3.0)))
+    assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
+    assert "-1/6 I1 C^-1 (halved" in found[0].title
+
+
 def test_demirays_minus_one_carried_into_its_derivative_is_named():
     case = _case("Demiray", seed=2)
     model = case[0]

@@ -128,9 +128,14 @@ _PROJECTION_SLIPS = {
         (-2 / 3, "-2/3 I1 C^-1 (I2b's coefficient)"),
         (1 / 3, "+1/3 I1 C^-1 (its sign lost)"),
         (0.0, "0 (left out)"),
+        (
+            -1 / 6,
+            "-1/6 I1 C^-1 (halved: in dI1b/dF = J^(-2/3) (2 F - 2/3 I1 F^-T), the 2 of "
+            "d(J^(-2/3))/dF dropped, -1/3 I1 F^-T)",
+        ),
     ),
     "I2b": (
-        (-1 / 3, "-1/3 I2 C^-1 (I1b's coefficient)"),
+        (-1 / 3, "-1/3 I2 C^-1 (I1b's coefficient, or halved)"),
         (2 / 3, "+2/3 I2 C^-1 (its sign lost)"),
         (0.0, "0 (left out)"),
     ),
