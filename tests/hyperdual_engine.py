@@ -155,14 +155,16 @@ def density_engine(
     density: Density,
     frame_of: Callable[[Any], Any] = lambda model: None,
     gradients: Callable[[np.ndarray], np.ndarray] = lambda D: D,
+    deformation: Callable[[np.ndarray], np.ndarray] = lambda F: F,
 ):
     """An engine ``case -> (f, K, W)`` for the energy density ``density(model, k, F, R)`` (the
     case's model, k the namespace at F, F the hyper-dual deformation gradient, R the cells'
     frames as a Matrix or None), per unit reference volume, on the case's P1 mesh;
     ``frame_of(model)`` gives the per-cell frames (m, 3, 3) or None (the identity);
     ``gradients(D)`` the shape gradients (m, 4, 3) the engine uses for F, force and matrix in
-    place of the right ones D (a mistake's). The force is -dW/dx (docs/conventions.md,
-    "Signs"), the stiffness d2W/dx2.
+    place of the right ones D (a mistake's); ``deformation(F)`` the deformation gradient it
+    forms from F = sum_a x_a D_a^T (a mistake's, e.g. I + F; its derivative in x is F's). The
+    force is -dW/dx (docs/conventions.md, "Signs"), the stiffness d2W/dx2.
     """
 
     def engine(case):
@@ -170,7 +172,7 @@ def density_engine(
         D, V0 = _geometry(points, cells)
         D = gradients(D)
         x = np.asarray(case.positions, float).reshape(-1, 3)
-        F = np.einsum("mai,mak->mik", x[cells], D)
+        F = deformation(np.einsum("mai,mak->mik", x[cells], D))
         R = frame_of(case.model)
         if R is not None:
             R = np.broadcast_to(np.asarray(R, float), (len(cells), 3, 3))

@@ -160,3 +160,31 @@ def test_gradients_and_volumes_from_the_current_positions_are_named():
     f, K, _ = _node_zero_engine((-1.0, -1.0, -1.0))(deformed_as_rest)  # node 0 right here
     found = gradient_slip_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
     assert [x.code for x in found] == ["gradients-current-volume"], [x.title for x in found]
+
+
+def test_the_gradient_of_the_positions_taken_for_that_of_the_displacements_is_named():
+    """FElupe's F = I + grad u written with the positions: F = I + grad x."""
+    from types import SimpleNamespace
+
+    from hyperdual_engine import density_engine
+
+    from conformance.diagnosis.shape_gradients import gradient_slip_findings
+
+    model = default_material("StVenantKirchhoff")
+    points, cells = box_mesh(2, jitter=0.2, seed=7)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T
+    x = x + 0.02 * np.random.default_rng(7).standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+
+    def density(model, k, F, R):
+        E = k.E
+        trE = E[0, 0] + E[1, 1] + E[2, 2]
+        EE = sum(E[i, j] * E[i, j] for i in range(3) for j in range(3))
+        return model.lam / 2.0 * trE * trE + model.mu * EE
+
+    engine = density_engine(density, deformation=lambda F: F + np.eye(3))
+    case = SimpleNamespace(points=points, cells=cells, positions=x, model=model)
+    with np.errstate(invalid="ignore"):
+        f, K, _ = engine(case)
+    found = gradient_slip_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
+    assert [x.code for x in found] == ["F-identity-plus-positions"], [x.title for x in found]

@@ -203,7 +203,7 @@ def shape_gradient_findings(
     return ambiguous(found)
 
 
-Gradients = Callable[[ElementSplit, np.ndarray], Tuple[np.ndarray, np.ndarray]]
+Gradients = Callable[[ElementSplit, np.ndarray], Tuple[np.ndarray, ...]]
 
 
 def _node_zero(weights: Tuple[float, float, float]) -> Gradients:
@@ -233,8 +233,14 @@ def _current(volume: bool) -> Gradients:
     return gradients
 
 
-#: code -> (words, (split, x) -> (D' (m, 4, 3), V' (m,))): gradients (and volumes) an engine
-#: uses for F, its force and its matrix in place of the rest ones.
+def _identity_plus_positions(split: ElementSplit, x: np.ndarray):
+    """(D, V0, I + F): the gradient of the positions taken for that of the displacements."""
+    return split.D, split.V0, np.eye(3) + split.F
+
+
+#: code -> (words, (split, x) -> (D' (m, 4, 3), V' (m,)[, F' (m, 3, 3)])): gradients (and
+#: volumes) an engine uses for F, its force and its matrix in place of the rest ones; F', when
+#: given, the deformation gradient it forms (else sum_a x_a D'_a^T).
 GRADIENT_SLIPS: Dict[str, Tuple[str, Gradients]] = {
     "gradient-0-sign": (
         "the shape-function gradient of local node 0 written D_1 + D_2 + D_3, its minus lost "
@@ -267,6 +273,12 @@ GRADIENT_SLIPS: Dict[str, Tuple[str, Gradients]] = {
         "every cell, so the force is the rest state's (zero) and the stiffness the rest tangent "
         "on the deformed cells",
         _current(volume=True),
+    ),
+    "F-identity-plus-positions": (
+        "the deformation gradient written F = I + grad x, the gradient of the current positions "
+        "where that of the displacements u = x - X belongs (F = I + grad u): every cell's F is "
+        "the right one plus I",
+        _identity_plus_positions,
     ),
 }
 
@@ -304,8 +316,9 @@ def gradient_output(
     from conformance.diagnosis.elements import piola_element_forces, tangent_element_matrices
     from conformance.diagnosis.routine_inputs import piola_at
 
-    D, V = gradients(split, x)
-    F2 = np.einsum("mak,mai->mki", x[split.cells], D)
+    formed = gradients(split, x)
+    D, V = formed[:2]
+    F2 = formed[2] if len(formed) > 2 else np.einsum("mak,mai->mki", x[split.cells], D)
     # F' may be inverted (det F' < 0). An engine that forms W from C = F'^T F' (J = sqrt(det
     # C)) answers there as at the reflected Q F' (Q = diag(-1, 1, 1), the same C): P = Q P(Q F')
     # and A[H] = Q A(Q F')[Q H]. One that takes J = det F' has no finite answer: no match.
