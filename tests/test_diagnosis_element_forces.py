@@ -96,3 +96,18 @@ def test_nearby_mistakes_are_not_named():
         _scatter(cells, n, one_cell),
     ):
         assert force_node_findings(split, f, sp.csr_matrix(K_o), s, DOUBLE) == []
+
+
+def test_forces_raveled_components_first_against_a_cell_major_dof_map_are_named():
+    """FElupe's trailing layout: r of shape (4, 3, m) summed with np.bincount over a (m, 12)
+    dof map, both raveled.
+    """
+    points, cells, x, split, f_o, K_o = _case(2)
+    s = mjed_split(MODEL, points, cells, x)[3]
+    f123, f0 = _sifakis_forces(points, cells, x)
+    r = np.concatenate([f0[:, None], f123], axis=1).transpose(1, 2, 0)  # (4, 3, m)
+    dofs = (3 * cells[:, :, None] + np.arange(3)).reshape(len(cells), 12)
+    f = np.bincount(dofs.ravel(), weights=r.ravel(), minlength=3 * points.shape[0])
+    found = force_node_findings(split, f.reshape(-1, 3), K_o, s, DOUBLE)
+    assert [x.code for x in found] == ["element-force-layout"], [x.title for x in found]
+    assert "(4, 3, m)" in found[0].title

@@ -29,7 +29,7 @@ from conformance.diagnosis.elements import ElementSplit, assemble, split_finding
 from conformance.diagnosis.findings import Finding, ambiguous
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["node_maps", "node_map_words", "force_node_findings"]
+__all__ = ["BUFFER_SLIPS", "node_maps", "node_map_words", "force_node_findings"]
 
 
 def node_maps() -> List[Tuple[Tuple[int, ...], Tuple[int, ...]]]:
@@ -104,4 +104,45 @@ def force_node_findings(
             }
             how = "and forces, the forces mapped"
             found.append(split_finding("element-force-nodes", title, split, how, e, figures))
+    for code, words, read_back in BUFFER_SLIPS:
+        fe = read_back(split.fe)
+        e = errors(f, K, None, assemble(split.cells, split.n, fe, None)[0], K0, 0.0, s)
+        if tol.within(e, energy=False):
+            title = f"force only: {words}; the stiffness is right"
+            how = "and forces, the forces read back so"
+            figures = {"residual": max(e.force, e.stiffness)}
+            found.append(split_finding(code, title, split, how, e, figures))
     return ambiguous(found)
+
+
+def _components_first(fe: np.ndarray) -> np.ndarray:
+    """(m, 4, 3) element forces kept as (4, 3, m) (components first, cells last), raveled, and
+    read back against a cell-major dof map (m, 12): every value lands on another cell's dof.
+    """
+    m = fe.shape[0]
+    return np.transpose(fe, (1, 2, 0)).ravel().reshape(m, 4, 3)
+
+
+def _cells_then_components(fe: np.ndarray) -> np.ndarray:
+    """(m, 4, 3) element forces kept cell-major, raveled, and read back as (4, 3, m)."""
+    m = fe.shape[0]
+    return np.transpose(fe.ravel().reshape(4, 3, m), (2, 0, 1))
+
+
+#: (code, words, fe (m, 4, 3) -> what the engine scatters): the element forces raveled in one
+#: layout against a dof map raveled in another.
+BUFFER_SLIPS = (
+    (
+        "element-force-layout",
+        "the element forces kept components first and cells last, (4, 3, m), and raveled "
+        "against a cell-major (m, 12) dof map (np.bincount or np.add.at over both raveled): "
+        "each value added to another cell's or node's dof",
+        _components_first,
+    ),
+    (
+        "element-force-layout",
+        "the element forces kept cell-major, (m, 4, 3), and raveled against a dof map kept "
+        "components first, (4, 3, m): each value added to another cell's or node's dof",
+        _cells_then_components,
+    ),
+)
