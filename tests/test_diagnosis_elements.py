@@ -303,3 +303,23 @@ def test_element_matrix_values_stored_wrongly_are_named(which):
     assert [x.code for x in found] == ["element-storage"], [x.title for x in found]
     assert ("triu" in found[0].title) == (which == 0)
     assert ("(78, m)" in found[0].title) == (which == 1)
+
+
+def test_a_dof_map_built_with_repeat_for_tile_is_named():
+    """3 np.repeat(cells, 3, axis=1) + np.repeat(np.arange(3), 4): the engine's own scatter of
+    its element matrices through that map (the force scattered by node, right).
+    """
+    import scipy.sparse as sp
+
+    from common.cases import default_material
+
+    points, cells, x = _state(4)
+    split, f_o, K_o, s = _split(default_material("MooneyRivlin"), points, cells, x)
+    dofs = 3 * np.repeat(cells, 3, axis=1) + np.repeat(np.arange(3), 4)
+    rows = np.repeat(dofs, 12, axis=1).ravel()
+    cols = np.tile(dofs, (1, 12)).ravel()
+    n = 3 * points.shape[0]
+    K = sp.csr_matrix((split.Ke.ravel(), (rows, cols)), shape=(n, n))
+    found = order_findings(split, f_o, K, s, DOUBLE)
+    assert [x.code for x in found] == ["element-storage"], [x.title for x in found]
+    assert "np.repeat(np.arange(3), 4)" in found[0].title

@@ -313,6 +313,16 @@ def storage_slips() -> List[Tuple[str, Callable[[np.ndarray], np.ndarray]]]:
         m = Ke.shape[0]
         return Ke.reshape(m, 144).T.copy().reshape(m, 12, 12)
 
+    # dof map 3 np.repeat(cells, 3, axis=1) + np.repeat(np.arange(3), 4): local column q goes
+    # to node q // 3, component q // 4 (several columns onto one dof, some dofs never
+    # reached), so the engine adds P^T Ke P with P[q, 3 (q // 3) + q // 4] = 1
+    q = np.arange(12)
+    gather = np.zeros((12, 12))
+    gather[q, 3 * (q // 3) + q // 4] = 1.0
+
+    def dof_map_repeated(Ke):
+        return np.einsum("qd,mqr,re->mde", gather, Ke, gather)
+
     return [
         (
             "the 78 values of each symmetric element matrix taken from its upper triangle row "
@@ -331,6 +341,13 @@ def storage_slips() -> List[Tuple[str, Callable[[np.ndarray], np.ndarray]]]:
             "reshape(m, 12, 12) where the transpose belongs: every cell's matrix filled with "
             "values of other cells",
             entry_buffer_reshaped,
+        ),
+        (
+            "the cell-to-dof map built with np.repeat(np.arange(3), 4) where np.tile(np.arange(3), "
+            "4) belongs (3 np.repeat(cells, 3, axis=1) + ...): the local components run "
+            "0, 0, 0, 0, 1, ... against the nodes, so the element matrices are scattered to "
+            "wrong and repeated dofs",
+            dof_map_repeated,
         ),
     ]
 
