@@ -237,3 +237,22 @@ def test_a_step_relative_to_each_entry_of_f_is_named_on_a_stretch_and_nothing_el
         return A
 
     assert _entry_found(_engine(uniaxial=True, A=shear_columns)[0]) == []
+
+
+def _tangent_geometric_paired_wrongly(F, Ds, Bm):
+    E = 0.5 * (np.swapaxes(F, 1, 2) @ F - EYE)
+    S = LAM * np.trace(E, axis1=1, axis2=2)[:, None, None] * EYE + 2.0 * MU * E
+    return _tangent(F) - np.einsum("ik,mJL->miJkL", EYE, S) + np.einsum("iJ,mkL->miJkL", EYE, S)
+
+
+def _tangent_minor_symmetrised(F, Ds, Bm):
+    A = _tangent(F)
+    half = 0.5 * (A + A.transpose(0, 2, 1, 3, 4))
+    return 0.5 * (half + half.transpose(0, 1, 2, 4, 3))
+
+
+def test_the_geometric_part_paired_wrongly_and_a_minor_symmetrised_tangent_are_named():
+    found = _found(_engine(seed=2, A=_tangent_geometric_paired_wrongly)[0])
+    assert _codes(found) == ["piola-slip-geometric-index-pairing"], [x.title for x in found]
+    found = _found(_engine(seed=3, A=_tangent_minor_symmetrised)[0])
+    assert _codes(found) == ["piola-slip-minor-symmetrised"], [x.title for x in found]

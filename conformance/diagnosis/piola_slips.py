@@ -213,6 +213,16 @@ def _divisor(factor: float, times: str, quotient: str, used: str, right: str) ->
 
 _FLAT = "dP/dF flattened to a 9 x 9 matrix"
 
+
+def _geometric_paired_wrongly(c: SlipCells) -> np.ndarray:
+    """A with its geometric part delta_ik S_JL replaced by delta_iJ S_kL (S = F^-1 P)."""
+    S = np.linalg.solve(c.F, c.P)
+    eye = np.eye(3)
+    right = np.einsum("ik,mJL->miJkL", eye, S)
+    wrong = np.einsum("iJ,mkL->miJkL", eye, S)
+    return c.A - right + wrong
+
+
 #: The slips tried, each predicting the engine's P' and A' from the oracle's per-cell P and A.
 SLIPS: Tuple[PiolaSlip, ...] = (
     PiolaSlip(
@@ -262,6 +272,27 @@ SLIPS: Tuple[PiolaSlip, ...] = (
         "derivative-in-Ds-index",
         ", its chain factor Dm^-1 on the wrong index: A_iJkL (Dm^-1)_Ll used as dP/dF",
         "miJkL,mLl->miJkl",
+    ),
+    PiolaSlip(
+        "geometric-index-pairing",
+        "the geometric (initial-stress) part of dP/dF written delta_iJ S_kL where delta_ik S_JL "
+        "belongs (A_iJkL = delta_ik S_JL + F_iM C_MJNL F_kN: an index string of an einsum "
+        "paired wrongly)",
+        tangent=_geometric_paired_wrongly,
+    ),
+    PiolaSlip(
+        "minor-symmetrised",
+        "dP/dF symmetrised in (i, J) and in (k, L), as if it had the minor symmetries of a "
+        "small-strain elasticity tensor (it has none: the stiffness is no longer the Hessian)",
+        tangent=lambda c: (
+            0.25
+            * (
+                c.A
+                + c.A.transpose(0, 2, 1, 3, 4)
+                + c.A.transpose(0, 1, 2, 4, 3)
+                + c.A.transpose(0, 2, 1, 4, 3)
+            )
+        ),
     ),
     _divisor(2.0, "twice", "a central-difference quotient (P(F + h) - P(F - h))", "h", "2h"),
     _divisor(0.5, "half", "a one-sided difference quotient (P(F + h) - P(F))", "2h", "h"),
