@@ -376,3 +376,31 @@ def test_a_closed_form_tangent_with_the_inverse_paired_the_other_way_is_the_j_he
     found = _find(model, points, cells, x, f_o, stiffness("mJi,mLk->miJkL"), f_o, K_o, s)
     assert [f.code for f in found] == ["j-hessian-block"], [f.title for f in found]
     assert "left out" in found[0].title and "-F^-1_Ji F^-1_Lk" in found[0].title
+
+
+def test_a_force_part_halved_with_the_stiffness_its_derivative_is_named():
+    """A Neo-Hookean P written mu/2 F + (lam ln J - mu) F^-T (the I1 term's stress halved),
+    the element stiffness the complex step of that element force: the C part halved in the
+    force and in the blocks derived from it.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean", seed=5)
+    D, V0 = split.D, split.V0
+
+    def element_forces(xe):
+        F = np.einsum("mak,maI->mkI", xe, D)
+        J = np.linalg.det(F)
+        FiT = np.swapaxes(np.linalg.inv(F), 1, 2)
+        P = model.mu / 2 * F + (model.lam * np.log(J) - model.mu)[:, None, None] * FiT
+        return -V0[:, None, None] * np.einsum("mkI,maI->mak", P, D)
+
+    xe = x[cells].astype(complex)
+    m, h = len(cells), 1e-30
+    Ke = np.zeros((m, 12, 12))
+    for j in range(12):
+        xp = xe.reshape(m, 12).copy()
+        xp[:, j] += 1j * h
+        Ke[:, :, j] = -(element_forces(xp.reshape(m, 4, 3)).imag / h).reshape(m, 12)
+    f, K = assemble(cells, len(points), element_forces(xe).real, Ke)
+    found = _find(model, points, cells, x, f, K, f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-part-derived"], [x.title for x in found]
+    assert found[0].figures["part"] == "force-C" and found[0].figures["factor"] == -0.5

@@ -652,6 +652,43 @@ def _single(parts: Parts) -> List[Candidate]:
     return out
 
 
+#: A force part and the stiffness blocks that are its derivative: an engine whose stiffness is
+#: the derivative of its force (a complex step, differences of the force routine) carries a
+#: force part's factor into them.
+_DERIVED = {
+    "force-C": ("cross-b", "geometric", "first", "second-outer", "second-scaled", "spectral"),
+    "force-J": ("JJ", "cross-a", "anti"),
+}
+
+
+def _derived(parts: Parts) -> List[Candidate]:
+    """One force part of one term with a constant factor, in the force and in the stiffness
+    blocks derived from it (:data:`_DERIVED`), as an engine differentiating its own force has
+    them.
+    """
+    out = []
+    for term in parts.terms:
+        for kind, blocks in _DERIVED.items():
+            ps = [p for p in parts.parts if p.term == term and (p.kind == kind or p.kind in blocks)]
+            if not any(p.kind == kind and np.any(p.force) for p in ps):
+                continue
+            df = np.sum([p.force for p in ps], axis=0)
+            dK = np.sum([p.stiffness for p in ps], axis=0)
+            for k, words in FACTORS.items():
+                out.append(
+                    Candidate(
+                        "mjed-part-derived",
+                        f"MJED {KINDS[kind]} of the term {term} {words}, and the stiffness the "
+                        "derivative of that force (a complex step or differences of the force "
+                        "routine)",
+                        k * df,
+                        k * dK,
+                        {"part": kind, "factor": k, "terms": term},
+                    )
+                )
+    return out
+
+
 def _gradient(parts: Parts) -> List[Candidate]:
     """A grouped term's gradient part (or that part of every term) with a constant factor where
     the term's gradient is formed: in the force and in the group's rank-one block built from it.
@@ -851,6 +888,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """
     return [
         *_single(parts),
+        *_derived(parts),
         *_gradient(parts),
         *_transposed(parts),
         *_power(parts, r, w),
