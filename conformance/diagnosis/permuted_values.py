@@ -84,11 +84,9 @@ def permuted_values(K: sp.spmatrix, K_o: sp.spmatrix, tol: Tolerances) -> Option
 
 def _finding(p: Permutation, force_right: bool) -> Finding:
     where = (
-        "within each row: every row holds its own values, the column indices out of order "
-        "with them"
+        "within each row: every row holds its own values, the column indices out of order with them"
         if p.within_rows
-        else "across rows: the values written in another order than their row and column "
-        "indices"
+        else "across rows: the values written in another order than their row and column indices"
     )
     return Finding(
         "stiffness-values-permuted",
