@@ -22,7 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola
-from conformance.diagnosis.strain_differences import EXPLAINED, StrainDifferenceFit, fit_step
+from conformance.diagnosis.strain_differences import (
+    StrainDifferenceFit,
+    fit_step_squared,
+)
 
 __all__ = ["PROBE", "central_piola_basis", "central_piola_fit", "central_difference_reading"]
 
@@ -63,14 +66,7 @@ def central_piola_fit(
     fitted h^2 positive); None otherwise.
     """
     basis = central_piola_basis(model, split, points)
-    if basis is None:
-        return None
-    fit = fit_step(basis, D, K_o, "first-elasticity")
-    if fit is None or fit.scheme != "forward" or fit.explained < EXPLAINED:
-        return None  # h^2 must come out positive
-    return StrainDifferenceFit(
-        "central", float(np.sqrt(fit.step)), fit.explained, fit.residual, "first-elasticity"
-    )
+    return None if basis is None else fit_step_squared(basis, D, K_o, "first-elasticity")
 
 
 def central_difference_reading(diag, ci, out, ref, s):

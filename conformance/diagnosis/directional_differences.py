@@ -28,12 +28,13 @@ from typing import List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble, mirrored_pairs
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, mirrored_pairs
 from conformance.diagnosis.strain_differences import (
     EXPLAINED,
     VOIGT,
     StrainDifferenceFit,
     fit_step,
+    fit_step_squared,
     strain_derivatives,
 )
 
@@ -119,8 +120,6 @@ def central_errors(model, split: ElementSplit, points: np.ndarray) -> Optional[n
     divided by h^2; dS(H) exact from the oracle's tangent (F^-1 (A[dF] - dF S)). None where the
     material cannot be evaluated.
     """
-    from conformance.diagnosis.elements import cell_piola
-
     P, A = cell_piola(split)
     F, D = split.F, split.D
     Fi = np.linalg.inv(F)
@@ -162,16 +161,9 @@ def directional_findings(
         dS = central_errors(model, split, points)
         if dS is not None and np.all(np.isfinite(dS)):
             for assembly in ASSEMBLIES:
-                fit = fit_step(directional_basis(split, dS, assembly), D, K_o, "directional")
-                # fitted: h^2, which must be positive
-                if fit is not None and fit.scheme == "forward" and fit.explained >= EXPLAINED:
-                    central = StrainDifferenceFit(
-                        "central",
-                        float(np.sqrt(fit.step)),
-                        fit.explained,
-                        fit.residual,
-                        "directional",
-                    )
+                basis = directional_basis(split, dS, assembly)
+                central = fit_step_squared(basis, D, K_o, "directional")
+                if central is not None:
                     out.append((assembly, central))
     return sorted(out, key=lambda af: -af[1].explained)
 

@@ -28,6 +28,7 @@ __all__ = [
     "VOIGT",
     "strain_derivatives",
     "StrainDifferenceFit",
+    "fit_step_squared",
     "fit_strain_differences",
     "strain_difference_reading",
 ]
@@ -169,6 +170,21 @@ def fit_step(
         1.0 - left / nD,
         left / float(sparse_norm(K_o)),
         kind,
+    )
+
+
+def fit_step_squared(
+    Bm: sp.csr_matrix, D: sp.csr_matrix, K_o: sp.csr_matrix, kind: str
+) -> Optional[StrainDifferenceFit]:
+    """A central scheme's step h from D = K - K_o as h^2 x Bm (Bm the stiffness of its error per
+    unit h^2), one unknown; None when D or Bm is zero, the fitted h^2 is not positive, or the
+    fit accounts for less than :data:`EXPLAINED` of D.
+    """
+    fit = fit_step(Bm, D, K_o, kind)
+    if fit is None or fit.scheme != "forward" or fit.explained < EXPLAINED:
+        return None
+    return StrainDifferenceFit(
+        "central", float(np.sqrt(fit.step)), fit.explained, fit.residual, kind
     )
 
 
