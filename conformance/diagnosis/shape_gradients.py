@@ -29,8 +29,16 @@ from typing import Any, Callable, Dict, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble, element_split
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_kinematics,
+    element_split,
+    piola_element_forces,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.routine_inputs import piola_at
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 
 __all__ = [
@@ -203,44 +211,44 @@ def shape_gradient_findings(
     return ambiguous(found)
 
 
-Gradients = Callable[[ElementSplit, np.ndarray], Tuple[np.ndarray, ...]]
+#: (split, x) -> (D' (m, 4, 3), V' (m,), F' (m, 3, 3) or None: sum_a x_a D'_a^T).
+Formed = Tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]
+Gradients = Callable[[ElementSplit, np.ndarray], Formed]
 
 
 def _node_zero(weights: Tuple[float, float, float]) -> Gradients:
-    """(split, x) -> (D', V'): node 0's gradient written sum_b weights[b - 1] D_b (b = 1..3),
-    the other three and the rest volumes right.
+    """Node 0's gradient written sum_b weights[b - 1] D_b (b = 1..3), the other three and the
+    rest volumes right.
     """
 
-    def gradients(split: ElementSplit, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    def gradients(split: ElementSplit, x: np.ndarray) -> Formed:
         D = split.D.copy()
         D[:, 0] = np.einsum("b,mbi->mi", np.asarray(weights), split.D[:, 1:])
-        return D, split.V0
+        return D, split.V0, None
 
     return gradients
 
 
 def _current(volume: bool) -> Gradients:
-    """(split, x) -> (D', V'): the gradients of the deformed cells (their edge matrices at x
-    inverted); the volumes the rest ones, or (``volume``) the deformed ones too.
+    """The gradients of the deformed cells (their edge matrices at x inverted); the volumes the
+    rest ones, or (``volume``) the deformed ones too.
     """
 
-    def gradients(split: ElementSplit, x: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-        from conformance.diagnosis.elements import cell_kinematics
-
+    def gradients(split: ElementSplit, x: np.ndarray) -> Formed:
         v, D, _ = cell_kinematics(x, split.cells, x)
-        return D, (v if volume else split.V0)
+        return D, (v if volume else split.V0), None
 
     return gradients
 
 
-def _identity_plus_positions(split: ElementSplit, x: np.ndarray):
+def _identity_plus_positions(split: ElementSplit, x: np.ndarray) -> Formed:
     """(D, V0, I + F): the gradient of the positions taken for that of the displacements."""
     return split.D, split.V0, np.eye(3) + split.F
 
 
-#: code -> (words, (split, x) -> (D' (m, 4, 3), V' (m,)[, F' (m, 3, 3)])): gradients (and
-#: volumes) an engine uses for F, its force and its matrix in place of the rest ones; F', when
-#: given, the deformation gradient it forms (else sum_a x_a D'_a^T).
+#: code -> (words, :data:`Gradients`): the gradients (and volumes) an engine uses for F, its
+#: force and its matrix in place of the rest ones, and the F' it forms where that is not
+#: sum_a x_a D'_a^T.
 GRADIENT_SLIPS: Dict[str, Tuple[str, Gradients]] = {
     "gradient-0-sign": (
         "the shape-function gradient of local node 0 written D_1 + D_2 + D_3, its minus lost "
@@ -309,16 +317,13 @@ class GradientOutput:
 def gradient_output(
     model: Any, points: np.ndarray, split: ElementSplit, x: np.ndarray, gradients: Gradients
 ) -> Optional[GradientOutput]:
-    """The output of an engine that forms F' = sum_a x_a D'_a^T, its force -V' P(F') D'_a and
-    matrix V' D'_a . A(F') . D'_b with (D', V') = gradients(split, x); None where the material
-    cannot be evaluated at F' or the result is not finite.
+    """The output of an engine that forms F' (sum_a x_a D'_a^T unless the slip says), its force
+    -V' P(F') D'_a and matrix V' D'_a . A(F') . D'_b with (D', V', F') = gradients(split, x);
+    None where the material cannot be evaluated at F' or the result is not finite.
     """
-    from conformance.diagnosis.elements import piola_element_forces, tangent_element_matrices
-    from conformance.diagnosis.routine_inputs import piola_at
-
-    formed = gradients(split, x)
-    D, V = formed[:2]
-    F2 = formed[2] if len(formed) > 2 else np.einsum("mak,mai->mki", x[split.cells], D)
+    D, V, F2 = gradients(split, x)
+    if F2 is None:
+        F2 = np.einsum("mak,mai->mki", x[split.cells], D)
     # F' may be inverted (det F' < 0). An engine that forms W from C = F'^T F' (J = sqrt(det
     # C)) answers there as at the reflected Q F' (Q = diag(-1, 1, 1), the same C): P = Q P(Q F')
     # and A[H] = Q A(Q F')[Q H]. One that takes J = det F' has no finite answer: no match.
