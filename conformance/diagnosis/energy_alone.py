@@ -25,6 +25,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 
 __all__ = ["EnergyStates", "WEIGHTINGS", "CHANGES", "energy_states", "energy_alone_findings"]
@@ -103,14 +104,18 @@ class EnergyStates:
         )
 
 
-def _cell_energies(model, points, cells, x) -> Optional[np.ndarray]:
-    """(m,) V0_c W_c at positions ``x`` from MJED, or None where MJED has no such material."""
+def _cell_energies(model, points, cells, positions: Sequence[np.ndarray]):
+    """(k, m) V0_c W_c from MJED at each of the k ``positions`` (n, 3), one field for all; None
+    where MJED has no such material or cannot evaluate a state.
+    """
     import mjed
     from mjed.evaluation import Want
 
     try:
         field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
-        return np.asarray(field.evaluate(x, want=Want.ENERGY).energy, dtype=np.float64)
+        return np.stack(
+            [np.asarray(field.evaluate(x, want=Want.ENERGY).energy, float) for x in positions]
+        )
     except Exception:  # noqa: BLE001 - not an MJED material, or not at this state
         return None
 
@@ -128,23 +133,14 @@ def energy_states(
     """The states (positions (n, 3) each, the case's first) with both energies per state; the
     per-cell split kept only when it sums to the oracle's energy within ``tol`` everywhere.
     """
-    from conformance.diagnosis.elements import cell_kinematics
-
+    positions = [np.asarray(x, dtype=np.float64) for x in positions]
     oracle = np.asarray(oracle, dtype=np.float64)
-    rows, Js = [], []
-    V0 = None
-    for x in positions:
-        V0, _, F = cell_kinematics(points, cells, np.asarray(x, dtype=np.float64))
-        Js.append(np.linalg.det(F))
-        rows.append(_cell_energies(model, points, cells, x))
-    split = None
-    if all(r is not None for r in rows):
-        split = np.stack(rows)
-        if np.max(np.abs(split.sum(axis=1) - oracle)) > tol * scale:
-            split = None
-    return EnergyStates(
-        np.asarray(engine, dtype=np.float64), oracle, split, np.stack(Js), V0, float(scale)
-    )
+    V0 = cell_kinematics(points, cells, positions[0])[0]
+    J = np.stack([np.linalg.det(cell_kinematics(points, cells, x)[2]) for x in positions])
+    split = _cell_energies(model, points, cells, positions)
+    if split is not None and np.max(np.abs(split.sum(axis=1) - oracle)) > tol * scale:
+        split = None
+    return EnergyStates(np.asarray(engine, dtype=np.float64), oracle, split, J, V0, float(scale))
 
 
 def _candidates(st: EnergyStates) -> List[Tuple[str, str, np.ndarray, Dict[str, float]]]:
