@@ -31,6 +31,7 @@ from conformance.diagnosis.edge_ids import edge_id_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.energy_alone import energy_alone_reading
+from conformance.diagnosis.energy_differences import energy_difference_reading
 from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 from conformance.diagnosis.frames import frame_variants
@@ -352,6 +353,13 @@ READINGS: Tuple[Reading, ...] = (
         "one piece of Holzapfel's isochoric/volumetric split wrong (S_iso, DEV, P, P~, p~)",
         _nothing_named_but_volumetric,
         lambda d, c: split_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # first of the force-wrong readings: one unknown (the step) accounting for 99 % of the
+        # force error is stronger evidence than the pieces below, which fit a piece each
+        "the stress by differences of the energy density (forward or central, in F or in E)",
+        _force_wrong,
+        lambda d, c: energy_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "one piece of a hand-derived stress wrong (dJ/dC, dI2/dC, Voigt shear stresses, an SVD "
