@@ -73,15 +73,10 @@ def central_difference_reading(diag, ci, out, ref, s):
     """``diag`` (the force right, nothing named) with central differences of P in F named first,
     partly explaining, when they fit; unchanged otherwise.
     """
-    from conformance.diagnosis.elements import element_split
+    from conformance.diagnosis.elements import case_split
     from conformance.diagnosis.findings import PARTIAL, Finding, named_first
-    from conformance.diagnosis.hand_derived import MAX_CELLS
 
-    if ci.cells.shape[0] > MAX_CELLS:
-        return diag
-    split = element_split(
-        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
-    )
+    split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
     K_o = sp.csr_matrix(ref.stiffness)

@@ -174,15 +174,10 @@ def directional_difference_reading(diag, ci, out, ref, s):
     directional differences named first, partly explaining, when a scheme accounts for
     :data:`EXPLAINED` of the stiffness error; unchanged otherwise.
     """
-    from conformance.diagnosis.elements import element_split
+    from conformance.diagnosis.elements import case_split
     from conformance.diagnosis.findings import PARTIAL, Finding, named_first
-    from conformance.diagnosis.hand_derived import MAX_CELLS
 
-    if ci.cells.shape[0] > MAX_CELLS:
-        return diag
-    split = element_split(
-        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
-    )
+    split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
     K_o = sp.csr_matrix(ref.stiffness)

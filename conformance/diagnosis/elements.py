@@ -169,6 +169,22 @@ def element_split(
     return ElementSplit(cells, n, V0, D, F, fe, Ke, residual, np.asarray(positions, dtype=float))
 
 
+#: Largest mesh (cells) the per-cell readings read: their fits hold (m, 90, 9) arrays and more.
+MAX_CELLS = 5000
+
+
+def case_split(diag: Any, ci: Any, ref: Any, s: Scales) -> Optional[ElementSplit]:
+    """The oracle's answer at case ``ci`` split into cells for a per-cell reading; None for a
+    mesh above :data:`MAX_CELLS`, or when MJED's split does not add up to the oracle's ``ref``
+    within ``diag``'s tolerances.
+    """
+    if ci.cells.shape[0] > MAX_CELLS:
+        return None
+    return element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
+    )
+
+
 # ------------------------------------------------------------------ local dof order
 def local_orders() -> List[Tuple[np.ndarray, str]]:
     """(p, words) for every local order but node-major in the given node order: the engine's

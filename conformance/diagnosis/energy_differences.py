@@ -33,7 +33,7 @@ from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
-from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, element_split
+from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.invariant_pieces import cell_tensors
 from conformance.diagnosis.strain_differences import VOIGT, strain_derivatives
@@ -209,13 +209,7 @@ def energy_difference_reading(diag, ci, out, ref, s):
     """``diag`` (the force wrong, nothing named) with the stress by differences of the energy
     named first when a scheme fits the force error; unchanged otherwise.
     """
-    from conformance.diagnosis.hand_derived import MAX_CELLS
-
-    if ci.cells.shape[0] > MAX_CELLS:
-        return diag
-    split = element_split(
-        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, diag.tolerances
-    )
+    split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
     error = np.asarray(out.force, dtype=float) - np.asarray(ref.force, dtype=float)

@@ -32,7 +32,7 @@ from dataclasses import replace
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import cell_piola, element_split
+from conformance.diagnosis.elements import MAX_CELLS, cell_piola, element_split
 from conformance.diagnosis.fibre_pieces import fibre_piece_findings
 from conformance.diagnosis.findings import ambiguous
 from conformance.diagnosis.invariant_pieces import (
@@ -50,10 +50,6 @@ from conformance.diagnosis.voigt_stress import voigt_stress_findings
 from conformance.judge.compare import Scales, errors
 
 __all__ = ["hand_derived_reading"]
-
-
-#: Largest mesh (cells) read this way: the per-cell fits hold (m, 90, 9) arrays and more.
-MAX_CELLS = 5000
 
 #: The nearby state's displacement from the case's, in mean edge lengths (random, fixed seed).
 NEARBY = 0.03

@@ -237,9 +237,8 @@ def strain_difference_reading(diag, ci, out, ref, s):
     """
     from dataclasses import replace
 
-    from conformance.diagnosis.elements import element_split
+    from conformance.diagnosis.elements import case_split
     from conformance.diagnosis.findings import PARTIAL, Finding, ambiguous
-    from conformance.diagnosis.hand_derived import MAX_CELLS
     from conformance.diagnosis.perturbation_differences import (
         kirchhoff_curvatures,
         perturbation_basis,
@@ -247,12 +246,7 @@ def strain_difference_reading(diag, ci, out, ref, s):
         scheme_findings,
     )
 
-    if ci.cells.shape[0] > MAX_CELLS:
-        return diag
-    tol = diag.tolerances
-    split = element_split(
-        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
-    )
+    split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
     K_o = sp.csr_matrix(ref.stiffness)
@@ -288,7 +282,9 @@ def strain_difference_reading(diag, ci, out, ref, s):
     why = "the schemes' errors fit alike"
     if not found:  # the perturbation itself wrong?
         with np.errstate(all="ignore"):
-            found = scheme_findings(ci.model, split, ci.points, D, s.stiffness, tol.stiffness)
+            found = scheme_findings(
+                ci.model, split, ci.points, D, s.stiffness, diag.tolerances.stiffness
+            )
         why = "their perturbations predict the same tangent here"
     if not found:
         return diag
