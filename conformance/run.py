@@ -644,10 +644,12 @@ def _run_check(
             and not diag.causes
             and not diag.tolerances.within(diag.errors, energy=False)
         )
-        # A force as inexact as float32 storage alone makes it (a float32 value carries a
-        # relative error of u / sqrt(3) on average); a small exact-looking error is a mistake.
+        # A force about as inexact as float32 makes it: a float32 value carries a relative
+        # error of u / sqrt(3) on average, and a float32 stress field summed in double over
+        # the cells of a node leaves a few times less (corpus 12's float32 P: 0.2 u); below
+        # that, a small exact-looking error is a mistake.
         nf = safe_norm(ref.force)
-        inexact = nf == 0 or diag.errors.force * s.force >= U32 / 4 * nf
+        inexact = nf == 0 or diag.errors.force * s.force >= U32 / 16 * nf
         # float32's own signature is read first (NumPy only): an output that is float32
         # round-off and within single precision's tolerances skips the readings of mistakes,
         # which cannot explain round-off and would have the oracle compile and evaluate many

@@ -18,10 +18,11 @@ from reference_fem import dolfinx_available
 MU, LAM = 1.0, 2.0
 
 
-def _svk_force(points, cells, x, *, f32=False, mu=MU, noise_rng=None):
+def _svk_force(points, cells, x, *, f32=False, p32=False, mu=MU, noise_rng=None):
     """Force (n, 3) of W = lam/2 (tr E)^2 + mu tr(E^2); f32: C handed to the material in
-    float32 (S computed in float32); noise_rng: S given random relative noise of float32's
-    size instead (noise that is not rounding, e.g. an iteration's tolerance).
+    float32 (S computed in float32); p32: the first Piola stress P = F S kept in a float32
+    field, the rest double; noise_rng: S given random relative noise of float32's size instead
+    (noise that is not rounding, e.g. an iteration's tolerance).
     """
     X = points[cells]
     Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
@@ -38,7 +39,10 @@ def _svk_force(points, cells, x, *, f32=False, mu=MU, noise_rng=None):
     if noise_rng is not None:
         S = S * (1 + 2.0**-24 * noise_rng.standard_normal(S.shape))
         S = 0.5 * (S + np.swapaxes(S, 1, 2))
-    fe = -V0[:, None, None] * np.einsum("mij,mjk,mak->mai", F, S, D)
+    P = F @ S
+    if p32:
+        P = P.astype(np.float32).astype(float)
+    fe = -V0[:, None, None] * np.einsum("mij,maj->mai", P, D)
     f = np.zeros(points.shape)
     np.add.at(f, cells.ravel(), fe.reshape(-1, 3))
     return f
@@ -74,6 +78,17 @@ def test_c_in_float32_inside_a_double_engine_is_named():
     assert noise(e, pe).noisy
     # without probes: the rounding's pattern over the many distinct cells still says it
     assert mixed_precision_finding(split, model, points, x, e, None) is not None
+
+
+def test_a_float32_first_piola_stress_field_is_named_as_p_rounded():
+    """P computed in double and kept in float32 (a stress buffer) before a double assembly: the
+    rounding of P, not of C or S, predicts the error (corpus 12's Veronda-Westmann engine).
+    """
+    points, cells, x, model, split, f_o, probes = _setup(2)
+    e, pe = _errors(points, cells, x, probes, p32=True)
+    found = mixed_precision_finding(split, model, points, x, e, pe)
+    assert found is not None and found.figures["best"] == "P", found
+    assert found.figures["correlations"]["P"] > 0.99 > found.figures["correlations"]["S"]
 
 
 def test_a_small_smooth_error_or_other_noise_is_not_called_float32():

@@ -13,10 +13,11 @@ has not float32's own signature (:mod:`conformance.diagnosis.roundoff`), and its
 - **The rounding's own pattern.** The oracle's answer is split into cells (MJED's element
   forces, used only where their sum is the oracle's) and each hypothesis is computed exactly:
   C rounded to float32 and the rest in double (F' = R sqrt(C32) evaluated, its force carried
-  back with F F'^-1), F rounded, the positions rounded, S rounded. Where the cells differ, the
-  engine's error correlates with one of these patterns, which no formula error or other noise
-  does (chance measured with random per-cell patterns: :func:`chance_correlation`); its size
-  is that pattern's to a small factor.
+  back with F F'^-1), F rounded, the positions rounded, S, P or the Cauchy stress rounded (a
+  stress field kept in float32 between the material routine and a double assembly). Where the
+  cells differ, the engine's error correlates with one of these patterns, which no formula
+  error or other noise does (chance measured with random per-cell patterns:
+  :func:`chance_correlation`); its size is that pattern's to a small factor.
 
 The stiffness alone in single precision (the material routine's tangent in float32, its
 stress in double: the force and energy double-exact) keeps the balance laws too and leaves no
@@ -78,6 +79,8 @@ _WHAT = {
     "C": "C = F^T F rounded to float32",
     "F": "F rounded to float32",
     "S": "the second Piola-Kirchhoff stress S rounded to float32",
+    "P": "the first Piola-Kirchhoff stress P rounded to float32 (a float32 stress field)",
+    "sigma": "the Cauchy stress sigma rounded to float32 (a float32 stress field)",
     "positions": "the positions rounded to float32",
 }
 
@@ -172,6 +175,12 @@ def rounding_patterns(
             out[name] = fe
     S = _second_piola(split, base)
     out["S"] = _stress_forces(split, _f32(S))
+    P = split.F @ S
+    out["P"] = _piola_forces(split, _f32(P))
+    J = np.linalg.det(F)[:, None, None]
+    Ft = np.swapaxes(F, 1, 2)
+    sigma = P @ Ft / J  # sigma = P F^T / J, and back P = J sigma F^-T
+    out["sigma"] = _piola_forces(split, J * _f32(sigma) @ np.linalg.inv(Ft))
     return {k: assemble(cells, n, fe, None)[0] - f0 for k, fe in out.items()}
 
 
@@ -183,7 +192,12 @@ def _second_piola(split: ElementSplit, fe: np.ndarray) -> np.ndarray:
 
 def _stress_forces(split: ElementSplit, S: np.ndarray) -> np.ndarray:
     """Element forces (m, 4, 3) of the second Piola stresses S (m, 3, 3) at the split's F."""
-    return -split.V0[:, None, None] * np.einsum("mkj,maj->mak", split.F @ S, split.D)
+    return _piola_forces(split, split.F @ S)
+
+
+def _piola_forces(split: ElementSplit, P: np.ndarray) -> np.ndarray:
+    """Element forces (m, 4, 3) of the first Piola stresses P (m, 3, 3), f_a = -V0 P D_a."""
+    return -split.V0[:, None, None] * np.einsum("mkj,maj->mak", P, split.D)
 
 
 #: Random per-cell patterns drawn to measure the correlation that chance gives.
