@@ -57,6 +57,7 @@ from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.sparsity import off_pattern_reading
 from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
+from conformance.diagnosis.stiffness_noise import NOISE_RANGE, stiffness_noise_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_side import stress_side_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
@@ -173,7 +174,7 @@ class CaseReadings:
     that the first diagnosis does not explain and that is not float32 round-off within single
     precision; read_causes: False for ``--verdict-only``; probes: the case's probe cases and
     probe_results the engine's (positions (n, 3), force (n, 3), energy) at each (empty when a
-    probe's output was unusable).
+    probe's output was unusable), probe_stiffness its stiffness at each (empty likewise).
     """
 
     cache: OracleCache
@@ -187,6 +188,7 @@ class CaseReadings:
     read_causes: bool
     probes: Tuple[KitCase, ...] = ()
     probe_results: Tuple[tuple, ...] = ()
+    probe_stiffness: Tuple[Any, ...] = ()
 
     @property
     def ci(self) -> CaseInput:
@@ -248,6 +250,14 @@ def _force_right(d: Diagnosis, c: CaseReadings) -> bool:
 def _headline_unexplained(d: Diagnosis, c: CaseReadings) -> bool:
     """The force right and no reading (not even a partial one) has taken the headline."""
     return _force_right(d, c) and bool(d.findings) and d.findings[0].code == "unexplained"
+
+
+def _stiffness_slightly_off(d: Diagnosis, c: CaseReadings) -> bool:
+    """Nothing has taken the headline, the force right and the stiffness off by less than any
+    formula slip leaves (:data:`conformance.diagnosis.stiffness_noise.NOISE_RANGE`).
+    """
+    low, high = NOISE_RANGE
+    return _headline_unexplained(d, c) and low <= d.errors.stiffness <= high
 
 
 def _named_force_right(d: Diagnosis, c: CaseReadings) -> bool:
@@ -480,6 +490,16 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: entry_step_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
+        # last of the stiffness readings: noise is what no formula fits, and a formula's
+        # small error must have had its chance above
+        "the stiffness off by round-off alone: node blocks in float32, or differences with "
+        "too small a step (noise drawn anew at every probe)",
+        _stiffness_slightly_off,
+        lambda d, c: stiffness_noise_reading(
+            d, c.cache, c.ci, c.out, c.ref, c.s, c.probes, c.probe_stiffness
+        ),
+    ),
+    Reading(
         "last: the J-only stress the energy denied",
         _nothing_named,
         lambda d, c: denied_volumetric(d),
@@ -576,11 +596,12 @@ def _run_check(
                 )
             )
             continue
-        probe_results, probe_errors = [], []
+        probe_results, probe_errors, probe_stiffness = [], [], []
         for p in probes:
             try:
                 po = evaluate(p)
                 probe_results.append((p.input.positions, po.force, po.energy))
+                probe_stiffness.append(po.stiffness)
             except FormatError as exc:
                 probe_errors.append(str(exc))
         try:
@@ -678,6 +699,7 @@ def _run_check(
             read_causes,
             tuple(probes),
             tuple(probe_results) if not probe_errors else (),
+            tuple(probe_stiffness) if not probe_errors else (),
         )
         for reading in READINGS:
             if reading.when(diag, case_readings):
