@@ -34,7 +34,7 @@ from conformance.diagnosis.energy_alone import energy_alone_reading
 from conformance.diagnosis.energy_differences import energy_difference_reading
 from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
-from conformance.diagnosis.frames import frame_variants
+from conformance.diagnosis.frames import frame_energy_reading, frame_variants
 from conformance.diagnosis.hand_derived import (
     hand_derived_reading,
     nearby_force_reading,
@@ -258,6 +258,18 @@ def _stiffness_slightly_off(d: Diagnosis, c: CaseReadings) -> bool:
     """
     low, high = NOISE_RANGE
     return _headline_unexplained(d, c) and low <= d.errors.stiffness <= high
+
+
+def _energy_wrong(d: Diagnosis, c: CaseReadings) -> bool:
+    """An energy given that differs from the oracle's, and nothing named yet but (force and
+    stiffness right) the energy routine's own formula.
+    """
+    if not (c.read_causes and c.out.energy is not None):
+        return False
+    if d.errors.energy <= d.tolerances.energy:
+        return False
+    generic = bool(d.causes) and all(f.code == "energy" for f in d.causes)
+    return _nothing_named(d, c) or generic
 
 
 def _named_force_right(d: Diagnosis, c: CaseReadings) -> bool:
@@ -498,6 +510,11 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: stiffness_noise_reading(
             d, c.cache, c.ci, c.out, c.ref, c.s, c.probes, c.probe_stiffness
         ),
+    ),
+    Reading(
+        "the energy computed with a mistaken fibre frame, the stress with another handling of it",
+        _energy_wrong,
+        lambda d, c: frame_energy_reading(d, c.cache, c.ci, c.out, c.probes, c.probe_results),
     ),
     Reading(
         "last: the J-only stress the energy denied",

@@ -326,13 +326,15 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
         energy=None,
         stiffness_wrong=True,
     ):
-        tol = SimpleNamespace(force=1e-10, stiffness=1e-10)
+        tol = SimpleNamespace(force=1e-10, stiffness=1e-10, energy=1e-10)
         findings = [SimpleNamespace(code=headline)]
         d = SimpleNamespace(
             causes=findings if named else [],
             findings=findings,
             errors=SimpleNamespace(
-                force=1e-3 if force_wrong else 1e-12, stiffness=1e-3 if stiffness_wrong else 1e-12
+                force=1e-3 if force_wrong else 1e-12,
+                stiffness=1e-3 if stiffness_wrong else 1e-12,
+                energy=1e-12,
             ),
             tolerances=tol,
         )

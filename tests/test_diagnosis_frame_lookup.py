@@ -86,7 +86,7 @@ def test_the_averaged_frames_are_rotations_and_the_svd_one_is_the_nearest():
 
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
-@pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "smoothed", "first cell"])
+@pytest.mark.parametrize("mistake", ["node-indexed", "averaged", "smoothed", "twice", "first cell"])
 def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
     from frame_support import check_with_frames
 
@@ -97,6 +97,8 @@ def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
             return np.broadcast_to(_averaged_by_svd(R), R.shape)
         if mistake == "smoothed":  # a fibre field stored per node: cells -> nodes -> cells
             return _smoothed_by_svd(R, cells)
+        if mistake == "twice":  # the strain rotated into the frame by a helper and its caller
+            return R @ R
         return np.broadcast_to(R[0], R.shape)  # a nearby mistake with its own name
 
     outcome = check_with_frames(used, "random")
@@ -105,6 +107,7 @@ def test_a_frame_looked_up_wrongly_is_named_as_such(mistake):
         "node-indexed": "frame-node-indexed",
         "averaged": "frame-averaged",
         "smoothed": "frame-smoothed",
+        "twice": "frame-twice",
     }.get(mistake, "frame-global")
     assert outcome.status == "failed" and causes, outcome.diagnosis.text()
     assert [c.code for c in causes] == [expected], outcome.diagnosis.text()
@@ -164,3 +167,39 @@ def test_only_a_frame_marked_as_read_passes_the_oracles_check_without_being_a_ro
     assert np.array_equal(check_frame(R.view(AsReadFrame), 4), R)
     with pytest.raises(ValueError, match="non-finite"):
         check_frame(np.full((4, 3, 3), np.nan).view(AsReadFrame), 4)
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_an_energy_with_the_frame_twice_and_a_stress_without_is_named_from_the_energy():
+    """The strain rotated into the frame twice in the energy routine only (corpus 12): the
+    force is no variant's, but the energy is the frame-twice variant's at the case and every
+    probe. An energy off by a factor instead is no frame's.
+    """
+    import mjed
+    from conformance.protocol import check_implementation
+
+    def run(energy_of):
+        def engine(case):
+            mesh = mjed.TetMesh(case.points, case.cells)
+            field = mjed.make_force_field(mesh, case.model)
+            f, K = field.force_and_stiffness(case.positions)
+            return f, K, energy_of(case, mesh)
+
+        result = check_implementation(
+            engine, material=default_material("Costa"), mesh="cube-small", states=("random",)
+        )
+        return result.outcomes[0].diagnosis
+
+    def twice(case, mesh):
+        R = np.asarray(case.model.frame)
+        wrong = replace(case.model, frame=np.ascontiguousarray(R @ R))
+        return mjed.make_force_field(mesh, wrong).energy(case.positions)
+
+    d = run(twice)
+    assert d.findings[0].code == "frame-energy" and "applied twice" in d.findings[0].title, d.text()
+    assert d.findings[0].figures["probes"] == 4
+    d = run(
+        lambda case, mesh: 1.01 * mjed.make_force_field(mesh, case.model).energy(case.positions)
+    )
+    assert all(f.code != "frame-energy" for f in d.findings), d.text()

@@ -14,6 +14,8 @@ variant within the tolerance. The mistakes (docs/conventions.md, "The diagnosis"
 - ``frame-global``: one frame for the whole mesh, the first cell's (the material axes held
   fixed in space instead of following the field: an engine that reads frame.f64 as one
   (3, 3) rotation);
+- ``frame-twice``: the frame applied twice, R R for R (a helper rotating the strain into the
+  frame that its caller had already rotated), or R^T R^T;
 - ``frame-shifted``: per-cell frames read one cell off (cell i given cell i - 1's or i + 1's
   frame: an off-by-one index, or frames written in another cell order), the end wrapping
   round or held;
@@ -79,7 +81,8 @@ class FrameVariant:
     """The oracle with a mistaken frame, at the case's positions.
 
     code, title: the mistake; force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]: the variant
-    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`).
+    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`);
+    energy [J]: its energy; model: the case's model with the mistaken frame.
     """
 
     code: str
@@ -87,6 +90,8 @@ class FrameVariant:
     force: np.ndarray
     stiffness: sp.csr_matrix
     scales: Scales
+    energy: float = float("nan")
+    model: Any = None
 
 
 def _frame_of(model: Any) -> "np.ndarray | None":
@@ -119,6 +124,17 @@ def frame_models(
             "frame-global",
             "one frame for the whole mesh (the first cell's), not each cell's frame",
             R[0] if R.ndim == 3 else R,
+        ),
+        (
+            "frame-twice",
+            "fibre frame applied twice: the strain rotated into the frame a second time, "
+            "R^T (R^T E R) R (R R used for R: a helper rotating what its caller had rotated)",
+            np.ascontiguousarray(R @ R),
+        ),
+        (
+            "frame-twice",
+            "fibre frame applied twice the other way: R (R E R^T) R^T (R^T R^T used for R)",
+            np.ascontiguousarray(np.swapaxes(R @ R, -1, -2)),
         ),
     ]
     if R.ndim == 3 and R.shape[0] > 1:
@@ -479,6 +495,8 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
                 ref.force,
                 ref.stiffness,
                 scales(h, ref.energy, ref.force, ref.stiffness),
+                float(ref.energy),
+                model,
             )
         )
     return out
@@ -489,3 +507,61 @@ def _same_prediction(v: FrameVariant, f: np.ndarray, K: sp.spmatrix) -> bool:
     df = float(np.linalg.norm(f - v.force)) / max(v.scales.force, 1e-300)
     dK = float(sparse_norm(sp.csr_matrix(K) - v.stiffness)) / max(v.scales.stiffness, 1e-300)
     return max(df, dK) <= _SAME_PREDICTION
+
+
+def frame_energy_reading(diag, cache, ci, out, probes, probe_results):
+    """``diag`` (the energy wrong, nothing named but the energy routine's formula) with the
+    frame mistake whose energy is the engine's, at the case and at every probe, named first:
+    fully when force and stiffness are right (the energy routine alone carries it), partly
+    otherwise (the force is not that variant's: the stress handles the frame otherwise, e.g.
+    rotated back once where the strain was rotated twice); unchanged when no variant's energy
+    is the engine's or the model has no frame. probes: the case's probe KitCases;
+    probe_results: the engine's (positions, force, energy) at each.
+    """
+    from dataclasses import replace
+
+    from conformance.diagnosis.findings import FULL, PARTIAL, Finding
+
+    W = out.energy
+    if W is None or not frame_models(ci.model):
+        return diag
+    tol = diag.tolerances.energy
+
+    def close(a: float, b: float) -> bool:
+        return bool(np.isfinite(a) and abs(a - b) <= tol * max(abs(b), 1e-300))
+
+    energies = [r[2] for r in probe_results]
+    for v in frame_variants(ci, cache):
+        if not close(W, v.energy):
+            continue
+        matched = 0
+        for p, e in zip(probes, energies):
+            at = CaseInput(ci.case_id, ci.points, ci.cells, p.input.positions, v.model)
+            if e is None or not close(e, float(cache.reference(at).energy)):
+                break
+            matched += 1
+        else:
+            right = diag.tolerances.within(diag.errors, energy=False)
+            found = Finding(
+                "frame-energy",
+                f"your energy is computed with the {v.title}"
+                + (
+                    "; your force and stiffness are right: the energy routine alone has it"
+                    if right
+                    else "; your force is not its derivative (the stress treats the frame "
+                    "otherwise)"
+                ),
+                FULL if right else PARTIAL,
+                f"the oracle with that frame gives your energy to {tol:.0e} at this state and at "
+                f"{matched} probe(s) near it (the kit's frame: {diag.errors.energy:.1e} off)"
+                + (
+                    ""
+                    if right
+                    else ", while your force differs from that variant's: the energy routine "
+                    "carries the frame mistake, the stress routine not the same one"
+                ),
+                {"code": v.code, "probes": matched},
+            )
+            rest = [f for f in diag.findings if f.code not in ("unexplained", "energy")]
+            return replace(diag, findings=[found, *rest])
+    return diag
