@@ -34,7 +34,7 @@ from conformance.diagnosis.energy_alone import energy_alone_reading
 from conformance.diagnosis.energy_differences import energy_difference_reading
 from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
-from conformance.diagnosis.frames import frame_energy_reading, frame_variants
+from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.hand_derived import (
     hand_derived_reading,
     nearby_force_reading,
@@ -64,6 +64,7 @@ from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.svd_blocks import svd_block_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
+from conformance.diagnosis.variant_energy import variant_energy_reading
 from conformance.diagnosis.volumes import volume_findings
 from conformance.judge.compare import DOUBLE, Scales, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -512,9 +513,9 @@ READINGS: Tuple[Reading, ...] = (
         ),
     ),
     Reading(
-        "the energy computed with a mistaken fibre frame, the stress with another handling of it",
+        "the energy computed with a mistaken frame or kinematics, the stress derived otherwise",
         _energy_wrong,
-        lambda d, c: frame_energy_reading(d, c.cache, c.ci, c.out, c.probes, c.probe_results),
+        lambda d, c: variant_energy_reading(d, c.cache, c.ci, c.out, c.probes, c.probe_results),
     ),
     Reading(
         "last: the J-only stress the energy denied",

@@ -197,9 +197,10 @@ def test_an_energy_with_the_frame_twice_and_a_stress_without_is_named_from_the_e
         return mjed.make_force_field(mesh, wrong).energy(case.positions)
 
     d = run(twice)
-    assert d.findings[0].code == "frame-energy" and "applied twice" in d.findings[0].title, d.text()
-    assert d.findings[0].figures["probes"] == 4
+    named = d.findings[0]
+    assert named.code == "variant-energy" and named.figures["variant"] == "frame-twice", d.text()
+    assert "force and stiffness are right" in named.title and named.figures["states"] == 5
     d = run(
         lambda case, mesh: 1.01 * mjed.make_force_field(mesh, case.model).energy(case.positions)
     )
-    assert all(f.code != "frame-energy" for f in d.findings), d.text()
+    assert all(f.code != "variant-energy" for f in d.findings), d.text()

@@ -64,7 +64,8 @@ class Spec:
     powers whose exponent prints as this (None: all);
     frame_deformed: the frame pushed forward, columns F R / |F R| (the deformed configuration);
     strain: the strain measure E read as "green" (None: (C - I)/2), "no-half" (C - I, the 1/2 of
-    Green's strain dropped) or "small" ((F + F^T)/2 - I, the linearised strain); only E changes;
+    Green's strain dropped), "small" ((F + F^T)/2 - I, the linearised strain) or "isochoric"
+    ((J^(-2/3) C - I)/2, Green's strain of the isochoric C_bar); only E changes;
     j_exponents: ((exponent, factor), ...): each non-integer power of J whose exponent prints as
     ``exponent`` (:func:`exponent_key`) taken as J^(factor x exponent), the factor entering the
     form as a parameter does (one compiled form for every factor: a fit of the exponents);
@@ -159,6 +160,8 @@ class Kinematics:
             self.E = self.C - eye
         elif spec.strain == "small":
             self.E = 0.5 * (F + F.T) - eye
+        elif spec.strain == "isochoric":  # from C_bar = J^(-2/3) C: the decoupled habit
+            self.E = 0.5 * (J ** (-2.0 / 3.0) * self.C - eye)
         else:
             self.E = 0.5 * (self.C - eye)
         if spec.i1 == "trC2":

@@ -14,8 +14,9 @@ case's tolerance. The mistakes:
 - the energy weighted by the deformed volume (J W for W);
 - principal stretches confused with their squares (the power of the eigenvalues of C doubled or
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
-- the strain measure: E = C - I (Green's 1/2 dropped) or the linearised strain (F + F^T)/2 - I
-  for E = (C - I)/2 (formulas written in E: St Venant-Kirchhoff, Costa, a user energy's Eij);
+- the strain measure: E = C - I (Green's 1/2 dropped), the linearised strain (F + F^T)/2 - I
+  or the isochoric (J^(-2/3) C - I)/2 for E = (C - I)/2 (formulas written in E: St
+  Venant-Kirchhoff, Costa, a user energy's Eij);
 - the isochoric power of J (every non-integer power of J, or each one alone, multiplied by 0,
   1/2, 2 or -1: its minus sign lost);
 - a power of J that multiplies an exponential's argument applied to the whole exponential
@@ -253,6 +254,12 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             "strain-small",
             "the linearised (small) strain (F + F^T)/2 - I used for Green's E = (C - I)/2",
             Spec(strain="small"),
+        ),
+        (
+            "strain-isochoric",
+            "the strain of the isochoric C_bar = J^(-2/3) C, (C_bar - I)/2, used for Green's "
+            "E = (C - I)/2 (the decoupled split's habit carried into a strain-based energy)",
+            Spec(strain="isochoric"),
         ),
     ]
     try:
