@@ -52,7 +52,7 @@ def variant_energies(ci: CaseInput, cache: Any) -> Iterator[Candidate]:
     for v in kinematic_variants(ci.model):
         yield (
             f"kinematic-{v.code}",
-            f"energy with {v.title}",
+            v.title,
             lambda x, v=v: float(
                 cache.evaluate_model(
                     replace(ci, positions=x), v.oracle_model(ci.model), base + v.key(), lazy=True
