@@ -432,6 +432,14 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: hand_derived_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
+        # the stress slip that vanishes at this state (C F for F C where F is diagonal) still
+        # shows in its tangent: the same rewrites, the force right
+        "a derivative dW/dI or an invariant's gradient typed wrongly in a hand-written stress, "
+        "its error zero at this state but not its tangent",
+        _force_right,
+        lambda d, c: derivative_rewrite_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
         "Ogden's coaxial tangent, Costa's d2Q unsymmetrised",
         _force_right,
         lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),

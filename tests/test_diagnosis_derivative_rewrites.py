@@ -337,3 +337,34 @@ def test_the_isochoric_projection_with_i1bs_coefficient_in_di2b_dc_is_named():
     found = _find(case, *_engine(*case[1:4], _mooney_rivlin_total_lagrangian(model, -1.0 / 3.0)))
     assert [x.code for x in found] == ["stress-derivative-rewritten"], [x.title for x in found]
     assert "the C^-1 term of dI2b/dC written -1/3 I2 C^-1" in found[0].title
+
+
+def _mooney_rivlin_first_piola(model, product):
+    """P = c1 dI1b/dF + c2 dI2b/dF + k0 ln J F^-T with dI2/dF = 2 (I1 F - product(F, C))
+    (right: F C).
+    """
+
+    def P(F):
+        C = F.transpose(0, 2, 1) @ F
+        J = np.linalg.det(F)[:, None, None]
+        I1 = np.trace(C, axis1=1, axis2=2)[:, None, None]
+        I2 = (I1**2 - np.trace(C @ C, axis1=1, axis2=2)[:, None, None]) / 2
+        FiT = np.linalg.inv(F).transpose(0, 2, 1)
+        dI1b = J ** (-2 / 3) * (2 * F - 2 / 3 * I1 * FiT)
+        dI2b = J ** (-4 / 3) * (2 * (I1 * F - product(F, C)) - 4 / 3 * I2 * FiT)
+        return model.c1 * dI1b + model.c2 * dI2b + model.k0 * np.log(J) * FiT
+
+    return P
+
+
+def test_di2_df_typed_with_c_f_is_named_as_the_operands_swapped():
+    """Corpus 12's Mooney-Rivlin: C F where F C belongs in dI2/dF, the stiffness that force's
+    complex step; the same engine with F C is right.
+    """
+    case = _case("MooneyRivlin", seed=5)
+    model = case[0]
+    right = _mooney_rivlin_first_piola(model, lambda F, C: F @ C)
+    assert _find(case, *_engine(*case[1:4], right)) == []
+    found = _find(case, *_engine(*case[1:4], _mooney_rivlin_first_piola(model, lambda F, C: C @ F)))
+    assert [x.code for x in found] == ["stress-gradient-slip"], [x.title for x in found]
+    assert found[0].figures["slip"] == "CF" and "C F" in found[0].title

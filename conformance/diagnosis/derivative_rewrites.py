@@ -60,6 +60,7 @@ from reference_fem.user_energy import EnergySyntaxError, evaluate_formula
 
 __all__ = [
     "StressRewrite",
+    "GradientSlip",
     "IsochoricScaling",
     "stress_rewrites",
     "invariants",
@@ -90,6 +91,36 @@ class StressRewrite:
     formula: str
     right: str
     words: str
+
+
+@dataclass(frozen=True)
+class GradientSlip:
+    """An invariant's gradient typed with its operands in another order, the same slip in every
+    invariant built from it (dI2/dF and dI2b/dF share F C; dJ/dF, dI1b/dF, dI2b/dF share
+    F^-T): ``slip`` names it (:data:`_GRADIENT_SLIPS`), ``derivatives`` ((invariant, dW/dI)) the
+    energy's terms it reaches.
+    """
+
+    slip: str
+    derivatives: Tuple[Tuple[str, str], ...]
+    words: str
+
+    @property
+    def invariant(self) -> str:
+        return " and ".join(k for k, _ in self.derivatives)
+
+
+#: slip -> (the invariants whose gradient carries it, words). The right forms:
+#: dI1/dF = 2 F, dI2/dF = 2 (I1 F - F C), dJ/dF = J F^-T.
+_GRADIENT_SLIPS = {
+    "CF": (("I2", "I2b"), "dI2/dF = 2 (I1 F - F C) typed with C F (a product's operands swapped)"),
+    "FB": (("I2", "I2b"), "dI2/dF = 2 (I1 F - F C) typed with F B = F F F^T (B for C)"),
+    "FT": (("I1", "I1b"), "dI1/dF = 2 F typed 2 F^T (F transposed in the gradient)"),
+    "Finv": (
+        ("J", "I3", "I1b", "I2b"),
+        "dJ/dF = J F^-T typed J F^-1 (the inverse not transposed, in every F^-T of the stress)",
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -163,13 +194,20 @@ def invariants(F: np.ndarray) -> Dict[str, np.ndarray]:
     }
 
 
-def invariant_gradients(F: np.ndarray, values: Dict[str, np.ndarray]) -> Dict[str, np.ndarray]:
-    """dI/dF (m, 3, 3) of each invariant of :func:`invariants` (``values``), complex-safe."""
-    FiT = np.swapaxes(np.linalg.inv(F), 1, 2)
-    C = np.swapaxes(F, 1, 2) @ F
+def invariant_gradients(
+    F: np.ndarray, values: Dict[str, np.ndarray], slip: Optional[str] = None
+) -> Dict[str, np.ndarray]:
+    """dI/dF (m, 3, 3) of each invariant of :func:`invariants` (``values``), complex-safe;
+    ``slip``: typed with one of :data:`_GRADIENT_SLIPS` (None: right).
+    """
+    Ft = np.swapaxes(F, 1, 2)
+    Fi = np.linalg.inv(F)
+    FiT = Fi if slip == "Finv" else np.swapaxes(Fi, 1, 2)
+    C = Ft @ F
     I1, I2, J = values["I1"], values["I2"], values["J"]
-    g1 = 2.0 * F
-    g2 = 2.0 * (I1[:, None, None] * F - F @ C)
+    g1 = 2.0 * (Ft if slip == "FT" else F)
+    FC = {"CF": C @ F, "FB": F @ F @ Ft}.get(slip, F @ C)
+    g2 = 2.0 * (I1[:, None, None] * F - FC)
     w = lambda a: a[:, None, None]  # noqa: E731  (per-cell scalars against (m, 3, 3))
     return {
         "I1": g1,
@@ -374,6 +412,10 @@ def stress_rewrites(expression: str, params: Tuple[str, ...]) -> List[Any]:
                     "(the isochoric projection of the stress)",
                 )
             )
+    for slip, (reached, words) in _GRADIENT_SLIPS.items():
+        terms = tuple((k, psi[k]) for k in used if k in reached and psi[k] != "0")
+        if terms:
+            out.append(GradientSlip(slip, terms, f"{words} in the stress"))
     isochoric = tuple((k, psi[k]) for k in used if k in _DEGREE and psi[k] != "0")
     for q, words in _ISOCHORIC_SCALINGS if isochoric else ():
         for at_scaled in (False, True):
@@ -439,6 +481,21 @@ def _(rw: IsochoricScaling, cells: _Cells, params: Dict[str, float]) -> Optional
             return None
         d = np.broadcast_to(np.asarray(new) * Jq ** _DEGREE[k] - np.asarray(right), F.shape[:1])
         dP = dP + d[:, None, None] * grads[k]
+    return dP
+
+
+@_stress_error.register
+def _(rw: GradientSlip, cells: _Cells, params: Dict[str, float]) -> Optional[np.ndarray]:
+    """sum_k dW/dI_k (dI_k/dF as typed - dI_k/dF)."""
+    values = {**params, **cells.inv}
+    typed = invariant_gradients(cells.F, cells.inv, rw.slip)
+    dP = np.zeros(cells.F.shape, dtype=np.result_type(cells.F, float))
+    for k, formula in rw.derivatives:
+        psi = _psi(formula, values)
+        if psi is None:
+            return None
+        d = np.broadcast_to(np.asarray(psi), cells.F.shape[:1])
+        dP = dP + d[:, None, None] * (typed[k] - cells.grads[k])
     return dP
 
 
@@ -593,6 +650,19 @@ def _(rw: IsochoricScaling, tangent: str, e, energy: str) -> Finding:
 
 
 @_finding.register
+def _(rw: GradientSlip, tangent: str, e, energy: str) -> Finding:
+    return Finding(
+        "stress-gradient-slip",
+        f"your hand-written stress wrong: {rw.words} ({energy})",
+        FULL,
+        f"the oracle's stress with the gradients of {rw.invariant} typed so, each times its "
+        f"dW/dI (nothing fitted), {tangent}: force error {e.force:.1e}, stiffness error "
+        f"{e.stiffness:.1e}",
+        {"slip": rw.slip, "tangent": tangent, "residual": max(e.force, e.stiffness)},
+    )
+
+
+@_finding.register
 def _(rw: StressRewrite, tangent: str, e, energy: str) -> Finding:
     k = rw.invariant
     return Finding(
@@ -622,9 +692,10 @@ def read_case(finder: Callable[..., List[Finding]], diag: Any, ci: Any, out: Any
 
 
 def derivative_rewrite_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
-    """``diag`` (a failed case nothing explained yet, its force wrong) with a rewritten
-    derivative named first when one explains it; unchanged when the engine's energy is wrong
-    (then W itself differs) or nothing fits.
+    """``diag`` (a failed case nothing explained yet; its force wrong, or right at a state
+    where the stress slip vanishes while its tangent does not) with a rewritten derivative
+    named first when one explains it; unchanged when the engine's energy is wrong (then W
+    itself differs) or nothing fits.
     """
     e = diag.errors.energy
     if e is not None and e > diag.tolerances.energy:
