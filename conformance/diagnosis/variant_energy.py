@@ -10,8 +10,10 @@ required at the case and at every probe of the kit (each a different state), wit
 tolerance: chance agreement at five states to 1e-10 is not a risk worth naming.
 
 The variants are those of :mod:`conformance.diagnosis.frames` (the oracle with each mistaken
-frame) and :mod:`conformance.diagnosis.kinematics` (the oracle of each kinematic variant,
-compiled once per mesh and variant and usually already compiled by the readings of the force).
+frame), :mod:`conformance.diagnosis.kinematics` (the oracle of each kinematic variant) and
+:mod:`conformance.diagnosis.variants` (each rewritten formula: an invariant typed wrongly in a
+routine both the energy and the stress call), compiled once per mesh and variant and usually
+already compiled by the readings of the force.
 Named fully when force and stiffness are right (the energy routine alone has it), partly
 otherwise.
 """
@@ -33,12 +35,14 @@ Candidate = Tuple[str, str, Callable[[np.ndarray], float]]
 
 
 def variant_energies(ci: CaseInput, cache: Any) -> Iterator[Candidate]:
-    """The frame variants of the case's model, then its kinematic variants, each with its
-    energy as a function of the positions (the oracle, built when first asked).
+    """The frame variants of the case's model, then its kinematic variants, then its rewritten
+    formulas (:mod:`conformance.diagnosis.variants`), each with its energy as a function of the
+    positions (the oracle, built when first asked).
     """
     from conformance.diagnosis.frames import frame_models
     from conformance.diagnosis.kinematics import kinematic_variants
     from conformance.diagnosis.readings import model_key
+    from conformance.diagnosis.variants import variants
 
     for code, title, model in frame_models(ci.model, ci.cells, ci.points):
         yield (
@@ -57,6 +61,14 @@ def variant_energies(ci: CaseInput, cache: Any) -> Iterator[Candidate]:
                 cache.evaluate_model(
                     replace(ci, positions=x), v.oracle_model(ci.model), base + v.key(), lazy=True
                 ).energy
+            ),
+        )
+    for w in variants(ci.model):
+        yield (
+            f"formula-{w.rewrite.code}",
+            f"formula W' = {w.expression} ({w.rewrite.words})",
+            lambda x, w=w: float(
+                cache.reference(replace(ci, positions=x, model=w.model), lazy=True).energy
             ),
         )
 

@@ -213,6 +213,18 @@ REWRITES: Tuple[Rewrite, ...] = (
         "I2-as-trC2", "tr(C^2) used for I2 = (I1^2 - tr(C^2)) / 2", r"\bI2\b", "(I1**2 - 2*I2)"
     ),
     Rewrite(
+        "I2-plus",
+        "I2 = (I1^2 + tr(C^2)) / 2, the minus of (I1^2 - tr(C^2)) / 2 lost (I1b^2 - I2b for I2b)",
+        r"\bI2b\b",
+        "(I1b**2 - I2b)",
+    ),
+    Rewrite(
+        "I2-plus",
+        "I2 = (I1^2 + tr(C^2)) / 2, the minus of (I1^2 - tr(C^2)) / 2 lost (I1^2 - I2 for I2)",
+        r"\bI2\b",
+        "(I1**2 - I2)",
+    ),
+    Rewrite(
         "I2-diagonal",
         "tr(C^2) in I2 = (I1^2 - tr(C^2)) / 2 taken from the diagonal of C only (the off-diagonal "
         "entries dropped)",
