@@ -65,6 +65,7 @@ from conformance.diagnosis.svd_blocks import svd_block_reading
 from conformance.diagnosis.term_differences import term_difference_reading
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.diagnosis.variant_energy import variant_energy_reading
+from conformance.diagnosis.voigt_maps import voigt_map_reading
 from conformance.diagnosis.volumes import volume_findings
 from conformance.judge.compare import DOUBLE, Scales, scales
 from conformance.judge.consistency import Consistency, consistency, safe_norm
@@ -408,6 +409,13 @@ READINGS: Tuple[Reading, ...] = (
         "number, an exponent, a parameter, an invariant, a power of J)",
         _force_wrong,
         lambda d, c: derivative_rewrite_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the rewrites and MJED's parts, which name a component's formula: here the
+        # whole Voigt vector is mapped, one 6 x 6 map for every cell
+        "a Voigt stress vector read through another map (order, shear factor, sign)",
+        _force_wrong,
+        lambda d, c: voigt_map_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a known approximation of the tangent",

@@ -1,0 +1,148 @@
+"""A Voigt stress vector read through the wrong map: components in another order, a shear
+factor, a sign.
+
+Engines written in Voigt notation (the force r = V0 B^T s of a 6-vector s, B the nonlinear
+strain-displacement matrix) hold the stress as six numbers whose order and shear convention
+must agree between the routine that fills s and the matrix B that reads it: (11, 22, 33, 12,
+23, 13) against (11, 22, 33, 23, 13, 12), a tensor shear S_12 where an engineering one is
+read, a component typed with the wrong sign. Each of these is one fixed 6 x 6 map M, the same
+in every cell: the engine's force is that of s' = M s.
+
+The force is linear in M, so M is fitted by least squares over the 36 per-cell patterns
+(s_B put in component A, assembled as element forces -V0 F S D_a), from the oracle's per-cell
+second Piola stress. The fit is then snapped to the numbers a slip writes (0, +-1/2, +-1, +-2)
+and the snapped map, nothing fitted, must give the engine's force within the case's tolerance;
+only then is it named, with the map in words (a permutation of components, factors, signs).
+The stiffness is said right or not; a stiffness built from the same misread s is not
+predicted here.
+"""
+
+from __future__ import annotations
+
+from typing import List, Optional
+
+import numpy as np
+
+from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
+from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
+from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.strain_differences import VOIGT
+from conformance.judge.compare import errors
+
+__all__ = ["NAMES", "voigt_map_patterns", "fit_voigt_map", "voigt_map_words", "voigt_map_reading"]
+
+NAMES = ("11", "22", "33", "12", "23", "13")
+
+#: The numbers a misread Voigt map holds.
+_SNAP = np.array([0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0])
+#: How far a fitted entry may be from its snapped value.
+_SNAP_TOL = 0.05
+
+
+def _unit(A: int) -> np.ndarray:
+    """(3, 3) the symmetric tensor of Voigt component A (a shear: both entries 1)."""
+    i, j = VOIGT[A]
+    e = np.zeros((3, 3))
+    e[i, j] = e[j, i] = 1.0
+    return e
+
+
+def voigt_map_patterns(split: ElementSplit, S: np.ndarray) -> np.ndarray:
+    """(36, n, 3): the force of s_B (the B-th Voigt component of S (m, 3, 3)) written into
+    component A, for A, B in 0..5 (row 6 A + B).
+    """
+    s = np.stack([S[:, i, j] for i, j in VOIGT], axis=1)  # (m, 6)
+    FD = np.einsum("mkI,maJ->mkIaJ", split.F, split.D)
+    out = np.empty((36, split.n, 3))
+    for A in range(6):
+        e = _unit(A)
+        base = -split.V0[:, None, None] * np.einsum("mkIaJ,IJ->mak", FD, e)  # (m, 4, 3)
+        for B in range(6):
+            fe = s[:, B, None, None] * base
+            out[6 * A + B] = assemble(split.cells, split.n, fe, None)[0]
+    return out
+
+
+def fit_voigt_map(patterns: np.ndarray, error: np.ndarray) -> Optional[np.ndarray]:
+    """The snapped 6 x 6 map M (M - I fitted to the force error (n, 3) over ``patterns``), or
+    None when the fit is not near a map of :data:`_SNAP` numbers or snaps to the identity.
+    """
+    Aop = patterns.reshape(36, -1).T
+    dM, *_ = np.linalg.lstsq(Aop, error.ravel(), rcond=None)
+    M = np.eye(6) + dM.reshape(6, 6)
+    snapped = _SNAP[np.argmin(np.abs(M[..., None] - _SNAP), axis=-1)]
+    if np.max(np.abs(M - snapped)) > _SNAP_TOL or np.array_equal(snapped, np.eye(6)):
+        return None
+    return snapped
+
+
+def voigt_map_words(M: np.ndarray) -> str:
+    """The map in words: a permutation of components (with factors), else its rows."""
+
+    def number(c: float) -> str:
+        return {1.0: "", -1.0: "-", 2.0: "2 ", -2.0: "-2 ", 0.5: "1/2 ", -0.5: "-1/2 "}[c]
+
+    nz = M != 0
+    if np.all(nz.sum(axis=1) == 1) and np.all(nz.sum(axis=0) <= 1):
+        parts = []
+        for A in range(6):
+            B = int(np.flatnonzero(nz[A])[0])
+            if A != B or M[A, B] != 1.0:
+                parts.append(f"s_{NAMES[A]} holds {number(M[A, B])}S_{NAMES[B]}")
+        return "; ".join(parts)
+    rows = []
+    for A in range(6):
+        terms = [f"{number(M[A, B])}S_{NAMES[B]}" for B in range(6) if M[A, B] != 0]
+        if not (len(terms) == 1 and M[A, A] == 1.0):
+            rows.append(f"s_{NAMES[A]} = " + (" + ".join(terms) if terms else "0"))
+    return "; ".join(rows)
+
+
+def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
+    """The misread Voigt map whose exact force is the engine's (f (n, 3)), or []."""
+    P, A = cell_piola(split)
+    S = cell_tensors(P, A, split.F).S
+    patterns = voigt_map_patterns(split, S)
+    error = np.asarray(f, dtype=float) - np.asarray(f_o, dtype=float)
+    M = fit_voigt_map(patterns, error)
+    if M is None:
+        return []
+    dM = M - np.eye(6)
+    predicted = np.asarray(f_o, dtype=float) + np.tensordot(dM.ravel(), patterns, axes=1)
+    e = errors(f, K, None, predicted, K_o, 0.0, s)
+    if e.force > tol.force:
+        return []
+    right = e.stiffness <= tol.stiffness
+    return [
+        Finding(
+            "voigt-map",
+            "your Voigt stress vector is read through another map than the one it was filled "
+            f"in: {voigt_map_words(M)} (the Voigt order or shear convention of s and of the rows "
+            "of B disagree, or a component is typed wrongly)",
+            FULL if right else PARTIAL,
+            "the force of s' = M s per cell, M fitted over the 36 component patterns from the "
+            "oracle's per-cell S and snapped to the numbers such a slip writes, then predicted "
+            f"with nothing fitted: force error {e.force:.1e}; "
+            + (
+                "your stiffness is right"
+                if right
+                else f"your stiffness is wrong as well ({e.stiffness:.1e}), which this does not "
+                "predict"
+            ),
+            {"map": M.tolist()},
+        )
+    ]
+
+
+def voigt_map_reading(diag, ci, out, ref, s):
+    """``diag`` (the force wrong, nothing named) with a misread Voigt map named first when its
+    exact force is the engine's; unchanged otherwise.
+    """
+    split = case_split(diag, ci, ref, s)
+    if split is None:
+        return diag
+    with np.errstate(all="ignore"):
+        found = voigt_map_findings(
+            split, out.force, out.stiffness, ref.force, ref.stiffness, s, diag.tolerances
+        )
+    return named_first(diag, found)

@@ -1,0 +1,69 @@
+"""A Voigt stress vector read through the wrong map (conformance.diagnosis.voigt_maps): an
+engine written here whose force is r = V0 B^T s with s filled in one Voigt order and read in
+another, or with its shears doubled or a sign flipped; MJED stands in for the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import box_mesh, mjed_split
+
+from common.cases import default_material
+from conformance.diagnosis.elements import assemble, cell_piola
+from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.strain_differences import VOIGT
+from conformance.diagnosis.voigt_maps import voigt_map_findings
+from conformance.judge.compare import DOUBLE
+
+
+def _case(material, seed):
+    points, cells = box_mesh(2, jitter=0.2, seed=seed)
+    rng = np.random.default_rng(seed)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.04 * rng.standard_normal(points.shape)
+    split, f_o, K_o, s = mjed_split(default_material(material), points, cells, x)
+    return split, f_o, K_o, s
+
+
+def _misread_force(split, M):
+    """The force of s' = M s: S's Voigt vector mapped, then read back as a symmetric S'."""
+    P, A = cell_piola(split)
+    S = cell_tensors(P, A, split.F).S
+    v = np.stack([S[:, i, j] for i, j in VOIGT], axis=1) @ M.T
+    S2 = np.zeros_like(S)
+    for a, (i, j) in enumerate(VOIGT):
+        S2[:, i, j] = S2[:, j, i] = v[:, a]
+    fe = -split.V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", split.F, S2, split.D)
+    return assemble(split.cells, split.n, fe, None)[0]
+
+
+def _order_swap():
+    """The vector s filled as (11, 22, 33, 23, 13, 12), read as (11, 22, 33, 12, 23, 13)."""
+    M = np.zeros((6, 6))
+    for a, b in enumerate((0, 1, 2, 4, 5, 3)):
+        M[a, b] = 1.0
+    return M
+
+
+@pytest.mark.parametrize(
+    "material, M, words",
+    [
+        ("NeoHookean", _order_swap(), "s_12 holds S_23"),
+        ("Gent", np.diag([1, 1, 1, 2, 2, 2.0]), "s_12 holds 2 S_12"),
+        ("Costa", np.diag([1, 1, 1, 1, -1, 1.0]), "s_23 holds -S_23"),
+    ],
+)
+def test_a_misread_voigt_stress_is_named_with_its_map(material, M, words):
+    split, f_o, K_o, s = _case(material, 2)
+    f = _misread_force(split, M)
+    found = voigt_map_findings(split, f, K_o, f_o, K_o, s, DOUBLE)
+    assert [x.code for x in found] == ["voigt-map"], found
+    assert words in found[0].title and np.array_equal(found[0].figures["map"], M), found
+
+
+def test_a_stress_off_by_a_formula_is_no_voigt_map():
+    """Another material's force (a formula mistake) and a small global factor: no map."""
+    split, f_o, K_o, s = _case("MooneyRivlin", 3)
+    other = _case("Yeoh", 3)[1]
+    assert voigt_map_findings(split, other, K_o, f_o, K_o, s, DOUBLE) == []
+    assert voigt_map_findings(split, f_o * (1 + 1e-3), K_o, f_o, K_o, s, DOUBLE) == []
