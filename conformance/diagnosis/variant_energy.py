@@ -102,7 +102,7 @@ def variant_energy_reading(
         right = diag.tolerances.within(diag.errors, energy=False)
         found = Finding(
             "variant-energy",
-            f"your energy is computed with the {title}"
+            f"your energy is that of this mistake: {title}"
             + (
                 "; your force and stiffness are right: the energy routine alone has it"
                 if right
