@@ -448,6 +448,12 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: derivative_rewrite_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
+        "a total-Lagrangian Voigt material tangent unpacked with a slip (shear order, a shear "
+        "factor, the mirror entries)",
+        _force_right,
+        lambda d, c: voigt_map_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
         "Ogden's coaxial tangent, Costa's d2Q unsymmetrised",
         _force_right,
         lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),

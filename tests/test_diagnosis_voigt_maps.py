@@ -67,3 +67,19 @@ def test_a_stress_off_by_a_formula_is_no_voigt_map():
     other = _case("Yeoh", 3)[1]
     assert voigt_map_findings(split, other, K_o, f_o, K_o, s, DOUBLE) == []
     assert voigt_map_findings(split, f_o * (1 + 1e-3), K_o, f_o, K_o, s, DOUBLE) == []
+
+
+@pytest.mark.parametrize("slip", ["order-12-23-13", "shear-rows-doubled", "no-mirror"])
+def test_a_material_tangent_unpacked_with_a_slip_is_named(slip):
+    from conformance.diagnosis.spatial_variants import VOIGT_SLIPS, slip_tensor
+    from conformance.diagnosis.strain_differences import material_stiffness
+    from conformance.diagnosis.voigt_maps import tangent_slip_findings
+
+    split, f_o, K_o, s = _case("Costa", 4)
+    P, A = cell_piola(split)
+    CC = cell_tensors(P, A, split.F).CC
+    (v,) = [v for v in VOIGT_SLIPS if v.code == slip]
+    K = K_o + material_stiffness(split, slip_tensor(CC, v) - CC)
+    found = tangent_slip_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
+    assert [x.code for x in found] == [f"voigt-tangent-{slip}"], [x.code for x in found]
+    assert tangent_slip_findings(split, f_o, K_o * (1 + 1e-4), f_o, K_o, s, DOUBLE) == []

@@ -101,7 +101,7 @@ def _tensor(Dv: np.ndarray) -> np.ndarray:
     return T
 
 
-def _material_stiffness(split: ElementSplit, dCC: np.ndarray) -> sp.csr_matrix:
+def material_stiffness(split: ElementSplit, dCC: np.ndarray) -> sp.csr_matrix:
     """The assembled V0 D_a F dCC F D_b of per-cell tangent changes dCC (m, 3, 3, 3, 3)."""
     mat = np.einsum("maI,mkJ,mJIML,mlM,mbL->makbl", split.D, split.F, dCC, split.F, split.D)
     Ke = (split.V0[:, None, None, None, None] * mat).reshape(-1, 12, 12)
@@ -196,7 +196,7 @@ def fit_strain_differences(
     dD: (m, 6, 6, 6) from :func:`strain_derivatives`. None when D or the basis is zero.
     """
     lead = 0.5 * np.einsum("mABB->mAB", dD)  # column B's error per unit step
-    return fit_step(_material_stiffness(split, _tensor(lead)), D, K_o)
+    return fit_step(material_stiffness(split, _tensor(lead)), D, K_o)
 
 
 #: kind -> (code, what the leading error is, in words)

@@ -15,6 +15,12 @@ and the snapped map, nothing fitted, must give the engine's force within the cas
 only then is it named, with the map in words (a permutation of components, factors, signs).
 The stiffness is said right or not; a stiffness built from the same misread s is not
 predicted here.
+
+The material tangent D = dS/dE of such an engine (a 6 x 6 matrix whose rows meet the rows of B)
+is read through the unpacking slips of :data:`conformance.diagnosis.spatial_variants.VOIGT_SLIPS`
+(the shear slots in another order, a factor 2 or 1/2 on the shear rows, columns or both, the
+mirror entries left zero), applied here to the total-Lagrangian CC: the stiffness
+K + V0 D_a F (CC' - CC) F D_b predicted per cell with nothing fitted, the force right.
 """
 
 from __future__ import annotations
@@ -26,10 +32,18 @@ import numpy as np
 from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.invariant_pieces import cell_tensors
-from conformance.diagnosis.strain_differences import VOIGT
+from conformance.diagnosis.strain_differences import VOIGT, material_stiffness
 from conformance.judge.compare import errors
 
-__all__ = ["NAMES", "voigt_map_patterns", "fit_voigt_map", "voigt_map_words", "voigt_map_reading"]
+__all__ = [
+    "NAMES",
+    "voigt_map_patterns",
+    "fit_voigt_map",
+    "voigt_map_words",
+    "voigt_map_findings",
+    "tangent_slip_findings",
+    "voigt_map_reading",
+]
 
 NAMES = ("11", "22", "33", "12", "23", "13")
 
@@ -134,15 +148,54 @@ def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Find
     ]
 
 
-def voigt_map_reading(diag, ci, out, ref, s):
-    """``diag`` (the force wrong, nothing named) with a misread Voigt map named first when its
-    exact force is the engine's; unchanged otherwise.
+def tangent_slip_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
+    """The Voigt unpacking slips of the material tangent whose exact stiffness is the engine's
+    (K), the force right; several: each said (the caller shows them as ambiguous).
     """
+    from conformance.diagnosis.spatial_variants import VOIGT_SLIPS, slip_tensor
+
+    P, A = cell_piola(split)
+    CC = cell_tensors(P, A, split.F).CC
+    base = errors(f, K, None, f_o, K_o, 0.0, s)
+    found = []
+    for slip in VOIGT_SLIPS:
+        dCC = slip_tensor(CC, slip) - CC
+        if not np.any(dCC):
+            continue
+        e = errors(f, K, None, f_o, K_o + material_stiffness(split, dCC), 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(
+                Finding(
+                    f"voigt-tangent-{slip.code}",
+                    "your material tangent D = dS/dE (Voigt) read through another map than it "
+                    f"was filled in: {slip.words}",
+                    FULL,
+                    "the oracle's per-cell CC so unpacked, its material stiffness "
+                    "V0 D_a F CC' F D_b assembled with the geometric part right (nothing "
+                    f"fitted): stiffness error {e.stiffness:.1e} (against {base.stiffness:.1e}); "
+                    "the force right",
+                    {"slip": slip.code},
+                )
+            )
+    return found
+
+
+def voigt_map_reading(diag, ci, out, ref, s):
+    """``diag`` (nothing named) with a misread Voigt map named first: the stress's when the
+    force is wrong (its exact force the engine's), the tangent's when only the stiffness is;
+    unchanged otherwise.
+    """
+    from conformance.diagnosis.findings import ambiguous
+
     split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
+    args = (split, out.force, out.stiffness, ref.force, ref.stiffness, s, diag.tolerances)
     with np.errstate(all="ignore"):
-        found = voigt_map_findings(
-            split, out.force, out.stiffness, ref.force, ref.stiffness, s, diag.tolerances
-        )
+        if diag.errors.force > diag.tolerances.force:
+            found = voigt_map_findings(*args)
+        else:
+            found = tangent_slip_findings(*args)
+    if len(found) > 1:
+        found = ambiguous(found, "each predicts your stiffness")
     return named_first(diag, found)
