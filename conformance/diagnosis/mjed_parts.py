@@ -44,7 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.elements import cell_kinematics
-from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.findings import FULL, PARTIAL, Finding, ambiguous
 from conformance.diagnosis.j_hessian_block import FACTORS as J_HESSIAN_WORDS
 from conformance.diagnosis.j_hessian_block import j_hessian_reading
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -926,8 +926,41 @@ def mjed_part_findings(
         parts = replace(parts, power_copies=copies)
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
-    kept = explaining(candidates(parts, r, w), r, w, off, 3 * pat.n, tol)
-    return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+    cands = list(candidates(parts, r, w))
+    kept = explaining(cands, r, w, off, 3 * pat.n, tol)
+    if kept or errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force <= tol.force:
+        return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+    # The force alone predicted: the stiffness carries a slip of its own (a hand tangent
+    # written apart from the force), which a force part's derived blocks do not give.
+    loose = replace(tol, stiffness=1e300)  # the stiffness not asked of the prediction
+    n = 3 * pat.n
+    k_right = errors(f, K, None, f, K_o, 0.0, s).stiffness <= tol.stiffness
+    forces: List[np.ndarray] = []
+    found = []
+    for c, d in explaining(cands, r, w, 0.0, n, loose):
+        if not np.any(c.force) or any(np.allclose(c.force, g, rtol=1e-9, atol=0) for g in forces):
+            continue  # the same force said once: its derived blocks are what differ
+        forces.append(c.force)
+        found.append(force_only(part_finding(c, d, f, K, f_o, K_o, pat, s), k_right))
+    return ambiguous(found)
+
+
+def force_only(found: Finding, stiffness_right: bool) -> Finding:
+    """A part reading that predicts the force alone, said as partly explaining; the engine's
+    stiffness is the oracle's (``stiffness_right``: the energy's tangent, not this force's) or
+    carries a slip of its own, left unexplained.
+    """
+    said = (
+        "your stiffness is right (the energy's), so it is not this force's derivative"
+        if stiffness_right
+        else "your stiffness is not this force's (a slip of its own, left unexplained)"
+    )
+    return replace(
+        found,
+        title=f"your force: {found.title}; {said}",
+        strength=PARTIAL,
+        evidence=found.evidence + " (the force alone predicted)",
+    )
 
 
 def residual(
