@@ -525,6 +525,13 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: entry_step_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
+        # after every reading that predicts force and stiffness together
+        "one of MJED's chain-rule parts giving the force alone, the stiffness right or with a "
+        "slip of its own",
+        _force_wrong,
+        lambda d, c: mjed_part_reading(d, c.ci, c.out, c.ref, c.s, force_alone=True),
+    ),
+    Reading(
         # last of the stiffness readings: noise is what no formula fits, and a formula's
         # small error must have had its chance above
         "the stiffness off by round-off alone: node blocks in float32, or differences with "

@@ -83,8 +83,8 @@ def _assembled(split, fe=None, Ke=None):
     return f, K
 
 
-def _find(model, points, cells, x, f, K, f_o, K_o, s):
-    return mjed_part_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE)
+def _find(model, points, cells, x, f, K, f_o, K_o, s, force_alone=False):
+    return mjed_part_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE, force_alone)
 
 
 @pytest.mark.parametrize("name", MATERIALS)
@@ -247,8 +247,10 @@ def test_demiray_gradient_j_part_sign_reaches_the_groups_rank_one_block():
     found = _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s)
     assert len(found) == 1 and "gradient" not in found[0].title, [x.title for x in found]
     assert found[0].figures["part"] == "force-J" and found[0].figures["factor"] == -2.0
-    # nearby: the block changed with half the wrong gradient: the force's part named, partly
-    found = _find(model, points, cells, x, f_o + df, K_o + 0.5 * dK, f_o, K_o, s)
+    # nearby: the block changed with half the wrong gradient: nothing predicts both; asked for
+    # the force alone (the last reading), the force's part, partly
+    assert _find(model, points, cells, x, f_o + df, K_o + 0.5 * dK, f_o, K_o, s) == []
+    found = _find(model, points, cells, x, f_o + df, K_o + 0.5 * dK, f_o, K_o, s, True)
     assert len(found) == 1 and found[0].strength == PARTIAL, [x.title for x in found]
     assert "your stiffness is not this force's" in found[0].title
 
@@ -277,8 +279,10 @@ def test_dj_with_the_inverse_not_transposed_is_named_and_a_symmetric_f_leaves_it
     found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
     assert len(found) == 1 and found[0].code == "mjed-dj", [x.title for x in found]
     assert "J F^-1 D_i" in found[0].title
-    # nearby: only the force built with it (the stiffness right): the force's slip, partly
-    found = _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s)
+    # nearby: only the force built with it (the stiffness right): nothing predicts both; the
+    # force's slip, partly, when the force alone is asked for
+    assert _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s) == []
+    found = _find(model, points, cells, x, f_o + df, K_o, f_o, K_o, s, True)
     assert len(found) == 1 and found[0].strength == PARTIAL, [x.title for x in found]
     assert "J F^-1 D_i" in found[0].title and "your stiffness is right" in found[0].title
 

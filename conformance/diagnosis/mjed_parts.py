@@ -909,10 +909,13 @@ def mjed_part_findings(
     K_o: Any,
     s: Scales,
     tol: Tolerances,
+    force_alone: bool = False,
 ) -> Optional[List[Finding]]:
     """The readings whose prediction, added to the oracle's force f_o (n, 3) and stiffness K_o
     (3n, 3n), brings the engine's f, K within ``tol`` (ambiguous when several predict
     differently); None when the model's parts cannot be built or do not add up to the oracle.
+    force_alone: where none does and the force is wrong, those that give the force alone, said
+    partly (the last reading of a force-wrong case: an exact reading of both goes first).
     """
     parts = mjed_parts(model, points, cells, x, f_o, K_o)
     if parts is None:
@@ -928,7 +931,8 @@ def mjed_part_findings(
     r, w, off = residual(pat, f, K, f_o, K_o, s)
     cands = list(candidates(parts, r, w))
     kept = explaining(cands, r, w, off, 3 * pat.n, tol)
-    if kept or errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force <= tol.force:
+    force_right = errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force <= tol.force
+    if kept or not force_alone or force_right:
         return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
     # The force alone predicted: the stiffness carries a slip of its own (a hand tangent
     # written apart from the force), which a force part's derived blocks do not give.
@@ -1023,15 +1027,19 @@ def part_finding(c, d, f, K, f_o, K_o, pat, s: Scales, source: str = _SOURCE) ->
     )
 
 
-def mjed_part_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
+def mjed_part_reading(
+    diag: Any, ci: Any, out: Any, ref: Any, s: Scales, force_alone: bool = False
+) -> Any:
     """``diag`` with the MJED part reading named first when one explains the engine; unchanged
     otherwise. A material mjed cannot split (or too large a mesh) gets
     :func:`conformance.diagnosis.j_hessian_block.j_hessian_reading` instead, from the declared
-    energy's formula.
+    energy's formula. force_alone: see :func:`mjed_part_findings`.
     """
     case = (ci.points, ci.cells, ci.positions, out.force, out.stiffness, ref.force, ref.stiffness)
-    found = mjed_part_findings(ci.model, *case, s, diag.tolerances)
+    found = mjed_part_findings(ci.model, *case, s, diag.tolerances, force_alone)
     if found is None:
+        if force_alone:
+            return diag
         return j_hessian_reading(diag, ci, out, ref, s)
     if not found:
         return diag
