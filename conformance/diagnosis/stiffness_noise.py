@@ -16,9 +16,10 @@ apart by evidence of their own:
   same, round-off is drawn anew (correlation near 0, a change about its own size). Noise of
   that kind in a tangent that is not float32's storage is what a derivative taken by finite
   differences leaves when the step is so small that cancellation dominates: about u |S| / h
-  for first differences of a stress, u |W| / h^2 for second differences of the energy. When
-  its size is also float32's (u32 / 30 to 30 u32) the tangent computed in float32 arithmetic
-  leaves the same noise, and both are said, as ambiguous. The steps the noise implies for
+  for first differences of a stress, u |W| / h^2 for second differences of the energy. Unless
+  it is far below float32's size (under u32 / 30), a tangent computed in float32 arithmetic
+  leaves the same noise (above 30 u32 too: float32 inputs to an ill-conditioned computation
+  are amplified), and both are said, as ambiguous. The steps the noise implies for
   either scheme are given, and whether K kept its symmetry (second differences of W are
   symmetric; first differences of a stress are not).
 
@@ -53,8 +54,8 @@ _U64 = 2.0**-53
 STORED = 0.9
 BY_CHANCE = 0.1
 
-#: Relative size band of the noise in which float32 arithmetic is said beside differences.
-FLOAT32_BAND = (_U32 / 30, 30 * _U32)
+#: Relative size of the noise from which float32 arithmetic is said beside differences.
+FLOAT32_LEAST = _U32 / 30
 
 #: The stiffness errors read here: above double's round-off, below any formula slip's.
 NOISE_RANGE = (1e-12, 1e-4)
@@ -183,7 +184,7 @@ def noise_finding(
     D = sp.csr_matrix(K) - sp.csr_matrix(K_o)
     rel = float(sparse_norm(D)) / max(float(sparse_norm(K_o)), 1e-300)
     asym = float(sparse_norm(D - D.T)) / max(float(sparse_norm(D)), 1e-300)
-    in_band = FLOAT32_BAND[0] <= rel <= FLOAT32_BAND[1]
+    in_band = rel >= FLOAT32_LEAST
     symmetric = asym < 1e-3
     scheme = (
         "second differences of the energy (which keep K symmetric, as yours is)"
@@ -211,10 +212,11 @@ def noise_finding(
         f"{nz.changes.min():.2g} to {nz.changes.max():.2g} of itself, where a formula error, "
         f"smooth in x, changes by about h), the force and energy exact; its size {rel:.1e} of K"
         + (
-            f" is also float32's ({rel / _U32:.2g} float32 unit round-offs): the two causes "
-            "leave the same noise (ambiguous)"
+            f" ({rel / _U32:.2g} float32 unit round-offs) could be float32's too (rounding, "
+            "or float32 inputs amplified by the computation): the two causes leave the same "
+            "noise (ambiguous)"
             if in_band
-            else f" is not float32's ({rel / _U32:.2g} float32 unit round-offs)"
+            else f" is far below float32's ({rel / _U32:.2g} float32 unit round-offs)"
         )
         + f"; its asymmetry {asym:.1e} of itself points to {scheme}{implied}",
         {
