@@ -110,3 +110,22 @@ def test_a_check_does_not_name_what_one_state_alone_shows():
     doubled = check_implementation(engine(noisy=False), **kw)
     for o in doubled.outcomes:
         assert o.diagnosis.causes, o.diagnosis.text()
+
+
+def test_a_full_cause_against_another_case_explained_partly_by_another_is_not_named():
+    """Corpus 13's Ogden engine: a fitted volumetric stress coefficient explains the uniaxial
+    case fully, while the general case is explained only partly by another reading (its force
+    alone): the fit is not named. The same cause partly named in the other case contradicts
+    nothing.
+    """
+    from conformance.diagnosis.corroborate import corroborate
+    from conformance.diagnosis.findings import PARTIAL
+
+    full = _diag("uniaxial", [Finding("stress-coefficient", "volumetric x 1.456", FULL, "fit")])
+    partly = _diag("random", [Finding("mjed-part", "your force: J part", PARTIAL, "force only")])
+    out = corroborate([full, partly], [[0, 1]], ["uniaxial", "random"])
+    assert not out[0].causes and out[0].findings[0].code == "uncorroborated", out[0].findings
+    assert out[1] is partly  # a partial reading is not demoted by a full one elsewhere
+    same = _diag("random", [Finding("stress-coefficient", "volumetric x 1.2", PARTIAL, "fit")])
+    out = corroborate([full, same], [[0, 1]], ["uniaxial", "random"])
+    assert out[0] is full and out[1] is same

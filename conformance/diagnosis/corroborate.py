@@ -9,11 +9,14 @@ reading explains its case, and it is still the wrong road. The other case, a gen
 it: the same reading ran there and explained nothing.
 
 So: where a case of the group failed on its force or stiffness and nothing explains it, a cause
-named on another case of the group is not named. That case's diagnosis then leads with an
-"uncorroborated" observation (which cause fits it, which case it leaves unexplained), and the
-cause is kept below it as an observation, never as "explains". A case that passed, failed only
-through its energy or the engine's own consistency, or was not read for causes (``--verdict-only``)
-contradicts nothing.
+named on another case of the group is not named. Nor is a cause that explains its case fully
+where another case of the group is explained only partly, and by another cause (a general state
+whose force one reading predicts, the stiffness left over, against a uniaxial state where a
+fitted stress coefficient explains both: the fit is what the uniaxial state cannot separate).
+That case's diagnosis then leads with an "uncorroborated" observation (which cause fits it,
+which case it leaves unexplained), and the cause is kept below it as an observation, never as
+"explains". A case that passed, failed only through its energy or the engine's own
+consistency, or was not read for causes (``--verdict-only``) contradicts nothing.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import List, Optional, Sequence
 
-from conformance.diagnosis.findings import FULL, OBSERVED, Finding
+from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 
 __all__ = ["corroborate", "left_unexplained"]
 
@@ -51,12 +54,22 @@ def corroborate(
     """
     out = list(diagnoses)
     for group in groups:
-        open_cases = [j for j in group if left_unexplained(diagnoses[j])]
-        if not open_cases:
-            continue
         for i in group:
             d = diagnoses[i]
             if d is None or not d.causes:
+                continue
+            codes = {f.code for f in d.causes}
+            full = any(f.strength == FULL for f in d.causes)
+            open_cases = [
+                j
+                for j in group
+                if j != i
+                and (
+                    left_unexplained(diagnoses[j])
+                    or (full and _partly_otherwise(diagnoses[j], codes))
+                )
+            ]
+            if not open_cases:
                 continue
             named = d.causes
             others = ", ".join(case_ids[j] for j in open_cases)
@@ -66,7 +79,7 @@ def corroborate(
                 + " | ".join(f.title.removeprefix(_AMBIGUOUS) for f in named)
                 + (" fit" if len(named) > 1 else " fits")
                 + f" this case, but not the kit's case(s) {others} (same engine, model and "
-                "mesh), which nothing explains",
+                "mesh), which nothing explains fully",
                 OBSERVED,
                 "a mistake in the engine's code shows on every state it touches; a reading that "
                 "explains this case and leaves another case of the same engine unexplained "
@@ -84,3 +97,14 @@ def corroborate(
             ]
             out[i] = replace(d, findings=[lead, *kept])
     return out
+
+
+def _partly_otherwise(diagnosis, codes) -> bool:
+    """True when the case failed, nothing explains it fully, and its headline explains it
+    partly by a cause that is not one of ``codes``.
+    """
+    d = diagnosis
+    if d is None or d.passed or d.causes or not d.findings:
+        return False
+    lead = d.findings[0]
+    return lead.strength == PARTIAL and lead.code not in codes
