@@ -49,7 +49,7 @@ def _order_swap():
     "material, M, words",
     [
         ("NeoHookean", _order_swap(), "s_12 holds S_23"),
-        ("Gent", np.diag([1, 1, 1, 2, 2, 2.0]), "s_12 holds 2 S_12"),
+        ("Gent", np.diag([1, 1, 1, 2, 2, 2.0]), "shear components doubled (s_12 holds 2 S_12"),
         ("Costa", np.diag([1, 1, 1, 1, -1, 1.0]), "s_23 holds -S_23"),
     ],
 )
@@ -83,3 +83,18 @@ def test_a_material_tangent_unpacked_with_a_slip_is_named(slip):
     found = tangent_slip_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
     assert [x.code for x in found] == [f"voigt-tangent-{slip}"], [x.code for x in found]
     assert tangent_slip_findings(split, f_o, K_o * (1 + 1e-4), f_o, K_o, s, DOUBLE) == []
+
+
+def test_a_wrong_energy_puts_the_mistake_upstream_of_the_voigt_vector():
+    """A vector misread between the material routine and B leaves the energy right (corpus
+    13's C packed as a strain doubles S's shears too, and the energy with them): with the
+    engine's energy wrong the reading says nothing, before it looks at the mesh.
+    """
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.voigt_maps import voigt_map_reading
+
+    diag = SimpleNamespace(
+        errors=SimpleNamespace(energy=1e-3, force=1e-2), tolerances=SimpleNamespace(energy=1e-10)
+    )
+    assert voigt_map_reading(diag, None, None, None, None) is diag

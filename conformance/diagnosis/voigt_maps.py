@@ -97,6 +97,15 @@ def voigt_map_words(M: np.ndarray) -> str:
         return {1.0: "", -1.0: "-", 2.0: "2 ", -2.0: "-2 ", 0.5: "1/2 ", -0.5: "-1/2 "}[c]
 
     nz = M != 0
+    shear = np.diag(M)[3:]
+    if np.array_equal(M, np.diag(np.diag(M))) and np.all(np.diag(M)[:3] == 1.0):
+        if np.all(shear == shear[0]) and shear[0] in (2.0, 0.5):
+            how = "doubled" if shear[0] == 2.0 else "halved"
+            return (
+                f"the three shear components {how} (s_12 holds {number(shear[0])}S_12, and "
+                "likewise 23 and 13: an engineering factor 2 applied twice, or missing, between "
+                "the stress vector and the shear rows of B)"
+            )
     if np.all(nz.sum(axis=1) == 1) and np.all(nz.sum(axis=0) <= 1):
         parts = []
         for A in range(6):
@@ -183,10 +192,15 @@ def tangent_slip_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[F
 def voigt_map_reading(diag, ci, out, ref, s):
     """``diag`` (nothing named) with a misread Voigt map named first: the stress's when the
     force is wrong (its exact force the engine's), the tangent's when only the stiffness is;
-    unchanged otherwise.
+    unchanged otherwise, and when the engine's energy is wrong: a vector misread between the
+    material routine and B leaves the energy right, so a wrong energy puts the mistake
+    upstream (in the strain or the kinematics both use).
     """
     from conformance.diagnosis.findings import ambiguous
 
+    e = diag.errors.energy
+    if e is not None and e > diag.tolerances.energy:
+        return diag
     split = case_split(diag, ci, ref, s)
     if split is None:
         return diag
