@@ -98,3 +98,39 @@ def test_a_wrong_energy_puts_the_mistake_upstream_of_the_voigt_vector():
         errors=SimpleNamespace(energy=1e-3, force=1e-2), tolerances=SimpleNamespace(energy=1e-10)
     )
     assert voigt_map_reading(diag, None, None, None, None) is diag
+
+
+def test_the_rows_of_b_read_through_a_map_carry_it_into_the_material_stiffness():
+    """B's shear rows doubled (corpus 13): the force of s' = M s and the material stiffness
+    B^T (M D M^T) B, the geometric part right, predicted together: named fully.
+    """
+    from conformance.diagnosis.strain_differences import (
+        material_stiffness,
+        voigt_matrix,
+        voigt_tensor,
+    )
+
+    split, f_o, K_o, s = _case("MooneyRivlin", 5)
+    M = np.diag([1, 1, 1, 2, 2, 2.0])
+    P, A = cell_piola(split)
+    CC = cell_tensors(P, A, split.F).CC
+    K = K_o + material_stiffness(split, voigt_tensor(M @ voigt_matrix(CC) @ M.T) - CC)
+    found = voigt_map_findings(split, _misread_force(split, M), K, f_o, K_o, s, DOUBLE)
+    assert [x.code for x in found] == ["voigt-map"] and found[0].strength == "explains", found
+    assert found[0].title.startswith("the rows of B"), found[0].title
+
+
+def test_the_stress_of_the_geometric_stiffness_unpacked_with_its_shears_halved_is_named():
+    from conformance.diagnosis.voigt_maps import (
+        _geometric_stiffness,
+        _mapped,
+        tangent_slip_findings,
+    )
+
+    split, f_o, K_o, s = _case("Yeoh", 6)
+    P, A = cell_piola(split)
+    S = cell_tensors(P, A, split.F).S
+    K = K_o + _geometric_stiffness(split, _mapped(S, np.diag([1, 1, 1, 0.5, 0.5, 0.5])) - S)
+    found = tangent_slip_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
+    assert [x.code for x in found] == ["voigt-geometric-stress"], [x.title for x in found]
+    assert "halved" in found[0].title

@@ -76,21 +76,21 @@ def strain_derivatives(model: Any, split: ElementSplit, points: np.ndarray) -> O
                 Ke = np.asarray(field.element_stiffness(xs), dtype=np.float64)
                 moved = ElementSplit(loose, 4 * m, split.V0, split.D, Fs, fe, Ke, 0.0)
                 t = cell_tensors(*cell_piola(moved), Fs)
-                tangents.append(_voigt(t.CC))
+                tangents.append(voigt_matrix(t.CC))
             out[:, :, :, c] = (tangents[0] - tangents[1]) / (2.0 * DELTA)
     except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
         return None
     return out
 
 
-def _voigt(CC: np.ndarray) -> np.ndarray:
+def voigt_matrix(CC: np.ndarray) -> np.ndarray:
     """(m, 6, 6) the Voigt matrix of a minor-symmetric tangent (m, 3, 3, 3, 3)."""
     i = np.array([p[0] for p in VOIGT])
     j = np.array([p[1] for p in VOIGT])
     return CC[:, i[:, None], j[:, None], i[None, :], j[None, :]]
 
 
-def _tensor(Dv: np.ndarray) -> np.ndarray:
+def voigt_tensor(Dv: np.ndarray) -> np.ndarray:
     """(m, 3, 3, 3, 3) the minor-symmetric tensor whose Voigt matrix is Dv (m, 6, 6)."""
     T = np.zeros((Dv.shape[0], 3, 3, 3, 3))
     for A, (i, j) in enumerate(VOIGT):
@@ -196,7 +196,7 @@ def fit_strain_differences(
     dD: (m, 6, 6, 6) from :func:`strain_derivatives`. None when D or the basis is zero.
     """
     lead = 0.5 * np.einsum("mABB->mAB", dD)  # column B's error per unit step
-    return fit_step(material_stiffness(split, _tensor(lead)), D, K_o)
+    return fit_step(material_stiffness(split, voigt_tensor(lead)), D, K_o)
 
 
 #: kind -> (code, what the leading error is, in words)

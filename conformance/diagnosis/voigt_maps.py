@@ -32,7 +32,12 @@ import numpy as np
 from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.invariant_pieces import cell_tensors
-from conformance.diagnosis.strain_differences import VOIGT, material_stiffness
+from conformance.diagnosis.strain_differences import (
+    VOIGT,
+    material_stiffness,
+    voigt_matrix,
+    voigt_tensor,
+)
 from conformance.judge.compare import errors
 
 __all__ = [
@@ -124,7 +129,8 @@ def voigt_map_words(M: np.ndarray) -> str:
 def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
     """The misread Voigt map whose exact force is the engine's (f (n, 3)), or []."""
     P, A = cell_piola(split)
-    S = cell_tensors(P, A, split.F).S
+    t = cell_tensors(P, A, split.F)
+    S, CC = t.S, t.CC
     patterns = voigt_map_patterns(split, S)
     error = np.asarray(f, dtype=float) - np.asarray(f_o, dtype=float)
     M = fit_voigt_map(patterns, error)
@@ -135,38 +141,98 @@ def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Find
     e = errors(f, K, None, predicted, K_o, 0.0, s)
     if e.force > tol.force:
         return []
-    right = e.stiffness <= tol.stiffness
+    # The rows of B read through the map (B' = R B, M = R^T): the material stiffness
+    # B'^T D B' = B^T (M D M^T) B carries it too, the geometric part (from S) does not.
+    D = voigt_matrix(CC)
+    dK_rows = material_stiffness(split, voigt_tensor(M @ D @ M.T) - CC)
+    e_rows = errors(f, K, None, predicted, K_o + dK_rows, 0.0, s)
+    if e.stiffness <= tol.stiffness:
+        where, strength, said = "the stress vector", FULL, "your stiffness is right"
+    elif e_rows.stiffness <= tol.stiffness:
+        where, strength = "the rows of B (so B^T D B carries it too)", FULL
+        said = f"your stiffness is B'^T D B' + K_geo with B' so read: error {e_rows.stiffness:.1e}"
+    else:
+        where, strength = "the stress vector or the rows of B", PARTIAL
+        said = f"your stiffness is wrong as well ({e.stiffness:.1e}), which this does not predict"
     return [
         Finding(
             "voigt-map",
-            "your Voigt stress vector is read through another map than the one it was filled "
-            f"in: {voigt_map_words(M)} (the Voigt order or shear convention of s and of the rows "
-            "of B disagree, or a component is typed wrongly)",
-            FULL if right else PARTIAL,
+            f"{where} read through another Voigt map than the one it was filled in: "
+            f"{voigt_map_words(M)} (the Voigt order or shear convention of s and of the rows of "
+            "B disagree, or a component is typed wrongly)",
+            strength,
             "the force of s' = M s per cell, M fitted over the 36 component patterns from the "
             "oracle's per-cell S and snapped to the numbers such a slip writes, then predicted "
-            f"with nothing fitted: force error {e.force:.1e}; "
-            + (
-                "your stiffness is right"
-                if right
-                else f"your stiffness is wrong as well ({e.stiffness:.1e}), which this does not "
-                "predict"
-            ),
+            f"with nothing fitted: force error {e.force:.1e}; {said}",
             {"map": M.tolist()},
         )
     ]
 
 
+def _geometric_stiffness(split: ElementSplit, dS: np.ndarray):
+    """The assembled geometric stiffness V0 (D_a . dS D_b) I3 of per-cell stresses dS (m, 3, 3)."""
+    g = np.einsum("maI,mIJ,mbJ->mab", split.D, dS, split.D) * split.V0[:, None, None]
+    Ke = np.einsum("mab,kl->makbl", g, np.eye(3)).reshape(-1, 12, 12)
+    return assemble(split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke)[1]
+
+
+def _stress_maps() -> List[tuple]:
+    """(words, M) of the maps a stress vector unpacked for the geometric stiffness may go
+    through: the shears doubled or halved (unpacked with the strain's engineering factor, or
+    packed with it), the shear slots in another order.
+    """
+    out = [
+        ("the three shear stresses doubled", np.diag([1, 1, 1, 2, 2, 2.0])),
+        (
+            "the three shear stresses halved (unpacked with the strain's engineering factor)",
+            np.diag([1, 1, 1, 0.5, 0.5, 0.5]),
+        ),
+    ]
+    for order in ((3, 5, 4), (4, 3, 5), (4, 5, 3), (5, 3, 4), (5, 4, 3)):
+        M = np.zeros((6, 6))
+        for a, b in enumerate((0, 1, 2, *order)):
+            M[a, b] = 1.0
+        out.append((f"the shear stresses in another order ({voigt_map_words(M)})", M))
+    return out
+
+
+def _mapped(S: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) the symmetric S' whose Voigt vector is M times S's."""
+    v = np.stack([S[:, i, j] for i, j in VOIGT], axis=1) @ M.T
+    out = np.zeros_like(S)
+    for a, (i, j) in enumerate(VOIGT):
+        out[:, i, j] = out[:, j, i] = v[:, a]
+    return out
+
+
 def tangent_slip_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
-    """The Voigt unpacking slips of the material tangent whose exact stiffness is the engine's
-    (K), the force right; several: each said (the caller shows them as ambiguous).
+    """The Voigt unpacking slips of the material tangent, and the maps of the stress in the
+    geometric stiffness, whose exact stiffness is the engine's (K), the force right; several:
+    each said (the caller shows them as ambiguous).
     """
     from conformance.diagnosis.spatial_variants import VOIGT_SLIPS, slip_tensor
 
     P, A = cell_piola(split)
-    CC = cell_tensors(P, A, split.F).CC
+    t = cell_tensors(P, A, split.F)
+    CC, S = t.CC, t.S
     base = errors(f, K, None, f_o, K_o, 0.0, s)
     found = []
+    for words, M in _stress_maps():
+        e = errors(f, K, None, f_o, K_o + _geometric_stiffness(split, _mapped(S, M) - S), 0.0, s)
+        if tol.within(e, energy=False):
+            found.append(
+                Finding(
+                    "voigt-geometric-stress",
+                    f"the stress of your geometric stiffness read through another Voigt map: "
+                    f"{words} (the stress vector unpacked for K_geo with another helper or "
+                    "order than the force's)",
+                    FULL,
+                    "the oracle's per-cell S so mapped in V0 (D_a . S D_b) I3 alone, the material "
+                    f"part and the force right (nothing fitted): stiffness error {e.stiffness:.1e} "
+                    f"(against {base.stiffness:.1e})",
+                    {"map": M.tolist()},
+                )
+            )
     for slip in VOIGT_SLIPS:
         dCC = slip_tensor(CC, slip) - CC
         if not np.any(dCC):
