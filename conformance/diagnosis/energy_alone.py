@@ -104,7 +104,7 @@ class EnergyStates:
         )
 
 
-def _cell_energies(model, points, cells, positions: Sequence[np.ndarray]):
+def cell_energies(model, points, cells, positions: Sequence[np.ndarray]):
     """(k, m) V0_c W_c from MJED at each of the k ``positions`` (n, 3), one field for all; None
     where MJED has no such material or cannot evaluate a state.
     """
@@ -137,7 +137,7 @@ def energy_states(
     oracle = np.asarray(oracle, dtype=np.float64)
     V0 = cell_kinematics(points, cells, positions[0])[0]
     J = np.stack([np.linalg.det(cell_kinematics(points, cells, x)[2]) for x in positions])
-    split = _cell_energies(model, points, cells, positions)
+    split = cell_energies(model, points, cells, positions)
     if split is not None and np.max(np.abs(split.sum(axis=1) - oracle)) > tol * scale:
         split = None
     return EnergyStates(np.asarray(engine, dtype=np.float64), oracle, split, J, V0, float(scale))

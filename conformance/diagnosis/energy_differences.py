@@ -33,10 +33,20 @@ from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
-from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    case_split,
+    cell_piola,
+    piola_element_forces,
+)
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.invariant_pieces import cell_tensors
-from conformance.diagnosis.strain_differences import VOIGT, strain_derivatives
+from conformance.diagnosis.strain_differences import (
+    VOIGT,
+    strain_derivatives,
+    symmetric_from_voigt,
+)
 
 __all__ = [
     "EXPLAINED",
@@ -78,8 +88,7 @@ Basis = Tuple[str, str, Callable[[], Optional[np.ndarray]]]
 
 def _piola_forces(split: ElementSplit, dP: np.ndarray) -> np.ndarray:
     """(n, 3) the assembled force of per-cell first Piola stresses dP (m, 3, 3)."""
-    fe = -split.V0[:, None, None] * np.einsum("mkj,maj->mak", dP, split.D)
-    return assemble(split.cells, split.n, fe, None)[0]
+    return assemble(split.cells, split.n, piola_element_forces(split.V0, split.D, dP), None)[0]
 
 
 def _second_piola_forces(split: ElementSplit, dS: np.ndarray) -> np.ndarray:
@@ -92,22 +101,13 @@ def _f_diagonal(A: np.ndarray) -> np.ndarray:
     return np.einsum("mkjkj->mkj", A)
 
 
-def _voigt_tensor(values: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) the symmetric tensor with Voigt components values (m, 6)."""
-    T = np.zeros((values.shape[0], 3, 3))
-    for a, (i, j) in enumerate(VOIGT):
-        T[:, i, j] = values[:, a]
-        T[:, j, i] = values[:, a]
-    return T
-
-
 def _e_forward(split: ElementSplit, shear: float) -> np.ndarray:
     """The force of (1/2) e_A : CC : e_A per Voigt component A, the shear ones times ``shear``."""
     P, A = cell_piola(split)
     CC = cell_tensors(P, A, split.F).CC
     values = np.stack([CC[:, i, j, i, j] for i, j in VOIGT], axis=1)
     values[:, 3:] *= shear
-    return _second_piola_forces(split, 0.5 * _voigt_tensor(values))
+    return _second_piola_forces(split, 0.5 * symmetric_from_voigt(values))
 
 
 def _f_central(model: Any, split: ElementSplit, points: np.ndarray) -> Optional[np.ndarray]:
@@ -133,7 +133,7 @@ def _e_central(model: Any, split: ElementSplit, points: np.ndarray) -> Optional[
     if dD is None:
         return None
     values = np.einsum("mAAA->mA", dD) / 6.0
-    return _second_piola_forces(split, _voigt_tensor(values))
+    return _second_piola_forces(split, symmetric_from_voigt(values))
 
 
 def energy_difference_bases(model: Any, split: ElementSplit, points: np.ndarray) -> List[Basis]:

@@ -81,8 +81,7 @@ class FrameVariant:
     """The oracle with a mistaken frame, at the case's positions.
 
     code, title: the mistake; force (n, 3) [N], stiffness CSR (3n, 3n) [N/m]: the variant
-    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`);
-    energy [J]: its energy; model: the case's model with the mistaken frame.
+    oracle's values; scales: its error denominators (:func:`conformance.judge.compare.scales`).
     """
 
     code: str
@@ -90,8 +89,6 @@ class FrameVariant:
     force: np.ndarray
     stiffness: sp.csr_matrix
     scales: Scales
-    energy: float = float("nan")
-    model: Any = None
 
 
 def _frame_of(model: Any) -> "np.ndarray | None":
@@ -495,8 +492,6 @@ def frame_variants(case: CaseInput, cache: Any) -> List[FrameVariant]:
                 ref.force,
                 ref.stiffness,
                 scales(h, ref.energy, ref.force, ref.stiffness),
-                float(ref.energy),
-                model,
             )
         )
     return out

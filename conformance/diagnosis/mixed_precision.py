@@ -38,7 +38,7 @@ from typing import Any, Dict, List, Optional, Sequence
 
 import numpy as np
 
-from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, piola_element_forces
 from conformance.diagnosis.findings import FULL, Finding
 
 __all__ = [
@@ -176,11 +176,11 @@ def rounding_patterns(
     S = _second_piola(split, base)
     out["S"] = _stress_forces(split, _f32(S))
     P = split.F @ S
-    out["P"] = _piola_forces(split, _f32(P))
+    out["P"] = piola_element_forces(split.V0, split.D, _f32(P))
     J = np.linalg.det(F)[:, None, None]
     Ft = np.swapaxes(F, 1, 2)
     sigma = P @ Ft / J  # sigma = P F^T / J, and back P = J sigma F^-T
-    out["sigma"] = _piola_forces(split, J * _f32(sigma) @ np.linalg.inv(Ft))
+    out["sigma"] = piola_element_forces(split.V0, split.D, J * _f32(sigma) @ np.linalg.inv(Ft))
     return {k: assemble(cells, n, fe, None)[0] - f0 for k, fe in out.items()}
 
 
@@ -192,12 +192,7 @@ def _second_piola(split: ElementSplit, fe: np.ndarray) -> np.ndarray:
 
 def _stress_forces(split: ElementSplit, S: np.ndarray) -> np.ndarray:
     """Element forces (m, 4, 3) of the second Piola stresses S (m, 3, 3) at the split's F."""
-    return _piola_forces(split, split.F @ S)
-
-
-def _piola_forces(split: ElementSplit, P: np.ndarray) -> np.ndarray:
-    """Element forces (m, 4, 3) of the first Piola stresses P (m, 3, 3), f_a = -V0 P D_a."""
-    return -split.V0[:, None, None] * np.einsum("mkj,maj->mak", P, split.D)
+    return piola_element_forces(split.V0, split.D, split.F @ S)
 
 
 #: Random per-cell patterns drawn to measure the correlation that chance gives.

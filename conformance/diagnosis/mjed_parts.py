@@ -921,7 +921,8 @@ def mjed_part_findings(
     if parts is None:
         return None
     pat = parts.pattern
-    if errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force > tol.force:
+    force_right = errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force <= tol.force
+    if not force_right:
         # a term's f(J) with another power changes the force: read only where it is wrong
         f_sum = np.sum([p.force for p in parts.parts], axis=0)
         K_sum = np.sum([p.stiffness for p in parts.parts], axis=0)
@@ -931,7 +932,6 @@ def mjed_part_findings(
     r, w, off = residual(pat, f, K, f_o, K_o, s)
     cands = list(candidates(parts, r, w))
     kept = explaining(cands, r, w, off, 3 * pat.n, tol)
-    force_right = errors(f, sp.csr_matrix(K_o), None, f_o, K_o, 0.0, s).force <= tol.force
     if kept or not force_alone or force_right:
         return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
     # The force alone predicted: the stiffness carries a slip of its own (a hand tangent

@@ -35,6 +35,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import norm as sparse_norm
 
+from conformance.diagnosis.elements import case_split, cell_piola
+from conformance.diagnosis.energy_alone import cell_energies
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.mixed_precision import noise
 
@@ -184,7 +186,7 @@ def noise_finding(
     D = sp.csr_matrix(K) - sp.csr_matrix(K_o)
     rel = float(sparse_norm(D)) / max(float(sparse_norm(K_o)), 1e-300)
     asym = float(sparse_norm(D - D.T)) / max(float(sparse_norm(D)), 1e-300)
-    in_band = rel >= FLOAT32_LEAST
+    float32_possible = rel >= FLOAT32_LEAST
     symmetric = asym < 1e-3
     scheme = (
         "second differences of the energy (which keep K symmetric, as yours is)"
@@ -195,7 +197,11 @@ def noise_finding(
     title = (
         "the stiffness error is round-off noise, not a formula: a tangent by finite differences "
         "with a step so small that cancellation dominates"
-        + (", or a tangent computed in single precision (float32) arithmetic" if in_band else "")
+        + (
+            ", or a tangent computed in single precision (float32) arithmetic"
+            if float32_possible
+            else ""
+        )
     )
     implied = ""
     if steps is not None and all(np.isfinite(steps)):
@@ -206,7 +212,7 @@ def noise_finding(
     return Finding(
         "tangent-roundoff-noise",
         title,
-        PARTIAL if in_band else FULL,
+        PARTIAL if float32_possible else FULL,
         "the stiffness error is drawn anew at every probe x + h d (correlation with the case's "
         f"{', '.join(f'{v:+.2f}' for v in nz.correlations)}; it changes by "
         f"{nz.changes.min():.2g} to {nz.changes.max():.2g} of itself, where a formula error, "
@@ -215,7 +221,7 @@ def noise_finding(
             f" ({rel / _U32:.2g} float32 unit round-offs) could be float32's too (rounding, "
             "or float32 inputs amplified by the computation): the two causes leave the same "
             "noise (ambiguous)"
-            if in_band
+            if float32_possible
             else f" is far below float32's ({rel / _U32:.2g} float32 unit round-offs)"
         )
         + f"; its asymmetry {asym:.1e} of itself points to {scheme}{implied}",
@@ -230,13 +236,12 @@ def noise_finding(
 
 
 def stiffness_noise_reading(diag, cache, ci, out, ref, s, probes, probe_stiffness):
-    """``diag`` (force right, the stiffness slightly wrong, nothing named) with float32 node
-    blocks or round-off noise named first; unchanged otherwise. probes: the case's probe
-    KitCases; probe_stiffness: the engine's K at each (empty when unusable).
+    """``diag`` (force right, the stiffness off by :data:`NOISE_RANGE`, nothing named: the
+    run's condition for this reading) with float32 node blocks or round-off noise named first;
+    unchanged otherwise. probes: the case's probe KitCases; probe_stiffness: the engine's K at
+    each (empty when unusable).
     """
     K, K_o = sp.csr_matrix(out.stiffness), sp.csr_matrix(ref.stiffness)
-    if not NOISE_RANGE[0] <= diag.errors.stiffness <= NOISE_RANGE[1]:
-        return diag
     if out.energy is not None and diag.errors.energy > diag.tolerances.energy:
         return diag
     found = single_precision_blocks_finding(K, K_o)
@@ -251,26 +256,11 @@ def stiffness_noise_reading(diag, cache, ci, out, ref, s, probes, probe_stiffnes
 
 def _steps(diag, ci, ref, s) -> Optional[Tuple[float, float]]:
     """The steps the noise's size implies (:func:`_implied_steps`), from MJED's split."""
-    from conformance.diagnosis.elements import case_split, cell_piola
-
     split = case_split(diag, ci, ref, s)
     if split is None:
         return None
     P, A = cell_piola(split)
-    W = _cell_energy_density(ci, split)
-    if W is None:
+    energies = cell_energies(ci.model, ci.points, ci.cells, [ci.positions])
+    if energies is None:
         return None
-    return _implied_steps(P, A, W, diag.errors.stiffness)
-
-
-def _cell_energy_density(ci, split) -> Optional[np.ndarray]:
-    """(m,) W per cell from MJED, or None where MJED cannot evaluate it."""
-    import mjed
-    from mjed.evaluation import Want
-
-    try:
-        field = mjed.make_force_field(mjed.TetMesh(ci.points, ci.cells), ci.model)
-        e = np.asarray(field.evaluate(ci.positions, want=Want.ENERGY).energy, dtype=float)
-    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state
-        return None
-    return e / split.V0
+    return _implied_steps(P, A, energies[0] / split.V0, diag.errors.stiffness)

@@ -26,6 +26,11 @@ from conformance.diagnosis.invariant_pieces import cell_tensors
 
 __all__ = [
     "VOIGT",
+    "voigt_vector",
+    "symmetric_from_voigt",
+    "voigt_matrix",
+    "voigt_tensor",
+    "material_stiffness",
     "strain_derivatives",
     "StrainDifferenceFit",
     "fit_step_squared",
@@ -81,6 +86,19 @@ def strain_derivatives(model: Any, split: ElementSplit, points: np.ndarray) -> O
     except Exception:  # noqa: BLE001 - not an MJED material, or an inverted moved cell
         return None
     return out
+
+
+def voigt_vector(S: np.ndarray) -> np.ndarray:
+    """(m, 6) the Voigt components (order :data:`VOIGT`) of symmetric tensors S (m, 3, 3)."""
+    return np.stack([S[:, i, j] for i, j in VOIGT], axis=1)
+
+
+def symmetric_from_voigt(v: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) the symmetric tensors whose Voigt components (order :data:`VOIGT`) are v (m, 6)."""
+    T = np.zeros((v.shape[0], 3, 3), dtype=v.dtype)
+    for a, (i, j) in enumerate(VOIGT):
+        T[:, i, j] = T[:, j, i] = v[:, a]
+    return T
 
 
 def voigt_matrix(CC: np.ndarray) -> np.ndarray:

@@ -29,14 +29,21 @@ from typing import List, Optional
 
 import numpy as np
 
-from conformance.diagnosis.elements import ElementSplit, assemble, case_split, cell_piola
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    case_split,
+    cell_piola,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, named_first
 from conformance.diagnosis.invariant_pieces import cell_tensors
 from conformance.diagnosis.strain_differences import (
-    VOIGT,
     material_stiffness,
+    symmetric_from_voigt,
     voigt_matrix,
     voigt_tensor,
+    voigt_vector,
 )
 from conformance.judge.compare import errors
 
@@ -58,24 +65,16 @@ _SNAP = np.array([0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0])
 _SNAP_TOL = 0.05
 
 
-def _unit(A: int) -> np.ndarray:
-    """(3, 3) the symmetric tensor of Voigt component A (a shear: both entries 1)."""
-    i, j = VOIGT[A]
-    e = np.zeros((3, 3))
-    e[i, j] = e[j, i] = 1.0
-    return e
-
-
 def voigt_map_patterns(split: ElementSplit, S: np.ndarray) -> np.ndarray:
     """(36, n, 3): the force of s_B (the B-th Voigt component of S (m, 3, 3)) written into
     component A, for A, B in 0..5 (row 6 A + B).
     """
-    s = np.stack([S[:, i, j] for i, j in VOIGT], axis=1)  # (m, 6)
+    s = voigt_vector(S)
+    units = symmetric_from_voigt(np.eye(6))  # (6, 3, 3): component A alone (a shear: both)
     FD = np.einsum("mkI,maJ->mkIaJ", split.F, split.D)
     out = np.empty((36, split.n, 3))
     for A in range(6):
-        e = _unit(A)
-        base = -split.V0[:, None, None] * np.einsum("mkIaJ,IJ->mak", FD, e)  # (m, 4, 3)
+        base = -split.V0[:, None, None] * np.einsum("mkIaJ,IJ->mak", FD, units[A])  # (m, 4, 3)
         for B in range(6):
             fe = s[:, B, None, None] * base
             out[6 * A + B] = assemble(split.cells, split.n, fe, None)[0]
@@ -170,9 +169,11 @@ def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Find
 
 
 def _geometric_stiffness(split: ElementSplit, dS: np.ndarray):
-    """The assembled geometric stiffness V0 (D_a . dS D_b) I3 of per-cell stresses dS (m, 3, 3)."""
-    g = np.einsum("maI,mIJ,mbJ->mab", split.D, dS, split.D) * split.V0[:, None, None]
-    Ke = np.einsum("mab,kl->makbl", g, np.eye(3)).reshape(-1, 12, 12)
+    """The assembled geometric stiffness V0 (D_a . dS D_b) I3 of per-cell stresses dS (m, 3, 3):
+    the element matrices of the tangent delta_kl dS_IL.
+    """
+    A = np.einsum("kl,mIL->mkIlL", np.eye(3), dS)
+    Ke = tangent_element_matrices(split.V0, split.D, A)
     return assemble(split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke)[1]
 
 
@@ -198,11 +199,7 @@ def _stress_maps() -> List[tuple]:
 
 def _mapped(S: np.ndarray, M: np.ndarray) -> np.ndarray:
     """(m, 3, 3) the symmetric S' whose Voigt vector is M times S's."""
-    v = np.stack([S[:, i, j] for i, j in VOIGT], axis=1) @ M.T
-    out = np.zeros_like(S)
-    for a, (i, j) in enumerate(VOIGT):
-        out[:, i, j] = out[:, j, i] = v[:, a]
-    return out
+    return symmetric_from_voigt(voigt_vector(S) @ M.T)
 
 
 def tangent_slip_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
