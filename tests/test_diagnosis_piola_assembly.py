@@ -170,3 +170,47 @@ def test_at_probes_the_force_alone_names_the_product():
     # nearby: the right force is none of them
     f = f_o
     assert piola_force_findings(split, t.S, matches) == []
+
+
+def _b_engine(G):
+    """The pieces of a Voigt engine whose strain-displacement matrix is built from G(F)."""
+    return {
+        "P": lambda F, S: G(F) @ S,
+        "mat": lambda F, CC: np.einsum("miI,mIJKL,mkK->miJkL", G(F), CC, G(F)),
+    }
+
+
+def _linear(F):
+    return np.broadcast_to(EYE, F.shape)
+
+
+def test_b_matrix_without_its_initial_displacement_part_is_named_where_it_enters():
+    """B = B_L0 (G = I) in the force and in B^T D B; in B^T D B alone the force is right."""
+    split, f, K, *_, s = _case(**_b_engine(_linear))
+    found = piola_findings(split, f, K, s, DOUBLE)
+    assert _codes(found) == ["piola-assembly-b-matrix-linear"], found
+    assert "strain-displacement" in found[0].title and "B_L0 alone" in found[0].title
+    split, f, K, *_, s = _case(mat=_b_engine(_linear)["mat"])
+    assert _codes(piola_findings(split, f, K, s, DOUBLE)) == [
+        "piola-assembly-b-matrix-linear-stiffness"
+    ]
+
+
+@pytest.mark.parametrize(
+    "G, code",
+    [
+        (lambda F: np.swapaxes(F, 1, 2), "transposed"),
+        (lambda F: 2.0 * EYE - F, "reversed"),
+        (lambda F: 0.5 * (EYE + F), "half"),
+    ],
+)
+def test_b_matrix_built_from_another_displacement_gradient_names_which(G, code):
+    split, f, K, *_, s = _case(seed=2, **_b_engine(G))
+    assert _codes(piola_findings(split, f, K, s, DOUBLE)) == [f"piola-assembly-b-matrix-{code}"]
+
+
+def test_uniaxial_state_b_l1_transposed_is_the_oracle_and_nothing_is_claimed():
+    """H symmetric: B_L1 from H^T is B_L1, the variant predicts the oracle."""
+    split, f, K, f_o, K_o, s = _case(uniaxial=True, **_b_engine(lambda F: np.swapaxes(F, 1, 2)))
+    assert np.abs(f - f_o).max() <= 1e-9 * np.abs(f_o).max()
+    assert piola_findings(split, f, K, s, DOUBLE) == []

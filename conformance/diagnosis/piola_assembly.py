@@ -22,7 +22,13 @@ reassembled with one mistake (NumPy, nothing fitted):
 - **the geometric part** delta_ik S_JL missing, doubled, built with P (delta_ik P_JL, or P
   transposed), or with its index pairs swapped (S_ik delta_JL);
 - **the element contraction** G_aL A_iJkL G_bJ, the two gradients swapped (the same
-  stiffness as CC_ILKJ for CC_IJKL in the material part: one variant says both).
+  stiffness as CC_ILKJ for CC_IJKL in the material part: one variant says both);
+- **the strain-displacement matrix** of a Voigt engine (Bathe's B = B_L0 + B_L1, the variation
+  dE = sym(F^T grad du), so that r = V0 B^T S and K = V0 B^T D B + K_geo) built from another
+  matrix G than F (:data:`B_MATRICES`: B_L0 alone, B_L1 from the displacement gradient
+  transposed, negated, halved or doubled): P = G S and the material part G CC G, in the force
+  and the stiffness, in the material stiffness alone (the force's B right: Bathe's K_L0 used
+  for K_L0 + K_L1), or in the force alone; the geometric part, built from S alone, right.
 
 (The element matrix's (a, i, b, k) entries laid out in another order before the node-major
 scatter, e.g. an einsum's 'mabik' reshaped as if 'maibk', is storage: the local-order family of
@@ -55,6 +61,8 @@ from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
     "PRODUCTS",
+    "B_MATRICES",
+    "B_WHERE",
     "PiolaVariant",
     "PIOLA_VARIANTS",
     "piola_variant_output",
@@ -76,6 +84,13 @@ PRODUCTS = {
     "SF": ("S F", lambda S, F: S @ F),
     "FtS": ("F^T S", lambda S, F: _t(F) @ S),
     "SFt": ("S F^T", lambda S, F: S @ _t(F)),
+}
+
+
+#: The same wrong product as a Voigt engine writes it (r = V0 B^T S).
+_VOIGT_GLOSS = {
+    "FtS": " (in a Voigt engine: the strain-displacement matrix's B_L1 built from the "
+    "displacement gradient transposed, H^T for H)",
 }
 
 
@@ -122,7 +137,8 @@ GEOMETRIC = {
 MATERIAL = {
     "F-transposed": (
         "the material part of the first elasticity tensor A contracted with F^T on both sides: "
-        "F_Ii CC_IJKL F_Kk for F_iI CC_IJKL F_kK (the einsum indices of F swapped)",
+        "F_Ii CC_IJKL F_Kk for F_iI CC_IJKL F_kK (the einsum indices of F swapped; in a Voigt "
+        "engine, the strain-displacement matrix of B^T D B with B_L1 built from H^T)",
         lambda F, CC: _material(F, CC, "mIi", "mKk"),
     ),
     "F-transposed-left": (
@@ -143,13 +159,53 @@ MATERIAL = {
 }
 
 
+#: The matrix G an engine's strain-displacement matrix is built from (dE = sym(G^T grad du), so
+#: that its force carries P = G S and its material stiffness G CC G), code -> (words, G(F));
+#: the right one is F = I + H (H the displacement gradient).
+B_MATRICES = {
+    "linear": (
+        "B_L0 alone, the linear (small-strain) part: B_L1, the initial-displacement part from "
+        "the displacement gradient H, dropped (G = I, so P = S)",
+        lambda F: np.broadcast_to(_EYE, F.shape),
+    ),
+    "transposed": (
+        "B_L1 built from the displacement gradient transposed (H^T for H, so G = F^T)",
+        lambda F: _t(F),
+    ),
+    "reversed": (
+        "B_L1 built from the displacement gradient with its sign reversed (-H for H, so "
+        "G = 2 I - F)",
+        lambda F: 2.0 * _EYE - F,
+    ),
+    "half": (
+        "B_L1 halved (H/2 for H, so G = I + H/2: the 1/2 of E's quadratic term H^T H / 2 kept "
+        "in its variation)",
+        lambda F: 0.5 * (_EYE + F),
+    ),
+    "double": (
+        "B_L1 doubled (2 H for H, so G = I + 2 H)",
+        lambda F: 2.0 * F - _EYE,
+    ),
+}
+
+#: Where an engine's wrong strain-displacement matrix enters, code -> words.
+B_WHERE = {
+    "both": "in the force r = V0 B^T S and in the material stiffness B^T D B",
+    "stiffness": "in the material stiffness B^T D B alone (the force's B right: K_L0 without "
+    "the initial-displacement part K_L1, or a B of its own)",
+    "force": "in the force r = V0 B^T S alone (the stiffness's B right)",
+}
+
+
 @dataclass(frozen=True)
 class PiolaVariant:
     """code; words: the mistake as an engineer would fix it; product: the engine's P
     (:data:`PRODUCTS`) in the force; tangent: "right" (A built right from S and CC),
     "geometric" (the geometric part the derivative of the product at fixed S) or "exact" (A
     the product's whole derivative); geometric, material: a part of A from :data:`GEOMETRIC`,
-    :data:`MATERIAL` ("" : right); swap_gradients: K_ab = G_aL A_iJkL G_bJ.
+    :data:`MATERIAL` ("" : right); swap_gradients: K_ab = G_aL A_iJkL G_bJ; b_matrix: the
+    strain-displacement matrix built from :data:`B_MATRICES`' G ("": from F), where
+    :data:`B_WHERE` says.
     """
 
     code: str
@@ -159,6 +215,8 @@ class PiolaVariant:
     geometric: str = ""
     material: str = ""
     swap_gradients: bool = False
+    b_matrix: str = ""
+    b_where: str = "both"
 
 
 #: The geometric part an engine gets from its wrong product: its derivative by F at fixed S.
@@ -169,7 +227,7 @@ def _product_variants() -> List[PiolaVariant]:
     out = []
     for p in ("SF", "FtS", "SFt"):
         name = PRODUCTS[p][0]
-        base = f"the first Piola stress computed as {name} instead of F S"
+        base = f"the first Piola stress computed as {name} instead of F S{_VOIGT_GLOSS.get(p, '')}"
         out.append(
             PiolaVariant(
                 f"piola-{p}",
@@ -200,6 +258,23 @@ def _product_variants() -> List[PiolaVariant]:
     return out
 
 
+def _b_matrix_variants() -> List[PiolaVariant]:
+    return [
+        PiolaVariant(
+            f"b-matrix-{code}" + ("" if where == "both" else f"-{where}"),
+            f"the strain-displacement matrix B (Voigt: dE = sym(F^T grad du), B = B_L0 + B_L1) "
+            f"with {words}, {B_WHERE[where]}; S, D and the geometric stiffness right",
+            b_matrix=code,
+            b_where=where,
+        )
+        for code, (words, _) in B_MATRICES.items()
+        for where in B_WHERE
+        # G = F^T in the force alone, or in the stiffness alone, is a variant above already
+        # ("piola-FtS", "material-F-transposed")
+        if code != "transposed" or where == "both"
+    ]
+
+
 #: The variants tested (the first is the correct assembly: a soundness check, never named).
 PIOLA_VARIANTS: Tuple[PiolaVariant, ...] = (
     PiolaVariant("right", "the correct total-Lagrangian assembly"),
@@ -214,6 +289,7 @@ PIOLA_VARIANTS: Tuple[PiolaVariant, ...] = (
         "part, symmetric in J and L, is unchanged)",
         swap_gradients=True,
     ),
+    *_b_matrix_variants(),
 )
 
 
@@ -252,6 +328,12 @@ def piola_variant_output(
         geo = GEOMETRIC[v.geometric][1](S, P)
     if v.material:
         mat = MATERIAL[v.material][1](F, CC)
+    if v.b_matrix:
+        Gm = B_MATRICES[v.b_matrix][1](F)
+        if v.b_where in ("both", "force"):
+            Pe = Gm @ S
+        if v.b_where in ("both", "stiffness"):
+            mat = _material(Gm, CC)
     A = geo + mat
     if v.tangent == "geometric":
         A = _product_tangent(F, S, CC, PRODUCTS[v.product][1], False) + mat
@@ -316,7 +398,8 @@ def piola_force_findings(
     candidates = [
         (
             f"piola-assembly-piola-{code}",
-            f"the first Piola stress computed as {name} instead of F S in the force",
+            f"the first Piola stress computed as {name} instead of F S in the force"
+            + _VOIGT_GLOSS.get(code, ""),
             M(S, F),
             f"times F so ({name})",
         )
