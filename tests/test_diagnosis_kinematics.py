@@ -224,3 +224,36 @@ def test_i1_from_the_diagonal_of_f_is_named():
     assert outcome.status == "failed" and len(named) == 1, outcome.diagnosis.text()
     assert named[0].code == "kinematic-i1-from-part-of-F", outcome.diagnosis.text()
     assert "diagonal of F" in named[0].title
+
+
+def _reversed(F):
+    """The namespace of 2 I - F: an engine whose displacements are u = X - x."""
+    from hyperdual_engine import Matrix, Namespace
+
+    return Namespace(Matrix([[float(i == j) * 2.0 - F[i, j] for j in range(3)] for i in range(3)]))
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_displacements_taken_as_rest_minus_current_are_named():
+    """u = X - x: the energy, stress and tangent of 2 I - F, the force -dW/du' at u' = -u (minus
+    the variant's force); the same engine with the variant's own force is not this mistake.
+    """
+    from conformance.protocol import check_implementation
+
+    engine = _formula_engine("NeoHookean", _reversed)
+
+    def rest_minus_current(case):
+        f, K = engine(case)
+        return -f, K
+
+    run = check_implementation(rest_minus_current, material="NeoHookean", states=("random",))
+    (outcome,) = run.outcomes
+    named = outcome.diagnosis.causes
+    assert outcome.status == "failed" and named, outcome.diagnosis.text()
+    assert named[0].code == "kinematic-displacement-reversed", outcome.diagnosis.text()
+    assert "u = X - x" in named[0].title
+    run = check_implementation(engine, material="NeoHookean", states=("random",))
+    (outcome,) = run.outcomes
+    codes = [c.code for c in outcome.diagnosis.causes]
+    assert "kinematic-displacement-reversed" not in codes, outcome.diagnosis.text()

@@ -52,7 +52,8 @@ class Spec:
     transpose: F^T used for F (C and B confused);
     deformation: "inverse" (F^-1 used for F: the gradient of the map from the current cell to
     the rest one, dX/dx, for dx/dX), "symmetric" ((F + F^T)/2 used for F in C and the strains,
-    J = det F kept: the rotation ignored, F taken for its stretch U) or None (F);
+    J = det F kept: the rotation ignored, F taken for its stretch U), "reversed" (2 I - F: the
+    displacements taken as u = X - x) or None (F);
     deformed_volume: the density weighted by J (integrated over the deformed volume);
     eigen_power: the power of the eigenvalues of C multiplied by this (2: eigenvalues of C taken as
     stretches; 0.5: stretches taken as eigenvalues of C);
@@ -139,6 +140,8 @@ class Kinematics:
         self._spec = spec
         if spec.deformation == "inverse":
             F = ufl.inv(F)
+        elif spec.deformation == "reversed":  # u = X - x: F = I - grad u
+            F = 2.0 * ufl.Identity(3) - F
         J = ufl.det(F)
         if spec.deformation == "symmetric":  # J kept: det F, which no rotation changes
             F = 0.5 * (F + F.T)

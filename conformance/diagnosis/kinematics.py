@@ -11,6 +11,9 @@ case's tolerance. The mistakes:
 - the deformation gradient of the inverse map, F^-1 for F (dX/dx, as an updated-Lagrangian code
   holds it, for dx/dX), and its symmetric part (F + F^T)/2 for F (the rotation ignored: F taken
   for its stretch U, exact while the cells do not rotate);
+- the displacements taken as rest minus current, u = X - x (F = I - grad u = 2 I - F for F):
+  the energy, stress and tangent of the reversed deformation, the force's sign flipped by the
+  chain rule (the engine's f = -dW/du' at u' = -u is minus the variant's -dW/du);
 - the energy weighted by the deformed volume (J W for W);
 - principal stretches confused with their squares (the power of the eigenvalues of C doubled or
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
@@ -43,12 +46,16 @@ __all__ = ["KinematicVariant", "OrthonormalisedFrameEnergy", "kinematic_variants
 
 @dataclass(frozen=True)
 class KinematicVariant:
-    """code, title (the mistake in words), spec (how the oracle evaluates it)."""
+    """code, title (the mistake in words), spec (how the oracle evaluates it); force_sign: the
+    engine's force is this times the variant's (-1 where the engine differentiates in
+    displacements that are the variant's negated).
+    """
 
     code: str
     title: str
     spec: Spec
     orthonormalised: bool = False
+    force_sign: float = 1.0
 
     def oracle_model(self, model: Any) -> Any:
         """What the oracle evaluates for this variant of ``model``."""
@@ -189,6 +196,13 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             Spec(deformation="inverse"),
         ),
         (
+            "displacement-reversed",
+            "the displacements taken as rest minus current, u = X - x (F = I - grad u, i.e. "
+            "2 I - F, for F): the deformation reversed, in the energy, the stress and the "
+            "stiffness (the force's sign then flipped by the chain rule in u)",
+            Spec(deformation="reversed"),
+        ),
+        (
             "rotation-ignored",
             "the symmetric part of F, (F + F^T)/2, used for F: the rotation ignored (F taken for "
             "its stretch U, as if F = U)",
@@ -305,7 +319,8 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
         if text in seen:
             continue
         seen.add(text)
-        kept.append(KinematicVariant(code, title, spec))
+        sign = -1.0 if spec.deformation == "reversed" else 1.0
+        kept.append(KinematicVariant(code, title, spec, force_sign=sign))
     if _uses_frame(model):  # a rewrite of the frame alone: no formula text tells it apart
         kept.append(
             KinematicVariant(

@@ -241,8 +241,21 @@ def _matching(out, s: Scales, tol: Tolerances, candidates) -> List[Reading]:
     return found
 
 
+def _signed(r, sign: float):
+    """The reference ``r`` with its force times ``sign`` (energy and stiffness as they are,
+    still read lazily).
+    """
+    from conformance.judge.oracle import Reference
+
+    if sign == 1.0:
+        return r
+    return Reference(lambda: r.energy, sign * r.force, lambda: r.stiffness)
+
+
 def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
-    """The kinematic variants of :mod:`conformance.diagnosis.kinematics` that the engine matches."""
+    """The kinematic variants of :mod:`conformance.diagnosis.kinematics` that the engine matches
+    (the variant's force times its force_sign).
+    """
     from conformance.diagnosis.kinematics import kinematic_variants
 
     return _matching(
@@ -251,8 +264,11 @@ def _kinematic_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
         tol,
         (
             (
-                lambda v=v: cache.evaluate_model(
-                    ci, v.oracle_model(ci.model), model_key(ci.model) + v.key(), lazy=True
+                lambda v=v: _signed(
+                    cache.evaluate_model(
+                        ci, v.oracle_model(ci.model), model_key(ci.model) + v.key(), lazy=True
+                    ),
+                    v.force_sign,
                 ),
                 f"kinematic-{v.code}",
                 f"your engine matches the energy with {v.title}",
