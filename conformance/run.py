@@ -22,6 +22,7 @@ from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.central_differences import central_difference_reading
+from conformance.diagnosis.complex_step import complex_step_reading
 from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
@@ -486,6 +487,12 @@ READINGS: Tuple[Reading, ...] = (
         "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
         _headline_unexplained,
         lambda d, c: strain_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a complex step or central differences of S in the components of E or C (the step's "
+        "truncation), or a relative step's divisor",
+        _headline_unexplained,
+        lambda d, c: complex_step_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "the elasticity tensor applied to each node direction by differences of the stress "
