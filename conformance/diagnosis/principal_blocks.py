@@ -1,0 +1,147 @@
+"""The material tangent's blocks in the principal frame of C, one of them wrong.
+
+A spectral engine (Simo and Taylor's principal-stretch form, the usual way to Ogden-type
+materials) builds the material tangent of an isotropic energy in the eigenbasis N_a of C,
+where it has two kinds of entries only:
+
+- the **principal block** CC_aabb (a 3 x 3 matrix from the second derivatives of W in the
+  stretches and the principal stresses' own terms), its diagonal CC_aaaa and its off-diagonal
+  CC_aabb (a != b);
+- the **pair terms** CC_abab = CC_abba (a != b), from the divided differences
+  (S_a - S_b) / (lambda_a^2 - lambda_b^2) that turn the principal directions, with their own
+  limit where two stretches coincide;
+
+then rotates it back, CC_IJKL = N_Ia N_Jb N_Kc N_Ld CC_abcd. A slip in one of these (a pair
+term written for one index order only, a factor on it, a term of the principal block left out)
+scales one kind of entry. Here the oracle's per-cell CC (from its element split) is rotated into
+each cell's eigenbasis of C, cut into these parts, each part rotated back and assembled as a
+material stiffness V0 D_a F CC_part F D_b, and the stiffness error K - K_o fitted by one or two
+of them (with the geometric stiffness, from the oracle's S, as a further part), as the Voigt
+blocks are (:func:`conformance.diagnosis.tangent.fit_parts`): named when a fit leaves the
+stiffness within the tolerance, the force right. Where F is diagonal (a uniaxial state) the
+principal frame is the global one and these parts are the Voigt blocks the run's own tangent
+parts already try; the random state's rotated frames tell them apart.
+"""
+
+from __future__ import annotations
+
+from typing import Dict, List
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_piola,
+    split_reading,
+    tangent_element_matrices,
+)
+from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.strain_differences import material_stiffness
+from conformance.diagnosis.tangent import describe_coefficient, fit_parts
+from conformance.judge.compare import Scales, Tolerances, errors
+
+__all__ = [
+    "principal_masks",
+    "principal_parts",
+    "principal_block_findings",
+    "principal_block_reading",
+]
+
+
+def principal_masks() -> Dict[str, np.ndarray]:
+    """(3, 3, 3, 3) 0/1 masks of the entries of a tangent in the principal frame, by part."""
+    a = np.arange(3)
+    i, j, k, l = np.meshgrid(a, a, a, a, indexing="ij")
+    diagonal = (i == j) & (k == l) & (i == k)
+    off = (i == j) & (k == l) & (i != k)
+    pair = (i != j) & (((i == k) & (j == l)) | ((i == l) & (j == k)))
+    return {
+        "principal block of the material tangent (CC_aabb in the eigenbasis of C)": (
+            diagonal | off
+        ).astype(float),
+        "diagonal of the principal block (CC_aaaa in the eigenbasis of C)": diagonal.astype(float),
+        "off-diagonal of the principal block (CC_aabb, a != b, in the eigenbasis of C)": off.astype(
+            float
+        ),
+        "pair (shear) terms of the material tangent in the eigenbasis of C (CC_abab, a != b: "
+        "the divided differences (S_a - S_b) / (lambda_a^2 - lambda_b^2))": pair.astype(float),
+    }
+
+
+def _rotate(CC: np.ndarray, N: np.ndarray, back: bool = False) -> np.ndarray:
+    """CC (m, 3, 3, 3, 3) into the per-cell basis N (m, 3, 3; columns N_a), or back."""
+    if back:
+        return np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", N, N, N, N, CC, optimize=True)
+    return np.einsum("mIa,mJb,mKc,mLd,mIJKL->mabcd", N, N, N, N, CC, optimize=True)
+
+
+def principal_parts(split: ElementSplit) -> Dict[str, sp.csr_matrix]:
+    """The assembled material stiffness of each part of :func:`principal_masks` (oracle's CC per
+    cell rotated into each cell's eigenbasis of C, masked, rotated back), and the geometric
+    stiffness; parts that are zero here dropped.
+    """
+    t = cell_tensors(*cell_piola(split), split.F)
+    _, N = np.linalg.eigh(t.C)
+    hat = _rotate(t.CC, N)
+    out = {}
+    for name, mask in principal_masks().items():
+        out[name] = material_stiffness(split, _rotate(hat * mask, N, back=True))
+    geo = np.einsum("kl,mIL->mkIlL", np.eye(3), t.S)
+    Ke = tangent_element_matrices(split.V0, split.D, geo)
+    out["geometric stiffness"] = assemble(
+        split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke
+    )[1]
+    scale = max(float(abs(m).max()) for m in out.values())
+    return {k: v for k, v in out.items() if float(abs(v).max()) > 1e-12 * scale}
+
+
+def _isotropic_in_frame(split: ElementSplit) -> bool:
+    """True when the oracle's CC has only principal-block and pair entries in each cell's
+    eigenbasis of C (an isotropic energy): else the parts do not add up to the tangent.
+    """
+    t = cell_tensors(*cell_piola(split), split.F)
+    _, N = np.linalg.eigh(t.C)
+    hat = _rotate(t.CC, N)
+    masks = principal_masks()
+    kept = np.clip(sum(masks.values()), 0.0, 1.0)
+    return float(np.abs(hat * (1.0 - kept)).max()) <= 1e-8 * float(np.abs(hat).max())
+
+
+def principal_block_findings(
+    split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The principal-frame parts whose fit (one or two parts) leaves the engine's stiffness
+    within the tolerance, the force right; [] otherwise.
+    """
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    if errors(f, K, None, f0, K0, 0.0, s).force > tol.force or not _isotropic_in_frame(split):
+        return []
+    parts = principal_parts(split)
+    K0 = sp.csr_matrix(K0)
+    ok, _ = fit_parts((sp.csr_matrix(K) - K0).tocsr(), K0, parts, tol.stiffness)
+    if ok is None or all(n == "geometric stiffness" for n in ok.names):
+        return []  # the geometric part alone is the run's own tangent parts' to say
+    words = " and ".join(describe_coefficient(n, c) for n, c in zip(ok.names, ok.coefficients))
+    return [
+        Finding(
+            "principal-block",
+            f"a spectral tangent with one block wrong: {words}",
+            FULL,
+            "the oracle's per-cell material tangent rotated into each cell's eigenbasis of C, "
+            "cut into its principal block and its pair terms, each rotated back and assembled: "
+            "K - K_oracle = "
+            + " + ".join(f"{c:+.6g} x [{n}]" for n, c in zip(ok.names, ok.coefficients))
+            + f" leaves a stiffness error of {ok.residual:.1e}; the force matches",
+            {"parts": list(ok.names), "coefficients": list(ok.coefficients)},
+        )
+    ]
+
+
+def principal_block_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (the force right, nothing named) with a spectral tangent's wrong block named
+    first (:func:`conformance.diagnosis.elements.split_reading`).
+    """
+    return split_reading(diag, ci, out, ref, s, (principal_block_findings,))

@@ -1,0 +1,74 @@
+"""A spectral tangent with one block wrong in the principal frame of C
+(conformance.diagnosis.principal_blocks). The engine is a small Neo-Hookean engine of this
+module's own (S and CC in closed form), its tangent rotated into each cell's eigenbasis of C,
+one kind of entry scaled, rotated back; MJED is the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import mjed_split, stretched_state
+
+from conformance.diagnosis.elements import assemble, cell_kinematics
+from conformance.diagnosis.principal_blocks import principal_block_findings
+from conformance.judge.compare import DOUBLE
+from mjed.materials import NeoHookean
+
+MU, LAM = 3448.0, 31034.0
+EYE = np.eye(3)
+
+
+def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0):
+    V, G, F = cell_kinematics(points, cells, x)
+    C = np.swapaxes(F, 1, 2) @ F
+    Ci = np.linalg.inv(C)
+    lnJ = np.log(np.linalg.det(F))
+    S = MU * (EYE - Ci) + LAM * lnJ[:, None, None] * Ci
+    CC = LAM * np.einsum("mIJ,mKL->mIJKL", Ci, Ci) + (MU - LAM * lnJ)[:, None, None, None, None] * (
+        np.einsum("mIK,mJL->mIJKL", Ci, Ci) + np.einsum("mIL,mJK->mIJKL", Ci, Ci)
+    )
+    _, N = np.linalg.eigh(C)
+    hat = np.einsum("mIa,mJb,mKc,mLd,mIJKL->mabcd", N, N, N, N, CC)
+    for a in range(3):
+        for b in range(3):
+            if a != b:
+                hat[:, a, b, a, b] *= scale_pair
+                hat[:, a, b, b, a] *= scale_pair
+                hat[:, a, a, b, b] *= scale_offdiag
+    CC = np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", N, N, N, N, hat)
+    A = np.einsum("ik,mJL->miJkL", EYE, S) + np.einsum("miI,mIJKL,mkK->miJkL", F, CC, F)
+    fe = -V[:, None, None] * np.einsum("miJ,maJ->mai", F @ S, G)
+    Ke = V[:, None, None, None, None] * np.einsum("maJ,miJkL,mbL->maibk", G, A, G)
+    return assemble(cells, len(points), fe, Ke.reshape(-1, 12, 12))
+
+
+def _found(**mistake):
+    points, cells, x = stretched_state(0, False)
+    split, f_o, K_o, s = mjed_split(NeoHookean(mu=MU, lam=LAM), points, cells, x)
+    f, K = _engine(points, cells, x, **mistake)
+    return principal_block_findings(split, f, K, s, DOUBLE), f, K, f_o, K_o
+
+
+def test_the_right_spectral_engine_is_the_oracle_and_nothing_is_named():
+    found, f, K, f_o, K_o = _found()
+    assert abs(K - K_o).max() <= 1e-9 * abs(K_o).max()
+    assert found == []
+
+
+@pytest.mark.parametrize(
+    "mistake, part, coefficient",
+    [
+        ({"scale_pair": 0.5}, "pair (shear) terms", -0.5),
+        ({"scale_pair": 2.0}, "pair (shear) terms", 1.0),
+        ({"scale_offdiag": 0.0}, "off-diagonal of the principal block", -1.0),
+    ],
+)
+def test_one_block_scaled_in_the_principal_frame_is_named_with_its_factor(
+    mistake, part, coefficient
+):
+    found, *_ = _found(**mistake)
+    assert [x.code for x in found] == ["principal-block"], found
+    (name,) = found[0].figures["parts"]
+    assert name.startswith(part), found
+    assert abs(found[0].figures["coefficients"][0] - coefficient) < 1e-6
