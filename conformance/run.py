@@ -51,11 +51,13 @@ from conformance.diagnosis.node_blocks import node_block_reading
 from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
+from conformance.diagnosis.principal_blocks import principal_block_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
 from conformance.diagnosis.sparsity import off_pattern_reading
+from conformance.diagnosis.spectral_frames import spectral_frame_reading
 from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.stiffness_noise import NOISE_RANGE, stiffness_noise_reading
@@ -460,6 +462,12 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
+        "a spectral tangent with one block wrong in the principal frame of C (the principal "
+        "block, its diagonal or off-diagonal, the pair terms)",
+        _force_right,
+        lambda d, c: principal_block_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
         # a material's own formula too (Teran's SVD-basis blocks); before MJED's parts and the
         # differences, which would read a wrong block as a wrong term or a step
         "one of Teran's blocks of dP/dF in the SVD basis wrong (2x2 blocks, their quotients, "
@@ -515,6 +523,12 @@ READINGS: Tuple[Reading, ...] = (
         "a total-Lagrangian assembly's first Piola stress and first elasticity tensor",
         _nothing_named,
         lambda d, c: piola_assembly_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a spectral engine's principal frame: the eigenvectors of b for those of C, or the "
+        "eigenvalues paired with the wrong eigenvectors",
+        _nothing_named,
+        lambda d, c: spectral_frame_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         # after the total-Lagrangian assembly's own slips (P and A built from S and CC): here P
