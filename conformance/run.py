@@ -22,6 +22,7 @@ from conformance.diagnosis.assembly import buffered_assembly_reading
 from conformance.diagnosis.cell_weights import cell_weight_reading
 from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_reading
 from conformance.diagnosis.central_differences import central_difference_reading
+from conformance.diagnosis.coincident_stretches import coincident_reading
 from conformance.diagnosis.complex_step import complex_step_reading
 from conformance.diagnosis.corroborate import corroborate
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
@@ -460,6 +461,11 @@ READINGS: Tuple[Reading, ...] = (
         "Ogden's coaxial tangent, Costa's d2Q unsymmetrised",
         _force_right,
         lambda d, c: tangent_term_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "the tangent where two principal stretches coincide (one shared error, in their plane)",
+        _force_right,
+        lambda d, c: coincident_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a spectral tangent with one block wrong in the principal frame of C (the principal "
