@@ -368,3 +368,38 @@ def test_di2_df_typed_with_c_f_is_named_as_the_operands_swapped():
     found = _find(case, *_engine(*case[1:4], _mooney_rivlin_first_piola(model, lambda F, C: C @ F)))
     assert [x.code for x in found] == ["stress-gradient-slip"], [x.title for x in found]
     assert found[0].figures["slip"] == "CF" and "C F" in found[0].title
+
+
+def test_a_power_rules_coefficient_with_the_second_derivative_typed_apart_is_named():
+    """Yeoh's c30 term differentiated as 2 c30 (I1b - 3)^2 (the coefficient from the lowered
+    exponent) in the stress and wherever dW/dI1b enters the tangent, its second derivative
+    6 c30 (I1b - 3) typed apart and right: the tangent is the right one plus the wrong
+    coefficient times d2I1b/dF2, neither the derivative of the wrong stress nor the right one.
+    """
+    case = _case("Yeoh")
+    model = case[0]
+
+    def psi1(I1b, c3=3.0):
+        s = I1b - 3.0
+        return model.c10 + 2.0 * model.c20 * s + c3 * model.c30 * s**2
+
+    right = _isochoric_stress(psi1, model.k0)
+
+    def frozen(F):
+        # the coefficient error is evaluated at the real F (held fixed under the complex step),
+        # dI1b/dF at the perturbed one: the tangent gains that error times d2I1b/dF2 alone
+        Fr = F.real
+        I1b = np.linalg.det(Fr) ** (-2.0 / 3.0) * np.einsum("mij,mij->m", Fr, Fr)
+        d = psi1(I1b, 2.0) - psi1(I1b)
+        J = np.linalg.det(F)
+        I1 = np.einsum("mij,mij->m", F, F)
+        FiT = np.linalg.inv(F).transpose(0, 2, 1)
+        dI1b = (J ** (-2.0 / 3.0))[:, None, None] * (
+            2.0 * F - (2.0 / 3.0 * I1)[:, None, None] * FiT
+        )
+        return right(F) + d[:, None, None] * dI1b
+
+    f, K = _engine(case[1], case[2], case[3], frozen)
+    found = _find(case, f, K)
+    assert len(found) == 1 and "written 2" in found[0].title, found
+    assert "second derivatives d2W/dI2 typed" in found[0].figures["tangent"]

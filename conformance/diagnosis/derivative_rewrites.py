@@ -9,12 +9,13 @@ its force does not derive from it.
 The energy's formula (:func:`conformance.diagnosis.variants.energy_expression`) is differentiated
 symbolically (:mod:`conformance.diagnosis.formula_derivative`) and each psi_k rewritten the way a
 hand derivation goes wrong, one change at a time: a sign before a term flipped or a minus lost,
-the -1 of W's exp(X) - 1 carried into exp(X)'s derivative, a number doubled or halved, an exponent
+the -1 of W's exp(X) - 1 carried into exp(X)'s derivative, a number doubled or halved (or an
+integer one higher or lower: a power rule's coefficient), an exponent
 off by one or with its sign lost, a parameter left out or another one used, an invariant used for
 its isochoric version or the other way round; and psi_k as a whole with its sign flipped,
 doubled, halved, dropped or multiplied by a power of J. Each rewrite predicts, per cell, the
 stress P' = P + (psi_k' - psi_k) dI_k/dF, hence the force, with nothing fitted; the stiffness is
-predicted four ways, as engines make it:
+predicted five ways, as engines make it:
 
 - the derivative of that force (a complex step or differences of the stress routine, a tangent
   derived from the same wrong psi_k): exact, by complex step of P' - P;
@@ -25,7 +26,10 @@ predicted four ways, as engines make it:
   whose geometric stiffness uses its wrong S);
 - the derivative of that force computed for each cell's local node pairs a <= b and the blocks
   of b > a written as their transposes (an edge-based engine): the stress error's tangent is
-  not symmetric, since that stress derives from no energy.
+  not symmetric, since that stress derives from no energy;
+- the oracle's plus (psi_k' - psi_k) d2I_k/dF2: the wrong psi_k wherever the first derivative
+  enters, the second derivatives d2W/dI2 typed apart and right (a spectral engine's principal
+  block and pair terms, an invariant engine's W_k d2I_k/dC2 beside its W_kl dI_k dI_l).
 
 A rewrite is named when the engine's energy agrees with the oracle's (or the engine gives none)
 and one of its predictions brings force and stiffness within the case's tolerance, while the
@@ -326,6 +330,16 @@ def _node_rewrites(text: str, params: Tuple[str, ...]) -> Iterator[Tuple[str, st
                     f"the number {_fmt(c)} written {_fmt(q)} (a factor 2 "
                     f"{'too many' if abs(q) > abs(c) else 'lost'})",
                 )
+            if c == int(c) and abs(c) >= 3:
+                # the power rule's coefficient taken from the lowered exponent (x^3 -> 2 x^2)
+                # or the exponent's own slip carried into it; 2 -> 1 is the factor 2 above
+                for q in (c - 1, c + 1):
+                    yield (
+                        _replaced(text, i, lambda n, q=q: number(q)),
+                        f"the number {_fmt(c)} written {_fmt(q)} (one "
+                        f"{'higher' if q > c else 'lower'}: a power rule's coefficient taken "
+                        "from the wrong exponent)",
+                    )
         elif isinstance(node, ast.Name) and node.id in params:
             yield (
                 _replaced(text, i, lambda n: ast.Constant(1)),
@@ -524,6 +538,30 @@ def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray
     return (dP.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
 
 
+def _frozen_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
+    """(psi_k' - psi_k) d2I_k/dF2 (m, 3, 3, 3, 3): the stress error's tangent with the wrong
+    coefficient held fixed, as an engine has it that uses its psi_k' wherever the first
+    derivative enters and types the second derivatives d2W/dI2 separately (right). None for a
+    rewrite that is not one psi_k's.
+    """
+    if not isinstance(rw, StressRewrite):
+        return None
+    real = _Cells.of(F)
+    values = {**params, **real.inv}
+    new, right = _psi(rw.formula, values), _psi(rw.right, values)
+    if new is None or right is None:
+        return None
+    d = np.broadcast_to(np.asarray(new) - np.asarray(right), F.shape[:1])
+    h = 1e-30
+    m = F.shape[0]
+    Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)
+    Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
+    with np.errstate(all="ignore"):
+        G = _Cells.of(Fc.reshape(m * 9, 3, 3)).grads[rw.invariant]
+    dG = (G.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
+    return d[:, None, None, None, None] * dG
+
+
 def _geometric(dP: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The geometric part delta_kl dS_IL of a stress error dP = F dS, (m, 3, 3, 3, 3)."""
     dS = np.linalg.solve(F, dP)
@@ -538,6 +576,12 @@ _TANGENTS = (
         "mirrored",
         "its stiffness the derivative of that force computed for each cell's local node pairs "
         "a <= b, the blocks of b > a written as their transposes (an edge-based engine)",
+    ),
+    (
+        "frozen",
+        "its tangent with that wrong dW/dI wherever the first derivative enters (the stress, "
+        "the geometric stiffness, dW/dI d2I/dF2) and the second derivatives d2W/dI2 typed "
+        "separately, right (a spectral or invariant engine's tangent)",
     ),
 )
 
@@ -589,7 +633,10 @@ def derivative_rewrite_findings(
             else:
                 if how in ("consistent", "mirrored") and consistent is None:
                     consistent = _stress_error_tangent(rw, F, params)
-                A = consistent if how in ("consistent", "mirrored") else _geometric(dP, F)
+                if how == "frozen":
+                    A = _frozen_tangent(rw, F, params)
+                else:
+                    A = consistent if how in ("consistent", "mirrored") else _geometric(dP, F)
                 if A is None or not np.all(np.isfinite(A)):
                     continue
                 zero = np.zeros((cells.shape[0], 4, 3))
