@@ -106,3 +106,26 @@ def test_a_stress_by_differences_of_w_in_the_strain_is_told_from_differences_in_
 def test_a_stress_off_by_a_factor_is_not_a_difference_quotient():
     model, points, x, split, f_o, K_o, s = _case("Gent", 4)
     assert fit_energy_differences(model, split, points, 1e-6 * f_o) is None
+
+
+def test_a_spectral_stress_by_differences_of_w_in_the_principal_stretches_is_named():
+    """S_a = (1/lambda_a) (W(lambda + h e_a) - W(lambda)) / h, S = sum_a S_a N_a N_a^T, each
+    cell moved to U = N diag(lambda + h e_a) N^T (W depends on C alone).
+    """
+    model, points, x, split, f_o, K_o, s = _case("NeoHookean", 6)
+    h = 1e-5
+    C = np.einsum("mki,mkj->mij", split.F, split.F)
+    w, N = np.linalg.eigh(C)
+    lam = np.sqrt(w)
+    W0 = _energy_density(model, points, split, split.F)
+    S = np.zeros_like(C)
+    for a in range(3):
+        moved = lam.copy()
+        moved[:, a] += h
+        U = np.einsum("mij,mj,mkj->mik", N, moved, N)
+        dW = (_energy_density(model, points, split, U) - W0) / h
+        S += (dW / lam[:, a])[:, None, None] * np.einsum("mi,mj->mij", N[:, :, a], N[:, :, a])
+    fit = fit_energy_differences(model, split, points, _forces(split, split.F @ S) - f_o)
+    assert fit is not None and fit.scheme == "forward", fit
+    assert "principal stretch" in fit.variable, fit
+    assert abs(fit.step / h - 1) < 2e-2, fit

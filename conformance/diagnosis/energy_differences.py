@@ -16,7 +16,11 @@ step h:
   (E_12 = E_21 += h / 2) gives (h / 2) CC_1212, one moved as a tensor component (both by h,
   the quotient halved) twice that. Differences in C with step h are those in E with step h / 2;
 - **E, central**: (h^2 / 6) dD_AA / d(eps_A), D the Voigt tangent, its derivative along the
-  engineering strain measured as :mod:`conformance.diagnosis.strain_differences` does.
+  engineering strain measured as :mod:`conformance.diagnosis.strain_differences` does;
+- **the principal stretches, forward** (a spectral engine's dW/dlambda_a = (W(lambda + h e_a)
+  - W(lambda)) / h, S_a = (1/lambda_a) dW/dlambda_a): S_a errs by (h / 2) d2W/dlambda_a^2 /
+  lambda_a with d2W/dlambda_a^2 = S_aa + lambda_a^2 CC_aaaa in the eigenbasis of C; in the
+  eigenvalues lambda_a^2 of C instead, by h CC_aaaa / 4.
 
 Each scheme's force per unit h (or h^2) is assembled as the element forces -V0 dP D_a and the
 step fitted to the engine's force error. A scheme is named when it accounts for 99 % of that
@@ -110,6 +114,25 @@ def _e_forward(split: ElementSplit, shear: float) -> np.ndarray:
     return _second_piola_forces(split, 0.5 * symmetric_from_voigt(values))
 
 
+def _principal_forward(split: ElementSplit, squares: bool) -> np.ndarray:
+    """The force of a forward difference's error per unit step in each principal stretch
+    lambda_a (W(lambda) of a spectral engine, S_a = (1/lambda_a) dW/dlambda_a), or in each
+    eigenvalue mu_a = lambda_a^2 of C (S_a = 2 dW/dmu_a): per cell, in the eigenbasis N_a of C,
+    dS_a = (1/2) (S_aa + lambda_a^2 CC_aaaa) / lambda_a, or CC_aaaa / 4.
+    """
+    P, A = cell_piola(split)
+    t = cell_tensors(P, A, split.F)
+    w, N = np.linalg.eigh(t.C)
+    S_aa = np.einsum("mIa,mIJ,mJa->ma", N, t.S, N)
+    CC_aaaa = np.einsum("mIa,mJa,mKa,mLa,mIJKL->ma", N, N, N, N, t.CC, optimize=True)
+    if squares:
+        values = CC_aaaa / 4.0
+    else:
+        values = 0.5 * (S_aa + w * CC_aaaa) / np.sqrt(w)
+    dS = np.einsum("mIa,ma,mJa->mIJ", N, values, N)
+    return _second_piola_forces(split, dS)
+
+
 def _f_central(model: Any, split: ElementSplit, points: np.ndarray) -> Optional[np.ndarray]:
     """The force of (1/6) dA_kJkJ / dF_kJ, measured by central differences of the oracle's A."""
     from conformance.diagnosis.routine_inputs import piola_at
@@ -162,6 +185,18 @@ def energy_difference_bases(model: Any, split: ElementSplit, points: np.ndarray)
             "each Voigt component of the Green strain E (a shear pair E_12 = E_21 moved by h, "
             "the quotient halved; in C the step is twice this)",
             lambda: _e_forward(split, 2.0),
+        ),
+        (
+            "forward",
+            "each principal stretch lambda_a (W(lambda_1, lambda_2, lambda_3) of a spectral "
+            "engine, S_a = (1/lambda_a) dW/dlambda_a)",
+            lambda: _principal_forward(split, False),
+        ),
+        (
+            "forward",
+            "each eigenvalue lambda_a^2 of C (W of the principal squares, "
+            "S_a = 2 dW/d(lambda_a^2))",
+            lambda: _principal_forward(split, True),
         ),
         ("central", "each component of F", lambda: _f_central(model, split, points)),
         (
