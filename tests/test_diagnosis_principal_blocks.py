@@ -72,3 +72,28 @@ def test_one_block_scaled_in_the_principal_frame_is_named_with_its_factor(
     (name,) = found[0].figures["parts"]
     assert name.startswith(part), found
     assert abs(found[0].figures["coefficients"][0] - coefficient) < 1e-6
+
+
+def test_the_quotient_rules_term_lost_from_the_diagonal_is_named():
+    """CC_aaaa without its -S_a / lambda_a^2 (Neo-Hookean: S_a = mu (1 - 1/w_a) + lam ln J / w_a
+    in the eigenbasis, w_a = lambda_a^2).
+    """
+    points, cells, x = stretched_state(0, False)
+    split, f_o, K_o, s = mjed_split(NeoHookean(mu=MU, lam=LAM), points, cells, x)
+    V, G, F = cell_kinematics(points, cells, x)
+    C = np.swapaxes(F, 1, 2) @ F
+    w, N = np.linalg.eigh(C)
+    S_a = MU * (1.0 - 1.0 / w) + LAM * np.log(np.linalg.det(F))[:, None] / w
+    extra = np.zeros((len(cells), 3, 3, 3, 3))
+    for a in range(3):
+        extra[:, a, a, a, a] = S_a[:, a] / w[:, a]  # the engine lacks -S_a / w_a
+    dCC = np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", N, N, N, N, extra)
+    dA = np.einsum("miI,mIJKL,mkK->miJkL", F, dCC, F)
+    dKe = V[:, None, None, None, None] * np.einsum("maJ,miJkL,mbL->maibk", G, dA, G)
+    f, K = _engine(points, cells, x)
+    K = K + assemble(cells, len(points), np.zeros((len(cells), 4, 3)), dKe.reshape(-1, 12, 12))[1]
+    found = principal_block_findings(split, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["principal-block"], found
+    (name,) = found[0].figures["parts"]
+    assert name.startswith("the term -S_a / lambda_a^2"), found
+    assert abs(found[0].figures["coefficients"][0] + 1.0) < 1e-6

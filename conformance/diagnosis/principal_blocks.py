@@ -7,6 +7,9 @@ where it has two kinds of entries only:
 - the **principal block** CC_aabb (a 3 x 3 matrix from the second derivatives of W in the
   stretches and the principal stresses' own terms), its diagonal CC_aaaa and its off-diagonal
   CC_aabb (a != b);
+- the term -S_a / lambda_a^2 of the diagonal (CC_aaaa = (1/lambda_a) d(W_a / lambda_a)
+  /dlambda_a: the quotient rule's second term, the one a hand derivation drops), a part of its
+  own, predicted from the oracle's principal stresses;
 - the **pair terms** CC_abab = CC_abba (a != b), from the divided differences
   (S_a - S_b) / (lambda_a^2 - lambda_b^2) that turn the principal directions, with their own
   limit where two stretches coincide;
@@ -71,6 +74,12 @@ def principal_masks() -> Dict[str, np.ndarray]:
     }
 
 
+_QUOTIENT = (
+    "the term -S_a / lambda_a^2 of the principal block's diagonal (the derivative of the 1 / "
+    "lambda_a in S_a = (1/lambda_a) dW/dlambda_a: the quotient rule's second term)"
+)
+
+
 def _rotate(CC: np.ndarray, N: np.ndarray, back: bool = False) -> np.ndarray:
     """CC (m, 3, 3, 3, 3) into the per-cell basis N (m, 3, 3; columns N_a), or back."""
     if back:
@@ -89,6 +98,14 @@ def principal_parts(split: ElementSplit) -> Dict[str, sp.csr_matrix]:
     out = {}
     for name, mask in principal_masks().items():
         out[name] = material_stiffness(split, _rotate(hat * mask, N, back=True))
+    # the quotient rule's second term of CC_aaaa = (1/lambda_a) d/dlambda_a (W_a / lambda_a):
+    # -S_a / lambda_a^2, from the oracle's S with nothing else
+    w, _ = np.linalg.eigh(t.C)
+    S_aa = np.einsum("mIa,mIJ,mJa->ma", N, t.S, N)
+    quotient = np.zeros_like(hat)
+    for a in range(3):
+        quotient[:, a, a, a, a] = -S_aa[:, a] / w[:, a]
+    out[_QUOTIENT] = material_stiffness(split, _rotate(quotient, N, back=True))
     geo = np.einsum("kl,mIL->mkIlL", np.eye(3), t.S)
     Ke = tangent_element_matrices(split.V0, split.D, geo)
     out["geometric stiffness"] = assemble(
