@@ -296,3 +296,32 @@ def test_parameters_held_in_float32_are_named_and_one_rounded_alone_is_not_said_
     assert "single precision (float32)" in cause.title and "mu = " in cause.title
     d = _checked("NeoHookean", lambda m: rounded(m, ("mu",)))
     assert "parameters-float32" not in [c.code for c in d.causes], d.text()
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_a_parameter_is_not_named_where_its_term_is_not_told_from_others():
+    """Yeoh's c30 stress and tangent scaled by 2/3 (its energy right) on the uniaxial state:
+    every cell has one I1b, so c10, c20 and c30's terms have the same force and stiffness, and
+    refitting c10 alone fits as well as c30: no parameter value is named there.
+    """
+    import mjed
+    from conformance.protocol import check_implementation
+
+    logging.disable(logging.INFO)
+
+    def engine(case):
+        model = case.model
+        wrong = dataclasses.replace(model, c30=model.c30 * 2.0 / 3.0)
+        mesh = mjed.TetMesh(case.points, case.cells)
+        f, K = mjed.HyperelasticForceField(mesh, wrong).force_and_stiffness(case.positions)
+        return f, K, mjed.HyperelasticForceField(mesh, model).energy(case.positions)
+
+    run = check_implementation(
+        engine, material="Yeoh", mesh="cube-small", states=("uniaxial",), probes=False
+    )
+    (outcome,) = run.outcomes
+    d = outcome.diagnosis
+    assert outcome.status == "failed", d.text()
+    assert not any(c.code == "parameter-value" for c in d.causes), d.text()
+    assert any(f.title.startswith("(not told apart here) parameter") for f in d.findings), d.text()

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, replace
-from typing import Any, Callable, List, Optional
+from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -138,6 +138,7 @@ def term_reading(
         "term_names": list(names),
         "residual": fit.residual,
         "identified": fit.identified,
+        "coupled": [int(i) for i in fit.coupled],
         "cases": len(cases),
     }
     combo = " + ".join(
@@ -760,6 +761,8 @@ def read(
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
+    full, untold = _untold_parameters(full, observed)
+    observed += untold
     causes = stress_only(merge_readings(_parameters_first(full), s), diag)
     if causes:
         rest = [f for f in diag.findings if f.code != "unexplained"]
@@ -775,6 +778,43 @@ def read(
     ]
     rest = [f for f in diag.findings if f.code != "unexplained"]
     return replace(diag, findings=[*head, *observed, *partial, *rest])
+
+
+def _untold_parameters(
+    full: List[Reading], observed: List[Finding]
+) -> Tuple[List[Reading], List[Finding]]:
+    """(full, demoted): a parameter's fitted value is no cause where the term fit found that
+    parameter's term among terms this case cannot tell apart (one of them refitted alone fits
+    as well as any other: c10 for c30 on a uniaxial stretch); such readings are kept as
+    observations.
+    """
+    coupled_params = set()
+    for f in observed:
+        if f.code != "term-coefficients-ambiguous":
+            continue
+        labels = f.figures.get("terms", [])
+        for i in f.figures.get("coupled", []):
+            if i < len(labels):
+                coupled_params.update(labels[i])
+    if not coupled_params:
+        return full, []
+    kept, demoted = [], []
+    for r in full:
+        f = r.finding
+        if f.code == "parameter-value" and f.figures.get("parameter") in coupled_params:
+            demoted.append(
+                replace(
+                    f,
+                    strength=OBSERVED,
+                    title="(not told apart here) " + f.title,
+                    evidence=f.evidence
+                    + "; but its term has the same force and stiffness here as others whose "
+                    "parameters would fit as well (see the term fit)",
+                )
+            )
+        else:
+            kept.append(r)
+    return kept, demoted
 
 
 def refine_volumetric(diag, cache, ci, out, s: Scales):
