@@ -81,3 +81,12 @@ def test_a_smooth_error_of_the_same_size_is_not_noise():
     scaled = [k * (1 + 1e-7) for k in (K_o, *probe_K_o)]
     assert noise_finding(scaled[0], K_o, scaled[1:], probe_K_o) is None
     assert noise_finding(scaled[0], K_o, [], []) is None  # no probes: nothing said
+
+
+def test_repeated_stretches_are_told_from_a_general_state():
+    from conftest import stretched_state
+
+    from conformance.diagnosis.stiffness_noise import repeated_stretches
+
+    assert repeated_stretches(*stretched_state(0, uniaxial=True))  # diag(1.2, 0.95, 0.95)
+    assert not repeated_stretches(*stretched_state(0))

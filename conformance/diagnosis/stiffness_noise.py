@@ -21,7 +21,9 @@ apart by evidence of their own:
   leaves the same noise (above 30 u32 too: float32 inputs to an ill-conditioned computation
   are amplified), and both are said, as ambiguous. The steps the noise implies for
   either scheme are given, and whether K kept its symmetry (second differences of W are
-  symmetric; first differences of a stress are not).
+  symmetric; first differences of a stress are not). On a state where every cell has two equal
+  principal stretches, an eigen-solution that loses its digits there (a closed-form,
+  trigonometric one) leaves the same noise, and is said beside them.
 
 Nothing is compiled: the oracle at the probes is one assembly each.
 """
@@ -45,6 +47,7 @@ __all__ = [
     "block_precision",
     "single_precision_blocks_finding",
     "noise_finding",
+    "repeated_stretches",
     "stiffness_noise_reading",
 ]
 
@@ -251,7 +254,43 @@ def stiffness_noise_reading(diag, cache, ci, out, ref, s, probes, probe_stiffnes
         except ValueError:  # the oracle cannot evaluate a probe
             return diag
         found = noise_finding(K, K_o, probe_stiffness, probe_K_o, _steps(diag, ci, ref, s))
+        if found is not None and repeated_stretches(ci.points, ci.cells, ci.positions):
+            found = _with_repeated_stretches(found)
     return named_first(diag, [found]) if found is not None else diag
+
+
+def repeated_stretches(points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> bool:
+    """True when every cell has two principal stretches equal (to 1e-8 of the largest
+    eigenvalue of C): a uniaxial or equibiaxial stretch, the rest state.
+    """
+    from conformance.diagnosis.elements import cell_kinematics
+
+    F = cell_kinematics(points, cells, x)[2]
+    w = np.linalg.eigvalsh(F.swapaxes(1, 2) @ F)
+    gaps = np.diff(w, axis=1).min(axis=1)
+    return bool(np.all(gaps <= 1e-8 * w[:, -1]))
+
+
+def _with_repeated_stretches(found: Finding) -> Finding:
+    """The noise finding on a state with repeated principal stretches: an eigen-solution that
+    loses its digits where two eigenvalues coincide leaves the same noise, only at such states
+    (the probes part them), so it is said beside differences, as ambiguous.
+    """
+    from dataclasses import replace
+
+    return replace(
+        found,
+        title=found.title.replace(
+            "not a formula: a tangent by finite differences",
+            "not a formula: principal stretches computed inaccurately where two coincide (a "
+            "closed-form, trigonometric eigenvalue solution loses digits there; this state has "
+            "a repeated eigenvalue of C), or a tangent by finite differences",
+        ),
+        strength=PARTIAL,
+        evidence=found.evidence
+        + "; every cell here has two equal principal stretches, where an eigen-solution is "
+        "ill-conditioned: the two causes leave the same noise (ambiguous)",
+    )
 
 
 def _steps(diag, ci, ref, s) -> Optional[Tuple[float, float]]:
