@@ -19,7 +19,7 @@ MU, LAM = 3448.0, 31034.0
 EYE = np.eye(3)
 
 
-def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0):
+def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0, crossed_pair=1.0):
     V, G, F = cell_kinematics(points, cells, x)
     C = np.swapaxes(F, 1, 2) @ F
     Ci = np.linalg.inv(C)
@@ -34,7 +34,7 @@ def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0):
         for b in range(3):
             if a != b:
                 hat[:, a, b, a, b] *= scale_pair
-                hat[:, a, b, b, a] *= scale_pair
+                hat[:, a, b, b, a] *= scale_pair * crossed_pair
                 hat[:, a, a, b, b] *= scale_offdiag
     CC = np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", N, N, N, N, hat)
     A = np.einsum("ik,mJL->miJkL", EYE, S) + np.einsum("miI,mIJKL,mkK->miJkL", F, CC, F)
@@ -96,4 +96,13 @@ def test_the_quotient_rules_term_lost_from_the_diagonal_is_named():
     assert [x.code for x in found] == ["principal-block"], found
     (name,) = found[0].figures["parts"]
     assert name.startswith("the term -S_a / lambda_a^2"), found
+    assert abs(found[0].figures["coefficients"][0] + 1.0) < 1e-6
+
+
+def test_pair_terms_written_for_one_index_order_only_are_named():
+    """CC_abab written, its minor-symmetric twin CC_abba left zero."""
+    found, *_ = _found(crossed_pair=0.0)
+    assert [x.code for x in found] == ["principal-block"], found
+    (name,) = found[0].figures["parts"]
+    assert name.startswith("pair terms in the order CC_abba alone"), found
     assert abs(found[0].figures["coefficients"][0] + 1.0) < 1e-6

@@ -60,7 +60,9 @@ def principal_masks() -> Dict[str, np.ndarray]:
     i, j, k, l = np.meshgrid(a, a, a, a, indexing="ij")
     diagonal = (i == j) & (k == l) & (i == k)
     off = (i == j) & (k == l) & (i != k)
-    pair = (i != j) & (((i == k) & (j == l)) | ((i == l) & (j == k)))
+    same = (i != j) & (i == k) & (j == l)
+    crossed = (i != j) & (i == l) & (j == k)
+    pair = same | crossed
     return {
         "principal block of the material tangent (CC_aabb in the eigenbasis of C)": (
             diagonal | off
@@ -71,6 +73,12 @@ def principal_masks() -> Dict[str, np.ndarray]:
         ),
         "pair (shear) terms of the material tangent in the eigenbasis of C (CC_abab, a != b: "
         "the divided differences (S_a - S_b) / (lambda_a^2 - lambda_b^2))": pair.astype(float),
+        # one index order of the pair terms alone: an engine that writes CC_abab and not its
+        # minor-symmetric twin CC_abba (or the other way round)
+        "pair terms in the order CC_abab alone (a != b; their twins CC_abba are the other "
+        "order: the pair terms written for one index order only)": same.astype(float),
+        "pair terms in the order CC_abba alone (a != b; their twins CC_abab are the other "
+        "order: the pair terms written for one index order only)": crossed.astype(float),
     }
 
 
