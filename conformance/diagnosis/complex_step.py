@@ -11,9 +11,9 @@ truncation: -(h_B^2 / 6) d2D_AB/d(eps_B)^2 in column B for the complex step, +(h
 central differences (the complex step has no round-off to fear, so a step of 1e-2 chosen "to be
 safe" shows its h^2). The one-sided scheme's h/2 is
 :mod:`conformance.diagnosis.strain_differences`'. How h_B relates to one step h depends on where
-the engine steps (:data:`CONVENTIONS`): in E with engineering shears, in C's components (C = I + 2 E: a normal strain moved by h/2, a
-shear's gamma by h, as C_IJ and C_JI move together) or in C with a step relative to the
-component, h max(|C_B|, 1).
+the engine steps (:data:`CONVENTIONS`): in E with engineering shears, in C's components (C = I +
+2 E: a normal strain moved by h/2, a shear's gamma by h, as C_IJ and C_JI move together) or in C
+with a step relative to the component, h max(|C_B|, 1).
 
 The curvature d2D_AB/d(eps_B)^2 is taken per cell by second differences of the oracle's tangent
 (MJED's element matrices on the mesh with its cells pulled apart) along a path on which E moves
