@@ -104,5 +104,7 @@ def test_pair_terms_written_for_one_index_order_only_are_named():
     found, *_ = _found(crossed_pair=0.0)
     assert [x.code for x in found] == ["principal-block"], found
     (name,) = found[0].figures["parts"]
-    assert name.startswith("pair terms in the order CC_abba alone"), found
+    assert name.startswith(
+        "pair (shear) terms between principal directions in the order CC_abba"
+    ), found
     assert abs(found[0].figures["coefficients"][0] + 1.0) < 1e-6

@@ -75,10 +75,12 @@ def principal_masks() -> Dict[str, np.ndarray]:
         "the divided differences (S_a - S_b) / (lambda_a^2 - lambda_b^2))": pair.astype(float),
         # one index order of the pair terms alone: an engine that writes CC_abab and not its
         # minor-symmetric twin CC_abba (or the other way round)
-        "pair terms in the order CC_abab alone (a != b; their twins CC_abba are the other "
-        "order: the pair terms written for one index order only)": same.astype(float),
-        "pair terms in the order CC_abba alone (a != b; their twins CC_abab are the other "
-        "order: the pair terms written for one index order only)": crossed.astype(float),
+        "pair (shear) terms between principal directions in the order CC_abab alone (a != b; "
+        "their twins CC_abba are the other order: written for one index order only, the minor "
+        "symmetry lost)": same.astype(float),
+        "pair (shear) terms between principal directions in the order CC_abba alone (a != b; "
+        "their twins CC_abab are the other order: written for one index order only, the minor "
+        "symmetry lost)": crossed.astype(float),
     }
 
 
