@@ -167,6 +167,15 @@ def test_at_probes_the_force_alone_names_the_product():
     f = _engine(*stretched_state(2), P=lambda F, S: S @ np.swapaxes(F, 1, 2))[0]
     found = piola_force_findings(split, t.S, matches)
     assert sorted(_codes(found)) == ["piola-assembly-F-transposed", "piola-assembly-piola-SFt"]
+
+    # S on the eigenvectors of b (R S R^T, F = R U): a spectral engine's frame slip
+    def b_frame(F, S):
+        W, _, Vt = np.linalg.svd(F)
+        R = W @ Vt
+        return F @ R @ S @ np.swapaxes(R, 1, 2)
+
+    f = _engine(*stretched_state(2), P=b_frame)[0]
+    assert _codes(piola_force_findings(split, t.S, matches)) == ["spectral-frame-b"]
     # nearby: the right force is none of them
     f = f_o
     assert piola_force_findings(split, t.S, matches) == []

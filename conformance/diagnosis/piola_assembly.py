@@ -418,6 +418,18 @@ def piola_force_findings(
             "isotropic material",
         )
     )
+    # a spectral engine assembling S on the eigenvectors of b = F F^T (R N_a) for those of C:
+    # S' = R S R^T for an isotropic S (spectral_frames reads it on force and stiffness)
+    candidates.append(
+        (
+            "spectral-frame-b",
+            "the principal directions taken from b = F F^T (the spatial ones, n_a = R N_a) where "
+            "those of C belong: the stress assembled on the eigenvectors of b",
+            F @ R @ S @ _t(R),
+            "rotated by R (F = R U) and multiplied by F, as S on b's eigenvectors is for an "
+            "isotropic material",
+        )
+    )
     found = []
     for code, words, P, how in candidates:
         fe = -split.V0[:, None, None] * np.einsum("miJ,maJ->mai", P, split.D)
