@@ -236,8 +236,8 @@ def _reversed(F):
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
 def test_displacements_taken_as_rest_minus_current_are_named():
-    """u = X - x: the energy, stress and tangent of 2 I - F, the force -dW/du' at u' = -u (minus
-    the variant's force); the same engine with the variant's own force is not this mistake.
+    """Displacements u = X - x: the energy, stress and tangent of 2 I - F, the force -dW/du' at
+    u' = -u (minus the variant's force); the same engine with the variant's own force is not it.
     """
     from conformance.protocol import check_implementation
 
@@ -257,3 +257,26 @@ def test_displacements_taken_as_rest_minus_current_are_named():
     (outcome,) = run.outcomes
     codes = [c.code for c in outcome.diagnosis.causes]
     assert "kinematic-displacement-reversed" not in codes, outcome.diagnosis.text()
+
+
+def _c_diagonal(F):
+    """The namespace of sqrt(diag C): C's off-diagonal entries lost."""
+    from hyperdual_engine import Matrix, Namespace
+
+    d = [sum(F[k, i] * F[k, i] for k in range(3)) ** 0.5 for i in range(3)]
+    return Namespace(Matrix([[d[i] if i == j else 0.0 * d[i] for j in range(3)] for i in range(3)]))
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx")
+def test_the_off_diagonal_entries_of_c_lost_are_named():
+    """A spectral engine whose eigen-solver reads the empty triangle of C: the energy of diag C."""
+    from conformance.protocol import check_implementation
+
+    run = check_implementation(
+        _formula_engine("NeoHookean", _c_diagonal), material="NeoHookean", states=("random",)
+    )
+    (outcome,) = run.outcomes
+    named = outcome.diagnosis.causes
+    assert outcome.status == "failed" and named, outcome.diagnosis.text()
+    assert named[0].code == "kinematic-c-off-diagonal-lost", outcome.diagnosis.text()

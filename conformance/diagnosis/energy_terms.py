@@ -53,7 +53,8 @@ class Spec:
     deformation: "inverse" (F^-1 used for F: the gradient of the map from the current cell to
     the rest one, dX/dx, for dx/dX), "symmetric" ((F + F^T)/2 used for F in C and the strains,
     J = det F kept: the rotation ignored, F taken for its stretch U), "reversed" (2 I - F: the
-    displacements taken as u = X - x) or None (F);
+    displacements taken as u = X - x), "c-diagonal" (sqrt(diag C): the off-diagonal entries of C
+    lost, everything then from diag C) or None (F);
     deformed_volume: the density weighted by J (integrated over the deformed volume);
     eigen_power: the power of the eigenvalues of C multiplied by this (2: eigenvalues of C taken as
     stretches; 0.5: stretches taken as eigenvalues of C);
@@ -142,6 +143,11 @@ class Kinematics:
             F = ufl.inv(F)
         elif spec.deformation == "reversed":  # u = X - x: F = I - grad u
             F = 2.0 * ufl.Identity(3) - F
+        elif spec.deformation == "c-diagonal":  # C's shear entries lost: U = sqrt(diag C)
+            C = F.T * F
+            F = ufl.as_matrix(
+                [[ufl.sqrt(C[i, i]) if i == j else 0.0 for j in range(3)] for i in range(3)]
+            )
         J = ufl.det(F)
         if spec.deformation == "symmetric":  # J kept: det F, which no rotation changes
             F = 0.5 * (F + F.T)

@@ -14,6 +14,8 @@ case's tolerance. The mistakes:
 - the displacements taken as rest minus current, u = X - x (F = I - grad u = 2 I - F for F):
   the energy, stress and tangent of the reversed deformation, the force's sign flipped by the
   chain rule (the engine's f = -dW/du' at u' = -u is minus the variant's -dW/du);
+- the off-diagonal entries of C lost (the energy of diag C: an eigen-solver that reads the
+  empty triangle of a C stored in one, or the shear strains dropped);
 - the energy weighted by the deformed volume (J W for W);
 - principal stretches confused with their squares (the power of the eigenvalues of C doubled or
   halved, I1 taken as tr(C^2) or as the sum of the stretches);
@@ -201,6 +203,13 @@ def kinematic_variants(model: Any) -> List[KinematicVariant]:
             "2 I - F, for F): the deformation reversed, in the energy, the stress and the "
             "stiffness (the force's sign then flipped by the chain rule in u)",
             Spec(deformation="reversed"),
+        ),
+        (
+            "c-off-diagonal-lost",
+            "the off-diagonal (shear) entries of C lost: the energy of diag(C) (an eigen-solver "
+            "reading the empty triangle of a C stored in one triangle, or the shear strains "
+            "dropped), its stretches the square roots of C_11, C_22, C_33",
+            Spec(deformation="c-diagonal"),
         ),
         (
             "rotation-ignored",
