@@ -363,6 +363,8 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
     assert set(running(False)) - set(partial) == {
         "differences with a step per cell",
         "differences in the strain, or a perturbation of F (Miehe's, or one of another form)",
+        "a complex step or central differences of S in the components of E or C (the step's "
+        "truncation), or a relative step's divisor",
         "the elasticity tensor applied to each node direction by differences of the stress "
         "along it (forward or central; one triangle of a cell's blocks mirrored, or not)",
         "central differences of P in each component of F (a first elasticity tensor)",
