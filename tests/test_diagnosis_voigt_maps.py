@@ -122,15 +122,15 @@ def test_the_rows_of_b_read_through_a_map_carry_it_into_the_material_stiffness()
 
 def test_the_stress_of_the_geometric_stiffness_unpacked_with_its_shears_halved_is_named():
     from conformance.diagnosis.voigt_maps import (
-        _geometric_stiffness,
         _mapped,
+        geometric_stiffness,
         tangent_slip_findings,
     )
 
     split, f_o, K_o, s = _case("Yeoh", 6)
     P, A = cell_piola(split)
     S = cell_tensors(P, A, split.F).S
-    K = K_o + _geometric_stiffness(split, _mapped(S, np.diag([1, 1, 1, 0.5, 0.5, 0.5])) - S)
+    K = K_o + geometric_stiffness(split, _mapped(S, np.diag([1, 1, 1, 0.5, 0.5, 0.5])) - S)
     found = tangent_slip_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
     assert [x.code for x in found] == ["voigt-geometric-stress"], [x.title for x in found]
     assert "halved" in found[0].title

@@ -49,6 +49,7 @@ from conformance.diagnosis.strain_differences import (
     VOIGT,
     fit_step,
     material_stiffness,
+    unit_strain,
     voigt_matrix,
     voigt_tensor,
 )
@@ -113,15 +114,6 @@ DIVISORS: Dict[str, tuple] = {
 }
 
 
-def _unit_strain(B: int) -> np.ndarray:
-    """(3, 3) the strain of a unit step of Voigt component B (engineering shear: E_kl = 1/2)."""
-    i, j = VOIGT[B]
-    e = np.zeros((3, 3))
-    e[i, j] += 0.5
-    e[j, i] += 0.5
-    return e
-
-
 def _stretch(C: np.ndarray) -> np.ndarray:
     """(m, 3, 3) the symmetric square root of symmetric positive definite C (m, 3, 3)."""
     w, V = np.linalg.eigh(C)
@@ -155,7 +147,7 @@ def strain_curvatures(model: Any, split: ElementSplit, points: np.ndarray) -> Op
         D0 = tangent(C)
         out = np.empty((m, 6, 6))
         for B in range(6):
-            e = 2.0 * DELTA * _unit_strain(B)  # C = I + 2 E
+            e = 2.0 * DELTA * unit_strain(B)  # C = I + 2 E
             plus, minus = tangent(C + e), tangent(C - e)
             out[:, :, B] = (plus[:, :, B] - 2.0 * D0[:, :, B] + minus[:, :, B]) / DELTA**2
     except Exception:  # noqa: BLE001 - not an MJED material, or a moved cell it cannot take

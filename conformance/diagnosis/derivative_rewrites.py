@@ -524,18 +524,27 @@ def _(rw: StressRewrite, cells: _Cells, params: Dict[str, float]) -> Optional[np
     return d[:, None, None] * cells.grads[rw.invariant]
 
 
-def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
-    """d(dP)/dF (m, 3, 3, 3, 3) by complex step, [k, I, l, L] = d dP_kI / dF_lL."""
+def _complex_step(F: np.ndarray, value: Callable[["_Cells"], Optional[np.ndarray]]):
+    """The derivative d value / dF (m, 3, 3, 3, 3) by complex step, [k, I, l, L] =
+    d value_kI / dF_lL: value (per-cell (3, 3) arrays of the cells' invariants, complex-safe)
+    evaluated once on nine copies of each cell, one entry of F moved in each; None where value
+    is None.
+    """
     h = 1e-30
     m = F.shape[0]
     Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)
     Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
     with np.errstate(all="ignore"):
-        dP = _stress_error(rw, _Cells.of(Fc.reshape(m * 9, 3, 3)), params)
-    if dP is None:
+        v = value(_Cells.of(Fc.reshape(m * 9, 3, 3)))
+    if v is None:
         return None
-    # rows of the copies: (l, L) the perturbed entry; then dP's (k, I)
-    return (dP.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
+    # rows of the copies: (l, L) the perturbed entry; then the value's (k, I)
+    return (v.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
+
+
+def _stress_error_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
+    """d(dP)/dF (m, 3, 3, 3, 3) by complex step, [k, I, l, L] = d dP_kI / dF_lL."""
+    return _complex_step(F, lambda cells: _stress_error(rw, cells, params))
 
 
 def _frozen_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
@@ -552,13 +561,7 @@ def _frozen_tangent(rw: Any, F: np.ndarray, params) -> Optional[np.ndarray]:
     if new is None or right is None:
         return None
     d = np.broadcast_to(np.asarray(new) - np.asarray(right), F.shape[:1])
-    h = 1e-30
-    m = F.shape[0]
-    Fc = np.repeat(F[:, None].astype(np.complex128), 9, axis=1)
-    Fc.reshape(m, 9, 9)[:, np.arange(9), np.arange(9)] += 1j * h
-    with np.errstate(all="ignore"):
-        G = _Cells.of(Fc.reshape(m * 9, 3, 3)).grads[rw.invariant]
-    dG = (G.imag / h).reshape(m, 3, 3, 3, 3).transpose(0, 3, 4, 1, 2)
+    dG = _complex_step(F, lambda cells: cells.grads[rw.invariant])
     return d[:, None, None, None, None] * dG
 
 

@@ -33,21 +33,17 @@ from typing import Dict, List
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import (
-    ElementSplit,
-    assemble,
-    cell_piola,
-    split_reading,
-    tangent_element_matrices,
-)
+from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.invariant_pieces import cell_tensors
 from conformance.diagnosis.strain_differences import material_stiffness
 from conformance.diagnosis.tangent import describe_coefficient, fit_parts
+from conformance.diagnosis.voigt_maps import geometric_stiffness
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
     "principal_masks",
+    "rotate_tangent",
     "principal_parts",
     "principal_block_findings",
     "principal_block_reading",
@@ -90,50 +86,51 @@ _QUOTIENT = (
 )
 
 
-def _rotate(CC: np.ndarray, N: np.ndarray, back: bool = False) -> np.ndarray:
-    """CC (m, 3, 3, 3, 3) into the per-cell basis N (m, 3, 3; columns N_a), or back."""
+def rotate_tangent(CC: np.ndarray, N: np.ndarray, back: bool = False) -> np.ndarray:
+    """CC (m, 3, 3, 3, 3) into the per-cell basis N (m, 3, 3; columns N_a), or back
+    (N CC N^T on every index).
+    """
     if back:
         return np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", N, N, N, N, CC, optimize=True)
     return np.einsum("mIa,mJb,mKc,mLd,mIJKL->mabcd", N, N, N, N, CC, optimize=True)
 
 
-def principal_parts(split: ElementSplit) -> Dict[str, sp.csr_matrix]:
-    """The assembled material stiffness of each part of :func:`principal_masks` (oracle's CC per
-    cell rotated into each cell's eigenbasis of C, masked, rotated back), and the geometric
-    stiffness; parts that are zero here dropped.
+def _principal_frame(split: ElementSplit):
+    """(S (m, 3, 3), eigenvalues w (m, 3) and eigenvectors N (m, 3, 3) of C, the oracle's CC in
+    each cell's eigenbasis (m, 3, 3, 3, 3)) per cell of the oracle's split.
     """
     t = cell_tensors(*cell_piola(split), split.F)
-    _, N = np.linalg.eigh(t.C)
-    hat = _rotate(t.CC, N)
+    w, N = np.linalg.eigh(t.C)
+    return t.S, w, N, rotate_tangent(t.CC, N)
+
+
+def principal_parts(split: ElementSplit, frame=None) -> Dict[str, sp.csr_matrix]:
+    """The assembled material stiffness of each part of :func:`principal_masks` (oracle's CC per
+    cell rotated into each cell's eigenbasis of C, masked, rotated back), and the geometric
+    stiffness; parts that are zero here dropped. frame: :func:`_principal_frame`'s, if known.
+    """
+    S, w, N, hat = frame if frame is not None else _principal_frame(split)
     out = {}
     for name, mask in principal_masks().items():
-        out[name] = material_stiffness(split, _rotate(hat * mask, N, back=True))
+        out[name] = material_stiffness(split, rotate_tangent(hat * mask, N, back=True))
     # the quotient rule's second term of CC_aaaa = (1/lambda_a) d/dlambda_a (W_a / lambda_a):
     # -S_a / lambda_a^2, from the oracle's S with nothing else
-    w, _ = np.linalg.eigh(t.C)
-    S_aa = np.einsum("mIa,mIJ,mJa->ma", N, t.S, N)
+    S_aa = np.einsum("mIa,mIJ,mJa->ma", N, S, N)
     quotient = np.zeros_like(hat)
     for a in range(3):
         quotient[:, a, a, a, a] = -S_aa[:, a] / w[:, a]
-    out[_QUOTIENT] = material_stiffness(split, _rotate(quotient, N, back=True))
-    geo = np.einsum("kl,mIL->mkIlL", np.eye(3), t.S)
-    Ke = tangent_element_matrices(split.V0, split.D, geo)
-    out["geometric stiffness"] = assemble(
-        split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke
-    )[1]
+    out[_QUOTIENT] = material_stiffness(split, rotate_tangent(quotient, N, back=True))
+    out["geometric stiffness"] = geometric_stiffness(split, S)
     scale = max(float(abs(m).max()) for m in out.values())
     return {k: v for k, v in out.items() if float(abs(v).max()) > 1e-12 * scale}
 
 
-def _isotropic_in_frame(split: ElementSplit) -> bool:
-    """True when the oracle's CC has only principal-block and pair entries in each cell's
-    eigenbasis of C (an isotropic energy): else the parts do not add up to the tangent.
+def _isotropic_in_frame(hat: np.ndarray) -> bool:
+    """True when the oracle's CC in each cell's eigenbasis of C (``hat``) has only
+    principal-block and pair entries (an isotropic energy): else the parts do not add up to
+    the tangent.
     """
-    t = cell_tensors(*cell_piola(split), split.F)
-    _, N = np.linalg.eigh(t.C)
-    hat = _rotate(t.CC, N)
-    masks = principal_masks()
-    kept = np.clip(sum(masks.values()), 0.0, 1.0)
+    kept = np.clip(sum(principal_masks().values()), 0.0, 1.0)
     return float(np.abs(hat * (1.0 - kept)).max()) <= 1e-8 * float(np.abs(hat).max())
 
 
@@ -144,9 +141,12 @@ def principal_block_findings(
     within the tolerance, the force right; [] otherwise.
     """
     f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
-    if errors(f, K, None, f0, K0, 0.0, s).force > tol.force or not _isotropic_in_frame(split):
+    if errors(f, K, None, f0, K0, 0.0, s).force > tol.force:
         return []
-    parts = principal_parts(split)
+    frame = _principal_frame(split)
+    if not _isotropic_in_frame(frame[3]):
+        return []
+    parts = principal_parts(split, frame)
     K0 = sp.csr_matrix(K0)
     ok, _ = fit_parts((sp.csr_matrix(K) - K0).tocsr(), K0, parts, tol.stiffness)
     if ok is None or all(n == "geometric stiffness" for n in ok.names):

@@ -40,16 +40,12 @@ from conformance.diagnosis.elements import (
 )
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.principal_blocks import rotate_tangent
 from conformance.judge.compare import Scales, Tolerances
 
 __all__ = ["frame_slips", "spectral_frame_findings", "spectral_frame_reading"]
 
 _NAMES = ("smallest", "middle", "largest")
-
-
-def _rotate(CC: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """Q CC Q^T on every index: CC (m, 3, 3, 3, 3), Q (m, 3, 3)."""
-    return np.einsum("mIa,mJb,mKc,mLd,mabcd->mIJKL", Q, Q, Q, Q, CC, optimize=True)
 
 
 def frame_slips(
@@ -66,12 +62,12 @@ def frame_slips(
             "the principal directions taken from b = F F^T (the spatial ones, n_a = R N_a) where "
             "those of C belong: the stress and tangent assembled on the eigenvectors of b",
             R @ S @ R.swapaxes(1, 2),
-            _rotate(CC, R),
+            rotate_tangent(CC, R, back=True),
         )
     ]
     Nt = N.swapaxes(1, 2)
     S_hat = Nt @ S @ N
-    CC_hat = np.einsum("mIa,mJb,mKc,mLd,mIJKL->mabcd", N, N, N, N, CC, optimize=True)
+    CC_hat = rotate_tangent(CC, N)
     for perm in itertools.permutations(range(3)):
         if perm == (0, 1, 2):
             continue
@@ -89,7 +85,7 @@ def frame_slips(
                 "the principal stretches paired with the wrong eigenvectors (eigenvalues "
                 f"reordered after the decomposition, the eigenvectors not): {said}",
                 N @ Sp @ Nt,
-                _rotate(CCp, N),
+                rotate_tangent(CCp, N, back=True),
             )
         )
     return out

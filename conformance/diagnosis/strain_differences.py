@@ -26,6 +26,7 @@ from conformance.diagnosis.invariant_pieces import cell_tensors
 
 __all__ = [
     "VOIGT",
+    "unit_strain",
     "voigt_vector",
     "symmetric_from_voigt",
     "voigt_matrix",
@@ -46,7 +47,7 @@ DELTA = 1e-4
 EXPLAINED = 0.99
 
 
-def _unit_strain(B: int) -> np.ndarray:
+def unit_strain(B: int) -> np.ndarray:
     """(3, 3) the strain of a unit step of Voigt component B (engineering shear: E_kl = 1/2)."""
     i, j = VOIGT[B]
     e = np.zeros((3, 3))
@@ -75,7 +76,7 @@ def strain_derivatives(model: Any, split: ElementSplit, points: np.ndarray) -> O
             for sign in (1.0, -1.0):
                 # F (I + delta C^-1 e): C moves by 2 delta e to first order, the second order
                 # even in delta, so the central difference is exact to O(delta^2).
-                Fs = F @ (np.eye(3) + sign * DELTA * Ci @ _unit_strain(c))
+                Fs = F @ (np.eye(3) + sign * DELTA * Ci @ unit_strain(c))
                 xs = (np.einsum("mij,maj->mai", Fs, Xc) + X[:, :1]).reshape(-1, 3)
                 fe = np.asarray(field.element_forces(xs), dtype=np.float64)
                 Ke = np.asarray(field.element_stiffness(xs), dtype=np.float64)

@@ -53,6 +53,7 @@ __all__ = [
     "fit_voigt_map",
     "voigt_map_words",
     "voigt_map_findings",
+    "geometric_stiffness",
     "tangent_slip_findings",
     "voigt_map_reading",
 ]
@@ -168,7 +169,7 @@ def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Find
     ]
 
 
-def _geometric_stiffness(split: ElementSplit, dS: np.ndarray):
+def geometric_stiffness(split: ElementSplit, dS: np.ndarray):
     """The assembled geometric stiffness V0 (D_a . dS D_b) I3 of per-cell stresses dS (m, 3, 3):
     the element matrices of the tangent delta_kl dS_IL.
     """
@@ -215,7 +216,7 @@ def tangent_slip_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[F
     base = errors(f, K, None, f_o, K_o, 0.0, s)
     found = []
     for words, M in _stress_maps():
-        e = errors(f, K, None, f_o, K_o + _geometric_stiffness(split, _mapped(S, M) - S), 0.0, s)
+        e = errors(f, K, None, f_o, K_o + geometric_stiffness(split, _mapped(S, M) - S), 0.0, s)
         if tol.within(e, energy=False):
             found.append(
                 Finding(
