@@ -24,7 +24,7 @@ from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_
 from conformance.diagnosis.central_differences import central_difference_reading
 from conformance.diagnosis.coincident_stretches import coincident_reading
 from conformance.diagnosis.complex_step import complex_step_reading
-from conformance.diagnosis.corroborate import corroborate
+from conformance.diagnosis.corroborate import corroborate, extend_consistent
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -856,9 +856,12 @@ def _settle_ambiguity(run: CheckRun) -> None:
 
 def _corroborate(run: CheckRun) -> None:
     """A cause named on one case not named where it leaves another case of the same model and
-    mesh unexplained (:func:`conformance.diagnosis.corroborate.corroborate`).
+    mesh unexplained (:func:`conformance.diagnosis.corroborate.corroborate`); a case that fits it
+    exactly but cannot tell it apart given it (:func:`~conformance.diagnosis.corroborate.
+    extend_consistent`).
     """
     _by_group(run, corroborate)
+    _by_group(run, extend_consistent)
 
 
 def _by_group(run: CheckRun, rule: Callable[..., list]) -> None:

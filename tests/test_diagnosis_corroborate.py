@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -58,6 +60,41 @@ def test_what_does_not_contradict_a_cause():
     # another model or mesh is another group
     lost = _diag("random", [_nothing()])
     assert corroborate([named, lost], [[0], [1]], ["u", "r"])[0] is named
+
+
+def test_a_case_that_fits_a_cause_but_cannot_tell_it_apart_does_not_contradict_it():
+    """A homogeneous state's single J fits the volumetric tangent U''(J) exactly but cannot tell
+    it from another term along C^-1 (x) C^-1: named where J varies, that cause stands. A case
+    whose exact-but-ambiguous fits are other causes still contradicts it.
+    """
+    from conformance.diagnosis.corroborate import corroborate, extend_consistent, fits_codes
+
+    vol = Finding("volumetric", "volumetric (J-only) tangent differs", FULL, "stiffness 5e-15")
+    named = _diag("random", [vol])
+
+    def single_j(codes):
+        figs = {"fits_codes": codes}
+        lead = Finding("unexplained", "unexplained", OBSERVED, "closest: ...", figs)
+        return _diag("uniaxial", [lead])
+
+    consistent = single_j(["volumetric"])
+    assert fits_codes(consistent) == {"volumetric"}
+    assert corroborate([named, consistent], [[0, 1]], ["r", "u"])[0] is named
+    # and the ambiguous case is given the cause, with the case that told it apart
+    out = extend_consistent([named, consistent], [[0, 1]], ["r", "u"])
+    assert out[0] is named
+    head = out[1].findings[0]
+    assert head.code == "volumetric" and head.strength == FULL and head.title == vol.title
+    assert head.figures["named_on"] == "r" and "closest: ..." in head.evidence
+    # not from a cause that is not one of the fits, nor from an observation
+    for other in (_cause(), replace(vol, strength=OBSERVED)):
+        assert (
+            extend_consistent([_diag("r", [other]), consistent], [[0, 1]], ["r", "u"])[1]
+            is consistent
+        )
+    for codes in ([], ["tangent-curvature"]):
+        out = corroborate([named, single_j(codes)], [[0, 1]], ["r", "u"])[0]
+        assert not out.causes and out.findings[0].code == "uncorroborated"
 
 
 def test_ambiguous_causes_are_held_the_same_way():

@@ -15,8 +15,13 @@ whose force one reading predicts, the stiffness left over, against a uniaxial st
 fitted stress coefficient explains both: the fit is what the uniaxial state cannot separate).
 That case's diagnosis then leads with an "uncorroborated" observation (which cause fits it,
 which case it leaves unexplained), and the cause is kept below it as an observation, never as
-"explains". A case that passed, failed only through its energy or the engine's own
-consistency, or was not read for causes (``--verdict-only``) contradicts nothing.
+"explains". A case whose error a reading fits exactly but cannot tell from another cause (a
+homogeneous state's single J fits the volumetric tangent U''(J) and any other term along
+C^-1 (x) C^-1 alike) does not contradict that reading named on a case that tells them apart:
+it is consistent with it (:func:`fits_codes`), and is given that cause, with the case that
+told it apart (:func:`extend_consistent`). A case that passed, failed only through its
+energy or the engine's own consistency, or was not read for causes (``--verdict-only``)
+contradicts nothing.
 """
 
 from __future__ import annotations
@@ -26,7 +31,7 @@ from typing import List, Optional, Sequence
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 
-__all__ = ["corroborate", "left_unexplained"]
+__all__ = ["corroborate", "extend_consistent", "fits_codes", "left_unexplained"]
 
 _ONLY = "(this case only) "
 _AMBIGUOUS = "(ambiguous) "
@@ -64,6 +69,7 @@ def corroborate(
                 j
                 for j in group
                 if j != i
+                and not codes & fits_codes(diagnoses[j])
                 and (
                     left_unexplained(diagnoses[j])
                     or (full and _partly_otherwise(diagnoses[j], codes))
@@ -99,6 +105,18 @@ def corroborate(
     return out
 
 
+def fits_codes(diagnosis) -> set:
+    """The causes (finding codes) that fit an unexplained case exactly but that the case cannot
+    tell from other causes (a homogeneous state's single J: U''(J) or another term along
+    C^-1 (x) C^-1). Such a case is consistent with one of them named on another case of its
+    group, where the state tells them apart: it does not contradict that cause.
+    """
+    d = diagnosis
+    if d is None or not d.findings or d.findings[0].code != "unexplained":
+        return set()
+    return set(d.findings[0].figures.get("fits_codes", ()))
+
+
 def _partly_otherwise(diagnosis, codes) -> bool:
     """True when the case failed, nothing explains it fully, and its headline explains it
     partly by a cause that is not one of ``codes``.
@@ -108,3 +126,45 @@ def _partly_otherwise(diagnosis, codes) -> bool:
         return False
     lead = d.findings[0]
     return lead.strength == PARTIAL and lead.code not in codes
+
+
+def extend_consistent(
+    diagnoses: Sequence[Optional[object]], groups: Sequence[Sequence[int]], case_ids: Sequence[str]
+) -> List:
+    """``diagnoses`` with every unexplained case that a reading fits exactly but cannot tell
+    apart (:func:`fits_codes`) given the cause of that reading that another case of its group
+    names in full (after :func:`corroborate`): one engine, one mistake, identified where the
+    state separates the candidates and predicting this case too. Others unchanged.
+    """
+    out = list(diagnoses)
+    for group in groups:
+        for j in group:
+            fits = fits_codes(diagnoses[j])
+            if not fits:
+                continue
+            source = next(
+                (
+                    (i, f)
+                    for i in group
+                    if i != j and diagnoses[i] is not None
+                    for f in diagnoses[i].causes
+                    if f.strength == FULL and f.code in fits
+                ),
+                None,
+            )
+            if source is None:
+                continue
+            i, cause = source
+            d = diagnoses[j]
+            head = d.findings[0]
+            found = Finding(
+                cause.code,
+                cause.title,
+                FULL,
+                f"named on the kit's case {case_ids[i]} (same engine, model and mesh), where the "
+                "state tells it apart; here it predicts the engine exactly but this state alone "
+                f"cannot tell it from another cause ({head.evidence})",
+                {**cause.figures, "named_on": case_ids[i]},
+            )
+            out[j] = replace(d, findings=[found, *d.findings[1:]])
+    return out

@@ -218,7 +218,12 @@ def diagnose(
             "tangent parts, volumetric energy, localisation) brings the error within tolerance"
             + ("; closest: " + "; ".join(p.text() for p in best) if best else "")
             + _where_to_look(err, tol, consistency, inconsistent, energy_right),
-            {"force": err.force, "stiffness": err.stiffness},
+            {
+                "force": err.force,
+                "stiffness": err.stiffness,
+                # the causes that fit this case exactly but that it cannot tell from others
+                "fits_codes": sorted({c for p in partial for c in p.figures.get("fits_codes", ())}),
+            },
         )
         denied = [p for p in partial if p.figures.get("denied")]
         findings = [unexplained, *denied] + findings
@@ -712,6 +717,10 @@ def _volumetric_findings(
         # decoupled engine, the isochoric projection's) fits the same per-cell form.
         if not np.isfinite(steps):
             named = False  # two causes fit equally: said as the closest reading, not named
+            if fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness:
+                # exact here, and the same reading named on a case where J varies is what
+                # this one cannot tell apart, not a contradiction (corroborate.fits_codes)
+                figs["fits_codes"] = ["volumetric"]
             title = (
                 "a tangent term along C^-1 (x) C^-1 differs (the force matches): the volumetric "
                 "tangent U''(J), or another term along C^-1 (x) C^-1 such as an isochoric "
