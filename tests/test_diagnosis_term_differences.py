@@ -19,6 +19,7 @@ from conformance.diagnosis.term_differences import (
     cell_invariants,
     invariant_derivatives,
     term_difference_finding,
+    volumetric_slip_finding,
 )
 
 
@@ -123,3 +124,38 @@ def test_an_ambiguous_case_is_settled_on_the_restated_term_partly():
             assert "random" in first.evidence
         else:
             assert first.code == "ambiguous"
+
+
+def _slip(model, points, cells, x, K_o, K):
+    inv = cell_invariants(cell_kinematics(points, cells, x)[2])
+    derivs = invariant_derivatives(model, inv, "J")
+    _, lam = fit_invariant_curvature(points, cells, x, (K - K_o).tocsr(), K_o, "J")
+    term = Finding("volumetric", "volumetric (J-only) tangent differs", FULL, "fitted", {})
+    assert term_difference_finding(term, lam, derivs, inv["J"]) is None  # not a small error
+    return volumetric_slip_finding(term, lam, derivs, inv["J"])
+
+
+def test_volumetric_quotient_rule_sign_slip_is_named_as_such():
+    """U''(J) = k0 (1 + ln J)/J^2 for k0 (1 - ln J)/J^2 (U = k0/2 (ln J)^2): 2 U'/J too much."""
+    model, points, cells, x, K_o = _state("ArrudaBoyce")
+    J = cell_invariants(cell_kinematics(points, cells, x)[2])["J"]
+    K = _engine_K(points, cells, x, K_o, "J", 2.0 * model.k0 * np.log(J) / J**2)
+    found = _slip(model, points, cells, x, K_o, K)
+    assert found is not None and found.strength == FULL
+    assert "U'' + 2 U'/J" in found.title and "quotient rule" in found.title, found.title
+    # halved: a factor, said in simple numbers; an error of another form: nothing said
+    found = _slip(
+        model,
+        points,
+        cells,
+        x,
+        K_o,
+        _engine_K(points, cells, x, K_o, "J", -0.5 * (model.k0 * (1.0 - np.log(J)) / J**2)),
+    )
+    assert found is not None and "1/2 U''" in found.title, found.title
+    assert (
+        _slip(
+            model, points, cells, x, K_o, _engine_K(points, cells, x, K_o, "J", 0.3 * model.k0 * J)
+        )
+        is None
+    )

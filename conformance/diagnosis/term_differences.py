@@ -22,6 +22,7 @@ fits); otherwise the term is said to be slightly off, not wrong, at "partly expl
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from fractions import Fraction
 from typing import Any, Dict, Optional
 
 import numpy as np
@@ -38,6 +39,7 @@ __all__ = [
     "fit_difference_step",
     "term_difference_finding",
     "term_difference_reading",
+    "volumetric_slip_finding",
 ]
 
 #: lambda_c relative to psi''(I_c) (RMS over cells) below which the term is perturbed, not
@@ -222,6 +224,61 @@ def term_difference_finding(
     )
 
 
+#: A volumetric U''(J) slip is named when lam is k2 U'' + k1 U'/J to this relative residual (the
+#: derivatives are wide-step differences, good to about 1e-4) with k1, k2 simple fractions.
+SLIP_FITS = 2e-3
+
+
+def _simple(k: float) -> Optional[Fraction]:
+    """The number k as a fraction with denominator at most 3 (to 1e-3 of max(1, |k|)), or None."""
+    q = Fraction(k).limit_denominator(3)
+    return q if abs(float(q) - k) <= 1e-3 * max(1.0, abs(k)) else None
+
+
+def volumetric_slip_finding(
+    finding: Finding, lam: np.ndarray, derivs: np.ndarray, J: np.ndarray
+) -> Optional[Finding]:
+    """The volumetric finding restated with the engine's U''(J) as a simple combination of the
+    oracle's U'' and U'/J: lam (m,) = k2 U'' + k1 U'/J (engine minus oracle per cell), the
+    derivatives (4, m) at the cells' J (m,). U'/J is what a quotient rule's sign slip leaves
+    (U' = u/J differentiated as u'/J + u/J^2: 2 U'/J too much). None unless J takes at least
+    three values, U'' and U'/J are not proportional over the cells, and the fit holds with
+    simple fractions.
+    """
+    if np.unique(np.round(J, 9)).size < 3:
+        return None
+    A = np.stack([derivs[1], derivs[0] / J], axis=1)
+    nl = float(np.linalg.norm(lam))
+    if nl == 0 or np.linalg.cond(A / np.linalg.norm(A, axis=0)) > 1e6:
+        return None  # U'' and U'/J proportional here (a power of J): a factor, said elsewhere
+    (k2, k1), *_ = np.linalg.lstsq(A, lam, rcond=None)
+    left = float(np.linalg.norm(lam - A @ np.array([k2, k1]))) / nl
+    q2, q1 = _simple(float(k2)), _simple(float(k1))
+    if left > SLIP_FITS or q2 is None or q1 is None:
+        return None
+    def times(q: Fraction, what: str) -> str:
+        return "" if q == 0 else (what if q == 1 else f"{q} {what}")
+
+    engine = " + ".join(w for w in (times(1 + q2, "U''"), times(q1, "U'/J")) if w)
+    engine = engine.replace("+ -", "- ")
+    why = (
+        " (U' = u/J differentiated with + u/J^2 where - u/J^2 belongs: the quotient rule's "
+        "sign, e.g. k0 (1 + ln J)/J^2 for k0 (1 - ln J)/J^2)"
+        if q2 == 0 and q1 == 2
+        else ""
+    )
+    return Finding(
+        finding.code,
+        f"volumetric tangent: d2U/dJ2 written wrongly, the engine's is {engine or '0'} where "
+        f"U'' belongs{why} (the force matches)",
+        finding.strength,
+        f"{finding.evidence}; cell by cell the fitted error is {float(k2):.4g} U'' + "
+        f"{float(k1):.4g} U'/J of the oracle's U (left: {100 * left:.2f} % over "
+        f"{np.unique(np.round(J, 9)).size} distinct J)",
+        {**finding.figures, "d2U_factor": float(k2), "dU_over_J": float(k1)},
+    )
+
+
 def term_difference_reading(diag, ci, out, ref):
     """``diag`` whose first cause is one tangent term (curvature or volumetric, the force
     right) with that finding restated as a finite-difference step or a small perturbation when
@@ -251,6 +308,8 @@ def term_difference_reading(diag, ci, out, ref):
     D = (csr_matrix(out.stiffness) - K_o).tocsr()
     _, lam = fit_invariant_curvature(ci.points, ci.cells, ci.positions, D, K_o, name)
     new = term_difference_finding(first, lam, derivs, inv[name])
+    if new is None and name == "J":
+        new = volumetric_slip_finding(first, lam, derivs, inv[name])
     if new is None:
         return diag
     return replace(diag, findings=[new if f is first else f for f in diag.findings])
