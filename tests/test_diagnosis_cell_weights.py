@@ -118,3 +118,35 @@ def test_volume_from_the_inverse_edge_matrix_is_named():
     f, K = _engine(split, split.V0**1.5, split.V0**1.5)
     found = cell_weight_findings(split, f, K, f_o, K_o, s, DOUBLE)
     assert [x.figures["weighting"] for x in found] == ["fitted per cell"], found
+
+
+def test_geometric_stiffness_outside_the_volume_is_named():
+    """V0 B^T D B + K_geo where V0 (B^T D B + K_geo) belongs: the engine's geometric element
+    matrix (D_a . S D_b) I from mjed's stress per cell, without V0; the force right.
+    """
+    import mjed
+
+    points, cells = box_mesh(2, jitter=0.25, seed=2)
+    rng = np.random.default_rng(2)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.03 * rng.standard_normal(points.shape)
+    model = default_material("VerondaWestmann")
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    S = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model).stress(x)
+    DSD = np.einsum("maI,mIJ,mbJ->mab", split.D, S, split.D)
+    geo = np.einsum("mab,kl->makbl", DSD, np.eye(3)).reshape(-1, 12, 12)
+    K = K_o + assemble(cells, split.n, 0 * split.fe, (1.0 - split.V0)[:, None, None] * geo)[1]
+    found = cell_weight_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
+    assert [f.figures["applies_to"] for f in found] == ["geometric stiffness"], found
+    assert found[0].figures["weighting"] == "V0 missing"
+    # the material part without V0 is another reading, not this one
+    K = (
+        K_o
+        + assemble(
+            cells,
+            split.n,
+            0 * split.fe,
+            (1.0 / split.V0 - 1.0)[:, None, None] * (split.Ke - split.V0[:, None, None] * geo),
+        )[1]
+    )
+    found = cell_weight_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
+    assert [f.figures["applies_to"] for f in found] == ["material stiffness"], found

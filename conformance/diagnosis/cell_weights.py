@@ -18,6 +18,10 @@ where |det Dm| / 6 belongs, weights every cell by 1 / (36 V0^2). The power is de
 constant fitted (least squares on the part that is wrong), and the constant said with the formula
 it matches when it is one of :data:`CONSTANTS`.
 
+The same weights on one part of the element matrix alone, the force and the other part right:
+the geometric part V0 (D_a . S D_b) I3 (S read back from the element forces) or the material part
+(the rest), as in V0 B^T D B + K_geo where V0 (B^T D B + K_geo) belongs.
+
 Last, any other per-cell factor (a volume computed by a formula with a typo, a cell's volume of
 the wrong sign, a coefficient that differs from cell to cell): one weight per cell fitted by
 least squares to force and stiffness together (:func:`fitted_weight_findings`: the all-cells fit
@@ -36,7 +40,13 @@ from typing import Callable, Dict, List, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble, element_split
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    assemble,
+    cell_piola,
+    element_split,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.hypotheses import fit_scale
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -48,6 +58,7 @@ __all__ = [
     "cell_weight_findings",
     "cell_weight_reading",
     "fitted_weight_findings",
+    "stiffness_parts",
 ]
 
 #: name -> (words, weights (m,) from the rest volumes V0 (m,)).
@@ -136,9 +147,63 @@ def cell_weight_findings(
                     {"weighting": name, "applies_to": which, "residual": max(e.force, e.stiffness)},
                 )
             )
+    found = found or _part_weight_findings(split, f, K, f_o, K_o, s, tol)
     found = found or _power_findings(split, f, K, f_o, K_o, s, tol)
     found = found or fitted_weight_findings(split, f, K, f_o, K_o, s, tol)
     return ambiguous(found, "the weightings coincide on this mesh")
+
+
+def stiffness_parts(split: ElementSplit) -> Dict[str, np.ndarray]:
+    """The oracle's element matrices split into the geometric part V0 (D_a . S D_b) I3 and the
+    material part (the rest), each (m, 12, 12); S per cell from the element forces.
+    """
+    P, _ = cell_piola(split)
+    S = np.linalg.solve(split.F, P)  # P = F S
+    A = np.einsum("kl,mIL->mkIlL", np.eye(3), S)
+    geo = tangent_element_matrices(split.V0, split.D, A)
+    return {"geometric stiffness": geo, "material stiffness": split.Ke - geo}
+
+
+def _part_weight_findings(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """One part of the element matrix (geometric or material) weighted wrongly, the other and
+    the force right: V0 left out of the geometric part in V0 B^T D B + K_geo (the parentheses of
+    V0 (B^T D B + K_geo) lost), or applied twice to one part.
+    """
+    if errors(f, K_o, None, f_o, K_o, 0.0, s).force > tol.force:
+        return []
+    V0, found = split.V0, []
+    for part, Ke in stiffness_parts(split).items():
+        for name, (words, weight) in WEIGHTS.items():
+            q = weight(V0) - 1.0
+            _, dK = assemble(split.cells, split.n, np.zeros_like(split.fe), q[:, None, None] * Ke)
+            e = errors(f, K, None, f_o, sp.csr_matrix(K_o) + dK, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            found.append(
+                Finding(
+                    "cell-weight",
+                    f"each cell's {part} (that part of the element matrix alone) {words}",
+                    FULL,
+                    "the oracle's element matrices split into the geometric part V0 (D_a . S "
+                    "D_b) I and the material part, that part summed with those weights (rest "
+                    f"volumes from {V0.min():.3g} to {V0.max():.3g} m^3), match the engine: "
+                    f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
+                    {
+                        "weighting": name,
+                        "applies_to": part,
+                        "residual": max(e.force, e.stiffness),
+                    },
+                )
+            )
+    return found
 
 
 def fitted_weight_findings(
