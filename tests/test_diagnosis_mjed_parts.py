@@ -413,3 +413,46 @@ def test_a_force_part_halved_with_the_stiffness_its_derivative_is_named():
     found = _find(model, points, cells, x, f, K, f_o, K_o, s)
     assert [x.code for x in found] == ["mjed-part-derived"], [x.title for x in found]
     assert found[0].figures["part"] == "force-C" and found[0].figures["factor"] == -0.5
+
+
+def _with_j_part(split, f_o, tensor_of, monomial):
+    """The oracle's force with the volumetric monomial ``monomial`` (a2, a1) of Neo-Hookean's
+    ln J polynomial put in S as J U'(J) X instead of J U'(J) C^-1 (X = tensor_of(F, C)).
+    """
+    F, D = split.F, split.D
+    C = np.einsum("mki,mkj->mij", F, F)
+    J = np.linalg.det(F)
+    a2, a1 = monomial
+    p = (2.0 * a2 * np.log(J) + a1) / J  # U'(J) of that monomial
+    dS = (J * p)[:, None, None] * (tensor_of(F, C) - np.linalg.inv(C))
+    fe = -split.V0[:, None, None] * np.einsum("mik,mkl,mal->mai", F, dS, D)
+    return f_o + assemble(split.cells, split.n, fe, None)[0]
+
+
+def _half(F, C):
+    c, N = np.linalg.eigh(C)
+    return np.einsum("mia,ma,mja->mij", N, c**-0.5, N)
+
+
+def _identity(F, C):
+    return np.broadcast_to(np.eye(3), C.shape)
+
+
+def test_the_j_part_with_another_tensor_is_named():
+    """The engine's lam ln J C^(-1/2) for lam ln J C^-1 (a principal stress over lambda_a
+    where lambda_a^2 belongs) in Neo-Hookean's stress, the tangent right: named, the monomial
+    and the tensor; the identity for C^-1 in the same monomial is another reading.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("NeoHookean", seed=3)
+    (vol,) = [t for g in model.decomposition() for t in g.terms if hasattr(t.f, "a2")]
+    a2, a1 = vol.f.a2, vol.f.a1
+    assert a2 and a1  # lam/2 (ln J)^2 - mu ln J: two monomials
+    for tensor_of, said in ((_half, "C^(-1/2)"), (_identity, "I")):
+        f = _with_j_part(split, f_o, tensor_of, (a2, 0.0))
+        found = mjed_part_findings(model, points, cells, x, f, K_o, f_o, K_o, s, DOUBLE)
+        assert [x.figures.get("tensor") for x in found] == [said], [x.title for x in found]
+        assert "(ln J)^2 alone" in found[0].title and found[0].strength != PARTIAL
+    # a force error of another form is not this reading
+    f = f_o + 0.1 * (_with_j_part(split, f_o, _half, (a2, a1)) - f_o) + 1e-3 * np.abs(f_o).max()
+    found = mjed_part_findings(model, points, cells, x, f, K_o, f_o, K_o, s, DOUBLE)
+    assert not any(x.code == "mjed-j-tensor" for x in found)

@@ -25,7 +25,9 @@ combination of parts, one mechanism per family of hand-derivation mistakes:
   and the group's rank-one block c phi''(u) du_a du_b^T built from it change together;
 - dJ_a written J F^-1 D_a (the inverse not transposed) or without J: every part recomputed;
 - where the force is wrong, f = J^q of one term (or of every term with a power of J) written
-  with another term's power: every part recomputed (the energy's formula changed).
+  with another term's power: every part recomputed (the energy's formula changed);
+- where the force is wrong, the J part of one term's stress (or of every term's) with another
+  tensor than C^-1 (:mod:`conformance.diagnosis.pressure_tensor`): the force alone.
 
 A reading is named only when its prediction brings force and stiffness within the case's
 tolerance; readings that predict the same output are one; several that explain but predict
@@ -882,6 +884,34 @@ def _volume(parts: Parts) -> List[Candidate]:
     return out
 
 
+def _j_tensor(model: Any, points, cells, x, pat: Pattern) -> List[Candidate]:
+    """The J part of a term's stress with another tensor than C^-1
+    (:mod:`conformance.diagnosis.pressure_tensor`): the force alone changes.
+    """
+    from conformance.diagnosis.pressure_tensor import j_tensor_forces
+
+    found = j_tensor_forces(
+        model,
+        points,
+        cells,
+        x,
+        lambda term, group: term_label(term) + _group_words(group),
+        pat.force,
+    )
+    zero = np.zeros(len(pat.rows))
+    return [
+        Candidate(
+            "mjed-j-tensor",
+            f"the stress's J part f'(J) g J C^-1 {which} written with {tensor} where C^-1 "
+            "belongs (the force; the stiffness as the engine's tangent has it)",
+            df,
+            zero,
+            {"part": "J-tensor", "terms": which, "tensor": tensor.split(" (")[0]},
+        )
+        for which, tensor, df in found
+    ]
+
+
 def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """Every reading's predicted engine-minus-oracle, the most specific first; r (3n + p,) the
     residual and w (3n + p,) its weights (1 / scale), for the fitted factor of _power.
@@ -931,6 +961,8 @@ def mjed_part_findings(
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
     cands = list(candidates(parts, r, w))
+    if not force_right:
+        cands += _j_tensor(model, points, cells, x, pat)
     kept = explaining(cands, r, w, off, 3 * pat.n, tol)
     if kept or not force_alone or force_right:
         return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])

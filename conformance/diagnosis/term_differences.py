@@ -256,6 +256,7 @@ def volumetric_slip_finding(
     q2, q1 = _simple(float(k2)), _simple(float(k1))
     if left > SLIP_FITS or q2 is None or q1 is None:
         return None
+
     def times(q: Fraction, what: str) -> str:
         return "" if q == 0 else (what if q == 1 else f"{q} {what}")
 
