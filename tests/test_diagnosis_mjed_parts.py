@@ -456,3 +456,37 @@ def test_the_j_part_with_another_tensor_is_named():
     f = f_o + 0.1 * (_with_j_part(split, f_o, _half, (a2, a1)) - f_o) + 1e-3 * np.abs(f_o).max()
     found = mjed_part_findings(model, points, cells, x, f, K_o, f_o, K_o, s, DOUBLE)
     assert not any(x.code == "mjed-j-tensor" for x in found)
+
+
+def test_an_isochoric_f2_power_rule_slip_is_named_with_its_numbers():
+    """Mooney-Rivlin's I1 term f = J^(-2/3): f'' written q (q + 1) J^(q - 2) = -2/9 J^(-8/3)
+    for q (q - 1) J^(q - 2) = 10/9 J^(-8/3), the J-J block alone; on one J (a homogeneous
+    stretch) the same slip is not said (every J-J block has one shape there).
+    """
+    model = default_material("MooneyRivlin")
+    groups = model.decomposition()
+    g_i, t_i = next(
+        (i, j)
+        for i, g in enumerate(groups)
+        for j, t in enumerate(g.terms)
+        if getattr(t.f, "p", 0) == -2.0 / 3.0
+    )
+    for jitter, said in ((0.03, True), (0.0, False)):
+        points, cells = box_mesh(2, jitter=0.2, seed=4)
+        rng = np.random.default_rng(4)
+        x = points @ np.diag([1.1, 0.95, 0.92]).T + jitter * rng.standard_normal(points.shape)
+        split, f_o, K_o, s = mjed_split(model, points, cells, x)
+        p = _term(split, model, g_i, t_i)
+        q = -2.0 / 3.0
+        wrong = (q * (q + 1.0) - q * (q - 1.0)) * p["J"] ** (q - 2.0)  # engine minus declared
+        Ke = (p["w"] * wrong * p["g"])[:, None, None, None, None] * np.einsum(
+            "mai,mbj->maibj", p["dJ"], p["dJ"]
+        )
+        K = K_o + _assembled(split, Ke=Ke)[1]
+        found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
+        codes = [x.code for x in found]
+        if said:
+            assert codes == ["mjed-d2f"], [x.title for x in found]
+            assert "-2/9 J^(-8/3) where the declared f = J^(-2/3) has 10/9" in found[0].title
+        else:
+            assert "mjed-d2f" not in codes

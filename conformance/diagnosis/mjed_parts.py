@@ -20,6 +20,8 @@ combination of parts, one mechanism per family of hand-derivation mistakes:
 - the cross blocks written as one transposed twice (dJ_a (F S D_b)^T for both halves);
 - f'(J) of one term wrong by a per-cell factor k J^p (p a multiple of 1/3, k fitted): the J part
   of the force and every f'-block scaled together, f and f'' right;
+- f''(J) of one term wrong by a fitted constant (the J-J block alone: a power rule slipped in a
+  hand second derivative);
 - the paper's regularisation of the J-J block (section 2.3) kept in compressed cells.
 - a grouped term's gradient part with a constant factor where the gradient is formed: the force
   and the group's rank-one block c phi''(u) du_a du_b^T built from it change together;
@@ -855,6 +857,47 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     return out
 
 
+def _d2f(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
+    """Per term: f''(J) written k times the declared one (k fitted by least squares on the
+    scaled stiffness residual; a power rule slipped in a hand second derivative, q (q + 1)
+    for q (q - 1) say): the J-J block alone changes. Constant factors of the block that
+    :data:`FACTORS` says in words are left to _single.
+    """
+    if np.ptp(parts.J) <= 1e-6 * np.mean(np.abs(parts.J)):
+        # one J (a homogeneous state): every term's J-J block, and any term along
+        # C^-1 (x) C^-1, has the same shape; a fitted factor cannot tell which
+        return []
+    n = 3 * parts.pattern.n
+    powers = dict(parts.powers)
+    out = []
+    for p in parts.parts:
+        if p.kind != "JJ" or not np.any(p.stiffness):
+            continue
+        xs = p.stiffness * w[n:]
+        c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
+        if not np.isfinite(c) or any(abs(c - k) <= 1e-9 * max(1.0, abs(k)) for k in FACTORS):
+            continue
+        k, q = 1.0 + c, powers.get(p.term)
+        if q is None:
+            words = f"{_frac(k)} times the declared f''(J)"
+        else:
+            words = (
+                f"{_frac(k * q * (q - 1.0))} {_power_words(q - 2.0)} where the declared "
+                f"f = {_power_words(q)} has {_frac(q * (q - 1.0))} {_power_words(q - 2.0)}"
+            )
+        out.append(
+            Candidate(
+                "mjed-d2f",
+                f"MJED f''(J) of the term {p.term} written wrongly (the J-J block f'' g "
+                f"dJ_i dJ_j^T alone; force right): {words}",
+                np.zeros(n),
+                c * p.stiffness,
+                {"part": "d2fdJ2", "terms": p.term, "k": k},
+            )
+        )
+    return out
+
+
 #: power p of J -> words: a term's force and stiffness scaled cell by cell by J^p.
 VOLUME_WORDS = {1.0: "times J (integrated over the deformed volume J V)", -1.0: "divided by J"}
 
@@ -922,6 +965,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
         *_gradient(parts),
         *_transposed(parts),
         *_power(parts, r, w),
+        *_d2f(parts, r, w),
         *_regularisation(parts),
         *_dj(parts),
         *_volume(parts),
