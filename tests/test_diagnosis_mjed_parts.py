@@ -490,3 +490,31 @@ def test_an_isochoric_f2_power_rule_slip_is_named_with_its_numbers():
             assert "-2/9 J^(-8/3) where the declared f = J^(-2/3) has 10/9" in found[0].title
         else:
             assert "mjed-d2f" not in codes
+
+
+def test_f1_typed_again_in_the_stiffness_is_named():
+    """Yeoh's I1 term (f = J^(-2/3)): f' written 2/3 J^(-5/3) (its sign lost) in the cross and
+    antisymmetric blocks, the force right: the stiffness blocks' f' said as -1 times.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("Yeoh", seed=5)
+    groups = model.decomposition()
+    g_i, t_i = next(
+        (i, j)
+        for i, g in enumerate(groups)
+        for j, t in enumerate(g.terms)
+        if getattr(t.f, "p", 0) != 0
+    )
+    p = _term(split, model, g_i, t_i)
+    c = (p["w"] * -2.0 * p["f1"])[:, None, None, None, None]  # engine minus declared f'
+    dJ, FSD, J = p["dJ"], p["FSD"], p["J"]
+    outer = lambda u, v: np.einsum("mai,mbj->maibj", u, v)  # noqa: E731
+    g = p["g"][:, None, None, None, None]
+    Ke = c * (
+        outer(dJ, FSD)
+        + outer(FSD, dJ)
+        + g * (outer(dJ, dJ) - np.einsum("mbi,maj->maibj", dJ, dJ)) / J[:, None, None, None, None]
+    )
+    K = K_o + _assembled(split, Ke=Ke)[1]
+    found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-df-blocks"], [x.title for x in found]
+    assert "written -1 times" in found[0].title

@@ -21,7 +21,8 @@ combination of parts, one mechanism per family of hand-derivation mistakes:
 - f'(J) of one term wrong by a per-cell factor k J^p (p a multiple of 1/3, k fitted): the J part
   of the force and every f'-block scaled together, f and f'' right;
 - f''(J) of one term wrong by a fitted constant (the J-J block alone: a power rule slipped in a
-  hand second derivative);
+  hand second derivative), or f'(J) in its stiffness blocks alone (the cross and antisymmetric
+  blocks, the force's f' right);
 - the paper's regularisation of the J-J block (section 2.3) kept in compressed cells.
 - a grouped term's gradient part with a constant factor where the gradient is formed: the force
   and the group's rank-one block c phi''(u) du_a du_b^T built from it change together;
@@ -898,6 +899,36 @@ def _d2f(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     return out
 
 
+def _df_blocks(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
+    """Per term: f'(J) written k times the declared one in the stiffness alone (the cross blocks
+    and the antisymmetric block, k fitted), the force's f' right: f' typed a second time in
+    the tangent's code (three parts together: _single says one part at a time).
+    """
+    n = 3 * parts.pattern.n
+    out = []
+    for t in parts.terms:
+        ps = [p for p in parts.parts if p.term == t and p.kind in ("cross-a", "cross-b", "anti")]
+        if len(ps) < 3 or not any(np.any(p.stiffness) for p in ps):
+            continue
+        P = np.sum([p.stiffness for p in ps], axis=0)
+        xs = P * w[n:]
+        c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
+        if not np.isfinite(c):
+            continue
+        out.append(
+            Candidate(
+                "mjed-df-blocks",
+                f"MJED f'(J) of the term {t} written {_frac(1.0 + c)} times the declared one in "
+                "the stiffness alone (its cross blocks and antisymmetric block; the force's f' "
+                "right)",
+                np.zeros(n),
+                c * P,
+                {"part": "dfdJ-blocks", "terms": t, "k": 1.0 + c},
+            )
+        )
+    return out
+
+
 #: power p of J -> words: a term's force and stiffness scaled cell by cell by J^p.
 VOLUME_WORDS = {1.0: "times J (integrated over the deformed volume J V)", -1.0: "divided by J"}
 
@@ -966,6 +997,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
         *_transposed(parts),
         *_power(parts, r, w),
         *_d2f(parts, r, w),
+        *_df_blocks(parts, r, w),
         *_regularisation(parts),
         *_dj(parts),
         *_volume(parts),
