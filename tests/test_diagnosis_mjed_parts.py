@@ -516,5 +516,31 @@ def test_f1_typed_again_in_the_stiffness_is_named():
     )
     K = K_o + _assembled(split, Ke=Ke)[1]
     found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
-    assert [x.code for x in found] == ["mjed-df-blocks"], [x.title for x in found]
+    assert [x.code for x in found] == ["mjed-typed-apart"], [x.title for x in found]
     assert "written -1 times" in found[0].title
+
+
+def test_a_material_tangent_typed_with_another_factor_is_named_and_not_on_one_j():
+    """St Venant-Kirchhoff's material stiffness (the oracle's minus its geometric part, from
+    mjed's stress per cell) written 3/2 times, the force right: named where J varies, not on a
+    homogeneous stretch (one J), where other terms' blocks could share its shape.
+    """
+    import mjed
+
+    model = default_material("StVenantKirchhoff")
+    for jitter, said in ((0.03, True), (0.0, False)):
+        points, cells = box_mesh(2, jitter=0.2, seed=6)
+        rng = np.random.default_rng(6)
+        x = points @ np.diag([1.1, 0.95, 0.92]).T + jitter * rng.standard_normal(points.shape)
+        split, f_o, K_o, s = mjed_split(model, points, cells, x)
+        S = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model).stress(x)
+        DSD = np.einsum("maI,mIJ,mbJ->mab", split.D, S, split.D)
+        geo = np.einsum("mab,kl->makbl", DSD, np.eye(3)).reshape(-1, 12, 12)
+        K_geo = assemble(cells, split.n, 0 * split.fe, split.V0[:, None, None] * geo)[1]
+        K = K_o + 0.5 * (K_o - K_geo)
+        found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
+        titles = [x.title for x in found if x.code == "mjed-typed-apart"]
+        if said:
+            assert len(titles) == 1 and "3/2 times in its material blocks" in titles[0], titles
+        else:
+            assert not titles

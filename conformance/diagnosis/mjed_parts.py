@@ -21,8 +21,9 @@ combination of parts, one mechanism per family of hand-derivation mistakes:
 - f'(J) of one term wrong by a per-cell factor k J^p (p a multiple of 1/3, k fitted): the J part
   of the force and every f'-block scaled together, f and f'' right;
 - f''(J) of one term wrong by a fitted constant (the J-J block alone: a power rule slipped in a
-  hand second derivative), or f'(J) in its stiffness blocks alone (the cross and antisymmetric
-  blocks, the force's f' right);
+  hand second derivative); f'(J) in its stiffness blocks alone (the cross and antisymmetric
+  blocks, the force's f' right), or its geometric or material blocks alone, each with a fitted
+  factor (typed apart from the force in the tangent's code);
 - the paper's regularisation of the J-J block (section 2.3) kept in compressed cells.
 - a grouped term's gradient part with a constant factor where the gradient is formed: the force
   and the group's rank-one block c phi''(u) du_a du_b^T built from it change together;
@@ -899,33 +900,62 @@ def _d2f(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     return out
 
 
-def _df_blocks(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
-    """Per term: f'(J) written k times the declared one in the stiffness alone (the cross blocks
-    and the antisymmetric block, k fitted), the force's f' right: f' typed a second time in
-    the tangent's code (three parts together: _single says one part at a time).
+#: stiffness blocks of one term that a hand tangent types apart from the force -> (the kinds,
+#: what is written k times, whether one J (a homogeneous state) can tell terms apart there).
+_TYPED_APART: Dict[str, Tuple[Tuple[str, ...], str, bool]] = {
+    "dfdJ-blocks": (
+        ("cross-a", "cross-b", "anti"),
+        "f'(J) in its stiffness blocks alone (the cross blocks and the antisymmetric block; "
+        "the force's f' right)",
+        True,
+    ),
+    "geometric": (
+        ("geometric",),
+        "in its geometric block f(J) (D_i . S D_j) Id alone (the force's S right)",
+        False,
+    ),
+    "material": (
+        ("first", "second-outer", "second-scaled", "spectral"),
+        "in its material blocks alone (d2g/dC2, the force right)",
+        False,
+    ),
+}
+
+
+def _typed_apart(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
+    """Per term and per group of :data:`_TYPED_APART`: those stiffness blocks written k times
+    (k fitted on the scaled stiffness residual), the force right: a factor typed a second time
+    in the tangent's code. A group of one kind with a factor of :data:`FACTORS` is _single's;
+    on one J, groups whose terms' blocks share a shape there are not tried.
     """
     n = 3 * parts.pattern.n
+    one_j = np.ptp(parts.J) <= 1e-6 * np.mean(np.abs(parts.J))
     out = []
-    for t in parts.terms:
-        ps = [p for p in parts.parts if p.term == t and p.kind in ("cross-a", "cross-b", "anti")]
-        if len(ps) < 3 or not any(np.any(p.stiffness) for p in ps):
+    for code, (kinds, words, on_one_j) in _TYPED_APART.items():
+        if one_j and not on_one_j:
             continue
-        P = np.sum([p.stiffness for p in ps], axis=0)
-        xs = P * w[n:]
-        c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
-        if not np.isfinite(c):
-            continue
-        out.append(
-            Candidate(
-                "mjed-df-blocks",
-                f"MJED f'(J) of the term {t} written {_frac(1.0 + c)} times the declared one in "
-                "the stiffness alone (its cross blocks and antisymmetric block; the force's f' "
-                "right)",
-                np.zeros(n),
-                c * P,
-                {"part": "dfdJ-blocks", "terms": t, "k": 1.0 + c},
+        for t in parts.terms:
+            ps = [p for p in parts.parts if p.term == t and p.kind in kinds]
+            if not any(np.any(p.stiffness) for p in ps):
+                continue
+            P = np.sum([p.stiffness for p in ps], axis=0)
+            xs = P * w[n:]
+            c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
+            if not np.isfinite(c):
+                continue
+            if len([p for p in ps if np.any(p.stiffness)]) == 1 and any(
+                abs(c - k) <= 1e-9 * max(1.0, abs(k)) for k in FACTORS
+            ):
+                continue
+            out.append(
+                Candidate(
+                    "mjed-typed-apart",
+                    f"MJED the term {t} written {_frac(1.0 + c)} times {words}",
+                    np.zeros(n),
+                    c * P,
+                    {"part": code, "terms": t, "k": 1.0 + c},
+                )
             )
-        )
     return out
 
 
@@ -997,7 +1027,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
         *_transposed(parts),
         *_power(parts, r, w),
         *_d2f(parts, r, w),
-        *_df_blocks(parts, r, w),
+        *_typed_apart(parts, r, w),
         *_regularisation(parts),
         *_dj(parts),
         *_volume(parts),
