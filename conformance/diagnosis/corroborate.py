@@ -162,7 +162,8 @@ def extend_consistent(
                 cause.title,
                 FULL,
                 f"named on the kit's case {case_ids[i]} (same engine, model and mesh), where the "
-                "state tells it apart; here it predicts the engine exactly but this state alone "
+                "state tells it apart; here an error of its kind fits the engine exactly (its "
+                "size at this state fitted, not predicted from that case), but this state alone "
                 f"cannot tell it from another cause ({head.evidence})",
                 {**cause.figures, "named_on": case_ids[i]},
             )

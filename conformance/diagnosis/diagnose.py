@@ -720,7 +720,8 @@ def _volumetric_findings(
             if fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness:
                 # exact here, and the same reading named on a case where J varies is what
                 # this one cannot tell apart, not a contradiction (corroborate.fits_codes)
-                figs["fits_codes"] = ["volumetric"]
+                # (a term's f''(J) in an MJED engine, its J-J block, is along it too)
+                figs["fits_codes"] = ["volumetric", "mjed-d2f"]
             title = (
                 "a tangent term along C^-1 (x) C^-1 differs (the force matches): the volumetric "
                 "tangent U''(J), or another term along C^-1 (x) C^-1 such as an isochoric "
