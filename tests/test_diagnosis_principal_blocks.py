@@ -19,7 +19,7 @@ MU, LAM = 3448.0, 31034.0
 EYE = np.eye(3)
 
 
-def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0, crossed_pair=1.0):
+def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0, crossed_pair=1.0, turn=0.0):
     V, G, F = cell_kinematics(points, cells, x)
     C = np.swapaxes(F, 1, 2) @ F
     Ci = np.linalg.inv(C)
@@ -28,7 +28,11 @@ def _engine(points, cells, x, scale_pair=1.0, scale_offdiag=1.0, crossed_pair=1.
     CC = LAM * np.einsum("mIJ,mKL->mIJKL", Ci, Ci) + (MU - LAM * lnJ)[:, None, None, None, None] * (
         np.einsum("mIK,mJL->mIJKL", Ci, Ci) + np.einsum("mIL,mJK->mIJKL", Ci, Ci)
     )
-    _, N = np.linalg.eigh(C)
+    w, N = np.linalg.eigh(C)
+    if turn:  # another eigen-solver's basis in the plane of two equal eigenvalues (0 and 1)
+        assert np.allclose(w[:, 0], w[:, 1])
+        c, s_ = np.cos(turn), np.sin(turn)
+        N = N @ np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
     hat = np.einsum("mIa,mJb,mKc,mLd,mIJKL->mabcd", N, N, N, N, CC)
     for a in range(3):
         for b in range(3):
@@ -108,3 +112,21 @@ def test_pair_terms_written_for_one_index_order_only_are_named():
         "pair (shear) terms between principal directions in the order CC_abba"
     ), found
     assert abs(found[0].figures["coefficients"][0] + 1.0) < 1e-6
+
+
+def test_pair_terms_doubled_on_two_equal_stretches_in_the_engines_own_basis_are_named():
+    """A uniaxial stretch (two equal lateral stretches): the engine's eigen-solver picks its own
+    basis in their plane (here turned 0.6 rad from this module's), where doubled pair terms
+    differ with the basis; the part is named, the plane said fitted freely. Without the
+    mistake, the turned basis changes nothing.
+    """
+    points, cells, x = stretched_state(0, True)
+    split, f_o, K_o, s = mjed_split(NeoHookean(mu=MU, lam=LAM), points, cells, x)
+    f, K = _engine(points, cells, x, turn=0.6)
+    assert abs(K - K_o).max() <= 1e-9 * abs(K_o).max()
+    f, K = _engine(points, cells, x, scale_pair=2.0, turn=0.6)
+    found = principal_block_findings(split, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["principal-block"], found
+    (name,) = found[0].figures["parts"]
+    assert name.startswith("pair (shear) terms") and found[0].figures["plane_free"], found
+    assert abs(found[0].figures["coefficients"][0] - 1.0) < 1e-6

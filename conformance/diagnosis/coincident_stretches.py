@@ -25,7 +25,7 @@ from typing import List, Optional
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import lsqr
+from scipy.sparse.linalg import factorized, lsqr
 
 from conformance.diagnosis.elements import ElementSplit, assemble, split_reading
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding
@@ -34,6 +34,9 @@ from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
     "SYSTEMATIC",
+    "plane_columns",
+    "without_plane",
+    "repeated_pair",
     "in_plane_fit",
     "coincident_findings",
     "coincident_reading",
@@ -72,11 +75,11 @@ def _plane_tensors(E: np.ndarray) -> np.ndarray:
     return np.einsum("mIa,mJb,mKc,mLd,kabcd->kmIJKL", E, E, E, E, t2, optimize=True)
 
 
-def in_plane_fit(split: ElementSplit, D: sp.csr_matrix, pair: np.ndarray) -> tuple:
-    """(per-cell dCC (m, 3, 3, 3, 3), explained share): the tangent change of each cell in the
-    plane of its two equal principal stretches (six unknowns per cell, the plane's basis each
-    cell's own eigenvectors of C) that best fits the stiffness error D (3n, 3n), by sparse least
-    squares.
+def plane_columns(split: ElementSplit, pair: np.ndarray) -> tuple:
+    """(A (n3^2, 6 m) CSC, T (6, m, 3, 3, 3, 3)): the assembled stiffness, flattened, of each
+    cell's six in-plane tangents in the plane of its two equal principal stretches (``pair``:
+    their indices among eigh's ascending eigenvalues; the plane's basis each cell's own
+    eigenvectors of C).
     """
     m, n3 = split.V0.size, 3 * split.n
     C = split.F.swapaxes(1, 2) @ split.F
@@ -98,27 +101,81 @@ def in_plane_fit(split: ElementSplit, D: sp.csr_matrix, pair: np.ndarray) -> tup
         ),
         shape=(n3 * n3, 6 * m),
     ).tocsc()
+    return A, T
+
+
+def _flat(D: sp.spmatrix) -> np.ndarray:
+    """(n3^2,) the entries of D (n3, n3), row-major."""
+    n3 = D.shape[0]
     Dc = sp.coo_matrix(D)
     b = np.zeros(n3 * n3)
-    b[Dc.row.astype(np.int64) * n3 + Dc.col] = Dc.data
+    np.add.at(b, Dc.row.astype(np.int64) * n3 + Dc.col, Dc.data)
+    return b
+
+
+def _solve(A: sp.csc_matrix, b: np.ndarray, m: int) -> np.ndarray:
+    """The least-squares in-plane unknowns (6 m,) for the flattened error b."""
+    return lsqr(A, b, atol=1e-14, btol=1e-14, iter_lim=20 * 6 * m)[0]
+
+
+def without_plane(split: ElementSplit, pair: np.ndarray):
+    """A function D (3n, 3n) -> D minus its least-squares fit by the in-plane tangents of
+    :func:`plane_columns` (csr): what is left outside the plane of the two equal stretches,
+    where each eigen-solver picks its own basis.
+    """
+    A, _ = plane_columns(split, pair)
+    n3 = 3 * split.n
+    used = np.unique(A.indices)
+    A = A[used]
+    # the normal equations factorised once (each part is projected): a small ridge for the
+    # combinations of in-plane tangents that no entry sees
+    G = (A.T @ A).tocsc()
+    ridge = 1e-12 * float(G.diagonal().max())
+    solve = factorized((G + ridge * sp.identity(G.shape[0], format="csc")).tocsc())
+
+    def project(D: sp.spmatrix) -> sp.csr_matrix:
+        b = _flat(D)
+        r = b[used]
+        b[used] = r - A @ solve(A.T @ r)
+        return sp.csr_matrix(b.reshape(n3, n3))
+
+    return project
+
+
+def in_plane_fit(split: ElementSplit, D: sp.csr_matrix, pair: np.ndarray) -> tuple:
+    """(per-cell dCC (m, 3, 3, 3, 3), explained share): the tangent change of each cell in the
+    plane of its two equal principal stretches (six unknowns per cell, the plane's basis each
+    cell's own eigenvectors of C) that best fits the stiffness error D (3n, 3n), by sparse least
+    squares.
+    """
+    m = split.V0.size
+    A, T = plane_columns(split, pair)
+    b = _flat(D)
     used = np.unique(A.indices)
     if np.any(b[np.setdiff1d(np.flatnonzero(b), used)] != 0.0):
         return None, 0.0  # the error reaches entries no cell's tangent touches
-    x = lsqr(A[used], b[used], atol=1e-14, btol=1e-14, iter_lim=20 * 6 * m)[0]
+    x = _solve(A[used], b[used], m)
     left = float(np.linalg.norm(A[used] @ x - b[used]))
     nb = float(np.linalg.norm(b))
     dCC = np.einsum("km,kmIJKL->mIJKL", x.reshape(6, m), T, optimize=True)
     return dCC, (1.0 - left / nb) if nb > 0 else 0.0
 
 
+def repeated_pair(split: ElementSplit) -> Optional[np.ndarray]:
+    """The indices (2,) of the two equal eigenvalues of C on a homogeneous state with exactly
+    two equal; None otherwise.
+    """
+    C = split.F.swapaxes(1, 2) @ split.F
+    if float(np.abs(C - C[:1]).max()) > SAME * float(np.abs(C).max()):
+        return None  # not a homogeneous state
+    return _repeated_pair(C[0])
+
+
 def coincident_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
     """The coincident-stretch tangent error, or []."""
-    C = split.F.swapaxes(1, 2) @ split.F
-    if float(np.abs(C - C[:1]).max()) > SAME * float(np.abs(C).max()):
-        return []  # not a homogeneous state
-    pair = _repeated_pair(C[0])
+    pair = repeated_pair(split)
     if pair is None:
         return []
     f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
