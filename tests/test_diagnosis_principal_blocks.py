@@ -130,3 +130,20 @@ def test_pair_terms_doubled_on_two_equal_stretches_in_the_engines_own_basis_are_
     (name,) = found[0].figures["parts"]
     assert name.startswith("pair (shear) terms") and found[0].figures["plane_free"], found
     assert abs(found[0].figures["coefficients"][0] - 1.0) < 1e-6
+
+
+def test_a_volumetric_tangent_slip_on_two_equal_stretches_is_not_called_a_block():
+    """U''(J) wrong on a uniaxial stretch (a term along C^-1 (x) C^-1, one J): with the plane
+    of the equal stretches free, two blocks with free coefficients would fit it; nothing said.
+    """
+    from conformance.diagnosis.second_derivative import curvature_basis
+
+    points, cells, x = stretched_state(0, True)
+    split, f_o, K_o, s = mjed_split(NeoHookean(mu=MU, lam=LAM), points, cells, x)
+    basis = curvature_basis(points, cells, x, "J")  # V dJ (x) dJ per cell
+    lam = np.full(len(cells), 0.3 * LAM)
+    K = (
+        K_o
+        + assemble(cells, len(points), np.zeros((len(cells), 4, 3)), lam[:, None, None] * basis)[1]
+    )
+    assert principal_block_findings(split, f_o, K, s, DOUBLE) == []

@@ -28,6 +28,7 @@ parts already try; the random state's rotated frames tell them apart.
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Dict, List
 
 import numpy as np
@@ -37,6 +38,7 @@ from conformance.diagnosis.coincident_stretches import repeated_pair, without_pl
 from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
 from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.invariant_pieces import cell_tensors
+from conformance.diagnosis.second_derivative import fit_cell_term
 from conformance.diagnosis.strain_differences import material_stiffness
 from conformance.diagnosis.tangent import describe_coefficient, fit_parts
 from conformance.diagnosis.voigt_maps import geometric_stiffness
@@ -135,6 +137,31 @@ def _isotropic_in_frame(hat: np.ndarray) -> bool:
     return float(np.abs(hat * (1.0 - kept)).max()) <= 1e-8 * float(np.abs(hat).max())
 
 
+def _simple(c: float) -> bool:
+    """True for a coefficient that is a simple fraction (denominator at most 4, to 1e-6): a
+    block left out, halved, doubled, its sign flipped, one index order of two.
+    """
+    q = Fraction(c).limit_denominator(4)
+    return abs(float(q) - c) <= 1e-6 * max(1.0, abs(c))
+
+
+def _along_j_curvature(
+    split: ElementSplit, D: sp.csr_matrix, K0: sp.csr_matrix, tol: float
+) -> bool:
+    """True on a state with one J where the stiffness error is also a per-cell multiple of
+    V0 dJ (x) dJ (a volumetric U''(J), or any term along C^-1 (x) C^-1): in the eigenbasis of C
+    that is a principal-block tensor too, and the blocks cannot be told from it there.
+    """
+    J = np.linalg.det(split.F)
+    if np.ptp(J) > 1e-9 * float(np.mean(np.abs(J))):
+        return False
+    g = J[:, None, None] * np.einsum("mji,maj->mai", np.linalg.inv(split.F), split.D)
+    g = g.reshape(-1, 12)
+    basis = split.V0[:, None, None] * g[:, :, None] * g[:, None, :]
+    residual, _ = fit_cell_term(split.cells, basis, D, K0)
+    return residual <= tol
+
+
 def principal_block_findings(
     split: ElementSplit, f: np.ndarray, K: sp.spmatrix, s: Scales, tol: Tolerances
 ) -> List[Finding]:
@@ -159,7 +186,12 @@ def principal_block_findings(
         # eigen-solver picks (the engine's and this one differ in the last bits of C), so the
         # in-plane tangent is left free and the parts are fitted on what is outside it.
         project = without_plane(split, pair)
-        ok, _ = fit_parts(project(D), K0, {k: project(v) for k, v in parts.items()}, tol.stiffness)
+        projected = {k: project(v) for k, v in parts.items()}
+        ok, _ = fit_parts(project(D), K0, projected, tol.stiffness, max_parts=1)
+        if ok is not None and not _simple(ok.coefficients[0]):
+            # with the plane free, a free coefficient fits more than one block's slip (a
+            # volumetric U'' along C^-1 (x) C^-1 too): only a slip in simple numbers is said
+            ok = None
         plane = (
             "; on this homogeneous state two principal stretches are equal, and the tangent in "
             "their plane (whose basis each eigen-solver picks its own way, so that a part's "
@@ -168,6 +200,8 @@ def principal_block_findings(
         )
     if ok is None or all(n == "geometric stiffness" for n in ok.names):
         return []  # the geometric part alone is the run's own tangent parts' to say
+    if _along_j_curvature(split, D, K0, tol.stiffness):
+        return []
     words = " and ".join(describe_coefficient(n, c) for n, c in zip(ok.names, ok.coefficients))
     return [
         Finding(
