@@ -167,7 +167,9 @@ declare(
             "a": (0.05, 20.0),
             "k0": (0.05, 20.0),
             "b_ff": (0.5, 5.0),
-            "b_fs": (0.0, 0.5),
+            # b_fs below sqrt(min b_ff * min b_ss) = 0.5: at the box's corner (0.5, 0.5, 0.5)
+            # the split's second pivot b_ss - b_fs^2/b_ff is zero and the material is refused.
+            "b_fs": (0.0, 0.45),
             "b_ss": (0.5, 5.0),
             "b_fn": (0.0, 0.5),
             "b_sn": (0.0, 0.5),
