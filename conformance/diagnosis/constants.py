@@ -19,11 +19,11 @@ reports; a constant inside a function (exp(c2 (I1b - 3))) changes that term by a
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any, Callable, List, Optional, Tuple
 
 import numpy as np
 
+from conformance.diagnosis.fractions import written_number
 from conformance.diagnosis.refit import Refit, Target, refit
 
 __all__ = ["ExponentFit", "fit_exponents", "describe_exponent", "written_exponent"]
@@ -50,10 +50,7 @@ class ExponentFit:
 
 def _fraction(x: float) -> str:
     """A number as a short fraction when it is one (-2/3), else as a decimal (-0.66667)."""
-    f = Fraction(x).limit_denominator(12)
-    if abs(float(f) - x) <= 1e-12 * max(1.0, abs(x)):
-        return str(f.numerator) if f.denominator == 1 else f"{f.numerator}/{f.denominator}"
-    return f"{x:.6g}"
+    return written_number(x, rtol=1e-12, digits=6)
 
 
 def written_exponent(key: str) -> str:

@@ -51,6 +51,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding, ambiguous
+from conformance.diagnosis.fractions import written_number
 from conformance.diagnosis.j_hessian_block import FACTORS as J_HESSIAN_WORDS
 from conformance.diagnosis.j_hessian_block import j_hessian_reading
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -786,8 +787,7 @@ _POWERS = tuple(np.arange(-9, 10) / 3.0)
 
 def _frac(x: float) -> str:
     """A number as a small fraction when it is one (to 1e-9), else to 4 digits."""
-    q = Fraction(x).limit_denominator(12)
-    return str(q) if abs(float(q) - x) < 1e-9 * max(1.0, abs(x)) else f"{x:.4g}"
+    return written_number(x)
 
 
 #: What f'(J) times J or divided by J is, for a volumetric term U(J): the pressure's measure.

@@ -28,7 +28,6 @@ parts already try; the random state's rotated frames tell them apart.
 
 from __future__ import annotations
 
-from fractions import Fraction
 from typing import Dict, List
 
 import numpy as np
@@ -37,8 +36,9 @@ import scipy.sparse as sp
 from conformance.diagnosis.coincident_stretches import repeated_pair, without_plane
 from conformance.diagnosis.elements import ElementSplit, assemble, cell_piola, split_reading
 from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.fractions import simple_fraction
 from conformance.diagnosis.invariant_pieces import cell_tensors
-from conformance.diagnosis.second_derivative import fit_cell_term
+from conformance.diagnosis.second_derivative import curvature_of, fit_cell_term
 from conformance.diagnosis.strain_differences import material_stiffness
 from conformance.diagnosis.tangent import describe_coefficient, fit_parts
 from conformance.diagnosis.voigt_maps import geometric_stiffness
@@ -141,8 +141,7 @@ def _simple(c: float) -> bool:
     """True for a coefficient that is a simple fraction (denominator at most 4, to 1e-6): a
     block left out, halved, doubled, its sign flipped, one index order of two.
     """
-    q = Fraction(c).limit_denominator(4)
-    return abs(float(q) - c) <= 1e-6 * max(1.0, abs(c))
+    return simple_fraction(c, 4, 1e-6) is not None
 
 
 def _along_j_curvature(
@@ -155,9 +154,7 @@ def _along_j_curvature(
     J = np.linalg.det(split.F)
     if np.ptp(J) > 1e-9 * float(np.mean(np.abs(J))):
         return False
-    g = J[:, None, None] * np.einsum("mji,maj->mai", np.linalg.inv(split.F), split.D)
-    g = g.reshape(-1, 12)
-    basis = split.V0[:, None, None] * g[:, :, None] * g[:, None, :]
+    basis = curvature_of(split.V0, split.D, split.F, "J")
     residual, _ = fit_cell_term(split.cells, basis, D, K0)
     return residual <= tol
 

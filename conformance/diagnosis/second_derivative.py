@@ -38,6 +38,7 @@ __all__ = [
     "second_derivative_reading",
     "fit_cell_term",
     "curvature_basis",
+    "curvature_of",
     "unsymmetrised_basis",
 ]
 
@@ -90,7 +91,13 @@ INVARIANTS: Dict[str, Callable[[np.ndarray], np.ndarray]] = {
 
 def curvature_basis(points, cells, x, invariant: str) -> np.ndarray:
     """(m, 12, 12): V_c g_c g_c^T, g_c the gradient of ``invariant`` over the cell's dofs."""
-    V0, Dg, F = cell_kinematics(points, cells, x)
+    return curvature_of(*cell_kinematics(points, cells, x), invariant)
+
+
+def curvature_of(V0: np.ndarray, Dg: np.ndarray, F: np.ndarray, invariant: str) -> np.ndarray:
+    """:func:`curvature_basis` from the cells' rest volumes V0 (m,), shape gradients Dg
+    (m, 4, 3) and deformation gradients F (m, 3, 3).
+    """
     g = np.einsum("mki,mai->mak", INVARIANTS[invariant](F), Dg).reshape(-1, 12)
     return V0[:, None, None] * g[:, :, None] * g[:, None, :]
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import ambiguous
+from conformance.diagnosis.fractions import written_number
 from conformance.diagnosis.least_squares import determined_lstsq
 from conformance.diagnosis.mjed_parts import (
     MAX_CELLS,
@@ -230,8 +231,7 @@ def stress_side(
 
 
 def _fraction(x: float) -> str:
-    q = Fraction(x).limit_denominator(12)
-    return str(q) if abs(float(q) - x) <= 1e-6 * max(1.0, abs(x)) else f"{x:.4g}"
+    return written_number(x, rtol=1e-6)
 
 
 def _parameter(c: Optional[float], params: Dict[str, float]) -> Optional[Tuple[str, Fraction]]:

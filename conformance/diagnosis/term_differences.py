@@ -29,6 +29,7 @@ import numpy as np
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, PARTIAL, Finding
+from conformance.diagnosis.fractions import simple_fraction
 
 __all__ = [
     "SMALL",
@@ -231,8 +232,7 @@ SLIP_FITS = 2e-3
 
 def _simple(k: float) -> Optional[Fraction]:
     """The number k as a fraction with denominator at most 3 (to 1e-3 of max(1, |k|)), or None."""
-    q = Fraction(k).limit_denominator(3)
-    return q if abs(float(q) - k) <= 1e-3 * max(1.0, abs(k)) else None
+    return simple_fraction(k, 3, 1e-3)
 
 
 def volumetric_slip_finding(
