@@ -281,6 +281,7 @@ MUTATIONS.update(
             (2 * K - sp.diags(K.diagonal())).tocsr(),
             W,
         ),
+        "node blocks on one side": lambda case, field, f, K, W: (f, _node_blocks_one_side(K), W),
     }
 )
 EXPECTED.update(
@@ -289,8 +290,18 @@ EXPECTED.update(
         "J^(-1/3) on I1": "energy-variant",
         "one triangle of K": "one-triangle",
         "both triangles summed": "both-triangles",
+        "node blocks on one side": "mirror-blocks",
     }
 )
+
+
+def _node_blocks_one_side(K):
+    """K's 3x3 node blocks (a, b) with a <= b only: an edge loop that never writes the mirror
+    K_ba = K_ab^T (the node-diagonal blocks whole, so neither scalar triangle is empty).
+    """
+    K = sp.coo_matrix(K)
+    keep = (K.row // 3) <= (K.col // 3)
+    return sp.csr_matrix((K.data[keep], (K.row[keep], K.col[keep])), shape=K.shape)
 
 
 def _finite_difference_tangent(case, field, f, K, W):

@@ -65,6 +65,30 @@ def test_cells_written_backwards_are_told_from_the_last_write():
     assert len(found) == 1 and found[0].figures["force_rule"] == "first", found
 
 
+def test_one_contribution_per_entry_in_the_engines_own_order_is_named():
+    """Triplets listed node block by node block (all cells' (a, b) block, then the next pair),
+    then de-duplicated keeping the first of each entry: neither the first nor the last cell of
+    the mesh's order, yet one cell's contribution per entry.
+    """
+    split, f_o, K_o, s = _case("NeoHookean", seed=4)
+    m, dof = split.cells.shape[0], _dofs(split.cells)
+    Ke = split.Ke.reshape(m, 4, 3, 4, 3)
+    rows, cols, vals = [], [], []
+    for a, b in [(a, b) for a in range(4) for b in range(4)][::-1]:
+        rows.append(np.repeat(dof[:, 3 * a : 3 * a + 3], 3, axis=1).ravel())
+        cols.append(np.tile(dof[:, 3 * b : 3 * b + 3], (1, 3)).ravel())
+        vals.append(Ke[:, a, :, b, :].reshape(-1))
+    rows, cols, vals = (np.concatenate(v) for v in (rows, cols, vals))
+    N = 3 * split.n
+    _, first = np.unique(rows.astype(np.int64) * N + cols, return_index=True)  # the mistake
+    K = sp.csr_matrix((vals[first], (rows[first], cols[first])), shape=(N, N))
+    assert abs(K - K_o).max() > 0.01 * abs(K_o).max()
+    found = buffered_findings(split, f_o, K, s, DOUBLE)
+    assert len(found) == 1, [x.title for x in found]
+    assert found[0].figures["force_rule"] == "sum" and found[0].figures["stiffness_rule"] == "one"
+    assert "your engine's own write order" in found[0].title
+
+
 def test_nearby_assembly_mistakes_are_not_called_buffered():
     """A skipped cell, a doubled cell, a scaled force: not one contribution per entry."""
     split, f_o, K_o, s = _case("StVenantKirchhoff", seed=3)

@@ -38,13 +38,17 @@ __all__ = [
 ]
 
 #: How a repeated entry is written: "sum" (accumulated, right), "last" or "first" (one cell's
-#: contribution kept: the last or the first in the order the cells are indexed).
+#: contribution kept: the last or the first in the order the cells are indexed), "one" (one
+#: cell's contribution kept, whichever the engine's own write order left: entry by entry, the
+#: contribution that equals the engine's value; tried where neither "last" nor "first" fits).
 RULES = ("sum", "last", "first")
 
 _WHOSE = {
     "last": "the last cell's in the mesh's cell order",
     "first": "the first cell's in the mesh's cell order: a buffered write looping the cells "
     "backwards, or one that skips an entry already set",
+    "one": "one of its cells', in your engine's own write order (e.g. triplets listed block by "
+    "block, then an assignment or a de-duplication that keeps one of each)",
 }
 
 
@@ -57,6 +61,51 @@ def kept_occurrence(keys: np.ndarray, rule: str) -> Tuple[np.ndarray, np.ndarray
         return uniq, idx
     uniq, idx = np.unique(keys[::-1], return_index=True)
     return uniq, keys.size - 1 - idx
+
+
+def kept_by_engine(
+    keys: np.ndarray, values: np.ndarray, engine: np.ndarray, atol: float
+) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """(unique keys (u,), the value each keeps) where every key's engine value (``engine``
+    (N,), the engine's entry at each occurrence's key) equals one of its occurrences' values
+    (N,) to ``atol``; None if some key has none that does.
+    """
+    hit = np.abs(engine - values) <= atol
+    order = np.lexsort((~hit, keys))  # per key, an occurrence that matches first
+    uniq, start = np.unique(keys[order], return_index=True)
+    first = order[start]
+    if not hit[first].all():
+        return None
+    return uniq, values[first]
+
+
+def one_cell_force(cells: np.ndarray, fe: np.ndarray, f: np.ndarray, atol: float):
+    """The element forces fe (m, 4, 3) assembled keeping, per dof, the one cell's contribution
+    that the engine's f (n, 3) holds (:func:`kept_by_engine`); None where some dof holds none.
+    """
+    keys = _dofs(cells).ravel()
+    kept = kept_by_engine(keys, fe.reshape(-1), np.asarray(f, float).ravel()[keys], atol)
+    if kept is None:
+        return None
+    out = np.zeros(f.size)
+    out[kept[0]] = kept[1]
+    return out.reshape(f.shape)
+
+
+def one_cell_stiffness(cells: np.ndarray, n: int, Ke: np.ndarray, K: sp.csr_matrix, atol: float):
+    """The element matrices Ke (m, 12, 12) assembled keeping, per entry, the one cell's
+    contribution that the engine's K (3n, 3n) holds; None where some entry holds none.
+    """
+    dof = _dofs(cells)
+    rows = np.repeat(dof, 12, axis=1).ravel()
+    cols = np.tile(dof, (1, 12)).ravel()
+    engine = np.asarray(K[rows, cols]).ravel()
+    keys = rows.astype(np.int64) * (3 * n) + cols
+    kept = kept_by_engine(keys, Ke.reshape(-1), engine, atol)
+    if kept is None:
+        return None
+    uniq, vals = kept
+    return sp.csr_matrix((vals, (uniq // (3 * n), uniq % (3 * n))), shape=(3 * n, 3 * n))
 
 
 def _dofs(cells: np.ndarray) -> np.ndarray:
@@ -118,8 +167,25 @@ def buffered_findings(
     K = sp.csr_matrix(K)
     forces = {r: buffered_force(split.cells, split.n, split.fe, r) for r in RULES}
     stiffnesses = {r: buffered_stiffness(split.cells, split.n, split.Ke, r) for r in RULES}
+    found = _matching(split, f, K, s, tol, forces, stiffnesses)
+    if found:
+        return ambiguous(found)
+    # Neither the mesh's order nor its reverse: the engine's own order, read entry by entry.
+    one_f = one_cell_force(split.cells, split.fe, f, tol.force * s.force)
+    one_K = one_cell_stiffness(split.cells, split.n, split.Ke, K, tol.stiffness * s.stiffness)
+    if one_f is not None:
+        forces = {"sum": forces["sum"], "one": one_f}
+    if one_K is not None:
+        stiffnesses = {"sum": stiffnesses["sum"], "one": one_K}
+    if one_f is None and one_K is None:
+        return []
+    return ambiguous(_matching(split, f, K, s, tol, forces, stiffnesses))
+
+
+def _matching(split, f, K, s, tol, forces, stiffnesses) -> List[Finding]:
+    """The findings of the (force, stiffness) rules, not both "sum", whose assembly matches."""
     found = []
-    for rf, rK in itertools.product(RULES, RULES):
+    for rf, rK in itertools.product(forces, stiffnesses):
         if rf == rK == "sum":
             continue
         e = errors(f, K, None, forces[rf], stiffnesses[rK], 0.0, s)
@@ -136,7 +202,7 @@ def buffered_findings(
                 {"force_rule": rf, "stiffness_rule": rK, "residual": max(e.force, e.stiffness)},
             )
         )
-    return ambiguous(found)
+    return found
 
 
 def buffered_assembly_reading(diag, ci, out, ref, s: Scales):

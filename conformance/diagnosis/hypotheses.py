@@ -204,6 +204,13 @@ def convention_corrections(
             lambda f, K, W: (f, _full_from_triangle(K), W),
         ),
         Correction(
+            "mirror-blocks",
+            "each node pair's 3x3 block written on one side only: K_ab at (a, b), its mirror "
+            "K_ba = K_ab^T at (b, a) never written (an edge loop over a < b without the "
+            "symmetric half)",
+            lambda f, K, W: (f, _mirrored_blocks(K), W),
+        ),
+        Correction(
             "both-triangles",
             "both triangles summed: every off-diagonal entry counted "
             "twice "
@@ -242,6 +249,17 @@ def _full_from_triangle(K: sp.csr_matrix) -> sp.csr_matrix:
     if sp.tril(K, -1).count_nonzero() and sp.triu(K, 1).count_nonzero():
         return K
     return (K + K.T - sp.diags(K.diagonal())).tocsr()
+
+
+def _mirrored_blocks(K: sp.csr_matrix) -> sp.csr_matrix:
+    """K + K^T less K's node-diagonal 3x3 blocks once, K (3n, 3n): where each off-diagonal node
+    block was written on one side only (either side, cell by cell) this is the full matrix; a
+    shared node pair's blocks from cells that wrote opposite sides add up as they should.
+    """
+    K = sp.coo_matrix(K)
+    same = (K.row // 3) == (K.col // 3)
+    node = sp.csr_matrix((K.data[same], (K.row[same], K.col[same])), shape=K.shape)
+    return (K.tocsr() + K.T.tocsr() - node).tocsr()
 
 
 #: Relative distance from 1 below which a fitted global factor is round-off, not a scaling.
