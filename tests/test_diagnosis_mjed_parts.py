@@ -520,15 +520,19 @@ def test_f1_typed_again_in_the_stiffness_is_named():
     assert "written -1 times" in found[0].title
 
 
-def test_a_material_tangent_typed_with_another_factor_is_named_and_not_on_one_j():
+def test_a_material_tangent_typed_with_another_factor_is_named_where_its_shape_is_its_own():
     """St Venant-Kirchhoff's material stiffness (the oracle's minus its geometric part, from
-    mjed's stress per cell) written 3/2 times, the force right: named where J varies, not on a
-    homogeneous stretch (one J), where other terms' blocks could share its shape.
+    mjed's stress per cell) written 3/2 times, the force right: named where J varies and on a
+    homogeneous stretch (one J) too, where no other term has material blocks. Arruda-Boyce's
+    I1^2 term likewise: named where J varies, not on one J, where its material blocks have the
+    shape of the I1^3 term's (both along Id (x) Id there).
     """
+    import scipy.sparse as sp
+
     import mjed
 
     model = default_material("StVenantKirchhoff")
-    for jitter, said in ((0.03, True), (0.0, False)):
+    for jitter in (0.03, 0.0):
         points, cells = box_mesh(2, jitter=0.2, seed=6)
         rng = np.random.default_rng(6)
         x = points @ np.diag([1.1, 0.95, 0.92]).T + jitter * rng.standard_normal(points.shape)
@@ -540,7 +544,187 @@ def test_a_material_tangent_typed_with_another_factor_is_named_and_not_on_one_j(
         K = K_o + 0.5 * (K_o - K_geo)
         found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
         titles = [x.title for x in found if x.code == "mjed-typed-apart"]
+        assert len(titles) == 1 and "3/2 times in its material blocks" in titles[0], titles
+
+    model = default_material("ArrudaBoyce")
+    material = ("first", "second-outer", "second-scaled", "spectral")
+    for jitter, said in ((0.03, True), (0.0, False)):
+        points, cells = box_mesh(2, jitter=0.2, seed=6)
+        rng = np.random.default_rng(6)
+        x = points @ np.diag([1.1, 0.95, 0.92]).T + jitter * rng.standard_normal(points.shape)
+        split, f_o, K_o, s = mjed_split(model, points, cells, x)
+        parts = mjed_parts(model, points, cells, x, f_o, K_o)
+        term = next(t for t in parts.terms if "I1^2" in t)
+        P = sum(p.stiffness for p in parts.parts if p.term == term and p.kind in material)
+        N = 3 * split.n
+        K = K_o + sp.csr_matrix((0.5 * P, (parts.rows, parts.cols)), shape=(N, N))
+        found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
+        titles = [x.title for x in found if x.code == "mjed-typed-apart"]
         if said:
             assert len(titles) == 1 and "3/2 times in its material blocks" in titles[0], titles
         else:
-            assert not titles
+            assert not titles, titles
+
+
+def _power_terms(model):
+    """(group index, term index, q) of every term whose f is a power J^q, q != 0."""
+    return [
+        (i, j, t.f.p)
+        for i, g in enumerate(model.decomposition())
+        for j, t in enumerate(g.terms)
+        if getattr(t.f, "p", 0) != 0
+    ]
+
+
+def _outer(u, v):
+    return np.einsum("mai,mbj->maibj", u, v)
+
+
+def test_an_f2_exponent_lowered_once_is_named_with_its_power():
+    """Mooney-Rivlin's I1 term f = J^(-2/3): f'' written q (q - 1) J^(q - 1) = 10/9 J^(-5/3)
+    where 10/9 J^(-8/3) belongs (a per-cell factor J, not a constant): the J-J block alone.
+    A J-J change that follows no power of J is not said so.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("MooneyRivlin", seed=6)
+    g_i, t_i, q = next(t for t in _power_terms(model) if t[2] == -2.0 / 3.0)
+    p = _term(split, model, g_i, t_i)
+    for factor, said in ((p["J"], True), (1.0 + 30.0 * (p["J"] - 1.0) ** 2, False)):
+        wrong = q * (q - 1.0) * p["J"] ** (q - 2.0) * (factor - 1.0)
+        Ke = (p["w"] * wrong * p["g"])[:, None, None, None, None] * _outer(p["dJ"], p["dJ"])
+        found = _find(model, points, cells, x, f_o, K_o + _assembled(split, Ke=Ke)[1], f_o, K_o, s)
+        if said:
+            assert [x.code for x in found] == ["mjed-d2f"], [x.title for x in found]
+            assert "10/9 J^(-5/3) where the declared f = J^(-2/3) has 10/9 J^(-8/3)" in (
+                found[0].title
+            )
+        else:
+            assert "mjed-d2f" not in [x.code for x in found], [x.title for x in found]
+
+
+def test_every_power_terms_f1_exponent_not_lowered_is_named_together():
+    """Yeoh's J^(-2/3), J^(-4/3) and J^(-2) terms all with f' = c q J^q (one helper's power rule
+    without the lowered exponent): J times the right f' in each, force and f'-blocks.
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("Yeoh", seed=7)
+    terms = _power_terms(model)
+    assert len(terms) > 1
+    m = split.cells.shape[0]
+    fe, Ke = np.zeros((m, 4, 3)), np.zeros((m, 4, 3, 4, 3))
+    for g_i, t_i, _ in terms:
+        t = _term(split, model, g_i, t_i)
+        dJ, FSD, g, J = t["dJ"], t["FSD"], t["g"], t["J"]
+        w = t["w"] * t["f1"] * (J - 1.0)  # engine minus right
+        anti = _outer(dJ, dJ) - np.einsum("mbi,maj->maibj", dJ, dJ)
+        Ke += w[:, None, None, None, None] * (
+            _outer(dJ, FSD) + _outer(FSD, dJ) + (g / J)[:, None, None, None, None] * anti
+        )
+        fe += -(w * g)[:, None, None] * dJ
+    df, dK = _assembled(split, fe=fe, Ke=Ke)
+    found = _find(model, points, cells, x, f_o + df, K_o + dK, f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-dfdj"], [x.title for x in found]
+    assert "every power term" in found[0].title and "exponent not lowered" in found[0].title
+
+
+def test_the_cross_blocks_of_every_term_left_out_are_named():
+    """Yeoh: f'(J) (dJ_i (F S D_j)^T + (F S D_i) dJ_j^T) left out of every term's blocks."""
+    model, points, cells, x, split, f_o, K_o, s = _case("Yeoh", seed=8)
+    m = split.cells.shape[0]
+    Ke = np.zeros((m, 4, 3, 4, 3))
+    for g_i, group in enumerate(model.decomposition()):
+        for t_i in range(len(group.terms)):
+            t = _term(split, model, g_i, t_i)
+            w = -(t["w"] * t["f1"])[:, None, None, None, None]
+            Ke += w * (_outer(t["dJ"], t["FSD"]) + _outer(t["FSD"], t["dJ"]))
+    found = _find(model, points, cells, x, f_o, K_o + _assembled(split, Ke=Ke)[1], f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-part"], [x.title for x in found]
+    assert "both product-rule cross blocks" in found[0].title
+    assert "of every term left out" in found[0].title
+
+
+@dataclasses.dataclass(frozen=True)
+class _ForwardPhi:
+    """A group's phi with phi' by a forward difference of phi, step h."""
+
+    inner: object
+    h: float
+
+    def __call__(self, u):
+        v, _, d2 = self.inner(u)
+        return v, (self.inner(u + self.h)[0] - v) / self.h, d2
+
+
+def _forward_f(inner, h):
+    """A term's f(J) with f' by a forward difference of f, step h."""
+    from mjed.terms import JFunction
+
+    @dataclasses.dataclass(frozen=True)
+    class ForwardF(JFunction):
+        def __call__(self, J):
+            f, _, f2 = inner(J)
+            return f, (inner(J + h)[0] - f) / h, f2
+
+    return ForwardF()
+
+
+def test_a_derivative_by_a_forward_difference_is_named_with_its_step():
+    """Demiray's phi'(u) and Mooney-Rivlin's J^(-2/3) f'(J) each by a forward difference with
+    step 1e-4 (errors of about 1e-5): named with the scheme and the step; the same size of
+    error as a constant factor on the Mooney-Rivlin f' is not a difference quotient.
+    """
+    from mjed.terms import SmoothFunction
+
+    SmoothFunction.register(_ForwardPhi)
+    model = default_material("Demiray")
+    groups = tuple(
+        g
+        if g.plain
+        else dataclasses.replace(g, exponential=False, function=_ForwardPhi(g.function, 1e-4))
+        for g in model.decomposition()
+    )
+    _, points, cells, x, _, f_o, K_o, s = _case("Demiray", seed=9)
+    _, _, _, _, _, f_w, K_w, _ = _case("Demiray", seed=9, model=_Terms(groups))
+    found = _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-difference"], [x.title for x in found]
+    assert "phi'(u)" in found[0].title and "forward difference" in found[0].title
+    assert found[0].figures["step"] == pytest.approx(1e-4, rel=1e-2)
+
+    model = default_material("MooneyRivlin")
+    _, points, cells, x, _, f_o, K_o, s = _case("MooneyRivlin", seed=9)
+    for wrong, said in ((lambda f: _forward_f(f, 1e-4), True), (None, False)):
+        groups = []
+        for g in model.decomposition():
+            terms = tuple(
+                dataclasses.replace(t, f=wrong(t.f))
+                if wrong and getattr(t.f, "p", 0) == -2.0 / 3.0
+                else t
+                for t in g.terms
+            )
+            groups.append(dataclasses.replace(g, terms=terms))
+        if wrong is None:  # f' of that term 1 + 3e-5 times the right one in every cell
+            groups = [
+                dataclasses.replace(
+                    g,
+                    terms=tuple(
+                        dataclasses.replace(t, f=_scaled_f1(t.f, 1.0 + 3e-5))
+                        if getattr(t.f, "p", 0) == -2.0 / 3.0
+                        else t
+                        for t in g.terms
+                    ),
+                )
+                for g in groups
+            ]
+        _, _, _, _, _, f_w, K_w, _ = _case("MooneyRivlin", seed=9, model=_Terms(tuple(groups)))
+        codes = [x.code for x in _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)]
+        assert ("mjed-difference" in codes) is said, codes
+
+
+def _scaled_f1(inner, k):
+    from mjed.terms import JFunction
+
+    @dataclasses.dataclass(frozen=True)
+    class Scaled(JFunction):
+        def __call__(self, J):
+            f, f1, f2 = inner(J)
+            return f, k * f1, f2
+
+    return Scaled()

@@ -152,6 +152,14 @@ class Parts:
     #: per term (label, all its parts per cell V0-weighted: force (m, 4, 3), stiffness
     #: (m, 4, 3, 4, 3)), to weight the whole term per cell by J^p (a term's volume).
     term_cells: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
+    #: per term (label, its J-J block per cell V0-weighted: force zero (m, 4, 3), stiffness
+    #: (m, 4, 3, 4, 3)), to weight its f''(J) per cell by J^p (an exponent slipped in f'').
+    d2f_cells: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
+    #: per scalar derivative of a term or group (f', f'', phi', phi''): (what it is, what it is
+    #: a difference of, the parts it enters weighted per cell by the next derivative over it and
+    #: by the one after over it, each force (3n,) and stiffness (p,) concatenated): what a
+    #: difference quotient adds per unit of h/2 and of h^2/6.
+    differences: Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -496,7 +504,82 @@ def mjed_parts(
         _gradient_blocks(grouped, pat, V0),
         _dj_variants(model, _State(points, cells, x, pat, f_sum, K_sum)),
         term_cells=_df_cells(terms, flat, V0, kinds=None),
+        d2f_cells=_df_cells(terms, flat, V0, kinds=("JJ",)),
+        differences=_difference_slots(model, points, cells, x, flat, V0, pat),
     )
+
+
+def _next_over(value: np.ndarray, this: np.ndarray) -> np.ndarray:
+    """The ratio value / this per cell, 0 where ``this`` is 0 (a derivative that enters
+    nothing).
+    """
+    this = np.asarray(this, dtype=float)
+    safe = np.where(this == 0.0, 1.0, this)
+    return np.where(this == 0.0, 0.0, np.asarray(value, dtype=float) / safe)
+
+
+def _higher(second: Any, u: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """The first and second derivatives of ``second`` (a function of u returning (m,)) by
+    central differences, step 1e-3 of max(1, |u|): good to about 1e-7 and 1e-6 relative,
+    enough for ratios of derivatives that size a truncation error.
+    """
+    h = 1e-3 * np.maximum(1.0, np.abs(u))
+    up, mid, down = second(u + h), second(u), second(u - h)
+    return (up - down) / (2.0 * h), (up - 2.0 * mid + down) / (h * h)
+
+
+def _difference_slots(
+    model: Any, points, cells, x, flat: list, V0: np.ndarray, pat: "Pattern"
+) -> Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...]:
+    """Per term, f'(J) (its f'-parts) and f''(J) (its J-J block); per group with a function of
+    its sum, phi'(u) (every part of its terms) and phi''(u) (its rank-one block): the parts
+    weighted per cell by the next derivative over this one (a forward difference of the
+    function below with step h adds h/2 of it), assembled (see Parts.differences).
+    """
+    from mjed.kinematics import Kinematics
+
+    F = cell_kinematics(points, cells, x)[2]
+    kin = Kinematics(F)
+    J, m = kin.J, len(kin.J)
+    out = []
+
+    def weighted(fe, Ke, rho: np.ndarray) -> np.ndarray:
+        force = pat.force(np.broadcast_to(fe, (m, 4, 3)), rho) if np.any(fe) else 0.0
+        stiffness = pat.stiffness(np.broadcast_to(Ke, (m, 4, 3, 4, 3)), rho) if np.any(Ke) else 0.0
+        return np.concatenate([np.zeros(3 * pat.n) + force, np.zeros(len(pat.rows)) + stiffness])
+
+    def slot(what, of, labels: set, kinds: Optional[Tuple[str, ...]], d: Tuple[np.ndarray, ...]):
+        """d: this derivative and the next two, per cell (m,) each."""
+        mine = [
+            (k, a)
+            for k, label, a in flat
+            if label in labels and (kinds is None and k != "group" or kinds and k in kinds)
+        ]
+        fe = sum((-V0[:, None, None] * a for k, a in mine if k.startswith("force")), 0.0)
+        Ke = sum(
+            (V0[:, None, None, None, None] * a for k, a in mine if not k.startswith("force")), 0.0
+        )
+        first = weighted(fe, Ke, _next_over(d[1], d[0]))
+        if np.any(first):
+            out.append((what, of, first, weighted(fe, Ke, _next_over(d[2], d[0]))))
+
+    for group in model.decomposition():
+        labels = {term_label(t) + _group_words(group) for t in group.terms}
+        for t in group.terms:
+            label = term_label(t) + _group_words(group)
+            _, f1, f2 = (_per_cell(v, m) for v in t.f(J))
+            f3, f4 = _higher(lambda j, t=t: _per_cell(t.f(j)[2], m), J)
+            slot(f"f'(J) of the term {label}", "f(J)", {label}, _DF, (f1, f2, f3))
+            slot(f"f''(J) of the term {label}", "f'(J)", {label}, ("JJ",), (f2, f3, f4))
+        if group.plain:
+            continue
+        u = np.sum([_per_cell(t.f(J)[0] * t.g.value(kin), m) for t in group.terms], axis=0)
+        _, d1, d2 = (_per_cell(v, m) for v in group.function(u))
+        d3, d4 = _higher(lambda v: _per_cell(group.function(v)[2], m), u)
+        name = _rank_one_label(group)
+        slot(f"phi'(u) of {name}", "phi(u)", labels, None, (d1, d2, d3))
+        slot(f"phi''(u) of {name}", "phi'(u)", {name}, ("group",), (d2, d3, d4))
+    return tuple(out)
 
 
 def _df_cells(
@@ -635,21 +718,42 @@ def _powers(model: Any) -> Tuple[Tuple[str, float], ...]:
     return tuple(out)
 
 
+#: parts written together in an engine's code, tried as one with a constant factor:
+#: name -> (kinds, words as KINDS has them).
+KIND_GROUPS: Dict[str, Tuple[Tuple[str, ...], str]] = {
+    "cross": (
+        ("cross-a", "cross-b"),
+        "stiffness: both product-rule cross blocks f'(J) (dJ_i (F S D_j)^T + (F S D_i) dJ_j^T)",
+    ),
+}
+
+
 def _single(parts: Parts) -> List[Candidate]:
-    """One part of one term, then the same part of every term, with each constant factor."""
+    """One part of one term, then the same part of every term, with each constant factor; the
+    same for the parts of :data:`KIND_GROUPS`.
+    """
     nonzero = [p for p in parts.parts if np.any(p.force) or np.any(p.stiffness)]
     pieces = [(p.kind, f"of the term {p.term}", (p,)) for p in nonzero]
     for kind in KINDS:
         same = tuple(p for p in nonzero if p.kind == kind)
         if len(same) > 1:
             pieces.append((kind, "of every term", same))
+    for name, (kinds, _) in KIND_GROUPS.items():
+        for term in parts.terms:
+            mine = tuple(p for p in nonzero if p.term == term and p.kind in kinds)
+            if len(mine) > 1:
+                pieces.append((name, f"of the term {term}", mine))
+        every = tuple(p for p in nonzero if p.kind in kinds)
+        if len({p.term for p in every}) > 1:
+            pieces.append((name, "of every term", every))
     n_anti = sum(p.kind == "anti" for p in nonzero)
     out = []
     for kind, which, ps in pieces:
         df = np.sum([p.force for p in ps], axis=0)
         dK = np.sum([p.stiffness for p in ps], axis=0)
         for k, words in FACTORS.items():
-            code, title = "mjed-part", f"MJED {KINDS[kind]} {which} {words}"
+            said = KINDS[kind] if kind in KINDS else KIND_GROUPS[kind][1]
+            code, title = "mjed-part", f"MJED {said} {which} {words}"
             if kind == "anti" and len(ps) == n_anti and k in J_HESSIAN_WORDS:
                 # the J-Hessian block of the whole energy: j_hessian_block's reading
                 code, title = "j-hessian-block", f"MJED {KINDS[kind]} {J_HESSIAN_WORDS[k]}"
@@ -812,6 +916,32 @@ def _df_words(t: str, k: float, p: float, q: Optional[float]) -> str:
     )
 
 
+#: the entry of _power that stands for every term f = J^q at once
+_EVERY_POWER = "every power term J^q"
+
+
+def _every_power(k: float, p: float, uniform: bool, df: np.ndarray, dK: np.ndarray) -> Candidate:
+    """The candidate of every J^q term's f'(J) written k J^p times the declared c q J^(q - 1)."""
+    if p == 0.0:
+        words = f"{_frac(k)} times the declared c q J^(q - 1)"
+    else:
+        scale = "" if abs(k - 1.0) < 1e-9 else f"{_frac(k)} "
+        shift = f"{'+' if p > 0 else '-'} {_frac(abs(p))}"
+        words = f"{scale}c q J^(q - 1 {shift}) for the declared c q J^(q - 1)"
+        if abs(k - 1.0) < 1e-9 and p == 1.0:
+            words += " (the exponent not lowered: c q J^q)"
+    if uniform:
+        words += " (J is the same in every cell here: whether the factor follows a power of J "
+        words += "cannot be told)"
+    return Candidate(
+        "mjed-dfdj",
+        f"MJED f'(J) of every power term c J^q written wrongly (force and stiffness): {words}",
+        df,
+        dK,
+        {"part": "dfdJ", "terms": _EVERY_POWER, "k": k, "p": p},
+    )
+
+
 def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """Per term: f'(J) wrong by a per-cell factor k J^p (p in _POWERS, k fitted by least
     squares on the scaled residual r (3n + p,), weights w (3n + p,)): the J part of the force and
@@ -822,7 +952,12 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     uniform = np.ptp(J) <= 1e-9 * np.mean(np.abs(J))
     powers = dict(parts.powers)
     out = []
-    for t, fe, Ke in parts.df_cells:
+    entries = list(parts.df_cells)
+    every = [(fe, Ke) for t, fe, Ke in parts.df_cells if t in powers]
+    if len(every) > 1:
+        # one hand-written power rule shared by every J^q term (a helper that returns f')
+        entries.append((_EVERY_POWER, sum(e[0] for e in every), sum(e[1] for e in every)))
+    for t, fe, Ke in entries:
         one = np.ones_like(J)
         P = np.concatenate([pat.force(fe, one), pat.stiffness(Ke, one)])  # as the oracle's
         if not np.any(P):
@@ -836,6 +971,9 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
                 continue
             d = k * X - P
             n = 3 * pat.n
+            if t is _EVERY_POWER:
+                out.append(_every_power(k, p, uniform, d[:n], d[n:]))
+                continue
             words = _df_words(t, k, p, powers.get(t))
             j = float(np.mean(J))
             power = next((q for q in (1.0, -1.0) if abs(k - j**q) <= 1e-6 * max(k, 1e-300)), None)
@@ -862,8 +1000,8 @@ def _power(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
 def _d2f(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     """Per term: f''(J) written k times the declared one (k fitted by least squares on the
     scaled stiffness residual; a power rule slipped in a hand second derivative, q (q + 1)
-    for q (q - 1) say): the J-J block alone changes. Constant factors of the block that
-    :data:`FACTORS` says in words are left to _single.
+    for q (q - 1) say) or k J^p times it (:func:`_d2f_powers`): the J-J block alone changes.
+    Constant factors of the block that :data:`FACTORS` says in words are left to _single.
     """
     if np.ptp(parts.J) <= 1e-6 * np.mean(np.abs(parts.J)):
         # one J (a homogeneous state): every term's J-J block, and any term along
@@ -895,6 +1033,96 @@ def _d2f(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
                 np.zeros(n),
                 c * p.stiffness,
                 {"part": "d2fdJ2", "terms": p.term, "k": k},
+            )
+        )
+    return out + _d2f_powers(parts, r, w)
+
+
+def _d2f_powers(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
+    """Per term: f''(J) written k J^p times the declared one, p in _POWERS but not 0, k fitted
+    (the exponent of a power J^q lowered once, not twice: q (q - 1) J^(q - 1), p = 1). Only
+    where J varies (the caller's test): on one J a power of J is a constant factor.
+    """
+    pat, J = parts.pattern, parts.J
+    n = 3 * pat.n
+    powers = dict(parts.powers)
+    out = []
+    for t, _, Ke in parts.d2f_cells:
+        P = pat.stiffness(Ke, np.ones_like(J))
+        if not np.any(P):
+            continue
+        for p in _POWERS:
+            if p == 0.0:
+                continue
+            X = pat.stiffness(Ke, J**p)
+            xs = X * w[n:]
+            k = float(xs @ ((r[n:] + P) * w[n:]) / (xs @ xs))
+            if not np.isfinite(k) or k == 0.0:
+                continue
+            q = powers.get(t)
+            if q is None:
+                words = f"{_frac(k)} {_power_words(p)} times the declared f''(J)"
+            else:
+                words = (
+                    f"{_frac(k * q * (q - 1.0))} {_power_words(q - 2.0 + p)} where the declared "
+                    f"f = {_power_words(q)} has {_frac(q * (q - 1.0))} {_power_words(q - 2.0)}"
+                )
+            out.append(
+                Candidate(
+                    "mjed-d2f",
+                    f"MJED f''(J) of the term {t} written wrongly (the J-J block f'' g "
+                    f"dJ_i dJ_j^T alone; force right): {words}",
+                    np.zeros(n),
+                    k * X - P,
+                    {"part": "d2fdJ2", "terms": t, "k": k, "p": p},
+                )
+            )
+    return out
+
+
+#: The largest step read as a difference quotient's (in the units of J or u, both O(1)): a
+#: fitted "step" beyond it is a factor, not a truncation.
+_MAX_STEP = 1e-2
+
+
+def _differences(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
+    """Per scalar derivative (Parts.differences): taken by a forward (or backward) difference
+    of the function below it with step h, which adds h/2 (or -h/2) times the next derivative
+    wherever it enters; h fitted. On one J the f''(J) blocks of all terms share one shape, so
+    those are not tried there.
+    """
+    one_j = np.ptp(parts.J) <= 1e-6 * np.mean(np.abs(parts.J))
+    out = []
+    for what, of, X, X2 in parts.differences:
+        if one_j and what.startswith("f''"):
+            continue
+        # engine minus right = (h/2) X + (h^2/6) X2 for a forward step h (c = h/2; backward:
+        # c = -h/2, the same h^2 term): c fitted, then refitted with the h^2 term held
+        xs = X * w
+        c = float(xs @ (r * w) / (xs @ xs))
+        for _ in range(3):
+            c = float(xs @ ((r - (2.0 / 3.0) * c * c * X2) * w) / (xs @ xs))
+        h = 2.0 * abs(c)
+        if not np.isfinite(c) or c == 0.0 or h > _MAX_STEP:
+            continue
+        X = X + (2.0 / 3.0) * c * X2  # so that c X is the prediction
+        scheme = "forward" if c > 0 else "backward"
+        n = 3 * parts.pattern.n
+        out.append(
+            Candidate(
+                "mjed-difference",
+                f"MJED {what} taken by a {scheme} difference of {of} with step h = {h:.2g} (the "
+                "derivative plus h/2 times the next one: an O(h) truncation error)",
+                c * X[:n],
+                c * X[n:],
+                {
+                    "part": "difference",
+                    "derivative": what,
+                    "scheme": scheme,
+                    "step": h,
+                    # f'' enters the J-J block alone: along dJ (x) dJ (corroborate.fits_codes)
+                    **({"invariant": "J"} if what.startswith("f''") else {}),
+                },
             )
         )
     return out
@@ -932,13 +1160,18 @@ def _typed_apart(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
     one_j = np.ptp(parts.J) <= 1e-6 * np.mean(np.abs(parts.J))
     out = []
     for code, (kinds, words, on_one_j) in _TYPED_APART.items():
-        if one_j and not on_one_j:
-            continue
+        blocks = {}
         for t in parts.terms:
             ps = [p for p in parts.parts if p.term == t and p.kind in kinds]
-            if not any(np.any(p.stiffness) for p in ps):
-                continue
-            P = np.sum([p.stiffness for p in ps], axis=0)
+            if any(np.any(p.stiffness) for p in ps):
+                blocks[t] = (ps, np.sum([p.stiffness for p in ps], axis=0))
+        for t, (ps, P) in blocks.items():
+            if (
+                one_j
+                and not on_one_j
+                and any(_parallel(P, Q) for u, (_, Q) in blocks.items() if u != t)
+            ):
+                continue  # one J: another term's blocks of these kinds have the same shape
             xs = P * w[n:]
             c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
             if not np.isfinite(c):
@@ -957,6 +1190,12 @@ def _typed_apart(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
                 )
             )
     return out
+
+
+def _parallel(a: np.ndarray, b: np.ndarray) -> bool:
+    """True when the vectors a and b are parallel to 1e-9 (their angle's cosine)."""
+    na, nb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+    return na > 0 and nb > 0 and abs(float(a @ b)) >= (1.0 - 1e-9) * na * nb
 
 
 #: power p of J -> words: a term's force and stiffness scaled cell by cell by J^p.
@@ -1028,6 +1267,7 @@ def candidates(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
         *_power(parts, r, w),
         *_d2f(parts, r, w),
         *_typed_apart(parts, r, w),
+        *_differences(parts, r, w),
         *_regularisation(parts),
         *_dj(parts),
         *_volume(parts),
