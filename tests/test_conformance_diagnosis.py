@@ -290,6 +290,56 @@ def test_the_kit_fit_separates_what_one_case_cannot():
         assert "the c term tripled" in first.title or "c: its terms tripled" in first.title
 
 
+def test_two_volumetric_terms_scaled_apart_on_one_j_are_not_named():
+    """On one J two J-only terms' factors span any (U', U'') there: fitted as - mu ln J x -0.475
+    and lam/2 (ln J)^2 x 1.22 for a sign slipped in d(mu ln J)/dJ. Said as ambiguous on one J,
+    named where J varies (the flag is what differs: the same columns).
+    """
+    from conformance.diagnosis.readings import term_reading
+    from conformance.diagnosis.term_fit import TermCase
+
+    M = __import__("mjed").materials
+    P, Q, R = (
+        _mjed(M.NeoHookean(mu=1000.0, lam=5000.0)),
+        _mjed(M.MooneyRivlin(c1=1200.0, c2=400.0, k0=3.0e4)),
+        _mjed(M.StVenantKirchhoff(mu=3000.0, lam=9000.0)),
+    )
+    a = (1.0, -0.475, 1.22)
+    f = sum(c * t[0] for c, t in zip(a, (P, Q, R)))
+    K = sum(c * t[1] for c, t in zip(a, (P, Q, R)))
+    names = ("the term mu/2 (I1 - 3)", "the volumetric term - mu ln J", "the volumetric term X")
+    args = ([P[0], Q[0], R[0]], [P[1], Q[1], R[1]], f, K)
+    scales_ = (float(np.linalg.norm(f)), float(sp.linalg.norm(K)), 1e-10, 1e-10)
+    labels, params = [("mu",), ("mu",), ("lam",)], {"mu": 1000.0, "lam": 5000.0}
+    for one_j, code in ((True, "term-coefficients-ambiguous"), (False, "term-coefficients")):
+        case = TermCase(*args, *scales_, names, one_j=one_j)
+        r = term_reading(labels, [case], params, 1.0)
+        assert r.finding.code == code, r.finding.title
+    assert (
+        "J is the same in every cell"
+        in term_reading(
+            labels, [TermCase(*args, *scales_, names, one_j=True)], params, 1.0
+        ).finding.title
+    )
+
+
+def test_a_term_scaled_by_an_exponential_of_a_parameter_says_so():
+    """Veronda-Westmann's c1 (exp(c2 (I1b - 3)) - 1) written c1 exp(c2 I1b) ...: the term scaled
+    by e^(3 c2), the e^(-3 c2) of the shifted argument lost; a factor e^(3 c2) 1e-4 off, or a
+    term without an exponential, is not said so.
+    """
+    from conformance.diagnosis.term_fit import exponential_words
+
+    params = {"c1": 3000.0, "c2": 1.4}
+    term = ["the isochoric term c1 (exp(c2 (I1b - 3)) - 1)"]
+    said = exponential_words(float(np.exp(3 * 1.4)), params, term, 1e-6)
+    assert said is not None and "e^(3 c2)" in said and "e^(-3 c2) lost" in said
+    assert "e^(-c2)" in exponential_words(float(np.exp(-1.4)), params, term, 1e-6)
+    assert exponential_words(float(np.exp(3 * 1.4)) * (1 + 1e-4), params, term, 1e-6) is None
+    plain = ["the isochoric term c1 (I1b - 3)"]
+    assert exponential_words(float(np.exp(3 * 1.4)), params, plain, 1e-6) is None
+
+
 def test_a_factor_of_one_is_not_a_scaling():
     """Round-off at the tolerance is not 'scaled by 1' (found checking SOFA's classical field on a
     sliver in mm: stiffness error 1.04e-10, 'force and stiffness scaled: factor 1' named).

@@ -97,6 +97,30 @@ def test_a_case_that_fits_a_cause_but_cannot_tell_it_apart_does_not_contradict_i
         assert not out.causes and out.findings[0].code == "uncorroborated"
 
 
+def test_a_fit_listed_with_its_invariant_takes_only_that_invariants_cause():
+    """The fit "stress-derivative-rewritten:J" (a single J fits any slip in dW/dJ) takes a
+    hand-written dW/dJ named where J varies, not a hand-written dW/dI1.
+    """
+    from conformance.diagnosis.corroborate import corroborate, extend_consistent
+
+    lead = Finding(
+        "unexplained",
+        "unexplained",
+        OBSERVED,
+        "",
+        {"fits_codes": ["stress-derivative-rewritten:J"]},
+    )
+    one_j = _diag("uniaxial", [lead])
+    for invariant, given in (("J", True), ("I1", False)):
+        cause = Finding("stress-derivative-rewritten", "dW/dJ", FULL, "", {"invariant": invariant})
+        named = _diag("random", [cause])
+        out = extend_consistent(
+            corroborate([named, one_j], [[0, 1]], ["r", "u"]), [[0, 1]], ["r", "u"]
+        )
+        assert bool(out[0].causes) is given
+        assert (out[1].findings[0].code == "stress-derivative-rewritten") is given
+
+
 def test_ambiguous_causes_are_held_the_same_way():
     from conformance.diagnosis.corroborate import corroborate
 

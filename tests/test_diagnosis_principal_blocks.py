@@ -147,3 +147,14 @@ def test_a_volumetric_tangent_slip_on_two_equal_stretches_is_not_called_a_block(
         + assemble(cells, len(points), np.zeros((len(cells), 4, 3)), lam[:, None, None] * basis)[1]
     )
     assert principal_block_findings(split, f_o, K, s, DOUBLE) == []
+
+
+def test_two_blocks_are_named_only_with_simple_coefficients():
+    """Two blocks each with a simple slip (left out) are named; one of them x 0.7 is not: two
+    free coefficients fit more than two blocks' slips (MJED's d2J block with its sign flipped,
+    on a uniaxial state, was once fitted as the off-diagonal x 0.697 and CC_abba x -1).
+    """
+    found, *_ = _found(scale_offdiag=0.0, crossed_pair=0.0)
+    assert [x.code for x in found] == ["principal-block"], found
+    assert len(found[0].figures["parts"]) == 2
+    assert _found(scale_offdiag=0.7, crossed_pair=0.0)[0] == []

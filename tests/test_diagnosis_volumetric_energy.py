@@ -148,6 +148,24 @@ def test_j_function_steps_tells_one_function_of_j_from_a_per_cell_coefficient():
     assert np.isnan(j_function_steps(np.full(60, 1.1), J))  # one J: nothing told
 
 
+def test_the_line_follows_what_a_smooth_function_leaves_on_the_same_cells():
+    """A term's f''(J) times an invariant that barely varies (Gent's J^(-2/3) I1 near rest,
+    I1 within 1 %) is not one function of J on a fine mesh; a steep smooth function on 20
+    cells over a wide range of J still is (its interpolation is coarser there).
+    """
+    from conformance.diagnosis.j_functions import j_function_line
+
+    rng = np.random.default_rng(5)
+    J = rng.uniform(0.97, 1.03, 400)
+    near = (J - 1.0) * J ** (-8.0 / 3.0) * (3.0 + rng.normal(0.0, 0.01, J.size))
+    assert j_function_steps(J, near) > j_function_line(J, near)
+    for v in ((J - 1.0) * J ** (-8.0 / 3.0), 1.0 / J):
+        assert j_function_steps(J, v) <= j_function_line(J, v)
+    coarse = rng.uniform(0.85, 1.2, 20)
+    for v in (np.exp(5 * coarse), 3e4 * np.log(coarse) / coarse**2):
+        assert j_function_steps(coarse, v) <= j_function_line(coarse, v)
+
+
 def test_a_tangent_term_along_c_inverse_squared_not_of_j_is_not_the_volumetric_tangent():
     """An isochoric term along C^-1 (x) C^-1 with a wrong factor (a decoupled engine's
     projection P~ with +1/3) changes d2U/dJ2 per cell as an isochoric invariant does, not as

@@ -69,7 +69,7 @@ def corroborate(
                 j
                 for j in group
                 if j != i
-                and not codes & fits_codes(diagnoses[j])
+                and not any(_fits(f, fits_codes(diagnoses[j])) for f in d.causes)
                 and (
                     left_unexplained(diagnoses[j])
                     or (full and _partly_otherwise(diagnoses[j], codes))
@@ -117,6 +117,14 @@ def fits_codes(diagnosis) -> set:
     return set(d.findings[0].figures.get("fits_codes", ()))
 
 
+def _fits(cause: Finding, fits: set) -> bool:
+    """True when ``cause`` is one of the codes ``fits`` lists: its code, or "code:X" for a cause
+    whose reading names the invariant X (figures["invariant"]; "stress-derivative-rewritten:J":
+    a hand-written derivative in J only, not in I1).
+    """
+    return cause.code in fits or f"{cause.code}:{cause.figures.get('invariant')}" in fits
+
+
 def _partly_otherwise(diagnosis, codes) -> bool:
     """True when the case failed, nothing explains it fully, and its headline explains it
     partly by a cause that is not one of ``codes``.
@@ -148,7 +156,7 @@ def extend_consistent(
                     for i in group
                     if i != j and diagnoses[i] is not None
                     for f in diagnoses[i].causes
-                    if f.strength == FULL and f.code in fits
+                    if f.strength == FULL and _fits(f, fits)
                 ),
                 None,
             )

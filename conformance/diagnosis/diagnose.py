@@ -34,8 +34,8 @@ from conformance.diagnosis.hypotheses import (
     scale_corrections,
 )
 from conformance.diagnosis.j_functions import (
-    J_FUNCTION_STEPS,
     J_ONLY,
+    j_function_line,
     j_function_residual,
     j_function_steps,
 )
@@ -721,13 +721,18 @@ def _volumetric_findings(
                 # exact here, and the same reading named on a case where J varies is what
                 # this one cannot tell apart, not a contradiction (corroborate.fits_codes)
                 # (a term's f''(J) in an MJED engine, its J-J block, is along it too)
-                figs["fits_codes"] = ["volumetric", "mjed-d2f"]
+                figs["fits_codes"] = [
+                    "volumetric",
+                    "mjed-d2f",
+                    "finite-difference-term:J",
+                    "mjed-difference:J",
+                ]
             title = (
                 "a tangent term along C^-1 (x) C^-1 differs (the force matches): the volumetric "
                 "tangent U''(J), or another term along C^-1 (x) C^-1 such as an isochoric "
                 "projection's; this case has too few distinct J to tell them apart"
             )
-        elif steps > J_FUNCTION_STEPS:
+        elif steps > j_function_line(fit.J, fit.dU2):
             named = False
             title = (
                 "a tangent term along C^-1 (x) C^-1 differs per cell, not as one function of J "
@@ -752,11 +757,18 @@ def _volumetric_findings(
         # Kept (in the findings) for readings.denied_volumetric: the readings of the energy go
         # first; if none names a cause, this statement of the stress and tangent is the cause.
         # Only where J varies: on one J the one-function test cannot fail, so nothing is held.
-        figs["denied"] = bool(
-            np.isfinite(spread)
-            and fit.force_residual <= tol.force
-            and fit.stiffness_residual <= tol.stiffness
-        )
+        exact = fit.force_residual <= tol.force and fit.stiffness_residual <= tol.stiffness
+        figs["denied"] = bool(np.isfinite(spread) and exact)
+        if exact and not np.isfinite(spread):
+            # One J: any slip in U'(J) or U''(J) (a term's f'(J) or f''(J), a hand-written
+            # dW/dJ) fits here exactly; named where J varies, it is consistent with this case
+            # (corroborate.fits_codes; "code:J": that cause only where it reads a J derivative).
+            figs["fits_codes"] = [
+                "volumetric",
+                "mjed-dfdj",
+                "mjed-d2f",
+                "stress-derivative-rewritten:J",
+            ]
         title = (
             "volumetric (J-only) stress and tangent differ from the oracle's, but the engine's "
             "energy does not say so"

@@ -114,7 +114,8 @@ def isochoric_curvature_findings(
                     f"isochoric-curvature-{code}",
                     "the second derivative of the isochoric factor J^p written "
                     f"{words} where p (p - 1) J^(p-2) belongs, in {names}: the tangent alone "
-                    "(a hand-derived or automatic-differentiation rule for powers)",
+                    "(a slip in the power rule of a hand-derived or automatic-differentiation "
+                    "tangent)",
                     FULL,
                     "the oracle's stiffness plus, per cell, V0 sum_k dW/dIkb Ik (X(p) - p (p - 1)) "
                     "J^(p-2) dJ (x) dJ with that coefficient X, nothing fitted: force error "

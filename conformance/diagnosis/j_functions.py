@@ -11,7 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["J_ONLY", "J_FUNCTION_STEPS", "j_function_residual", "j_function_steps"]
+__all__ = [
+    "J_ONLY",
+    "J_FUNCTION_STEPS",
+    "j_function_line",
+    "j_function_residual",
+    "j_function_steps",
+]
 
 
 #: A per-cell fit is read as one function U(J) only when its dU/dJ values, cell to cell in the
@@ -40,10 +46,26 @@ def j_function_residual(J: np.ndarray, dU1: np.ndarray, dU2: np.ndarray) -> floa
 
 
 #: A per-cell tangent coefficient is read as one function of J when, the cells sorted by J, each
-#: value is predicted by its two neighbours in J (linear interpolation) to within this fraction
-#: of the values' spread (medians of both): about 1e-4 for a smooth function of J on the kits'
-#: meshes, 0.2 to 1 for values that depend on the cell otherwise (an isochoric invariant).
-J_FUNCTION_STEPS = 0.05
+#: value is predicted by its two neighbours in J (linear interpolation) to within a fraction of
+#: the values' spread (medians of both): about 1e-4 for a smooth function of J on the kits'
+#: meshes (7e-6 for a volumetric f'' slipped), 0.2 to 1 for values that depend on the cell
+#: otherwise (an isochoric invariant), and 0.026 for a term's f''(J) times its g(C) near rest
+#: (Gent's J^(-2/3) I1 term: a function of J times an I1 that barely varies). The line is
+#: :func:`j_function_line`: at least this, or ten times what a smooth function of J with the
+#: same trend leaves on the same cells (coarse meshes and steep functions interpolate worse).
+J_FUNCTION_STEPS = 1e-3
+
+
+def j_function_line(J: np.ndarray, values: np.ndarray) -> float:
+    """The most :func:`j_function_steps` may be for ``values`` (m,) to be one function of J (m,):
+    J_FUNCTION_STEPS, or ten times the steps of their cubic trend in J (a smooth function with
+    their shape, interpolated between the same cells), whichever is larger.
+    """
+    Jc = np.asarray(J, dtype=float) - float(np.mean(J))
+    scale = float(np.max(np.abs(Jc))) or 1.0
+    trend = np.polyval(np.polyfit(Jc / scale, np.asarray(values, dtype=float), 3), Jc / scale)
+    smooth = j_function_steps(J, trend)
+    return max(J_FUNCTION_STEPS, 10.0 * smooth) if np.isfinite(smooth) else J_FUNCTION_STEPS
 
 
 def j_function_steps(J: np.ndarray, values: np.ndarray) -> float:

@@ -197,6 +197,11 @@ def principal_block_findings(
         )
     if ok is None or all(n == "geometric stiffness" for n in ok.names):
         return []  # the geometric part alone is the run's own tangent parts' to say
+    if len(ok.names) > 1 and not all(_simple(c) for c in ok.coefficients):
+        # two blocks with a free coefficient each fit more than two blocks' slips (seen: the
+        # sign of MJED's antisymmetric d2J block, on a uniaxial state, fitted as the principal
+        # block's off-diagonal x 0.697 and the pair terms CC_abba x -1)
+        return []
     if _along_j_curvature(split, D, K0, tol.stiffness):
         return []
     words = " and ".join(describe_coefficient(n, c) for n, c in zip(ok.names, ok.coefficients))

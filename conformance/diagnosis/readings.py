@@ -108,7 +108,10 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
         names = ()
     if len(names) != len(labels):
         names = ()
+    from conformance.diagnosis.elements import cell_kinematics
+
     t = _target(out, s, tol)
+    J = np.linalg.det(cell_kinematics(ci.points, ci.cells, ci.positions)[2])
     return labels, TermCase(
         [r.force for r in refs],
         [r.stiffness for r in refs],
@@ -119,6 +122,7 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
         t.tol_force,
         t.tol_stiffness,
         names,
+        one_j=bool(np.ptp(J) <= 1e-6 * float(np.mean(np.abs(J)))),
     )
 
 
@@ -178,6 +182,29 @@ def term_reading(
     if not readings:
         return None
     a = fit.coefficients
+    volumetric = [
+        names[i]
+        for i in range(len(a))
+        if i < len(names) and names[i] and "volumetric term" in names[i] and abs(a[i] - 1.0) > 1e-6
+    ]
+    if len(volumetric) > 1 and all(c.one_j for c in cases):
+        # Two J-only terms scaled apart span any (U', U'') at one J: a sign lost in U'(J), a
+        # wrong U''(J), fit as two factors with no meaning (seen: - mu ln J x -0.475 and
+        # lam/2 (ln J)^2 x 1.22 for a sign slipped in d(mu ln J)/dJ).
+        return Reading(
+            Finding(
+                "term-coefficients-ambiguous",
+                "ambiguous: the volumetric terms "
+                + " and ".join(volumetric)
+                + " with other factors explain the error, but J is the same in every cell here, "
+                "where any change of U'(J) and U''(J) is such a combination",
+                OBSERVED,
+                f"f, K = {combo} leaves force and stiffness errors of {fit.residual:.1e}; a state "
+                "where J varies from cell to cell tells a wrong term factor from a wrong "
+                "derivative of U(J)",
+                figs,
+            )
+        )
     c0 = cases[0]
     f = sum(ai * fi for ai, fi in zip(a, c0.forces))
     K = sp.csr_matrix(sum(ai * sp.csr_matrix(Ki) for ai, Ki in zip(a, c0.stiffnesses)))

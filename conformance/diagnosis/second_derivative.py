@@ -29,7 +29,7 @@ from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
-from conformance.diagnosis.j_functions import J_FUNCTION_STEPS, j_function_steps
+from conformance.diagnosis.j_functions import j_function_line, j_function_steps
 
 __all__ = [
     "INVARIANTS",
@@ -197,7 +197,7 @@ def _one_function_of_j(points, cells, x, lam: np.ndarray) -> bool:
     """
     J = np.linalg.det(cell_kinematics(points, cells, x)[2])
     steps = j_function_steps(J, lam)
-    return bool(np.isfinite(steps) and steps <= J_FUNCTION_STEPS)
+    return bool(np.isfinite(steps) and steps <= j_function_line(J, lam))
 
 
 def _finding(name: str, residual: float, lam: np.ndarray) -> Finding:

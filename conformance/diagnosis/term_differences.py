@@ -183,6 +183,7 @@ def term_difference_finding(
     name, term = _term_words(finding)
     figures = {
         **finding.figures,
+        "invariant": name,  # the term's variable (J: consistent with one J's exact fits)
         "relative_to_term": fit.relative,
         "scheme": fit.scheme,
         "step": fit.step,

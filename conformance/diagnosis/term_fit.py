@@ -66,6 +66,9 @@ class TermCase:
     force_tol: float
     stiffness_tol: float
     names: Tuple[Optional[str], ...] = ()
+    #: J the same in every cell (a homogeneous state): the J-only terms' forces and stiffnesses
+    #: then span any change of U'(J) and U''(J) at that J, whatever its cause.
+    one_j: bool = False
 
 
 @dataclass(frozen=True)
@@ -167,6 +170,32 @@ def factor_words(a: float, close: float) -> Optional[str]:
     return None
 
 
+#: multiples k of a parameter p tried for a factor e^(k p): the rest shift of an exponential's
+#: argument (exp(p (X - 3)) = e^(-3 p) exp(p X)) lost (3), its sign flipped (6), halved...
+_EXPONENTS = (1.0, 1.5, 2.0, 3.0, 6.0, 0.5)
+
+
+def exponential_words(a: float, params: Dict[str, float], written: Sequence[str], close: float):
+    """Words for a factor a = e^(k p) (k in +-_EXPONENTS, p a parameter that the terms' written
+    formulas put inside an exponential), or None.
+    """
+    if a <= 0 or not any("exp(" in w for w in written):
+        return None
+    for p, v in params.items():
+        if not v or not any(p in w.split("exp(", 1)[-1] for w in written):
+            continue
+        for k in _EXPONENTS:
+            for sign in (1.0, -1.0):
+                if abs(np.log(a) - sign * k * v) <= close:
+                    said = ("" if sign > 0 else "-") + ("" if k == 1.0 else f"{k:g} ") + p
+                    return (
+                        f"scaled by {a:.6g} = e^({said}): a constant factor of the exponential "
+                        f"written wrongly (exp({p} (X - 3)) is e^(-3 {p}) exp({p} X): that "
+                        f"e^(-3 {p}) lost gives e^(3 {p}), written e^(+3 {p}) gives e^(6 {p}))"
+                    )
+    return None
+
+
 def describe_fit(
     fit: TermFit,
     labels: Sequence[Tuple[str, ...]],
@@ -231,7 +260,10 @@ def describe_fit(
             for q, vq in params.items()
             if q != p and vp and abs(ap - vq / vp) <= close * abs(vq / vp)
         ]
-        if other:
+        expo = exponential_words(ap, params, written, close)
+        if expo and not other:
+            readings.append(f"{'; '.join(written)}: {expo}")
+        elif other:
             readings.append(
                 f"{other[0]} used for {p}: the terms of {p} scaled by {ap:.6g} = "
                 f"{other[0]}/{p}{which}"
@@ -251,7 +283,10 @@ def describe_fit(
     for i in off:
         if i in done:
             continue
-        words = factor_words(float(a[i]), close)
+        written = [names[i]] if i < len(names) and names[i] else []
+        words = factor_words(float(a[i]), close) or exponential_words(
+            float(a[i]), params, written, close
+        )
         if words is None and abs(a[i] - 1.0) < 1e-3:
             words = f"slightly off (relative {a[i] - 1:+.2e}: a rounded constant?)"
         readings.append(f"{_label(i, labels, names)} {words or 'scaled'} (coefficient {a[i]:.6g})")
