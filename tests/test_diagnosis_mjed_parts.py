@@ -728,3 +728,40 @@ def _scaled_f1(inner, k):
             return f, k * f1, f2
 
     return Scaled()
+
+
+def test_a_block_weighted_per_cell_by_another_factor_is_named():
+    """Yeoh's J-Hessian blocks of every term with f(J) where f'(J) belongs, and Mooney-Rivlin's
+    cross blocks of every term formed with F^-T D_i for dJ_i (the factor J lost there): each
+    named with its block and factor; a factor 1 + 3 (J - 1)^2 in the cross blocks is not.
+    """
+    for name, kind, factor, said in (
+        ("Yeoh", "anti", "f/f'", "with f(J) where f'(J) belongs"),
+        ("MooneyRivlin", "cross", "1/J", "the factor J lost there"),
+        ("MooneyRivlin", "cross", "other", None),
+    ):
+        model, points, cells, x, split, f_o, K_o, s = _case(name, seed=10)
+        m = split.cells.shape[0]
+        Ke = np.zeros((m, 4, 3, 4, 3))
+        for g_i, group in enumerate(model.decomposition()):
+            for t_i in range(len(group.terms)):
+                t = _term(split, model, g_i, t_i)
+                dJ, FSD, J = t["dJ"], t["FSD"], t["J"]
+                if kind == "anti":
+                    if not np.any(t["f1"]):
+                        continue
+                    w = t["w"] * (t["f"] - t["f1"]) * t["g"] / J
+                    block = _outer(dJ, dJ) - np.einsum("mbi,maj->maibj", dJ, dJ)
+                else:
+                    ratio = 1.0 / J if factor == "1/J" else 1.0 + 3.0 * (J - 1.0) ** 2
+                    w = t["w"] * t["f1"] * (ratio - 1.0)
+                    block = _outer(dJ, FSD) + _outer(FSD, dJ)
+                Ke += w[:, None, None, None, None] * block
+        K = K_o + _assembled(split, Ke=Ke)[1]
+        found = _find(model, points, cells, x, f_o, K, f_o, K_o, s)
+        codes = [x.code for x in found]
+        if said:
+            assert codes == ["mjed-weighted-block"], [x.title for x in found]
+            assert said in found[0].title and "of every term" in found[0].title
+        else:
+            assert "mjed-weighted-block" not in codes, [x.title for x in found]

@@ -160,6 +160,9 @@ class Parts:
     #: by the one after over it, each force (3n,) and stiffness (p,) concatenated): what a
     #: difference quotient adds per unit of h/2 and of h^2/6.
     differences: Tuple[Tuple[str, str, np.ndarray, np.ndarray], ...] = ()
+    #: (words, engine minus right force (3n,), stiffness (p,)): a block of one term (or of
+    #: every term) weighted per cell by another factor (:data:`WEIGHTED_BLOCKS`), where J varies.
+    weighted: Tuple[Tuple[str, np.ndarray, np.ndarray], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -506,7 +509,96 @@ def mjed_parts(
         term_cells=_df_cells(terms, flat, V0, kinds=None),
         d2f_cells=_df_cells(terms, flat, V0, kinds=("JJ",)),
         differences=_difference_slots(model, points, cells, x, flat, V0, pat),
+        weighted=_weighted_blocks(model, flat, V0, J, pat),
     )
+
+
+#: blocks an engine builds in one place, and per-cell factors one such place may carry by
+#: mistake: (kinds, the block in words, {key: words}); keys: "1/J", "1/J^2", "J" (a factor J
+#: of dJ_i = J F^-T D_i lost, or one too many), "f/f'" (the function for its first derivative),
+#: "f'/f''" (the first derivative for the second).
+WEIGHTED_BLOCKS: Tuple[Tuple[Tuple[str, ...], str, Dict[str, str]], ...] = (
+    (
+        ("anti",),
+        "the antisymmetric J-Hessian block f'(J) g d2J",
+        {
+            "f/f'": "with f(J) where f'(J) belongs (f g d2J for f' g d2J)",
+            "1/J": "divided by J (a factor J of d2J lost)",
+            "J": "times J",
+        },
+    ),
+    (
+        ("cross-a", "cross-b"),
+        "both cross blocks f'(J) (dJ_i (F S D_j)^T + (F S D_i) dJ_j^T)",
+        {
+            "1/J": "formed with F^-T D_i where dJ_i = J F^-T D_i belongs (the factor J lost there)",
+            "J": "times J",
+            "f/f'": "with f(J) where f'(J) belongs",
+        },
+    ),
+    (
+        ("JJ",),
+        "the J-J block f''(J) g dJ_i dJ_j^T",
+        {
+            "1/J^2": "formed with F^-T D_i where dJ_i = J F^-T D_i belongs (J^2 lost there)",
+            "1/J": "divided by J",
+            "J": "times J",
+            "f'/f''": "with f'(J) where f''(J) belongs",
+        },
+    ),
+    (
+        ("geometric",),
+        "the geometric block f(J) (D_i . S D_j) Id",
+        {"J": "times J (the deformed volume J V0)", "1/J": "divided by J"},
+    ),
+)
+
+
+def _weighted_blocks(
+    model: Any, flat: list, V0: np.ndarray, J: np.ndarray, pat: "Pattern"
+) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
+    """Each block of :data:`WEIGHTED_BLOCKS`, of each term and of every term, weighted per cell
+    by each of its factors: (words, engine minus right force (3n,), stiffness (p,)). Nothing on
+    one J, where a factor per cell is a constant (the typed-apart readings' there).
+    """
+    m = len(J)
+    if np.ptp(J) <= 1e-6 * np.mean(np.abs(J)):
+        return ()
+    ratios: Dict[str, Dict[str, np.ndarray]] = {}
+    for group in model.decomposition():
+        for t in group.terms:
+            f, f1, f2 = (_per_cell(v, m) for v in t.f(J))
+            ratios[term_label(t) + _group_words(group)] = {
+                "1/J": 1.0 / J,
+                "1/J^2": J**-2.0,
+                "J": J,
+                "f/f'": _next_over(f, f1),
+                "f'/f''": _next_over(f1, f2),
+            }
+    out = []
+    zero_f = np.zeros(3 * pat.n)
+    for kinds, block, factors in WEIGHTED_BLOCKS:
+        for key, words in factors.items():
+            each = []
+            for label, r in ratios.items():
+                Ke = sum(
+                    (
+                        V0[:, None, None, None, None] * a
+                        for k, lab, a in flat
+                        if lab == label and k in kinds
+                    ),
+                    0.0,
+                )
+                if not np.any(Ke):
+                    continue
+                dK = pat.stiffness(np.broadcast_to(Ke, (m, 4, 3, 4, 3)), r[key] - 1.0)
+                if np.any(dK):
+                    each.append((label, dK))
+                    out.append((f"MJED {block} of the term {label} {words}", zero_f, dK))
+            if len(each) > 1:
+                total = np.sum([dK for _, dK in each], axis=0)
+                out.append((f"MJED {block} of every term {words}", zero_f, total))
+    return tuple(out)
 
 
 def _next_over(value: np.ndarray, this: np.ndarray) -> np.ndarray:
@@ -826,21 +918,30 @@ def _gradient(parts: Parts) -> List[Candidate]:
 
 
 def _dj(parts: Parts) -> List[Candidate]:
-    """DJ_VARIANTS: dJ_a written wrongly, in the force and every block built from it."""
-    return [
-        Candidate(
-            "mjed-dj",
-            f"MJED dJ/dx_i (dJ/dQ_i) written {words}, in the force and every stiffness block "
-            "built from it",
-            df,
-            dK,
-            {"part": "dJ", "variant": words},
-        )
-        for words, df, dK in parts.dj_variants
-    ] + [
-        Candidate("mjed-f-power", f"MJED {words}", df, dK, {"part": "f", "variant": words})
-        for words, df, dK in parts.power_copies
-    ]
+    """DJ_VARIANTS: dJ_a written wrongly, in the force and every block built from it; a block
+    weighted per cell by another factor (Parts.weighted).
+    """
+    return (
+        [
+            Candidate("mjed-weighted-block", words, df, dK, {"part": "weighted", "variant": words})
+            for words, df, dK in parts.weighted
+        ]
+        + [
+            Candidate(
+                "mjed-dj",
+                f"MJED dJ/dx_i (dJ/dQ_i) written {words}, in the force and every stiffness block "
+                "built from it",
+                df,
+                dK,
+                {"part": "dJ", "variant": words},
+            )
+            for words, df, dK in parts.dj_variants
+        ]
+        + [
+            Candidate("mjed-f-power", f"MJED {words}", df, dK, {"part": "f", "variant": words})
+            for words, df, dK in parts.power_copies
+        ]
+    )
 
 
 def _transposed(parts: Parts) -> List[Candidate]:
