@@ -559,6 +559,44 @@ def _shear_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]
     )
 
 
+def _extra_term_readings(ci, out, ref, s: Scales, tol: Tolerances) -> List[Reading]:
+    """One simple invariant term more or less than the oracle's energy
+    (:mod:`conformance.diagnosis.extra_terms`), a simple multiple of a parameter.
+    """
+    from conformance.diagnosis.extra_terms import extra_terms
+
+    params = scalar_parameters(ci.model)
+    if not params:
+        return []
+    found = extra_terms(
+        ci.points,
+        ci.cells,
+        ci.positions,
+        out.force,
+        out.stiffness,
+        np.asarray(ref.force),
+        ref.stiffness,
+        s,
+        tol,
+        params,
+    )
+    return [
+        Reading(
+            Finding(
+                "extra-term",
+                title,
+                FULL,
+                f"the oracle's force and stiffness plus {figs['coefficient']:.9g} times those of "
+                f"{figs['term']} (mjed's, one coefficient fitted) match the engine",
+                figs,
+            ),
+            f_p,
+            K_p,
+        )
+        for title, figs, f_p, K_p in found
+    ]
+
+
 def _constant_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
     """The exponents of J refitted (:mod:`conformance.diagnosis.constants`): a reading when the
     engine matches the formula with some of them changed.
@@ -788,6 +826,7 @@ def read(
     full += _parameter_readings(cache, ci, out, s, tol)
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
+    full += _extra_term_readings(ci, out, ref, s, tol)
     full, untold = _untold_parameters(full, observed)
     observed += untold
     causes = stress_only(merge_readings(_parameters_first(full), s), diag)
