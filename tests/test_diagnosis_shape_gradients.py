@@ -188,3 +188,19 @@ def test_the_gradient_of_the_positions_taken_for_that_of_the_displacements_is_na
         f, K, _ = engine(case)
     found = gradient_slip_findings(split, model, points, x, f.reshape(-1, 3), K, s, DOUBLE)
     assert [x.code for x in found] == ["F-identity-plus-positions"], [x.title for x in found]
+
+
+def test_a_rest_edge_taken_from_another_node_is_named():
+    """The rest edge matrix typed [X1 - X0, X2 - X0, X3 - X1]: M' = M (I - e1 e3^T), so the
+    engine's gradients are D'_0 = D_0 - D_3, D'_1 = D_1 + D_3, D'_2 = D_2, D'_3 = D_3 (its
+    volume right).
+    """
+    points, cells, x, model, split, f_o, K_o, s = _case(3)
+
+    def slipped(D):
+        return np.stack([D[:, 0] - D[:, 3], D[:, 1] + D[:, 3], D[:, 2], D[:, 3]], axis=1)
+
+    f, K = _svk_engine(points, cells, x, slipped)
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["rest-edge-3-from-node-1"], [x.title for x in found]
+    assert "X_3 - X_1 where X_3 - X_0 belongs" in found[0].title

@@ -63,6 +63,35 @@ REST_EDGES: dict = {
     ),
 }
 
+
+def _edge_from(c: int, j: int) -> Callable[[np.ndarray], np.ndarray]:
+    """M -> M' with rest edge c (1..3, the column X_c - X_0) written X_c - X_j (j = 1..3, not c):
+    a copy slip in the edge list. Its determinant is M's (a column minus another), so the
+    engine's V0 is right and only its gradients and F are not.
+    """
+
+    def edges(M: np.ndarray) -> np.ndarray:
+        Mp = M.copy()
+        Mp[:, :, c - 1] = M[:, :, c - 1] - M[:, :, j - 1]
+        return Mp
+
+    return edges
+
+
+REST_EDGES.update(
+    {
+        f"rest-edge-{c}-from-node-{j}": (
+            f"rest edge matrix with its edge {c} written X_{c} - X_{j} where X_{c} - X_0 belongs "
+            "(a copy slip in the edge list: the volume right, every shape-function gradient and "
+            "F wrong)",
+            _edge_from(c, j),
+        )
+        for c in (1, 2, 3)
+        for j in (1, 2, 3)
+        if j != c
+    }
+)
+
 #: Mirror of the rest coordinates (x -> -x): a rest cell whose nodes were permuted by an odd
 #: permutation is inverted; mirrored it is a valid cell, and an isotropic energy (or one whose
 #: frame is mirrored with it) does not change: W(F Q) = W(F) for every orthogonal Q.
