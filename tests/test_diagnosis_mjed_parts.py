@@ -765,3 +765,30 @@ def test_a_block_weighted_per_cell_by_another_factor_is_named():
             assert said in found[0].title and "of every term" in found[0].title
         else:
             assert "mjed-weighted-block" not in codes, [x.title for x in found]
+
+
+def test_readings_with_the_same_prediction_here_are_said_in_the_evidence():
+    """On a homogeneous stretch (one J) a forward-difference f' and f' times a constant are the
+    same prediction: one is named, the other said as equal in its evidence.
+    """
+    model = default_material("MooneyRivlin")
+    points, cells = box_mesh(2, jitter=0.2, seed=11)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    groups = [
+        dataclasses.replace(
+            g,
+            terms=tuple(
+                dataclasses.replace(t, f=_forward_f(t.f, 1e-4))
+                if getattr(t.f, "p", 0) == -2.0 / 3.0
+                else t
+                for t in g.terms
+            ),
+        )
+        for g in model.decomposition()
+    ]
+    _, f_w, K_w, _ = mjed_split(_Terms(tuple(groups)), points, cells, x)
+    found = _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)
+    assert len(found) == 1, [x.title for x in found]
+    assert "equally (the same prediction here)" in found[0].evidence
+    assert "forward difference" in found[0].title + found[0].evidence

@@ -1410,9 +1410,12 @@ def mjed_part_findings(
     cands = list(candidates(parts, r, w))
     if not force_right:
         cands += _j_tensor(model, points, cells, x, pat)
-    kept = explaining(cands, r, w, off, 3 * pat.n, tol)
+    same: Dict[int, List[str]] = {}
+    kept = explaining(cands, r, w, off, 3 * pat.n, tol, same)
     if kept or not force_alone or force_right:
-        return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s) for c, d in kept])
+        return ambiguous(
+            [_with_equals(part_finding(c, d, f, K, f_o, K_o, pat, s), same, c) for c, d in kept]
+        )
     # The force alone predicted: the stiffness carries a slip of its own (a hand tangent
     # written apart from the force), which a force part's derived blocks do not give.
     loose = replace(tol, stiffness=1e300)  # the stiffness not asked of the prediction
@@ -1426,6 +1429,17 @@ def mjed_part_findings(
         forces.append(c.force)
         found.append(force_only(part_finding(c, d, f, K, f_o, K_o, pat, s), k_right))
     return ambiguous(found)
+
+
+def _with_equals(found: Finding, same: Dict[int, List[str]], c: Any) -> Finding:
+    """``found`` with the readings whose prediction is the same here added to its evidence."""
+    equals = same.get(id(c))
+    if not equals:
+        return found
+    return replace(
+        found,
+        evidence=found.evidence + "; equally (the same prediction here): " + "; ".join(equals),
+    )
 
 
 def force_only(found: Finding, stiffness_right: bool) -> Finding:
@@ -1463,11 +1477,18 @@ def residual(
 
 
 def explaining(
-    cands: Any, r: np.ndarray, w: np.ndarray, off: float, n: int, tol: Tolerances
+    cands: Any,
+    r: np.ndarray,
+    w: np.ndarray,
+    off: float,
+    n: int,
+    tol: Tolerances,
+    same: Optional[Dict[int, List[str]]] = None,
 ) -> List[Tuple[Any, np.ndarray]]:
     """(candidate, its prediction (3n + p,)) of every candidate (with .force (n,) and .stiffness)
     whose prediction brings the residual r within ``tol``, in order; a prediction the same as
-    one kept (to _SAME of the residual) is left out: one cause said once.
+    one kept (to _SAME of the residual) is left out: one cause said once. same: filled with
+    id(kept candidate) -> the titles of those left out as its equals.
     """
     kept: List[Tuple[Any, np.ndarray]] = []
     scale = max(np.linalg.norm(r * w), 1e-300)
@@ -1477,7 +1498,10 @@ def explaining(
         ef, eK = np.linalg.norm(e[:n]), np.hypot(np.linalg.norm(e[n:]), off)
         if ef > tol.force or eK > tol.stiffness:
             continue
-        if any(np.linalg.norm((d - d2) * w) <= _SAME * scale for _, d2 in kept):
+        twin = next((k for k, d2 in kept if np.linalg.norm((d - d2) * w) <= _SAME * scale), None)
+        if twin is not None:
+            if same is not None and c.title != twin.title:
+                same.setdefault(id(twin), []).append(c.title)
             continue
         kept.append((c, d))
     return kept
