@@ -792,3 +792,19 @@ def test_readings_with_the_same_prediction_here_are_said_in_the_evidence():
     assert len(found) == 1, [x.title for x in found]
     assert "equally (the same prediction here)" in found[0].evidence
     assert "forward difference" in found[0].title + found[0].evidence
+
+
+def test_a_group_functions_rest_constant_lost_is_named():
+    """Gent's ln(1 + 3/Jm - I1b/Jm) declared ln(1 - I1b/Jm): the constant 3/Jm lost."""
+    from mjed.terms import Log
+
+    model = default_material("Gent")
+    groups = tuple(
+        dataclasses.replace(g, function=Log(1.0)) if isinstance(g.function, Log) else g
+        for g in model.decomposition()
+    )
+    _, points, cells, x, _, f_o, K_o, s = _case("Gent", seed=12)
+    _, _, _, _, _, f_w, K_w, _ = _case("Gent", seed=12, model=_Terms(groups))
+    found = _find(model, points, cells, x, f_w, K_w, f_o, K_o, s)
+    assert [x.code for x in found] == ["mjed-group-shift"], [x.title for x in found]
+    assert "3/Jm lost" in found[0].title

@@ -798,6 +798,58 @@ def _power_copies(model: Any, st: _State) -> Tuple[Tuple[str, np.ndarray, np.nda
     return tuple(out)
 
 
+def _shift_copies(model: Any, st: _State) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
+    """(words, force (3n,), stiffness (p,)): the constant (shift) of a group's function phi
+    written with a simple multiple of 1/p (p a parameter) lost or added, or as 0 or 1: the rest
+    constant of a shifted argument (Gent's ln(1 + 3/Jm - I1b/Jm) written ln(1 - I1b/Jm)), the
+    energy's formula changed, minus the right parts.
+    """
+    import dataclasses
+
+    from conformance.diagnosis.fractions import written_number
+
+    params = (
+        {
+            f.name: float(getattr(model, f.name))
+            for f in dataclasses.fields(model)
+            if isinstance(getattr(model, f.name, None), (int, float))
+        }
+        if dataclasses.is_dataclass(model)
+        else {}
+    )
+    groups = model.decomposition()
+    out = []
+    for i, g in enumerate(groups):
+        shift = getattr(g.function, "shift", None)
+        if shift is None or not dataclasses.is_dataclass(g.function):
+            continue
+        tried = {float(shift)}
+        options = []
+        for p, v in params.items():
+            if v:
+                for k in (3.0, -3.0, 1.0, -1.0):
+                    said = f"{written_number(abs(k))}/{p} {'lost' if k > 0 else 'added'}"
+                    options.append((shift - k / v, said))
+        for value, why in options + [(0.0, "written 0"), (1.0, "written 1")]:
+            if any(abs(value - t) <= 1e-12 * max(1.0, abs(t)) for t in tried):
+                continue
+            tried.add(value)
+            fn = dataclasses.replace(g.function, shift=value)
+            new = list(groups)
+            new[i] = replace(g, function=fn)
+            d = st.change(_Declared(tuple(new)))
+            if d is not None:
+                name = type(g.function).__name__.lower()
+                out.append(
+                    (
+                        f"the constant of the group c {name}(shift + u) written {value:.6g} where "
+                        f"{shift:.6g} belongs ({why}: the rest constant of a shifted argument)",
+                        *d,
+                    )
+                )
+    return tuple(out)
+
+
 def _powers(model: Any) -> Tuple[Tuple[str, float], ...]:
     """(label, q) of every term with f = J^q, q != 0."""
     from mjed.terms import JPower
@@ -938,7 +990,13 @@ def _dj(parts: Parts) -> List[Candidate]:
             for words, df, dK in parts.dj_variants
         ]
         + [
-            Candidate("mjed-f-power", f"MJED {words}", df, dK, {"part": "f", "variant": words})
+            Candidate(
+                "mjed-group-shift" if words.startswith("the constant of") else "mjed-f-power",
+                f"MJED {words}",
+                df,
+                dK,
+                {"part": "f", "variant": words},
+            )
             for words, df, dK in parts.power_copies
         ]
     )
@@ -1403,7 +1461,8 @@ def mjed_part_findings(
         # a term's f(J) with another power changes the force: read only where it is wrong
         f_sum = np.sum([p.force for p in parts.parts], axis=0)
         K_sum = np.sum([p.stiffness for p in parts.parts], axis=0)
-        copies = _power_copies(model, _State(points, cells, x, pat, f_sum, K_sum))
+        st = _State(points, cells, x, pat, f_sum, K_sum)
+        copies = _power_copies(model, st) + _shift_copies(model, st)
         parts = replace(parts, power_copies=copies)
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
