@@ -1325,12 +1325,16 @@ def _typed_apart(parts: Parts, r: np.ndarray, w: np.ndarray) -> List[Candidate]:
             if any(np.any(p.stiffness) for p in ps):
                 blocks[t] = (ps, np.sum([p.stiffness for p in ps], axis=0))
         for t, (ps, P) in blocks.items():
-            if (
-                one_j
-                and not on_one_j
+            if one_j and (
+                not on_one_j
                 and any(_parallel(P, Q) for u, (_, Q) in blocks.items() if u != t)
+                or any(
+                    _parallel(P, q.stiffness) for u, (qs, _) in blocks.items() if u != t for q in qs
+                )
             ):
-                continue  # one J: another term's blocks of these kinds have the same shape
+                # one J: another term's blocks of these kinds, or one of them (the J-Hessian
+                # blocks of all terms share one shape there), have the same shape
+                continue
             xs = P * w[n:]
             c = float(xs @ (r[n:] * w[n:]) / (xs @ xs))
             if not np.isfinite(c):
