@@ -558,12 +558,11 @@ def _weighted_blocks(
     model: Any, flat: list, V0: np.ndarray, J: np.ndarray, pat: "Pattern"
 ) -> Tuple[Tuple[str, np.ndarray, np.ndarray], ...]:
     """Each block of :data:`WEIGHTED_BLOCKS`, of each term and of every term, weighted per cell
-    by each of its factors: (words, engine minus right force (3n,), stiffness (p,)). Nothing on
-    one J, where a factor per cell is a constant (the typed-apart readings' there).
+    by each of its factors: (words, engine minus right force (3n,), stiffness (p,)). Each is an
+    exact prediction, nothing fitted, so it is tried on one J too (where the factor is one
+    number: the case where J varies tells it from a constant).
     """
     m = len(J)
-    if np.ptp(J) <= 1e-6 * np.mean(np.abs(J)):
-        return ()
     ratios: Dict[str, Dict[str, np.ndarray]] = {}
     for group in model.decomposition():
         for t in group.terms:
