@@ -577,17 +577,22 @@ def _weighted_blocks(
     out = []
     zero_f = np.zeros(3 * pat.n)
     for kinds, block, factors in WEIGHTED_BLOCKS:
+        # each term's blocks of these kinds per cell, V0-weighted: the same for every factor
+        blocks = {
+            label: sum(
+                (
+                    V0[:, None, None, None, None] * a
+                    for k, lab, a in flat
+                    if lab == label and k in kinds
+                ),
+                0.0,
+            )
+            for label in ratios
+        }
         for key, words in factors.items():
             each = []
             for label, r in ratios.items():
-                Ke = sum(
-                    (
-                        V0[:, None, None, None, None] * a
-                        for k, lab, a in flat
-                        if lab == label and k in kinds
-                    ),
-                    0.0,
-                )
+                Ke = blocks[label]
                 if not np.any(Ke):
                     continue
                 dK = pat.stiffness(np.broadcast_to(Ke, (m, 4, 3, 4, 3)), r[key] - 1.0)
