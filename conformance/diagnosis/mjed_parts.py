@@ -811,16 +811,9 @@ def _shift_copies(model: Any, st: _State) -> Tuple[Tuple[str, np.ndarray, np.nda
     import dataclasses
 
     from conformance.diagnosis.fractions import written_number
+    from conformance.diagnosis.parameters import scalar_parameters
 
-    params = (
-        {
-            f.name: float(getattr(model, f.name))
-            for f in dataclasses.fields(model)
-            if isinstance(getattr(model, f.name, None), (int, float))
-        }
-        if dataclasses.is_dataclass(model)
-        else {}
-    )
+    params = scalar_parameters(model)
     groups = model.decomposition()
     out = []
     for i, g in enumerate(groups):
