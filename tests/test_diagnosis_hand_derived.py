@@ -278,3 +278,85 @@ def test_dj_dc_without_its_j_is_named_and_not_in_the_stress_alone():
         ]
     d = _read(points, cells, x, *_neo_dj_without_j(points, cells, x, model, False), model)
     assert "derivative-dJ-without-J" not in [f.code for f in d.findings]
+
+
+def _mooney_isochoric_derivatives(F, model):
+    """Mooney-Rivlin's isochoric part c1 J^(-2/3) I1 + c2 J^(-4/3) I2 (the -3s are constants)
+    as a function of (I1, I2, J): its gradient (m, 3) and Hessian (m, 3, 3), per cell, with
+    C^-1 and the gradients g_a = dI_a/dC (m, 3, 3, 3).
+    """
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    a, b = model.c1 * J ** (-2.0 / 3.0), model.c2 * J ** (-4.0 / 3.0)
+    dW = np.stack([a, b, -2.0 / 3.0 * a * I1 / J - 4.0 / 3.0 * b * I2 / J], axis=1)
+    d2W = np.zeros((J.size, 3, 3))
+    d2W[:, 0, 2] = d2W[:, 2, 0] = -2.0 / 3.0 * a / J
+    d2W[:, 1, 2] = d2W[:, 2, 1] = -4.0 / 3.0 * b / J
+    d2W[:, 2, 2] = 10.0 / 9.0 * a * I1 / J**2 + 28.0 / 9.0 * b * I2 / J**2
+    Ci = np.linalg.inv(C)
+    eye = np.broadcast_to(EYE, C.shape)
+    g = np.stack([eye, I1[:, None, None] * eye - C, 0.5 * J[:, None, None] * Ci], axis=1)
+    return dW, d2W, g, J
+
+
+def _stress_change(points, cells, x, dS):
+    """The assembled force and geometric stiffness of a per-cell stress change dS (m, 3, 3)."""
+    V0, D, F = _kin(points, cells, x)
+    fe = -V0[:, None, None] * np.einsum("mkI,mIJ,maJ->mak", F, dS, D)
+    geo = np.einsum("maI,mIL,mbL,kl->makbl", D, dS, D, EYE)
+    return assemble(
+        cells, points.shape[0], fe, (V0[:, None, None, None, None] * geo).reshape(-1, 12, 12)
+    )
+
+
+def _mooney_hessian_scaled(points, cells, x, model, volumetric: bool):
+    """Mooney-Rivlin's tangent with the Hessian part 4 W_ab g_a (x) g_b of its isochoric energy
+    (with ``volumetric``: of the whole W, U'' g_J (x) g_J too) halved, as an engine whose
+    jets over (I1, I2, J) are contracted with 2 where 4 belongs.
+    """
+    f_o, K_o = _oracle(points, cells, x, model)
+    _, d2W, g, J = _mooney_isochoric_derivatives(_kin(points, cells, x)[2], model)
+    if volumetric:
+        d2W[:, 2, 2] += model.k0 * (1.0 - np.log(J)) / J**2
+    hessian = 4.0 * np.einsum("mab,maij,mbkl->mijkl", d2W, g, g)
+    return f_o, (K_o + _material(points, cells, x, -0.5 * hessian)).tocsr(), f_o, K_o
+
+
+def test_a_hessian_part_halved_is_named_with_the_part_it_sits_in():
+    model = _mooney()
+    for uniaxial in (False, True):
+        points, cells, x = _state(uniaxial)
+        for volumetric, scope in ((False, "iso"), (True, "all")):
+            case = _mooney_hessian_scaled(points, cells, x, model, volumetric)
+            d = _read(points, cells, x, *case, model)
+            assert [f.code for f in d.causes] == ["derivative-scaled-hessian"], [
+                f.title for f in d.findings
+            ]
+            cause = d.causes[0]
+            assert cause.figures["factor"] == 0.5 and cause.figures["scope"] == scope
+            assert "Hessian part" in cause.title and "halved" in cause.title
+
+
+def test_dj_dc_doubled_in_the_isochoric_chain_is_named_in_the_stress_and_the_tangent():
+    """dJ/dC = J C^-1 (the 1/2 lost) where the isochoric energy's derivatives are contracted,
+    the volumetric p J C^-1 right: the stress changes by 2 W_J g_J and the tangent's products
+    with g_J double (the g_J (x) g_J one fourfold); d2J/dC2 right.
+    """
+    model = _mooney()
+    for uniaxial in (False, True):
+        points, cells, x = _state(uniaxial)
+        f_o, K_o = _oracle(points, cells, x, model)
+        dW, d2W, g, _ = _mooney_isochoric_derivatives(_kin(points, cells, x)[2], model)
+        gw = g.copy()
+        gw[:, 2] *= 2.0
+        dS = 2.0 * dW[:, 2, None, None] * g[:, 2]
+        hess = lambda G: 4.0 * np.einsum("mab,maij,mbkl->mijkl", d2W, G, G)  # noqa: E731
+        df, dK = _stress_change(points, cells, x, dS)
+        K = K_o + dK + _material(points, cells, x, hess(gw) - hess(g))
+        d = _read(points, cells, x, f_o + df, sp.csr_matrix(K), f_o, K_o, model)
+        assert [f.code for f in d.causes] == ["derivative-scaled-dI2"], [
+            f.title for f in d.findings
+        ]
+        assert "J/2 C^-1" in d.causes[0].title and d.causes[0].figures["scope"] == "iso"

@@ -52,6 +52,10 @@ __all__ = [
     "predict",
     "piece_findings",
     "law_fit",
+    "SCALED_PIECES",
+    "SCALED_FACTORS",
+    "scaled_predictions",
+    "scaled_words",
 ]
 
 EYE = np.eye(3)
@@ -366,6 +370,114 @@ def predict(
     return d[:, :9].reshape(m, 3, 3), d[:, 9:].reshape(m, 3, 3, 3, 3)
 
 
+#: A chain-rule piece scaled: name -> its words; "dI{a}" (a gradient g_a wherever it enters,
+#: the stress and the tangent's products), "d2I{a}" (a second gradient h_a), "hessian" (the
+#: part 4 sum_ab W_ab g_a (x) g_b), "gradient" (the part 4 sum_a W_a h_a), "stress" (S alone).
+SCALED_PIECES: Dict[str, str] = {
+    "dI0": "dI1/dC = I",
+    "dI1": "dI2/dC = I1 I - C",
+    "dI2": "dJ/dC = J/2 C^-1",
+    "d2I1": "d2I2/dC2 = I (x) I - II (its term 4 W_2 d2I2/dC2)",
+    "d2I2": "d2J/dC2 = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1 (its term 4 W_J d2J/dC2)",
+    "hessian": "the Hessian part 4 sum_ab d2W/dI_a dI_b dI_a/dC (x) dI_b/dC of the tangent",
+    "gradient": "the second-gradient part 4 sum_a dW/dI_a d2I_a/dC2 of the tangent",
+    "stress": "the stress S = 2 sum_a dW/dI_a dI_a/dC (in the force and the geometric term)",
+}
+
+#: Multiplier -> words: the simple slips of a written factor.
+SCALED_FACTORS: Dict[float, str] = {
+    2.0: "doubled",
+    0.5: "halved",
+    0.0: "left out",
+    -1.0: "with its sign flipped",
+}
+
+#: For W = Psi(I1b, I2b) + U(J) (the isochoric form): which unknowns are the isochoric
+#: energy's (Psi_1, Psi_2, Psi_11, Psi_12, Psi_22) and which the volumetric's (U', U'').
+_ISOCHORIC_UNKNOWNS = np.array([True, True, False, True, True, True, False])
+
+#: scope -> words: where the scaled piece sits (the isochoric form's two parts, or all).
+SCOPES: Dict[str, str] = {
+    "iso": " in the isochoric part's chain rule (Psi(I1b, I2b) taken through I1, I2 and J; the "
+    "volumetric part right)",
+    "vol": " in the volumetric part U(J) (the isochoric part right)",
+    "all": "",
+}
+
+
+def scaled_words(piece: str, factor: float, scope: str) -> str:
+    """One scaled piece in words (the slip an engineer can look for)."""
+    if piece == "dI2" and factor == 2.0:
+        text = "dJ/dC written J C^-1 where J/2 C^-1 belongs (the 1/2 of dJ/dC lost)"
+    else:
+        text = f"{SCALED_PIECES[piece]} {SCALED_FACTORS[factor]}"
+    where = SCOPES[scope]
+    if piece.startswith("dI"):  # a gradient enters S and the tangent's products alike
+        where += ", in the stress and the tangent"
+    return text + where
+
+
+def _scopes(fit: PieceFit) -> Dict[str, np.ndarray]:
+    """The scopes that ``fit`` can tell apart: name -> (k,) booleans over its used unknowns."""
+    k = int(fit.used.sum())
+    out = {"all": np.ones(k, dtype=bool)}
+    if fit.form == "isochoric":
+        iso = _ISOCHORIC_UNKNOWNS[fit.used]
+        if iso.any() and (~iso).any():
+            out["iso"], out["vol"] = iso, ~iso
+    return out
+
+
+def _scaled(t: CellTensors, fit: PieceFit, piece: str, factor: float, inside: np.ndarray):
+    """(S (k, m, 3, 3), CC (k, m, 3, 3, 3, 3)) per unit of the unknowns, ``piece`` times
+    ``factor`` for the unknowns ``inside`` ((k,) booleans), right for the others.
+    """
+    g, h = _law(t)
+    dW, d2W = _basis(t, fit.form, "", fit.used)
+    G, H = np.stack(g, axis=1), np.stack(h, axis=1)
+    w = {"hessian": 1.0, "gradient": 1.0, "stress": 1.0}
+    if piece in w:
+        w[piece] = factor
+    elif piece.startswith("d2I"):
+        H = H.copy()
+        H[:, int(piece[3])] *= factor
+    else:
+        G = G.copy()
+        G[:, int(piece[2])] *= factor
+    S = 2.0 * w["stress"] * np.einsum("kma,maij->kmij", dW, G)
+    CC = 4.0 * (
+        w["hessian"] * np.einsum("kmab,maij,mbpq->kmijpq", d2W, G, G)
+        + w["gradient"] * np.einsum("kma,maijpq->kmijpq", dW, H)
+    )
+    S0, CC0 = stress_tangent(g, h, dW, d2W)
+    keep = ~inside
+    S[keep], CC[keep] = S0[keep], CC0[keep]
+    return S - S0, CC - CC0
+
+
+def scaled_predictions(t: CellTensors, fit: PieceFit):
+    """Every scaled piece's (piece, factor, scope, dS (m, 3, 3), dCC (m, 3, 3, 3, 3)): the
+    engine's minus the oracle's stress and tangent, where the fit determines it and it is not
+    zero.
+    """
+    m = t.J.size
+    for scope, inside in _scopes(fit).items():
+        for piece in SCALED_PIECES:
+            for factor in SCALED_FACTORS:
+                L = design_columns(*_scaled(t, fit, piece, factor, inside))
+                if not np.any(L):
+                    continue
+                d = determined_change(L, fit.x, fit.scale, fit.free)
+                if d is not None:
+                    yield (
+                        piece,
+                        factor,
+                        scope,
+                        d[:, :9].reshape(m, 3, 3),
+                        d[:, 9:].reshape(m, 3, 3, 3, 3),
+                    )
+
+
 def stress_tangent_output(
     split: ElementSplit, dS_force: np.ndarray, dS_geometric: np.ndarray, dCC: np.ndarray
 ) -> Tuple[np.ndarray, sp.csr_matrix]:
@@ -406,11 +518,13 @@ def piece_findings(
     matches: Callable[[np.ndarray, sp.csr_matrix], float],
     generic: Optional[CellTensors] = None,
     fit: Optional[PieceFit] = None,
+    scaled: bool = True,
 ) -> List[Finding]:
     """The mistaken pieces whose prediction the engine matches; matches(f, K) returns the
     larger relative error of the engine against (f, K), or inf when it does not match;
     generic: the law at a nearby state with distinct eigenvalues (:func:`law_fit`); fit: the
-    law's fit when made already (else :func:`law_fit` makes it).
+    law's fit when made already (else :func:`law_fit` makes it); scaled: also try one piece
+    times a simple number (:data:`SCALED_PIECES`) when no other mistake fits.
     """
     fit = law_fit(t, generic) if fit is None else fit
     if fit is None:
@@ -419,6 +533,11 @@ def piece_findings(
     if fit.form == "isochoric":
         trials += [("chain", c, w, dict(chain=c)) for c, w in CHAIN_MISTAKES.items()]
     found = []
+    evidence = (
+        "the oracle's stress and tangent per cell (from the element matrices, whose "
+        f"sum is the oracle's to {split.residual:.1e}) fitted on the chain rule's "
+        f"pieces ({fit.form} form, misfit {fit.residual:.1e}), "
+    )
     for _, code, title, kw in trials:
         pred = predict(t, fit, **kw)
         if pred is None:
@@ -432,12 +551,28 @@ def piece_findings(
                     f"derivative-{code}",
                     title,
                     FULL,
-                    "the oracle's stress and tangent per cell (from the element matrices, whose "
-                    f"sum is the oracle's to {split.residual:.1e}) fitted on the chain rule's "
-                    f"pieces ({fit.form} form, misfit {fit.residual:.1e}), that piece written "
-                    "wrongly and the rest kept: force and stiffness errors against your engine "
-                    f"{left:.1e}",
+                    evidence + "that piece written wrongly and the rest kept: force and "
+                    f"stiffness errors against your engine {left:.1e}",
                     {"piece": code, "form": fit.form, "residual": left},
+                )
+            )
+    if found or not scaled:
+        return found
+    # A written factor slipped (a 2 of 4 d2W, the 1/2 of dJ/dC): one piece times a simple
+    # number, tried only when no piece written another way fits, so that a slip above never
+    # comes back as its own multiple.
+    for piece, factor, scope, dS, dCC in scaled_predictions(t, fit):
+        f, K = stress_tangent_output(split, dS, dS, dCC)
+        left = matches(f, K)
+        if np.isfinite(left):
+            found.append(
+                Finding(
+                    f"derivative-scaled-{piece}",
+                    scaled_words(piece, factor, scope),
+                    FULL,
+                    evidence + f"that piece times {factor:g} and the rest kept: force and "
+                    f"stiffness errors against your engine {left:.1e}",
+                    {"piece": piece, "factor": factor, "scope": scope, "residual": left},
                 )
             )
     return found
