@@ -66,7 +66,10 @@ from conformance.diagnosis.strain_differences import strain_difference_reading
 from conformance.diagnosis.stress_side import stress_side_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.svd_blocks import svd_block_reading
-from conformance.diagnosis.term_differences import term_difference_reading
+from conformance.diagnosis.term_differences import (
+    pressure_difference_reading,
+    term_difference_reading,
+)
 from conformance.diagnosis.transposed_blocks import transposed_blocks_reading
 from conformance.diagnosis.variant_energy import variant_energy_reading
 from conformance.diagnosis.voigt_maps import voigt_map_reading
@@ -572,6 +575,12 @@ READINGS: Tuple[Reading, ...] = (
         "the energy computed with a mistaken frame or kinematics, the stress derived otherwise",
         _energy_wrong,
         lambda d, c: variant_energy_reading(d, c.cache, c.ci, c.out, c.probes, c.probe_results),
+    ),
+    Reading(
+        # before the J-only stress is said as such: that stress as a difference quotient
+        "the pressure U'(J) by differences of U (a J-only stress error, U'' right)",
+        _nothing_named,
+        lambda d, c: pressure_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "last: the J-only stress the energy denied",

@@ -17,7 +17,9 @@ from conformance.diagnosis.findings import FULL, Finding
 from conformance.diagnosis.second_derivative import curvature_basis, fit_invariant_curvature
 from conformance.diagnosis.term_differences import (
     cell_invariants,
+    energy_values,
     invariant_derivatives,
+    pressure_difference_finding,
     term_difference_finding,
     volumetric_slip_finding,
 )
@@ -62,6 +64,24 @@ def test_volumetric_f2_by_forward_differences_is_named_with_its_step():
     assert found.figures["scheme"] == "forward"
     assert abs(found.figures["step"] / h - 1) < 0.1, found.figures
     assert "finite differences" in found.title and found.strength == FULL
+
+
+def test_a_relative_step_is_told_from_an_absolute_one():
+    """U'' by forward differences of U' with a step proportional to J (h J), as engines write a
+    relative step, and with an absolute step: each named with its own kind of step.
+    """
+    model, points, cells, x, K_o = _state("MooneyRivlin", seed=4)
+    J = cell_invariants(cell_kinematics(points, cells, x)[2])["J"]
+    k0, h = model.k0, 1e-6
+    dU = lambda J: k0 * np.log(J) / J  # noqa: E731 - U = k0/2 (ln J)^2
+    d2U = k0 * (1.0 - np.log(J)) / J**2
+    for proportional, step in ((True, h * J), (False, h)):
+        K = _engine_K(points, cells, x, K_o, "J", (dU(J + step) - dU(J)) / step - d2U)
+        found = _restated(model, points, cells, x, K_o, K, "J", "volumetric")
+        assert found is not None and found.code == "finite-difference-term", found
+        assert found.figures["proportional"] is proportional, found.title
+        assert abs(found.figures["step"] / h - 1) < 0.1, found.figures
+        assert ("relative step" in found.title) is proportional, found.title
 
 
 def test_gent_log_curvature_by_central_differences_is_named():
@@ -159,3 +179,21 @@ def test_volumetric_quotient_rule_sign_slip_is_named_as_such():
         )
         is None
     )
+
+
+def test_a_pressure_by_differences_of_u_is_named_through_its_rounding():
+    """A mixed engine's p = (U(J + h) - U(J)) / h with h = 1e-8, in float64: truncation h/2 U''
+    and the quotient's rounding (x + h rounded, U's values rounded) of the same order. Named with
+    its step; the pressure scaled by 1 + 1e-6 (small, not a difference quotient) is not.
+    """
+    model, points, cells, x, _ = _state("MooneyRivlin", seed=5)
+    inv = cell_invariants(cell_kinematics(points, cells, x)[2])
+    J, k0, h = inv["J"], model.k0, 1e-8
+    U = lambda J: 0.5 * k0 * np.log(J) ** 2  # noqa: E731
+    dU = k0 * np.log(J) / J
+    derivs = invariant_derivatives(model, inv, "J")
+    values = energy_values(model, inv)
+    found = pressure_difference_finding((U(J + h) - U(J)) / h - dU, values, derivs, J, "fitted")
+    assert found is not None and found.code == "finite-difference-pressure", found
+    assert found.figures["scheme"] == "forward" and abs(found.figures["step"] / h - 1) < 0.3
+    assert pressure_difference_finding(1e-6 * dU, values, derivs, J, "fitted") is None

@@ -768,6 +768,7 @@ def _volumetric_findings(
                 "mjed-dfdj",
                 "mjed-d2f",
                 "stress-derivative-rewritten:J",
+                "finite-difference-pressure",
             ]
         title = (
             "volumetric (J-only) stress and tangent differ from the oracle's, but the engine's "
