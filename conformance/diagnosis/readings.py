@@ -564,10 +564,12 @@ def _extra_term_readings(ci, out, ref, s: Scales, tol: Tolerances) -> List[Readi
     (:mod:`conformance.diagnosis.extra_terms`), a simple multiple of a parameter.
     """
     from conformance.diagnosis.extra_terms import extra_terms
+    from conformance.diagnosis.variants import energy_expression
 
     params = scalar_parameters(ci.model)
     if not params:
         return []
+    expression = energy_expression(ci.model)
     found = extra_terms(
         ci.points,
         ci.cells,
@@ -579,6 +581,7 @@ def _extra_term_readings(ci, out, ref, s: Scales, tol: Tolerances) -> List[Readi
         s,
         tol,
         params,
+        expression[0] if expression else "",
     )
     return [
         Reading(
