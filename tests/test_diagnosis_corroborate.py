@@ -190,3 +190,21 @@ def test_a_full_cause_against_another_case_explained_partly_by_another_is_not_na
     same = _diag("random", [Finding("stress-coefficient", "volumetric x 1.2", PARTIAL, "fit")])
     out = corroborate([full, same], [[0, 1]], ["uniaxial", "random"])
     assert out[0] is full and out[1] is same
+
+
+def test_a_j_only_energy_named_on_a_single_j_takes_the_cause_another_case_tells_apart():
+    """A homogeneous state's single J fits a J-only energy change exactly, and as well every
+    gradient scaled (F = k F leaves I1b and I2b unchanged): named on the case where J varies,
+    the gradients' scale is given to the single-J case too; a cause it does not list is not.
+    """
+    from conformance.diagnosis.corroborate import extend_consistent, fits_codes
+
+    figs = {"fits_codes": ["volumetric", "gradients-scaled"]}
+    one_j = _diag("uniaxial", [Finding("volumetric", "J-only energy differs", FULL, "", figs)])
+    assert fits_codes(one_j) == {"volumetric", "gradients-scaled"}
+    scaled = Finding("gradients-scaled", "shape-function gradients twice", FULL, "exact")
+    out = extend_consistent([_diag("random", [scaled]), one_j], [[0, 1]], ["r", "u"])
+    assert out[1].findings[0].code == "gradients-scaled"
+    assert out[1].findings[0].figures["named_on"] == "r"
+    out = extend_consistent([_diag("random", [_cause()]), one_j], [[0, 1]], ["r", "u"])
+    assert out[1] is one_j

@@ -204,3 +204,17 @@ def test_a_rest_edge_taken_from_another_node_is_named():
     found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
     assert [x.code for x in found] == ["rest-edge-3-from-node-1"], [x.title for x in found]
     assert "X_3 - X_1 where X_3 - X_0 belongs" in found[0].title
+
+
+@pytest.mark.parametrize("factor", [2.0, 1.0 / 3.0])
+def test_every_gradient_scaled_is_named_with_its_factor(factor):
+    """D'_a = k D_a for every node (a face area without its 1/2: k = 2), the rest volume
+    right: F = k F at rest too. Named with k; a scale no engine writes (1.01) is not.
+    """
+    points, cells, x, model, split, f_o, K_o, s = _case(4)
+    f, K = _svk_engine(points, cells, x, lambda D: factor * D)
+    found = shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == ["gradients-scaled"], [x.title for x in found]
+    assert abs(found[0].figures["factor"] - factor) < 1e-12
+    f, K = _svk_engine(points, cells, x, lambda D: 1.01 * D)
+    assert shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE) == []

@@ -112,9 +112,13 @@ def fits_codes(diagnosis) -> set:
     group, where the state tells them apart: it does not contradict that cause.
     """
     d = diagnosis
-    if d is None or not d.findings or d.findings[0].code != "unexplained":
+    if d is None or not d.findings:
         return set()
-    return set(d.findings[0].figures.get("fits_codes", ()))
+    head = d.findings[0]
+    if head.code == "unexplained" or (head.code == "volumetric" and head.strength == FULL):
+        # a J-only energy named on a single J is one of the causes that state cannot separate
+        return set(head.figures.get("fits_codes", ()))
+    return set()
 
 
 def _fits(cause: Finding, fits: set) -> bool:

@@ -47,6 +47,7 @@ __all__ = [
     "permuted_edges",
     "exploded_output",
     "shape_gradient_findings",
+    "GRADIENT_SCALES",
     "GRADIENT_SLIPS",
     "GradientOutput",
     "gradient_output",
@@ -237,7 +238,75 @@ def shape_gradient_findings(
                     {"residual": max(e.force, e.stiffness)},
                 )
             )
-    return ambiguous(found)
+    return ambiguous(
+        found or _scaled_gradient_findings(split, model, points, positions, f, K, s, tol)
+    )
+
+
+#: Factor -> how an engine gets its shape-function gradients that many times too large: D_a =
+#: A_a n_a / (3 V0) with the face's area vector a full cross product (the 1/2 of a triangle's
+#: area lost: 2), the gradients of a reference element scaled for another (1/2, 3, 1/3, 6, 1/6:
+#: a volume with 1/6 for 1/2, or back).
+GRADIENT_SCALES: Dict[float, str] = {
+    2.0: "twice the right ones (e.g. each face's area vector taken as the full cross product of "
+    "its edges, the 1/2 of a triangle's area lost, in D_a = A_a n_a / (3 V0))",
+    0.5: "half the right ones (e.g. a face's area vector halved twice)",
+    3.0: "three times the right ones (e.g. a volume with 1/6 for 1/2 in the divisor)",
+    1.0 / 3.0: "a third of the right ones (e.g. a volume with 1/2 for 1/6 in the divisor)",
+    6.0: "six times the right ones (the rest volume's 1/6 lost in the divisor)",
+    1.0 / 6.0: "a sixth of the right ones (a 1/6 applied twice)",
+}
+
+
+def _scaled_gradient_findings(
+    split: ElementSplit,
+    model: Any,
+    points: np.ndarray,
+    positions: np.ndarray,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """Every gradient D_a scaled by one factor k, the rest volume right: F' = k F (not I at
+    rest), force -V0 P(k F) k D_a, matrix V0 k^2 D_a . A(k F) . D_b. MJED on cells whose rest
+    edges are M / k has exactly those gradients and the volume V0 / k^3, so its output times
+    k^3 is the engine's, nothing fitted.
+    """
+    found = []
+    for k, words in GRADIENT_SCALES.items():
+        with np.errstate(all="ignore"):
+            out = exploded_output(
+                model,
+                points,
+                split.cells,
+                positions,
+                lambda M, k=k: M / k,
+                keep_force=lambda fh, k=k: bool(
+                    np.linalg.norm(f - k**3 * fh)
+                    <= 1e3 * tol.force * max(s.force, float(np.linalg.norm(f)))
+                ),
+            )
+        if out is None:
+            continue
+        fh, Kh = k**3 * out[0], k**3 * out[1]
+        e = errors(f, sp.csr_matrix(K), None, fh, Kh, 0.0, grown(s, fh, Kh))
+        if not tol.within(e, energy=False):
+            continue
+        found.append(
+            Finding(
+                "gradients-scaled",
+                f"shape-function gradients (the shape vectors D_a) {words}, the rest volume "
+                f"right: F = {k:.3g} F_true (not the identity at rest)",
+                FULL,
+                f"MJED (whose sum is the oracle's to {split.residual:.1e} on this case) on cells "
+                f"with rest edges M / {k:.3g}, whose gradients those are, its output times "
+                f"{k**3:.4g} for their volume: force error {e.force:.1e}, stiffness error "
+                f"{e.stiffness:.1e}",
+                {"residual": max(e.force, e.stiffness), "factor": k},
+            )
+        )
+    return found
 
 
 #: (split, x) -> (D' (m, 4, 3), V' (m,), F' (m, 3, 3) or None: sum_a x_a D'_a^T).
