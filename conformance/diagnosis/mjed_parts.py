@@ -1596,7 +1596,9 @@ def mjed_part_reading(
     """``diag`` with the MJED part reading named first when one explains the engine; unchanged
     otherwise. A material mjed cannot split (or too large a mesh) gets
     :func:`conformance.diagnosis.j_hessian_block.j_hessian_reading` instead, from the declared
-    energy's formula. force_alone: see :func:`mjed_part_findings`.
+    energy's formula. force_alone: see :func:`mjed_part_findings`. Where nothing is found on the
+    model's own terms, its power groups expanded term by term
+    (:mod:`conformance.diagnosis.expanded_terms`) are read the same way.
     """
     case = (ci.points, ci.cells, ci.positions, out.force, out.stiffness, ref.force, ref.stiffness)
     found = mjed_part_findings(ci.model, *case, s, diag.tolerances, force_alone)
@@ -1605,5 +1607,24 @@ def mjed_part_reading(
             return diag
         return j_hessian_reading(diag, ci, out, ref, s)
     if not found:
+        found = _expanded_findings(ci.model, case, s, diag.tolerances, force_alone)
+    if not found:
         return diag
     return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
+
+
+def _expanded_findings(model: Any, case: tuple, s: Scales, tol: Tolerances, force_alone: bool):
+    """The part readings on ``model`` with its power groups expanded, each said so; [] when
+    nothing expands or nothing is found.
+    """
+    from conformance.diagnosis.expanded_terms import expanded_model
+
+    expanded = expanded_model(model)
+    if expanded is None:
+        return []
+    found = mjed_part_findings(expanded, *case, s, tol, force_alone) or []
+    said = (
+        " (the energy's power groups expanded term by term, c (I1b - 3)^k by the binomial "
+        "theorem into terms J^(-2j/3) I1^j, as your engine writes them)"
+    )
+    return [replace(f, title=f.title + said) for f in found]
