@@ -192,3 +192,16 @@ def test_on_a_single_j_a_tangent_term_along_c_inverse_squared_names_neither_read
     assert full == [] and [x.code for x in partial] == ["volumetric"]
     assert "U''(J), or another term" in partial[0].title
     assert "too few distinct J" in partial[0].title
+
+
+def test_a_tangent_part_off_by_a_simple_factor_is_said_in_words():
+    """A part's error coefficient -1/2 (a factor 2 lost) is said "halved", and -1, +1, -2 as
+    before; any other coefficient as the scale it gives.
+    """
+    from conformance.diagnosis.tangent import describe_coefficient
+
+    assert "isochoric material tangent halved" in describe_coefficient(
+        "isochoric material tangent", -0.5
+    )
+    assert "missing" in describe_coefficient("geometric", -1.0)
+    assert "scaled by 1.3" in describe_coefficient("geometric", 0.3)

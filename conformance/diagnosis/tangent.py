@@ -126,7 +126,12 @@ def fit_parts(
 
 
 def describe_coefficient(name: str, c: float) -> str:
-    for value, words in ((-1.0, "missing"), (1.0, "counted twice"), (-2.0, "with the wrong sign")):
+    for value, words in (
+        (-1.0, "missing"),
+        (1.0, "counted twice"),
+        (-2.0, "with the wrong sign"),
+        (-0.5, "halved"),  # a factor 2 lost (CC = 4 d2W/dC2 written with the stress's 2)
+    ):
         if abs(c - value) < 1e-6:
             return f"{name} {words} (coefficient {c:+.6g})"
     return f"{name} scaled by {1 + c:.6g} (error coefficient {c:+.6g})"
