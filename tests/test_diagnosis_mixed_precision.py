@@ -11,23 +11,28 @@ import pytest
 from conftest import box_mesh, mjed_split
 from diagnosis_stubs import cell_gradients
 
-from conformance.diagnosis.mixed_precision import mixed_precision_finding, noise
+from conformance.diagnosis.mixed_precision import (
+    mixed_precision_finding,
+    noise,
+    rest_rounding_finding,
+)
 from mjed import materials as M
 from reference_fem import dolfinx_available
 
 MU, LAM = 1.0, 2.0
 
 
-def _svk_force(points, cells, x, *, f32=False, p32=False, mu=MU, noise_rng=None):
+def _svk_force(points, cells, x, *, f32=False, p32=False, mu=MU, noise_rng=None, d32=False):
     """Force (n, 3) of W = lam/2 (tr E)^2 + mu tr(E^2); f32: C handed to the material in
     float32 (S computed in float32); p32: the first Piola stress P = F S kept in a float32
     field, the rest double; noise_rng: S given random relative noise of float32's size instead
-    (noise that is not rounding, e.g. an iteration's tolerance).
+    (noise that is not rounding, e.g. an iteration's tolerance); d32: the shape-function
+    gradients from the rest edge matrix inverted in float32 (a single-precision mesh buffer).
     """
     X = points[cells]
     Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
     V0 = np.linalg.det(Mt) / 6.0
-    Minv = np.linalg.inv(Mt)
+    Minv = np.linalg.inv(Mt.astype(np.float32)).astype(float) if d32 else np.linalg.inv(Mt)
     D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
     F = np.einsum("mai,maj->mij", x[cells], D)
     C = np.einsum("mki,mkj->mij", F, F)
@@ -222,3 +227,17 @@ def test_a_tangent_in_float32_with_a_double_exact_force_is_named(uniform):
         e = np.abs(K - K_o).max() / np.abs(K_o).max()
         assert 1e-10 < e < 1e-6  # a failing tangent of float32's size
         assert found(wrong) is None
+
+
+def test_rest_gradients_inverted_in_float32_are_named_and_rounding_in_the_material_is_not():
+    """The rest edge matrix inverted in float32, the rest double: the error is that inverse's
+    own, fixed at the probes; named as rest data. C in float32 (drawn anew at the probes) is
+    not rest data, and a correct engine has nothing to name.
+    """
+    points, cells, x, model, split, f_o, probes = _setup(1)
+    error, at_probes = _errors(points, cells, x, probes, d32=True)
+    found = rest_rounding_finding(split, model, points, x, error, at_probes)
+    assert found is not None and found.code == "single-precision-rest-data", found
+    assert "inverse rest edge matrix" in found.title
+    error, at_probes = _errors(points, cells, x, probes, f32=True)
+    assert rest_rounding_finding(split, model, points, x, error, at_probes) is None

@@ -53,6 +53,8 @@ __all__ = [
     "rounded_elements_finding",
     "rounded_elements_reading",
     "rounded_tangent_finding",
+    "rest_rounding_patterns",
+    "rest_rounding_finding",
 ]
 
 #: A probe's error counts as drawn anew when it differs from the case's by more than
@@ -285,6 +287,98 @@ def mixed_precision_finding(
     )
 
 
+#: A rest-data rounding is fixed, not drawn anew: it is named on a correlation this strong.
+REST_CORRELATION = 0.9
+
+
+def rest_rounding_patterns(
+    split: ElementSplit, model: Any, points: np.ndarray, positions: np.ndarray
+) -> Dict[str, np.ndarray]:
+    """The force change (n, 3) of the shape-function gradients D_a (the inverse rest edge
+    matrix) held in float32, computed in double through MJED's stress at F' = sum_a x_a D'_a:
+    every D_a rounded ("D"), D_1..D_3 rounded and D_0 = -(D_1 + D_2 + D_3) from them
+    ("D-sum"), or D_1..D_3 the inverse of the rest edge matrix computed in float32 (LAPACK's
+    single-precision solve, as a float32 mesh buffer is inverted) and D_0 from them
+    ("D-inverse"); a pattern MJED cannot evaluate is left out.
+    """
+    from conformance.diagnosis.routine_inputs import piola_at
+
+    D, V0, cells, n = split.D, split.V0, split.cells, split.n
+    x = positions[cells]
+    rounded = _f32(D)
+    summed = rounded.copy()
+    summed[:, 0] = -rounded[:, 1:].sum(axis=1)
+    X = points[cells]
+    M = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)  # columns: the rest edges X_a - X_0
+    inverse = np.empty_like(D)
+    inverse[:, 1:] = np.linalg.inv(M.astype(np.float32)).astype(np.float64)
+    inverse[:, 0] = -inverse[:, 1:].sum(axis=1)
+    at = piola_at(model, points, split, split.F)
+    if at is None:
+        return {}
+    f0 = assemble(cells, n, piola_element_forces(V0, D, at[0]), None)[0]
+    out = {}
+    for name, Dp in (("D", rounded), ("D-sum", summed), ("D-inverse", inverse)):
+        at = piola_at(model, points, split, np.einsum("mak,mai->mki", x, Dp))
+        if at is not None:
+            out[name] = assemble(cells, n, piola_element_forces(V0, Dp, at[0]), None)[0] - f0
+    return out
+
+
+def rest_rounding_finding(
+    split: ElementSplit,
+    model: Any,
+    points: np.ndarray,
+    positions: np.ndarray,
+    error: np.ndarray,
+    probe_errors: Optional[List[np.ndarray]],
+) -> Optional[Finding]:
+    """The finding naming the rest gradients held in float32 (a mesh's single-precision
+    buffers), or None without the evidence: the force error correlates with that rounding's
+    own pattern (:func:`rest_rounding_patterns`) at :data:`REST_CORRELATION` or more, far above
+    chance, of a size within :data:`SIZE_FACTOR` of it; and, unlike rounding in the material
+    routine, it is not drawn anew at the probes (the rest data do not move).
+    """
+    patterns = rest_rounding_patterns(split, model, points, positions)
+    if not patterns:
+        return None
+    r = {k: _correlation(np.ravel(error), np.ravel(d)) for k, d in patterns.items()}
+    best = max(r, key=lambda k: r[k])
+    size = np.linalg.norm(error) / max(np.linalg.norm(patterns[best]), 1e-300)
+    chance = chance_correlation(split, error)
+    if r[best] < max(REST_CORRELATION, SIGNIFICANT * chance):
+        return None
+    if not (1.0 / SIZE_FACTOR <= size <= SIZE_FACTOR):
+        return None
+    nz = noise(error, probe_errors) if probe_errors else None
+    if nz is not None and nz.noisy:
+        return None
+    steady = (
+        ""
+        if nz is None
+        else "; the error is the same at every probe x + h d to about h (fixed rest data, not "
+        "rounding drawn anew in the material routine)"
+    )
+    how = {
+        "D": "the shape-function gradients (the inverse rest edge matrix) rounded to float32",
+        "D-sum": "the shape-function gradients (the inverse rest edge matrix) rounded to "
+        "float32, node 0's summed from the others",
+        "D-inverse": "the inverse rest edge matrix computed in float32 (the shape-function "
+        "gradients from a single-precision inverse)",
+    }[best]
+    return Finding(
+        "single-precision-rest-data",
+        "the rest data of your double-precision engine held in single precision (float32): "
+        f"its error is that of {how}, F and everything after in double",
+        FULL,
+        f"the force error correlates with the error those gradients make, computed "
+        f"exactly per cell (r = {r[best]:.3f}; by chance about {chance:.2f}), and is "
+        f"{size:.2g} times its size (an inverse computed in float32 rounds more than once)"
+        f"{steady}; the balance laws hold, so the outputs were not stored in float32",
+        {"correlations": {k: float(v) for k, v in r.items()}, "size_ratio": float(size)},
+    )
+
+
 #: What an engine may hold in float32 between its element routine and a double assembly.
 _ELEMENT_BUFFERS = {
     (True, False): "the element force vectors",
@@ -463,7 +557,7 @@ def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results)
     with np.errstate(all="ignore"):
         found = mixed_precision_finding(
             split, ci.model, ci.points, ci.positions, error, probe_errors
-        )
+        ) or rest_rounding_finding(split, ci.model, ci.points, ci.positions, error, probe_errors)
     if found is None:
         return diag
     return replace(diag, findings=[found, *(f for f in diag.findings if f.code != "unexplained")])
