@@ -41,6 +41,7 @@ RIGHT = dict(
     proj_t=False,  # P = II - 1/3 C (x) C^-1
     k0=1.0,  # U' and U'' times k0
     psi11=1.0,  # psi11 times psi11 in the fictitious tangent
+    proj_double=1.0,  # P : CC~ : P^T written out, its 1/9 (C : CC~ : C) C^-1 (x) C^-1 times this
 )
 
 
@@ -99,6 +100,8 @@ def holzapfel(model, points, cells, x, **mistake):
     Pt = _odot(Ci, Ci) + c["ptilde"] * _outer(Ci, Ci)
     trS = Jm23 * np.einsum("mij,mij->m", Sbar, C)
     CC_iso = np.einsum("mijab,mabcd,mklcd->mijkl", Proj, w(Jm23**2) * CCbar, Proj)
+    CCt_C = np.einsum("mij,mijkl,mkl->m", C, w(Jm23**2) * CCbar, C)  # C : CC~ : C
+    CC_iso = CC_iso + (c["proj_double"] - 1.0) * w(CCt_C / 9.0) * _outer(Ci, Ci)
     CC_iso = CC_iso + c["trace"] * w(trS) * Pt
     CC_iso = CC_iso + c["coupling"] * (_outer(Ci, S_iso) + _outer(S_iso, Ci))
     S, CC = S_vol + S_iso, CC_vol + CC_iso
@@ -208,6 +211,12 @@ MISTAKES = [
         "Demiray",
         ("J^(-2/3) applied twice",),
         dict(sbar_power=-0.6),
+    ),
+    (
+        dict(proj_double=0.0),
+        "Demiray",
+        ("double contraction 1/9 (C : CC~ : C)", "left out"),
+        dict(proj_double=0.1),
     ),
 ]
 

@@ -282,6 +282,15 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
     carried["dev"] = (dS, dS, coupling(dS))
     for k, T in CCbar.items():
         carried["CCbar-" + k] = (None, None, _project(proj, Jm43 * T))
+    # P : CC~ : P^T written out (P = II - 1/3 C^-1 (x) C): CC~, its single contractions
+    # -1/3 (C^-1 (x) (C : CC~) + (CC~ : C) (x) C^-1), and the double one 1/9 (C : CC~ : C)
+    # C^-1 (x) C^-1; engines that expand it (spatially, c_bar's traces) drop or slip one
+    left = np.einsum("mij,mijkl->mkl", C, CCt)  # C : CC~
+    right = np.einsum("mijkl,mkl->mij", CCt, C)  # CC~ : C
+    single = -(_outer(Ci, left) + _outer(right, Ci)) / 3.0
+    double = _col4(np.einsum("mij,mij->m", left, C) / 9.0) * _outer(Ci, Ci)
+    carried["proj-single"] = (None, None, single)
+    carried["proj-double"] = (None, None, double)
     return part, carried
 
 
@@ -458,6 +467,12 @@ PIECES: Dict[str, str] = {
     "Sbar-Cb-psi2": "the psi2 part -2 psi2 C_bar of the fictitious stress S_bar",
     "Sbar-psi2": "the psi2 parts 2 psi2 (I1b I - C_bar) of the fictitious stress S_bar",
     "dev": "the deviator's -1/3 (S_bar : C) C^-1 in S_iso = J^(-2/3) DEV(S_bar)",
+    "proj-single": "the single contractions -1/3 (C^-1 (x) (C : CC~) + (CC~ : C) (x) C^-1) of "
+    "the projection P : CC~ : P^T written out (CC~ = J^(-4/3) CC_bar; spatially the "
+    "-1/3 (I (x) (c_bar : I) + (I : c_bar) (x) I) of P : c_bar : P)",
+    "proj-double": "the double contraction 1/9 (C : CC~ : C) C^-1 (x) C^-1 of the projection "
+    "P : CC~ : P^T written out (CC~ = J^(-4/3) CC_bar; spatially the 1/9 (I : c_bar : I) "
+    "I (x) I of P : c_bar : P)",
     "S_iso-all": "the isochoric stress S_iso = J^(-2/3) DEV(S_bar)",
 }
 
