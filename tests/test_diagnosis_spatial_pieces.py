@@ -65,9 +65,9 @@ def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT):
     return _assemble(points, cells, D @ np.linalg.inv(F), J * np.abs(V0), s, c_e)
 
 
-def _neo_engine(points, cells, x, weight=-1.0):
-    """(f, K) of a Neo-Hookean engine written with c = lam/J I (x) I + 2 (mu + weight lam ln J)/J
-    II (the right: weight -1).
+def _neo_engine(points, cells, x, weight=-1.0, two=2.0):
+    """(f, K) of a Neo-Hookean engine written with c = lam/J I (x) I + two (mu + weight lam ln J)
+    /J II (the right: weight -1, two 2).
     """
     from mjed.mesh import shape_vectors
 
@@ -79,7 +79,7 @@ def _neo_engine(points, cells, x, weight=-1.0):
     lnJ = np.log(J)[:, None, None]
     s = (mu * (F @ F.swapaxes(1, 2) - EYE) + lam * lnJ * EYE) / J[:, None, None]
     II = 0.5 * (np.einsum("ik,jl->ijkl", EYE, EYE) + np.einsum("il,jk->ijkl", EYE, EYE))
-    k = (2.0 * (mu + weight * lam * np.log(J)) / J)[:, None, None, None, None]
+    k = (two * (mu + weight * lam * np.log(J)) / J)[:, None, None, None, None]
     c_e = (lam / J)[:, None, None, None, None] * np.einsum("ij,kl->ijkl", EYE, EYE) + k * II
     return _assemble(points, cells, D @ np.linalg.inv(F), J * np.abs(V0), s, c_e)
 
@@ -166,4 +166,16 @@ def test_one_isotropic_term_with_its_sign_flipped_is_named_and_another_weight_is
     codes, titles = _causes(law="NeoHookean", weight=-0.3)
     assert "spatial-isotropic-term" not in codes, titles
     codes, titles = _causes(law="NeoHookean", weight=1.0, uniform=True)
+    assert "spatial-isotropic-term" not in codes, titles
+
+
+@pytest.mark.parametrize("uniform", [False, True])
+def test_the_identity_term_with_its_factor_two_lost_is_named_on_any_state(uniform):
+    """2 (mu - lam ln J)/J II written (mu - lam ln J)/J II: both of II's pieces halved, named as
+    the II term halved where J varies and, the tensors still apart, where it does not.
+    """
+    codes, titles = _causes(law="NeoHookean", two=1.0, uniform=uniform)
+    assert codes == ["spatial-isotropic-term"], titles
+    assert "II term of the isotropic spatial tangent halved" in titles[0], titles
+    codes, titles = _causes(law="NeoHookean", two=1.3, uniform=uniform)
     assert "spatial-isotropic-term" not in codes, titles

@@ -29,8 +29,10 @@ Neo-Hookean forms, c = lam/J I (x) I + 2 (mu - lam ln J)/J II) has its terms fit
 way over the pieces of :data:`ISOTROPIC` (I (x) I and II times 1/J and ln J / J):
 :func:`isotropic_fit_findings` fits the oracle's c and the engine's, and names one term taken
 wrong (:data:`RATIOS`: sign flipped, dropped, doubled, halved) when the oracle's c lies in the
-pieces' span and that term so, nothing else changed, matches the engine. On a state whose cells
-share one J the pieces coincide (1/J and ln J / J are one column there) and nothing is named;
+pieces' span and that term so, nothing else changed, matches the engine; where no single
+piece does, all pieces of one tensor by one ratio (a coefficient's 2 lost: 2 (mu - lam ln J)/J
+II written once). On a state whose cells share one J the pieces of a tensor coincide (1/J and
+ln J / J are one column there): only a whole tensor's coefficient taken wrong is named there;
 a law outside that span (any with b in its tangent) is not read this way.
 """
 
@@ -281,7 +283,7 @@ def isotropic_fit_findings(
     t = spatial_cells(split, cells.S, cells.CC)
     J = t.v / split.V0
     if np.ptp(J) <= ONE_J * np.abs(J).max():
-        return []
+        return _one_j_tensor_findings(split, t, K_engine, matches)
     tensors = [q(J)[:, None, None, None, None] * T for _, q, T in ISOTROPIC.values()]
     Ke = np.stack([_stiffness(t, p) for p in tensors])
     fit = _fit(split, t, Ke, K_engine)
@@ -319,6 +321,94 @@ def isotropic_fit_findings(
                     f"{', '.join(f'{v:.6g}' for v in beta)}); that term {RATIOS[ratio]} and "
                     f"the rest kept: errors against your engine {left:.1e}",
                     {"term": code, "ratio": ratio, "residual": left},
+                )
+            )
+    return found or _tensor_findings(split, Ke, alpha, beta, matches, parameters)
+
+
+#: The pieces of :data:`ISOTROPIC` by the tensor they carry: a coefficient written once for a
+#: tensor (2 (mu - lam ln J)/J II with its 2 lost) changes all of that tensor's pieces alike.
+TENSORS = {"II": ("II/J", "lnJ II/J"), "I (x) I": ("IxI/J", "lnJ IxI/J")}
+
+
+def _tensor_findings(split, Ke, alpha, beta, matches, parameters) -> List[Finding]:
+    """Every piece of one tensor (:data:`TENSORS`) taken wrong by one ratio of :data:`RATIOS`,
+    the other tensor's right: named when the fitted coefficients say that ratio for each of
+    its pieces and the rebuilt prediction matches.
+    """
+    codes = list(ISOTROPIC)
+    big = 1e-9 * np.abs(alpha).max()
+    found = []
+    for tensor, pieces in TENSORS.items():
+        idx = [codes.index(p) for p in pieces if abs(alpha[codes.index(p)]) > big]
+        if len(idx) < 2:
+            continue  # one piece: said as one term above
+        ratios = {min(RATIOS, key=lambda v: abs(beta[k] / alpha[k] - v)) for k in idx}
+        if len(ratios) != 1:
+            continue
+        ratio = ratios.pop()
+        Kp = split.Ke + (ratio - 1.0) * sum(alpha[k] * Ke[k] for k in idx)
+        left = matches(*assemble(split.cells, split.n, split.fe, Kp))
+        if not np.isfinite(left):
+            continue
+        term = " + ".join(
+            f"{_in_parameters(alpha[k], parameters)} {ISOTROPIC[codes[k]][0]}" for k in idx
+        )
+        found.append(
+            Finding(
+                "spatial-isotropic-term",
+                f"the {tensor} term of the isotropic spatial tangent {RATIOS[ratio]} (II the "
+                "symmetric identity, I (x) I the dyad of identities, J the volume ratio): "
+                f"{term} written {ratio:g} times (its coefficient's factor lost or doubled)",
+                FULL,
+                "the oracle's spatial tangent fits, cell by cell, in the pieces 1/J and ln J / J "
+                f"of I (x) I and II; the engine's coefficients of {tensor}'s pieces are each "
+                f"{ratio:g} times the oracle's: that term so and the rest kept: errors against "
+                f"your engine {left:.1e}",
+                {"term": tensor, "ratio": ratio, "residual": left},
+            )
+        )
+    return found
+
+
+def _one_j_tensor_findings(split, t, K_engine, matches) -> List[Finding]:
+    """On a state whose cells share one J, the functions of J are one number each, but the two
+    tensors are still apart: I (x) I and II fitted, one of them taken wrong by a ratio of
+    :data:`RATIOS` (the other right) named when that prediction matches.
+    """
+    tensors = {"I (x) I": _IXI, "II": _II}
+    m = split.cells.shape[0]
+    Ke = np.stack([_stiffness(t, np.broadcast_to(T, (m, 3, 3, 3, 3))) for T in tensors.values()])
+    fit = _fit(split, t, Ke, K_engine)
+    if fit is None:
+        return []
+    beta, alpha = fit
+    y_c = _entries(split, _stiffness(t, t.c))
+    if np.linalg.norm(np.stack([_entries(split, k) for k in Ke], 1) @ alpha - y_c) > 1e-9 * (
+        np.linalg.norm(y_c)
+    ):
+        return []  # the oracle's tangent is not isotropic
+    found = []
+    for k, tensor in enumerate(tensors):
+        if abs(alpha[k]) < 1e-9 * np.abs(alpha).max():
+            continue
+        ratio = min(RATIOS, key=lambda v: abs(beta[k] / alpha[k] - v))
+        left = matches(
+            *assemble(split.cells, split.n, split.fe, split.Ke + (ratio - 1.0) * alpha[k] * Ke[k])
+        )
+        if np.isfinite(left):
+            found.append(
+                Finding(
+                    "spatial-isotropic-term",
+                    f"the {tensor} term of the isotropic spatial tangent {RATIOS[ratio]} (II the "
+                    "symmetric identity, I (x) I the dyad of identities; this state has one J, "
+                    "so its coefficient is one number here)",
+                    FULL,
+                    f"the oracle's spatial tangent is {alpha[0]:.6g} I (x) I + {alpha[1]:.6g} II "
+                    f"in every cell; the engine's fitted {beta[0]:.6g} and {beta[1]:.6g}: that "
+                    f"term times {ratio:g} and the other kept: errors against your engine "
+                    f"{left:.1e}",
+                    {"term": tensor, "ratio": ratio, "residual": left},
                 )
             )
     return found
