@@ -150,3 +150,27 @@ def test_geometric_stiffness_outside_the_volume_is_named():
     )
     found = cell_weight_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
     assert [f.figures["applies_to"] for f in found] == ["material stiffness"], found
+
+
+def test_geometric_stiffness_over_the_rest_volume_in_a_spatial_engine_is_named():
+    """A spatial engine's initial-stress part v (g_a . sigma g_b) I written with V0 for v = J V0:
+    the geometric element matrix (D_a . S D_b) I from mjed's stress, times V0 / J per cell, the
+    rest right; named with the rest volume; the same part times 1/J^2 is not.
+    """
+    import mjed
+
+    points, cells = box_mesh(2, jitter=0.25, seed=4)
+    rng = np.random.default_rng(4)
+    x = points @ np.diag([1.1, 0.95, 0.92]).T + 0.05 * rng.standard_normal(points.shape)
+    model = default_material("Demiray")
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    S = mjed.HyperelasticForceField(mjed.TetMesh(points, cells), model).stress(x)
+    DSD = np.einsum("maI,mIJ,mbJ->mab", split.D, S, split.D)
+    geo = np.einsum("mab,kl->makbl", DSD, np.eye(3)).reshape(-1, 12, 12)
+    J = np.linalg.det(split.F)
+    for power, named in ((-1.0, True), (-2.0, False)):
+        w = (split.V0 * (J**power - 1.0))[:, None, None]
+        K = K_o + assemble(cells, split.n, 0 * split.fe, w * geo)[1]
+        found = cell_weight_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
+        weights = [f.figures["weighting"] for f in found]
+        assert ("rest volume" in weights) is named, [f.title for f in found]

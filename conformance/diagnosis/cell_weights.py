@@ -119,7 +119,7 @@ def cell_weight_findings(
     """
     V0 = split.V0
     if V0.max() <= V0.min() * (1 + ALIKE):
-        return []
+        return ambiguous(_part_j_findings(split, f, K, f_o, K_o, s, tol))
     K = sp.csr_matrix(K)
     found = []
     for name, (words, weight) in WEIGHTS.items():
@@ -148,6 +148,7 @@ def cell_weight_findings(
                 )
             )
     found = found or _part_weight_findings(split, f, K, f_o, K_o, s, tol)
+    found = found or _part_j_findings(split, f, K, f_o, K_o, s, tol)
     found = found or _power_findings(split, f, K, f_o, K_o, s, tol)
     found = found or fitted_weight_findings(split, f, K, f_o, K_o, s, tol)
     return ambiguous(found, "the weightings coincide on this mesh")
@@ -201,6 +202,69 @@ def _part_weight_findings(
                         "applies_to": part,
                         "residual": max(e.force, e.stiffness),
                     },
+                )
+            )
+    return found
+
+
+#: name -> (words, weights (m,) from each cell's J): one part of the element matrix integrated
+#: over the other configuration's volume (a spatial engine's v = J V0 where V0 belongs, or back).
+J_WEIGHTS: Dict[str, Tuple[str, Callable[[np.ndarray], np.ndarray]]] = {
+    "rest volume": (
+        "integrated over the rest volume V0 where the deformed volume v = J V0 belongs (the J "
+        "of v lost in that part)",
+        lambda J: 1.0 / J,
+    ),
+    "deformed volume": (
+        "integrated over the deformed volume v = J V0 where the rest volume V0 belongs (a J "
+        "too many in that part)",
+        lambda J: J,
+    ),
+}
+
+
+def _part_j_findings(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:
+    """One part of the element matrix (geometric or material) integrated over the wrong
+    configuration's volume (:data:`J_WEIGHTS`), the other part and the force right: each cell's
+    part times 1/J or J, nothing fitted. Where every cell has the same J this is a factor of
+    that part, which the tangent-part readings name; tried all the same (the words say both).
+    """
+    if errors(f, K_o, None, f_o, K_o, 0.0, s).force > tol.force:
+        return []
+    J = np.linalg.det(split.F)
+    one_j = np.ptp(J) <= 1e-9 * np.abs(J).max()
+    found = []
+    for part, Ke in stiffness_parts(split).items():
+        for name, (words, weight) in J_WEIGHTS.items():
+            q = weight(J) - 1.0
+            _, dK = assemble(split.cells, split.n, np.zeros_like(split.fe), q[:, None, None] * Ke)
+            e = errors(f, K, None, f_o, sp.csr_matrix(K_o) + dK, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            found.append(
+                Finding(
+                    "cell-weight",
+                    f"each cell's {part} (that part of the element matrix alone) {words}",
+                    FULL,
+                    "the oracle's element matrices split into the geometric part V0 (D_a . S "
+                    "D_b) I and the material part, that part times each cell's "
+                    f"{'1/J' if name == 'rest volume' else 'J'}, match the engine: force error "
+                    f"{e.force:.1e}, stiffness error {e.stiffness:.1e}"
+                    + (
+                        f" (every cell has J = {J[0]:.6g} here: equally that part times "
+                        f"{weight(J)[0]:.6g})"
+                        if one_j
+                        else ""
+                    ),
+                    {"weighting": name, "applies_to": part, "residual": max(e.force, e.stiffness)},
                 )
             )
     return found

@@ -650,11 +650,35 @@ def _tangent_findings(
                 ratio = 1.0 + fit.coefficients[0]
                 title = spatial
                 text += f"; the factor {ratio:.9g} is the J (or 1/J) of every cell here"
+        if mesh is not None and fit.names == ("geometric stiffness",):
+            title += _geometric_volume_words(1.0 + fit.coefficients[0], mesh)
         full.append(Finding("tangent-part", title, FULL, text, figs))
     elif fit.residual < 0.1 * err.stiffness:
         partial.append(
             Finding("tangent-part", f"tangent error mostly in: {words}", PARTIAL, text, figs)
         )
+
+
+def _geometric_volume_words(ratio: float, mesh) -> str:
+    """Words for a geometric stiffness scaled by the J (or 1/J) that every cell shares: that
+    part integrated over the other configuration's volume; "" otherwise.
+    """
+    from conformance.diagnosis.elements import cell_kinematics
+
+    J = np.linalg.det(cell_kinematics(*mesh)[2])
+    if np.ptp(J) > 1e-9 * np.abs(J).max() or abs(J[0] - 1.0) < 1e-6:
+        return ""
+    if abs(ratio * J[0] - 1.0) < 1e-9:
+        return (
+            " (= 1/J of every cell here: e.g. that part integrated over the rest volume V0 "
+            "where the deformed volume v = J V0 belongs)"
+        )
+    if abs(ratio / J[0] - 1.0) < 1e-9:
+        return (
+            " (= J of every cell here: e.g. that part integrated over the deformed volume "
+            "v = J V0 where the rest volume V0 belongs)"
+        )
+    return ""
 
 
 def _volumetric_findings(
