@@ -174,3 +174,17 @@ def test_geometric_stiffness_over_the_rest_volume_in_a_spatial_engine_is_named()
         found = cell_weight_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
         weights = [f.figures["weighting"] for f in found]
         assert ("rest volume" in weights) is named, [f.title for f in found]
+
+
+def test_a_geometric_part_scaled_by_the_one_j_of_a_state_is_said_as_a_volume():
+    """On a homogeneous state (one J), the geometric stiffness scaled by 1/J is said as that part
+    over the rest volume; by J, over the deformed volume; by another factor, nothing added.
+    """
+    from conformance.diagnosis.diagnose import _geometric_volume_words
+
+    points, cells = box_mesh(2, jitter=0.25, seed=5)
+    x = points @ np.diag([1.3, 1.0, 1.0]).T  # J = 1.3 in every cell
+    mesh = (points, cells, x)
+    assert "rest volume V0 where the deformed volume" in _geometric_volume_words(1 / 1.3, mesh)
+    assert "over the deformed volume" in _geometric_volume_words(1.3, mesh)
+    assert _geometric_volume_words(0.7, mesh) == ""
