@@ -176,35 +176,12 @@ def _part_weight_findings(
 ) -> List[Finding]:
     """One part of the element matrix (geometric or material) weighted wrongly, the other and
     the force right: V0 left out of the geometric part in V0 B^T D B + K_geo (the parentheses of
-    V0 (B^T D B + K_geo) lost), or applied twice to one part.
+    V0 (B^T D B + K_geo) lost), or applied twice to one part (:data:`WEIGHTS`).
     """
-    if errors(f, K_o, None, f_o, K_o, 0.0, s).force > tol.force:
-        return []
-    V0, found = split.V0, []
-    for part, Ke in stiffness_parts(split).items():
-        for name, (words, weight) in WEIGHTS.items():
-            q = weight(V0) - 1.0
-            _, dK = assemble(split.cells, split.n, np.zeros_like(split.fe), q[:, None, None] * Ke)
-            e = errors(f, K, None, f_o, sp.csr_matrix(K_o) + dK, 0.0, s)
-            if not tol.within(e, energy=False):
-                continue
-            found.append(
-                Finding(
-                    "cell-weight",
-                    f"each cell's {part} (that part of the element matrix alone) {words}",
-                    FULL,
-                    "the oracle's element matrices split into the geometric part V0 (D_a . S "
-                    "D_b) I and the material part, that part summed with those weights (rest "
-                    f"volumes from {V0.min():.3g} to {V0.max():.3g} m^3), match the engine: "
-                    f"force error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
-                    {
-                        "weighting": name,
-                        "applies_to": part,
-                        "residual": max(e.force, e.stiffness),
-                    },
-                )
-            )
-    return found
+    V0 = split.V0
+    how = f"summed with those weights (rest volumes from {V0.min():.3g} to {V0.max():.3g} m^3)"
+    weights = {name: (words, weight(V0), how) for name, (words, weight) in WEIGHTS.items()}
+    return _weighted_part_findings(split, f, K, f_o, K_o, s, tol, weights)
 
 
 #: name -> (words, weights (m,) from each cell's J): one part of the element matrix integrated
@@ -237,14 +214,39 @@ def _part_j_findings(
     part times 1/J or J, nothing fitted. Where every cell has the same J this is a factor of
     that part, which the tangent-part readings name; tried all the same (the words say both).
     """
-    if errors(f, K_o, None, f_o, K_o, 0.0, s).force > tol.force:
-        return []
     J = np.linalg.det(split.F)
     one_j = np.ptp(J) <= 1e-9 * np.abs(J).max()
+    weights = {}
+    for name, (words, weight) in J_WEIGHTS.items():
+        how = f"times each cell's {'1/J' if name == 'rest volume' else 'J'}"
+        if one_j:
+            how += (
+                f" (every cell has J = {J[0]:.6g} here: equally that part times {weight(J)[0]:.6g})"
+            )
+        weights[name] = (words, weight(J), how)
+    return _weighted_part_findings(split, f, K, f_o, K_o, s, tol, weights)
+
+
+def _weighted_part_findings(
+    split: ElementSplit,
+    f: np.ndarray,
+    K: sp.spmatrix,
+    f_o: np.ndarray,
+    K_o: sp.spmatrix,
+    s: Scales,
+    tol: Tolerances,
+    weights: Dict[str, Tuple[str, np.ndarray, str]],
+) -> List[Finding]:
+    """Each part of the element matrix (:func:`stiffness_parts`) summed with each of
+    ``weights`` (name -> (words, per-cell weight (m,), how it was weighted, in words)), the
+    other part and the force right: those that match the engine.
+    """
+    if errors(f, K_o, None, f_o, K_o, 0.0, s).force > tol.force:
+        return []
     found = []
     for part, Ke in stiffness_parts(split).items():
-        for name, (words, weight) in J_WEIGHTS.items():
-            q = weight(J) - 1.0
+        for name, (words, weight, how) in weights.items():
+            q = weight - 1.0
             _, dK = assemble(split.cells, split.n, np.zeros_like(split.fe), q[:, None, None] * Ke)
             e = errors(f, K, None, f_o, sp.csr_matrix(K_o) + dK, 0.0, s)
             if not tol.within(e, energy=False):
@@ -255,15 +257,8 @@ def _part_j_findings(
                     f"each cell's {part} (that part of the element matrix alone) {words}",
                     FULL,
                     "the oracle's element matrices split into the geometric part V0 (D_a . S "
-                    "D_b) I and the material part, that part times each cell's "
-                    f"{'1/J' if name == 'rest volume' else 'J'}, match the engine: force error "
-                    f"{e.force:.1e}, stiffness error {e.stiffness:.1e}"
-                    + (
-                        f" (every cell has J = {J[0]:.6g} here: equally that part times "
-                        f"{weight(J)[0]:.6g})"
-                        if one_j
-                        else ""
-                    ),
+                    f"D_b) I and the material part, that part {how}, match the engine: force "
+                    f"error {e.force:.1e}, stiffness error {e.stiffness:.1e}",
                     {"weighting": name, "applies_to": part, "residual": max(e.force, e.stiffness)},
                 )
             )
