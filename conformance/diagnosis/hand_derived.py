@@ -176,7 +176,9 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
 
         with np.errstate(all="ignore"):
             t = cell_tensors(*cell_piola(split), split.F)
-            found = piece_findings(split, t, matches, _nearby(cache, near, s, tol))
+            # only the force is compared at a probe: a written factor (scaled=True) would be
+            # named from the force alone, where it claims the geometric term too
+            found = piece_findings(split, t, matches, _nearby(cache, near, s, tol), scaled=False)
             found += voigt_stress_findings(split, t.S, matches)
             found += piola_force_findings(split, t.S, matches)
             found += probe_force_findings(near.model, near.points, split, matches)
