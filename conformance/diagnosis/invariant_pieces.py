@@ -239,15 +239,20 @@ def _chain_basis(t: CellTensors, mistake: str = "") -> Tuple[np.ndarray, np.ndar
     return dW, d2W
 
 
-def stress_tangent(g, h, dW, d2W) -> Tuple[np.ndarray, np.ndarray]:
+def stress_tangent(
+    g, h, dW, d2W, stress: float = 1.0, hessian: float = 1.0, gradient: float = 1.0
+) -> Tuple[np.ndarray, np.ndarray]:
     """S (k, m, 3, 3) and CC (k, m, 3, 3, 3, 3) of k unknowns given as dW (k, m, 3) and
-    d2W (k, m, 3, 3) over (I1, I2, J), through the pieces g, h (lists of three).
+    d2W (k, m, 3, 3) over (I1, I2, J), through the pieces g, h (lists of three); stress,
+    hessian, gradient: factors on S, on CC's part 4 d2W g (x) g and on its part 4 dW h (1: the
+    chain rule as it is).
     """
     G = np.stack(g, axis=1)  # (m, 3, 3, 3)
     H = np.stack(h, axis=1)  # (m, 3, 3, 3, 3, 3)
-    S = 2.0 * np.einsum("kma,maij->kmij", dW, G)
+    S = 2.0 * stress * np.einsum("kma,maij->kmij", dW, G)
     CC = 4.0 * (
-        np.einsum("kmab,maij,mbpq->kmijpq", d2W, G, G) + np.einsum("kma,maijpq->kmijpq", dW, H)
+        hessian * np.einsum("kmab,maij,mbpq->kmijpq", d2W, G, G)
+        + gradient * np.einsum("kma,maijpq->kmijpq", dW, H)
     )
     return S, CC
 
@@ -428,31 +433,22 @@ def _scopes(fit: PieceFit) -> Dict[str, np.ndarray]:
     return out
 
 
-def _scaled(t: CellTensors, fit: PieceFit, piece: str, factor: float, inside: np.ndarray):
-    """(S (k, m, 3, 3), CC (k, m, 3, 3, 3, 3)) per unit of the unknowns, ``piece`` times
-    ``factor`` for the unknowns ``inside`` ((k,) booleans), right for the others.
+def _scaled(g, h, dW, d2W, right, piece: str, factor: float, inside: np.ndarray):
+    """(dS (k, m, 3, 3), dCC (k, m, 3, 3, 3, 3)) per unit of the unknowns (dW, d2W over the
+    pieces g, h; ``right`` their correct (S, CC)): ``piece`` times ``factor`` for the unknowns
+    ``inside`` ((k,) booleans), zero for the others.
     """
-    g, h = _law(t)
-    dW, d2W = _basis(t, fit.form, "", fit.used)
-    G, H = np.stack(g, axis=1), np.stack(h, axis=1)
-    w = {"hessian": 1.0, "gradient": 1.0, "stress": 1.0}
-    if piece in w:
-        w[piece] = factor
+    weights = {"hessian": 1.0, "gradient": 1.0, "stress": 1.0}
+    if piece in weights:
+        weights[piece] = factor
     elif piece.startswith("d2I"):
-        H = H.copy()
-        H[:, int(piece[3])] *= factor
+        h = [factor * x if i == int(piece[3]) else x for i, x in enumerate(h)]
     else:
-        G = G.copy()
-        G[:, int(piece[2])] *= factor
-    S = 2.0 * w["stress"] * np.einsum("kma,maij->kmij", dW, G)
-    CC = 4.0 * (
-        w["hessian"] * np.einsum("kmab,maij,mbpq->kmijpq", d2W, G, G)
-        + w["gradient"] * np.einsum("kma,maijpq->kmijpq", dW, H)
-    )
-    S0, CC0 = stress_tangent(g, h, dW, d2W)
-    keep = ~inside
-    S[keep], CC[keep] = S0[keep], CC0[keep]
-    return S - S0, CC - CC0
+        g = [factor * x if i == int(piece[2]) else x for i, x in enumerate(g)]
+    S, CC = stress_tangent(g, h, dW, d2W, **weights)
+    dS, dCC = S - right[0], CC - right[1]
+    dS[~inside], dCC[~inside] = 0.0, 0.0
+    return dS, dCC
 
 
 def scaled_predictions(t: CellTensors, fit: PieceFit):
@@ -461,10 +457,13 @@ def scaled_predictions(t: CellTensors, fit: PieceFit):
     zero.
     """
     m = t.J.size
+    g, h = _law(t)
+    dW, d2W = _basis(t, fit.form, "", fit.used)
+    right = stress_tangent(g, h, dW, d2W)
     for scope, inside in _scopes(fit).items():
         for piece in SCALED_PIECES:
             for factor in SCALED_FACTORS:
-                L = design_columns(*_scaled(t, fit, piece, factor, inside))
+                L = design_columns(*_scaled(g, h, dW, d2W, right, piece, factor, inside))
                 if not np.any(L):
                     continue
                 d = determined_change(L, fit.x, fit.scale, fit.free)
