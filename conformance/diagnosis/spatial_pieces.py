@@ -267,6 +267,15 @@ def _in_parameters(x: float, parameters: dict) -> str:
     return f"{x:.6g}"
 
 
+def _spans_oracle(split: ElementSplit, t: SpatialCells, Ke: np.ndarray, alpha: np.ndarray) -> bool:
+    """Whether the pieces' stiffnesses Ke (k, m, 12, 12) with the fitted coefficients alpha (k,)
+    give the oracle's material stiffness (that of t.c) to 1e-9: its tangent is of their form.
+    """
+    y_c = _entries(split, _stiffness(t, t.c))
+    fitted = np.stack([_entries(split, k) for k in Ke], 1) @ alpha
+    return not np.linalg.norm(fitted - y_c) > 1e-9 * np.linalg.norm(y_c)
+
+
 def isotropic_fit_findings(
     split: ElementSplit,
     cells: CellTensors,
@@ -290,10 +299,7 @@ def isotropic_fit_findings(
     if fit is None:
         return []
     beta, alpha = fit
-    y_c = _entries(split, _stiffness(t, t.c))
-    if np.linalg.norm(np.stack([_entries(split, k) for k in Ke], 1) @ alpha - y_c) > 1e-9 * (
-        np.linalg.norm(y_c)
-    ):
+    if not _spans_oracle(split, t, Ke, alpha):
         return []  # the oracle's tangent is not of this form
     found = []
     for k, (code, (words, _, _)) in enumerate(ISOTROPIC.items()):
@@ -383,10 +389,7 @@ def _one_j_tensor_findings(split, t, K_engine, matches) -> List[Finding]:
     if fit is None:
         return []
     beta, alpha = fit
-    y_c = _entries(split, _stiffness(t, t.c))
-    if np.linalg.norm(np.stack([_entries(split, k) for k in Ke], 1) @ alpha - y_c) > 1e-9 * (
-        np.linalg.norm(y_c)
-    ):
+    if not _spans_oracle(split, t, Ke, alpha):
         return []  # the oracle's tangent is not isotropic
     found = []
     for k, tensor in enumerate(tensors):
