@@ -203,6 +203,7 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
     material's own form named first: Ogden's coaxial tangent
     (:mod:`conformance.diagnosis.spectral_tangent`, with the oracle's per-cell stress from the
     element split where it adds up) or its shear (a != b) terms with the wrong sign or divisor,
+    or its -2 tau_a n_a^4 term taken wrong,
     Costa's d2Q not symmetrised
     (:mod:`conformance.diagnosis.fibre_tangent`); unchanged when neither fits.
     """
@@ -211,6 +212,7 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
         power_exponent,
         shear_term_findings,
         spectral_findings,
+        stress_term_findings,
     )
 
     tol = diag.tolerances
@@ -228,6 +230,7 @@ def tangent_term_reading(diag, ci, out, ref, s: Scales):
         )
         if split is not None:
             found += shear_term_findings(ci.model, split, *args[4:], tol.stiffness)
+            found += stress_term_findings(ci.model, split, *args[4:], tol.stiffness)
     if not found:
         return diag
     rest = [f for f in diag.findings if f.code != "unexplained"]

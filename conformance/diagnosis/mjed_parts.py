@@ -69,6 +69,7 @@ __all__ = [
     "residual",
     "explaining",
     "part_finding",
+    "with_equals",
 ]
 
 #: Parts that sum to the oracle to more than this (relative) are not used.
@@ -1474,7 +1475,7 @@ def mjed_part_findings(
     kept = explaining(cands, r, w, off, 3 * pat.n, tol, same)
     if kept or not force_alone or force_right:
         return ambiguous(
-            [_with_equals(part_finding(c, d, f, K, f_o, K_o, pat, s), same, c) for c, d in kept]
+            [with_equals(part_finding(c, d, f, K, f_o, K_o, pat, s), same, c) for c, d in kept]
         )
     # The force alone predicted: the stiffness carries a slip of its own (a hand tangent
     # written apart from the force), which a force part's derived blocks do not give.
@@ -1491,7 +1492,7 @@ def mjed_part_findings(
     return ambiguous(found)
 
 
-def _with_equals(found: Finding, same: Dict[int, List[str]], c: Any) -> Finding:
+def with_equals(found: Finding, same: Dict[int, List[str]], c: Any) -> Finding:
     """``found`` with the readings whose prediction is the same here added to its evidence."""
     equals = same.get(id(c))
     if not equals:

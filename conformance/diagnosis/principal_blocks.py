@@ -49,6 +49,7 @@ __all__ = [
     "rotate_tangent",
     "principal_parts",
     "principal_block_findings",
+    "principal_frame_isotropic",
     "principal_block_reading",
 ]
 
@@ -135,6 +136,13 @@ def _isotropic_in_frame(hat: np.ndarray) -> bool:
     """
     kept = np.clip(sum(principal_masks().values()), 0.0, 1.0)
     return float(np.abs(hat * (1.0 - kept)).max()) <= 1e-8 * float(np.abs(hat).max())
+
+
+def principal_frame_isotropic(split: ElementSplit) -> bool:
+    """True when the oracle's per-cell material tangent, in each cell's eigenbasis of C, has
+    only principal-block and pair entries (an isotropic law: its spectral form exists).
+    """
+    return _isotropic_in_frame(_principal_frame(split)[3])
 
 
 def _simple(c: float) -> bool:

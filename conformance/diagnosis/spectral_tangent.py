@@ -218,6 +218,24 @@ SHEAR_VARIANTS = {
 }
 
 
+def _spatial_element(c4: np.ndarray, v: np.ndarray, gN: np.ndarray) -> np.ndarray:
+    """(m, 12, 12) element stiffness v g_a . c4 . g_b of per-cell tensors c4 (m, 3, 3, 3, 3),
+    weights v (m,) and spatial gradients gN (m, 4, 3).
+    """
+    Ke = np.einsum("m,maj,mijkl,mbl->maibk", v, gN, c4, gN, optimize=True)
+    return Ke.reshape(-1, 12, 12)
+
+
+def _turn_words(turned: int, rest: str) -> str:
+    """How a prediction was made: nothing fitted, or the in-plane turns of ``turned`` cells."""
+    if not turned:
+        return " (nothing fitted)"
+    return (
+        f" ({turned} cells with two equal stretches: the turn of your engine's eigenvectors in "
+        f"their plane fitted, two numbers a cell; {rest})"
+    )
+
+
 def _pair_tensors(n: np.ndarray, a: int, b: int) -> tuple:
     """(s (x) s, u, w) of the principal pair (a, b): s = w = n_a n_b + n_b n_a and
     u = n_a n_a - n_b n_b (m, 3, 3), n (m, 3, 3) the principal directions as columns.
@@ -278,17 +296,13 @@ def shear_term_fit(model: Any, split, D: sp.csr_matrix, K_o: sp.csr_matrix, code
             turns.append((coef * T)[deg])
             owners.append(np.flatnonzero(deg))
 
-    def element(c4, v, gN):
-        Ke = np.einsum("m,maj,mijkl,mbl->maibk", v, gN, c4, gN, optimize=True)
-        return Ke.reshape(-1, 12, 12)
-
     zero = np.zeros((m, 4, 3))
-    Kd = assemble(split.cells, split.n, zero, element(known, sc.v / J, sc.gN))[1]
+    Kd = assemble(split.cells, split.n, zero, _spatial_element(known, sc.v / J, sc.gN))[1]
     R = (D - Kd).tocsr()
     own = np.concatenate(owners)
     if own.size == 0:
         return float(sparse_norm(R)) / float(sparse_norm(K_o)), 0
-    basis = element(np.concatenate(turns), (sc.v / J)[own], sc.gN[own])
+    basis = _spatial_element(np.concatenate(turns), (sc.v / J)[own], sc.gN[own])
     residual, _ = fit_cell_term(split.cells[own], basis, R, K_o)
     return residual, int(np.unique(own).size)
 
@@ -316,15 +330,109 @@ def shear_term_findings(model: Any, split, K: sp.spmatrix, K_o: sp.spmatrix, tol
                 + (", and tr(tau_bar)/3 of the projection" if part == "fictitious" else "")
                 + ") given that factor, the rest kept: stiffness error against your engine "
                 f"{residual:.1e}"
-                + (
-                    f" ({turned} cells with two equal stretches: the turn of your engine's "
-                    "eigenvectors in their plane fitted, two numbers a cell; the other pairs "
-                    "predicted with nothing fitted)"
-                    if turned
-                    else " (nothing fitted)"
-                )
+                + _turn_words(turned, "the other pairs predicted with nothing fitted")
                 + "; the force matches",
                 {"variant": code, "residual": residual, "turned_cells": turned},
+            )
+        )
+    return found
+
+
+# ------------------------------------------------------------------ the -2 tau_a n_a^4 term
+#: factor on the term as written -> words (the engine writes (1 + factor) times the term).
+STRESS_TERM_FACTORS = {
+    -1.0: "left out",
+    -2.0: "with its sign flipped",
+    -0.5: "halved",
+    1.0: "doubled",
+}
+
+
+def stress_term_fit(split, D: sp.csr_matrix, K_o: sp.csr_matrix, factor: float):
+    """(residual ||D - prediction|| / ||K_o||, cells turned) of a spectral engine whose Kirchhoff
+    tangent carries ``factor`` times a further -2 sum_a tau_a n_a^4, tau_a the principal values
+    of the deviatoric Kirchhoff stress dev(J sigma) (the isochoric stress of a decoupled law;
+    its volumetric -2 J p II is written apart), n_a the principal directions of b. Where two
+    stretches are equal the engine's pair (n_a, n_b) in their plane is its round-off's, turned
+    by psi from the oracle's: n_a^4 + n_b^4 = E + (u u + w w) / 4 + cos 4 psi (u u - w w) / 4 +
+    sin 4 psi (u w + w u) / 4 (u = n_a n_a - n_b n_b, w = n_a n_b + n_b n_a), and cos 4 psi, sin
+    4 psi are fitted per cell as two free numbers (the assembled stiffness does not fix each
+    cell's turn apart from its neighbours', so they are not asked to lie on the unit circle);
+    the third direction and the plane's turn-free part are predicted. None: three equal
+    stretches.
+    """
+    from conformance.diagnosis.elements import assemble, cell_piola
+    from conformance.diagnosis.invariant_pieces import cell_tensors
+    from conformance.diagnosis.spatial_tangent import spatial_cells
+
+    P, A = cell_piola(split)
+    t = cell_tensors(P, A, split.F)
+    sc = spatial_cells(split, t.S, t.CC)
+    J = np.linalg.det(split.F)
+    tau = J[:, None, None] * sc.sigma
+    tau = tau - np.trace(tau, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+    x, n = np.linalg.eigh(split.F @ split.F.swapaxes(1, 2))
+    close = np.abs(np.diff(x, axis=1)) <= 1e-8 * x.max(axis=1)[:, None]
+    if np.any(close.all(axis=1)):
+        return None
+    t_a = np.einsum("mia,mij,mja->ma", n, tau, n)
+    coef = -2.0 * factor * t_a  # the engine's extra -2 factor tau_a n_a^4
+    known = np.einsum("ma,mpa,mqa,mra,msa->mpqrs", coef, n, n, n, n)
+    deg = close.any(axis=1)
+    a = np.where(close[:, 0], 0, 1)
+    m = np.arange(J.size)
+    na, nb = n[m, :, a], n[m, :, a + 1]
+    u = np.einsum("mi,mj->mij", na, na) - np.einsum("mi,mj->mij", nb, nb)
+    w = np.einsum("mi,mj->mij", na, nb) + np.einsum("mi,mj->mij", nb, na)
+    uu, ww = np.einsum("mij,mkl->mijkl", u, u), np.einsum("mij,mkl->mijkl", w, w)
+    uw = np.einsum("mij,mkl->mijkl", u, w)
+    c_pair = coef[m, a][:, None, None, None, None] / 4.0
+    turns = [c_pair * (uu - ww), c_pair * (uw + uw.transpose(0, 3, 4, 1, 2))]
+
+    zero = np.zeros((J.size, 4, 3))
+    Kd = assemble(split.cells, split.n, zero, _spatial_element(known, sc.v / J, sc.gN))[1]
+    R = (D - Kd).tocsr()
+    if not deg.any():
+        return float(sparse_norm(R)) / float(sparse_norm(K_o)), 0
+    own = np.flatnonzero(deg)
+    basis = np.concatenate(
+        [_spatial_element(T[own], (sc.v / J)[own], sc.gN[own]) for T in turns]
+    )  # (2 k, 12, 12): the cos parts, then the sin parts
+    owners = np.concatenate([split.cells[own], split.cells[own]])
+    residual, _ = fit_cell_term(owners, basis, R, K_o)
+    return residual, own.size
+
+
+def stress_term_findings(model: Any, split, K: sp.spmatrix, K_o: sp.spmatrix, tol: float):
+    """The -2 tau_a n_a^4 term of a spectral (Bonet and Wood) spatial tangent taken with one of
+    :data:`STRESS_TERM_FACTORS` (:func:`stress_term_fit`), for an isotropic law, when its
+    prediction leaves the stiffness within ``tol``; [] else.
+    """
+    from conformance.diagnosis.principal_blocks import principal_frame_isotropic
+
+    if not principal_frame_isotropic(split):
+        return []
+    K_o = sp.csr_matrix(K_o)
+    D = (sp.csr_matrix(K) - K_o).tocsr()
+    found = []
+    for factor, said in STRESS_TERM_FACTORS.items():
+        fit = stress_term_fit(split, D, K_o, factor)
+        if fit is None or not fit[0] <= tol:
+            continue
+        residual, turned = fit
+        found.append(
+            Finding(
+                "tangent-spectral-stress-term",
+                "a spectral tangent's term -2 sigma_a n_a (x) n_a (x) n_a (x) n_a (Bonet and "
+                "Wood's spatial form, beside 1/J d tau_a / d ln lambda_b n_a n_a n_b n_b; "
+                f"sigma_a the isochoric principal Cauchy stresses) {said} (stiffness only)",
+                FULL,
+                "the oracle's Kirchhoff tangent per cell plus that change of the term, from the "
+                "oracle's deviatoric stress in the principal frame of b: stiffness error "
+                f"against your engine {residual:.1e}"
+                + _turn_words(turned, "the third direction predicted")
+                + "; the force matches",
+                {"factor": factor, "residual": residual, "turned_cells": turned},
             )
         )
     return found

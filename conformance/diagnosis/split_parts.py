@@ -17,8 +17,11 @@ A hand-written engine gets one of these pieces wrong. Here the pieces are built 
 the material's declared energy (``energy`` of its declaration, evaluated on hyper-dual numbers
 in I1b, I2b and J: psi1, psi2, psi11, psi12, psi22, U', U''), for materials whose formula is
 written in I1b, I2b and J alone and which declare a volumetric part; they are used only when
-they add up to the oracle's force and stiffness to round-off. The engine-minus-oracle force and
-stiffness are then read as
+they add up to the oracle's force and stiffness to round-off. Ogden's one-term law, Psi =
+c (tr C_bar^q - 3), is split the same way, its fictitious tangent the derivative of a matrix
+power (:class:`PowerSumLaw`), with the pieces a spectral (Bonet and Wood) engine writes in
+d tau_a / d ln lambda_b: its deviator's single and double traces and, where C's eigenvalues are
+distinct, its principal entries. The engine-minus-oracle force and stiffness are then read as
 
 - one piece, or two with the same factor, times a constant: -2 its sign flipped, -1 left out,
   -1/2 halved (a 2/3 written 1/3), +1 doubled. A piece of the stress (of S_bar, DEV's trace term,
@@ -35,7 +38,7 @@ tolerance; several that explain but predict differently are shown as ambiguous.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -47,10 +50,13 @@ from conformance.diagnosis.mjed_parts import (
     Candidate,
     Pattern,
     explaining,
+    mjed_parts,
     part_finding,
     residual,
     sparse_entries,
+    with_equals,
 )
+from conformance.diagnosis.mjed_parts import candidates as mjed_candidates
 from conformance.judge.compare import Scales, Tolerances
 
 __all__ = [
@@ -98,6 +104,84 @@ class Law:
     dU: np.ndarray
     d2U: np.ndarray
 
+    def fictitious(self, Cb: np.ndarray) -> Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]:
+        """The parts of S_bar (2 psi1 I, 2 I1b psi2 I, -2 psi2 C_bar) (m, 3, 3) and of CC_bar
+        by psi11, psi12, psi22 and psi2 (m, 3, 3, 3, 3), at C_bar (m, 3, 3).
+        """
+        m = len(Cb)
+        I1b = np.trace(Cb, axis1=1, axis2=2)
+        Id = np.broadcast_to(_I, (m, 3, 3))
+        X = {
+            "psi1": 2.0 * _col(self.psi1) * Id,
+            "I1b-psi2": 2.0 * _col(I1b * self.psi2) * Id,
+            "Cb-psi2": -2.0 * _col(self.psi2) * Cb,
+        }
+        G2 = _col(I1b) * Id - Cb  # dI2b/dC_bar
+        II = np.broadcast_to(_II, (m, 3, 3, 3, 3))
+        CCbar = {  # 4 d2Psi/dC_bar2 by the derivative of Psi it carries (Holzapfel 6.193)
+            "psi11": 4.0 * _col4(self.psi11) * _outer(Id, Id),
+            "psi12": 4.0 * _col4(self.psi12) * (_outer(Id, G2) + _outer(G2, Id)),
+            "psi22": 4.0 * _col4(self.psi22) * _outer(G2, G2),
+            "psi2": 4.0 * _col4(self.psi2) * (_outer(Id, Id) - II),
+        }
+        return X, CCbar
+
+
+#: Eigenvalues of C closer than this (relative) are taken as equal: the principal frame in
+#: their plane is then any, and the parts that depend on it are not formed.
+_EQUAL = 1e-8
+
+
+def _power_quotient(x: np.ndarray, p: float) -> np.ndarray:
+    """(m, 3, 3) (x_a^p - x_b^p) / (x_a - x_b), its limit p x_a^(p-1) on the diagonal and for
+    equal x, written through expm1 / log1p of the ratio so that near-equal x keep their digits.
+    """
+    xa, xb = x[:, :, None], x[:, None, :]
+    d = (xa - xb) / xb
+    tiny = np.abs(d) < 1e-12
+    safe = np.where(tiny, 1.0, d)
+    ratio = np.where(tiny, p, np.expm1(p * np.log1p(safe)) / safe)
+    return xb ** (p - 1.0) * ratio
+
+
+@dataclass(frozen=True)
+class PowerSumLaw:
+    """An isochoric energy Psi = c (tr C_bar^q - 3) (Ogden's one-term law, q = alpha / 2) and
+    U'(J), U''(J) per cell (m,). Its fictitious tangent is a matrix function's derivative:
+    in the eigenbasis N_a of C_bar, 4 c q f'(x_a) on the principal entries and the divided
+    differences 4 c q (f(x_a) - f(x_b)) / (x_a - x_b) on the pairs (a != b), f = x^(q-1).
+    """
+
+    c: float
+    q: float
+    dU: np.ndarray
+    d2U: np.ndarray
+
+    def fictitious(self, Cb: np.ndarray) -> Tuple[Dict[str, np.ndarray], Dict[str, np.ndarray]]:
+        """({"power": S_bar = 2 c q C_bar^(q-1)}, the parts of CC_bar): "principal" and
+        "rotation" (the divided differences that turn the principal directions) where every
+        cell's eigenvalues are distinct; else their sum alone, as "spectral".
+        """
+        x, N = np.linalg.eigh(Cb)
+        k = 2.0 * self.c * self.q
+        Sbar = np.einsum("mia,ma,mja->mij", N, k * x ** (self.q - 1.0), N)
+        theta = 2.0 * k * _power_quotient(x, self.q - 1.0)
+        eye = np.eye(3)
+        principal = np.einsum("mab,mia,mja,mka,mla->mijkl", theta * eye, N, N, N, N)
+        pairs = theta * (1.0 - eye)
+        rotation = 0.5 * (
+            np.einsum("mab,mia,mjb,mka,mlb->mijkl", pairs, N, N, N, N)
+            + np.einsum("mab,mia,mjb,mkb,mla->mijkl", pairs, N, N, N, N)
+        )
+        if not distinct_eigenvalues(x):
+            return {"power": Sbar}, {"spectral": principal + rotation}
+        return {"power": Sbar}, {"principal": principal, "rotation": rotation}
+
+
+def distinct_eigenvalues(x: np.ndarray) -> bool:
+    """True when every cell's three eigenvalues (m, 3), sorted, are apart (:data:`_EQUAL`)."""
+    return bool(np.all(np.diff(x, axis=1) > _EQUAL * np.abs(x).max(axis=1)[:, None]))
+
 
 def _seeded(energy, p, I1b, I2b, J, seeds: Tuple[str, str]) -> Tuple[np.ndarray, np.ndarray]:
     """(dW/dx, d2W/dx dy) of the formula at (I1b, I2b, J), x and y the seeded names."""
@@ -115,6 +199,23 @@ def _seeded(energy, p, I1b, I2b, J, seeds: Tuple[str, str]) -> Tuple[np.ndarray,
         return np.zeros(m), np.zeros(m)
     first = W.b if x == y else np.zeros(m)
     return np.broadcast_to(first, (m,)) + 0.0, np.broadcast_to(W.d, (m,)) + 0.0
+
+
+def power_sum_law(model: Any, J: np.ndarray) -> Optional[PowerSumLaw]:
+    """Ogden's law as :class:`PowerSumLaw` at per-cell J (m,), U from its declared volumetric
+    energy; None for another model.
+    """
+    from mjed.materials.ogden import Ogden
+
+    declared = declaration(model)
+    if not isinstance(model, Ogden) or declared is None or declared.volumetric is None:
+        return None
+    alpha = float(model.alpha)
+    one = np.ones_like(J)
+    dU, d2U = _seeded(
+        declared.volumetric, lambda n: float(getattr(model, n)), one, one, J, ("J", "J")
+    )
+    return PowerSumLaw(float(model.mu) / alpha**2, 0.5 * alpha, dU, d2U)
 
 
 def decoupled_law(model: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray) -> Optional[Law]:
@@ -196,29 +297,7 @@ class _Cells:
     C: np.ndarray
     Ci: np.ndarray
     J: np.ndarray
-    law: Law
-
-
-def _fictitious(law: Law, Cb: np.ndarray, I1b: np.ndarray):
-    """The parts of S_bar (2 psi1 I, 2 I1b psi2 I, -2 psi2 C_bar) and of CC_bar by psi11, psi12,
-    psi22 and psi2.
-    """
-    m = len(I1b)
-    Id = np.broadcast_to(_I, (m, 3, 3))
-    X = {
-        "psi1": 2.0 * _col(law.psi1) * Id,
-        "I1b-psi2": 2.0 * _col(I1b * law.psi2) * Id,
-        "Cb-psi2": -2.0 * _col(law.psi2) * Cb,
-    }
-    G2 = _col(I1b) * Id - Cb  # dI2b/dC_bar
-    II = np.broadcast_to(_II, (m, 3, 3, 3, 3))
-    CCbar = {  # 4 d2Psi/dC_bar2 by the derivative of Psi it carries (Holzapfel 6.193)
-        "psi11": 4.0 * _col4(law.psi11) * _outer(Id, Id),
-        "psi12": 4.0 * _col4(law.psi12) * (_outer(Id, G2) + _outer(G2, Id)),
-        "psi22": 4.0 * _col4(law.psi22) * _outer(G2, G2),
-        "psi2": 4.0 * _col4(law.psi2) * (_outer(Id, Id) - II),
-    }
-    return X, CCbar
+    law: Union[Law, PowerSumLaw]
 
 
 #: A piece per cell: (S in the force (m, 3, 3) or None, S in the geometric term or None,
@@ -234,8 +313,7 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
     m = len(J)
     Jm23 = J ** (-2.0 / 3.0)
     Cb = _col(Jm23) * C
-    I1b = np.trace(Cb, axis1=1, axis2=2)
-    X, CCbar = _fictitious(law, Cb, I1b)
+    X, CCbar = law.fictitious(Cb)
     X = {k: _col(J**v.sbar_power) * a for k, a in X.items()}
     Sbar = sum(X.values())
 
@@ -291,7 +369,35 @@ def _pieces(c: _Cells, v: Variant) -> Tuple[Dict[str, _Piece], Dict[str, _Piece]
     double = _col4(np.einsum("mij,mij->m", left, C) / 9.0) * _outer(Ci, Ci)
     carried["proj-single"] = (None, None, single)
     carried["proj-double"] = (None, None, double)
+    if isinstance(law, PowerSumLaw):
+        carried.update(_spectral_pieces(law, C, Ci, J))
     return part, carried
+
+
+def _spectral_pieces(law: PowerSumLaw, C, Ci, J) -> Dict[str, _Piece]:
+    """The isochoric tangent of a power-sum law as a spectral engine writes it (Bonet and Wood:
+    the spatial Kirchhoff tangent sum_ab d tau_a / d ln lambda_b n_a n_a n_b n_b - 2 sum_a
+    tau_a n_a^4 + the shear terms), its pieces pulled back to the material frame
+    (n_a n_a n_b n_b -> N_a N_a N_b N_b / (x_a x_b), I -> C^-1). With t_a = lambda_bar_a^alpha
+    and mu = c alpha^2, the deviatoric tau_a = mu / alpha (t_a - sum t / 3) and
+    d tau_a / d ln lambda_b = mu (t_a delta_ab - (t_a + t_b) / 3 + sum t / 9): the last two,
+    the deviator's single and double traces, are tensors of C alone (in every cell); the first
+    depends on the principal frame and is formed only where C's eigenvalues are distinct (the
+    term -2 tau_a n_a^4, which needs the engine's frame where two coincide, is read by
+    :func:`conformance.diagnosis.spectral_tangent.stress_term_findings`).
+    """
+    x, N = np.linalg.eigh(C)
+    t = (_col(J ** (-2.0 / 3.0))[:, :, 0] * x) ** law.q  # lambda_bar_a^alpha (m, 3)
+    mu = 4.0 * law.c * law.q**2
+    B = np.einsum("ma,mia,mja->mij", t / x, N, N)  # b_bar^(alpha/2) pulled back
+    out: Dict[str, _Piece] = {
+        "spectral-double": (None, None, _col4(mu * t.sum(axis=1) / 9.0) * _outer(Ci, Ci)),
+        "spectral-single": (None, None, -mu / 3.0 * (_outer(B, Ci) + _outer(Ci, B))),
+    }
+    if distinct_eigenvalues(x):
+        quad = np.einsum("mia,mja,mka,mla->maijkl", N, N, N, N)
+        out["spectral-diagonal"] = (None, None, np.einsum("ma,maijkl->mijkl", mu * t / x**2, quad))
+    return out
 
 
 def _element(c: _Cells, piece: _Piece, pat: Pattern) -> Tuple[np.ndarray, np.ndarray]:
@@ -390,7 +496,7 @@ def _cells(model: Any, points, cells, x) -> Optional[_Cells]:
     Cb = _col(J ** (-2.0 / 3.0)) * C
     I1b = np.trace(Cb, axis1=1, axis2=2)
     I2b = 0.5 * (I1b**2 - np.einsum("mij,mji->m", Cb, Cb))
-    law = decoupled_law(model, I1b, I2b, J)
+    law = decoupled_law(model, I1b, I2b, J) or power_sum_law(model, J)
     if law is None:
         return None
     return _Cells(V0, D, F, C, np.linalg.inv(C), J, law)
@@ -474,6 +580,25 @@ PIECES: Dict[str, str] = {
     "P : CC~ : P^T written out (CC~ = J^(-4/3) CC_bar; spatially the 1/9 (I : c_bar : I) "
     "I (x) I of P : c_bar : P)",
     "S_iso-all": "the isochoric stress S_iso = J^(-2/3) DEV(S_bar)",
+    "Sbar-power": "the fictitious stress S_bar = 2 c q C_bar^(q-1) of the power sum "
+    "c tr C_bar^q (Ogden, q = alpha/2)",
+    "CCbar-principal": "the principal entries 4 c q f'(x_a) N_a^4 of the fictitious tangent "
+    "CC_bar of Ogden's power sum (f = x^(q-1), x_a the eigenvalues of C_bar; spatially the "
+    "delta_ab part of d tau_a / d ln lambda_b), in P : (J^(-4/3) CC_bar) : P^T",
+    "CCbar-rotation": "the divided-difference (shear, a != b) terms of the fictitious tangent "
+    "CC_bar of Ogden's power sum, which turn the principal directions, in "
+    "P : (J^(-4/3) CC_bar) : P^T",
+    "CCbar-spectral": "the fictitious tangent CC_bar of Ogden's power sum (the derivative of "
+    "2 c q C_bar^(q-1)), in P : (J^(-4/3) CC_bar) : P^T",
+    "spectral-double": "the mean term + mu/9 sum_c lambda_bar_c^alpha of Ogden's "
+    "d tau_a / d ln lambda_b (from the derivative of the deviator's mean; spatially "
+    "mu/(9J) sum_c lambda_bar_c^alpha I (x) I, the double trace 1/9 (1 . c_hat . 1) of the "
+    "deviatoric projection in the principal frame)",
+    "spectral-single": "the terms -mu/3 (lambda_bar_a^alpha + lambda_bar_b^alpha) of Ogden's "
+    "d tau_a / d ln lambda_b (the deviatoric projection's single traces; spatially "
+    "-mu/(3J) (b_bar^(alpha/2) (x) I + I (x) b_bar^(alpha/2)))",
+    "spectral-diagonal": "the term mu lambda_bar_a^alpha delta_ab of Ogden's "
+    "d tau_a / d ln lambda_b (the principal entries of the spectral tangent)",
 }
 
 #: Stress pieces carried through: where the engine uses them, in words.
@@ -514,7 +639,7 @@ def _words(name: str, k: float) -> str:
     return f"{PIECES[name]} {FACTORS[k]}{tail}"
 
 
-_STRESS = ("Sbar-psi1", "Sbar-I1b-psi2", "Sbar-Cb-psi2", "Sbar-psi2", "S_iso-all")
+_STRESS = ("Sbar-psi1", "Sbar-I1b-psi2", "Sbar-Cb-psi2", "Sbar-psi2", "Sbar-power", "S_iso-all")
 
 
 def _named(parts: SplitParts) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
@@ -522,6 +647,8 @@ def _named(parts: SplitParts) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
     P, Cr = parts.part, parts.carried
 
     def add(*names, source):
+        # a law without some of the pieces (Ogden's S_bar has no psi2 parts) adds what it has
+        names = [n for n in names if n in source]
         return (
             np.sum([source[n][0] for n in names], axis=0),
             np.sum([source[n][1] for n in names], axis=0),
@@ -534,8 +661,11 @@ def _named(parts: SplitParts) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
     out["vol"] = add("vol-p", "vol-dp", "vol-odot", source=P)
     out["trace"] = add("trace-odot", "trace-outer", source=P)
     out.update(Cr)
-    out["Sbar-psi2"] = add("Sbar-I1b-psi2", "Sbar-Cb-psi2", source=Cr)
-    out["S_iso-all"] = add("Sbar-psi1", "Sbar-I1b-psi2", "Sbar-Cb-psi2", "dev", source=Cr)
+    if "Sbar-I1b-psi2" in Cr:
+        out["Sbar-psi2"] = add("Sbar-I1b-psi2", "Sbar-Cb-psi2", source=Cr)
+    out["S_iso-all"] = add(
+        "Sbar-psi1", "Sbar-I1b-psi2", "Sbar-Cb-psi2", "Sbar-power", "dev", source=Cr
+    )
     return {k: v for k, v in out.items() if np.any(v[0]) or np.any(v[1])}
 
 
@@ -554,6 +684,7 @@ _PAIRED = (
     "Sbar-psi1",
     "Sbar-I1b-psi2",
     "Sbar-Cb-psi2",
+    "Sbar-power",
     "dev",
 )
 
@@ -615,12 +746,25 @@ def split_part_findings(
     pat = parts.pattern
     f_o = np.asarray(f_o, dtype=np.float64)
     r, w, off = residual(pat, f, K, f_o, K_o, s)
-    kept = explaining(candidates(parts), r, w, off, 3 * pat.n, tol)
+    own = candidates(parts)
+    kept = explaining(own, r, w, off, 3 * pat.n, tol)
+    same: Dict[int, List[str]] = {}
+    if kept:
+        # An MJED engine's slip can give the same numbers as a split piece (Ogden, alpha = 3:
+        # its term J^(-1) sum lambda^(3/2) has the J-J block of the spectral mean term): such
+        # a twin is said beside the piece, so that neither is named alone where both fit.
+        others = mjed_parts(model, points, cells, x, f_o, K_o)
+        if others is not None:
+            more = list(mjed_candidates(others, r, w))
+            kept = explaining(own + more, r, w, off, 3 * pat.n, tol, same)
+            kept = [(c, d) for c, d in kept if c in own]
     source = (
         "this change of Holzapfel's decoupled S and CC (pieces from the declared energy, which "
         "add up to the oracle to round-off)"
     )
-    return ambiguous([part_finding(c, d, f, K, f_o, K_o, pat, s, source) for c, d in kept])
+    return ambiguous(
+        [with_equals(part_finding(c, d, f, K, f_o, K_o, pat, s, source), same, c) for c, d in kept]
+    )
 
 
 def split_part_reading(diag: Any, ci: Any, out: Any, ref: Any, s: Scales) -> Any:
