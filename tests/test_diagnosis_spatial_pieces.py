@@ -33,9 +33,10 @@ def _state(uniform=False):
     return points, cells, x
 
 
-def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT):
-    """(f, K): c = scale(J) DDSDDE + sum_k weights_k T_k, the T_k the four halved terms
-    d_ik s_jl, s_ik d_jl, d_il s_jk, s_il d_jk (the right: scale 1, weights -1).
+def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT, dev=0.0, pressure=0.0):
+    """(f, K): c = scale(J) DDSDDE + sum_k weights_k T_k + dev T(s) + pressure p II, the T_k
+    the four halved terms d_ik s_jl, s_ik d_jl, d_il s_jk, s_il d_jk, T(s) their sum for the
+    deviatoric stress s, p = tr(sigma)/3 (the right: scale 1, weights -1, dev = pressure = 0).
     """
     from mjed.mesh import shape_vectors
 
@@ -62,6 +63,16 @@ def _engine(points, cells, x, scale=lambda J: 1.0, weights=RIGHT):
     ddsdde = c + T.sum(axis=0)
     c_e = np.asarray(scale(J))[..., None, None, None, None] * ddsdde
     c_e = c_e + np.einsum("q,qmijkl->mijkl", np.asarray(weights, dtype=float), T)
+    p = np.einsum("mii->m", s) / 3.0
+    sd = s - p[:, None, None] * EYE
+    Td = 0.5 * (
+        np.einsum("ik,mjl->mijkl", EYE, sd)
+        + np.einsum("mik,jl->mijkl", sd, EYE)
+        + np.einsum("il,mjk->mijkl", EYE, sd)
+        + np.einsum("mil,jk->mijkl", sd, EYE)
+    )
+    II = 0.5 * (np.einsum("ik,jl->ijkl", EYE, EYE) + np.einsum("il,jk->ijkl", EYE, EYE))
+    c_e = c_e + dev * Td + pressure * p[:, None, None, None, None] * II
     return _assemble(points, cells, D @ np.linalg.inv(F), J * np.abs(V0), s, c_e)
 
 
@@ -179,3 +190,24 @@ def test_the_identity_term_with_its_factor_two_lost_is_named_on_any_state(unifor
     assert "II term of the isotropic spatial tangent halved" in titles[0], titles
     codes, titles = _causes(law="NeoHookean", two=1.3, uniform=uniform)
     assert "spatial-isotropic-term" not in codes, titles
+
+
+def test_the_deviatoric_or_the_pressure_rate_terms_taken_apart_are_named():
+    """A UMAT that subtracts the deviatoric stress's Jaumann terms in DDSDDE (c - 2 T(s) after
+    the conversion), or writes its volumetric DDSDDE in the Truesdell form (-2 p II twice); a
+    weight off the simple numbers is not named.
+    """
+    codes, titles = _causes(dev=-2.0)
+    assert codes == ["spatial-tangent-pieces"], titles
+    assert "c - 2 T(s)" in titles[0] and "subtracted in DDSDDE" in titles[0], titles
+    codes, titles = _causes(pressure=-2.0)
+    assert codes == ["spatial-tangent-pieces"], titles
+    assert "c - 2 p II" in titles[0] and "Truesdell form" in titles[0], titles
+    codes, titles = _causes(dev=-0.7)
+    assert "spatial-tangent-pieces" not in codes, titles
+
+
+def test_ddsdde_times_j_is_said_times_j():
+    codes, titles = _causes(scale=lambda J: J)
+    assert codes == ["spatial-tangent-pieces"], titles
+    assert "multiplied by J: times J where 1 belongs" in titles[0], titles

@@ -43,7 +43,11 @@ from conformance.diagnosis.invariant_pieces import (
 from conformance.diagnosis.piola_assembly import piola_force_findings
 from conformance.diagnosis.routine_inputs import probe_force_findings
 from conformance.diagnosis.singular_value_pieces import singular_value_findings
-from conformance.diagnosis.spatial_pieces import isotropic_fit_findings, piece_fit_findings
+from conformance.diagnosis.spatial_pieces import (
+    deviatoric_piece_findings,
+    isotropic_fit_findings,
+    piece_fit_findings,
+)
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
@@ -130,6 +134,8 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
         found += fibre_piece_findings(split, t, ci.model, matches)
         if not found:
             found = piece_fit_findings(split, t, K_engine, matches)
+        if not found:
+            found = deviatoric_piece_findings(split, t, K_engine, matches)
         if not found:
             found = isotropic_fit_findings(split, t, K_engine, matches, _parameters(ci.model))
     if not found:

@@ -55,6 +55,7 @@ __all__ = [
     "WEIGHTS",
     "TERMS",
     "piece_fit_findings",
+    "deviatoric_piece_findings",
     "ISOTROPIC",
     "RATIOS",
     "isotropic_fit_findings",
@@ -98,7 +99,7 @@ def _scale_words(a: Tuple[float, float, float], J0: float) -> str:
     """The factor a0 + a_m / J + a_p J in words (J0: the single J of the state, else nan)."""
     a0, am, ap = a
     parts = [f"{_number(a0)}" if a0 else "", f"{_number(am)}/J" if am else ""]
-    parts.append(f"{_number(ap)} J" if ap else "")
+    parts.append(("J" if ap == 1.0 else f"{_number(ap)} J") if ap else "")
     text = " + ".join(p for p in parts if p) or "0"
     if np.isfinite(J0) and (am or ap):
         text += (
@@ -415,3 +416,110 @@ def _one_j_tensor_findings(split, t, K_engine, matches) -> List[Finding]:
                 )
             )
     return found
+
+
+#: The simple numbers the pressure pieces' weights are taken to (right: -2 on p II, 0 on
+#: p I (x) I).
+PRESSURE_WEIGHTS = (0.0, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0, 4.0, -4.0, 6.0, -6.0)
+
+
+def _signed(x: float, what: str) -> str:
+    """' + 2 T(s)', ' - p II' ('' for 0)."""
+    if x == 0.0:
+        return ""
+    k = abs(x)
+    return f" {'-' if x < 0 else '+'} {'' if k == 1.0 else _number(k) + ' '}{what}"
+
+
+#: (offset of T(s), of p II) -> how a UMAT comes to it.
+_PRESSURE_CAUSES = {
+    (-2.0, 0.0): "the deviatoric stress's Jaumann-rate terms subtracted in DDSDDE where they "
+    "belong added, and removed again by the conversion",
+    (0.0, -2.0): "the volumetric part of DDSDDE written in its Truesdell form, (p + J dp/dJ) "
+    "I (x) I - 2 p II, where the Jaumann DDSDDE has (p + J dp/dJ) I (x) I alone: -2 p II counted "
+    "twice",
+    (0.0, 2.0): "the pressure's rate terms added to a Truesdell tangent, or not removed",
+}
+
+
+def _pressure_words(b: np.ndarray, w: Tuple[float, float]) -> str:
+    """The engine's tangent as the Truesdell c plus multiples of the deviatoric stress's
+    Jaumann terms T_k(s) (weights b (4,), right -1) and of p II, p I (x) I (weights w, right
+    (-2, 0)), in words.
+    """
+    if np.all(b == b[0]):
+        text = "c" + _signed(b[0] + 1.0, "T(s)")
+    else:
+        text = "c" + "".join(_signed(b[k] + 1.0, f"({TERMS[k]} of s)") for k in range(4))
+    text += _signed(w[0] + 2.0, "p II") + _signed(w[1], "p I (x) I")
+    cause = _PRESSURE_CAUSES.get((b[0] + 1.0, w[0] + 2.0)) if np.all(b == b[0]) else None
+    return (
+        f"your spatial tangent is {text} (c the Truesdell tangent; T(s) = (d_ik s_jl + s_ik d_jl "
+        "+ d_il s_jk + s_il d_jk)/2 the Jaumann-rate terms of the deviatoric stress "
+        "s = dev(sigma), 2 p II those of the pressure, p = tr(sigma)/3: a UMAT's DDSDDE is "
+        "c + T(s) + 2 p II)" + (f": e.g. {cause}" if cause and not w[1] else "")
+    )
+
+
+def deviatoric_piece_findings(
+    split: ElementSplit,
+    cells: CellTensors,
+    K_engine: sp.spmatrix,
+    matches: Callable[..., float],
+) -> List[Finding]:
+    """:func:`piece_fit_findings` with the Jaumann terms of the deviatoric stress and the
+    pressure's, p II and p I (x) I (p = tr(sigma)/3), as pieces of their own: a UMAT that
+    writes its volumetric DDSDDE in another rate's form, or removes the deviatoric stress's
+    Jaumann terms alone, weights them apart. Nothing where these pieces are not determined (a
+    law whose tangent is a multiple of II and I (x) I with p in every cell, on a state of one
+    J) or where the weights say what :func:`piece_fit_findings` reads.
+    """
+    t = spatial_cells(split, cells.S, cells.CC)
+    J = t.v / split.V0
+    one_j = np.ptp(J) <= ONE_J * np.abs(J).max()
+    p = np.trace(t.sigma, axis1=1, axis2=2) / 3.0
+    s_dev = t.sigma - p[:, None, None] * np.eye(3)
+    T = jaumann_pieces(s_dev)
+    D = t.c + jaumann_pieces(t.sigma).sum(axis=0)
+    m = split.cells.shape[0]
+    scales = [np.ones(m)] if one_j else [np.ones(m), 1.0 / J, J]
+    P = [p[:, None, None, None, None] * np.broadcast_to(X, (m, 3, 3, 3, 3)) for X in (_II, _IXI)]
+    pieces = [q[:, None, None, None, None] * D for q in scales] + list(T) + P
+    Ke = np.stack([_stiffness(t, q) for q in pieces])
+    fit = _fit(split, t, Ke, K_engine)
+    if fit is None:
+        return []
+    x, _ = fit
+    k = len(scales)
+    if one_j:
+        a = [_nearest(x[0], SCALES), 0.0, 0.0]
+    else:
+        a = [_nearest(v, SCALES) for v in x[:3]]
+    b = np.array([_nearest(v, WEIGHTS) for v in x[k : k + 4]])
+    w = (_nearest(x[k + 4], PRESSURE_WEIGHTS), _nearest(x[k + 5], PRESSURE_WEIGHTS))
+    if (np.all(b == b[0]) and w == (2.0 * b[0], 0.0)) or (np.all(b == -1.0) and w == (-2.0, 0.0)):
+        return []  # the whole stress's terms by one weight, or right: piece_fit_findings' to say
+    coef = np.concatenate([a[:k], b, w])
+    Kp = split.Ke + np.einsum("k,kmij->mij", coef, Ke) - _stiffness(t, t.c)
+    left = matches(*assemble(split.cells, split.n, split.fe, Kp))
+    if not np.isfinite(left):
+        return []
+    a3 = (float(a[0]), float(a[1]), float(a[2]))
+    said = [_words(a3, np.full(4, -1.0), float("nan"))] if a3 != (1.0, 0.0, 0.0) else []
+    said.append(_pressure_words(b, w))
+    return [
+        Finding(
+            "spatial-tangent-pieces",
+            "spatial tangent from a UMAT's DDSDDE (the Jaumann-rate tangent, c + T(sigma), "
+            "T(sigma) = (d_ik s_jl + s_ik d_jl + d_il s_jk + s_il d_jk)/2 = T(s) + 2 p II for "
+            "s = dev(sigma), p = tr(sigma)/3) converted wrong: " + "; ".join(x for x in said if x),
+            FULL,
+            "the engine's stiffness fitted by least squares, cell by cell, as c_engine = "
+            "(a0 + a_m/J + a_p J) DDSDDE + sum_k b_k T_k(s) + w1 p II + w2 p I (x) I from the "
+            f"oracle's per-cell sigma and c (fitted: {', '.join(f'{v:.6g}' for v in x)}); taken "
+            f"to b = ({', '.join(_number(v) for v in b)}), w = ({_number(w[0])}, "
+            f"{_number(w[1])}) (the right: a = (1, 0, 0), b = (-1, -1, -1, -1), w = (-2, 0)) "
+            f"and rebuilt with those numbers: errors against your engine {left:.1e}",
+            {"a": list(a3), "b": [float(v) for v in b], "w": list(w), "residual": left},
+        )
+    ]
