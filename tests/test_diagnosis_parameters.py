@@ -325,3 +325,12 @@ def test_a_parameter_is_not_named_where_its_term_is_not_told_from_others():
     assert outcome.status == "failed", d.text()
     assert not any(c.code == "parameter-value" for c in d.causes), d.text()
     assert any(f.title.startswith("(not told apart here) parameter") for f in d.findings), d.text()
+
+
+def test_a_refitted_value_in_a_simple_ratio_to_the_case_is_said_so():
+    from conformance.diagnosis.readings import _ratio_words
+
+    assert _ratio_words("alpha", 0.5) == " (alpha halved: 1/2 times the case's value)"
+    assert "doubled" in _ratio_words("mu", 2.0000000001)
+    assert "3/4 times" in _ratio_words("k0", 0.75)
+    assert _ratio_words("c2", 1.1) == "" and _ratio_words("c2", 1.0) == ""

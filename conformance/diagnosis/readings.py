@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding, ambiguous
+from conformance.diagnosis.fractions import simple_fraction
 from conformance.diagnosis.parameters import scalar_parameters
 from conformance.judge.compare import Scales, Tolerances, errors, grown
 from conformance.judge.consistency import safe_norm
@@ -409,6 +410,7 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
                 f" or, equally on this state, {name}'s terms {volume}: the state has one "
                 f"J = {one_j:.6g}, which cannot tell a value from a volume"
             )
+        also = also or _ratio_words(name, v / v0 if v0 else float("nan"))
         found.append(
             Reading(
                 Finding(
@@ -956,3 +958,20 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
             continue
         out.append(replace(d, findings=[*stress_only([r.finding], d), *rest]))
     return out
+
+
+#: A refitted parameter's ratio to the case's value, as said when it is one of these.
+_RATIOS = {0.5: "halved", 2.0: "doubled", -1.0: "with its sign flipped"}
+
+
+def _ratio_words(name: str, r: float) -> str:
+    """' (name halved: half the case's value)' for a simple ratio r of a refitted parameter to
+    the case's (denominator at most 4, 1e-6); '' otherwise.
+    """
+    if not np.isfinite(r):
+        return ""
+    q = simple_fraction(r, 4, 1e-6)
+    if q is None or q in (0, 1):
+        return ""
+    said = _RATIOS.get(float(q), f"times {q}")
+    return f" ({name} {said}: {q} times the case's value)"
