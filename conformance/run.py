@@ -63,6 +63,7 @@ from conformance.diagnosis.split_parts import split_part_reading
 from conformance.diagnosis.states import other_state_reading
 from conformance.diagnosis.stiffness_noise import NOISE_RANGE, stiffness_noise_reading
 from conformance.diagnosis.strain_differences import strain_difference_reading
+from conformance.diagnosis.stress_forms import stress_form_reading
 from conformance.diagnosis.stress_side import stress_side_reading
 from conformance.diagnosis.stress_terms import b_for_c_reading
 from conformance.diagnosis.svd_blocks import svd_block_reading
@@ -553,6 +554,13 @@ READINGS: Tuple[Reading, ...] = (
         "noise)",
         _force_right,
         lambda d, c: entry_step_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # one unknown per cell: after the readings that predict with nothing fitted
+        "a Cauchy stress wrong by one tensor form per cell (a term not pushed forward, a "
+        "coefficient kept twice), the initial-stress stiffness following it, the tangent right",
+        _nothing_named,
+        lambda d, c: stress_form_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         # after every reading that predicts force and stiffness together
