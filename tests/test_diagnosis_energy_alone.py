@@ -79,3 +79,22 @@ def test_the_mean_volume_hides_on_a_uniform_state_and_the_probes_show_it():
 
 def test_the_oracles_own_energy_is_not_called_wrong():
     assert _findings("Costa", lambda w, J, V0: w.sum(1)) == []
+
+
+@pytest.mark.parametrize("factor, said", [(2.0, "doubled"), (0.5, "halved"), (1.3, "scaled by 13/10")])
+def test_one_part_of_the_energy_alone_scaled_is_named_with_its_factor(factor, said):
+    """Mooney-Rivlin's isochoric part alone scaled in the energy routine (its volumetric
+    k0/2 (ln J)^2, summed here with its own formula, right); and the volumetric part alone.
+    """
+    k0 = default_material("MooneyRivlin").k0
+
+    def vol(J, V0):
+        return (V0 * 0.5 * k0 * np.log(J) ** 2).sum(1)
+
+    found = _findings(
+        "MooneyRivlin", lambda w, J, V0: factor * (w.sum(1) - vol(J, V0)) + vol(J, V0)
+    )
+    assert [f.code for f in found] == ["energy-isochoric-factor"], [f.title for f in found]
+    assert f"isochoric part (all but U(J)) alone {said}" in found[0].title, found[0].title
+    found = _findings("MooneyRivlin", lambda w, J, V0: w.sum(1) + (factor - 1.0) * vol(J, V0))
+    assert [f.code for f in found] == ["energy-volumetric-factor"], [f.title for f in found]

@@ -14,7 +14,8 @@ Named from the states of the case (the state and its probes, each with the engin
 the engine's energies against a small set of declared energy mistakes, each predicted from
 the oracle's per-cell energies V0_c W_c (MJED's, used only where their sum is the oracle's
 energy at every state) with nothing fitted (a weight per cell from its volume) or one number
-fitted over all states (a factor, a constant). When none fits, the finding says the energy
+fitted over all states (a factor on the whole energy, on its isochoric or its volumetric part,
+a constant). When none fits, the finding says the energy
 routine alone is wrong, with the figures, and does not guess which formula. NumPy only.
 """
 
@@ -78,6 +79,9 @@ class EnergyStates:
     J: np.ndarray
     V0: np.ndarray
     scale: float
+    #: (k,) the declared volumetric energy sum_c V0_c U(J_c) at each state (None: no
+    #: volumetric part declared)
+    volumetric: Optional[np.ndarray] = None
 
     def relative(self, predicted: np.ndarray) -> float:
         """Largest |engine - predicted| over the states, relative to the scale."""
@@ -140,7 +144,28 @@ def energy_states(
     split = cell_energies(model, points, cells, positions)
     if split is not None and np.max(np.abs(split.sum(axis=1) - oracle)) > tol * scale:
         split = None
-    return EnergyStates(np.asarray(engine, dtype=np.float64), oracle, split, J, V0, float(scale))
+    engine = np.asarray(engine, dtype=np.float64)
+    return EnergyStates(engine, oracle, split, J, V0, float(scale), _volumetric(model, V0, J))
+
+
+def _volumetric(model, V0: np.ndarray, J: np.ndarray) -> Optional[np.ndarray]:
+    """(k,) sum_c V0_c U(J_c) of the model's declared volumetric energy at each state's J (k, m);
+    None without one (or a formula that reads more than J and ln J).
+    """
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.energy_terms import declaration
+
+    declared = declaration(model)
+    if declared is None or declared.volumetric is None:
+        return None
+    try:
+        U = declared.volumetric(
+            lambda name: float(getattr(model, name)), SimpleNamespace(J=J, lnJ=np.log(J))
+        )
+    except (AttributeError, TypeError):
+        return None
+    return (np.asarray(U, dtype=np.float64) * V0).sum(axis=1)
 
 
 def _candidates(st: EnergyStates) -> List[Tuple[str, str, np.ndarray, Dict[str, float]]]:
@@ -162,6 +187,8 @@ def _candidates(st: EnergyStates) -> List[Tuple[str, str, np.ndarray, Dict[str, 
                 {"factor": a},
             )
         )
+    if st.volumetric is not None:
+        out += _part_factors(o, e, st.volumetric)
     b = float(np.mean(e - o))
     volume = float(st.V0.sum())
     out.append(
@@ -173,6 +200,42 @@ def _candidates(st: EnergyStates) -> List[Tuple[str, str, np.ndarray, Dict[str, 
             {"offset": b, "density": b / volume},
         )
     )
+    return out
+
+
+#: A part's factor as said when it is one of these.
+_SAID = {
+    "2": "doubled (scaled by 2)",
+    "1/2": "halved (scaled by 1/2)",
+    "-1": "with its sign flipped",
+}
+
+
+def _part_factors(o: np.ndarray, e: np.ndarray, vol: np.ndarray):
+    """The energy's isochoric part (o - vol) or its volumetric part vol scaled by one number
+    fitted over the states, the other part right: (code, words, predicted, figures) each.
+    """
+    from conformance.diagnosis.fractions import written_number
+
+    out = []
+    iso = o - vol
+    for code, part, rest, said in (
+        ("energy-isochoric-factor", iso, vol, "isochoric part (all but U(J))"),
+        ("energy-volumetric-factor", vol, iso, "volumetric part U(J)"),
+    ):
+        if not np.dot(part, part) > 0:
+            continue
+        a = float(np.dot(part, e - rest) / np.dot(part, part))
+        how = _SAID.get(written_number(a), f"scaled by {written_number(a)}")
+        out.append(
+            (
+                code,
+                f"the energy's {said} alone {how} in the energy routine (a factor written in "
+                "that part's energy and not in its stress, or left out of it)",
+                a * part + rest,
+                {"factor": a},
+            )
+        )
     return out
 
 
