@@ -53,6 +53,7 @@ from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
 from conformance.diagnosis.principal_blocks import principal_block_reading
+from conformance.diagnosis.rest_tangent import rest_tangent_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
@@ -490,6 +491,12 @@ READINGS: Tuple[Reading, ...] = (
         "blocks), or f'(J) of a term",
         _force_right,
         lambda d, c: mjed_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the tangents' own pieces: a frozen tangent is what a template leaves behind
+        "the tangent frozen at the rest state (a linear-elastic template's lam I (x) I + 2 mu II)",
+        _force_right,
+        lambda d, c: rest_tangent_reading(d, c.cache, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "differences of the force",
