@@ -134,3 +134,33 @@ def test_the_stress_of_the_geometric_stiffness_unpacked_with_its_shears_halved_i
     found = tangent_slip_findings(split, f_o, K, f_o, K_o, s, DOUBLE)
     assert [x.code for x in found] == ["voigt-geometric-stress"], [x.title for x in found]
     assert "halved" in found[0].title
+
+
+def _misread_cauchy_force(split, M):
+    """An updated-Lagrangian engine's force, f_a = -v B^T s of the Cauchy stress's Voigt vector
+    mapped by M (its spatial B rows in another order), computed here from F and S.
+    """
+    P, A = cell_piola(split)
+    S = cell_tensors(P, A, split.F).S
+    J = np.linalg.det(split.F)
+    sigma = split.F @ S @ split.F.swapaxes(1, 2) / J[:, None, None]
+    v = np.stack([sigma[:, i, j] for i, j in VOIGT], axis=1) @ M.T
+    s2 = np.zeros_like(sigma)
+    for a, (i, j) in enumerate(VOIGT):
+        s2[:, i, j] = s2[:, j, i] = v[:, a]
+    g = split.D @ np.linalg.inv(split.F)
+    fe = -(J * split.V0)[:, None, None] * np.einsum("mkj,maj->mak", s2, g)
+    return assemble(split.cells, split.n, fe, None)[0]
+
+
+def test_a_spatial_b_matrix_with_two_shear_rows_exchanged_is_named_on_the_cauchy_stress():
+    split, f_o, K_o, s = _case("ArrudaBoyce", 3)
+    M = np.eye(6)[[0, 1, 2, 3, 5, 4]]  # s_23 and s_13 exchanged
+    f = _misread_cauchy_force(split, M)
+    (found,) = voigt_map_findings(split, f, K_o, f_o, K_o, s, DOUBLE)
+    assert found.title.startswith("the Cauchy stress:"), found.title
+    assert "s_23 holds S_13; s_13 holds S_23" in found.title
+    # the second Piola stress read so is another force: not this one
+    assert not voigt_map_findings(split, _misread_force(split, M), K_o, f_o, K_o, s, DOUBLE)[
+        0
+    ].title.startswith("the Cauchy stress")

@@ -50,6 +50,7 @@ from conformance.diagnosis.spatial_pieces import (
 )
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
+from conformance.diagnosis.voigt_maps import voigt_map_findings
 from conformance.diagnosis.voigt_stress import voigt_stress_findings
 from conformance.judge.compare import Scales, errors
 
@@ -188,6 +189,10 @@ def nearby_force_reading(diag, cache, ci, probe_results, s: Scales):
             found += voigt_stress_findings(split, t.S, matches)
             found += piola_force_findings(split, t.S, matches)
             found += probe_force_findings(near.model, near.points, split, matches)
+            if not found:
+                found = voigt_map_findings(
+                    split, force, r.stiffness, r.force, r.stiffness, s, tol, stiffness_known=False
+                )
         codes = {f.code: f for f in found}
         common = codes if common is None else {c: codes[c] for c in common if c in codes}
         if not common:

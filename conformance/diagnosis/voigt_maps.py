@@ -66,16 +66,25 @@ _SNAP = np.array([0.0, 0.5, -0.5, 1.0, -1.0, 2.0, -2.0])
 _SNAP_TOL = 0.05
 
 
-def voigt_map_patterns(split: ElementSplit, S: np.ndarray) -> np.ndarray:
+def voigt_map_patterns(split: ElementSplit, S: np.ndarray, spatial: bool = False) -> np.ndarray:
     """(36, n, 3): the force of s_B (the B-th Voigt component of S (m, 3, 3)) written into
-    component A, for A, B in 0..5 (row 6 A + B).
+    component A, for A, B in 0..5 (row 6 A + B). spatial: S is the Cauchy stress of an
+    updated-Lagrangian engine (f_a = -v sigma g_a, g = D F^-1, v = J V0), not the second Piola
+    stress (f_a = -V0 F S D_a).
     """
     s = voigt_vector(S)
     units = symmetric_from_voigt(np.eye(6))  # (6, 3, 3): component A alone (a shear: both)
-    FD = np.einsum("mkI,maJ->mkIaJ", split.F, split.D)
+    if spatial:
+        J = np.linalg.det(split.F)
+        g = split.D @ np.linalg.inv(split.F)
+        FD = np.einsum("kI,maJ->mkIaJ", np.eye(3), g)
+        w = J * split.V0
+    else:
+        FD = np.einsum("mkI,maJ->mkIaJ", split.F, split.D)
+        w = split.V0
     out = np.empty((36, split.n, 3))
     for A in range(6):
-        base = -split.V0[:, None, None] * np.einsum("mkIaJ,IJ->mak", FD, units[A])  # (m, 4, 3)
+        base = -w[:, None, None] * np.einsum("mkIaJ,IJ->mak", FD, units[A])  # (m, 4, 3)
         for B in range(6):
             fe = s[:, B, None, None] * base
             out[6 * A + B] = assemble(split.cells, split.n, fe, None)[0]
@@ -126,27 +135,53 @@ def voigt_map_words(M: np.ndarray) -> str:
     return "; ".join(rows)
 
 
-def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Finding]:
-    """The misread Voigt map whose exact force is the engine's (f (n, 3)), or []."""
+def _spatial_stiffness(split: ElementSplit, dc: np.ndarray):
+    """The assembled v (g_a . dc . g_b) of per-cell spatial tangents dc (m, 3, 3, 3, 3)."""
+    J = np.linalg.det(split.F)
+    g = split.D @ np.linalg.inv(split.F)
+    Ke = np.einsum("m,maj,mijkl,mbl->maibk", J * split.V0, g, dc, g).reshape(-1, 12, 12)
+    return assemble(split.cells, split.n, np.zeros((split.V0.size, 4, 3)), Ke)[1]
+
+
+def voigt_map_findings(
+    split: ElementSplit, f, K, f_o, K_o, s, tol, stiffness_known: bool = True
+) -> List[Finding]:
+    """The misread Voigt map whose exact force is the engine's (f (n, 3)), or []: of the second
+    Piola stress (a total-Lagrangian engine), else of the Cauchy stress (an updated-Lagrangian
+    engine's spatial B matrix). stiffness_known: False where the engine's stiffness is not
+    known (a probe: K is then the oracle's and nothing is said of it).
+    """
+    from conformance.diagnosis.spatial_tangent import spatial_cells
+
     P, A = cell_piola(split)
     t = cell_tensors(P, A, split.F)
     S, CC = t.S, t.CC
-    patterns = voigt_map_patterns(split, S)
     error = np.asarray(f, dtype=float) - np.asarray(f_o, dtype=float)
-    M = fit_voigt_map(patterns, error)
-    if M is None:
-        return []
-    dM = M - np.eye(6)
-    predicted = np.asarray(f_o, dtype=float) + np.tensordot(dM.ravel(), patterns, axes=1)
-    e = errors(f, K, None, predicted, K_o, 0.0, s)
-    if e.force > tol.force:
+    for spatial in (False, True):
+        sc = spatial_cells(split, S, CC) if spatial else None
+        patterns = voigt_map_patterns(split, sc.sigma if spatial else S, spatial)
+        M = fit_voigt_map(patterns, error)
+        if M is None:
+            continue
+        dM = M - np.eye(6)
+        predicted = np.asarray(f_o, dtype=float) + np.tensordot(dM.ravel(), patterns, axes=1)
+        e = errors(f, K, None, predicted, K_o, 0.0, s)
+        if e.force <= tol.force:
+            break
+    else:
         return []
     # The rows of B read through the map (B' = R B, M = R^T): the material stiffness
     # B'^T D B' = B^T (M D M^T) B carries it too, the geometric part (from S) does not.
-    D = voigt_matrix(CC)
-    dK_rows = material_stiffness(split, voigt_tensor(M @ D @ M.T) - CC)
+    if spatial:
+        D = voigt_matrix(sc.c)
+        dK_rows = _spatial_stiffness(split, voigt_tensor(M @ D @ M.T) - sc.c)
+    else:
+        D = voigt_matrix(CC)
+        dK_rows = material_stiffness(split, voigt_tensor(M @ D @ M.T) - CC)
     e_rows = errors(f, K, None, predicted, K_o + dK_rows, 0.0, s)
-    if e.stiffness <= tol.stiffness:
+    if not stiffness_known:
+        where, strength, said = "the stress vector or the rows of B", FULL, "force alone compared"
+    elif e.stiffness <= tol.stiffness:
         where, strength, said = "the stress vector", FULL, "your stiffness is right"
     elif e_rows.stiffness <= tol.stiffness:
         where, strength = "the rows of B (so B^T D B carries it too)", FULL
@@ -157,7 +192,8 @@ def voigt_map_findings(split: ElementSplit, f, K, f_o, K_o, s, tol) -> List[Find
     return [
         Finding(
             "voigt-map",
-            f"{where} read through another Voigt map than the one it was filled in: "
+            f"{'the Cauchy stress: ' if spatial else ''}{where} read through another Voigt "
+            "map than the one it was filled in: "
             f"{voigt_map_words(M)} (the Voigt order or shear convention of s and of the rows of "
             "B disagree, or a component is typed wrongly)",
             strength,
