@@ -27,10 +27,13 @@ def _dyad(a, b):
     return np.einsum("mij,mkl->mijkl", a, b)
 
 
-def _ogden_stiffness(points, cells, x, model, shear=1.0, mean=1.0, sigma=1.0, turn=None):
+def _ogden_stiffness(
+    points, cells, x, model, shear=1.0, mean=1.0, sigma=1.0, turn=None, shear_mean=1.0
+):
     """K (3n, 3n) of the spectral Ogden engine whose a != b tangent terms are ``shear`` times
     the divided difference, the mean term mu sum t / 9 of d tau_a / d ln lambda_b ``mean``
-    times its value and the term -2 tau_a n_a^4 ``sigma`` times its (1: right); turn: a
+    times its value, the term -2 tau_a n_a^4 ``sigma`` times its and the shear coefficients'
+    deviatoric-mean term ``shear_mean`` times its (1: right); turn: a
     generator that turns the engine's eigenvectors of the repeated pair (sorted: the first two) by a
     random angle per cell, as another eigen-solver's round-off would.
     """
@@ -60,7 +63,8 @@ def _ogden_stiffness(points, cells, x, model, shear=1.0, mean=1.0, sigma=1.0, tu
         # (beta_a xb_b - beta_b xb_a) / (xb_a - xb_b) and its limit for equal stretches
         lim = mm * (alpha / 2.0 - 1.0) * L[:, a] + mm * S / 3.0
         dd = (beta[:, a] * xc - beta[:, b] * xa) / np.where(same, 1.0, xa - xc)
-        gam = shear * np.where(same, lim, dd)
+        # shear_mean: the sign (or factor) of the deviatoric mean's term mu S / (3 alpha) in it
+        gam = shear * np.where(same, lim, dd) + (shear_mean - 1.0) * mm * S / 3.0
         Nab, Nba = N[:, a, b], N[:, b, a]
         Jc = Jc + gam[:, None, None, None, None] * (_dyad(Nab, Nab) + _dyad(Nab, Nba))
     tau = np.einsum("ma,maij->mij", beta, Naa)
@@ -153,3 +157,18 @@ def test_the_mean_term_left_out_is_named_with_its_mjed_twin_and_a_scaled_one_is_
     # another coefficient still does, and is said beside it)
     (other,) = found(dataclasses.replace(model, alpha=5.0), 0.0)
     assert "mean term" in other.title and "halved" not in other.evidence
+
+
+@pytest.mark.parametrize("uniaxial", [False, True])
+def test_the_shear_coefficients_mean_term_with_its_sign_lost_is_named(uniaxial):
+    points, cells, x = _state(uniaxial)
+    model = default_material("Ogden")
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+
+    def found(shear_mean):
+        K = _ogden_stiffness(points, cells, x, model, shear_mean=shear_mean)
+        return shear_term_findings(model, split, K, K_o, DOUBLE.stiffness)
+
+    named = found(-1.0)
+    assert [f.code for f in named] == ["tangent-shear-mean-sign"], [f.title for f in named]
+    assert found(0.5) == []

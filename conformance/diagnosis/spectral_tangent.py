@@ -236,6 +236,20 @@ def _turn_words(turned: int, rest: str) -> str:
     )
 
 
+#: code -> (words, the shift of every pair's shear coefficient (Kirchhoff) per cell from
+#: mu / alpha (the model's) and the isochoric stretches' sum of powers S = sum lambda_bar^alpha):
+#: a term of the coefficient written with the wrong sign adds twice itself.
+SHEAR_SHIFTS = {
+    "shear-mean-sign": (
+        "the off-diagonal (a != b, shear) coefficient (tau_a lambda_b^2 - tau_b lambda_a^2) / "
+        "(lambda_a^2 - lambda_b^2) expanded with the deviatoric mean's term -mu/(3 alpha) "
+        "sum lambda_bar^alpha where + belongs (the sign of the mean in tau_a = mu/alpha "
+        "(lambda_bar_a^alpha - sum/3) lost)",
+        lambda k, S: -2.0 * k * S / 3.0,
+    ),
+}
+
+
 def _pair_tensors(n: np.ndarray, a: int, b: int) -> tuple:
     """(s (x) s, u, w) of the principal pair (a, b): s = w = n_a n_b + n_b n_a and
     u = n_a n_a - n_b n_b (m, 3, 3), n (m, 3, 3) the principal directions as columns.
@@ -264,7 +278,11 @@ def shear_term_fit(model: Any, split, D: sp.csr_matrix, K_o: sp.csr_matrix, code
     q = power_exponent(model)
     if q is None:
         return None
-    words, part, factor = SHEAR_VARIANTS[code]
+    if code in SHEAR_SHIFTS:
+        shift = SHEAR_SHIFTS[code][1]
+        part, factor = "isochoric", lambda la, lb: np.ones_like(la * lb)
+    else:
+        (_, part, factor), shift = SHEAR_VARIANTS[code], None
     P, A = cell_piola(split)
     t = cell_tensors(P, A, split.F)
     sc = spatial_cells(split, t.S, t.CC)
@@ -286,7 +304,11 @@ def shear_term_fit(model: Any, split, D: sp.csr_matrix, K_o: sp.csr_matrix, code
     for a, b in ((0, 1), (0, 2), (1, 2)):
         ss, u, w = _pair_tensors(n, a, b)
         g = np.einsum("mij,mijkl,mkl->m", w, Jc, w) / 4.0 + sub
-        coef = ((phi[:, a, b] - 1.0) * g)[:, None, None, None, None]
+        if shift is None:
+            coef = ((phi[:, a, b] - 1.0) * g)[:, None, None, None, None]
+        else:
+            k = float(model.mu) / (2.0 * q)  # mu / alpha
+            coef = shift(k, np.sum(xb**q, axis=1))[:, None, None, None, None]
         deg = close[:, a, b]
         uu, ww = np.einsum("mij,mkl->mijkl", u, u), np.einsum("mij,mkl->mijkl", w, w)
         uw = np.einsum("mij,mkl->mijkl", u, w)
@@ -314,7 +336,9 @@ def shear_term_findings(model: Any, split, K: sp.spmatrix, K_o: sp.spmatrix, tol
     K_o = sp.csr_matrix(K_o)
     D = (sp.csr_matrix(K) - K_o).tocsr()
     found = []
-    for code, (words, part, _) in SHEAR_VARIANTS.items():
+    codes = [(c, w, p) for c, (w, p, _) in SHEAR_VARIANTS.items()]
+    codes += [(c, w, "isochoric") for c, (w, _) in SHEAR_SHIFTS.items()]
+    for code, words, part in codes:
         fit = shear_term_fit(model, split, D, K_o, code)
         if fit is None or not fit[0] <= tol:
             continue
