@@ -47,6 +47,7 @@ from conformance.diagnosis.spatial_pieces import (
     deviatoric_piece_findings,
     isotropic_fit_findings,
     piece_fit_findings,
+    unsymmetrised_product_findings,
 )
 from conformance.diagnosis.spatial_tangent import spatial_findings
 from conformance.diagnosis.spatial_variants import spatial_variant_findings
@@ -137,6 +138,10 @@ def hand_derived_reading(diag, cache, ci, out, ref, s: Scales):
             found = piece_fit_findings(split, t, K_engine, matches)
         if not found:
             found = deviatoric_piece_findings(split, t, K_engine, matches)
+        if not found:
+            found = unsymmetrised_product_findings(
+                split, t, K_engine, matches, _parameters(ci.model)
+            )
         if not found:
             found = isotropic_fit_findings(split, t, K_engine, matches, _parameters(ci.model))
     if not found:

@@ -56,6 +56,8 @@ __all__ = [
     "TERMS",
     "piece_fit_findings",
     "deviatoric_piece_findings",
+    "PRODUCTS",
+    "unsymmetrised_product_findings",
     "ISOTROPIC",
     "RATIOS",
     "isotropic_fit_findings",
@@ -523,3 +525,71 @@ def deviatoric_piece_findings(
             {"a": list(a3), "b": [float(v) for v in b], "w": list(w), "residual": left},
         )
     ]
+
+
+#: The products X (.) X a spatial tangent holds (X_ik X_jl + X_il X_jk) / 2: the tensor X per
+#: cell from b (m, 3, 3), and what it is.
+PRODUCTS = {
+    "I (.) I": (lambda b: np.broadcast_to(np.eye(3), b.shape), "II, the symmetric identity"),
+    "b (.) b": (lambda b: b, "b (.) b (St Venant-Kirchhoff's push-forward of II)"),
+}
+
+
+def unsymmetrised_product_findings(
+    split: ElementSplit,
+    cells: CellTensors,
+    K_engine: sp.spmatrix,
+    matches: Callable[..., float],
+    parameters: dict,
+) -> List[Finding]:
+    """A product X (.) X of the spatial tangent written X_ik X_jl (one index order) and packed
+    into a Voigt DDSDDE, which keeps the entries (ij) <= (kl) of the six slots: the engine's c
+    holds beta (X_ik X_jl - X_il X_jk) / 2 more on those entries (minor symmetry restored by
+    the packing), beta (the product's coefficient) fitted with one unknown per group of cells
+    in the same state (:func:`conformance.diagnosis.stress_forms.group_fit`); named when the
+    rebuilt stiffness matches, the force right.
+    """
+    from conformance.diagnosis.strain_differences import voigt_matrix, voigt_tensor
+    from conformance.diagnosis.stress_forms import group_fit
+
+    t = spatial_cells(split, cells.S, cells.CC)
+    J = t.v / split.V0
+    b = split.F @ split.F.swapaxes(1, 2)
+    f0, K0 = assemble(split.cells, split.n, split.fe, split.Ke)
+    dK = sp.csr_matrix(K_engine) - K0
+    zero = np.zeros((split.cells.shape[0], 4, 3))
+    found = []
+    for name, (tensor, words) in PRODUCTS.items():
+        X = tensor(b)
+        half = 0.5 * (np.einsum("mik,mjl->mijkl", X, X) - np.einsum("mil,mjk->mijkl", X, X))
+        packed = voigt_tensor(voigt_matrix(half))
+        Ke = _stiffness(t, packed)
+        beta = group_fit(split, zero, Ke, np.zeros((split.n, 3)), dK, _UNIT)
+        if beta is None or not np.any(beta):
+            continue
+        Kp = split.Ke + beta[:, None, None] * Ke
+        left = matches(*assemble(split.cells, split.n, split.fe, Kp))
+        if not np.isfinite(left):
+            continue
+        said = _in_parameters(float(np.median(beta * J)), parameters)
+        steady = np.ptp(beta * J) <= 1e-6 * np.abs(beta * J).max()
+        found.append(
+            Finding(
+                "spatial-unsymmetrised-product",
+                f"the product {name} of your spatial tangent ({words}) written with one index "
+                f"order, X_ik X_jl, where (X_ik X_jl + X_il X_jk)/2 belongs, then packed into a "
+                "Voigt DDSDDE (the minor symmetrisation lost on its shear entries)",
+                FULL,
+                "the oracle's c plus beta (X_ik X_jl - X_il X_jk)/2 on the Voigt entries, beta "
+                "fitted per cell ("
+                + (f"beta J = {said} in every cell" if steady else "beta varying over the cells")
+                + f"): errors against your engine {left:.1e}",
+                {"product": name, "beta_J_median": float(np.median(beta * J)), "residual": left},
+            )
+        )
+    return found
+
+
+#: Unit scales: the stiffness fit of :func:`unsymmetrised_product_findings` weighs nothing
+#: against a force (none is fitted there).
+_UNIT = type("UnitScales", (), {"force": 1.0, "stiffness": 1.0})()

@@ -32,6 +32,7 @@ from conformance.judge.compare import Scales, Tolerances, errors
 __all__ = [
     "FORMS",
     "form_fit",
+    "group_fit",
     "same_state_groups",
     "stress_form_findings",
     "stress_form_reading",
@@ -72,17 +73,20 @@ def _element_change(split: ElementSplit, X: np.ndarray) -> Tuple[np.ndarray, np.
     return fe, np.einsum("mab,ik->maibk", geo, _EYE).reshape(m, 12, 12)
 
 
-def form_fit(
-    split: ElementSplit, form: str, df: np.ndarray, dK: sp.spmatrix, s: Scales
+def group_fit(
+    split: ElementSplit,
+    fe: np.ndarray,
+    Ke: np.ndarray,
+    df: np.ndarray,
+    dK: sp.spmatrix,
+    s: Scales,
 ) -> Optional[np.ndarray]:
-    """(m,) beta per cell of delta sigma = beta X (X: ``form`` of :data:`FORMS` at each cell's
-    b; one unknown per group of cells in the same state, :func:`same_state_groups`) by least
-    squares against the force error df (n, 3) and stiffness error dK, weighted by
-    the scales; None where the stiffness error has entries no cell reaches.
+    """(m,) the coefficient per cell of the per-cell changes fe (m, 4, 3) and Ke (m, 12, 12)
+    that best gives the force error df (n, 3) and stiffness error dK together (least squares,
+    each weighted by its scale), one unknown per group of cells in the same state
+    (:func:`same_state_groups`); None where the stiffness error has entries no cell reaches.
     """
     m, n3 = split.cells.shape[0], 3 * split.n
-    b = split.F @ split.F.swapaxes(1, 2)
-    fe, Ke = _element_change(split, FORMS[form][0](b))
     dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
     keys = (np.repeat(dof, 12, axis=1).astype(np.int64) * n3 + np.tile(dof, (1, 12))).ravel()
     pattern, where = np.unique(keys, return_inverse=True)
@@ -95,7 +99,7 @@ def form_fit(
     y = np.concatenate([np.asarray(df, dtype=np.float64).ravel() / s.force, np.zeros(pattern.size)])
     np.add.at(y, n3 + pos[inside], dK.data[inside] / s.stiffness)
     rows = np.concatenate([dof.ravel(), n3 + where.ravel()])
-    group = same_state_groups(b)
+    group = same_state_groups(split.F @ split.F.swapaxes(1, 2))
     k = int(group.max()) + 1
     cols = np.concatenate([np.repeat(group, 12), np.repeat(group, 144)])
     data = np.concatenate([fe.reshape(-1) / s.force, Ke.reshape(-1) / s.stiffness])
@@ -104,6 +108,17 @@ def form_fit(
     norms[norms == 0] = 1.0
     sol = lsqr(A @ sp.diags(1.0 / norms), y, atol=1e-15, btol=1e-15, iter_lim=50 * k)
     return (sol[0] / norms)[group]
+
+
+def form_fit(
+    split: ElementSplit, form: str, df: np.ndarray, dK: sp.spmatrix, s: Scales
+) -> Optional[np.ndarray]:
+    """(m,) beta per cell of delta sigma = beta X (X: ``form`` of :data:`FORMS` at each cell's
+    b) by :func:`group_fit` against the force error df (n, 3) and stiffness error dK.
+    """
+    b = split.F @ split.F.swapaxes(1, 2)
+    fe, Ke = _element_change(split, FORMS[form][0](b))
+    return group_fit(split, fe, Ke, df, dK, s)
 
 
 def same_state_groups(b: np.ndarray) -> np.ndarray:
