@@ -55,13 +55,22 @@ def _assembled(split, S, CC):
     return assemble(split.cells, split.n, fe, Ke)
 
 
-def _costa_engine(split, R, back):
+def _costa_engine(split, R, back, push=None):
     """Force and stiffness of Costa with dQ/dC, d2Q/dCdC rotated back by ``back`` ("right":
-    R X R^T; "transposed": R^T X R; "none": X).
+    R X R^T; "transposed": R^T X R; "none": X); push: "covectors" (a spatial engine's frame
+    a_i = F^-T r_i: pulled back, C^-1 R), "normalised" (a_i = F r_i / |F r_i|: R / |F r_i|).
     """
     B, F, J, Ci, Ef, Q, Tf = _strain_form(split, R)
     Tf = np.broadcast_to(Tf, (J.size, 3, 3, 3, 3))
-    if back == "right":
+    if push is not None:
+        if push == "covectors":
+            Rp = Ci @ R
+        else:
+            stretch = np.linalg.norm(F @ R, axis=1)  # |F r_i| per column
+            Rp = R / stretch[:, None, :]
+        H = Rp @ (B * Ef) @ Rp.swapaxes(1, 2)
+        dH = np.einsum("mia,mjb,mkc,mld,mabcd->mijkl", Rp, Rp, Rp, Rp, Tf)
+    elif back == "right":
         H = R @ (B * Ef) @ R.swapaxes(1, 2)
         dH = np.einsum("mia,mjb,mkc,mld,mabcd->mijkl", R, R, R, R, Tf)
     elif back == "transposed":
@@ -191,3 +200,13 @@ def test_dj_dc_without_its_j_in_the_c_jets_is_named_and_not_in_the_stress_alone(
     assert _found(split, model, f, K, f_o, K_o, s) == ["derivative-dJ-without-J"]
     f, K = _costa_jets(split, R, 1.0 / J, stress_only=True)
     assert _found(split, model, f, K, f_o, K_o, s) == []
+
+
+def test_a_spatial_engines_frame_pushed_forward_wrongly_is_named():
+    """a_i = F^-T r_i (covectors) or F r_i normalised, in F M F^T and the tangent's dyads, Q
+    itself from R^T E R: each named as such, and not as the other.
+    """
+    model, R, points, cells, x, split, f_o, K_o, s = _case(2)
+    for push in ("covectors", "normalised"):
+        f, K = _costa_engine(split, R, "right", push=push)
+        assert _found(split, model, f, K, f_o, K_o, s) == [f"fibre-pushed-{push}"], push

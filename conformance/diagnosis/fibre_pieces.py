@@ -44,7 +44,7 @@ from conformance.diagnosis.invariant_pieces import (
     stress_tangent_output,
 )
 
-__all__ = ["ROTATIONS_BACK", "q_pieces", "fibre_piece_findings"]
+__all__ = ["ROTATIONS_BACK", "PUSHES_FORWARD", "q_pieces", "fibre_piece_findings"]
 
 _EYE = np.eye(3)
 
@@ -69,12 +69,47 @@ ROTATIONS_BACK: Dict[str, Tuple[str, Optional[str], Optional[str]]] = {
 }
 
 
+#: code -> (words, H (m, 3, 3) from the cell tensors and the frame R: a spatial engine that
+#: pushes the frame forward as a_i = G r_i for F r_i builds, pulled back, H dQ/dC H^T and
+#: H H H H : d2Q/dCdC with H = F^-1 G, while Q itself (from R^T E R) is right).
+PUSHES_FORWARD: Dict[str, Tuple[str, Callable[[CellTensors, np.ndarray], np.ndarray]]] = {
+    "covectors": (
+        "the fibre frame pushed forward as covectors, a_i = F^-T r_i (a surface normal's "
+        "push-forward), where the fibre directions are material line elements, a_i = F r_i, "
+        "in F M F^T and the tangent's dyads (Q itself right)",
+        lambda t, R: t.Ci,
+    ),
+    "normalised": (
+        "the pushed-forward frame vectors a_i = F r_i normalised to unit length before "
+        "F M F^T and the tangent's dyads are formed (their stretch belongs in them; Q itself "
+        "right)",
+        lambda t, R: np.einsum(
+            "mia,ma,mja->mij", R, 1.0 / np.sqrt(np.einsum("mia,mij,mja->ma", R, t.C, R)), R
+        ),
+    ),
+    "isochoric": (
+        "the fibre frame pushed forward with the isochoric F_bar = J^(-1/3) F, a_i = F_bar r_i, "
+        "in F M F^T and the tangent's dyads while the J^(-4/3) of the isochoric Q is kept too "
+        "(Q itself right)",
+        lambda t, R: (t.J ** (-1.0 / 3.0))[:, None, None] * np.broadcast_to(_EYE, t.C.shape),
+    ),
+}
+
+
 def q_pieces(
-    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str = "right"
+    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str = "right", push: str = ""
 ) -> Tuple[np.ndarray, np.ndarray]:
     """dQ/dC (m, 3, 3) and d2Q/dCdC (m, 3, 3, 3, 3) of Q = sum B_ij (R^T E R)_ij^2, rotated back
-    as ``back`` (a key of :data:`ROTATIONS_BACK`). B: (3, 3); R: (m, 3, 3).
+    as ``back`` (a key of :data:`ROTATIONS_BACK`), and through a frame pushed forward as
+    ``push`` says (a key of :data:`PUSHES_FORWARD`; "": as F r_i). B: (3, 3); R: (m, 3, 3).
     """
+    if push:
+        g, h = q_pieces(t, B, R, back)
+        H = PUSHES_FORWARD[push][1](t, R)
+        return (
+            np.einsum("mia,mab,mjb->mij", H, g, H),
+            np.einsum("mia,mjb,mkc,mld,mabcd->mijkl", H, H, H, H, h, optimize=True),
+        )
     Ef = np.einsum("mai,mab,mbj->mij", R, 0.5 * (t.C - _EYE), R)
     Tf = 0.25 * (
         np.einsum("ab,ac,bd->abcd", B, _EYE, _EYE) + np.einsum("ab,ad,bc->abcd", B, _EYE, _EYE)
@@ -87,13 +122,13 @@ def q_pieces(
 
 
 def _columns(
-    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str, j_mistake: str = ""
+    t: CellTensors, B: np.ndarray, R: np.ndarray, back: str, j_mistake: str = "", push: str = ""
 ) -> np.ndarray:
     """(m, 90, 5) the design columns of psi_Q, psi_J, psi_QQ, psi_QJ, psi_JJ with dQ and d2Q
     rotated back as ``back`` and J's pieces with ``j_mistake`` (a code of
     :data:`conformance.diagnosis.invariant_pieces.J_MISTAKES`; "": none).
     """
-    gQ, hQ = q_pieces(t, B, R, back)
+    gQ, hQ = q_pieces(t, B, R, back, push)
     gJ, hJ = j_pieces(t, j_mistake)
     m = t.J.size
     dW = np.zeros((5, m, 2))
@@ -124,17 +159,21 @@ def fibre_piece_findings(
     if residual > FIT_TOL:
         return []
     trials = [
-        (f"fibre-rotated-back-{code}", words, "dQ/dC and d2Q/dCdC rotated back so", code, "")
+        (f"fibre-rotated-back-{code}", words, "dQ/dC and d2Q/dCdC rotated back so", code, "", "")
         for code, (words, _, _) in ROTATIONS_BACK.items()
         if code != "right"
     ]
     trials += [
-        (f"derivative-{code}", LAW_MISTAKES[code], "that piece of J written so", "right", code)
+        (f"derivative-{code}", LAW_MISTAKES[code], "that piece of J written so", "right", code, "")
         for code in J_MISTAKES
     ]
+    trials += [
+        (f"fibre-pushed-{code}", words, "the frame so pushed forward", "right", "", code)
+        for code, (words, _) in PUSHES_FORWARD.items()
+    ]
     found = []
-    for code, words, how, back, j_mistake in trials:
-        d = determined_change(_columns(t, B, R, back, j_mistake) - right, x, scale, free)
+    for code, words, how, back, j_mistake, push in trials:
+        d = determined_change(_columns(t, B, R, back, j_mistake, push) - right, x, scale, free)
         if d is None:
             continue
         m = t.J.size
@@ -150,7 +189,7 @@ def fibre_piece_findings(
                     f"sum is the oracle's to {split.residual:.1e}) fitted on the chain rule of "
                     f"W(Q, J) (misfit {residual:.1e}), {how} and the rest kept: force and "
                     f"stiffness errors against your engine {left:.1e}",
-                    {"rotation": back, "j_piece": j_mistake, "residual": left},
+                    {"rotation": back, "j_piece": j_mistake, "push": push, "residual": left},
                 )
             )
     return found
