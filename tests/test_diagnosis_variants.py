@@ -169,3 +169,31 @@ def test_the_identity_typed_as_ones_in_the_green_strain_is_a_variant_of_st_venan
     W = model.lam / 2 * trE**2 + model.mu * np.einsum("mij,mij->m", E, E)
     assert np.allclose(v.model.density(F), W, rtol=1e-13)
     assert all(v.rewrite.code != "identity-ones" for v in variants(default_material("Yeoh")))
+
+
+def test_i2b_with_the_power_of_j_of_i1b_on_tr_c2_is_a_variant_of_formulas_with_i2b():
+    """I2b = (I1b^2 - J^(-2/3) tr(C^2)) / 2, equal to the right I2b only where J = 1."""
+    import numpy as np
+
+    from common.cases import default_material
+    from conformance.diagnosis.variants import variants
+
+    (vw,) = [
+        v.expression
+        for v in variants(default_material("VerondaWestmann"))
+        if v.rewrite.code == "power-trC2-in-I2b"
+    ]
+    assert "J**(-2/3)*(I1**2 - 2*I2)" in vw
+    codes = [v.rewrite.code for v in variants(default_material("NeoHookean"))]
+    assert "power-trC2-in-I2b" not in codes  # no I2b in its formula
+
+    # the rewrite's value against the right I2b at a state with J != 1
+    C = np.diag([1.3, 0.9, 1.1])
+    J = np.sqrt(np.linalg.det(C))
+    I1, I2 = np.trace(C), 0.5 * (np.trace(C) ** 2 - np.trace(C @ C))
+    I1b, I2b = J ** (-2 / 3) * I1, J ** (-4 / 3) * I2
+    wrong = (I1b**2 - J ** (-2 / 3) * (I1**2 - 2 * I2)) / 2
+    assert (
+        abs(wrong - I2b) > 1e-3
+        and abs((I1b**2 - J ** (-4 / 3) * (I1**2 - 2 * I2)) / 2 - I2b) < 1e-12
+    )

@@ -210,6 +210,13 @@ REWRITES: Tuple[Rewrite, ...] = (
         "(J**(-2/3)*I2)",
     ),
     Rewrite(
+        "power-trC2-in-I2b",
+        "I2b formed as (I1b^2 - J^(-2/3) tr(C^2)) / 2: the power of J of I1b reused on tr(C^2), "
+        "where tr(C_bar^2) = J^(-4/3) tr(C^2) belongs",
+        r"\bI2b\b",
+        "((I1b**2 - J**(-2/3)*(I1**2 - 2*I2))/2)",
+    ),
+    Rewrite(
         "I2-as-trC2", "tr(C^2) used for I2 = (I1^2 - tr(C^2)) / 2", r"\bI2\b", "(I1**2 - 2*I2)"
     ),
     Rewrite(
