@@ -236,13 +236,16 @@ def test_shear_stresses_doubled_are_named_at_the_probes_when_the_case_is_uniaxia
     def normal(S):
         return np.einsum("mii->mi", S)[:, :, None] * EYE
 
-    for extra, named in ((shear, True), (normal, False)):
+    for extra, code in ((shear, "voigt-stress-shear"), (normal, "voigt-map")):
         results = [(p, _probe_engine(points, cells, p, model, extra), None) for p in probes]
         d = nearby_force_reading(diag, _Cache(), _Case(points, cells, x, model), results, s)
         codes = [c.code for c in d.causes]
-        assert codes == (["voigt-stress-shear"] if named else []), [c.title for c in d.findings]
-        if named:
-            assert "probes near this state" in d.causes[0].evidence
+        assert codes == [code], [c.title for c in d.findings]
+        assert "probes near this state" in d.causes[0].evidence
+    # the normal stresses doubled are not the shear family: named as the map they are, the
+    # force alone compared at the probes
+    assert np.array_equal(d.causes[0].figures["map"], np.diag([2, 2, 2, 1, 1, 1.0]))
+    assert "force alone compared" in d.causes[0].evidence
 
 
 def _neo_dj_without_j(points, cells, x, model, tangent: bool):
