@@ -81,7 +81,9 @@ def test_the_oracles_own_energy_is_not_called_wrong():
     assert _findings("Costa", lambda w, J, V0: w.sum(1)) == []
 
 
-@pytest.mark.parametrize("factor, said", [(2.0, "doubled"), (0.5, "halved"), (1.3, "scaled by 13/10")])
+@pytest.mark.parametrize(
+    "factor, said", [(2.0, "doubled"), (0.5, "halved"), (1.3, "scaled by 13/10")]
+)
 def test_one_part_of_the_energy_alone_scaled_is_named_with_its_factor(factor, said):
     """Mooney-Rivlin's isochoric part alone scaled in the energy routine (its volumetric
     k0/2 (ln J)^2, summed here with its own formula, right); and the volumetric part alone.
