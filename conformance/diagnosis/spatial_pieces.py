@@ -49,6 +49,7 @@ from conformance.diagnosis.invariant_pieces import CellTensors
 from conformance.diagnosis.least_squares import determined_lstsq
 from conformance.diagnosis.spatial_tangent import SpatialCells, spatial_cells
 from conformance.diagnosis.spatial_variants import jaumann_pieces
+from conformance.judge.compare import Scales
 
 __all__ = [
     "SCALES",
@@ -592,4 +593,4 @@ def unsymmetrised_product_findings(
 
 #: Unit scales: the stiffness fit of :func:`unsymmetrised_product_findings` weighs nothing
 #: against a force (none is fitted there).
-_UNIT = type("UnitScales", (), {"force": 1.0, "stiffness": 1.0})()
+_UNIT = Scales(1.0, 1.0, 1.0)
