@@ -178,6 +178,20 @@ def _fit(
     return None if x is None else (x[:, 0], x[:, 1])
 
 
+def _ddsdde_columns(split: ElementSplit, cells: CellTensors):
+    """(t, J (m,), one_j, the DDSDDE columns): the oracle's spatial cells, each cell's J, whether
+    the cells share one J, and DDSDDE = c + the four Jaumann terms of sigma scaled per cell by
+    1 (and, where J varies, by 1/J and J): the columns both DDSDDE fits start from.
+    """
+    t = spatial_cells(split, cells.S, cells.CC)
+    J = t.v / split.V0
+    one_j = bool(np.ptp(J) <= ONE_J * np.abs(J).max())
+    D = t.c + jaumann_pieces(t.sigma).sum(axis=0)
+    m = split.cells.shape[0]
+    scales = [np.ones(m)] if one_j else [np.ones(m), 1.0 / J, J]
+    return t, J, one_j, [q[:, None, None, None, None] * D for q in scales]
+
+
 def piece_fit_findings(
     split: ElementSplit,
     cells: CellTensors,
@@ -191,14 +205,8 @@ def piece_fit_findings(
     matches(f, K): the engine's error against the prediction, inf unless within the tolerance
     and the prediction is not the oracle's (:func:`conformance.diagnosis.hand_derived`).
     """
-    t = spatial_cells(split, cells.S, cells.CC)
-    J = t.v / split.V0
-    one_j = np.ptp(J) <= ONE_J * np.abs(J).max()
-    T = jaumann_pieces(t.sigma)
-    D = t.c + T.sum(axis=0)
-    m = split.cells.shape[0]
-    scales = [np.ones(m)] if one_j else [np.ones(m), 1.0 / J, J]
-    pieces = [q[:, None, None, None, None] * D for q in scales] + list(T)
+    t, J, one_j, scaled = _ddsdde_columns(split, cells)
+    pieces = scaled + list(jaumann_pieces(t.sigma))
     Ke = np.stack([_stiffness(t, p) for p in pieces])  # (k, m, 12, 12)
     fit = _fit(split, t, Ke, K_engine)
     if fit is None:
@@ -213,7 +221,7 @@ def piece_fit_findings(
         a = [a0, 0.0, 0.0]
     else:
         a = [_nearest(v, SCALES) for v in x[:3]]
-    b = np.array([_nearest(v, WEIGHTS) for v in x[len(scales) :]])
+    b = np.array([_nearest(v, WEIGHTS) for v in x[len(scaled) :]])
     coef = np.array(a if not one_j else [a[0] + a[1] / J0 + a[2] * J0])
     Kp = split.Ke + np.einsum("k,kmij->mij", np.concatenate([coef, b]), Ke) - _stiffness(t, t.c)
     left = matches(*assemble(split.cells, split.n, split.fe, Kp))
@@ -477,23 +485,18 @@ def deviatoric_piece_findings(
     law whose tangent is a multiple of II and I (x) I with p in every cell, on a state of one
     J) or where the weights say what :func:`piece_fit_findings` reads.
     """
-    t = spatial_cells(split, cells.S, cells.CC)
-    J = t.v / split.V0
-    one_j = np.ptp(J) <= ONE_J * np.abs(J).max()
-    p = np.trace(t.sigma, axis1=1, axis2=2) / 3.0
-    s_dev = t.sigma - p[:, None, None] * np.eye(3)
-    T = jaumann_pieces(s_dev)
-    D = t.c + jaumann_pieces(t.sigma).sum(axis=0)
+    t, J, one_j, scaled = _ddsdde_columns(split, cells)
     m = split.cells.shape[0]
-    scales = [np.ones(m)] if one_j else [np.ones(m), 1.0 / J, J]
+    p = np.trace(t.sigma, axis1=1, axis2=2) / 3.0
+    T = jaumann_pieces(t.sigma - p[:, None, None] * np.eye(3))
     P = [p[:, None, None, None, None] * np.broadcast_to(X, (m, 3, 3, 3, 3)) for X in (_II, _IXI)]
-    pieces = [q[:, None, None, None, None] * D for q in scales] + list(T) + P
+    pieces = scaled + list(T) + P
     Ke = np.stack([_stiffness(t, q) for q in pieces])
     fit = _fit(split, t, Ke, K_engine)
     if fit is None:
         return []
     x, _ = fit
-    k = len(scales)
+    k = len(scaled)
     if one_j:
         a = [_nearest(x[0], SCALES), 0.0, 0.0]
     else:
