@@ -24,7 +24,7 @@ from conformance.diagnosis.cells import cell_contribution_reading, spread_cells_
 from conformance.diagnosis.central_differences import central_difference_reading
 from conformance.diagnosis.coincident_stretches import coincident_reading
 from conformance.diagnosis.complex_step import complex_step_reading
-from conformance.diagnosis.corroborate import corroborate, extend_consistent
+from conformance.diagnosis.corroborate import corroborate, extend_consistent, extend_covered
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -882,10 +882,13 @@ def _corroborate(run: CheckRun) -> None:
     """A cause named on one case not named where it leaves another case of the same model and
     mesh unexplained (:func:`conformance.diagnosis.corroborate.corroborate`); a case that fits it
     exactly but cannot tell it apart given it (:func:`~conformance.diagnosis.corroborate.
-    extend_consistent`).
+    extend_consistent`); a case whose causes another case's cause covers (a parameter off by
+    float32's size on a state of alike cells: :func:`~conformance.diagnosis.corroborate.
+    extend_covered`).
     """
     _by_group(run, corroborate)
     _by_group(run, extend_consistent)
+    _by_group(run, extend_covered)
 
 
 def _by_group(run: CheckRun, rule: Callable[..., list]) -> None:

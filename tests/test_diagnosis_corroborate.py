@@ -208,3 +208,43 @@ def test_a_j_only_energy_named_on_a_single_j_takes_the_cause_another_case_tells_
     assert out[1].findings[0].figures["named_on"] == "r"
     out = extend_consistent([_diag("random", [_cause()]), one_j], [[0, 1]], ["r", "u"])
     assert out[1] is one_j
+
+
+def _rounded_part(parameter="a"):
+    return Finding(
+        "single-precision-part-scalar",
+        f"a scalar of the energy's part in {parameter} computed in single precision (float32)",
+        FULL,
+        "lambda per cell, drawn at random",
+        {"parameter": parameter, "covers": ["parameter-value"], "covers_relative": 1e-5},
+    )
+
+
+def _parameter(name="a", value=3000.00029, declared=3000.0):
+    return Finding(
+        "parameter-value",
+        f"parameter {name} = {value} in your engine where the case has {declared}",
+        FULL,
+        "the oracle with it: force error 6e-17",
+        {"parameter": name, "value": value, "declared": declared},
+    )
+
+
+def test_a_parameter_off_by_float32s_size_is_covered_by_a_rounding_per_cell():
+    from conformance.diagnosis.corroborate import extend_covered
+
+    rounded = _diag("random", [_rounded_part()])
+    ids = ["uniaxial", "random"]
+    out = extend_covered([_diag("uniaxial", [_parameter()]), rounded], [[0, 1]], ids)
+    d = out[0]
+    assert [f.code for f in d.causes] == ["single-precision-part-scalar"]
+    assert d.findings[0].figures["named_on"] == "random"
+    assert "3000.00029" in d.findings[0].evidence  # the case's own fit kept in the evidence
+    assert d.findings[1].strength == OBSERVED and d.findings[1].code == "parameter-value"
+    assert out[1] is rounded
+    # not covered: a real parameter mistake, another parameter, another group
+    for other in (_parameter(value=3300.0), _parameter("k0", 8e4 * (1 + 1e-7), 8e4)):
+        case = _diag("uniaxial", [other])
+        assert extend_covered([case, rounded], [[0, 1]], ids)[0] is case
+    case = _diag("uniaxial", [_parameter()])
+    assert extend_covered([case, rounded], [[0], [1]], ids)[0] is case

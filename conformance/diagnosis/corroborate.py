@@ -31,7 +31,13 @@ from typing import List, Optional, Sequence
 
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
 
-__all__ = ["corroborate", "extend_consistent", "fits_codes", "left_unexplained"]
+__all__ = [
+    "corroborate",
+    "extend_consistent",
+    "extend_covered",
+    "fits_codes",
+    "left_unexplained",
+]
 
 _ONLY = "(this case only) "
 _AMBIGUOUS = "(ambiguous) "
@@ -140,6 +146,22 @@ def _partly_otherwise(diagnosis, codes) -> bool:
     return lead.strength == PARTIAL and lead.code not in codes
 
 
+def _named_elsewhere(diagnoses, group, j: int, accept) -> Optional[tuple]:
+    """(i, cause): the first cause named in full on a case i != j of ``group`` that ``accept``
+    takes; None where there is none.
+    """
+    return next(
+        (
+            (i, c)
+            for i in group
+            if i != j and diagnoses[i] is not None
+            for c in diagnoses[i].causes
+            if c.strength == FULL and accept(c)
+        ),
+        None,
+    )
+
+
 def extend_consistent(
     diagnoses: Sequence[Optional[object]], groups: Sequence[Sequence[int]], case_ids: Sequence[str]
 ) -> List:
@@ -154,16 +176,7 @@ def extend_consistent(
             fits = fits_codes(diagnoses[j])
             if not fits:
                 continue
-            source = next(
-                (
-                    (i, f)
-                    for i in group
-                    if i != j and diagnoses[i] is not None
-                    for f in diagnoses[i].causes
-                    if f.strength == FULL and _fits(f, fits)
-                ),
-                None,
-            )
+            source = _named_elsewhere(diagnoses, group, j, lambda f, fits=fits: _fits(f, fits))
             if source is None:
                 continue
             i, cause = source
@@ -180,4 +193,60 @@ def extend_consistent(
                 {**cause.figures, "named_on": case_ids[i]},
             )
             out[j] = replace(d, findings=[found, *d.findings[1:]])
+    return out
+
+
+def _covered(finding: Finding, cause: Finding) -> bool:
+    """True when ``cause`` (named on another case) covers ``finding``: it lists finding's code
+    under figures["covers"], names the same parameter, and the finding's value differs from the
+    declared one by at most figures["covers_relative"] of it (one number standing for a factor
+    per cell that a homogeneous state makes the same in every cell).
+    """
+    if finding.code not in cause.figures.get("covers", ()):
+        return False
+    name = finding.figures.get("parameter")
+    if name is None or name != cause.figures.get("parameter"):
+        return False
+    value, declared = finding.figures.get("value"), finding.figures.get("declared")
+    if value is None or not declared:
+        return False
+    return abs(value / declared - 1.0) <= cause.figures.get("covers_relative", 0.0)
+
+
+def extend_covered(
+    diagnoses: Sequence[Optional[object]], groups: Sequence[Sequence[int]], case_ids: Sequence[str]
+) -> List:
+    """``diagnoses`` with every case whose causes another case of its group covers
+    (:func:`_covered`: a parameter off by float32's size where that case names a scalar of the
+    parameter's part rounded per cell) given that cause, its own kept below as observations.
+    On a state whose cells are all alike the per-cell factor is one number and a parameter refit
+    fits it; the state with distinct cells shows it is drawn per cell. Others unchanged.
+    """
+    out = list(diagnoses)
+    for group in groups:
+        for j in group:
+            d = out[j]
+            if d is None or not d.causes:
+                continue
+            source = _named_elsewhere(
+                out, group, j, lambda c, d=d: all(_covered(f, c) for f in d.causes)
+            )
+            if source is None:
+                continue
+            i, cause = source
+            own = "; ".join(f"{f.title} ({f.evidence})" for f in d.causes)
+            found = Finding(
+                cause.code,
+                cause.title,
+                FULL,
+                f"named on the kit's case {case_ids[i]} (same engine, model and mesh), where the "
+                "cells differ and the factor is seen drawn per cell; here it fits as one number "
+                f"({own}): the cells of this state are alike and round alike",
+                {**cause.figures, "named_on": case_ids[i]},
+            )
+            kept = [
+                replace(f, strength=OBSERVED, title=_ONLY + f.title) if f.strength == FULL else f
+                for f in d.findings
+            ]
+            out[j] = replace(d, findings=[found, *kept])
     return out

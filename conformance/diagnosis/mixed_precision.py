@@ -40,6 +40,7 @@ import numpy as np
 
 from conformance.diagnosis.elements import ElementSplit, assemble, piola_element_forces
 from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.part_scalars import part_scalar_findings
 
 __all__ = [
     "NOISE_CORRELATION",
@@ -536,8 +537,6 @@ def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results)
     (no MJED split, or not noise with the rounding's pattern). probes: the case's probe
     KitCases; probe_results: (positions, force, energy) of the engine at each.
     """
-    from dataclasses import replace
-
     from conformance.diagnosis.elements import element_split
 
     split = element_split(
@@ -558,6 +557,23 @@ def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results)
         found = mixed_precision_finding(
             split, ci.model, ci.points, ci.positions, error, probe_errors
         ) or rest_rounding_finding(split, ci.model, ci.points, ci.positions, error, probe_errors)
-    if found is None:
+        if found is None:
+            # no tensor rounded: a scalar of one part of the energy, per cell
+            noisy = noise(error, probe_errors).noisy if probe_errors else None
+            parts = part_scalar_findings(
+                split, ci.model, ci.points, ci.positions, out, ref.force, ref.stiffness, s,
+                diag.tolerances, noisy,
+            )  # fmt: skip
+            return _led_by(diag, parts)
+    return _led_by(diag, [found] if found is not None else [])
+
+
+def _led_by(diag, found: List[Finding]):
+    """``diag`` with ``found`` first and its "unexplained" headline dropped; unchanged when
+    ``found`` is empty.
+    """
+    from dataclasses import replace
+
+    if not found:
         return diag
-    return replace(diag, findings=[found, *(f for f in diag.findings if f.code != "unexplained")])
+    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
