@@ -53,6 +53,7 @@ from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
 from conformance.diagnosis.principal_blocks import principal_block_reading
+from conformance.diagnosis.principal_differences import principal_difference_reading
 from conformance.diagnosis.rest_tangent import rest_tangent_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
@@ -529,6 +530,12 @@ READINGS: Tuple[Reading, ...] = (
         "central differences of P in each component of F (a first elasticity tensor)",
         _headline_unexplained,
         lambda d, c: central_difference_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a spectral engine's principal block d tau_a / d ln lambda_b by differences of the "
+        "principal Kirchhoff stresses (forward or central in ln lambda, or a relative step)",
+        _headline_unexplained,
+        lambda d, c: principal_difference_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "an updated-Lagrangian assembly's kinematics, or its material routine handed F_bar, U, "

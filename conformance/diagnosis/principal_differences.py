@@ -1,0 +1,273 @@
+"""A spectral engine's principal block by differences of the principal Kirchhoff stresses.
+
+A spectral (Bonet and Wood) engine builds the spatial tangent of an isotropic material in the
+principal frame n_a of b from the principal Kirchhoff stresses tau_a(l_1, l_2, l_3), l_a = ln
+lambda_a:
+
+    J c = sum_ab (d tau_a / d l_b - 2 tau_a delta_ab) n_a n_a n_b n_b + (pair terms),
+
+and an engine that does not derive d tau_a / d l_b by hand differences it, column by column,
+with a step h: forward in l, (tau_a(l + h e_b) - tau_a(l)) / h, with a leading error (h/2)
+d2 tau_a / d l_b2; central in l, with (h^2/6) d3 tau_a / d l_b3; or forward with a step
+relative to the stretch, lambda_b (1 + h), that is l_b + ln(1 + h) divided by h. The pair terms
+(divided differences of the stresses themselves) are exact. Only the principal block is off, by
+a matrix per cell that is one scheme's error per unit step (per unit h^2, central), measured by
+simulating the scheme with a larger step (:data:`PROBE`) on the stresses at F = diag(lambda)
+(an isotropic material's principal stresses do not depend on the frame) against the exact
+derivative (central differences with a small step). Its stiffness, V0 grad N . (sum_ab dM_ab
+n_a n_a n_b n_b) . grad N, is fitted to K - K_o with one unknown (h, or h^2), and named, partly
+explaining (round-off and the higher orders are left), when it accounts for 99 % of the
+stiffness error, as the other difference readings are. The engine may difference the whole
+stress or only one part of it (the isochoric stresses, the volumetric pressure added
+analytically): each part proportional to one parameter the energy is linear in is tried too.
+On a homogeneous state with two equal stretches the tangent in their plane depends on the
+basis each eigen-solver picks there: it is left free (six numbers per cell,
+:func:`conformance.diagnosis.coincident_stretches.without_plane`) and the step fitted on the
+rest. NumPy and MJED only; isotropic materials (no fibre frame).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from conformance.diagnosis.coincident_stretches import repeated_pair, without_plane
+from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.strain_differences import (
+    EXPLAINED,
+    StrainDifferenceFit,
+    fit_step,
+    fit_step_squared,
+)
+
+__all__ = [
+    "PROBE",
+    "SCHEMES",
+    "principal_stresses",
+    "stress_parts",
+    "scheme_errors",
+    "principal_stiffness",
+    "principal_difference_fits",
+    "principal_difference_reading",
+]
+
+#: The step of the simulated schemes (their next order is 1e-3 of the leading one).
+PROBE = 1e-3
+#: The exact derivative's central step (its error 1e-9 of it, round-off 1e-12).
+EXACT = 1e-4
+
+#: scheme -> (the quotient in words, whether its error goes as h^2)
+SCHEMES = {
+    "forward-log": ("(tau_a(l + h e_b) - tau_a(l)) / h in the log-stretches l = ln lambda", False),
+    "central-log": ("(tau_a(l + h e_b) - tau_a(l - h e_b)) / (2 h) in the log-stretches", True),
+    "forward-relative": (
+        "(tau_a(lambda_b (1 + h)) - tau_a(lambda)) / h, a step relative to the stretch",
+        False,
+    ),
+}
+
+
+def principal_stresses(
+    model: Any, points: np.ndarray, split: ElementSplit, logs: np.ndarray
+) -> Optional[np.ndarray]:
+    """(m, 3) the principal Kirchhoff stresses tau_a of ``model`` at F = diag(exp(logs)) per
+    cell (logs (m, 3)), from MJED; None where it cannot.
+    """
+    from conformance.diagnosis.routine_inputs import piola_at
+
+    lam = np.exp(logs)
+    F = np.zeros((logs.shape[0], 3, 3))
+    F[:, [0, 1, 2], [0, 1, 2]] = lam
+    at = piola_at(model, points, split, F, stiffness=False)
+    if at is None or not np.all(np.isfinite(at[0])):
+        return None
+    return np.einsum("maa->ma", at[0]) * lam  # tau = P F^T, diagonal here
+
+
+def stress_parts(model: Any) -> Dict[str, Any]:
+    """{label: function(points, split, logs) -> (m, 3) or None}: the whole principal stress
+    ("") and, for each scalar parameter the energy is linear in, the part proportional to it
+    (its stress with the parameter doubled less the model's), kept where tripling it gives twice
+    that part (linear).
+    """
+
+    def whole(points, split, logs):
+        return principal_stresses(model, points, split, logs)
+
+    parts: Dict[str, Any] = {"": whole}
+    if not dataclasses.is_dataclass(model):
+        return parts
+    for fld in dataclasses.fields(model):
+        v = getattr(model, fld.name, None)
+        if not isinstance(v, float) or v == 0.0 or not np.isfinite(v):
+            continue
+        try:
+            doubled = dataclasses.replace(model, **{fld.name: 2.0 * v})
+            tripled = dataclasses.replace(model, **{fld.name: 3.0 * v})
+        except (TypeError, ValueError):
+            continue
+
+        def part(points, split, logs, doubled=doubled, tripled=tripled):
+            base = principal_stresses(model, points, split, logs)
+            two = principal_stresses(doubled, points, split, logs)
+            three = principal_stresses(tripled, points, split, logs)
+            if base is None or two is None or three is None:
+                return None
+            p = two - base
+            scale = max(np.abs(base).max(), 1e-300)
+            return p if np.abs(three - base - 2.0 * p).max() <= 1e-9 * scale else None
+
+        parts[fld.name] = part
+    return parts
+
+
+def _frame(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
+    """(logs (m, 3), n (m, 3, 3)): the log principal stretches and the principal directions of
+    b = F F^T (columns), in the same order.
+    """
+    x, n = np.linalg.eigh(split.F @ split.F.swapaxes(1, 2))
+    return 0.5 * np.log(x), n
+
+
+def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndarray):
+    """{scheme: (m, 3, 3) the error of d tau_a / d l_b per unit step (per unit h^2, central)}
+    of :data:`SCHEMES` for the principal stresses ``stress`` (a function of
+    :func:`stress_parts`); None where they cannot be evaluated.
+    """
+    m = logs.shape[0]
+
+    def at(shift: np.ndarray) -> Optional[np.ndarray]:
+        return stress(points, split, logs + shift)
+
+    base = at(np.zeros((m, 3)))
+    if base is None:
+        return None
+    exact = np.empty((m, 3, 3))
+    moved: Dict[str, np.ndarray] = {k: np.empty((m, 3, 3)) for k in SCHEMES}
+    for b in range(3):
+        e = np.zeros((m, 3))
+        e[:, b] = 1.0
+        values = [at(t * e) for t in (EXACT, -EXACT, PROBE, -PROBE, np.log1p(PROBE))]
+        if any(v is None for v in values):
+            return None
+        plus, minus, fwd, back, rel = values
+        exact[:, :, b] = (plus - minus) / (2 * EXACT)
+        moved["forward-log"][:, :, b] = (fwd - base) / PROBE
+        moved["central-log"][:, :, b] = (fwd - back) / (2 * PROBE)
+        moved["forward-relative"][:, :, b] = (rel - base) / PROBE
+    return {k: (moved[k] - exact) / (PROBE**2 if SCHEMES[k][1] else PROBE) for k in SCHEMES}
+
+
+def principal_stiffness(split: ElementSplit, n: np.ndarray, dM: np.ndarray) -> sp.csr_matrix:
+    """(3n, 3n) the stiffness of a principal-block change dM (m, 3, 3) of J c, sum_ab dM_ab
+    n_a n_a n_b n_b, integrated as V0 grad N . (J c) . grad N (grad N = F^-T D_a).
+    """
+    nn = np.einsum("mia,mja->maij", n, n)  # n_a (x) n_a
+    Jc = np.einsum("mab,maij,mbkl->mijkl", dM, nn, nn, optimize=True)
+    gN = split.D @ np.linalg.inv(split.F)
+    Ke = np.einsum("m,maj,mijkl,mbl->maibk", split.V0, gN, Jc, gN, optimize=True)
+    m = split.F.shape[0]
+    return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))[1]
+
+
+def principal_difference_fits(
+    model: Any, split: ElementSplit, points: np.ndarray, D: sp.csr_matrix, K_o: sp.csr_matrix
+) -> List[Tuple[str, str, StrainDifferenceFit]]:
+    """[(part, scheme, fit)]: every part of :func:`stress_parts` and scheme of :data:`SCHEMES`
+    whose error accounts for :data:`EXPLAINED` of D = K - K_o, best first; [] for a model
+    with a fibre frame (not isotropic) or where MJED cannot evaluate it.
+    """
+    if getattr(model, "frame", None) is not None:
+        return []
+    logs, n = _frame(split)
+    pair = repeated_pair(split)
+    if pair is not None:
+        # Two equal stretches on a homogeneous state: in their plane each eigen-solver picks
+        # its own basis, and the principal block's share there depends on it; the in-plane
+        # tangent is left free and the step fitted on what is outside it.
+        project = without_plane(split, pair)
+        D = project(D)
+    found = []
+    for label, stress in stress_parts(model).items():
+        errs = scheme_errors(stress, points, split, logs)
+        if errs is None:
+            continue
+        for scheme, dM in errs.items():
+            if not np.all(np.isfinite(dM)):
+                continue
+            basis = principal_stiffness(split, n, dM)
+            if pair is not None:
+                basis = project(basis)
+            squared = SCHEMES[scheme][1]
+            fit = (
+                fit_step_squared(basis, D, K_o, "principal")
+                if squared
+                else fit_step(basis, D, K_o, "principal")
+            )
+            if fit is not None and fit.explained >= EXPLAINED:
+                found.append((label, scheme, fit))
+    return sorted(found, key=lambda t: -t[2].explained)
+
+
+def _part_words(label: str) -> str:
+    return (
+        "the principal Kirchhoff stresses"
+        if not label
+        else f"the part of the principal Kirchhoff stresses proportional to {label} (the rest "
+        "derived exactly)"
+    )
+
+
+def principal_difference_reading(diag, ci, out, ref, s):
+    """``diag`` (the force right, nothing named) with the principal block by differences named
+    first, partly explaining, when a scheme fits (:func:`principal_difference_fits`; several
+    alike within 0.1 %: the best, the others said); unchanged otherwise.
+    """
+    from conformance.diagnosis.elements import case_split
+    from conformance.diagnosis.findings import PARTIAL, Finding, named_first
+
+    split = case_split(diag, ci, ref, s)
+    if split is None:
+        return diag
+    K_o = sp.csr_matrix(ref.stiffness)
+    D = (sp.csr_matrix(out.stiffness) - K_o).tocsr()
+    with np.errstate(all="ignore"):
+        fits = principal_difference_fits(ci.model, split, ci.points, D, K_o)
+    if not fits:
+        return diag
+    label, scheme, fit = fits[0]
+    alike = [
+        f"{_part_words(lb)}, {sc.replace('-', ' ')}"
+        for lb, sc, f in fits[1:]
+        if f.explained >= fit.explained - 1e-3
+    ]
+    quotient, squared = SCHEMES[scheme]
+    direction = "" if squared or fit.scheme == "forward" else " (backward: a negative step)"
+    return named_first(
+        diag,
+        [
+            Finding(
+                "principal-finite-difference",
+                "a spectral engine's principal block d tau_a / d ln lambda_b by finite "
+                f"differences of {_part_words(label)}: {quotient}, step h = {fit.step:.2e}"
+                f"{direction}",
+                PARTIAL,
+                "K - K_oracle is that scheme's error in the principal block of J c per unit "
+                + ("h^2" if squared else "h")
+                + f" (measured by simulating it with h = {PROBE:g} on the oracle's principal "
+                "stresses against their exact derivative; the pair terms exact), fitted with one "
+                f"unknown: it accounts for {100 * fit.explained:.2f} % of the stiffness error "
+                f"(left: {fit.residual:.1e}, the higher orders and round-off); the force matches"
+                + (f" (as well: {'; '.join(alike)})" if alike else ""),
+                {
+                    "step": fit.step,
+                    "scheme": scheme,
+                    "part": label,
+                    "explained": fit.explained,
+                },
+            )
+        ],
+    )

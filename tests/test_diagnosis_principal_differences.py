@@ -1,0 +1,102 @@
+"""A spectral engine's principal block by differences of the principal Kirchhoff stresses
+(conformance.diagnosis.principal_differences). The engine's error is written here from Ogden's
+closed form, tau_a = mu/alpha (e_a - sum e / 3) + k0 ln J with e_a = exp(alpha (l_a - ln J / 3)),
+l_a = ln lambda_a: its principal block d tau_a / d l_b differenced by the scheme under test
+against the exact mu (e_a delta_ab - (e_a + e_b)/3 + sum e / 9) + k0, pushed into the stiffness
+along n_a n_a n_b n_b (the pair terms exact); MJED stands in for the oracle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.principal_differences import principal_difference_fits
+from mjed import materials as M
+
+MU, ALPHA, K0 = 2.0e3, 5.0, 4.0e4
+
+
+def _tau(logs):
+    """(m, 3) Ogden's principal Kirchhoff stresses at log-stretches logs (m, 3)."""
+    L = logs.sum(axis=1, keepdims=True)
+    e = np.exp(ALPHA * (logs - L / 3.0))
+    return MU / ALPHA * (e - e.sum(axis=1, keepdims=True) / 3.0) + K0 * L
+
+
+def _exact(logs):
+    L = logs.sum(axis=1, keepdims=True)
+    e = np.exp(ALPHA * (logs - L / 3.0))
+    ea, eb = e[:, :, None], e[:, None, :]
+    block = -(ea + eb) / 3.0 + e.sum(axis=1)[:, None, None] / 9.0 + K0 / MU
+    return MU * (block + ea * np.eye(3))
+
+
+def _differenced(logs, h, scheme):
+    out = np.empty(logs.shape + (3,))
+    for b in range(3):
+        e = np.zeros(3)
+        e[b] = 1.0
+        if scheme == "forward":
+            out[:, :, b] = (_tau(logs + h * e) - _tau(logs)) / h
+        else:
+            out[:, :, b] = (_tau(logs + h * e) - _tau(logs - h * e)) / (2 * h)
+    return out
+
+
+@pytest.fixture(scope="module")
+def case():
+    points, cells = box_mesh(3, jitter=0.2, seed=5)
+    rng = np.random.default_rng(5)
+    x = points @ np.diag([1.2, 0.9, 0.97]).T + 0.04 * rng.standard_normal(points.shape)
+    model = M.Ogden(mu=MU, alpha=ALPHA, k0=K0)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    return points, model, split, K_o
+
+
+def _stiffness_error(split, dM):
+    """The engine's K - K_o for a principal-block error dM (m, 3, 3) of J c."""
+    x, n = np.linalg.eigh(split.F @ split.F.swapaxes(1, 2))
+    nn = np.einsum("mia,mja->maij", n, n)
+    Jc = np.einsum("mab,maij,mbkl->mijkl", dM, nn, nn)
+    gN = np.einsum("maI,mIi->mai", split.D, np.linalg.inv(split.F))
+    Ke = np.einsum("m,maj,mijkl,mbl->maibk", split.V0, gN, Jc, gN).reshape(-1, 12, 12)
+    m = split.V0.size
+    return assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke)[1], 0.5 * np.log(x)
+
+
+@pytest.mark.parametrize(
+    "scheme, h, named", [("forward", 1e-6, "forward-log"), ("central", 1e-3, "central-log")]
+)
+def test_the_principal_block_by_differences_is_named_with_its_step(case, scheme, h, named):
+    points, model, split, K_o = case
+    _, logs = _stiffness_error(split, np.zeros((split.V0.size, 3, 3)))
+    D, _ = _stiffness_error(split, _differenced(logs, h, scheme) - _exact(logs))
+    assert sp.linalg.norm(D) > 1e-12 * sp.linalg.norm(K_o)
+    fits = principal_difference_fits(model, split, points, D.tocsr(), K_o)
+    assert fits, "not named"
+    part, found, fit = fits[0]
+    assert found == named and part in ("", "mu")
+    assert fit.step == pytest.approx(h, rel=0.05)
+    assert fit.explained > 0.99
+
+
+def test_a_principal_block_slip_that_is_not_a_difference_is_not_named(case):
+    points, model, split, K_o = case
+    _, logs = _stiffness_error(split, np.zeros((split.V0.size, 3, 3)))
+    exact = _exact(logs)
+    diagonal = exact * np.eye(3)  # the diagonal entries alone scaled
+    for dM in (1e-6 * exact, 1e-6 * diagonal):
+        D, _ = _stiffness_error(split, dM)
+        assert sp.linalg.norm(D) > 1e-12 * sp.linalg.norm(K_o)
+        assert principal_difference_fits(model, split, points, D.tocsr(), K_o) == []
+
+
+def test_an_anisotropic_model_is_not_read():
+    class Framed:
+        frame = np.eye(3)
+
+    assert principal_difference_fits(Framed(), None, None, None, None) == []
