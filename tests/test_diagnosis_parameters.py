@@ -89,6 +89,23 @@ def test_costa_with_two_b_exchanged_is_named_as_such():
 
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_two_parameters_with_other_values_are_refitted_together():
+    """MJED on Costa with the transversely isotropic reading of its b's (b_sn given b_ss's value,
+    b_fn b_fs's): no parameter refitted alone, no exchange and no order of the values explains
+    it; all refitted together do, and each changed value is said with the parameter it is.
+    """
+    d = _checked(COSTA, lambda m: dataclasses.replace(m, b_sn=m.b_ss, b_fn=m.b_fs))
+    assert d.causes, d.text()
+    cause = d.causes[0]
+    assert cause.code == "parameter-values", d.text()
+    assert cause.figures["parameters"] == ["b_fn", "b_sn"]
+    assert cause.figures["values"] == pytest.approx([COSTA.b_fs, COSTA.b_ss], rel=1e-8)
+    assert "the value of b_ss: b_ss used for b_sn" in cause.title
+    assert "the value of b_fs: b_fs used for b_fn" in cause.title
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
 def test_a_parameter_inside_an_exponential_with_another_value_is_refitted():
     """MJED on Veronda-Westmann with c2 (inside exp(c2 (I1b - 3)) and in the I2b term) 10 %
     larger: no term fit explains it; the refit of c2 alone does, and says the value.

@@ -438,6 +438,74 @@ def _parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Read
     )
 
 
+#: The most parameters refitted together, and how closely the case must pin each (relative):
+#: the refit's residual over its sensitivity (the least change of the relative errors per unit
+#: relative change of any combination of the parameters) bounds how far they could move.
+JOINT_MOST = 10
+JOINT_PINNED = 1e-7
+
+
+def _joint_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+    """Two or more parameters with other values at once (a law with fewer parameters reading
+    the case's: a transversely isotropic law taking Costa's b_sn as b_ss and b_fn as b_fs; two
+    moduli in other units): every scalar parameter refitted together from the declared values
+    (Gauss-Newton through the oracle). Named when the oracle at the fitted values matches the
+    engine, the case pins every parameter (:data:`JOINT_PINNED`) and at least two
+    changed; each changed value said with the parameter whose value it is, if any.
+    """
+    from conformance.diagnosis.parameters import with_value
+    from conformance.diagnosis.refit import refit
+
+    values = scalar_parameters(ci.model)
+    names = list(values)
+    if not 2 <= len(names) <= JOINT_MOST:
+        return []
+
+    def evaluate(v):
+        r = cache.evaluate_once(ci, with_value(ci.model, **dict(zip(names, map(float, v)))))
+        return r.force, r.stiffness
+
+    fit = refit(evaluate, [values[n] for n in names], _target(out, s, tol), steps=12)
+    if fit is None or not fit.agrees:
+        return []
+    pinned = max(fit.residual, 1e-15) / fit.sensitivity if fit.sensitivity > 0 else np.inf
+    if not pinned <= JOINT_PINNED:  # NaN (no step taken) too
+        return []
+    changed = [
+        (n, v, values[n])
+        for n, v in zip(names, fit.values)
+        if abs(v - values[n]) > 1e-6 * max(abs(values[n]), 1e-300)
+    ]
+    if len(changed) < 2:
+        return []
+    said = []
+    for n, v, v0 in changed:
+        same = [q for q, vq in values.items() if q != n and abs(v - vq) <= 1e-6 * abs(vq)]
+        how = f"the value of {same[0]}: {same[0]} used for {n}" if same else ""
+        how = how or _ratio_words(n, v / v0 if v0 else float("nan")).strip(" ()")
+        said.append(f"{n} = {v:.9g} where the case has {v0:g}" + (f" ({how})" if how else ""))
+    return [
+        Reading(
+            Finding(
+                "parameter-values",
+                f"{len(changed)} parameters with other values in your engine: " + "; ".join(said),
+                FULL,
+                f"the oracle with the parameters refitted together ({fit.steps} Gauss-Newton "
+                f"steps; the case pins each to {pinned:.0e} of its value): force error "
+                f"{fit.force:.1e}, stiffness error {fit.stiffness:.1e}; no parameter refitted "
+                "alone explains it",
+                {
+                    "parameters": [n for n, _, _ in changed],
+                    "values": [v for _, v, _ in changed],
+                    "declared": [v0 for _, _, v0 in changed],
+                    "residual": fit.residual,
+                },
+            ),
+            *fit.prediction,
+        )
+    ]
+
+
 def _float32_parameter_readings(
     cache, ci, out, s: Scales, tol: Tolerances, values: dict
 ) -> List[Reading]:
@@ -832,6 +900,8 @@ def read(
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
     full += _extra_term_readings(ci, out, ref, s, tol)
+    if not full:  # last, and only then: it asks the oracle most
+        full += _joint_parameter_readings(cache, ci, out, s, tol)
     full, untold = _untold_parameters(full, observed)
     observed += untold
     causes = stress_only(merge_readings(_parameters_first(full), s), diag)

@@ -50,6 +50,11 @@ class Refit:
     agrees: bool
     prediction: Tuple[np.ndarray, sp.csr_matrix]
     steps: int
+    #: the smallest singular value of the last step's Jacobian with each column scaled by its
+    #: value's size: the least change of the relative errors per unit relative change of any
+    #: combination of the numbers (near 0: some combination does not change the oracle's answer
+    #: on this case, not identified); NaN where no step was taken
+    sensitivity: float = float("nan")
 
     @property
     def residual(self) -> float:
@@ -106,6 +111,7 @@ def refit(
         )
     r = res.vector(fo, Ko)
     best = (float(np.linalg.norm(r)), x.copy(), (fo, Ko))
+    sensitivity = float("nan")
     for step in range(steps):
         h = 1e-6 * np.maximum(np.abs(x), 1e-3)
         cols = []
@@ -117,6 +123,7 @@ def refit(
         except ValueError:
             break
         A = np.column_stack(cols)
+        sensitivity = float(np.linalg.svd(A * np.maximum(np.abs(x), 1e-3), compute_uv=False)[-1])
         dx, *_ = np.linalg.lstsq(A, -r, rcond=None)
         if step == 0 and np.linalg.norm(r + A @ dx) > give_up * np.linalg.norm(r):
             return None
@@ -148,4 +155,5 @@ def refit(
         bool(ef <= target.tol_force and eK <= target.tol_stiffness),
         (np.asarray(fo), sp.csr_matrix(Ko)),
         step + 1 if steps else 0,
+        sensitivity,
     )
