@@ -25,7 +25,7 @@ import dataclasses
 import itertools
 import re
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -104,6 +104,20 @@ def with_value(model: Any, **values: float) -> Any:
         if _is_user_energy(model):
             return dataclasses.replace(model, params={**model.params, **values})
         return dataclasses.replace(model, **values)
+
+
+def scaled_models(model: Any, factors: Sequence[float]) -> Iterator[Tuple[str, List[Any]]]:
+    """(name, [model with that parameter times each factor]) for every non-zero scalar parameter
+    of ``model`` whose scaled values the model accepts (its validation refuses none): the models
+    from which a parameter's part of the energy is read off.
+    """
+    for name, v in scalar_parameters(model).items():
+        if v == 0.0:
+            continue
+        try:
+            yield name, [with_value(model, **{name: v * k}) for k in factors]
+        except (TypeError, ValueError):
+            continue
 
 
 @dataclass(frozen=True)

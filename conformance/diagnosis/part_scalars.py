@@ -30,7 +30,6 @@ parameter refit explains as well; the kit's other states tell them apart
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -38,6 +37,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.elements import ElementSplit, assemble
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.parameters import scaled_models
 from conformance.diagnosis.second_derivative import fit_cell_term
 from conformance.judge.compare import Scales, Tolerances, errors
 
@@ -96,26 +96,17 @@ def _element_arrays(model: Any, points, cells, positions) -> Optional[Tuple[np.n
 def parameter_parts(
     model: Any, points: np.ndarray, cells: np.ndarray, positions: np.ndarray, split: ElementSplit
 ) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
-    """{parameter: (fe (m, 4, 3), Ke (m, 12, 12))}: for each scalar parameter of ``model`` (a
-    dataclass) that its energy is linear in, the element forces and matrices of the part of the
+    """{parameter: (fe (m, 4, 3), Ke (m, 12, 12))}: for each scalar parameter of ``model``
+    that its energy is linear in, the element forces and matrices of the part of the
     energy proportional to it (p dW/dp), read off MJED by a relative step and kept only where a
     step twice as long gives the same part (linear: exact to round-off). A parameter the model
     refuses to change, or that is zero, is left out.
     """
-    if not dataclasses.is_dataclass(model):
-        return {}
     parts: Dict[str, Tuple[np.ndarray, np.ndarray]] = {}
-    for fld in dataclasses.fields(model):
-        v = getattr(model, fld.name, None)
-        if not isinstance(v, float) or v == 0.0 or not np.isfinite(v):
-            continue
+    for name, changed in scaled_models(model, (1.0 + _STEP, 1.0 + 2.0 * _STEP)):
         steps = []
-        for k in (1.0, 2.0):
-            try:
-                changed = dataclasses.replace(model, **{fld.name: v * (1.0 + k * _STEP)})
-            except (TypeError, ValueError):
-                break
-            arrays = _element_arrays(changed, points, cells, positions)
+        for k, other in zip((1.0, 2.0), changed):
+            arrays = _element_arrays(other, points, cells, positions)
             if arrays is None:
                 break
             steps.append(
@@ -135,7 +126,7 @@ def parameter_parts(
             split.fe
         ):
             continue
-        parts[fld.name] = (fe1, Ke1)
+        parts[name] = (fe1, Ke1)
     return parts
 
 

@@ -28,7 +28,6 @@ rest. NumPy and MJED only; isotropic materials (no fibre frame).
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -36,6 +35,7 @@ import scipy.sparse as sp
 
 from conformance.diagnosis.coincident_stretches import repeated_pair, without_plane
 from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.parameters import scaled_models
 from conformance.diagnosis.strain_differences import (
     EXPLAINED,
     StrainDifferenceFit,
@@ -98,17 +98,7 @@ def stress_parts(model: Any) -> Dict[str, Any]:
         return principal_stresses(model, points, split, logs)
 
     parts: Dict[str, Any] = {"": whole}
-    if not dataclasses.is_dataclass(model):
-        return parts
-    for fld in dataclasses.fields(model):
-        v = getattr(model, fld.name, None)
-        if not isinstance(v, float) or v == 0.0 or not np.isfinite(v):
-            continue
-        try:
-            doubled = dataclasses.replace(model, **{fld.name: 2.0 * v})
-            tripled = dataclasses.replace(model, **{fld.name: 3.0 * v})
-        except (TypeError, ValueError):
-            continue
+    for name, (doubled, tripled) in scaled_models(model, (2.0, 3.0)):
 
         def part(points, split, logs, doubled=doubled, tripled=tripled):
             base = principal_stresses(model, points, split, logs)
@@ -120,7 +110,7 @@ def stress_parts(model: Any) -> Dict[str, Any]:
             scale = max(np.abs(base).max(), 1e-300)
             return p if np.abs(three - base - 2.0 * p).max() <= 1e-9 * scale else None
 
-        parts[fld.name] = part
+        parts[name] = part
     return parts
 
 
