@@ -36,14 +36,25 @@ def _exact(logs):
 
 
 def _differenced(logs, h, scheme):
+    """The engine's d tau_a / d l_b: by differences of tau in l (forward or
+    central), or as sigma_a sigma_b times the Hessian of Psi in sigma by forward differences of
+    Psi_a = tau_a / sigma_a with the step h sigma_b, plus delta_ab tau_a ("sigma").
+    """
     out = np.empty(logs.shape + (3,))
+    sigma = np.exp(logs)
     for b in range(3):
         e = np.zeros(3)
         e[b] = 1.0
         if scheme == "forward":
             out[:, :, b] = (_tau(logs + h * e) - _tau(logs)) / h
-        else:
+        elif scheme == "central":
             out[:, :, b] = (_tau(logs + h * e) - _tau(logs - h * e)) / (2 * h)
+        else:
+            moved = logs + np.log1p(h) * e
+            psi = (_tau(moved) / np.exp(moved) - _tau(logs) / sigma) / (h * sigma[:, b : b + 1])
+            out[:, :, b] = sigma * sigma[:, b : b + 1] * psi
+    if scheme == "sigma":
+        out += np.einsum("ma,ab->mab", _tau(logs), np.eye(3))
     return out
 
 
@@ -69,7 +80,12 @@ def _stiffness_error(split, dM):
 
 
 @pytest.mark.parametrize(
-    "scheme, h, named", [("forward", 1e-6, "forward-log"), ("central", 1e-3, "central-log")]
+    "scheme, h, named",
+    [
+        ("forward", 1e-6, "forward-log"),
+        ("central", 1e-3, "central-log"),
+        ("sigma", 1e-6, "forward-relative-sigma"),
+    ],
 )
 def test_the_principal_block_by_differences_is_named_with_its_step(case, scheme, h, named):
     points, model, split, K_o = case

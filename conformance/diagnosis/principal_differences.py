@@ -9,7 +9,10 @@ lambda_a:
 and an engine that does not derive d tau_a / d l_b by hand differences it, column by column,
 with a step h: forward in l, (tau_a(l + h e_b) - tau_a(l)) / h, with a leading error (h/2)
 d2 tau_a / d l_b2; central in l, with (h^2/6) d3 tau_a / d l_b3; or forward with a step
-relative to the stretch, lambda_b (1 + h), that is l_b + ln(1 + h) divided by h. The pair terms
+relative to the stretch, lambda_b (1 + h), that is l_b + ln(1 + h) divided by h. An SVD engine
+(Teran's or Smith's eigensystem of dP/dF) differences dPsi/dsigma_a = tau_a / sigma_a in the
+singular values instead, for the Hessian of its scaling modes: its error dH_ab is
+sigma_a sigma_b dH_ab in d tau_a / d l_b, and its schemes are tried alike. The pair terms
 (divided differences of the stresses themselves) are exact. Only the principal block is off, by
 a matrix per cell that is one scheme's error per unit step (per unit h^2, central), measured by
 simulating the scheme with a larger step (:data:`PROBE`) on the stresses at F = diag(lambda)
@@ -28,6 +31,7 @@ rest. NumPy and MJED only; isotropic materials (no fibre frame).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
@@ -45,6 +49,7 @@ from conformance.diagnosis.strain_differences import (
 
 __all__ = [
     "PROBE",
+    "Scheme",
     "SCHEMES",
     "principal_stresses",
     "stress_parts",
@@ -59,13 +64,56 @@ PROBE = 1e-3
 #: The exact derivative's central step (its error 1e-9 of it, round-off 1e-12).
 EXACT = 1e-4
 
-#: scheme -> (the quotient in words, whether its error goes as h^2)
+
+@dataclass(frozen=True)
+class Scheme:
+    """One way of differencing the principal block: the quantity differenced ("tau": the
+    principal Kirchhoff stresses tau_a, giving d tau_a / d l_b; "psi": dPsi/dsigma_a = tau_a /
+    sigma_a, giving the Hessian d2Psi / dsigma_a dsigma_b of an SVD engine's scaling modes), the
+    variable stepped ("log": l_b + h; "relative": sigma_b (1 + h); "absolute": sigma_b + h),
+    central or forward (backward: a negative step), and the quotient in words.
+    """
+
+    quantity: str
+    variable: str
+    central: bool
+    words: str
+
+
+#: name -> scheme
 SCHEMES = {
-    "forward-log": ("(tau_a(l + h e_b) - tau_a(l)) / h in the log-stretches l = ln lambda", False),
-    "central-log": ("(tau_a(l + h e_b) - tau_a(l - h e_b)) / (2 h) in the log-stretches", True),
-    "forward-relative": (
-        "(tau_a(lambda_b (1 + h)) - tau_a(lambda)) / h, a step relative to the stretch",
+    "forward-log": Scheme(
+        "tau", "log", False, "(tau_a(l + h e_b) - tau_a(l)) / h in the log-stretches l = ln lambda"
+    ),
+    "central-log": Scheme(
+        "tau", "log", True, "(tau_a(l + h e_b) - tau_a(l - h e_b)) / (2 h) in the log-stretches"
+    ),
+    "forward-relative": Scheme(
+        "tau",
+        "relative",
         False,
+        "(tau_a(lambda_b (1 + h)) - tau_a(lambda)) / h, a step relative to the stretch",
+    ),
+    "forward-relative-sigma": Scheme(
+        "psi",
+        "relative",
+        False,
+        "the Hessian d2Psi/dsigma_a dsigma_b as (Psi_a(sigma_b (1 + h)) - Psi_a(sigma)) / "
+        "(h sigma_b), Psi_a = dPsi/dsigma_a, a step relative to the singular value",
+    ),
+    "forward-absolute-sigma": Scheme(
+        "psi",
+        "absolute",
+        False,
+        "the Hessian d2Psi/dsigma_a dsigma_b as (Psi_a(sigma + h e_b) - Psi_a(sigma)) / h, "
+        "Psi_a = dPsi/dsigma_a",
+    ),
+    "central-absolute-sigma": Scheme(
+        "psi",
+        "absolute",
+        True,
+        "the Hessian d2Psi/dsigma_a dsigma_b as (Psi_a(sigma + h e_b) - Psi_a(sigma - h e_b)) "
+        "/ (2 h), Psi_a = dPsi/dsigma_a",
     ),
 }
 
@@ -122,33 +170,67 @@ def _frame(split: ElementSplit) -> Tuple[np.ndarray, np.ndarray]:
     return 0.5 * np.log(x), n
 
 
+def _shift(logs: np.ndarray, variable: str, t: float, b: int) -> np.ndarray:
+    """(m, 3) the change of the log-stretches when stretch b is stepped by t in ``variable``."""
+    out = np.zeros_like(logs)
+    if variable == "log":
+        out[:, b] = t
+    elif variable == "relative":
+        out[:, b] = np.log1p(t)
+    else:  # absolute: sigma_b + t
+        out[:, b] = np.log1p(t / np.exp(logs[:, b]))
+    return out
+
+
 def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndarray):
     """{scheme: (m, 3, 3) the error of d tau_a / d l_b per unit step (per unit h^2, central)}
     of :data:`SCHEMES` for the principal stresses ``stress`` (a function of
-    :func:`stress_parts`); None where they cannot be evaluated.
+    :func:`stress_parts`); None where they cannot be evaluated. A scheme on Psi_a = tau_a /
+    sigma_a errs in d2Psi / dsigma_a dsigma_b by dH, in d tau_a / d l_b by sigma_a sigma_b dH.
     """
-    m = logs.shape[0]
+    sigma = np.exp(logs)
+    cache: Dict[bytes, Optional[np.ndarray]] = {}
 
-    def at(shift: np.ndarray) -> Optional[np.ndarray]:
-        return stress(points, split, logs + shift)
+    def at(shift: np.ndarray, quantity: str) -> Optional[np.ndarray]:
+        key = shift.tobytes()
+        if key not in cache:
+            cache[key] = stress(points, split, logs + shift)
+        tau = cache[key]
+        if tau is None or quantity == "tau":
+            return tau
+        return tau / np.exp(logs + shift)
 
-    base = at(np.zeros((m, 3)))
+    base = at(np.zeros_like(logs), "tau")
     if base is None:
         return None
-    exact = np.empty((m, 3, 3))
-    moved: Dict[str, np.ndarray] = {k: np.empty((m, 3, 3)) for k in SCHEMES}
+    exact = np.empty(logs.shape + (3,))  # d tau_a / d l_b
     for b in range(3):
-        e = np.zeros((m, 3))
-        e[:, b] = 1.0
-        values = [at(t * e) for t in (EXACT, -EXACT, PROBE, -PROBE, np.log1p(PROBE))]
-        if any(v is None for v in values):
+        plus = at(_shift(logs, "log", EXACT, b), "tau")
+        minus = at(_shift(logs, "log", -EXACT, b), "tau")
+        if plus is None or minus is None:
             return None
-        plus, minus, fwd, back, rel = values
         exact[:, :, b] = (plus - minus) / (2 * EXACT)
-        moved["forward-log"][:, :, b] = (fwd - base) / PROBE
-        moved["central-log"][:, :, b] = (fwd - back) / (2 * PROBE)
-        moved["forward-relative"][:, :, b] = (rel - base) / PROBE
-    return {k: (moved[k] - exact) / (PROBE**2 if SCHEMES[k][1] else PROBE) for k in SCHEMES}
+    # d2Psi / dsigma_a dsigma_b = (d tau_a / d l_b - delta_ab tau_a) / (sigma_a sigma_b)
+    pair = sigma[:, :, None] * sigma[:, None, :]
+    hessian = (exact - np.einsum("ma,ab->mab", base, np.eye(3))) / pair
+    out = {}
+    for name, sc in SCHEMES.items():
+        moved = np.empty_like(exact)
+        for b in range(3):
+            fwd = at(_shift(logs, sc.variable, PROBE, b), sc.quantity)
+            back = at(_shift(logs, sc.variable, -PROBE, b), sc.quantity) if sc.central else None
+            zero = at(np.zeros_like(logs), sc.quantity)
+            if fwd is None or zero is None or (sc.central and back is None):
+                return None
+            quotient = (fwd - back) / (2 * PROBE) if sc.central else (fwd - zero) / PROBE
+            if sc.quantity == "psi" and sc.variable == "relative":
+                quotient = quotient / sigma[:, b : b + 1]
+            moved[:, :, b] = quotient
+        error = moved - (exact if sc.quantity == "tau" else hessian)
+        if sc.quantity == "psi":
+            error = error * pair
+        out[name] = error / (PROBE**2 if sc.central else PROBE)
+    return out
 
 
 def principal_stiffness(split: ElementSplit, n: np.ndarray, dM: np.ndarray) -> sp.csr_matrix:
@@ -191,7 +273,7 @@ def principal_difference_fits(
             basis = principal_stiffness(split, n, dM)
             if pair is not None:
                 basis = project(basis)
-            squared = SCHEMES[scheme][1]
+            squared = SCHEMES[scheme].central
             fit = (
                 fit_step_squared(basis, D, K_o, "principal")
                 if squared
@@ -234,16 +316,21 @@ def principal_difference_reading(diag, ci, out, ref, s):
         for lb, sc, f in fits[1:]
         if f.explained >= fit.explained - 1e-3
     ]
-    quotient, squared = SCHEMES[scheme]
+    quotient, squared = SCHEMES[scheme].words, SCHEMES[scheme].central
     direction = "" if squared or fit.scheme == "forward" else " (backward: a negative step)"
     return named_first(
         diag,
         [
             Finding(
                 "principal-finite-difference",
-                "a spectral engine's principal block d tau_a / d ln lambda_b by finite "
-                f"differences of {_part_words(label)}: {quotient}, step h = {fit.step:.2e}"
-                f"{direction}",
+                (
+                    "a spectral engine's principal block d tau_a / d ln lambda_b by finite "
+                    f"differences of {_part_words(label)}: "
+                    if SCHEMES[scheme].quantity == "tau"
+                    else "an SVD engine's scaling modes by finite differences of dPsi/dsigma_a "
+                    f"(from {_part_words(label)}): "
+                )
+                + f"{quotient}, step h = {fit.step:.2e}{direction}",
                 PARTIAL,
                 "K - K_oracle is that scheme's error in the principal block of J c per unit "
                 + ("h^2" if squared else "h")
