@@ -25,6 +25,7 @@ from conformance.diagnosis.central_differences import central_difference_reading
 from conformance.diagnosis.coincident_stretches import coincident_reading
 from conformance.diagnosis.complex_step import complex_step_reading
 from conformance.diagnosis.corroborate import corroborate, extend_consistent, extend_covered
+from conformance.diagnosis.definiteness import definiteness_findings
 from conformance.diagnosis.derivative_rewrites import derivative_rewrite_reading
 from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnose
 from conformance.diagnosis.differences import element_difference_reading
@@ -331,7 +332,7 @@ READINGS: Tuple[Reading, ...] = (
         "inside the element: local order, stress measure, volume, the element forces' nodes",
         _nothing_named,
         lambda d, c: element_reading(
-            d, c.ci, c.out, c.ref, c.s, volume_findings, force_node_findings
+            d, c.ci, c.out, c.ref, c.s, volume_findings, force_node_findings, definiteness_findings
         ),
     ),
     Reading(
