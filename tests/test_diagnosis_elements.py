@@ -153,6 +153,36 @@ def test_p_transposed_is_named_only_where_p_is_not_symmetric():
             assert found == [], found
 
 
+@pytest.mark.parametrize(
+    "built, code",
+    [
+        (lambda P, F: P.swapaxes(1, 2), "stress-measure-piola-transposed"),
+        (lambda P, F: F @ P @ F.swapaxes(1, 2), "stress-measure-kirchhoff-as-second-piola"),
+    ],
+)
+def test_a_force_alone_from_another_measure_is_named_beside_a_right_stiffness(built, code):
+    """An F-based engine whose force is built from P^T (P flattened row-major against a
+    column-major dF/dx) or from F tau (the Kirchhoff stress taken for S), its stiffness from the
+    invariants and right: named as the force alone, the stiffness the oracle's.
+    """
+    from common.cases import default_material
+    from mjed.mesh import shape_vectors
+
+    model = default_material("NeoHookean")
+    points, cells, x = _state(4)
+    split, f_o, K_o, s = _split(model, points, cells, x)
+    V0, D = shape_vectors(points, cells)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+    P, _, _ = _neo_hookean_piola(F, model.mu, model.lam)
+    fe = -np.abs(V0)[:, None, None] * np.einsum("mki,mai->mak", built(P, F), D)
+    f = assemble(cells, points.shape[0], fe, None)[0]
+    found = stress_measure_findings(split, f, K_o, s, DOUBLE)
+    assert [(x.code, x.figures.get("force_only")) for x in found] == [(code, True)], found
+    assert "force alone" in found[0].title
+    # the same force with a stiffness that is neither: nothing
+    assert stress_measure_findings(split, f, 1.01 * K_o, s, DOUBLE) == []
+
+
 def test_no_split_for_a_model_mjed_does_not_have_or_a_wrong_sum():
     from common.cases import default_material
 

@@ -547,6 +547,14 @@ STRESS_MEASURES: dict = {
         "belongs (the same where F is symmetric): J F^T S F F^-T / J",
         lambda P, F: _t(F) @ _inv(F) @ P @ F @ _inv(_t(F)),
     ),
+    "kirchhoff-as-second-piola": (
+        "F tau (the Kirchhoff stress tau = P F^T taken for S in P = F S)",
+        lambda P, F: F @ P @ _t(F),
+    ),
+    "cauchy-as-second-piola": (
+        "F sigma (the Cauchy stress sigma = P F^T / J taken for S in P = F S)",
+        lambda P, F: F @ P @ _t(F) / _det(F)[:, None, None],
+    ),
     "deformed-volume": (
         "J P = tau F^-T, a factor J in each cell: the first Piola stress integrated over the "
         "deformed volume, the Kirchhoff stress tau used as the Cauchy stress, or the spatial "
@@ -630,7 +638,28 @@ def stress_measure_findings(
         if errors(fm, K0, None, f0, K0, 0.0, s).force <= tol.force:
             continue  # the same force as the oracle's here: no evidence of another measure
         e = errors(f, sp.csr_matrix(K), None, fm, Km, 0.0, s)
-        if tol.within(e, energy=False):
+        alone = errors(f, sp.csr_matrix(K), None, fm, K0, 0.0, s)
+        if not tol.within(e, energy=False) and tol.within(alone, energy=False):
+            # the force alone built on it, the stiffness derived separately and right
+            found.append(
+                Finding(
+                    f"stress-measure-{code}",
+                    f"your force alone is the divergence of another stress measure: {words} "
+                    "used as the first Piola stress P; your stiffness is the oracle's (derived "
+                    "separately, not from that force)",
+                    FULL,
+                    "the oracle's P per cell (from MJED's element forces, whose sum is the "
+                    f"oracle's to {split.residual:.1e}) mapped so and assembled: force error "
+                    f"{alone.force:.1e}, and the oracle's own stiffness: error "
+                    f"{alone.stiffness:.1e}",
+                    {
+                        "measure": code,
+                        "force_only": True,
+                        "residual": max(alone.force, alone.stiffness),
+                    },
+                )
+            )
+        elif tol.within(e, energy=False):
             found.append(
                 Finding(
                     f"stress-measure-{code}",
