@@ -176,3 +176,23 @@ def test_differences_of_p_in_the_components_of_f_are_named_with_their_step():
             assert abs(d.findings[0].figures["step"] / h - 1) < 1e-2
         else:
             assert "first-elasticity-finite-difference" not in codes
+
+
+def test_a_step_so_small_that_its_round_off_shows_is_named_and_a_slip_beside_it_is_not():
+    """P differenced in F with h = 3e-8: the quotient's cancellation is a visible part of the
+    error (the fit explains less than 99 %), and what is left is the round-off predicted for
+    that step; the same engine with a structured slip of that size added is not named.
+    """
+    points, cells, x = _mesh()
+    model = default_material("MooneyRivlin")
+    f, K, f_o, K_o = _piola_engine(points, cells, x, model, 6e-8, False)
+    d = _reading(points, cells, x, model, f, K, f_o, K_o)
+    lead = d.findings[0]
+    assert lead.code == "first-elasticity-finite-difference", [f.title for f in d.findings]
+    assert lead.figures["explained"] < 0.99  # named through the predicted round-off
+    assert "round-off of P differenced" in lead.evidence
+    assert abs(lead.figures["step"] / 6e-8 - 1) < 0.1
+    D = K - K_o
+    slipped = K + 0.3 * sp.linalg.norm(D) / sp.linalg.norm(K_o) * K_o  # a scaled tangent too
+    d = _reading(points, cells, x, model, f, slipped, f_o, K_o)
+    assert "first-elasticity-finite-difference" not in [f.code for f in d.findings]
