@@ -265,6 +265,37 @@ def _headline_unexplained(d: Diagnosis, c: CaseReadings) -> bool:
     return _force_right(d, c) and bool(d.findings) and d.findings[0].code == "unexplained"
 
 
+def _localised_only(d: Diagnosis, c: CaseReadings) -> bool:
+    """The force right, and the only cause named is where the error is (a few cells): a place,
+    not a mechanism.
+    """
+    return (
+        c.read_causes  # a named place leaves the mistake readings off (read_mistakes)
+        and d.errors.force <= d.tolerances.force
+        and bool(d.causes)
+        and all(f.code == "localised" for f in d.causes)
+    )
+
+
+def _differences_past_localisation(d: Diagnosis, c: CaseReadings) -> Diagnosis:
+    """A finite-difference tangent whose error sits in a few cells (the step's error grows with
+    each cell's curvature: a stiff exponential in two cells of a fibre law): the difference
+    readings run as on an unexplained case; one that names its scheme leads, the localisation
+    kept as an observation below it. Unchanged when none does.
+    """
+    located = [replace(f, strength=OBSERVED) if f.code == "localised" else f for f in d.findings]
+    blank = replace(d, findings=[Finding("unexplained", "unexplained", OBSERVED, "", {}), *located])
+    for read in (
+        lambda x: strain_difference_reading(x, c.ci, c.out, c.ref, c.s),
+        lambda x: central_difference_reading(x, c.ci, c.out, c.ref, c.s),
+        lambda x: principal_difference_reading(x, c.ci, c.out, c.ref, c.s),
+    ):
+        out = read(blank)
+        if out.findings and out.findings[0].code != "unexplained":
+            return replace(out, findings=[f for f in out.findings if f.code != "unexplained"])
+    return d
+
+
 def _stiffness_slightly_off(d: Diagnosis, c: CaseReadings) -> bool:
     """Nothing has taken the headline, the force right and the stiffness off by less than any
     formula slip leaves (:data:`conformance.diagnosis.stiffness_noise.NOISE_RANGE`).
@@ -504,6 +535,11 @@ READINGS: Tuple[Reading, ...] = (
         "differences of the force",
         _force_right,
         lambda d, c: _finite_difference_reading(d, c.cache, c.ci, c.out, c.ref),
+    ),
+    Reading(
+        "differences whose error sits in a few cells (the only cause named is where it is)",
+        _localised_only,
+        _differences_past_localisation,
     ),
     Reading(
         "differences with a step per cell",

@@ -18,7 +18,7 @@ from diagnosis_stubs import CaseStub, OutputStub, classical_cells
 from common.cases import default_material
 from conformance.diagnosis.diagnose import Diagnosis
 from conformance.diagnosis.elements import assemble, cell_piola, element_split
-from conformance.diagnosis.findings import OBSERVED, Finding
+from conformance.diagnosis.findings import FULL, OBSERVED, Finding
 from conformance.diagnosis.invariant_pieces import cell_tensors
 from conformance.diagnosis.perturbation_differences import scheme_tangent
 from conformance.diagnosis.spatial_tangent import spatial_cells
@@ -196,3 +196,34 @@ def test_a_step_so_small_that_its_round_off_shows_is_named_and_a_slip_beside_it_
     slipped = K + 0.3 * sp.linalg.norm(D) / sp.linalg.norm(K_o) * K_o  # a scaled tangent too
     d = _reading(points, cells, x, model, f, slipped, f_o, K_o)
     assert "first-elasticity-finite-difference" not in [f.code for f in d.findings]
+
+
+def test_differences_are_read_where_the_only_cause_named_is_a_place():
+    """A numerical tangent whose error a localisation has already claimed (a few stiff cells
+    carry it): the difference readings still run, name the scheme first, and keep the
+    localisation as an observation; where no scheme fits, the diagnosis is unchanged.
+    """
+    from types import SimpleNamespace
+
+    from conformance.run import _differences_past_localisation, _localised_only
+
+    points, cells, x = _mesh()
+    model = default_material("MooneyRivlin")
+    f, K, f_o, K_o = _piola_engine(points, cells, x, model, 1e-4, False)
+    s = scales(0.5, 1.0, f_o, K_o)
+    e = errors(f, K, None, f_o, K_o, 0.0, s)
+    place = Finding("localised", "error localised to 8 node(s) / 2 cell(s)", FULL, "", {})
+    diag = Diagnosis("c", "failed", e, [place])
+    c = SimpleNamespace(
+        read_causes=True,
+        ci=CaseStub(points, cells, x, model),
+        out=OutputStub(f, K),
+        ref=Reference(0.0, f_o, K_o),
+        s=s,
+    )
+    assert _localised_only(diag, c)
+    d = _differences_past_localisation(diag, c)
+    assert d.findings[0].code == "first-elasticity-finite-difference", d.text()
+    assert [(f.code, f.strength) for f in d.findings[1:2]] == [("localised", OBSERVED)]
+    c.out = OutputStub(f, K_o * (1 + 1e-6))  # not a scheme's error
+    assert _differences_past_localisation(diag, c) is diag
