@@ -270,18 +270,45 @@ def principal_difference_fits(
         for scheme, dM in errs.items():
             if not np.all(np.isfinite(dM)):
                 continue
-            basis = principal_stiffness(split, n, dM)
-            if pair is not None:
-                basis = project(basis)
-            squared = SCHEMES[scheme].central
-            fit = (
-                fit_step_squared(basis, D, K_o, "principal")
-                if squared
-                else fit_step(basis, D, K_o, "principal")
-            )
-            if fit is not None and fit.explained >= EXPLAINED:
-                found.append((label, scheme, fit))
+            for read, block in _READ_AS.items():
+                basis = principal_stiffness(split, n, block(dM))
+                if pair is not None:
+                    basis = project(basis)
+                squared = SCHEMES[scheme].central
+                fit = (
+                    fit_step_squared(basis, D, K_o, "principal")
+                    if squared
+                    else fit_step(basis, D, K_o, "principal")
+                )
+                if fit is not None and fit.explained >= EXPLAINED:
+                    found.append((label, scheme + read, fit))
     return sorted(found, key=lambda t: -t[2].explained)
+
+
+#: How the engine uses its differenced (non-symmetric) 3 x 3 block -> the block it uses: as it
+#: is, symmetrised, or one triangle mirrored (numpy.linalg.eigh reads only its lower triangle,
+#: and an eigensystem engine hands it the block unsymmetrised; which entries that keeps depends
+#: on the engine's order of the stretches: here they ascend, as eigh gives them, and the
+#: "larger" triangle keeps the rows of the larger stretch, d Q_a / d l_b with lambda_a >
+#: lambda_b, the lower triangle of an engine whose stretches ascend, the upper of one whose
+#: singular values descend, as numpy.linalg.svd gives them).
+_READ_AS = {
+    "": lambda M: M,
+    "+symmetrised": lambda M: 0.5 * (M + np.swapaxes(M, 1, 2)),
+    "+larger": lambda M: np.tril(M) + np.swapaxes(np.tril(M, -1), 1, 2),
+    "+smaller": lambda M: np.triu(M) + np.swapaxes(np.triu(M, 1), 1, 2),
+}
+
+#: words for a scheme's use of its block (after the "+" in a fitted scheme's name)
+_READ_WORDS = {
+    "symmetrised": " (the differenced block symmetrised before use)",
+    "larger": " (one triangle of the differenced block mirrored, as an eigen-solver of "
+    "symmetric matrices reads it: the entries d/dl_b of the larger stretch's row, the lower "
+    "triangle with the stretches in ascending order)",
+    "smaller": " (one triangle of the differenced block mirrored, as an eigen-solver of "
+    "symmetric matrices reads it: the entries d/dl_b of the smaller stretch's row, the lower "
+    "triangle with the stretches in descending order, as an SVD gives them)",
+}
 
 
 def _part_words(label: str) -> str:
@@ -310,13 +337,14 @@ def principal_difference_reading(diag, ci, out, ref, s):
         fits = principal_difference_fits(ci.model, split, ci.points, D, K_o)
     if not fits:
         return diag
-    label, scheme, fit = fits[0]
+    label, named, fit = fits[0]
+    scheme, _, read = named.partition("+")
     alike = [
         f"{_part_words(lb)}, {sc.replace('-', ' ')}"
         for lb, sc, f in fits[1:]
         if f.explained >= fit.explained - 1e-3
     ]
-    quotient, squared = SCHEMES[scheme].words, SCHEMES[scheme].central
+    quotient, squared = SCHEMES[scheme].words + _READ_WORDS.get(read, ""), SCHEMES[scheme].central
     direction = "" if squared or fit.scheme == "forward" else " (backward: a negative step)"
     return named_first(
         diag,
@@ -341,7 +369,7 @@ def principal_difference_reading(diag, ci, out, ref, s):
                 + (f" (as well: {'; '.join(alike)})" if alike else ""),
                 {
                     "step": fit.step,
-                    "scheme": scheme,
+                    "scheme": named,
                     "part": label,
                     "explained": fit.explained,
                 },
