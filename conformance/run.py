@@ -43,6 +43,7 @@ from conformance.diagnosis.hand_derived import (
     nearby_force_reading,
     tangent_term_reading,
 )
+from conformance.diagnosis.invariant_gradients import gradient_reading
 from conformance.diagnosis.isochoric_curvature import isochoric_curvature_reading
 from conformance.diagnosis.mixed_precision import (
     mixed_precision_reading,
@@ -451,6 +452,12 @@ READINGS: Tuple[Reading, ...] = (
         "number, an exponent, a parameter, an invariant, a power of J)",
         _force_wrong,
         lambda d, c: derivative_rewrite_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "one invariant's gradient typed wrongly in a hand-written P, the stiffness derived apart "
+        "and right (in I1, I2, J or in tr C, tr C^2, J)",
+        _force_wrong,
+        lambda d, c: gradient_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         # after the rewrites and MJED's parts, which name a component's formula: here the
