@@ -218,3 +218,65 @@ def test_every_gradient_scaled_is_named_with_its_factor(factor):
     assert abs(found[0].figures["factor"] - factor) < 1e-12
     f, K = _svk_engine(points, cells, x, lambda D: 1.01 * D)
     assert shape_gradient_findings(split, model, points, x, f, K, s, DOUBLE) == []
+
+
+def _assembly_engine(points, cells, x, G_of, mu=1.0, lam=2.0):
+    """St Venant-Kirchhoff with F from the right gradients (F = Ds M^-1) and the force and
+    element matrices built with G_of(right gradients): P by hand, dP/dF by complex step.
+    """
+    X = points[cells]
+    Mt = np.swapaxes(X[:, 1:] - X[:, :1], 1, 2)
+    V0 = np.linalg.det(Mt) / 6.0
+    Minv = np.linalg.inv(Mt)
+    D = np.concatenate([-Minv.sum(axis=1, keepdims=True), Minv], axis=1)
+    G = G_of(D)
+    F = np.einsum("mai,maj->mij", x[cells], D)
+
+    def piola(F):
+        E = 0.5 * (np.einsum("mki,mkj->mij", F, F) - np.eye(3))
+        S = lam * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu * E
+        return F @ S
+
+    A = np.empty(F.shape + (3, 3))
+    for ll in range(3):
+        for L in range(3):
+            H = np.zeros((3, 3), dtype=complex)
+            H[ll, L] = 1e-30j
+            A[:, :, :, ll, L] = np.imag(piola(F + H)) / 1e-30
+    fe = -V0[:, None, None] * np.einsum("mkI,maI->mak", piola(F), G)
+    Ke = V0[:, None, None, None, None] * np.einsum("maI,mkIlL,mbL->makbl", G, A, G)
+    from conformance.diagnosis.elements import assemble
+
+    return assemble(cells, points.shape[0], fe, Ke.reshape(-1, 12, 12))
+
+
+def _columns(D):
+    G = D.copy()
+    G[:, 1:] = np.swapaxes(D[:, 1:], 1, 2)  # the columns of M^-1 for its rows
+    G[:, 0] = -G[:, 1:].sum(axis=1)
+    return G
+
+
+def _node_zero_from_columns(D):
+    G = D.copy()
+    G[:, 0] = -np.swapaxes(D[:, 1:], 1, 2).sum(axis=1)
+    return G
+
+
+@pytest.mark.parametrize(
+    "G_of, code",
+    [
+        (_columns, "assembly-gradients-transposed"),
+        (_node_zero_from_columns, "assembly-gradient-0-columns"),
+    ],
+)
+def test_an_assembly_operator_built_apart_from_f_is_named(G_of, code):
+    """dF/dx (the B matrix) built from other gradients than F = Ds M^-1."""
+    from conformance.diagnosis.shape_gradients import gradient_slip_findings
+
+    points, cells, x, model, split, f_o, K_o, s = _case(8)
+    f, K = _assembly_engine(points, cells, x, G_of)
+    found = gradient_slip_findings(split, model, points, x, f, K, s, DOUBLE)
+    assert [x.code for x in found] == [code], [x.title for x in found]
+    right = _assembly_engine(points, cells, x, lambda D: D)  # the right operator: the oracle
+    assert np.abs(right[0] - f_o).max() <= 1e-12 * np.abs(f_o).max()

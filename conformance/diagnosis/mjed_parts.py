@@ -92,7 +92,8 @@ KINDS: Dict[str, str] = {
     "geometric": "stiffness: the geometric block f(J) (D_i . S D_j) Id",
     "first": "stiffness: the material block 2 beta f(J) (F A D_i)(F A D_j)^T of beta (A : H) A",
     "second-outer": "stiffness: the material block's half gamma f(J) (F B D_j)(F B D_i)^T of "
-    "gamma B H B",
+    "gamma B H B (for an I2 or tr C^2 term written in F: the term F_il F_kj of the Hessian "
+    "d2(tr C^2)/dF2, from the dF^T of d(F F^T F))",
     "second-scaled": "stiffness: the material block's half gamma f(J) (D_i . B D_j) F B F^T of "
     "gamma B H B",
     "spectral": "stiffness: the spectral material block f(J) F (theta P_n H P_l) F^T",

@@ -344,6 +344,25 @@ def _identity_plus_positions(split: ElementSplit, x: np.ndarray) -> Formed:
     return split.D, split.V0, np.eye(3) + split.F
 
 
+def _assembly_only(node_zero_from_columns: bool, transposed: bool) -> Gradients:
+    """F right (formed from the right gradients, as F = Ds M^-1), the force and matrix built
+    with other gradients: the columns of M^-1 for its rows (``transposed``), and node 0's
+    gradient the minus sum of those columns (``node_zero_from_columns``: a sum over the wrong
+    axis of M^-1) or of the gradients used.
+    """
+
+    def gradients(split: ElementSplit, x: np.ndarray) -> Formed:
+        rows = split.D[:, 1:]  # [m, b, i] = (M^-1)_bi
+        cols = np.swapaxes(rows, 1, 2)  # [m, b, i] = (M^-1)_ib
+        D = split.D.copy()
+        if transposed:
+            D[:, 1:] = cols
+        D[:, 0] = -(cols if node_zero_from_columns else D[:, 1:]).sum(axis=1)
+        return D, split.V0, split.F
+
+    return gradients
+
+
 #: code -> (words, :data:`Gradients`): the gradients (and volumes) an engine uses for F, its
 #: force and its matrix in place of the rest ones, and the F' it forms where that is not
 #: sum_a x_a D'_a^T.
@@ -379,6 +398,19 @@ GRADIENT_SLIPS: Dict[str, Tuple[str, Gradients]] = {
         "every cell, so the force is the rest state's (zero) and the stiffness the rest tangent "
         "on the deformed cells",
         _current(volume=True),
+    ),
+    "assembly-gradients-transposed": (
+        "the gradient operator dF/dx of the force and stiffness (the B matrix) built from the "
+        "columns of the inverse rest edge matrix M^-1 where its rows belong, while F = Ds M^-1 "
+        "is right: force and stiffness not those of the engine's own F (nor its energy's)",
+        _assembly_only(node_zero_from_columns=True, transposed=True),
+    ),
+    "assembly-gradient-0-columns": (
+        "node 0's column of the gradient operator dF/dx (the B matrix) written as minus the "
+        "sums over the other axis of M^-1 (its row sums, e.g. -Dm_inv.sum(axis=2) for "
+        "-Dm_inv.sum(axis=1)), the partition of unity D_0 = -(D_1 + D_2 + D_3) broken, while "
+        "F = Ds M^-1 is right",
+        _assembly_only(node_zero_from_columns=True, transposed=False),
     ),
     "F-identity-plus-positions": (
         "the deformation gradient written F = I + grad x, the gradient of the current positions "

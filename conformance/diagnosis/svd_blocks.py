@@ -229,7 +229,9 @@ VARIANTS: Dict[str, Tuple[str, Callable[[TeranBlocks], Blocks]]] = {
     "blocks-doubled": (
         f"{_BLOCKS}) doubled: a = minus + plus, b = minus - plus written without the 1/2 of "
         f"a = (minus + plus)/2, b = (minus - plus)/2 ({_QUOTIENTS}); the rotational part of the "
-        "tangent twice too large (stiffness only)",
+        "tangent twice too large (stiffness only); in an analytic eigensystem's words, the same "
+        "slip: the twist and flip modes U (e_i e_j^T -+ e_j e_i^T) V^T used without their "
+        "1/sqrt(2) normalisation (their eigenvalues plus and minus counted twice)",
         lambda t: _scaled(t, mij=2.0, mji=2.0, pij=2.0, pji=2.0),
     ),
     "entries-exchanged": (
