@@ -58,3 +58,54 @@ def test_the_block_left_out_is_named_and_nearby_mistakes_are_not():
         assert j_hessian_findings(model, points, cells, x, f_o, wrong, f_o, K_o, s, DOUBLE) == []
     K = K_o - 2.0 * _engine_block(model, split)
     assert j_hessian_findings(model, points, cells, x, 1.1 * f_o, K, f_o, K_o, s, DOUBLE) == []
+
+
+def _cross(v):
+    """(m, 3, 3) [v]x, v x w = [v]x w."""
+    z = np.zeros(v.shape[0])
+    return np.stack(
+        [
+            np.stack([z, -v[:, 2], v[:, 1]], -1),
+            np.stack([v[:, 2], z, -v[:, 0]], -1),
+            np.stack([-v[:, 1], v[:, 0], z], -1),
+        ],
+        1,
+    )
+
+
+def _hessian_j_blocks(vectors):
+    """d2J/dF2 as (m, 3, 3, 3, 3) [k, I, l, L] from 3 x 3 blocks (I, L) built of the
+    cross-product matrices of ``vectors`` (m, 3 (M), 3): [[0, -[v2], [v1]], [[v2], 0, -[v0]],
+    [-[v1], [v0], 0]] (F's columns give the Hessian).
+    """
+    v0, v1, v2 = (_cross(vectors[:, M]) for M in range(3))
+    Z = np.zeros_like(v0)
+    rows = [[Z, -v2, v1], [v2, Z, -v0], [-v1, v0, Z]]
+    return np.stack([np.stack(r, 1) for r in rows], 1).transpose(0, 3, 1, 4, 2)
+
+
+def test_the_hessian_of_j_from_the_rows_of_f_is_named():
+    """An engine building d2J/dF2's blocks from F's rows where its columns belong."""
+    from conformance.diagnosis.elements import tangent_element_matrices
+
+    model, points, cells, x, split, f_o, K_o, s = _case(2)
+    F = split.F
+    J = np.linalg.det(F)
+    psi = (model.lam * np.log(J) - model.mu) / J
+    right = _hessian_j_blocks(F.swapaxes(1, 2))  # vectors[:, M] = column M of F
+    rows = _hessian_j_blocks(F)  # vectors[:, M] = row M
+    m = cells.shape[0]
+    ones = tangent_element_matrices(split.V0, split.D, right)
+    assert np.allclose(  # the columns' blocks are the Hessian of J
+        assemble(cells, split.n, np.zeros((m, 4, 3)), psi[:, None, None] * ones)[1].toarray(),
+        _engine_block(model, split).toarray(),
+    )
+    dA = psi[:, None, None, None, None] * (rows - right)
+    K = (
+        K_o
+        + assemble(
+            cells, split.n, np.zeros((m, 4, 3)), tangent_element_matrices(split.V0, split.D, dA)
+        )[1]
+    )
+    found = j_hessian_findings(model, points, cells, x, f_o, K, f_o, K_o, s, DOUBLE)
+    assert [f.code for f in found] == ["j-hessian-rows"], [f.title for f in found]

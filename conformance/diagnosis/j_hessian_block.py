@@ -21,6 +21,7 @@ from typing import Any, Dict, List, Optional
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import assemble, cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
@@ -126,7 +127,55 @@ def j_hessian_findings(
                 {"factor": k, "stiffness_error": e.stiffness},
             )
         )
+    if not found:
+        found = _from_rows(points, cells, x, pj, f, K, f_o, K_o, s, tol)
     return ambiguous(found)
+
+
+def _levi_civita() -> np.ndarray:
+    e = np.zeros((3, 3, 3))
+    e[0, 1, 2] = e[1, 2, 0] = e[2, 0, 1] = 1.0
+    e[0, 2, 1] = e[2, 1, 0] = e[1, 0, 2] = -1.0
+    return e
+
+
+def j_hessian_tensor(F: np.ndarray) -> np.ndarray:
+    """(m, 3, 3, 3, 3) d2J / dF_kI dF_lL = eps_klm eps_ILM F_mM: the cross-product matrices of
+    F's columns in a block layout.
+    """
+    e = _levi_civita()
+    return np.einsum("klm,ILM,nmM->nkIlL", e, e, F, optimize=True)
+
+
+def _from_rows(points, cells, x, pj, f, K, f_o, K_o, s, tol) -> List[Finding]:
+    """The Hessian of J built from the cross-product matrices of F's rows where its columns
+    belong (d2J/dF2 at F^T, in the same layout: a row-major engine's form in a column-major
+    one's), scaled by psi_J, with either sign; [] when neither matches.
+    """
+    from conformance.diagnosis.elements import tangent_element_matrices
+
+    V0, D, F = cell_kinematics(points, cells, x)
+    dA = pj[:, None, None, None, None] * (j_hessian_tensor(F.swapaxes(1, 2)) - j_hessian_tensor(F))
+    m, n = cells.shape[0], points.shape[0]
+    change = assemble(cells, n, np.zeros((m, 4, 3)), tangent_element_matrices(V0, D, dA))[1]
+    if not change.nnz or sparse_norm(change) <= tol.stiffness * s.stiffness:
+        return []  # F symmetric here: the rows are the columns
+    e = errors(f, K, None, f_o, K_o + change, 0.0, s)
+    if not tol.within(e, energy=False):
+        return []
+    return [
+        Finding(
+            "j-hessian-rows",
+            "the Hessian of J = det F built from the cross-product matrices of F's rows where "
+            "its columns belong (d2J/dF2 = eps_klm eps_ILM F_mM taken at F^T: a row-major "
+            "layout's blocks in a column-major one), in the psi_J d2J/dF2 term of the tangent",
+            FULL,
+            f"the oracle's K plus sum over cells of psi_J V0 D . (d2J/dF2(F^T) - d2J/dF2(F)) . D "
+            "(psi_J = dW/dJ with I1 and I2 held, from the oracle's energy) matches the engine's "
+            f"K to {e.stiffness:.1e}; the force matches; where F is symmetric it changes nothing",
+            {"stiffness_error": e.stiffness},
+        )
+    ]
 
 
 def j_hessian_reading(diag, ci, out, ref, s: Scales):

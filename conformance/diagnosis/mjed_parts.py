@@ -1611,7 +1611,8 @@ def mjed_part_reading(
     if not found:
         found = _expanded_findings(ci.model, case, s, diag.tolerances, force_alone)
     if not found:
-        return diag
+        # the Hessian of J itself built wrongly (from F's rows), which no part's factor is
+        return diag if force_alone else j_hessian_reading(diag, ci, out, ref, s)
     return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
 
 
