@@ -124,3 +124,27 @@ def test_an_anisotropic_model_is_not_read():
         frame = np.eye(3)
 
     assert principal_difference_fits(Framed(), None, None, None, None) == []
+
+
+def test_scaling_modes_from_the_eigenvector_matrix_rows_are_named(case):
+    """An SVD engine rebuilding its scaling block from eigh's eigenvector matrix read by rows
+    (singular values descending), Ogden's Hessian in sigma from its closed form.
+    """
+    from conformance.diagnosis.principal_differences import scaling_rebuild_findings
+    from conformance.judge.compare import DOUBLE, scales
+
+    points, model, split, K_o = case
+    _, logs = _stiffness_error(split, np.zeros((split.V0.size, 3, 3)))
+    sigma = np.exp(logs)
+    pair = sigma[:, :, None] * sigma[:, None, :]
+    H = (_exact(logs) - np.einsum("ma,ab->mab", _tau(logs), np.eye(3))) / pair
+    Hd = H[:, ::-1, ::-1]  # the engine's order: descending
+    w, W = np.linalg.eigh(Hd)
+    used = np.einsum("mki,mk,mkj->mij", W, w, W)[:, ::-1, ::-1]  # W^T diag(w) W
+    D, _ = _stiffness_error(split, (used - H) * pair)
+    s = scales(0.5, 1.0, np.ones((split.n, 3)), K_o)
+    found = scaling_rebuild_findings(model, split, points, K_o + D, K_o, s, DOUBLE)
+    assert [(f.code, f.figures["descending"]) for f in found] == [
+        ("scaling-eigenvectors-as-rows", True)
+    ]
+    assert scaling_rebuild_findings(model, split, points, K_o + 1.01 * D, K_o, s, DOUBLE) == []
