@@ -83,7 +83,7 @@ PRODUCTS = {
     "FS": ("F S", lambda S, F: F @ S),
     "SF": ("S F", lambda S, F: S @ F),
     "FtS": ("F^T S", lambda S, F: _t(F) @ S),
-    "SFt": ("S F^T", lambda S, F: S @ _t(F)),
+    "SFt": ("S F^T = P^T", lambda S, F: S @ _t(F)),
 }
 
 
