@@ -92,3 +92,38 @@ def test_on_alike_cells_the_case_fits_a_piece_without_telling_which():
     d = gradient_reading(diag, ci, out, Reference(0.0, f_o, K_o), s)
     assert not d.causes
     assert "invariant-gradient-piece" in d.findings[0].figures["fits_codes"]
+
+
+def test_a_slope_wrong_in_p_and_in_its_hessian_term_is_named():
+    """Mooney-Rivlin in (I_C, II_C, J) with dI2b/dII_C typed +J^(-4/3)/2: Psi_IIC = c2
+    dI2b/dII_C flips in P and in Psi_IIC d2II_C/dF2, written here by hand; the second
+    derivatives of W (zero for c2's linear term) right.
+    """
+    from conformance.diagnosis.elements import tangent_element_matrices
+
+    points, cells, x, model, f_o, K_o = _case("MooneyRivlin", [1.1, 0.95, 0.9], 0.04)
+    V0, D, F = cell_kinematics(points, cells, x)
+    J = np.linalg.det(F)
+    psi = -0.5 * model.c2 * J ** (-4.0 / 3.0)  # dW/dII_C of c2 (I2b - 3)
+    C = F.swapaxes(1, 2) @ F
+    B = F @ F.swapaxes(1, 2)
+    eye = np.eye(3)
+    H = 4.0 * (
+        np.einsum("kl,mLI->mkIlL", eye, C)
+        + np.einsum("mkL,mlI->mkIlL", F, F)
+        + np.einsum("mkl,IL->mkIlL", B, eye)
+    )
+    k = -1.0
+    m, n = cells.shape[0], points.shape[0]
+    fe = piola_element_forces(V0, D, (k - 1.0) * psi[:, None, None] * 4.0 * F @ C)
+    Ke = tangent_element_matrices(V0, D, (k - 1.0) * psi[:, None, None, None, None] * H)
+    f = f_o + assemble(cells, n, fe, None)[0]
+    K = K_o + assemble(cells, n, np.zeros((m, 4, 3)), Ke)[1]
+    s = scales(0.5, 1.0, f_o, K_o)
+    found = gradient_findings(model, points, cells, x, f, K, f_o, K_o, s, DOUBLE)
+    assert [(x.code, x.figures["invariant"], x.figures["factor"]) for x in found] == [
+        ("invariant-slope-piece", "II_C", -1.0)
+    ], [x.title for x in found]
+    # the force alone so (its tangent term right too): the gradient reading, not this one
+    found = gradient_findings(model, points, cells, x, f, K_o, f_o, K_o, s, DOUBLE)
+    assert [x.code for x in found] == ["invariant-gradient-piece"]

@@ -24,8 +24,14 @@ from __future__ import annotations
 from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
+import scipy.sparse as sp
 
-from conformance.diagnosis.elements import assemble, cell_kinematics, piola_element_forces
+from conformance.diagnosis.elements import (
+    assemble,
+    cell_kinematics,
+    piola_element_forces,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.fractions import simple_fraction
 from conformance.diagnosis.term_differences import cell_invariants, declared_energy
@@ -137,8 +143,11 @@ def gradient_findings(
     brings the force within ``tol`` with a simple factor (several: ambiguous).
     """
     base = errors(f, K, None, f_o, K_o, 0.0, s)
-    if base.force <= tol.force or base.stiffness > tol.stiffness:
+    if base.force <= tol.force:
         return []
+    # the stiffness right: the gradient alone typed wrongly in P; the stiffness wrong too: the
+    # slope Psi_a itself, in P and in its term Psi_a d2I_a/dF2 of the tangent
+    slope = base.stiffness > tol.stiffness
     V0, D, F = cell_kinematics(points, cells, x)
     n = points.shape[0]
     df = np.ravel(np.asarray(f, dtype=float) - f_o)
@@ -155,22 +164,62 @@ def gradient_findings(
             slopes = None if P is None else slopes_from_stress(P, F, which)
         if slopes is None:
             continue
-        for (name, words), piece in zip(names, gradient_pieces(F, slopes, which)):
+        hessians = _hessians(F, which) if slope else None
+        for a, ((name, words), piece) in enumerate(zip(names, gradient_pieces(F, slopes, which))):
             if name == "J" and which != "I1, I2, J":
                 continue  # dW/dJ with (I_C, II_C) held is dW/dJ with (I1, I2) held: said once
             g = np.ravel(assemble(cells, n, piola_element_forces(V0, D, piece), None)[0])
-            gg = float(g @ g)
-            if gg == 0.0:
+            if not g.any():
                 continue
-            c = float(g @ df) / gg  # the engine's piece is (1 + c) times the right one
+            dK = None
+            if slope:
+                dA = slopes[a][:, None, None, None, None] * hessians[a]
+                m = cells.shape[0]
+                Ke = tangent_element_matrices(V0, D, dA)
+                dK = assemble(cells, n, np.zeros((m, 4, 3)), Ke)[1]
+            c = _factor(g, df, dK, sp.csr_matrix(K) - sp.csr_matrix(K_o), s)
             k = simple_fraction(1.0 + c, 4, 1e-6)
             if k is None or k == 1:
                 continue
-            e = errors(f, K, None, f_o + (float(k) - 1.0) * g.reshape(-1, 3), K_o, 0.0, s)
-            if e.force > tol.force:
+            Kp = K_o if dK is None else sp.csr_matrix(K_o) + (float(k) - 1.0) * dK
+            e = errors(f, K, None, f_o + (float(k) - 1.0) * g.reshape(-1, 3), Kp, 0.0, s)
+            if not tol.within(e, energy=False):
                 continue
-            found.append(_finding(which, name, words, float(k), e, source))
+            found.append(_finding(which, name, words, float(k), e, source, slope))
     return ambiguous(found)
+
+
+def _factor(g: np.ndarray, df: np.ndarray, dK, DK, s: Scales) -> float:
+    """The least-squares c with df = c g (and, given dK, DK = c dK), each side over its scale."""
+    num = float(g @ df) / s.force**2
+    den = float(g @ g) / s.force**2
+    if dK is not None:
+        num += float(dK.multiply(DK).sum()) / s.stiffness**2
+        den += float(dK.multiply(dK).sum()) / s.stiffness**2
+    return num / den if den > 0 else 0.0
+
+
+def _hessians(F: np.ndarray, which: str) -> List[np.ndarray]:
+    """The invariants' second gradients d2I_a / dF_kI dF_lL (each (m, 3, 3, 3, 3)) of set
+    ``which``.
+    """
+    from conformance.diagnosis.j_hessian_block import j_hessian_tensor
+
+    eye = np.eye(3)
+    C = F.swapaxes(1, 2) @ F
+    B = F @ F.swapaxes(1, 2)
+    h_ic = np.broadcast_to(2.0 * np.einsum("kl,IL->kIlL", eye, eye), (F.shape[0],) + (3,) * 4)
+    h_iic = 4.0 * (
+        np.einsum("kl,mLI->mkIlL", eye, C)
+        + np.einsum("mkL,mlI->mkIlL", F, F)
+        + np.einsum("mkl,IL->mkIlL", B, eye)
+    )
+    h_j = j_hessian_tensor(F)
+    if which == "I1, I2, J":  # I2 = (I_C^2 - II_C) / 2
+        I1 = np.trace(C, axis1=1, axis2=2)[:, None, None, None, None]
+        h_i2 = I1 * h_ic + 4.0 * np.einsum("mkI,mlL->mkIlL", F, F) - 0.5 * h_iic
+        return [h_ic, h_i2, h_j]
+    return [h_ic, h_iic, h_j]
 
 
 def _cell_stress(model, points, cells, x, f_o, K_o, s, tol) -> Optional[np.ndarray]:
@@ -183,18 +232,36 @@ def _cell_stress(model, points, cells, x, f_o, K_o, s, tol) -> Optional[np.ndarr
     return None if split is None else cell_piola(split)[0]
 
 
-def _finding(which: str, name: str, words: str, k: float, e, source: str) -> Finding:
+def _finding(which: str, name: str, words: str, k: float, e, source: str, slope: bool):
     said = {2.0: "doubled", 0.5: "halved", 0.0: "left out", -1.0: "with its sign flipped"}
     how = said.get(k, f"times {k:g}")
+    if slope:
+        title = (
+            f"the derivative dW/d{name} {how} where it multiplies {name}'s gradient and second "
+            f"gradient (the invariants {which}): in P and in the term dW/d{name} d2{name}/dF2 "
+            "of the tangent, the second derivatives of W right (a chain-rule factor of "
+            f"d{name}, e.g. the sign of dI2b/dII_C, typed wrongly)"
+        )
+        after = f"and its second gradient term; force error {e.force:.1e}, stiffness error"
+    else:
+        title = (
+            f"your first Piola stress has the piece dW/d{name} {words} {how} (the invariants "
+            f"{which}), the stiffness derived apart and right: a gradient typed wrongly in P"
+        )
+        after = f"force error {e.force:.1e}; the stiffness is the oracle's"
     return Finding(
-        "invariant-gradient-piece",
-        f"your first Piola stress has the piece dW/d{name} {words} {how} (the invariants "
-        f"{which}), the stiffness derived apart and right: a gradient typed wrongly in P",
+        "invariant-gradient-piece" if not slope else "invariant-slope-piece",
+        title,
         FULL,
         f"the energy's derivative in {name} per cell ({source}) times that gradient, scaled "
-        f"by {k:g} and assembled: force error "
-        f"{e.force:.1e}; the stiffness is the oracle's ({e.stiffness:.1e})",
-        {"set": which, "invariant": name, "factor": k, "residual": max(e.force, e.stiffness)},
+        f"by {k:g} and assembled, {after} ({e.stiffness:.1e})",
+        {
+            "set": which,
+            "invariant": name,
+            "factor": k,
+            "slope": slope,
+            "residual": max(e.force, e.stiffness),
+        },
     )
 
 
