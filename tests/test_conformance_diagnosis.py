@@ -395,8 +395,9 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
 
     force_right = set(running(False)) - set(running(True))
     force_wrong = set(running(True)) - set(running(False))
-    assert len(force_wrong) == 7 and all(
+    assert len(force_wrong) == 8 and all(
         "differences of the energy density" in n
+        or "invariant's gradient typed wrongly" in n
         or "giving the force alone" in n
         or "Voigt stress vector" in n
         or "hand-derived stress" in n
@@ -418,6 +419,8 @@ def test_the_readings_of_mistakes_run_in_their_declared_order_under_their_condit
         "the elasticity tensor applied to each node direction by differences of the stress "
         "along it (forward or central; one triangle of a cell's blocks mirrored, or not)",
         "central differences of P in each component of F (a first elasticity tensor)",
+        "a spectral engine's principal block d tau_a / d ln lambda_b by differences of the "
+        "principal Kirchhoff stresses (forward or central in ln lambda, or a relative step)",
     }
     # a cause named by the first diagnosis (no mistakes read): only the tangent term's
     # differences, and only with the force right
