@@ -148,3 +148,22 @@ def test_scaling_modes_from_the_eigenvector_matrix_rows_are_named(case):
         ("scaling-eigenvectors-as-rows", True)
     ]
     assert scaling_rebuild_findings(model, split, points, K_o + 1.01 * D, K_o, s, DOUBLE) == []
+
+
+def test_a_volumetric_tangent_error_is_not_a_scheme(case):
+    """k0 I (x) I where k0 / J I (x) I belongs (corpus 18's Yeoh UMAT), in the principal frame
+    a constant block: on one J it is what the relative-step scheme on the volumetric part (linear
+    in the log-stretches, off by k0 (ln(1 + h) / h - 1)) gives with a step of about 0.6, which
+    is no finite-difference step; nor is the simulation's round-off of an exact part a scheme.
+    """
+    from common.cases import default_material
+
+    for model in (case[1], default_material("Yeoh")):
+        points, cells = box_mesh(3, jitter=0.2, seed=5)
+        x = points @ np.diag([1.3, 0.9, 0.9]).T  # one J: the volumetric block is one number
+        split, _, K_o, _ = mjed_split(model, points, cells, x)
+        J = np.linalg.det(split.F)
+        dM = (model.k0 * (J - 1.0))[:, None, None] * np.ones((1, 3, 3))
+        D, _ = _stiffness_error(split, dM)
+        assert sp.linalg.norm(D) > 1e-6 * sp.linalg.norm(K_o)
+        assert principal_difference_fits(model, split, points, D.tocsr(), K_o) == [], model

@@ -65,6 +65,11 @@ __all__ = [
 PROBE = 1e-3
 #: The exact derivative's central step (its error 1e-9 of it, round-off 1e-12).
 EXACT = 1e-4
+#: A scheme's error per unit step below this share of the stresses is the simulation's own
+#: round-off (u |tau| / PROBE^2, 2e-10), not a truncation error to fit.
+SIGNIFICANT = 1e-6
+#: A fitted step above this is no finite-difference step.
+LARGEST_STEP = 0.1
 
 
 @dataclass(frozen=True)
@@ -267,10 +272,16 @@ def principal_difference_fits(
     found = []
     for label, stress in stress_parts(model).items():
         errs = scheme_errors(stress, points, split, logs)
-        if errs is None:
+        tau = stress(points, split, logs)
+        if errs is None or tau is None:
             continue
+        size = float(np.linalg.norm(tau))
         for scheme, dM in errs.items():
             if not np.all(np.isfinite(dM)):
+                continue
+            if float(np.linalg.norm(dM)) <= SIGNIFICANT * size:
+                # a part linear in the log-stretches (k0 ln J) differences exactly: what is
+                # left is the simulation's round-off, which must not be fitted as a scheme
                 continue
             for read, block in _READ_AS.items():
                 basis = principal_stiffness(split, n, block(dM))
@@ -282,7 +293,7 @@ def principal_difference_fits(
                     if squared
                     else fit_step(basis, D, K_o, "principal")
                 )
-                if fit is not None and fit.explained >= EXPLAINED:
+                if fit is not None and fit.explained >= EXPLAINED and fit.step <= LARGEST_STEP:
                     found.append((label, scheme + read, fit))
     return sorted(found, key=lambda t: -t[2].explained)
 
