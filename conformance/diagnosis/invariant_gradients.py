@@ -37,7 +37,14 @@ from conformance.diagnosis.fractions import simple_fraction
 from conformance.diagnosis.term_differences import cell_invariants, declared_energy
 from conformance.judge.compare import Scales, Tolerances, errors
 
-__all__ = ["SETS", "invariant_slopes", "gradient_pieces", "gradient_findings", "gradient_reading"]
+__all__ = [
+    "SETS",
+    "invariant_slopes",
+    "gradient_pieces",
+    "j_hessian_tensor",
+    "gradient_findings",
+    "gradient_reading",
+]
 
 #: set -> ((invariant name, its gradient in words), ...): the two invariant sets engines use.
 SETS: Dict[str, Tuple[Tuple[str, str], ...]] = {
@@ -199,12 +206,25 @@ def _factor(g: np.ndarray, df: np.ndarray, dK, DK, s: Scales) -> float:
     return num / den if den > 0 else 0.0
 
 
+def _levi_civita() -> np.ndarray:
+    e = np.zeros((3, 3, 3))
+    e[0, 1, 2] = e[1, 2, 0] = e[2, 0, 1] = 1.0
+    e[0, 2, 1] = e[2, 1, 0] = e[1, 0, 2] = -1.0
+    return e
+
+
+def j_hessian_tensor(F: np.ndarray) -> np.ndarray:
+    """(m, 3, 3, 3, 3) d2J / dF_kI dF_lL = eps_klm eps_ILM F_mM: the cross-product matrices of
+    F's columns in a block layout.
+    """
+    e = _levi_civita()
+    return np.einsum("klm,ILM,nmM->nkIlL", e, e, F, optimize=True)
+
+
 def _hessians(F: np.ndarray, which: str) -> List[np.ndarray]:
     """The invariants' second gradients d2I_a / dF_kI dF_lL (each (m, 3, 3, 3, 3)) of set
     ``which``.
     """
-    from conformance.diagnosis.j_hessian_block import j_hessian_tensor
-
     eye = np.eye(3)
     C = F.swapaxes(1, 2) @ F
     B = F @ F.swapaxes(1, 2)

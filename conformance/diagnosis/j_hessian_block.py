@@ -25,7 +25,7 @@ from scipy.sparse.linalg import norm as sparse_norm
 
 from conformance.diagnosis.elements import assemble, cell_kinematics
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
-from conformance.diagnosis.term_differences import cell_invariants, declared_energy
+from conformance.diagnosis.invariant_gradients import invariant_slopes, j_hessian_tensor
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = ["FACTORS", "psi_j", "j_hessian", "j_hessian_findings", "j_hessian_reading"]
@@ -46,32 +46,11 @@ FACTORS: Dict[float, str] = {
 
 def psi_j(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
     """(m,) dW/dJ with I1 and I2 held, at deformation gradients F (m, 3, 3), from the declared
-    energy; None when it has no scalar formula of these invariants.
+    energy (complex step in the invariants it reads, the chain rule to I1, I2, J); None when it
+    has no scalar formula of these invariants.
     """
-    energy = declared_energy(model)
-    if energy is None:
-        return None
-    inv = cell_invariants(F)
-    if not set(energy.variables) <= set(inv):
-        return None
-    J = inv["J"]
-    # d(invariant)/dJ with I1 and I2 held
-    chain = {
-        "J": np.ones_like(J),
-        "I1": 0.0,
-        "I2": 0.0,
-        "I3": 2.0 * J,
-        "I1b": -2.0 / 3.0 * inv["I1b"] / J,
-        "I2b": -4.0 / 3.0 * inv["I2b"] / J,
-    }
-    h = 1e-30  # complex step: exact to round-off
-    out = np.zeros_like(J)
-    for name in energy.variables:
-        shifted = {**inv, name: inv[name] + 1j * h}
-        with np.errstate(all="ignore"):
-            W = np.asarray(energy.evaluate(shifted.__getitem__, np.log, np.exp, np.sqrt))
-        out = out + np.imag(W) / h * chain[name]
-    return out if np.all(np.isfinite(out)) else None
+    slopes = invariant_slopes(model, F, "I1, I2, J")
+    return None if slopes is None else slopes[2]
 
 
 def j_hessian(points: np.ndarray, cells: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -130,21 +109,6 @@ def j_hessian_findings(
     if not found:
         found = _from_rows(points, cells, x, pj, f, K, f_o, K_o, s, tol)
     return ambiguous(found)
-
-
-def _levi_civita() -> np.ndarray:
-    e = np.zeros((3, 3, 3))
-    e[0, 1, 2] = e[1, 2, 0] = e[2, 0, 1] = 1.0
-    e[0, 2, 1] = e[2, 1, 0] = e[1, 0, 2] = -1.0
-    return e
-
-
-def j_hessian_tensor(F: np.ndarray) -> np.ndarray:
-    """(m, 3, 3, 3, 3) d2J / dF_kI dF_lL = eps_klm eps_ILM F_mM: the cross-product matrices of
-    F's columns in a block layout.
-    """
-    e = _levi_civita()
-    return np.einsum("klm,ILM,nmM->nkIlL", e, e, F, optimize=True)
 
 
 def _from_rows(points, cells, x, pj, f, K, f_o, K_o, s, tol) -> List[Finding]:
