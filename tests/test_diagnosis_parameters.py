@@ -106,6 +106,35 @@ def test_two_parameters_with_other_values_are_refitted_together():
 
 @pytest.mark.oracle
 @pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
+def test_parameters_refitted_together_are_not_named_on_alike_cells_alone():
+    """On a homogeneous stretch several parameters moved together fit many single slips (a
+    second derivative by differences: W1 kept, W11 moved), so there the joint refit names
+    nothing; the case takes the cause where the kit's general state names it.
+    """
+    import mjed
+    from conformance.protocol import check_implementation
+
+    logging.disable(logging.INFO)
+    changed = dataclasses.replace(COSTA, b_sn=COSTA.b_ss, b_fn=COSTA.b_fs)
+
+    def engine(case):
+        model = dataclasses.replace(changed, frame=case.model.frame)
+        field = mjed.HyperelasticForceField(mjed.TetMesh(case.points, case.cells), model)
+        f, K = field.force_and_stiffness(case.positions)
+        return f, K, field.energy(case.positions)
+
+    run = check_implementation(
+        engine, material=COSTA, mesh="cube-small", states=("uniaxial", "random"), probes=False
+    )
+    by_state = {o.state: o.diagnosis for o in run.outcomes}
+    random, uniaxial = by_state["random"], by_state["uniaxial"]
+    assert random.causes[0].code == "parameter-values", random.text()
+    head = uniaxial.findings[0]
+    assert head.code == "parameter-values" and head.figures.get("named_on"), uniaxial.text()
+
+
+@pytest.mark.oracle
+@pytest.mark.skipif(not dolfinx_available(), reason="the oracle needs dolfinx (python3-dolfinx)")
 def test_a_parameter_inside_an_exponential_with_another_value_is_refitted():
     """MJED on Veronda-Westmann with c2 (inside exp(c2 (I1b - 3)) and in the I2b term) 10 %
     larger: no term fit explains it; the refit of c2 alone does, and says the value.

@@ -445,13 +445,25 @@ JOINT_MOST = 10
 JOINT_PINNED = 1e-7
 
 
-def _joint_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> List[Reading]:
+def _alike_cells(ci) -> bool:
+    """Whether every cell of the case has one deformation gradient (a homogeneous state)."""
+    from conformance.diagnosis.elements import cell_kinematics
+
+    F = cell_kinematics(ci.points, ci.cells, ci.positions)[2]
+    return bool(np.abs(F - F[:1]).max() <= 1e-9 * max(np.abs(F).max(), 1e-300))
+
+
+def _joint_parameter_readings(
+    cache, ci, out, s: Scales, tol: Tolerances, consistent: List[str]
+) -> List[Reading]:
     """Two or more parameters with other values at once (a law with fewer parameters reading
     the case's: a transversely isotropic law taking Costa's b_sn as b_ss and b_fn as b_fs; two
     moduli in other units): every scalar parameter refitted together from the declared values
     (Gauss-Newton through the oracle). Named when the oracle at the fitted values matches the
     engine, the case pins every parameter (:data:`JOINT_PINNED`) and at least two
-    changed; each changed value said with the parameter whose value it is, if any.
+    changed; each changed value said with the parameter whose value it is, if any. Not on a
+    state whose cells are alike, where a few parameters moved together fit many single slips:
+    there a fit adds its code to ``consistent`` (the causes this case cannot tell apart).
     """
     from conformance.diagnosis.parameters import with_value
     from conformance.diagnosis.refit import refit
@@ -460,6 +472,10 @@ def _joint_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> Lis
     names = list(values)
     if not 2 <= len(names) <= JOINT_MOST:
         return []
+    # cells in one state: several parameters moved together can mimic a single slip of the
+    # tangent there (a second derivative by differences: W1 kept, W11 moved), so a fit is only
+    # consistent with the cause a case whose cells differ names (corroborate.fits_codes)
+    alike = _alike_cells(ci)
 
     def evaluate(v):
         r = cache.evaluate_once(ci, with_value(ci.model, **dict(zip(names, map(float, v)))))
@@ -467,6 +483,9 @@ def _joint_parameter_readings(cache, ci, out, s: Scales, tol: Tolerances) -> Lis
 
     fit = refit(evaluate, [values[n] for n in names], _target(out, s, tol), steps=12)
     if fit is None or not fit.agrees:
+        return []
+    if alike:
+        consistent.append("parameter-values")
         return []
     pinned = max(fit.residual, 1e-15) / fit.sensitivity if fit.sensitivity > 0 else np.inf
     if not pinned <= JOINT_PINNED:  # NaN (no step taken) too
@@ -900,8 +919,9 @@ def read(
     full += _constant_readings(cache, ci, out, s, tol)
     full += _shear_readings(cache, ci, out, s, tol)
     full += _extra_term_readings(ci, out, ref, s, tol)
+    consistent: List[str] = []
     if not full:  # last, and only then: it asks the oracle most
-        full += _joint_parameter_readings(cache, ci, out, s, tol)
+        full += _joint_parameter_readings(cache, ci, out, s, tol, consistent)
     full, untold = _untold_parameters(full, observed)
     observed += untold
     causes = stress_only(merge_readings(_parameters_first(full), s), diag)
@@ -915,7 +935,17 @@ def read(
         "one at a time, the exponents of J refitted (evaluated by the oracle)"
     )
     head = [
-        replace(f, evidence=f.evidence + tried) for f in diag.findings if f.code == "unexplained"
+        replace(
+            f,
+            evidence=f.evidence + tried,
+            figures=(
+                {**f.figures, "fits_codes": [*f.figures.get("fits_codes", ()), *consistent]}
+                if consistent
+                else f.figures
+            ),
+        )
+        for f in diag.findings
+        if f.code == "unexplained"
     ]
     rest = [f for f in diag.findings if f.code != "unexplained"]
     return replace(diag, findings=[*head, *observed, *partial, *rest])
