@@ -43,6 +43,14 @@ _ONLY = "(this case only) "
 _AMBIGUOUS = "(ambiguous) "
 
 
+def _as_observations(findings) -> list:
+    """``findings`` with each cause named in full kept as an observation of this case only."""
+    return [
+        replace(f, strength=OBSERVED, title=_ONLY + f.title) if f.strength == FULL else f
+        for f in findings
+    ]
+
+
 def left_unexplained(diagnosis) -> bool:
     """True when the case failed against the oracle's force or stiffness and no cause was read
     (its headline says "unexplained").
@@ -103,10 +111,7 @@ def corroborate(
                     "unexplained_cases": [case_ids[j] for j in open_cases],
                 },
             )
-            kept = [
-                replace(f, strength=OBSERVED, title=_ONLY + f.title) if f.strength == FULL else f
-                for f in d.findings
-            ]
+            kept = _as_observations(d.findings)
             out[i] = replace(d, findings=[lead, *kept])
     return out
 
@@ -244,9 +249,6 @@ def extend_covered(
                 f"({own}): the cells of this state are alike and round alike",
                 {**cause.figures, "named_on": case_ids[i]},
             )
-            kept = [
-                replace(f, strength=OBSERVED, title=_ONLY + f.title) if f.strength == FULL else f
-                for f in d.findings
-            ]
+            kept = _as_observations(d.findings)
             out[j] = replace(d, findings=[found, *kept])
     return out

@@ -40,6 +40,8 @@ from conformance.judge.compare import Errors, Scales, Tolerances, errors
 __all__ = [
     "ElementSplit",
     "element_split",
+    "mjed_element_arrays",
+    "alike_cells",
     "assemble",
     "piola_element_forces",
     "tangent_element_matrices",
@@ -138,6 +140,28 @@ def cell_kinematics(
     return np.abs(V0), D, deformation_gradient(x[cells], D)
 
 
+def mjed_element_arrays(
+    model: Any, points: np.ndarray, cells: np.ndarray, positions: np.ndarray
+) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """MJED's element forces (m, 4, 3) and matrices (m, 12, 12) of ``model`` at ``positions``;
+    None where MJED cannot (not an MJED material, or not at this state).
+    """
+    import mjed
+
+    try:
+        field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
+        fe = np.asarray(field.element_forces(positions), dtype=np.float64)
+        Ke = np.asarray(field.element_stiffness(positions), dtype=np.float64)
+    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state: no split
+        return None
+    return fe, Ke
+
+
+def alike_cells(F: np.ndarray) -> bool:
+    """Whether every cell has one deformation gradient, F (m, 3, 3) (a homogeneous state)."""
+    return bool(np.abs(F - F[:1]).max() <= 1e-9 * max(float(np.abs(F).max()), 1e-300))
+
+
 def element_split(
     model: Any,
     points: np.ndarray,
@@ -151,14 +175,10 @@ def element_split(
     """MJED's element forces and matrices for ``model`` at ``positions``, or None when MJED has
     no such material or their sum is not the oracle's force and stiffness within ``tol``.
     """
-    import mjed
-
-    try:
-        field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
-        fe = np.asarray(field.element_forces(positions), dtype=np.float64)
-        Ke = np.asarray(field.element_stiffness(positions), dtype=np.float64)
-    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state: no split
+    arrays = mjed_element_arrays(model, points, cells, positions)
+    if arrays is None:
         return None
+    fe, Ke = arrays
     n = points.shape[0]
     f, K = assemble(cells, n, fe, Ke)
     e = errors(f, K, None, f_o, sp.csr_matrix(K_o), 0.0, s)

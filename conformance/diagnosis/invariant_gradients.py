@@ -27,12 +27,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from conformance.diagnosis.elements import (
+    alike_cells,
     assemble,
     cell_kinematics,
     piola_element_forces,
     tangent_element_matrices,
 )
-from conformance.diagnosis.findings import FULL, Finding, ambiguous
+from conformance.diagnosis.findings import FULL, Finding, ambiguous, named_first
 from conformance.diagnosis.fractions import simple_fraction
 from conformance.diagnosis.term_differences import cell_invariants, declared_energy
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -126,12 +127,11 @@ def slopes_from_stress(P: np.ndarray, F: np.ndarray, which: str) -> Optional[np.
     its nine entries; an isotropic law's P is exactly of that form), or None where some cell's
     gradients are not independent (two equal principal stretches) or P is not of that form.
     """
-    G = np.stack([g.reshape(-1, 9) for g in _gradients(F, which)], axis=2)  # (m, 9, 3)
-    G = G / np.maximum(np.linalg.norm(G, axis=1, keepdims=True), 1e-300)
+    grads = np.stack([g.reshape(-1, 9) for g in _gradients(F, which)], axis=2)  # (m, 9, 3)
+    G = grads / np.maximum(np.linalg.norm(grads, axis=1, keepdims=True), 1e-300)
     sv = np.linalg.svd(G, compute_uv=False)
     if np.any(sv[:, -1] < _INDEPENDENT * sv[:, 0]):
         return None
-    grads = np.stack([g.reshape(-1, 9) for g in _gradients(F, which)], axis=2)
     out = np.empty((3, F.shape[0]))
     Pf = P.reshape(-1, 9)
     normal = np.einsum("mia,mib->mab", grads, grads)  # per cell: a 9 x 3 system
@@ -158,6 +158,9 @@ def gradient_findings(
     V0, D, F = cell_kinematics(points, cells, x)
     n = points.shape[0]
     df = np.ravel(np.asarray(f, dtype=float) - f_o)
+    K_o = sp.csr_matrix(K_o)
+    DK = sp.csr_matrix(K) - K_o
+    m = cells.shape[0]
     found = []
     P = None
     for which, names in SETS.items():
@@ -181,14 +184,13 @@ def gradient_findings(
             dK = None
             if slope:
                 dA = slopes[a][:, None, None, None, None] * hessians[a]
-                m = cells.shape[0]
                 Ke = tangent_element_matrices(V0, D, dA)
                 dK = assemble(cells, n, np.zeros((m, 4, 3)), Ke)[1]
-            c = _factor(g, df, dK, sp.csr_matrix(K) - sp.csr_matrix(K_o), s)
+            c = _factor(g, df, dK, DK, s)
             k = simple_fraction(1.0 + c, 4, 1e-6)
             if k is None or k == 1:
                 continue
-            Kp = K_o if dK is None else sp.csr_matrix(K_o) + (float(k) - 1.0) * dK
+            Kp = K_o if dK is None else K_o + (float(k) - 1.0) * dK
             e = errors(f, K, None, f_o + (float(k) - 1.0) * g.reshape(-1, 3), Kp, 0.0, s)
             if not tol.within(e, energy=False):
                 continue
@@ -297,8 +299,7 @@ def gradient_reading(diag, ci, out, ref, s: Scales):
         ref.stiffness, s, tol,
     )  # fmt: skip
     if found:
-        rest = [f for f in diag.findings if f.code != "unexplained"]
-        return replace(diag, findings=[*found, *rest])
+        return named_first(diag, found)
     if not _fits_alike_cells(ci.points, ci.cells, ci.positions, out, ref, s, tol):
         return diag
     # One state in every cell: the pieces' factors cannot be told apart here; a case of the kit
@@ -317,7 +318,7 @@ def _fits_alike_cells(points, cells, x, out, ref, s: Scales, tol: Tolerances) ->
     a piece of P scaled fits it, whichever piece.
     """
     V0, D, F = cell_kinematics(points, cells, x)
-    if np.abs(F - F[:1]).max() > 1e-9 * np.abs(F).max():
+    if not alike_cells(F):
         return False
     n = points.shape[0]
     cols = [

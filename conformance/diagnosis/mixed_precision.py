@@ -39,7 +39,7 @@ from typing import Any, Dict, List, Optional, Sequence
 import numpy as np
 
 from conformance.diagnosis.elements import ElementSplit, assemble, piola_element_forces
-from conformance.diagnosis.findings import FULL, Finding
+from conformance.diagnosis.findings import FULL, Finding, named_first
 from conformance.diagnosis.part_scalars import part_scalar_findings
 
 __all__ = [
@@ -564,16 +564,5 @@ def mixed_precision_reading(diag, cache, ci, out, ref, s, probes, probe_results)
                 split, ci.model, ci.points, ci.positions, out, ref.force, ref.stiffness, s,
                 diag.tolerances, noisy,
             )  # fmt: skip
-            return _led_by(diag, parts)
-    return _led_by(diag, [found] if found is not None else [])
-
-
-def _led_by(diag, found: List[Finding]):
-    """``diag`` with ``found`` first and its "unexplained" headline dropped; unchanged when
-    ``found`` is empty.
-    """
-    from dataclasses import replace
-
-    if not found:
-        return diag
-    return replace(diag, findings=[*found, *(f for f in diag.findings if f.code != "unexplained")])
+            return named_first(diag, parts)
+    return named_first(diag, [found] if found is not None else [])

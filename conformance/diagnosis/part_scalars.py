@@ -35,7 +35,7 @@ from typing import Any, Dict, List, Optional, Tuple
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import ElementSplit, assemble
+from conformance.diagnosis.elements import ElementSplit, assemble, mjed_element_arrays
 from conformance.diagnosis.findings import FULL, Finding, ambiguous
 from conformance.diagnosis.parameters import scaled_models
 from conformance.diagnosis.second_derivative import fit_cell_term
@@ -76,23 +76,6 @@ MEAN_SHARE = 0.5
 UNPROBED_CELLS = 50
 
 
-def _element_arrays(model: Any, points, cells, positions) -> Optional[Tuple[np.ndarray, ...]]:
-    """MJED's element forces (m, 4, 3) and matrices (m, 12, 12) of ``model``; None where it
-    cannot (not an MJED material, the state out of its domain, values not finite).
-    """
-    import mjed
-
-    try:
-        field = mjed.make_force_field(mjed.TetMesh(points, cells), model)
-        fe = np.asarray(field.element_forces(positions), dtype=np.float64)
-        Ke = np.asarray(field.element_stiffness(positions), dtype=np.float64)
-    except Exception:  # noqa: BLE001 - not an MJED material, or not at this state
-        return None
-    if not (np.all(np.isfinite(fe)) and np.all(np.isfinite(Ke))):
-        return None
-    return fe, Ke
-
-
 def parameter_parts(
     model: Any, points: np.ndarray, cells: np.ndarray, positions: np.ndarray, split: ElementSplit
 ) -> Dict[str, Tuple[np.ndarray, np.ndarray]]:
@@ -106,8 +89,8 @@ def parameter_parts(
     for name, changed in scaled_models(model, (1.0 + _STEP, 1.0 + 2.0 * _STEP)):
         steps = []
         for k, other in zip((1.0, 2.0), changed):
-            arrays = _element_arrays(other, points, cells, positions)
-            if arrays is None:
+            arrays = mjed_element_arrays(other, points, cells, positions)
+            if arrays is None or not all(np.all(np.isfinite(a)) for a in arrays):
                 break
             steps.append(
                 ((arrays[0] - split.fe) / (k * _STEP), (arrays[1] - split.Ke) / (k * _STEP))
@@ -157,16 +140,13 @@ def _state_features(F: np.ndarray) -> np.ndarray:
     """(m, 13): 1, the six components of C, J, I1b, I2b and the squares of the last three: the
     smooth functions of a cell's state that a formula error's lambda follows.
     """
+    from conformance.diagnosis.term_differences import cell_invariants
+
     C = np.einsum("mki,mkj->mij", F, F)
-    J = np.linalg.det(F)
-    I1b = J ** (-2.0 / 3.0) * np.trace(C, axis1=1, axis2=2)
-    I2b = (
-        J ** (-4.0 / 3.0)
-        * 0.5
-        * (np.trace(C, axis1=1, axis2=2) ** 2 - np.einsum("mij,mji->m", C, C))
-    )
+    inv = cell_invariants(F)
+    J = inv["J"]
     iu = np.triu_indices(3)
-    scalars = np.stack([J, I1b, I2b], axis=1)
+    scalars = np.stack([J, inv["I1b"], inv["I2b"]], axis=1)
     return np.column_stack([np.ones_like(J), C[:, iu[0], iu[1]], scalars, scalars**2])
 
 

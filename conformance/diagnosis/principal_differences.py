@@ -189,7 +189,7 @@ def _shift(logs: np.ndarray, variable: str, t: float, b: int) -> np.ndarray:
     return out
 
 
-def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndarray):
+def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndarray, base=None):
     """{scheme: (m, 3, 3) the error of d tau_a / d l_b per unit step (per unit h^2, central)}
     of :data:`SCHEMES` for the principal stresses ``stress`` (a function of
     :func:`stress_parts`); None where they cannot be evaluated. A scheme on Psi_a = tau_a /
@@ -197,6 +197,8 @@ def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndar
     """
     sigma = np.exp(logs)
     cache: Dict[bytes, Optional[np.ndarray]] = {}
+    if base is not None:  # the stresses at logs, evaluated by the caller
+        cache[np.zeros_like(logs).tobytes()] = base
 
     def at(shift: np.ndarray, quantity: str) -> Optional[np.ndarray]:
         key = shift.tobytes()
@@ -223,11 +225,11 @@ def scheme_errors(stress, points: np.ndarray, split: ElementSplit, logs: np.ndar
     out = {}
     for name, sc in SCHEMES.items():
         moved = np.empty_like(exact)
+        zero = at(np.zeros_like(logs), sc.quantity)
         for b in range(3):
             fwd = at(_shift(logs, sc.variable, PROBE, b), sc.quantity)
             back = at(_shift(logs, sc.variable, -PROBE, b), sc.quantity) if sc.central else None
-            zero = at(np.zeros_like(logs), sc.quantity)
-            if fwd is None or zero is None or (sc.central and back is None):
+            if fwd is None or (sc.central and back is None):
                 return None
             quotient = (fwd - back) / (2 * PROBE) if sc.central else (fwd - zero) / PROBE
             if sc.quantity == "psi" and sc.variable == "relative":
@@ -271,9 +273,9 @@ def principal_difference_fits(
         D = project(D)
     found = []
     for label, stress in stress_parts(model).items():
-        errs = scheme_errors(stress, points, split, logs)
         tau = stress(points, split, logs)
-        if errs is None or tau is None:
+        errs = None if tau is None else scheme_errors(stress, points, split, logs, tau)
+        if errs is None:
             continue
         size = float(np.linalg.norm(tau))
         for scheme, dM in errs.items():

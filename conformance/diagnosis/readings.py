@@ -445,14 +445,6 @@ JOINT_MOST = 10
 JOINT_PINNED = 1e-7
 
 
-def _alike_cells(ci) -> bool:
-    """Whether every cell of the case has one deformation gradient (a homogeneous state)."""
-    from conformance.diagnosis.elements import cell_kinematics
-
-    F = cell_kinematics(ci.points, ci.cells, ci.positions)[2]
-    return bool(np.abs(F - F[:1]).max() <= 1e-9 * max(np.abs(F).max(), 1e-300))
-
-
 def _joint_parameter_readings(
     cache, ci, out, s: Scales, tol: Tolerances, consistent: List[str]
 ) -> List[Reading]:
@@ -475,7 +467,9 @@ def _joint_parameter_readings(
     # cells in one state: several parameters moved together can mimic a single slip of the
     # tangent there (a second derivative by differences: W1 kept, W11 moved), so a fit is only
     # consistent with the cause a case whose cells differ names (corroborate.fits_codes)
-    alike = _alike_cells(ci)
+    from conformance.diagnosis.elements import alike_cells, cell_kinematics
+
+    alike = alike_cells(cell_kinematics(ci.points, ci.cells, ci.positions)[2])
 
     def evaluate(v):
         r = cache.evaluate_once(ci, with_value(ci.model, **dict(zip(names, map(float, v)))))
