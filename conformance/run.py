@@ -51,6 +51,7 @@ from conformance.diagnosis.mixed_precision import (
 )
 from conformance.diagnosis.mjed_parts import mjed_part_reading
 from conformance.diagnosis.node_blocks import node_block_reading
+from conformance.diagnosis.part_powers import part_power_reading
 from conformance.diagnosis.permuted_values import permuted_values_reading
 from conformance.diagnosis.piola_assembly import piola_assembly_reading
 from conformance.diagnosis.piola_slips import piola_slip_reading
@@ -359,6 +360,12 @@ READINGS: Tuple[Reading, ...] = (
         "energy hypotheses (terms, variants, parameters)",
         _nothing_named,
         lambda d, c: readings.read(d, c.cache, c.ci, c.out, c.ref, c.s, keep_terms=c.keep_terms),
+    ),
+    Reading(
+        "one part of the energy multiplied per cell by a power of J (an exponent typed wrongly "
+        "in its value)",
+        _nothing_named,
+        lambda d, c: part_power_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "inside the element: local order, stress measure, volume, the element forces' nodes",

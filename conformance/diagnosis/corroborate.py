@@ -209,6 +209,8 @@ def _covered(finding: Finding, cause: Finding) -> bool:
     """
     if finding.code not in cause.figures.get("covers", ()):
         return False
+    if finding.code == "term-coefficients" and "exponent" in cause.figures:
+        return _power_covered(finding, cause)
     name = finding.figures.get("parameter")
     if name is None or name != cause.figures.get("parameter"):
         return False
@@ -218,14 +220,33 @@ def _covered(finding: Finding, cause: Finding) -> bool:
     return abs(value / declared - 1.0) <= cause.figures.get("covers_relative", 0.0)
 
 
+def _power_covered(finding: Finding, cause: Finding) -> bool:
+    """True when ``finding`` (terms refitted on a state of one J) is ``cause``'s factor J^q on
+    its parameter's term at that J, every other term at 1 (to 1e-6): a factor per cell that is
+    a power of J (:mod:`conformance.diagnosis.part_powers`) is one number where J is one.
+    """
+    J = finding.figures.get("one_j")
+    terms = finding.figures.get("terms", ())
+    coefficients = finding.figures.get("coefficients", ())
+    if J is None or J <= 0.0 or len(terms) != len(coefficients):
+        return False
+    name, q = cause.figures.get("parameter"), cause.figures["exponent"]
+    predicted = [J**q if list(t) == [name] else 1.0 for t in terms]
+    if all(p == 1.0 for p in predicted):
+        return False
+    return all(abs(a - p) <= 1e-6 * abs(p) for a, p in zip(coefficients, predicted))
+
+
 def extend_covered(
     diagnoses: Sequence[Optional[object]], groups: Sequence[Sequence[int]], case_ids: Sequence[str]
 ) -> List:
     """``diagnoses`` with every case whose causes another case of its group covers
     (:func:`_covered`: a parameter off by float32's size where that case names a scalar of the
-    parameter's part rounded per cell) given that cause, its own kept below as observations.
-    On a state whose cells are all alike the per-cell factor is one number and a parameter refit
-    fits it; the state with distinct cells shows it is drawn per cell. Others unchanged.
+    parameter's part rounded per cell; a term's coefficient equal to J^q at the state's one J
+    where that case names the term's part multiplied per cell by J^q) given that cause, its own
+    kept below as observations. On a state whose cells are all alike the per-cell factor is one
+    number and a refit fits it; the state with distinct cells shows what it is. Others
+    unchanged.
     """
     out = list(diagnoses)
     for group in groups:
@@ -240,13 +261,21 @@ def extend_covered(
                 continue
             i, cause = source
             own = "; ".join(f"{f.title} ({f.evidence})" for f in d.causes)
+            if "exponent" in cause.figures:
+                why = (
+                    "where J differs from cell to cell and the factor is seen to be a power of "
+                    f"J; here it fits as one number ({own}), that power at this state's one J"
+                )
+            else:
+                why = (
+                    "where the cells differ and the factor is seen drawn per cell; here it fits "
+                    f"as one number ({own}): the cells of this state are alike and round alike"
+                )
             found = Finding(
                 cause.code,
                 cause.title,
                 FULL,
-                f"named on the kit's case {case_ids[i]} (same engine, model and mesh), where the "
-                "cells differ and the factor is seen drawn per cell; here it fits as one number "
-                f"({own}): the cells of this state are alike and round alike",
+                f"named on the kit's case {case_ids[i]} (same engine, model and mesh), {why}",
                 {**cause.figures, "named_on": case_ids[i]},
             )
             kept = _as_observations(d.findings)

@@ -113,6 +113,7 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
 
     t = _target(out, s, tol)
     J = np.linalg.det(cell_kinematics(ci.points, ci.cells, ci.positions)[2])
+    one_j = bool(np.ptp(J) <= 1e-6 * float(np.mean(np.abs(J))))
     return labels, TermCase(
         [r.force for r in refs],
         [r.stiffness for r in refs],
@@ -123,7 +124,8 @@ def term_case(cache, ci, out, ref, s: Scales, tol: Tolerances):
         t.tol_force,
         t.tol_stiffness,
         names,
-        one_j=bool(np.ptp(J) <= 1e-6 * float(np.mean(np.abs(J)))),
+        one_j=one_j,
+        j_value=float(np.mean(J)) if one_j else None,
     )
 
 
@@ -146,6 +148,8 @@ def term_reading(
         "coupled": [int(i) for i in fit.coupled],
         "cases": len(cases),
     }
+    if len(cases) == 1 and cases[0].j_value is not None:
+        figs["one_j"] = cases[0].j_value
     combo = " + ".join(
         f"{a:.9g} x [{' '.join(p) or 'term'}]" for a, p in zip(fit.coefficients, labels)
     )

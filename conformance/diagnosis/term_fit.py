@@ -69,6 +69,9 @@ class TermCase:
     #: J the same in every cell (a homogeneous state): the J-only terms' forces and stiffnesses
     #: then span any change of U'(J) and U''(J) at that J, whatever its cause.
     one_j: bool = False
+    #: that J where ``one_j`` (None otherwise): a factor that is a function of J is one number
+    #: there (corroborate.extend_covered)
+    j_value: Optional[float] = None
 
 
 @dataclass(frozen=True)
