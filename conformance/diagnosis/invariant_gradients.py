@@ -42,6 +42,7 @@ __all__ = [
     "SETS",
     "invariant_slopes",
     "gradient_pieces",
+    "gradient_tensors",
     "j_hessian_tensor",
     "gradient_findings",
     "gradient_reading",
@@ -103,7 +104,7 @@ def invariant_slopes(model: Any, F: np.ndarray, which: str) -> Optional[np.ndarr
     return out if np.all(np.isfinite(out)) else None
 
 
-def _gradients(F: np.ndarray, which: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+def gradient_tensors(F: np.ndarray, which: str) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The gradients dI_a/dF (each (m, 3, 3)) of the invariants of set ``which``."""
     C = F.swapaxes(1, 2) @ F
     I1 = np.trace(C, axis1=1, axis2=2)[:, None, None]
@@ -114,7 +115,7 @@ def _gradients(F: np.ndarray, which: str) -> Tuple[np.ndarray, np.ndarray, np.nd
 
 def gradient_pieces(F: np.ndarray, slopes: np.ndarray, which: str) -> List[np.ndarray]:
     """The three pieces Psi_a dI_a/dF (each (m, 3, 3)) of P in set ``which``."""
-    return [slopes[a][:, None, None] * g for a, g in enumerate(_gradients(F, which))]
+    return [slopes[a][:, None, None] * g for a, g in enumerate(gradient_tensors(F, which))]
 
 
 #: The gradients of a cell must be independent to this (smallest over largest singular value
@@ -127,7 +128,7 @@ def slopes_from_stress(P: np.ndarray, F: np.ndarray, which: str) -> Optional[np.
     its nine entries; an isotropic law's P is exactly of that form), or None where some cell's
     gradients are not independent (two equal principal stretches) or P is not of that form.
     """
-    grads = np.stack([g.reshape(-1, 9) for g in _gradients(F, which)], axis=2)  # (m, 9, 3)
+    grads = np.stack([g.reshape(-1, 9) for g in gradient_tensors(F, which)], axis=2)  # (m, 9, 3)
     G = grads / np.maximum(np.linalg.norm(grads, axis=1, keepdims=True), 1e-300)
     sv = np.linalg.svd(G, compute_uv=False)
     if np.any(sv[:, -1] < _INDEPENDENT * sv[:, 0]):
@@ -323,7 +324,7 @@ def _fits_alike_cells(points, cells, x, out, ref, s: Scales, tol: Tolerances) ->
     n = points.shape[0]
     cols = [
         np.ravel(assemble(cells, n, piola_element_forces(V0, D, g), None)[0])
-        for g in _gradients(F, "I_C, II_C, J")
+        for g in gradient_tensors(F, "I_C, II_C, J")
     ]
     A = np.stack(cols, axis=1)
     df = np.ravel(np.asarray(out.force, dtype=float) - ref.force)

@@ -85,7 +85,17 @@ _WHAT = {
     "P": "the first Piola-Kirchhoff stress P rounded to float32 (a float32 stress field)",
     "sigma": "the Cauchy stress sigma rounded to float32 (a float32 stress field)",
     "positions": "the positions rounded to float32",
+    "grad I_C": "the gradient of I_C = tr C (2 F) computed from F rounded to float32, the rest in "
+    "double",
+    "grad II_C": "the gradient of II_C = C : C (4 F C) computed from F rounded to float32, the "
+    "rest in double",
+    "grad J": "the gradient of J, the cofactor matrix cof F, computed from F rounded to float32, "
+    "the rest in double",
 }
+
+#: The pieces Psi_a dI_a/dF of P whose gradient alone may be computed from a float32 F (a
+#: single-precision vector kernel for the cross products of cof F, say), by invariant.
+_PIECES = ("grad I_C", "grad II_C", "grad J")
 
 
 def _f32(a: np.ndarray) -> np.ndarray:
@@ -184,7 +194,32 @@ def rounding_patterns(
     Ft = np.swapaxes(F, 1, 2)
     sigma = P @ Ft / J  # sigma = P F^T / J, and back P = J sigma F^-T
     out["sigma"] = piola_element_forces(split.V0, split.D, J * _f32(sigma) @ np.linalg.inv(Ft))
-    return {k: assemble(cells, n, fe, None)[0] - f0 for k, fe in out.items()}
+    changes = {k: assemble(cells, n, fe, None)[0] - f0 for k, fe in out.items()}
+    return {**changes, **_gradient_patterns(split, model)}
+
+
+def _gradient_patterns(split: ElementSplit, model: Any) -> Dict[str, np.ndarray]:
+    """The force change (n, 3) of each piece Psi_a dI_a/dF of P (invariants I_C, II_C, J) with
+    its gradient dI_a/dF computed from F rounded to float32 and Psi_a in double; {} where the
+    model declares no scalar energy of the invariants. Psi_J, at fixed I_C and II_C, is the
+    same in the set I1, I2, J.
+    """
+    from conformance.diagnosis.invariant_gradients import gradient_tensors, invariant_slopes
+
+    which = "I_C, II_C, J"
+    slopes = invariant_slopes(model, split.F, which)
+    if slopes is None:
+        return {}
+    rounded = gradient_tensors(_f32(split.F), which)
+    exact = gradient_tensors(split.F, which)
+    out = {}
+    for a, name in enumerate(_PIECES):
+        if not np.any(slopes[a]):
+            continue
+        dP = slopes[a][:, None, None] * (rounded[a] - exact[a])
+        fe = piola_element_forces(split.V0, split.D, dP)
+        out[name] = assemble(split.cells, split.n, fe, None)[0]
+    return out
 
 
 def _second_piola(split: ElementSplit, fe: np.ndarray) -> np.ndarray:
