@@ -130,6 +130,25 @@ def test_localised_error_lists_the_cell():
     assert d.node_error[cells[7]].min() > 0 and np.count_nonzero(d.node_error) == 4
 
 
+def test_a_graded_error_whose_tail_passes_is_not_a_place():
+    """One error on every node, much larger on one cell's (a step's truncation grows with each
+    cell's strain): the tail below the tolerance is still the same error, not round-off, so no
+    place is named; the same error on the cell alone (the rest exact) is one.
+    """
+    points, cells, f_o, K_o = _synthetic(1)
+    rng = np.random.default_rng(4)
+    scale = np.abs(f_o).max()
+    graded = 1e-11 * scale * rng.standard_normal(f_o.shape)  # under the tolerance alone
+    graded[cells[7]] += 5e-9 * scale
+    d = _diagnose_synthetic(points, cells, f_o + graded, K_o, f_o, K_o)
+    assert d.verdict == "failed"
+    assert not any(c.code == "localised" for c in d.causes), d.text()
+    alone = np.zeros_like(f_o)
+    alone[cells[7]] = graded[cells[7]]
+    d = _diagnose_synthetic(points, cells, f_o + alone, K_o, f_o, K_o)
+    assert [c.code for c in d.causes] == ["localised"], d.text()
+
+
 def test_nothing_claimed_for_noise():
     points, cells, f_o, K_o = _synthetic(2)
     f = f_o + np.random.default_rng(9).standard_normal(f_o.shape) * 1e-3

@@ -832,6 +832,11 @@ def _volumetric_findings(
         partial.append(Finding("volumetric", title, PARTIAL, text, figs))
 
 
+#: A place is named only where the error outside it is at most this share of the whole (the
+#: rest at round-off): more is one error graded over the mesh, its tail below the tolerance.
+SPREAD_SHARE = 1e-3
+
+
 def _locality_findings(
     f, K, f_o, K_o, s: Scales, cells, field_, tol: Tolerances, full, partial
 ) -> None:
@@ -858,6 +863,14 @@ def _locality_findings(
 
     fout = float(np.linalg.norm((f - f_o)[mask])) / s.force
     kout = float(sparse_norm((K - K_o).tocsr()[dofs][:, dofs])) / s.stiffness
+    fall = float(np.linalg.norm(f - f_o)) / s.force
+    kall = float(sparse_norm((K - K_o).tocsr())) / s.stiffness
+    if fout > SPREAD_SHARE * fall or kout > SPREAD_SHARE * kall:
+        # The same error, smaller, on the rest of the mesh (a step's truncation or a rounded
+        # exponential grows with each cell's strain, and the most strained cells carry it past
+        # the tolerance): graded over the mesh, not a place. A mistake in a few cells leaves
+        # the others at round-off.
+        return
     in_set = np.isin(cells, nodes).all(axis=1)
     cell_ids = np.flatnonzero(in_set)
     where = f"nodes {', '.join(map(str, nodes[:12]))}{' ...' if nodes.size > 12 else ''}"
