@@ -205,3 +205,49 @@ def test_a_tangent_part_off_by_a_simple_factor_is_said_in_words():
     )
     assert "missing" in describe_coefficient("geometric", -1.0)
     assert "scaled by 1.3" in describe_coefficient("geometric", 0.3)
+
+
+def test_a_tangent_part_that_leaves_most_of_a_small_error_is_not_named():
+    """An error just above the tolerance (a step's truncation, 1e-10) that the geometric part
+    only leans toward: the fit brings it under the tolerance but leaves most of it, so it is
+    not named; the same part's own error of that size is.
+    """
+    import scipy.sparse as sp
+
+    from conformance.diagnosis.diagnose import _tangent_findings
+    from conformance.judge.compare import DOUBLE, errors
+
+    rng = np.random.default_rng(2)
+    n = 12
+    A = rng.standard_normal((n, n))
+    G = sp.csr_matrix(A + A.T)
+    B = rng.standard_normal((n, n))
+    M = sp.csr_matrix(B @ B.T)
+    K_o = (G + M).tocsr()
+    parts = {
+        "geometric": G,
+        "material_shear_shear": None,
+        "material_normal_shear": None,
+        "material_normal_normal": None,
+        "geometric_volumetric": None,
+        "material_volumetric": None,
+    }
+    f_o = rng.standard_normal((4, 3))
+    from conformance.judge.compare import scales
+
+    s = scales(0.5, 1.0, f_o, K_o)
+    C = rng.standard_normal((n, n))
+    other = sp.csr_matrix(C + C.T)  # not a part: the error's own direction
+
+    def size(D):  # the relative stiffness error D makes
+        return errors(f_o, (K_o + D).tocsr(), None, f_o, K_o, 0.0, s).stiffness
+
+    tol = DOUBLE.stiffness
+    g, o = G / size(G), other / size(other)  # each of unit error
+    for D, named in ((tol * (0.7 * o + 1.0 * g), False), (12.0 * tol * g, True)):
+        K = (K_o + D).tocsr()
+        err = errors(f_o, K, None, f_o, K_o, 0.0, s)
+        assert err.stiffness > tol
+        full, partial = [], []
+        _tangent_findings(K, K_o, parts, err, DOUBLE, full, partial)
+        assert bool(full) == named, (full, partial)

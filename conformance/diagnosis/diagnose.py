@@ -625,6 +625,10 @@ def _tangent_findings(
     D = (K - K_o).tocsr()
     cands = candidate_parts(parts, K_o)
     ok, best = fit_parts(D, K_o, cands, tol.stiffness)
+    if ok is not None and ok.residual > EXPLAINED_SHARE * err.stiffness:
+        # Within the tolerance but most of the error left: an error just above the tolerance
+        # (a step's truncation, 1e-10) is brought under it by any part that leans its way.
+        ok = None
     fit = ok or best
     if fit is None:
         return
@@ -831,6 +835,10 @@ def _volumetric_findings(
     elif figs["residual"] < 0.1 * worst:
         partial.append(Finding("volumetric", title, PARTIAL, text, figs))
 
+
+#: A fitted tangent part explains the stiffness error only where it leaves at most this share
+#: of it (besides the tolerance).
+EXPLAINED_SHARE = 0.1
 
 #: A place is named only where the error outside it is at most this share of the whole (the
 #: rest at round-off): more is one error graded over the mesh, its tail below the tolerance.
