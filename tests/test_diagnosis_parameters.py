@@ -283,6 +283,13 @@ def test_moduli_converted_through_young_and_poisson_with_one_slip_are_named():
     fit = TermFit(np.array([1.3, 0.7]), True, (), ((0.0, 0.0),), True)
     _, readings = describe_fit(fit, [("lam",), ("mu",)], values)
     assert not any("(E, nu)" in r for r in readings), readings
+    # mu doubled alone (an Ogden routine's 2 mu convention) is what the backward slip
+    # mu = E / (1 + nu) gives too: the plain factor first, the conversion as the alternative
+    bulk = {"k0": 3e4, "mu": 5e3}
+    fit = TermFit(np.array([1.0, 2.0]), True, (), ((0.0, 0.0),), True)
+    _, readings = describe_fit(fit, [("k0",), ("mu",)], bulk)
+    assert len(readings) == 1 and readings[0].startswith("parameter mu: its terms doubled")
+    assert "or k0 and mu converted to (E, nu) and back with mu = E / (1 + nu)" in readings[0]
     # a bulk modulus doubled (D1 = 1/K given to a routine reading K = 2/D1) is said so
     from mjed.materials import Yeoh
 

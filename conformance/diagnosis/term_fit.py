@@ -244,8 +244,15 @@ def describe_fit(
     moduli = moduli_names(params)
     scaled = {p: ap * params[p] for p, (_, ap) in by_param.items() if p in moduli}
     deviating = {p for p in moduli if any(p in labels[i] for i in off)}
+    also: Dict[str, str] = {}
     if scaled and set(scaled) == deviating and not deviating & exchanged:
         for conv in matching_conversion(params, scaled, close=max(close, 1e-9)):
+            (only,) = scaled if len(scaled) == 1 else (None,)
+            if only is not None and factor_words(by_param[only][1], close):
+                # one modulus off by a simple factor (mu doubled): as plain a story as the
+                # conversion's, which cannot be told from it; both said, the plain one first
+                also[only] = f"; or {conv.words}"
+                break
             readings.append(conv.words)
             exchanged |= set(scaled)
             for p in scaled:
@@ -272,7 +279,9 @@ def describe_fit(
                 f"{other[0]}/{p}{which}"
             )
         elif words:
-            readings.append(f"parameter {p}: its terms {words} (factor {ap:.6g}){which}")
+            readings.append(
+                f"parameter {p}: its terms {words} (factor {ap:.6g}){which}{also.get(p, '')}"
+            )
         elif abs(ap - 1.0) < 1e-3:
             readings.append(
                 f"parameter {p} slightly off: its terms scaled by {ap:.9g} (relative "
