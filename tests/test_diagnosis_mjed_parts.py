@@ -832,3 +832,17 @@ def test_on_one_j_an_antisymmetric_block_is_not_given_to_one_term():
             Ke += w[:, None, None, None, None] * block
     found = _find(model, points, cells, x, f_o, K_o + _assembled(split, Ke=Ke)[1], f_o, K_o, s)
     assert "mjed-typed-apart" not in [x.code for x in found], [x.title for x in found]
+
+
+def test_an_isochoric_factors_j_part_left_out_of_the_force_is_said_as_the_chain_rule_term():
+    """Mooney-Rivlin's c1 term J^(-2/3) I1 with its J part left out of the force (stiffness
+    right): the isochoric stress not deviatoric, said in MJED's words and in those of engines
+    that do not split terms (the isochoric projection, the deviatoric stretches' chain).
+    """
+    model, points, cells, x, split, f_o, K_o, s = _case("MooneyRivlin")
+    parts = mjed_parts(model, points, cells, x, f_o, K_o)
+    (part,) = [p for p in parts.parts if p.kind == "force-J" and p.term.startswith("J^(-2/3) I1")]
+    found = _find(model, points, cells, x, f_o - part.force.reshape(f_o.shape), K_o, f_o, K_o, s)
+    assert found and found[0].figures["part"] == "force-J", [x.title for x in found]
+    assert "left out" in found[0].title and "deviatoric" in found[0].title
+    assert "isochoric projection" in found[0].title

@@ -897,6 +897,8 @@ def _single(parts: Parts) -> List[Candidate]:
         for k, words in FACTORS.items():
             said = KINDS[kind] if kind in KINDS else KIND_GROUPS[kind][1]
             code, title = "mjed-part", f"MJED {said} {which} {words}"
+            if kind == "force-J" and k == -1.0 and which.startswith("of the term J^(-"):
+                title += _ISOCHORIC_FACTOR_LOST
             if kind == "anti" and len(ps) == n_anti and k in J_HESSIAN_WORDS:
                 # the J-Hessian block of the whole energy: j_hessian_block's reading
                 code, title = "j-hessian-block", f"MJED {KINDS[kind]} {J_HESSIAN_WORDS[k]}"
@@ -905,6 +907,15 @@ def _single(parts: Parts) -> List[Candidate]:
             )
     return out
 
+
+#: The J part of a term J^p g(C) (p < 0, an isochoric factor) left out of the force, in the words
+#: of engines that do not split terms so: the factor's derivative dropped from the chain rule.
+_ISOCHORIC_FACTOR_LOST = (
+    " (in an engine's own chain rule: the derivative of the isochoric factor J^p dropped, the "
+    "isochoric stress no longer deviatoric; an invariant engine's -1/3 I1 C^-1 of the "
+    "isochoric projection of dI1b/dC, or a principal-stretch engine's -1/3 J^(-1/3) "
+    "lambda_i / lambda_j term of the deviatoric stretches' chain d lambda_bar_i / d lambda_j)"
+)
 
 #: A force part and the stiffness blocks that are its derivative: an engine whose stiffness is
 #: the derivative of its force (a complex step, differences of the force routine) carries a
