@@ -387,3 +387,26 @@ def test_a_refitted_value_in_a_simple_ratio_to_the_case_is_said_so():
     assert "doubled" in _ratio_words("mu", 2.0000000001)
     assert "3/4 times" in _ratio_words("k0", 0.75)
     assert _ratio_words("c2", 1.1) == "" and _ratio_words("c2", 1.0) == ""
+
+
+def test_a_value_a_case_could_not_tell_apart_is_named_where_the_kit_tells_it():
+    """Arruda-Boyce's N = 64 for 8 on a uniaxial stretch (its series terms alike there) is named
+    where another case of the kit names the same value in full; another value, or none named
+    elsewhere, leaves it an observation.
+    """
+    from types import SimpleNamespace
+
+    from conformance.diagnosis.findings import FULL, OBSERVED, Finding
+    from conformance.diagnosis.readings import _UNTOLD, _told_over_kit
+
+    def value(v, strength, title="parameter N = 64"):
+        return Finding("parameter-value", title, strength, "fit", {"parameter": "N", "value": v})
+
+    untold = value(64.0, OBSERVED, _UNTOLD + "parameter N = 64")
+    elsewhere = [SimpleNamespace(causes=[value(64.0 * (1 + 1e-12), FULL)])]
+    told = _told_over_kit(untold, elsewhere)
+    assert told is not None and told.strength == FULL and told.title == "parameter N = 64"
+    assert "told apart over the kit" in told.evidence
+    assert _told_over_kit(untold, [SimpleNamespace(causes=[value(63.0, FULL)])]) is None
+    assert _told_over_kit(untold, [SimpleNamespace(causes=[])]) is None
+    assert _told_over_kit(value(64.0, FULL), elsewhere) is None  # not an untold value

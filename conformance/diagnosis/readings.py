@@ -949,6 +949,10 @@ def read(
     return replace(diag, findings=[*head, *observed, *partial, *rest])
 
 
+#: The title's prefix of a parameter value a case cannot tell apart (kept as an observation).
+_UNTOLD = "(not told apart here) "
+
+
 def _untold_parameters(
     full: List[Reading], observed: List[Finding]
 ) -> Tuple[List[Reading], List[Finding]]:
@@ -975,7 +979,7 @@ def _untold_parameters(
                 replace(
                     f,
                     strength=OBSERVED,
-                    title="(not told apart here) " + f.title,
+                    title=_UNTOLD + f.title,
                     evidence=f.evidence
                     + "; but its term has the same force and stiffness here as others whose "
                     "parameters would fit as well (see the term fit)",
@@ -1049,6 +1053,12 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
             if f.code not in ("unexplained", "term-coefficients-ambiguous", "systematic-small")
         ]
         named = [f for f in rest if f.code in PARAMETER_CODES and f.strength == FULL]
+        if not named and terms_scaled_unequally(r.finding):
+            # a value this case could not tell apart, named where another case does: the kit
+            # tells it apart (its term fit agrees over every case)
+            told = [_told_over_kit(f, diagnoses) for f in rest]
+            named = [f for f in told if f is not None]
+            rest = [f for f, t in zip(rest, told) if t is None]
         if named and terms_scaled_unequally(r.finding):  # the case's parameter value says it
             out.append(
                 replace(d, findings=[*named, r.finding, *(f for f in rest if f not in named)])
@@ -1056,6 +1066,36 @@ def kit_term_reading(diagnoses: list, entries: list) -> Optional[list]:
             continue
         out.append(replace(d, findings=[*stress_only([r.finding], d), *rest]))
     return out
+
+
+def _told_over_kit(f: Finding, diagnoses: list) -> Optional[Finding]:
+    """``f`` (a parameter value this case could not tell apart, :func:`_untold_parameters`) as a
+    cause where another case of the kit names the same parameter with the same value (1e-9)
+    in full; None otherwise.
+    """
+    if f.code != "parameter-value" or not f.title.startswith(_UNTOLD):
+        return None
+    name, value = f.figures.get("parameter"), f.figures.get("value")
+    if name is None or value is None:
+        return None
+    for d in diagnoses:
+        for c in d.causes:
+            v = c.figures.get("value")
+            if (
+                c.code == "parameter-value"
+                and c.strength == FULL
+                and c.figures.get("parameter") == name
+                and v is not None
+                and abs(v - value) <= 1e-9 * max(abs(value), 1e-300)
+            ):
+                return replace(
+                    f,
+                    strength=FULL,
+                    title=f.title.removeprefix(_UNTOLD),
+                    evidence=f.evidence + "; told apart over the kit: another of its cases names "
+                    "the same value, and the term fit over the kit's cases agrees",
+                )
+    return None
 
 
 #: A refitted parameter's ratio to the case's value, as said when it is one of these.
