@@ -59,6 +59,7 @@ from conformance.diagnosis.principal_blocks import principal_block_reading
 from conformance.diagnosis.principal_differences import principal_difference_reading
 from conformance.diagnosis.rest_tangent import rest_tangent_reading
 from conformance.diagnosis.roundoff import signature as roundoff_signature
+from conformance.diagnosis.routine_derivatives import routine_derivative_reading
 from conformance.diagnosis.routine_inputs import spatial_kinematics_reading
 from conformance.diagnosis.second_derivative import second_derivative_reading
 from conformance.diagnosis.shape_gradients import shape_gradient_reading
@@ -366,6 +367,11 @@ READINGS: Tuple[Reading, ...] = (
         "in its value)",
         _nothing_named,
         lambda d, c: part_power_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "a user routine's packed second derivatives (UHYPER's UI2) taken wrongly by its driver",
+        _nothing_named,
+        lambda d, c: routine_derivative_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "inside the element: local order, stress measure, volume, the element forces' nodes",

@@ -1,0 +1,326 @@
+"""A user routine's packed second derivatives read wrongly by its driver (Abaqus UHYPER style).
+
+Commercial codes let a user write an isotropic hyperelastic law as a routine that returns the
+energy's derivatives in the isochoric invariants and J, packed:
+
+    UI1 = (U_1, U_2, U_J),
+    UI2 = (U_11, U_22, U_JJ, U_12, U_1J, U_2J)      (U_a = dU/dI_a, U_ab = d2U/dI_a dI_b,
+                                                     I = (I1b, I2b, J)),
+
+and a generic driver builds S = 2 sum_a U_a dI_a/dC and the material tangent
+
+    CC = 4 sum_a U_a d2I_a/dC2 + 4 sum_ab U_ab dI_a/dC (x) dI_b/dC.
+
+The second derivatives enter the tangent alone (the force is right), each through a rank-one
+pair of the gradients G_a = dI_a/dC, whose element matrix is 4 V0 g_a g_b^T with
+g_a[node, i] = (F G_a D_node)_i. A driver that unpacks UI2 in another order (a row-wise
+triangle of the 3x3 Hessian, two slots exchanged), counts a mixed derivative in one order only
+(its transpose missing), or a routine that returns one entry off by a factor, changes the
+stiffness by exactly sum_ab (U'_ab - U_ab) 4 V0 g_a g_b^T per cell, U' the engine's 3x3 matrix
+as the slip makes it from the right values. Each slip of :func:`candidates` is such a map
+U -> U' and predicts the engine's stiffness with nothing fitted: U_ab per cell is the declared
+energy's, differentiated exactly (hyper-dual numbers) in I1b, I2b and J.
+
+A slip is named when its prediction matches the engine's stiffness within the tolerance and the
+force is right; slips with the same prediction (a slot moved where both values are zero) are
+said once, the fewest-moves first. Laws without a scalar formula in I1, I1b, I2, I2b and J
+(Ogden's stretches, Costa's frame strain, St Venant-Kirchhoff's E components) are not read.
+NumPy and MJED only.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+import scipy.sparse as sp
+
+from common.hyperdual import HD, exp, ln, sqrt
+from conformance.diagnosis.elements import ElementSplit, element_split
+from conformance.diagnosis.findings import FULL, Finding, ambiguous, named_first
+from conformance.diagnosis.term_differences import declared_energy
+from conformance.judge.compare import Scales, Tolerances, errors
+
+__all__ = [
+    "SLOTS",
+    "routine_hessians",
+    "gradient_vectors",
+    "candidates",
+    "routine_derivative_findings",
+    "routine_derivative_reading",
+]
+
+#: UHYPER's packing of UI2: (a, b) indices into (I1b, I2b, J).
+SLOTS: Tuple[Tuple[int, int], ...] = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+_NAMES = ("I1b", "I2b", "J")
+_WORDS = tuple(
+    f"d2U/d{_NAMES[a]}2" if a == b else f"d2U/d{_NAMES[a]} d{_NAMES[b]}" for a, b in SLOTS
+)
+
+#: Other packings a driver may read UI2 in (the 3x3 Hessian's upper triangle row by row,
+#: column by column, the diagonal then the mixed entries in Voigt's order 23, 13, 12).
+LAYOUTS: Dict[str, Tuple[Tuple[int, int], ...]] = {
+    "the row-wise upper triangle of the 3x3 Hessian (11, 12, 1J, 22, 2J, JJ)": (
+        (0, 0),
+        (0, 1),
+        (0, 2),
+        (1, 1),
+        (1, 2),
+        (2, 2),
+    ),
+    "the column-wise upper triangle of the 3x3 Hessian (11, 12, 22, 1J, 2J, JJ)": (
+        (0, 0),
+        (0, 1),
+        (1, 1),
+        (0, 2),
+        (1, 2),
+        (2, 2),
+    ),
+    "the diagonal, then the mixed entries in Voigt's order (11, 22, JJ, 2J, 1J, 12)": (
+        (0, 0),
+        (1, 1),
+        (2, 2),
+        (1, 2),
+        (0, 2),
+        (0, 1),
+    ),
+}
+
+#: Factors a routine's entry may be off by (a 2 lost or doubled, a sign, the entry missing).
+FACTORS: Dict[float, str] = {
+    0.0: "left out",
+    -1.0: "with its sign flipped",
+    2.0: "doubled",
+    0.5: "halved",
+}
+
+
+def _hessian_of(energy: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray, a: int, b: int):
+    """d2W/dI_a dI_b (m,) of the declared ``energy`` at (I1b, I2b, J), by hyper-dual numbers."""
+    one = np.ones_like(J)
+    base = [I1b, I2b, J]
+    args = [x + 0.0 for x in base]
+    args = [HD(x) for x in args]
+    if a == b:
+        args[a] = HD(base[a], one, one, 0.0)
+    else:
+        args[a] = HD(base[a], one, 0.0, 0.0)
+        args[b] = HD(base[b], 0.0, one, 0.0)
+    i1b, i2b, j = args
+    values = {
+        "I1b": i1b,
+        "I2b": i2b,
+        "J": j,
+        "I1": j ** (2.0 / 3.0) * i1b,
+        "I2": j ** (4.0 / 3.0) * i2b,
+        "I3": j * j,
+    }
+    W = energy.evaluate(values.__getitem__, ln, exp, sqrt)
+    return np.broadcast_to(W.d if isinstance(W, HD) else 0.0, J.shape) + 0.0
+
+
+def routine_hessians(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
+    """(6, m) the declared energy's second derivatives in (I1b, I2b, J), in UHYPER's order
+    (:data:`SLOTS`), at deformation gradients F (m, 3, 3); None where the model has no scalar
+    formula in I1, I1b, I2, I2b and J or it is not finite.
+    """
+    energy = declared_energy(model)
+    if energy is None or not set(energy.variables) <= {"I1", "I1b", "I2", "I2b", "I3", "J"}:
+        return None
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    I1b, I2b = J ** (-2.0 / 3.0) * I1, J ** (-4.0 / 3.0) * I2
+    try:
+        with np.errstate(all="ignore"):
+            out = np.stack([_hessian_of(energy, I1b, I2b, J, a, b) for a, b in SLOTS])
+    except (TypeError, AttributeError, KeyError, ValueError):
+        return None
+    return out if np.all(np.isfinite(out)) else None
+
+
+def gradient_vectors(split: ElementSplit) -> np.ndarray:
+    """(3, m, 12) g_a[node, i] = (F G_a D_node)_i for G_a = dI_a/dC of (I1b, I2b, J):
+    dI1b/dC = J^(-2/3) (I - I1/3 C^-1), dI2b/dC = J^(-4/3) (I1 I - C - 2/3 I2 C^-1),
+    dJ/dC = J/2 C^-1.
+    """
+    F, D = split.F, split.D
+    C = F.swapaxes(1, 2) @ F
+    Ci = np.linalg.inv(C)
+    J = np.linalg.det(F)[:, None, None]
+    I1 = np.trace(C, axis1=1, axis2=2)[:, None, None]
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C)[:, None, None])
+    eye = np.eye(3)
+    G = (
+        J ** (-2.0 / 3.0) * (eye - I1 / 3.0 * Ci),
+        J ** (-4.0 / 3.0) * (I1 * eye - C - 2.0 / 3.0 * I2 * Ci),
+        0.5 * J * Ci,
+    )
+    m = F.shape[0]
+    return np.stack([np.einsum("mij,mjk,mak->mai", F, g, D).reshape(m, 12) for g in G])
+
+
+@dataclass(frozen=True)
+class Slip:
+    """One slip: words, how many entries it moves (its simplicity), and the engine's 3x3 matrix
+    as a linear map of the packed values: coefficients (3, 3, 6), U'_ab = sum_s c_abs U_s.
+    """
+
+    words: str
+    moves: int
+    coefficients: np.ndarray
+
+
+def _unpacked(layout: Tuple[Tuple[int, int], ...]) -> np.ndarray:
+    """(3, 3, 6): the symmetric 3x3 matrix a driver fills from UHYPER's packed values when it
+    reads them as ``layout`` (slot s of the vector taken for the entry layout[s]).
+    """
+    c = np.zeros((3, 3, 6))
+    for s, (a, b) in enumerate(layout):
+        c[a, b, s] = c[b, a, s] = 1.0
+    return c
+
+
+_RIGHT = _unpacked(SLOTS)
+
+
+def candidates() -> List[Slip]:
+    """The slips: every other order of the six packed values (the named layouts first), one
+    entry off by a factor of :data:`FACTORS`, a mixed entry in one order only.
+    """
+    out: List[Slip] = []
+    named = {}
+    for words, layout in LAYOUTS.items():
+        named[layout] = words
+    for perm in itertools.permutations(range(6)):
+        if perm == tuple(range(6)):
+            continue
+        layout = tuple(SLOTS[p] for p in perm)
+        moved = [s for s in range(6) if perm[s] != s]
+        if layout in named:
+            words = f"UI2 read as {named[layout]} where UHYPER packs (11, 22, JJ, 12, 1J, 2J)"
+        else:
+            words = "UI2 unpacked in another order: " + ", ".join(
+                f"{_WORDS[s]} used as {_WORDS[perm[s]]}" for s in moved
+            )
+        # a named layout is a driver's convention: said first among equal predictions
+        out.append(Slip(words, 0 if layout in named else len(moved), _unpacked(layout)))
+    for s, (a, b) in enumerate(SLOTS):
+        for k, said in FACTORS.items():
+            c = _RIGHT.copy()
+            c[a, b, s] = c[b, a, s] = k
+            out.append(Slip(f"{_WORDS[s]} {said} (the routine's UI2 entry)", 1, c))
+        if a != b:
+            for first, second in ((a, b), (b, a)):
+                c = _RIGHT.copy()
+                c[second, first, s] = 0.0
+                out.append(
+                    Slip(
+                        f"the mixed term {_WORDS[s]} counted once, in the order dI_{_NAMES[first]}"
+                        f"/dC (x) dI_{_NAMES[second]}/dC only (its transpose missing: the "
+                        "tangent loses its major symmetry)",
+                        1,
+                        c,
+                    )
+                )
+    return out
+
+
+def routine_derivative_findings(
+    split: ElementSplit, model: Any, out, f_o: np.ndarray, K_o: sp.spmatrix, s: Scales,
+    tol: Tolerances,
+) -> List[Finding]:  # fmt: skip
+    """The findings naming a slip of :func:`candidates` whose prediction matches the engine's
+    stiffness (the force right), equal predictions said once; several distinct: ambiguous.
+    """
+    U = routine_hessians(model, split.F)
+    if U is None:
+        return []
+    g = gradient_vectors(split)
+    m = split.cells.shape[0]
+    dof = (3 * split.cells[:, :, None] + np.arange(3)).reshape(m, 12)
+    rows = np.repeat(dof, 12, axis=1).ravel()
+    cols = np.tile(dof, (1, 12)).ravel()
+    N = 3 * split.n
+    keys = rows.astype(np.int64) * N + cols
+    pattern, where = np.unique(keys, return_inverse=True)
+
+    def vector(Ke: np.ndarray) -> np.ndarray:
+        return np.bincount(where, Ke.reshape(-1), minlength=pattern.size)
+
+    # M[a, b, s]: the stiffness of the pair (a, b) weighted by the packed value s, on the pattern
+    M = np.zeros((3, 3, 6, pattern.size))
+    for a in range(3):
+        for b in range(3):
+            pair = 4.0 * split.V0[:, None, None] * np.einsum("mi,mj->mij", g[a], g[b])
+            for t in range(6):
+                if np.any(U[t]):
+                    M[a, b, t] = vector(U[t][:, None, None] * pair)
+    D = sp.coo_matrix(sp.csr_matrix(out.stiffness) - sp.csr_matrix(K_o))
+    dkeys = D.row.astype(np.int64) * N + D.col
+    pos = np.clip(np.searchsorted(pattern, dkeys), 0, pattern.size - 1)
+    inside = pattern[pos] == dkeys
+    if np.linalg.norm(D.data[~inside]) > 1e-12 * max(np.linalg.norm(D.data), 1e-300):
+        return []  # entries where the mesh has none: not a tangent slip
+    target = np.bincount(pos[inside], D.data[inside], minlength=pattern.size)
+    scale = np.linalg.norm(target)
+    if scale == 0.0:
+        return []
+    right = np.einsum("abs,absn->n", _RIGHT, M)
+    matches: Dict[bytes, List[Slip]] = {}
+    for slip in candidates():
+        change = np.einsum("abs,absn->n", slip.coefficients, M) - right
+        if np.linalg.norm(target - change) > 1e-3 * scale:
+            continue
+        key = np.round(change / scale, 9).tobytes()
+        matches.setdefault(key, []).append(slip)
+    found = []
+    K_o = sp.csr_matrix(K_o)
+    for key, slips in matches.items():
+        slips.sort(key=lambda x: x.moves)
+        head = slips[0]
+        change = np.einsum("abs,absn->n", head.coefficients, M) - right
+        dK = sp.csr_matrix((change, (pattern // N, pattern % N)), shape=(N, N))
+        e = errors(out.force, out.stiffness, None, f_o, K_o + dK, 0.0, s)
+        if not tol.within(e, energy=False):
+            continue
+        also = [x.words for x in slips[1:4]]
+        found.append(
+            Finding(
+                "routine-second-derivative",
+                f"the user routine's packed second derivatives (UHYPER's UI2 in I1b, I2b, J) "
+                f"taken wrongly by the driver: {head.words}",
+                FULL,
+                "the tangent CC = 4 sum_a U_a d2I_a/dC2 + 4 sum_ab U_ab dI_a/dC (x) dI_b/dC with "
+                "the declared energy's U_ab (exact, per cell) put in as this slip puts them "
+                f"predicts your stiffness to {e.stiffness:.1e} (force {e.force:.1e}), nothing "
+                "fitted"
+                + (
+                    f"; the same prediction (the entries moved are zero here): {'; '.join(also)}"
+                    if also
+                    else ""
+                ),
+                {"slip": head.words, "equivalent": len(slips) - 1},
+            )
+        )
+    return ambiguous(found) if len(found) > 1 else found
+
+
+def routine_derivative_reading(diag, ci, out, ref, s: Scales):
+    """``diag`` (a failed case nothing explained yet, the force right) with a slip in a user
+    routine's packed second derivatives named first; unchanged when none matches.
+    """
+    tol = diag.tolerances
+    if diag.errors.force > tol.force:
+        return diag
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
+    )
+    if split is None:
+        return diag
+    with np.errstate(all="ignore"):
+        found = routine_derivative_findings(split, ci.model, out, ref.force, ref.stiffness, s, tol)
+    return named_first(diag, found)

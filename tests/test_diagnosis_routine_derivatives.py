@@ -1,0 +1,122 @@
+"""A user routine's packed second derivatives taken wrongly by its driver (conformance.diagnosis.
+routine_derivatives): the compressible Neo-Hookean law written as a UHYPER routine in
+(I1b, J), W = mu/2 (J^(2/3) I1b - 3) - mu ln J + lam/2 (ln J)^2, whose second derivatives are
+written out here by hand; the engine is MJED's stiffness plus the change a driver's slip makes,
+4 V0 D A D with A = F dCC F formed here from the fourth-order tensor dCC. Against them: an entry
+off by a factor not in the list, and a stiffness error that is no tangent slip.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import box_mesh, mjed_split
+
+from conformance.diagnosis.elements import assemble
+from conformance.diagnosis.routine_derivatives import (
+    SLOTS,
+    routine_derivative_findings,
+    routine_hessians,
+)
+from conformance.judge.compare import DOUBLE
+from mjed import materials as M
+
+MU, LAM = 800.0, 4000.0
+
+
+class _Out:
+    def __init__(self, force, stiffness):
+        self.force, self.stiffness = force, stiffness
+
+
+@pytest.fixture(scope="module")
+def case():
+    points, cells = box_mesh(3, jitter=0.2, seed=3)
+    rng = np.random.default_rng(3)
+    x = points @ np.diag([1.15, 0.9, 0.97]).T + 0.02 * rng.standard_normal(points.shape)
+    model = M.NeoHookean(mu=MU, lam=LAM)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    return model, split, f_o, K_o, s
+
+
+def _by_hand(F):
+    """(U (3, 3, m) in (I1b, I2b, J), G (3, m, 3, 3) = dI/dC) of the Neo-Hookean routine."""
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I1b = J ** (-2 / 3) * I1
+    U = np.zeros((3, 3, J.size))
+    U[0, 2] = U[2, 0] = MU / 3 * J ** (-1 / 3)
+    U[2, 2] = -MU / 9 * J ** (-4 / 3) * I1b + MU / J**2 + LAM * (1 - np.log(J)) / J**2
+    Ci = np.linalg.inv(C)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    eye = np.eye(3)
+    c = lambda a: a[:, None, None]  # noqa: E731
+    G = np.stack(
+        [
+            c(J ** (-2 / 3)) * (eye - c(I1 / 3) * Ci),
+            c(J ** (-4 / 3)) * (c(I1) * eye - C - c(2 / 3 * I2) * Ci),
+            c(J / 2) * Ci,
+        ]
+    )
+    return U, G
+
+
+def _engine(case, dU):
+    """MJED's force and stiffness plus the tangent change 4 sum_ab dU_ab G_a (x) G_b."""
+    _, split, f_o, K_o, _ = case
+    _, G = _by_hand(split.F)
+    dCC = 4 * np.einsum("abm,amij,bmkl->mijkl", dU, G, G)
+    A = np.einsum("miI,mIJKL,mkK->miJkL", split.F, dCC, split.F)
+    Ke = split.V0[:, None, None, None, None] * np.einsum(
+        "maJ,miJkL,mbL->maibk", split.D, A, split.D
+    )
+    m = split.cells.shape[0]
+    _, dK = assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))
+    return _Out(f_o, sp.csr_matrix(K_o) + dK)
+
+
+def _read(case, out):
+    model, split, f_o, K_o, s = case
+    return routine_derivative_findings(split, model, out, f_o, K_o, s, DOUBLE)
+
+
+def test_the_declared_second_derivatives_are_the_routines(case):
+    U, _ = _by_hand(case[1].F)
+    got = routine_hessians(case[0], case[1].F)
+    for t, (a, b) in enumerate(SLOTS):
+        assert np.allclose(got[t], U[a, b], rtol=1e-10, atol=1e-9 * np.abs(U).max())
+
+
+def test_the_mixed_slots_exchanged_are_named(case):
+    U, _ = _by_hand(case[1].F)
+    dU = np.zeros_like(U)
+    dU[0, 2] = dU[2, 0] = -U[0, 2]  # d2U/dI1b dJ read into d2U/dI2b dJ's slot
+    dU[1, 2] = dU[2, 1] = U[0, 2]
+    (f,) = _read(case, _engine(case, dU))
+    assert f.code == "routine-second-derivative"
+    assert "d2U/dI1b dJ used as d2U/dI2b dJ" in f.title
+
+
+def test_a_doubled_entry_and_a_mixed_term_counted_once_are_named(case):
+    U, _ = _by_hand(case[1].F)
+    dU = np.zeros_like(U)
+    dU[0, 2] = dU[2, 0] = U[0, 2]
+    (f,) = _read(case, _engine(case, dU))
+    assert "d2U/dI1b dJ doubled" in f.title
+    once = np.zeros_like(U)
+    once[2, 0] = -U[2, 0]  # dI1b/dC (x) dJ/dC only
+    (f,) = _read(case, _engine(case, once))
+    assert "counted once" in f.title and "major symmetry" in f.title
+
+
+def test_other_factors_and_other_errors_are_not_named(case):
+    U, _ = _by_hand(case[1].F)
+    dU = np.zeros_like(U)
+    dU[2, 2] = 0.3 * U[2, 2]  # d2U/dJ2 x 1.3: no slip of the list
+    assert _read(case, _engine(case, dU)) == []
+    _, split, f_o, K_o, _ = case
+    noise = sp.random(K_o.shape[0], K_o.shape[1], density=0.01, random_state=1)
+    out = _Out(f_o, sp.csr_matrix(K_o) + 1e-3 * abs(K_o).max() * (noise + noise.T))
+    assert _read(case, out) == []
