@@ -120,3 +120,38 @@ def test_other_factors_and_other_errors_are_not_named(case):
     noise = sp.random(K_o.shape[0], K_o.shape[1], density=0.01, random_state=1)
     out = _Out(f_o, sp.csr_matrix(K_o) + 1e-3 * abs(K_o).max() * (noise + noise.T))
     assert _read(case, out) == []
+
+
+def _engine_cc(case, dCC):
+    """MJED's force and stiffness plus the material tangent change dCC (m, 3, 3, 3, 3)."""
+    _, split, f_o, K_o, _ = case
+    A = np.einsum("miI,mIJKL,mkK->miJkL", split.F, dCC, split.F)
+    Ke = split.V0[:, None, None, None, None] * np.einsum(
+        "maJ,miJkL,mbL->maibk", split.D, A, split.D
+    )
+    m = split.cells.shape[0]
+    _, dK = assemble(split.cells, split.n, np.zeros((m, 4, 3)), Ke.reshape(m, 12, 12))
+    return _Out(f_o, sp.csr_matrix(K_o) + dK)
+
+
+def test_a_term_of_an_invariants_second_derivative_written_wrongly_is_named(case):
+    """The Neo-Hookean routine's U_1 = mu/2 J^(2/3) and U_J by hand: d2I1b/dC2 without its
+    term -1/3 J^(-2/3) C^-1 (x) I (the transpose of I (x) C^-1), and d2J/dC2 with
+    + J/2 C^-1 (.) C^-1; an unlisted factor on that term is not named.
+    """
+    F = case[1].F
+    C = F.swapaxes(1, 2) @ F
+    Ci = np.linalg.inv(C)
+    J = np.linalg.det(F)
+    I1b = J ** (-2 / 3) * np.trace(C, axis1=1, axis2=2)
+    U1 = MU / 2 * J ** (2 / 3)
+    UJ = MU / 3 * J ** (-1 / 3) * I1b - MU / J + LAM * np.log(J) / J
+    w = lambda x: x[:, None, None, None, None]  # noqa: E731
+    dropped = -4 * w(U1) * (-1 / 3) * w(J ** (-2 / 3)) * np.einsum("mij,kl->mijkl", Ci, np.eye(3))
+    (f,) = _read(case, _engine_cc(case, dropped))
+    assert "C^-1 (x) I of d2I1b/dC2 left out" in f.title and "major symmetry" in f.title
+    odot = 0.5 * (np.einsum("mik,mjl->mijkl", Ci, Ci) + np.einsum("mil,mjk->mijkl", Ci, Ci))
+    flipped = 4 * w(UJ) * 2 * w(J / 2) * odot  # -J/2 C^-1 (.) C^-1 written +J/2
+    (f,) = _read(case, _engine_cc(case, flipped))
+    assert "-J/2 C^-1 (.) C^-1 of d2J/dC2 with its sign flipped" in f.title
+    assert _read(case, _engine_cc(case, 0.4 * dropped)) == []

@@ -21,6 +21,11 @@ as the slip makes it from the right values. Each slip of :func:`candidates` is s
 U -> U' and predicts the engine's stiffness with nothing fitted: U_ab per cell is the declared
 energy's, differentiated exactly (hyper-dual numbers) in I1b, I2b and J.
 
+The driver's own second derivatives of the invariants by C (:func:`curvature_pieces`: the
+terms of d2I1b/dC2, d2I2b/dC2, d2J/dC2 as written out) are read the same way: one term off by a
+factor (a neighbour's 1/3 copied for 1/9, a sign, a term or its transpose left out), or one
+invariant's whole second derivative, weighted by the declared energy's U_a.
+
 A slip is named when its prediction matches the engine's stiffness within the tolerance and the
 force is right; slips with the same prediction (a slot moved where both values are zero) are
 said once, the fewest-moves first. Laws without a scalar formula in I1, I1b, I2, I2b and J
@@ -38,7 +43,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from common.hyperdual import HD, exp, ln, sqrt
-from conformance.diagnosis.elements import ElementSplit, element_split
+from conformance.diagnosis.elements import (
+    ElementSplit,
+    element_split,
+    tangent_element_matrices,
+)
 from conformance.diagnosis.findings import FULL, Finding, ambiguous, named_first
 from conformance.diagnosis.term_differences import declared_energy
 from conformance.judge.compare import Scales, Tolerances, errors
@@ -108,8 +117,52 @@ def _hessian_of(energy: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray, a:
     else:
         args[a] = HD(base[a], one, 0.0, 0.0)
         args[b] = HD(base[b], 0.0, one, 0.0)
-    i1b, i2b, j = args
-    values = {
+    W = energy.evaluate(_namespace(*args).__getitem__, ln, exp, sqrt)
+    return np.broadcast_to(W.d if isinstance(W, HD) else 0.0, J.shape) + 0.0
+
+
+def _invariants(F: np.ndarray):
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
+    return C, J, I1, I2, J ** (-2.0 / 3.0) * I1, J ** (-4.0 / 3.0) * I2
+
+
+def _readable(model: Any):
+    energy = declared_energy(model)
+    if energy is None or not set(energy.variables) <= {"I1", "I1b", "I2", "I2b", "I3", "J"}:
+        return None
+    return energy
+
+
+def routine_slopes(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
+    """(3, m) the declared energy's first derivatives U_a in (I1b, I2b, J) at F (m, 3, 3) (the
+    routine's UI1); None as for :func:`routine_hessians`.
+    """
+    energy = _readable(model)
+    if energy is None:
+        return None
+    _, J, _, _, I1b, I2b = _invariants(F)
+    try:
+        with np.errstate(all="ignore"):
+            out = np.stack([_slope_of(energy, I1b, I2b, J, a) for a in range(3)])
+    except (TypeError, AttributeError, KeyError, ValueError):
+        return None
+    return out if np.all(np.isfinite(out)) else None
+
+
+def _slope_of(energy: Any, I1b, I2b, J, a: int) -> np.ndarray:
+    """dW/dI_a (m,) by the hyper-dual's first part, I_a seeded alone."""
+    args = [HD(x) for x in (I1b, I2b, J)]
+    args[a] = HD((I1b, I2b, J)[a], np.ones_like(J), 0.0, 0.0)
+    W = energy.evaluate(_namespace(*args).__getitem__, ln, exp, sqrt)
+    return np.broadcast_to(W.b if isinstance(W, HD) else 0.0, J.shape) + 0.0
+
+
+def _namespace(i1b, i2b, j) -> Dict[str, Any]:
+    """The variables a declared energy may read, from (I1b, I2b, J)."""
+    return {
         "I1b": i1b,
         "I2b": i2b,
         "J": j,
@@ -117,8 +170,6 @@ def _hessian_of(energy: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray, a:
         "I2": j ** (4.0 / 3.0) * i2b,
         "I3": j * j,
     }
-    W = energy.evaluate(values.__getitem__, ln, exp, sqrt)
-    return np.broadcast_to(W.d if isinstance(W, HD) else 0.0, J.shape) + 0.0
 
 
 def routine_hessians(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
@@ -126,14 +177,10 @@ def routine_hessians(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
     (:data:`SLOTS`), at deformation gradients F (m, 3, 3); None where the model has no scalar
     formula in I1, I1b, I2, I2b and J or it is not finite.
     """
-    energy = declared_energy(model)
-    if energy is None or not set(energy.variables) <= {"I1", "I1b", "I2", "I2b", "I3", "J"}:
+    energy = _readable(model)
+    if energy is None:
         return None
-    C = F.swapaxes(1, 2) @ F
-    J = np.linalg.det(F)
-    I1 = np.trace(C, axis1=1, axis2=2)
-    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C))
-    I1b, I2b = J ** (-2.0 / 3.0) * I1, J ** (-4.0 / 3.0) * I2
+    _, J, _, _, I1b, I2b = _invariants(F)
     try:
         with np.errstate(all="ignore"):
             out = np.stack([_hessian_of(energy, I1b, I2b, J, a, b) for a, b in SLOTS])
@@ -163,6 +210,13 @@ def gradient_vectors(split: ElementSplit) -> np.ndarray:
     return np.stack([np.einsum("mij,mjk,mak->mai", F, g, D).reshape(m, 12) for g in G])
 
 
+#: What a slip of the packed values is about.
+ROUTINE = (
+    "the user routine's packed second derivatives (UHYPER's UI2 in I1b, I2b, J) taken wrongly "
+    "by the driver"
+)
+
+
 @dataclass(frozen=True)
 class Slip:
     """One slip: words, how many entries it moves (its simplicity), and the engine's 3x3 matrix
@@ -172,6 +226,7 @@ class Slip:
     words: str
     moves: int
     coefficients: np.ndarray
+    about: str = ROUTINE
 
 
 def _unpacked(layout: Tuple[Tuple[int, int], ...]) -> np.ndarray:
@@ -229,6 +284,96 @@ def candidates() -> List[Slip]:
     return out
 
 
+#: What a slip of the driver's own invariant second derivatives is about.
+CURVATURE = "a second derivative of an invariant by C written wrongly in the driver's tangent"
+
+
+def _outer(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    return np.einsum("mij,mkl->mijkl", A, B)
+
+
+def _odot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(A (.) B)_IJKL = (A_IK B_JL + A_IL B_JK) / 2."""
+    return 0.5 * (np.einsum("mik,mjl->mijkl", A, B) + np.einsum("mil,mjk->mijkl", A, B))
+
+
+def curvature_pieces(F: np.ndarray) -> Dict[Tuple[int, str], np.ndarray]:
+    """{(a, words): T (m, 3, 3, 3, 3)}: the terms of d2I_a/dC2 for (I1b, I2b, J) as a driver
+    writes them, each with its coefficient (their sum per a is the second derivative):
+
+        d2I1b/dC2 = J^(-2/3) (-1/3 (I (x) C^-1 + C^-1 (x) I) + I1/9 C^-1 (x) C^-1
+                              + I1/3 C^-1 (.) C^-1),
+        d2I2b/dC2 = J^(-4/3) (I (x) I - II - 2/3 (G (x) C^-1 + C^-1 (x) G)
+                              + 4/9 I2 C^-1 (x) C^-1 + 2/3 I2 C^-1 (.) C^-1),   G = I1 I - C,
+        d2J/dC2 = J/4 C^-1 (x) C^-1 - J/2 C^-1 (.) C^-1.
+    """
+    C, J, I1, I2, _, _ = _invariants(F)
+    m = J.size
+    Ci = np.linalg.inv(C)
+    eye = np.broadcast_to(np.eye(3), (m, 3, 3))
+    G = I1[:, None, None] * eye - C
+    c = lambda x: x[:, None, None, None, None]  # noqa: E731 - a per-cell scalar on a tensor
+    a1, a2 = c(J ** (-2.0 / 3.0)), c(J ** (-4.0 / 3.0))
+    return {
+        (0, "-1/3 J^(-2/3) I (x) C^-1"): -a1 / 3.0 * _outer(eye, Ci),
+        (0, "-1/3 J^(-2/3) C^-1 (x) I"): -a1 / 3.0 * _outer(Ci, eye),
+        (0, "J^(-2/3) I1/9 C^-1 (x) C^-1"): a1 * c(I1 / 9.0) * _outer(Ci, Ci),
+        (0, "J^(-2/3) I1/3 C^-1 (.) C^-1"): a1 * c(I1 / 3.0) * _odot(Ci, Ci),
+        (1, "J^(-4/3) I (x) I"): a2 * _outer(eye, eye),
+        (1, "-J^(-4/3) II"): -a2 * _odot(eye, eye),
+        (1, "-2/3 J^(-4/3) G (x) C^-1"): -2.0 / 3.0 * a2 * _outer(G, Ci),
+        (1, "-2/3 J^(-4/3) C^-1 (x) G"): -2.0 / 3.0 * a2 * _outer(Ci, G),
+        (1, "J^(-4/3) 4/9 I2 C^-1 (x) C^-1"): a2 * c(4.0 / 9.0 * I2) * _outer(Ci, Ci),
+        (1, "J^(-4/3) 2/3 I2 C^-1 (.) C^-1"): a2 * c(2.0 / 3.0 * I2) * _odot(Ci, Ci),
+        (2, "J/4 C^-1 (x) C^-1"): c(J / 4.0) * _outer(Ci, Ci),
+        (2, "-J/2 C^-1 (.) C^-1"): -c(J / 2.0) * _odot(Ci, Ci),
+    }
+
+
+#: Factors a term of an invariant's second derivative may be off by (besides FACTORS): a
+#: neighbouring term's coefficient copied (1/3 for 1/9, and back).
+TERM_FACTORS: Dict[float, str] = {**FACTORS, 3.0: "three times too large", 1.0 / 3.0: "a third"}
+
+#: Terms whose transpose is another term (one of the two left out breaks major symmetry).
+_PAIRED = ("(x) C^-1", "C^-1 (x) I", "C^-1 (x) G")
+
+
+def _curvature_slips(split: ElementSplit, model: Any, vector) -> List[Tuple[Slip, np.ndarray]]:
+    """(slip, change on the pattern) for each term of :func:`curvature_pieces` off by a factor
+    of :data:`TERM_FACTORS`, and each invariant's whole second derivative off by one of
+    :data:`FACTORS`, weighted by the declared energy's 4 U_a; [] where it has none.
+    """
+    U1 = routine_slopes(model, split.F)
+    if U1 is None:
+        return []
+    F = split.F
+    by_term = {}
+    for (a, words), T in curvature_pieces(F).items():
+        if not np.any(U1[a]):
+            continue
+        CC = 4.0 * U1[a][:, None, None, None, None] * T
+        A = np.einsum("miI,mIJKL,mkK->miJkL", F, CC, F, optimize=True)
+        by_term[(a, words)] = vector(tangent_element_matrices(split.V0, split.D, A))
+    out: List[Tuple[Slip, np.ndarray]] = []
+    empty = np.zeros((3, 3, 6))
+    for (a, words), v in by_term.items():
+        pair = any(words.endswith(p) for p in _PAIRED) and "I (x) I" not in words
+        for k, said in TERM_FACTORS.items():
+            text = f"the term {words} of d2{_NAMES[a]}/dC2 {said} in your tangent"
+            if pair and k == 0.0:
+                text += " (its transpose kept: the tangent loses its major symmetry)"
+            out.append((Slip(text, 1, empty, CURVATURE), (k - 1.0) * v))
+    for a in range(3):
+        whole = [v for (b, _), v in by_term.items() if b == a]
+        if not whole:
+            continue
+        total = np.sum(whole, axis=0)
+        for k, said in FACTORS.items():
+            text = f"dU/d{_NAMES[a]} d2{_NAMES[a]}/dC2 (the whole second derivative) {said}"
+            out.append((Slip(text, 2, empty, CURVATURE), (k - 1.0) * total))
+    return out
+
+
 def routine_derivative_findings(
     split: ElementSplit, model: Any, out, f_o: np.ndarray, K_o: sp.spmatrix, s: Scales,
     tol: Tolerances,
@@ -270,19 +415,21 @@ def routine_derivative_findings(
     if scale == 0.0:
         return []
     right = np.einsum("abs,absn->n", _RIGHT, M)
-    matches: Dict[bytes, List[Slip]] = {}
-    for slip in candidates():
-        change = np.einsum("abs,absn->n", slip.coefficients, M) - right
+    changes = [
+        (slip, np.einsum("abs,absn->n", slip.coefficients, M) - right) for slip in candidates()
+    ] + _curvature_slips(split, model, vector)
+    matches: Dict[bytes, List[Tuple[Slip, np.ndarray]]] = {}
+    for slip, change in changes:
         if np.linalg.norm(target - change) > 1e-3 * scale:
             continue
         key = np.round(change / scale, 9).tobytes()
-        matches.setdefault(key, []).append(slip)
+        matches.setdefault(key, []).append((slip, change))
     found = []
     K_o = sp.csr_matrix(K_o)
-    for key, slips in matches.items():
-        slips.sort(key=lambda x: x.moves)
-        head = slips[0]
-        change = np.einsum("abs,absn->n", head.coefficients, M) - right
+    for pairs in matches.values():
+        pairs.sort(key=lambda x: x[0].moves)
+        slips = [x for x, _ in pairs]
+        head, change = pairs[0]
         dK = sp.csr_matrix((change, (pattern // N, pattern % N)), shape=(N, N))
         e = errors(out.force, out.stiffness, None, f_o, K_o + dK, 0.0, s)
         if not tol.within(e, energy=False):
@@ -291,11 +438,10 @@ def routine_derivative_findings(
         found.append(
             Finding(
                 "routine-second-derivative",
-                f"the user routine's packed second derivatives (UHYPER's UI2 in I1b, I2b, J) "
-                f"taken wrongly by the driver: {head.words}",
+                f"{head.about}: {head.words}",
                 FULL,
                 "the tangent CC = 4 sum_a U_a d2I_a/dC2 + 4 sum_ab U_ab dI_a/dC (x) dI_b/dC with "
-                "the declared energy's U_ab (exact, per cell) put in as this slip puts them "
+                "the declared energy's U_a, U_ab (exact, per cell) and this slip "
                 f"predicts your stiffness to {e.stiffness:.1e} (force {e.force:.1e}), nothing "
                 "fitted"
                 + (
@@ -303,7 +449,7 @@ def routine_derivative_findings(
                     if also
                     else ""
                 ),
-                {"slip": head.words, "equivalent": len(slips) - 1},
+                {"slip": head.words, "about": head.about, "equivalent": len(slips) - 1},
             )
         )
     return ambiguous(found) if len(found) > 1 else found
