@@ -37,6 +37,7 @@ from conformance.diagnosis.energy_alone import energy_alone_reading
 from conformance.diagnosis.energy_differences import energy_difference_reading
 from conformance.diagnosis.entry_steps import entry_step_reading
 from conformance.diagnosis.findings import FULL, OBSERVED, PARTIAL, Finding
+from conformance.diagnosis.frame_routine import frame_routine_reading
 from conformance.diagnosis.frames import frame_variants
 from conformance.diagnosis.hand_derived import (
     hand_derived_reading,
@@ -369,9 +370,9 @@ READINGS: Tuple[Reading, ...] = (
         lambda d, c: part_power_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
-        "a user routine's packed second derivatives (UHYPER's UI2) taken wrongly by its driver",
+        "a fibre-frame strain routine's stress or tangent taken back to the axes wrongly",
         _nothing_named,
-        lambda d, c: routine_derivative_reading(d, c.ci, c.out, c.ref, c.s),
+        lambda d, c: frame_routine_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "inside the element: local order, stress measure, volume, the element forces' nodes",
@@ -433,6 +434,14 @@ READINGS: Tuple[Reading, ...] = (
         "one piece of Holzapfel's isochoric/volumetric split wrong (S_iso, DEV, P, P~, p~)",
         _nothing_named_but_volumetric,
         lambda d, c: split_part_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        # after the split: a term of d2I1b/dC2 off is a piece of P~ off there, said in
+        # Holzapfel's words first
+        "a user routine's packed second derivatives (UHYPER's UI2) taken wrongly by its driver, "
+        "or the driver's own second derivatives of the invariants",
+        _nothing_named,
+        lambda d, c: routine_derivative_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         # first of the force-wrong readings: one unknown (the step) accounting for 99 % of the
