@@ -16,6 +16,7 @@ from conftest import box_mesh, mjed_split
 from conformance.diagnosis.elements import assemble
 from conformance.diagnosis.routine_derivatives import (
     SLOTS,
+    gradient_slip_findings,
     routine_derivative_findings,
     routine_hessians,
 )
@@ -155,3 +156,66 @@ def test_a_term_of_an_invariants_second_derivative_written_wrongly_is_named(case
     (f,) = _read(case, _engine_cc(case, flipped))
     assert "-J/2 C^-1 (.) C^-1 of d2J/dC2 with its sign flipped" in f.title
     assert _read(case, _engine_cc(case, 0.4 * dropped)) == []
+
+
+def test_a_term_of_an_invariants_gradient_written_wrongly_is_named_in_stress_and_tangent(case):
+    """dI1b/dC's projection term -J^(-2/3) I1/3 C^-1 written with I1b for I1 (J^(-2/3) twice):
+    S = 2 U_1 dI1b/dC and the tangent's products U_1J (dI1b (x) dJ + dJ (x) dI1b) change alike,
+    the force wrong; the same term off in the stress only is not this slip.
+    """
+    _, split, f_o, K_o, _ = case
+    F = split.F
+    U, G = _by_hand(F)
+    C = F.swapaxes(1, 2) @ F
+    J = np.linalg.det(F)
+    I1 = np.trace(C, axis1=1, axis2=2)
+    U1 = MU / 2 * J ** (2 / 3)
+    dG = (J ** (-2 / 3) - 1)[:, None, None] * (
+        -(J ** (-2 / 3) * I1 / 3)[:, None, None] * np.linalg.inv(C)
+    )
+    dS = 2 * U1[:, None, None] * dG
+    dCC = (
+        4
+        * U[0, 2][:, None, None, None, None]
+        * (np.einsum("mij,mkl->mijkl", dG, G[2]) + np.einsum("mij,mkl->mijkl", G[2], dG))
+    )
+
+    def engine(with_tangent):
+        A = np.einsum("miI,mIJKL,mkK->miJkL", F, dCC if with_tangent else 0 * dCC, F)
+        A = A + np.einsum("ik,mJL->miJkL", np.eye(3), dS)
+        Ke = np.einsum("maJ,miJkL,mbL->maibk", split.D, A, split.D)
+        Ke = split.V0[:, None, None, None, None] * Ke
+        fe = -split.V0[:, None, None] * np.einsum("mkI,maI->mak", F @ dS, split.D)
+        m = split.cells.shape[0]
+        df, dK = assemble(split.cells, split.n, fe, Ke.reshape(m, 12, 12))
+        return _Out(f_o + df, sp.csr_matrix(K_o) + dK)
+
+    model, split_, f_o_, K_o_, s = case
+    found = gradient_slip_findings(split_, model, engine(True), f_o_, K_o_, s, DOUBLE)
+    assert [f.code for f in found] == ["routine-gradient-term"], found
+    assert "I1b put for I1" in found[0].title and "dI1b/dC" in found[0].title
+    assert gradient_slip_findings(split_, model, engine(False), f_o_, K_o_, s, DOUBLE) == []
+
+
+def test_st_venant_kirchhoff_is_read_through_its_invariant_form():
+    """Declared in E's components, St Venant-Kirchhoff is read as lam/8 (I1 - 3)^2 +
+    mu/4 (I1^2 - 2 I2 - 2 I1 + 3): its U_a give S = lam tr E I + 2 mu E back."""
+    from conformance.diagnosis.routine_derivatives import routine_slopes
+
+    model = M.StVenantKirchhoff(mu=500.0, lam=2000.0)
+    F = np.eye(3) + 0.1 * np.random.default_rng(0).standard_normal((5, 3, 3))
+    U = routine_slopes(model, F)
+    C = F.swapaxes(1, 2) @ F
+    E = 0.5 * (C - np.eye(3))
+    S = 2000.0 * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 1000.0 * E
+    Ci = np.linalg.inv(C)
+    J = np.linalg.det(F)[:, None, None]
+    I1 = np.trace(C, axis1=1, axis2=2)[:, None, None]
+    I2 = 0.5 * (I1**2 - np.einsum("mij,mji->m", C, C)[:, None, None])
+    G = (
+        J ** (-2 / 3) * (np.eye(3) - I1 / 3 * Ci),
+        J ** (-4 / 3) * (I1 * np.eye(3) - C - 2 / 3 * I2 * Ci),
+        J / 2 * Ci,
+    )
+    got = 2 * sum(U[a][:, None, None] * G[a] for a in range(3))
+    assert np.allclose(got, S, rtol=0, atol=1e-10 * np.abs(S).max())

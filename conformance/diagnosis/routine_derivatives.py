@@ -45,12 +45,15 @@ import scipy.sparse as sp
 from common.hyperdual import HD, exp, ln, sqrt
 from conformance.diagnosis.elements import (
     ElementSplit,
+    assemble,
     element_split,
+    piola_element_forces,
     tangent_element_matrices,
 )
 from conformance.diagnosis.findings import FULL, Finding, ambiguous, named_first
 from conformance.diagnosis.term_differences import declared_energy
 from conformance.judge.compare import Scales, Tolerances, errors
+from mjed.materials import StVenantKirchhoff
 
 __all__ = [
     "SLOTS",
@@ -129,7 +132,36 @@ def _invariants(F: np.ndarray):
     return C, J, I1, I2, J ** (-2.0 / 3.0) * I1, J ** (-4.0 / 3.0) * I2
 
 
+@dataclass(frozen=True)
+class _InvariantForm:
+    """An energy written in the invariants, for a law declared in other variables (St Venant-
+    Kirchhoff's E components: tr E = (I1 - 3)/2, tr E^2 = (I1^2 - 2 I2 - 2 I1 + 3)/4).
+    """
+
+    formula: Any
+    variables: Tuple[str, ...] = ("I1", "I2")
+
+    def evaluate(self, variable, ln, exp, sqrt):
+        return self.formula(variable("I1"), variable("I2"))
+
+
+def _stvk_form(model) -> _InvariantForm:
+    lam, mu = float(model.lam), float(model.mu)
+    return _InvariantForm(
+        lambda I1, I2: (
+            lam / 8.0 * (I1 - 3.0) * (I1 - 3.0) + mu / 4.0 * (I1 * I1 - 2.0 * I2 - 2.0 * I1 + 3.0)
+        )
+    )
+
+
+#: Laws declared in other variables than the invariants, by type: their invariant form.
+INVARIANT_FORMS = {StVenantKirchhoff: _stvk_form}
+
+
 def _readable(model: Any):
+    form = INVARIANT_FORMS.get(type(model))
+    if form is not None:
+        return form(model)
     energy = declared_energy(model)
     if energy is None or not set(energy.variables) <= {"I1", "I1b", "I2", "I2b", "I3", "J"}:
         return None
@@ -374,6 +406,96 @@ def _curvature_slips(split: ElementSplit, model: Any, vector) -> List[Tuple[Slip
     return out
 
 
+def gradient_terms(F: np.ndarray) -> Dict[Tuple[int, str], np.ndarray]:
+    """{(a, words): T (m, 3, 3)}: the terms of dI_a/dC for (I1b, I2b, J) as a driver writes
+    them (their sum per a is the gradient): dI1b/dC = J^(-2/3) I - J^(-2/3) I1/3 C^-1,
+    dI2b/dC = J^(-4/3) I1 I - J^(-4/3) C - 2/3 J^(-4/3) I2 C^-1, dJ/dC = J/2 C^-1.
+    """
+    C, J, I1, I2, _, _ = _invariants(F)
+    m = J.size
+    Ci = np.linalg.inv(C)
+    eye = np.broadcast_to(np.eye(3), (m, 3, 3))
+    c = lambda x: x[:, None, None]  # noqa: E731 - a per-cell scalar on a tensor
+    a1, a2 = c(J ** (-2.0 / 3.0)), c(J ** (-4.0 / 3.0))
+    return {
+        (0, "J^(-2/3) I"): a1 * eye,
+        (0, "-J^(-2/3) I1/3 C^-1"): -a1 * c(I1 / 3.0) * Ci,
+        (1, "J^(-4/3) I1 I"): a2 * c(I1) * eye,
+        (1, "-J^(-4/3) C"): -a2 * C,
+        (1, "-2/3 J^(-4/3) I2 C^-1"): -2.0 / 3.0 * a2 * c(I2) * Ci,
+        (2, "J/2 C^-1"): c(J / 2.0) * Ci,
+    }
+
+
+#: Per-cell slips of a gradient term: the isochoric invariant put for the plain one in the
+#: projection's C^-1 term (its power of J applied twice).
+_TWICE = {
+    (0, "-J^(-2/3) I1/3 C^-1"): (-2.0 / 3.0, "I1b put for I1 (J^(-2/3) applied twice)"),
+    (1, "-2/3 J^(-4/3) I2 C^-1"): (-4.0 / 3.0, "I2b put for I2 (J^(-4/3) applied twice)"),
+}
+
+
+def gradient_slip_findings(
+    split: ElementSplit, model: Any, out, f_o: np.ndarray, K_o, s: Scales, tol: Tolerances
+) -> List[Finding]:
+    """The findings naming one term of a driver's dI_a/dC off by a factor of
+    :data:`TERM_FACTORS` (or by a power of J, :data:`_TWICE`), in the stress and in every
+    product of the tangent built from that gradient alike, predicted with the declared
+    energy's U_a and U_ab; several distinct: ambiguous.
+    """
+    U1 = routine_slopes(model, split.F)
+    H = routine_hessians(model, split.F)
+    if U1 is None or H is None:
+        return []
+    U2 = np.zeros((3, 3, H.shape[1]))
+    for t, (a, b) in enumerate(SLOTS):
+        U2[a, b] = U2[b, a] = H[t]
+    terms = gradient_terms(split.F)
+    G = [sum(T for (b, _), T in terms.items() if b == a) for a in range(3)]
+    J = np.linalg.det(split.F)
+    F = split.F
+    K_o = sp.csr_matrix(K_o)
+    found = []
+    for (a, words), T in terms.items():
+        if not (np.any(U1[a]) or np.any(U2[a])):
+            continue
+        slips = [(k - 1.0, f"{said}") for k, said in TERM_FACTORS.items() if k != 1.0]
+        if (a, words) in _TWICE:
+            p, said = _TWICE[(a, words)]
+            slips.append(((J**p - 1.0)[:, None, None], said))
+        for k, said in slips:
+            dG = k * T
+            dS = 2.0 * U1[a][:, None, None] * dG
+            dCC = 4.0 * U2[a, a][:, None, None, None, None] * _outer(dG, dG)
+            for b in range(3):
+                w = 4.0 * U2[a, b][:, None, None, None, None]
+                dCC = dCC + w * (_outer(dG, G[b]) + _outer(G[b], dG))
+            A = np.einsum("mkJ,mJIML,mlM->mkIlL", F, dCC, F, optimize=True)
+            A = A + np.einsum("kl,mLI->mkIlL", np.eye(3), dS)
+            fe = piola_element_forces(split.V0, split.D, F @ dS)
+            df, dK = assemble(
+                split.cells, split.n, fe, tangent_element_matrices(split.V0, split.D, A)
+            )
+            e = errors(out.force, out.stiffness, None, f_o + df, K_o + dK, 0.0, s)
+            if not tol.within(e, energy=False):
+                continue
+            found.append(
+                Finding(
+                    "routine-gradient-term",
+                    f"the driver's gradient dI/dC of an invariant written wrongly: the term "
+                    f"{words} of d{_NAMES[a]}/dC: {said}, in the stress and in the tangent's "
+                    "products of that gradient alike",
+                    FULL,
+                    "S = 2 sum_a U_a dI_a/dC and CC's products 4 sum_ab U_ab dI_a/dC (x) dI_b/dC "
+                    "with this gradient and the declared energy's U_a, U_ab (exact, per cell) "
+                    f"predict your force to {e.force:.1e} and your stiffness to "
+                    f"{e.stiffness:.1e}, nothing fitted",
+                    {"term": words, "invariant": _NAMES[a], "slip": said},
+                )
+            )
+    return ambiguous(found) if len(found) > 1 else found
+
+
 def routine_derivative_findings(
     split: ElementSplit, model: Any, out, f_o: np.ndarray, K_o: sp.spmatrix, s: Scales,
     tol: Tolerances,
@@ -460,13 +582,17 @@ def routine_derivative_reading(diag, ci, out, ref, s: Scales):
     routine's packed second derivatives named first; unchanged when none matches.
     """
     tol = diag.tolerances
-    if diag.errors.force > tol.force:
-        return diag
     split = element_split(
         ci.model, ci.points, ci.cells, ci.positions, ref.force, ref.stiffness, s, tol
     )
     if split is None:
         return diag
     with np.errstate(all="ignore"):
-        found = routine_derivative_findings(split, ci.model, out, ref.force, ref.stiffness, s, tol)
+        found = []
+        if diag.errors.force <= tol.force:
+            found = routine_derivative_findings(
+                split, ci.model, out, ref.force, ref.stiffness, s, tol
+            )
+        if not found:
+            found = gradient_slip_findings(split, ci.model, out, ref.force, ref.stiffness, s, tol)
     return named_first(diag, found)
