@@ -199,7 +199,8 @@ def test_a_term_of_an_invariants_gradient_written_wrongly_is_named_in_stress_and
 
 def test_st_venant_kirchhoff_is_read_through_its_invariant_form():
     """Declared in E's components, St Venant-Kirchhoff is read as lam/8 (I1 - 3)^2 +
-    mu/4 (I1^2 - 2 I2 - 2 I1 + 3): its U_a give S = lam tr E I + 2 mu E back."""
+    mu/4 (I1^2 - 2 I2 - 2 I1 + 3): its U_a give S = lam tr E I + 2 mu E back.
+    """
     from conformance.diagnosis.routine_derivatives import routine_slopes
 
     model = M.StVenantKirchhoff(mu=500.0, lam=2000.0)
