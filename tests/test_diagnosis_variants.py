@@ -197,3 +197,23 @@ def test_i2b_with_the_power_of_j_of_i1b_on_tr_c2_is_a_variant_of_formulas_with_i
         abs(wrong - I2b) > 1e-3
         and abs((I1b**2 - J ** (-4 / 3) * (I1**2 - 2 * I2)) / 2 - I2b) < 1e-12
     )
+
+
+def test_i2_as_the_trace_of_c_inverse_is_a_variant_of_formulas_with_i2b():
+    """I2 = tr C^-1: the cofactor form tr cof C = det C tr C^-1 with det C = J^2 dropped, so
+    I2b / J^2 for I2b; equal to the right I2b only where J = 1."""
+    import numpy as np
+
+    from common.cases import default_material
+    from conformance.diagnosis.variants import variants
+
+    (mr,) = [
+        v.expression
+        for v in variants(default_material("MooneyRivlin"))
+        if v.rewrite.code == "I2-inverse-trace"
+    ]
+    assert "(I2b/J**2)" in mr
+    C = np.diag([1.3, 0.9, 1.1]) + 0.05
+    J = np.sqrt(np.linalg.det(C))
+    I2 = 0.5 * (np.trace(C) ** 2 - np.trace(C @ C))
+    assert abs(J ** (-4 / 3) * I2 / J**2 - J ** (-4 / 3) * np.trace(np.linalg.inv(C))) < 1e-12

@@ -252,6 +252,20 @@ REWRITES: Tuple[Rewrite, ...] = (
         r"\bI2b\b",
         f"(J**(-4/3)*{_I2_VOIGT})",
     ),
+    Rewrite(
+        "I2-inverse-trace",
+        "I2 taken as tr C^-1 (the cofactor form I2 = tr cof C = det C tr C^-1 with its "
+        "det C = J^2 dropped): I2b / J^2 used for I2b",
+        r"\bI2b\b",
+        "(I2b/J**2)",
+    ),
+    Rewrite(
+        "I2-inverse-trace",
+        "I2 taken as tr C^-1 (the cofactor form I2 = tr cof C = det C tr C^-1 with its "
+        "det C = J^2 dropped)",
+        r"\bI2\b",
+        "(I2/J**2)",
+    ),
     Rewrite("isochoric-I1", "the isochoric I1b used where the formula has I1", r"\bI1\b", "I1b"),
     Rewrite(
         "bulk-J-1", "k/2 (J-1)^2 for the bulk term k/2 (ln J)^2", r"ln\(J\)\*\*2", "(J - 1)**2"
