@@ -201,7 +201,8 @@ def test_i2b_with_the_power_of_j_of_i1b_on_tr_c2_is_a_variant_of_formulas_with_i
 
 def test_i2_as_the_trace_of_c_inverse_is_a_variant_of_formulas_with_i2b():
     """I2 = tr C^-1: the cofactor form tr cof C = det C tr C^-1 with det C = J^2 dropped, so
-    I2b / J^2 for I2b; equal to the right I2b only where J = 1."""
+    I2b / J^2 for I2b; equal to the right I2b only where J = 1.
+    """
     import numpy as np
 
     from common.cases import default_material
