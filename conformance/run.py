@@ -31,6 +31,7 @@ from conformance.diagnosis.diagnose import Diagnosis, denied_volumetric, diagnos
 from conformance.diagnosis.differences import element_difference_reading
 from conformance.diagnosis.directional_differences import directional_difference_reading
 from conformance.diagnosis.edge_ids import edge_id_reading
+from conformance.diagnosis.edge_kinematics import edge_kinematics_reading
 from conformance.diagnosis.element_forces import force_node_findings
 from conformance.diagnosis.elements import element_reading
 from conformance.diagnosis.energy_alone import energy_alone_reading
@@ -368,6 +369,12 @@ READINGS: Tuple[Reading, ...] = (
         "in its value)",
         _nothing_named,
         lambda d, c: part_power_reading(d, c.ci, c.out, c.ref, c.s),
+    ),
+    Reading(
+        "the deformation gradient formed from the edge matrices wrongly (edges as rows, the "
+        "product's order)",
+        _nothing_named,
+        lambda d, c: edge_kinematics_reading(d, c.ci, c.out, c.ref, c.s),
     ),
     Reading(
         "a fibre-frame strain routine's stress or tangent taken back to the axes wrongly",
