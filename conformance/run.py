@@ -301,6 +301,45 @@ def _differences_past_localisation(d: Diagnosis, c: CaseReadings) -> Diagnosis:
     return d
 
 
+def _only_a_place(d: Diagnosis, c: CaseReadings) -> bool:
+    """The only cause named is where the error is (a few cells), whatever the force."""
+    return c.read_causes and bool(d.causes) and all(f.code == "localised" for f in d.causes)
+
+
+def _graded_localisation(d: Diagnosis, c: CaseReadings) -> Diagnosis:
+    """``d`` with a place demoted to an observation where its cells are the stiffest of the mesh
+    (:func:`conformance.diagnosis.cells.stiffest_cells`): an error that grows steeply with the
+    state (a step's truncation, an exponential rounded) sits there, and the rest of the mesh
+    is at round-off; a mistake confined to some cells lands on the stiffest ones by chance
+    only. Unchanged otherwise.
+    """
+    from conformance.diagnosis.cells import stiffest_cells
+    from conformance.diagnosis.elements import element_split
+
+    place = next(f for f in d.causes if f.code == "localised")
+    located = sorted(place.figures.get("cells", []))
+    if not located:
+        return d
+    ci, tol = c.ci, d.tolerances
+    split = element_split(
+        ci.model, ci.points, ci.cells, ci.positions, c.ref.force, c.ref.stiffness, c.s, tol
+    )
+    if split is None or sorted(stiffest_cells(split, len(located))) != located:
+        return d
+    said = replace(
+        place,
+        strength=OBSERVED,
+        title=place.title + ": the stiffest cells of the mesh",
+        evidence=place.evidence
+        + f"; these are the {len(located)} cell(s) with the largest stiffness per volume in the "
+        "oracle's element matrices: an error that grows steeply with the state (a step's "
+        "truncation, an exponential rounded) sits there and leaves the rest at round-off, so "
+        "this is where the error shows, not a mistake confined to these cells",
+    )
+    head = Finding("unexplained", "unexplained", OBSERVED, "", {})
+    return replace(d, findings=[head, said, *(f for f in d.findings if f is not place)])
+
+
 def _stiffness_slightly_off(d: Diagnosis, c: CaseReadings) -> bool:
     """Nothing has taken the headline, the force right and the stiffness off by less than any
     formula slip leaves (:data:`conformance.diagnosis.stiffness_noise.NOISE_RANGE`).
@@ -576,6 +615,11 @@ READINGS: Tuple[Reading, ...] = (
         "differences whose error sits in a few cells (the only cause named is where it is)",
         _localised_only,
         _differences_past_localisation,
+    ),
+    Reading(
+        "a place that is the stiffest cells of the mesh (an error graded by the state)",
+        _only_a_place,
+        _graded_localisation,
     ),
     Reading(
         "differences with a step per cell",

@@ -153,3 +153,45 @@ def test_per_cell_frames_shifted_by_one_cell_are_named(shift):
     assert outcome.status == "failed" and len(d.causes) == 1, d.text()
     assert d.causes[0].code == "frame-shifted", d.text()
     assert ("previous" if shift == 1 else "next") in d.causes[0].title
+
+
+def test_a_place_that_is_the_stiffest_cells_is_an_observation_not_a_cause():
+    """A Demiray mesh whose exponential makes a few cells far stiffer than the rest: an error
+    on the stiffest cell's nodes (where a step's truncation or a rounded exponential shows) is
+    kept as an observation under "unexplained"; the same error on another cell stays a place.
+    """
+    from types import SimpleNamespace
+
+    from conftest import box_mesh, mjed_split
+
+    from conformance.diagnosis.cells import stiffest_cells
+    from conformance.diagnosis.diagnose import diagnose
+    from conformance.run import _graded_localisation
+    from mjed import materials as M
+
+    points, cells = box_mesh(3, jitter=0.2, seed=4)
+    rng = np.random.default_rng(4)
+    x = points @ np.diag([1.25, 0.9, 0.9]).T + 0.05 * rng.standard_normal(points.shape)
+    model = M.Demiray(a=300.0, b=8.0, k0=2e4)
+    split, f_o, K_o, s = mjed_split(model, points, cells, x)
+    (top,) = stiffest_cells(split, 1)
+    c = SimpleNamespace(
+        ci=SimpleNamespace(model=model, points=points, cells=cells, positions=x),
+        ref=SimpleNamespace(force=f_o, stiffness=K_o),
+        s=s,
+        read_causes=True,
+    )
+    for cell, demoted in ((top, True), ((top + 7) % len(cells), False)):
+        f = f_o.copy()
+        f[cells[cell]] += 1e-6 * np.abs(f_o).max()
+        d = diagnose(
+            "c", f=f, K=K_o, W=None, f_o=f_o, K_o=K_o, W_o=0.0, s=s, points=points,
+            cells=cells, x=x,
+        )  # fmt: skip
+        assert [x.code for x in d.causes] == ["localised"], d.text()
+        out = _graded_localisation(d, c)
+        if demoted:
+            assert not out.causes and out.findings[0].code == "unexplained"
+            assert "stiffest cells" in out.findings[1].title
+        else:
+            assert out is d

@@ -23,11 +23,12 @@ from typing import List, Optional
 import numpy as np
 import scipy.sparse as sp
 
-from conformance.diagnosis.elements import assemble, element_split
+from conformance.diagnosis.elements import ElementSplit, assemble, element_split
 from conformance.diagnosis.findings import FULL, OBSERVED, Finding
 from conformance.judge.compare import Scales, Tolerances, errors
 
 __all__ = [
+    "stiffest_cells",
     "CellFit",
     "fit_cell_contributions",
     "fit_all_cells",
@@ -61,6 +62,15 @@ class CellFit:
     alpha: np.ndarray
     force: float
     stiffness: float
+
+
+def stiffest_cells(split: ElementSplit, k: int) -> List[int]:
+    """The k cells (ids) with the largest norm of the oracle's element matrix per rest volume:
+    where an error that grows steeply with the state (a stiff exponential's) is largest.
+    """
+    m = split.cells.shape[0]
+    density = np.linalg.norm(split.Ke.reshape(m, -1), axis=1) / np.abs(split.V0)
+    return [int(i) for i in np.argsort(-density)[:k]]
 
 
 def fit_cell_contributions(
