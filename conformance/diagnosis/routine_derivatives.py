@@ -1,13 +1,13 @@
 """A user routine's packed second derivatives read wrongly by its driver (Abaqus UHYPER style).
 
 Commercial codes let a user write an isotropic hyperelastic law as a routine that returns the
-energy's derivatives in the isochoric invariants and J, packed:
+energy's derivatives in the isochoric invariants and J, packed::
 
     UI1 = (U_1, U_2, U_J),
     UI2 = (U_11, U_22, U_JJ, U_12, U_1J, U_2J)      (U_a = dU/dI_a, U_ab = d2U/dI_a dI_b,
                                                      I = (I1b, I2b, J)),
 
-and a generic driver builds S = 2 sum_a U_a dI_a/dC and the material tangent
+and a generic driver builds S = 2 sum_a U_a dI_a/dC and the material tangent::
 
     CC = 4 sum_a U_a d2I_a/dC2 + 4 sum_ab U_ab dI_a/dC (x) dI_b/dC.
 
@@ -331,7 +331,7 @@ def _odot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 def curvature_pieces(F: np.ndarray) -> Dict[Tuple[int, str], np.ndarray]:
     """{(a, words): T (m, 3, 3, 3, 3)}: the terms of d2I_a/dC2 for (I1b, I2b, J) as a driver
-    writes them, each with its coefficient (their sum per a is the second derivative):
+    writes them, each with its coefficient (their sum per a is the second derivative)::
 
         d2I1b/dC2 = J^(-2/3) (-1/3 (I (x) C^-1 + C^-1 (x) I) + I1/9 C^-1 (x) C^-1
                               + I1/3 C^-1 (.) C^-1),
