@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import Any, List, Tuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from conformance.diagnosis.elements import (
     ElementSplit,
@@ -267,8 +268,6 @@ def frame_routine_reading(diag, ci, out, ref, s: Scales):
     )
     if split is None:
         return diag
-    import scipy.sparse as sp
-
     with np.errstate(all="ignore"):
         found = frame_routine_findings(
             split, ci.model, out, ref.force, sp.csr_matrix(ref.stiffness), s, tol

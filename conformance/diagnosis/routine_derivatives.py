@@ -109,19 +109,21 @@ FACTORS: Dict[float, str] = {
 }
 
 
-def _hessian_of(energy: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray, a: int, b: int):
-    """d2W/dI_a dI_b (m,) of the declared ``energy`` at (I1b, I2b, J), by hyper-dual numbers."""
+def _seeded(energy: Any, I1b: np.ndarray, I2b: np.ndarray, J: np.ndarray, a: int, b: int):
+    """(dW/dI_a, d2W/dI_a dI_b) (each (m,)) of the declared ``energy`` at (I1b, I2b, J), by
+    one hyper-dual evaluation with I_a and I_b seeded (the first part meaningful where a == b).
+    """
     one = np.ones_like(J)
-    base = [I1b, I2b, J]
-    args = [x + 0.0 for x in base]
-    args = [HD(x) for x in args]
+    base = (I1b, I2b, J)
+    args = [HD(x) for x in base]
     if a == b:
         args[a] = HD(base[a], one, one, 0.0)
     else:
         args[a] = HD(base[a], one, 0.0, 0.0)
         args[b] = HD(base[b], 0.0, one, 0.0)
     W = energy.evaluate(_namespace(*args).__getitem__, ln, exp, sqrt)
-    return np.broadcast_to(W.d if isinstance(W, HD) else 0.0, J.shape) + 0.0
+    first, second = (W.b, W.d) if isinstance(W, HD) else (0.0, 0.0)
+    return np.broadcast_to(first, J.shape) + 0.0, np.broadcast_to(second, J.shape) + 0.0
 
 
 def _invariants(F: np.ndarray):
@@ -168,9 +170,10 @@ def _readable(model: Any):
     return energy
 
 
-def routine_slopes(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
-    """(3, m) the declared energy's first derivatives U_a in (I1b, I2b, J) at F (m, 3, 3) (the
-    routine's UI1); None as for :func:`routine_hessians`.
+def _table(model: Any, F: np.ndarray, pairs, part: int) -> Optional[np.ndarray]:
+    """(len(pairs), m): part 0 (first) or 1 (second) of :func:`_seeded` for each seeded pair
+    (a, b) at F (m, 3, 3); None where the model has no scalar formula in I1, I1b, I2, I2b and J
+    or a value is not finite.
     """
     energy = _readable(model)
     if energy is None:
@@ -178,18 +181,17 @@ def routine_slopes(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
     _, J, _, _, I1b, I2b = _invariants(F)
     try:
         with np.errstate(all="ignore"):
-            out = np.stack([_slope_of(energy, I1b, I2b, J, a) for a in range(3)])
+            out = np.stack([_seeded(energy, I1b, I2b, J, a, b)[part] for a, b in pairs])
     except (TypeError, AttributeError, KeyError, ValueError):
         return None
     return out if np.all(np.isfinite(out)) else None
 
 
-def _slope_of(energy: Any, I1b, I2b, J, a: int) -> np.ndarray:
-    """dW/dI_a (m,) by the hyper-dual's first part, I_a seeded alone."""
-    args = [HD(x) for x in (I1b, I2b, J)]
-    args[a] = HD((I1b, I2b, J)[a], np.ones_like(J), 0.0, 0.0)
-    W = energy.evaluate(_namespace(*args).__getitem__, ln, exp, sqrt)
-    return np.broadcast_to(W.b if isinstance(W, HD) else 0.0, J.shape) + 0.0
+def routine_slopes(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
+    """(3, m) the declared energy's first derivatives U_a in (I1b, I2b, J) at F (m, 3, 3) (the
+    routine's UI1); None as for :func:`routine_hessians`.
+    """
+    return _table(model, F, ((0, 0), (1, 1), (2, 2)), 0)
 
 
 def _namespace(i1b, i2b, j) -> Dict[str, Any]:
@@ -209,16 +211,7 @@ def routine_hessians(model: Any, F: np.ndarray) -> Optional[np.ndarray]:
     (:data:`SLOTS`), at deformation gradients F (m, 3, 3); None where the model has no scalar
     formula in I1, I1b, I2, I2b and J or it is not finite.
     """
-    energy = _readable(model)
-    if energy is None:
-        return None
-    _, J, _, _, I1b, I2b = _invariants(F)
-    try:
-        with np.errstate(all="ignore"):
-            out = np.stack([_hessian_of(energy, I1b, I2b, J, a, b) for a, b in SLOTS])
-    except (TypeError, AttributeError, KeyError, ValueError):
-        return None
-    return out if np.all(np.isfinite(out)) else None
+    return _table(model, F, SLOTS, 1)
 
 
 def gradient_vectors(split: ElementSplit) -> np.ndarray:
